@@ -1,0 +1,1 @@
+"""robustctl.correlate (see DESIGN.md)."""

@@ -1,0 +1,1 @@
+"""robustctl.examples (see DESIGN.md)."""

@@ -1,0 +1,256 @@
+"""FrequencyData: the one container for measured or computed frequency responses.
+
+Every FRF array in robustctl has the shape ``(n_freq, n_out, n_in)``; frequencies at the
+surface are in Hz. File I/O (npz, csv, mat, UFF dataset 58) lives here too.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .errors import DataError
+
+__all__ = ["FrequencyData"]
+
+
+def _default_names(prefix: str, count: int) -> tuple[str, ...]:
+    return tuple(f"{prefix}{k + 1}" for k in range(count))
+
+
+def _check_names(names: Sequence[str] | None, count: int, what: str, prefix: str) -> tuple[str, ...]:
+    if names is None:
+        return _default_names(prefix, count)
+    if isinstance(names, str):
+        names = (names,)
+    names = tuple(str(n) for n in names)
+    if len(names) != count:
+        raise DataError(
+            f"{what} has {len(names)} names but the response has {count} {what}; "
+            f"give one name per {what[:-1]}."
+        )
+    if len(set(names)) != len(names):
+        dup = sorted({n for n in names if names.count(n) > 1})
+        raise DataError(f"{what} names must be unique; repeated: {dup}.")
+    return names
+
+
+def _as_response(response: Any) -> np.ndarray:
+    arr = np.asarray(response)
+    if arr.ndim == 1:
+        arr = arr[:, None, None]
+    if arr.ndim != 3:
+        raise DataError(
+            f"response must have shape (n_freq, n_out, n_in); got an array of shape {arr.shape}."
+        )
+    arr = arr.astype(complex)
+    if not np.all(np.isfinite(arr)):
+        raise DataError("response contains NaN or inf values; remove or repair those frequency points.")
+    return arr
+
+
+def _as_frequencies(f_hz: Any) -> np.ndarray:
+    f = np.asarray(f_hz, dtype=float).reshape(-1)
+    if f.size == 0:
+        raise DataError("f_hz is empty; give at least one frequency in Hz.")
+    if not np.all(np.isfinite(f)):
+        raise DataError("f_hz contains NaN or inf; frequencies must be finite numbers in Hz.")
+    if np.any(f <= 0):
+        raise DataError(
+            f"f_hz must be positive (Hz); the smallest value is {f.min():g}. Drop the DC point."
+        )
+    if f.size > 1 and np.any(np.diff(f) <= 0):
+        raise DataError("f_hz must be strictly increasing; sort the data and remove duplicates.")
+    return f
+
+
+@dataclass(frozen=True, eq=False)
+class FrequencyData:
+    """Frequency-response data of a multi-input, multi-output system.
+
+    Parameters
+    ----------
+    f_hz : array_like, shape (n_freq,)
+        Frequencies in Hz, strictly increasing, finite and positive.
+    response : array_like, complex, shape (n_freq, n_out, n_in)
+        The frequency response G(j 2 pi f); a 1-D array is read as SISO.
+    inputs, outputs : sequence of str, optional
+        Unique signal names; default ``u1, u2, ...`` and ``y1, y2, ...``.
+    coherence : array_like, shape (n_freq, n_out, n_in), optional
+        Ordinary (SISO) or multiple (MIMO) coherence in [0, 1] of each estimate.
+    units : mapping, optional
+        Units of the signals, e.g. ``{"u1": "V", "y1": "m/s^2"}``.
+    meta : mapping, optional
+        Free-form provenance (estimation settings, source file ...).
+    """
+
+    f_hz: np.ndarray
+    response: np.ndarray
+    inputs: tuple[str, ...] | None = None
+    outputs: tuple[str, ...] | None = None
+    coherence: np.ndarray | None = None
+    units: Mapping[str, str] | None = field(default=None)
+    meta: Mapping[str, Any] | None = field(default=None)
+
+    def __post_init__(self) -> None:
+        f = _as_frequencies(self.f_hz)
+        g = _as_response(self.response)
+        if g.shape[0] != f.size:
+            raise DataError(
+                f"response has {g.shape[0]} frequency points but f_hz has {f.size}; "
+                "the first axis of response must run over f_hz."
+            )
+        outputs = _check_names(self.outputs, g.shape[1], "outputs", "y")
+        inputs = _check_names(self.inputs, g.shape[2], "inputs", "u")
+        coh = None
+        if self.coherence is not None:
+            coh = np.asarray(self.coherence, dtype=float)
+            if coh.ndim == 1 and g.shape[1:] == (1, 1):
+                coh = coh[:, None, None]
+            if coh.shape != g.shape:
+                raise DataError(
+                    f"coherence has shape {coh.shape} but response has shape {g.shape}; "
+                    "give one coherence value per response entry."
+                )
+            if not np.all(np.isfinite(coh)) or np.any(coh < 0) or np.any(coh > 1 + 1e-9):
+                raise DataError("coherence must be finite and lie in [0, 1].")
+            coh = np.clip(coh, 0.0, 1.0)
+            coh.setflags(write=False)
+        f.setflags(write=False)
+        g.setflags(write=False)
+        object.__setattr__(self, "f_hz", f)
+        object.__setattr__(self, "response", g)
+        object.__setattr__(self, "inputs", inputs)
+        object.__setattr__(self, "outputs", outputs)
+        object.__setattr__(self, "coherence", coh)
+        object.__setattr__(self, "units", dict(self.units or {}))
+        object.__setattr__(self, "meta", dict(self.meta or {}))
+
+    # ------------------------------------------------------------------ basic views
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        """``(n_freq, n_out, n_in)``."""
+        return self.response.shape  # type: ignore[return-value]
+
+    @property
+    def n_freq(self) -> int:
+        return self.response.shape[0]
+
+    @property
+    def n_out(self) -> int:
+        return self.response.shape[1]
+
+    @property
+    def n_in(self) -> int:
+        return self.response.shape[2]
+
+    @property
+    def w(self) -> np.ndarray:
+        """Angular frequencies in rad/s."""
+        return 2.0 * np.pi * self.f_hz
+
+    def replace(self, **changes: Any) -> FrequencyData:
+        """A copy with some fields replaced (validated again)."""
+        fields = dict(
+            f_hz=self.f_hz,
+            response=self.response,
+            inputs=self.inputs,
+            outputs=self.outputs,
+            coherence=self.coherence,
+            units=self.units,
+            meta=self.meta,
+        )
+        fields.update(changes)
+        return FrequencyData(**fields)
+
+    def band(self, lo_hz: float | None = None, hi_hz: float | None = None) -> FrequencyData:
+        """The data restricted to ``lo_hz <= f <= hi_hz`` (Hz)."""
+        lo = -np.inf if lo_hz is None else float(lo_hz)
+        hi = np.inf if hi_hz is None else float(hi_hz)
+        if lo >= hi:
+            raise DataError(f"band ({lo_hz}, {hi_hz}) is empty; give lo_hz < hi_hz in Hz.")
+        keep = (self.f_hz >= lo) & (self.f_hz <= hi)
+        if not np.any(keep):
+            raise DataError(
+                f"band ({lo_hz}, {hi_hz}) Hz holds no data points; the data span "
+                f"{self.f_hz[0]:g}-{self.f_hz[-1]:g} Hz."
+            )
+        return self.replace(
+            f_hz=self.f_hz[keep],
+            response=self.response[keep],
+            coherence=None if self.coherence is None else self.coherence[keep],
+        )
+
+    def _indices(self, wanted: Sequence[str] | str | None, names: tuple[str, ...], what: str) -> list[int]:
+        if wanted is None:
+            return list(range(len(names)))
+        if isinstance(wanted, (str, int, np.integer)):
+            wanted = [wanted]
+        idx = []
+        for item in wanted:
+            if isinstance(item, (int, np.integer)):
+                if not -len(names) <= item < len(names):
+                    raise DataError(f"{what} index {item} is out of range for {len(names)} {what}.")
+                idx.append(int(item) % len(names))
+            elif item in names:
+                idx.append(names.index(item))
+            else:
+                raise DataError(f"unknown {what[:-1]} {item!r}; the data has {what} {list(names)}.")
+        return idx
+
+    def select(
+        self,
+        outputs: Sequence[str] | str | None = None,
+        inputs: Sequence[str] | str | None = None,
+    ) -> FrequencyData:
+        """The sub-matrix of the named (or indexed) outputs and inputs, in the order given."""
+        oi = self._indices(outputs, self.outputs, "outputs")
+        ii = self._indices(inputs, self.inputs, "inputs")
+        g = self.response[:, oi][:, :, ii]
+        coh = None if self.coherence is None else self.coherence[:, oi][:, :, ii]
+        return self.replace(
+            response=g,
+            coherence=coh,
+            outputs=[self.outputs[k] for k in oi],
+            inputs=[self.inputs[k] for k in ii],
+        )
+
+    # ------------------------------------------------------------------ python-control
+    def to_control(self):
+        """The data as a ``control.FrequencyResponseData`` (omega in rad/s)."""
+        import control
+
+        fresp = np.transpose(self.response, (1, 2, 0))
+        return control.FrequencyResponseData(
+            fresp, self.w, inputs=list(self.inputs), outputs=list(self.outputs)
+        )
+
+    @classmethod
+    def from_control(cls, frd: Any) -> FrequencyData:
+        """Build from a ``control.FrequencyResponseData`` (or anything with ``omega``/``fresp``)."""
+        try:
+            omega = np.asarray(frd.omega, dtype=float)
+            fresp = np.asarray(frd.fresp)
+        except AttributeError as exc:
+            raise DataError(
+                "from_control needs a control.FrequencyResponseData; "
+                f"got {type(frd).__name__}."
+            ) from exc
+        inputs = getattr(frd, "input_labels", None)
+        outputs = getattr(frd, "output_labels", None)
+        return cls(
+            omega / (2.0 * np.pi),
+            np.transpose(fresp, (2, 0, 1)),
+            inputs=inputs,
+            outputs=outputs,
+        )
+
+    def __repr__(self) -> str:
+        return (
+            f"FrequencyData({self.n_freq} points, {self.f_hz[0]:.4g}-{self.f_hz[-1]:.4g} Hz, "
+            f"outputs={list(self.outputs)}, inputs={list(self.inputs)}"
+            f"{', with coherence' if self.coherence is not None else ''})"
+        )

@@ -1,0 +1,1 @@
+"""robustctl.identify (see DESIGN.md)."""

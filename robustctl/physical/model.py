@@ -1,0 +1,266 @@
+"""PhysicalModel: named physical parameters plus a staged build ``theta -> StateSpace``.
+
+The build runs four stages, left to right (MACE Fig. 1):
+
+1. ``structure(theta) -> Structure`` — the FE frame or a user's matrices (optional);
+2. ``structure_stages`` — physical effects that change the structure (added mass,
+   suspension spring, stiffer element group ...);
+3. ``dynamics(theta, structure) -> StateSpace`` — the modal state space in physical units
+   (MACE eqs. 1-4), or a model built directly from modal data;
+4. ``io_stages`` — electronics, servo loops, delays and I/O effects, in order, giving the
+   I/O model in volts that the controller sees.
+
+The output of stages 1-3 is cached, keyed on the parameter values those stages actually
+read, so that perturbing an electronics parameter (or an I/O effect's) for a sensitivity
+does not solve the eigenproblem again.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from ..errors import ModelError
+from .parameters import Parameter
+from .structure_base import Structure
+
+__all__ = ["Stage", "PhysicalModel"]
+
+Theta = Mapping[str, float]
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One named step of a model build.
+
+    ``fn(theta, x) -> x``: for a structure stage ``x`` is a :class:`Structure`, for an I/O
+    stage it is a ``control.StateSpace``. ``tags`` let ``PhysicalModel.without`` drop it.
+    """
+
+    name: str
+    fn: Callable[[Theta, Any], Any]
+    tags: tuple[str, ...] = ()
+
+
+class _RecordingTheta(Mapping):
+    """A read-only parameter mapping that records which keys were read."""
+
+    def __init__(self, values: Mapping[str, float]):
+        self._values = values
+        self.read: set[str] = set()
+
+    def __getitem__(self, key: str) -> float:
+        try:
+            value = self._values[key]
+        except KeyError:
+            raise ModelError(
+                f"the model build asked for parameter {key!r}, which the model does not have; "
+                f"known parameters: {sorted(self._values)}."
+            ) from None
+        self.read.add(key)
+        return value
+
+    def __iter__(self):
+        return iter(self._values)
+
+    def __len__(self) -> int:
+        return len(self._values)
+
+
+@dataclass(frozen=True, eq=False)
+class PhysicalModel:
+    """A physical model: parameters and a staged build into a ``control.StateSpace``.
+
+    Users rarely build this directly: use :func:`robustctl.structural_model`,
+    :func:`robustctl.modal_model` or an example in :mod:`robustctl.examples`.
+
+    Parameters
+    ----------
+    params : sequence of Parameter
+        The model's named physical parameters (unique names).
+    dynamics : callable ``(theta, structure_or_None) -> control.StateSpace``
+        Builds the structural state space in physical units.
+    structure : callable ``theta -> Structure``, optional
+        Builds a fresh structure for the parameter values.
+    structure_stages, io_stages : sequence of Stage
+        Effects and electronics applied in order.
+    excluded_tags : set of str
+        Tags removed by :meth:`without`.
+    name : str
+        A short description used in tables and plots.
+    """
+
+    params: tuple[Parameter, ...]
+    dynamics: Callable[[Theta, Structure | None], Any]
+    structure: Callable[[Theta], Structure] | None = None
+    structure_stages: tuple[Stage, ...] = ()
+    io_stages: tuple[Stage, ...] = ()
+    excluded_tags: frozenset[str] = frozenset()
+    name: str = "model"
+    meta: Mapping[str, Any] = field(default_factory=dict)
+    _cache: OrderedDict = field(default_factory=OrderedDict, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        params = tuple(self.params)
+        names = [p.name for p in params]
+        if len(set(names)) != len(names):
+            dup = sorted({n for n in names if names.count(n) > 1})
+            raise ModelError(f"parameter names must be unique; repeated: {dup}.")
+        object.__setattr__(self, "params", params)
+        object.__setattr__(self, "structure_stages", tuple(self.structure_stages))
+        object.__setattr__(self, "io_stages", tuple(self.io_stages))
+        object.__setattr__(self, "excluded_tags", frozenset(self.excluded_tags))
+
+    # ------------------------------------------------------------------ parameters
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.params)
+
+    @property
+    def values(self) -> dict[str, float]:
+        """Current parameter values by name."""
+        return {p.name: p.value for p in self.params}
+
+    @property
+    def free_params(self) -> tuple[Parameter, ...]:
+        return tuple(p for p in self.params if p.free)
+
+    def param(self, name: str) -> Parameter:
+        """The parameter called ``name``."""
+        for p in self.params:
+            if p.name == name:
+                return p
+        raise ModelError(f"the model has no parameter {name!r}; it has {list(self.param_names)}.")
+
+    def _theta(self, overrides: Mapping[str, float]) -> dict[str, float]:
+        theta = self.values
+        for key, value in overrides.items():
+            if key not in theta:
+                raise ModelError(
+                    f"unknown parameter {key!r}; the model has {list(self.param_names)}."
+                )
+            if not np.isfinite(value):
+                raise ModelError(f"parameter {key!r} override {value!r} is not finite.")
+            theta[key] = float(value)
+        return theta
+
+    def with_values(self, **values: float) -> PhysicalModel:
+        """A copy with some parameter values changed (checked against bounds)."""
+        self._theta(values)
+        params = tuple(p.with_value(values[p.name]) if p.name in values else p for p in self.params)
+        return self._copy(params=params)
+
+    def with_params(self, params: Iterable[Parameter]) -> PhysicalModel:
+        """A copy with parameters replaced by name (or added when new)."""
+        new = {p.name: p for p in params}
+        kept = tuple(new.pop(p.name, p) for p in self.params)
+        return self._copy(params=kept + tuple(new.values()))
+
+    def _copy(self, **changes: Any) -> PhysicalModel:
+        changes.setdefault("_cache", OrderedDict())
+        return replace(self, **changes)
+
+    # ------------------------------------------------------------------ composition
+    def add_structure_stage(self, stage: Stage, params: Sequence[Parameter] = ()) -> PhysicalModel:
+        """A copy with a structural effect appended (and its parameters)."""
+        if self.structure is None:
+            raise ModelError(
+                f"stage {stage.name!r} changes the structure, but model {self.name!r} has no "
+                "structural description (it was built from modal data or a state space); "
+                "use an input/output effect, or build the model with rc.structural_model."
+            )
+        return self.with_params(params)._copy(structure_stages=self.structure_stages + (stage,))
+
+    def add_io_stage(self, stage: Stage, params: Sequence[Parameter] = ()) -> PhysicalModel:
+        """A copy with an input/output stage appended (and its parameters)."""
+        return self.with_params(params)._copy(io_stages=self.io_stages + (stage,))
+
+    def with_effect(self, effect: Any) -> PhysicalModel:
+        """A copy with a physical ``Effect`` added (see :mod:`robustctl.effects`)."""
+        if effect is None:
+            raise ModelError("with_effect got None: the diagnosis found no significant effect.")
+        return effect.apply(self)
+
+    def without(self, *tags: str) -> PhysicalModel:
+        """A copy with every component tagged by one of ``tags`` removed.
+
+        ``model.without("suspension", "gravity")`` gives MACE's 0-g model: suspension
+        devices and their parameters are dropped and the gravity preload is not applied.
+        """
+        tags = frozenset(tags)
+        params = tuple(p for p in self.params if not tags.intersection(p.tags))
+        return self._copy(
+            params=params,
+            io_stages=tuple(s for s in self.io_stages if not tags.intersection(s.tags)),
+            structure_stages=tuple(
+                s for s in self.structure_stages if not tags.intersection(s.tags)
+            ),
+            excluded_tags=self.excluded_tags | tags,
+        )
+
+    # ------------------------------------------------------------------ building
+    def build_structure(self, **overrides: float) -> Structure:
+        """The structure for the current (or overridden) values, effects included."""
+        if self.structure is None:
+            raise ModelError(f"model {self.name!r} has no structural description.")
+        return self._structure(self._theta(overrides))
+
+    def _structure(self, theta: Mapping[str, float]) -> Structure:
+        struct = self.structure(theta)
+        if self.excluded_tags:
+            struct = struct.without(self.excluded_tags)
+        for stage in self.structure_stages:
+            struct = stage.fn(theta, struct)
+        return struct
+
+    def _dynamics(self, theta: dict[str, float]) -> Any:
+        recorder = _RecordingTheta(theta)
+        key_hint = self._cache_key(theta)
+        if key_hint is not None:
+            return self._cache[key_hint]
+        struct = self._structure(recorder) if self.structure is not None else None
+        sys = self.dynamics(recorder, struct)
+        read = tuple(sorted(recorder.read))
+        self._cache[(read, tuple(theta[k] for k in read))] = sys
+        while len(self._cache) > 8:
+            self._cache.popitem(last=False)
+        return sys
+
+    def _cache_key(self, theta: Mapping[str, float]) -> tuple | None:
+        for read, vals in reversed(self._cache.keys()):
+            if all(theta.get(k) == v for k, v in zip(read, vals)):
+                return (read, vals)
+        return None
+
+    def statespace(self, **overrides: float):
+        """The I/O model as a ``control.StateSpace`` with named signals."""
+        theta = self._theta(overrides)
+        sys = self._dynamics(theta)
+        for stage in self.io_stages:
+            sys = stage.fn(theta, sys)
+        return sys
+
+    def freqresp(self, f_hz: Any, **overrides: float):
+        """Frequency response at ``f_hz`` (Hz) as :class:`~robustctl.frd.FrequencyData`."""
+        from ..lti import freqresp
+
+        return freqresp(self.statespace(**overrides), f_hz)
+
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        return tuple(self.statespace().input_labels)
+
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        return tuple(self.statespace().output_labels)
+
+    def __repr__(self) -> str:
+        return (
+            f"PhysicalModel({self.name!r}, {len(self.params)} parameters, "
+            f"{len(self.structure_stages)} structural and {len(self.io_stages)} I/O stages"
+            f"{', without ' + ', '.join(sorted(self.excluded_tags)) if self.excluded_tags else ''})"
+        )

@@ -1,0 +1,79 @@
+"""Named physical parameters of a model (the update variables of MACE's updating)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+from ..errors import ModelError
+
+__all__ = ["Parameter"]
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A physical parameter of a model.
+
+    Parameters
+    ----------
+    name : str
+        Identifier, unique within a model (``E_aluminium``, ``m_platform_1``).
+    value : float
+        Current value in ``unit``.
+    unit : str
+        SI unit of ``value`` (``"Pa"``, ``"kg"``, ``"s"``).
+    bounds : (float, float)
+        Physically admissible range; updating never leaves it.
+    rel_step : float
+        Relative finite-difference step for sensitivities (MACE eq. 7).
+    abs_step : float
+        Absolute step used when ``value`` is zero or tiny (effects at their neutral value).
+    meaning : str
+        One line of physics ("Young's modulus of the aluminium longerons").
+    tags : tuple of str
+        Groups such as ``"suspension"``, ``"gravity"``, ``"electronics"``, ``"effect"``.
+    free : bool
+        Whether ``update`` may change it by default.
+    neutral : float or None
+        For an effect's parameter, the value at which the effect vanishes.
+    """
+
+    name: str
+    value: float
+    unit: str = ""
+    bounds: tuple[float, float] = (-math.inf, math.inf)
+    rel_step: float = 1e-3
+    abs_step: float = 0.0
+    meaning: str = ""
+    tags: tuple[str, ...] = ()
+    free: bool = True
+    neutral: float | None = None
+
+    def __post_init__(self) -> None:
+        if not self.name or not isinstance(self.name, str):
+            raise ModelError("a Parameter needs a non-empty string name.")
+        value = float(self.value)
+        lo, hi = (float(b) for b in self.bounds)
+        if not math.isfinite(value):
+            raise ModelError(f"parameter {self.name!r} has a non-finite value {value!r}.")
+        if lo > hi:
+            raise ModelError(f"parameter {self.name!r} has bounds {self.bounds} with lower > upper.")
+        if not lo <= value <= hi:
+            raise ModelError(
+                f"parameter {self.name!r} = {value:g} {self.unit} lies outside its bounds "
+                f"[{lo:g}, {hi:g}]; widen the bounds or change the value."
+            )
+        if self.rel_step <= 0 or self.abs_step < 0:
+            raise ModelError(f"parameter {self.name!r}: rel_step must be > 0 and abs_step >= 0.")
+        object.__setattr__(self, "value", value)
+        object.__setattr__(self, "bounds", (lo, hi))
+        object.__setattr__(self, "tags", tuple(self.tags))
+
+    def with_value(self, value: float) -> Parameter:
+        """A copy holding ``value`` (checked against the bounds)."""
+        return replace(self, value=float(value))
+
+    def step(self, value: float | None = None) -> float:
+        """Finite-difference step at ``value`` (default: the current value)."""
+        v = self.value if value is None else value
+        return max(self.rel_step * abs(v), self.abs_step, 1e-12)

@@ -1,0 +1,111 @@
+"""The contract between structural models and the rest of robustctl.
+
+A :class:`Structure` is something that can be assembled into mass, stiffness and
+concentrated-damping matrices with actuator and sensor pointing vectors
+(:class:`StructuralMatrices`). Two kinds implement it: the built-in frame FEM
+(:class:`robustctl.physical.fem.Frame`, locations are nodes) and a user's own matrices
+(:class:`robustctl.physical.matrices.MatrixStructure`, locations are DOFs).
+
+Effects (``robustctl.effects``) change a structure only through the methods below, so
+the same "added mass", "suspension spring" or "stiffer element group" works on both.
+Every build of a :class:`~robustctl.physical.model.PhysicalModel` creates a fresh
+structure, so these methods may modify ``self`` in place; they return ``self``.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["StructuralMatrices", "Structure", "OUTPUT_KINDS"]
+
+#: Kinds of structural outputs: the sensor reads the DOF vector's displacement, its rate,
+#: or its acceleration (an accelerometer needs the feedthrough term of MACE eq. 4).
+OUTPUT_KINDS = ("displacement", "velocity", "acceleration")
+
+
+@dataclass(frozen=True, eq=False)
+class StructuralMatrices:
+    """Second-order model ``M q'' + C q' + K q = B u``, ``y = Cy_kind q^(kind)``.
+
+    Attributes
+    ----------
+    mass, stiffness, damping : ndarray or scipy.sparse matrix, shape (n_dof, n_dof)
+        Mass (kg, kg m^2), stiffness including geometric (stress) stiffness (N/m, N m/rad)
+        and concentrated (non-modal) damping (N s/m) of the free DOFs.
+    input_matrix : ndarray, shape (n_dof, n_in)
+        Generalised force per unit input (the pointing matrix b of MACE eq. 3).
+    output_matrix : ndarray, shape (n_out, n_dof)
+        Output pointing rows (c_d or c_r of MACE eq. 4).
+    output_kinds : tuple of str
+        One of :data:`OUTPUT_KINDS` per output.
+    inputs, outputs : tuple of str
+        Signal names.
+    dof_labels : tuple of str
+        A label per free DOF (``"node 3 ux"``, ``"dof 6"``).
+    """
+
+    mass: object
+    stiffness: object
+    damping: object
+    input_matrix: np.ndarray
+    output_matrix: np.ndarray
+    output_kinds: tuple[str, ...]
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    dof_labels: tuple[str, ...]
+
+    @property
+    def n_dof(self) -> int:
+        return self.input_matrix.shape[0]
+
+
+class Structure(ABC):
+    """A structural model that can be assembled and changed by physical effects."""
+
+    # ------------------------------------------------------------------ assembly
+    @abstractmethod
+    def matrices(self) -> StructuralMatrices:
+        """Assemble (including any gravity preload iteration) into matrices."""
+
+    @abstractmethod
+    def without(self, tags: Iterable[str]) -> Structure:
+        """Remove every component carrying one of ``tags`` (``"suspension"``, ``"gravity"``)."""
+
+    # ------------------------------------------------------------------ where effects go
+    @abstractmethod
+    def locations(self) -> tuple[str, ...]:
+        """Names of the points where point effects may act (nodes or DOFs)."""
+
+    @abstractmethod
+    def element_groups(self) -> tuple[str, ...]:
+        """Names of element groups whose stiffness an effect may change."""
+
+    @abstractmethod
+    def add_mass(self, location: str, mass: float) -> Structure:
+        """Add a point mass (kg) at ``location`` (translational DOFs only)."""
+
+    @abstractmethod
+    def add_spring(self, location: str, stiffness: float, direction: str | None = None) -> Structure:
+        """Add a grounded spring (N/m) at ``location`` along ``direction`` (``"x"``, ``"y"``,
+        ``"z"``; ``None`` for a scalar DOF)."""
+
+    @abstractmethod
+    def add_dashpot(self, location: str, damping: float, direction: str | None = None) -> Structure:
+        """Add a grounded dashpot (N s/m) at ``location`` along ``direction``."""
+
+    @abstractmethod
+    def scale_group_stiffness(self, group: str, factor: float) -> Structure:
+        """Multiply the elastic stiffness of element group ``group`` by ``factor``."""
+
+    @abstractmethod
+    def add_group_tension(self, group: str, tension: float) -> Structure:
+        """Add an axial tension (N) along the elements of ``group`` (taut wires or cables
+        fixed to members): its geometric stiffness stiffens their bending."""
+
+    def set_gravity(self, enabled: bool) -> Structure:
+        """Switch gravity preloading on or off (structures without gravity ignore this)."""
+        return self

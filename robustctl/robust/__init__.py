@@ -1,0 +1,1 @@
+"""robustctl.robust (see DESIGN.md)."""
