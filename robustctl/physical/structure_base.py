@@ -46,6 +46,9 @@ class StructuralMatrices:
         Signal names.
     dof_labels : tuple of str
         A label per free DOF (``"node 3 ux"``, ``"dof 6"``).
+    modal_damping_bands : tuple of (lo_hz, hi_hz, factor)
+        Multiply the modal damping ratio of modes in ``[lo_hz, hi_hz]`` by ``factor``
+        (set by the "modal damping change of a mode group" effect).
     """
 
     mass: object
@@ -57,6 +60,7 @@ class StructuralMatrices:
     inputs: tuple[str, ...]
     outputs: tuple[str, ...]
     dof_labels: tuple[str, ...]
+    modal_damping_bands: tuple[tuple[float, float, float], ...] = ()
 
     @property
     def n_dof(self) -> int:
@@ -105,6 +109,20 @@ class Structure(ABC):
     def add_group_tension(self, group: str, tension: float) -> Structure:
         """Add an axial tension (N) along the elements of ``group`` (taut wires or cables
         fixed to members): its geometric stiffness stiffens their bending."""
+
+    def scale_modal_damping(self, lo_hz: float, hi_hz: float, factor: float) -> Structure:
+        """Multiply the modal damping ratio of the modes in ``[lo_hz, hi_hz]`` by ``factor``.
+
+        Implementations pass :meth:`modal_damping_bands` on in their :meth:`matrices`.
+        """
+        bands = list(getattr(self, "_modal_damping_bands", ()))
+        bands.append((float(lo_hz), float(hi_hz), float(factor)))
+        self._modal_damping_bands = tuple(bands)
+        return self
+
+    def modal_damping_bands(self) -> tuple[tuple[float, float, float], ...]:
+        """The damping scalings set by :meth:`scale_modal_damping`."""
+        return tuple(getattr(self, "_modal_damping_bands", ()))
 
     def set_gravity(self, enabled: bool) -> Structure:
         """Switch gravity preloading on or off (structures without gravity ignore this)."""

@@ -1,0 +1,148 @@
+"""Generalised symmetric eigenproblem K phi = w^2 M phi for structural models.
+
+Dense LAPACK (``scipy.linalg.eigh``) for small models; sparse shift-invert Lanczos
+(``scipy.sparse.linalg.eigsh``) for large ones, with a *negative* shift so that free-free
+structures (singular K, rigid-body modes at 0 Hz) do not make the shifted matrix singular.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..errors import ModelError
+
+__all__ = ["solve_modes", "check_structural_matrices"]
+
+#: Above this many DOFs (and when fewer than a third of the modes are wanted) the sparse
+#: shift-invert solver is used.
+SPARSE_THRESHOLD = 600
+
+
+def _dense(a) -> np.ndarray:
+    return a.toarray() if sp.issparse(a) else np.asarray(a, dtype=float)
+
+
+def check_structural_matrices(mass, stiffness) -> None:
+    """Refuse non-square, non-symmetric, non-finite or negative-definite matrices.
+
+    Raises
+    ------
+    ModelError
+        Naming the first problem found and how to fix it.
+    """
+    for name, mat in (("mass", mass), ("stiffness", stiffness)):
+        m = _dense(mat) if not sp.issparse(mat) else mat
+        shape = m.shape
+        if len(shape) != 2 or shape[0] != shape[1]:
+            raise ModelError(f"the {name} matrix must be square; got shape {shape}.")
+        dense = _dense(m)
+        if not np.all(np.isfinite(dense)):
+            raise ModelError(f"the {name} matrix contains NaN or inf.")
+        scale = max(np.abs(dense).max(), 1e-300)
+        if np.abs(dense - dense.T).max() > 1e-9 * scale:
+            raise ModelError(
+                f"the {name} matrix is not symmetric (max asymmetry "
+                f"{np.abs(dense - dense.T).max():.3g}); structural matrices must be symmetric."
+            )
+    if _dense(mass).shape != _dense(stiffness).shape:
+        raise ModelError(
+            f"mass {_dense(mass).shape} and stiffness {_dense(stiffness).shape} differ in size."
+        )
+    try:
+        np.linalg.cholesky(_dense(mass))
+    except np.linalg.LinAlgError:
+        raise ModelError(
+            "the mass matrix is singular or not positive definite: every DOF needs mass "
+            "(add rotary inertia, remove massless DOFs, or condense them statically)."
+        ) from None
+
+
+def _clean_eigenvalues(lam: np.ndarray, k_scale: float) -> np.ndarray:
+    """Rigid-body eigenvalues come out as tiny +/- numbers: set them to zero; refuse a
+    genuinely negative one (an unstable structure, e.g. buckled under a preload)."""
+    tol = 1e-8 * max(k_scale, 1e-300)
+    if np.any(lam < -tol):
+        raise ModelError(
+            f"the stiffness has a negative eigenvalue ({lam.min():.3g} rad^2/s^2): the structure "
+            "is unstable (compressive preload beyond buckling, or a negative spring)."
+        )
+    return np.where(np.abs(lam) <= tol, 0.0, lam)
+
+
+def solve_modes(
+    mass,
+    stiffness,
+    *,
+    n_modes: int | None = None,
+    band_hz: tuple[float, float] | None = None,
+    sparse: bool | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Mass-normalised modes of ``K phi = w^2 M phi``.
+
+    Parameters
+    ----------
+    mass, stiffness : array_like or sparse, shape (n_dof, n_dof)
+        Symmetric mass (positive definite) and stiffness (positive semi-definite).
+    n_modes : int, optional
+        Number of lowest modes to return (all when ``None`` and no band is given).
+    band_hz : (float, float), optional
+        Keep the modes whose natural frequency lies in ``[lo, hi]`` Hz.
+    sparse : bool, optional
+        Force the sparse shift-invert (True) or dense (False) solver.
+
+    Returns
+    -------
+    omega : ndarray, shape (n,)
+        Natural frequencies in rad/s, ascending (0 for rigid-body modes).
+    phi : ndarray, shape (n_dof, n)
+        Mode shapes normalised so that ``phi.T M phi = I``.
+    """
+    check_structural_matrices(mass, stiffness)
+    n_dof = _dense(mass).shape[0]
+    if n_modes is not None and not 1 <= int(n_modes) <= n_dof:
+        raise ModelError(f"n_modes must lie in 1..{n_dof}; got {n_modes}.")
+    if band_hz is not None and not 0 <= band_hz[0] < band_hz[1]:
+        raise ModelError(f"band_hz must be (lo, hi) with 0 <= lo < hi in Hz; got {band_hz}.")
+    wanted = n_dof if n_modes is None else int(n_modes)
+    use_sparse = sparse if sparse is not None else (n_dof > SPARSE_THRESHOLD and wanted < n_dof // 3)
+    if use_sparse:
+        lam, phi = _sparse_modes(mass, stiffness, n_modes, band_hz, n_dof)
+    else:
+        lam, phi = sla.eigh(_dense(stiffness), _dense(mass))
+    k_scale = float(np.abs(_dense(stiffness)).max() / max(np.abs(_dense(mass)).max(), 1e-300))
+    lam = _clean_eigenvalues(lam, k_scale)
+    omega = np.sqrt(lam)
+    keep = np.ones(omega.size, dtype=bool)
+    if band_hz is not None:
+        f = omega / (2 * np.pi)
+        keep &= (f >= band_hz[0]) & (f <= band_hz[1])
+        if not np.any(keep):
+            raise ModelError(
+                f"no mode lies in the band {band_hz} Hz; the computed modes span "
+                f"{f.min():.4g}-{f.max():.4g} Hz."
+            )
+    omega, phi = omega[keep], phi[:, keep]
+    if n_modes is not None:
+        omega, phi = omega[:n_modes], phi[:, :n_modes]
+    return omega, phi
+
+
+def _sparse_modes(mass, stiffness, n_modes, band_hz, n_dof):
+    M = sp.csc_matrix(mass)
+    K = sp.csc_matrix(stiffness)
+    # A negative shift keeps K - sigma M positive definite even with rigid-body modes.
+    diag_ratio = K.diagonal().max() / max(M.diagonal().max(), 1e-300)
+    sigma = -1e-6 * diag_ratio - 1.0
+    k = min(n_modes or 20, n_dof - 2)
+    for _ in range(12):  # bounded: k doubles each time, capped by n_dof
+        lam, phi = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM")
+        order = np.argsort(lam)
+        lam, phi = lam[order], phi[:, order]
+        enough = band_hz is None or np.sqrt(max(lam.max(), 0)) / (2 * np.pi) > band_hz[1]
+        if enough or k >= n_dof - 2:
+            return lam, phi
+        k = min(2 * k, n_dof - 2)
+    return lam, phi
