@@ -1,0 +1,442 @@
+"""Modal state space of a structure (MACE eqs. 1-4).
+
+The second-order model ``M q'' + C q' + K q = b u`` is written in mass-normalised modal
+coordinates ``q = Phi eta`` (``Phi^T M Phi = I``, ``Phi^T K Phi = Omega^2``) with modal
+damping ``2 zeta Omega`` plus the projected concentrated damping ``Phi^T Cs Phi`` (MACE
+eq. 2), so the state is ``x = [eta, eta_dot]`` and
+
+.. math::
+
+    A = \\begin{bmatrix} 0 & I \\\\ -\\Omega^2 & -2\\zeta\\Omega - \\Phi^T C_s \\Phi \\end{bmatrix},
+    \\quad B = \\begin{bmatrix} 0 \\\\ \\Phi^T b \\end{bmatrix}            (MACE eqs. 2, 3)
+
+Outputs are displacement rows ``[c Phi, 0]``, rate rows ``[0, c Phi]`` (MACE eq. 4) or
+acceleration rows, which need a feedthrough: ``y = c Phi eta'' = c Phi (-Omega^2 eta -
+(2 zeta Omega + Phi^T Cs Phi) eta_dot) + c Phi Phi^T b u``.
+
+Units: frequencies in Hz at the surface (``f_hz``, ``band_hz``), rad/s inside
+(``omega``); damping ratios are dimensionless; rigid-body damping rates are in 1/s.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..errors import ModelError
+from ..table import Table
+from .eigen import solve_modes
+from .structure_base import OUTPUT_KINDS, StructuralMatrices, Structure
+
+__all__ = [
+    "ModalData",
+    "modal_decomposition",
+    "modal_statespace",
+    "modal_dynamics",
+    "modal_data_statespace",
+]
+
+#: Above this many DOFs the residual flexibility of a free-free structure (singular K) is
+#: refused rather than computed from a full dense eigensolution.
+_DENSE_RESIDUAL_LIMIT = 3000
+
+
+@dataclass(frozen=True, eq=False)
+class ModalData:
+    """Modal model of a structure: what MACE eqs. 2-4 are built from.
+
+    Attributes
+    ----------
+    omega : ndarray, shape (n_modes,)
+        Natural frequencies in rad/s, ascending (0 for rigid-body modes).
+    zeta : ndarray, shape (n_modes,)
+        Modal damping ratios (bands already applied).
+    input_shapes : ndarray, shape (n_modes, n_in)
+        Modal input matrix ``Phi^T b`` (mass-normalised shapes at the actuators).
+    output_shapes : ndarray, shape (n_out, n_modes)
+        Modal output matrix ``c Phi`` (mass-normalised shapes at the sensors).
+    output_kinds : tuple of str
+        ``"displacement"``, ``"velocity"`` or ``"acceleration"`` per output.
+    inputs, outputs : tuple of str
+        Signal names.
+    modal_concentrated_damping : ndarray, shape (n_modes, n_modes)
+        ``Phi^T Cs Phi`` in 1/s (zero when the structure has no concentrated damping).
+    rigid_body_rate : float
+        Damping rate (1/s) put on the diagonal of the velocity block for rigid-body modes.
+    residual : ndarray, shape (n_out, n_in) or None
+        Static flexibility of the truncated modes (displacement rows only), used as a
+        feedthrough when residual flexibility was requested.
+    shapes : ndarray, shape (n_dof, n_modes) or None
+        Full mode shapes, when the data came from a structure.
+    """
+
+    omega: np.ndarray
+    zeta: np.ndarray
+    input_shapes: np.ndarray
+    output_shapes: np.ndarray
+    output_kinds: tuple[str, ...]
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    modal_concentrated_damping: np.ndarray = field(default=None)  # type: ignore[assignment]
+    rigid_body_rate: float = 0.0
+    residual: np.ndarray | None = None
+    shapes: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        n = self.omega.size
+        if self.modal_concentrated_damping is None:
+            object.__setattr__(self, "modal_concentrated_damping", np.zeros((n, n)))
+
+    @property
+    def f_hz(self) -> np.ndarray:
+        """Natural frequencies in Hz."""
+        return self.omega / (2 * np.pi)
+
+    @property
+    def n_modes(self) -> int:
+        return int(self.omega.size)
+
+    def statespace(self):
+        """The modal state space (MACE eqs. 2-4) with named signals."""
+        return _assemble(self)
+
+    def table(self) -> Table:
+        """Mode table: frequency, damping and the largest input/output participation."""
+        rows = []
+        for k in range(self.n_modes):
+            b = np.abs(self.input_shapes[k])
+            c = np.abs(self.output_shapes[:, k])
+            rows.append((
+                k + 1,
+                float(self.f_hz[k]),
+                float(self.zeta[k]),
+                self.inputs[int(np.argmax(b))] if b.size else "",
+                float(b.max()) if b.size else 0.0,
+                self.outputs[int(np.argmax(c))] if c.size else "",
+                float(c.max()) if c.size else 0.0,
+            ))
+        return Table(
+            ("mode", "f (Hz)", "zeta", "strongest input", "|Phi^T b|", "strongest output", "|c Phi|"),
+            rows,
+            title=f"{self.n_modes} modes",
+        )
+
+
+# ---------------------------------------------------------------------------- damping
+def _damping_vector(damping: Any, n: int) -> np.ndarray:
+    zeta = np.asarray(damping, dtype=float)
+    if zeta.ndim == 0:
+        zeta = np.full(n, float(zeta))
+    elif zeta.shape != (n,):
+        raise ModelError(
+            f"damping has {zeta.size} values for {n} kept modes; give one damping ratio "
+            "or one per kept mode."
+        )
+    if not np.all(np.isfinite(zeta)) or np.any(zeta < 0):
+        raise ModelError(f"modal damping ratios must be finite and >= 0; got {zeta}.")
+    return zeta
+
+
+def _apply_bands(zeta: np.ndarray, f_hz: np.ndarray, bands) -> np.ndarray:
+    zeta = zeta.copy()
+    for lo, hi, factor in bands:
+        inside = (f_hz >= lo) & (f_hz <= hi)
+        if not np.any(inside):
+            raise ModelError(
+                f"the modal damping band [{lo:g}, {hi:g}] Hz contains no kept mode (kept modes "
+                f"span {f_hz.min():.4g}-{f_hz.max():.4g} Hz); move the band onto a mode."
+            )
+        if factor < 0 or not np.isfinite(factor):
+            raise ModelError(f"a modal damping factor must be finite and >= 0; got {factor}.")
+        zeta[inside] *= factor
+    return zeta
+
+
+# ---------------------------------------------------------------------------- decomposition
+def _dense(a) -> np.ndarray:
+    return a.toarray() if sp.issparse(a) else np.asarray(a, dtype=float)
+
+
+def _check_mats(mats: StructuralMatrices) -> None:
+    n = mats.n_dof
+    if mats.output_matrix.ndim != 2 or mats.output_matrix.shape[1] != n:
+        raise ModelError(
+            f"the output matrix has shape {mats.output_matrix.shape}; it needs one column per "
+            f"DOF ({n})."
+        )
+    if len(mats.inputs) != mats.input_matrix.shape[1] or len(mats.outputs) != mats.output_matrix.shape[0]:
+        raise ModelError("the structural matrices have a different number of signal names and vectors.")
+    bad = [k for k in mats.output_kinds if k not in OUTPUT_KINDS]
+    if bad or len(mats.output_kinds) != len(mats.outputs):
+        raise ModelError(f"output kinds must be one of {OUTPUT_KINDS} per output; got {mats.output_kinds}.")
+
+
+def _residual_flexibility(mats: StructuralMatrices, omega: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """Static flexibility of the truncated flexible modes, ``c (K^+ - Phi_k Omega_k^-2 Phi_k^T) b``.
+
+    Rigid-body modes carry no static flexibility and are excluded from both terms.
+    """
+    b, c = mats.input_matrix, mats.output_matrix
+    flex = omega > 0
+    kept = (c @ phi[:, flex]) @ ((phi[:, flex].T @ b) / omega[flex, None] ** 2)
+    n = mats.n_dof
+    if n <= _DENSE_RESIDUAL_LIMIT:
+        w_all, phi_all = solve_modes(mats.mass, mats.stiffness, sparse=False)
+        f_all = w_all > 0
+        full = (c @ phi_all[:, f_all]) @ ((phi_all[:, f_all].T @ b) / w_all[f_all, None] ** 2)
+    else:
+        if np.any(~flex):
+            raise ModelError(
+                f"residual flexibility of a free-free structure with {n} DOFs is not supported; "
+                "constrain the rigid-body motion or set residual_flexibility=False."
+            )
+        full = c @ spla.spsolve(sp.csc_matrix(mats.stiffness), b).reshape(n, -1)
+    return full - kept
+
+
+def modal_decomposition(
+    mats: StructuralMatrices,
+    *,
+    n_modes: int | None = None,
+    band_hz: tuple[float, float] | None = None,
+    damping: float | np.ndarray = 0.01,
+    rigid_body_damping: float = 0.0,
+    residual_flexibility: bool = False,
+) -> ModalData:
+    """Modes, damping and modal input/output matrices of a structure (MACE eqs. 2-4).
+
+    Parameters
+    ----------
+    mats : StructuralMatrices
+        Mass (kg), stiffness (N/m), concentrated damping ``Cs`` (N s/m), pointing vectors.
+    n_modes : int, optional
+        Keep the ``n_modes`` lowest modes (all modes when neither this nor ``band_hz``).
+    band_hz : (float, float), optional
+        Keep the modes with natural frequency in ``[lo, hi]`` Hz.
+    damping : float or array_like
+        Modal damping ratio ``zeta`` (MACE uses 0.01 for articulated structures, 0.001 for
+        tight trusses): one value or one per kept mode. ``mats.modal_damping_bands``
+        multiply the ratio of the modes in each band.
+    rigid_body_damping : float
+        Damping rate in 1/s placed on the velocity diagonal of rigid-body (0 Hz) modes,
+        where ``2 zeta omega`` vanishes; 0 (default) keeps their double integrators exact.
+        A small positive value moves them to ``s = -rigid_body_damping``.
+    residual_flexibility : bool
+        Keep the static response of the truncated modes as a feedthrough on displacement
+        outputs ("static correction" of modal truncation). Default off: the pure modal
+        model of MACE eq. 4. Velocity and acceleration outputs get no correction.
+
+    Returns
+    -------
+    ModalData
+
+    Raises
+    ------
+    ModelError
+        Bad matrices, a band without modes, negative damping, wrong vector lengths.
+    """
+    _check_mats(mats)
+    if rigid_body_damping < 0 or not np.isfinite(rigid_body_damping):
+        raise ModelError(f"rigid_body_damping is a rate in 1/s and must be >= 0; got {rigid_body_damping}.")
+    omega, phi = solve_modes(mats.mass, mats.stiffness, n_modes=n_modes, band_hz=band_hz)
+    zeta = _apply_bands(_damping_vector(damping, omega.size), omega / (2 * np.pi), mats.modal_damping_bands)
+    cs = mats.damping
+    cs_modal = np.zeros((omega.size, omega.size)) if cs is None else phi.T @ (_dense(cs) @ phi)
+    residual = None
+    if residual_flexibility:
+        residual = _residual_flexibility(mats, omega, phi)
+    return ModalData(
+        omega=omega,
+        zeta=zeta,
+        input_shapes=phi.T @ mats.input_matrix,
+        output_shapes=mats.output_matrix @ phi,
+        output_kinds=tuple(mats.output_kinds),
+        inputs=tuple(mats.inputs),
+        outputs=tuple(mats.outputs),
+        modal_concentrated_damping=cs_modal,
+        rigid_body_rate=float(rigid_body_damping),
+        residual=residual,
+        shapes=phi,
+    )
+
+
+# ---------------------------------------------------------------------------- assembly
+def _assemble(data: ModalData):
+    """Build A, B, C, D of MACE eqs. 2-4 (plus the acceleration feedthrough)."""
+    import control
+
+    n = data.n_modes
+    w = data.omega
+    damp = np.diag(2 * data.zeta * w) + data.modal_concentrated_damping
+    damp[np.diag_indices(n)] += np.where(w == 0, data.rigid_body_rate, 0.0)
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-np.diag(w**2), -damp]])
+    B = np.vstack([np.zeros_like(data.input_shapes), data.input_shapes])
+    cphi = data.output_shapes
+    n_out, n_in = cphi.shape[0], data.input_shapes.shape[1]
+    C = np.zeros((n_out, 2 * n))
+    D = np.zeros((n_out, n_in))
+    for i, kind in enumerate(data.output_kinds):
+        if kind == "displacement":
+            C[i, :n] = cphi[i]
+            if data.residual is not None:
+                D[i] = data.residual[i]
+        elif kind == "velocity":
+            C[i, n:] = cphi[i]
+        else:  # acceleration: c Phi eta'' with eta'' from the second block row of A, B
+            C[i] = cphi[i] @ A[n:]
+            D[i] = cphi[i] @ data.input_shapes
+    return control.ss(A, B, C, D, inputs=list(data.inputs), outputs=list(data.outputs))
+
+
+def modal_statespace(
+    mats: StructuralMatrices,
+    *,
+    n_modes: int | None = None,
+    band_hz: tuple[float, float] | None = None,
+    damping: float | np.ndarray = 0.01,
+    rigid_body_damping: float = 0.0,
+    residual_flexibility: bool = False,
+):
+    """Modal state space ``x = [eta, eta_dot]`` of a structure (MACE eqs. 1-4).
+
+    Parameters are those of :func:`modal_decomposition`.
+
+    Returns
+    -------
+    control.StateSpace
+        Inputs and outputs named after ``mats.inputs`` / ``mats.outputs``, physical units
+        (N in, m / m/s / m/s^2 out for translational DOFs).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from robustctl.physical.structure_base import StructuralMatrices
+    >>> mats = StructuralMatrices(np.eye(1), 4 * np.pi**2 * np.eye(1), None, np.ones((1, 1)),
+    ...                           np.ones((1, 1)), ("displacement",), ("F",), ("x",), ("dof 1",))
+    >>> sys = modal_statespace(mats, damping=0.05)
+    >>> round(float(abs(np.linalg.eigvals(sys.A)[0])) / (2 * np.pi), 6)
+    1.0
+    """
+    return modal_decomposition(
+        mats,
+        n_modes=n_modes,
+        band_hz=band_hz,
+        damping=damping,
+        rigid_body_damping=rigid_body_damping,
+        residual_flexibility=residual_flexibility,
+    ).statespace()
+
+
+def modal_data_statespace(
+    freqs_hz: Any,
+    damping: Any,
+    shapes_at_inputs: Any,
+    shapes_at_outputs: Any,
+    *,
+    inputs: Any,
+    outputs: Any,
+    output_kind: str | Any = "acceleration",
+):
+    """State space from modal data exported by an external FE code (MACE eqs. 2-4).
+
+    Parameters
+    ----------
+    freqs_hz : array_like, shape (n_modes,)
+        Natural frequencies in Hz (>= 0).
+    damping : float or array_like, shape (n_modes,)
+        Modal damping ratios.
+    shapes_at_inputs : array_like, shape (n_in, n_modes)
+        Mass-normalised mode shapes at the actuator DOFs, i.e. ``(Phi^T b)^T``.
+    shapes_at_outputs : array_like, shape (n_out, n_modes)
+        Mass-normalised mode shapes at the sensor DOFs, ``c Phi``.
+    inputs, outputs : sequence of str
+        Signal names.
+    output_kind : str or sequence of str
+        One kind for all outputs or one per output.
+    """
+    data = _modal_data_from_arrays(
+        freqs_hz, damping, shapes_at_inputs, shapes_at_outputs, inputs, outputs, output_kind
+    )
+    return data.statespace()
+
+
+def _names(names: Any, count: int, what: str) -> tuple[str, ...]:
+    names = (names,) if isinstance(names, str) else tuple(str(n) for n in names)
+    if len(names) != count or len(set(names)) != count:
+        raise ModelError(f"give {count} unique {what} names (one per row of the shapes); got {names}.")
+    return names
+
+
+def _modal_data_from_arrays(freqs_hz, damping, b_shapes, c_shapes, inputs, outputs, output_kind) -> ModalData:
+    f = np.atleast_1d(np.asarray(freqs_hz, dtype=float))
+    if f.ndim != 1 or f.size == 0 or not np.all(np.isfinite(f)) or np.any(f < 0):
+        raise ModelError(f"freqs_hz must be a 1-D array of finite frequencies >= 0 Hz; got {f}.")
+    n = f.size
+    bs = np.atleast_2d(np.asarray(b_shapes, dtype=float))
+    cs = np.atleast_2d(np.asarray(c_shapes, dtype=float))
+    for what, arr in (("shapes_at_inputs", bs), ("shapes_at_outputs", cs)):
+        if arr.ndim != 2 or arr.shape[1] != n:
+            raise ModelError(
+                f"{what} has shape {arr.shape}; it must be (n_signals, n_modes) with n_modes = {n} "
+                "(one column per frequency)."
+            )
+        if not np.all(np.isfinite(arr)):
+            raise ModelError(f"{what} contains NaN or inf.")
+    ins = _names(inputs, bs.shape[0], "input")
+    outs = _names(outputs, cs.shape[0], "output")
+    kinds = (output_kind,) * len(outs) if isinstance(output_kind, str) else tuple(output_kind)
+    if len(kinds) != len(outs) or any(k not in OUTPUT_KINDS for k in kinds):
+        raise ModelError(f"output_kind must be one of {OUTPUT_KINDS} (or one per output); got {output_kind}.")
+    order = np.argsort(f, kind="stable")
+    return ModalData(
+        omega=2 * np.pi * f[order],
+        zeta=_damping_vector(damping, n)[order],
+        input_shapes=bs[:, order].T,
+        output_shapes=cs[:, order],
+        output_kinds=kinds,
+        inputs=ins,
+        outputs=outs,
+    )
+
+
+# ---------------------------------------------------------------------------- PhysicalModel hook
+def _has(theta: Mapping[str, float], name: str) -> bool:
+    # iterate instead of ``in``: PhysicalModel's recording mapping raises on unknown keys.
+    return any(k == name for k in theta)
+
+
+def modal_dynamics(
+    n_modes: int | None = None,
+    band_hz: tuple[float, float] | None = None,
+    damping_param: str = "zeta_modal",
+    *,
+    default_damping: float = 0.01,
+    rigid_body_damping: float = 0.0,
+    residual_flexibility: bool = False,
+) -> Callable[[Mapping[str, float], Structure | None], Any]:
+    """A ``dynamics`` callable ``(theta, structure) -> StateSpace`` for PhysicalModel.
+
+    The modal damping ratio is read from ``theta[damping_param]`` when the model has that
+    parameter, otherwise ``default_damping`` is used. Other arguments are those of
+    :func:`modal_decomposition`.
+    """
+
+    def dynamics(theta: Mapping[str, float], structure: Structure | None):
+        if structure is None:
+            raise ModelError("modal_dynamics needs a structure; build the model with a structure callable.")
+        zeta = theta[damping_param] if _has(theta, damping_param) else default_damping
+        return modal_statespace(
+            structure.matrices(),
+            n_modes=n_modes,
+            band_hz=band_hz,
+            damping=zeta,
+            rigid_body_damping=rigid_body_damping,
+            residual_flexibility=residual_flexibility,
+        )
+
+    return dynamics
