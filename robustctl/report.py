@@ -1,0 +1,105 @@
+"""A self-contained HTML report: headings, text, tables and figures, written under one folder.
+
+Figures are saved as PNG files beside ``report.html`` and referenced relatively, so the
+folder can be zipped and mailed. Nothing outside the folder is touched, and an existing
+report is replaced only inside the folder robustctl created for it.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .errors import RobustctlError
+from .table import Table
+
+__all__ = ["Report"]
+
+_STYLE = """
+body { font-family: system-ui, sans-serif; max-width: 1100px; margin: 2em auto; color: #222; }
+h1 { border-bottom: 2px solid #246; } h2 { color: #246; margin-top: 1.6em; }
+table { border-collapse: collapse; margin: 0.8em 0; font-size: 0.9em; }
+th, td { border: 1px solid #bbb; padding: 3px 8px; text-align: right; }
+th { background: #eef; } caption { font-weight: bold; text-align: left; padding: 4px 0; }
+img { max-width: 100%; border: 1px solid #ddd; margin: 0.5em 0; }
+.note { background: #f6f6e8; border-left: 4px solid #cc9; padding: 0.5em 1em; }
+pre { background: #f4f4f4; padding: 0.6em; overflow-x: auto; }
+"""
+
+_MARKER = ".robustctl-report"
+
+
+@dataclass
+class Report:
+    """Collects the sections of a report and writes them to ``folder/report.html``.
+
+    Parameters
+    ----------
+    folder : str or Path
+        Output folder; created when missing. If it exists and holds files, it must be a
+        folder robustctl made before (it carries a marker file), so a user's folder is
+        never overwritten by mistake.
+    title : str
+        The report's title.
+    """
+
+    folder: Path
+    title: str = "robustctl report"
+    _parts: list[str] = field(default_factory=list)
+    _figures: int = 0
+    _summary: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.folder = Path(self.folder)
+        if self.folder.exists():
+            if not self.folder.is_dir():
+                raise RobustctlError(f"{self.folder} exists and is not a folder; choose another --out.")
+            if any(self.folder.iterdir()) and not (self.folder / _MARKER).exists():
+                raise RobustctlError(
+                    f"{self.folder} already holds files that robustctl did not write; "
+                    "choose an empty or new folder for the report."
+                )
+        self.folder.mkdir(parents=True, exist_ok=True)
+        (self.folder / _MARKER).write_text("written by robustctl; safe to delete\n")
+
+    def heading(self, text: str) -> None:
+        self._parts.append(f"<h2>{html.escape(text)}</h2>")
+
+    def text(self, text: str, note: bool = False) -> None:
+        cls = ' class="note"' if note else ""
+        self._parts.append(f"<p{cls}>{html.escape(text)}</p>")
+
+    def preformatted(self, text: str) -> None:
+        self._parts.append(f"<pre>{html.escape(text)}</pre>")
+
+    def table(self, table: Table) -> None:
+        self._parts.append(table._repr_html_())
+
+    def figure(self, fig: Any, name: str, caption: str = "") -> Path:
+        """Save a matplotlib figure as PNG in the folder and show it in the report."""
+        self._figures += 1
+        path = self.folder / f"{self._figures:02d}_{name}.png"
+        fig.savefig(path, dpi=110)
+        cap = f"<p><em>{html.escape(caption)}</em></p>" if caption else ""
+        self._parts.append(f'<img src="{html.escape(path.name)}" alt="{html.escape(name)}">{cap}')
+        return path
+
+    def record(self, key: str, value: Any) -> None:
+        """Keep a headline number; all of them are written to ``summary.json``."""
+        self._summary[key] = value
+
+    def write(self) -> Path:
+        """Write ``report.html`` and ``summary.json``; return the HTML path."""
+        body = "\n".join(self._parts)
+        page = (
+            f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(self.title)}</title>"
+            f"<style>{_STYLE}</style></head><body><h1>{html.escape(self.title)}</h1>\n{body}\n"
+            "</body></html>\n"
+        )
+        path = self.folder / "report.html"
+        path.write_text(page, encoding="utf-8")
+        (self.folder / "summary.json").write_text(json.dumps(self._summary, indent=2, default=float))
+        return path
