@@ -1,1 +1,18 @@
-"""robustctl.correlate (see DESIGN.md)."""
+"""robustctl.correlate: where the model fails (compare), why (diagnose), fix it (update).
+
+One import line per module, so each stage can be added independently.
+"""
+
+from .optimize import LMResult, levenberg_marquardt
+from .residual import Residual, Sensitivities, alignment, log_ratio, orthogonality, sensitivities
+
+__all__ = [
+    "Residual",
+    "Sensitivities",
+    "sensitivities",
+    "alignment",
+    "orthogonality",
+    "log_ratio",
+    "LMResult",
+    "levenberg_marquardt",
+]

@@ -1,0 +1,456 @@
+"""The complex-log residual of a model against measured data and its sensitivities.
+
+MACE (Glaese & Miller) compare a model with measured transfer functions through the cost
+
+    J = sum over frequencies, sensors, actuators of | log(G_data(jw) / G_model(jw)) |^2   (eq. 5)
+
+written as ``J = j^T j`` with ``j`` the stacked per-point errors (eq. 6). The real part of
+``log(G_data / G_model)`` is the log-magnitude error (natural-log units; x 20/ln 10 for dB),
+the imaginary part the phase error (rad, principal value in (-pi, pi]). Poles and zeros
+count alike, and so does phase.
+
+:class:`Residual` holds the real vector ``j`` (real and imaginary parts stacked) of a
+:class:`~robustctl.physical.model.PhysicalModel` against
+:class:`~robustctl.frd.FrequencyData` on a band, and :func:`sensitivities` its
+finite-difference derivatives with respect to named parameters (eqs. 7-8).
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Mapping, Sequence
+from concurrent.futures import Executor
+from typing import Any
+
+import numpy as np
+
+from ..errors import DataError, ModelError
+from ..frd import FrequencyData
+
+__all__ = [
+    "Residual",
+    "Sensitivities",
+    "sensitivities",
+    "log_ratio",
+    "alignment",
+    "orthogonality",
+    "normalized",
+]
+
+#: Smallest model magnitude used in a log ratio; a model response of exactly zero (a
+#: channel the model cannot excite) gives a large but finite error instead of inf.
+_TINY = 1e-300
+
+
+def log_ratio(g_data: np.ndarray, g_model: np.ndarray) -> np.ndarray:
+    """Complex log error ``log(G_data / G_model)`` (MACE eq. 5), elementwise.
+
+    Parameters
+    ----------
+    g_data, g_model : ndarray, complex
+        Responses of equal shape (any units, as long as they match).
+
+    Returns
+    -------
+    ndarray, complex
+        Real part: ``ln|G_data| - ln|G_model|`` (nepers); imaginary part: phase error in
+        rad, wrapped to (-pi, pi].
+    """
+    mag_d = np.maximum(np.abs(g_data), _TINY)
+    mag_m = np.maximum(np.abs(g_model), _TINY)
+    phase = np.angle(g_data * np.conj(g_model))
+    return (np.log(mag_d) - np.log(mag_m)) + 1j * phase
+
+
+def _band_data(data: FrequencyData, band: Sequence[float] | None) -> FrequencyData:
+    if band is None:
+        return data
+    try:
+        lo, hi = (float(b) for b in band)
+    except (TypeError, ValueError):
+        raise DataError(f"band must be a pair (lo_hz, hi_hz) in Hz; got {band!r}.") from None
+    if not lo < hi:
+        raise DataError(f"band ({lo:g}, {hi:g}) Hz is empty; give lo_hz < hi_hz.")
+    f = data.f_hz
+    inside = (f >= lo) & (f <= hi)
+    if np.count_nonzero(inside) < 2:
+        raise DataError(
+            f"band ({lo:g}, {hi:g}) Hz holds {np.count_nonzero(inside)} data point(s); the data "
+            f"span {f[0]:g}-{f[-1]:g} Hz. Choose a band inside the measured range."
+        )
+    return data.band(lo, hi)
+
+
+def _channel_index(model_names: Sequence[str], data_names: Sequence[str], what: str) -> list[int]:
+    model_names = list(model_names)
+    data_names = list(data_names)
+    if len(model_names) != len(data_names):
+        raise DataError(
+            f"the model has {len(model_names)} {what} {model_names} but the data has "
+            f"{len(data_names)} {data_names}; restrict the data with data.select(...) or give "
+            "the model the measured channels."
+        )
+    missing = [n for n in data_names if n not in model_names]
+    if missing:
+        raise DataError(
+            f"data {what} {missing} are not {what} of the model (model {what}: {model_names}); "
+            "rename the data channels (data.replace(" + what + "=[...])) to the model's signal names."
+        )
+    return [model_names.index(n) for n in data_names]
+
+
+def _weights(weights: Any, data: FrequencyData) -> np.ndarray:
+    shape = data.shape
+    if weights is None:
+        return np.ones(shape)
+    if isinstance(weights, str):
+        if weights != "coherence":
+            raise DataError(f"weights must be None, 'coherence' or an array; got {weights!r}.")
+        if data.coherence is None:
+            raise DataError(
+                "weights='coherence' but the data carry no coherence; estimate the FRF with "
+                "rc.estimate_frf (which returns coherence) or pass weights=None."
+            )
+        g2 = np.clip(data.coherence, 0.0, 0.999)
+        w = np.sqrt(g2 / (1.0 - g2))
+        return w / np.sqrt(np.mean(w**2))
+    try:
+        w = np.broadcast_to(np.asarray(weights, dtype=float), shape).copy()
+    except ValueError:
+        raise DataError(
+            f"weights of shape {np.shape(weights)} do not broadcast to the banded data shape "
+            f"{shape} (n_freq, n_out, n_in)."
+        ) from None
+    if not np.all(np.isfinite(w)) or np.any(w < 0) or not np.any(w > 0):
+        raise DataError("weights must be finite, non-negative and not all zero.")
+    return w
+
+
+class Residual:
+    """Weighted complex-log residual of a model against data on a band (MACE eqs. 5-6).
+
+    Parameters
+    ----------
+    model : PhysicalModel
+        The model; its output and input names must match the data's (any order).
+    data : FrequencyData
+        Measured (or simulated) responses, shape (n_freq, n_out, n_in), Hz.
+    band : (float, float), optional
+        Frequency band ``(lo_hz, hi_hz)`` in Hz; default: every data point.
+    weights : None, "coherence" or array_like, optional
+        Per-point weights ``w`` (broadcast to the banded data shape). ``"coherence"``
+        uses ``w = sqrt(g2 / (1 - g2))`` (inverse standard deviation of the log estimate,
+        g2 the coherence clipped at 0.999), normalised to mean(w^2) = 1.
+
+    Attributes
+    ----------
+    n : int
+        Length of the real residual vector, ``2 * n_freq_band * n_out * n_in``.
+    data : FrequencyData
+        The banded data, channels in data order.
+    weights : ndarray, shape (n_freq_band, n_out, n_in)
+
+    Notes
+    -----
+    ``vector()`` stacks ``Re`` then ``Im`` of ``w * log(G_data / G_model(theta))``, each
+    flattened in (frequency, output, input) C order, so ``cost() = vector() @ vector()``
+    is MACE's J (eq. 5) and ``vector()`` its j (eq. 6).
+    """
+
+    def __init__(
+        self,
+        model: Any,
+        data: FrequencyData,
+        band: Sequence[float] | None = None,
+        weights: Any = None,
+    ) -> None:
+        if not isinstance(data, FrequencyData):
+            raise DataError(f"data must be a FrequencyData; got {type(data).__name__}.")
+        if not hasattr(model, "freqresp") or not hasattr(model, "statespace"):
+            raise ModelError(
+                f"model must be a PhysicalModel (with .freqresp and .statespace); got {type(model).__name__}."
+            )
+        self.model = model
+        self.band = None if band is None else tuple(float(b) for b in band)
+        self.data = _band_data(data, band)
+        sys0 = model.statespace()
+        self._out_idx = _channel_index(sys0.output_labels, self.data.outputs, "outputs")
+        self._in_idx = _channel_index(sys0.input_labels, self.data.inputs, "inputs")
+        zero = np.all(np.abs(self.data.response) == 0, axis=0)
+        if np.any(zero):
+            o, i = np.argwhere(zero)[0]
+            raise DataError(
+                f"data channel {self.data.outputs[o]} <- {self.data.inputs[i]} is identically zero "
+                "on the band; its log error is undefined. Drop it with data.select(...) or weight it 0."
+            )
+        self.weights = _weights(weights, self.data)
+        self.n = 2 * self.data.response.size
+
+    # ------------------------------------------------------------------ evaluation
+    @property
+    def f_hz(self) -> np.ndarray:
+        """Band frequencies in Hz."""
+        return self.data.f_hz
+
+    def model_response(self, **overrides: float) -> np.ndarray:
+        """Model response (n_freq_band, n_out, n_in) on the band, in data channel order."""
+        g = self.model.freqresp(self.data.f_hz, **overrides).response
+        return g[:, self._out_idx][:, :, self._in_idx]
+
+    def complex(self, **overrides: float) -> np.ndarray:
+        """Weighted complex log error ``w * log(G_data / G_model)``, shape (n_freq_band, n_out, n_in)."""
+        return self.weights * log_ratio(self.data.response, self.model_response(**overrides))
+
+    def vector(self, **overrides: float) -> np.ndarray:
+        """Real residual vector j (MACE eq. 6): ``[Re(e).ravel(), Im(e).ravel()]``, length ``n``."""
+        e = self.complex(**overrides).ravel()
+        return np.concatenate([e.real, e.imag])
+
+    def cost(self, **overrides: float) -> float:
+        """MACE's cost ``J = j^T j`` (eq. 5), dimensionless."""
+        j = self.vector(**overrides)
+        return float(j @ j)
+
+    def unstack(self, j: np.ndarray) -> np.ndarray:
+        """Invert :meth:`vector`: a real vector of length ``n`` back to the complex (nf, no, ni) array."""
+        j = np.asarray(j)
+        half = self.n // 2
+        return (j[:half] + 1j * j[half:]).reshape(self.data.shape)
+
+    def __repr__(self) -> str:
+        band = "all" if self.band is None else f"{self.band[0]:g}-{self.band[1]:g} Hz"
+        return (
+            f"Residual(model={getattr(self.model, 'name', '?')!r}, band={band}, "
+            f"{self.data.n_freq} points x {self.data.n_out} x {self.data.n_in} channels, n={self.n})"
+        )
+
+
+# ---------------------------------------------------------------------- sensitivities
+class Sensitivities(tuple):
+    """``(j0, dJ)`` from :func:`sensitivities`, with the scaling used as attributes.
+
+    Unpacks as a pair: ``j0, dJ = sensitivities(...)``.
+
+    Attributes
+    ----------
+    j0 : ndarray (n,)
+        Residual vector at the base point.
+    dJ : ndarray (n, p)
+        Scaled sensitivity columns (MACE eq. 8).
+    names : tuple of str
+    base : dict
+        Parameter values at the base point (``at`` with ``origin`` applied).
+    trial : ndarray (p,)
+        The perturbed value of each parameter.
+    delta : ndarray (p,)
+        ``trial - base`` per parameter (signed finite-difference step).
+    scale : ndarray (p,)
+        The scale ``s_i`` with ``dJ[:, i] = (j_i - j0) * s_i / delta_i``.
+    kind : tuple of str
+        ``"relative"`` (s_i = alpha_i), ``"unit"`` (s_i = 1) or ``"secant"`` (s_i = delta_i).
+    n_evals : int
+        Residual evaluations spent (including j0 unless it was given).
+    """
+
+    def __new__(cls, j0: np.ndarray, dJ: np.ndarray, **attrs: Any) -> Sensitivities:
+        obj = super().__new__(cls, (j0, dJ))
+        obj.j0 = j0
+        obj.dJ = dJ
+        for key, value in attrs.items():
+            setattr(obj, key, value)
+        return obj
+
+    def jacobian(self) -> np.ndarray:
+        """Derivative ``d j / d alpha`` per unit of each parameter, shape (n, p)."""
+        return self.dJ / self.scale
+
+    def __reduce__(self):  # keep attributes through pickling
+        return (_rebuild_sensitivities, (self.j0, self.dJ, dict(self.__dict__)))
+
+
+def _rebuild_sensitivities(j0: np.ndarray, dJ: np.ndarray, attrs: dict) -> Sensitivities:
+    attrs = {k: v for k, v in attrs.items() if k not in ("j0", "dJ")}
+    return Sensitivities(j0, dJ, **attrs)
+
+
+def _check_names(model: Any, names: Sequence[str]) -> tuple[str, ...]:
+    if isinstance(names, str):
+        names = (names,)
+    names = tuple(names)
+    if not names:
+        raise ModelError("give at least one parameter name.")
+    known = set(model.param_names)
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        raise ModelError(
+            f"unknown parameter(s) {unknown}; the model has {list(model.param_names)}."
+        )
+    if len(set(names)) != len(names):
+        raise ModelError(f"parameter names repeat: {list(names)}.")
+    return names
+
+
+def _trial_value(param: Any, base: float, step: float) -> float:
+    lo, hi = param.bounds
+    up, down = base + step, base - step
+    if up <= hi:
+        return up
+    if down >= lo:
+        return down
+    raise ModelError(
+        f"parameter {param.name!r}: the finite-difference step {step:g} leaves its bounds "
+        f"[{lo:g}, {hi:g}] in both directions at {base:g}; give a smaller step."
+    )
+
+
+def _evaluate(residual: Residual, overrides: dict[str, float]) -> np.ndarray:
+    return residual.vector(**overrides)
+
+
+def _map(fn, residual: Residual, points: list[dict], executor: Executor | None, progress: bool, desc: str):
+    from tqdm.auto import tqdm
+
+    show = bool(progress) and sys.stderr.isatty()
+    if executor is None:
+        return [fn(residual, p) for p in tqdm(points, desc=desc, disable=not show, leave=False)]
+    futures = [executor.submit(fn, residual, p) for p in points]
+    return [f.result() for f in tqdm(futures, desc=desc, disable=not show, leave=False)]
+
+
+def sensitivities(
+    residual: Residual,
+    names: Sequence[str],
+    *,
+    at: Mapping[str, float] | None = None,
+    steps: Mapping[str, float] | None = None,
+    origin: Mapping[str, float] | None = None,
+    j0: np.ndarray | None = None,
+    executor: Executor | None = None,
+    progress: bool = False,
+) -> Sensitivities:
+    """Finite-difference sensitivities of the residual vector (MACE eqs. 7-8).
+
+    Parameters
+    ----------
+    residual : Residual
+    names : sequence of str
+        Parameters to differentiate with respect to.
+    at : mapping, optional
+        Parameter values (any of the model's) of the base point; default the model's values.
+    steps : mapping, optional
+        Step ``d alpha_i`` (parameter units) per name; default ``Parameter.step(alpha_i)``
+        (``max(rel_step*|alpha|, abs_step)``). The step is taken upwards unless that
+        leaves the parameter's bounds, then downwards.
+    origin : mapping, optional
+        ``{name: value}`` for parameters whose sensitivity is a secant from ``value``
+        (e.g. an effect at its neutral value, where the derivative may vanish): the
+        base point has the parameter at ``origin``; the trial value is its ``at`` value
+        (or model value), or ``origin + step`` when those coincide.
+    j0 : ndarray, optional
+        The residual vector at the base point if already known (saves one evaluation).
+    executor : concurrent.futures.Executor, optional
+        Runs the perturbed evaluations in parallel (a ProcessPoolExecutor needs a
+        picklable model).
+    progress : bool
+        Show a tqdm bar (only when stderr is a terminal).
+
+    Returns
+    -------
+    Sensitivities
+        Unpacks as ``(j0, dJ)``; ``dJ[:, i] = (j_i - j0) * s_i / delta_i`` with
+        ``delta_i = trial_i - base_i`` and scale ``s_i``:
+
+        * ``alpha_i`` (base value) when it is nonzero: the relative sensitivity
+          ``dj / d ln alpha`` of MACE eq. 7;
+        * ``1`` when ``alpha_i == 0``: the sensitivity per unit of the parameter;
+        * ``delta_i`` for a parameter in ``origin``: ``dJ[:, i] = j_i - j0``, the whole
+          secant change from the origin to the trial value.
+
+        In every case the linear model is ``j(base + s * c) ~ j0 + dJ @ c``; ``.scale``,
+        ``.delta``, ``.trial``, ``.base`` and ``.kind`` record what was used.
+    """
+    model = residual.model
+    names = _check_names(model, names)
+    base = dict(model.values)
+    for key, value in dict(at or {}).items():
+        if key not in base:
+            raise ModelError(f"unknown parameter {key!r} in at=; the model has {list(base)}.")
+        base[key] = float(value)
+    origin = dict(origin or {})
+    steps = dict(steps or {})
+    for key in list(origin) + list(steps):
+        if key not in names:
+            raise ModelError(f"origin/steps name {key!r} is not among the parameters {list(names)}.")
+    trial_of = {n: base[n] for n in names}
+    for key, value in origin.items():
+        base[key] = float(value)
+    trials, kinds, scales = [], [], []
+    for n in names:
+        par = model.param(n)
+        a = base[n]
+        if n in origin and trial_of[n] != a:
+            t = trial_of[n]
+        else:
+            step = float(steps[n]) if n in steps else par.step(a)
+            if not step > 0:
+                raise ModelError(f"step for {n!r} must be positive; got {step!r}.")
+            t = _trial_value(par, a, step)
+        trials.append(t)
+        if n in origin:
+            kinds.append("secant")
+            scales.append(t - a)
+        elif a != 0.0:
+            kinds.append("relative")
+            scales.append(a)
+        else:
+            kinds.append("unit")
+            scales.append(1.0)
+    points = [{**_diff(base, model.values), n: t} for n, t in zip(names, trials)]
+    base_point = _diff(base, model.values)
+    n_evals = len(points)
+    if j0 is None:
+        points = [base_point] + points
+        n_evals += 1
+    vectors = _map(_evaluate, residual, points, executor, progress, "sensitivities")
+    if j0 is None:
+        j0, vectors = vectors[0], vectors[1:]
+    j0 = np.asarray(j0, dtype=float)
+    trial = np.array(trials)
+    delta = trial - np.array([base[n] for n in names])
+    scale = np.array(scales)
+    dJ = np.column_stack([(v - j0) * (s / d) for v, s, d in zip(vectors, scale, delta)])
+    return Sensitivities(
+        j0, dJ, names=names, base=base, trial=trial, delta=delta, scale=scale, kind=tuple(kinds),
+        n_evals=n_evals,
+    )
+
+
+def _diff(theta: Mapping[str, float], values: Mapping[str, float]) -> dict[str, float]:
+    """Only the entries of ``theta`` that differ from the model's ``values`` (short overrides)."""
+    return {k: v for k, v in theta.items() if values.get(k) != v}
+
+
+def alignment(j0: np.ndarray, dJ: np.ndarray) -> np.ndarray:
+    """MACE test 1: ``|j0^T dJ|`` per parameter (eq. 8), in the units of ``J``.
+
+    Large values mark parameters the initial cost is sensitive to.
+    """
+    return np.abs(np.asarray(j0) @ np.asarray(dJ))
+
+
+def normalized(dJ: np.ndarray) -> np.ndarray:
+    """Columns of ``dJ`` scaled to unit length (MACE eq. 9); zero columns stay zero."""
+    dJ = np.asarray(dJ, dtype=float)
+    norms = np.linalg.norm(dJ, axis=0)
+    return dJ / np.where(norms > 0, norms, 1.0)
+
+
+def orthogonality(dJ: np.ndarray) -> np.ndarray:
+    """MACE test 2: ``|dJn^T dJn|`` (eq. 9, Fig. 4); unit diagonal, off-diagonals in [0, 1].
+
+    An off-diagonal near 1 means two parameters move the residual the same way (a
+    superparameter candidate); a zero column (no sensitivity) gives a 0 diagonal.
+    """
+    n = normalized(dJ)
+    out = np.abs(n.T @ n)
+    return np.clip(out, 0.0, 1.0)
