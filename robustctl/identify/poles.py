@@ -1,0 +1,162 @@
+"""Pole bookkeeping shared by the fitting methods: the real partial-fraction basis,
+conjugate-pair splitting, stability reflection and the linear residue identification.
+
+A pole set is stored as *one pole per complex-conjugate pair* (``Im p > 0``) plus the real
+poles, in rad/s. A model with poles ``p`` and residue matrices ``R`` is
+
+    G(s) = D + sum_real R_k / (s - p_k) + sum_pairs [R_k / (s - p_k) + conj(R_k) / (s - conj(p_k))].
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "split_poles",
+    "reflect_unstable",
+    "partial_fraction_basis",
+    "fit_residues",
+    "evaluate",
+    "n_states",
+    "pole_change",
+]
+
+#: |Im p| below this fraction of |p| counts as a real pole.
+REAL_TOL = 1e-9
+
+
+def split_poles(z: np.ndarray) -> np.ndarray:
+    """Reduce a conjugate-symmetric set of roots to one pole per pair plus the real poles.
+
+    Returns the poles sorted by natural frequency |p|; real poles get an exactly zero
+    imaginary part.
+    """
+    z = np.asarray(z, dtype=complex).reshape(-1)
+    scale = np.maximum(np.abs(z), np.finfo(float).tiny)
+    real = np.abs(z.imag) <= REAL_TOL * scale
+    poles = np.concatenate([z[real].real.astype(complex), z[~real & (z.imag > 0)]])
+    return poles[np.argsort(np.abs(poles), kind="stable")]
+
+
+def n_states(poles: np.ndarray) -> int:
+    """Order of the pole set counting conjugates (two per complex pole, one per real pole)."""
+    poles = np.asarray(poles)
+    return int(np.sum(np.where(poles.imag != 0, 2, 1)))
+
+
+def reflect_unstable(poles: np.ndarray) -> tuple[np.ndarray, int]:
+    """Reflect poles with ``Re p > 0`` into the left half plane (Gustavsen's pole flipping).
+
+    Returns the new poles and how many were reflected. Poles exactly on the imaginary axis
+    are moved to a tiny negative real part (1e-9 |p|).
+    """
+    p = np.array(poles, dtype=complex)
+    flip = p.real > 0
+    p[flip] = -p[flip].real + 1j * p[flip].imag
+    on_axis = p.real == 0
+    p[on_axis] = -1e-9 * np.maximum(np.abs(p[on_axis]), 1.0) + 1j * p[on_axis].imag
+    return p, int(np.count_nonzero(flip))
+
+
+def partial_fraction_basis(s: np.ndarray, poles: np.ndarray) -> np.ndarray:
+    """Real-coefficient partial-fraction basis, complex array of shape (K, n_states(poles)).
+
+    A real pole ``a`` gives the column ``1/(s-a)``; a pair ``p, conj(p)`` gives the two columns
+    ``1/(s-p) + 1/(s-conj p)`` and ``j/(s-p) - j/(s-conj p)``, whose real coefficients
+    ``(x1, x2)`` are the residue ``x1 + j x2`` of ``p``.
+    """
+    s = np.asarray(s)[:, None]
+    cols = []
+    for p in poles:
+        if p.imag == 0:
+            cols.append(1.0 / (s - p.real))
+        else:
+            a, b = 1.0 / (s - p), 1.0 / (s - np.conj(p))
+            cols += [a + b, 1j * (a - b)]
+    return np.hstack(cols) if cols else np.zeros((s.shape[0], 0), dtype=complex)
+
+
+def coefficients_to_residues(x: np.ndarray, poles: np.ndarray) -> np.ndarray:
+    """Map real basis coefficients (first axis) to one complex residue per pole."""
+    out, k = [], 0
+    for p in poles:
+        if p.imag == 0:
+            out.append(x[k] + 0j)
+            k += 1
+        else:
+            out.append(x[k] + 1j * x[k + 1])
+            k += 2
+    return np.array(out)
+
+
+def _real_stack(m: np.ndarray) -> np.ndarray:
+    return np.concatenate([m.real, m.imag], axis=0)
+
+
+def fit_residues(
+    s: np.ndarray,
+    g: np.ndarray,
+    row_weight: np.ndarray,
+    poles: np.ndarray,
+    feedthrough: bool = True,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Linear least-squares residues and feedthrough for fixed poles (one solve per channel).
+
+    Minimises ``sum_k row_weight_k^2 |G(s_k) - g_k|^2`` for each channel; with
+    ``row_weight = sqrt(w)/|g|`` this is the relative (log-like) error of MACE eq. 5.
+
+    Parameters
+    ----------
+    s : ndarray, complex, shape (K,)
+        Laplace variable on the band, rad/s.
+    g : ndarray, complex, shape (K, n_out, n_in)
+    row_weight : ndarray, shape (K, n_out, n_in)
+        Multiplier of each complex residual.
+    poles : ndarray, complex
+        One pole per conjugate pair plus real poles, rad/s.
+    feedthrough : bool
+        Fit a constant ``D`` too.
+
+    Returns
+    -------
+    residues : ndarray, complex, shape (n_poles, n_out, n_in)
+    d : ndarray, shape (n_out, n_in)
+    """
+    basis = partial_fraction_basis(s, poles)
+    if feedthrough:
+        basis = np.hstack([basis, np.ones((s.size, 1))])
+    _, n_out, n_in = g.shape
+    x = np.zeros((basis.shape[1], n_out, n_in))
+    for i in range(n_out):
+        for j in range(n_in):
+            wk = row_weight[:, i, j][:, None]
+            a = _real_stack(basis * wk)
+            b = _real_stack(g[:, i, j] * row_weight[:, i, j])
+            colnorm = np.linalg.norm(a, axis=0)
+            colnorm[colnorm == 0] = 1.0
+            x[:, i, j] = np.linalg.lstsq(a / colnorm, b, rcond=None)[0] / colnorm
+    n_basis = n_states(poles)
+    residues = coefficients_to_residues(x[:n_basis], poles)
+    d = x[n_basis] if feedthrough else np.zeros((n_out, n_in))
+    return residues.reshape(len(poles), n_out, n_in), d
+
+
+def evaluate(s: np.ndarray, poles: np.ndarray, residues: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Frequency response of a pole-residue model, shape (K, n_out, n_in)."""
+    s = np.asarray(s, dtype=complex).reshape(-1)
+    out = np.broadcast_to(np.asarray(d, dtype=complex), (s.size,) + np.shape(d)).copy()
+    for p, r in zip(poles, residues):
+        if p.imag == 0:
+            out += (1.0 / (s - p.real))[:, None, None] * r.real
+        else:
+            out += (1.0 / (s - p))[:, None, None] * r + (1.0 / (s - np.conj(p)))[:, None, None] * np.conj(r)
+    return out
+
+
+def pole_change(old: np.ndarray | None, new: np.ndarray) -> float:
+    """Largest relative change between two pole sets matched by frequency (inf if sizes differ)."""
+    if old is None or old.size != new.size:
+        return np.inf
+    a = old[np.lexsort((old.real, np.abs(old)))]
+    b = new[np.lexsort((new.real, np.abs(new)))]
+    return float(np.max(np.abs(a - b) / np.maximum(np.abs(a), 1e-300)))

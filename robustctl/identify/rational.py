@@ -1,0 +1,285 @@
+"""``fit_rational``: common-denominator rational fits of SIMO/MIMO frequency responses.
+
+Poles come from the Chebyshev/Sanathanan-Koerner iteration of the Caltech paper
+(``method="chebyshev"``) or from relaxed vector fitting (``method="vf"``); both share the same
+validation, stability enforcement (reflection of unstable poles) and final linear
+identification of residues, and both return a :class:`RationalFit` that converts to a real
+modal state space with named signals.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import FitError
+from ..frd import FrequencyData
+from ._problem import FitProblem, prepare_problem
+from .chebyshev import chebyshev_poles
+from .cost import LogCost, log_cost
+from .poles import evaluate, fit_residues, n_states, reflect_unstable
+from .realization import modal_statespace, residue_rank
+from .vector_fitting import vf_poles
+
+__all__ = ["RationalFit", "fit_rational", "IdentifyWarning"]
+
+METHODS = ("chebyshev", "vf")
+
+
+class IdentifyWarning(UserWarning):
+    """A fit succeeded but something deserves a look (pole outside the band, no convergence)."""
+
+
+@dataclass(frozen=True, eq=False)
+class RationalFit:
+    """A pole-residue model ``G(s) = D + sum_k R_k/(s-p_k) (+ conjugates)``.
+
+    Attributes
+    ----------
+    poles : ndarray, complex, shape (n_p,)
+        One pole of each complex-conjugate pair (``Im p > 0``) and the real poles, rad/s.
+    residues : ndarray, complex, shape (n_p, n_out, n_in)
+        Residue matrix of each pole.
+    d : ndarray, shape (n_out, n_in)
+        Feedthrough.
+    ranks : ndarray of int, shape (n_p,)
+        Modes each pole stands for: the rank kept of its residue in the state space
+        (1 for SIMO fits and physical modes; up to min(n_out, n_in) for raw MIMO fits).
+    inputs, outputs : tuple of str
+        Signal names.
+    band_hz : tuple of float
+        Fitted band (Hz).
+    method : str
+        ``"chebyshev"``, ``"vf"``, ``"combined"``, ``"grouped"``.
+    iterations : int
+        Pole-relocation iterations used.
+    converged : bool
+        Whether the pole iteration met its tolerance before the cap.
+    data : FrequencyData or None
+        The fitted data (band only), kept for scoring and plots.
+    """
+
+    poles: np.ndarray
+    residues: np.ndarray
+    d: np.ndarray
+    ranks: np.ndarray
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    band_hz: tuple[float, float]
+    method: str
+    iterations: int = 0
+    converged: bool = True
+    data: FrequencyData | None = field(default=None, repr=False)
+
+    # ----------------------------------------------------------------- properties
+    @property
+    def order(self) -> int:
+        """Number of poles counting conjugates (states of a SISO realisation)."""
+        return n_states(self.poles)
+
+    @property
+    def n_modes(self) -> int:
+        """Modes in the state-space realisation: sum of the ranks of the complex poles."""
+        return int(np.sum(self.ranks[self.poles.imag != 0]))
+
+    @property
+    def n_states(self) -> int:
+        """States of :meth:`statespace` (2 per complex pole and rank, 1 per real pole and rank)."""
+        return int(np.sum(np.where(self.poles.imag != 0, 2, 1) * self.ranks))
+
+    @property
+    def f_hz(self) -> np.ndarray:
+        """Natural frequency ``|p|/(2 pi)`` of each pole, Hz."""
+        return np.abs(self.poles) / (2 * np.pi)
+
+    @property
+    def zeta(self) -> np.ndarray:
+        """Damping ratio ``-Re p / |p|`` of each pole."""
+        return -self.poles.real / np.maximum(np.abs(self.poles), np.finfo(float).tiny)
+
+    # ----------------------------------------------------------------- evaluation
+    def response(self, f_hz: Any) -> np.ndarray:
+        """Complex response at ``f_hz`` (Hz), shape (n_freq, n_out, n_in)."""
+        s = 2j * np.pi * np.asarray(f_hz, dtype=float).reshape(-1)
+        return evaluate(s, self.poles, self.residues, self.d)
+
+    def freqresp(self, f_hz: Any) -> FrequencyData:
+        """The response at ``f_hz`` (Hz) as FrequencyData with the model's signal names."""
+        return FrequencyData(f_hz, self.response(f_hz), inputs=self.inputs, outputs=self.outputs)
+
+    def statespace(self, name: str | None = None):
+        """Real modal ``control.StateSpace`` (2x2 block per complex pole and kept rank)."""
+        return modal_statespace(
+            self.poles, self.residues, self.d, self.ranks, self.inputs, self.outputs, name=name
+        )
+
+    @property
+    def sys(self):
+        """Shorthand for :meth:`statespace`."""
+        return self.statespace()
+
+    def cost(self, data: FrequencyData | None = None) -> LogCost:
+        """MACE eq. 5 against ``data`` (default: the fitted band data)."""
+        data = self.data if data is None else data
+        if data is None:
+            raise FitError("this fit keeps no data; pass data=FrequencyData to score it.")
+        return log_cost(data.response, self.response(data.f_hz), self.outputs, self.inputs)
+
+    def __repr__(self) -> str:
+        return (
+            f"RationalFit({self.method}, {self.order} poles, {self.n_modes} modes, {len(self.outputs)}x"
+            f"{len(self.inputs)}, band {self.band_hz[0]:.4g}-{self.band_hz[1]:.4g} Hz)"
+        )
+
+
+# --------------------------------------------------------------------------- fitting
+def _pole_kernel(
+    prob: FitProblem, method: str, max_iter: int, tol: float, stable: bool
+) -> tuple[np.ndarray, int, bool]:
+    w_s = float(np.max(np.abs(prob.s)))
+    k = prob.s.size
+    g = prob.g.reshape(k, -1)
+    rw = np.sqrt(prob.w.reshape(k, -1)) / np.abs(g)
+    kernel = chebyshev_poles if method == "chebyshev" else vf_poles
+    poles, iters, ok = kernel(prob.s / w_s, g, rw, prob.order, max_iter=max_iter, tol=tol, stable=stable)
+    return poles * w_s, iters, ok
+
+
+def _warn_out_of_band(poles: np.ndarray, band: tuple[float, float]) -> None:
+    f = np.abs(poles) / (2 * np.pi)
+    out = f[(f < band[0]) | (f > band[1])]
+    if out.size:
+        warnings.warn(
+            f"{out.size} fitted pole(s) lie outside the band {band[0]:.4g}-{band[1]:.4g} Hz "
+            f"(natural frequencies {np.array2string(out, precision=4)} Hz); they model out-of-band "
+            "dynamics or noise. Lower the order or widen the band if they are not wanted.",
+            IdentifyWarning,
+            stacklevel=3,
+        )
+
+
+def _check_method(method: str) -> str:
+    if method not in METHODS:
+        raise FitError(f"unknown method {method!r}; use one of {METHODS}.")
+    return method
+
+
+def _check_iter(max_iter: Any) -> int:
+    if not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
+        raise FitError(f"max_iter must be a positive integer iteration cap; got {max_iter!r}.")
+    return int(max_iter)
+
+
+def _fit_simo_each(
+    prob: FitProblem, data: Any, order: int, band: Any, weights: Any, **kw: Any
+) -> RationalFit:
+    """One SIMO fit per input column (own denominator each), joined by :func:`combine_simo`."""
+    from ._problem import as_frequency_data
+    from .grouping import combine_simo
+
+    fd = as_frequency_data(data)
+    if weights is not None:
+        w = np.asarray(weights, dtype=float)
+        weights = np.broadcast_to(w[:, None, None] if w.ndim == 1 else w, fd.shape)
+    fits = []
+    for j, name in enumerate(fd.inputs):
+        wj = None if weights is None else weights[:, :, j : j + 1]
+        fits.append(fit_rational(fd.select(inputs=[name]), order, band, weights=wj, **kw))
+    return combine_simo(fits)
+
+
+def fit_rational(
+    data: Any,
+    order: int,
+    band: tuple[float, float] | None = None,
+    method: str = "chebyshev",
+    weights: Any = None,
+    common_denominator: bool = True,
+    stable: bool = True,
+    max_iter: int = 30,
+    tol: float = 1e-8,
+    feedthrough: bool = True,
+    rank_tol: float = 1e-8,
+) -> RationalFit:
+    """Fit a rational model with one common denominator to SIMO/MIMO frequency-response data.
+
+    Parameters
+    ----------
+    data : FrequencyData, control.FrequencyResponseData or (f_hz, response)
+        Measured response, shape (n_freq, n_out, n_in), frequencies in Hz.
+    order : int
+        Number of poles counting conjugates: ``2 * n_modes`` for ``n_modes`` lightly damped
+        modes (an odd order adds one real pole). Numerators are proper (same degree).
+    band : (f_lo, f_hi), optional
+        Fitted band in Hz (default: all the data).
+    method : {"chebyshev", "vf"}
+        ``"chebyshev"``: Caltech eq. 4 with Chebyshev bases and the SK re-weighting of steps
+        1-6. ``"vf"``: relaxed vector fitting with pole flipping, QR-compressed per channel.
+    weights : array_like, optional
+        Weights on the squared residuals, shape (n_freq,) or (n_freq, n_out, n_in). Default:
+        ``c/(1-c)`` (coherence capped at 0.99) when the data carries coherence, else 1. Each
+        row is further normalised by ``|g|`` (and by ``|d|`` in the SK loop) so the fit has
+        constant relative accuracy in log magnitude and phase.
+    common_denominator : bool
+        ``True``: one denominator for all channels. ``False``: one per input column (SIMO
+        fits, the Caltech procedure), joined by :func:`combine_simo`.
+    stable : bool
+        Reflect unstable poles into the left half plane before the residues are fitted.
+    max_iter : int
+        Cap of pole-relocation iterations.
+    tol : float
+        Relative pole change that counts as converged.
+    feedthrough : bool
+        Fit a constant term ``D``.
+    rank_tol : float
+        Residue singular values below ``rank_tol * sigma_1`` are dropped in the realisation.
+
+    Returns
+    -------
+    RationalFit
+
+    Raises
+    ------
+    FitError
+        Bad order, band, weights, method or iteration cap; too few points for the order.
+    DataError
+        Malformed data, NaN, all-zero channels.
+    """
+    method = _check_method(method)
+    max_iter = _check_iter(max_iter)
+    kw = dict(
+        method=method, stable=stable, max_iter=max_iter, tol=tol, feedthrough=feedthrough, rank_tol=rank_tol
+    )
+    prob = prepare_problem(data, order, band, weights)
+    if not common_denominator and len(prob.inputs) > 1:
+        return _fit_simo_each(prob, data, order, band, weights, common_denominator=True, **kw)
+    poles, iters, converged = _pole_kernel(prob, method, max_iter, tol, stable)
+    if stable:
+        poles, _ = reflect_unstable(poles)
+    rw = np.sqrt(prob.w) / np.abs(prob.g)
+    residues, d = fit_residues(prob.s, prob.g, rw, poles, feedthrough)
+    ranks = np.array([residue_rank(r, rank_tol) for r in residues], dtype=int)
+    if not converged:
+        warnings.warn(
+            f"{method} pole iteration did not converge in {max_iter} iterations (tol {tol:g}); "
+            "the fit is usable but raise max_iter or check the order.",
+            IdentifyWarning,
+            stacklevel=2,
+        )
+    _warn_out_of_band(poles, prob.band_hz)
+    return RationalFit(
+        poles,
+        residues,
+        d,
+        ranks,
+        prob.inputs,
+        prob.outputs,
+        prob.band_hz,
+        method,
+        iters,
+        converged,
+        prob.data,
+    )
