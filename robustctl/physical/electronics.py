@@ -220,9 +220,10 @@ def bessel_lowpass(order: int, cutoff_hz: float, norm: str = "phase"):
     cutoff_hz : float
         Cutoff frequency in Hz (``inf``: identity).
     norm : {"phase", "delay", "mag"}
-        Normalisation as in ``scipy.signal.bessel``. The default ``"phase"`` matches
-        MATLAB's ``besself`` and scipy's default: the phase at the cutoff is
-        ``-order * pi / 4``. ``"mag"``: -3 dB at the cutoff; ``"delay"``: group delay
+        Normalisation as in ``scipy.signal.bessel``. The default ``"phase"`` (the
+        "phase-matched" form, scipy's default and MATLAB's ``besself``) gives the same
+        high-frequency magnitude asymptote ``(w_c / w)^order`` as a Butterworth filter
+        with this cutoff. ``"mag"``: -3 dB at the cutoff; ``"delay"``: group delay
         ``1 / (2 pi cutoff_hz)`` s at DC.
 
     Returns
