@@ -39,3 +39,18 @@ def freqresp(sys: Any, f_hz: Any) -> FrequencyData:
         s = 2j * np.pi * fk
         out[k] = D + (C @ np.linalg.solve(s * eye - A, B) if n else 0.0)
     return FrequencyData(f, out, inputs=ss.input_labels, outputs=ss.output_labels)
+
+
+def as_statespace(sys: Any):
+    """``sys`` as a ``control.StateSpace`` with named signals.
+
+    Accepts a ``control.StateSpace``, anything ``control.ss`` converts (transfer
+    functions, scalars ...) and a robustctl ``PhysicalModel`` (via ``.statespace()``).
+    """
+    import control
+
+    if isinstance(sys, control.StateSpace):
+        return sys
+    if hasattr(sys, "statespace") and callable(sys.statespace):
+        return _as_statespace(sys.statespace())
+    return _as_statespace(sys)

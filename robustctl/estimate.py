@@ -1,0 +1,451 @@
+"""From time data to FrequencyData: H1 Welch estimates, coherence, simulated experiments.
+
+The defaults reproduce the Caltech truss identification experiments (Balas & Doyle,
+``seeds/caltech-balas-doyle-identification.txt``): 200 Hz sampling, 409.6 s records
+(81,920 samples) of white-noise excitation, one single-input/multi-output experiment per
+actuator, 4096-point Hamming windows overlapping by 2048 points (39 averages).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from .errors import DataError, ModelError
+from .frd import FrequencyData
+from .threads import limit_blas
+
+__all__ = ["estimate_frf", "combine_experiments", "simulate_experiment"]
+
+#: the largest record simulate_experiment will produce (samples), a memory guard
+MAX_SAMPLES = 50_000_000
+
+
+# ---------------------------------------------------------------------------- helpers
+def _as_signals(x: Any, name: str) -> np.ndarray:
+    """A real (n_samples, n_channels) float array; 1-D input is one channel."""
+    arr = np.asarray(x)
+    if arr.dtype == object or not (np.issubdtype(arr.dtype, np.number) or arr.dtype == bool):
+        raise DataError(f"{name} must be a numeric array of shape (n_samples, n_channels).")
+    if np.iscomplexobj(arr):
+        raise DataError(f"{name} is complex; time signals must be real.")
+    arr = arr.astype(float)
+    if arr.ndim == 1:
+        arr = arr[:, None]
+    if arr.ndim != 2:
+        raise DataError(f"{name} must have shape (n_samples, n_channels); got shape {arr.shape}.")
+    if arr.shape[0] < arr.shape[1]:
+        raise DataError(
+            f"{name} has shape {arr.shape}: more channels than samples. Time runs down the first "
+            f"axis; pass {name}.T if your array is (n_channels, n_samples)."
+        )
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.flatnonzero(~np.all(np.isfinite(arr), axis=1))[0])
+        raise DataError(f"{name} contains NaN or inf (first at sample {bad}); repair or cut the record.")
+    return arr
+
+
+def _window(window: Any, nperseg: int) -> np.ndarray:
+    from scipy.signal import get_window
+
+    if isinstance(window, (str, tuple)):
+        try:
+            return get_window(window, nperseg, fftbins=True)
+        except ValueError as exc:
+            raise DataError(f"unknown window {window!r}: {exc}. Use e.g. 'hamming' or 'hann'.") from exc
+    win = np.asarray(window, dtype=float).reshape(-1)
+    if win.size != nperseg or not np.all(np.isfinite(win)):
+        raise DataError(f"a window array must hold {nperseg} finite values (nperseg); got {win.size}.")
+    return win
+
+
+def _segment_settings(n_samples: int, nperseg: Any, noverlap: Any) -> tuple[int, int, int]:
+    """Validated ``(nperseg, noverlap, n_averages)`` (Welch, 1967)."""
+    if isinstance(nperseg, bool) or int(nperseg) != nperseg or nperseg < 2:
+        raise DataError(f"nperseg must be an integer >= 2 samples; got {nperseg!r}.")
+    nperseg = int(nperseg)
+    noverlap = nperseg // 2 if noverlap is None else noverlap
+    if isinstance(noverlap, bool) or int(noverlap) != noverlap or noverlap < 0:
+        raise DataError(f"noverlap must be a non-negative integer number of samples; got {noverlap!r}.")
+    noverlap = int(noverlap)
+    if noverlap >= nperseg:
+        raise DataError(
+            f"noverlap ({noverlap}) must be smaller than nperseg ({nperseg}); "
+            f"the usual choice is nperseg // 2 = {nperseg // 2}."
+        )
+    if n_samples < nperseg:
+        raise DataError(
+            f"the record has {n_samples} samples, shorter than one window (nperseg={nperseg}); "
+            "record longer or choose a smaller nperseg (coarser frequency resolution)."
+        )
+    n_avg = 1 + (n_samples - nperseg) // (nperseg - noverlap)
+    return nperseg, noverlap, n_avg
+
+
+def _spectra(x: np.ndarray, win: np.ndarray, nperseg: int, step: int, n_avg: int, detrend: bool):
+    """One-sided windowed FFTs of every segment, shape (n_avg, n_freq, n_channels)."""
+    idx = np.arange(nperseg)[None, :] + step * np.arange(n_avg)[:, None]
+    seg = x[idx]  # (n_avg, nperseg, n_ch)
+    if detrend:
+        seg = seg - seg.mean(axis=1, keepdims=True)
+    return np.fft.rfft(seg * win[None, :, None], axis=1)
+
+
+def _check_input_power(guu: np.ndarray, f: np.ndarray, inputs: tuple[str, ...]) -> None:
+    """Refuse silent or linearly dependent inputs (H1 needs Guu invertible)."""
+    diag = np.real(np.diagonal(guu, axis1=1, axis2=2))
+    scale = diag.max(axis=0)
+    for k, name in enumerate(inputs):
+        if scale[k] <= 0:
+            raise DataError(f"input {name!r} carries no signal (all zero); drop it or excite it.")
+    dn = 1.0 / np.sqrt(np.maximum(diag, 1e-300 * scale))
+    corr = guu * dn[:, :, None] * dn[:, None, :]
+    lam_min = np.linalg.eigvalsh(corr)[:, 0] if len(inputs) > 1 else np.real(corr[:, 0, 0])
+    bad = np.flatnonzero(lam_min < 1e-10)
+    if bad.size:
+        raise DataError(
+            f"the inputs are linearly dependent at {bad.size} frequencies (first {f[bad[0]]:.4g} Hz), "
+            "so the H1 estimate is undefined; excite the inputs with independent signals or run one "
+            "experiment per input and join them with combine_experiments()."
+        )
+
+
+# ---------------------------------------------------------------------------- estimate_frf
+@limit_blas
+def estimate_frf(
+    u: Any,
+    y: Any,
+    fs: float,
+    nperseg: int = 4096,
+    noverlap: int | None = None,
+    window: Any = "hamming",
+    inputs: Sequence[str] | None = None,
+    outputs: Sequence[str] | None = None,
+    *,
+    detrend: bool = True,
+) -> FrequencyData:
+    """H1 frequency-response estimate from averaged cross-spectra (Welch's method).
+
+    For every frequency the H1 estimate is ``H = G_yu G_uu^{-1}`` (Bendat & Piersol,
+    *Random Data*, eq. 7.27), with ``G_uu`` (n_in x n_in) and ``G_yu`` (n_out x n_in) the
+    averaged cross-spectral matrices of windowed, overlapping segments. With one input
+    this is ``G_yu / G_uu`` and the coherence is the ordinary coherence
+    ``|G_yu|^2 / (G_uu G_yy)``; with several simultaneous inputs it is the multiple
+    coherence of each output, ``(H G_uu H^H)_oo / G_yy,oo`` (eq. 7.35), repeated along the
+    input axis.
+
+    Parameters
+    ----------
+    u : array_like, shape (n_samples,) or (n_samples, n_in)
+        Input signals (e.g. V), sampled simultaneously with ``y``.
+    y : array_like, shape (n_samples,) or (n_samples, n_out)
+        Output signals (e.g. m/s^2).
+    fs : float
+        Sampling frequency in Hz.
+    nperseg : int
+        Window length in samples (default 4096, as Caltech); resolution ``fs / nperseg`` Hz.
+    noverlap : int, optional
+        Overlap of consecutive windows in samples; default ``nperseg // 2``.
+    window : str, tuple or array_like
+        A ``scipy.signal.get_window`` spec or an array of ``nperseg`` weights.
+    inputs, outputs : sequence of str, optional
+        Signal names (default ``u1..``, ``y1..``).
+    detrend : bool
+        Remove each segment's mean before windowing (as ``scipy.signal.welch``).
+
+    Returns
+    -------
+    FrequencyData
+        The estimate at ``k fs / nperseg`` Hz, k = 1 .. nperseg // 2 (DC dropped), with
+        coherence; ``meta`` records the settings and the number of averages.
+
+    Examples
+    --------
+    >>> import robustctl as rc, control
+    >>> sys = control.ss([[0, 1], [-(2 * 3.1416 * 5) ** 2, -3.0]], [[0], [1]], [[1, 0]], [[0]])
+    >>> u, y = rc.simulate_experiment(sys, n_samples=8192)
+    >>> data = rc.estimate_frf(u, y, fs=200.0, nperseg=1024)
+    """
+    u = _as_signals(u, "u")
+    y = _as_signals(y, "y")
+    if u.shape[0] != y.shape[0]:
+        raise DataError(
+            f"u has {u.shape[0]} samples but y has {y.shape[0]}; inputs and outputs must be "
+            "sampled together (same length)."
+        )
+    if not np.isfinite(fs) or fs <= 0:
+        raise DataError(f"fs must be a positive sampling frequency in Hz; got {fs!r}.")
+    fs = float(fs)
+    nperseg, noverlap, n_avg = _segment_settings(u.shape[0], nperseg, noverlap)
+    n_in = u.shape[1]
+    if n_avg < n_in:
+        raise DataError(
+            f"{n_in} simultaneous inputs need at least {n_in} averages, but the record gives {n_avg}; "
+            "use a longer record or a shorter nperseg."
+        )
+    win = _window(window, nperseg)
+    f = np.fft.rfftfreq(nperseg, 1.0 / fs)[1:]
+    U = _spectra(u, win, nperseg, nperseg - noverlap, n_avg, detrend)[:, 1:]
+    Y = _spectra(y, win, nperseg, nperseg - noverlap, n_avg, detrend)[:, 1:]
+    guu = np.einsum("kfi,kfj->fij", U, U.conj()) / n_avg  # G_uu[f, i, j] = E[U_i conj(U_j)]
+    gyu = np.einsum("kfo,kfi->foi", Y, U.conj()) / n_avg  # G_yu[f, o, i] = E[Y_o conj(U_i)]
+    gyy = np.einsum("kfo,kfo->fo", Y, Y.conj()).real / n_avg
+    names_in = FrequencyData(f[:1], np.ones((1, 1, n_in)), inputs=inputs).inputs
+    _check_input_power(guu, f, names_in)
+    # H guu = gyu  <=>  guu^T H^T = gyu^T
+    H = np.linalg.solve(np.transpose(guu, (0, 2, 1)), np.transpose(gyu, (0, 2, 1))).transpose(0, 2, 1)
+    explained = np.einsum("foi,foi->fo", H, gyu.conj()).real
+    with np.errstate(divide="ignore", invalid="ignore"):
+        coh = np.where(gyy > 0, explained / gyy, 0.0)
+    coh = np.repeat(np.clip(coh, 0.0, 1.0)[:, :, None], n_in, axis=2)
+    meta = {
+        "method": "H1 (Welch averaged cross-spectra)",
+        "coherence": "ordinary" if n_in == 1 else "multiple",
+        "fs_hz": fs,
+        "nperseg": nperseg,
+        "noverlap": noverlap,
+        "window": window if isinstance(window, (str, tuple)) else "user array",
+        "detrend": bool(detrend),
+        "n_averages": n_avg,
+        "n_samples": int(u.shape[0]),
+        "resolution_hz": fs / nperseg,
+    }
+    return FrequencyData(f, H, inputs=names_in, outputs=outputs, coherence=coh, meta=meta)
+
+
+# ---------------------------------------------------------------------------- combine
+def combine_experiments(experiments: Sequence[FrequencyData]) -> FrequencyData:
+    """Join single-input (SIMO) experiments into one MIMO FrequencyData.
+
+    The Caltech procedure runs one experiment per actuator, each giving a column of the
+    transfer matrix; this stacks those columns along the input axis, in the order given.
+
+    Parameters
+    ----------
+    experiments : sequence of FrequencyData
+        Estimates on the same frequency grid (Hz) with the same outputs, and distinct inputs.
+
+    Returns
+    -------
+    FrequencyData
+        Shape (n_freq, n_out, sum of n_in); coherence kept when every experiment has it;
+        ``meta["experiments"]`` holds each experiment's meta.
+    """
+    exps = list(experiments) if not isinstance(experiments, FrequencyData) else [experiments]
+    if not exps:
+        raise DataError("combine_experiments needs at least one FrequencyData; got an empty list.")
+    for k, e in enumerate(exps):
+        if not isinstance(e, FrequencyData):
+            raise DataError(f"experiment {k} is a {type(e).__name__}, not a FrequencyData.")
+    ref = exps[0]
+    for k, e in enumerate(exps[1:], start=1):
+        if e.f_hz.shape != ref.f_hz.shape or not np.allclose(e.f_hz, ref.f_hz, rtol=1e-12, atol=0):
+            raise DataError(
+                f"experiment {k} has a different frequency grid ({e.n_freq} points, "
+                f"{e.f_hz[0]:g}-{e.f_hz[-1]:g} Hz) from experiment 0 ({ref.n_freq} points, "
+                f"{ref.f_hz[0]:g}-{ref.f_hz[-1]:g} Hz); estimate all with the same fs and nperseg."
+            )
+        if e.outputs != ref.outputs:
+            raise DataError(
+                f"experiment {k} has outputs {list(e.outputs)} but experiment 0 has "
+                f"{list(ref.outputs)}; every experiment must measure the same outputs in the same order "
+                "(use .select(outputs=...) to reorder)."
+            )
+    inputs = [name for e in exps for name in e.inputs]
+    if len(set(inputs)) != len(inputs):
+        dup = sorted({n for n in inputs if inputs.count(n) > 1})
+        raise DataError(
+            f"input names repeat across experiments: {dup}; name each experiment's input "
+            "(estimate_frf(..., inputs=[...])) so the columns can be told apart."
+        )
+    response = np.concatenate([e.response for e in exps], axis=2)
+    coh = None
+    if all(e.coherence is not None for e in exps):
+        coh = np.concatenate([e.coherence for e in exps], axis=2)
+    units: dict[str, str] = {}
+    for e in exps:
+        units.update(e.units)
+    meta = {"combined_from": len(exps), "experiments": [dict(e.meta) for e in exps]}
+    return FrequencyData(ref.f_hz, response, inputs=inputs, outputs=ref.outputs, coherence=coh,
+                         units=units, meta=meta)
+
+
+# ---------------------------------------------------------------------------- simulation
+def _zoh(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact zero-order-hold discretisation: ``expm([[A, B], [0, 0]] dt)`` (Franklin & Powell)."""
+    from scipy.linalg import expm
+
+    n, m = B.shape
+    M = np.zeros((n + m, n + m))
+    M[:n, :n] = A * dt
+    M[:n, n:] = B * dt
+    E = expm(M)
+    return E[:n, :n], E[:n, n:]
+
+
+def _pick_inputs(inputs: Any, names: Sequence[str]) -> list[int]:
+    if inputs is None:
+        return list(range(len(names)))
+    if isinstance(inputs, (str, int, np.integer)):
+        inputs = [inputs]
+    idx = []
+    for item in inputs:
+        if isinstance(item, (int, np.integer)) and not isinstance(item, bool):
+            if not -len(names) <= item < len(names):
+                raise DataError(f"input index {item} is out of range for a system with {len(names)} inputs.")
+            idx.append(int(item) % len(names))
+        elif item in names:
+            idx.append(list(names).index(item))
+        else:
+            raise DataError(f"unknown input {item!r}; the system has inputs {list(names)}.")
+    if len(set(idx)) != len(idx) or not idx:
+        raise DataError(f"inputs={inputs!r} must name distinct inputs (at least one).")
+    return idx
+
+
+def _per_channel(value: Any, count: int, what: str, allow_zero: bool) -> np.ndarray:
+    arr = np.asarray(value, dtype=float).reshape(-1)
+    if arr.size == 1:
+        arr = np.full(count, arr[0])
+    if arr.size != count:
+        raise DataError(
+            f"{what} has {arr.size} values for {count} channels; give a scalar or one per channel."
+        )
+    if not np.all(np.isfinite(arr)) or np.any(arr < 0) or (not allow_zero and np.any(arr == 0)):
+        sign = "non-negative" if allow_zero else "positive"
+        raise DataError(f"{what} must be finite and {sign}; got {value!r}.")
+    return arr
+
+
+def _stationary_state(Ad: np.ndarray, Bd: np.ndarray, rms: np.ndarray, rng) -> np.ndarray:
+    """A draw from the stationary state distribution ``P = Ad P Ad^T + Bd S Bd^T``."""
+    from scipy.linalg import eigh, solve_discrete_lyapunov
+
+    Q = (Bd * rms**2) @ Bd.T
+    P = solve_discrete_lyapunov(Ad, Q)
+    w, V = eigh((P + P.T) / 2)
+    return V @ (np.sqrt(np.clip(w, 0.0, None)) * rng.standard_normal(w.size))
+
+
+def _simulate_modal(Ad, Bd, C, D, u, x0) -> np.ndarray | None:
+    """y = C x + D u with x[k+1] = Ad x[k] + Bd u[k], via decoupled first-order filters.
+
+    Returns None when the eigenvector matrix of ``Ad`` is too ill-conditioned.
+    """
+    from scipy.signal import lfilter
+
+    mu, V = np.linalg.eig(Ad)
+    if np.linalg.cond(V) > 1e8:
+        return None
+    Vinv = np.linalg.inv(V)
+    CV = C @ V
+    y = u @ D.T
+    z0 = Vinv @ x0
+    G_all = Vinv @ Bd  # (n, m)
+    chunk = 32
+    for start in range(0, mu.size, chunk):
+        sl = slice(start, start + chunk)
+        G = u @ G_all[sl].T  # (N, k) modal forcing
+        Z = np.empty_like(G)
+        for j in range(G.shape[1]):
+            a = [1.0, -mu[sl][j]]
+            Z[:, j] = lfilter([0.0, 1.0], a, G[:, j], zi=[z0[sl][j]])[0]
+        y += np.real(Z @ CV[:, sl].T)
+    return y
+
+
+def _simulate_loop(Ad, Bd, C, D, u, x0) -> np.ndarray:
+    """The plain recursion (for defective / nearly defective ``Ad``)."""
+    X = np.empty((u.shape[0], Ad.shape[0]))
+    x = x0.copy()
+    BU = u @ Bd.T
+    for k in range(u.shape[0]):
+        X[k] = x
+        x = Ad @ x + BU[k]
+    return X @ C.T + u @ D.T
+
+
+@limit_blas
+def simulate_experiment(
+    sys: Any,
+    fs: float = 200.0,
+    n_samples: int = 81920,
+    input_rms: float | Sequence[float] = 1.0,
+    noise_rms: float | Sequence[float] = 0.0,
+    seed: int | None = 0,
+    inputs: Any = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Simulate a white-noise identification experiment on a continuous-time system.
+
+    The excitation is sampled Gaussian white noise held constant over each sample
+    (zero-order hold), so the sampled response is exact: ``x[k+1] = Ad x[k] + Bd u[k]``,
+    ``y[k] = C x[k] + D u[k]`` with ``[[Ad, Bd], [0, I]] = expm([[A, B], [0, 0]] / fs)``.
+    The record starts in the stationary state (a draw from the solution of
+    ``P = Ad P Ad^T + Bd S Bd^T``), so there is no start-up transient; marginally stable
+    systems start at rest. Defaults are the Caltech settings (200 Hz, 81,920 samples).
+
+    Parameters
+    ----------
+    sys : control.StateSpace, PhysicalModel or anything ``control.ss`` accepts
+        A continuous-time, stable system (s-domain, rad/s).
+    fs : float
+        Sampling frequency in Hz.
+    n_samples : int
+        Record length in samples.
+    input_rms : float or sequence of float
+        RMS of each excited input, in input units.
+    noise_rms : float or sequence of float
+        RMS of additive white sensor noise on each output, in output units (0: none).
+    seed : int or None
+        Seed of ``numpy.random.default_rng``; draws are u, then the initial state, then noise.
+    inputs : sequence of str or int, optional
+        The inputs to excite (names or indices), default all. One SIMO experiment per
+        actuator (as Caltech) is ``inputs=[k]``.
+
+    Returns
+    -------
+    u : ndarray, shape (n_samples, n_excited)
+        The excitation of the chosen inputs, in the order given.
+    y : ndarray, shape (n_samples, n_out)
+        The outputs, noise included.
+    """
+    from .lti import as_statespace
+
+    ss = as_statespace(sys)
+    if ss.dt not in (0, None):
+        raise ModelError(
+            f"simulate_experiment needs a continuous-time system; this one has dt={ss.dt}. "
+            "Pass the continuous model; sampling is done here (zero-order hold)."
+        )
+    if not np.isfinite(fs) or fs <= 0:
+        raise DataError(f"fs must be a positive sampling frequency in Hz; got {fs!r}.")
+    if isinstance(n_samples, bool) or int(n_samples) != n_samples or not 2 <= n_samples <= MAX_SAMPLES:
+        raise DataError(f"n_samples must be an integer in [2, {MAX_SAMPLES}]; got {n_samples!r}.")
+    n_samples = int(n_samples)
+    A, B, C, D = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
+    idx = _pick_inputs(inputs, list(ss.input_labels))
+    B, D = B[:, idx], D[:, idx]
+    rms_u = _per_channel(input_rms, len(idx), "input_rms", allow_zero=False)
+    rms_y = _per_channel(noise_rms, C.shape[0], "noise_rms", allow_zero=True)
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal((n_samples, len(idx))) * rms_u
+    n = A.shape[0]
+    if n == 0:
+        y = u @ D.T
+    else:
+        Ad, Bd = _zoh(A, B, 1.0 / float(fs))
+        rho = np.max(np.abs(np.linalg.eigvals(Ad)))
+        if rho > 1.0 + 1e-9:
+            raise ModelError(
+                f"the system is unstable (spectral radius of the sampled A is {rho:.6g} > 1); an "
+                "open-loop white-noise experiment would diverge. Stabilise it (close a loop) first."
+            )
+        x0 = _stationary_state(Ad, Bd, rms_u, rng) if rho < 1.0 - 1e-12 else np.zeros(n)
+        y = _simulate_modal(Ad, Bd, C, D, u, x0)
+        if y is None:
+            y = _simulate_loop(Ad, Bd, C, D, u, x0)
+    if np.any(rms_y > 0):
+        y = y + rng.standard_normal(y.shape) * rms_y
+    return u, y
