@@ -5,9 +5,12 @@
 
 from . import examples
 from .errors import DataError, FitError, ModelError, RobustctlError, SynthesisError
+from .estimate import combine_experiments, estimate_frf, simulate_experiment
 from .frd import FrequencyData
+from .identify import combine_simo, fit_rational, group_modes
 from .lti import freqresp
 from .physical import Parameter, PhysicalModel, Stage, StructuralMatrices, Structure
+from .threads import blas_threads, set_blas_threads
 
 __version__ = "0.1.0"
 
@@ -19,7 +22,15 @@ __all__ = [
     "FitError",
     "SynthesisError",
     "FrequencyData",
+    "fit_rational",
+    "combine_simo",
+    "group_modes",
     "freqresp",
+    "estimate_frf",
+    "combine_experiments",
+    "simulate_experiment",
+    "blas_threads",
+    "set_blas_threads",
     "Parameter",
     "PhysicalModel",
     "Stage",
