@@ -9,7 +9,7 @@ from .estimate import combine_experiments, estimate_frf, simulate_experiment
 from .frd import FrequencyData
 from .identify import combine_simo, fit_rational, group_modes
 from .lti import freqresp
-from .physical import Parameter, PhysicalModel, Stage, StructuralMatrices, Structure
+from .physical import Frame, Parameter, PhysicalModel, Stage, StructuralMatrices, Structure
 from .threads import blas_threads, set_blas_threads
 
 __version__ = "0.1.0"
@@ -36,4 +36,5 @@ __all__ = [
     "Stage",
     "StructuralMatrices",
     "Structure",
+    "Frame",
 ]
