@@ -1,0 +1,301 @@
+"""A user's own mass and stiffness matrices as a :class:`Structure`.
+
+The matrices given are the complete model ``M q'' + Cs q' + K q = b u``. Named pieces of
+them let physical effects act the same way they act on the built-in frame FEM:
+
+* ``stiffness_groups`` — named contributions *included in* ``stiffness`` (the springs
+  between masses 1 and 2, the struts of one bay ...). ``scale_group_stiffness(g, f)``
+  adds ``(f - 1) K_g``.
+* ``geometric_stiffness`` — per group, the geometric stiffness per newton of tension
+  (1/m); ``add_group_tension(g, T)`` adds ``T K_G,g``. Without it tension is refused.
+* ``tagged`` — named parts *included in* the matrices that ``without(tags)`` removes,
+  e.g. ``tagged={"suspension": (dK, dC)}`` for MACE's 0-g prediction. A part is a tuple
+  ``(dK,)``, ``(dK, dC)`` or ``(dK, dC, dM)`` (``None`` for an absent matrix).
+
+Locations are DOFs, labelled ``"dof 1"`` ... ``"dof n"`` unless ``dof_labels`` is given.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import ModelError
+from .eigen import check_structural_matrices
+from .structure_base import OUTPUT_KINDS, StructuralMatrices, Structure
+
+__all__ = ["MatrixStructure"]
+
+#: Largest size for which the definiteness of M and K is checked at construction (larger
+#: models are checked by the eigensolver).
+_DEFINITENESS_CHECK_LIMIT = 800
+
+
+def _matrix(a: Any, n: int | None, what: str):
+    """A float matrix (dense or CSR), square and of size ``n`` when given."""
+    mat = sp.csr_matrix(a, dtype=float) if sp.issparse(a) else np.array(a, dtype=float, ndmin=2)
+    if mat.ndim != 2 or mat.shape[0] != mat.shape[1]:
+        raise ModelError(f"the {what} matrix must be square; got shape {mat.shape}.")
+    if n is not None and mat.shape[0] != n:
+        raise ModelError(
+            f"the {what} matrix is {mat.shape[0]}x{mat.shape[1]} but the model has {n} DOFs; "
+            "all matrices must have the size of the mass matrix."
+        )
+    dense = mat.toarray() if sp.issparse(mat) else mat
+    if not np.all(np.isfinite(dense)):
+        raise ModelError(f"the {what} matrix contains NaN or inf.")
+    if np.abs(dense - dense.T).max(initial=0.0) > 1e-9 * max(np.abs(dense).max(initial=0.0), 1e-300):
+        raise ModelError(f"the {what} matrix is not symmetric; structural matrices must be symmetric.")
+    return mat
+
+
+def _dense(a) -> np.ndarray:
+    return a.toarray() if sp.issparse(a) else np.asarray(a)
+
+
+def _check_definite(mass, stiffness, labels: Sequence[str]) -> None:
+    m, k = _dense(mass), _dense(stiffness)
+    for what, mat in (("mass", m), ("stiffness", k)):
+        bad = np.flatnonzero(np.diag(mat) < 0)
+        if bad.size:
+            raise ModelError(
+                f"the {what} matrix has a negative diagonal entry at {labels[bad[0]]!r} "
+                f"({mat[bad[0], bad[0]]:g}); masses and stiffnesses must be >= 0."
+            )
+    check_structural_matrices(mass, stiffness)  # symmetric, mass positive definite
+    if m.shape[0] <= _DEFINITENESS_CHECK_LIMIT:
+        lam = np.linalg.eigvalsh(k)
+        if lam.min() < -1e-9 * max(abs(lam).max(), 1e-300):
+            raise ModelError(
+                f"the stiffness matrix is not positive semi-definite (eigenvalue {lam.min():.3g}); "
+                "check for negative springs or a sign error in an off-diagonal term."
+            )
+
+
+def _labels(dof_labels: Sequence[str] | None, n: int) -> tuple[str, ...]:
+    if dof_labels is None:
+        return tuple(f"dof {i + 1}" for i in range(n))
+    labels = tuple(str(x) for x in dof_labels)
+    if len(labels) != n or len(set(labels)) != n:
+        raise ModelError(f"dof_labels must be {n} unique names (one per DOF); got {len(labels)}.")
+    return labels
+
+
+class MatrixStructure(Structure):
+    """A structure given by its own mass, stiffness and concentrated-damping matrices.
+
+    Parameters
+    ----------
+    mass, stiffness : array_like or sparse, shape (n, n)
+        Symmetric mass (kg, positive definite) and stiffness (N/m, positive semi-definite).
+    damping : array_like or sparse, shape (n, n), optional
+        Concentrated damping ``Cs`` (N s/m) of MACE eq. 2 (dashpots); modal damping is
+        added by the modal state space.
+    inputs : mapping name -> vector (n,) or DOF label
+        Generalised force per unit input (the pointing vector b of MACE eq. 3).
+    outputs : mapping name -> (vector (n,) or DOF label, kind)
+        Output pointing row and kind (``"displacement"``, ``"velocity"``, ``"acceleration"``).
+    dof_labels : sequence of str, optional
+        One label per DOF (default ``"dof 1"`` ...).
+    stiffness_groups : mapping name -> (n, n) matrix, optional
+        Named contributions included in ``stiffness``.
+    geometric_stiffness : mapping group -> (n, n) matrix, optional
+        Geometric stiffness per unit tension (1/m) of a group (for ``add_group_tension``).
+    tagged : mapping tag -> tuple of matrices, optional
+        Parts ``(dK[, dC[, dM]])`` included in the matrices that ``without`` removes.
+    """
+
+    def __init__(
+        self,
+        mass: Any,
+        stiffness: Any,
+        damping: Any = None,
+        *,
+        inputs: Mapping[str, Any],
+        outputs: Mapping[str, tuple[Any, str]],
+        dof_labels: Sequence[str] | None = None,
+        stiffness_groups: Mapping[str, Any] | None = None,
+        geometric_stiffness: Mapping[str, Any] | None = None,
+        tagged: Mapping[str, Sequence[Any]] | None = None,
+    ) -> None:
+        self._M = _matrix(mass, None, "mass")
+        n = self._M.shape[0]
+        self._labels = _labels(dof_labels, n)
+        self._K = _matrix(stiffness, n, "stiffness")
+        self._C = None if damping is None else _matrix(damping, n, "damping")
+        _check_definite(self._M, self._K, self._labels)
+        self._inputs, self._b = self._input_vectors(inputs)
+        self._outputs, self._c, self._kinds = self._output_vectors(outputs)
+        self._groups = {
+            str(g): _matrix(k, n, f"stiffness group {g!r}") for g, k in (stiffness_groups or {}).items()
+        }
+        self._geometric = {}
+        for g, kg in (geometric_stiffness or {}).items():
+            if g not in self._groups:
+                raise ModelError(
+                    f"geometric stiffness is given for {g!r}, which is not a stiffness group; "
+                    f"groups: {sorted(self._groups)}."
+                )
+            self._geometric[g] = _matrix(kg, n, f"geometric stiffness of {g!r}")
+        self._tagged = {str(t): self._tagged_part(t, part) for t, part in (tagged or {}).items()}
+
+    # ------------------------------------------------------------------ construction helpers
+    @property
+    def n_dof(self) -> int:
+        return self._M.shape[0]
+
+    def _vector(self, v: Any, what: str) -> np.ndarray:
+        if isinstance(v, str):
+            e = np.zeros(self.n_dof)
+            e[self._dof(v)] = 1.0
+            return e
+        vec = np.asarray(v, dtype=float).reshape(-1)
+        if vec.size != self.n_dof or not np.all(np.isfinite(vec)):
+            raise ModelError(
+                f"the vector of {what} has {vec.size} entries; it needs one finite entry per DOF "
+                f"({self.n_dof}), or give a DOF label such as {self._labels[0]!r}."
+            )
+        return vec
+
+    def _input_vectors(self, inputs: Mapping[str, Any]):
+        if not inputs:
+            raise ModelError("give at least one input: inputs={'F': force_vector_or_dof_label}.")
+        names = tuple(str(k) for k in inputs)
+        b = np.column_stack([self._vector(v, f"input {k!r}") for k, v in inputs.items()])
+        return names, b
+
+    def _output_vectors(self, outputs: Mapping[str, tuple[Any, str]]):
+        if not outputs:
+            raise ModelError(
+                "give at least one output: outputs={'x': (vector_or_dof_label, 'displacement')}."
+            )
+        rows, kinds = [], []
+        for name, spec in outputs.items():
+            if isinstance(spec, str) or len(spec) != 2 or spec[1] not in OUTPUT_KINDS:
+                raise ModelError(
+                    f"output {name!r} must be (vector or DOF label, kind) with kind one of "
+                    f"{OUTPUT_KINDS}; got {spec!r}."
+                )
+            rows.append(self._vector(spec[0], f"output {name!r}"))
+            kinds.append(spec[1])
+        return tuple(str(k) for k in outputs), np.vstack(rows), tuple(kinds)
+
+    def _tagged_part(self, tag: str, part: Any) -> tuple:
+        part = (part,) if not isinstance(part, (tuple, list)) else tuple(part)
+        if not 1 <= len(part) <= 3:
+            raise ModelError(
+                f"tagged part {tag!r} must be (dK,), (dK, dC) or (dK, dC, dM); got {len(part)} items."
+            )
+        names = ("stiffness", "damping", "mass")
+        mats = tuple(None if p is None else _matrix(p, self.n_dof, f"{names[i]} of tagged part {tag!r}")
+                     for i, p in enumerate(part))
+        return mats + (None,) * (3 - len(mats))
+
+    def _dof(self, location: str) -> int:
+        try:
+            return self._labels.index(location)
+        except ValueError:
+            shown = list(self._labels[:6]) + (["..."] if self.n_dof > 6 else [])
+            raise ModelError(f"unknown location {location!r}; the DOFs are {shown}.") from None
+
+    # ------------------------------------------------------------------ Structure contract
+    def matrices(self) -> StructuralMatrices:
+        """The current matrices (copies; effects and removals applied)."""
+        return StructuralMatrices(
+            mass=self._M.copy(),
+            stiffness=self._K.copy(),
+            damping=None if self._C is None else self._C.copy(),
+            input_matrix=self._b.copy(),
+            output_matrix=self._c.copy(),
+            output_kinds=self._kinds,
+            inputs=self._inputs,
+            outputs=self._outputs,
+            dof_labels=self._labels,
+            modal_damping_bands=self.modal_damping_bands(),
+        )
+
+    def without(self, tags: Iterable[str]) -> MatrixStructure:
+        """Subtract the tagged parts carrying one of ``tags`` (unknown tags are ignored:
+        ``PhysicalModel.without`` passes every excluded tag, e.g. ``"gravity"``)."""
+        for tag in set(tags) & set(self._tagged):
+            dK, dC, dM = self._tagged.pop(tag)
+            if dK is not None:
+                self._K = self._K - dK
+            if dM is not None:
+                self._M = self._M - dM
+            if dC is not None:
+                self._C = -dC if self._C is None else self._C - dC
+        return self
+
+    def locations(self) -> tuple[str, ...]:
+        return self._labels
+
+    def element_groups(self) -> tuple[str, ...]:
+        return tuple(self._groups)
+
+    def tags(self) -> tuple[str, ...]:
+        """Tags of the parts :meth:`without` can remove."""
+        return tuple(self._tagged)
+
+    def _add_diagonal(self, which: str, location: str, value: float, direction: str | None, what: str):
+        if direction is not None:
+            raise ModelError(
+                f"the locations of a MatrixStructure are single DOFs; {what} takes direction=None, "
+                f"got {direction!r}."
+            )
+        value = float(value)
+        if not np.isfinite(value):
+            raise ModelError(f"the {what} must be finite; got {value!r}.")
+        i = self._dof(location)
+        e = sp.csr_matrix(([value], ([i], [i])), shape=(self.n_dof, self.n_dof))
+        mat = getattr(self, which)
+        if mat is None:
+            mat = e if sp.issparse(self._M) else e.toarray()
+        else:
+            mat = mat + e if sp.issparse(mat) else mat + e.toarray()
+        setattr(self, which, mat)
+        return self
+
+    def add_mass(self, location: str, mass: float) -> MatrixStructure:
+        """Add ``mass`` (kg, or kg m^2 at a rotational DOF) to the diagonal at ``location``."""
+        return self._add_diagonal("_M", location, mass, None, "added mass")
+
+    def add_spring(self, location: str, stiffness: float, direction: str | None = None) -> MatrixStructure:
+        """Add a grounded spring (N/m) at the DOF ``location``."""
+        return self._add_diagonal("_K", location, stiffness, direction, "spring")
+
+    def add_dashpot(self, location: str, damping: float, direction: str | None = None) -> MatrixStructure:
+        """Add a grounded dashpot (N s/m) at the DOF ``location`` (concentrated damping Cs)."""
+        return self._add_diagonal("_C", location, damping, direction, "dashpot")
+
+    def _group(self, group: str) -> Any:
+        if group not in self._groups:
+            raise ModelError(
+                f"unknown element group {group!r}; this structure's groups are {list(self._groups)} "
+                "(name stiffness contributions with stiffness_groups={...})."
+            )
+        return self._groups[group]
+
+    def scale_group_stiffness(self, group: str, factor: float) -> MatrixStructure:
+        """Multiply the stiffness contribution of ``group`` by ``factor`` (>= 0)."""
+        kg = self._group(group)
+        factor = float(factor)
+        if not np.isfinite(factor) or factor < 0:
+            raise ModelError(f"a stiffness factor must be finite and >= 0; got {factor!r}.")
+        self._K = self._K + (factor - 1.0) * kg
+        self._groups[group] = factor * kg
+        return self
+
+    def add_group_tension(self, group: str, tension: float) -> MatrixStructure:
+        """Add ``tension`` (N) times the group's geometric stiffness per unit tension."""
+        self._group(group)
+        if group not in self._geometric:
+            raise ModelError(
+                f"tension is not applicable to group {group!r} of a MatrixStructure: no geometric "
+                "stiffness was given; pass geometric_stiffness={group: K_G_per_newton}."
+            )
+        self._K = self._K + float(tension) * self._geometric[group]
+        return self
