@@ -9,7 +9,19 @@ from .estimate import combine_experiments, estimate_frf, simulate_experiment
 from .frd import FrequencyData
 from .identify import combine_simo, fit_rational, group_modes
 from .lti import freqresp
-from .physical import Frame, Parameter, PhysicalModel, Stage, StructuralMatrices, Structure
+from .physical import (
+    Frame,
+    MatrixStructure,
+    Parameter,
+    PhysicalModel,
+    Stage,
+    StructuralMatrices,
+    Structure,
+    electronics,
+    modal_model,
+    modal_statespace,
+    structural_model,
+)
 from .threads import blas_threads, set_blas_threads
 
 __version__ = "0.1.0"
@@ -37,4 +49,9 @@ __all__ = [
     "StructuralMatrices",
     "Structure",
     "Frame",
+    "electronics",
+    "structural_model",
+    "modal_model",
+    "modal_statespace",
+    "MatrixStructure",
 ]
