@@ -4,6 +4,7 @@
 """
 
 from . import examples
+from .correlate import Comparison, Residual, compare
 from .errors import DataError, FitError, ModelError, RobustctlError, SynthesisError
 from .estimate import combine_experiments, estimate_frf, simulate_experiment
 from .frd import FrequencyData
@@ -28,6 +29,9 @@ __version__ = "0.1.0"
 
 __all__ = [
     "examples",
+    "compare",
+    "Comparison",
+    "Residual",
     "RobustctlError",
     "DataError",
     "ModelError",

@@ -3,6 +3,7 @@
 One import line per module, so each stage can be added independently.
 """
 
+from .compare import Comparison, compare
 from .optimize import LMResult, levenberg_marquardt
 from .residual import Residual, Sensitivities, alignment, log_ratio, orthogonality, sensitivities
 
@@ -15,4 +16,6 @@ __all__ = [
     "log_ratio",
     "LMResult",
     "levenberg_marquardt",
+    "Comparison",
+    "compare",
 ]

@@ -1,0 +1,786 @@
+"""Where does the model fail? ``rc.compare`` (MACE eq. 5, Table 1, and the channel structure).
+
+The complex log error ``e = log(G_data / G_model)`` (MACE eq. 5) is broken down
+
+* by channel: cost per (output, input) pair, log-magnitude error in dB and phase error in
+  degrees at every frequency;
+* by frequency: the worst bands, contiguous regions where the RMS error over channels
+  exceeds a threshold, ranked by their share of the cost;
+* by mode: a table in the style of MACE Table 1 (frequency and damping of model and data
+  modes, their errors in %, and the MAC of their residue shapes);
+* by structure: because log errors of a sensor gain, a sensor filter or delay add to every
+  channel of that sensor's row (and actuator errors to every channel of that actuator's
+  column), the per-frequency two-way split ``e_ij(w) = mu(w) + a_i(w) + b_j(w) + r_ij(w)``
+  (least squares, i.e. a two-way analysis of variance) tells sensor-side (rows ``a``),
+  actuator-side (columns ``b``) and structural (the non-separable rest ``r``, and a common
+  part ``mu`` that is not a pure gain or delay) errors apart.
+"""
+
+from __future__ import annotations
+
+import html
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.optimize
+import scipy.signal
+
+from ..errors import DataError
+from ..frd import FrequencyData
+from ..table import Table
+from .residual import Residual, log_ratio
+
+__all__ = [
+    "Comparison",
+    "compare",
+    "Band",
+    "ErrorStructure",
+    "Mode",
+    "error_structure",
+    "statespace_modes",
+    "peak_pick_modes",
+    "mac",
+    "pair_modes",
+]
+
+#: dB per neper (20 / ln 10).
+DB_PER_NEPER = 20.0 / np.log(10.0)
+
+
+# ---------------------------------------------------------------------------- modes
+
+
+@dataclass(frozen=True)
+class Mode:
+    """One mode: ``f_hz`` (Hz), ``zeta`` (ratio, not %), ``shape`` (complex, n_out*n_in) or None."""
+
+    f_hz: float
+    zeta: float
+    shape: np.ndarray | None = None
+
+
+def mac(a: np.ndarray | None, b: np.ndarray | None) -> float:
+    """Complex modal assurance criterion in [0, 1]; NaN when a shape is missing."""
+    if a is None or b is None:
+        return float("nan")
+    a = np.asarray(a, dtype=complex).ravel()
+    b = np.asarray(b, dtype=complex).ravel()
+    den = np.vdot(a, a).real * np.vdot(b, b).real
+    if den <= 0:
+        return float("nan")
+    return float(abs(np.vdot(a, b)) ** 2 / den)
+
+
+def statespace_modes(
+    sys: Any,
+    band: tuple[float, float],
+    out_idx: list[int] | None = None,
+    in_idx: list[int] | None = None,
+    max_zeta: float = 0.5,
+) -> list[Mode]:
+    """Modes of a state space with natural frequency in ``band`` (Hz) and ``zeta < max_zeta``.
+
+    The shape of mode k is its residue ``(C v_k)(w_k B)`` (eigenvector v_k, left
+    eigenvector row w_k of ``V^-1``), restricted to the channels ``out_idx`` x ``in_idx``.
+    """
+    A, B, C = (np.asarray(m, dtype=float) for m in (sys.A, sys.B, sys.C))
+    if A.size == 0:
+        return []
+    lam, V = np.linalg.eig(A)
+    try:
+        W = np.linalg.inv(V)
+    except np.linalg.LinAlgError:
+        W = np.linalg.pinv(V)
+    out_idx = list(range(C.shape[0])) if out_idx is None else out_idx
+    in_idx = list(range(B.shape[1])) if in_idx is None else in_idx
+    modes = []
+    for k in np.flatnonzero(lam.imag > 0):
+        f = abs(lam[k]) / (2 * np.pi)
+        zeta = -lam[k].real / abs(lam[k])
+        if not band[0] <= f <= band[1] or zeta >= max_zeta:
+            continue
+        res = np.outer(C[out_idx] @ V[:, k], W[k] @ B[:, in_idx])
+        modes.append(Mode(float(f), float(zeta), res.ravel()))
+    return sorted(modes, key=lambda m: m.f_hz)
+
+
+def _get(obj: Any, *names: str) -> Any:
+    for n in names:
+        if isinstance(obj, dict) and n in obj:
+            return obj[n]
+        if hasattr(obj, n):
+            return getattr(obj, n)
+    return None
+
+
+def measurement_modes(
+    mm: Any, band: tuple[float, float], outputs, inputs, max_zeta: float = 0.5
+) -> list[Mode]:
+    """Modes of a measurement model (``rc.fit_measurement_model`` result, duck-typed).
+
+    Reads ``mm.modes`` (a sequence of records with ``f_hz``/``zeta`` and optional
+    ``residue``/``shape``, or an object with arrays ``f_hz``, ``zeta``, ``residues``);
+    falls back to the eigenstructure of ``mm.sys`` (or ``mm.statespace()``).
+    """
+    modes = _get(mm, "modes")
+    found: list[Mode] = []
+    if modes is not None and not callable(modes):
+        f = _get(modes, "f_hz", "frequency_hz", "freq_hz")
+        if f is not None and np.ndim(f) == 1:
+            z = np.asarray(_get(modes, "zeta", "damping"), dtype=float)
+            res = _get(modes, "residues", "shapes")
+            for k, fk in enumerate(np.asarray(f, dtype=float)):
+                shape = None if res is None else np.asarray(res[k]).ravel()
+                found.append(Mode(float(fk), float(z[k]), shape))
+        else:
+            for rec in modes:
+                fk = _get(rec, "f_hz", "frequency_hz", "freq_hz")
+                if fk is None:
+                    found = []
+                    break
+                shape = _get(rec, "residue", "shape")
+                zk = _get(rec, "zeta", "damping")
+                found.append(
+                    Mode(
+                        float(fk),
+                        float(zk) if zk is not None else np.nan,
+                        None if shape is None else np.asarray(shape).ravel(),
+                    )
+                )
+    if found:
+        return sorted((m for m in found if band[0] <= m.f_hz <= band[1]), key=lambda m: m.f_hz)
+    sys = _get(mm, "sys")
+    if sys is None and hasattr(mm, "statespace"):
+        sys = mm.statespace()
+    if sys is None:
+        return []
+    o_lab, i_lab = list(sys.output_labels), list(sys.input_labels)
+    try:
+        out_idx = [o_lab.index(n) for n in outputs]
+        in_idx = [i_lab.index(n) for n in inputs]
+    except ValueError:
+        out_idx, in_idx = None, None
+    return statespace_modes(sys, band, out_idx, in_idx, max_zeta=max_zeta)
+
+
+def _half_power(f: np.ndarray, s: np.ndarray, k: int, lo: int, hi: int) -> float:
+    """Half-power damping ratio of the peak at index k; the search stays in [lo, hi]."""
+    level = s[k] / np.sqrt(2.0)
+    fp = f[k]
+    left = right = None
+    for i in range(k, lo, -1):
+        if s[i - 1] <= level:
+            t = (level - s[i - 1]) / (s[i] - s[i - 1])
+            left = f[i - 1] + t * (f[i] - f[i - 1])
+            break
+    for i in range(k, hi):
+        if s[i + 1] <= level:
+            t = (s[i] - level) / (s[i] - s[i + 1])
+            right = f[i] + t * (f[i + 1] - f[i])
+            break
+    if left is not None and right is not None:
+        return (right - left) / (2 * fp)
+    if left is not None:
+        return (fp - left) / fp
+    if right is not None:
+        return (right - fp) / fp
+    return float("nan")
+
+
+def peak_pick_modes(
+    f_hz: np.ndarray, response: np.ndarray, prominence: float = 0.5, max_modes: int = 40
+) -> list[Mode]:
+    """Modes from the peaks of the channel-normalised summed magnitude ``sum |G_ij| / rms_ij``.
+
+    Peaks need a prominence of ``prominence`` nepers (0.5 ~ 4.3 dB) in ``ln S``; their
+    frequency is refined by a parabola through ``ln S``, damping is the half-power
+    bandwidth ``(f2 - f1) / (2 f_peak)`` (one-sided when a neighbour hides one side),
+    and the shape is the response at the peak.
+    """
+    f = np.asarray(f_hz, dtype=float)
+    g = np.asarray(response)
+    flat = g.reshape(g.shape[0], -1)
+    rms = np.sqrt(np.mean(np.abs(flat) ** 2, axis=0))
+    s = np.sum(np.abs(flat) / np.where(rms > 0, rms, 1.0), axis=1)
+    ls = np.log(np.maximum(s, 1e-300))
+    peaks, props = scipy.signal.find_peaks(ls, prominence=prominence)
+    if peaks.size > max_modes:
+        keep = np.argsort(props["prominences"])[::-1][:max_modes]
+        peaks = np.sort(peaks[keep])
+    bounds = np.concatenate([[0], (peaks[:-1] + peaks[1:]) // 2, [f.size - 1]])
+    modes = []
+    for j, k in enumerate(peaks):
+        fk = f[k]
+        if 0 < k < f.size - 1:
+            y0, y1, y2 = ls[k - 1], ls[k], ls[k + 1]
+            den = y0 - 2 * y1 + y2
+            if den < 0:
+                off = 0.5 * (y0 - y2) / den
+                fk = f[k] + off * (f[k + 1] - f[k - 1]) / 2
+        zeta = _half_power(f, s, k, bounds[j], bounds[j + 1])
+        modes.append(Mode(float(fk), float(zeta), flat[k].copy()))
+    return modes
+
+
+def pair_modes(
+    model: list[Mode], measured: list[Mode], tol: float = 0.2
+) -> list[tuple[int | None, int | None]]:
+    """Pair model and measured modes (Hungarian assignment on frequency distance and MAC).
+
+    Cost of a pair: ``10 |ln(f_model / f_data)| + (1 - MAC)``; pairs further apart than
+    ``tol`` (relative) are not allowed. Returns ``(i_model, i_measured)`` index pairs
+    sorted by frequency, with ``None`` on the side of an unpaired mode.
+    """
+    nm, nd = len(model), len(measured)
+    pairs: list[tuple[int | None, int | None]] = []
+    used_m, used_d = set(), set()
+    if nm and nd:
+        big = 1e6
+        cost = np.full((nm, nd), big)
+        for i, a in enumerate(model):
+            for j, b in enumerate(measured):
+                rel = abs(np.log(a.f_hz / b.f_hz))
+                if rel <= np.log1p(tol):
+                    m = mac(a.shape, b.shape)
+                    cost[i, j] = 10 * rel + (1 - (0.0 if np.isnan(m) else m))
+        rows, cols = scipy.optimize.linear_sum_assignment(cost)
+        for i, j in zip(rows, cols):
+            if cost[i, j] < big:
+                pairs.append((int(i), int(j)))
+                used_m.add(int(i))
+                used_d.add(int(j))
+    pairs += [(i, None) for i in range(nm) if i not in used_m]
+    pairs += [(None, j) for j in range(nd) if j not in used_d]
+
+    def key(p):
+        i, j = p
+        return model[i].f_hz if i is not None else measured[j].f_hz
+
+    return sorted(pairs, key=key)
+
+
+# ---------------------------------------------------------------------------- structure
+@dataclass(frozen=True)
+class ErrorStructure:
+    """Two-way split of the complex log error over channels (sensor rows, actuator columns).
+
+    Per frequency ``e_ij = mu + a_i + b_j + r_ij`` with ``sum a = sum b = 0`` and ``r``
+    orthogonal to both (least squares); energies are summed over the band and given as
+    fractions of the total ``sum |e|^2``.
+
+    Attributes
+    ----------
+    common, sensor, actuator, interaction : float
+        Energy fractions of ``mu``, the row effects ``a``, the column effects ``b`` and the
+        non-separable rest ``r`` (they add up to 1).
+    row_energy : ndarray (n_out,)
+        Energy of each output's row mean ``mu + a_i`` (which sensor carries the error).
+    column_energy : ndarray (n_in,)
+        Energy of each input's column mean ``mu + b_j``.
+    dominant_output, dominant_input : str
+        The output row / input column with the largest energy.
+    kind : str
+        ``"sensor"``, ``"actuator"``, ``"common"`` (a gain/delay shared by all channels),
+        ``"structural"`` or ``"none"`` (no error).
+    common_delay_s : float
+        Delay (s) of a least-squares fit ``mu ~ c0 - j w tau`` to the common part.
+    """
+
+    common: float
+    sensor: float
+    actuator: float
+    interaction: float
+    row_energy: np.ndarray
+    column_energy: np.ndarray
+    dominant_output: str
+    dominant_input: str
+    kind: str
+    common_delay_s: float = 0.0
+
+    @property
+    def structural(self) -> float:
+        """Share not attributable to one side: interaction, plus the common part unless it is a
+        pure gain/delay."""
+        return self.interaction + (0.0 if self.kind == "common" else self.common)
+
+    def describe(self) -> str:
+        """The verdict in plain words."""
+        pct = (
+            f"sensor rows {self.sensor:.0%}, actuator columns {self.actuator:.0%}, "
+            f"common {self.common:.0%}, channel-specific {self.interaction:.0%}"
+        )
+        if self.kind == "sensor":
+            return (
+                f"sensor-side: the error is mostly the same along output {self.dominant_output!r}'s row "
+                f"(a gain, filter or delay of that sensor) [{pct}]."
+            )
+        if self.kind == "actuator":
+            return (
+                f"actuator-side: the error is mostly the same along input {self.dominant_input!r}'s column "
+                f"(a gain, filter or delay of that actuator) [{pct}]."
+            )
+        if self.kind == "common":
+            return (
+                f"common to all channels: a shared gain or delay (fitted delay "
+                f"{self.common_delay_s * 1e3:.3g} ms) [{pct}]."
+            )
+        if self.kind == "structural":
+            return (
+                f"structural: the error differs from channel to channel in a way no sensor or actuator "
+                f"error explains (mode frequencies, shapes or damping) [{pct}]."
+            )
+        return "no error."
+
+
+def _common_is_gain_delay(mu: np.ndarray, w: np.ndarray) -> tuple[bool, float]:
+    """Fit ``mu(w) ~ c0 - j w tau`` (complex c0, real tau); True if it explains >= 90 %."""
+    energy = float(np.sum(np.abs(mu) ** 2))
+    if energy == 0:
+        return False, 0.0
+    # unknowns: Re c0, Im c0, tau ; real equations for Re and Im parts
+    n = mu.size
+    A = np.zeros((2 * n, 3))
+    A[:n, 0] = 1.0
+    A[n:, 1] = 1.0
+    A[n:, 2] = -w
+    b = np.concatenate([mu.real, mu.imag])
+    sol, *_ = np.linalg.lstsq(A, b, rcond=None)
+    rest = float(np.sum((A @ sol - b) ** 2))
+    return rest <= 0.1 * energy, float(sol[2])
+
+
+def error_structure(
+    error: np.ndarray, w: np.ndarray, outputs: Sequence[str], inputs: Sequence[str]
+) -> ErrorStructure:
+    """Split the complex log error (n_freq, n_out, n_in) into common, row, column and rest.
+
+    Parameters
+    ----------
+    error : ndarray, complex, shape (n_freq, n_out, n_in)
+    w : ndarray (n_freq,)
+        Angular frequencies in rad/s (for the common-delay fit).
+    outputs, inputs : sequence of str
+
+    Returns
+    -------
+    ErrorStructure
+        ``kind`` is decided in this order: ``"none"`` if there is no error;
+        ``"structural"`` if the channel-specific rest holds >= 40 %; ``"sensor"`` if the row
+        share is at least twice the column share and >= 25 %; ``"actuator"`` likewise;
+        ``"common"`` if the common part dominates and is a gain/delay; else ``"structural"``.
+    """
+    e = np.asarray(error, dtype=complex)
+    no, ni = e.shape[1:]
+    mu = e.mean(axis=(1, 2))
+    rows = e.mean(axis=2)  # (nf, no) = mu + a
+    cols = e.mean(axis=1)  # (nf, ni) = mu + b
+    a = rows - mu[:, None]
+    b = cols - mu[:, None]
+    rest = e - mu[:, None, None] - a[:, :, None] - b[:, None, :]
+    total = float(np.sum(np.abs(e) ** 2))
+    row_energy = np.sum(np.abs(rows) ** 2, axis=0) * ni
+    col_energy = np.sum(np.abs(cols) ** 2, axis=0) * no
+    dom_o = outputs[int(np.argmax(row_energy))]
+    dom_i = inputs[int(np.argmax(col_energy))]
+    if total <= 1e-30 * max(e.size, 1):
+        return ErrorStructure(0.0, 0.0, 0.0, 0.0, row_energy, col_energy, dom_o, dom_i, "none")
+    fc = float(np.sum(np.abs(mu) ** 2)) * no * ni / total
+    fs = float(np.sum(np.abs(a) ** 2)) * ni / total
+    fa = float(np.sum(np.abs(b) ** 2)) * no / total
+    fr = float(np.sum(np.abs(rest) ** 2)) / total
+    is_gd, tau = _common_is_gain_delay(mu, np.asarray(w, dtype=float))
+    if fr >= 0.4:
+        kind = "structural"
+    elif fs >= 2 * fa and fs >= 0.25:
+        kind = "sensor"
+    elif fa >= 2 * fs and fa >= 0.25:
+        kind = "actuator"
+    elif fc >= 0.5 and is_gd:
+        kind = "common"
+    else:
+        kind = "structural"
+    return ErrorStructure(fc, fs, fa, fr, row_energy, col_energy, dom_o, dom_i, kind, tau if is_gd else 0.0)
+
+
+# ---------------------------------------------------------------------------- bands
+@dataclass(frozen=True)
+class Band:
+    """A contiguous frequency region where the model fails.
+
+    Attributes
+    ----------
+    lo_hz, hi_hz : float
+        Edges (Hz), the first and last failing data points.
+    peak_hz : float
+        Frequency of the largest RMS error in the band.
+    peak_error_db : float
+        That RMS error as an equivalent magnitude error in dB (``|e|`` in nepers x 8.686;
+        phase counts with 1 rad = 8.686 dB).
+    share : float
+        Fraction of the total cost (eq. 5, unweighted) inside the band.
+    channel : str
+        The channel with the largest error energy in the band, ``"output <- input"``.
+    """
+
+    lo_hz: float
+    hi_hz: float
+    peak_hz: float
+    peak_error_db: float
+    share: float
+    channel: str
+
+
+def _worst_bands(
+    f: np.ndarray, e: np.ndarray, outputs, inputs, threshold_db: float, n_bands: int
+) -> tuple[Band, ...]:
+    power = np.abs(e) ** 2
+    rms = np.sqrt(power.reshape(f.size, -1).mean(axis=1)) * DB_PER_NEPER
+    total = float(power.sum()) or 1.0
+    bad = rms > threshold_db
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], bad.astype(int), [0]])))
+    bands = []
+    for start, stop in zip(edges[::2], edges[1::2]):
+        sl = slice(start, stop)
+        ch = power[sl].sum(axis=0)
+        o, i = np.unravel_index(int(np.argmax(ch)), ch.shape)
+        k = start + int(np.argmax(rms[sl]))
+        bands.append(
+            Band(
+                float(f[start]),
+                float(f[stop - 1]),
+                float(f[k]),
+                float(rms[k]),
+                float(power[sl].sum()) / total,
+                f"{outputs[o]} <- {inputs[i]}",
+            )
+        )
+    bands.sort(key=lambda b: -b.share)
+    return tuple(bands[:n_bands])
+
+
+# ---------------------------------------------------------------------------- result
+@dataclass(frozen=True, eq=False)
+class ModeRow:
+    """One row of the mode table (MACE Table 1); errors are ``(data - model) / model`` in %."""
+
+    f_model: float
+    f_data: float
+    zeta_model: float
+    zeta_data: float
+    mac: float
+
+    @property
+    def f_error_pct(self) -> float:
+        return 100.0 * (self.f_data - self.f_model) / self.f_model
+
+    @property
+    def zeta_error_pct(self) -> float:
+        return 100.0 * (self.zeta_data - self.zeta_model) / self.zeta_model
+
+
+@dataclass(frozen=True, eq=False)
+class Comparison:
+    """Result of :func:`compare`: where and how a model disagrees with data.
+
+    Attributes
+    ----------
+    cost : float
+        MACE's J (eq. 5) on the band, with the weights given.
+    cost_per_point : float
+        ``cost / (n_freq * n_out * n_in)`` (comparable across bands and data sets).
+    channel_cost : ndarray (n_out, n_in)
+        J per channel (sums to ``cost``).
+    f_hz : ndarray (n_freq,)
+        Band frequencies, Hz.
+    error : ndarray complex (n_freq, n_out, n_in)
+        Unweighted ``log(G_data / G_model)``.
+    mag_error_db, phase_error_deg : ndarray (n_freq, n_out, n_in)
+        Its real part in dB and imaginary part in degrees (data minus model).
+    bands : tuple of Band
+        Worst frequency bands, largest share of the cost first.
+    modes : tuple of ModeRow
+        Paired (and unpaired, with NaN on the missing side) modes in the band.
+    mode_source : str
+        ``"measurement model"`` or ``"peak picking"``.
+    structure : ErrorStructure
+        Sensor / actuator / structural split of the error.
+    outputs, inputs : tuple of str
+    data : FrequencyData
+        The banded data.
+    model_response : ndarray complex (n_freq, n_out, n_in)
+    model_name : str
+    threshold_db : float
+        Threshold used for the bands.
+    """
+
+    cost: float
+    cost_per_point: float
+    channel_cost: np.ndarray
+    f_hz: np.ndarray
+    error: np.ndarray
+    mag_error_db: np.ndarray
+    phase_error_deg: np.ndarray
+    bands: tuple[Band, ...]
+    modes: tuple[ModeRow, ...]
+    mode_source: str
+    structure: ErrorStructure
+    outputs: tuple[str, ...]
+    inputs: tuple[str, ...]
+    data: FrequencyData = field(repr=False)
+    model_response: np.ndarray = field(repr=False)
+    model_name: str = "model"
+    threshold_db: float = 3.0
+
+    # ------------------------------------------------------------------ tables
+    def table(self) -> Table:
+        """Per-channel table: cost, its share, RMS magnitude (dB) and phase (deg) errors."""
+        rows = []
+        for o, out in enumerate(self.outputs):
+            for i, inp in enumerate(self.inputs):
+                rows.append(
+                    (
+                        out,
+                        inp,
+                        float(self.channel_cost[o, i]),
+                        float(self.channel_cost[o, i] / self.cost) if self.cost > 0 else 0.0,
+                        float(np.sqrt(np.mean(self.mag_error_db[:, o, i] ** 2))),
+                        float(np.sqrt(np.mean(self.phase_error_deg[:, o, i] ** 2))),
+                        float(np.max(np.abs(self.mag_error_db[:, o, i]))),
+                    )
+                )
+        rows.sort(key=lambda r: -r[2])
+        return Table(
+            (
+                "output",
+                "input",
+                "cost J",
+                "share",
+                "rms mag err (dB)",
+                "rms phase err (deg)",
+                "max |mag err| (dB)",
+            ),
+            rows,
+            title=f"{self.model_name} vs data: cost per channel (MACE eq. 5)",
+        )
+
+    def mode_table(self) -> Table:
+        """Modes in the style of MACE Table 1; errors ``(data - model)/model`` in %."""
+        rows = [
+            (
+                k + 1,
+                m.f_model,
+                m.f_data,
+                m.f_error_pct,
+                100 * m.zeta_model,
+                100 * m.zeta_data,
+                m.zeta_error_pct,
+                m.mac,
+            )
+            for k, m in enumerate(self.modes)
+        ]
+        return Table(
+            (
+                "mode",
+                "f model (Hz)",
+                "f data (Hz)",
+                "f error (%)",
+                "zeta model (%)",
+                "zeta data (%)",
+                "zeta error (%)",
+                "MAC",
+            ),
+            rows,
+            title=f"modes: model vs data ({self.mode_source})",
+        )
+
+    def band_table(self) -> Table:
+        """The worst bands."""
+        rows = [(b.lo_hz, b.hi_hz, b.peak_hz, b.peak_error_db, b.share, b.channel) for b in self.bands]
+        return Table(
+            ("lo (Hz)", "hi (Hz)", "peak (Hz)", "peak rms err (dB)", "share of cost", "worst channel"),
+            rows,
+            title=f"bands where the RMS error exceeds {self.threshold_db:g} dB",
+        )
+
+    def summary(self) -> str:
+        """A few sentences in plain words."""
+        nf, no, ni = self.error.shape
+        lines = [
+            f"{self.model_name} against {no}x{ni} channels on {self.f_hz[0]:.4g}-{self.f_hz[-1]:.4g} Hz "
+            f"({nf} points): cost J = {self.cost:.4g} ({self.cost_per_point:.3g} per point; RMS error "
+            f"{np.sqrt(np.mean(self.mag_error_db**2)):.2f} dB in magnitude, "
+            f"{np.sqrt(np.mean(self.phase_error_deg**2)):.1f} deg in phase)."
+        ]
+        o, i = np.unravel_index(int(np.argmax(self.channel_cost)), self.channel_cost.shape)
+        lines.append(
+            f"Worst channel: {self.outputs[o]} <- {self.inputs[i]} "
+            f"({self.channel_cost[o, i] / max(self.cost, 1e-300):.0%} of the cost)."
+        )
+        if self.bands:
+            parts = [
+                f"{b.lo_hz:.3g}-{b.hi_hz:.3g} Hz ({b.share:.0%}, peak {b.peak_error_db:.1f} dB at "
+                f"{b.peak_hz:.3g} Hz)"
+                for b in self.bands[:3]
+            ]
+            lines.append("It fails most in " + "; ".join(parts) + ".")
+        else:
+            lines.append(f"The RMS error stays below {self.threshold_db:g} dB everywhere in the band.")
+        paired = [m for m in self.modes if np.isfinite(m.f_model) and np.isfinite(m.f_data)]
+        if paired:
+            worst = max(paired, key=lambda m: abs(m.f_error_pct))
+            lines.append(
+                f"{len(paired)} modes paired ({self.mode_source}); largest frequency error "
+                f"{worst.f_error_pct:+.2f}% at {worst.f_model:.4g} Hz (model) vs "
+                f"{worst.f_data:.4g} Hz (data)."
+            )
+        lines.append("Error structure: " + self.structure.describe())
+        return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        summary = "".join(f"<p>{html.escape(s)}</p>" for s in self.summary().splitlines())
+        return (
+            summary
+            + self.table()._repr_html_()
+            + self.band_table()._repr_html_()
+            + self.mode_table()._repr_html_()
+        )
+
+    def __repr__(self) -> str:
+        return f"Comparison(cost={self.cost:.4g}, kind={self.structure.kind!r}, bands={len(self.bands)})"
+
+    # ------------------------------------------------------------------ plots
+    def plot(self, fig: Any = None) -> Any:
+        """Data vs model magnitude per channel (failing bands shaded) and an error map.
+
+        Returns the matplotlib Figure.
+        """
+        import matplotlib.pyplot as plt
+
+        nf, no, ni = self.error.shape
+        fig = fig or plt.figure(figsize=(3.2 * ni + 1, 2.4 * no + 3), constrained_layout=True)
+        grid = fig.add_gridspec(no + 1, ni, height_ratios=[1.0] * no + [1.2])
+        f = self.f_hz
+        for o in range(no):
+            for i in range(ni):
+                ax = fig.add_subplot(grid[o, i])
+                ax.semilogy(f, np.abs(self.data.response[:, o, i]), "k.", ms=2, label="data")
+                ax.semilogy(f, np.abs(self.model_response[:, o, i]), "C0-", lw=1, label=self.model_name)
+                for b in self.bands:
+                    ax.axvspan(b.lo_hz, b.hi_hz, color="C3", alpha=0.15, lw=0)
+                ax.set_title(f"{self.outputs[o]} <- {self.inputs[i]}", fontsize=8)
+                ax.tick_params(labelsize=7)
+                if o == 0 and i == 0:
+                    ax.legend(fontsize=7)
+        ax = fig.add_subplot(grid[no, :])
+        emap = np.abs(self.error.reshape(nf, -1)).T * DB_PER_NEPER
+        extent = (f[0], f[-1], emap.shape[0] - 0.5, -0.5)
+        im = ax.imshow(emap, aspect="auto", extent=extent, cmap="magma", interpolation="nearest")
+        ax.set_yticks(range(no * ni))
+        ax.set_yticklabels([f"{a}<-{b}" for a in self.outputs for b in self.inputs], fontsize=6)
+        ax.set_xlabel("frequency (Hz)")
+        ax.set_title("|log(G_data / G_model)| (dB equivalent)", fontsize=8)
+        fig.colorbar(im, ax=ax)
+        return fig
+
+
+# ---------------------------------------------------------------------------- compare
+def _mode_rows(model_modes: list[Mode], data_modes: list[Mode]) -> tuple[ModeRow, ...]:
+    rows = []
+    nan = float("nan")
+    for i, j in pair_modes(model_modes, data_modes):
+        a = model_modes[i] if i is not None else None
+        b = data_modes[j] if j is not None else None
+        rows.append(
+            ModeRow(
+                a.f_hz if a else nan,
+                b.f_hz if b else nan,
+                a.zeta if a else nan,
+                b.zeta if b else nan,
+                mac(a.shape, b.shape) if a and b else nan,
+            )
+        )
+    return tuple(rows)
+
+
+def compare(
+    model: Any,
+    data: FrequencyData,
+    band: Sequence[float] | None = None,
+    weights: Any = None,
+    measurement_model: Any = None,
+    *,
+    threshold_db: float = 3.0,
+    n_bands: int = 5,
+    max_zeta: float = 0.5,
+) -> Comparison:
+    """Compare a physical model with measured frequency responses (MACE eq. 5, Table 1).
+
+    Parameters
+    ----------
+    model : PhysicalModel
+        Signal names must match the data's.
+    data : FrequencyData
+        Measured responses (Hz).
+    band : (lo_hz, hi_hz), optional
+        Band in Hz; default every data point.
+    weights : None, "coherence" or array_like
+        Weights of the cost (see :class:`Residual`); the dB/phase errors are unweighted.
+    measurement_model : optional
+        An ``rc.fit_measurement_model`` result; its ``.modes`` (or the eigenstructure of its
+        ``.sys``) give the measured modes. Default: peak picking of the data.
+    threshold_db : float
+        RMS error over channels (dB-equivalent ``|log ratio|``; 1 rad of phase = 8.7 dB) above
+        which a frequency point belongs to a failing band.
+    n_bands : int
+        How many worst bands to keep.
+    max_zeta : float
+        Model poles with a damping ratio at or above this are not listed as modes.
+
+    Returns
+    -------
+    Comparison
+
+    Raises
+    ------
+    DataError
+        Mismatched signal names or counts, or a band outside the data.
+    """
+    if threshold_db <= 0:
+        raise DataError(f"threshold_db must be positive (dB); got {threshold_db!r}.")
+    res = Residual(model, data, band=band, weights=weights)
+    g_model = res.model_response()
+    d = res.data
+    weighted = res.weights * log_ratio(d.response, g_model)
+    error = log_ratio(d.response, g_model)
+    channel_cost = np.sum(np.abs(weighted) ** 2, axis=0)
+    cost = float(channel_cost.sum())
+    f = d.f_hz
+    span = (float(f[0]), float(f[-1]))
+    model_modes = statespace_modes(model.statespace(), span, res._out_idx, res._in_idx, max_zeta=max_zeta)
+    if measurement_model is not None:
+        data_modes = measurement_modes(measurement_model, span, d.outputs, d.inputs, max_zeta=max_zeta)
+        source = "measurement model"
+    else:
+        data_modes = peak_pick_modes(f, d.response)
+        source = "peak picking"
+    return Comparison(
+        cost=cost,
+        cost_per_point=cost / error.size,
+        channel_cost=channel_cost,
+        f_hz=f,
+        error=error,
+        mag_error_db=error.real * DB_PER_NEPER,
+        phase_error_deg=np.degrees(error.imag),
+        bands=_worst_bands(f, error, d.outputs, d.inputs, threshold_db, n_bands),
+        modes=_mode_rows(model_modes, data_modes),
+        mode_source=source,
+        structure=error_structure(weighted, d.w, d.outputs, d.inputs),
+        outputs=d.outputs,
+        inputs=d.inputs,
+        data=d,
+        model_response=g_model,
+        model_name=getattr(model, "name", "model"),
+        threshold_db=float(threshold_db),
+    )
