@@ -3,11 +3,15 @@
 Rational fits with one common denominator (Chebyshev/Sanathanan-Koerner as in the Caltech
 paper, or relaxed vector fitting), conversion to real modal state space, the Caltech
 SIMO-to-MIMO combination and SVD grouping of modes, balanced truncation with its error bound,
-and the one-call measurement model scored by the complex-log cost (MACE eq. 5).
+the estimator-leakage correction, and the one-call measurement model scored by the
+complex-log cost (MACE eq. 5).
 """
 
+from .balanced import BalancedTruncation, balanced_truncation
 from .cost import LogCost, log_cost
 from .grouping import cluster_modes, combine_simo, group_modes
+from .leakage import estimator_settings, expected_h1, leakage_factor
+from .measurement_model import MeasurementModel, Mode, fit_measurement_model
 from .rational import IdentifyWarning, RationalFit, fit_rational
 
 __all__ = [
@@ -17,6 +21,14 @@ __all__ = [
     "combine_simo",
     "group_modes",
     "cluster_modes",
+    "balanced_truncation",
+    "BalancedTruncation",
+    "fit_measurement_model",
+    "MeasurementModel",
+    "Mode",
     "LogCost",
     "log_cost",
+    "estimator_settings",
+    "expected_h1",
+    "leakage_factor",
 ]

@@ -18,6 +18,7 @@ from ..errors import FitError
 from ..frd import FrequencyData
 from .rational import RationalFit
 from .realization import residue_rank
+from .refine import refine_residues
 
 __all__ = ["combine_simo", "group_modes", "cluster_modes"]
 
@@ -150,8 +151,8 @@ def _resolve_groups(
     return _explicit_groups(model, groups, cand)
 
 
-def _merge(poles: np.ndarray, residues: np.ndarray, keep: int) -> tuple[complex, np.ndarray]:
-    """Group pole (residue-weighted mean) and rank-``keep`` truncation of the summed residue."""
+def _merge_one(poles: np.ndarray, residues: np.ndarray, keep: int) -> tuple[complex, np.ndarray]:
+    """Residue-weighted mean pole and rank-``keep`` SVD truncation of the summed residue (eq. 10)."""
     w = np.array([np.linalg.norm(r) for r in residues])
     w = w / w.sum() if w.sum() > 0 else np.full(w.size, 1.0 / w.size)
     pole = complex(np.sum(w * poles))
@@ -159,19 +160,32 @@ def _merge(poles: np.ndarray, residues: np.ndarray, keep: int) -> tuple[complex,
     return pole, (u[:, :keep] * sv[:keep]) @ vh[:keep]
 
 
+def _merge(poles: np.ndarray, residues: np.ndarray, keep: int) -> list[tuple[complex, np.ndarray, int]]:
+    """Replace a group by ``keep`` modes: ``keep`` frequency sub-clusters of its members, each a
+    rank-1 mode (eq. 9); with fewer members than ``keep`` the modes share one rank-``keep`` pole."""
+    if keep == 1 or poles.size < keep:
+        pole, res = _merge_one(poles, residues, keep)
+        return [(pole, res, keep)]
+    subs = cluster_modes(np.abs(poles), n_groups=keep)
+    return [(*_merge_one(poles[c], residues[c], 1), 1) for c in subs]
+
+
 def group_modes(
     model: RationalFit,
     groups: Any = None,
     tol: float = 0.05,
     rank_tol: float = 0.1,
+    refine: bool = True,
 ) -> RationalFit:
     """The Caltech SVD reduction: group modes by frequency and keep a set number per group.
 
-    Each group's poles are replaced by one pole (the residue-weighted mean) whose residue is
-    the rank-``k`` SVD truncation of the group's summed residue matrices (eqs. 9-10); in the
-    state space it becomes ``k`` modes sharing that frequency and damping with orthogonal
-    input/output directions. Real poles and complex poles outside every explicit group are
-    kept unchanged.
+    A group kept at one mode becomes one pole (the residue-weighted mean of its members) whose
+    residue is the rank-1 SVD truncation of the group's summed residue matrices (eqs. 9-10).
+    A group kept at ``k > 1`` modes (two near-coincident bending modes) is split into ``k``
+    frequency sub-clusters of its members, each becoming such a rank-1 mode; if the group has
+    fewer members than ``k``, the ``k`` modes share one pole with a rank-``k`` residue. The
+    factors are then refined by least squares (``refine``). Real poles and complex poles
+    outside every explicit group are kept unchanged.
 
     Parameters
     ----------
@@ -187,6 +201,10 @@ def group_modes(
         Relative frequency tolerance of automatic clustering.
     rank_tol : float
         Relative singular-value threshold of automatic mode counts.
+    refine : bool
+        After the SVD split, refit the rank-``k`` factors ``C B`` of every group (poles fixed)
+        to the model's data by alternating least squares (:func:`refine_residues`); needs
+        ``model.data`` (kept by :func:`fit_rational` and :func:`combine_simo`).
 
     Returns
     -------
@@ -207,17 +225,17 @@ def group_modes(
                 f"a group near {model.f_hz[idx].mean():.4g} Hz asks for {keep} modes; with "
                 f"{len(model.outputs)} outputs and {len(model.inputs)} inputs keep 1..{max_rank}."
             )
-        pole, res = _merge(model.poles[idx], model.residues[idx], keep)
-        poles.append(pole)
-        residues.append(res)
-        ranks.append(keep)
+        for pole, res, rank in _merge(model.poles[idx], model.residues[idx], keep):
+            poles.append(pole)
+            residues.append(res)
+            ranks.append(rank)
         used[idx] = True
     for k in np.flatnonzero(~used):
         poles.append(model.poles[k])
         residues.append(model.residues[k])
         ranks.append(model.ranks[k])
     order = np.argsort(np.abs(poles), kind="stable")
-    return RationalFit(
+    grouped = RationalFit(
         np.array(poles)[order],
         np.array(residues)[order],
         model.d.copy(),
@@ -230,3 +248,4 @@ def group_modes(
         model.converged,
         model.data,
     )
+    return refine_residues(grouped) if refine else grouped

@@ -1,0 +1,307 @@
+"""``fit_measurement_model``: the project's yardstick, the best linear description of what was
+measured, in one call.
+
+The procedure: (1) a common-denominator rational fit (VF or Chebyshev) of the band, or the
+Caltech route of one SIMO fit per input joined by :func:`combine_simo` and reduced by
+:func:`group_modes`; (2) when the data come from :func:`robustctl.estimate_frf`, a few
+fixed-point steps that undo the estimator's window leakage (see :mod:`.leakage`); (3) the
+residue of each mode truncated to its significant rank (1 for a physical mode); (4) the
+complex-log cost of MACE eq. 5. With ``n_modes=None`` the order is chosen from the cost
+versus order with a parsimony rule.
+"""
+
+from __future__ import annotations
+
+import html
+import warnings
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from ..errors import FitError
+from ..frd import FrequencyData
+from ..table import Table
+from ._problem import as_frequency_data
+from .cost import LogCost, log_cost
+from .grouping import group_modes
+from .leakage import EstimatorSettings, estimator_settings, leakage_factor
+from .rational import IdentifyWarning, RationalFit, fit_rational
+from .realization import residue_factors
+from .refine import refine_residues
+
+__all__ = ["Mode", "MeasurementModel", "fit_measurement_model"]
+
+#: fixed-point steps of the leakage correction
+LEAKAGE_STEPS = 4
+
+
+@dataclass(frozen=True, eq=False)
+class Mode:
+    """One identified mode (or a group of ``rank`` modes sharing a pole).
+
+    Attributes
+    ----------
+    f_hz : float
+        Natural frequency ``|p| / 2 pi``, Hz.
+    zeta : float
+        Damping ratio ``-Re p / |p|``.
+    pole : complex
+        Pole with ``Im p > 0``, rad/s.
+    residue : ndarray, complex, shape (n_out, n_in)
+        Residue matrix (rank ``rank``).
+    rank : int
+        Number of modes at this pole (1 for an isolated physical mode).
+    output_shape : ndarray, complex, shape (n_out, rank)
+        ``C = U sqrt(S)`` of the residue's SVD (Caltech eq. 10).
+    input_shape : ndarray, complex, shape (rank, n_in)
+        ``B = sqrt(S) V^*``.
+    """
+
+    f_hz: float
+    zeta: float
+    pole: complex
+    residue: np.ndarray
+    rank: int
+    output_shape: np.ndarray
+    input_shape: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class MeasurementModel:
+    """A measurement model: state space, modes and complex-log cost against the data.
+
+    Attributes
+    ----------
+    sys : control.StateSpace
+        Real modal realisation with the data's signal names.
+    modes : tuple of Mode
+        Complex modes sorted by frequency.
+    cost : LogCost
+        MACE eq. 5 of ``sys`` against ``data`` (per channel and total).
+    fit : RationalFit
+        The underlying pole-residue model (ranks as realised).
+    data : FrequencyData
+        The band data the model was scored on (leakage-corrected when ``leakage_corrected``).
+    raw_data : FrequencyData
+        The band data as measured.
+    leakage_corrected : bool
+        Whether the estimator's window leakage was undone before fitting.
+    order_scan : tuple of (int, float)
+        ``(n_modes, total cost)`` of every order tried by the automatic order selection.
+    """
+
+    sys: Any
+    modes: tuple[Mode, ...]
+    cost: LogCost
+    fit: RationalFit
+    data: FrequencyData
+    raw_data: FrequencyData
+    leakage_corrected: bool = False
+    order_scan: tuple[tuple[int, float], ...] = ()
+
+    @property
+    def n_modes(self) -> int:
+        """Number of modes (sum of mode ranks)."""
+        return int(sum(m.rank for m in self.modes))
+
+    @property
+    def band_hz(self) -> tuple[float, float]:
+        return self.fit.band_hz
+
+    def freqresp(self, f_hz: Any) -> FrequencyData:
+        """Model response at ``f_hz`` (Hz)."""
+        return self.fit.freqresp(f_hz)
+
+    def table(self) -> Table:
+        """One row per mode: frequency, damping, rank, largest residue entry."""
+        rows = [
+            (k, m.f_hz, 100 * m.zeta, m.rank, float(np.max(np.abs(m.residue))))
+            for k, m in enumerate(self.modes, start=1)
+        ]
+        cols = ("mode", "f (Hz)", "damping (%)", "rank", "max |residue|")
+        title = (
+            f"Measurement model: {self.n_modes} modes, band {self.band_hz[0]:.4g}-{self.band_hz[1]:.4g} Hz, "
+            f"rms log-magnitude error {self.cost.rms_db_total:.3g} dB"
+        )
+        return Table(cols, rows, title=title)
+
+    def plot(self, max_channels: int = 9):
+        """Data and model per channel, magnitude and phase (matplotlib Figure)."""
+        from ..plots import bode_grid
+
+        model = self.fit.freqresp(self.data.f_hz)
+        label = "data (leakage-corrected)" if self.leakage_corrected else "data"
+        return bode_grid(
+            [self.data, model],
+            [label, f"model ({self.n_modes} modes)"],
+            max_channels=max_channels,
+            phase=True,
+            title=f"Measurement model, rms error {self.cost.rms_db_total:.3g} dB",
+        )
+
+    def _repr_html_(self) -> str:
+        head = html.escape(
+            f"MeasurementModel: {self.n_modes} modes, {self.sys.nstates} states, "
+            f"{len(self.fit.outputs)} outputs x {len(self.fit.inputs)} inputs"
+        )
+        return f"<p><b>{head}</b></p>" + self.table()._repr_html_() + self.cost.table()._repr_html_()
+
+    def __repr__(self) -> str:
+        return (
+            f"MeasurementModel({self.n_modes} modes, {self.sys.nstates} states, "
+            f"rms error {self.cost.rms_db_total:.3g} dB, J = {self.cost.total:.4g})"
+        )
+
+
+# ---------------------------------------------------------------------------- procedure
+def _settings(fd: FrequencyData, correct_leakage: Any) -> EstimatorSettings | None:
+    if correct_leakage is False:
+        return None
+    st = estimator_settings(fd.meta)
+    if correct_leakage is True and st is None:
+        raise FitError(
+            "correct_leakage=True needs the estimator settings (fs_hz, nperseg, window) in data.meta, "
+            "as recorded by rc.estimate_frf; pass correct_leakage=False for other data."
+        )
+    if correct_leakage not in (True, "auto"):
+        raise FitError(f"correct_leakage must be True, False or 'auto'; got {correct_leakage!r}.")
+    return st
+
+
+def _fit_once(band: FrequencyData, order: int, groups: Any, kw: dict) -> RationalFit:
+    """The rational fit: common denominator, or one SIMO fit per input (Caltech) when grouping."""
+    return fit_rational(band, order, common_denominator=groups is None, **kw)
+
+
+def _finish(fit: RationalFit, groups: Any, rank_tol: float) -> RationalFit:
+    if groups is not None:
+        return group_modes(fit, groups, rank_tol=rank_tol)
+    return refine_residues(replace(fit, ranks=np.ones(len(fit.poles), dtype=int)))
+
+
+def _fit_corrected(band: FrequencyData, order: int, groups: Any, st, kw: dict, rank_tol: float):
+    """Fit, then undo leakage in LEAKAGE_STEPS fixed-point steps; returns (final fit, data used)."""
+    fit = _fit_once(band, order, groups, kw)
+    data = band
+    for _ in range(LEAKAGE_STEPS if st is not None else 0):
+        data = band.replace(response=band.response * leakage_factor(fit, band.f_hz, st))
+        fit = _fit_once(data, order, groups, kw)
+    return _finish(fit, groups, rank_tol), data
+
+
+def _score(fit: RationalFit, data: FrequencyData) -> LogCost:
+    return log_cost(data.response, fit.response(data.f_hz), fit.outputs, fit.inputs)
+
+
+def _select_order(band, groups, st, kw, rank_tol, max_modes, parsimony, target_db):
+    """Cost versus order: the smallest n_modes whose cost is within ``parsimony`` of the best
+    (or the smallest meeting ``target_db``); stops after three orders without 5 % gain."""
+    scan, results, best, stale = [], {}, np.inf, 0
+    for n in range(1, max_modes + 1):
+        try:
+            fit, data = _fit_corrected(band, 2 * n, groups, st, kw, rank_tol)
+        except FitError:
+            break
+        cost = _score(fit, data)
+        scan.append((n, cost.total))
+        results[n] = (fit, data, cost)
+        if target_db is not None and cost.rms_db_total <= target_db:
+            return results[n], tuple(scan)
+        stale = 0 if cost.total < 0.95 * best else stale + 1
+        best = min(best, cost.total)
+        if stale >= 3:
+            break
+    if not results:
+        raise FitError("no order could be fitted; check the band (too few points?) and the data.")
+    chosen = min(n for n, (_, _, c) in results.items() if c.total <= (1 + parsimony) * best)
+    return results[chosen], tuple(scan)
+
+
+def _modes(fit: RationalFit) -> tuple[Mode, ...]:
+    out = []
+    for p, r, k in zip(fit.poles, fit.residues, fit.ranks):
+        if p.imag == 0 or k == 0:
+            continue
+        c, b = residue_factors(r, int(k))
+        out.append(Mode(float(abs(p) / (2 * np.pi)), float(-p.real / abs(p)), complex(p), r, int(k), c, b))
+    return tuple(out)
+
+
+def fit_measurement_model(
+    data: Any,
+    n_modes: int | None = None,
+    band: tuple[float, float] | None = None,
+    method: str = "vf",
+    groups: Any = None,
+    weights: Any = None,
+    correct_leakage: bool | str = "auto",
+    rank_tol: float = 0.1,
+    max_modes: int = 24,
+    parsimony: float = 0.1,
+    target_db: float | None = None,
+    max_iter: int = 30,
+) -> MeasurementModel:
+    """Identify a measurement model of frequency-response data in one call.
+
+    Parameters
+    ----------
+    data : FrequencyData (or what :func:`fit_rational` accepts)
+        Measured response, Hz.
+    n_modes : int, optional
+        Number of lightly damped modes (the fit has ``2 n_modes`` poles; with ``groups`` this
+        is the modes per SIMO fit). ``None``: chosen automatically from the cost versus order,
+        the smallest order within ``parsimony`` (relative) of the best cost seen.
+    band : (f_lo, f_hi), optional
+        Band in Hz.
+    method : {"vf", "chebyshev"}
+        Pole identification (see :func:`fit_rational`).
+    groups : optional
+        Use the Caltech route: one SIMO fit of ``n_modes`` modes per input, combined, then
+        grouped by :func:`group_modes` with this ``groups`` argument (e.g. ``(2, 1, 2, 1)``).
+    weights : array_like, optional
+        Per-frequency weights (default: coherence-based).
+    correct_leakage : True, False or "auto"
+        Undo the H1 estimator's window leakage (assumes white ZOH excitation and the settings in
+        ``data.meta``); "auto" does it when the settings are there.
+    rank_tol : float
+        Residue singular values below ``rank_tol * sigma_1`` are dropped: a physical mode has a
+        rank-1 residue. Also the automatic mode count of ``group_modes``.
+    max_modes : int
+        Largest ``n_modes`` tried by the automatic selection.
+    parsimony : float
+        Relative cost slack of the automatic selection (0.1: within 10 % of the best).
+    target_db : float, optional
+        Required rms log-magnitude error (dB); a :class:`FitError` says so when it is missed.
+    max_iter : int
+        Iteration cap of each pole identification.
+
+    Returns
+    -------
+    MeasurementModel
+    """
+    fd = as_frequency_data(data)
+    band_data = fd if band is None else fd.band(*band)
+    st = _settings(fd, correct_leakage)
+    kw = dict(method=method, weights=weights, max_iter=max_iter)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IdentifyWarning)
+        if n_modes is None:
+            (fit, used, cost), scan = _select_order(
+                band_data, groups, st, kw, rank_tol, int(max_modes), parsimony, target_db
+            )
+        else:
+            fit, used = _fit_corrected(band_data, 2 * _check_modes(n_modes), groups, st, kw, rank_tol)
+            cost, scan = _score(fit, used), ()
+    if target_db is not None and cost.rms_db_total > target_db:
+        raise FitError(
+            f"the measurement model reaches {cost.rms_db_total:.3g} dB rms log-magnitude error, above the "
+            f"target {target_db:g} dB; raise n_modes (or leave it None), narrow the band or relax target_db."
+        )
+    return MeasurementModel(fit.statespace(), _modes(fit), cost, fit, used, band_data, st is not None, scan)
+
+
+def _check_modes(n_modes: Any) -> int:
+    if isinstance(n_modes, (bool, np.bool_)) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
+        raise FitError(f"n_modes must be a positive integer (or None for automatic); got {n_modes!r}.")
+    return int(n_modes)
