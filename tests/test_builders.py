@@ -244,3 +244,6 @@ def test_bad_effects_on_matrix_structure():
         st.add_mass("node 4", 1.0)
     with pytest.raises(ModelError, match="finite and >= 0"):
         st.scale_group_stiffness("g", -1.0)
+    bare = MatrixStructure(M_KG * np.eye(3), chain_k(), tagged={"s": (None, np.eye(3))}, **IO)
+    with pytest.raises(ModelError, match="no concentrated damping to remove it from"):
+        bare.without(["s"])

@@ -128,6 +128,22 @@ def test_pade_matches_independent_approximant(order):
     assert np.max(np.abs(got - np.polyval(num, 2j * np.pi * f) / np.polyval(den, 2j * np.pi * f))) < 1e-9
 
 
+@pytest.mark.parametrize("order", range(1, 11))
+def test_pade_matches_exact_rational_coefficients_up_to_order_10(order):
+    """D(-x)/D(x) with c_k = (2n-k)! n! / ((2n)! k! (n-k)!) computed exactly in fractions."""
+    from fractions import Fraction
+
+    f = math.factorial
+    n = order
+    coef = [Fraction(f(2 * n - k) * f(n), f(2 * n) * f(k) * f(n - k)) for k in range(n + 1)]
+    tau, freq = 3.6e-3, np.logspace(0, 3, 80)
+    x = 2j * np.pi * freq * tau
+    den = sum(float(c) * x**k for k, c in enumerate(coef))
+    num = sum(float(c) * (-x) ** k for k, c in enumerate(coef))
+    assert np.max(np.abs(siso(el.pade_delay(tau, order), freq) - num / den)) < 1e-12
+    assert np.allclose(el.pade_coefficients(order), [float(c) for c in coef], rtol=1e-14)
+
+
 def test_pade_phase_error_at_60_hz_for_mace_delay():
     tau, f = 3.6e-3, 60.0
     x = 2 * np.pi * f * tau

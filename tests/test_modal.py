@@ -212,3 +212,16 @@ def test_modal_data_table_and_properties():
     assert table.columns[1] == "f (Hz)" and len(table.rows) == 5
     assert np.allclose([r[1] for r in table.rows], d.f_hz)
     assert np.allclose(d.shapes.T @ chain().mass @ d.shapes, np.eye(5), atol=1e-12)
+
+
+def test_sparse_matrices_give_the_dense_result():
+    import scipy.sparse as sp
+
+    mats = chain()
+    sparse = StructuralMatrices(
+        sp.csr_matrix(mats.mass), sp.csr_matrix(mats.stiffness), sp.csr_matrix(mats.damping),
+        mats.input_matrix, mats.output_matrix, mats.output_kinds, mats.inputs, mats.outputs, mats.dof_labels,
+    )
+    dense_sys, sparse_sys = modal_statespace(mats, n_modes=3), modal_statespace(sparse, n_modes=3)
+    f = np.logspace(0, 2, 40)
+    assert np.allclose(freqresp(sparse_sys, f).response, freqresp(dense_sys, f).response, rtol=1e-9)

@@ -227,7 +227,12 @@ class MatrixStructure(Structure):
             if dM is not None:
                 self._M = self._M - dM
             if dC is not None:
-                self._C = -dC if self._C is None else self._C - dC
+                if self._C is None:
+                    raise ModelError(
+                        f"tagged part {tag!r} has a damping matrix but the structure has no "
+                        "concentrated damping to remove it from; include it in the damping matrix."
+                    )
+                self._C = self._C - dC
         return self
 
     def locations(self) -> tuple[str, ...]:

@@ -164,6 +164,11 @@ def _dense(a) -> np.ndarray:
 
 def _check_mats(mats: StructuralMatrices) -> None:
     n = mats.n_dof
+    if mats.mass.shape[0] != n:
+        raise ModelError(
+            f"the input matrix has {n} rows but the mass matrix has {mats.mass.shape[0]} DOFs; "
+            "give one row per DOF."
+        )
     if mats.output_matrix.ndim != 2 or mats.output_matrix.shape[1] != n:
         raise ModelError(
             f"the output matrix has shape {mats.output_matrix.shape}; it needs one column per "
@@ -196,6 +201,11 @@ def _residual_flexibility(mats: StructuralMatrices, omega: np.ndarray, phi: np.n
                 "constrain the rigid-body motion or set residual_flexibility=False."
             )
         full = c @ spla.spsolve(sp.csc_matrix(mats.stiffness), b).reshape(n, -1)
+        if not np.all(np.isfinite(full)):
+            raise ModelError(
+                "the stiffness matrix is singular (free-free structure), so the residual flexibility "
+                "is undefined; constrain the rigid-body motion or set residual_flexibility=False."
+            )
     return full - kept
 
 
@@ -246,7 +256,10 @@ def modal_decomposition(
     omega, phi = solve_modes(mats.mass, mats.stiffness, n_modes=n_modes, band_hz=band_hz)
     zeta = _apply_bands(_damping_vector(damping, omega.size), omega / (2 * np.pi), mats.modal_damping_bands)
     cs = mats.damping
-    cs_modal = np.zeros((omega.size, omega.size)) if cs is None else phi.T @ (_dense(cs) @ phi)
+    if cs is None:
+        cs_modal = np.zeros((omega.size, omega.size))
+    else:  # sparse-safe: never densify a large Cs
+        cs_modal = phi.T @ np.asarray((cs if sp.issparse(cs) else np.asarray(cs, dtype=float)) @ phi)
     residual = None
     if residual_flexibility:
         residual = _residual_flexibility(mats, omega, phi)
