@@ -32,6 +32,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from ..errors import ModelError
+from ..threads import limit_blas
 from . import elements as el
 from .eigen import SPARSE_THRESHOLD, solve_modes
 from .gravity import PreloadResult, preload_iteration
@@ -800,7 +801,9 @@ class Frame(Structure):
     ) -> tuple[np.ndarray, np.ndarray]:
         """Natural frequencies (Hz) and mass-normalised mode shapes over the free DOFs."""
         sm = self._assembly().matrices
-        w, phi = solve_modes(sm.mass, sm.stiffness, n_modes=n_modes, band_hz=band_hz, sparse=sparse)
+        w, phi = limit_blas(solve_modes)(
+            sm.mass, sm.stiffness, n_modes=n_modes, band_hz=band_hz, sparse=sparse
+        )
         return w / (2 * np.pi), phi
 
     def preload(self) -> PreloadResult | None:
@@ -833,16 +836,6 @@ class Frame(Structure):
 
 
 # ---------------------------------------------------------------------- assembly kernels
-def _coo(dofs: np.ndarray, mats: np.ndarray, n: int) -> sp.csr_matrix:
-    """Sum element matrices ``mats (ne, d, d)`` at DOF indices ``dofs (ne, d)``."""
-    if mats.size == 0:
-        return sp.csr_matrix((n, n))
-    d = dofs.shape[1]
-    rows = np.repeat(dofs, d, axis=1).ravel()
-    cols = np.tile(dofs, (1, d)).ravel()
-    return sp.csr_matrix((mats.ravel(), (rows, cols)), shape=(n, n))
-
-
 @dataclass
 class _ElementStacks:
     dofs_beam: np.ndarray
@@ -931,42 +924,90 @@ def _element_stacks(frame: Frame, index: dict[str, int], X: np.ndarray) -> _Elem
     )
 
 
-def _point_matrices(frame: Frame, index: dict[str, int], n: int) -> tuple[sp.csr_matrix, ...]:
-    """Lumped masses, springs and dashpots as sparse (n, n) matrices."""
-    rows, cols, vals = [], [], []
+class _Pattern:
+    """A fixed sparsity pattern: sums values given at (row, col) triplets into a CSR matrix
+    with one ``bincount`` (the pattern is sorted once, the values change per call)."""
+
+    def __init__(self, rows: np.ndarray, cols: np.ndarray, n: int) -> None:
+        lin = rows.astype(np.int64) * n + cols
+        uniq, self.pos = np.unique(lin, return_inverse=True)
+        self.n, self.nnz = n, uniq.size
+        self.indices = (uniq % n).astype(np.int32)
+        self.indptr = np.concatenate([[0], np.cumsum(np.bincount(uniq // n, minlength=n))]).astype(np.int32)
+
+    def matrix(self, vals: np.ndarray, part: slice = slice(None)) -> sp.csr_matrix:
+        """The matrix of ``vals`` given at the triplets ``part`` of the pattern."""
+        data = np.bincount(self.pos[part], weights=vals, minlength=self.nnz)
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
+
+
+@dataclass
+class _Trip:
+    """Matrix entries as triplets; ``tag`` is the element index (geometric stiffness) or -1."""
+
+    rows: np.ndarray
+    cols: np.ndarray
+    vals: np.ndarray
+    tag: np.ndarray
+
+    @staticmethod
+    def cat(parts: list[_Trip]) -> _Trip:
+        if not parts:
+            z = np.zeros(0, dtype=int)
+            return _Trip(z, z, np.zeros(0), z)
+        return _Trip(
+            *(np.concatenate([getattr(p, a) for p in parts]) for a in ("rows", "cols", "vals", "tag"))
+        )
+
+    @staticmethod
+    def from_blocks(dofs: np.ndarray, mats: np.ndarray, tag: np.ndarray | None = None) -> _Trip:
+        """Element matrices ``mats (ne, d, d)`` at DOF indices ``dofs (ne, d)``."""
+        d = dofs.shape[1]
+        rows = np.repeat(dofs, d, axis=1).ravel()
+        cols = np.tile(dofs, (1, d)).ravel()
+        t = -np.ones(rows.size, dtype=int) if tag is None else np.repeat(tag, d * d)
+        return _Trip(rows, cols, mats.reshape(-1), t)
+
+    def expand(self, T: sp.csr_matrix) -> _Trip:
+        """Entries of ``T^T A T`` (full DOFs -> reduced DOFs), one triplet per product term."""
+        counts = np.diff(T.indptr)
+        if counts.max(initial=0) <= 1 and np.all(T.data == 1.0):  # supports only: a renumbering
+            col = -np.ones(T.shape[0], dtype=int)
+            col[counts == 1] = T.indices
+            return _Trip(col[self.rows], col[self.cols], self.vals, self.tag).select(np.arange(T.shape[1]))
+        out = self
+        for axis in ("rows", "cols"):
+            idx = getattr(out, axis)
+            cnt = counts[idx]
+            src = np.repeat(np.arange(idx.size), cnt)
+            k = np.repeat(T.indptr[idx] - (np.cumsum(cnt) - cnt), cnt) + np.arange(src.size)
+            parts = {a: getattr(out, a)[src] for a in ("rows", "cols", "tag")}
+            parts[axis] = T.indices[k]
+            out = _Trip(parts["rows"], parts["cols"], out.vals[src] * T.data[k], parts["tag"])
+        return out
+
+    def select(self, new_index: np.ndarray) -> _Trip:
+        """Keep the entries whose row and column survive (index >= 0); renumber them."""
+        r, c = np.append(new_index, -1)[self.rows], np.append(new_index, -1)[self.cols]
+        ok = (r >= 0) & (c >= 0)
+        return _Trip(r[ok], c[ok], self.vals[ok], self.tag[ok])
+
+
+def _point_triplets(frame: Frame, index: dict[str, int]) -> tuple[_Trip, _Trip, _Trip]:
+    """Lumped masses, springs and dashpots as triplets over the full DOFs."""
+    parts: dict[str, list[_Trip]] = {"mass": [], "spring": [], "dashpot": []}
     for m in frame._masses:
-        b = 6 * index[m.node]
         block = np.zeros((6, 6))
         block[:3, :3] = m.mass * np.eye(3)
         block[3:, 3:] = m.inertia
-        r, c = np.meshgrid(np.arange(b, b + 6), np.arange(b, b + 6), indexing="ij")
-        rows.append(r.ravel())
-        cols.append(c.ravel())
-        vals.append(block.ravel())
-    M = _triplets(rows, cols, vals, n)
-    out = []
-    for kind in ("spring", "dashpot"):
-        rows, cols, vals = [], [], []
-        for s in frame._springs:
-            if s.kind != kind:
-                continue
-            dof = 6 * index[s.node] + np.arange(6)
-            vec = s.vec
-            if s.node2 is not None:
-                dof = np.concatenate([dof, 6 * index[s.node2] + np.arange(6)])
-                vec = np.concatenate([s.vec, -s.vec])
-            r, c = np.meshgrid(dof, dof, indexing="ij")
-            rows.append(r.ravel())
-            cols.append(c.ravel())
-            vals.append((s.value * np.outer(vec, vec)).ravel())
-        out.append(_triplets(rows, cols, vals, n))
-    return M, out[0], out[1]
-
-
-def _triplets(rows, cols, vals, n) -> sp.csr_matrix:
-    if not rows:
-        return sp.csr_matrix((n, n))
-    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
+        parts["mass"].append(_Trip.from_blocks((6 * index[m.node] + np.arange(6))[None], block[None]))
+    for s in frame._springs:
+        dof, vec = 6 * index[s.node] + np.arange(6), s.vec
+        if s.node2 is not None:
+            dof = np.concatenate([dof, 6 * index[s.node2] + np.arange(6)])
+            vec = np.concatenate([s.vec, -s.vec])
+        parts[s.kind].append(_Trip.from_blocks(dof[None], (s.value * np.outer(vec, vec))[None]))
+    return _Trip.cat(parts["mass"]), _Trip.cat(parts["spring"]), _Trip.cat(parts["dashpot"])
 
 
 def _constraint_transform(
@@ -1065,6 +1106,7 @@ def _strain_row(frame: Frame, sig: _Signal, elem_pos, stacks: _ElementStacks, n_
     return row
 
 
+@limit_blas
 def _assemble(frame: Frame) -> _Assembly:
     if not frame._nodes:
         raise ModelError("the frame has no nodes; add nodes and elements first.")
@@ -1073,87 +1115,99 @@ def _assemble(frame: Frame) -> _Assembly:
     X = np.array([frame._nodes[n].xyz for n in names])
     n_full = 6 * len(names)
     st = _element_stacks(frame, index, X)
-    Mp, Ks, Cd = _point_matrices(frame, index, n_full)
-    K = _coo(st.dofs_beam, st.K_beam, n_full) + _coo(st.dofs_rod, st.K_rod, n_full) + Ks
-    M = _coo(st.dofs_beam, st.M_beam, n_full) + _coo(st.dofs_rod, st.M_rod, n_full) + Mp
-    # geometric stiffness: fixed sparsity, values scaled per element by N
-    g_rows = np.concatenate(
-        [np.repeat(st.dofs_beam, 12, axis=1).ravel(), np.repeat(st.dofs_rod, 6, axis=1).ravel()]
+    Mp, Ks, Cd = _point_triplets(frame, index)
+    K_full = _Trip.cat(
+        [_Trip.from_blocks(st.dofs_beam, st.K_beam), _Trip.from_blocks(st.dofs_rod, st.K_rod), Ks]
     )
-    g_cols = np.concatenate([np.tile(st.dofs_beam, (1, 12)).ravel(), np.tile(st.dofs_rod, (1, 6)).ravel()])
-    g_unit = np.concatenate([st.G_beam.ravel(), st.G_rod.ravel()])
-    g_elem = np.concatenate([np.repeat(st.beam_idx, 144), np.repeat(st.rod_idx, 36)]).astype(int)
-
-    def kg_full(N: np.ndarray) -> sp.csr_matrix:
-        return sp.csr_matrix((g_unit * N[g_elem], (g_rows, g_cols)), shape=(n_full, n_full))
-
+    M_full = _Trip.cat(
+        [_Trip.from_blocks(st.dofs_beam, st.M_beam), _Trip.from_blocks(st.dofs_rod, st.M_rod), Mp]
+    )
+    G_full = _Trip.cat(
+        [
+            _Trip.from_blocks(st.dofs_beam, st.G_beam, st.beam_idx),
+            _Trip.from_blocks(st.dofs_rod, st.G_rod, st.rod_idx),
+        ]
+    )
     T, dof_of_col = _constraint_transform(frame, index, X)
     B_full = _signal_matrix(frame, frame._inputs, index, st, n_full)
     C_full = _signal_matrix(frame, frame._outputs, index, st, n_full).T
-    T, K1, M1, C1, keep = _drop_empty(
-        frame, T, dof_of_col, K, M, Cd, kg_full(np.ones(len(frame._elements))), B_full, C_full, names
+    red = [t.expand(T) for t in (K_full, M_full, Cd, G_full)]
+    keep = _nonempty(red, T.shape[1])
+    B1, Cy1 = T.T @ B_full, np.asarray((T.T @ C_full.T).T)
+    _check_signals_on_empty(frame, keep, dof_of_col, B1, Cy1, names)
+    new_index = -np.ones(T.shape[1], dtype=int)
+    new_index[keep] = np.arange(keep.sum())
+    Kr, Mr, Cr, Gr = (t.select(new_index) for t in red)
+    T, dof_of_col, B1, Cy1 = T[:, keep].tocsr(), dof_of_col[keep], B1[keep], Cy1[:, keep]
+    n = int(keep.sum())
+    pattern = _Pattern(
+        np.concatenate([t.rows for t in (Kr, Mr, Cr, Gr)]),
+        np.concatenate([t.cols for t in (Kr, Mr, Cr, Gr)]),
+        n,
     )
-    dof_of_col = dof_of_col[keep]
+    sizes = np.cumsum([0] + [t.rows.size for t in (Kr, Mr, Cr, Gr)])
+    K1, M1, C1 = (pattern.matrix(t.vals, slice(sizes[i], sizes[i + 1])) for i, t in enumerate((Kr, Mr, Cr)))
+
+    def kg_red(N: np.ndarray) -> sp.csr_matrix:
+        return pattern.matrix(Gr.vals * N[Gr.tag], slice(sizes[3], sizes[4]))
+
     tension = np.array([frame._group_tension.get(e.group, 0.0) for e in frame._elements.values()])
-
-    def kg_red(N):
-        return (T.T @ kg_full(N) @ T).tocsr()
-
-    preload = None
-    axial = tension.copy()
+    preload, axial = None, tension.copy()
     if frame._gravity_on and len(frame._elements):
-        accel = np.zeros(n_full)
-        for i in range(3):
-            accel[i::6] = frame._g * frame._gdir[i]
-        f = T.T @ (M @ accel)
-
-        def axial_force(u):
-            uf = T @ u
-            du = uf.reshape(-1, 6)[st.n2, :3] - uf.reshape(-1, 6)[st.n1, :3]
-            return st.EA_L * np.sum(du * st.axis, axis=1)
-
-        preload = preload_iteration(
-            K1,
-            M1,
-            f,
-            axial_force,
-            kg_red,
-            n_fixed=tension,
-            tol=frame.gravity_tol,
-            max_iter=frame.max_gravity_iterations,
-        )
+        preload = _gravity_preload(frame, st, T, M_full, K1, M1, kg_red, tension, n_full)
         axial = preload.axial_forces
     Kt = (K1 + kg_red(axial)).tocsr() if np.any(axial) else K1
     labels = [f"{names[d // 6]} {_DOF_NAMES[d % 6]}" for d in dof_of_col]
-    B1 = T.T @ B_full
-    Cy1 = np.asarray(C_full @ T)
     mats = _condense(Kt, M1, C1, B1, Cy1, labels, frame)
     return _Assembly(mats, names, tuple(frame._elements), T, preload, axial)
 
 
-def _drop_empty(frame, T, dof_of_col, K, M, C, Kg1, B_full, C_full, names):
-    """Remove reduced DOFs with no mass, stiffness, damping or geometric stiffness."""
-    K1, M1, C1 = (T.T @ A @ T for A in (K, M, C))
-    Ta = abs(T)
-    weight = (Ta.T @ (abs(K) + abs(M) + abs(C) + abs(Kg1)) @ Ta).sum(axis=1).A.ravel()
-    keep = weight > 0
-    if not keep.all():
-        empty_cols = np.flatnonzero(~keep)
-        dofs = dof_of_col[empty_cols]
-        for what, P in (("input", B_full), ("output", C_full.T)):
-            hit = np.abs(T.T @ P)[empty_cols]
-            bad = np.argwhere(hit > 0)
-            if bad.size:
-                d = dofs[bad[0, 0]]
-                sig = list(frame._inputs if what == "input" else frame._outputs)[bad[0, 1]]
-                raise ModelError(
-                    f"{what} {sig!r} acts on DOF {_DOF_NAMES[d % 6]} of node {names[d // 6]!r}, which "
-                    "has neither mass nor stiffness (e.g. a rotation of a node joined only by rods). "
-                    "Point it along a translation, or give the node rotary inertia / a beam."
-                )
-        T = T[:, keep]
-        K1, M1, C1 = K1[keep][:, keep], M1[keep][:, keep], C1[keep][:, keep]
-    return T.tocsr(), K1.tocsr(), M1.tocsr(), C1.tocsr(), keep
+def _gravity_preload(frame, st, T, M_full: _Trip, K1, M1, kg_red, tension, n_full) -> PreloadResult:
+    """Gravity load ``T^T M a_g`` (masses of supported DOFs load the free ones through the
+    consistent mass coupling) and MACE's stress-stiffening iteration."""
+    accel = np.zeros(n_full)
+    for i in range(3):
+        accel[i::6] = frame._g * frame._gdir[i]
+    f_full = np.bincount(M_full.rows, weights=M_full.vals * accel[M_full.cols], minlength=n_full)
+    f = T.T @ f_full
+
+    def axial_force(u: np.ndarray) -> np.ndarray:
+        uf = (T @ u).reshape(-1, 6)
+        du = uf[st.n2, :3] - uf[st.n1, :3]
+        return st.EA_L * np.sum(du * st.axis, axis=1)
+
+    return preload_iteration(
+        K1,
+        M1,
+        f,
+        axial_force,
+        kg_red,
+        n_fixed=tension,
+        tol=frame.gravity_tol,
+        max_iter=frame.max_gravity_iterations,
+    )
+
+
+def _nonempty(red: list[_Trip], n: int) -> np.ndarray:
+    """Reduced DOFs with some mass, stiffness, damping or geometric stiffness."""
+    weight = np.zeros(n)
+    for t in red:
+        weight += np.bincount(t.rows, weights=np.abs(t.vals), minlength=n)
+    return weight > 0
+
+
+def _check_signals_on_empty(frame, keep, dof_of_col, B1, Cy1, names) -> None:
+    empty = np.flatnonzero(~keep)
+    for what, P, sigs in (("input", B1, frame._inputs), ("output", Cy1.T, frame._outputs)):
+        bad = np.argwhere(np.abs(P[empty]) > 0)
+        if bad.size:
+            d = dof_of_col[empty[bad[0, 0]]]
+            sig = list(sigs)[bad[0, 1]]
+            raise ModelError(
+                f"{what} {sig!r} acts on DOF {_DOF_NAMES[d % 6]} of node {names[d // 6]!r}, which "
+                "has neither mass nor stiffness (e.g. a rotation of a node joined only by rods). "
+                "Point it along a translation, or give the node rotary inertia / a beam."
+            )
 
 
 def _condense(Kt, M1, C1, B1, Cy1, labels, frame) -> StructuralMatrices:
