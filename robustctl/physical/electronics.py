@@ -489,6 +489,39 @@ def delay_inputs(sys: Any, names: str | Sequence[str], delay_s: float, order: in
     return filter_inputs(sys, names, pade_delay(delay_s, order))
 
 
+def _close_loop(plant, ctrl, s: int, a: int, label: str):
+    """State-space algebra of ``u_a = K (r - y_s)`` with ``r`` taking input slot ``a``.
+
+    The algebraic loop through the feedthroughs is solved first: ``u = Ex x + Ek xk + Ev v``
+    with ``v`` the new input vector, then substituted into plant and controller.
+    """
+    A, B, C, D = plant
+    Ak, Bk, Ck, Dk = ctrl
+    n, nk, m = A.shape[0], Ak.shape[0], B.shape[1]
+    dk = float(Dk[0, 0])
+    denom = 1.0 + dk * D[s, a]
+    if abs(denom) < 1e-12:
+        raise ModelError(
+            f"the servo loop {label} is ill-posed (1 + K(inf) D = {denom:g}); "
+            "add a roll-off to the controller."
+        )
+    other = np.ones(m, dtype=bool)
+    other[a] = False
+    Ev = np.eye(m)
+    Ev[a, a] = dk / denom
+    Ev[a, other] = -dk * D[s, other] / denom
+    Ex = np.zeros((m, n))
+    Ex[a] = -dk * C[s] / denom
+    Ek = np.zeros((m, nk))
+    Ek[a] = Ck[0] / denom
+    Cx, Ck2, Dv = C + D @ Ex, D @ Ek, D @ Ev  # outputs
+    e_x, e_k, e_v = -Cx[s], -Ck2[s], -Dv[s].copy()
+    e_v[a] += 1.0  # error e = r - y_sensor
+    A2 = np.block([[A + B @ Ex, B @ Ek], [Bk @ e_x[None], Ak + Bk @ e_k[None]]])
+    B2 = np.vstack([B @ Ev, Bk @ e_v[None]])
+    return A2, B2, np.hstack([Cx, Ck2]), Dv
+
+
 def close_servo_loop(
     sys: Any,
     sensor: str,
@@ -529,34 +562,8 @@ def close_servo_loop(
     if ref in inputs and ref != actuator:
         raise ModelError(f"the reference input name {ref!r} is already an input; pick another name.")
     inputs[a] = ref
-    n, nk, m = A.shape[0], Ak.shape[0], B.shape[1]
-    dk = float(Dk[0, 0])
-    denom = 1.0 + dk * D[s, a]
-    if abs(denom) < 1e-12:
-        raise ModelError(
-            f"the servo loop {sensor!r} -> {actuator!r} is ill-posed (1 + K(inf) D = {denom:g}); "
-            "add a roll-off to the controller."
-        )
-    # Solve the algebraic loop: u = Ex x + Ek xk + Ev v, v = inputs with r in slot a.
-    other = np.ones(m, dtype=bool)
-    other[a] = False
-    Ev = np.eye(m)
-    Ev[a] = 0.0
-    row = np.zeros(m)
-    row[a] = dk
-    row[other] = -dk * D[s, other]
-    Ev[a] = row / denom
-    Ex = np.zeros((m, n))
-    Ex[a] = -dk * C[s] / denom
-    Ek = np.zeros((m, nk))
-    Ek[a] = Ck[0] / denom
-    Cx, Ck2, Dv = C + D @ Ex, D @ Ek, D @ Ev  # outputs
-    e_x, e_k, e_v = -Cx[s], -Ck2[s], -Dv[s]
-    e_v = e_v.copy()
-    e_v[a] += 1.0  # error e = r - y_sensor
-    A2 = np.block([[A + B @ Ex, B @ Ek], [Bk @ e_x[None], Ak + Bk @ e_k[None]]])
-    B2 = np.vstack([B @ Ev, Bk @ e_v[None]])
-    return _ss(A2, B2, np.hstack([Cx, Ck2]), Dv, inputs, sys.output_labels)
+    A2, B2, C2, D2 = _close_loop((A, B, C, D), (Ak, Bk, Ck, Dk), s, a, f"{sensor!r} -> {actuator!r}")
+    return _ss(A2, B2, C2, D2, inputs, sys.output_labels)
 
 
 def _rotation(angle_rad: float) -> np.ndarray:
