@@ -44,6 +44,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from ..errors import ModelError
+from ..threads import limit_blas
 from . import electronics as el
 from .model import PhysicalModel, Stage
 from .parameters import Parameter
@@ -76,6 +77,9 @@ EFFECT_TAG = "effect"
 SHIFT_TARGET = 0.02
 #: Damping-ratio change that a calibrated dashpot step produces.
 DAMPING_TARGET = 0.005
+#: Finite-difference step of an effect parameter at (or near) its neutral value, as a
+#: fraction of its typical size ``Effect.scale`` (the secant step of ``diagnose``).
+_FD_FRACTION = 0.1
 #: Modes used for calibration when no band is given.
 _N_CAL_MODES = 12
 
@@ -100,8 +104,9 @@ class Effect:
     location : str or None
         Where the effect acts.
     scale : float or None
-        Typical size of the (first) parameter, used as the secant step from the neutral
-        value (``Parameter.abs_step``); ``None`` uses the kind's default.
+        Typical size of the (first) parameter: the secant step from the neutral value that
+        ``diagnose`` uses; the parameter's finite-difference ``abs_step`` is a tenth of it.
+        ``None`` uses the kind's default; :func:`candidates` calibrates it on the model.
     """
 
     location: str | None = None
@@ -152,7 +157,7 @@ class Effect:
                     unit=spec["unit"],
                     bounds=(lo, hi),
                     rel_step=1e-3,
-                    abs_step=abs(float(step)),
+                    abs_step=_FD_FRACTION * abs(float(step)),
                     meaning=spec["meaning"],
                     tags=(EFFECT_TAG, self.kind) + self._extra_tags,
                     free=spec.get("free", True),
@@ -160,6 +165,11 @@ class Effect:
                 )
             )
         return tuple(out)
+
+    @property
+    def typical_size(self) -> float:
+        """Typical size of the first parameter (its secant step from neutral), in its unit."""
+        return float(self.scale) if self.scale is not None else float(self._specs()[0]["default_scale"])
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -265,12 +275,12 @@ def _structure_info(model: PhysicalModel) -> dict[str, Any]:
             "a state space), so structural effects cannot act on it; use an input/output effect, or "
             "build the model with rc.structural_model / an example with a structure."
         )
-    info = _model_info.get(model)
-    if info is None:
+    info = _model_info.setdefault(model, {})
+    if "locations" not in info:
         struct = model.build_structure()
-        info = {"locations": tuple(struct.locations()), "groups": tuple(struct.element_groups()),
-                "gravity": type(struct).set_gravity is not _base_set_gravity()}
-        _model_info[model] = info
+        info.update(locations=tuple(struct.locations()), groups=tuple(struct.element_groups()),
+                    gravity=type(struct).set_gravity is not _base_set_gravity(),
+                    gravity_on=getattr(struct, "gravity_enabled", None))
     return info
 
 
@@ -281,14 +291,12 @@ def _base_set_gravity():
 
 
 def _signals(model: PhysicalModel, side: str) -> tuple[str, ...]:
-    info = _model_info.get(model, {})
+    info = _model_info.setdefault(model, {})
     key = "signals_" + side
     if key not in info:
         sys = model.statespace()
-        labels = tuple(sys.output_labels if side == "output" else sys.input_labels)
-        info = dict(info)
-        info[key] = labels
-        _model_info[model] = info
+        info["signals_output"] = tuple(sys.output_labels)
+        info["signals_input"] = tuple(sys.input_labels)
     return info[key]
 
 
@@ -1009,7 +1017,10 @@ def _directions(labels: Sequence[str], locations: Sequence[str]) -> dict[str, li
         m = _DIR_RE.match(lab)
         if m and m.group("loc") in out and m.group("dir") not in out[m.group("loc")]:
             out[m.group("loc")].append(m.group("dir"))
-    return {loc: (dirs or [None]) for loc, dirs in out.items()}
+    directed = any(d is not None for dirs in out.values() for d in dirs)
+    # A location without DOFs of its own (a rigid-link slave) takes the model's directions.
+    default: list[str | None] = ["x", "y", "z"] if directed else [None]
+    return {loc: (dirs or list(default)) for loc, dirs in out.items()}
 
 
 def _structure_candidates(model: PhysicalModel, include_points: bool) -> list[Effect]:
@@ -1027,8 +1038,9 @@ def _structure_candidates(model: PhysicalModel, include_points: bool) -> list[Ef
                 cands.append(Dashpot(loc, direction=d))
     for group in info["groups"]:
         cands += [GroupStiffness(group), GroupTension(group)]
-    if info["gravity"]:
-        cands += [GravityStiffening(enabled=True), GravityStiffening(enabled=False)]
+    if info["gravity"]:  # only the switch that changes the model's current state
+        state = info["gravity_on"]
+        cands += [GravityStiffening(enabled=on) for on in (True, False) if state is None or on != state]
     return cands
 
 
@@ -1051,6 +1063,7 @@ def _modal_damping_candidates(f_modes: np.ndarray, band: tuple[float, float] | N
     return [ModalDamping(lo_hz=0.97 * g[0], hi_hz=1.03 * g[-1]) for g in groups]
 
 
+@limit_blas
 def candidates(
     model: PhysicalModel,
     *,
@@ -1159,9 +1172,9 @@ def _calibrate(model: PhysicalModel, cands: list[Effect], band) -> tuple[np.ndar
                          - omega**2 * np.einsum("ij,ik,kj->j", phi, dM, phi)) / unit
             rel = dw2 / omega**2
             size = SHIFT_TARGET / rel.max() if rel.max() > 0 else None
-        if size is not None and np.isfinite(size):
-            lo, hi = c.parameters[0].bounds
-            size = min(size, 0.5 * (hi - lo) if np.isfinite(hi - lo) else size)
-            c = c.with_scale(size)
-        out.append(c)
+        if size is None or not np.isfinite(size):
+            continue  # the effect cannot change this model's modes (e.g. a spring on a clamped node)
+        lo, hi = c.parameters[0].bounds
+        size = min(size, 0.5 * (hi - lo) if np.isfinite(hi - lo) else size)
+        out.append(c.with_scale(size))
     return omega, phi, out

@@ -1,0 +1,722 @@
+"""Which physical effect is the model missing? ``rc.diagnose`` (MACE test 1, generalised).
+
+MACE (Glaese & Miller) keep an update parameter when its sensitivity is aligned with the
+initial cost vector (test 1, ``|j0^T dJ|``, eq. 8). ``diagnose`` asks the same question of
+*effects the model does not have yet*, after removing what the model's own update
+parameters can already explain:
+
+1. **Null fit.** A short bounded Levenberg-Marquardt fit of the update parameters alone
+   (default: the model's free parameters) gives ``j_u`` and the sensitivity matrix
+   ``dJ_u`` at the fitted point.
+2. **Secant screening.** Each candidate effect is added at its neutral value (where it
+   vanishes) and its sensitivity is the *secant* from neutral to its typical size ``s``
+   (``Effect.scale``): ``d = j(s) - j(0)`` -- a derivative at "absent" can be zero.
+   Projecting out ``span(dJ_u)`` (``P = I - Q Q^T``, ``Q`` an orthonormal basis), the
+   fraction of the remaining residual the candidate explains is ``cos^2`` of the principal
+   angle between ``P j_u`` and ``P d`` (with the fitted coefficient clipped to the
+   parameter bounds, so an added mass cannot be negative).
+3. **Local fit.** The best few candidates are fitted together with the update parameters
+   (bounded LM, few iterations) from the screening estimate; the cost reduction against
+   the nominal model and the *gain* ``1 - J_c / J_u`` against the null fit are reported.
+4. **Significance.** A partial F-test of the candidate's ``q`` parameters,
+   ``F = ((J_u - J_c) / q) / (J_c / (n_eff - p))``, with a Bonferroni level
+   ``alpha / m`` over the ``m`` screened candidates, plus a practical threshold
+   (``min_gain``): an effect must explain a real share of what updating leaves.
+
+The effective number of independent points ``n_eff``: Welch/Hamming estimates at
+neighbouring frequency bins are correlated (50 % overlapping Hamming segments correlate
+adjacent bins), and a model error is smooth in frequency, so the ``n`` residual entries
+are far from independent. ``n_eff = n (1 - rho) / (1 + rho)`` uses ``rho``, the lag-one
+autocorrelation along frequency of the null-fit residual (pooled over channels, real and
+imaginary parts; the AR(1) effective sample size, Bartlett 1946). White estimation noise
+gives ``rho`` of a few tenths; a systematic, unexplained model error gives ``rho`` near 1
+and hence few effective points, so only large improvements are then significant.
+"""
+
+from __future__ import annotations
+
+import copy
+import html
+import math
+import sys
+import time
+from collections.abc import Sequence
+from concurrent.futures import Executor
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import DataError, FitError, ModelError
+from ..frd import FrequencyData
+from ..table import Table
+from ..threads import limit_blas
+from .optimize import levenberg_marquardt
+from .residual import Residual, sensitivities
+
+__all__ = ["diagnose", "Diagnosis", "CandidateResult", "effective_points"]
+
+#: Significance level of the partial F-test before the Bonferroni correction.
+ALPHA = 0.01
+#: Smallest share of the null-fit residual an effect must explain to be proposed.
+MIN_GAIN = 0.25
+_DB = 20.0 / math.log(10.0)
+
+
+# ============================================================================ results
+@dataclass(frozen=True, eq=False)
+class CandidateResult:
+    """One candidate effect, scored.
+
+    Attributes
+    ----------
+    effect : Effect
+        The effect with its estimated values (fitted when ``fitted``, otherwise the linear
+        screening estimate).
+    fraction : float
+        Share of the residual left by the update parameters that the candidate explains to
+        first order (``cos^2`` of the principal angle; 0..1).
+    angle_deg : float
+        The principal angle in degrees between the projected residual and the projected
+        secant (90: orthogonal, nothing explained).
+    fitted : bool
+        Whether the local fit was run.
+    cost : float
+        MACE cost ``J`` after the local fit (or the linear prediction).
+    reduction : float
+        ``1 - J / J_nominal``: cost reduction against the nominal model (0..1).
+    gain : float
+        ``1 - J / J_update``: share of the residual left by updating alone that the effect
+        removes (0..1).
+    f_stat, p_value : float
+        Partial F statistic and its p-value (NaN when not fitted).
+    significant : bool
+    update_values : dict
+        Update-parameter values of the local fit.
+    where : str
+        Where the explained error lies ("phase error, 3.1-5.5 Hz").
+    sentence : str
+        A plain sentence.
+    equivalent : tuple of str
+        Names of candidates whose secant is identical (e.g. a delay on every output and one
+        on every input): the data cannot tell them apart; they are not ranked separately.
+    """
+
+    effect: Any
+    fraction: float
+    angle_deg: float
+    fitted: bool
+    cost: float
+    reduction: float
+    gain: float
+    f_stat: float = math.nan
+    p_value: float = math.nan
+    significant: bool = False
+    update_values: dict = field(default_factory=dict)
+    where: str = ""
+    sentence: str = ""
+    equivalent: tuple[str, ...] = ()
+
+    @property
+    def name(self) -> str:
+        return self.effect.name
+
+    @property
+    def kind(self) -> str:
+        return self.effect.kind
+
+    @property
+    def location(self) -> str | None:
+        return self.effect.location
+
+    @property
+    def values(self) -> dict[str, float]:
+        return self.effect.values
+
+
+@dataclass(frozen=True, eq=False)
+class Diagnosis:
+    """Result of :func:`diagnose`: candidate effects ranked by what they explain.
+
+    Attributes
+    ----------
+    ranking : tuple of CandidateResult
+        Fitted candidates by gain, then the others by their screening fraction.
+    best : Effect or None
+        The top significant effect with its fitted values (``model.with_effect(best)``),
+        or None when the data support no candidate.
+    cost_nominal : float
+        MACE cost ``J`` of the model as given.
+    cost_update : float
+        ``J`` after fitting the update parameters alone (the null model).
+    update_params : tuple of str
+    update_values : dict
+        Null-fit values of the update parameters.
+    n, n_eff : int, float
+        Residual length and effective number of independent points.
+    rho : float
+        Lag-one autocorrelation of the null-fit residual along frequency.
+    alpha : float
+        Per-candidate level after the Bonferroni correction.
+    unexplained : str
+        Where the null-fit residual sits (band, channels, magnitude or phase).
+    band : (float, float) or None
+    n_evals : int
+        Model evaluations spent.
+    time_s : float
+    """
+
+    ranking: tuple[CandidateResult, ...]
+    best: Any
+    cost_nominal: float
+    cost_update: float
+    update_params: tuple[str, ...]
+    update_values: dict
+    n: int
+    n_eff: float
+    rho: float
+    alpha: float
+    unexplained: str
+    band: tuple[float, float] | None
+    n_evals: int
+    time_s: float
+    residual_update: np.ndarray = field(repr=False, default=None)
+    f_hz: np.ndarray = field(repr=False, default=None)
+    explained: dict = field(repr=False, default_factory=dict)
+
+    @property
+    def best_result(self) -> CandidateResult | None:
+        """The CandidateResult of :attr:`best` (or None)."""
+        return next((r for r in self.ranking if r.significant), None)
+
+    def table(self, n: int = 12) -> Table:
+        """The top ``n`` candidates: rank, effect, value, fraction, cost reduction, gain, p, significance."""
+        rows = []
+        for k, r in enumerate(self.ranking[:n], start=1):
+            rows.append((
+                k, r.name, r.effect.describe_value(), 100 * r.fraction,
+                100 * r.reduction if r.fitted else None, 100 * r.gain if r.fitted else None,
+                r.p_value if r.fitted else None, r.significant,
+            ))
+        return Table(
+            ("rank", "effect", "size", "explains (linear, %)", "cost reduction (%)",
+             "gain over update (%)", "p-value", "significant"),
+            rows,
+            title=f"Diagnosis: {len(self.ranking)} candidates, update cost {self.cost_update:.4g} "
+                  f"(nominal {self.cost_nominal:.4g}), n_eff = {self.n_eff:.0f}",
+            digits=3,
+        )
+
+    def summary(self) -> str:
+        """A few plain sentences: the proposal (or why none), and where the residual sits."""
+        lines = [
+            f"Nominal cost J = {self.cost_nominal:.4g}; updating {len(self.update_params)} parameter(s) "
+            f"alone brings it to {self.cost_update:.4g} "
+            f"({100 * (1 - self.cost_update / self.cost_nominal):.0f}% lower)." if self.cost_nominal > 0
+            else "The model matches the data exactly."
+        ]
+        best = self.best_result
+        if best is not None:
+            lines.append("Proposed: " + best.sentence)
+            others = [r for r in self.ranking if r.fitted and r is not best][:2]
+            for r in others:
+                lines.append("Next: " + r.sentence)
+        else:
+            lines.append(
+                "No candidate effect is significant: none explains enough of what updating leaves "
+                f"(F-test at {self.alpha:.2g} per candidate and at least {100 * MIN_GAIN:.0f}% of the "
+                "residual)."
+            )
+            if self.ranking:
+                lines.append("Closest: " + self.ranking[0].sentence)
+            lines.append("The unexplained residual sits in " + self.unexplained + ".")
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary() + "\n\n" + str(self.table())
+
+    def _repr_html_(self) -> str:
+        text = "".join(f"<p>{html.escape(s)}</p>" for s in self.summary().splitlines())
+        return text + self.table()._repr_html_()
+
+    def plot(self, n: int = 12):
+        """Bar chart of the candidates and the residual left by updating over frequency.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        from ..plots import new_figure
+
+        fig = new_figure(10.0, 6.5)
+        ax1, ax2 = fig.subplots(2, 1)
+        top = self.ranking[:n][::-1]
+        vals = [100 * (r.gain if r.fitted else r.fraction) for r in top]
+        colors = ["tab:green" if r.significant else ("tab:blue" if r.fitted else "tab:gray") for r in top]
+        ax1.barh(range(len(top)), vals, color=colors)
+        ax1.set_yticks(range(len(top)), [r.name for r in top], fontsize=8)
+        ax1.set_xlabel("share of the residual left by updating that the effect explains (%)")
+        ax1.axvline(100 * MIN_GAIN, color="k", lw=0.8, ls=":")
+        ax1.set_title("Diagnosis (green: significant, blue: fitted, grey: screening only)")
+        if self.residual_update is not None:
+            e = self.residual_update
+            ax2.semilogy(self.f_hz, np.sum(np.abs(e) ** 2, axis=(1, 2)), label="residual after updating")
+            for label, de in self.explained.items():
+                ax2.semilogy(self.f_hz, np.sum(np.abs(de) ** 2, axis=(1, 2)), label=f"explained by {label}")
+            ax2.set_xlabel("frequency (Hz)")
+            ax2.set_ylabel("|log error|^2 summed over channels")
+            ax2.legend(fontsize=8)
+        return fig
+
+
+# ============================================================================ statistics
+def effective_points(e: np.ndarray) -> tuple[float, float]:
+    """Effective number of independent real residual entries, ``n (1 - rho) / (1 + rho)``.
+
+    Parameters
+    ----------
+    e : ndarray, complex, shape (n_freq, n_out, n_in)
+        Complex log residual.
+
+    Returns
+    -------
+    n_eff : float
+    rho : float
+        Pooled lag-one autocorrelation along frequency of the real and imaginary parts
+        (each channel's mean removed), clipped to [0, 0.995].
+    """
+    parts = np.concatenate([e.real.reshape(e.shape[0], -1), e.imag.reshape(e.shape[0], -1)], axis=1)
+    n = parts.size
+    if parts.shape[0] < 3:
+        return float(n), 0.0
+    x = parts - parts.mean(axis=0)
+    den = float(np.sum(x * x))
+    rho = float(np.sum(x[1:] * x[:-1]) / den) if den > 0 else 0.0
+    rho = min(max(rho, 0.0), 0.995)
+    return n * (1.0 - rho) / (1.0 + rho), rho
+
+
+def _f_test(cost_null: float, cost_alt: float, q: int, n_eff: float, p: int) -> tuple[float, float]:
+    from scipy.stats import f as f_dist
+
+    dof = max(n_eff - p, 1.0)
+    if cost_alt <= 0:
+        return math.inf, 0.0
+    f_stat = max(cost_null - cost_alt, 0.0) / q / (cost_alt / dof)
+    return float(f_stat), float(f_dist.sf(f_stat, q, dof))
+
+
+# ============================================================================ helpers
+def _residual_for(base: Residual, model: Any) -> Residual:
+    """The same data, band and weights with another model (channels are unchanged)."""
+    res = copy.copy(base)
+    res.model = model
+    return res
+
+
+def _orthonormal(J: np.ndarray) -> np.ndarray:
+    if J.size == 0 or J.shape[1] == 0:
+        return np.zeros((J.shape[0], 0))
+    norms = np.linalg.norm(J, axis=0)
+    Jn = J[:, norms > 0] / norms[norms > 0]
+    if Jn.shape[1] == 0:
+        return np.zeros((J.shape[0], 0))
+    U, s, _ = np.linalg.svd(Jn, full_matrices=False)
+    return U[:, s > 1e-8 * s[0]]
+
+
+def _project(Q: np.ndarray, x: np.ndarray) -> np.ndarray:
+    return x - Q @ (Q.T @ x) if Q.shape[1] else x
+
+
+def _map(fn, items: list, executor: Executor | None, desc: str) -> list:
+    from tqdm.auto import tqdm
+
+    show = sys.stderr.isatty()
+    if executor is None:
+        return [fn(it) for it in tqdm(items, desc=desc, disable=not show, leave=False)]
+    futures = [executor.submit(fn, it) for it in items]
+    return [f.result() for f in tqdm(futures, desc=desc, disable=not show, leave=False)]
+
+
+def _screen_one(res_u: Residual, model_u: Any, j_u: np.ndarray, Q: np.ndarray, r_perp: np.ndarray,
+                effect: Any) -> dict[str, Any]:
+    """Secant of one candidate from neutral to its typical size, projected (step 2)."""
+    neutral = effect.with_values(**effect.neutral_values)
+    m_c = neutral.apply(model_u)
+    res_c = _residual_for(res_u, m_c)
+    pname = effect.param_names[0]
+    lo, hi = effect.parameters[0].bounds
+    step = effect.typical_size
+    v0 = effect.parameters[0].neutral
+    trial = v0 + step if v0 + step <= hi else v0 - step
+    sens = sensitivities(res_c, [pname], at={pname: trial}, origin={pname: v0}, j0=j_u)
+    d = sens.dJ[:, 0]
+    d_perp = _project(Q, d)
+    dd, rr = float(d_perp @ d_perp), float(r_perp @ r_perp)
+    if dd <= 0 or rr <= 0:
+        return dict(effect=effect, model=m_c, fraction=0.0, angle=90.0, value=v0, d=d, evals=sens.n_evals)
+    coef = -float(d_perp @ r_perp) / dd  # in units of the secant (trial - v0)
+    cos2 = float(d_perp @ r_perp) ** 2 / (dd * rr)
+    value = v0 + coef * (trial - v0)
+    clipped = min(max(value, lo), hi)
+    if effect.kind == "gravity":
+        clipped = hi if coef > 0.5 else lo
+    c_clip = (clipped - v0) / (trial - v0)
+    left = r_perp + d_perp * c_clip
+    fraction = max(0.0, 1.0 - float(left @ left) / rr)
+    angle = math.degrees(math.acos(min(1.0, math.sqrt(cos2))))
+    return dict(effect=effect, model=m_c, fraction=fraction, angle=angle, value=clipped, d=d,
+                evals=sens.n_evals)
+
+
+@dataclass
+class _Null:
+    """The null fit: update parameters, their values, bounds and frozen Jacobian."""
+
+    names: tuple[str, ...]
+    x: dict[str, float]
+    lo: np.ndarray
+    hi: np.ndarray
+    jac: np.ndarray  # d j / d alpha per unit parameter, (n, p)
+    j: np.ndarray
+    cost: float
+
+
+def _damped_step(A: np.ndarray, r: np.ndarray, lam: float) -> np.ndarray:
+    """Marquardt step ``min |A d + r|^2 + lam |diag(A^T A)^(1/2) d|^2``."""
+    d2 = np.sum(A**2, axis=0)
+    d2 = np.maximum(d2, 1e-12 * max(d2.max(initial=0.0), 1e-300))
+    M = np.vstack([A, np.diag(np.sqrt(lam * d2))])
+    rhs = np.concatenate([-r, np.zeros(A.shape[1])])
+    return np.linalg.lstsq(M, rhs, rcond=None)[0]
+
+
+def _fit_one(res_u: Residual, null: _Null, screen: dict[str, Any], max_iter: int,
+             budget: float) -> dict[str, Any]:
+    """Short bounded local fit of one candidate with the update parameters (step 3).
+
+    Gauss-Newton/Marquardt on ``[alpha_update, v]`` with the update parameters' Jacobian
+    frozen at the null fit and the candidate's column refreshed each iteration by a secant
+    (two evaluations per iteration instead of ``p + 1``).
+    """
+    t0 = time.perf_counter()
+    effect, m_c = screen["effect"], screen["model"]
+    pname = effect.param_names[0]
+    par = effect.parameters[0]
+    discrete = effect.kind == "gravity"
+    res_c = _residual_for(res_u, m_c)
+    names = null.names
+    u = np.array([null.x[n] for n in names], dtype=float)
+    v = float(screen["value"])
+    lo_v, hi_v = par.bounds
+    if discrete:
+        lo_v = hi_v = v
+
+    def evaluate(uu: np.ndarray, vv: float) -> np.ndarray:
+        return res_c.vector(**dict(zip(names, (float(x) for x in uu))), **{pname: vv})
+
+    r = evaluate(u, v)
+    cost, evals, lam = float(r @ r), 1, 1e-2
+    for _ in range(int(max_iter)):
+        if time.perf_counter() - t0 > budget:
+            break
+        cols = [null.jac]
+        if not discrete:
+            h = max(0.05 * abs(v - float(par.neutral)), 0.1 * effect.typical_size)
+            h = h if v + h <= hi_v else -h
+            dv = (evaluate(u, v + h) - r) / h
+            evals += 1
+            cols.append(dv[:, None])
+        A = np.hstack(cols)
+        if A.shape[1] == 0:
+            break
+        improved = False
+        for _ in range(4):
+            step = _damped_step(A, r, lam)
+            u_new = np.clip(u + step[: len(names)], null.lo, null.hi)
+            v_new = v if discrete else float(np.clip(v + step[-1], lo_v, hi_v))
+            r_new = evaluate(u_new, v_new)
+            evals += 1
+            c_new = float(r_new @ r_new)
+            if np.isfinite(c_new) and c_new < cost:
+                improved = True
+                break
+            lam *= 10.0
+        if not improved:
+            break
+        rel = (cost - c_new) / cost
+        u, v, r, cost, lam = u_new, v_new, r_new, c_new, max(lam / 10.0, 1e-6)
+        if rel < 1e-3:
+            break
+    return dict(x=dict(zip(names, (float(x) for x in u))), cost=cost, vector=r, evals=evals, value=v)
+
+
+def _equivalent(screens: list[dict[str, Any]]) -> dict[int, int]:
+    """Candidates whose secant equals an earlier one's (to 1e-9): index -> earlier index.
+
+    A delay or filter on *every* output acts exactly like one on every input (scalar factors
+    commute), so such pairs are indistinguishable; the earlier (sensor-side) one is kept.
+    """
+    twins: dict[int, int] = {}
+    for k, sk in enumerate(screens):
+        dk = sk["d"]
+        nk = float(np.linalg.norm(dk))
+        if nk == 0:
+            continue
+        for i in range(k):
+            if i in twins:
+                continue
+            di = screens[i]["d"]
+            if di.shape == dk.shape and np.linalg.norm(di - dk) <= 1e-9 * nk:
+                twins[k] = i
+                break
+    return twins
+
+
+def _null_fit(res0: Residual, upd: tuple[str, ...], max_iter: int, executor: Executor | None,
+              budget: float) -> tuple[_Null, int]:
+    """Bounded LM fit of the update parameters alone (step 1)."""
+    model = res0.model
+    lo = np.array([model.param(n).bounds[0] for n in upd], dtype=float)
+    hi = np.array([model.param(n).bounds[1] for n in upd], dtype=float)
+    if not upd:
+        j = res0.vector()
+        return _Null((), {}, lo, hi, np.zeros((res0.n, 0)), j, float(j @ j)), 1
+    lm = levenberg_marquardt(res0, upd, max_iter=max_iter, executor=executor, time_budget_s=budget)
+    return _Null(upd, dict(lm.x), lo, hi, lm.jacobian, lm.vector, lm.cost), lm.n_evals
+
+
+def _where(res: Residual, delta: np.ndarray) -> str:
+    """Where a complex residual change lies: magnitude or phase, frequency band, outputs."""
+    e = res.unstack(delta) / res.weights.clip(1e-300) if np.any(res.weights != 1) else res.unstack(delta)
+    mag, ph = float(np.sum(e.real**2)), float(np.sum(e.imag**2))
+    total = mag + ph
+    if total <= 0:
+        return "nowhere"
+    part = ("phase error" if ph > 0.7 * total else "magnitude error" if mag > 0.7 * total
+            else "magnitude and phase error")
+    f = res.f_hz
+    per_f = np.sum(np.abs(e) ** 2, axis=(1, 2))
+    cum = np.cumsum(per_f) / per_f.sum()
+    lo = float(f[min(np.searchsorted(cum, 0.1), f.size - 1)])
+    hi = float(f[min(np.searchsorted(cum, 0.9), f.size - 1)])
+    if hi >= f[-1] - 1e-9 * f[-1] or np.searchsorted(cum, 0.9) >= f.size - 2:
+        band = f"above {lo:.3g} Hz"
+    else:
+        band = f"{lo:.3g}-{hi:.3g} Hz"
+    per_out = np.sum(np.abs(e) ** 2, axis=(0, 2))
+    share = per_out / per_out.sum()
+    chans = ""
+    if res.data.n_out > 1 and share.max() > 0.6:
+        chans = f" on {res.data.outputs[int(np.argmax(share))]}"
+    return f"{part}, {band}{chans}"
+
+
+def _sentence(r: CandidateResult) -> str:
+    size = r.effect.describe_value()
+    head = f"{_article(size)} {size} {r.effect.name}" if r.kind not in ("gravity",) else r.effect.name
+    if r.equivalent:
+        head += f" (the data cannot tell it from: {', '.join(r.equivalent)})"
+    if r.fitted:
+        verdict = "significant" if r.significant else "not significant"
+        p = "p < 1e-12" if r.p_value < 1e-12 else f"p = {r.p_value:.2g}"
+        return (f"{head} explains {100 * r.gain:.0f}% of the residual left by updating ({r.where}); "
+                f"cost {100 * r.reduction:.0f}% below the nominal model; {verdict} ({p}).")
+    return f"{head} would explain about {100 * r.fraction:.0f}% of it to first order (not fitted)."
+
+
+def _article(size: str) -> str:
+    return "an" if size[:1] in "8" or size[:2] in ("11", "18") else "a"
+
+
+def _check_update(model: Any, update_params: Sequence[str] | None) -> tuple[str, ...]:
+    if update_params is None:
+        return tuple(p.name for p in model.free_params)
+    if isinstance(update_params, str):
+        update_params = (update_params,)
+    names = tuple(update_params)
+    unknown = [n for n in names if n not in model.param_names]
+    if unknown:
+        raise ModelError(f"unknown update parameter(s) {unknown}; the model has {list(model.param_names)}.")
+    return names
+
+
+def _check_candidates(model: Any, cands: Sequence[Any]) -> list[Any]:
+    from ..physical.effects import Effect
+
+    out = []
+    for c in cands:
+        if not isinstance(c, Effect):
+            raise ModelError(
+                f"candidates must be Effect objects (rc.effects.*); got {type(c).__name__}. "
+                "List them with rc.effects.candidates(model)."
+            )
+        c.check(model)
+        out.append(c)
+    if not out:
+        raise ModelError("no candidate effects to test; pass candidates=rc.effects.candidates(model).")
+    return out
+
+
+# ============================================================================ diagnose
+@limit_blas
+def diagnose(
+    model: Any,
+    data: FrequencyData,
+    candidates: Sequence[Any] | None = None,
+    band: tuple[float, float] | None = None,
+    executor: Executor | None = None,
+    update_params: Sequence[str] | None = None,
+    *,
+    weights: Any = None,
+    n_fit: int = 4,
+    max_iter: int = 8,
+    update_iter: int = 10,
+    alpha: float = ALPHA,
+    min_gain: float = MIN_GAIN,
+    time_budget_s: float = 120.0,
+) -> Diagnosis:
+    """Rank physical effects by how much of the model-data residual each explains.
+
+    Parameters
+    ----------
+    model : PhysicalModel
+    data : FrequencyData
+        Measured responses (Hz); channels named as the model's signals.
+    candidates : sequence of Effect, optional
+        Default ``rc.effects.candidates(model, band=band)``. Each must apply to the model.
+    band : (float, float), optional
+        Band in Hz (default: all data).
+    executor : concurrent.futures.Executor, optional
+        Screens and fits candidates in parallel (a thread pool works with any model; a
+        process pool needs a picklable model).
+    update_params : sequence of str, optional
+        Parameters the update may change (default: the model's free parameters); what they
+        can absorb is projected out before the effects are scored.
+    weights : None, "coherence" or array
+        Residual weights (see :class:`~robustctl.correlate.residual.Residual`).
+    n_fit : int
+        Number of best-screened candidates given the local fit.
+    max_iter, update_iter : int
+        LM iteration caps of the local fits and of the null fit.
+    alpha : float
+        F-test level before the Bonferroni correction over the screened candidates.
+    min_gain : float
+        Smallest share (0..1) of the null-fit residual an effect must remove to be proposed.
+    time_budget_s : float
+        Wall-clock budget (s) for the fits.
+
+    Returns
+    -------
+    Diagnosis
+
+    Raises
+    ------
+    DataError
+        Data that do not match the model's channels, a band outside the data.
+    ModelError
+        A candidate that does not apply to the model (wrong domain, unknown location),
+        unknown update parameters.
+
+    Examples
+    --------
+    >>> diag = rc.diagnose(model, data, band=(0.5, 20))                  # doctest: +SKIP
+    >>> diag.table(); diag.best                                           # doctest: +SKIP
+    >>> upd = rc.update(model.with_effect(diag.best), data)              # doctest: +SKIP
+    """
+    from ..physical.effects import candidates as all_candidates
+
+    t0 = time.perf_counter()
+    if not isinstance(data, FrequencyData):
+        raise DataError(f"data must be a FrequencyData; got {type(data).__name__}.")
+    if not 0 < alpha < 1 or not 0 <= min_gain < 1:
+        raise FitError(f"alpha must lie in (0, 1) and min_gain in [0, 1); got {alpha}, {min_gain}.")
+    res0 = Residual(model, data, band=band, weights=weights)
+    upd = _check_update(model, update_params)
+    cands = _check_candidates(model, all_candidates(model, band=res0.band) if candidates is None
+                              else list(candidates))
+    evals = 1
+    cost_nominal = res0.cost()
+    # 1. null fit of the update parameters
+    null, n_null = _null_fit(res0, upd, update_iter, executor, time_budget_s / 3)
+    evals += n_null
+    x_u, j_u, cost_u = null.x, null.j, null.cost
+    model_u = model.with_values(**x_u) if x_u else model
+    res_u = _residual_for(res0, model_u)
+    Q = _orthonormal(null.jac)
+    r_perp = _project(Q, j_u)
+    # 2. secant screening
+    screens = _map(lambda c: _screen_one(res_u, model_u, j_u, Q, r_perp, c), cands, executor, "screening")
+    evals += sum(s["evals"] for s in screens)
+    twins = _equivalent(screens)
+    order = sorted((k for k in range(len(screens)) if k not in twins),
+                   key=lambda k: (-round(screens[k]["fraction"], 9), k))
+    top = [k for k in order[: max(int(n_fit), 0)] if screens[k]["fraction"] > 0]
+    # 3. local fits
+    remaining = max(time_budget_s - (time.perf_counter() - t0), 1.0)
+    fits = _map(lambda k: _fit_one(res_u, null, screens[k], max_iter, remaining / max(len(top), 1)),
+                top, executor, "local fits")
+    evals += sum(f["evals"] for f in fits)
+    # 4. significance and words
+    e_u = res0.unstack(j_u)
+    n_eff, rho = effective_points(e_u)
+    level = alpha / len(cands)
+    stats = dict(cost_u=cost_u, cost_nominal=cost_nominal, n_eff=n_eff, p=len(upd), level=level,
+                 min_gain=min_gain, upd=upd)
+    results, explained = _score(res0, screens, order, top, fits, twins, j_u, stats)
+    best = next((r.effect for r in results if r.significant), None)
+    return Diagnosis(
+        ranking=tuple(results), best=best, cost_nominal=cost_nominal, cost_update=cost_u,
+        update_params=upd, update_values=x_u, n=res0.n, n_eff=n_eff, rho=rho, alpha=level,
+        unexplained=_where(res0, j_u), band=res0.band, n_evals=evals,
+        time_s=time.perf_counter() - t0, residual_update=e_u, f_hz=res0.f_hz, explained=explained,
+    )
+
+
+def _score(res0: Residual, screens: list[dict], order: list[int], top: list[int], fits: list[dict],
+           twins: dict[int, int], j_u: np.ndarray, st: dict[str, Any]) -> tuple[list, dict]:
+    """CandidateResults: fitted ones by gain (F-test, sentence), then the rest by fraction."""
+    results, explained = [], {}
+
+    def twins_of(k: int) -> tuple[str, ...]:
+        return tuple(screens[t]["effect"].name for t, i in twins.items() if i == k)
+
+    for k, fit in zip(top, fits):
+        s = screens[k]
+        effect = s["effect"].with_values(**{s["effect"].param_names[0]: fit["value"]})
+        f_stat, p_val = _f_test(st["cost_u"], fit["cost"], 1, st["n_eff"], st["p"] + 1)
+        gain = _reduction(fit["cost"], st["cost_u"])
+        delta = j_u - fit["vector"]
+        results.append(CandidateResult(
+            effect=effect, fraction=s["fraction"], angle_deg=s["angle"], fitted=True, cost=fit["cost"],
+            reduction=_reduction(fit["cost"], st["cost_nominal"]), gain=gain, f_stat=f_stat,
+            p_value=p_val, significant=bool(p_val < st["level"] and gain >= st["min_gain"]),
+            update_values={n: v for n, v in fit["x"].items() if n in st["upd"]},
+            where=_where(res0, delta), equivalent=twins_of(k),
+        ))
+        explained[effect.name] = res0.unstack(delta)
+    order_fit = sorted(range(len(results)), key=lambda i: (-round(results[i].gain, 9), i))
+    results = [results[i] for i in order_fit]
+    explained = {r.name: explained[r.name] for r in results[:2]}
+    for k in order:
+        if k in top:
+            continue
+        s = screens[k]
+        effect = s["effect"].with_values(**{s["effect"].param_names[0]: s["value"]})
+        cost = st["cost_u"] * (1 - s["fraction"])
+        results.append(CandidateResult(
+            effect=effect, fraction=s["fraction"], angle_deg=s["angle"], fitted=False, cost=cost,
+            reduction=_reduction(cost, st["cost_nominal"]), gain=s["fraction"], equivalent=twins_of(k),
+        ))
+    return [_with_sentence(r) for r in results], explained
+
+
+def _with_sentence(r: CandidateResult) -> CandidateResult:
+    from dataclasses import replace
+
+    return replace(r, sentence=_sentence(r))
+
+
+def _reduction(cost: float, reference: float) -> float:
+    return max(0.0, 1.0 - cost / reference) if reference > 0 else 0.0
