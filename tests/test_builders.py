@@ -184,6 +184,27 @@ def test_groups_tension_and_tagged_suspension():
     assert np.allclose(mats.damping, 0.0) and np.allclose(mats.stiffness, chain_k())
 
 
+def test_damping_change_reuses_the_eigensolution(monkeypatch):
+    import robustctl.physical.modal as modal
+
+    calls = []
+    real = modal.solve_modes
+
+    def counting(*args, **kwargs):
+        calls.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(modal, "solve_modes", counting)
+    model = rc.structural_model(M_KG * np.eye(3), chain_k(), **IO)
+    a, b = model.statespace(zeta_modal=0.02), model.statespace(zeta_modal=0.05)
+    assert len(calls) == 1 and not np.allclose(np.asarray(a.A), np.asarray(b.A))
+    p = np.linalg.eigvals(np.asarray(b.A))
+    assert np.allclose(-p.real / np.abs(p), 0.05)
+    changed = rc.structural_model(M_KG * np.eye(3), 2 * chain_k(), **IO)
+    assert np.allclose(poles_hz(changed.statespace()), np.sqrt(2) * analytic_chain_hz(), rtol=1e-3)
+    assert len(calls) == 2  # different matrices: solved again
+
+
 def test_modal_dynamics_without_damping_parameter_uses_default():
     st = MatrixStructure(M_KG * np.eye(3), chain_k(), **IO)
     model = PhysicalModel((), modal_dynamics(default_damping=0.05), structure=lambda th: st)

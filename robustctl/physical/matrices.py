@@ -44,11 +44,15 @@ def _matrix(a: Any, n: int | None, what: str):
             f"the {what} matrix is {mat.shape[0]}x{mat.shape[1]} but the model has {n} DOFs; "
             "all matrices must have the size of the mass matrix."
         )
-    dense = mat.toarray() if sp.issparse(mat) else mat
-    if not np.all(np.isfinite(dense)):
+    values = mat.data if sp.issparse(mat) else mat
+    if not np.all(np.isfinite(values)):
         raise ModelError(f"the {what} matrix contains NaN or inf.")
-    if np.abs(dense - dense.T).max(initial=0.0) > 1e-9 * max(np.abs(dense).max(initial=0.0), 1e-300):
-        raise ModelError(f"the {what} matrix is not symmetric; structural matrices must be symmetric.")
+    asym = abs(mat - mat.T).max() if sp.issparse(mat) else np.abs(mat - mat.T).max(initial=0.0)
+    if asym > 1e-9 * max(np.abs(values).max(initial=0.0), 1e-300):
+        raise ModelError(
+            f"the {what} matrix is not symmetric (max asymmetry {asym:.3g}); structural matrices "
+            "must be symmetric."
+        )
     return mat
 
 
@@ -57,17 +61,19 @@ def _dense(a) -> np.ndarray:
 
 
 def _check_definite(mass, stiffness, labels: Sequence[str]) -> None:
-    m, k = _dense(mass), _dense(stiffness)
-    for what, mat in (("mass", m), ("stiffness", k)):
-        bad = np.flatnonzero(np.diag(mat) < 0)
+    """Negative diagonals always; definiteness (dense) only for small models, larger ones are
+    checked by the eigensolver when the modes are computed."""
+    for what, mat in (("mass", mass), ("stiffness", stiffness)):
+        diag = mat.diagonal()
+        bad = np.flatnonzero(diag < 0)
         if bad.size:
             raise ModelError(
                 f"the {what} matrix has a negative diagonal entry at {labels[bad[0]]!r} "
-                f"({mat[bad[0], bad[0]]:g}); masses and stiffnesses must be >= 0."
+                f"({diag[bad[0]]:g}); masses and stiffnesses must be >= 0."
             )
-    check_structural_matrices(mass, stiffness)  # symmetric, mass positive definite
-    if m.shape[0] <= _DEFINITENESS_CHECK_LIMIT:
-        lam = np.linalg.eigvalsh(k)
+    if mass.shape[0] <= _DEFINITENESS_CHECK_LIMIT:
+        check_structural_matrices(mass, stiffness)  # mass positive definite
+        lam = np.linalg.eigvalsh(_dense(stiffness))
         if lam.min() < -1e-9 * max(abs(lam).max(), 1e-300):
             raise ModelError(
                 f"the stiffness matrix is not positive semi-definite (eigenvalue {lam.min():.3g}); "

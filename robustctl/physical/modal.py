@@ -20,8 +20,11 @@ Units: frequencies in Hz at the surface (``f_hz``, ``band_hz``), rad/s inside
 
 from __future__ import annotations
 
+import hashlib
+import threading
+from collections import OrderedDict
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -251,31 +254,38 @@ def modal_decomposition(
         Bad matrices, a band without modes, negative damping, wrong vector lengths.
     """
     _check_mats(mats)
-    if rigid_body_damping < 0 or not np.isfinite(rigid_body_damping):
-        raise ModelError(f"rigid_body_damping is a rate in 1/s and must be >= 0; got {rigid_body_damping}.")
+    undamped = _undamped_modal_data(mats, n_modes, band_hz, residual_flexibility)
+    return _damped(undamped, damping, mats.modal_damping_bands, rigid_body_damping)
+
+
+def _undamped_modal_data(mats: StructuralMatrices, n_modes, band_hz, residual_flexibility: bool) -> ModalData:
+    """Everything of MACE eqs. 2-4 that does not depend on the modal damping ratios."""
     omega, phi = solve_modes(mats.mass, mats.stiffness, n_modes=n_modes, band_hz=band_hz)
-    zeta = _apply_bands(_damping_vector(damping, omega.size), omega / (2 * np.pi), mats.modal_damping_bands)
     cs = mats.damping
     if cs is None:
         cs_modal = np.zeros((omega.size, omega.size))
     else:  # sparse-safe: never densify a large Cs
         cs_modal = phi.T @ np.asarray((cs if sp.issparse(cs) else np.asarray(cs, dtype=float)) @ phi)
-    residual = None
-    if residual_flexibility:
-        residual = _residual_flexibility(mats, omega, phi)
     return ModalData(
         omega=omega,
-        zeta=zeta,
+        zeta=np.zeros(omega.size),
         input_shapes=phi.T @ mats.input_matrix,
         output_shapes=mats.output_matrix @ phi,
         output_kinds=tuple(mats.output_kinds),
         inputs=tuple(mats.inputs),
         outputs=tuple(mats.outputs),
         modal_concentrated_damping=cs_modal,
-        rigid_body_rate=float(rigid_body_damping),
-        residual=residual,
+        residual=_residual_flexibility(mats, omega, phi) if residual_flexibility else None,
         shapes=phi,
     )
+
+
+def _damped(data: ModalData, damping: Any, bands, rigid_body_damping: float) -> ModalData:
+    """``data`` with damping ratios (bands applied) and the rigid-body damping rate."""
+    if rigid_body_damping < 0 or not np.isfinite(rigid_body_damping):
+        raise ModelError(f"rigid_body_damping is a rate in 1/s and must be >= 0; got {rigid_body_damping}.")
+    zeta = _apply_bands(_damping_vector(damping, data.n_modes), data.f_hz, bands)
+    return replace(data, zeta=zeta, rigid_body_rate=float(rigid_body_damping))
 
 
 # ---------------------------------------------------------------------------- assembly
@@ -423,33 +433,77 @@ def _has(theta: Mapping[str, float], name: str) -> bool:
     return any(k == name for k in theta)
 
 
+def _digest(mats: StructuralMatrices, *extra: Any) -> bytes:
+    """A content hash of everything the undamped modal data depends on."""
+    h = hashlib.blake2b(digest_size=20)
+    for a in (mats.mass, mats.stiffness, mats.damping, mats.input_matrix, mats.output_matrix):
+        if a is None:
+            h.update(b"none")
+        elif sp.issparse(a):
+            a = sp.csr_matrix(a)
+            a.sum_duplicates()
+            for part in (np.asarray(a.shape), a.data, a.indices, a.indptr):
+                h.update(np.ascontiguousarray(part).tobytes())
+        else:
+            a = np.ascontiguousarray(a, dtype=float)
+            h.update(np.asarray(a.shape).tobytes() + a.tobytes())
+    h.update(repr((mats.output_kinds, mats.inputs, mats.outputs) + extra).encode())
+    return h.digest()
+
+
+class _ModeCache:
+    """A small LRU of undamped modal data keyed by matrix content (thread-safe).
+
+    PhysicalModel rebuilds the structure for every parameter set, and its own cache keys
+    on every parameter the build read, damping included; this cache lets a change of the
+    modal damping ratio (a MACE update parameter) skip the eigensolution.
+    """
+
+    def __init__(self, size: int = 4) -> None:
+        self._size = size
+        self._store: OrderedDict[bytes, ModalData] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, key: bytes, compute: Callable[[], ModalData]) -> ModalData:
+        with self._lock:
+            if key in self._store:
+                self._store.move_to_end(key)
+                return self._store[key]
+        value = compute()
+        with self._lock:
+            self._store[key] = value
+            while len(self._store) > self._size:
+                self._store.popitem(last=False)
+        return value
+
+
 def modal_dynamics(
     n_modes: int | None = None,
     band_hz: tuple[float, float] | None = None,
     damping_param: str = "zeta_modal",
     *,
-    default_damping: float = 0.01,
+    default_damping: float | np.ndarray = 0.01,
     rigid_body_damping: float = 0.0,
     residual_flexibility: bool = False,
 ) -> Callable[[Mapping[str, float], Structure | None], Any]:
     """A ``dynamics`` callable ``(theta, structure) -> StateSpace`` for PhysicalModel.
 
     The modal damping ratio is read from ``theta[damping_param]`` when the model has that
-    parameter, otherwise ``default_damping`` is used. Other arguments are those of
-    :func:`modal_decomposition`.
+    parameter, otherwise ``default_damping`` (a ratio, or one per kept mode) is used.
+    Other arguments are those of :func:`modal_decomposition`. The eigensolution is cached
+    by matrix content (last 4 structures), so changing only the damping, or building again
+    with equal matrices, does not solve the eigenproblem again.
     """
+    cache = _ModeCache()
 
     def dynamics(theta: Mapping[str, float], structure: Structure | None):
         if structure is None:
             raise ModelError("modal_dynamics needs a structure; build the model with a structure callable.")
         zeta = theta[damping_param] if _has(theta, damping_param) else default_damping
-        return modal_statespace(
-            structure.matrices(),
-            n_modes=n_modes,
-            band_hz=band_hz,
-            damping=zeta,
-            rigid_body_damping=rigid_body_damping,
-            residual_flexibility=residual_flexibility,
-        )
+        mats = structure.matrices()
+        _check_mats(mats)
+        key = _digest(mats, n_modes, band_hz, residual_flexibility)
+        undamped = cache.get(key, lambda: _undamped_modal_data(mats, n_modes, band_hz, residual_flexibility))
+        return _damped(undamped, zeta, mats.modal_damping_bands, rigid_body_damping).statespace()
 
     return dynamics
