@@ -1237,12 +1237,14 @@ def _condense(Kt, M1, C1, B1, Cy1, labels, frame) -> StructuralMatrices:
         raise ModelError(f"a dashpot acts on {bad}, which has no mass; add mass or inertia at that node.")
     Kss = Kt[s][:, s].toarray()
     try:
-        X = -sla.cho_solve(sla.cho_factor(Kss), Kt[s][:, m].toarray())
+        factor = sla.cho_factor(Kss)
     except np.linalg.LinAlgError:
         raise ModelError(
             f"DOFs without mass are not held by any stiffness (e.g. {labels[s[0]]}): add mass/inertia "
             "at that node, or a spring/support, so every DOF with stiffness has mass or is restrained."
         ) from None
+    X = -sla.cho_solve(factor, Kt[s][:, m].toarray())
+    _refuse_direct_static_path(factor, np.asarray(B1)[s], Cy1[:, s], frame, labels, s)
     Tm = np.zeros((len(labels), m.size))
     Tm[m, np.arange(m.size)] = 1.0
     Tm[s] = X
@@ -1257,3 +1259,20 @@ def _condense(Kt, M1, C1, B1, Cy1, labels, frame) -> StructuralMatrices:
         dof_labels=tuple(labels[i] for i in m),
         **common,
     )
+
+
+def _refuse_direct_static_path(factor, Bs, Cs, frame, labels, s) -> None:
+    """An input and an output both on massless DOFs would need a static feedthrough
+    ``Cs Kss^-1 Bs`` that a second-order model without a D term cannot carry."""
+    if not (np.any(Bs) and np.any(Cs)):
+        return
+    D = Cs @ sla.cho_solve(factor, Bs)
+    bound = np.abs(Cs) @ np.abs(sla.cho_solve(factor, np.eye(len(s)))) @ np.abs(Bs)
+    bad = np.argwhere(np.abs(D) > 1e-9 * bound.max())
+    if bad.size:
+        out, inp = list(frame._outputs)[bad[0, 0]], list(frame._inputs)[bad[0, 1]]
+        raise ModelError(
+            f"input {inp!r} and output {out!r} both act on DOFs without mass (e.g. {labels[s[0]]}), "
+            "so the output would respond instantly to the input; add a small mass/inertia at that "
+            "node, or move the sensor or actuator to a node with mass."
+        )

@@ -262,7 +262,7 @@ def preload_iteration(
         change = float(np.abs(N_new - (0.0 if N is None else N)).max(initial=0.0))
         history.append(change)
         N = N_new
-        if change <= tol * max(float(np.abs(N).max(initial=0.0)), 1e-12 * weight):
+        if change <= tol * max(float(np.abs(N).max(initial=0.0)), 1e-3 * weight):
             return _result(N, u, it, True, history, removed, f)
     if max_iter == 1:
         return _result(N, u, 1, True, history, removed, f)
