@@ -240,7 +240,7 @@ def fit_measurement_model(
     max_modes: int = 24,
     parsimony: float = 0.1,
     target_db: float | None = None,
-    max_iter: int = 30,
+    max_iter: int | None = None,
 ) -> MeasurementModel:
     """Identify a measurement model of frequency-response data in one call.
 
@@ -273,8 +273,8 @@ def fit_measurement_model(
         Relative cost slack of the automatic selection (0.1: within 10 % of the best).
     target_db : float, optional
         Required rms log-magnitude error (dB); a :class:`FitError` says so when it is missed.
-    max_iter : int
-        Iteration cap of each pole identification.
+    max_iter : int, optional
+        Iteration cap of each pole identification (default: that of :func:`fit_rational`).
 
     Returns
     -------

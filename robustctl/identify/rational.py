@@ -27,6 +27,7 @@ from .vector_fitting import vf_poles
 __all__ = ["RationalFit", "fit_rational", "IdentifyWarning"]
 
 METHODS = ("chebyshev", "vf")
+DEFAULT_MAX_ITER = {"chebyshev": 100, "vf": 30}
 
 
 class IdentifyWarning(UserWarning):
@@ -199,8 +200,8 @@ def fit_rational(
     weights: Any = None,
     common_denominator: bool = True,
     stable: bool = True,
-    max_iter: int = 30,
-    tol: float = 1e-8,
+    max_iter: int | None = None,
+    tol: float = 1e-6,
     feedthrough: bool = True,
     rank_tol: float = 1e-8,
 ) -> RationalFit:
@@ -228,8 +229,9 @@ def fit_rational(
         fits, the Caltech procedure), joined by :func:`combine_simo`.
     stable : bool
         Reflect unstable poles into the left half plane before the residues are fitted.
-    max_iter : int
-        Cap of pole-relocation iterations.
+    max_iter : int, optional
+        Cap of pole-relocation iterations; default 100 for ``"chebyshev"`` (the SK fixed point
+        is reached slowly when modes nearly coincide) and 30 for ``"vf"``.
     tol : float
         Relative pole change that counts as converged.
     feedthrough : bool
@@ -249,7 +251,7 @@ def fit_rational(
         Malformed data, NaN, all-zero channels.
     """
     method = _check_method(method)
-    max_iter = _check_iter(max_iter)
+    max_iter = _check_iter(DEFAULT_MAX_ITER[method] if max_iter is None else max_iter)
     kw = dict(
         method=method, stable=stable, max_iter=max_iter, tol=tol, feedthrough=feedthrough, rank_tol=rank_tol
     )

@@ -1,0 +1,164 @@
+"""fit_rational: exact recovery, method agreement, stability, realisation, and bad input."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from numpy.polynomial import polynomial as poly
+from test_identify_support import BAND, F_MODES, ZETA, caltech_measurement, exact_data, truss_system
+
+import robustctl as rc
+from robustctl.identify import IdentifyWarning
+from robustctl.identify.chebyshev import chebyshev_basis, chebyshev_roots
+
+F_GRID = np.linspace(0.5, 5.5, 400)
+
+
+def _modal(fit):
+    keep = (fit.poles.imag != 0) & (fit.f_hz > BAND[0]) & (fit.f_hz < BAND[1]) & (fit.zeta < 0.2)
+    order = np.argsort(fit.f_hz[keep])
+    return fit.f_hz[keep][order], fit.zeta[keep][order]
+
+
+# --------------------------------------------------------------------------- reference checks
+def test_chebyshev_basis_is_j_power_times_chebyshev_polynomial():
+    x = np.linspace(-1, 1, 7)
+    basis = chebyshev_basis(x, 4)
+    t4 = 8 * x**4 - 8 * x**2 + 1  # T_4
+    np.testing.assert_allclose(basis[:, 4], t4 * (1j**4))
+    np.testing.assert_allclose(basis[:, 3], (4 * x**3 - 3 * x) * (1j**3))
+
+
+def test_chebyshev_roots_match_power_basis_roots():
+    # sum_m c_m j^m T_m(x) with x = -j s: convert to power form in x, take companion roots, s = j x
+    coef = np.array([0.3, -1.2, 0.7, 2.0, 0.4])
+    power_x = np.polynomial.chebyshev.cheb2poly(coef * 1j ** np.arange(coef.size))
+    expected = 1j * poly.polyroots(power_x)
+    got = chebyshev_roots(coef)
+    np.testing.assert_allclose(np.sort_complex(got), np.sort_complex(expected), rtol=1e-9)
+    # the polynomial is real in s, so the roots are conjugate-symmetric
+    assert np.max(np.abs(np.poly(got).imag)) < 1e-12
+
+
+@pytest.mark.parametrize("method", ["chebyshev", "vf"])
+def test_exact_mimo_system_is_recovered_to_machine_precision(method):
+    data = exact_data(truss_system(), F_GRID)
+    fit = rc.fit_rational(data, 12, method=method)
+    err = np.max(np.abs(fit.response(F_GRID) - data.response)) / np.max(np.abs(data.response))
+    assert err < 1e-8
+    f, z = _modal(fit)
+    np.testing.assert_allclose(f, F_MODES, rtol=1e-8)
+    np.testing.assert_allclose(z, ZETA, rtol=1e-6)
+
+
+@pytest.mark.parametrize("method", ["chebyshev", "vf"])
+def test_odd_order_recovers_a_real_pole(method):
+    f = np.linspace(0.1, 10, 300)
+    s = 2j * np.pi * f
+    g = 3.0 / (s + 4.0) + (1 + 2j) / (s - (-0.5 + 20j)) + (1 - 2j) / (s - (-0.5 - 20j)) + 0.2
+    fit = rc.fit_rational((f, g), 3, method=method)
+    real = fit.poles[fit.poles.imag == 0]
+    np.testing.assert_allclose(real.real, [-4.0], rtol=1e-8)
+    np.testing.assert_allclose(fit.response(f)[:, 0, 0], g, rtol=1e-8)
+
+
+def test_chebyshev_and_vf_agree_on_measured_data():
+    data = caltech_measurement()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IdentifyWarning)
+        cheb = rc.fit_rational(data, 12, band=BAND, method="chebyshev")
+        vf = rc.fit_rational(data, 12, band=BAND, method="vf")
+    # well-separated modes (2.26, 2.66, 2.75, 4.43 Hz) agree closely; costs agree within 25 %
+    for fm in F_MODES[2:]:
+        fc = cheb.f_hz[np.argmin(np.abs(cheb.f_hz - fm))]
+        fv = vf.f_hz[np.argmin(np.abs(vf.f_hz - fm))]
+        assert abs(fc - fv) / fm < 2e-3
+    jc, jv = cheb.cost().total, vf.cost().total
+    assert abs(jc - jv) / min(jc, jv) < 0.25
+    gc, gv = cheb.response(data.band(*BAND).f_hz), vf.response(data.band(*BAND).f_hz)
+    assert np.sqrt(np.mean(np.abs(np.log(gc / gv)) ** 2)) < 0.1  # < 0.9 dB rms between the models
+
+
+def test_statespace_realisation_matches_pole_residue_response_and_names():
+    data = exact_data(truss_system(), F_GRID)
+    fit = rc.fit_rational(data, 12, method="vf")
+    ss = fit.statespace()
+    assert ss.input_labels == ["a1", "a2", "a3"] and ss.output_labels == ["s1", "s2", "s3"]
+    g_ss = rc.freqresp(ss, F_GRID).response
+    np.testing.assert_allclose(g_ss, fit.response(F_GRID), rtol=1e-9, atol=1e-12)
+    # 2x2 blocks per complex pair: the A matrix is block diagonal with rotation blocks
+    a = ss.A
+    assert np.allclose(a[0, 2:], 0) and np.isclose(a[0, 0], a[1, 1]) and np.isclose(a[0, 1], -a[1, 0])
+    assert np.all(np.linalg.eigvals(a).real < 0)
+
+
+def test_unstable_poles_are_reflected_and_residues_refitted():
+    f = np.linspace(0.5, 5, 300)
+    s = 2j * np.pi * f
+    p = 0.3 + 2j * np.pi * 2.0  # unstable mode: |G(jw)| equals that of its reflection times an all-pass
+    g = (1 / (s - p) + 1 / (s - np.conj(p))) * 5.0
+    fit = rc.fit_rational((f, g), 2, method="vf")
+    assert np.all(fit.poles.real < 0)
+    np.testing.assert_allclose(fit.poles[0], -0.3 + 2j * np.pi * 2.0, rtol=1e-6)
+    loose = rc.fit_rational((f, g), 2, method="vf", stable=False)
+    np.testing.assert_allclose(loose.poles[0], p, rtol=1e-8)
+
+
+def test_pole_outside_band_warns():
+    f = np.linspace(1, 3, 200)
+    s = 2j * np.pi * f
+    g = 1.0 / (s**2 + 2 * 0.01 * 12 * s + 144.0) + 0.5 / (s**2 + 2 * 0.02 * 60 * s + 3600.0)
+    with pytest.warns(IdentifyWarning, match="outside the band"):
+        rc.fit_rational((f, g), 4, method="vf")
+
+
+@pytest.mark.filterwarnings("ignore::robustctl.identify.IdentifyWarning")
+def test_simo_fits_per_input_combine_to_the_sum_of_their_states():
+    data = exact_data(truss_system(), F_GRID)
+    fit = rc.fit_rational(data, 12, common_denominator=False, method="vf")
+    simo = [rc.fit_rational(data.select(inputs=[k]), 12, method="vf") for k in range(3)]
+    assert fit.method == "combined" and fit.statespace().nstates == sum(f.n_states for f in simo)
+    assert fit.order == 36 and all(f.order == 12 for f in simo)
+    np.testing.assert_allclose(fit.response(F_GRID), data.response, rtol=1e-7, atol=1e-9)
+
+
+# --------------------------------------------------------------------------- bad input
+@pytest.mark.parametrize("order", [0, -2, 2.5, True])
+def test_bad_order_is_refused(order):
+    data = exact_data(truss_system(), F_GRID)
+    with pytest.raises(rc.FitError, match="order must be a positive"):
+        rc.fit_rational(data, order)
+
+
+def test_band_with_too_few_points_is_refused():
+    data = exact_data(truss_system(), F_GRID)
+    with pytest.raises(rc.FitError, match="needs at least 13 points"):
+        rc.fit_rational(data, 12, band=(1.0, 1.1))
+
+
+def test_all_zero_data_is_refused():
+    with pytest.raises(rc.DataError, match="identically zero"):
+        rc.fit_rational((F_GRID, np.zeros(F_GRID.size)), 4)
+
+
+def test_nan_data_is_refused():
+    g = np.ones(F_GRID.size, dtype=complex)
+    g[5] = np.nan
+    with pytest.raises(rc.DataError, match="NaN"):
+        rc.fit_rational((F_GRID, g), 4)
+
+
+def test_nan_weights_and_unknown_method_are_refused():
+    data = exact_data(truss_system(), F_GRID)
+    w = np.ones(F_GRID.size)
+    w[3] = np.nan
+    with pytest.raises(rc.FitError, match="weights must be finite"):
+        rc.fit_rational(data, 12, weights=w)
+    with pytest.raises(rc.FitError, match="unknown method"):
+        rc.fit_rational(data, 12, method="prony")
+    with pytest.raises(rc.FitError, match="max_iter"):
+        rc.fit_rational(data, 12, max_iter=0)
+    with pytest.raises(rc.FitError, match="band .* holds no data"):
+        rc.fit_rational(data, 12, band=(100, 200))
