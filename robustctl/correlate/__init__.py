@@ -4,6 +4,7 @@ One import line per module, so each stage can be added independently.
 """
 
 from .compare import Comparison, compare
+from .diagnose import CandidateResult, Diagnosis, diagnose
 from .optimize import LMResult, levenberg_marquardt
 from .residual import Residual, Sensitivities, alignment, log_ratio, orthogonality, sensitivities
 
@@ -18,4 +19,7 @@ __all__ = [
     "levenberg_marquardt",
     "Comparison",
     "compare",
+    "diagnose",
+    "Diagnosis",
+    "CandidateResult",
 ]

@@ -2,8 +2,17 @@
 
 * :func:`caltech_truss` -- the Caltech two-story hanging truss (Balas & Doyle): three
   voice coils in, three accelerometers out.
+* :func:`make_experiment`, :func:`caltech_truss_experiment` -- truth generators: simulated
+  test data of a model with a hidden physical effect and parameter errors.
 """
 
 from .caltech_truss import caltech_truss, truss_modes
+from .experiments import caltech_truss_experiment, mace_beam_experiment, make_experiment
 
-__all__ = ["caltech_truss", "truss_modes"]
+__all__ = [
+    "caltech_truss",
+    "truss_modes",
+    "make_experiment",
+    "caltech_truss_experiment",
+    "mace_beam_experiment",
+]
