@@ -7,6 +7,7 @@ from .compare import Comparison, compare
 from .diagnose import CandidateResult, Diagnosis, diagnose
 from .optimize import LMResult, levenberg_marquardt
 from .residual import Residual, Sensitivities, alignment, log_ratio, orthogonality, sensitivities
+from .update import UpdateResult, update
 
 __all__ = [
     "Residual",
@@ -19,6 +20,8 @@ __all__ = [
     "levenberg_marquardt",
     "Comparison",
     "compare",
+    "update",
+    "UpdateResult",
     "diagnose",
     "Diagnosis",
     "CandidateResult",

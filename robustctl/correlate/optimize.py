@@ -174,9 +174,13 @@ def _projected_step(J, r, lam, z, zlo, zhi) -> np.ndarray:
 
 
 def _covariance(J: np.ndarray, cost: float) -> np.ndarray:
+    """``s^2 (J^T J)^+`` computed with unit-norm columns (parameters of very different units)."""
     n, p = J.shape
     s2 = cost / max(n - p, 1)
-    return s2 * np.linalg.pinv(J.T @ J)
+    norms = np.linalg.norm(J, axis=0)
+    norms = np.where(norms > 0, norms, 1.0)
+    Js = J / norms
+    return s2 * np.linalg.pinv(Js.T @ Js) / np.outer(norms, norms)
 
 
 def levenberg_marquardt(

@@ -1,0 +1,610 @@
+"""Fix the physics: ``rc.update`` (MACE's model updating, eqs. 5-9, Figs. 3-4).
+
+1. The residual ``j`` of the complex-log cost (eqs. 5-6) and its finite-difference
+   sensitivities ``dJ`` to every candidate parameter (eq. 7), scaled to relative changes.
+2. Test 1, alignment with the initial cost ``|j0^T dJ|`` (eq. 8, Fig. 3): parameters the
+   initial error is insensitive to are dropped.
+3. Test 2, orthogonality ``|dJn^T dJn|`` of the normalised sensitivities (eq. 9, Fig. 4):
+   of two parameters with (nearly) parallel sensitivities only the better-aligned one is
+   kept, and the superparameter the data actually determine is suggested in words.
+4. Bounded Levenberg-Marquardt on the kept parameters, the sensitivities refreshed every
+   iteration ("their range of validity is often quite small"), stopped when the cost no
+   longer changes.
+5. Standard errors from the Jacobian and the residual variance, and a model-form check:
+   the parameters re-estimated on sub-bands should agree within their standard errors;
+   estimates that drift with frequency mean a wrong model form (a missing effect), not a
+   wrong value.
+"""
+
+from __future__ import annotations
+
+import html
+import sys
+import time
+from collections.abc import Sequence
+from concurrent.futures import Executor
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import FitError
+from ..frd import FrequencyData
+from ..table import Table
+from .optimize import LMResult, levenberg_marquardt
+from .residual import Residual, _check_names, alignment, normalized, orthogonality, sensitivities
+
+__all__ = ["UpdateResult", "update", "select_parameters", "superparameter"]
+
+
+# ---------------------------------------------------------------------------- selection
+def superparameter(name_a: str, name_b: str, da: np.ndarray, db: np.ndarray) -> str:
+    """The combination of two parameters with parallel relative sensitivities the data fix.
+
+    If ``dJ_a ~ c dJ_b`` (relative sensitivities, MACE eq. 7) the residual depends on
+    ``c ln a + ln b``, i.e. on ``a^c * b``; returned as a readable expression
+    (``"a * b"``, ``"b / a"``, ``"a^0.5 * b"``).
+    """
+    c = float(da @ db) / max(float(db @ db), 1e-300)
+    if abs(abs(c) - 1.0) < 0.1:
+        return f"{name_a} * {name_b}" if c > 0 else f"{name_b} / {name_a}"
+    if c > 0:
+        return f"{name_a}^{c:.2g} * {name_b}"
+    return f"{name_b} / {name_a}^{-c:.2g}"
+
+
+def select_parameters(
+    names: Sequence[str],
+    j0: np.ndarray,
+    dJ: np.ndarray,
+    *,
+    min_alignment: float = 0.01,
+    max_orthogonality: float = 0.95,
+    min_singular: float = 0.02,
+) -> tuple[tuple[str, ...], list[str], list[str]]:
+    """MACE's two tests (eqs. 8-9) as an automatic selection.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Candidate parameters, in the column order of ``dJ``.
+    j0, dJ : ndarray
+        Initial residual (n,) and sensitivities (n, p) (relative, MACE eq. 7).
+    min_alignment : float
+        Drop a parameter whose ``|j0^T dJ_i|`` is below this fraction of the largest.
+    max_orthogonality : float
+        Of a pair with ``|dJn_i^T dJn_k|`` above this, keep the better-aligned.
+    min_singular : float
+        After the pairwise test, while the smallest singular value of the kept normalised
+        sensitivities is below this (a rank loss among three or more), drop the
+        least-aligned parameter of the near-null combination.
+
+    Returns
+    -------
+    selected : tuple of str
+        Kept parameters, by decreasing alignment.
+    notes : list of str
+        Why each parameter was dropped, in words.
+    suggestions : list of str
+        Superparameter suggestions.
+    """
+    names = list(names)
+    a = alignment(j0, dJ)
+    amax = float(a.max()) if a.size else 0.0
+    if amax <= 0:
+        raise FitError(
+            "no candidate parameter changes the residual (all sensitivities are zero); check that "
+            "the parameters enter the model and that the band holds the modes they move."
+        )
+    O = orthogonality(dJ)
+    notes, suggestions, kept = [], [], []
+    for i in np.argsort(-a):
+        name = names[i]
+        if a[i] < min_alignment * amax:
+            notes.append(
+                f"{name}: dropped by the alignment test (|j0^T dJ| = {a[i] / amax:.2%} of the largest): "
+                "the initial error is insensitive to it."
+            )
+            continue
+        clash = [k for k in kept if O[i, names.index(k)] > max_orthogonality]
+        if clash:
+            other = clash[0]
+            k = names.index(other)
+            combo = superparameter(other, name, dJ[:, k], dJ[:, i])
+            notes.append(
+                f"{name}: dropped by the orthogonality test ({O[i, k]:.3f} with {other}, which is better "
+                "aligned with the initial error)."
+            )
+            suggestions.append(
+                f"{other} and {name} move the residual the same way (orthogonality {O[i, k]:.3f}); the data "
+                f"fix only the combination {combo}. {other} was kept; to update both, tie them into the "
+                f"superparameter {combo}."
+            )
+            continue
+        kept.append(name)
+    while len(kept) > 1:
+        cols = [names.index(k) for k in kept]
+        _, s, vt = np.linalg.svd(normalized(dJ[:, cols]), full_matrices=False)
+        if s[-1] >= min_singular * np.sqrt(len(kept)):
+            break
+        involved = [kept[m] for m in np.flatnonzero(np.abs(vt[-1]) > 0.3)]
+        drop = min(involved, key=lambda n: a[names.index(n)])
+        kept.remove(drop)
+        notes.append(
+            f"{drop}: dropped because {', '.join(involved)} together move the residual in only "
+            f"{len(involved) - 1} independent direction(s) (smallest singular value {s[-1]:.2g}); a "
+            "superparameter of this group may be what the data determine."
+        )
+    return tuple(kept), notes, suggestions
+
+
+# ---------------------------------------------------------------------------- drift
+@dataclass(frozen=True)
+class Drift:
+    """Sub-band estimates of one parameter (model-form check).
+
+    ``bands`` (Hz), ``values`` and ``std_errors`` (parameter units) per sub-band;
+    ``flagged`` when two sub-bands disagree by more than ``k`` combined standard errors
+    and by more than the relative floor.
+    """
+
+    name: str
+    bands: tuple[tuple[float, float], ...]
+    values: tuple[float, ...]
+    std_errors: tuple[float, ...]
+    flagged: bool
+
+
+def _row_mask(residual: Residual, keep_freq: np.ndarray) -> np.ndarray:
+    per_freq = residual.data.n_out * residual.data.n_in
+    half = np.repeat(keep_freq, per_freq)
+    return np.concatenate([half, half])
+
+
+def _drift(
+    residual: Residual,
+    fit: LMResult,
+    n_bands: int,
+    k_sigma: float,
+    rel_floor: float,
+) -> tuple[Drift, ...]:
+    """One Gauss-Newton step from the full-band optimum on each sub-band's rows.
+
+    At the optimum ``x`` the sub-band estimate is ``x - (J_b^T J_b)^-1 J_b^T r_b`` to first
+    order, with covariance ``s_b^2 (J_b^T J_b)^-1``: no new model evaluations.
+    """
+    f = residual.f_hz
+    if n_bands < 2 or f.size < 4 * n_bands:
+        return ()
+    edges = np.array_split(np.arange(f.size), n_bands)
+    est, ses, bands = [], [], []
+    for idx in edges:
+        keep = np.zeros(f.size, dtype=bool)
+        keep[idx] = True
+        rows = _row_mask(residual, keep)
+        J, r = fit.jacobian[rows], fit.vector[rows]
+        norms = np.linalg.norm(J, axis=0)
+        norms = np.where(norms > 0, norms, 1.0)
+        Js = J / norms  # unit-norm columns: parameters of very different units
+        step = -np.linalg.lstsq(Js, r, rcond=None)[0] / norms
+        rr = r + J @ step
+        s2 = float(rr @ rr) / max(J.shape[0] - J.shape[1], 1)
+        cov = s2 * np.linalg.pinv(Js.T @ Js) / np.outer(norms, norms)
+        est.append(fit.x_array + step)
+        ses.append(np.sqrt(np.clip(np.diag(cov), 0, None)))
+        bands.append((float(f[idx[0]]), float(f[idx[-1]])))
+    est, ses = np.array(est), np.array(ses)
+    out = []
+    for p, name in enumerate(fit.names):
+        v, s = est[:, p], ses[:, p]
+        ref = max(abs(fit.x[name]), 1e-300)
+        usable = s < 0.5 * ref  # a sub-band that cannot see the parameter says nothing
+        flagged = False
+        for i in np.flatnonzero(usable):
+            for k in np.flatnonzero(usable):
+                if k <= i:
+                    continue
+                diff = abs(v[i] - v[k])
+                if diff > k_sigma * np.hypot(s[i], s[k]) and diff > rel_floor * ref:
+                    flagged = True
+        out.append(Drift(name, tuple(bands), tuple(map(float, v)), tuple(map(float, s)), flagged))
+    return tuple(out)
+
+
+# ---------------------------------------------------------------------------- result
+@dataclass(frozen=True, eq=False)
+class UpdateResult:
+    """Result of :func:`update`.
+
+    Attributes
+    ----------
+    model : PhysicalModel
+        The updated model.
+    initial_model : PhysicalModel
+    history : tuple of float
+        Cost J (MACE eq. 5) at the start and after each iteration.
+    cost_before, cost_after : float
+    reduction : float
+        Fractional cost reduction ``1 - cost_after / cost_before``.
+    candidates : tuple of str
+        Parameters considered (columns of ``alignment`` / ``orthogonality``).
+    alignment : ndarray (n_candidates,)
+        MACE test 1, ``|j0^T dJ|`` with relative sensitivities (Fig. 3).
+    orthogonality : ndarray (n_candidates, n_candidates)
+        MACE test 2, ``|dJn^T dJn|`` (Fig. 4).
+    selected : tuple of str
+        Parameters updated.
+    fit : LMResult
+        The Levenberg-Marquardt run (Jacobian, covariance, stop reason).
+    std_errors : dict
+        Standard errors of the updated parameters (parameter units).
+    drift : tuple of Drift
+        Sub-band estimates (model-form check).
+    notes, suggestions, warnings : tuple of str
+        Selection decisions, superparameter suggestions, and things to look at.
+    band : (float, float) or None
+    time_s : float
+        Wall-clock time (s).
+    n_evals : int
+        Model evaluations (frequency responses) over all passes.
+    """
+
+    model: Any
+    initial_model: Any
+    history: tuple[float, ...]
+    cost_before: float
+    cost_after: float
+    candidates: tuple[str, ...]
+    alignment: np.ndarray
+    orthogonality: np.ndarray
+    selected: tuple[str, ...]
+    fit: LMResult = field(repr=False)
+    std_errors: dict[str, float] = field(default_factory=dict)
+    drift: tuple[Drift, ...] = ()
+    notes: tuple[str, ...] = ()
+    suggestions: tuple[str, ...] = ()
+    warnings: tuple[str, ...] = ()
+    band: tuple[float, float] | None = None
+    time_s: float = 0.0
+    n_evals: int = 0
+
+    @property
+    def n_iter(self) -> int:
+        """Levenberg-Marquardt iterations over all passes."""
+        return len(self.history) - 1
+
+    @property
+    def reduction(self) -> float:
+        return 0.0 if self.cost_before == 0 else 1.0 - self.cost_after / self.cost_before
+
+    @property
+    def values(self) -> dict[str, float]:
+        """Updated values of the selected parameters."""
+        return dict(self.fit.x)
+
+    def table(self) -> Table:
+        """Before/after parameter table with standard errors and the selection tests."""
+        a_max = float(self.alignment.max()) if self.alignment.size else 1.0
+        drift = {d.name: d.flagged for d in self.drift}
+        rows = []
+        for k, name in enumerate(self.candidates):
+            p0 = self.initial_model.param(name)
+            after = self.model.param(name).value
+            sel = name in self.selected
+            rows.append(
+                (
+                    name,
+                    p0.unit,
+                    p0.value,
+                    after,
+                    100.0 * (after - p0.value) / p0.value if p0.value else float("nan"),
+                    self.std_errors.get(name, float("nan")) if sel else float("nan"),
+                    self.alignment[k] / a_max if a_max > 0 else 0.0,
+                    sel,
+                    drift.get(name, False) if sel else None,
+                )
+            )
+        return Table(
+            (
+                "parameter",
+                "unit",
+                "before",
+                "after",
+                "change (%)",
+                "std error",
+                "alignment (rel.)",
+                "updated",
+                "drifts",
+            ),
+            rows,
+            title=f"model update: cost {self.cost_before:.4g} -> {self.cost_after:.4g} "
+            f"({self.reduction:.1%} lower, {self.n_iter} iterations)",
+        )
+
+    def drift_table(self) -> Table:
+        """Sub-band estimates of every updated parameter."""
+        rows = []
+        for d in self.drift:
+            for (lo, hi), v, s in zip(d.bands, d.values, d.std_errors):
+                rows.append((d.name, lo, hi, v, s, d.flagged))
+        return Table(
+            ("parameter", "lo (Hz)", "hi (Hz)", "estimate", "std error", "flagged"),
+            rows,
+            title="sub-band estimates (model-form check)",
+        )
+
+    def summary(self) -> str:
+        """The update in plain words."""
+        lines = [
+            f"Updated {len(self.selected)} of {len(self.candidates)} candidate parameters "
+            f"({', '.join(self.selected)}): cost {self.cost_before:.4g} -> {self.cost_after:.4g} "
+            f"({self.reduction:.1%} lower) in {self.n_iter} iterations, {self.n_evals} model "
+            f"evaluations, {self.time_s:.1f} s; {self.fit.stop_reason}."
+        ]
+        for name in self.selected:
+            p0 = self.initial_model.param(name).value
+            p1 = self.model.param(name).value
+            lines.append(
+                f"  {name}: {p0:.5g} -> {p1:.5g} {self.model.param(name).unit} "
+                f"({100 * (p1 - p0) / p0 if p0 else float('nan'):+.2f}%, "
+                f"+- {self.std_errors.get(name, 0):.2g})"
+            )
+        lines += [f"Note: {n}" for n in self.notes]
+        lines += [f"Suggestion: {s}" for s in self.suggestions]
+        lines += [f"Warning: {w}" for w in self.warnings]
+        return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        paras = "".join(f"<p>{html.escape(s)}</p>" for s in self.summary().splitlines())
+        return paras + self.table()._repr_html_()
+
+    def __repr__(self) -> str:
+        return (
+            f"UpdateResult(selected={list(self.selected)}, cost {self.cost_before:.4g} -> "
+            f"{self.cost_after:.4g}, reduction={self.reduction:.1%}, warnings={len(self.warnings)})"
+        )
+
+    def plot(self, fig: Any = None) -> Any:
+        """Cost per iteration, alignment bar chart (Fig. 3) and orthogonality matrix (Fig. 4)."""
+        import matplotlib.pyplot as plt
+
+        fig = fig or plt.figure(figsize=(13, 4), constrained_layout=True)
+        ax1, ax2, ax3 = fig.subplots(1, 3)
+        ax1.semilogy(range(len(self.history)), self.history, "o-")
+        ax1.set_xlabel("iteration")
+        ax1.set_ylabel("cost J (MACE eq. 5)")
+        ax1.set_title(f"cost: {self.reduction:.1%} lower")
+        a = self.alignment / (self.alignment.max() or 1.0)
+        colors = ["C0" if n in self.selected else "0.7" for n in self.candidates]
+        ax2.bar(range(len(a)), a, color=colors)
+        ax2.set_xticks(range(len(a)))
+        ax2.set_xticklabels(self.candidates, rotation=60, ha="right", fontsize=7)
+        ax2.set_title("alignment |j0^T dJ| (rel.; blue = updated)")
+        im = ax3.imshow(self.orthogonality, vmin=0, vmax=1, cmap="viridis")
+        n = len(self.candidates)
+        ax3.set_xticks(range(n))
+        ax3.set_yticks(range(n))
+        ax3.set_xticklabels(self.candidates, rotation=60, ha="right", fontsize=7)
+        ax3.set_yticklabels(self.candidates, fontsize=7)
+        if n <= 15:
+            for i in range(n):
+                for k in range(n):
+                    ax3.text(
+                        k,
+                        i,
+                        f"{self.orthogonality[i, k]:.1f}",
+                        ha="center",
+                        va="center",
+                        fontsize=6,
+                        color="w" if self.orthogonality[i, k] < 0.6 else "k",
+                    )
+        ax3.set_title("orthogonality |dJn^T dJn|")
+        fig.colorbar(im, ax=ax3)
+        return fig
+
+
+# ---------------------------------------------------------------------------- update
+def _warnings(fit: LMResult, drift: tuple[Drift, ...], reduction: float) -> list[str]:
+    out = []
+    if not fit.success:
+        out.append(f"the optimisation did not converge ({fit.stop_reason}); raise max_iter or time_budget_s.")
+    for name in fit.active:
+        out.append(
+            f"{name} ended on a bound: the data push it beyond its admissible range, which usually "
+            "means the model form is wrong rather than the value."
+        )
+    for d in drift:
+        if d.flagged:
+            vals = ", ".join(
+                f"{lo:.3g}-{hi:.3g} Hz: {v:.5g} +- {s:.2g}"
+                for (lo, hi), v, s in zip(d.bands, d.values, d.std_errors)
+            )
+            out.append(
+                f"{d.name} drifts across frequency bands ({vals}): the estimates disagree beyond their "
+                "standard errors, a sign of a missing effect (model-form error); try rc.diagnose."
+            )
+    if reduction < 0.1:
+        out.append(f"the cost fell by only {reduction:.1%}: the parameters cannot explain the error.")
+    return out
+
+
+def _sens_at(residual: Residual, names, fit: LMResult, executor, progress) -> np.ndarray:
+    """Relative sensitivities (n, p) of ``names`` at the fit's optimum, reusing its Jacobian."""
+    dJ = np.zeros((residual.n, len(names)))
+    fitted = {n: k for k, n in enumerate(fit.names)}
+    others = [n for n in names if n not in fitted]
+    if others:
+        sens = sensitivities(residual, others, at=fit.x, j0=fit.vector, executor=executor, progress=progress)
+        for k, n in enumerate(others):
+            dJ[:, names.index(n)] = sens.dJ[:, k]
+    for n, k in fitted.items():
+        dJ[:, names.index(n)] = fit.jacobian[:, k] * (fit.x[n] if fit.x[n] != 0 else 1.0)
+    return dJ
+
+
+def _passes(
+    residual, names, selected, passes, max_iter, budget, ftol, max_orth, min_align, executor, progress
+) -> tuple[LMResult, tuple[float, ...], list[str], int]:
+    """Optimise ``selected``; then repeat the tests on the remaining error and add parameters."""
+    t0 = time.perf_counter()
+    kw = dict(max_iter=max_iter, ftol=ftol, executor=executor, progress=progress)
+    fit = levenberg_marquardt(residual, selected, time_budget_s=budget, **kw)
+    history, notes, n_evals = list(fit.history), [], fit.n_evals
+    for k in range(2, int(passes) + 1):
+        left = budget - (time.perf_counter() - t0)
+        if left <= 0 or len(selected) == len(names) or fit.cost <= 0:
+            break
+        dJ = _sens_at(residual, list(names), fit, executor, progress)
+        n_evals += len(names) - len(fit.names)
+        new, _, _ = select_parameters(
+            names, fit.vector, dJ, min_alignment=min_align, max_orthogonality=max_orth
+        )
+        O = orthogonality(dJ)
+        added = [
+            n
+            for n in new
+            if n not in selected and all(O[names.index(n), names.index(m)] <= max_orth for m in selected)
+        ]
+        if not added:
+            break
+        notes.append(
+            f"pass {k}: added {', '.join(added)}, aligned with the error left after pass {k - 1} "
+            f"(cost {fit.cost:.4g})."
+        )
+        selected = tuple(selected) + tuple(added)
+        fit = levenberg_marquardt(residual, selected, x0={**fit.x}, time_budget_s=left, **kw)
+        history += list(fit.history[1:])
+        n_evals += fit.n_evals
+    return fit, tuple(history), notes, n_evals
+
+
+def update(
+    model: Any,
+    data: FrequencyData,
+    params: Sequence[str] | None = None,
+    band: Sequence[float] | None = None,
+    max_iter: int = 20,
+    executor: Executor | None = None,
+    weights: Any = None,
+    *,
+    select: bool = True,
+    passes: int = 3,
+    min_alignment: float = 0.01,
+    max_orthogonality: float = 0.95,
+    drift_bands: int = 3,
+    drift_sigma: float = 3.0,
+    drift_floor: float = 0.01,
+    time_budget_s: float = 600.0,
+    ftol: float = 1e-8,
+    progress: bool | None = None,
+) -> UpdateResult:
+    """Update physical parameters so the model matches measured FRFs (MACE eqs. 5-9).
+
+    Parameters
+    ----------
+    model : PhysicalModel
+    data : FrequencyData
+        Measured responses (Hz); signal names must match the model's.
+    params : sequence of str, optional
+        Candidate parameters; default every free parameter of the model (including those of
+        effects added with ``model.with_effect``).
+    band : (lo_hz, hi_hz), optional
+        Band of the cost, Hz (MACE: 0.1-60 Hz).
+    max_iter : int
+        Levenberg-Marquardt iteration cap.
+    executor : concurrent.futures.Executor, optional
+        Runs the sensitivity evaluations in parallel.
+    weights : None, "coherence" or array
+        See :class:`~robustctl.correlate.residual.Residual`.
+    select : bool
+        Apply the alignment and orthogonality tests (eqs. 8-9); ``False`` updates every
+        candidate.
+    min_alignment, max_orthogonality :
+        Thresholds of the tests (see :func:`select_parameters`).
+    passes : int
+        Selection/optimisation passes. The tests are linear in the initial error, so a
+        parameter masked by larger errors (a 2 % sensor gain under a 5 % stiffness error)
+        fails test 1 at the start; after each pass the tests are repeated on the remaining
+        error and newly aligned, orthogonal parameters join the update.
+    drift_bands : int
+        Sub-bands for the model-form check (0 or 1 switches it off).
+    drift_sigma, drift_floor :
+        A parameter drifts when two sub-band estimates differ by more than ``drift_sigma``
+        combined standard errors and by more than ``drift_floor`` (relative).
+    time_budget_s : float
+        Wall-clock budget of the optimisation (s).
+    ftol : float
+        Stop when the relative cost change of an iteration falls below this.
+    progress : bool, optional
+        tqdm bars (default: when stderr is a terminal).
+
+    Returns
+    -------
+    UpdateResult
+
+    Raises
+    ------
+    DataError
+        Signal names/counts that differ, a band outside the data.
+    ModelError
+        Unknown parameter names.
+    FitError
+        No parameter moves the residual, or none survives the selection.
+    """
+    t0 = time.perf_counter()
+    progress = sys.stderr.isatty() if progress is None else bool(progress)
+    residual = Residual(model, data, band=band, weights=weights)
+    if params is None:
+        params = [p.name for p in model.free_params]
+        if not params:
+            raise FitError(
+                "the model has no free parameters; name the parameters to update with params=[...]."
+            )
+    names = _check_names(model, params)
+    sens = sensitivities(residual, names, executor=executor, progress=progress)
+    j0, dJ = sens
+    if select:
+        selected, notes, suggestions = select_parameters(
+            names, j0, dJ, min_alignment=min_alignment, max_orthogonality=max_orthogonality
+        )
+    else:
+        selected, notes, suggestions = names, [], []
+    if not selected:
+        raise FitError("no parameter passed the selection tests; lower min_alignment or give params=[...].")
+    fit, history, extra, n_evals = _passes(
+        residual,
+        names,
+        tuple(selected),
+        passes,
+        max_iter,
+        time_budget_s - (time.perf_counter() - t0),
+        ftol,
+        max_orthogonality,
+        min_alignment,
+        executor,
+        progress,
+    )
+    notes += extra
+    selected = fit.names
+    drift = _drift(residual, fit, drift_bands, drift_sigma, drift_floor) if len(selected) else ()
+    reduction = 1.0 - fit.cost / history[0] if history[0] > 0 else 0.0
+    return UpdateResult(
+        model=model.with_values(**fit.x),
+        initial_model=model,
+        history=history,
+        cost_before=history[0],
+        cost_after=fit.cost,
+        candidates=names,
+        alignment=alignment(j0, dJ),
+        orthogonality=orthogonality(dJ),
+        selected=tuple(selected),
+        fit=fit,
+        std_errors=dict(fit.std_errors),
+        drift=drift,
+        notes=tuple(notes),
+        suggestions=tuple(suggestions),
+        warnings=tuple(_warnings(fit, drift, reduction)),
+        band=residual.band,
+        time_s=time.perf_counter() - t0,
+        n_evals=n_evals + sens.n_evals,
+    )
