@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from robustctl.errors import ModelError
 from robustctl.lti import freqresp
@@ -225,3 +227,27 @@ def test_sparse_matrices_give_the_dense_result():
     dense_sys, sparse_sys = modal_statespace(mats, n_modes=3), modal_statespace(sparse, n_modes=3)
     f = np.logspace(0, 2, 40)
     assert np.allclose(freqresp(sparse_sys, f).response, freqresp(dense_sys, f).response, rtol=1e-9)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(2, 8))
+def test_property_full_modal_model_equals_direct_response(seed, n):
+    """Random SPD mass, PSD+ stiffness, PSD dashpots, per-mode damping, all output kinds."""
+    rng = np.random.default_rng(seed)
+    L = rng.normal(size=(n, n))
+    M = L @ L.T + n * np.eye(n)
+    R = rng.normal(size=(n, n))
+    K = 1e3 * (R @ R.T + 0.1 * np.eye(n))
+    S = rng.normal(size=(n, 2))
+    Cs = 0.5 * S @ S.T
+    kinds = tuple(KINDS[i % 3] for i in range(3))
+    mats = StructuralMatrices(
+        M, K, Cs, rng.normal(size=(n, 2)), rng.normal(size=(3, n)), kinds, ("u1", "u2"),
+        ("y1", "y2", "y3"), tuple(f"dof {i + 1}" for i in range(n)),
+    )
+    zeta = rng.uniform(0.001, 0.1, size=n)
+    f0 = modal_decomposition(mats).f_hz
+    f = np.sort(np.concatenate([f0 * 0.97, f0 * 1.05, [f0[0] / 10, f0[-1] * 3]]))
+    got = freqresp(modal_statespace(mats, damping=zeta), f).response
+    ref = direct_response(mats, zeta, f)
+    assert np.max(np.abs(got - ref)) < 1e-8 * np.max(np.abs(ref))
