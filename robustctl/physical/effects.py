@@ -117,6 +117,9 @@ class Effect:
     _value_fields: ClassVar[tuple[str, ...]] = ()
     _extra_tags: ClassVar[tuple[str, ...]] = ()
 
+    def __post_init__(self) -> None:
+        self.parameters  # noqa: B018 - check the values against their bounds now
+
     # ---------------------------------------------------------------- description
     @property
     def name(self) -> str:
@@ -205,9 +208,7 @@ class Effect:
                     f"{list(self.param_names)} (or fields {list(self._value_fields)})."
                 )
             changes[fname] = float(value)
-        new = replace(self, **changes)
-        new.parameters  # noqa: B018 - validate the bounds now
-        return new
+        return replace(self, **changes)
 
     def with_scale(self, scale: float) -> Effect:
         """A copy whose secant step (typical size of the first parameter) is ``scale``."""
@@ -420,6 +421,7 @@ class SensorLowPass(_IOEffect):
             raise ModelError(f"a low-pass effect has order 1 or 2; got {self.order!r}.")
         if not self.damping > 0:
             raise ModelError(f"the low-pass damping ratio must be > 0; got {self.damping!r}.")
+        super().__post_init__()
 
     @property
     def name(self) -> str:
@@ -952,6 +954,7 @@ class ModalDamping(_StructEffect):
                              f"{self.hi_hz}).")
         if self.location is None:
             object.__setattr__(self, "location", f"modes {self.lo_hz:.3g}-{self.hi_hz:.3g} Hz")
+        super().__post_init__()
 
     @property
     def name(self) -> str:
