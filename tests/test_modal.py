@@ -113,6 +113,11 @@ def test_residual_flexibility_exact_at_dc_for_grounded_chain():
     dc = np.asarray(sys.D) - np.asarray(sys.C) @ np.linalg.solve(np.asarray(sys.A), np.asarray(sys.B))
     assert np.allclose(dc[:2], mats.output_matrix[:2] @ static, rtol=1e-10)
     assert np.allclose(np.asarray(sys.D)[2], 0.0)  # no correction on velocity outputs
+    # a band dropping the lowest mode takes the full-eigensolution path: same formula
+    f = modal_decomposition(mats).f_hz
+    d = modal_decomposition(mats, band_hz=(0.9 * f[1], 1.1 * f[2]), residual_flexibility=True)
+    kept = d.output_shapes @ np.diag(d.omega**-2.0) @ d.input_shapes
+    assert np.allclose(d.residual[:2], (mats.output_matrix @ static - kept)[:2], rtol=1e-10)
 
 
 def test_free_free_rigid_body_modes_and_damping_rate():

@@ -184,16 +184,25 @@ def _check_mats(mats: StructuralMatrices) -> None:
         raise ModelError(f"output kinds must be one of {OUTPUT_KINDS} per output; got {mats.output_kinds}.")
 
 
-def _residual_flexibility(mats: StructuralMatrices, omega: np.ndarray, phi: np.ndarray) -> np.ndarray:
+def _residual_flexibility(
+    mats: StructuralMatrices, omega: np.ndarray, phi: np.ndarray, includes_lowest: bool
+) -> np.ndarray:
     """Static flexibility of the truncated flexible modes, ``c (K^+ - Phi_k Omega_k^-2 Phi_k^T) b``.
 
-    Rigid-body modes carry no static flexibility and are excluded from both terms.
+    Rigid-body modes carry no static flexibility and are excluded from both terms. When the
+    kept modes start at the lowest one and it is flexible, ``K`` is invertible and
+    ``c K^-1 b`` is solved directly; otherwise the flexible modes of a full (dense) solution
+    are summed.
     """
     b, c = mats.input_matrix, mats.output_matrix
     flex = omega > 0
     kept = (c @ phi[:, flex]) @ ((phi[:, flex].T @ b) / omega[flex, None] ** 2)
     n = mats.n_dof
-    if n <= _DENSE_RESIDUAL_LIMIT:
+    if includes_lowest and omega[0] > 0:  # no rigid-body mode at all: K is invertible
+        K = mats.stiffness
+        x = spla.spsolve(sp.csc_matrix(K), b) if sp.issparse(K) else np.linalg.solve(np.asarray(K), b)
+        full = c @ np.asarray(x).reshape(n, -1)
+    elif n <= _DENSE_RESIDUAL_LIMIT:
         w_all, phi_all = solve_modes(mats.mass, mats.stiffness, sparse=False)
         f_all = w_all > 0
         full = (c @ phi_all[:, f_all]) @ ((phi_all[:, f_all].T @ b) / w_all[f_all, None] ** 2)
@@ -275,7 +284,9 @@ def _undamped_modal_data(mats: StructuralMatrices, n_modes, band_hz, residual_fl
         inputs=tuple(mats.inputs),
         outputs=tuple(mats.outputs),
         modal_concentrated_damping=cs_modal,
-        residual=_residual_flexibility(mats, omega, phi) if residual_flexibility else None,
+        residual=(
+            _residual_flexibility(mats, omega, phi, band_hz is None) if residual_flexibility else None
+        ),
         shapes=phi,
     )
 
