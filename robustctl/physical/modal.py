@@ -72,8 +72,9 @@ class ModalData:
     rigid_body_rate : float
         Damping rate (1/s) put on the diagonal of the velocity block for rigid-body modes.
     residual : ndarray, shape (n_out, n_in) or None
-        Static flexibility of the truncated modes (displacement rows only), used as a
-        feedthrough when residual flexibility was requested.
+        Static flexibility ``c (K^+ - Phi Omega^-2 Phi^T) b`` of the truncated modes (m/N),
+        when residual flexibility was requested; the state space uses it as the
+        feedthrough of displacement rows only.
     shapes : ndarray, shape (n_dof, n_modes) or None
         Full mode shapes, when the data came from a structure.
     """
