@@ -4,7 +4,15 @@
 """
 
 from . import examples
-from .correlate import Comparison, Residual, compare
+from .correlate import (
+    Comparison,
+    Residual,
+    UpdateResult,
+    Verification,
+    compare,
+    update,
+    verify,
+)
 from .errors import DataError, FitError, ModelError, RobustctlError, SynthesisError
 from .estimate import combine_experiments, estimate_frf, simulate_experiment
 from .frd import FrequencyData
@@ -31,6 +39,10 @@ __all__ = [
     "examples",
     "compare",
     "Comparison",
+    "update",
+    "UpdateResult",
+    "verify",
+    "Verification",
     "Residual",
     "RobustctlError",
     "DataError",

@@ -8,6 +8,7 @@ from .diagnose import CandidateResult, Diagnosis, diagnose
 from .optimize import LMResult, levenberg_marquardt
 from .residual import Residual, Sensitivities, alignment, log_ratio, orthogonality, sensitivities
 from .update import UpdateResult, update
+from .verify import Verification, verify
 
 __all__ = [
     "Residual",
@@ -22,6 +23,8 @@ __all__ = [
     "compare",
     "update",
     "UpdateResult",
+    "verify",
+    "Verification",
     "diagnose",
     "Diagnosis",
     "CandidateResult",
