@@ -17,7 +17,7 @@ from .errors import DataError, FitError, ModelError, RobustctlError, SynthesisEr
 from .estimate import combine_experiments, estimate_frf, simulate_experiment
 from .frd import FrequencyData
 from .identify import combine_simo, fit_rational, group_modes
-from .lti import freqresp
+from .lti import freqresp, log_cost, log_error
 from .physical import (
     Frame,
     MatrixStructure,
@@ -54,6 +54,8 @@ __all__ = [
     "combine_simo",
     "group_modes",
     "freqresp",
+    "log_error",
+    "log_cost",
     "estimate_frf",
     "combine_experiments",
     "simulate_experiment",
