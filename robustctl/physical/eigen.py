@@ -21,43 +21,73 @@ __all__ = ["solve_modes", "check_structural_matrices"]
 SPARSE_THRESHOLD = 600
 
 
+def _absmax(a) -> float:
+    return float(abs(a).max()) if sp.issparse(a) else float(np.abs(np.asarray(a)).max(initial=0.0))
+
+
 def _dense(a) -> np.ndarray:
     return a.toarray() if sp.issparse(a) else np.asarray(a, dtype=float)
 
 
+def _check_square_symmetric(name: str, mat) -> tuple[int, int]:
+    shape = mat.shape
+    if len(shape) != 2 or shape[0] != shape[1]:
+        raise ModelError(f"the {name} matrix must be square; got shape {shape}.")
+    values = mat.data if sp.issparse(mat) else np.asarray(mat, dtype=float)
+    if not np.all(np.isfinite(values)):
+        raise ModelError(f"the {name} matrix contains NaN or inf.")
+    scale = max(float(np.abs(values).max(initial=0.0)), 1e-300)
+    asym = mat - mat.T
+    worst = float(abs(asym).max()) if sp.issparse(asym) else float(np.abs(asym).max(initial=0.0))
+    if worst > 1e-9 * scale:
+        raise ModelError(
+            f"the {name} matrix is not symmetric (max asymmetry {worst:.3g}); "
+            "structural matrices must be symmetric."
+        )
+    return shape
+
+
+def _is_positive_definite(mass) -> bool:
+    if not sp.issparse(mass):
+        try:
+            np.linalg.cholesky(np.asarray(mass, dtype=float))
+        except np.linalg.LinAlgError:
+            return False
+        return True
+    # Sparse: an LDL^T-free test — a sparse LU of M must succeed and the smallest
+    # eigenvalue (shift-invert about 0 would fail when singular) must be positive.
+    diag = mass.diagonal()
+    if np.any(diag <= 0):
+        return False
+    try:
+        lam = spla.eigsh(sp.csc_matrix(mass), k=1, sigma=-float(diag.max()) * 1e-3, which="LM",
+                         return_eigenvectors=False)
+    except (RuntimeError, spla.ArpackNoConvergence):
+        return False
+    return bool(lam[0] > 1e-12 * float(diag.max()))
+
+
 def check_structural_matrices(mass, stiffness) -> None:
-    """Refuse non-square, non-symmetric, non-finite or negative-definite matrices.
+    """Refuse non-square, non-symmetric, non-finite or non-positive-definite mass matrices.
+
+    Sparse matrices are checked without densifying them.
 
     Raises
     ------
     ModelError
         Naming the first problem found and how to fix it.
     """
-    for name, mat in (("mass", mass), ("stiffness", stiffness)):
-        m = _dense(mat) if not sp.issparse(mat) else mat
-        shape = m.shape
-        if len(shape) != 2 or shape[0] != shape[1]:
-            raise ModelError(f"the {name} matrix must be square; got shape {shape}.")
-        dense = _dense(m)
-        if not np.all(np.isfinite(dense)):
-            raise ModelError(f"the {name} matrix contains NaN or inf.")
-        scale = max(np.abs(dense).max(), 1e-300)
-        if np.abs(dense - dense.T).max() > 1e-9 * scale:
-            raise ModelError(
-                f"the {name} matrix is not symmetric (max asymmetry "
-                f"{np.abs(dense - dense.T).max():.3g}); structural matrices must be symmetric."
-            )
-    if _dense(mass).shape != _dense(stiffness).shape:
-        raise ModelError(
-            f"mass {_dense(mass).shape} and stiffness {_dense(stiffness).shape} differ in size."
-        )
-    try:
-        np.linalg.cholesky(_dense(mass))
-    except np.linalg.LinAlgError:
+    mass = mass if sp.issparse(mass) else np.asarray(mass, dtype=float)
+    stiffness = stiffness if sp.issparse(stiffness) else np.asarray(stiffness, dtype=float)
+    shape_m = _check_square_symmetric("mass", mass)
+    shape_k = _check_square_symmetric("stiffness", stiffness)
+    if shape_m != shape_k:
+        raise ModelError(f"mass {shape_m} and stiffness {shape_k} differ in size.")
+    if not _is_positive_definite(mass):
         raise ModelError(
             "the mass matrix is singular or not positive definite: every DOF needs mass "
             "(add rotary inertia, remove massless DOFs, or condense them statically)."
-        ) from None
+        )
 
 
 def _clean_eigenvalues(lam: np.ndarray, k_scale: float) -> np.ndarray:
@@ -101,7 +131,9 @@ def solve_modes(
         Mode shapes normalised so that ``phi.T M phi = I``.
     """
     check_structural_matrices(mass, stiffness)
-    n_dof = _dense(mass).shape[0]
+    mass = mass if sp.issparse(mass) else np.asarray(mass, dtype=float)
+    stiffness = stiffness if sp.issparse(stiffness) else np.asarray(stiffness, dtype=float)
+    n_dof = mass.shape[0]
     if n_modes is not None and not 1 <= int(n_modes) <= n_dof:
         raise ModelError(f"n_modes must lie in 1..{n_dof}; got {n_modes}.")
     if band_hz is not None and not 0 <= band_hz[0] < band_hz[1]:
@@ -112,7 +144,7 @@ def solve_modes(
         lam, phi = _sparse_modes(mass, stiffness, n_modes, band_hz, n_dof)
     else:
         lam, phi = sla.eigh(_dense(stiffness), _dense(mass))
-    k_scale = float(np.abs(_dense(stiffness)).max() / max(np.abs(_dense(mass)).max(), 1e-300))
+    k_scale = float(_absmax(stiffness) / max(_absmax(mass), 1e-300))
     lam = _clean_eigenvalues(lam, k_scale)
     omega = np.sqrt(lam)
     keep = np.ones(omega.size, dtype=bool)

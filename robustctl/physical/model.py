@@ -64,6 +64,9 @@ class _RecordingTheta(Mapping):
         self.read.add(key)
         return value
 
+    def __contains__(self, key: object) -> bool:
+        return key in self._values
+
     def __iter__(self):
         return iter(self._values)
 
