@@ -25,7 +25,7 @@ def _match(mm, f_true):
 
 @pytest.fixture(scope="module")
 def truss_model():
-    return rc.fit_measurement_model(caltech_measurement(), n_modes=6, band=BAND)
+    return rc.fit_measurement_model(caltech_measurement(), n_modes=6, band=BAND, correct_leakage=True)
 
 
 def test_truss_modes_recovered_from_simulated_caltech_experiment(truss_model):
@@ -79,7 +79,7 @@ def test_expected_h1_matches_brute_force_double_sum():
 
 
 def test_automatic_order_selection_finds_six_modes():
-    mm = rc.fit_measurement_model(caltech_measurement(), band=BAND, max_modes=9)
+    mm = rc.fit_measurement_model(caltech_measurement(), band=BAND, max_modes=9, correct_leakage="auto")
     assert mm.n_modes == 6
     costs = dict(mm.order_scan)
     assert costs[6] < 0.1 * costs[5]  # the sixth mode is what the data need
@@ -87,7 +87,7 @@ def test_automatic_order_selection_finds_six_modes():
 
 def test_unreachable_accuracy_is_a_clear_fit_error():
     with pytest.raises(rc.FitError, match="above the target 0.01 dB"):
-        rc.fit_measurement_model(caltech_measurement(), n_modes=6, band=BAND, target_db=0.01)
+        rc.fit_measurement_model(caltech_measurement(), n_modes=6, band=BAND, target_db=0.01, correct_leakage=True)
     with pytest.raises(rc.FitError, match="n_modes must be a positive integer"):
         rc.fit_measurement_model(caltech_measurement(), n_modes=0, band=BAND)
     with pytest.raises(rc.FitError, match="needs the estimator settings"):

@@ -3,8 +3,8 @@ measured, in one call.
 
 The procedure: (1) a common-denominator rational fit (VF or Chebyshev) of the band, or the
 Caltech route of one SIMO fit per input joined by :func:`combine_simo` and reduced by
-:func:`group_modes`; (2) when the data come from :func:`robustctl.estimate_frf`, a few
-fixed-point steps that undo the estimator's window leakage (see :mod:`.leakage`); (3) the
+:func:`group_modes`; (2) optionally, for white-noise tests estimated by :func:`robustctl.estimate_frf`,
+a few fixed-point steps that undo the estimator's window leakage (see :mod:`.leakage`); (3) the
 residue of each mode truncated to its significant rank (1 for a physical mode); (4) the
 complex-log cost of MACE eq. 5. With ``n_modes=None`` the order is chosen from the cost
 versus order with a parsimony rule.
@@ -235,7 +235,7 @@ def fit_measurement_model(
     method: str = "vf",
     groups: Any = None,
     weights: Any = None,
-    correct_leakage: bool | str = "auto",
+    correct_leakage: bool | str = False,
     rank_tol: float = 0.1,
     max_modes: int = 24,
     parsimony: float = 0.1,
@@ -261,9 +261,12 @@ def fit_measurement_model(
         grouped by :func:`group_modes` with this ``groups`` argument (e.g. ``(2, 1, 2, 1)``).
     weights : array_like, optional
         Per-frequency weights (default: coherence-based).
-    correct_leakage : True, False or "auto"
-        Undo the H1 estimator's window leakage (assumes white ZOH excitation and the settings in
-        ``data.meta``); "auto" does it when the settings are there.
+    correct_leakage : False, True or "auto"
+        Undo the H1 estimator's window leakage (see :mod:`robustctl.identify.leakage`). It
+        assumes white (flat-spectrum) ZOH excitation, as in the Caltech random-noise tests, and
+        the estimator settings in ``data.meta``; "auto" applies it when those settings are
+        there. Off by default: with coloured or swept inputs (e.g. the DaISy records) the
+        white-noise leakage model is wrong and makes the fit worse.
     rank_tol : float
         Residue singular values below ``rank_tol * sigma_1`` are dropped: a physical mode has a
         rank-1 residue. Also the automatic mode count of ``group_modes``.
