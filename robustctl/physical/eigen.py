@@ -48,9 +48,9 @@ def _check_square_symmetric(name: str, mat) -> tuple[int, int]:
 
 
 def _is_positive_definite(mass) -> bool:
-    if not sp.issparse(mass):
+    if not sp.issparse(mass) or mass.shape[0] < 3:  # eigsh needs k < n - 1
         try:
-            np.linalg.cholesky(np.asarray(mass, dtype=float))
+            np.linalg.cholesky(mass.toarray() if sp.issparse(mass) else np.asarray(mass, dtype=float))
         except np.linalg.LinAlgError:
             return False
         return True
