@@ -8,6 +8,7 @@ import pytest
 import scipy.sparse as sp
 
 from robustctl.errors import ModelError
+from robustctl.physical.eigen import solve_modes
 from robustctl.physical.fem import Frame
 from robustctl.physical.structure_base import StructuralMatrices, Structure
 
@@ -212,6 +213,9 @@ def test_massless_node_is_condensed_and_its_signals_still_work():
     k_series = k1 * k2 / (k1 + k2)
     assert np.isclose(f[0], np.sqrt(k_series / m) / (2 * np.pi))
     assert np.allclose(_static(mats), [[1 / k1, 1 / k_series]])
+    sparse = fr.matrices(sparse=True)  # a 1-DOF sparse model goes through solve_modes too
+    w, _ = solve_modes(sparse.mass, sparse.stiffness)
+    assert np.isclose(w[0], 2 * np.pi * f[0])
     sensed = massless_chain(k1, k2, m)
     sensed.add_force_input("F_b", "body", "z")
     sensed.add_output("z_n", "n", "z", kind="displacement")

@@ -800,7 +800,7 @@ class Frame(Structure):
         sparse: bool | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Natural frequencies (Hz) and mass-normalised mode shapes over the free DOFs."""
-        sm = self._assembly().matrices
+        sm = self.matrices()  # dense up to SPARSE_THRESHOLD DOFs, as solve_modes prefers
         w, phi = limit_blas(solve_modes)(
             sm.mass, sm.stiffness, n_modes=n_modes, band_hz=band_hz, sparse=sparse
         )
@@ -935,46 +935,57 @@ class _Pattern:
         self.indices = (uniq % n).astype(np.int32)
         self.indptr = np.concatenate([[0], np.cumsum(np.bincount(uniq // n, minlength=n))]).astype(np.int32)
 
-    def matrix(self, vals: np.ndarray, part: slice = slice(None)) -> sp.csr_matrix:
-        """The matrix of ``vals`` given at the triplets ``part`` of the pattern."""
-        data = np.bincount(self.pos[part], weights=vals, minlength=self.nnz)
+    def matrix(self, vals: np.ndarray) -> sp.csr_matrix:
+        """The matrix with ``vals`` (one per triplet) summed into the pattern."""
+        data = np.bincount(self.pos, weights=vals, minlength=self.nnz)
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
+
+
+#: Columns of :class:`_Trip` values: elastic stiffness, mass, dashpot damping, geometric
+#: stiffness per newton of axial force.
+_K, _M, _C, _G = range(4)
 
 
 @dataclass
 class _Trip:
-    """Matrix entries as triplets; ``tag`` is the element index (geometric stiffness) or -1."""
+    """Matrix entries as triplets with four value columns (K, M, C, G per unit N);
+    ``tag`` is the element index of the geometric stiffness entry (or 0 when there is none)."""
 
     rows: np.ndarray
     cols: np.ndarray
-    vals: np.ndarray
+    vals: np.ndarray  # (m, 4)
     tag: np.ndarray
 
     @staticmethod
     def cat(parts: list[_Trip]) -> _Trip:
         if not parts:
             z = np.zeros(0, dtype=int)
-            return _Trip(z, z, np.zeros(0), z)
+            return _Trip(z, z, np.zeros((0, 4)), z)
         return _Trip(
             *(np.concatenate([getattr(p, a) for p in parts]) for a in ("rows", "cols", "vals", "tag"))
         )
 
     @staticmethod
-    def from_blocks(dofs: np.ndarray, mats: np.ndarray, tag: np.ndarray | None = None) -> _Trip:
-        """Element matrices ``mats (ne, d, d)`` at DOF indices ``dofs (ne, d)``."""
-        d = dofs.shape[1]
+    def from_blocks(dofs: np.ndarray, mats: dict[int, np.ndarray], tag: np.ndarray | None = None) -> _Trip:
+        """Element matrices ``mats[column] (ne, d, d)`` at DOF indices ``dofs (ne, d)``."""
+        ne, d = dofs.shape
         rows = np.repeat(dofs, d, axis=1).ravel()
         cols = np.tile(dofs, (1, d)).ravel()
-        t = -np.ones(rows.size, dtype=int) if tag is None else np.repeat(tag, d * d)
-        return _Trip(rows, cols, mats.reshape(-1), t)
+        vals = np.zeros((rows.size, 4))
+        for column, mat in mats.items():
+            vals[:, column] = mat.reshape(-1)
+        t = np.zeros(rows.size, dtype=int) if tag is None else np.repeat(tag, d * d)
+        return _Trip(rows, cols, vals, t)
 
-    def expand(self, T: sp.csr_matrix) -> _Trip:
-        """Entries of ``T^T A T`` (full DOFs -> reduced DOFs), one triplet per product term."""
+    def reduce(self, T: sp.csr_matrix, new_index: np.ndarray) -> _Trip:
+        """Entries of ``T^T A T`` restricted to the kept reduced DOFs (``new_index >= 0``)."""
         counts = np.diff(T.indptr)
         if counts.max(initial=0) <= 1 and np.all(T.data == 1.0):  # supports only: a renumbering
-            col = -np.ones(T.shape[0], dtype=int)
-            col[counts == 1] = T.indices
-            return _Trip(col[self.rows], col[self.cols], self.vals, self.tag).select(np.arange(T.shape[1]))
+            col = -np.ones(T.shape[0] + 1, dtype=int)
+            col[np.flatnonzero(counts == 1)] = new_index[T.indices]
+            r, c = col[self.rows], col[self.cols]
+            ok = (r >= 0) & (c >= 0)
+            return _Trip(r[ok], c[ok], self.vals[ok], self.tag[ok])
         out = self
         for axis in ("rows", "cols"):
             idx = getattr(out, axis)
@@ -982,32 +993,28 @@ class _Trip:
             src = np.repeat(np.arange(idx.size), cnt)
             k = np.repeat(T.indptr[idx] - (np.cumsum(cnt) - cnt), cnt) + np.arange(src.size)
             parts = {a: getattr(out, a)[src] for a in ("rows", "cols", "tag")}
-            parts[axis] = T.indices[k]
-            out = _Trip(parts["rows"], parts["cols"], out.vals[src] * T.data[k], parts["tag"])
-        return out
-
-    def select(self, new_index: np.ndarray) -> _Trip:
-        """Keep the entries whose row and column survive (index >= 0); renumber them."""
-        r, c = np.append(new_index, -1)[self.rows], np.append(new_index, -1)[self.cols]
-        ok = (r >= 0) & (c >= 0)
-        return _Trip(r[ok], c[ok], self.vals[ok], self.tag[ok])
+            parts[axis] = new_index[T.indices[k]]
+            out = _Trip(parts["rows"], parts["cols"], out.vals[src] * T.data[k][:, None], parts["tag"])
+        ok = (out.rows >= 0) & (out.cols >= 0)
+        return _Trip(out.rows[ok], out.cols[ok], out.vals[ok], out.tag[ok])
 
 
-def _point_triplets(frame: Frame, index: dict[str, int]) -> tuple[_Trip, _Trip, _Trip]:
+def _point_triplets(frame: Frame, index: dict[str, int]) -> _Trip:
     """Lumped masses, springs and dashpots as triplets over the full DOFs."""
-    parts: dict[str, list[_Trip]] = {"mass": [], "spring": [], "dashpot": []}
+    parts: list[_Trip] = []
     for m in frame._masses:
         block = np.zeros((6, 6))
         block[:3, :3] = m.mass * np.eye(3)
         block[3:, 3:] = m.inertia
-        parts["mass"].append(_Trip.from_blocks((6 * index[m.node] + np.arange(6))[None], block[None]))
+        parts.append(_Trip.from_blocks((6 * index[m.node] + np.arange(6))[None], {_M: block[None]}))
     for s in frame._springs:
         dof, vec = 6 * index[s.node] + np.arange(6), s.vec
         if s.node2 is not None:
             dof = np.concatenate([dof, 6 * index[s.node2] + np.arange(6)])
             vec = np.concatenate([s.vec, -s.vec])
-        parts[s.kind].append(_Trip.from_blocks(dof[None], (s.value * np.outer(vec, vec))[None]))
-    return _Trip.cat(parts["mass"]), _Trip.cat(parts["spring"]), _Trip.cat(parts["dashpot"])
+        column = _K if s.kind == "spring" else _C
+        parts.append(_Trip.from_blocks(dof[None], {column: (s.value * np.outer(vec, vec))[None]}))
+    return _Trip.cat(parts)
 
 
 def _constraint_transform(
@@ -1115,46 +1122,35 @@ def _assemble(frame: Frame) -> _Assembly:
     X = np.array([frame._nodes[n].xyz for n in names])
     n_full = 6 * len(names)
     st = _element_stacks(frame, index, X)
-    Mp, Ks, Cd = _point_triplets(frame, index)
-    K_full = _Trip.cat(
-        [_Trip.from_blocks(st.dofs_beam, st.K_beam), _Trip.from_blocks(st.dofs_rod, st.K_rod), Ks]
-    )
-    M_full = _Trip.cat(
-        [_Trip.from_blocks(st.dofs_beam, st.M_beam), _Trip.from_blocks(st.dofs_rod, st.M_rod), Mp]
-    )
-    G_full = _Trip.cat(
+    full = _Trip.cat(
         [
-            _Trip.from_blocks(st.dofs_beam, st.G_beam, st.beam_idx),
-            _Trip.from_blocks(st.dofs_rod, st.G_rod, st.rod_idx),
+            _Trip.from_blocks(st.dofs_beam, {_K: st.K_beam, _M: st.M_beam, _G: st.G_beam}, st.beam_idx),
+            _Trip.from_blocks(st.dofs_rod, {_K: st.K_rod, _M: st.M_rod, _G: st.G_rod}, st.rod_idx),
+            _point_triplets(frame, index),
         ]
     )
     T, dof_of_col = _constraint_transform(frame, index, X)
     B_full = _signal_matrix(frame, frame._inputs, index, st, n_full)
     C_full = _signal_matrix(frame, frame._outputs, index, st, n_full).T
-    red = [t.expand(T) for t in (K_full, M_full, Cd, G_full)]
-    keep = _nonempty(red, T.shape[1])
+    # DOFs with neither mass nor stiffness (nor damping, nor geometric stiffness) are dropped
+    weight_full = np.bincount(full.rows, weights=np.abs(full.vals).sum(axis=1), minlength=n_full)
+    keep = abs(T).T @ weight_full > 0
     B1, Cy1 = T.T @ B_full, np.asarray((T.T @ C_full.T).T)
     _check_signals_on_empty(frame, keep, dof_of_col, B1, Cy1, names)
-    new_index = -np.ones(T.shape[1], dtype=int)
-    new_index[keep] = np.arange(keep.sum())
-    Kr, Mr, Cr, Gr = (t.select(new_index) for t in red)
+    new_index = np.append(-np.ones(T.shape[1], dtype=int), -1)
+    new_index[np.flatnonzero(keep)] = np.arange(keep.sum())
+    red = full.reduce(T, new_index)
     T, dof_of_col, B1, Cy1 = T[:, keep].tocsr(), dof_of_col[keep], B1[keep], Cy1[:, keep]
-    n = int(keep.sum())
-    pattern = _Pattern(
-        np.concatenate([t.rows for t in (Kr, Mr, Cr, Gr)]),
-        np.concatenate([t.cols for t in (Kr, Mr, Cr, Gr)]),
-        n,
-    )
-    sizes = np.cumsum([0] + [t.rows.size for t in (Kr, Mr, Cr, Gr)])
-    K1, M1, C1 = (pattern.matrix(t.vals, slice(sizes[i], sizes[i + 1])) for i, t in enumerate((Kr, Mr, Cr)))
+    pattern = _Pattern(red.rows, red.cols, int(keep.sum()))
+    K1, M1, C1 = (pattern.matrix(red.vals[:, j]) for j in (_K, _M, _C))
 
     def kg_red(N: np.ndarray) -> sp.csr_matrix:
-        return pattern.matrix(Gr.vals * N[Gr.tag], slice(sizes[3], sizes[4]))
+        return pattern.matrix(red.vals[:, _G] * N[red.tag])
 
     tension = np.array([frame._group_tension.get(e.group, 0.0) for e in frame._elements.values()])
     preload, axial = None, tension.copy()
     if frame._gravity_on and len(frame._elements):
-        preload = _gravity_preload(frame, st, T, M_full, K1, M1, kg_red, tension, n_full)
+        preload = _gravity_preload(frame, st, T, full, K1, M1, kg_red, tension, n_full)
         axial = preload.axial_forces
     Kt = (K1 + kg_red(axial)).tocsr() if np.any(axial) else K1
     labels = [f"{names[d // 6]} {_DOF_NAMES[d % 6]}" for d in dof_of_col]
@@ -1168,7 +1164,7 @@ def _gravity_preload(frame, st, T, M_full: _Trip, K1, M1, kg_red, tension, n_ful
     accel = np.zeros(n_full)
     for i in range(3):
         accel[i::6] = frame._g * frame._gdir[i]
-    f_full = np.bincount(M_full.rows, weights=M_full.vals * accel[M_full.cols], minlength=n_full)
+    f_full = np.bincount(M_full.rows, weights=M_full.vals[:, _M] * accel[M_full.cols], minlength=n_full)
     f = T.T @ f_full
 
     def axial_force(u: np.ndarray) -> np.ndarray:
@@ -1186,14 +1182,6 @@ def _gravity_preload(frame, st, T, M_full: _Trip, K1, M1, kg_red, tension, n_ful
         tol=frame.gravity_tol,
         max_iter=frame.max_gravity_iterations,
     )
-
-
-def _nonempty(red: list[_Trip], n: int) -> np.ndarray:
-    """Reduced DOFs with some mass, stiffness, damping or geometric stiffness."""
-    weight = np.zeros(n)
-    for t in red:
-        weight += np.bincount(t.rows, weights=np.abs(t.vals), minlength=n)
-    return weight > 0
 
 
 def _check_signals_on_empty(frame, keep, dof_of_col, B1, Cy1, names) -> None:
