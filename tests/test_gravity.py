@@ -160,6 +160,29 @@ def test_suspended_platform_pendulum_and_rotary_pendulum():
     assert fr.without("suspension", "gravity").modes(n_modes=6)[0].max() < 1e-3
 
 
+@pytest.mark.parametrize("offset", [(0.0, 0.0, -0.4), (0.3, 0.0, -0.4)])
+def test_body_below_a_pivot_on_a_rigid_link_is_a_compound_pendulum(offset):
+    """A body (m, I_cg) rigidly linked below a pin: f = sqrt(m g h / (I_cg + m h^2)) / (2 pi)
+    for swinging about x, from the geometric stiffness of the loaded link alone."""
+    m, Icg = 3.0, 0.05
+    r = np.asarray(offset)
+    fr = Frame(gravity=g)
+    fr.add_node("pin", (0.0, 0.0, 0.0))
+    fr.add_node("cg", tuple(r))
+    fr.add_rigid_link("pin", "cg")
+    fr.add_mass("cg", m, inertia=(Icg, Icg, Icg))
+    fr.fix("pin", ["x", "y", "z"])
+    f, _ = fr.modes()
+    h = -r[2]
+    if r[0] == 0:
+        expected = np.sqrt(m * g * h / (Icg + m * h**2)) / (2 * np.pi)
+        assert np.allclose(f[1:], expected, rtol=1e-9) and f[0] < 1e-6  # free spin about z
+        assert np.isclose(fr.axial_forces()["pin->cg"], m * g)
+    else:  # the link is inclined: it carries only the weight's component along it
+        assert f[0] < 1e-6 and np.all(f[1:] > 0)
+    assert np.all(fr.without("gravity").modes()[0] < 1e-6)
+
+
 def column(mass: float, n_elements: int = 8) -> tuple[Frame, float]:
     """A standing cantilever column with a top mass; returns it and its Euler load."""
     L, r = 1.0, 0.004

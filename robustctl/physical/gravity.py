@@ -220,8 +220,10 @@ def preload_iteration(
         Elastic stiffness and mass of the free DOFs.
     f : ndarray (n,)
         Gravity load ``M a_g`` in N, N m.
-    axial_force : callable ``u -> N``
-        Element axial forces (N, tension positive) caused by the displacements ``u``.
+    axial_force : callable ``(u, N_used) -> N``
+        Element axial forces (N, tension positive) caused by the displacements ``u``, which
+        solved ``(K + K_g(N_used)) u = f`` (``N_used`` is None on the first step). Forces
+        found from equilibrium residuals (rigid links) need ``N_used``.
     geometric : callable ``N -> K_g``
         Geometric stiffness (sparse, n x n) of the element forces ``N``.
     n_fixed : ndarray (ne,), optional
@@ -258,7 +260,7 @@ def preload_iteration(
         Kt = K_elastic if N is None else (K_elastic + geometric(N)).tocsr()
         Z = _surviving_null_space(Kt, Z0, lam_ref)
         u, removed = solve_static(Kt, M, f, Z)
-        N_new = axial_force(u) + (n_add if n_add.size else 0.0)
+        N_new = axial_force(u, N) + (n_add if n_add.size else 0.0)
         change = float(np.abs(N_new - (0.0 if N is None else N)).max(initial=0.0))
         history.append(change)
         N = N_new
