@@ -193,17 +193,32 @@ class Diagnosis:
         """The top ``n`` candidates: rank, effect, value, fraction, cost reduction, gain, p, significance."""
         rows = []
         for k, r in enumerate(self.ranking[:n], start=1):
-            rows.append((
-                k, r.name, r.effect.describe_value(), 100 * r.fraction,
-                100 * r.reduction if r.fitted else None, 100 * r.gain if r.fitted else None,
-                r.p_value if r.fitted else None, r.significant,
-            ))
+            rows.append(
+                (
+                    k,
+                    r.name,
+                    r.effect.describe_value(),
+                    100 * r.fraction,
+                    100 * r.reduction if r.fitted else None,
+                    100 * r.gain if r.fitted else None,
+                    r.p_value if r.fitted else None,
+                    r.significant,
+                )
+            )
         return Table(
-            ("rank", "effect", "size", "explains (linear, %)", "cost reduction (%)",
-             "gain over update (%)", "p-value", "significant"),
+            (
+                "rank",
+                "effect",
+                "size",
+                "explains (linear, %)",
+                "cost reduction (%)",
+                "gain over update (%)",
+                "p-value",
+                "significant",
+            ),
             rows,
             title=f"Diagnosis: {len(self.ranking)} candidates, update cost {self.cost_update:.4g} "
-                  f"(nominal {self.cost_nominal:.4g}), n_eff = {self.n_eff:.0f}",
+            f"(nominal {self.cost_nominal:.4g}), n_eff = {self.n_eff:.0f}",
             digits=3,
         )
 
@@ -212,7 +227,8 @@ class Diagnosis:
         lines = [
             f"Nominal cost J = {self.cost_nominal:.4g}; updating {len(self.update_params)} parameter(s) "
             f"alone brings it to {self.cost_update:.4g} "
-            f"({100 * (1 - self.cost_update / self.cost_nominal):.0f}% lower)." if self.cost_nominal > 0
+            f"({100 * (1 - self.cost_update / self.cost_nominal):.0f}% lower)."
+            if self.cost_nominal > 0
             else "The model matches the data exactly."
         ]
         best = self.best_result
@@ -339,8 +355,9 @@ def _map(fn, items: list, executor: Executor | None, desc: str) -> list:
     return [f.result() for f in tqdm(futures, desc=desc, disable=not show, leave=False)]
 
 
-def _screen_one(res_u: Residual, model_u: Any, j_u: np.ndarray, Q: np.ndarray, r_perp: np.ndarray,
-                effect: Any) -> dict[str, Any]:
+def _screen_one(
+    res_u: Residual, model_u: Any, j_u: np.ndarray, Q: np.ndarray, r_perp: np.ndarray, effect: Any
+) -> dict[str, Any]:
     """Secant of one candidate from neutral to its typical size, projected (step 2)."""
     neutral = effect.with_values(**effect.neutral_values)
     m_c = neutral.apply(model_u)
@@ -366,8 +383,9 @@ def _screen_one(res_u: Residual, model_u: Any, j_u: np.ndarray, Q: np.ndarray, r
     left = r_perp + d_perp * c_clip
     fraction = max(0.0, 1.0 - float(left @ left) / rr)
     angle = math.degrees(math.acos(min(1.0, math.sqrt(cos2))))
-    return dict(effect=effect, model=m_c, fraction=fraction, angle=angle, value=clipped, d=d,
-                evals=sens.n_evals)
+    return dict(
+        effect=effect, model=m_c, fraction=fraction, angle=angle, value=clipped, d=d, evals=sens.n_evals
+    )
 
 
 @dataclass
@@ -392,8 +410,9 @@ def _damped_step(A: np.ndarray, r: np.ndarray, lam: float) -> np.ndarray:
     return np.linalg.lstsq(M, rhs, rcond=None)[0]
 
 
-def _fit_one(res_u: Residual, null: _Null, screen: dict[str, Any], max_iter: int,
-             budget: float) -> dict[str, Any]:
+def _fit_one(
+    res_u: Residual, null: _Null, screen: dict[str, Any], max_iter: int, budget: float
+) -> dict[str, Any]:
     """Short bounded local fit of one candidate with the update parameters (step 3).
 
     Gauss-Newton/Marquardt on ``[alpha_update, v]`` with the update parameters' Jacobian
@@ -474,8 +493,9 @@ def _equivalent(screens: list[dict[str, Any]]) -> dict[int, int]:
     return twins
 
 
-def _null_fit(res0: Residual, upd: tuple[str, ...], max_iter: int, executor: Executor | None,
-              budget: float) -> tuple[_Null, int]:
+def _null_fit(
+    res0: Residual, upd: tuple[str, ...], max_iter: int, executor: Executor | None, budget: float
+) -> tuple[_Null, int]:
     """Bounded LM fit of the update parameters alone (step 1)."""
     model = res0.model
     lo = np.array([model.param(n).bounds[0] for n in upd], dtype=float)
@@ -487,15 +507,26 @@ def _null_fit(res0: Residual, upd: tuple[str, ...], max_iter: int, executor: Exe
     return _Null(upd, dict(lm.x), lo, hi, lm.jacobian, lm.vector, lm.cost), lm.n_evals
 
 
-def _where(res: Residual, delta: np.ndarray) -> str:
-    """Where a complex residual change lies: magnitude or phase, frequency band, outputs."""
-    e = res.unstack(delta) / res.weights.clip(1e-300) if np.any(res.weights != 1) else res.unstack(delta)
+def _where(res: Residual, delta: np.ndarray, unweight: bool = True) -> str:
+    """Where a residual (change) lies: magnitude or phase, frequency band, outputs.
+
+    ``unweight`` divides by the residual weights first (a model change in plain log units);
+    otherwise the weighted residual is described (where the data say the error is).
+    """
+    e = res.unstack(delta)
+    if unweight and np.any(res.weights != 1):
+        e = e / np.maximum(res.weights, 1e-12)
     mag, ph = float(np.sum(e.real**2)), float(np.sum(e.imag**2))
     total = mag + ph
     if total <= 0:
         return "nowhere"
-    part = ("phase error" if ph > 0.7 * total else "magnitude error" if mag > 0.7 * total
-            else "magnitude and phase error")
+    part = (
+        "phase error"
+        if ph > 0.7 * total
+        else "magnitude error"
+        if mag > 0.7 * total
+        else "magnitude and phase error"
+    )
     f = res.f_hz
     per_f = np.sum(np.abs(e) ** 2, axis=(1, 2))
     cum = np.cumsum(per_f) / per_f.sum()
@@ -521,8 +552,10 @@ def _sentence(r: CandidateResult) -> str:
     if r.fitted:
         verdict = "significant" if r.significant else "not significant"
         p = "p < 1e-12" if r.p_value < 1e-12 else f"p = {r.p_value:.2g}"
-        return (f"{head} explains {100 * r.gain:.0f}% of the residual left by updating ({r.where}); "
-                f"cost {100 * r.reduction:.0f}% below the nominal model; {verdict} ({p}).")
+        return (
+            f"{head} explains {100 * r.gain:.0f}% of the residual left by updating ({r.where}); "
+            f"cost {100 * r.reduction:.0f}% below the nominal model; {verdict} ({p})."
+        )
     return f"{head} would explain about {100 * r.fraction:.0f}% of it to first order (not fitted)."
 
 
@@ -569,7 +602,7 @@ def diagnose(
     executor: Executor | None = None,
     update_params: Sequence[str] | None = None,
     *,
-    weights: Any = None,
+    weights: Any = "auto",
     n_fit: int = 4,
     max_iter: int = 8,
     update_iter: int = 10,
@@ -594,8 +627,11 @@ def diagnose(
     update_params : sequence of str, optional
         Parameters the update may change (default: the model's free parameters); what they
         can absorb is projected out before the effects are scored.
-    weights : None, "coherence" or array
-        Residual weights (see :class:`~robustctl.correlate.residual.Residual`).
+    weights : "auto", None, "coherence" or array
+        Residual weights (see :class:`~robustctl.correlate.residual.Residual`). ``"auto"``
+        (default) uses the coherence when the data carry it: ``w = sqrt(g2 / (1 - g2))`` is
+        the inverse standard deviation of the log estimate, so noisy bins (low coherence,
+        at anti-resonances and far from the excited modes) do not drown the systematic error.
     n_fit : int
         Number of best-screened candidates given the local fit.
     max_iter, update_iter : int
@@ -632,10 +668,13 @@ def diagnose(
         raise DataError(f"data must be a FrequencyData; got {type(data).__name__}.")
     if not 0 < alpha < 1 or not 0 <= min_gain < 1:
         raise FitError(f"alpha must lie in (0, 1) and min_gain in [0, 1); got {alpha}, {min_gain}.")
+    if isinstance(weights, str) and weights == "auto":
+        weights = "coherence" if data.coherence is not None else None
     res0 = Residual(model, data, band=band, weights=weights)
     upd = _check_update(model, update_params)
-    cands = _check_candidates(model, all_candidates(model, band=res0.band) if candidates is None
-                              else list(candidates))
+    cands = _check_candidates(
+        model, all_candidates(model, band=res0.band) if candidates is None else list(candidates)
+    )
     evals = 1
     cost_nominal = res0.cost()
     # 1. null fit of the update parameters
@@ -650,32 +689,66 @@ def diagnose(
     screens = _map(lambda c: _screen_one(res_u, model_u, j_u, Q, r_perp, c), cands, executor, "screening")
     evals += sum(s["evals"] for s in screens)
     twins = _equivalent(screens)
-    order = sorted((k for k in range(len(screens)) if k not in twins),
-                   key=lambda k: (-round(screens[k]["fraction"], 9), k))
+    order = sorted(
+        (k for k in range(len(screens)) if k not in twins),
+        key=lambda k: (-round(screens[k]["fraction"], 9), k),
+    )
     top = [k for k in order[: max(int(n_fit), 0)] if screens[k]["fraction"] > 0]
     # 3. local fits
     remaining = max(time_budget_s - (time.perf_counter() - t0), 1.0)
-    fits = _map(lambda k: _fit_one(res_u, null, screens[k], max_iter, remaining / max(len(top), 1)),
-                top, executor, "local fits")
+    fits = _map(
+        lambda k: _fit_one(res_u, null, screens[k], max_iter, remaining / max(len(top), 1)),
+        top,
+        executor,
+        "local fits",
+    )
     evals += sum(f["evals"] for f in fits)
     # 4. significance and words
     e_u = res0.unstack(j_u)
     n_eff, rho = effective_points(e_u)
     level = alpha / len(cands)
-    stats = dict(cost_u=cost_u, cost_nominal=cost_nominal, n_eff=n_eff, p=len(upd), level=level,
-                 min_gain=min_gain, upd=upd)
+    stats = dict(
+        cost_u=cost_u,
+        cost_nominal=cost_nominal,
+        n_eff=n_eff,
+        p=len(upd),
+        level=level,
+        min_gain=min_gain,
+        upd=upd,
+    )
     results, explained = _score(res0, screens, order, top, fits, twins, j_u, stats)
     best = next((r.effect for r in results if r.significant), None)
     return Diagnosis(
-        ranking=tuple(results), best=best, cost_nominal=cost_nominal, cost_update=cost_u,
-        update_params=upd, update_values=x_u, n=res0.n, n_eff=n_eff, rho=rho, alpha=level,
-        unexplained=_where(res0, j_u), band=res0.band, n_evals=evals,
-        time_s=time.perf_counter() - t0, residual_update=e_u, f_hz=res0.f_hz, explained=explained,
+        ranking=tuple(results),
+        best=best,
+        cost_nominal=cost_nominal,
+        cost_update=cost_u,
+        update_params=upd,
+        update_values=x_u,
+        n=res0.n,
+        n_eff=n_eff,
+        rho=rho,
+        alpha=level,
+        unexplained=_where(res0, j_u),
+        band=res0.band,
+        n_evals=evals,
+        time_s=time.perf_counter() - t0,
+        residual_update=e_u,
+        f_hz=res0.f_hz,
+        explained=explained,
     )
 
 
-def _score(res0: Residual, screens: list[dict], order: list[int], top: list[int], fits: list[dict],
-           twins: dict[int, int], j_u: np.ndarray, st: dict[str, Any]) -> tuple[list, dict]:
+def _score(
+    res0: Residual,
+    screens: list[dict],
+    order: list[int],
+    top: list[int],
+    fits: list[dict],
+    twins: dict[int, int],
+    j_u: np.ndarray,
+    st: dict[str, Any],
+) -> tuple[list, dict]:
     """CandidateResults: fitted ones by gain (F-test, sentence), then the rest by fraction."""
     results, explained = [], {}
 
@@ -688,13 +761,27 @@ def _score(res0: Residual, screens: list[dict], order: list[int], top: list[int]
         f_stat, p_val = _f_test(st["cost_u"], fit["cost"], 1, st["n_eff"], st["p"] + 1)
         gain = _reduction(fit["cost"], st["cost_u"])
         delta = j_u - fit["vector"]
-        results.append(CandidateResult(
-            effect=effect, fraction=s["fraction"], angle_deg=s["angle"], fitted=True, cost=fit["cost"],
-            reduction=_reduction(fit["cost"], st["cost_nominal"]), gain=gain, f_stat=f_stat,
-            p_value=p_val, significant=bool(p_val < st["level"] and gain >= st["min_gain"]),
-            update_values={n: v for n, v in fit["x"].items() if n in st["upd"]},
-            where=_where(res0, delta), equivalent=twins_of(k),
-        ))
+        results.append(
+            CandidateResult(
+                effect=effect,
+                fraction=s["fraction"],
+                angle_deg=s["angle"],
+                fitted=True,
+                cost=fit["cost"],
+                reduction=_reduction(fit["cost"], st["cost_nominal"]),
+                gain=gain,
+                f_stat=f_stat,
+                p_value=p_val,
+                significant=bool(
+                    p_val < st["level"]
+                    and gain >= st["min_gain"]
+                    and st["cost_u"] - fit["cost"] > 1e-10 * st["cost_nominal"]
+                ),
+                update_values={n: v for n, v in fit["x"].items() if n in st["upd"]},
+                where=_where(res0, delta),
+                equivalent=twins_of(k),
+            )
+        )
         explained[effect.name] = res0.unstack(delta)
     order_fit = sorted(range(len(results)), key=lambda i: (-round(results[i].gain, 9), i))
     results = [results[i] for i in order_fit]
@@ -705,10 +792,18 @@ def _score(res0: Residual, screens: list[dict], order: list[int], top: list[int]
         s = screens[k]
         effect = s["effect"].with_values(**{s["effect"].param_names[0]: s["value"]})
         cost = st["cost_u"] * (1 - s["fraction"])
-        results.append(CandidateResult(
-            effect=effect, fraction=s["fraction"], angle_deg=s["angle"], fitted=False, cost=cost,
-            reduction=_reduction(cost, st["cost_nominal"]), gain=s["fraction"], equivalent=twins_of(k),
-        ))
+        results.append(
+            CandidateResult(
+                effect=effect,
+                fraction=s["fraction"],
+                angle_deg=s["angle"],
+                fitted=False,
+                cost=cost,
+                reduction=_reduction(cost, st["cost_nominal"]),
+                gain=s["fraction"],
+                equivalent=twins_of(k),
+            )
+        )
     return [_with_sentence(r) for r in results], explained
 
 

@@ -1,0 +1,103 @@
+"""Benchmark: ``rc.diagnose`` with 12 candidate effects on the Caltech truss.
+
+Data: :func:`robustctl.examples.caltech_truss_experiment` (hidden taut-wire tension on the
+story-1 longerons, 3 % / 4 % / 5 % parameter errors, 1 % sensor noise), 9 channels x 600
+frequencies (0.5 Hz upwards at the 0.049 Hz Welch resolution). Update parameters: the
+structural ones (Young's modulus, platform and offset masses, modal damping), as in MACE.
+Timed serially and with a two-thread ``ThreadPoolExecutor``; target < 10 s on 2 cores.
+
+Run: ``python -m benchmarks.bench_diagnose`` (writes ``benchmarks/results/diagnose.json``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+import robustctl as rc
+
+TARGET_S = 10.0
+N_FREQ = 600
+UPDATE = ("E_aluminium", "m_platform_1", "m_platform_2", "m_offset", "zeta_modal")
+
+
+def _candidates(model) -> list:
+    fx = rc.effects
+    groups = ("longerons_story_1", "longerons_story_2", "diagonals")
+    cands = [fx.OutputDelay(), fx.SensorLowPass(order=1), fx.SensorLowPass(order=2), fx.SensorGain("S1")]
+    cands += [fx.GroupTension(g) for g in groups] + [fx.GroupStiffness(g) for g in groups]
+    cands += [fx.AddedMass("platform_2"), fx.SuspensionSpring("platform_2", direction="x")]
+    # the calibrated secant steps of rc.effects.candidates for the same effects
+    calibrated = {(c.kind, c.location, getattr(c, "direction", None)): c
+                  for c in fx.candidates(model, band=(0.5, 30.0))}
+    return [calibrated.get((c.kind, c.location, getattr(c, "direction", None)), c) for c in cands]
+
+
+def run() -> dict:
+    """Time diagnose serially and with 2 threads; check that the hidden effect ranks first."""
+    with rc.blas_threads(1):
+        model = rc.examples.caltech_truss()
+        data, _ = rc.examples.caltech_truss_experiment(seed=0)
+        f = data.f_hz
+        band = (0.5, float(f[np.searchsorted(f, 0.5) + N_FREQ - 1]))
+        cands = _candidates(model)
+        t0 = time.perf_counter()
+        serial = rc.diagnose(model, data, cands, band=band, update_params=UPDATE)
+        t_serial = time.perf_counter() - t0
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            t0 = time.perf_counter()
+            par = rc.diagnose(model, data, cands, band=band, update_params=UPDATE, executor=pool)
+            t_par = time.perf_counter() - t0
+    top = serial.ranking[0]
+    names = [r.name for r in serial.ranking]
+    true_name = "taut wires (tension) along longerons_story_1"
+    n_freq = int(np.count_nonzero((f >= band[0]) & (f <= band[1])))
+    metrics = {
+        "n_candidates": len(cands),
+        "n_channels": data.n_out * data.n_in,
+        "n_frequencies": n_freq,
+        "time_serial_s": round(t_serial, 3),
+        "time_2_threads_s": round(t_par, 3),
+        "speedup_2_threads": round(t_serial / t_par, 3),
+        "model_evaluations": serial.n_evals,
+        "ms_per_evaluation_serial": round(1e3 * t_serial / serial.n_evals, 2),
+        "top_effect": top.name,
+        "top_effect_value": top.effect.describe_value(),
+        "top_effect_significant": bool(top.significant),
+        "same_ranking_with_executor": [r.name for r in serial.ranking] == [r.name for r in par.ranking],
+        "cost_reduction_top_pct": round(100 * top.reduction, 2),
+        "rank_of_true_effect": names.index(true_name) + 1 if true_name in names else None,
+        "true_effect_significant": any(r.significant for r in serial.ranking if r.name == true_name),
+        "cpu_count": os.cpu_count(),
+    }
+    # Below 30 Hz the data cannot tell wire tension on the story-1 longerons from stiffer
+    # diagonals (both stiffen story-1 sway; the local modes that separate them lie at
+    # 32-43 Hz), so the ranking is reported, not targeted: tests/test_hidden_effects.py
+    # checks it on the 0.5-50 Hz band.
+    targets = {"time_serial_s": f"< {TARGET_S}", "time_2_threads_s": f"< {TARGET_S}"}
+    passed = bool(t_par < TARGET_S and t_serial < TARGET_S)
+    return {
+        "name": "diagnose",
+        "description": "rc.diagnose, 12 candidates, Caltech truss, 9 channels x 600 frequencies "
+                       "(serial and 2-thread executor)",
+        "metrics": metrics,
+        "targets": targets,
+        "passed": passed,
+    }
+
+
+def main() -> None:
+    result = run()
+    out = Path(__file__).parent / "results" / "diagnose.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=2) + "\n")
+    print(json.dumps(result, indent=2))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,137 @@
+"""rc.diagnose on small exact models: ranking, recovered values, significance, API, bad input."""
+
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import pytest
+
+import robustctl as rc
+from robustctl.correlate.diagnose import effective_points
+from robustctl.physical import effects as fx
+
+F_HZ = np.linspace(0.5, 40.0, 400)
+M3 = np.diag([2.0, 1.0, 0.5])
+KC = 1e3 * np.array([[1.0, -1.0, 0.0], [-1.0, 2.0, -1.0], [0.0, -1.0, 1.0]])  # the two coupling springs
+KGEO = np.array([[1.0, -1.0, 0.0], [-1.0, 1.0, 0.0], [0.0, 0.0, 0.0]])
+
+
+def _chain():
+    """Three masses on a grounded spring (parameter k_ground), 2 sensors, 2 actuators."""
+    k_par = rc.Parameter("k_ground", 4e3, "N/m", (1e3, 1e4), meaning="ground spring of mass 1")
+
+    def stiffness(th):
+        return KC + np.diag([th["k_ground"], 0.0, 0.0])
+
+    return rc.structural_model(
+        M3, stiffness, inputs={"F1": "dof 1", "F3": "dof 3"},
+        outputs={"a2": ("dof 2", "acceleration"), "a3": ("dof 3", "acceleration")},
+        damping=0.02, params=[k_par], stiffness_groups={"coupling": KC},
+        geometric_stiffness={"coupling": KGEO}, name="3-mass chain",
+    )
+
+
+def _data(model, hidden=None, k_error=0.03, noise=0.01, seed=0):
+    truth = model.with_values(k_ground=model.param("k_ground").value * (1 + k_error))
+    if hidden is not None:
+        truth = truth.with_effect(hidden)
+    g = truth.freqresp(F_HZ).response
+    rng = np.random.default_rng(seed)
+    g = g * np.exp(noise * (rng.standard_normal(g.shape) + 1j * rng.standard_normal(g.shape)))
+    return rc.FrequencyData(F_HZ, g, inputs=model.inputs, outputs=model.outputs)
+
+
+@pytest.fixture(scope="module")
+def chain():
+    return _chain()
+
+
+@pytest.fixture(scope="module")
+def cands(chain):
+    return fx.candidates(chain)
+
+
+@pytest.mark.parametrize(
+    "hidden",
+    [fx.OutputDelay(delay=4e-3), fx.AddedMass("dof 3", mass=0.05),
+     fx.SuspensionSpring("dof 2", stiffness=150.0), fx.GroupTension("coupling", tension=60.0),
+     fx.SensorGain("a3", error=0.08)],
+    ids=lambda e: e.kind,
+)
+def test_diagnose_ranks_the_hidden_effect_first_and_recovers_it(chain, cands, hidden):
+    diag = rc.diagnose(chain, _data(chain, hidden), cands, update_params=["k_ground", "zeta_modal"])
+    top = diag.ranking[0]
+    assert (top.kind, top.location) == (hidden.kind, hidden.location)
+    assert diag.best is not None and diag.best.name == hidden.name
+    (true_value,) = hidden.values.values()
+    (fitted,) = diag.best.values.values()
+    assert fitted == pytest.approx(true_value, rel=0.1)  # short local fit; rc.update refines
+    assert top.significant and top.gain > 0.8 and top.p_value < 1e-6
+    assert hidden.name.split(" ")[0] in top.sentence and "%" in top.sentence
+
+
+def test_parameter_errors_alone_give_no_significant_effect(chain, cands):
+    diag = rc.diagnose(chain, _data(chain, None, k_error=0.05), cands,
+                       update_params=["k_ground", "zeta_modal"])
+    assert diag.best is None and diag.best_result is None
+    assert diag.cost_update < 0.05 * diag.cost_nominal  # the update parameter explains the error
+    text = diag.summary()
+    assert "No candidate effect is significant" in text and "sits in" in text
+
+
+def test_a_delay_on_all_outputs_is_flagged_as_indistinguishable_from_one_on_all_inputs(chain, cands):
+    diag = rc.diagnose(chain, _data(chain, fx.OutputDelay(delay=4e-3)), cands)
+    top = diag.ranking[0]
+    assert top.kind == "output_delay" and "input delay" in top.equivalent
+    assert "input delay" not in [r.name for r in diag.ranking]
+    assert "cannot tell it from" in top.sentence
+
+
+def test_diagnosis_table_summary_html_and_plot(chain, cands):
+    diag = rc.diagnose(chain, _data(chain, fx.AddedMass("dof 3", mass=0.05)), cands)
+    table = diag.table()
+    assert table.rows[0][1] == "added mass at dof 3" and table.rows[0][-1] is True
+    assert "Proposed: a 0.0" in diag.summary() and "kg added mass at dof 3" in diag.summary()
+    assert "<table" in diag._repr_html_()
+    fig = diag.plot()
+    assert len(fig.axes) == 2
+    assert diag.n_eff <= diag.n and 0 <= diag.rho < 1 and diag.n_evals > len(cands)
+
+
+def test_executor_gives_the_same_ranking(chain, cands):
+    data = _data(chain, fx.SuspensionSpring("dof 2", stiffness=150.0))
+    serial = rc.diagnose(chain, data, cands[:12])
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        par = rc.diagnose(chain, data, cands[:12], executor=pool)
+    assert [r.name for r in par.ranking] == [r.name for r in serial.ranking]
+    np.testing.assert_allclose([r.gain for r in par.ranking], [r.gain for r in serial.ranking], rtol=1e-9)
+
+
+def test_effective_points_of_white_and_correlated_residuals():
+    rng = np.random.default_rng(1)
+    white = rng.standard_normal((2000, 2, 2)) + 1j * rng.standard_normal((2000, 2, 2))
+    n_eff, rho = effective_points(white)
+    assert n_eff == pytest.approx(white.size * 2, rel=0.1) and rho < 0.05
+    x = np.zeros((2000, 1, 1), dtype=complex)
+    for k in range(1, 2000):  # AR(1), rho = 0.8: n_eff = n (1 - 0.8) / (1 + 0.8)
+        x[k] = 0.8 * x[k - 1] + rng.standard_normal() + 1j * rng.standard_normal()
+    n_eff, rho = effective_points(x)
+    assert rho == pytest.approx(0.8, abs=0.05) and n_eff == pytest.approx(4000 * 0.2 / 1.8, rel=0.3)
+
+
+# ---------------------------------------------------------------------------- bad input
+def test_bad_input_is_refused_with_the_fix(chain, cands):
+    data = _data(chain)
+    with pytest.raises(rc.DataError, match="holds 0 data point"):
+        rc.diagnose(chain, data, cands, band=(100.0, 200.0))
+    with pytest.raises(rc.ModelError, match="unknown location 'dof 9'"):
+        rc.diagnose(chain, data, [fx.AddedMass("dof 9")])
+    with pytest.raises(rc.ModelError, match="unknown update parameter"):
+        rc.diagnose(chain, data, cands, update_params=["E_steel"])
+    with pytest.raises(rc.ModelError, match="must be Effect objects"):
+        rc.diagnose(chain, data, ["output delay"])
+    modal = rc.modal_model([2.0, 5.0], 0.02, [[1.0, 0.5]], [[1.0, -0.3]], inputs=["u"], outputs=["y"])
+    g = modal.freqresp(F_HZ)
+    with pytest.raises(rc.ModelError, match="no structural description"):
+        rc.diagnose(modal, g, [fx.AddedMass("dof 1")])
+    with pytest.raises(rc.DataError, match="FrequencyData"):
+        rc.diagnose(chain, g.response, cands)
