@@ -15,7 +15,7 @@ from .correlate import (
 )
 from .errors import DataError, FitError, ModelError, RobustctlError, SynthesisError
 from .estimate import combine_experiments, estimate_frf, simulate_experiment
-from .frd import FrequencyData
+from .frd import FrequencyData, load_frd
 from .identify import combine_simo, fit_rational, group_modes
 from .lti import freqresp, log_cost, log_error
 from .physical import (
@@ -50,6 +50,7 @@ __all__ = [
     "FitError",
     "SynthesisError",
     "FrequencyData",
+    "load_frd",
     "fit_rational",
     "combine_simo",
     "group_modes",

@@ -1,0 +1,305 @@
+"""FrequencyData files: npz, mat, csv and UFF dataset 58 round trips; corrupt files; no pickles."""
+
+from __future__ import annotations
+
+import os
+import pickle
+import tempfile
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+import pyuff
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import robustctl as rc
+from robustctl.errors import DataError
+
+ALPHABET = st.characters(codec="utf-8", exclude_categories=("Cc", "Cs", "Zl", "Zp"))
+FINITE = st.floats(-1e300, 1e300, allow_nan=False, allow_infinity=False)
+
+
+def _names(prefix_free: bool):
+    text = st.text(ALPHABET, min_size=1, max_size=12)
+    if prefix_free:  # UFF ID lines are stripped
+        text = text.map(str.strip).filter(lambda s: bool(s) and s.isprintable())
+    return text
+
+
+@st.composite
+def frequency_data(draw, uff: bool = False):
+    n_f = draw(st.integers(2 if uff else 1, 6))
+    n_o = draw(st.integers(1, 3))
+    n_i = draw(st.integers(1, 3))
+    f = np.sort(np.array(draw(st.lists(st.floats(1e-6, 1e6), min_size=n_f, max_size=n_f, unique=True))))
+    if np.any(np.diff(f) <= 0):
+        f = np.arange(1, n_f + 1, dtype=float)
+    values = draw(st.lists(FINITE, min_size=2 * n_f * n_o * n_i, max_size=2 * n_f * n_o * n_i))
+    g = np.array(values[::2]) + 1j * np.array(values[1::2])
+    outs = draw(st.lists(_names(uff), min_size=n_o, max_size=n_o, unique=True))
+    ins = draw(st.lists(_names(uff), min_size=n_i, max_size=n_i, unique=True))
+    coh = None
+    if draw(st.booleans()):
+        coh = np.array(draw(st.lists(st.floats(0, 1), min_size=g.size, max_size=g.size)))
+        coh = coh.reshape(n_f, n_o, n_i)
+    units = {outs[0]: "m/s^2"} if draw(st.booleans()) else None
+    return rc.FrequencyData(f, g.reshape(n_f, n_o, n_i), inputs=ins, outputs=outs, coherence=coh,
+                            units=units, meta={"source": "hypothesis", "n": n_f, "x": [1.5, None]})
+
+
+def _round_trip(data: rc.FrequencyData, suffix: str) -> rc.FrequencyData:
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / f"data{suffix}"
+        assert data.save(path) == path
+        loaded = rc.load_frd(path)
+        assert sorted(os.listdir(tmp)) == [path.name]  # no temporary files left behind
+    return loaded
+
+
+def _check(loaded, data, exact: bool, keeps_meta: bool):
+    assert loaded.inputs == data.inputs and loaded.outputs == data.outputs
+    np.testing.assert_array_equal(loaded.f_hz, data.f_hz)
+    if exact:
+        np.testing.assert_array_equal(loaded.response, data.response)
+    else:
+        np.testing.assert_allclose(loaded.response, data.response, rtol=1e-12, atol=0)
+    if data.coherence is None:
+        assert loaded.coherence is None
+    else:
+        np.testing.assert_allclose(loaded.coherence, data.coherence, rtol=1e-12, atol=0)
+    if keeps_meta:
+        assert loaded.units == data.units and loaded.meta == data.meta
+
+
+@settings(max_examples=12, deadline=None)
+@given(data=frequency_data())
+def test_npz_round_trip_exact(data):
+    _check(_round_trip(data, ".npz"), data, exact=True, keeps_meta=True)
+
+
+@settings(max_examples=12, deadline=None)
+@given(data=frequency_data())
+def test_mat_round_trip_exact(data):
+    _check(_round_trip(data, ".mat"), data, exact=True, keeps_meta=True)
+
+
+@settings(max_examples=12, deadline=None)
+@given(data=frequency_data())
+def test_csv_round_trip(data):
+    _check(_round_trip(data, ".csv"), data, exact=False, keeps_meta=False)
+
+
+@settings(max_examples=8, deadline=None)
+@given(data=frequency_data(uff=True), suffix=st.sampled_from([".uff", ".unv"]))
+def test_uff_round_trip(data, suffix):
+    _check(_round_trip(data, suffix), data, exact=False, keeps_meta=False)
+
+
+def test_csv_layout_and_mat_matlab_layout(tmp_path):
+    data = rc.FrequencyData([1.0, 2.5], np.arange(4.0).reshape(2, 2, 1) + 0.5j, outputs=["a", "b"],
+                            inputs=["F"], coherence=np.full((2, 2, 1), 0.25))
+    data.save(tmp_path / "d.csv")
+    lines = (tmp_path / "d.csv").read_text().splitlines()
+    assert lines[0] == "f_hz,output,input,re,im,coherence"
+    assert lines[1:3] == ["1.0,a,F,0.0,0.5,0.25", "1.0,b,F,1.0,0.5,0.25"]
+    from scipy.io import loadmat
+
+    data.save(tmp_path / "d.mat")
+    m = loadmat(tmp_path / "d.mat")
+    assert m["ResponseData"].shape == (2, 1, 2)  # n_out x n_in x n_freq, as MATLAB's frd
+    assert str(m["FrequencyUnit"][0]) == "Hz"
+    np.testing.assert_array_equal(m["ResponseData"][1, 0, :], data.response[:, 1, 0])
+
+
+def test_mat_from_matlab_style_file(tmp_path):
+    from scipy.io import savemat
+
+    g = np.array([1 + 1j, 2 - 1j, 3.0])
+    savemat(tmp_path / "m.mat", {"Frequency": np.array([[1.0], [2.0], [3.0]]) * 2 * np.pi,
+                                 "ResponseData": g.reshape(1, 1, 3)})
+    data = rc.load_frd(tmp_path / "m.mat")  # no FrequencyUnit: MATLAB's default rad/s
+    np.testing.assert_allclose(data.f_hz, [1.0, 2.0, 3.0], rtol=1e-15)
+    np.testing.assert_array_equal(data.response[:, 0, 0], g)
+
+
+def test_third_party_uff_names_from_nodes(tmp_path):
+    path = tmp_path / "shaker.uff"
+    f = np.linspace(1.0, 10.0, 10)
+    sets = [
+        pyuff.prepare_58(binary=0, id1="Point 12 response", func_type=4, rsp_node=node, rsp_dir=3,
+                         ref_node=1, ref_dir=-3, data=(node + 1j) * np.ones(10), x=f, abscissa_spacing=0,
+                         abscissa_spec_data_type=18, ordinate_spec_data_type=0, orddenom_spec_data_type=0,
+                         z_axis_spec_data_type=0)
+        for node in (12, 13)
+    ]
+    pyuff.UFF(str(path)).write_sets(sets, mode="add")
+    data = rc.load_frd(path)
+    assert data.outputs == ("12:3", "13:3") and data.inputs == ("1:-3",)
+    np.testing.assert_allclose(data.response[:, 1, 0], 13 + 1j, rtol=1e-10)
+    np.testing.assert_allclose(data.f_hz, f, rtol=1e-5)  # ASCII abscissa has 6 digits
+
+
+# ------------------------------------------------------------------ refusals
+@pytest.fixture
+def small():
+    return rc.FrequencyData([1.0, 2.0, 3.0], np.ones((3, 1, 2)), inputs=["a", "b"], outputs=["y"])
+
+
+def test_unknown_extension_and_missing_files(small, tmp_path):
+    supported = r"unknown file extension '.txt'.*supported: .npz, .mat, .csv, .uff, .unv"
+    with pytest.raises(DataError, match=supported):
+        small.save(tmp_path / "d.txt")
+    with pytest.raises(DataError, match="unknown file extension ''"):
+        rc.load_frd(tmp_path / "noext")
+    with pytest.raises(DataError, match="no such file"):
+        rc.load_frd(tmp_path / "missing.npz")
+    with pytest.raises(DataError, match="directory .* does not exist"):
+        small.save(tmp_path / "nodir" / "d.npz")
+    with pytest.raises(DataError, match="path must be a file name"):
+        rc.load_frd(3.5)
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".mat", ".csv", ".uff"])
+def test_never_overwrites_unless_asked(small, tmp_path, suffix):
+    path = tmp_path / f"precious{suffix}"
+    path.write_bytes(b"the user's own file")
+    with pytest.raises(DataError, match="already exists; pass overwrite=True"):
+        small.save(path)
+    assert path.read_bytes() == b"the user's own file"
+    small.save(path, overwrite=True)
+    np.testing.assert_array_equal(rc.load_frd(path).response, small.response)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]
+
+
+class _Marker:
+    """Unpickling this creates a file: proof that pickled content was executed."""
+
+    def __init__(self, path):
+        self.path = path
+
+    def __reduce__(self):
+        return (open, (self.path, "w"))
+
+
+def test_npz_with_pickled_objects_is_refused_not_executed(tmp_path):
+    marker = tmp_path / "executed"
+    evil = np.empty(1, dtype=object)
+    evil[0] = _Marker(str(marker))
+    path = tmp_path / "evil.npz"
+    np.savez(path, format=np.array("robustctl.FrequencyData"), f_hz=evil, response=np.ones(1))
+    with pytest.raises(DataError, match="pickled Python objects.*never loads"):
+        rc.load_frd(path)
+    assert not marker.exists()
+    pickle.dumps(evil)  # the payload is a real pickle (sanity)
+
+
+def _npz(path, **arrays):
+    base = {"format": np.array("robustctl.FrequencyData"), "f_hz": np.array([1.0, 2.0]),
+            "response": np.ones((2, 1, 1), complex), "inputs": np.array(["u"]), "outputs": np.array(["y"]),
+            "units_json": np.array("{}"), "meta_json": np.array("{}")}
+    base.update(arrays)
+    np.savez(path, **{k: v for k, v in base.items() if v is not None})
+    return path
+
+
+def test_corrupt_or_mismatched_npz(tmp_path):
+    with pytest.raises(DataError, match="bad.npz: not a readable npz file"):
+        (tmp_path / "bad.npz").write_bytes(b"PK\x03\x04 this is not a zip archive")
+        rc.load_frd(tmp_path / "bad.npz")
+    with pytest.raises(DataError, match="has no 'response' array"):
+        rc.load_frd(_npz(tmp_path / "a.npz", response=None))
+    with pytest.raises(DataError, match="response has 3 frequency points but f_hz has 2"):
+        rc.load_frd(_npz(tmp_path / "b.npz", response=np.ones((3, 1, 1))))
+    with pytest.raises(DataError, match="outputs has 2 names"):
+        rc.load_frd(_npz(tmp_path / "c.npz", outputs=np.array(["y1", "y2"])))
+    with pytest.raises(DataError, match="is a 'something else'"):
+        rc.load_frd(_npz(tmp_path / "d.npz", format=np.array("something else")))
+    with pytest.raises(DataError, match="NaN or inf"):
+        rc.load_frd(_npz(tmp_path / "e.npz", response=np.full((2, 1, 1), np.nan)))
+    with pytest.raises(DataError, match="strictly increasing"):
+        rc.load_frd(_npz(tmp_path / "f.npz", f_hz=np.array([2.0, 1.0])))
+    with pytest.raises(DataError, match="meta is not valid JSON"):
+        rc.load_frd(_npz(tmp_path / "g.npz", meta_json=np.array("{oops")))
+    np.save(tmp_path / "single.npy", np.ones(3))
+    os.replace(tmp_path / "single.npy", tmp_path / "single.npz")
+    with pytest.raises(DataError, match="single array"):
+        rc.load_frd(tmp_path / "single.npz")
+    good = tmp_path / "good.npz"
+    rc.FrequencyData([1.0, 2.0], np.ones(2)).save(good)
+    raw = good.read_bytes()
+    (tmp_path / "cut.npz").write_bytes(raw[: len(raw) // 2])
+    with pytest.raises(DataError, match="cut.npz"):
+        rc.load_frd(tmp_path / "cut.npz")
+    assert zipfile.is_zipfile(good)
+
+
+def test_corrupt_or_mismatched_mat(tmp_path):
+    from scipy.io import savemat
+
+    (tmp_path / "bad.mat").write_bytes(b"MATLAB 5.0 MAT-file, garbage" + bytes(200))
+    with pytest.raises(DataError, match="not a readable MAT file"):
+        rc.load_frd(tmp_path / "bad.mat")
+    savemat(tmp_path / "a.mat", {"Frequency": [1.0, 2.0]})
+    with pytest.raises(DataError, match="no 'ResponseData' variable"):
+        rc.load_frd(tmp_path / "a.mat")
+    savemat(tmp_path / "b.mat", {"Frequency": [1.0, 2.0], "FrequencyUnit": "Hz",
+                                 "ResponseData": np.ones((1, 1, 3))})
+    with pytest.raises(DataError, match=r"ResponseData holds 3 values but .* need shape \(1, 1, 2\)"):
+        rc.load_frd(tmp_path / "b.mat")
+    savemat(tmp_path / "c.mat", {"Frequency": [1.0, 2.0], "FrequencyUnit": "kHz", "ResponseData": np.ones(2)})
+    with pytest.raises(DataError, match="FrequencyUnit 'khz' is not supported"):
+        rc.load_frd(tmp_path / "c.mat")
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("", "the CSV file is empty"),
+        ("freq,out,in,re,im\n1,y,u,1,0\n", "the CSV header is"),
+        ("f_hz,output,input,re,im\n", "no data rows"),
+        ("f_hz,output,input,re,im\n1,y,u,1\n", "line 2 has 4 fields; the header has 5"),
+        ("f_hz,output,input,re,im\n1,y,u,1,zero\n", "line 2: im 'zero' is not a number"),
+        ("f_hz,output,input,re,im\n1,y,u,1,0\n1,y,u,2,0\n", "line 3 repeats f_hz=1"),
+        ("f_hz,output,input,re,im\n1,y,u,1,0\n1,y,v,1,0\n2,y,u,1,0\n",
+         r"1 entries are missing.*f_hz=2.0.*'v'"),
+        ("f_hz,output,input,re,im\n2,y,u,1,0\n1,y,u,1,0\n", "strictly increasing"),
+        ("f_hz,output,input,re,im,coherence\n1,y,u,1,0,1.5\n",
+         r"coherence must be finite and lie in \[0, 1\]"),
+    ],
+)
+def test_corrupt_csv(tmp_path, text, message):
+    path = tmp_path / "d.csv"
+    path.write_text(text)
+    with pytest.raises(DataError, match=message):
+        rc.load_frd(path)
+
+
+def _frf58(rsp_node, ref_node, f):
+    return pyuff.prepare_58(
+        binary=1, func_type=4, rsp_node=rsp_node, rsp_dir=1, ref_node=ref_node, ref_dir=1, id1="x",
+        data=np.ones(f.size) + 0j, x=f, abscissa_spacing=0, abscissa_spec_data_type=18,
+        ordinate_spec_data_type=0, orddenom_spec_data_type=0, z_axis_spec_data_type=0,
+    )
+
+
+def test_corrupt_or_mismatched_uff(tmp_path, small):
+    (tmp_path / "bad.uff").write_text("    -1\n    58\ngarbage\n    -1\n")
+    with pytest.raises(DataError, match="bad.uff: not a readable universal file"):
+        rc.load_frd(tmp_path / "bad.uff")
+    path = tmp_path / "two_grids.uff"
+    sets = [_frf58(1 + (n == 5), 1, np.arange(1.0, n + 1)) for n in (4, 5)]
+    pyuff.UFF(str(path)).write_sets(sets, mode="add")
+    with pytest.raises(DataError, match="different frequency axis"):
+        rc.load_frd(path)
+    path = tmp_path / "missing_pair.uff"
+    sets = [_frf58(o, i, np.arange(1.0, 4.0)) for o, i in ((1, 1), (2, 1), (1, 2))]
+    pyuff.UFF(str(path)).write_sets(sets, mode="add")
+    with pytest.raises(DataError, match="no FRF record for output '2:1', input '2:1'"):
+        rc.load_frd(path)
+    with pytest.raises(DataError, match="cannot be stored in UFF ID lines"):
+        small.replace(outputs=[" padded"]).save(tmp_path / "names.uff")
+    with pytest.raises(DataError, match="at least 2 frequencies"):
+        small.band(1.0, 1.5).save(tmp_path / "one.uff")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.uff", "missing_pair.uff", "two_grids.uff"]
