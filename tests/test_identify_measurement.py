@@ -87,7 +87,9 @@ def test_automatic_order_selection_finds_six_modes():
 
 def test_unreachable_accuracy_is_a_clear_fit_error():
     with pytest.raises(rc.FitError, match="above the target 0.01 dB"):
-        rc.fit_measurement_model(caltech_measurement(), n_modes=6, band=BAND, target_db=0.01, correct_leakage=True)
+        rc.fit_measurement_model(
+            caltech_measurement(), n_modes=6, band=BAND, target_db=0.01, correct_leakage=True
+        )
     with pytest.raises(rc.FitError, match="n_modes must be a positive integer"):
         rc.fit_measurement_model(caltech_measurement(), n_modes=0, band=BAND)
     with pytest.raises(rc.FitError, match="needs the estimator settings"):

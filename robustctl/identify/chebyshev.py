@@ -22,9 +22,12 @@ from __future__ import annotations
 import numpy as np
 from numpy.polynomial import chebyshev as cheb
 
-from .poles import pole_change, reflect_unstable, split_poles
+from .poles import BestPoles, pole_change, reflect_unstable, split_poles
 
 __all__ = ["chebyshev_basis", "chebyshev_roots", "chebyshev_poles"]
+
+#: SK steps without cost progress before stopping (SK creeps through plateaus)
+PATIENCE = 25
 
 
 def chebyshev_basis(x: np.ndarray, degree: int) -> np.ndarray:
@@ -90,7 +93,9 @@ def chebyshev_poles(
     max_iter : int
         Iteration cap (step 5 loop).
     tol : float
-        Stop when the largest relative pole change falls below ``tol``.
+        Stop when the largest relative pole change falls below ``tol``, or when the weighted
+        cost of the best poles has not improved for a few steps (:class:`BestPoles`; noisy
+        data with spare poles make the iteration wander): the best poles seen are returned.
     stable : bool
         Reflect unstable roots into the left half plane.
 
@@ -102,6 +107,7 @@ def chebyshev_poles(
     basis = chebyshev_basis(x, order)
     d_eval = np.ones(s.size)
     poles = None
+    best = BestPoles(s, g, rw, patience=PATIENCE)
     for it in range(1, max_iter + 1):
         coef = _sk_step(basis, g, rw / d_eval[:, None], order + 1)
         d = basis @ coef
@@ -111,6 +117,9 @@ def chebyshev_poles(
         new = reflect_unstable(new)[0] if stable else new
         change = pole_change(poles, new)
         poles = new
+        stalled = best.update(poles)
         if change < tol:
             return poles, it, True
-    return poles, max_iter, False
+        if stalled:
+            return best.best, it, True
+    return best.best, max_iter, False

@@ -19,6 +19,8 @@ __all__ = [
     "evaluate",
     "n_states",
     "pole_change",
+    "weighted_cost",
+    "BestPoles",
 ]
 
 #: |Im p| below this fraction of |p| counts as a real pole.
@@ -160,3 +162,34 @@ def pole_change(old: np.ndarray | None, new: np.ndarray) -> float:
     a = old[np.lexsort((old.real, np.abs(old)))]
     b = new[np.lexsort((new.real, np.abs(new)))]
     return float(np.max(np.abs(a - b) / np.maximum(np.abs(a), 1e-300)))
+
+
+def weighted_cost(s: np.ndarray, g: np.ndarray, rw: np.ndarray, poles: np.ndarray) -> float:
+    """``sum |rw (g - G)|^2`` of the best residues for ``poles``; ``g``, ``rw`` of shape (K, n_ch)."""
+    res, d = fit_residues(s, g[:, :, None], rw[:, :, None], poles)
+    model = evaluate(s, poles, res, d)[:, :, 0]
+    return float(np.sum(np.abs(rw * (g - model)) ** 2))
+
+
+class BestPoles:
+    """Keeps the pole set of lowest weighted cost seen by an iteration and says when to stop.
+
+    Noisy data with spare poles make VF and SK wander instead of converging; the iteration is
+    stopped when the best cost has not improved by ``rtol`` (relative) for ``patience`` steps,
+    and the best poles (not the last) are returned.
+    """
+
+    def __init__(self, s: np.ndarray, g: np.ndarray, rw: np.ndarray, rtol: float = 1e-4, patience: int = 5):
+        self.s, self.g, self.rw, self.rtol, self.patience = s, g, rw, rtol, patience
+        self.best_cost, self.best, self.stale = np.inf, None, 0
+
+    def update(self, poles: np.ndarray) -> bool:
+        """Record ``poles``; True when the iteration should stop (no progress for ``patience``)."""
+        cost = weighted_cost(self.s, self.g, self.rw, poles)
+        if cost < self.best_cost * (1 - self.rtol):
+            self.stale = 0
+        else:
+            self.stale += 1
+        if cost < self.best_cost:
+            self.best_cost, self.best = cost, poles
+        return self.stale >= self.patience

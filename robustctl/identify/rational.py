@@ -196,7 +196,7 @@ def fit_rational(
     data: Any,
     order: int,
     band: tuple[float, float] | None = None,
-    method: str = "chebyshev",
+    method: str = "vf",
     weights: Any = None,
     common_denominator: bool = True,
     stable: bool = True,
@@ -216,9 +216,11 @@ def fit_rational(
         modes (an odd order adds one real pole). Numerators are proper (same degree).
     band : (f_lo, f_hi), optional
         Fitted band in Hz (default: all the data).
-    method : {"chebyshev", "vf"}
-        ``"chebyshev"``: Caltech eq. 4 with Chebyshev bases and the SK re-weighting of steps
-        1-6. ``"vf"``: relaxed vector fitting with pole flipping, QR-compressed per channel.
+    method : {"vf", "chebyshev"}
+        ``"vf"`` (default): relaxed vector fitting with pole flipping, QR-compressed per
+        channel. ``"chebyshev"``: Caltech eq. 4 with Chebyshev bases and the SK re-weighting of
+        steps 1-6; it agrees with VF on narrow bands (0.5-5.5 Hz) but SK stalls in poorer
+        fixed points on wide bands with spare poles (Caltech truss 0.5-30 Hz: 1.0 dB vs 0.44 dB).
     weights : array_like, optional
         Weights on the squared residuals, shape (n_freq,) or (n_freq, n_out, n_in). Default:
         ``c/(1-c)`` (coherence capped at 0.99) when the data carries coherence, else 1. Each

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .poles import partial_fraction_basis, pole_change, reflect_unstable, split_poles
+from .poles import BestPoles, partial_fraction_basis, pole_change, reflect_unstable, split_poles
 
 __all__ = ["initial_poles", "vf_poles"]
 
@@ -121,7 +121,9 @@ def vf_poles(
     max_iter : int
         Iteration cap.
     tol : float
-        Stop when the largest relative pole change falls below ``tol``.
+        Stop when the largest relative pole change falls below ``tol``, or when the weighted
+        cost of the best poles has not improved for a few steps (:class:`BestPoles`; noisy
+        data with spare poles make the iteration wander): the best poles seen are returned.
     stable : bool
         Reflect unstable poles after every relocation (pole flipping).
     spacing : {"lin", "log"}
@@ -133,10 +135,14 @@ def vf_poles(
     """
     w = np.abs(s)
     poles = initial_poles(order, float(w.min()), float(w.max()), spacing)
+    best = BestPoles(s, g, rw)
     for it in range(1, max_iter + 1):
         new = vf_step(s, g, rw, poles, stable)
         change = pole_change(poles, new)
         poles = new
+        stalled = best.update(poles)
         if change < tol:
             return poles, it, True
-    return poles, max_iter, False
+        if stalled:
+            return best.best, it, True
+    return best.best, max_iter, False
