@@ -257,3 +257,23 @@ def test_solve_static_on_a_supported_structure_is_the_plain_solution():
     K, M, f = _singular_system(n_null=0)
     u, removed = gravity.solve_static(sp.csr_matrix(K), sp.csr_matrix(M), f)
     assert np.allclose(u, np.linalg.solve(K, f)) and not np.any(removed)
+
+
+def test_soft_suspension_modes_of_a_stiff_body_are_not_mistaken_for_rigid_body_modes():
+    """A stiff 0.2 m beam (element modes ~ 1e4 Hz) hung on a 20 m wire: the 0.11 Hz pendulum
+    modes are real modes, not rounding, and solve_modes must keep them."""
+    fr = Frame(gravity=g)
+    fr.add_node("hook", (0.1, 0.0, 20.0))
+    for name, x in (("a", 0.0), ("mid", 0.1), ("b", 0.2)):
+        fr.add_node(name, (x, 0.0, 0.0))
+    r = 0.01
+    A, I = np.pi * r**2, np.pi * r**4 / 4
+    kw = dict(G=8e10, A=A, Iy=I, Iz=I, J=2 * I, n_elements=2, **STEEL)
+    fr.add_beam("body", "a", "mid", **kw)
+    fr.add_beam("body", "mid", "b", **kw)
+    fr.add_rod("wire", "hook", "mid", E=2e11, rho=100.0, A=1e-6)
+    fr.fix("hook")
+    f, _ = fr.modes(n_modes=5)
+    # the body turns freely about the pin at its centre of mass: three rigid rotations
+    assert np.all(f[:3] < 1e-3)
+    assert np.allclose(f[3:], np.sqrt(g / 20.0) / (2 * np.pi), rtol=0.01)
