@@ -7,6 +7,7 @@ import pytest
 
 import robustctl as rc
 from robustctl.examples.caltech_truss import CALTECH_MODE_TYPES, R_LONGERON
+from robustctl.examples.mace_beam import classify_mace_modes
 from robustctl.physical.model import Stage
 
 
@@ -121,3 +122,92 @@ def test_caltech_parameters_are_physical_and_bad_options_refused(truss):
         rc.examples.caltech_truss(n_elements_per_member=0)
     with pytest.raises(rc.ModelError, match="band_hz"):
         rc.examples.caltech_truss(band_hz=(5.0, 1.0))
+
+
+# ============================================================================ MACE-like bus
+@pytest.fixture(scope="module")
+def mace():
+    return rc.examples.mace_beam()
+
+
+def _bus_rigid_motion(frame, phi, k):
+    """Mean bus-node displacement per DOF kind in mode k, normalised to the largest."""
+    labels = list(frame.matrices().dof_labels)
+    v = phi[:, k] / np.abs(phi[:, k]).max()
+    return {
+        d: float(np.mean([v[labels.index(f"bus_{i} {d}")] for i in range(1, 6)]))
+        for d in ("ux", "uy", "uz", "rx", "ry", "rz")
+    }
+
+
+def test_mace_one_g_has_bounce_pendulum_and_violin_modes(mace):
+    frame = mace.build_structure()
+    assert frame.matrices().n_dof < 300
+    f_hz, phi = frame.modes(n_modes=8)
+    low = [(f_hz[k], _bus_rigid_motion(frame, phi, k)) for k in range(8) if f_hz[k] < 0.5]
+    bounce = [f for f, m in low if abs(m["uz"]) > 0.9]
+    pendulum_x = [f for f, m in low if abs(m["ux"]) > 0.9]
+    pendulum_y = [f for f, m in low if abs(m["uy"]) > 0.9]
+    assert len(bounce) == 1 and 0.17 < bounce[0] < 0.23  # seed: 0.2 Hz
+    assert len(pendulum_x) == 1 and len(pendulum_y) == 1
+    for f in pendulum_x + pendulum_y:
+        assert abs(f - np.sqrt(9.81 / 5.0) / (2 * np.pi)) < 0.02  # seed: 0.23 Hz
+    kinds = classify_mace_modes(mace, 30)
+    violins = [r["f_hz"] for r in kinds if r["type"] == "violin"]
+    outer = [f for f in violins if 6.5 < f < 8.5]  # seed: 7.26 / 7.34 Hz
+    centre = [f for f in violins if 10.5 < f < 13.0]  # seed: 11.65 Hz
+    assert len(outer) >= 4 and len(centre) >= 2
+    assert min(f for f, _ in low) > 0.1  # no rigid-body mode left in 1 g
+
+
+def test_mace_zero_g_rigid_modes_and_horizontal_bending_shift(mace):
+    zero = mace.without("suspension", "gravity")
+    f0, _ = zero.build_structure().modes(n_modes=12)
+    assert np.sum(f0 < 1e-3) == 6 and f0[6] > 0.1
+    one = classify_mace_modes(mace, 20)
+    zer = classify_mace_modes(zero, 20)
+
+    def first(info, kind):
+        return next(r["f_hz"] for r in info if r["type"] == kind)
+
+    h1, h0 = first(one, "horizontal bending"), first(zer, "horizontal bending")
+    v1, v0 = first(one, "vertical bending"), first(zer, "vertical bending")
+    shift = h1 / h0 - 1
+    assert 0.03 < shift < 0.2, (h0, h1)  # MACE Table 1: 12.7 %
+    assert abs(v1 / v0 - 1) < 0.03  # MACE Table 1: 1.4 %
+    assert 2.0 < v0 < h0 < 4.5  # MACE Table 1, 0 g: 2.10 and 3.31 Hz
+
+
+def test_mace_without_equals_zero_g_built_from_scratch(mace):
+    removed = mace.without("suspension", "gravity")
+    scratch = rc.examples.mace_beam(zero_g=True)
+    assert removed.param_names == scratch.param_names
+    a, b = removed.build_structure().matrices(sparse=False), scratch.build_structure().matrices(sparse=False)
+    assert a.dof_labels == b.dof_labels and a.inputs == b.inputs and a.outputs == b.outputs
+    for x, y in ((a.mass, b.mass), (a.stiffness, b.stiffness), (a.damping, b.damping),
+                 (a.input_matrix, b.input_matrix), (a.output_matrix, b.output_matrix)):
+        x, y = np.asarray(x), np.asarray(y)
+        assert np.abs(x - y).max() <= 1e-10 * max(np.abs(y).max(), 1.0)
+    fa, _ = removed.build_structure().modes(n_modes=20)
+    fb, _ = scratch.build_structure().modes(n_modes=20)
+    np.testing.assert_allclose(fa, fb, rtol=1e-10, atol=1e-10)
+    # and the suspension and gravity are really gone, but nothing else
+    assert not any("suspension" in p.tags or "gravity" in p.tags for p in removed.params)
+    assert "load_rods" not in removed.build_structure().element_groups()
+    assert mace.build_structure().preload() is not None and removed.build_structure().preload() is None
+
+
+def test_mace_io_model_channels_servo_stability_and_frf(mace):
+    assert mace.inputs == ("primary gimbal x command", "primary gimbal y command", "RWA x", "RWA y", "RWA z")
+    assert mace.outputs == ("primary gyro x", "primary gyro y", "RWA gyro x", "RWA gyro y", "RWA gyro z")
+    for model in (mace, mace.without("suspension", "gravity")):
+        poles = np.linalg.eigvals(model.statespace().A)
+        assert poles.real.max() < 1e-6  # gimbal servo loops stable in 1 g and 0 g
+    frd = mace.freqresp(np.linspace(0.1, 60.0, 200))
+    assert frd.response.shape == (200, 5, 5) and np.all(np.isfinite(frd.response))
+    full = rc.examples.mace_beam(disturbance_inputs=True, encoder_outputs=True)
+    assert "secondary gimbal x command" in full.inputs and "primary encoder y" in full.outputs
+    open_loop = rc.examples.mace_beam(servo_loops=False)
+    assert open_loop.inputs[:2] == ("primary gimbal x", "primary gimbal y")
+    with pytest.raises(rc.ModelError, match="n_rod_elements"):
+        rc.examples.mace_beam(n_rod_elements=1)

@@ -2,17 +2,16 @@
 
 * :func:`caltech_truss` -- the Caltech two-story hanging truss (Balas & Doyle): three
   voice coils in, three accelerometers out.
-* :func:`make_experiment`, :func:`caltech_truss_experiment` -- truth generators: simulated
-  test data of a model with a hidden physical effect and parameter errors.
+* :func:`mace_beam` -- a MACE-like suspended bus (Glaese & Miller) with gimbals, reaction
+  wheels, servo loops and electronics; ``.without("suspension", "gravity")`` is its 0-g model.
+* :func:`make_experiment`, :func:`caltech_truss_experiment`, :func:`mace_beam_experiment` --
+  truth generators: simulated test data of a model with a hidden physical effect and
+  parameter errors.
 """
 
 from .caltech_truss import caltech_truss, truss_modes
 from .experiments import caltech_truss_experiment, mace_beam_experiment, make_experiment
+from .mace_beam import mace_beam, mace_modes
 
-__all__ = [
-    "caltech_truss",
-    "truss_modes",
-    "make_experiment",
-    "caltech_truss_experiment",
-    "mace_beam_experiment",
-]
+__all__ = ["caltech_truss", "truss_modes", "mace_beam", "mace_modes"]
+__all__ += ["make_experiment", "caltech_truss_experiment", "mace_beam_experiment"]

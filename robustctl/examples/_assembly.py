@@ -241,9 +241,13 @@ def pd_controller(
     *,
     lowpass_hz: float = math.inf,
     delay_s: float = 0.0,
+    rolloff_order: int = 2,
     pade_order: int = 2,
 ):
-    """PD servo compensator ``K(s) = gain (1 + s / w_d) w_c / (s + w_c) e^{-s delay}``.
+    """PD servo compensator ``K(s) = gain (1 + s / w_d) R(s) e^{-s delay}`` with roll-off R.
+
+    ``R(s) = w_c / (s + w_c)`` (``rolloff_order=1``) or the Butterworth pair
+    ``w_c^2 / (s^2 + sqrt(2) w_c s + w_c^2)`` (``rolloff_order=2``), unit gain at DC.
 
     Parameters
     ----------
@@ -253,10 +257,12 @@ def pd_controller(
         Derivative corner ``w_d / 2 pi`` in Hz (the rate feedback of MACE's digitally
         differentiated encoder); must be finite and > 0.
     lowpass_hz : float
-        Roll-off corner ``w_c / 2 pi`` in Hz (> ``lead_hz``); ``inf`` gives an improper PD
-        and is refused.
+        Roll-off corner ``w_c / 2 pi`` in Hz (> ``lead_hz``); must be finite (a PD without
+        roll-off is improper).
     delay_s : float
         Sampling delay of the digital loop in s (Pade approximant of ``pade_order``).
+    rolloff_order : {1, 2}
+        Order of the roll-off.
 
     Returns
     -------
@@ -271,9 +277,17 @@ def pd_controller(
         raise ModelError(
             f"the PD roll-off ({lowpass_hz!r} Hz) must be finite and above the lead corner ({lead_hz!r} Hz)."
         )
+    if rolloff_order not in (1, 2):
+        raise ModelError(f"rolloff_order must be 1 or 2; got {rolloff_order!r}.")
     g = float(gain)
-    # gain (1 + s/wd) wc/(s + wc) = gain wc/wd + gain wc (1 - wc/wd)/(s + wc)
-    pd = _ss([[-wc]], [[wc]], [[g * (1 - wc / wd)]], [[g * wc / wd]], ["u"], ["y"])
+    if rolloff_order == 1:
+        # gain (1 + s/wd) wc/(s + wc) = gain wc/wd + gain wc (1 - wc/wd)/(s + wc)
+        pd = _ss([[-wc]], [[wc]], [[g * (1 - wc / wd)]], [[g * wc / wd]], ["u"], ["y"])
+    else:
+        # states scaled by wc: x1' = wc x2, x2' = -wc x1 - sqrt2 wc x2 + wc u; R = x1
+        z = math.sqrt(2.0)
+        A = [[0.0, wc], [-wc, -z * wc]]
+        pd = _ss(A, [[0.0], [wc]], [[g, g * wc / wd]], [[0.0]], ["u"], ["y"])
     if delay_s:
         pd = pd_series(pd, pade_delay(delay_s, pade_order))
     return pd
@@ -298,6 +312,7 @@ def pd_servo_stage(
     *,
     lowpass_hz: str | float,
     delay_s: str | float = 0.0,
+    rolloff_order: int = 2,
     reference_input_name: str | None = None,
     name: str | None = None,
     tags: Sequence[str] = ("electronics", "servo"),
@@ -310,7 +325,7 @@ def pd_servo_stage(
     def fn(theta: Mapping[str, float], sys: Any):
         k = pd_controller(
             value(theta, gain), value(theta, lead_hz), lowpass_hz=value(theta, lowpass_hz),
-            delay_s=value(theta, delay_s),
+            delay_s=value(theta, delay_s), rolloff_order=rolloff_order,
         )
         return close_servo_loop(sys, sensor, actuator, k, reference_input_name)
 
