@@ -121,7 +121,9 @@ def run() -> dict:
         evalues = iter(e * (1 + 1e-3 * np.arange(1, 100)))
         t_structural = _median_time(lambda: model.freqresp(f, E_aluminium=next(evalues)))
         ours = rc.freqresp(sys, f).response
-        theirs = np.moveaxis(np.asarray(control.frequency_response(sys, 2 * np.pi * f).fresp), -1, 0)
+        resp = control.frequency_response(sys, 2 * np.pi * f)
+        data = resp.frdata if hasattr(resp, "frdata") else resp.fresp
+        theirs = np.moveaxis(np.asarray(data), -1, 0)
         agree = float(np.abs(ours - theirs).max() / np.abs(theirs).max())
         figures = _caltech_figures(model)
         mace = _mace_figures()
