@@ -217,3 +217,41 @@ def test_unknown_names_and_bad_bounds(model, truth_data):
         levenberg_marquardt(res, ["nope"])
     with pytest.raises(rc.FitError, match=r"bounds exclude the starting point: k1 = 1000"):
         levenberg_marquardt(res, ["k1"], bounds={"k1": (1100.0, 1200.0)})
+
+
+def test_negligible_channels_are_dropped(model, truth_data):
+    g = truth_data.response.copy()
+    g[:, 0, 1] *= 1e-7  # a decoupled axis: 140 dB below its row and column
+    res = Residual(model, truth_data.replace(response=g))
+    assert [(o, i) for o, i, _ in res.dropped] == [("x1", "f2")]
+    assert res.dropped[0][2] < -80.0
+    assert np.all(res.weights[:, 0, 1] == 0) and np.all(res.weights[:, 1, 1] == 1)
+    assert Residual(model, truth_data.replace(response=g), min_channel_db=None).dropped == []
+    g[:, 0, 1] = 0.0
+    with pytest.raises(rc.DataError, match=r"x1 <- f2 is identically zero"):
+        Residual(model, truth_data.replace(response=g), min_channel_db=None)
+    assert Residual(model, truth_data.replace(response=g)).dropped[0][:2] == ("x1", "f2")
+
+
+def _fragile(limit: float) -> rc.PhysicalModel:
+    """The chain whose build refuses k1 > limit (as a gravity iteration may fail to converge)."""
+    base = chain_model()
+
+    def dynamics(th, struct):
+        if th["k1"] > limit:
+            raise rc.ModelError(f"cannot build with k1 = {th['k1']}")
+        return base.dynamics(th, struct)
+
+    return rc.PhysicalModel(params=base.params, dynamics=dynamics, name="fragile chain")
+
+
+def test_failed_model_builds_are_survived(model, truth_data):
+    ref = sensitivities(Residual(model, truth_data), ["k1"]).dJ
+    res = Residual(_fragile(1000.0), truth_data)  # the forward step fails: mirrored step
+    sens = sensitivities(res, ["k1"])
+    assert sens.trial[0] < 1000.0
+    assert np.linalg.norm(sens.dJ - ref) < 1e-4 * np.linalg.norm(ref)
+    fit = levenberg_marquardt(Residual(_fragile(1040.0), truth_data), ["k1", "k2", "m2"], max_iter=15)
+    assert fit.x["k1"] <= 1040.0 and fit.cost < fit.cost0
+    with pytest.raises(rc.FitError, match=r"cannot be evaluated for the finite difference of 'k1'"):
+        sensitivities(res, ["k1"], origin={"k1": 999.0}, at={"k1": 1001.0})

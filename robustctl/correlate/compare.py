@@ -513,6 +513,8 @@ class Comparison:
     model_name : str
     threshold_db : float
         Threshold used for the bands.
+    dropped : tuple of (output, input, level_dB)
+        Negligible channels left out of the cost (weight 0).
     """
 
     cost: float
@@ -532,6 +534,7 @@ class Comparison:
     model_response: np.ndarray = field(repr=False)
     model_name: str = "model"
     threshold_db: float = 3.0
+    dropped: tuple[tuple[str, str, float], ...] = ()
 
     # ------------------------------------------------------------------ tables
     def table(self) -> Table:
@@ -636,6 +639,9 @@ class Comparison:
                 f"{worst.f_data:.4g} Hz (data)."
             )
         lines.append("Error structure: " + self.structure.describe())
+        if self.dropped:
+            names = ", ".join(f"{o} <- {i} ({lv:.0f} dB)" for o, i, lv in self.dropped)
+            lines.append(f"Left out as negligible (decoupled) channels: {names}.")
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:
@@ -714,6 +720,7 @@ def compare(
     threshold_db: float = 3.0,
     n_bands: int = 5,
     max_zeta: float = 0.5,
+    min_channel_db: float | None = -80.0,
 ) -> Comparison:
     """Compare a physical model with measured frequency responses (MACE eq. 5, Table 1).
 
@@ -737,6 +744,9 @@ def compare(
         How many worst bands to keep.
     max_zeta : float
         Model poles with a damping ratio at or above this are not listed as modes.
+    min_channel_db : float or None
+        Negligible channels (see :class:`Residual`) get weight 0 and are left out of the
+        cost, the bands and the structure split; they stay in the dB/phase maps.
 
     Returns
     -------
@@ -749,7 +759,7 @@ def compare(
     """
     if threshold_db <= 0:
         raise DataError(f"threshold_db must be positive (dB); got {threshold_db!r}.")
-    res = Residual(model, data, band=band, weights=weights)
+    res = Residual(model, data, band=band, weights=weights, min_channel_db=min_channel_db)
     g_model = res.model_response()
     d = res.data
     weighted = res.weights * log_ratio(d.response, g_model)
@@ -773,7 +783,7 @@ def compare(
         error=error,
         mag_error_db=error.real * DB_PER_NEPER,
         phase_error_deg=np.degrees(error.imag),
-        bands=_worst_bands(f, error, d.outputs, d.inputs, threshold_db, n_bands),
+        bands=_worst_bands(f, error * (res.weights > 0), d.outputs, d.inputs, threshold_db, n_bands),
         modes=_mode_rows(model_modes, data_modes),
         mode_source=source,
         structure=error_structure(weighted, d.w, d.outputs, d.inputs),
@@ -783,4 +793,5 @@ def compare(
         model_response=g_model,
         model_name=getattr(model, "name", "model"),
         threshold_db=float(threshold_db),
+        dropped=tuple(res.dropped),
     )

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import FitError, ModelError
+from ..errors import FitError, ModelError, RobustctlError
 from .residual import Residual, _check_names, sensitivities
 
 __all__ = ["LMResult", "levenberg_marquardt"]
@@ -129,7 +129,8 @@ def _start(model: Any, names: tuple[str, ...], x0: Any, lo: np.ndarray, hi: np.n
     ]
     if outside:
         raise FitError(
-            "the bounds exclude the starting point: " + "; ".join(outside)
+            "the bounds exclude the starting point: "
+            + "; ".join(outside)
             + ". Widen the bounds or start inside them."
         )
     if not np.all(np.isfinite(x)):
@@ -300,8 +301,12 @@ def levenberg_marquardt(
                 if np.linalg.norm(dz) <= xtol * (np.linalg.norm(z) + xtol):
                     break
                 x_new = np.clip((z + dz) * scale, lo, hi)
-                r_new = residual.vector(**overrides(x_new))
                 st.n_evals += 1
+                try:
+                    r_new = residual.vector(**overrides(x_new))
+                except RobustctlError:  # the model cannot be built there: a rejected step
+                    st.lam *= 10.0
+                    continue
                 c_new = float(r_new @ r_new)
                 if np.isfinite(c_new) and c_new < st.cost:
                     accepted = True

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import DataError, ModelError
+from ..errors import DataError, FitError, ModelError, RobustctlError
 from ..frd import FrequencyData
 
 __all__ = [
@@ -126,6 +126,27 @@ def _weights(weights: Any, data: FrequencyData) -> np.ndarray:
     return w
 
 
+def _negligible_channels(data: FrequencyData, min_db: float | None) -> list[tuple[str, str, float]]:
+    """Channels far below the largest of their row and column (``(output, input, level_dB)``)."""
+    rms = np.sqrt(np.mean(np.abs(data.response) ** 2, axis=0))
+    if min_db is None:
+        zero = rms == 0
+        if np.any(zero):
+            o, i = np.argwhere(zero)[0]
+            raise DataError(
+                f"data channel {data.outputs[o]} <- {data.inputs[i]} is identically zero on the band; its "
+                "log error is undefined. Drop it with data.select(...), weight it 0, or let "
+                "min_channel_db drop negligible channels."
+            )
+        return []
+    ref = np.sqrt(np.outer(rms.max(axis=1), rms.max(axis=0)))
+    with np.errstate(divide="ignore"):
+        level = 20.0 * np.log10(np.where(ref > 0, rms / np.where(ref > 0, ref, 1.0), 0.0))
+    return [
+        (data.outputs[o], data.inputs[i], float(level[o, i])) for o, i in np.argwhere(level < float(min_db))
+    ]
+
+
 class Residual:
     """Weighted complex-log residual of a model against data on a band (MACE eqs. 5-6).
 
@@ -141,6 +162,12 @@ class Residual:
         Per-point weights ``w`` (broadcast to the banded data shape). ``"coherence"``
         uses ``w = sqrt(g2 / (1 - g2))`` (inverse standard deviation of the log estimate,
         g2 the coherence clipped at 0.999), normalised to mean(w^2) = 1.
+    min_channel_db : float or None
+        Channels whose RMS data magnitude on the band lies more than this many dB below
+        the geometric mean of the largest channel in their row and in their column are
+        given weight 0 (listed in ``dropped``): decoupled axes of a symmetric structure
+        measure noise, and their log error would swamp the cost. ``None`` keeps every
+        channel and refuses identically zero ones.
 
     Attributes
     ----------
@@ -149,6 +176,8 @@ class Residual:
     data : FrequencyData
         The banded data, channels in data order.
     weights : ndarray, shape (n_freq_band, n_out, n_in)
+    dropped : list of (output, input, level_db)
+        Channels given weight 0 as negligible, with their relative level in dB.
 
     Notes
     -----
@@ -163,6 +192,7 @@ class Residual:
         data: FrequencyData,
         band: Sequence[float] | None = None,
         weights: Any = None,
+        min_channel_db: float | None = -80.0,
     ) -> None:
         if not isinstance(data, FrequencyData):
             raise DataError(f"data must be a FrequencyData; got {type(data).__name__}.")
@@ -176,14 +206,12 @@ class Residual:
         sys0 = model.statespace()
         self._out_idx = _channel_index(sys0.output_labels, self.data.outputs, "outputs")
         self._in_idx = _channel_index(sys0.input_labels, self.data.inputs, "inputs")
-        zero = np.all(np.abs(self.data.response) == 0, axis=0)
-        if np.any(zero):
-            o, i = np.argwhere(zero)[0]
-            raise DataError(
-                f"data channel {self.data.outputs[o]} <- {self.data.inputs[i]} is identically zero "
-                "on the band; its log error is undefined. Drop it with data.select(...) or weight it 0."
-            )
         self.weights = _weights(weights, self.data)
+        self.dropped = _negligible_channels(self.data, min_channel_db)
+        for o, i, _level in self.dropped:
+            self.weights[:, self.data.outputs.index(o), self.data.inputs.index(i)] = 0.0
+        if not np.any(self.weights > 0):
+            raise DataError("every channel has zero weight; nothing is left to compare.")
         self.n = 2 * self.data.response.size
 
     # ------------------------------------------------------------------ evaluation
@@ -282,9 +310,7 @@ def _check_names(model: Any, names: Sequence[str]) -> tuple[str, ...]:
     known = set(model.param_names)
     unknown = [n for n in names if n not in known]
     if unknown:
-        raise ModelError(
-            f"unknown parameter(s) {unknown}; the model has {list(model.param_names)}."
-        )
+        raise ModelError(f"unknown parameter(s) {unknown}; the model has {list(model.param_names)}.")
     if len(set(names)) != len(names):
         raise ModelError(f"parameter names repeat: {list(names)}.")
     return names
@@ -303,8 +329,12 @@ def _trial_value(param: Any, base: float, step: float) -> float:
     )
 
 
-def _evaluate(residual: Residual, overrides: dict[str, float]) -> np.ndarray:
-    return residual.vector(**overrides)
+def _evaluate(residual: Residual, overrides: dict[str, float]) -> np.ndarray | RobustctlError:
+    """The residual vector, or the RobustctlError the model build raised (so a batch survives)."""
+    try:
+        return residual.vector(**overrides)
+    except RobustctlError as exc:
+        return exc
 
 
 def _map(fn, residual: Residual, points: list[dict], executor: Executor | None, progress: bool, desc: str):
@@ -414,15 +444,44 @@ def sensitivities(
     vectors = _map(_evaluate, residual, points, executor, progress, "sensitivities")
     if j0 is None:
         j0, vectors = vectors[0], vectors[1:]
+        if isinstance(j0, RobustctlError):
+            raise j0
     j0 = np.asarray(j0, dtype=float)
+    for k, v in enumerate(vectors):
+        if isinstance(v, RobustctlError):
+            vectors[k], trials[k] = _retry_mirrored(residual, names[k], base, trials[k], kinds[k], v)
+            n_evals += 1
     trial = np.array(trials)
     delta = trial - np.array([base[n] for n in names])
     scale = np.array(scales)
     dJ = np.column_stack([(v - j0) * (s / d) for v, s, d in zip(vectors, scale, delta)])
     return Sensitivities(
-        j0, dJ, names=names, base=base, trial=trial, delta=delta, scale=scale, kind=tuple(kinds),
+        j0,
+        dJ,
+        names=names,
+        base=base,
+        trial=trial,
+        delta=delta,
+        scale=scale,
+        kind=tuple(kinds),
         n_evals=n_evals,
     )
+
+
+def _retry_mirrored(
+    residual: Residual, name: str, base: dict[str, float], trial: float, kind: str, exc: Exception
+) -> tuple[np.ndarray, float]:
+    """Evaluate at the step mirrored about the base value after a failed evaluation."""
+    par = residual.model.param(name)
+    mirrored = 2.0 * base[name] - trial
+    if kind != "secant" and par.bounds[0] <= mirrored <= par.bounds[1]:
+        v = _evaluate(residual, {**_diff(base, residual.model.values), name: mirrored})
+        if not isinstance(v, RobustctlError):
+            return v, mirrored
+    raise FitError(
+        f"the model cannot be evaluated for the finite difference of {name!r} at {trial:g} "
+        f"{par.unit}: {exc} Give a different step (steps={{{name!r}: ...}}) or leave {name!r} out."
+    ) from exc
 
 
 def _diff(theta: Mapping[str, float], values: Mapping[str, float]) -> dict[str, float]:
