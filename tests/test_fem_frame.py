@@ -411,3 +411,15 @@ def test_rigid_link_errors():
     fr2.add_mass("a", 1.0)
     with pytest.raises(ModelError, match="fix its master 'a'"):
         fr2.matrices()
+
+
+def test_without_returns_an_independent_copy():
+    full = suspended_frame()
+    before = full.matrices()
+    reduced = full.without("gravity")
+    reduced.add_mass("a", 5.0).scale_group_stiffness("bus", 3.0).add_node("extra", (9, 9, 9))
+    reduced.add_beam("bus", "a", "extra", **PROPS)
+    after = full.matrices()
+    assert np.array_equal(before.mass, after.mass) and np.array_equal(before.stiffness, after.stiffness)
+    assert "extra" not in full.locations() and len(full.element_names("bus")) == 4
+    assert reduced.element_names("bus")[-1] == "bus[4]"

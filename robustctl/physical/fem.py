@@ -15,7 +15,8 @@ DOFs are six per node ``[ux uy uz rx ry rz]`` in global axes (m, rad). On assemb
    nodes follow their master rigidly; fixed DOFs are dropped);
 3. DOFs that have neither mass nor stiffness (rotations of nodes joined only by rods) are
    dropped; an input or output on such a DOF is an error;
-4. with gravity on, the preload iteration gives the axial forces and ``K + K_g(N)``;
+4. with gravity on, the preload iteration (:func:`~robustctl.physical.gravity.preload_iteration`)
+   gives the member axial forces -- and the forces rigid links carry -- and ``K + K_g(N)``;
 5. DOFs with stiffness but no mass are condensed statically (Guyan): their motion is the
    static response to the massive DOFs, and the input/output pointing matrices are
    transformed with the same matrix, so sensors and actuators on them keep working.
@@ -25,7 +26,7 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
@@ -47,14 +48,14 @@ _STRAIN_KINDS = ("axial", "bending_y", "bending_z")
 
 
 # ---------------------------------------------------------------------- components
-@dataclass
+@dataclass(frozen=True)
 class _Node:
     name: str
     xyz: np.ndarray
     tags: tuple[str, ...] = ()
 
 
-@dataclass
+@dataclass(frozen=True)
 class _Element:
     name: str
     group: str
@@ -74,7 +75,7 @@ class _Element:
     tags: tuple[str, ...] = ()
 
 
-@dataclass
+@dataclass(frozen=True)
 class _Mass:
     node: str
     mass: float
@@ -82,7 +83,7 @@ class _Mass:
     tags: tuple[str, ...] = ()
 
 
-@dataclass
+@dataclass(frozen=True)
 class _Spring:
     node: str
     node2: str | None
@@ -92,21 +93,21 @@ class _Spring:
     tags: tuple[str, ...] = ()
 
 
-@dataclass
+@dataclass(frozen=True)
 class _Link:
     master: str
     slave: str
     tags: tuple[str, ...] = ()
 
 
-@dataclass
+@dataclass(frozen=True)
 class _Fix:
     node: str
     dofs: tuple[int, ...]
     tags: tuple[str, ...] = ()
 
 
-@dataclass
+@dataclass(frozen=True)
 class _Signal:
     """An input or an output: a sum of 6-vector pointings at nodes, or a strain gauge."""
 
@@ -127,7 +128,6 @@ class _Assembly:
     T_red: sp.csr_matrix  # full DOFs -> DOFs of the preload solve
     preload: PreloadResult | None
     axial: np.ndarray
-    extra: dict = field(default_factory=dict)
 
 
 # ---------------------------------------------------------------------- validation helpers
@@ -258,6 +258,7 @@ class Frame(Structure):
         self._outputs: dict[str, _Signal] = {}
         self._group_scale: dict[str, float] = {}
         self._group_tension: dict[str, float] = {}
+        self._group_count: dict[str, int] = {}
         self._cache: _Assembly | None = None
 
     # ------------------------------------------------------------------ nodes
@@ -308,7 +309,7 @@ class Frame(Structure):
                 f"zero-length element between {n1!r} and {n2!r}: the nodes coincide. Use "
                 "add_rigid_link or add_spring to join coincident nodes."
             )
-        if int(n_elements) != n_elements or n_elements < 1:
+        if not isinstance(n_elements, (int, np.integer)) or n_elements < 1:
             raise ModelError(f"n_elements must be a positive integer; got {n_elements!r}.")
         names = [n1]
         for j in range(1, int(n_elements)):
@@ -322,12 +323,11 @@ class Frame(Structure):
         return list(zip(names[:-1], names[1:]))
 
     def _element_name(self, group: str) -> str:
-        k = sum(1 for e in self._elements.values() if e.group == group)
-        name = f"{group}[{k}]"
-        while name in self._elements:
+        k = self._group_count.get(group, 0)
+        while f"{group}[{k}]" in self._elements:
             k += 1
-            name = f"{group}[{k}]"
-        return name
+        self._group_count[group] = k + 1
+        return f"{group}[{k}]"
 
     def add_beam(
         self,
@@ -731,8 +731,9 @@ class Frame(Structure):
         if len(tags) == 1 and not isinstance(tags[0], str):
             tags = tuple(tags[0])
         drop = frozenset(str(t) for t in tags)
-        new = copy.copy(self)  # components are never mutated in place: share them
+        new = copy.copy(self)  # components are frozen: share them, copy the containers
         new._cache = None
+        new._group_count = dict(self._group_count)
         new._modal_damping_bands = self.modal_damping_bands()
         if "gravity" in drop:
             new._gravity_on = False
