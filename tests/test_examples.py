@@ -211,3 +211,30 @@ def test_mace_io_model_channels_servo_stability_and_frf(mace):
     assert open_loop.inputs[:2] == ("primary gimbal x", "primary gimbal y")
     with pytest.raises(rc.ModelError, match="n_rod_elements"):
         rc.examples.mace_beam(n_rod_elements=1)
+
+
+# ============================================================================ assembly helpers
+def test_pd_controller_and_channel_combinations():
+    import control
+
+    from robustctl.examples._assembly import combine_inputs, combine_outputs, pd_controller, select_signals
+
+    for order in (1, 2):
+        k = pd_controller(2.0, 1.0, lowpass_hz=10.0, rolloff_order=order)
+        for f in (0.0, 1.0, 10.0, 100.0):
+            s = 2j * np.pi * f
+            roll = (20 * np.pi / (s + 20 * np.pi)) if order == 1 else (
+                (20 * np.pi) ** 2 / (s**2 + np.sqrt(2) * 20 * np.pi * s + (20 * np.pi) ** 2))
+            expected = 2.0 * (1 + s / (2 * np.pi)) * roll
+            assert complex(control.evalfr(k, s)) == pytest.approx(expected, rel=1e-12)
+    with pytest.raises(rc.ModelError, match="roll-off"):
+        pd_controller(1.0, 5.0, lowpass_hz=2.0)
+    sys = control.ss(-np.eye(2), np.eye(2), np.eye(2), np.zeros((2, 2)), inputs=["a", "b"],
+                     outputs=["p", "q"])
+    pair = combine_inputs(sys, {"ab": {"a": 1.0, "b": -1.0}})
+    assert list(pair.input_labels) == ["ab"] and np.allclose(pair.B, [[1.0], [-1.0]])
+    rel = combine_outputs(sys, {"q-p": {"q": 1.0, "p": -1.0}})
+    assert list(rel.output_labels) == ["q-p"] and np.allclose(rel.C, [[-1.0, 1.0]])
+    assert list(select_signals(sys, ["b"], ["p"]).input_labels) == ["b"]
+    with pytest.raises(rc.ModelError, match="unknown input"):
+        combine_inputs(sys, {"x": {"nope": 1.0}})

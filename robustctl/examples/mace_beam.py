@@ -60,8 +60,9 @@ sampling delay (``delay_sampling``, 2nd-order Pade) on the gyro outputs -> the f
 servo loops, closed digitally on the encoders with the same delay: a PD compensator
 ``k (1 + s/w_lead)`` with a 2nd-order Butterworth roll-off, per axis (*derived* by loop
 shaping on this model): about x ``k_servo_x`` 3.5 V/rad, lead 0.8 Hz, roll-off 10 Hz
-(crossovers 2.6-4.4 Hz, phase margin 38-50 degrees); about y ``k_servo_y`` 8 V/rad,
-lead 0.6 Hz, roll-off 4 Hz (crossovers 1.5-2.9 Hz, phase margin 15-34 degrees). The
+(gain crossovers up to 3.4-4.4 Hz, phase margins >= 38 degrees, gain margin 10 dB);
+about y ``k_servo_y`` 6 V/rad, lead 0.6 Hz, roll-off 4 Hz (crossovers up to 2.8 Hz,
+phase margins >= 20 degrees, gain margin 8 dB), in 1 g and 0 g alike. The
 seed's servos have "approximately 3 Hz" bandwidth; here the y axis stays lower because
 the gimbal torque reacts on the bus end, whose end-slope resonances (16.6, 34 and 44 Hz,
 1 % damped) are as large as the payload response at crossover and the sampling delay
@@ -182,7 +183,7 @@ _SERVO = (
     ("k_servo_x", 3.5, "V/rad", (0.1, 50.0), "proportional gain of the gimbal servos about x"),
     ("f_servo_lead_x", 0.8, "Hz", (0.1, 5.0), "rate-feedback corner of the gimbal servos about x"),
     ("f_servo_lowpass_x", 10.0, "Hz", (2.0, 100.0), "roll-off of the gimbal servos about x"),
-    ("k_servo_y", 8.0, "V/rad", (0.1, 100.0), "proportional gain of the gimbal servos about y"),
+    ("k_servo_y", 6.0, "V/rad", (0.1, 100.0), "proportional gain of the gimbal servos about y"),
     ("f_servo_lead_y", 0.6, "Hz", (0.1, 5.0), "rate-feedback corner of the gimbal servos about y"),
     ("f_servo_lowpass_y", 4.0, "Hz", (1.0, 100.0), "roll-off of the gimbal servos about y"),
 )
