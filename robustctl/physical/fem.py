@@ -786,8 +786,8 @@ class Frame(Structure):
             mass=conv(sm.mass),
             stiffness=conv(sm.stiffness),
             damping=conv(sm.damping),
-            input_matrix=sm.input_matrix,
-            output_matrix=sm.output_matrix,
+            input_matrix=sm.input_matrix.copy(),
+            output_matrix=sm.output_matrix.copy(),
             output_kinds=sm.output_kinds,
             inputs=sm.inputs,
             outputs=sm.outputs,
@@ -801,7 +801,25 @@ class Frame(Structure):
         band_hz: tuple[float, float] | None = None,
         sparse: bool | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Natural frequencies (Hz) and mass-normalised mode shapes over the free DOFs."""
+        """Natural frequencies and mass-normalised mode shapes (via :func:`solve_modes`).
+
+        Parameters
+        ----------
+        n_modes : int, optional
+            Number of lowest modes (all when omitted).
+        band_hz : (float, float), optional
+            Keep the modes in this band, Hz.
+        sparse : bool, optional
+            Force the sparse shift-invert (True) or dense (False) eigensolver.
+
+        Returns
+        -------
+        f_hz : ndarray
+            Natural frequencies in Hz, ascending (0 for rigid-body modes).
+        phi : ndarray, shape (n_dof, n)
+            Mode shapes over the free DOFs of :meth:`matrices` (``dof_labels``),
+            ``phi.T M phi = I``.
+        """
         sm = self.matrices()  # dense up to SPARSE_THRESHOLD DOFs, as solve_modes prefers
         w, phi = limit_blas(solve_modes)(
             sm.mass, sm.stiffness, n_modes=n_modes, band_hz=band_hz, sparse=sparse
@@ -860,6 +878,7 @@ class _ElementStacks:
 
 
 def _element_stacks(frame: Frame, index: dict[str, int], X: np.ndarray) -> _ElementStacks:
+    """Element matrices in global axes, stacked per kind, for the frame's elements in order."""
     elems = list(frame._elements.values())
     scale = np.array([frame._group_scale.get(e.group, 1.0) for e in elems])
     n1 = np.array([index[e.n1] for e in elems], dtype=int)
@@ -869,62 +888,51 @@ def _element_stacks(frame: Frame, index: dict[str, int], X: np.ndarray) -> _Elem
         k: np.array([getattr(e, k) for e in elems], dtype=float)
         for k in ("E", "G", "A", "rho", "Iy", "Iz", "J")
     }
-    E = prop["E"] * scale
+    prop["E"], prop["G"] = prop["E"] * scale, prop["G"] * scale
     d = X[n2] - X[n1] if elems else np.zeros((0, 3))
     L = np.linalg.norm(d, axis=1)
-    axis = d / np.where(L > 0, L, 1.0)[:, None]
     bi, ri = np.flatnonzero(is_beam), np.flatnonzero(~is_beam)
-    # beams
-    if bi.size:
-        orient = el.default_orient(X[n1[bi]], X[n2[bi]])
-        for j, i in enumerate(bi):
-            if elems[i].orient is not None:
-                orient[j] = elems[i].orient
-        R = el.beam_axes(X[n1[bi]], X[n2[bi]], orient)
-        p = {k: v[bi] for k, v in prop.items()}
-        Lb = L[bi]
-        kl = el.beam_local_stiffness(Lb, E[bi], p["G"] * scale[bi], p["A"], p["Iy"], p["Iz"], p["J"])
-        rot = np.array([elems[i].rotary_inertia for i in bi])
-        ml = el.beam_local_mass(Lb, p["rho"], p["A"], p["Iy"], p["Iz"])
-        if rot.any():
-            ml[rot] = el.beam_local_mass(
-                Lb[rot], p["rho"][rot], p["A"][rot], p["Iy"][rot], p["Iz"][rot], rotary_inertia=True
-            )
-        K_b, M_b = el.beam_to_global(kl, R), el.beam_to_global(ml, R)
-        G_b = el.beam_to_global(el.beam_local_geometric(Lb), R)
-        dofs_b = np.concatenate([6 * n1[bi, None] + np.arange(6), 6 * n2[bi, None] + np.arange(6)], axis=1)
-    else:
-        R = np.zeros((0, 3, 3))
-        K_b = M_b = G_b = np.zeros((0, 12, 12))
-        dofs_b = np.zeros((0, 12), dtype=int)
-    # rods
-    if ri.size:
-        lumped = np.array([elems[i].lumped for i in ri])
-        K_r, M_r, G_r = el.rod_matrices(
-            X[n1[ri]], X[n2[ri]], E[ri], prop["A"][ri], prop["rho"][ri], lumped=lumped
-        )
-        dofs_r = np.concatenate([6 * n1[ri, None] + np.arange(3), 6 * n2[ri, None] + np.arange(3)], axis=1)
-    else:
-        K_r = M_r = G_r = np.zeros((0, 6, 6))
-        dofs_r = np.zeros((0, 6), dtype=int)
+    R, K_b, M_b, G_b, dofs_b = _beam_blocks(elems, bi, X, n1[bi], n2[bi], {k: v[bi] for k, v in prop.items()})
+    K_r, M_r, G_r, dofs_r = _rod_blocks(elems, ri, X, n1[ri], n2[ri], {k: v[ri] for k, v in prop.items()})
+    safe_L = np.where(L > 0, L, 1.0)
     return _ElementStacks(
-        dofs_b,
-        dofs_r,
-        K_b,
-        M_b,
-        G_b,
-        K_r,
-        M_r,
-        G_r,
-        bi,
-        ri,
-        axis,
-        E * prop["A"] / np.where(L > 0, L, 1.0),
-        n1,
-        n2,
-        R,
-        L,
-    )
+        dofs_b, dofs_r, K_b, M_b, G_b, K_r, M_r, G_r, bi, ri, d / safe_L[:, None],
+        prop["E"] * prop["A"] / safe_L, n1, n2, R, L,
+    )  # fmt: skip
+
+
+def _beam_blocks(elems, idx, X, n1, n2, p):
+    """Axes, stiffness, mass, unit geometric stiffness (global) and DOFs of the beams."""
+    if idx.size == 0:
+        empty = np.zeros((0, 12, 12))
+        return np.zeros((0, 3, 3)), empty, empty, empty, np.zeros((0, 12), dtype=int)
+    orient = el.default_orient(X[n1], X[n2])
+    for j, i in enumerate(idx):
+        if elems[i].orient is not None:
+            orient[j] = elems[i].orient
+    R = el.beam_axes(X[n1], X[n2], orient)
+    L = np.linalg.norm(X[n2] - X[n1], axis=1)
+    kl = el.beam_local_stiffness(L, p["E"], p["G"], p["A"], p["Iy"], p["Iz"], p["J"])
+    ml = el.beam_local_mass(L, p["rho"], p["A"], p["Iy"], p["Iz"])
+    rot = np.array([elems[i].rotary_inertia for i in idx])
+    if rot.any():
+        ml[rot] = el.beam_local_mass(
+            L[rot], p["rho"][rot], p["A"][rot], p["Iy"][rot], p["Iz"][rot], rotary_inertia=True
+        )
+    dofs = np.concatenate([6 * n1[:, None] + np.arange(6), 6 * n2[:, None] + np.arange(6)], axis=1)
+    geo = el.beam_local_geometric(L)
+    return R, el.beam_to_global(kl, R), el.beam_to_global(ml, R), el.beam_to_global(geo, R), dofs
+
+
+def _rod_blocks(elems, idx, X, n1, n2, p):
+    """Stiffness, mass, unit geometric stiffness (global) and translational DOFs of the rods."""
+    if idx.size == 0:
+        empty = np.zeros((0, 6, 6))
+        return empty, empty, empty, np.zeros((0, 6), dtype=int)
+    lumped = np.array([elems[i].lumped for i in idx])
+    K, M, G = el.rod_matrices(X[n1], X[n2], p["E"], p["A"], p["rho"], lumped=lumped)
+    dofs = np.concatenate([6 * n1[:, None] + np.arange(3), 6 * n2[:, None] + np.arange(3)], axis=1)
+    return K, M, G, dofs
 
 
 class _Pattern:
