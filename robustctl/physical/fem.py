@@ -1212,9 +1212,11 @@ def _gravity_preload(frame, st, T, full: _Trip, K1, M1, kg_red, tension, links, 
         N = st.EA_L * np.sum(du * st.axis, axis=1)
         if full_pattern is None:
             return N
-        n_used = np.zeros(ne + masters.size) if N_used is None else N_used
-        K = full_pattern.matrix(full.vals[:, _K] + full.vals[:, _G] * n_used[full.tag])
-        link_force = (K @ uf - f_full).reshape(-1, 6)[slaves, :3]  # what the link applies
+        n_elem = np.zeros(ne + masters.size)  # the elements' forces, not the links' own
+        if N_used is not None:
+            n_elem[:ne] = N_used[:ne]
+        K = full_pattern.matrix(full.vals[:, _K] + full.vals[:, _G] * n_elem[full.tag])
+        link_force = (K @ uf - f_full).reshape(-1, 6)[slaves, :3]  # what the link must apply
         return np.concatenate([N, -np.sum(link_force * e_link, axis=1)])
 
     return preload_iteration(
