@@ -166,3 +166,15 @@ def test_compare_bad_input(model, nominal):
         compare(model, nominal.replace(inputs=["a", "b", "c"]))
     with pytest.raises(rc.DataError, match=r"threshold_db must be positive"):
         compare(model, nominal, threshold_db=0.0)
+
+
+def test_mode_table_with_fitted_measurement_model(model):
+    """rc.fit_measurement_model's .modes pair with the model modes, in any channel order."""
+    data = chain3(k2=1060.0).freqresp(F)
+    mm = rc.fit_measurement_model(data, n_modes=3)
+    exact = compare(model, data, measurement_model=types.SimpleNamespace(sys=chain3(k2=1060.0).statespace()))
+    swapped = data.select(outputs=["x3", "x1", "x2"], inputs=["f2", "f3", "f1"])
+    for d in (data, swapped):
+        cmp = compare(model, d, measurement_model=mm)
+        assert [r.f_data for r in cmp.modes] == pytest.approx([r.f_data for r in exact.modes], rel=1e-4)
+        assert all(r.mac > 0.99 for r in cmp.modes)

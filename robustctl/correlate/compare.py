@@ -115,6 +115,18 @@ def _get(obj: Any, *names: str) -> Any:
     return None
 
 
+def _residue_order(mm: Any, outputs, inputs) -> tuple[list[int], list[int]] | None:
+    """Index arrays taking the measurement model's channel order to the data's (or None)."""
+    src = _get(mm, "fit") or mm
+    m_out, m_in = _get(src, "outputs"), _get(src, "inputs")
+    if m_out is None or m_in is None:
+        return None
+    try:
+        return [list(m_out).index(n) for n in outputs], [list(m_in).index(n) for n in inputs]
+    except ValueError:
+        return None
+
+
 def measurement_modes(
     mm: Any, band: tuple[float, float], outputs, inputs, max_zeta: float = 0.5
 ) -> list[Mode]:
@@ -126,6 +138,7 @@ def measurement_modes(
     """
     modes = _get(mm, "modes")
     found: list[Mode] = []
+    order = _residue_order(mm, outputs, inputs)
     if modes is not None and not callable(modes):
         f = _get(modes, "f_hz", "frequency_hz", "freq_hz")
         if f is not None and np.ndim(f) == 1:
@@ -141,6 +154,12 @@ def measurement_modes(
                     found = []
                     break
                 shape = _get(rec, "residue", "shape")
+                if (
+                    shape is not None
+                    and order is not None
+                    and np.shape(shape) == (len(order[0]), len(order[1]))
+                ):
+                    shape = np.asarray(shape)[np.ix_(*order)]
                 zk = _get(rec, "zeta", "damping")
                 found.append(
                     Mode(
