@@ -34,8 +34,8 @@ __all__ = ["PreloadResult", "null_space", "solve_static", "preload_iteration"]
 #: 0.05 Hz on a structure whose stiffest element is at 1e5 Hz is still at 2.5e-13.
 NULL_TOL = 1e-13
 
-#: Above this many DOFs the static solver uses sparse factorisations.
-DENSE_LIMIT = 1500
+#: Above this many DOFs the static solver uses sparse factorisations (as ``solve_modes``).
+DENSE_LIMIT = 600
 
 
 @dataclass(frozen=True)
@@ -232,7 +232,8 @@ def preload_iteration(
         Convergence when ``max |N_k - N_{k-1}| <= tol * max(max|N_k|, tiny)``.
     max_iter : int
         Cap on static solutions; ``max_iter=1`` is the classical one-step differential
-        stiffness (NASTRAN SOL 4 style).
+        stiffness (NASTRAN SOL 4 style), returned with ``converged=False`` unless the
+        forces happen to need no update.
 
     Returns
     -------
@@ -266,8 +267,8 @@ def preload_iteration(
         N = N_new
         if change <= tol * max(float(np.abs(N).max(initial=0.0)), 1e-3 * weight):
             return _result(N, u, it, True, history, removed, f)
-    if max_iter == 1:
-        return _result(N, u, 1, True, history, removed, f)
+    if max_iter == 1:  # the one-step differential stiffness asked for: no convergence test
+        return _result(N, u, 1, False, history, removed, f)
     raise ModelError(
         f"the gravity preload iteration did not converge in {max_iter} steps (last axial-force "
         f"change {history[-1]:.3g} N): the structure is close to buckling under its own weight, "
