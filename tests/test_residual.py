@@ -255,3 +255,11 @@ def test_failed_model_builds_are_survived(model, truth_data):
     assert fit.x["k1"] <= 1040.0 and fit.cost < fit.cost0
     with pytest.raises(rc.FitError, match=r"cannot be evaluated for the finite difference of 'k1'"):
         sensitivities(res, ["k1"], origin={"k1": 999.0}, at={"k1": 1001.0})
+
+
+def test_cost_matches_lti_log_cost(model, truth_data):
+    """One number for MACE eq. 5 across the package (Residual weights act on the residual)."""
+    w = np.linspace(0.5, 2.0, F_HZ.size)[:, None, None] * np.ones((1, 2, 2))
+    res = Residual(model, truth_data, band=(1.0, 10.0), weights=w[(F_HZ >= 1.0) & (F_HZ <= 10.0)])
+    ref = rc.log_cost(truth_data, model.statespace(), band=(1.0, 10.0), weights=w**2)
+    assert res.cost() == pytest.approx(ref, rel=1e-10)

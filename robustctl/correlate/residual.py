@@ -159,7 +159,9 @@ class Residual:
     band : (float, float), optional
         Frequency band ``(lo_hz, hi_hz)`` in Hz; default: every data point.
     weights : None, "coherence" or array_like, optional
-        Per-point weights ``w`` (broadcast to the banded data shape). ``"coherence"``
+        Per-point weights ``w`` on the residual (broadcast to the banded data shape), so the
+        cost is ``sum w^2 |log ratio|^2``: ``Residual(m, d, weights=w).cost()`` equals
+        ``rc.log_cost(d, m, weights=w**2)``, whose weights act on the squared error. ``"coherence"``
         uses ``w = sqrt(g2 / (1 - g2))`` (inverse standard deviation of the log estimate,
         g2 the coherence clipped at 0.999), normalised to mean(w^2) = 1.
     min_channel_db : float or None
