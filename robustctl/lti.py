@@ -101,11 +101,12 @@ def _blocks(A: np.ndarray) -> list[np.ndarray]:
     from scipy.sparse.csgraph import connected_components
 
     n = A.shape[0]
-    if n <= 2:
+    nnz = np.count_nonzero(A)
+    if n <= 2 or nnz == n * n:  # tiny or fully dense: one block
         return [np.arange(n)[None, :]]
     upper, lower = np.diagonal(A, 1) != 0, np.diagonal(A, -1) != 0
     band_nnz = np.count_nonzero(np.diagonal(A)) + np.count_nonzero(upper) + np.count_nonzero(lower)
-    if np.count_nonzero(A) == band_nnz:  # tridiagonal (e.g. a modal form): contiguous blocks, O(n)
+    if nnz == band_nnz:  # tridiagonal (e.g. a modal form): contiguous blocks, O(n)
         starts = np.concatenate([[0], np.flatnonzero(~(upper | lower)) + 1])
         sizes = np.diff(np.concatenate([starts, [n]]))
         return [starts[sizes == k][:, None] + np.arange(k)[None, :] for k in np.unique(sizes)]
@@ -163,7 +164,8 @@ def _modal_terms(A: np.ndarray, B: np.ndarray, C: np.ndarray, blocks: list[np.nd
     io_C = C if io_C is None else io_C
     lam, cv, w, bad = [], [], [], []
     for idx in blocks:  # idx: (n_blocks, k)
-        Ak = A[idx[:, :, None], idx[:, None, :]]
+        full = idx.shape == (1, A.shape[0])
+        Ak = A[None] if full else A[idx[:, :, None], idx[:, None, :]]
         ev, V = np.linalg.eig(Ak)
         if idx.shape[1] > 32:  # one large block: LU once, condition number from LAPACK gecon
             W, cond = _solve_with_cond(V[0], B[idx[0]])
@@ -208,23 +210,43 @@ def _diag_response(lam: np.ndarray, CV: np.ndarray, W: np.ndarray, s: np.ndarray
         g_im -= w * (q @ rr)
     pos = lam.imag > 0
     if np.any(pos):
-        lp, rp = lam[pos], res[pos]
-        Ar = 2.0 * rp.real
-        Br = -2.0 * (rp * lp.conj()[:, None]).real
-        mod = np.abs(lp)
-        a = np.subtract.outer(-s.imag, -mod)
-        a *= np.add.outer(s.imag, mod)  # |l|^2 - w^2 = (|l| - w)(|l| + w), no cancellation
-        b = np.multiply.outer(s.imag, -2.0 * lp.real)
-        q = a * a
-        q += b * b
-        np.reciprocal(q, out=q)
-        a *= q  # Re 1/den
-        b *= q  # -Im 1/den
-        g_re += a @ Br
-        g_re += w * (b @ Ar)
-        g_im += w * (a @ Ar)
-        g_im -= b @ Br
+        pr, pi = _pair_terms(lam[pos], res[pos], s.imag)
+        g_re += pr
+        g_im += pi
     return (g_re + 1j * g_im).reshape(s.size, p, m)
+
+
+def _pair_terms(lp: np.ndarray, rp: np.ndarray, w: np.ndarray, chunk: int = 256):
+    """Real and imaginary parts of ``sum_k (A_k j w + B_k) / (|l_k|^2 - w^2 - 2 j Re(l_k) w)``.
+
+    The conjugate pair (l, conj l) with residue r gives ``A = 2 Re r`` and
+    ``B = -2 Re(r conj l)``. Evaluated in frequency chunks with preallocated buffers
+    (cache-sized), in real arithmetic: eight passes over (chunk x pairs) plus two GEMMs. The
+    relative rounding error near a resonance is about eps / (2 zeta), zeta the mode's damping.
+    """
+    n_pairs, pm = rp.shape
+    Ar = 2.0 * rp.real
+    Br = -2.0 * (rp * lp.conj()[:, None]).real
+    BA = np.concatenate([Br, Ar], axis=1)  # (pairs, 2 pm)
+    mod2, sig2 = np.abs(lp) ** 2, -2.0 * lp.real
+    g_re, g_im = np.empty((w.size, pm)), np.empty((w.size, pm))
+    a, b, q, t = (np.empty((min(chunk, w.size), n_pairs)) for _ in range(4))
+    for start in range(0, w.size, chunk):
+        wc = w[start : start + chunk, None]
+        n = wc.shape[0]
+        a_, b_, q_, t_ = a[:n], b[:n], q[:n], t[:n]
+        np.subtract(mod2, wc * wc, out=a_)  # Re(den); rounding eps w^2 is eps / (2 zeta) of |den|
+        np.multiply(wc, sig2, out=b_)  # Im(den) = -2 Re(l) w
+        np.multiply(a_, a_, out=q_)
+        np.multiply(b_, b_, out=t_)
+        q_ += t_
+        np.reciprocal(q_, out=q_)
+        a_ *= q_  # Re(1/den)
+        b_ *= q_  # -Im(1/den)   (den = a + j b)
+        X, Y = a_ @ BA, b_ @ BA  # [a B, a A], [b B, b A]
+        g_re[start : start + n] = X[:, :pm] + wc * Y[:, pm:]
+        g_im[start : start + n] = wc * X[:, pm:] - Y[:, :pm]
+    return g_re, g_im
 
 
 def _schur_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, s: np.ndarray) -> np.ndarray:
