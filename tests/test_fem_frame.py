@@ -111,6 +111,23 @@ def test_tip_force_static_deflection_rotation_and_root_strain():
     assert abs(g[3]) < 1e-12
 
 
+@pytest.mark.parametrize("position", [0.25, 0.5, 0.83])
+def test_strain_along_a_subdivided_member_in_both_planes(position):
+    """Tip loads along y and z: strain -c M(x)/(E I) with M = P (L - x) at x = position L."""
+    fr = beam_frame(True, axis=(0, 0, 1))  # a vertical member: default orient is global X
+    fr.add_force_input("Fx", "tip", "x")
+    fr.add_force_input("Fy", "tip", "y")
+    # local axes of a vertical member: x = +Z, z = component of global X -> +X, y = z cross x
+    fr.add_strain_output("bz", "beam", kind="bending_z", position=position, fiber=R_OUT)
+    fr.add_strain_output("by", "beam", kind="bending_y", position=position, fiber=R_OUT)
+    g = _static(fr.matrices())
+    expected = -R_OUT * (L - position * L) / (E * I)
+    ey = np.cross([1.0, 0, 0], [0, 0, 1.0])  # local y in global axes: (0, -1, 0)
+    assert np.isclose(g[1, 0], expected, rtol=1e-9)  # load along local z bends about y
+    assert np.isclose(g[0, 1], expected * ey[1], rtol=1e-9)  # load along global y = -local y
+    assert abs(g[0, 0]) < 1e-15 and abs(g[1, 1]) < 1e-15
+
+
 def test_axial_strain_output_and_pair_input():
     fr = beam_frame(True)
     fr.add_pair_input("coil", "root", "tip")
