@@ -240,7 +240,7 @@ class FrequencyData:
         """Build from a ``control.FrequencyResponseData`` (or anything with ``omega``/``fresp``)."""
         try:
             omega = np.asarray(frd.omega, dtype=float)
-            fresp = np.asarray(frd.fresp)
+            fresp = np.asarray(frd.frdata if hasattr(frd, "frdata") else frd.fresp)
         except AttributeError as exc:
             raise DataError(
                 "from_control needs a control.FrequencyResponseData; "
