@@ -134,27 +134,35 @@ GROUPS = ("longerons_story_1", "longerons_story_2", "diagonals")
 
 
 def _params(gravity: bool, diagonals: bool) -> list:
+    """The truss's parameters. As in MACE, only the uncertain ones are free (updated by
+    default): the rods' Young's modulus, the platform and offset masses (with bolts and
+    brackets of unknown weight) and the modal damping. Densities, weighed hardware,
+    measured positions and calibrated electronics are fixed; ``model.with_params`` frees them."""
     s = ("structure",)
     p = [
         param("E_aluminium", 69e9, "Pa", (55e9, 80e9), "Young's modulus of the aluminium rods", s),
-        param("rho_aluminium", 2700.0, "kg/m^3", (2500.0, 2900.0), "density of the aluminium rods", s),
+        param("rho_aluminium", 2700.0, "kg/m^3", (2500.0, 2900.0), "density of the aluminium rods", s,
+              free=False),
         param("nu_aluminium", 0.33, "", (0.25, 0.40), "Poisson's ratio of aluminium (G = E / 2(1+nu))", s,
               free=False),
         param("m_platform_1", 2.36, "kg", (1.8, 3.2), "mass of the 9.52 mm platform-1 plate (seed)", s),
         param("m_platform_2", 1.55, "kg", (1.2, 2.1), "mass of the 6.35 mm platform-2 plate (seed)", s),
-        param("m_bracket", 0.10, "kg", (0.0, 0.4), "mass of one longeron weld bracket on a platform", s),
-        param("m_accelerometer", 0.10, "kg", (0.0, 0.3), "mass of one accelerometer with its block", s),
+        param("m_bracket", 0.10, "kg", (0.0, 0.4), "mass of one longeron weld bracket on a platform", s,
+              free=False),
+        param("m_accelerometer", 0.10, "kg", (0.0, 0.3), "mass of one accelerometer with its block", s,
+              free=False),
         param("m_offset", 0.50, "kg", (0.0, 1.5), "offset mass on platform 2 that lowers torsion", s),
         param("r_offset", 0.20, "m", (0.0, 0.25), "distance of the offset mass from the platform-2 centre",
-              s),
+              s, free=False),
         param("zeta_modal", 0.015, "", (0.001, 0.05), "modal damping ratio of every mode (Table I)",
               ("damping",)),
         param("k_actuator", 1.37 * G_STANDARD / 5.0, "N/V", (1.0, 5.0),
-              "voice-coil force per volt (1.37 kgf at 5 V)", ("electronics",)),
+              "voice-coil force per volt (1.37 kgf at 5 V)", ("electronics",), free=False),
         param("k_accelerometer", 1.0 / (0.016 * G_STANDARD), "V/(m/s^2)", (2.0, 20.0),
-              "accelerometer scaling (0.016 g per volt)", ("electronics",)),
+              "accelerometer scaling (0.016 g per volt)", ("electronics",), free=False),
         param("f_sensor_filter", 100.0, "Hz", (50.0, 200.0),
-              "cutoff of the 4th-order Butterworth sensor filter", ("electronics",)),
+              "cutoff of the 4th-order Butterworth sensor filter", ("electronics",),
+              free=False),
     ]
     if diagonals:
         p.append(param("k_bearing", 2e5, "N/m", (1e3, 1e7),
