@@ -162,3 +162,21 @@ def test_nan_weights_and_unknown_method_are_refused():
         rc.fit_rational(data, 12, max_iter=0)
     with pytest.raises(rc.FitError, match="band .* holds no data"):
         rc.fit_rational(data, 12, band=(100, 200))
+
+
+def test_fast_gram_elimination_equals_the_qr_elimination():
+    """The VF Gram path (one product for all channels) must give the same normal matrix of the
+    sigma unknowns and the same current-pole cost as the per-channel QR path."""
+    from robustctl.identify.poles import partial_fraction_basis
+    from robustctl.identify.vector_fitting import _channel_blocks, _gram_normal, initial_poles
+
+    rng = np.random.default_rng(0)
+    s = 1j * np.linspace(0.1, 1, 200)
+    g = rng.normal(size=(200, 4)) + 1j * rng.normal(size=(200, 4))
+    rw = rng.uniform(0.5, 2, size=(200, 4))
+    phi = partial_fraction_basis(s, initial_poles(7, 0.1, 1.0))
+    normal, cost = _gram_normal(phi, g, rw)
+    blocks, cost_qr = _channel_blocks(phi, g, rw)
+    ref = sum(b.T @ b for b in blocks)
+    np.testing.assert_allclose(normal, ref, rtol=1e-10, atol=1e-12 * np.abs(ref).max())
+    np.testing.assert_allclose(cost, cost_qr, rtol=1e-10)

@@ -184,8 +184,11 @@ class BestPoles:
         self.best_cost, self.best, self.stale = np.inf, None, 0
 
     def update(self, poles: np.ndarray) -> bool:
-        """Record ``poles``; True when the iteration should stop (no progress for ``patience``)."""
-        cost = weighted_cost(self.s, self.g, self.rw, poles)
+        """Record ``poles`` (cost computed here); True when the iteration should stop."""
+        return self.record(poles, weighted_cost(self.s, self.g, self.rw, poles))
+
+    def record(self, poles: np.ndarray, cost: float) -> bool:
+        """Record ``poles`` with a known ``cost``; True after ``patience`` steps without progress."""
         if cost < self.best_cost * (1 - self.rtol):
             self.stale = 0
         else:

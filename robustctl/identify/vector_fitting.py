@@ -18,6 +18,8 @@ __all__ = ["initial_poles", "vf_poles"]
 
 #: relaxation: below this |d_sigma| the constant of sigma is fixed (Gustavsen 2006, sec. III).
 D_SIGMA_TOL = 1e-8
+#: relocations use the fast Gram elimination while poles still move by more than this (relative)
+GRAM_UNTIL = 1e-6
 
 
 def initial_poles(order: int, w_lo: float, w_hi: float, spacing: str = "lin") -> np.ndarray:
@@ -52,48 +54,111 @@ def _sigma_realisation(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return a, b
 
 
-def _channel_blocks(phi: np.ndarray, g: np.ndarray, rw: np.ndarray) -> list[np.ndarray]:
-    """R22 blocks of the QR of each channel's [rw*phi, rw, -rw*g*phi, -rw*g] (real-stacked)."""
+def _channel_blocks(phi: np.ndarray, g: np.ndarray, rw: np.ndarray) -> tuple[list[np.ndarray], float]:
+    """QR path: R22 blocks of each channel's ``[rw B, -rw g, -rw g Phi]`` (real-stacked, ``B = [Phi, 1]``)
+    with sigma unknowns ordered ``[d, c]``, and the weighted cost of the current poles (the squared
+    ``R[m, m]`` entries: the part of ``rw g`` the current basis cannot fit)."""
     k, n = phi.shape
     base = np.hstack([phi, np.ones((k, 1))])
-    blocks = []
+    blocks, cost = [], 0.0
     for gc, wc in zip(g.T, rw.T):
-        m = np.hstack([base * wc[:, None], -base * (gc * wc)[:, None]])
+        m = np.hstack([base * wc[:, None], -(gc * wc)[:, None], -phi * (gc * wc)[:, None]])
         m = np.concatenate([m.real, m.imag], axis=0)
         r = np.linalg.qr(m, mode="r")
         blocks.append(r[n + 1 :, n + 1 :])
-    return blocks
+        cost += r[n + 1, n + 1] ** 2
+    return blocks, float(cost)
 
 
-def _solve_sigma(blocks: list[np.ndarray], phi: np.ndarray, scale: float) -> np.ndarray:
-    """Relaxed sigma coefficients [c; d] from the stacked R22 blocks and the constraint
-    ``Re sum_k sigma(s_k) = K`` (weighted by ``scale``)."""
+def _gram_normal(phi: np.ndarray, g: np.ndarray, rw: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """Gram path: ``sum_c S_c`` with ``S_c`` the Schur complement of the sigma unknowns ``[d, c]`` in
+    ``Re(M_c^H M_c)``, all channels' Gram blocks from one matrix product (every block is
+    ``Re(B^H diag(v) B)`` for a per-channel weight vector ``v``). Returns None when a Cholesky
+    factorisation fails (ill-conditioned basis); the caller then takes the QR path."""
     k, n = phi.shape
-    con = np.concatenate([np.sum(phi, axis=0).real, [k]]) * scale
+    m = n + 1
+    base = np.hstack([phi, np.ones((k, 1))])
+    w2 = rw**2
+    n_ch = g.shape[1]
+    # Re(B^H diag(v) B) for v = rw^2, rw^2 g (complex: the coupling block), rw^2 |g|^2, formed as
+    # products of the row-wise outer products conj(B_i) B_j with the weight columns, in column
+    # blocks of about a million entries so that the outer products stay in cache
+    v_re = np.hstack([w2, (w2 * g).real, w2 * np.abs(g) ** 2])
+    v_im = (w2 * g).imag
+    cb = np.conj(base)
+    gram = np.empty((m, m, 3 * n_ch))
+    step = max(1, 1_000_000 // (k * m))
+    for i0 in range(0, m, step):
+        i1 = min(m, i0 + step)
+        z = (cb[:, i0:i1, None] * base[:, None, :]).reshape(k, -1)
+        part = np.ascontiguousarray(z.real).T @ v_re
+        part[:, n_ch : 2 * n_ch] -= np.ascontiguousarray(z.imag).T @ v_im
+        gram[i0:i1] = part.reshape(i1 - i0, m, -1)
+    gram = gram.reshape(m, m, 3, n_ch)
+    g11 = np.moveaxis(gram[:, :, 0], -1, 0)
+    g12 = -np.moveaxis(gram[:, :, 1], -1, 0)  # Re(B^H diag(rw^2 g) B) with the minus of -rw g B
+    g22 = np.moveaxis(gram[:, :, 2], -1, 0)
+    # reorder sigma unknowns from B's [c, d] to [d, c]
+    perm = np.r_[n, :n]
+    g12, g22 = g12[:, :, perm], g22[:, perm][:, :, perm]
+    scale = 1.0 / np.sqrt(np.einsum("cii->ci", g11))
+    try:
+        chol = np.linalg.cholesky(g11 * scale[:, :, None] * scale[:, None, :])
+    except np.linalg.LinAlgError:
+        return None
+    y = np.linalg.solve(chol, g12 * scale[:, :, None])
+    s = g22 - np.einsum("cij,cik->cjk", y, y)
+    return s.sum(axis=0), float(np.sum(s[:, 0, 0]))
+
+
+def _constraint(phi: np.ndarray, scale: float) -> np.ndarray:
+    """Relaxation row ``Re sum_k sigma(s_k) = K`` for unknowns ``[d, c]``, weighted by ``scale``."""
+    return np.concatenate([[phi.shape[0]], np.sum(phi, axis=0).real]) * scale
+
+
+def _fix_small_d(x: np.ndarray, solve_c) -> np.ndarray:
+    if abs(x[0]) >= D_SIGMA_TOL:
+        return x
+    d = D_SIGMA_TOL * (1.0 if x[0] >= 0 else -1.0)  # relaxation degenerate: fix d_sigma, solve for c
+    return np.concatenate([[d], solve_c(d)])
+
+
+def _solve_sigma_qr(blocks: list[np.ndarray], con: np.ndarray, target: float) -> np.ndarray:
     a = np.vstack(blocks + [con[None, :]])
     rhs = np.zeros(a.shape[0])
-    rhs[-1] = k * scale
+    rhs[-1] = target
     x = np.linalg.lstsq(a, rhs, rcond=None)[0]
-    if abs(x[-1]) < D_SIGMA_TOL:  # relaxation degenerate: fix d_sigma and solve for c
-        d = D_SIGMA_TOL * (1.0 if x[-1] >= 0 else -1.0)
-        stacked = np.vstack(blocks)
-        c = np.linalg.lstsq(stacked[:, :n], -stacked[:, n] * d, rcond=None)[0]
-        x = np.concatenate([c, [d]])
-    return x
+    stacked = a[:-1]
+    return _fix_small_d(x, lambda d: np.linalg.lstsq(stacked[:, 1:], -stacked[:, 0] * d, rcond=None)[0])
+
+
+def _solve_sigma_gram(normal: np.ndarray, con: np.ndarray, target: float) -> np.ndarray:
+    x = np.linalg.solve(normal + np.outer(con, con), con * target)
+    return _fix_small_d(x, lambda d: np.linalg.solve(normal[1:, 1:], -normal[1:, 0] * d))
 
 
 def vf_step(
-    s: np.ndarray, g: np.ndarray, rw: np.ndarray, poles: np.ndarray, stable: bool = True
-) -> np.ndarray:
-    """One relaxed VF pole relocation. ``g`` and ``rw`` have shape (K, n_channels)."""
+    s: np.ndarray, g: np.ndarray, rw: np.ndarray, poles: np.ndarray, stable: bool = True, gram: bool = False
+) -> tuple[np.ndarray, float]:
+    """One relaxed VF pole relocation; ``g`` and ``rw`` have shape (K, n_channels).
+
+    Returns the new poles and the weighted cost ``sum |rw (g - G)|^2`` of the *current* poles'
+    least-squares fit. ``gram=True`` forms the channel eliminations from one Gram product (several
+    times faster, accurate to about sqrt(eps) in the poles); the default QR path is accurate to eps.
+    """
     phi = partial_fraction_basis(s, poles)
-    blocks = _channel_blocks(phi, g, rw)
     scale = np.sqrt(np.sum(np.abs(rw * g) ** 2)) / s.size
-    x = _solve_sigma(blocks, phi, scale)
+    con = _constraint(phi, scale)
+    normal = _gram_normal(phi, g, rw) if gram else None
+    if normal is not None:
+        x, cost = _solve_sigma_gram(normal[0], con, s.size * scale), normal[1]
+    else:
+        blocks, cost = _channel_blocks(phi, g, rw)
+        x = _solve_sigma_qr(blocks, con, s.size * scale)
     a, b = _sigma_realisation(poles)
-    zeros = np.linalg.eigvals(a - np.outer(b, x[:-1]) / x[-1])
+    zeros = np.linalg.eigvals(a - np.outer(b, x[1:]) / x[0])
     new = split_poles(zeros)
-    return reflect_unstable(new)[0] if stable else new
+    return (reflect_unstable(new)[0] if stable else new), cost
 
 
 def vf_poles(
@@ -136,11 +201,12 @@ def vf_poles(
     w = np.abs(s)
     poles = initial_poles(order, float(w.min()), float(w.max()), spacing)
     best = BestPoles(s, g, rw)
+    change = np.inf
     for it in range(1, max_iter + 1):
-        new = vf_step(s, g, rw, poles, stable)
+        new, cost = vf_step(s, g, rw, poles, stable, gram=change > GRAM_UNTIL)
+        stalled = best.record(poles, cost)
         change = pole_change(poles, new)
         poles = new
-        stalled = best.update(poles)
         if change < tol:
             return poles, it, True
         if stalled:
