@@ -76,7 +76,7 @@ class MeasurementModel:
     sys : control.StateSpace
         Real modal realisation with the data's signal names.
     modes : tuple of Mode
-        Complex modes sorted by frequency.
+        Complex modes sorted by frequency (real poles, if any, are in ``sys`` and ``fit`` only).
     cost : LogCost
         MACE eq. 5 of ``sys`` against ``data`` (per channel and total).
     fit : RationalFit
@@ -268,8 +268,9 @@ def fit_measurement_model(
         there. Off by default: with coloured or swept inputs (e.g. the DaISy records) the
         white-noise leakage model is wrong and makes the fit worse.
     rank_tol : float
-        Residue singular values below ``rank_tol * sigma_1`` are dropped: a physical mode has a
-        rank-1 residue. Also the automatic mode count of ``group_modes``.
+        With ``groups``: relative singular-value threshold of automatic mode counts in
+        :func:`group_modes`. Without: unused, every pole is one physical mode with a rank-1
+        residue ``c b^T`` refined by least squares (:func:`refine_residues`).
     max_modes : int
         Largest ``n_modes`` tried by the automatic selection.
     parsimony : float
