@@ -10,6 +10,7 @@ accepted step, an iteration cap and a wall-clock budget.
 
 from __future__ import annotations
 
+import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor
@@ -184,6 +185,43 @@ def _covariance(J: np.ndarray, cost: float) -> np.ndarray:
     return s2 * np.linalg.pinv(Js.T @ Js) / np.outer(norms, norms)
 
 
+def _search_step(
+    residual: Residual,
+    names: tuple[str, ...],
+    st: _State,
+    Jz: np.ndarray,
+    scale: np.ndarray,
+    bounds: tuple[np.ndarray, np.ndarray],
+    xtol: float,
+    max_inner: int,
+    deadline: float,
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray] | None:
+    """Raise the damping until a projected step lowers the cost: ``(x, r, cost, dz)`` or None.
+
+    A trial point where the model cannot be built (a RobustctlError) counts as a rejection.
+    """
+    lo, hi = bounds
+    z = st.x / scale
+    for _ in range(int(max_inner)):
+        if time.perf_counter() > deadline:
+            return None
+        dz = _projected_step(Jz, st.r, st.lam, z, lo / scale, hi / scale)
+        if np.linalg.norm(dz) <= xtol * (np.linalg.norm(z) + xtol):
+            return None
+        x_new = np.clip((z + dz) * scale, lo, hi)
+        st.n_evals += 1
+        try:
+            r_new = residual.vector(**dict(zip(names, (float(v) for v in x_new))))
+        except RobustctlError:
+            st.lam *= 10.0
+            continue
+        c_new = float(r_new @ r_new)
+        if np.isfinite(c_new) and c_new < st.cost:
+            return x_new, r_new, c_new, dz
+        st.lam *= 10.0
+    return None
+
+
 def levenberg_marquardt(
     residual: Residual,
     names: Sequence[str],
@@ -257,7 +295,6 @@ def levenberg_marquardt(
     lo, hi = _bounds(model, names, bounds)
     x = _start(model, names, x0, lo, hi)
     scale = np.where(np.abs(x) > 0, np.abs(x), 1.0)
-    zlo, zhi = lo / scale, hi / scale
 
     def overrides(xv: np.ndarray) -> dict[str, float]:
         return dict(zip(names, (float(v) for v in xv)))
@@ -276,7 +313,8 @@ def levenberg_marquardt(
         st.n_evals += sens.n_evals
         return sens.jacobian()
 
-    show = bool(progress) and __import__("sys").stderr.isatty()
+    deadline = t_start + time_budget_s
+    show = bool(progress) and sys.stderr.isatty()
     bar = tqdm(total=max_iter, desc="Levenberg-Marquardt", disable=not show, leave=False)
     try:
         for it in range(int(max_iter)):
@@ -293,25 +331,10 @@ def levenberg_marquardt(
                 reason, success = "converged: gradient below gtol", True
                 break
             z = st.x / scale
-            accepted = False
-            for _ in range(int(max_inner)):
-                if time.perf_counter() - t_start > time_budget_s:
-                    break
-                dz = _projected_step(Jz, st.r, st.lam, z, zlo, zhi)
-                if np.linalg.norm(dz) <= xtol * (np.linalg.norm(z) + xtol):
-                    break
-                x_new = np.clip((z + dz) * scale, lo, hi)
-                st.n_evals += 1
-                try:
-                    r_new = residual.vector(**overrides(x_new))
-                except RobustctlError:  # the model cannot be built there: a rejected step
-                    st.lam *= 10.0
-                    continue
-                c_new = float(r_new @ r_new)
-                if np.isfinite(c_new) and c_new < st.cost:
-                    accepted = True
-                    break
-                st.lam *= 10.0
+            trial = _search_step(residual, names, st, Jz, scale, (lo, hi), xtol, max_inner, deadline)
+            accepted = trial is not None
+            if accepted:
+                x_new, r_new, c_new, dz = trial
             n_iter = it + 1
             bar.update(1)
             if not accepted:
