@@ -210,3 +210,19 @@ def test_log_error_matches_names_and_refuses_mismatch(data_and_model):
         rc.log_error(data.replace(response=zero), sys)
     with pytest.raises(DataError, match="data must be a FrequencyData"):
         rc.log_error(np.ones(3), sys)
+
+
+def test_physical_ordering_modal_form_splits_into_blocks():
+    """States [q; dq/dt] (as a structural model builds them): blocks are found, not contiguous."""
+    rng = np.random.default_rng(3)
+    w = 2 * np.pi * np.array([1.0, 2.5, 7.0, 7.0, 30.0])  # a repeated frequency included
+    n = w.size
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-np.diag(w**2), -np.diag(0.02 * w)]])
+    A = np.pad(A, ((0, 1), (0, 1)))
+    A[-1, -1] = -4.0  # a first-order sensor filter state, decoupled
+    B = rng.standard_normal((2 * n + 1, 2))
+    C = rng.standard_normal((3, 2 * n + 1))
+    sys = control.ss(A, B, C, np.zeros((3, 2)))
+    sizes = sorted(b.shape[1] for b in lti._blocks(A) for _ in range(b.shape[0]))
+    assert sizes == [1] + [2] * n
+    assert_rel(rc.freqresp(sys, F).response, control_response(sys, F), 1e-9)
