@@ -18,7 +18,7 @@ demo: $(STAMP)
 	$(PY) -m robustctl demo --out out
 
 test: $(STAMP)
-	$(PY) -m pytest -n 2 -q --durations=15
+	$(PY) -m pytest -n 2 -q --durations=15 tests --nbmake notebooks
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check robustctl tests benchmarks
