@@ -428,7 +428,9 @@ def _warnings(fit: LMResult, drift: tuple[Drift, ...], reduction: float) -> list
     return out
 
 
-def _sens_at(residual: Residual, names, fit: LMResult, executor, progress) -> np.ndarray:
+def _sens_at(
+    residual: Residual, names: list[str], fit: LMResult, executor: Executor | None, progress: bool
+) -> np.ndarray:
     """Relative sensitivities (n, p) of ``names`` at the fit's optimum, reusing its Jacobian."""
     dJ = np.zeros((residual.n, len(names)))
     fitted = {n: k for k, n in enumerate(fit.names)}
@@ -458,7 +460,17 @@ def _predicted_reduction(r: np.ndarray, dJ: np.ndarray, p: int, f_crit: float = 
 
 
 def _passes(
-    residual, names, selected, passes, max_iter, budget, ftol, max_orth, min_align, executor, progress
+    residual: Residual,
+    names: tuple[str, ...],
+    selected: tuple[str, ...],
+    passes: int,
+    max_iter: int,
+    budget: float,
+    ftol: float,
+    max_orth: float,
+    min_align: float,
+    executor: Executor | None,
+    progress: bool,
 ) -> tuple[LMResult, tuple[float, ...], list[str], int]:
     """Optimise ``selected``; then repeat the tests on the remaining error and add parameters."""
     t0 = time.perf_counter()
