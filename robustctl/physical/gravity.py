@@ -106,6 +106,8 @@ def null_space(K, M, *, tol: float = NULL_TOL, max_modes: int | None = None) -> 
     K = sp.csr_matrix(K)
     Mreg = regularised_mass(M)
     n = K.shape[0]
+    if n <= DENSE_LIMIT and _clearly_definite(K.toarray()):
+        return np.zeros((n, 0))
     lam_ref = _lambda_ref(K, Mreg)
     cap = n if max_modes is None else min(n, max_modes)
     k = min(cap, 24)
@@ -115,6 +117,20 @@ def null_space(K, M, *, tol: float = NULL_TOL, max_modes: int | None = None) -> 
         if not null.all() or k >= cap:
             return vec[:, null]
         k = min(2 * k, cap)
+
+
+def _clearly_definite(K: np.ndarray) -> bool:
+    """A Cholesky factor whose pivots all keep more than 1e-10 of their diagonal: the matrix
+    is definite beyond doubt (a singular one leaves a pivot near 1e-16). When this says no,
+    the eigen-decomposition decides."""
+    d = np.diag(K)
+    if np.any(d <= 0):
+        return False
+    try:
+        L = sla.cholesky(K, lower=True, check_finite=False)
+    except np.linalg.LinAlgError:
+        return False
+    return bool(np.min(np.diag(L) ** 2 / d) > 1e-10)
 
 
 def _lowest_modes(K, Mreg, k):
