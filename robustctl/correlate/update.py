@@ -344,10 +344,10 @@ class UpdateResult:
         for name in self.selected:
             p0 = self.initial_model.param(name).value
             p1 = self.model.param(name).value
+            change = f"{100 * (p1 - p0) / p0:+.2f}%, " if p0 else ""
             lines.append(
                 f"  {name}: {p0:.5g} -> {p1:.5g} {self.model.param(name).unit} "
-                f"({100 * (p1 - p0) / p0 if p0 else float('nan'):+.2f}%, "
-                f"+- {self.std_errors.get(name, 0):.2g})"
+                f"({change}+- {self.std_errors.get(name, 0):.2g})"
             )
         lines += [f"Note: {n}" for n in self.notes]
         lines += [f"Suggestion: {s}" for s in self.suggestions]
