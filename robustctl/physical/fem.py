@@ -564,7 +564,8 @@ class Frame(Structure):
     ) -> Frame:
         """A point force (N, ``kind="force"``) or torque (N m, ``kind="torque"``) input.
 
-        ``direction`` is ``'x'``..``'rz'`` or a 3-vector (a rotation axis for torques).
+        ``direction`` is ``'x'``..``'rz'`` or a 3-vector (a rotation axis for torques). A load
+        on a fixed DOF goes straight into the support (its input column is zero there).
         """
         self._new_signal(self._inputs, name, "input")
         self._node(node)
@@ -604,7 +605,9 @@ class Frame(Structure):
     ) -> Frame:
         """A sensor at ``node``: displacement (m, rad), velocity or acceleration along ``direction``.
 
-        ``direction`` is ``'x'``..``'rz'`` or a 3-vector (a translation).
+        ``direction`` is ``'x'``..``'rz'`` or a 3-vector (a translation). On a fixed DOF the
+        sensor reads zero; on a slave node it reads the master's rigid motion; on a DOF
+        without mass it reads the statically condensed motion.
         """
         self._new_signal(self._outputs, name, "output")
         self._node(node)
