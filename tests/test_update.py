@@ -163,6 +163,21 @@ def test_caltech_truss_update_recovers_parameters(truss):
         assert upd.model.param(n).value == pytest.approx(v, rel=0.02), n
 
 
+def test_update_includes_parameters_of_an_added_effect(truss):
+    """DESIGN.md's session: rc.update(model.with_effect(effect), data) with params=None
+    updates every free parameter, the effect's (starting at its neutral value) included."""
+    effect = rc.effects.OutputDelay()
+    truth = truss.with_effect(effect.with_values(delay=0.004)).with_values(E_aluminium=69e9 * 1.02)
+    data = truth.freqresp(np.linspace(0.5, 30.0, 300))
+    model = truss.with_effect(effect)
+    upd = update(model, data)
+    assert set(upd.candidates) == {p.name for p in model.free_params}
+    assert "output_delay" in upd.candidates and upd.initial_model.param("output_delay").value == 0.0
+    assert upd.model.param("output_delay").value == pytest.approx(0.004, rel=1e-4)
+    assert upd.model.param("E_aluminium").value == pytest.approx(69e9 * 1.02, rel=1e-4)
+    assert upd.reduction > 0.99
+
+
 @pytest.mark.slow
 def test_caltech_truss_update_on_estimated_frf(truss):
     errors = {k: v for k, v in TRUSS_ERRORS.items() if k != "zeta_modal"}
