@@ -18,6 +18,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..errors import FitError, ModelError
+from ..threads import limit_blas
 from .rational import RationalFit
 
 __all__ = ["BalancedTruncation", "balanced_truncation", "gramian_factor"]
@@ -117,6 +118,7 @@ def _check(ss: Any, order: Any) -> int:
     return int(order)
 
 
+@limit_blas
 def balanced_truncation(sys: Any, order: int) -> BalancedTruncation:
     """Reduce a stable system to ``order`` states by square-root balanced truncation.
 

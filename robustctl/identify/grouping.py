@@ -16,6 +16,7 @@ import numpy as np
 
 from ..errors import FitError
 from ..frd import FrequencyData
+from ..threads import limit_blas
 from .rational import RationalFit
 from .realization import residue_rank
 from .refine import refine_residues
@@ -170,6 +171,7 @@ def _merge(poles: np.ndarray, residues: np.ndarray, keep: int) -> list[tuple[com
     return [(*_merge_one(poles[c], residues[c], 1), 1) for c in subs]
 
 
+@limit_blas
 def group_modes(
     model: RationalFit,
     groups: Any = None,

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import FitError
+from ..threads import limit_blas
 from .rational import RationalFit
 
 __all__ = ["EstimatorSettings", "estimator_settings", "expected_h1", "leakage_factor"]
@@ -88,6 +89,7 @@ def _zoh_impulse(model: RationalFit, fs: float, n: int) -> np.ndarray:
     return h
 
 
+@limit_blas
 def expected_h1(model: RationalFit, f_hz: np.ndarray, settings: EstimatorSettings) -> np.ndarray:
     """Expected H1 estimate of ``model`` at ``f_hz`` (Hz) for white ZOH excitation; (K, n_out, n_in)."""
     fs, n, window = settings

@@ -22,6 +22,7 @@ import numpy as np
 from ..errors import FitError
 from ..frd import FrequencyData
 from ..table import Table
+from ..threads import limit_blas
 from ._problem import as_frequency_data
 from .cost import LogCost, log_cost
 from .grouping import group_modes
@@ -228,6 +229,7 @@ def _modes(fit: RationalFit) -> tuple[Mode, ...]:
     return tuple(out)
 
 
+@limit_blas
 def fit_measurement_model(
     data: Any,
     n_modes: int | None = None,

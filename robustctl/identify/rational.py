@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import FitError
 from ..frd import FrequencyData
+from ..threads import limit_blas
 from ._problem import FitProblem, prepare_problem
 from .chebyshev import chebyshev_poles
 from .cost import LogCost, log_cost
@@ -192,6 +193,7 @@ def _fit_simo_each(
     return combine_simo(fits)
 
 
+@limit_blas
 def fit_rational(
     data: Any,
     order: int,

@@ -14,6 +14,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..threads import limit_blas
 from ._problem import coherence_weights
 from .poles import evaluate
 from .rational import RationalFit
@@ -57,6 +58,7 @@ def _solve_outputs(s, target, rw, poles, bs):
 
 
 
+@limit_blas
 def refine_residues(fit: RationalFit, weights: np.ndarray | None = None, sweeps: int = 8) -> RationalFit:
     """Refit the complex poles' residues as rank-``ranks`` products ``C B`` to ``fit.data``.
 
