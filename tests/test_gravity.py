@@ -50,8 +50,13 @@ def test_no_pendulum_without_gravity():
 
 def test_one_step_differential_stiffness_equals_the_iteration_for_a_determinate_suspension():
     f1, _ = pendulum(2.0, 1.5, max_gravity_iterations=1).modes()
-    f50, _ = pendulum(2.0, 1.5).modes()
+    fr = pendulum(2.0, 1.5)
+    f50, _ = fr.modes()
     assert np.allclose(f1, f50, rtol=1e-9)
+    fr.max_gravity_iterations = 1  # changing the setting rebuilds the model
+    assert fr.preload().iterations == 1 and not fr.preload().converged
+    with pytest.raises(ModelError, match="max_gravity_iterations must be an integer >= 1"):
+        fr.max_gravity_iterations = 0
 
 
 def string(n_elements: int, tension: float, *, beam: bool = False) -> Frame:

@@ -244,10 +244,8 @@ class Frame(Structure):
             raise ModelError("gravity_direction must not be zero; e.g. (0, 0, -1).")
         self._gdir = gdir / np.linalg.norm(gdir)
         self._gravity_on = self._g > 0
-        if int(max_gravity_iterations) < 1:
-            raise ModelError("max_gravity_iterations must be at least 1.")
-        self.max_gravity_iterations = int(max_gravity_iterations)
-        self.gravity_tol = _finite("gravity_tol", gravity_tol, positive=True)
+        self.max_gravity_iterations = max_gravity_iterations
+        self.gravity_tol = gravity_tol
         self._nodes: dict[str, _Node] = {}
         self._elements: dict[str, _Element] = {}
         self._masses: list[_Mass] = []
@@ -260,6 +258,28 @@ class Frame(Structure):
         self._group_tension: dict[str, float] = {}
         self._group_count: dict[str, int] = {}
         self._cache: _Assembly | None = None
+
+    @property
+    def max_gravity_iterations(self) -> int:
+        """Cap on the gravity preload iteration (1 = one differential-stiffness step)."""
+        return self._max_gravity_iterations
+
+    @max_gravity_iterations.setter
+    def max_gravity_iterations(self, value: int) -> None:
+        if not isinstance(value, (int, np.integer)) or value < 1:
+            raise ModelError(f"max_gravity_iterations must be an integer >= 1; got {value!r}.")
+        self._max_gravity_iterations = int(value)
+        self._cache = None
+
+    @property
+    def gravity_tol(self) -> float:
+        """Relative convergence tolerance of the preload's element axial forces."""
+        return self._gravity_tol
+
+    @gravity_tol.setter
+    def gravity_tol(self, value: float) -> None:
+        self._gravity_tol = _finite("gravity_tol", value, positive=True)
+        self._cache = None
 
     # ------------------------------------------------------------------ nodes
     def add_node(self, name: str, xyz: Sequence[float], tags: Iterable[str] = ()) -> str:
