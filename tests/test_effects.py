@@ -220,3 +220,12 @@ def test_bad_locations_and_values_are_refused_with_the_fix(chain):
         fx.SensorLowPass(order=3)
     with pytest.raises(rc.ModelError, match="unknown effect kinds"):
         fx.candidates(chain, kinds=["levitation"])
+
+
+def test_candidates_at_given_locations_only(chain):
+    cands = fx.candidates(chain, locations=["dof 2"])
+    assert {c.location for c in cands if c.kind in ("added_mass", "dashpot")} == {"dof 2"}
+    with pytest.raises(rc.ModelError, match="unknown location 'dof 5'"):
+        fx.candidates(chain, locations=["dof 5"])
+    calibrated = fx.calibrate(chain, [fx.AddedMass("dof 1"), fx.OutputDelay()])
+    assert calibrated[0].scale is not None and calibrated[1].scale is None

@@ -47,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import DataError, FitError, ModelError
+from ..errors import DataError, FitError, ModelError, RobustctlError
 from ..frd import FrequencyData
 from ..table import Table
 from ..threads import limit_blas
@@ -58,6 +58,8 @@ __all__ = ["diagnose", "Diagnosis", "CandidateResult", "effective_points"]
 
 #: Significance level of the partial F-test before the Bonferroni correction.
 ALPHA = 0.01
+#: A channel this far (dB) below its row's and column's largest model response is ignored.
+DECOUPLED_DB = -60.0
 #: Smallest share of the null-fit residual an effect must explain to be proposed.
 MIN_GAIN = 0.25
 _DB = 20.0 / math.log(10.0)
@@ -160,6 +162,10 @@ class Diagnosis:
         Per-candidate level after the Bonferroni correction.
     unexplained : str
         Where the null-fit residual sits (band, channels, magnitude or phase).
+    ignored_channels : tuple of (output, input)
+        Channels the model leaves decoupled, weighted 0 (see ``_residual``).
+    weights : ndarray (n_freq, n_out, n_in)
+        The residual weights used (pass to ``rc.update(..., weights=...)``).
     band : (float, float) or None
     n_evals : int
         Model evaluations spent.
@@ -180,6 +186,8 @@ class Diagnosis:
     band: tuple[float, float] | None
     n_evals: int
     time_s: float
+    ignored_channels: tuple[tuple[str, str], ...] = ()
+    weights: np.ndarray = field(repr=False, default=None)
     residual_update: np.ndarray = field(repr=False, default=None)
     f_hz: np.ndarray = field(repr=False, default=None)
     explained: dict = field(repr=False, default_factory=dict)
@@ -246,6 +254,14 @@ class Diagnosis:
             if self.ranking:
                 lines.append("Closest: " + self.ranking[0].sentence)
             lines.append("The unexplained residual sits in " + self.unexplained + ".")
+        if self.ignored_channels:
+            chans = ", ".join(f"{o} <- {i}" for o, i in self.ignored_channels[:6])
+            more = "" if len(self.ignored_channels) <= 6 else f" and {len(self.ignored_channels) - 6} more"
+            lines.append(
+                f"Ignored {len(self.ignored_channels)} channel(s) the model leaves decoupled "
+                f"(>{-DECOUPLED_DB:.0f} dB below their row and column): {chans}{more}; pass "
+                "weights=diag.weights to rc.update for the same cost."
+            )
         return "\n".join(lines)
 
     def __str__(self) -> str:
@@ -367,7 +383,19 @@ def _screen_one(
     step = effect.typical_size
     v0 = effect.parameters[0].neutral
     trial = v0 + step if v0 + step <= hi else v0 - step
-    sens = sensitivities(res_c, [pname], at={pname: trial}, origin={pname: v0}, j0=j_u)
+    try:
+        sens = sensitivities(res_c, [pname], at={pname: trial}, origin={pname: v0}, j0=j_u)
+    except RobustctlError as exc:  # e.g. the gravity preload does not converge with the effect
+        return dict(
+            effect=effect,
+            model=m_c,
+            fraction=0.0,
+            angle=90.0,
+            value=v0,
+            d=np.zeros_like(j_u),
+            evals=1,
+            error=str(exc),
+        )
     d = sens.dJ[:, 0]
     d_perp = _project(Q, d)
     dd, rr = float(d_perp @ d_perp), float(r_perp @ r_perp)
@@ -417,26 +445,31 @@ def _fit_one(
 
     Gauss-Newton/Marquardt on ``[alpha_update, v]`` with the update parameters' Jacobian
     frozen at the null fit and the candidate's column refreshed each iteration by a secant
-    (two evaluations per iteration instead of ``p + 1``).
+    (two evaluations per iteration instead of ``p + 1``). A point where the model cannot
+    be evaluated (e.g. the gravity preload does not converge) counts as a failed step.
     """
     t0 = time.perf_counter()
-    effect, m_c = screen["effect"], screen["model"]
-    pname = effect.param_names[0]
-    par = effect.parameters[0]
+    effect = screen["effect"]
+    pname, par = effect.param_names[0], effect.parameters[0]
     discrete = effect.kind == "gravity"
-    res_c = _residual_for(res_u, m_c)
+    res_c = _residual_for(res_u, screen["model"])
     names = null.names
-    u = np.array([null.x[n] for n in names], dtype=float)
-    v = float(screen["value"])
-    lo_v, hi_v = par.bounds
-    if discrete:
-        lo_v = hi_v = v
+    lo_v, hi_v = (screen["value"], screen["value"]) if discrete else par.bounds
+    counter = [0]
 
-    def evaluate(uu: np.ndarray, vv: float) -> np.ndarray:
-        return res_c.vector(**dict(zip(names, (float(x) for x in uu))), **{pname: vv})
+    def evaluate(uu: np.ndarray, vv: float) -> np.ndarray | None:
+        counter[0] += 1
+        try:
+            r = res_c.vector(**dict(zip(names, (float(x) for x in uu))), **{pname: vv})
+        except RobustctlError:
+            return None
+        return r if np.all(np.isfinite(r)) else None
 
+    u, v = np.array([null.x[n] for n in names], dtype=float), float(screen["value"])
     r = evaluate(u, v)
-    cost, evals, lam = float(r @ r), 1, 1e-2
+    if r is None:  # the screening estimate cannot be evaluated: nothing gained
+        return dict(x=dict(null.x), cost=null.cost, vector=null.j, evals=counter[0], value=float(par.neutral))
+    cost, lam = float(r @ r), 1e-2
     for _ in range(int(max_iter)):
         if time.perf_counter() - t0 > budget:
             break
@@ -444,31 +477,47 @@ def _fit_one(
         if not discrete:
             h = max(0.05 * abs(v - float(par.neutral)), 0.1 * effect.typical_size)
             h = h if v + h <= hi_v else -h
-            dv = (evaluate(u, v + h) - r) / h
-            evals += 1
-            cols.append(dv[:, None])
+            r_h = evaluate(u, v + h)
+            if r_h is None:
+                break
+            cols.append(((r_h - r) / h)[:, None])
         A = np.hstack(cols)
         if A.shape[1] == 0:
             break
-        improved = False
-        for _ in range(4):
-            step = _damped_step(A, r, lam)
-            u_new = np.clip(u + step[: len(names)], null.lo, null.hi)
-            v_new = v if discrete else float(np.clip(v + step[-1], lo_v, hi_v))
-            r_new = evaluate(u_new, v_new)
-            evals += 1
-            c_new = float(r_new @ r_new)
-            if np.isfinite(c_new) and c_new < cost:
-                improved = True
-                break
-            lam *= 10.0
-        if not improved:
+        new = _marquardt_try(
+            A,
+            r,
+            cost,
+            lam,
+            lambda st, u=u, v=v: (
+                np.clip(u + st[: len(names)], null.lo, null.hi),
+                v if discrete else float(np.clip(v + st[-1], lo_v, hi_v)),
+            ),
+            evaluate,
+        )
+        if new is None:
             break
-        rel = (cost - c_new) / cost
-        u, v, r, cost, lam = u_new, v_new, r_new, c_new, max(lam / 10.0, 1e-6)
+        (u_new, v_new), r, c_new, lam = new
+        rel, u, v, cost = (cost - c_new) / cost, u_new, v_new, c_new
         if rel < 1e-3:
             break
-    return dict(x=dict(zip(names, (float(x) for x in u))), cost=cost, vector=r, evals=evals, value=v)
+    return dict(x=dict(zip(names, (float(x) for x in u))), cost=cost, vector=r, evals=counter[0], value=v)
+
+
+def _marquardt_try(A, r, cost, lam, to_point, evaluate, tries: int = 4):
+    """Up to ``tries`` damped steps with growing damping; the first that lowers the cost.
+
+    Returns ``(point, r_new, cost_new, lam_next)`` or None.
+    """
+    for _ in range(tries):
+        point = to_point(_damped_step(A, r, lam))
+        r_new = evaluate(*point)
+        if r_new is not None:
+            c_new = float(r_new @ r_new)
+            if c_new < cost:
+                return point, r_new, c_new, max(lam / 10.0, 1e-6)
+        lam *= 10.0
+    return None
 
 
 def _equivalent(screens: list[dict[str, Any]]) -> dict[int, int]:
@@ -491,6 +540,27 @@ def _equivalent(screens: list[dict[str, Any]]) -> dict[int, int]:
                 twins[k] = i
                 break
     return twins
+
+
+def _residual(model: Any, data: FrequencyData, band, weights) -> tuple[Residual, tuple]:
+    """The residual, with channels the model leaves decoupled weighted 0.
+
+    A channel whose model response stays :data:`DECOUPLED_DB` below both the largest
+    channel of its output row and of its input column (decoupled by symmetry, e.g. a
+    torque about one axis seen by a gyro about another) gives a log error of the data's
+    noise against a numerically zero model: no effect can explain it, so it would only
+    blur the statistics. It is left out and listed in ``Diagnosis.ignored_channels``.
+    """
+    res = Residual(model, data, band=band, weights=weights)
+    level = np.abs(res.model_response()).max(axis=0)  # (n_out, n_in)
+    ref = np.maximum(level.max(axis=1, keepdims=True), level.max(axis=0, keepdims=True))
+    weak = level < ref * 10 ** (DECOUPLED_DB / 20)
+    if not np.any(weak) or np.all(weak):
+        return res, ()
+    w = np.where(weak[None], 0.0, res.weights)
+    res = Residual(model, data, band=band, weights=w)
+    ignored = tuple((res.data.outputs[o], res.data.inputs[i]) for o, i in np.argwhere(weak))
+    return res, ignored
 
 
 def _null_fit(
@@ -670,7 +740,7 @@ def diagnose(
         raise FitError(f"alpha must lie in (0, 1) and min_gain in [0, 1); got {alpha}, {min_gain}.")
     if isinstance(weights, str) and weights == "auto":
         weights = "coherence" if data.coherence is not None else None
-    res0 = Residual(model, data, band=band, weights=weights)
+    res0, ignored = _residual(model, data, band, weights)
     upd = _check_update(model, update_params)
     cands = _check_candidates(
         model, all_candidates(model, band=res0.band) if candidates is None else list(candidates)
@@ -733,6 +803,8 @@ def diagnose(
         band=res0.band,
         n_evals=evals,
         time_s=time.perf_counter() - t0,
+        ignored_channels=ignored,
+        weights=res0.weights,
         residual_update=e_u,
         f_hz=res0.f_hz,
         explained=explained,

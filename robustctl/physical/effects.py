@@ -67,6 +67,7 @@ __all__ = [
     "GravityStiffening",
     "ModalDamping",
     "candidates",
+    "calibrate",
     "EFFECT_KINDS",
 ]
 
@@ -249,8 +250,9 @@ class Effect:
         return _fmt_quantity(v, spec["unit"])
 
     def __str__(self) -> str:
-        vals = ", ".join(f"{k} = {_fmt_quantity(v, p.unit)}" for (k, v), p in zip(self.values.items(),
-                                                                                  self.parameters))
+        vals = ", ".join(
+            f"{k} = {_fmt_quantity(v, p.unit)}" for (k, v), p in zip(self.values.items(), self.parameters)
+        )
         return f"{self.name} ({vals})"
 
 
@@ -279,9 +281,12 @@ def _structure_info(model: PhysicalModel) -> dict[str, Any]:
     info = _model_info.setdefault(model, {})
     if "locations" not in info:
         struct = model.build_structure()
-        info.update(locations=tuple(struct.locations()), groups=tuple(struct.element_groups()),
-                    gravity=type(struct).set_gravity is not _base_set_gravity(),
-                    gravity_on=getattr(struct, "gravity_enabled", None))
+        info.update(
+            locations=tuple(struct.locations()),
+            groups=tuple(struct.element_groups()),
+            gravity=type(struct).set_gravity is not _base_set_gravity(),
+            gravity_on=getattr(struct, "gravity_enabled", None),
+        )
     return info
 
 
@@ -362,12 +367,22 @@ class OutputDelay(_IOEffect):
 
     @property
     def description(self) -> str:
-        return (f"A time delay on {self._where()} (sampling, computation or transport delay): a phase "
-                "lag growing linearly with frequency, magnitude unchanged.")
+        return (
+            f"A time delay on {self._where()} (sampling, computation or transport delay): a phase "
+            "lag growing linearly with frequency, magnitude unchanged."
+        )
 
     def _specs(self):
-        return [dict(base=f"{self.side}_delay", unit="s", bounds=(0.0, 0.1), neutral=0.0,
-                     default_scale=1e-3, meaning=f"time delay on {self._where()}")]
+        return [
+            dict(
+                base=f"{self.side}_delay",
+                unit="s",
+                bounds=(0.0, 0.1),
+                neutral=0.0,
+                default_scale=1e-3,
+                meaning=f"time delay on {self._where()}",
+            )
+        ]
 
     def _stage_fn(self):
         pname, order = self.param_names[0], int(self.pade_order)
@@ -431,16 +446,29 @@ class SensorLowPass(_IOEffect):
 
     @property
     def description(self) -> str:
-        shape = ("1/(1 + s tau)" if self.order == 1
-                 else f"1/(1 + 2 zeta s tau + (s tau)^2), zeta = {self.damping:.3g}")
-        return (f"A {self.order}{'st' if self.order == 1 else 'nd'}-order low-pass {shape} on "
-                f"{self._where()} ({self._what} dynamics or signal conditioning): magnitude roll-off "
-                "and phase lag towards the cutoff 1/(2 pi tau).")
+        shape = (
+            "1/(1 + s tau)"
+            if self.order == 1
+            else f"1/(1 + 2 zeta s tau + (s tau)^2), zeta = {self.damping:.3g}"
+        )
+        return (
+            f"A {self.order}{'st' if self.order == 1 else 'nd'}-order low-pass {shape} on "
+            f"{self._where()} ({self._what} dynamics or signal conditioning): magnitude roll-off "
+            "and phase lag towards the cutoff 1/(2 pi tau)."
+        )
 
     def _specs(self):
         base = f"{self._what}_lowpass{self.order}_tau"
-        return [dict(base=base, unit="s", bounds=(0.0, 1.0), neutral=0.0, default_scale=1e-3,
-                     meaning=f"time constant 1/(2 pi f_c) of the {self.name}")]
+        return [
+            dict(
+                base=base,
+                unit="s",
+                bounds=(0.0, 1.0),
+                neutral=0.0,
+                default_scale=1e-3,
+                meaning=f"time constant 1/(2 pi f_c) of the {self.name}",
+            )
+        ]
 
     def _stage_fn(self):
         pname, order, zeta = self.param_names[0], self.order, float(self.damping)
@@ -494,16 +522,25 @@ class SensorGain(_IOEffect):
 
     @property
     def description(self) -> str:
-        return (f"A calibration error of the gain of {self._where()}: the same relative magnitude "
-                "error at every frequency, no phase change.")
+        return (
+            f"A calibration error of the gain of {self._where()}: the same relative magnitude "
+            "error at every frequency, no phase change."
+        )
 
     def _check_location(self, model):
         _require(self.location, _signals(model, self.side), self.side, self)
 
     def _specs(self):
-        return [dict(base=f"{'sensor' if self.side == 'output' else 'actuator'}_gain_error",
-                     unit="", bounds=(-0.9, 2.0), neutral=0.0, default_scale=0.05,
-                     meaning=f"relative gain error of {self._where()}")]
+        return [
+            dict(
+                base=f"{'sensor' if self.side == 'output' else 'actuator'}_gain_error",
+                unit="",
+                bounds=(-0.9, 2.0),
+                neutral=0.0,
+                default_scale=0.05,
+                meaning=f"relative gain error of {self._where()}",
+            )
+        ]
 
     def _stage_fn(self):
         pname = self.param_names[0]
@@ -550,9 +587,11 @@ class SensorMisalignment(_IOEffect):
 
     @property
     def description(self) -> str:
-        return (f"Sensors {self.location} and {self.partner} read along axes turned by a small angle: "
-                "each picks up a little of the other's motion (cross-talk), changing zeros more "
-                "than poles.")
+        return (
+            f"Sensors {self.location} and {self.partner} read along axes turned by a small angle: "
+            "each picks up a little of the other's motion (cross-talk), changing zeros more "
+            "than poles."
+        )
 
     def _suffix(self) -> str:
         return f"__{_slug(self.location)}_{_slug(self.partner)}"
@@ -565,9 +604,16 @@ class SensorMisalignment(_IOEffect):
             raise ModelError(f"a misalignment needs two different sensors; got {self.location!r} twice.")
 
     def _specs(self):
-        return [dict(base="sensor_misalignment", unit="rad", bounds=(-0.5, 0.5), neutral=0.0,
-                     default_scale=math.radians(2.0), meaning=f"misalignment angle of {self.location}/"
-                     f"{self.partner}")]
+        return [
+            dict(
+                base="sensor_misalignment",
+                unit="rad",
+                bounds=(-0.5, 0.5),
+                neutral=0.0,
+                default_scale=math.radians(2.0),
+                meaning=f"misalignment angle of {self.location}/{self.partner}",
+            )
+        ]
 
     def _stage_fn(self):
         pname, pair = self.param_names[0], (self.location, self.partner)
@@ -630,12 +676,22 @@ class AddedMass(_StructEffect):
 
     @property
     def description(self) -> str:
-        return (f"Unmodelled mass at {self._at()} (hardware, cabling, a sensor): lowers the frequencies "
-                "of the modes that move that point, most where the mode shape is largest.")
+        return (
+            f"Unmodelled mass at {self._at()} (hardware, cabling, a sensor): lowers the frequencies "
+            "of the modes that move that point, most where the mode shape is largest."
+        )
 
     def _specs(self):
-        return [dict(base="added_mass", unit="kg", bounds=(0.0, 1e6), neutral=0.0, default_scale=0.01,
-                     meaning=f"point mass added at {self._at()}")]
+        return [
+            dict(
+                base="added_mass",
+                unit="kg",
+                bounds=(0.0, 1e6),
+                neutral=0.0,
+                default_scale=0.01,
+                meaning=f"point mass added at {self._at()}",
+            )
+        ]
 
     def _stage_fn(self):
         pname, loc = self.param_names[0], self.location
@@ -672,13 +728,23 @@ class SuspensionSpring(_DirectedEffect):
 
     @property
     def description(self) -> str:
-        return (f"A spring from {self._at()} to ground{self._dir_text()} (suspension device, support or "
-                "cable): raises the frequencies of modes moving that point, above all the "
-                "low (suspension / rigid-body) ones.")
+        return (
+            f"A spring from {self._at()} to ground{self._dir_text()} (suspension device, support or "
+            "cable): raises the frequencies of modes moving that point, above all the "
+            "low (suspension / rigid-body) ones."
+        )
 
     def _specs(self):
-        return [dict(base="suspension_spring", unit="N/m", bounds=(0.0, 1e12), neutral=0.0,
-                     default_scale=100.0, meaning=f"grounded spring at {self._at()}{self._dir_text()}")]
+        return [
+            dict(
+                base="suspension_spring",
+                unit="N/m",
+                bounds=(0.0, 1e12),
+                neutral=0.0,
+                default_scale=100.0,
+                meaning=f"grounded spring at {self._at()}{self._dir_text()}",
+            )
+        ]
 
     def _stage_fn(self):
         pname, loc, d = self.param_names[0], self.location, self.direction
@@ -712,12 +778,22 @@ class Dashpot(_DirectedEffect):
 
     @property
     def description(self) -> str:
-        return (f"A concentrated viscous damper at {self._at()}{self._dir_text()} (MACE's suspension "
-                "dashpots): widens and lowers the resonance peaks of the modes that move that point.")
+        return (
+            f"A concentrated viscous damper at {self._at()}{self._dir_text()} (MACE's suspension "
+            "dashpots): widens and lowers the resonance peaks of the modes that move that point."
+        )
 
     def _specs(self):
-        return [dict(base="dashpot", unit="N s/m", bounds=(0.0, 1e9), neutral=0.0, default_scale=1.0,
-                     meaning=f"grounded dashpot at {self._at()}{self._dir_text()}")]
+        return [
+            dict(
+                base="dashpot",
+                unit="N s/m",
+                bounds=(0.0, 1e9),
+                neutral=0.0,
+                default_scale=1.0,
+                meaning=f"grounded dashpot at {self._at()}{self._dir_text()}",
+            )
+        ]
 
     def _stage_fn(self):
         pname, loc, d = self.param_names[0], self.location, self.direction
@@ -759,12 +835,22 @@ class Pendulum(_StructEffect):
 
     @property
     def description(self) -> str:
-        return (f"A suspension rod or cable at {self._at()}: horizontal stiffness W/L in "
-                f"{' and '.join(self.directions)}, raising the pendulum (rigid-body) frequencies.")
+        return (
+            f"A suspension rod or cable at {self._at()}: horizontal stiffness W/L in "
+            f"{' and '.join(self.directions)}, raising the pendulum (rigid-body) frequencies."
+        )
 
     def _specs(self):
-        return [dict(base="pendulum_stiffness", unit="N/m", bounds=(0.0, 1e12), neutral=0.0,
-                     default_scale=100.0, meaning=f"pendular stiffness W/L at {self._at()}")]
+        return [
+            dict(
+                base="pendulum_stiffness",
+                unit="N/m",
+                bounds=(0.0, 1e12),
+                neutral=0.0,
+                default_scale=100.0,
+                meaning=f"pendular stiffness W/L at {self._at()}",
+            )
+        ]
 
     def _stage_fn(self):
         pname, loc, dirs = self.param_names[0], self.location, tuple(self.directions)
@@ -804,15 +890,25 @@ class GroupStiffness(_StructEffect):
 
     @property
     def description(self) -> str:
-        return (f"The elements of {self.location} are stiffer or softer than modelled (joints, "
-                "material, cross-section): shifts the modes that strain them.")
+        return (
+            f"The elements of {self.location} are stiffer or softer than modelled (joints, "
+            "material, cross-section): shifts the modes that strain them."
+        )
 
     def _check_location(self, model):
         _require(self.location, _structure_info(model)["groups"], "element group", self)
 
     def _specs(self):
-        return [dict(base="stiffness_change", unit="", bounds=(-0.95, 10.0), neutral=0.0,
-                     default_scale=0.05, meaning=f"relative stiffness change of {self.location}")]
+        return [
+            dict(
+                base="stiffness_change",
+                unit="",
+                bounds=(-0.95, 10.0),
+                neutral=0.0,
+                default_scale=0.05,
+                meaning=f"relative stiffness change of {self.location}",
+            )
+        ]
 
     def _stage_fn(self):
         pname, group = self.param_names[0], self.location
@@ -853,15 +949,25 @@ class GroupTension(_StructEffect):
 
     @property
     def description(self) -> str:
-        return (f"Axial tension along {self.location} (taut wires or cables fixed to the members): "
-                "geometric stiffness stiffens their bending, raising the modes that bend them.")
+        return (
+            f"Axial tension along {self.location} (taut wires or cables fixed to the members): "
+            "geometric stiffness stiffens their bending, raising the modes that bend them."
+        )
 
     def _check_location(self, model):
         _require(self.location, _structure_info(model)["groups"], "element group", self)
 
     def _specs(self):
-        return [dict(base="tension", unit="N", bounds=(-1e7, 1e7), neutral=0.0, default_scale=10.0,
-                     meaning=f"axial tension along {self.location}")]
+        return [
+            dict(
+                base="tension",
+                unit="N",
+                bounds=(-1e7, 1e7),
+                neutral=0.0,
+                default_scale=10.0,
+                meaning=f"axial tension along {self.location}",
+            )
+        ]
 
     def _stage_fn(self):
         pname, group = self.param_names[0], self.location
@@ -895,9 +1001,11 @@ class GravityStiffening(_StructEffect):
 
     @property
     def description(self) -> str:
-        return ("The static gravity preload and its stress stiffening (MACE's 1-g model) "
-                f"{'added to' if self.enabled else 'removed from'} the structure: shifts modes whose "
-                "members carry the weight, and pendulum modes.")
+        return (
+            "The static gravity preload and its stress stiffening (MACE's 1-g model) "
+            f"{'added to' if self.enabled else 'removed from'} the structure: shifts modes whose "
+            "members carry the weight, and pendulum modes."
+        )
 
     def _check_location(self, model):
         info = _structure_info(model)
@@ -911,9 +1019,17 @@ class GravityStiffening(_StructEffect):
         return ""
 
     def _specs(self):
-        return [dict(base="gravity_on" if self.enabled else "gravity_off", unit="switch",
-                     bounds=(0.0, 1.0), neutral=0.0, default_scale=1.0, free=False,
-                     meaning=f"1: gravity preload {'on' if self.enabled else 'off'}; 0: as modelled")]
+        return [
+            dict(
+                base="gravity_on" if self.enabled else "gravity_off",
+                unit="switch",
+                bounds=(0.0, 1.0),
+                neutral=0.0,
+                default_scale=1.0,
+                free=False,
+                meaning=f"1: gravity preload {'on' if self.enabled else 'off'}; 0: as modelled",
+            )
+        ]
 
     def _stage_fn(self):
         pname, enabled = self.param_names[0], bool(self.enabled)
@@ -950,8 +1066,9 @@ class ModalDamping(_StructEffect):
 
     def __post_init__(self) -> None:
         if not 0 <= self.lo_hz < self.hi_hz:
-            raise ModelError(f"modal damping band needs 0 <= lo_hz < hi_hz (Hz); got ({self.lo_hz}, "
-                             f"{self.hi_hz}).")
+            raise ModelError(
+                f"modal damping band needs 0 <= lo_hz < hi_hz (Hz); got ({self.lo_hz}, {self.hi_hz})."
+            )
         if self.location is None:
             object.__setattr__(self, "location", f"modes {self.lo_hz:.3g}-{self.hi_hz:.3g} Hz")
         super().__post_init__()
@@ -962,8 +1079,10 @@ class ModalDamping(_StructEffect):
 
     @property
     def description(self) -> str:
-        return (f"The damping of the {self.location} differs from the model (joints, friction, "
-                "cabling): changes peak heights and widths, not frequencies.")
+        return (
+            f"The damping of the {self.location} differs from the model (joints, friction, "
+            "cabling): changes peak heights and widths, not frequencies."
+        )
 
     def _check_location(self, model):
         _structure_info(model)
@@ -972,8 +1091,16 @@ class ModalDamping(_StructEffect):
         return f"__{_slug(f'{self.lo_hz:.3g}')}_{_slug(f'{self.hi_hz:.3g}')}Hz"
 
     def _specs(self):
-        return [dict(base="modal_damping_change", unit="", bounds=(-0.95, 20.0), neutral=0.0,
-                     default_scale=0.2, meaning=f"relative modal damping change of the {self.location}")]
+        return [
+            dict(
+                base="modal_damping_change",
+                unit="",
+                bounds=(-0.95, 20.0),
+                neutral=0.0,
+                default_scale=0.2,
+                meaning=f"relative modal damping change of the {self.location}",
+            )
+        ]
 
     def _stage_fn(self):
         pname, lo, hi = self.param_names[0], float(self.lo_hz), float(self.hi_hz)
@@ -988,19 +1115,39 @@ class ModalDamping(_StructEffect):
 #: Every effect class by kind.
 EFFECT_KINDS: dict[str, type[Effect]] = {
     cls.kind: cls
-    for cls in (OutputDelay, InputDelay, SensorLowPass, ActuatorLowPass, SensorGain, ActuatorGain,
-                SensorMisalignment, AddedMass, SuspensionSpring, Dashpot, Pendulum, GroupStiffness,
-                GroupTension, GravityStiffening, ModalDamping)
+    for cls in (
+        OutputDelay,
+        InputDelay,
+        SensorLowPass,
+        ActuatorLowPass,
+        SensorGain,
+        ActuatorGain,
+        SensorMisalignment,
+        AddedMass,
+        SuspensionSpring,
+        Dashpot,
+        Pendulum,
+        GroupStiffness,
+        GroupTension,
+        GravityStiffening,
+        ModalDamping,
+    )
 }
 
 
 # ============================================================================ candidates
 def _io_candidates(model: PhysicalModel) -> list[Effect]:
     outs = _signals(model, "output")
-    cands: list[Effect] = [OutputDelay(), InputDelay(), SensorLowPass(order=1), SensorLowPass(order=2),
-                           ActuatorLowPass(order=1), ActuatorLowPass(order=2)]
+    cands: list[Effect] = [
+        OutputDelay(),
+        InputDelay(),
+        SensorLowPass(order=1),
+        SensorLowPass(order=2),
+        ActuatorLowPass(order=1),
+        ActuatorLowPass(order=2),
+    ]
     cands += [SensorGain(o) for o in outs]
-    cands += [SensorMisalignment(a, partner=b) for i, a in enumerate(outs) for b in outs[i + 1:]]
+    cands += [SensorMisalignment(a, partner=b) for i, a in enumerate(outs) for b in outs[i + 1 :]]
     return cands
 
 
@@ -1073,6 +1220,7 @@ def candidates(
     band: tuple[float, float] | None = None,
     kinds: Iterable[str] | None = None,
     points: bool = True,
+    locations: Iterable[str] | None = None,
     calibrate: bool = True,
 ) -> list[Effect]:
     """The effects applicable to ``model``, one per kind and location, at their neutral value.
@@ -1094,6 +1242,8 @@ def candidates(
         Keep only these kinds (see :data:`EFFECT_KINDS`).
     points : bool
         Include the point effects (mass, spring, dashpot at every location).
+    locations : iterable of str, optional
+        Put point effects only at these locations (e.g. where hardware sits); default all.
     calibrate : bool
         Set each structural candidate's secant step (``Effect.scale``) so that it changes
         the most affected modal ``w^2`` by :data:`SHIFT_TARGET` (a dashpot: the damping
@@ -1114,8 +1264,12 @@ def candidates(
     cands = _io_candidates(model)
     if model.structure is not None:
         cands += _structure_candidates(model, points)
+        if locations is not None:
+            cands = _at_locations(model, cands, locations)
+        if kinds is not None:
+            cands = [c for c in cands if c.kind in kinds]
         if calibrate:
-            omega, phi, cands = _calibrate(model, cands, band)
+            omega, _, cands = _calibrate(model, cands, band)
         else:
             omega = _modes(model, band)[0]
         cands += _modal_damping_candidates(omega / (2 * np.pi), band)
@@ -1124,6 +1278,21 @@ def candidates(
     if kinds is not None:
         cands = [c for c in cands if c.kind in kinds]
     return cands
+
+
+_POINT_KINDS = ("added_mass", "suspension_spring", "dashpot", "pendulum")
+
+
+def _at_locations(model: PhysicalModel, cands: list[Effect], locations: Iterable[str]) -> list[Effect]:
+    """Keep point effects only at ``locations`` (checked against the model)."""
+    locations = (locations,) if isinstance(locations, str) else tuple(locations)
+    known = _structure_info(model)["locations"]
+    for loc in locations:
+        if loc not in known:
+            raise ModelError(
+                f"unknown location {loc!r}; the model has locations {list(known)}." + _close(loc, known)
+            )
+    return [c for c in cands if c.kind not in _POINT_KINDS or c.location in locations]
 
 
 # ---------------------------------------------------------------------------- calibration
@@ -1144,6 +1313,33 @@ def _modes(model: PhysicalModel, band):
         keep = inside if np.any(inside) else keep
     idx = np.flatnonzero(keep)[:_N_CAL_MODES] if band is None else np.flatnonzero(keep)
     return omega[idx], phi[:, idx], (M, K, mats)
+
+
+@limit_blas
+def calibrate(
+    model: PhysicalModel, effects: Sequence[Effect], band: tuple[float, float] | None = None
+) -> list:
+    """Structural effects with secant steps calibrated on ``model`` (I/O effects unchanged).
+
+    Each structural effect's ``scale`` becomes the size that changes the most affected
+    modal ``w^2`` (modes in ``band`` Hz, else the lowest 12) by :data:`SHIFT_TARGET` to
+    first order (a dashpot: a damping ratio by :data:`DAMPING_TARGET`); effects that cannot
+    change the modes at all (a spring on a clamped node) are dropped.
+
+    Parameters
+    ----------
+    model : PhysicalModel
+    effects : sequence of Effect
+    band : (float, float), optional
+        Hz.
+
+    Returns
+    -------
+    list of Effect
+    """
+    if model.structure is None or not any(e.domain == "structure" for e in effects):
+        return list(effects)
+    return _calibrate(model, list(effects), band)[2]
 
 
 def _calibrate(model: PhysicalModel, cands: list[Effect], band) -> tuple[np.ndarray, np.ndarray, list]:
@@ -1171,8 +1367,12 @@ def _calibrate(model: PhysicalModel, cands: list[Effect], band) -> tuple[np.ndar
             dz = np.abs(np.einsum("ij,ik,kj->j", phi, C - C0, phi)) / (2 * omega) / unit
             size = DAMPING_TARGET / dz.max() if dz.max() > 0 else None
         else:
-            dw2 = np.abs(np.einsum("ij,ik,kj->j", phi, dK, phi)
-                         - omega**2 * np.einsum("ij,ik,kj->j", phi, dM, phi)) / unit
+            dw2 = (
+                np.abs(
+                    np.einsum("ij,ik,kj->j", phi, dK, phi) - omega**2 * np.einsum("ij,ik,kj->j", phi, dM, phi)
+                )
+                / unit
+            )
             rel = dw2 / omega**2
             size = SHIFT_TARGET / rel.max() if rel.max() > 0 else None
         if size is None or not np.isfinite(size):
