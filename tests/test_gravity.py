@@ -282,3 +282,40 @@ def test_soft_suspension_modes_of_a_stiff_body_are_not_mistaken_for_rigid_body_m
     # the body turns freely about the pin at its centre of mass: three rigid rotations
     assert np.all(f[:3] < 1e-3)
     assert np.allclose(f[3:], np.sqrt(g / 20.0) / (2 * np.pi), rtol=0.01)
+
+
+def _hung_tower(gravity_on: bool = True, suspended: bool = True) -> Frame:
+    fr = Frame(gravity=g if gravity_on else None)
+    kw = dict(G=8e10, A=1e-4, Iy=1e-8, Iz=1e-8, J=2e-8, **STEEL)
+    for k in range(4):
+        for j in range(3):
+            ang = 2 * np.pi * j / 3
+            fr.add_node(f"n{k}{j}", (0.3 * np.cos(ang), 0.3 * np.sin(ang), -0.3 * k))
+    for k in range(4):
+        for j in range(3):
+            fr.add_beam("batten", f"n{k}{j}", f"n{k}{(j + 1) % 3}", **kw)
+            if k < 3:
+                fr.add_beam("longeron", f"n{k}{j}", f"n{k + 1}{j}", **kw)
+    if suspended:
+        fr.add_node("hook", (0.0, 0.0, 1.0))
+        for j in range(3):
+            fr.add_rod("rods", "hook", f"n0{j}", E=2e11, rho=7800.0, A=1e-5, n_elements=3)
+        fr.fix("hook")
+    return fr
+
+
+@pytest.mark.parametrize("suspended", [True, False])
+def test_sparse_static_path_agrees_with_the_dense_one(suspended, monkeypatch):
+    """The preconditioned-CG path for large models (forced here on a small one) gives the
+    same member forces and modes, for a suspended and for a free-falling structure."""
+    dense = _hung_tower(suspended=suspended)
+    N_dense = np.array(list(dense.axial_forces().values()))
+    f_dense, _ = dense.modes(n_modes=10)
+    monkeypatch.setattr(gravity, "DENSE_LIMIT", 10)
+    sparse_fr = _hung_tower(suspended=suspended)
+    N_sparse = np.array(list(sparse_fr.axial_forces().values()))
+    f_sparse, _ = sparse_fr.modes(n_modes=10)
+    W = g * float(np.sum(sparse_fr.matrices().mass.diagonal()))  # a scale for the forces
+    assert np.abs(N_sparse - N_dense).max() < 1e-9 * W
+    assert np.allclose(f_sparse, f_dense, rtol=1e-8, atol=1e-8)
+    assert np.isclose(sparse_fr.preload().unbalanced_fraction, 0.0 if suspended else 1.0, atol=1e-9)

@@ -186,7 +186,7 @@ def solve_static(K, M, f, Z: np.ndarray | None = None) -> tuple[np.ndarray, np.n
         except np.linalg.LinAlgError:
             raise _unstable_error() from None
     else:
-        u = _sparse_projected_solve(K, Mreg, Z, f_p, lam_ref)
+        u = _sparse_projected_solve(K, Mreg, Z, f_p, lam_ref, float(np.linalg.norm(f)))
     return u, f_removed
 
 
@@ -199,21 +199,36 @@ def _unstable_error() -> ModelError:
     )
 
 
-def _sparse_projected_solve(K, Mreg, Z, f_p, lam_ref):
-    """Preconditioned CG on ``K u = f_p`` in the M-complement of ``Z`` (large models)."""
+def _sparse_projected_solve(K, Mreg, Z, f_p, lam_ref, f_norm):
+    """Preconditioned CG on ``K u = f_p`` in the M-complement of ``Z`` (large models).
+
+    The preconditioner is ``Pi (K + sigma M)^-1 Pi^T`` with ``Pi = I - Z Z^T M``: symmetric,
+    as CG needs, and equal to the pseudo-inverse up to the small shift ``sigma``. The
+    residual is judged against the whole load ``f_norm`` (a free-falling structure leaves
+    only rounding in ``f_p``)."""
     sigma = 1e-8 * lam_ref
     try:
         lu = spla.splu((K + sigma * Mreg).tocsc())
     except RuntimeError:
         raise _unstable_error() from None
 
-    def project(x):
+    def project(x):  # onto the M-complement of Z
         return x - Z @ (Z.T @ (Mreg @ x))
 
-    prec = spla.LinearOperator(K.shape, matvec=lambda r: project(lu.solve(r)))
-    u, info = spla.cg(K, f_p, x0=project(lu.solve(f_p)), M=prec, rtol=1e-12, maxiter=200)
+    def project_t(r):  # its transpose, for loads: removes the part that excites Z
+        return r - Mreg @ (Z @ (Z.T @ r))
+
+    b = project_t(f_p)
+    if np.linalg.norm(b) <= 1e-12 * max(f_norm, 1e-300):
+        return np.zeros_like(b)
+    prec = spla.LinearOperator(K.shape, matvec=lambda r: project(lu.solve(project_t(r))))
+    u, info = spla.cg(K, b, x0=prec @ b, M=prec, rtol=1e-12, atol=1e-12 * f_norm, maxiter=200)
     if info != 0:
-        raise _unstable_error()
+        raise ModelError(
+            "the static solution under gravity did not converge: the preloaded stiffness is "
+            "indefinite (a compressive preload beyond buckling) or nearly singular in a "
+            "direction that is not a rigid-body mode. Check the supports and compressed members."
+        )
     return project(u)
 
 
