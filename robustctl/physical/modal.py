@@ -476,6 +476,12 @@ class _ModeCache:
         self._store: OrderedDict[bytes, ModalData] = OrderedDict()
         self._lock = threading.Lock()
 
+    def __getstate__(self) -> dict:
+        return {"size": self._size}  # pickled models (process executors) start with an empty cache
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["size"])
+
     def get(self, key: bytes, compute: Callable[[], ModalData]) -> ModalData:
         with self._lock:
             if key in self._store:

@@ -17,6 +17,7 @@ does not solve the eigenproblem again.
 
 from __future__ import annotations
 
+import threading
 from collections import OrderedDict
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -46,6 +47,39 @@ class Stage:
     tags: tuple[str, ...] = ()
 
 
+class _DynamicsCache:
+    """A small thread-safe LRU of structural state spaces keyed on the values read.
+
+    It is dropped when a model is pickled (for a process or cluster executor) and starts
+    empty on the other side.
+    """
+
+    def __init__(self, size: int = 8):
+        self._entries: OrderedDict = OrderedDict()
+        self._lock = threading.Lock()
+        self._size = size
+
+    def lookup(self, theta: Mapping[str, float]) -> Any | None:
+        with self._lock:
+            for read, vals in reversed(self._entries.keys()):
+                if all(theta.get(k) == v for k, v in zip(read, vals)):
+                    self._entries.move_to_end((read, vals))
+                    return self._entries[(read, vals)]
+        return None
+
+    def store(self, read: tuple[str, ...], theta: Mapping[str, float], value: Any) -> None:
+        with self._lock:
+            self._entries[(read, tuple(theta[k] for k in read))] = value
+            while len(self._entries) > self._size:
+                self._entries.popitem(last=False)
+
+    def __getstate__(self) -> dict:
+        return {"size": self._size}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["size"])
+
+
 class _RecordingTheta(Mapping):
     """A read-only parameter mapping that records which keys were read."""
 
@@ -72,6 +106,12 @@ class _RecordingTheta(Mapping):
 
     def __len__(self) -> int:
         return len(self._values)
+
+
+def _model_from_bytes(payload: bytes) -> PhysicalModel:
+    import pickle
+
+    return PhysicalModel(**pickle.loads(payload))
 
 
 @dataclass(frozen=True, eq=False)
@@ -105,7 +145,15 @@ class PhysicalModel:
     excluded_tags: frozenset[str] = frozenset()
     name: str = "model"
     meta: Mapping[str, Any] = field(default_factory=dict)
-    _cache: OrderedDict = field(default_factory=OrderedDict, repr=False, compare=False)
+    _cache: _DynamicsCache = field(default_factory=_DynamicsCache, repr=False, compare=False)
+
+    def __reduce__(self):
+        """Pickle by value (closures included) so process and cluster executors can ship
+        models: the build stages are often closures, which plain pickle refuses."""
+        import cloudpickle
+
+        fields = {name: getattr(self, name) for name in self.__dataclass_fields__ if name != "_cache"}
+        return (_model_from_bytes, (cloudpickle.dumps(fields),))
 
     def __post_init__(self) -> None:
         params = tuple(self.params)
@@ -164,7 +212,7 @@ class PhysicalModel:
         return self._copy(params=kept + tuple(new.values()))
 
     def _copy(self, **changes: Any) -> PhysicalModel:
-        changes.setdefault("_cache", OrderedDict())
+        changes.setdefault("_cache", _DynamicsCache())
         return replace(self, **changes)
 
     # ------------------------------------------------------------------ composition
@@ -221,23 +269,14 @@ class PhysicalModel:
         return struct
 
     def _dynamics(self, theta: dict[str, float]) -> Any:
+        cached = self._cache.lookup(theta)
+        if cached is not None:
+            return cached
         recorder = _RecordingTheta(theta)
-        key_hint = self._cache_key(theta)
-        if key_hint is not None:
-            return self._cache[key_hint]
         struct = self._structure(recorder) if self.structure is not None else None
         sys = self.dynamics(recorder, struct)
-        read = tuple(sorted(recorder.read))
-        self._cache[(read, tuple(theta[k] for k in read))] = sys
-        while len(self._cache) > 8:
-            self._cache.popitem(last=False)
+        self._cache.store(tuple(sorted(recorder.read)), theta, sys)
         return sys
-
-    def _cache_key(self, theta: Mapping[str, float]) -> tuple | None:
-        for read, vals in reversed(self._cache.keys()):
-            if all(theta.get(k) == v for k, v in zip(read, vals)):
-                return (read, vals)
-        return None
 
     def statespace(self, **overrides: float):
         """The I/O model as a ``control.StateSpace`` with named signals."""
