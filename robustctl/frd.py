@@ -256,7 +256,7 @@ class FrequencyData:
         )
 
     # ------------------------------------------------------------------ files
-    def save(self, path: str | PathLike, overwrite: bool = False):
+    def save(self, path: str | PathLike, overwrite: bool = False) -> Path:
         """Write the data to ``path``; the format follows the extension.
 
         Parameters
