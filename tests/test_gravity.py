@@ -69,8 +69,10 @@ def string(n_elements: int, tension: float, *, beam: bool = False) -> Frame:
         fr.add_beam("s", "a", "b", G=8e10, A=A, Iy=I, Iz=I, J=2 * I, n_elements=n_elements, **STEEL)
     else:
         fr.add_rod("s", "a", "b", A=np.pi * 4e-8, n_elements=n_elements, **STEEL)
-    fr.fix("a")
-    fr.fix("b")
+    # pinned ends: a clamped thin wire has a bending boundary layer (width sqrt(EI/T) ~ 1 mm)
+    # that the elements cannot resolve, and a string's ends are hinges anyway
+    fr.fix("a", ["x", "y", "z", "rx"] if beam else "all")
+    fr.fix("b", ["y", "z"] if beam else "all")
     fr.add_group_tension("s", tension)
     return fr
 
