@@ -733,7 +733,7 @@ def compare(
     model: Any,
     data: FrequencyData,
     band: Sequence[float] | None = None,
-    weights: Any = None,
+    weights: Any = "auto",
     measurement_model: Any = None,
     *,
     threshold_db: float = 3.0,
@@ -751,7 +751,7 @@ def compare(
         Measured responses (Hz).
     band : (lo_hz, hi_hz), optional
         Band in Hz; default every data point.
-    weights : None, "coherence" or array_like
+    weights : "auto", None, "coherence" or array_like
         Weights of the cost (see :class:`Residual`); the dB/phase errors are unweighted.
     measurement_model : optional
         An ``rc.fit_measurement_model`` result; its ``.modes`` (or the eigenstructure of its

@@ -101,11 +101,13 @@ def _channel_index(model_names: Sequence[str], data_names: Sequence[str], what: 
 
 def _weights(weights: Any, data: FrequencyData) -> np.ndarray:
     shape = data.shape
+    if isinstance(weights, str) and weights == "auto":
+        weights = "coherence" if data.coherence is not None else None
     if weights is None:
         return np.ones(shape)
     if isinstance(weights, str):
         if weights != "coherence":
-            raise DataError(f"weights must be None, 'coherence' or an array; got {weights!r}.")
+            raise DataError(f"weights must be 'auto', None, 'coherence' or an array; got {weights!r}.")
         if data.coherence is None:
             raise DataError(
                 "weights='coherence' but the data carry no coherence; estimate the FRF with "
@@ -158,7 +160,8 @@ class Residual:
         Measured (or simulated) responses, shape (n_freq, n_out, n_in), Hz.
     band : (float, float), optional
         Frequency band ``(lo_hz, hi_hz)`` in Hz; default: every data point.
-    weights : None, "coherence" or array_like, optional
+    weights : "auto", None, "coherence" or array_like, optional
+        ``"auto"`` (default) is ``"coherence"`` when the data carry coherence, else ``None``.
         Per-point weights ``w`` on the residual (broadcast to the banded data shape), so the
         cost is ``sum w^2 |log ratio|^2``: ``Residual(m, d, weights=w).cost()`` equals
         ``rc.log_cost(d, m, weights=w**2)``, whose weights act on the squared error. ``"coherence"``
@@ -193,7 +196,7 @@ class Residual:
         model: Any,
         data: FrequencyData,
         band: Sequence[float] | None = None,
-        weights: Any = None,
+        weights: Any = "auto",
         min_channel_db: float | None = -80.0,
     ) -> None:
         if not isinstance(data, FrequencyData):

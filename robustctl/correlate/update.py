@@ -515,7 +515,7 @@ def update(
     band: Sequence[float] | None = None,
     max_iter: int = 20,
     executor: Executor | None = None,
-    weights: Any = None,
+    weights: Any = "auto",
     *,
     select: bool = True,
     passes: int = 3,
@@ -545,7 +545,7 @@ def update(
         Levenberg-Marquardt iteration cap.
     executor : concurrent.futures.Executor, optional
         Runs the sensitivity evaluations in parallel.
-    weights : None, "coherence" or array
+    weights : "auto", None, "coherence" or array
         See :class:`~robustctl.correlate.residual.Residual`.
     select : bool
         Apply the alignment and orthogonality tests (eqs. 8-9); ``False`` updates every

@@ -208,7 +208,7 @@ def verify(
     reference_data: FrequencyData | None = None,
     *,
     band: Sequence[float] | None = None,
-    weights: Any = None,
+    weights: Any = "auto",
     cost_ratio_tol: float = 2.0,
     freq_tol_pct: float = 4.0,
     cost_floor: float = 1e-6,
@@ -230,7 +230,7 @@ def verify(
         Data of the unperturbed structure: the accuracy to hold.
     band : (lo_hz, hi_hz), optional
         Band of both comparisons (Hz).
-    weights : optional
+    weights : "auto", None, "coherence" or array
         Weights of the cost (see :class:`~robustctl.correlate.residual.Residual`).
     cost_ratio_tol : float
         The accuracy holds if the cost per point on the perturbed data is at most this
