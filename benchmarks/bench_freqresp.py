@@ -57,17 +57,18 @@ def systems(seed: int = 0) -> tuple[control.StateSpace, control.StateSpace]:
 
 
 def _best_of_interleaved(fns, repeat: int = REPEAT) -> list[dict]:
-    """Warm each function, then time them in turns ``repeat`` times.
+    """Time the functions in turns ``repeat`` times, each call right after a warm-up call.
 
     Returns per function the best wall time, the best CPU time of this process
     (``time.process_time``: immune to other processes taking the cores, which shared
     machines do) and the last output. Interleaving keeps a change of machine load from
     favouring one side of a ratio.
     """
-    outs = [fn() for fn in fns]  # warm-up
+    outs = [None] * len(fns)
     wall, cpu = [np.inf] * len(fns), [np.inf] * len(fns)
     for _ in range(repeat):
         for k, fn in enumerate(fns):
+            fn()  # warm: caches hold this tool's data, not the other tool's
             c0, t0 = time.process_time(), time.perf_counter()
             outs[k] = fn()
             wall[k] = min(wall[k], time.perf_counter() - t0)
