@@ -90,7 +90,7 @@ def test_diagnosis_table_summary_html_and_plot(chain, cands):
     diag = rc.diagnose(chain, _data(chain, fx.AddedMass("dof 3", mass=0.05)), cands)
     table = diag.table()
     assert table.rows[0][1] == "added mass at dof 3" and table.rows[0][-1] is True
-    assert "Proposed: a 0.0" in diag.summary() and "kg added mass at dof 3" in diag.summary()
+    assert "Proposed: 0.0" in diag.summary() and "kg of added mass at dof 3 explains" in diag.summary()
     assert "<table" in diag._repr_html_()
     fig = diag.plot()
     assert len(fig.axes) == 2

@@ -614,9 +614,23 @@ def _where(res: Residual, delta: np.ndarray, unweight: bool = True) -> str:
     return f"{part}, {band}{chans}"
 
 
+def _phrase(effect: Any) -> str:
+    """The effect with its size in words: "a 3.6 ms output delay", "0.3 kg of added mass at ..."."""
+    size = effect.describe_value()
+    if effect.kind == "gravity":
+        return effect.name
+    if effect.kind in ("sensor_lowpass", "actuator_lowpass"):
+        return f"a {effect.name} at {size}"
+    if effect.kind == "added_mass":
+        return f"{size} of {effect.name}"
+    if effect.kind == "group_tension":
+        return f"{_article(size)} {size} tension along {effect.location} (taut wires or cables)"
+    return f"{_article(size)} {size} {effect.name}"
+
+
 def _sentence(r: CandidateResult) -> str:
-    size = r.effect.describe_value()
-    head = f"{_article(size)} {size} {r.effect.name}" if r.kind not in ("gravity",) else r.effect.name
+    head = _phrase(r.effect)
+    head = head[:1].upper() + head[1:]
     if r.equivalent:
         head += f" (the data cannot tell it from: {', '.join(r.equivalent)})"
     if r.fitted:
@@ -626,11 +640,14 @@ def _sentence(r: CandidateResult) -> str:
             f"{head} explains {100 * r.gain:.0f}% of the residual left by updating ({r.where}); "
             f"cost {100 * r.reduction:.0f}% below the nominal model; {verdict} ({p})."
         )
-    return f"{head} would explain about {100 * r.fraction:.0f}% of it to first order (not fitted)."
+    return (
+        f"{head} would explain about {100 * r.fraction:.0f}% of the residual left by updating to first "
+        "order (not fitted)."
+    )
 
 
 def _article(size: str) -> str:
-    return "an" if size[:1] in "8" or size[:2] in ("11", "18") else "a"
+    return "an" if size[:1] == "8" or size[:2] in ("11", "18") else "a"
 
 
 def _check_update(model: Any, update_params: Sequence[str] | None) -> tuple[str, ...]:
