@@ -122,6 +122,17 @@ def _blocks(A: np.ndarray) -> list[np.ndarray]:
     return [np.array(group) for group in by_size.values()]
 
 
+def _small_block_scaling(A: np.ndarray, blocks: list[np.ndarray]) -> np.ndarray:
+    """Diagonal scaling that balances every 2x2 block: ``|a12| = |a21|`` (the gebal goal, in closed form)."""
+    scale = np.ones(A.shape[0])
+    for idx in blocks:
+        if idx.shape[1] == 2:
+            b, c = np.abs(A[idx[:, 0], idx[:, 1]]), np.abs(A[idx[:, 1], idx[:, 0]])
+            both = (b > 0) & (c > 0)
+            scale[idx[both, 1]] = np.sqrt(c[both] / b[both])
+    return scale
+
+
 def _solve_with_cond(V: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, float]:
     """``V^{-1} B`` and the 1-norm condition number of ``V`` (inf when singular)."""
     from scipy.linalg import lapack, lu_factor, lu_solve
@@ -275,9 +286,14 @@ def _response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, s: np.
     out = np.broadcast_to(D.astype(complex), (s.size, p, m)).copy()
     if A.shape[0] == 0 or p == 0 or m == 0:
         return out
-    Ab, (scale, _) = matrix_balance(A, permute=False, separate=True)
+    blocks = _blocks(A)  # the sparsity pattern does not change under diagonal scaling
+    if max(b.shape[1] for b in blocks) <= 2:
+        scale = _small_block_scaling(A, blocks)
+    else:
+        _, (scale, _) = matrix_balance(A, permute=False, separate=True)
+    Ab = A * (scale[None, :] / scale[:, None])  # D^-1 A D, D = diag(scale)
     Bb, Cb = B / scale[:, None], C * scale[None, :]
-    lam, CV, W, bad = _modal_terms(Ab, Bb, Cb, _blocks(Ab), io_B=B, io_C=C)
+    lam, CV, W, bad = _modal_terms(Ab, Bb, Cb, blocks, io_B=B, io_C=C)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         if lam.size:
             out += _diag_response(lam, CV, W, s)
