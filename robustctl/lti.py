@@ -5,9 +5,10 @@ s-domain math in rad/s.
 
 The frequency response ``G(s) = C (sI - A)^{-1} B + D`` is evaluated block by block:
 
-* ``A`` is balanced (a diagonal similarity, LAPACK ``gebal``) and split into the
-  decoupled diagonal blocks of its sparsity pattern (a modal, block-diagonal ``A`` splits
-  into its 1x1 and 2x2 modes; a dense ``A`` is one block);
+* ``A`` is split into the decoupled diagonal blocks of its sparsity pattern (a modal,
+  block-diagonal ``A`` splits into its 1x1 and 2x2 modes; a dense ``A`` is one block) and
+  balanced by a diagonal similarity (LAPACK ``gebal``; for 1x1/2x2 blocks the closed form
+  ``|a12| = |a21|``);
 * a block whose eigenvector matrix is well conditioned is diagonalised,
   ``C_k (sI - A_k)^{-1} B_k = (C_k V) diag(1 / (s - lambda)) (V^{-1} B_k)``, and all such
   blocks are summed in one matrix product over every frequency (O(n) per frequency and
