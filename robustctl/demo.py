@@ -28,9 +28,6 @@ __all__ = ["run_demo", "DEMO_BAND_HZ"]
 #: The Caltech design band (0.5-5.5 Hz) widened to hold the local longeron and diagonal modes
 #: (32-43 Hz): below 30 Hz taut wires on the longerons and stiffer diagonals look alike.
 DEMO_BAND_HZ = (0.5, 50.0)
-#: Every cost of the demo weights each point by the inverse standard deviation of its log
-#: estimate (from the coherence), so that compare, diagnose and update speak of one cost.
-WEIGHTS = "coherence"
 
 
 def _measure(report: Report, seed: int) -> tuple[Any, Any]:
@@ -38,11 +35,13 @@ def _measure(report: Report, seed: int) -> tuple[Any, Any]:
     from .plots import bode_grid
 
     data, truth = examples.caltech_truss_experiment(seed=seed)
+    settings = data.meta["experiments"][0]
     report.heading("1. Measurements")
     report.text(
-        f"{data.n_out} accelerometers x {data.n_in} voice-coil actuators, {data.n_freq} frequency "
-        f"points from {data.f_hz[0]:.3g} to {data.f_hz[-1]:.3g} Hz; H1 Welch estimates "
-        f"({data.meta.get('n_averages', '?')} averages) with multiple coherence."
+        f"{data.n_out} accelerometers x {data.n_in} voice-coil actuators, one white-noise experiment "
+        f"per actuator ({settings['n_samples']} samples at {settings['fs_hz']:g} Hz); H1 Welch estimates "
+        f"with {settings['nperseg']}-point {settings['window']} windows ({settings['n_averages']} averages) "
+        f"and coherence; {data.n_freq} points from {data.f_hz[0]:.3g} to {data.f_hz[-1]:.3g} Hz."
     )
     if data.coherence is not None:
         band = data.band(*DEMO_BAND_HZ)
@@ -71,7 +70,7 @@ def _reveal(report: Report, data: Any, truth: Any, upd: Any) -> None:
 def _compare(report: Report, model: Any, data: Any, mm: Any, label: str) -> Any:
     from .correlate import compare
 
-    cmp = compare(model, data, band=DEMO_BAND_HZ, weights=WEIGHTS, measurement_model=mm)
+    cmp = compare(model, data, band=DEMO_BAND_HZ, measurement_model=mm)
     report.heading(f"{label}: where the model fails")
     report.text(cmp.summary())
     report.table(cmp.table())
@@ -114,7 +113,7 @@ def run_demo(out: str | Path = "out", seed: int = 0) -> Path:
     report.record("cost_nominal", float(cmp0.cost))
 
     report.heading("4. Which physical effect is missing?")
-    diag = diagnose(model, data, band=DEMO_BAND_HZ, weights=WEIGHTS)
+    diag = diagnose(model, data, band=DEMO_BAND_HZ)
     report.text(diag.summary())
     report.table(diag.table())
     if diag.best is None:
@@ -126,7 +125,7 @@ def run_demo(out: str | Path = "out", seed: int = 0) -> Path:
         report.record("diagnosed_effect", diag.best.name)
 
     report.heading("5. Updating the physical parameters")
-    upd = update(candidate, data, band=DEMO_BAND_HZ, weights=WEIGHTS)
+    upd = update(candidate, data, band=DEMO_BAND_HZ)
     report.text(
         f"Cost {upd.cost_before:.4g} -> {upd.cost_after:.4g} "
         f"({100 * (1 - upd.cost_after / cmp0.cost):.1f}% below the nominal model's {cmp0.cost:.4g})."
