@@ -88,6 +88,7 @@ def test_explicit_groups_and_clustering():
     assert rel < 1e-6
 
 
+@pytest.mark.filterwarnings("ignore::robustctl.identify.IdentifyWarning")
 def test_grouping_bad_input():
     f = np.linspace(0.5, 5.5, 200)
     fit = rc.fit_rational(exact_data(truss_system(), f), 12, method="vf")

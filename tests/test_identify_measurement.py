@@ -29,30 +29,38 @@ def truss_model():
 
 
 def test_truss_modes_recovered_from_simulated_caltech_experiment(truss_model):
-    """3x3 truss, simulate_experiment + estimate_frf with the Caltech settings and sensor noise.
-
-    The four separated modes meet the issue's accuracy (0.5 % frequency, 15 % damping). The
-    1.17/1.19 Hz pair is 0.02 Hz apart, 0.41 of the 0.049 Hz resolution of 4096-point windows
-    at 200 Hz: over seeds its frequencies scatter by up to ~0.9 % and its damping by up to
-    ~45 %, an information limit of the experiment, so it gets 1 % / 50 % here.
-    """
+    """3x3 truss, simulate_experiment + estimate_frf with the Caltech settings and sensor noise:
+    every mode, the 1.17/1.19 Hz pair included (0.41 of the 0.049 Hz resolution apart), within
+    0.5 % in frequency and 15 % in damping, rms log-magnitude error < 0.5 dB in the band."""
     mm = truss_model
     assert mm.n_modes == 6 and mm.sys.nstates == 12 and mm.leakage_corrected
     f, z = _match(mm, F_MODES)
-    sep = np.array([False, False, True, True, True, True])
-    np.testing.assert_allclose(f[sep], F_MODES[sep], rtol=0.005)
-    np.testing.assert_allclose(z[sep], ZETA[sep], rtol=0.15)
-    np.testing.assert_allclose(f[~sep], F_MODES[~sep], rtol=0.01)
-    np.testing.assert_allclose(z[~sep], ZETA[~sep], rtol=0.5)
+    np.testing.assert_allclose(f, F_MODES, rtol=0.005)
+    np.testing.assert_allclose(z, ZETA, rtol=0.15)
     assert mm.cost.rms_db_total < 0.5
     assert np.all(mm.cost.rms_db < 0.75)
+
+
+def test_rank_one_refinement_is_what_resolves_the_close_pair():
+    """Without the joint pole/shape refinement (full-rank VF poles, rank-1 residues refitted)
+    the 1.17/1.19 Hz pair is much less accurate on the same data."""
+    data = caltech_measurement()
+    plain = rc.fit_measurement_model(data, n_modes=6, band=BAND, correct_leakage=True, refine=False)
+    _, z_plain = _match(plain, F_MODES)
+    refined = rc.fit_measurement_model(data, n_modes=6, band=BAND, correct_leakage=True)
+    _, z_ref = _match(refined, F_MODES)
+    err_plain = np.abs(z_plain[:2] / ZETA[:2] - 1).max()
+    err_ref = np.abs(z_ref[:2] / ZETA[:2] - 1).max()
+    assert err_ref < 0.5 * err_plain
+    assert refined.cost.total < plain.cost.total
 
 
 def test_leakage_correction_is_what_makes_damping_right():
     data = caltech_measurement()
     raw = rc.fit_measurement_model(data, n_modes=6, band=BAND, correct_leakage=False)
     _, z = _match(raw, F_MODES)
-    assert z[0] > 1.3 * ZETA[0]  # the window broadens the 1.17 Hz mode by > 30 %
+    # the 4096-point Hamming window broadens the three lowest modes by more than 10 % each
+    assert np.all(z[:3] > 1.1 * ZETA[:3])
 
 
 def test_expected_h1_matches_brute_force_double_sum():
@@ -109,3 +117,24 @@ def test_result_object_table_plot_html(truss_model):
     np.testing.assert_allclose(m.output_shape @ m.input_shape, m.residue, rtol=1e-10, atol=1e-12)
     assert mm.cost.per_channel.shape == (3, 3)
     np.testing.assert_allclose(mm.cost.total, mm.cost.per_channel.sum())
+
+
+def test_modal_refinement_jacobian_matches_finite_differences():
+    from robustctl.identify.modal_refine import _jacobian, _Layout, _model, _pack
+
+    rng = np.random.default_rng(1)
+    s = 2j * np.pi * np.linspace(0.5, 5, 40)
+    lay = _Layout(2, np.array([0, 1, 1]), 3, 2)
+    poles = np.array([-0.2 + 7j, -0.3 + 20j])
+    cs = rng.normal(size=(3, 3)) + 1j * rng.normal(size=(3, 3))
+    bs = rng.normal(size=(3, 2)) + 1j * rng.normal(size=(3, 2))
+    x = _pack(poles, cs, bs, rng.normal(size=(3, 2)))
+    rw = rng.uniform(0.5, 2, size=(40, 3, 2))
+    jac = _jacobian(s, lay, x, rw)
+    for k in range(x.size):
+        step = 1e-6 * max(1.0, abs(x[k]))
+        xp, xm = x.copy(), x.copy()
+        xp[k] += step
+        xm[k] -= step
+        fd = rw * (_model(s, lay, xp)[0] - _model(s, lay, xm)[0]) / (2 * step)
+        np.testing.assert_allclose(jac[..., k], fd, rtol=1e-5, atol=1e-7 * np.abs(fd).max() + 1e-12)

@@ -5,7 +5,8 @@ The procedure: (1) a common-denominator rational fit (VF or Chebyshev) of the ba
 Caltech route of one SIMO fit per input joined by :func:`combine_simo` and reduced by
 :func:`group_modes`; (2) optionally, for white-noise tests estimated by :func:`robustctl.estimate_frf`,
 a few fixed-point steps that undo the estimator's window leakage (see :mod:`.leakage`); (3) the
-residue of each mode truncated to its significant rank (1 for a physical mode); (4) the
+residue of each mode given its physical rank (1 per mode, or the group's count) and refined
+together with the poles by nonlinear least squares (:mod:`.modal_refine`); (4) the
 complex-log cost of MACE eq. 5. With ``n_modes=None`` the order is chosen from the cost
 versus order with a parsimony rule.
 """
@@ -27,6 +28,7 @@ from ._problem import as_frequency_data
 from .cost import LogCost, log_cost
 from .grouping import group_modes
 from .leakage import EstimatorSettings, estimator_settings, leakage_factor
+from .modal_refine import ZETA_MIN, refine_modes
 from .rational import IdentifyWarning, RationalFit, fit_rational
 from .realization import residue_factors
 from .refine import refine_residues
@@ -175,48 +177,86 @@ def _fit_once(band: FrequencyData, order: int, groups: Any, kw: dict) -> Rationa
     return fit_rational(band, order, common_denominator=groups is None, **kw)
 
 
-def _finish(fit: RationalFit, groups: Any, rank_tol: float) -> RationalFit:
+def _modal(fit: RationalFit, groups: Any, rank_tol: float, refine: bool) -> RationalFit:
+    """Physical structure: SVD groups (Caltech) or one rank-1 mode per pole, then (optionally) the
+    joint nonlinear refinement of poles and shapes (:func:`refine_modes`)."""
     if groups is not None:
-        return group_modes(fit, groups, rank_tol=rank_tol)
-    return refine_residues(replace(fit, ranks=np.ones(len(fit.poles), dtype=int)))
+        fit = group_modes(fit, groups, rank_tol=rank_tol)
+    else:
+        fit = refine_residues(replace(fit, ranks=np.ones(len(fit.poles), dtype=int)))
+    return refine_modes(fit) if refine else fit
 
 
-def _fit_corrected(band: FrequencyData, order: int, groups: Any, st, kw: dict, rank_tol: float):
-    """Fit, then undo leakage in LEAKAGE_STEPS fixed-point steps; returns (final fit, data used)."""
-    fit = _fit_once(band, order, groups, kw)
+def _fit_corrected(band: FrequencyData, order: int, groups: Any, st, kw: dict, rank_tol: float, refine: bool):
+    """Fit, then undo leakage in LEAKAGE_STEPS fixed-point steps; returns (final fit, data used).
+
+    With ``refine`` each step re-refines the current modal model on the newly corrected data
+    (warm start); without, the rational fit is redone and the modal structure imposed at the end.
+    """
+    if st is None or refine:
+        fit = _modal(_fit_once(band, order, groups, kw), groups, rank_tol, refine)
+    else:
+        fit = _fit_once(band, order, groups, kw)
     data = band
     for _ in range(LEAKAGE_STEPS if st is not None else 0):
         data = band.replace(response=band.response * leakage_factor(fit, band.f_hz, st))
-        fit = _fit_once(data, order, groups, kw)
-    return _finish(fit, groups, rank_tol), data
+        if refine:
+            fit = refine_modes(refine_residues(replace(fit, data=data)))
+        else:
+            fit = _fit_once(data, order, groups, kw)
+    if st is not None and not refine:
+        fit = _modal(fit, groups, rank_tol, refine)
+    return fit, data
 
 
 def _score(fit: RationalFit, data: FrequencyData) -> LogCost:
     return log_cost(data.response, fit.response(data.f_hz), fit.outputs, fit.inputs)
 
 
-def _select_order(band, groups, st, kw, rank_tol, max_modes, parsimony, target_db):
-    """Cost versus order: the smallest n_modes whose cost is within ``parsimony`` of the best
-    (or the smallest meeting ``target_db``); stops after three orders without 5 % gain."""
+def _final_prediction_error(fit: RationalFit, cost: LogCost) -> float:
+    """Akaike's final prediction error ``J (N + p) / (N - p)``: the cost penalised by the model's
+    real parameter count ``p`` (per complex pole 2 + 2 rank (n_out + n_in), per real pole
+    1 + n_out n_in, plus D) against the ``N`` real residuals, so fitting noise does not pay."""
+    n_out, n_in = fit.d.shape
+    cplx = fit.poles.imag != 0
+    p = np.sum(np.where(cplx, 2 + 2 * fit.ranks * (n_out + n_in), 1 + n_out * n_in)) + n_out * n_in
+    n = 2 * cost.n_freq * n_out * n_in
+    return cost.total * (n + p) / (n - p) if p < n else np.inf
+
+
+def _spurious(fit: RationalFit) -> bool:
+    """True when a mode's damping sits at the refinement's lower bound ``ZETA_MIN``: an undamped
+    line that fits noise or estimator artefacts next to a real peak, not structure."""
+    cplx = fit.poles.imag != 0
+    return bool(np.any(fit.zeta[cplx] < 1.5 * ZETA_MIN))
+
+
+def _select_order(band, groups, st, kw, rank_tol, max_modes, parsimony, target_db, refine):
+    """Cost versus order: the smallest n_modes without spurious modes whose final prediction
+    error is within ``parsimony`` of the best such (or the smallest meeting ``target_db``); the
+    scan stops after three orders without a 5 % gain."""
     scan, results, best, stale = [], {}, np.inf, 0
     for n in range(1, max_modes + 1):
         try:
-            fit, data = _fit_corrected(band, 2 * n, groups, st, kw, rank_tol)
+            fit, data = _fit_corrected(band, 2 * n, groups, st, kw, rank_tol, refine)
         except FitError:
             break
         cost = _score(fit, data)
+        fpe = _final_prediction_error(fit, cost)
         scan.append((n, cost.total))
-        results[n] = (fit, data, cost)
+        results[n] = (fit, data, cost, fpe)
         if target_db is not None and cost.rms_db_total <= target_db:
-            return results[n], tuple(scan)
-        stale = 0 if cost.total < 0.95 * best else stale + 1
-        best = min(best, cost.total)
+            return results[n][:3], tuple(scan)
+        stale = 0 if fpe < 0.95 * best else stale + 1
+        best = min(best, fpe)
         if stale >= 3:
             break
     if not results:
         raise FitError("no order could be fitted; check the band (too few points?) and the data.")
-    chosen = min(n for n, (_, _, c) in results.items() if c.total <= (1 + parsimony) * best)
-    return results[chosen], tuple(scan)
+    clean = {n: r for n, r in results.items() if not _spurious(r[0])} or results
+    best_clean = min(r[3] for r in clean.values())
+    chosen = min(n for n, r in clean.items() if r[3] <= (1 + parsimony) * best_clean)
+    return results[chosen][:3], tuple(scan)
 
 
 def _modes(fit: RationalFit) -> tuple[Mode, ...]:
@@ -243,6 +283,7 @@ def fit_measurement_model(
     parsimony: float = 0.1,
     target_db: float | None = None,
     max_iter: int | None = None,
+    refine: bool = True,
 ) -> MeasurementModel:
     """Identify a measurement model of frequency-response data in one call.
 
@@ -252,8 +293,10 @@ def fit_measurement_model(
         Measured response, Hz.
     n_modes : int, optional
         Number of lightly damped modes (the fit has ``2 n_modes`` poles; with ``groups`` this
-        is the modes per SIMO fit). ``None``: chosen automatically from the cost versus order,
-        the smallest order within ``parsimony`` (relative) of the best cost seen.
+        is the modes per SIMO fit). ``None``: chosen automatically from the cost versus order:
+        among the orders without spurious modes (damping at the refinement's lower bound
+        ``ZETA_MIN``), the smallest whose final prediction error (the cost penalised by
+        the parameter count, Akaike) is within ``parsimony`` (relative) of the best.
     band : (f_lo, f_hi), optional
         Band in Hz.
     method : {"vf", "chebyshev"}
@@ -281,6 +324,9 @@ def fit_measurement_model(
         Required rms log-magnitude error (dB); a :class:`FitError` says so when it is missed.
     max_iter : int, optional
         Iteration cap of each pole identification (default: that of :func:`fit_rational`).
+    refine : bool
+        Refine poles and mode shapes together by nonlinear least squares with the rank
+        structure imposed (:func:`refine_modes`); this is what resolves near-coincident modes.
 
     Returns
     -------
@@ -294,10 +340,10 @@ def fit_measurement_model(
         warnings.simplefilter("ignore", IdentifyWarning)
         if n_modes is None:
             (fit, used, cost), scan = _select_order(
-                band_data, groups, st, kw, rank_tol, int(max_modes), parsimony, target_db
+                band_data, groups, st, kw, rank_tol, int(max_modes), parsimony, target_db, refine
             )
         else:
-            fit, used = _fit_corrected(band_data, 2 * _check_modes(n_modes), groups, st, kw, rank_tol)
+            fit, used = _fit_corrected(band_data, 2 * _check_modes(n_modes), groups, st, kw, rank_tol, refine)
             cost, scan = _score(fit, used), ()
     if target_db is not None and cost.rms_db_total > target_db:
         raise FitError(

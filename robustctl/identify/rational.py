@@ -159,7 +159,7 @@ def _warn_out_of_band(poles: np.ndarray, band: tuple[float, float]) -> None:
             f"(natural frequencies {np.array2string(out, precision=4)} Hz); they model out-of-band "
             "dynamics or noise. Lower the order or widen the band if they are not wanted.",
             IdentifyWarning,
-            stacklevel=3,
+            stacklevel=4,
         )
 
 
@@ -273,7 +273,7 @@ def fit_rational(
             f"{method} pole iteration did not converge in {max_iter} iterations (tol {tol:g}); "
             "the fit is usable but raise max_iter or check the order.",
             IdentifyWarning,
-            stacklevel=2,
+            stacklevel=3,  # past the limit_blas wrapper to the caller
         )
     _warn_out_of_band(poles, prob.band_hz)
     return RationalFit(
