@@ -175,9 +175,7 @@ def _check_iter(max_iter: Any) -> int:
     return int(max_iter)
 
 
-def _fit_simo_each(
-    prob: FitProblem, data: Any, order: int, band: Any, weights: Any, **kw: Any
-) -> RationalFit:
+def _fit_simo_each(data: Any, order: int, band: Any, weights: Any, **kw: Any) -> RationalFit:
     """One SIMO fit per input column (own denominator each), joined by :func:`combine_simo`."""
     from ._problem import as_frequency_data
     from .grouping import combine_simo
@@ -261,7 +259,7 @@ def fit_rational(
     )
     prob = prepare_problem(data, order, band, weights)
     if not common_denominator and len(prob.inputs) > 1:
-        return _fit_simo_each(prob, data, order, band, weights, common_denominator=True, **kw)
+        return _fit_simo_each(data, order, band, weights, common_denominator=True, **kw)
     poles, iters, converged = _pole_kernel(prob, method, max_iter, tol, stable)
     if stable:
         poles, _ = reflect_unstable(poles)

@@ -57,7 +57,6 @@ def _solve_outputs(s, target, rw, poles, bs):
     return np.split(cs, splits, axis=1), d
 
 
-
 @limit_blas
 def refine_residues(fit: RationalFit, weights: np.ndarray | None = None, sweeps: int = 8) -> RationalFit:
     """Refit the complex poles' residues as rank-``ranks`` products ``C B`` to ``fit.data``.
