@@ -102,3 +102,11 @@ def test_grouping_bad_input():
         rc.combine_simo([fit, fit.freqresp(f) and rc.fit_rational(exact_data(truss_system()[:2, :], f), 4)])
     with pytest.raises(rc.FitError, match="input names repeat"):
         rc.combine_simo([fit, fit])
+
+
+def test_one_call_caltech_route_through_fit_measurement_model(simo12):
+    mm = rc.fit_measurement_model(
+        caltech_measurement(), n_modes=4, band=BAND, groups=(2, 1, 2, 1), method="chebyshev"
+    )
+    assert mm.n_modes == 6 and mm.sys.nstates == 12
+    assert mm.cost.total <= 1.2 * simo12.cost().total
