@@ -16,7 +16,14 @@ from .correlate import (
 from .errors import DataError, FitError, ModelError, RobustctlError, SynthesisError
 from .estimate import combine_experiments, estimate_frf, simulate_experiment
 from .frd import FrequencyData, load_frd
-from .identify import combine_simo, fit_rational, group_modes
+from .identify import (
+    MeasurementModel,
+    balanced_truncation,
+    combine_simo,
+    fit_measurement_model,
+    fit_rational,
+    group_modes,
+)
 from .lti import freqresp, log_cost, log_error
 from .physical import (
     Frame,
@@ -54,6 +61,9 @@ __all__ = [
     "fit_rational",
     "combine_simo",
     "group_modes",
+    "balanced_truncation",
+    "fit_measurement_model",
+    "MeasurementModel",
     "freqresp",
     "log_error",
     "log_cost",
