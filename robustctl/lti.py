@@ -32,7 +32,32 @@ from .errors import DataError, ModelError
 from .frd import FrequencyData, _as_frequencies
 from .threads import limit_blas
 
-__all__ = ["freqresp", "freqresp_array", "as_statespace", "log_error", "log_cost"]
+__all__ = ["freqresp", "freqresp_array", "as_statespace", "log_ratio", "log_error", "log_cost"]
+
+#: Smallest magnitude used in a log ratio, so an exact zero gives a large finite error.
+_TINY = 1e-300
+
+
+def log_ratio(g_data: np.ndarray, g_model: np.ndarray) -> np.ndarray:
+    """Complex log error ``log(G_data / G_model)`` (MACE eq. 5), elementwise on arrays.
+
+    The one kernel behind every complex-log error in robustctl (correlate's residual,
+    identify's scores, :func:`log_error`).
+
+    Parameters
+    ----------
+    g_data, g_model : ndarray, complex
+        Responses of equal (or broadcastable) shape, in matching units.
+
+    Returns
+    -------
+    ndarray, complex
+        Real part ``ln|G_data| - ln|G_model|`` (nepers; x 20/ln 10 for dB); imaginary part the
+        phase error in rad, wrapped to (-pi, pi]. Magnitudes are floored at 1e-300.
+    """
+    mag_d = np.maximum(np.abs(g_data), _TINY)
+    mag_m = np.maximum(np.abs(g_model), _TINY)
+    return (np.log(mag_d) - np.log(mag_m)) + 1j * np.angle(g_data * np.conj(g_model))
 
 #: eigenvector condition number above which a block is treated as (nearly) defective
 COND_LIMIT = 1e6
@@ -455,7 +480,7 @@ def log_error(data: FrequencyData, model: Any, band: tuple[float, float] | None 
                 f"(output {data.outputs[o]!r}, input {data.inputs[i]!r}); the log error is undefined "
                 "there. Drop that channel or band."
             )
-    return np.log(gd / gm)
+    return log_ratio(gd, gm)
 
 
 def log_cost(

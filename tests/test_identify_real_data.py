@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import robustctl as rc
-from robustctl.identify import log_cost
+from robustctl.identify import channel_cost
 
 DATA = Path(__file__).parents[1] / ".." / "shared" / "data"
 
@@ -60,9 +60,9 @@ def test_robot_arm_measurement_model(robot_arm):
         k = np.argmin(np.abs(f - f_res))
         assert abs(f[k] - f_res) / f_res < 0.03 and z[k] < 0.02
     high = robot_arm.coherence > 0.9
-    ours = log_cost(robot_arm.response, mm.fit.response(robot_arm.f_hz), mask=high)
+    ours = channel_cost(robot_arm.response, mm.fit.response(robot_arm.f_hz), mask=high)
     assert ours.rms_db_total < 1.0
-    theirs = log_cost(robot_arm.response, _skrf_model(robot_arm, 3), mask=high)
+    theirs = channel_cost(robot_arm.response, _skrf_model(robot_arm, 3), mask=high)
     assert ours.rms_db_total < theirs.rms_db_total
 
 
@@ -70,9 +70,9 @@ def test_robot_arm_measurement_model(robot_arm):
 def test_cd_player_arm_measurement_model(cd_player):
     fit = rc.fit_rational(cd_player, 12, method="vf")
     high = cd_player.coherence > 0.9
-    ours = log_cost(cd_player.response, fit.response(cd_player.f_hz), mask=high)
+    ours = channel_cost(cd_player.response, fit.response(cd_player.f_hz), mask=high)
     assert ours.rms_db_total < 2.0
-    theirs = log_cost(cd_player.response, _skrf_model(cd_player, 6), mask=high)
+    theirs = channel_cost(cd_player.response, _skrf_model(cd_player, 6), mask=high)
     assert ours.rms_db_total < theirs.rms_db_total
     mm = rc.fit_measurement_model(cd_player, n_modes=6)
     assert mm.sys.nstates == fit.order and mm.sys.ninputs == 2 and mm.sys.noutputs == 2

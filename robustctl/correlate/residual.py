@@ -26,6 +26,7 @@ import numpy as np
 
 from ..errors import DataError, FitError, ModelError, RobustctlError
 from ..frd import FrequencyData
+from ..lti import log_ratio
 
 __all__ = [
     "Residual",
@@ -36,31 +37,6 @@ __all__ = [
     "orthogonality",
     "normalized",
 ]
-
-#: Smallest model magnitude used in a log ratio; a model response of exactly zero (a
-#: channel the model cannot excite) gives a large but finite error instead of inf.
-_TINY = 1e-300
-
-
-def log_ratio(g_data: np.ndarray, g_model: np.ndarray) -> np.ndarray:
-    """Complex log error ``log(G_data / G_model)`` (MACE eq. 5), elementwise.
-
-    Parameters
-    ----------
-    g_data, g_model : ndarray, complex
-        Responses of equal shape (any units, as long as they match).
-
-    Returns
-    -------
-    ndarray, complex
-        Real part: ``ln|G_data| - ln|G_model|`` (nepers); imaginary part: phase error in
-        rad, wrapped to (-pi, pi].
-    """
-    mag_d = np.maximum(np.abs(g_data), _TINY)
-    mag_m = np.maximum(np.abs(g_model), _TINY)
-    phase = np.angle(g_data * np.conj(g_model))
-    return (np.log(mag_d) - np.log(mag_m)) + 1j * phase
-
 
 def _band_data(data: FrequencyData, band: Sequence[float] | None) -> FrequencyData:
     if band is None:

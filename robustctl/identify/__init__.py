@@ -8,7 +8,7 @@ complex-log cost (MACE eq. 5).
 """
 
 from .balanced import BalancedTruncation, balanced_truncation
-from .cost import LogCost, log_cost
+from .cost import LogCost, channel_cost
 from .grouping import cluster_modes, combine_simo, group_modes
 from .leakage import estimator_settings, expected_h1, leakage_factor
 from .measurement_model import MeasurementModel, Mode, fit_measurement_model
@@ -27,7 +27,7 @@ __all__ = [
     "MeasurementModel",
     "Mode",
     "LogCost",
-    "log_cost",
+    "channel_cost",
     "estimator_settings",
     "expected_h1",
     "leakage_factor",

@@ -11,9 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..lti import log_ratio
 from ..table import Table
 
-__all__ = ["LogCost", "log_cost"]
+__all__ = ["LogCost", "channel_cost"]
 
 DB_PER_NEPER = 20.0 / np.log(10.0)
 
@@ -67,7 +68,7 @@ class LogCost:
         return Table(cols, rows, title="Complex-log cost")
 
 
-def log_cost(
+def channel_cost(
     g_data: np.ndarray,
     g_model: np.ndarray,
     outputs: tuple[str, ...] = (),
@@ -79,12 +80,7 @@ def log_cost(
     ``mask`` (shape (K,) or (K, n_out, n_in), boolean) restricts the scored points, e.g. to
     frequencies of high coherence.
     """
-    g_data = np.asarray(g_data, dtype=complex)
-    g_model = np.asarray(g_model, dtype=complex)
-    tiny = np.finfo(float).tiny
-    e = np.log(np.maximum(np.abs(g_data), tiny) / np.maximum(np.abs(g_model), tiny)) + 1j * np.angle(
-        g_data * np.conj(g_model)
-    )
+    e = log_ratio(np.asarray(g_data, dtype=complex), np.asarray(g_model, dtype=complex))
     m = (
         np.ones(e.shape, dtype=bool)
         if mask is None

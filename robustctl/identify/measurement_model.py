@@ -25,7 +25,7 @@ from ..frd import FrequencyData
 from ..table import Table
 from ..threads import limit_blas
 from ._problem import as_frequency_data
-from .cost import LogCost, log_cost
+from .cost import LogCost, channel_cost
 from .grouping import group_modes
 from .leakage import EstimatorSettings, estimator_settings, leakage_factor
 from .modal_refine import ZETA_MIN, refine_modes
@@ -210,7 +210,7 @@ def _fit_corrected(band: FrequencyData, order: int, groups: Any, st, kw: dict, r
 
 
 def _score(fit: RationalFit, data: FrequencyData) -> LogCost:
-    return log_cost(data.response, fit.response(data.f_hz), fit.outputs, fit.inputs)
+    return channel_cost(data.response, fit.response(data.f_hz), fit.outputs, fit.inputs)
 
 
 def _final_prediction_error(fit: RationalFit, cost: LogCost) -> float:

@@ -20,7 +20,7 @@ from ..frd import FrequencyData
 from ..threads import limit_blas
 from ._problem import FitProblem, prepare_problem
 from .chebyshev import chebyshev_poles
-from .cost import LogCost, log_cost
+from .cost import LogCost, channel_cost
 from .poles import evaluate, fit_residues, n_states, reflect_unstable
 from .realization import modal_statespace, residue_rank
 from .vector_fitting import vf_poles
@@ -128,7 +128,7 @@ class RationalFit:
         data = self.data if data is None else data
         if data is None:
             raise FitError("this fit keeps no data; pass data=FrequencyData to score it.")
-        return log_cost(data.response, self.response(data.f_hz), self.outputs, self.inputs)
+        return channel_cost(data.response, self.response(data.f_hz), self.outputs, self.inputs)
 
     def __repr__(self) -> str:
         return (
