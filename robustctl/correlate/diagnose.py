@@ -422,11 +422,18 @@ class _Null:
 
     names: tuple[str, ...]
     x: dict[str, float]
+    x0: dict[str, float]
     lo: np.ndarray
     hi: np.ndarray
     jac: np.ndarray  # d j / d alpha per unit parameter, (n, p)
     j: np.ndarray
     cost: float
+
+    @property
+    def Q(self) -> np.ndarray:  # noqa: N802 - the orthonormal basis of span(jac)
+        if not hasattr(self, "_Q"):
+            self._Q = _orthonormal(self.jac)
+        return self._Q
 
 
 def _damped_step(A: np.ndarray, r: np.ndarray, lam: float) -> np.ndarray:
@@ -465,10 +472,13 @@ def _fit_one(
             return None
         return r if np.all(np.isfinite(r)) else None
 
-    u, v = np.array([null.x[n] for n in names], dtype=float), float(screen["value"])
-    r = evaluate(u, v)
-    if r is None:  # the screening estimate cannot be evaluated: nothing gained
+    starts = [np.array([null.x[n] for n in names], dtype=float)]
+    if null.x0 and any(null.x0[n] != null.x[n] for n in names):
+        starts.append(np.array([null.x0[n] for n in names], dtype=float))
+    start = _start_value(effect, screen["value"], discrete, evaluate, null.Q, starts)
+    if start is None:  # no trial size can be evaluated: nothing gained
         return dict(x=dict(null.x), cost=null.cost, vector=null.j, evals=counter[0], value=float(par.neutral))
+    u, v, r = start
     cost, lam = float(r @ r), 1e-2
     for _ in range(int(max_iter)):
         if time.perf_counter() - t0 > budget:
@@ -504,6 +514,40 @@ def _fit_one(
     return dict(x=dict(zip(names, (float(x) for x in u))), cost=cost, vector=r, evals=counter[0], value=v)
 
 
+#: Multiples of an effect's typical size tried as starting values of its local fit.
+_START_MULTIPLES = (1.0, 3.0, 10.0, 30.0)
+
+
+def _start_value(effect: Any, v_lin: float, discrete: bool, evaluate, Q: np.ndarray, starts: list):
+    """Starting point of a local fit: update values and a candidate size.
+
+    Structural effects are far from linear in their parameter (a mass moves lightly
+    damped resonances by several half-power bandwidths), so the linear estimate of the
+    screening may sit in the wrong basin; and the null fit may have bent the update
+    parameters to mimic the missing effect. The trials are the screening estimate and
+    multiples of the typical size, each from the null-fit and from the model's own update
+    values (``starts``), scored by ``|P j|^2``: the cost left once the update parameters are
+    re-fitted linearly (``P`` projects out their sensitivities). Returns ``(u, v, j)`` or None.
+    """
+    par = effect.parameters[0]
+    trials = [float(v_lin)]
+    if not discrete:
+        neutral = float(par.neutral)
+        sign = 1.0 if v_lin >= neutral else -1.0
+        lo, hi = par.bounds
+        trials += [float(np.clip(neutral + sign * m * effect.typical_size, lo, hi)) for m in _START_MULTIPLES]
+    best = None
+    for u in starts:
+        for v in dict.fromkeys(trials):  # unique, in order
+            r = evaluate(u, v)
+            if r is None:
+                continue
+            score = float(np.sum(_project(Q, r) ** 2))
+            if best is None or score < best[0]:
+                best = (score, u, v, r)
+    return None if best is None else best[1:]
+
+
 def _marquardt_try(A, r, cost, lam, to_point, evaluate, tries: int = 4):
     """Up to ``tries`` damped steps with growing damping; the first that lowers the cost.
 
@@ -521,7 +565,7 @@ def _marquardt_try(A, r, cost, lam, to_point, evaluate, tries: int = 4):
 
 
 def _equivalent(screens: list[dict[str, Any]]) -> dict[int, int]:
-    """Candidates whose secant equals an earlier one's (to 1e-9): index -> earlier index.
+    """Candidates whose secant equals an earlier one's (to 1e-6): index -> earlier index.
 
     A delay or filter on *every* output acts exactly like one on every input (scalar factors
     commute), so such pairs are indistinguishable; the earlier (sensor-side) one is kept.
@@ -536,7 +580,7 @@ def _equivalent(screens: list[dict[str, Any]]) -> dict[int, int]:
             if i in twins:
                 continue
             di = screens[i]["d"]
-            if di.shape == dk.shape and np.linalg.norm(di - dk) <= 1e-9 * nk:
+            if di.shape == dk.shape and np.linalg.norm(di - dk) <= 1e-6 * nk:
                 twins[k] = i
                 break
     return twins
@@ -572,16 +616,17 @@ def _null_fit(
     hi = np.array([model.param(n).bounds[1] for n in upd], dtype=float)
     if not upd:
         j = res0.vector()
-        return _Null((), {}, lo, hi, np.zeros((res0.n, 0)), j, float(j @ j)), 1
+        return _Null((), {}, {}, lo, hi, np.zeros((res0.n, 0)), j, float(j @ j)), 1
     lm = levenberg_marquardt(res0, upd, max_iter=max_iter, executor=executor, time_budget_s=budget)
-    return _Null(upd, dict(lm.x), lo, hi, lm.jacobian, lm.vector, lm.cost), lm.n_evals
+    return _Null(upd, dict(lm.x), dict(lm.x0), lo, hi, lm.jacobian, lm.vector, lm.cost), lm.n_evals
 
 
-def _where(res: Residual, delta: np.ndarray, unweight: bool = True) -> str:
+def _where(res: Residual, delta: np.ndarray, unweight: bool = True, pairs: bool = False) -> str:
     """Where a residual (change) lies: magnitude or phase, frequency band, outputs.
 
     ``unweight`` divides by the residual weights first (a model change in plain log units);
     otherwise the weighted residual is described (where the data say the error is).
+    ``pairs`` names the channels (output <- input) holding most of it.
     """
     e = res.unstack(delta)
     if unweight and np.any(res.weights != 1):
@@ -606,12 +651,28 @@ def _where(res: Residual, delta: np.ndarray, unweight: bool = True) -> str:
         band = f"above {lo:.3g} Hz"
     else:
         band = f"{lo:.3g}-{hi:.3g} Hz"
+    if pairs:
+        return f"{part}, {band}, {_channel_shares(res, e)}"
     per_out = np.sum(np.abs(e) ** 2, axis=(0, 2))
     share = per_out / per_out.sum()
     chans = ""
     if res.data.n_out > 1 and share.max() > 0.6:
         chans = f" on {res.data.outputs[int(np.argmax(share))]}"
     return f"{part}, {band}{chans}"
+
+
+def _channel_shares(res: Residual, e: np.ndarray, n: int = 3) -> str:
+    """``"mostly S1 <- A2 (41%), S3 <- A1 (22%)"``: the channels with the largest shares."""
+    per = np.sum(np.abs(e) ** 2, axis=0)
+    share = per / per.sum()
+    order = np.argsort(share, axis=None)[::-1][:n]
+    items = []
+    for idx in order:
+        o, i = np.unravel_index(idx, share.shape)
+        if share[o, i] < 0.05:
+            break
+        items.append(f"{res.data.outputs[o]} <- {res.data.inputs[i]} ({100 * share[o, i]:.0f}%)")
+    return "mostly " + ", ".join(items) if items else "spread over all channels"
 
 
 def _phrase(effect: Any) -> str:
@@ -770,7 +831,7 @@ def diagnose(
     x_u, j_u, cost_u = null.x, null.j, null.cost
     model_u = model.with_values(**x_u) if x_u else model
     res_u = _residual_for(res0, model_u)
-    Q = _orthonormal(null.jac)
+    Q = null.Q
     r_perp = _project(Q, j_u)
     # 2. secant screening
     screens = _map(lambda c: _screen_one(res_u, model_u, j_u, Q, r_perp, c), cands, executor, "screening")
@@ -816,7 +877,7 @@ def diagnose(
         n_eff=n_eff,
         rho=rho,
         alpha=level,
-        unexplained=_where(res0, j_u),
+        unexplained=_where(res0, j_u, unweight=False, pairs=True),
         band=res0.band,
         n_evals=evals,
         time_s=time.perf_counter() - t0,
