@@ -120,6 +120,10 @@ def test_tension_on_the_caltech_longerons_equals_adding_it_to_the_frame():
         np.testing.assert_allclose(with_effect.matrices().stiffness, direct.matrices().stiffness, rtol=1e-12)
         off = model.with_effect(fx.GravityStiffening(enabled=False, switch=1.0)).build_structure()
         assert not off.gravity_enabled
+        pend = model.with_effect(fx.Pendulum("platform_2", stiffness=50.0)).build_structure()
+        springs = model.build_structure().add_spring("platform_2", 50.0, "x")
+        springs = springs.add_spring("platform_2", 50.0, "y")
+        np.testing.assert_allclose(pend.matrices().stiffness, springs.matrices().stiffness, rtol=1e-12)
 
 
 @pytest.mark.parametrize(
@@ -189,6 +193,7 @@ def test_candidates_on_the_caltech_truss_name_nodes_and_groups():
     assert {c.location for c in tension} == {"longerons_story_1", "longerons_story_2"}
     assert [c.name for c in cands if c.kind == "gravity"] == ["gravity stiffening switched off"]
     assert any(c.kind == "added_mass" and c.location == "platform_2" for c in cands)
+    assert any(c.kind == "pendulum" and c.location == "platform_2" for c in cands)  # gravity is on
     assert all(c.location not in ("ceiling_1", "ceiling_2", "ceiling_3") for c in cands)  # clamped
 
 

@@ -607,6 +607,37 @@ def _residual(model: Any, data: FrequencyData, band, weights) -> tuple[Residual,
     return res, ignored
 
 
+def _prepare(model, data, candidates, band, update_params, weights) -> tuple:
+    """Validated residual (decoupled channels ignored), update parameters and candidates."""
+    from ..physical.effects import candidates as all_candidates
+
+    if not isinstance(data, FrequencyData):
+        raise DataError(f"data must be a FrequencyData; got {type(data).__name__}.")
+    if isinstance(weights, str) and weights == "auto":
+        weights = "coherence" if data.coherence is not None else None
+    res0, ignored = _residual(model, data, band, weights)
+    upd = _check_update(model, update_params)
+    cands = _check_candidates(
+        model, all_candidates(model, band=res0.band) if candidates is None else list(candidates)
+    )
+    return res0, ignored, upd, cands
+
+
+def _screen_all(res_u: Residual, model_u: Any, null: _Null, cands: list, executor) -> tuple:
+    """Screen every candidate (step 2): the screens, indistinguishable twins, and the
+    order of the others by the fraction they explain."""
+    r_perp = _project(null.Q, null.j)
+    screens = _map(
+        lambda c: _screen_one(res_u, model_u, null.j, null.Q, r_perp, c), cands, executor, "screening"
+    )
+    twins = _equivalent(screens)
+    order = sorted(
+        (k for k in range(len(screens)) if k not in twins),
+        key=lambda k: (-round(screens[k]["fraction"], 9), k),
+    )
+    return screens, twins, order
+
+
 def _null_fit(
     res0: Residual, upd: tuple[str, ...], max_iter: int, executor: Executor | None, budget: float
 ) -> tuple[_Null, int]:
@@ -809,20 +840,10 @@ def diagnose(
     >>> diag.table(); diag.best                                           # doctest: +SKIP
     >>> upd = rc.update(model.with_effect(diag.best), data)              # doctest: +SKIP
     """
-    from ..physical.effects import candidates as all_candidates
-
     t0 = time.perf_counter()
-    if not isinstance(data, FrequencyData):
-        raise DataError(f"data must be a FrequencyData; got {type(data).__name__}.")
+    res0, ignored, upd, cands = _prepare(model, data, candidates, band, update_params, weights)
     if not 0 < alpha < 1 or not 0 <= min_gain < 1:
         raise FitError(f"alpha must lie in (0, 1) and min_gain in [0, 1); got {alpha}, {min_gain}.")
-    if isinstance(weights, str) and weights == "auto":
-        weights = "coherence" if data.coherence is not None else None
-    res0, ignored = _residual(model, data, band, weights)
-    upd = _check_update(model, update_params)
-    cands = _check_candidates(
-        model, all_candidates(model, band=res0.band) if candidates is None else list(candidates)
-    )
     evals = 1
     cost_nominal = res0.cost()
     # 1. null fit of the update parameters
@@ -831,16 +852,9 @@ def diagnose(
     x_u, j_u, cost_u = null.x, null.j, null.cost
     model_u = model.with_values(**x_u) if x_u else model
     res_u = _residual_for(res0, model_u)
-    Q = null.Q
-    r_perp = _project(Q, j_u)
     # 2. secant screening
-    screens = _map(lambda c: _screen_one(res_u, model_u, j_u, Q, r_perp, c), cands, executor, "screening")
+    screens, twins, order = _screen_all(res_u, model_u, null, cands, executor)
     evals += sum(s["evals"] for s in screens)
-    twins = _equivalent(screens)
-    order = sorted(
-        (k for k in range(len(screens)) if k not in twins),
-        key=lambda k: (-round(screens[k]["fraction"], 9), k),
-    )
     top = [k for k in order[: max(int(n_fit), 0)] if screens[k]["fraction"] > 0]
     # 3. local fits
     remaining = max(time_budget_s - (time.perf_counter() - t0), 1.0)

@@ -1186,6 +1186,8 @@ def _structure_candidates(model: PhysicalModel, include_points: bool) -> list[Ef
                 cands.append(SuspensionSpring(loc, direction=d))
             for d in dirs[loc]:
                 cands.append(Dashpot(loc, direction=d))
+            if info["gravity_on"] and {"x", "y"} <= set(dirs[loc]):  # a hanging rod needs gravity
+                cands.append(Pendulum(loc))
     for group in info["groups"]:
         cands += [GroupStiffness(group), GroupTension(group)]
     if info["gravity"]:  # only the switch that changes the model's current state
@@ -1229,8 +1231,9 @@ def candidates(
     channels, a gain error per sensor, a misalignment per sensor pair) apply to any model.
     Structural effects need a structural model: an added mass, a suspension spring and a
     dashpot per location and direction (nodes of the frame FEM, each DOF of a user's
-    matrices), a stiffness change and a tension per element group, gravity preload on/off
-    (frame FEM), and a modal damping change per octave-wide group of modes.
+    matrices), a suspension pendulum (horizontal x-y stiffness) per node of a structure
+    under gravity, a stiffness change and a tension per element group, gravity preload
+    on/off (frame FEM), and a modal damping change per octave-wide group of modes.
 
     Parameters
     ----------
