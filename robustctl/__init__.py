@@ -6,10 +6,12 @@
 from . import examples
 from .correlate import (
     Comparison,
+    Diagnosis,
     Residual,
     UpdateResult,
     Verification,
     compare,
+    diagnose,
     update,
     verify,
 )
@@ -33,6 +35,7 @@ from .physical import (
     Stage,
     StructuralMatrices,
     Structure,
+    effects,
     electronics,
     modal_model,
     modal_statespace,
@@ -50,6 +53,9 @@ __all__ = [
     "UpdateResult",
     "verify",
     "Verification",
+    "diagnose",
+    "Diagnosis",
+    "effects",
     "Residual",
     "RobustctlError",
     "DataError",
