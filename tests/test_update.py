@@ -208,3 +208,18 @@ def test_update_bad_input(model):
     frozen = model.with_params([p.__class__(**{**p.__dict__, "free": False}) for p in model.params])
     with pytest.raises(rc.FitError, match=r"no free parameters"):
         update(frozen, data)
+
+
+
+def test_selection_keeps_a_fitted_effect_parameter_that_test_1_would_drop():
+    """After rc.diagnose an effect arrives fitted: the remaining error is orthogonal to its
+    parameter, so MACE test 1 alone would freeze it at the diagnosis' short-fit value."""
+    rng = np.random.default_rng(0)
+    dJ = rng.standard_normal((200, 3))
+    dJ[:, 2] -= dJ[:, :2] @ np.linalg.lstsq(dJ[:, :2], dJ[:, 2], rcond=None)[0]  # effect column
+    j0 = dJ[:, :2] @ np.array([1.0, -0.5])  # the error lies in the span of the other two
+    names = ["E", "m", "tension__g"]
+    plain, notes, _ = select_parameters(names, j0, dJ)
+    assert "tension__g" not in plain and any("alignment test" in n for n in notes)
+    kept, _, _ = select_parameters(names, j0, dJ, keep=["tension__g"])
+    assert kept[0] == "tension__g" and set(kept) == set(names)

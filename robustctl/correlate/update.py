@@ -61,6 +61,7 @@ def select_parameters(
     min_alignment: float = 0.01,
     max_orthogonality: float = 0.95,
     min_singular: float = 0.02,
+    keep: Sequence[str] = (),
 ) -> tuple[tuple[str, ...], list[str], list[str]]:
     """MACE's two tests (eqs. 8-9) as an automatic selection.
 
@@ -78,6 +79,10 @@ def select_parameters(
         After the pairwise test, while the smallest singular value of the kept normalised
         sensitivities is below this (a rank loss among three or more), drop the
         least-aligned parameter of the near-null combination.
+    keep : sequence of str
+        Parameters exempt from test 1 and considered first in test 2 (they win ties): the
+        parameters of an effect added after ``rc.diagnose``, which already fitted them, so
+        the remaining error is nearly orthogonal to them by construction.
 
     Returns
     -------
@@ -98,9 +103,10 @@ def select_parameters(
         )
     O = orthogonality(dJ)
     notes, suggestions, kept = [], [], []
-    for i in np.argsort(-a):
+    order = sorted(range(len(names)), key=lambda i: (names[i] not in keep, -a[i]))
+    for i in order:
         name = names[i]
-        if a[i] < min_alignment * amax:
+        if a[i] < min_alignment * amax and name not in keep:
             notes.append(
                 f"{name}: dropped by the alignment test (|j0^T dJ| = {a[i] / amax:.2%} of the largest): "
                 "the initial error is insensitive to it."
@@ -128,7 +134,7 @@ def select_parameters(
         if s[-1] >= min_singular * np.sqrt(len(kept)):
             break
         involved = [kept[m] for m in np.flatnonzero(np.abs(vt[-1]) > 0.3)]
-        drop = min(involved, key=lambda n: a[names.index(n)])
+        drop = min(involved, key=lambda n: (n in keep, a[names.index(n)]))
         kept.remove(drop)
         notes.append(
             f"{drop}: dropped because {', '.join(involved)} together move the residual in only "
@@ -599,9 +605,11 @@ def update(
     names = _check_names(model, params)
     sens = sensitivities(residual, names, executor=executor, progress=progress)
     j0, dJ = sens
+    effect_params = tuple(n for n in names if "effect" in model.param(n).tags)
     if select:
         selected, notes, suggestions = select_parameters(
-            names, j0, dJ, min_alignment=min_alignment, max_orthogonality=max_orthogonality
+            names, j0, dJ, min_alignment=min_alignment, max_orthogonality=max_orthogonality,
+            keep=effect_params,
         )
     else:
         selected, notes, suggestions = names, [], []
