@@ -152,6 +152,42 @@ def summary_markdown(results: list[dict[str, Any]]) -> str:
     return "\n".join(lines) + "\n"
 
 
+README = HERE.parent / "README.md"
+README_START, README_END = "<!-- BENCHMARKS:START -->", "<!-- BENCHMARKS:END -->"
+
+
+def headline_markdown(results: list[dict[str, Any]]) -> str:
+    """The README's table: only metrics that carry a target, with the machine's load."""
+    lines = ["| Benchmark | Metric | Value | Target | Met? |", "|---|---|---|---|---|"]
+    for r in results:
+        for metric, target in (r.get("targets", {}) or {}).items():
+            value = (r.get("metrics", {}) or {}).get(metric)
+            met = target_met(value, target)
+            lines.append(
+                f"| {r.get('name')} | {metric} | {_cell(value)} | {_cell(target)} | "
+                f"{'yes' if met else '**no**'} |"
+            )
+    loads = sorted({_cell(r.get("machine", {}).get("load_average_1_5_15", [""])[0]) for r in results})
+    lines += [
+        "",
+        f"1 BLAS thread; 1-minute load averages during the runs: {', '.join(loads)}. Every metric, "
+        "with the side-by-side tools' own figures, is in `benchmarks/results/SUMMARY.md`.",
+    ]
+    return "\n".join(lines)
+
+
+def update_readme(table: str, readme: Path = README) -> bool:
+    """Replace the text between the README's benchmark markers; False when they are absent."""
+    if not readme.exists():
+        return False
+    text = readme.read_text()
+    start, end = text.find(README_START), text.find(README_END)
+    if start < 0 or end < start:
+        return False
+    readme.write_text(text[: start + len(README_START)] + "\n" + table + "\n" + text[end:])
+    return True
+
+
 def load_results() -> list[dict[str, Any]]:
     """Every ``results/*.json`` (unreadable files are reported and skipped)."""
     out = []
@@ -207,8 +243,10 @@ def main(argv: list[str] | None = None) -> int:
             continue
         ok &= bool(result["passed"])
         print(json.dumps(result["metrics"], indent=2, default=str))
-    summary = summary_markdown(load_results())
+    results = load_results()
+    summary = summary_markdown(results)
     (RESULTS / "SUMMARY.md").write_text(summary)
+    update_readme(headline_markdown(results))
     print(summary)
     return 0 if ok else 1
 

@@ -1,0 +1,31 @@
+"""The benchmark runner's tables and README update (the numbers themselves are never asserted)."""
+
+from benchmarks.run import README_END, README_START, headline_markdown, target_met, update_readme
+
+RESULTS = [
+    {"name": "fast", "metrics": {"speedup": 55.8, "n": 3}, "targets": {"speedup": ">= 50"},
+     "machine": {"load_average_1_5_15": [1.5, 1, 1]}},
+    {"name": "slow", "metrics": {"time_s": 12.0}, "targets": {"time_s": "< 10"}},
+]
+
+
+def test_target_met_reads_comparisons():
+    assert target_met(55.8, ">= 50") is True
+    assert target_met(12.0, "< 10") is False
+    assert target_met("x", "x") is True and target_met(1, None) is None
+
+
+def test_headline_table_lists_targeted_metrics_only():
+    table = headline_markdown(RESULTS)
+    assert "| fast | speedup | 55.8 | >= 50 | yes |" in table
+    assert "| slow | time_s | 12 | < 10 | **no** |" in table
+    assert "| fast | n |" not in table
+
+
+def test_update_readme_replaces_only_between_markers(tmp_path):
+    readme = tmp_path / "README.md"
+    readme.write_text(f"head\n{README_START}\nold\n{README_END}\ntail\n")
+    assert update_readme("new table", readme)
+    assert readme.read_text() == f"head\n{README_START}\nnew table\n{README_END}\ntail\n"
+    (tmp_path / "other.md").write_text("no markers")
+    assert not update_readme("x", tmp_path / "other.md")
