@@ -595,16 +595,8 @@ def _residual(model: Any, data: FrequencyData, band, weights) -> tuple[Residual,
     noise against a numerically zero model: no effect can explain it, so it would only
     blur the statistics. It is left out and listed in ``Diagnosis.ignored_channels``.
     """
-    res = Residual(model, data, band=band, weights=weights)
-    level = np.abs(res.model_response()).max(axis=0)  # (n_out, n_in)
-    ref = np.maximum(level.max(axis=1, keepdims=True), level.max(axis=0, keepdims=True))
-    weak = level < ref * 10 ** (DECOUPLED_DB / 20)
-    if not np.any(weak) or np.all(weak):
-        return res, ()
-    w = np.where(weak[None], 0.0, res.weights)
-    res = Residual(model, data, band=band, weights=w)
-    ignored = tuple((res.data.outputs[o], res.data.inputs[i]) for o, i in np.argwhere(weak))
-    return res, ignored
+    res = Residual(model, data, band=band, weights=weights, min_channel_db=DECOUPLED_DB)
+    return res, tuple((o, i) for o, i, _level in res.dropped)
 
 
 def _prepare(model, data, candidates, band, update_params, weights) -> tuple:

@@ -104,25 +104,26 @@ def _weights(weights: Any, data: FrequencyData) -> np.ndarray:
     return w
 
 
-def _negligible_channels(data: FrequencyData, min_db: float | None) -> list[tuple[str, str, float]]:
-    """Channels far below the largest of their row and column (``(output, input, level_dB)``)."""
-    rms = np.sqrt(np.mean(np.abs(data.response) ** 2, axis=0))
-    if min_db is None:
-        zero = rms == 0
-        if np.any(zero):
-            o, i = np.argwhere(zero)[0]
-            raise DataError(
-                f"data channel {data.outputs[o]} <- {data.inputs[i]} is identically zero on the band; its "
-                "log error is undefined. Drop it with data.select(...), weight it 0, or let "
-                "min_channel_db drop negligible channels."
-            )
-        return []
+def _negligible_channels(
+    response: np.ndarray, outputs: tuple[str, ...], inputs: tuple[str, ...], min_db: float
+) -> list[tuple[str, str, float]]:
+    """Channels whose rms response is ``min_db`` below the largest of their row and column."""
+    rms = np.sqrt(np.mean(np.abs(response) ** 2, axis=0))
     ref = np.sqrt(np.outer(rms.max(axis=1), rms.max(axis=0)))
     with np.errstate(divide="ignore"):
         level = 20.0 * np.log10(np.where(ref > 0, rms / np.where(ref > 0, ref, 1.0), 0.0))
-    return [
-        (data.outputs[o], data.inputs[i], float(level[o, i])) for o, i in np.argwhere(level < float(min_db))
-    ]
+    return [(outputs[o], inputs[i], float(level[o, i])) for o, i in np.argwhere(level < float(min_db))]
+
+
+def _check_no_zero_channel(data: FrequencyData) -> None:
+    rms = np.sqrt(np.mean(np.abs(data.response) ** 2, axis=0))
+    if np.any(rms == 0):
+        o, i = np.argwhere(rms == 0)[0]
+        raise DataError(
+            f"data channel {data.outputs[o]} <- {data.inputs[i]} is identically zero on the band; its "
+            "log error is undefined. Drop it with data.select(...), weight it 0, or let "
+            "min_channel_db drop negligible channels."
+        )
 
 
 class Residual:
@@ -144,10 +145,11 @@ class Residual:
         uses ``w = sqrt(g2 / (1 - g2))`` (inverse standard deviation of the log estimate,
         g2 the coherence clipped at 0.999), normalised to mean(w^2) = 1.
     min_channel_db : float or None
-        Channels whose RMS data magnitude on the band lies more than this many dB below
-        the geometric mean of the largest channel in their row and in their column are
-        given weight 0 (listed in ``dropped``): decoupled axes of a symmetric structure
-        measure noise, and their log error would swamp the cost. ``None`` keeps every
+        Channels whose RMS magnitude on the band, in the data or in the nominal model, lies
+        more than this many dB below the geometric mean of the largest channel in their row
+        and in their column are given weight 0 (listed in ``dropped``): decoupled axes of a
+        symmetric structure measure noise against a numerically zero model, a log error no
+        physical parameter can explain, and it would swamp the cost. ``None`` keeps every
         channel and refuses identically zero ones.
 
     Attributes
@@ -188,12 +190,24 @@ class Residual:
         self._out_idx = _channel_index(sys0.output_labels, self.data.outputs, "outputs")
         self._in_idx = _channel_index(sys0.input_labels, self.data.inputs, "inputs")
         self.weights = _weights(weights, self.data)
-        self.dropped = _negligible_channels(self.data, min_channel_db)
+        self.dropped = self._negligible(min_channel_db)
         for o, i, _level in self.dropped:
             self.weights[:, self.data.outputs.index(o), self.data.inputs.index(i)] = 0.0
         if not np.any(self.weights > 0):
             raise DataError("every channel has zero weight; nothing is left to compare.")
         self.n = 2 * self.data.response.size
+
+    def _negligible(self, min_db: float | None) -> list[tuple[str, str, float]]:
+        """Channels negligible in the data or in the nominal model (decoupled by symmetry)."""
+        if min_db is None:
+            _check_no_zero_channel(self.data)
+            return []
+        d = self.data
+        found = {(o, i): lvl for o, i, lvl in _negligible_channels(d.response, d.outputs, d.inputs, min_db)}
+        model_level = _negligible_channels(self.model_response(), d.outputs, d.inputs, min_db)
+        for o, i, lvl in model_level:
+            found[(o, i)] = min(lvl, found.get((o, i), lvl))
+        return [(o, i, lvl) for (o, i), lvl in found.items()]
 
     # ------------------------------------------------------------------ evaluation
     @property
