@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ModelError
+from ..threads import limit_blas
 from .parameters import Parameter
 from .structure_base import Structure
 
@@ -278,8 +279,12 @@ class PhysicalModel:
         self._cache.store(tuple(sorted(recorder.read)), theta, sys)
         return sys
 
+    @limit_blas
     def statespace(self, **overrides: float):
-        """The I/O model as a ``control.StateSpace`` with named signals."""
+        """The I/O model as a ``control.StateSpace`` with named signals.
+
+        Runs under robustctl's BLAS thread limit (:func:`robustctl.set_blas_threads`): the
+        eigen-solves here are small, and OpenBLAS's default thread pool makes them slower."""
         theta = self._theta(overrides)
         sys = self._dynamics(theta)
         for stage in self.io_stages:
