@@ -116,9 +116,10 @@ def _random_modal_data(n_modes: int, n_out: int, n_in: int, seed: int = 0) -> rc
 def _head_to_head() -> dict:
     band = _truss_band()
     high = band.coherence > 0.9
-    t_ours, ours = _best_time(lambda: rc.fit_rational(band, 2 * N_PAIRS, method="vf"))
+    # Fits take tens of ms: best of 15 keeps the ratio above the machine's timing noise.
+    t_ours, ours = _best_time(lambda: rc.fit_rational(band, 2 * N_PAIRS, method="vf"), 15)
     t_cheb, cheb = _best_time(lambda: rc.fit_rational(band, 2 * N_PAIRS, method="chebyshev"), 1)
-    t_skrf, vf = _best_time(lambda: _skrf_fit(band, N_PAIRS))
+    t_skrf, vf = _best_time(lambda: _skrf_fit(band, N_PAIRS), 15)
     g_skrf = _skrf_response(vf, band)
     out = {
         "n_freq": band.n_freq,
@@ -241,6 +242,10 @@ def run() -> dict:
         warnings.simplefilter("ignore", UserWarning)
         h2h = _head_to_head()
         metrics = {
+            "ours_vf_rms_db": h2h["ours_vf_rms_db"],
+            "skrf_rms_db": h2h["skrf_rms_db"],
+            "rms_db_ours_minus_skrf": round(h2h["ours_vf_rms_db"] - h2h["skrf_rms_db"], 4),
+            "speedup_vs_skrf": h2h["speedup_vs_skrf"],
             "head_to_head_3x3_600": h2h,
             "time_vs_order": _time_vs_order(),
             "time_vs_channels": _time_vs_channels(),
@@ -255,7 +260,7 @@ def run() -> dict:
         "description": "fit_rational (relaxed fast VF) vs scikit-rf VectorFitting on the same 3x3, 600-point "
         "Caltech-truss FRF; time vs order and channels; Caltech SVD grouping and balanced truncation",
         "metrics": metrics,
-        "targets": {"ours_vf_rms_db": "<= skrf_rms_db", "speedup_vs_skrf": ">= 2"},
+        "targets": {"rms_db_ours_minus_skrf": "<= 0", "speedup_vs_skrf": ">= 2"},
         "passed": passed,
     }
 

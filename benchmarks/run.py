@@ -156,17 +156,29 @@ README = HERE.parent / "README.md"
 README_START, README_END = "<!-- BENCHMARKS:START -->", "<!-- BENCHMARKS:END -->"
 
 
+def _headline_metrics(result: dict[str, Any]) -> list[str]:
+    """Metrics with a target, then side-by-side ratios (names with "speedup" or "ratio")."""
+    targets = result.get("targets", {}) or {}
+    metrics = result.get("metrics", {}) or {}
+    ratios = [
+        m for m, v in metrics.items()
+        if re.search(r"speedup|(^|_)ratio(_|$)", m) and isinstance(v, (int, float))
+    ]
+    return list(targets) + [m for m in ratios if m not in targets]
+
+
 def headline_markdown(results: list[dict[str, Any]]) -> str:
-    """The README's table: only metrics that carry a target, with the machine's load."""
+    """The README's table: metrics that carry a target and side-by-side ratios, with the load."""
     lines = ["| Benchmark | Metric | Value | Target | Met? |", "|---|---|---|---|---|"]
     for r in results:
-        for metric, target in (r.get("targets", {}) or {}).items():
+        targets = r.get("targets", {}) or {}
+        for metric in _headline_metrics(r):
             value = (r.get("metrics", {}) or {}).get(metric)
+            target = targets.get(metric)
             met = target_met(value, target)
-            lines.append(
-                f"| {r.get('name')} | {metric} | {_cell(value)} | {_cell(target)} | "
-                f"{'yes' if met else '**no**'} |"
-            )
+            met_text = "" if met is None else ("yes" if met else "**no**")
+            target_text = "" if target is None else _cell(target)
+            lines.append(f"| {r.get('name')} | {metric} | {_cell(value)} | {target_text} | {met_text} |")
     loads = sorted({_cell(r.get("machine", {}).get("load_average_1_5_15", [""])[0]) for r in results})
     lines += [
         "",
