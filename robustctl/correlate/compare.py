@@ -687,11 +687,13 @@ class Comparison:
         fig = fig or plt.figure(figsize=(3.2 * ni + 1, 2.4 * no + 3), constrained_layout=True)
         grid = fig.add_gridspec(no + 1, ni, height_ratios=[1.0] * no + [1.2])
         f = self.f_hz
+        xscale = "log" if f[-1] > 10 * f[0] else "linear"  # a structural-dynamics Bode habit
         for o in range(no):
             for i in range(ni):
                 ax = fig.add_subplot(grid[o, i])
                 ax.semilogy(f, np.abs(self.data.response[:, o, i]), "k.", ms=2, label="data")
                 ax.semilogy(f, np.abs(self.model_response[:, o, i]), "C0-", lw=1, label=self.model_name)
+                ax.set_xscale(xscale)
                 for b in self.bands:
                     ax.axvspan(b.lo_hz, b.hi_hz, color="C3", alpha=0.15, lw=0)
                 ax.set_title(f"{self.outputs[o]} <- {self.inputs[i]}", fontsize=8)
@@ -700,8 +702,9 @@ class Comparison:
                     ax.legend(fontsize=7)
         ax = fig.add_subplot(grid[no, :])
         emap = np.abs(self.error.reshape(nf, -1)).T * DB_PER_NEPER
-        extent = (f[0], f[-1], emap.shape[0] - 0.5, -0.5)
-        im = ax.imshow(emap, aspect="auto", extent=extent, cmap="magma", interpolation="nearest")
+        im = ax.pcolormesh(f, np.arange(no * ni), emap, cmap="magma", shading="nearest")
+        ax.set_xscale(xscale)
+        ax.invert_yaxis()
         ax.set_yticks(range(no * ni))
         ax.set_yticklabels([f"{a}<-{b}" for a in self.outputs for b in self.inputs], fontsize=6)
         ax.set_xlabel("frequency (Hz)")
