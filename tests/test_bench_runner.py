@@ -3,7 +3,7 @@
 from benchmarks.run import README_END, README_START, headline_markdown, target_met, update_readme
 
 RESULTS = [
-    {"name": "fast", "metrics": {"speedup": 55.8, "n": 3}, "targets": {"speedup": ">= 50"},
+    {"name": "fast", "metrics": {"speedup": 55.8, "n": 3, "speedup_threads": 0.8, "iterations": 7}, "targets": {"speedup": ">= 50"},
      "machine": {"load_average_1_5_15": [1.5, 1, 1]}},
     {"name": "slow", "metrics": {"time_s": 12.0}, "targets": {"time_s": "< 10"}},
 ]
@@ -15,11 +15,12 @@ def test_target_met_reads_comparisons():
     assert target_met("x", "x") is True and target_met(1, None) is None
 
 
-def test_headline_table_lists_targeted_metrics_only():
+def test_headline_table_lists_targeted_metrics_and_ratios():
     table = headline_markdown(RESULTS)
     assert "| fast | speedup | 55.8 | >= 50 | yes |" in table
     assert "| slow | time_s | 12 | < 10 | **no** |" in table
-    assert "| fast | n |" not in table
+    assert "| fast | n |" not in table and "| fast | iterations |" not in table
+    assert "| fast | speedup_threads | 0.8 |  |  |" in table  # side-by-side ratios are shown too
 
 
 def test_update_readme_replaces_only_between_markers(tmp_path):
