@@ -37,6 +37,7 @@ from __future__ import annotations
 import math
 import re
 import weakref
+from abc import ABC, abstractmethod
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar
@@ -93,7 +94,7 @@ def _slug(text: str) -> str:
 
 # ============================================================================ base class
 @dataclass(frozen=True)
-class Effect:
+class Effect(ABC):
     """A physical effect with parameters that vanish at their neutral value.
 
     Subclasses are frozen dataclasses whose value fields (``delay``, ``mass`` ...) hold the
@@ -123,18 +124,18 @@ class Effect:
 
     # ---------------------------------------------------------------- description
     @property
+    @abstractmethod
     def name(self) -> str:
         """Plain-words name, e.g. ``"added mass at node p2_c"``."""
-        raise NotImplementedError
 
     @property
+    @abstractmethod
     def description(self) -> str:
         """One or two sentences of physics."""
-        raise NotImplementedError
 
+    @abstractmethod
     def _specs(self) -> list[dict[str, Any]]:
         """One dict per value field: base, unit, bounds, neutral, default_scale, meaning."""
-        raise NotImplementedError
 
     def _suffix(self) -> str:
         return "" if self.location is None else "__" + _slug(self.location)
@@ -228,8 +229,8 @@ class Effect:
             )
         self._check_location(model)
 
-    def _check_location(self, model: PhysicalModel) -> None:
-        """Subclasses check their location against the model."""
+    def _check_location(self, model: PhysicalModel) -> None:  # noqa: B027 - optional hook
+        """Subclasses with a location check it against the model (global effects need not)."""
 
     def apply(self, model: PhysicalModel) -> PhysicalModel:
         """``model`` with this effect: its parameters added and its build stage appended."""
@@ -239,8 +240,9 @@ class Effect:
             return model.add_structure_stage(stage, self.parameters)
         return model.add_io_stage(stage, self.parameters)
 
+    @abstractmethod
     def _stage_fn(self):
-        raise NotImplementedError
+        """The build-stage function ``(theta, structure_or_statespace) -> same`` of this effect."""
 
     def describe_value(self, values: Mapping[str, float] | None = None) -> str:
         """The effect's size in words (``"3.6 ms"``), from ``values`` or its own."""
