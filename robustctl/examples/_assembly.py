@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ModelError
-from ..physical.electronics import close_servo_loop, lowpass1, pade_delay
+from ..physical.electronics import close_servo_loop, pade_delay, series
 from ..physical.model import Stage
 from ..physical.parameters import Parameter
 
@@ -289,19 +289,8 @@ def pd_controller(
         A = [[0.0, wc], [-wc, -z * wc]]
         pd = _ss(A, [[0.0], [wc]], [[g, g * wc / wd]], [[0.0]], ["u"], ["y"])
     if delay_s:
-        pd = pd_series(pd, pade_delay(delay_s, pade_order))
+        pd = series(pd, pade_delay(delay_s, pade_order))
     return pd
-
-
-def pd_series(first: Any, second: Any):
-    """SISO series connection ``second(first(u))`` as a StateSpace named ``u -> y``."""
-    A1, B1, C1, D1 = (np.atleast_2d(np.asarray(m, float)) for m in (first.A, first.B, first.C, first.D))
-    A2, B2, C2, D2 = (np.atleast_2d(np.asarray(m, float)) for m in (second.A, second.B, second.C, second.D))
-    n1, n2 = A1.shape[0], A2.shape[0]
-    A = np.block([[A1, np.zeros((n1, n2))], [B2 @ C1, A2]])
-    B = np.vstack([B1, B2 @ D1])
-    C = np.hstack([D2 @ C1, C2])
-    return _ss(A, B, C, D2 @ D1, ["u"], ["y"])
 
 
 def pd_servo_stage(
@@ -330,8 +319,3 @@ def pd_servo_stage(
         return close_servo_loop(sys, sensor, actuator, k, reference_input_name)
 
     return Stage(name or f"PD servo {sensor} -> {actuator}", fn, tuple(tags))
-
-
-def first_order_lowpass(cutoff_hz: float):
-    """Re-export of the electronics first-order low-pass (actuator bandwidth)."""
-    return lowpass1(cutoff_hz)

@@ -45,6 +45,7 @@ __all__ = [
     "pade_coefficients",
     "pi_controller",
     "servo_controller",
+    "series",
     # functions on named systems
     "scale_outputs",
     "scale_inputs",
@@ -370,7 +371,23 @@ def servo_controller(
     ``K(s) = gain (1 + w_i / s) w_c / (s + w_c) e^{-s delay}`` (Pade); frequencies in Hz,
     delay in s. A digitally closed loop (gimbal servo) carries the sampling delay.
     """
-    parts = [pi_controller(gain, integral_hz), lowpass1(lowpass_hz), pade_delay(delay_s, pade_order)]
+    return series(pi_controller(gain, integral_hz), lowpass1(lowpass_hz), pade_delay(delay_s, pade_order))
+
+
+def series(*parts: Any):
+    """SISO series connection: ``parts[0]`` acts first, ``parts[-1]`` last.
+
+    Parameters
+    ----------
+    *parts : LTI or float
+        Continuous-time single-input single-output pieces (StateSpace, TransferFunction
+        or a static gain).
+
+    Returns
+    -------
+    control.StateSpace
+        ``parts[-1](... parts[0](u))`` named ``u -> y``; states of the first part first.
+    """
     out = _identity_abcd()
     for part in parts:
         out = _series(out, _siso(part))
