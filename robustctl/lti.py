@@ -32,7 +32,19 @@ from .errors import DataError, ModelError
 from .frd import FrequencyData, _as_frequencies
 from .threads import limit_blas
 
-__all__ = ["freqresp", "freqresp_array", "as_statespace", "log_ratio", "log_error", "log_cost"]
+__all__ = [
+    "freqresp",
+    "freqresp_array",
+    "as_statespace",
+    "log_ratio",
+    "log_error",
+    "log_cost",
+    "DB_PER_NEPER",
+]
+
+#: dB per neper, ``20 / ln 10``: the real part of :func:`log_ratio` (nepers) times this is
+#: the log-magnitude error in dB.
+DB_PER_NEPER = 20.0 / np.log(10.0)
 
 #: Smallest magnitude used in a log ratio, so an exact zero gives a large finite error.
 _TINY = 1e-300
@@ -58,6 +70,7 @@ def log_ratio(g_data: np.ndarray, g_model: np.ndarray) -> np.ndarray:
     mag_d = np.maximum(np.abs(g_data), _TINY)
     mag_m = np.maximum(np.abs(g_model), _TINY)
     return (np.log(mag_d) - np.log(mag_m)) + 1j * np.angle(g_data * np.conj(g_model))
+
 
 #: eigenvector condition number above which a block is treated as (nearly) defective
 COND_LIMIT = 1e6
@@ -446,8 +459,8 @@ def _model_response(data: FrequencyData, model: Any) -> FrequencyData:
 def log_error(data: FrequencyData, model: Any, band: tuple[float, float] | None = None) -> np.ndarray:
     """The complex-log error ``log(G_data / G_model)`` (MACE eq. 5), shape (n_freq, n_out, n_in).
 
-    Its real part is the log-magnitude error in nepers (x 20/ln 10 for dB), its imaginary
-    part the phase error in rad (principal value in (-pi, pi]).
+    Its real part is the log-magnitude error in nepers (x ``DB_PER_NEPER`` = 20/ln 10 for
+    dB), its imaginary part the phase error in rad (principal value in (-pi, pi]).
 
     Parameters
     ----------

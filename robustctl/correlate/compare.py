@@ -29,6 +29,7 @@ import scipy.signal
 
 from ..errors import DataError
 from ..frd import FrequencyData
+from ..lti import DB_PER_NEPER
 from ..table import Table
 from .residual import Residual, log_ratio
 
@@ -44,10 +45,6 @@ __all__ = [
     "mac",
     "pair_modes",
 ]
-
-#: dB per neper (20 / ln 10).
-DB_PER_NEPER = 20.0 / np.log(10.0)
-
 
 # ---------------------------------------------------------------------------- modes
 

@@ -11,12 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..lti import log_ratio
+from ..lti import DB_PER_NEPER, log_ratio
 from ..table import Table
 
 __all__ = ["LogCost", "channel_cost"]
-
-DB_PER_NEPER = 20.0 / np.log(10.0)
 
 
 @dataclass(frozen=True)
