@@ -40,6 +40,7 @@ __all__ = [
     "log_error",
     "log_cost",
     "DB_PER_NEPER",
+    "pole_frequency_damping",
 ]
 
 #: dB per neper, ``20 / ln 10``: the real part of :func:`log_ratio` (nepers) times this is
@@ -70,6 +71,28 @@ def log_ratio(g_data: np.ndarray, g_model: np.ndarray) -> np.ndarray:
     mag_d = np.maximum(np.abs(g_data), _TINY)
     mag_m = np.maximum(np.abs(g_model), _TINY)
     return (np.log(mag_d) - np.log(mag_m)) + 1j * np.angle(g_data * np.conj(g_model))
+
+
+def pole_frequency_damping(poles: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Natural frequency and damping ratio of continuous-time poles.
+
+    ``f_hz = |p| / (2 pi)`` and ``zeta = -Re p / |p|`` (``p = -zeta w_n + j w_n sqrt(1 - zeta^2)``).
+
+    Parameters
+    ----------
+    poles : array_like, complex
+        Poles in rad/s, any shape.
+
+    Returns
+    -------
+    f_hz : ndarray
+        Natural frequency of each pole, Hz.
+    zeta : ndarray
+        Damping ratio of each pole (ratio, not %); 0 for a pole at the origin.
+    """
+    p = np.asarray(poles, dtype=complex)
+    mag = np.abs(p)
+    return mag / (2 * np.pi), -p.real / np.maximum(mag, np.finfo(float).tiny)
 
 
 #: eigenvector condition number above which a block is treated as (nearly) defective

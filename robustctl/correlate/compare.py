@@ -29,7 +29,7 @@ import scipy.signal
 
 from ..errors import DataError
 from ..frd import FrequencyData
-from ..lti import DB_PER_NEPER
+from ..lti import DB_PER_NEPER, pole_frequency_damping
 from ..table import Table
 from .residual import Residual, log_ratio
 
@@ -92,10 +92,10 @@ def statespace_modes(
         W = np.linalg.pinv(V)
     out_idx = list(range(C.shape[0])) if out_idx is None else out_idx
     in_idx = list(range(B.shape[1])) if in_idx is None else in_idx
+    f_hz, zetas = pole_frequency_damping(lam)
     modes = []
     for k in np.flatnonzero(lam.imag > 0):
-        f = abs(lam[k]) / (2 * np.pi)
-        zeta = -lam[k].real / abs(lam[k])
+        f, zeta = f_hz[k], zetas[k]
         if not band[0] <= f <= band[1] or zeta >= max_zeta:
             continue
         res = np.outer(C[out_idx] @ V[:, k], W[k] @ B[:, in_idx])

@@ -261,11 +261,11 @@ def _select_order(band, groups, st, kw, rank_tol, max_modes, parsimony, target_d
 
 def _modes(fit: RationalFit) -> tuple[Mode, ...]:
     out = []
-    for p, r, k in zip(fit.poles, fit.residues, fit.ranks):
+    for p, f, z, r, k in zip(fit.poles, fit.f_hz, fit.zeta, fit.residues, fit.ranks):
         if p.imag == 0 or k == 0:
             continue
         c, b = residue_factors(r, int(k))
-        out.append(Mode(float(abs(p) / (2 * np.pi)), float(-p.real / abs(p)), complex(p), r, int(k), c, b))
+        out.append(Mode(float(f), float(z), complex(p), r, int(k), c, b))
     return tuple(out)
 
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import FitError
 from ..frd import FrequencyData
+from ..lti import pole_frequency_damping
 from ..threads import limit_blas
 from ._problem import FitProblem, prepare_problem
 from .chebyshev import chebyshev_poles
@@ -95,12 +96,12 @@ class RationalFit:
     @property
     def f_hz(self) -> np.ndarray:
         """Natural frequency ``|p|/(2 pi)`` of each pole, Hz."""
-        return np.abs(self.poles) / (2 * np.pi)
+        return pole_frequency_damping(self.poles)[0]
 
     @property
     def zeta(self) -> np.ndarray:
         """Damping ratio ``-Re p / |p|`` of each pole."""
-        return -self.poles.real / np.maximum(np.abs(self.poles), np.finfo(float).tiny)
+        return pole_frequency_damping(self.poles)[1]
 
     # ----------------------------------------------------------------- evaluation
     def response(self, f_hz: Any) -> np.ndarray:
@@ -151,7 +152,7 @@ def _pole_kernel(
 
 
 def _warn_out_of_band(poles: np.ndarray, band: tuple[float, float]) -> None:
-    f = np.abs(poles) / (2 * np.pi)
+    f = pole_frequency_damping(poles)[0]
     out = f[(f < band[0]) | (f > band[1])]
     if out.size:
         warnings.warn(
