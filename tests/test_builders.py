@@ -268,3 +268,15 @@ def test_bad_effects_on_matrix_structure():
     bare = MatrixStructure(M_KG * np.eye(3), chain_k(), tagged={"s": (None, np.eye(3))}, **IO)
     with pytest.raises(ModelError, match="no concentrated damping to remove it from"):
         bare.without(["s"])
+
+
+def test_build_may_read_optional_parameters_with_get():
+    """theta.get(name, default) inside a build: absent -> default, present -> recorded for the cache."""
+    import control
+
+    def dynamics(theta, structure):
+        return control.ss([], [], [], [[theta.get("k", 0.0) + theta.get("dropped", 10.0)]])
+
+    model = PhysicalModel((Parameter("k", 1.0, "1", (0.0, 5.0), meaning="a gain"),), dynamics)
+    assert float(model.statespace().D[0, 0]) == 11.0
+    assert float(model.statespace(k=3.0).D[0, 0]) == 13.0  # k was read: not served from the cache

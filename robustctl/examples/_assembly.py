@@ -28,7 +28,6 @@ from ..physical.parameters import Parameter
 
 __all__ = [
     "param",
-    "has_param",
     "get_param",
     "rod_section",
     "tube_section",
@@ -66,14 +65,9 @@ def param(
     )
 
 
-def has_param(theta: Mapping[str, float], name: str) -> bool:
-    """Whether ``theta`` holds ``name``, without reading it (dropped by ``without``)."""
-    return any(k == name for k in theta)
-
-
 def get_param(theta: Mapping[str, float], name: str, default: float) -> float:
-    """``theta[name]`` when the model still has that parameter, else ``default``."""
-    return float(theta[name]) if has_param(theta, name) else float(default)
+    """``theta[name]`` when the model still has that parameter (dropped by ``without``), else ``default``."""
+    return float(theta.get(name, default))
 
 
 def check_int(value: Any, name: str, lo: int, hi: int) -> int:

@@ -440,11 +440,6 @@ def _modal_data_from_arrays(freqs_hz, damping, b_shapes, c_shapes, inputs, outpu
 
 
 # ---------------------------------------------------------------------------- PhysicalModel hook
-def _has(theta: Mapping[str, float], name: str) -> bool:
-    # iterate instead of ``in``: PhysicalModel's recording mapping raises on unknown keys.
-    return any(k == name for k in theta)
-
-
 def _digest(mats: StructuralMatrices, *extra: Any) -> bytes:
     """A content hash of everything the undamped modal data depends on."""
     h = hashlib.blake2b(digest_size=20)
@@ -517,7 +512,7 @@ def modal_dynamics(
     def dynamics(theta: Mapping[str, float], structure: Structure | None):
         if structure is None:
             raise ModelError("modal_dynamics needs a structure; build the model with a structure callable.")
-        zeta = theta[damping_param] if _has(theta, damping_param) else default_damping
+        zeta = theta.get(damping_param, default_damping)
         mats = structure.matrices()
         _check_mats(mats)
         key = _digest(mats, n_modes, band_hz, residual_flexibility)

@@ -99,6 +99,11 @@ class _RecordingTheta(Mapping):
         self.read.add(key)
         return value
 
+    def get(self, key: str, default: Any = None) -> Any:
+        """``theta[key]`` (recorded as read) when present, else ``default``: a build may
+        read a parameter that ``PhysicalModel.without`` dropped, with a fallback."""
+        return self[key] if key in self._values else default
+
     def __contains__(self, key: object) -> bool:
         return key in self._values
 
