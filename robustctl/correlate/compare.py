@@ -781,8 +781,8 @@ def compare(
     res = Residual(model, data, band=band, weights=weights, min_channel_db=min_channel_db)
     g_model = res.model_response()
     d = res.data
-    weighted = res.weights * log_ratio(d.response, g_model)
     error = log_ratio(d.response, g_model)
+    weighted = res.weights * error
     channel_cost = np.sum(np.abs(weighted) ** 2, axis=0)
     cost = float(channel_cost.sum())
     f = d.f_hz
