@@ -83,6 +83,11 @@ def check_structural_matrices(mass, stiffness) -> None:
     shape_k = _check_square_symmetric("stiffness", stiffness)
     if shape_m != shape_k:
         raise ModelError(f"mass {shape_m} and stiffness {shape_k} differ in size.")
+    _check_mass_definite(mass)
+
+
+def _check_mass_definite(mass) -> None:
+    """Refuse a singular or indefinite mass matrix (already square, symmetric, finite)."""
     if not _is_positive_definite(mass):
         raise ModelError(
             "the mass matrix is singular or not positive definite: every DOF needs mass "

@@ -24,7 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import ModelError
-from .eigen import check_structural_matrices
+from .eigen import _check_mass_definite, _check_square_symmetric, _dense
 from .structure_base import OUTPUT_KINDS, StructuralMatrices, Structure
 
 __all__ = ["MatrixStructure"]
@@ -35,29 +35,15 @@ _DEFINITENESS_CHECK_LIMIT = 800
 
 
 def _matrix(a: Any, n: int | None, what: str):
-    """A float matrix (dense or CSR), square and of size ``n`` when given."""
+    """A float matrix (dense or CSR): square, finite, symmetric, and of size ``n`` when given."""
     mat = sp.csr_matrix(a, dtype=float) if sp.issparse(a) else np.array(a, dtype=float, ndmin=2)
-    if mat.ndim != 2 or mat.shape[0] != mat.shape[1]:
-        raise ModelError(f"the {what} matrix must be square; got shape {mat.shape}.")
+    _check_square_symmetric(what, mat)
     if n is not None and mat.shape[0] != n:
         raise ModelError(
             f"the {what} matrix is {mat.shape[0]}x{mat.shape[1]} but the model has {n} DOFs; "
             "all matrices must have the size of the mass matrix."
         )
-    values = mat.data if sp.issparse(mat) else mat
-    if not np.all(np.isfinite(values)):
-        raise ModelError(f"the {what} matrix contains NaN or inf.")
-    asym = abs(mat - mat.T).max() if sp.issparse(mat) else np.abs(mat - mat.T).max(initial=0.0)
-    if asym > 1e-9 * max(np.abs(values).max(initial=0.0), 1e-300):
-        raise ModelError(
-            f"the {what} matrix is not symmetric (max asymmetry {asym:.3g}); structural matrices "
-            "must be symmetric."
-        )
     return mat
-
-
-def _dense(a) -> np.ndarray:
-    return a.toarray() if sp.issparse(a) else np.asarray(a)
 
 
 def _check_definite(mass, stiffness, labels: Sequence[str]) -> None:
@@ -72,7 +58,7 @@ def _check_definite(mass, stiffness, labels: Sequence[str]) -> None:
                 f"({diag[bad[0]]:g}); masses and stiffnesses must be >= 0."
             )
     if mass.shape[0] <= _DEFINITENESS_CHECK_LIMIT:
-        check_structural_matrices(mass, stiffness)  # mass positive definite
+        _check_mass_definite(mass)  # symmetry and finiteness were checked by _matrix
         lam = np.linalg.eigvalsh(_dense(stiffness))
         if lam.min() < -1e-9 * max(abs(lam).max(), 1e-300):
             raise ModelError(

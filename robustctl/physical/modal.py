@@ -162,10 +162,6 @@ def _apply_bands(zeta: np.ndarray, f_hz: np.ndarray, bands) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------- decomposition
-def _dense(a) -> np.ndarray:
-    return a.toarray() if sp.issparse(a) else np.asarray(a, dtype=float)
-
-
 def _check_mats(mats: StructuralMatrices) -> None:
     n = mats.n_dof
     if mats.mass.shape[0] != n:
