@@ -185,6 +185,21 @@ def test_lm_caps_iterations_and_time(model, truth_data):
     assert "time budget" in fit.stop_reason and fit.n_iter == 0
 
 
+def test_lm_reuses_start_sensitivities_without_changing_the_fit(model, truth_data):
+    res = Residual(model, truth_data)
+    names = ["k1", "k2", "m2"]
+    sens = sensitivities(res, ["c1", *names])  # e.g. the ones MACE's selection tests used
+    plain = levenberg_marquardt(res, names, max_iter=30)
+    reused = levenberg_marquardt(res, names, max_iter=30, start=sens)
+    assert reused.history == plain.history and reused.x == plain.x
+    assert np.array_equal(reused.jacobian, plain.jacobian)
+    assert reused.n_evals == plain.n_evals - 1 - len(names)
+    with pytest.raises(rc.FitError, match="other values of"):
+        levenberg_marquardt(res, names, x0={"k1": 1010.0}, start=sens)
+    with pytest.raises(rc.FitError, match="miss"):
+        levenberg_marquardt(res, [*names, "c2"], start=sens)
+
+
 # ---------------------------------------------------------------------- bad input
 def test_bad_signal_names_and_counts(model, truth_data):
     renamed = truth_data.replace(outputs=["a1", "a2"])

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import FitError, ModelError, RobustctlError
-from .residual import Residual, _check_names, sensitivities
+from .residual import Residual, Sensitivities, _check_names, sensitivities
 
 __all__ = ["LMResult", "levenberg_marquardt"]
 
@@ -139,6 +139,30 @@ def _start(model: Any, names: tuple[str, ...], x0: Any, lo: np.ndarray, hi: np.n
     return x
 
 
+def _from_start(
+    start: Sensitivities, model: Any, names: tuple[str, ...], x: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Residual vector and per-unit Jacobian (columns in ``names`` order) at ``x`` from ``start``."""
+    missing = [n for n in names if n not in start.names]
+    point = {**model.values, **dict(zip(names, (float(v) for v in x)))}
+    moved = [k for k, v in point.items() if start.base.get(k) != v]
+    if missing or moved or "secant" in start.kind:
+        why = (
+            f"they miss {missing}"
+            if missing
+            else f"they were taken at other values of {moved}"
+            if moved
+            else "they are secants from origin="
+        )
+        raise FitError(
+            "start= must be the sensitivities (without origin=) of every fitted parameter at the "
+            f"starting point; {why}. Compute them with "
+            "sensitivities(residual, names, at=x0) or leave start out."
+        )
+    cols = [start.names.index(n) for n in names]
+    return np.asarray(start.j0, dtype=float), start.jacobian()[:, cols]
+
+
 @dataclass
 class _State:
     x: np.ndarray
@@ -238,6 +262,7 @@ def levenberg_marquardt(
     executor: Executor | None = None,
     progress: bool = False,
     callback: Callable[[int, dict[str, float], float], None] | None = None,
+    start: Sensitivities | None = None,
 ) -> LMResult:
     """Minimise MACE's cost ``J = j^T j`` (eq. 5) over named parameters.
 
@@ -273,6 +298,10 @@ def levenberg_marquardt(
         tqdm bar over iterations (only on a terminal).
     callback : callable ``(iteration, x, cost)``, optional
         Called after each iteration.
+    start : Sensitivities, optional
+        :func:`~robustctl.correlate.residual.sensitivities` of (at least) ``names`` already
+        computed at the starting point (e.g. for MACE's selection tests): their residual
+        and Jacobian columns are reused instead of re-evaluated (saves ``1 + p`` evaluations).
 
     Returns
     -------
@@ -299,14 +328,16 @@ def levenberg_marquardt(
     def overrides(xv: np.ndarray) -> dict[str, float]:
         return dict(zip(names, (float(v) for v in xv)))
 
-    r = residual.vector(**overrides(x))
+    if start is None:
+        r, jac_at_x, n_evals = residual.vector(**overrides(x)), None, 1
+    else:
+        (r, jac_at_x), n_evals = _from_start(start, model, names, x), 0
     cost = float(r @ r)
     if not np.isfinite(cost):
         raise FitError("the cost at the starting point is not finite; check the model and data.")
-    st = _State(x=x, r=r, cost=cost, lam=lam0, n_evals=1)
+    st = _State(x=x, r=r, cost=cost, lam=lam0, n_evals=n_evals)
     history, x_hist = [cost], [overrides(x)]
     reason, success, n_iter = "iteration cap reached", False, 0
-    jac_at_x = None
 
     def jacobian() -> np.ndarray:
         sens = sensitivities(residual, names, at=overrides(st.x), j0=st.r, executor=executor)
@@ -324,7 +355,8 @@ def levenberg_marquardt(
             if st.cost <= 1e-28 * residual.n:
                 reason, success = "converged: the residual vanished (exact fit)", True
                 break
-            jac_at_x = jacobian()
+            if jac_at_x is None:
+                jac_at_x = jacobian()
             Jz = jac_at_x * scale
             grad = Jz.T @ st.r
             if np.max(np.abs(grad)) <= gtol * max(st.cost, 1e-300):

@@ -32,7 +32,15 @@ from ..errors import FitError
 from ..frd import FrequencyData
 from ..table import Table
 from .optimize import LMResult, levenberg_marquardt
-from .residual import Residual, _check_names, alignment, normalized, orthogonality, sensitivities
+from .residual import (
+    Residual,
+    Sensitivities,
+    _check_names,
+    alignment,
+    normalized,
+    orthogonality,
+    sensitivities,
+)
 
 __all__ = ["UpdateResult", "update", "select_parameters", "superparameter"]
 
@@ -477,11 +485,13 @@ def _passes(
     min_align: float,
     executor: Executor | None,
     progress: bool,
+    start: Sensitivities | None = None,
 ) -> tuple[LMResult, tuple[float, ...], list[str], int]:
-    """Optimise ``selected``; then repeat the tests on the remaining error and add parameters."""
+    """Optimise ``selected`` (from the sensitivities ``start`` at the model's values, if
+    given); then repeat the tests on the remaining error and add parameters."""
     t0 = time.perf_counter()
     kw = dict(max_iter=max_iter, ftol=ftol, executor=executor, progress=progress)
-    fit = levenberg_marquardt(residual, selected, time_budget_s=budget, **kw)
+    fit = levenberg_marquardt(residual, selected, time_budget_s=budget, start=start, **kw)
     history, notes, n_evals = list(fit.history), [], fit.n_evals
     for k in range(2, int(passes) + 1):
         left = budget - (time.perf_counter() - t0)
@@ -627,6 +637,7 @@ def update(
         min_alignment,
         executor,
         progress,
+        start=sens,
     )
     notes += extra
     if residual.dropped:
