@@ -631,17 +631,25 @@ def _screen_all(res_u: Residual, model_u: Any, null: _Null, cands: list, executo
 
 
 def _null_fit(
-    res0: Residual, upd: tuple[str, ...], max_iter: int, executor: Executor | None, budget: float
+    res0: Residual,
+    upd: tuple[str, ...],
+    max_iter: int,
+    executor: Executor | None,
+    budget: float,
+    j0: np.ndarray,
 ) -> tuple[_Null, int]:
-    """Bounded LM fit of the update parameters alone (step 1)."""
+    """Bounded LM fit of the update parameters alone (step 1), from the nominal residual ``j0``."""
     model = res0.model
     lo = np.array([model.param(n).bounds[0] for n in upd], dtype=float)
     hi = np.array([model.param(n).bounds[1] for n in upd], dtype=float)
     if not upd:
-        j = res0.vector()
-        return _Null((), {}, {}, lo, hi, np.zeros((res0.n, 0)), j, float(j @ j)), 1
-    lm = levenberg_marquardt(res0, upd, max_iter=max_iter, executor=executor, time_budget_s=budget)
-    return _Null(upd, dict(lm.x), dict(lm.x0), lo, hi, lm.jacobian, lm.vector, lm.cost), lm.n_evals
+        return _Null((), {}, {}, lo, hi, np.zeros((res0.n, 0)), j0, float(j0 @ j0)), 0
+    start = sensitivities(res0, upd, j0=j0, executor=executor)
+    lm = levenberg_marquardt(
+        res0, upd, max_iter=max_iter, executor=executor, time_budget_s=budget, start=start
+    )
+    null = _Null(upd, dict(lm.x), dict(lm.x0), lo, hi, lm.jacobian, lm.vector, lm.cost)
+    return null, start.n_evals + lm.n_evals
 
 
 def _where(res: Residual, delta: np.ndarray, unweight: bool = True, pairs: bool = False) -> str:
@@ -837,9 +845,10 @@ def diagnose(
     if not 0 < alpha < 1 or not 0 <= min_gain < 1:
         raise FitError(f"alpha must lie in (0, 1) and min_gain in [0, 1); got {alpha}, {min_gain}.")
     evals = 1
-    cost_nominal = res0.cost()
+    j_nominal = res0.vector()
+    cost_nominal = float(j_nominal @ j_nominal)
     # 1. null fit of the update parameters
-    null, n_null = _null_fit(res0, upd, update_iter, executor, time_budget_s / 3)
+    null, n_null = _null_fit(res0, upd, update_iter, executor, time_budget_s / 3, j_nominal)
     evals += n_null
     x_u, j_u, cost_u = null.x, null.j, null.cost
     model_u = model.with_values(**x_u) if x_u else model
