@@ -87,7 +87,6 @@ from ..errors import ModelError
 from ..physical.electronics import butterworth_stage, gain_stage
 from ..physical.modal import modal_dynamics
 from ..physical.model import PhysicalModel
-from ..threads import limit_blas
 from ._assembly import (
     G_STANDARD,
     check_int,
@@ -295,7 +294,7 @@ def caltech_truss(
     )
     return PhysicalModel(
         params=params,
-        dynamics=limit_blas(modal_dynamics(n_modes=n_modes, band_hz=band_hz, damping_param="zeta_modal")),
+        dynamics=modal_dynamics(n_modes=n_modes, band_hz=band_hz, damping_param="zeta_modal"),
         structure=structure,
         io_stages=io_stages,
         name=name,

@@ -103,7 +103,6 @@ motion (about 4 % of its kinetic energy).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 
 import numpy as np
@@ -112,7 +111,6 @@ from ..errors import ModelError
 from ..physical.electronics import bessel_stage, delay_stage, gain_stage, rate_gyro_stage
 from ..physical.modal import modal_dynamics
 from ..physical.model import PhysicalModel, Stage
-from ..threads import limit_blas
 from ._assembly import (
     check_int,
     cylinder_inertia,
@@ -120,6 +118,7 @@ from ._assembly import (
     mapped_dynamics,
     param,
     pd_servo_stage,
+    rod_section,
     select_signals,
     tube_section,
 )
@@ -274,7 +273,7 @@ def _frame(theta: Mapping[str, float], n_el: int, n_rod: int, zero_g: bool):
         "rho": get_param(theta, "rho_graphite", 1600.0),
     }
     rod["G"] = rod["E"] / 26.0  # graphite-epoxy: low shear modulus (only rod torsion uses it)
-    rod.update(_rod_section())
+    rod.update(rod_section(ROD_DIAMETER))
     for k, top in enumerate(tops, start=1):
         xyz = fr.node_xyz(top)
         clevis = fr.add_node(f"load_rod_{k}_bottom", xyz, tags=su)
@@ -288,12 +287,6 @@ def _frame(theta: Mapping[str, float], n_el: int, n_rod: int, zero_g: bool):
         fr.add_dashpot(device, get_param(theta, "c_suspension", 0.6), "z", tags=su)
         fr.add_mass(device, get_param(theta, "m_device", 0.2), tags=su)
     return fr
-
-
-def _rod_section() -> dict[str, float]:
-    d = ROD_DIAMETER
-    inertia = math.pi * d**4 / 64
-    return {"A": math.pi * d**2 / 4, "Iy": inertia, "Iz": inertia, "J": 2 * inertia}
 
 
 def _torque_pairs() -> dict[str, dict[str, float]]:
@@ -368,7 +361,7 @@ def mace_beam(
         return _frame(theta, n_el, n_rod, zero_g)
 
     dynamics = mapped_dynamics(
-        limit_blas(modal_dynamics(n_modes=n_modes, band_hz=band_hz, damping_param="zeta_modal")),
+        modal_dynamics(n_modes=n_modes, band_hz=band_hz, damping_param="zeta_modal"),
         inputs=_torque_pairs(),
     )
     gimbal_inputs = [f"{w} gimbal {d}" for w in GIMBALS for d in AXES]
