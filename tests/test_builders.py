@@ -280,3 +280,18 @@ def test_build_may_read_optional_parameters_with_get():
     model = PhysicalModel((Parameter("k", 1.0, "1", (0.0, 5.0), meaning="a gain"),), dynamics)
     assert float(model.statespace().D[0, 0]) == 11.0
     assert float(model.statespace(k=3.0).D[0, 0]) == 13.0  # k was read: not served from the cache
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"rel_step": float("nan")}, "rel_step must be a finite number > 0"),
+        ({"rel_step": "a gain"}, "rel_step must be a finite number > 0"),
+        ({"abs_step": float("inf")}, "abs_step a finite number >= 0"),
+        ({"tags": "gravity"}, r"tags=\('gravity',\)"),
+    ],
+)
+def test_parameter_refuses_bad_steps_and_a_bare_tag_string(kwargs, match):
+    # a NaN rel_step gave NaN finite-difference steps; tags="gravity" became one tag per letter
+    with pytest.raises(ModelError, match=match):
+        Parameter("k", 1.0, **kwargs)

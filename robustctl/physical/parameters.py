@@ -63,9 +63,23 @@ class Parameter:
                 f"parameter {self.name!r} = {value:g} {self.unit} lies outside its bounds "
                 f"[{lo:g}, {hi:g}]; widen the bounds or change the value."
             )
-        if self.rel_step <= 0 or self.abs_step < 0:
-            raise ModelError(f"parameter {self.name!r}: rel_step must be > 0 and abs_step >= 0.")
+        try:
+            rel_step, abs_step = float(self.rel_step), float(self.abs_step)
+        except (TypeError, ValueError):
+            rel_step = abs_step = math.nan
+        if not (math.isfinite(rel_step) and rel_step > 0 and math.isfinite(abs_step) and abs_step >= 0):
+            raise ModelError(
+                f"parameter {self.name!r}: rel_step must be a finite number > 0 and abs_step a "
+                f"finite number >= 0; got rel_step={self.rel_step!r}, abs_step={self.abs_step!r}."
+            )
+        if isinstance(self.tags, str):
+            raise ModelError(
+                f"parameter {self.name!r}: tags must be a sequence of strings, e.g. tags=({self.tags!r},); "
+                f"got the single string {self.tags!r}."
+            )
         object.__setattr__(self, "value", value)
+        object.__setattr__(self, "rel_step", rel_step)
+        object.__setattr__(self, "abs_step", abs_step)
         object.__setattr__(self, "bounds", (lo, hi))
         object.__setattr__(self, "tags", tuple(self.tags))
 
