@@ -104,6 +104,14 @@ def test_unreachable_accuracy_is_a_clear_fit_error():
         rc.fit_measurement_model((F_MODES, np.ones(6)), n_modes=1, correct_leakage=True)
 
 
+@pytest.mark.parametrize("kw", [dict(parsimony=-0.5), dict(parsimony=float("nan")), dict(max_modes=0)])
+def test_bad_order_selection_settings_are_refused_with_the_fix(kw):
+    # a negative parsimony used to end in a bare ValueError (min of an empty set), and
+    # max_modes=0 in "no order could be fitted; check the band"
+    with pytest.raises(rc.FitError, match=next(iter(kw))):
+        rc.fit_measurement_model(caltech_measurement(), band=BAND, **kw)
+
+
 def test_result_object_table_plot_html(truss_model):
     mm = truss_model
     table = mm.table()

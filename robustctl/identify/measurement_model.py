@@ -332,6 +332,7 @@ def fit_measurement_model(
     -------
     MeasurementModel
     """
+    max_modes, parsimony = _check_selection(max_modes, parsimony)
     fd = as_frequency_data(data)
     band_data = fd if band is None else fd.band(*band)
     st = _settings(fd, correct_leakage)
@@ -340,7 +341,7 @@ def fit_measurement_model(
         warnings.simplefilter("ignore", IdentifyWarning)
         if n_modes is None:
             (fit, used, cost), scan = _select_order(
-                band_data, groups, st, kw, rank_tol, int(max_modes), parsimony, target_db, refine
+                band_data, groups, st, kw, rank_tol, max_modes, parsimony, target_db, refine
             )
         else:
             fit, used = _fit_corrected(band_data, 2 * _check_modes(n_modes), groups, st, kw, rank_tol, refine)
@@ -351,6 +352,25 @@ def fit_measurement_model(
             f"target {target_db:g} dB; raise n_modes (or leave it None), narrow the band or relax target_db."
         )
     return MeasurementModel(fit.statespace(), _modes(fit), cost, fit, used, band_data, st is not None, scan)
+
+
+def _check_selection(max_modes: Any, parsimony: Any) -> tuple[int, float]:
+    """Validated settings of the automatic order selection."""
+    integer = isinstance(max_modes, (int, np.integer)) and not isinstance(max_modes, (bool, np.bool_))
+    if not integer or max_modes < 1:
+        raise FitError(
+            f"max_modes must be a positive integer (the largest n_modes tried); got {max_modes!r}."
+        )
+    try:
+        parsimony = float(parsimony)
+    except (TypeError, ValueError):
+        parsimony = float("nan")
+    if not (np.isfinite(parsimony) and parsimony >= 0):
+        raise FitError(
+            f"parsimony must be a finite relative cost slack >= 0 (0.1: within 10 % of the best order); "
+            f"got {parsimony!r}."
+        )
+    return int(max_modes), parsimony
 
 
 def _check_modes(n_modes: Any) -> int:
