@@ -72,16 +72,12 @@ class Parameter:
                 f"parameter {self.name!r}: rel_step must be a finite number > 0 and abs_step a "
                 f"finite number >= 0; got rel_step={self.rel_step!r}, abs_step={self.abs_step!r}."
             )
-        if isinstance(self.tags, str):
-            raise ModelError(
-                f"parameter {self.name!r}: tags must be a sequence of strings, e.g. tags=({self.tags!r},); "
-                f"got the single string {self.tags!r}."
-            )
         object.__setattr__(self, "value", value)
         object.__setattr__(self, "rel_step", rel_step)
         object.__setattr__(self, "abs_step", abs_step)
         object.__setattr__(self, "bounds", (lo, hi))
-        object.__setattr__(self, "tags", tuple(self.tags))
+        # one tag may be given as a bare string, as for Frame's tags (not one tag per letter)
+        object.__setattr__(self, "tags", (self.tags,) if isinstance(self.tags, str) else tuple(self.tags))
 
     def with_value(self, value: float) -> Parameter:
         """A copy holding ``value`` (checked against the bounds)."""
