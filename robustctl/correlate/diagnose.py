@@ -51,7 +51,7 @@ from ..errors import DataError, FitError, ModelError, RobustctlError
 from ..frd import FrequencyData
 from ..table import Table
 from ..threads import limit_blas
-from .optimize import levenberg_marquardt
+from .optimize import _bounds, levenberg_marquardt
 from .residual import Residual, sensitivities
 
 __all__ = ["diagnose", "Diagnosis", "CandidateResult", "effective_points"]
@@ -605,8 +605,6 @@ def _prepare(model, data, candidates, band, update_params, weights) -> tuple:
 
     if not isinstance(data, FrequencyData):
         raise DataError(f"data must be a FrequencyData; got {type(data).__name__}.")
-    if isinstance(weights, str) and weights == "auto":
-        weights = "coherence" if data.coherence is not None else None
     res0, ignored = _residual(model, data, band, weights)
     upd = _check_update(model, update_params)
     cands = _check_candidates(
@@ -639,9 +637,7 @@ def _null_fit(
     j0: np.ndarray,
 ) -> tuple[_Null, int]:
     """Bounded LM fit of the update parameters alone (step 1), from the nominal residual ``j0``."""
-    model = res0.model
-    lo = np.array([model.param(n).bounds[0] for n in upd], dtype=float)
-    hi = np.array([model.param(n).bounds[1] for n in upd], dtype=float)
+    lo, hi = _bounds(res0.model, upd, None)
     if not upd:
         return _Null((), {}, {}, lo, hi, np.zeros((res0.n, 0)), j0, float(j0 @ j0)), 0
     start = sensitivities(res0, upd, j0=j0, executor=executor)
