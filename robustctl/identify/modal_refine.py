@@ -21,10 +21,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import least_squares
 
-from ._problem import coherence_weights
 from .poles import evaluate
 from .rational import RationalFit
 from .realization import residue_factors
+from .refine import _row_weights
 
 __all__ = ["refine_modes", "ZETA_MIN"]
 
@@ -130,9 +130,7 @@ def refine_modes(fit: RationalFit, weights: np.ndarray | None = None, max_nfev: 
     if data is None or cplx.size == 0:
         return fit
     s = 2j * np.pi * data.f_hz
-    w = np.ones(data.shape) if data.coherence is None else coherence_weights(data.coherence)
-    w = w if weights is None else np.broadcast_to(weights, data.shape)
-    rw = np.sqrt(w) / np.maximum(np.abs(data.response), 1e-300)
+    rw = _row_weights(fit, weights)
     real = np.flatnonzero(fit.poles.imag == 0)
     target = data.response - evaluate(s, fit.poles[real], fit.residues[real], np.zeros_like(fit.d))
     term_pole, cs, bs = [], [], []

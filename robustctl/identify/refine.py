@@ -24,6 +24,8 @@ __all__ = ["refine_residues"]
 
 
 def _row_weights(fit: RationalFit, weights: np.ndarray | None) -> np.ndarray:
+    """Row weights ``sqrt(w) / |G_data|`` of the relative (log-like) residual, shape of the data;
+    ``w`` defaults to the coherence weights (or 1 without coherence)."""
     data = fit.data
     if weights is None:
         weights = np.ones(data.shape) if data.coherence is None else coherence_weights(data.coherence)
