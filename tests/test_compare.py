@@ -166,6 +166,12 @@ def test_compare_bad_input(model, nominal):
         compare(model, nominal.replace(inputs=["a", "b", "c"]))
     with pytest.raises(rc.DataError, match=r"threshold_db must be positive"):
         compare(model, nominal, threshold_db=0.0)
+    # NaN used to pass the check and silently find no failing band; a negative n_bands
+    # silently dropped the last band(s) (bands[:n_bands])
+    with pytest.raises(rc.DataError, match=r"threshold_db must be positive"):
+        compare(model, nominal, threshold_db=float("nan"))
+    with pytest.raises(rc.DataError, match=r"n_bands must be"):
+        compare(model, nominal, n_bands=-1)
 
 
 def test_mode_table_with_fitted_measurement_model(model):

@@ -776,8 +776,12 @@ def compare(
     DataError
         Mismatched signal names or counts, or a band outside the data.
     """
-    if threshold_db <= 0:
-        raise DataError(f"threshold_db must be positive (dB); got {threshold_db!r}.")
+    if not threshold_db > 0 or not np.isfinite(threshold_db):
+        raise DataError(f"threshold_db must be positive and finite (dB); got {threshold_db!r}.")
+    if isinstance(n_bands, bool) or not isinstance(n_bands, (int, np.integer)) or n_bands < 0:
+        raise DataError(
+            f"n_bands must be a non-negative integer (how many worst bands to keep); got {n_bands!r}."
+        )
     res = Residual(model, data, band=band, weights=weights, min_channel_db=min_channel_db)
     g_model = res.model_response()
     d = res.data
