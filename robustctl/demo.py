@@ -111,7 +111,7 @@ def run_demo(out: str | Path = "out", seed: int = 0) -> Path:
     mm = fit_measurement_model(data, n_modes=6, band=(0.5, 5.5), correct_leakage=True)
     report.table(mm.table())
     report.figure(mm.plot(), "measurement_model", "Six-mode measurement model against the data.")
-    report.record("measurement_model_cost", float(mm.cost.total if hasattr(mm.cost, "total") else mm.cost))
+    report.record("measurement_model_cost", float(mm.cost.total))
 
     cmp0 = _compare(report, model, data, mm, "3. Nominal physical model")
     report.record("cost_nominal", float(cmp0.cost))
