@@ -149,12 +149,15 @@ def test_mac_and_structure_units():
 
 
 def test_plot_summary_and_html(model):
+    import matplotlib.pyplot as plt
+
     cmp = compare(model, chain3(k2=1060.0).freqresp(F))
+    open_before = len(plt.get_fignums())
     fig = cmp.plot()
+    assert len(plt.get_fignums()) == open_before  # a plain Figure (robustctl.plots), no pyplot state
     assert len(fig.axes) == 9 + 2  # 3x3 channels, the error map and its colour bar
     assert "<table>" in cmp._repr_html_()
     assert "cost J" in cmp.summary()
-    import matplotlib.pyplot as plt
 
     plt.close(fig)
 

@@ -103,9 +103,12 @@ def test_update_recovers_parameters_and_reports(model):
     assert tab.column("after")[tab.column("parameter").index("k1")] == pytest.approx(1030.0, rel=1e-6)
     assert "cost" in upd.summary() and "<table>" in upd._repr_html_()
     assert not upd.warnings
-    fig = upd.plot()
-    assert len(fig.axes) == 4
     import matplotlib.pyplot as plt
+
+    open_before = len(plt.get_fignums())
+    fig = upd.plot()
+    assert len(plt.get_fignums()) == open_before  # a plain Figure (robustctl.plots), no pyplot state
+    assert len(fig.axes) == 4
 
     plt.close(fig)
 

@@ -678,10 +678,10 @@ class Comparison:
 
         Returns the matplotlib Figure.
         """
-        import matplotlib.pyplot as plt
+        from ..plots import new_figure
 
         nf, no, ni = self.error.shape
-        fig = fig or plt.figure(figsize=(3.2 * ni + 1, 2.4 * no + 3), constrained_layout=True)
+        fig = fig or new_figure(3.2 * ni + 1, 2.4 * no + 3)
         grid = fig.add_gridspec(no + 1, ni, height_ratios=[1.0] * no + [1.2])
         f = self.f_hz
         xscale = "log" if f[-1] > 10 * f[0] else "linear"  # a structural-dynamics Bode habit

@@ -380,9 +380,9 @@ class UpdateResult:
 
     def plot(self, fig: Any = None) -> Any:
         """Cost per iteration, alignment bar chart (Fig. 3) and orthogonality matrix (Fig. 4)."""
-        import matplotlib.pyplot as plt
+        from ..plots import new_figure
 
-        fig = fig or plt.figure(figsize=(13, 4), constrained_layout=True)
+        fig = fig or new_figure(13.0, 4.0)
         ax1, ax2, ax3 = fig.subplots(1, 3)
         ax1.semilogy(range(len(self.history)), self.history, "o-")
         ax1.set_xlabel("iteration")
