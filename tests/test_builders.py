@@ -299,3 +299,18 @@ def test_parameter_refuses_bad_steps(kwargs, match):
 def test_parameter_takes_one_tag_as_a_bare_string():
     # tags="gravity" became one tag per letter
     assert Parameter("g", 9.81, tags="gravity").tags == ("gravity",)
+
+
+def test_constant_matrices_are_validated_once_and_builds_stay_independent(monkeypatch):
+    import robustctl.physical.matrices as matrices
+
+    calls = []
+    real = matrices._check_definite
+    monkeypatch.setattr(matrices, "_check_definite", lambda *a: (calls.append(1), real(*a))[1])
+    base = rc.structural_model(M_KG * np.eye(3), chain_k(), **IO)
+    dm = Parameter("dm", 0.0, "kg", (0.0, 10.0), meaning="added mass")
+    model = base.add_structure_stage(Stage("mass", lambda th, s: s.add_mass("dof 1", th["dm"])), [dm])
+    heavy = poles_hz(model.statespace(dm=5.0))
+    again = poles_hz(model.statespace(dm=0.0, zeta_modal=0.02))  # the added mass must not leak
+    assert np.allclose(again, analytic_chain_hz(), rtol=1e-6) and heavy[0] < again[0]
+    assert len(calls) == 1

@@ -142,7 +142,7 @@ def structural_model(
     """
     params, fixed_damping = _with_damping(_check_params(params), damping)
 
-    def structure(theta: Theta) -> MatrixStructure:
+    def build(theta: Theta) -> MatrixStructure:
         return MatrixStructure(
             _resolve(mass, theta),
             _resolve(stiffness, theta),
@@ -154,6 +154,17 @@ def structural_model(
             geometric_stiffness=_resolve(geometric_stiffness, theta),
             tagged=_resolve(tagged, theta),
         )
+
+    matrix_args = (mass, stiffness, concentrated_damping, stiffness_groups, geometric_stiffness, tagged)
+    if any(callable(a) for a in matrix_args):
+        structure = build
+    else:
+        # constant matrices: validate once (symmetry, Cholesky, eigvalsh of K), not on every
+        # build -- a damping-only change would otherwise cost as much as the eigensolution
+        template = build({})
+
+        def structure(theta: Theta) -> MatrixStructure:
+            return template.copy()
 
     dynamics = modal_dynamics(
         n_modes,

@@ -193,6 +193,15 @@ class MatrixStructure(Structure):
             shown = list(self._labels[:6]) + (["..."] if self.n_dof > 6 else [])
             raise ModelError(f"unknown location {location!r}; the DOFs are {shown}.") from None
 
+    def copy(self) -> MatrixStructure:
+        """An independent copy without re-validating: effects replace matrices and dict
+        entries (never modify an array in place), so sharing the arrays is safe."""
+        new = object.__new__(type(self))
+        new.__dict__.update(self.__dict__)
+        new._groups, new._geometric = dict(self._groups), dict(self._geometric)
+        new._tagged = dict(self._tagged)
+        return new
+
     # ------------------------------------------------------------------ Structure contract
     def matrices(self) -> StructuralMatrices:
         """The current matrices (copies; effects and removals applied)."""
