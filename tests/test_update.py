@@ -211,6 +211,11 @@ def test_update_bad_input(model):
     frozen = model.with_params([p.__class__(**{**p.__dict__, "free": False}) for p in model.params])
     with pytest.raises(rc.FitError, match=r"no free parameters"):
         update(frozen, data)
+    # passes=0 used to run one pass anyway, drift_bands=-1 to switch the check off silently
+    with pytest.raises(rc.FitError, match=r"passes must be"):
+        update(model, data, params=["k1"], passes=0)
+    with pytest.raises(rc.FitError, match=r"drift_bands must be"):
+        update(model, data, params=["k1"], drift_bands=-1)
 
 
 

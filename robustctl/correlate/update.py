@@ -601,9 +601,13 @@ def update(
     ModelError
         Unknown parameter names.
     FitError
-        No parameter moves the residual, or none survives the selection.
+        No parameter moves the residual, or none survives the selection; ``passes < 1`` or
+        ``drift_bands < 0``.
     """
     t0 = time.perf_counter()
+    for what, value, least in (("passes", passes, 1), ("drift_bands", drift_bands, 0)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
+            raise FitError(f"{what} must be an integer >= {least}; got {value!r}.")
     progress = sys.stderr.isatty() if progress is None else bool(progress)
     residual = Residual(model, data, band=band, weights=weights, min_channel_db=min_channel_db)
     if params is None:
