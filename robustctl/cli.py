@@ -21,8 +21,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     demo.add_argument("--out", default="out", help="report folder (default: out)")
     demo.add_argument("--seed", type=int, default=0, help="random seed of the simulated experiment")
-    info = sub.add_parser("info", help="print the versions robustctl runs with")
-    info.set_defaults(command="info")
+    sub.add_parser("info", help="print the versions robustctl runs with")
     return parser
 
 
