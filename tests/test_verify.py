@@ -119,3 +119,7 @@ def test_verify_bad_input():
         apply_perturbation(m, {})
     with pytest.raises(rc.DataError, match=r"holds 0 data point"):
         verify(m, data, {"m3": 1.2}, band=(40.0, 50.0))
+    # a NaN or negative tolerance used to make every check fail silently ("accuracy lost")
+    for kw in (dict(cost_ratio_tol=float("nan")), dict(freq_tol_pct=-4.0), dict(cost_floor=-1.0)):
+        with pytest.raises(rc.DataError, match=next(iter(kw))):
+            verify(m, data, {"m3": 1.2}, **kw)

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ModelError
+from ..errors import DataError, ModelError
 from ..frd import FrequencyData
 from ..table import Table
 from .compare import Comparison, compare, pair_modes, statespace_modes
@@ -252,8 +252,15 @@ def verify(
     ModelError
         A perturbation that is not an Effect, a mapping or a callable, or unknown parameters.
     DataError
-        Signal names or band that do not fit the data.
+        Signal names or band that do not fit the data; a NaN or negative tolerance.
     """
+    for what, value in (
+        ("cost_ratio_tol", cost_ratio_tol),
+        ("freq_tol_pct", freq_tol_pct),
+        ("cost_floor", cost_floor),
+    ):
+        if not (np.isfinite(value) and value >= 0):
+            raise DataError(f"{what} must be a finite tolerance >= 0; got {value!r}.")
     perturbed_model, desc = apply_perturbation(updated_model, perturbation)
     cmp = compare(
         perturbed_model, perturbed_data, band=band, weights=weights, measurement_model=measurement_model
