@@ -135,3 +135,5 @@ def test_bad_input_is_refused_with_the_fix(chain, cands):
         rc.diagnose(modal, g, [fx.AddedMass("dof 1")])
     with pytest.raises(rc.DataError, match="FrequencyData"):
         rc.diagnose(chain, g.response, cands)
+    with pytest.raises(rc.FitError, match="n_fit is the number"):
+        rc.diagnose(chain, data, cands, n_fit=-1)

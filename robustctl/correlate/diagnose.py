@@ -840,6 +840,11 @@ def diagnose(
     res0, ignored, upd, cands = _prepare(model, data, candidates, band, update_params, weights)
     if not 0 < alpha < 1 or not 0 <= min_gain < 1:
         raise FitError(f"alpha must lie in (0, 1) and min_gain in [0, 1); got {alpha}, {min_gain}.")
+    if isinstance(n_fit, bool) or not isinstance(n_fit, (int, np.integer)) or n_fit < 0:
+        raise FitError(
+            f"n_fit is the number of best-screened candidates given a local fit: a whole number >= 0; "
+            f"got {n_fit!r}."
+        )
     evals = 1
     j_nominal = res0.vector()
     cost_nominal = float(j_nominal @ j_nominal)
@@ -852,7 +857,7 @@ def diagnose(
     # 2. secant screening
     screens, twins, order = _screen_all(res_u, model_u, null, cands, executor)
     evals += sum(s["evals"] for s in screens)
-    top = [k for k in order[: max(int(n_fit), 0)] if screens[k]["fraction"] > 0]
+    top = [k for k in order[:n_fit] if screens[k]["fraction"] > 0]
     # 3. local fits
     remaining = max(time_budget_s - (time.perf_counter() - t0), 1.0)
     fits = _map(
