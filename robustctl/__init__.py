@@ -41,6 +41,15 @@ from .physical import (
     modal_statespace,
     structural_model,
 )
+
+# robust design: weights
+from .robust import (
+    UncertaintyCover,
+    cover_additive,
+    cover_multiplicative,
+    fit_magnitude,
+    makeweight,
+)
 from .threads import blas_threads, set_blas_threads
 
 __version__ = "0.1.0"
@@ -89,4 +98,10 @@ __all__ = [
     "modal_model",
     "modal_statespace",
     "MatrixStructure",
+    # robust design: weights
+    "makeweight",
+    "fit_magnitude",
+    "cover_additive",
+    "cover_multiplicative",
+    "UncertaintyCover",
 ]

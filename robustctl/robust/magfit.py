@@ -136,6 +136,12 @@ def _basis(w: np.ndarray, order: int) -> tuple[_Basis, np.ndarray]:
     return _Basis(w0, p, float(x[-1])), x
 
 
+def _midpoints(basis: _Basis, x: np.ndarray, y: np.ndarray, wt: np.ndarray) -> dict[str, np.ndarray]:
+    """Geometric midpoints of the fitted grid with log-interpolated targets (cut candidates)."""
+    xm = np.sqrt(x[:-1] * x[1:])
+    return dict(mid_phi=basis.matrix(xm), mid_y=np.sqrt(y[:-1] * y[1:]), mid_wt=np.minimum(wt[:-1], wt[1:]))
+
+
 def _guard_points(x: np.ndarray) -> np.ndarray:
     """Where A and B must be non-negative besides the grid: 0, infinity, between and beyond."""
     mid = np.sqrt(x[:-1] * x[1:])
@@ -154,7 +160,35 @@ class _Problem:
     guard_all: np.ndarray  # basis on every guard point (checked after each LP)
     upper_bound: bool
     y_inf: float  # cap of |W(inf)|^2 relative to t (properness)
+    mid_phi: np.ndarray  # basis at the geometric midpoints of the grid (candidate cuts)
+    mid_y: np.ndarray  # interpolated squared targets there
+    mid_wt: np.ndarray
     price: float = 1e-6  # L1 price of the coefficients
+
+
+def _cut_midpoints(prob: _Problem, a: np.ndarray, b: np.ndarray, gamma: float, limit: int = 20) -> bool:
+    """Move grid midpoints where the fit overshoots the tolerance (a spike or notch between
+    points; for an upper bound, any dip below the log-interpolated bound) into the fitted
+    points (cutting planes); True if any moved."""
+    if prob.mid_y.size == 0:
+        return False
+    A, B = prob.mid_phi @ a, prob.mid_phi @ b
+    with np.errstate(divide="ignore", invalid="ignore"):
+        e = 0.5 * (np.log(np.maximum(A, 1e-300) / np.maximum(B, 1e-300)) - np.log(prob.mid_y))
+    bad_sign = (A <= 0) | (B <= 0)
+    over = np.abs(e) * prob.mid_wt - gamma
+    if prob.upper_bound:  # a spike above the tolerance, or a notch below the interpolated bound
+        over = np.where(e < 0, -e - 1e-3, over)
+    viol = np.flatnonzero(bad_sign | (over > 1e-6 + 1e-3 * gamma))
+    if viol.size == 0:
+        return False
+    take = viol[np.argsort(-np.where(bad_sign[viol], np.inf, over[viol]))[:limit]]
+    prob.phi = np.vstack([prob.phi, prob.mid_phi[take]])
+    prob.y = np.concatenate([prob.y, prob.mid_y[take]])
+    prob.wt = np.concatenate([prob.wt, prob.mid_wt[take]])
+    keep = np.setdiff1d(np.arange(prob.mid_y.size), take)
+    prob.mid_phi, prob.mid_y, prob.mid_wt = prob.mid_phi[keep], prob.mid_y[keep], prob.mid_wt[keep]
+    return True
 
 
 def _lp_rows(prob: _Problem, gamma: float) -> tuple[np.ndarray, np.ndarray]:
@@ -180,46 +214,29 @@ def _lp_rows(prob: _Problem, gamma: float) -> tuple[np.ndarray, np.ndarray]:
     return G, eq
 
 
-def _solve_lp(prob: _Problem, gamma: float) -> tuple[np.ndarray, np.ndarray] | None:
-    """A strictly feasible (a, b) for the tolerance ``gamma`` (nepers), or None.
+def _clarabel_lp(c: np.ndarray, G: np.ndarray, eq: np.ndarray, price: float) -> np.ndarray | None:
+    """``min c z + price |z[:-1]|_1 / n`` s.t. ``G z <= 0``, ``eq z = 1``, ``z[-1] <= 1`` (Clarabel).
 
-    Variables ``[a, b, s]``; maximise the slack ``s`` (capped at 1) of
-    ``A <= t_k y_k (B - s)``, ``A >= y_k (B + s) / t_k`` (or ``A >= y_k B`` for an upper
-    bound), where ``t_k = exp(2 gamma / w_k)``; normalisation ``mean(B / D) = 1``. The slack
-    is relative to ``B``, so a positive one means a strictly smaller error. Solved by
-    Clarabel (interior point: a well-centred point), scipy's HiGHS if Clarabel is missing.
+    The small L1 price on the coefficients keeps an over-parametrised fit (an order above
+    the curve's) from drifting into large cancelling coefficients, whose roots would be
+    inaccurate. Returns None unless solved.
     """
-    G, eq = _lp_rows(prob, gamma)
-    nz = G.shape[1]
-    n1 = (nz - 1) // 2
-    try:
-        import clarabel
-        import scipy.sparse as sp
-    except ImportError:  # pragma: no cover - clarabel is a dependency
-        from scipy.optimize import linprog
+    import clarabel
+    import scipy.sparse as sp
 
-        c = np.zeros(nz)
-        c[-1] = -1.0
-        bounds = [(None, None)] * (nz - 1) + [(None, 1.0)]
-        res = linprog(c, A_ub=G, b_ub=np.zeros(G.shape[0]), A_eq=eq[None], b_eq=[1.0], bounds=bounds,
-                      method="highs")
-        ok = res.status == 0 and res.x is not None and res.x[-1] > 0
-        return (res.x[:n1], res.x[n1 : 2 * n1]) if ok else None
-    # z = [a, b, s, u] with |a|, |b| <= u: a small L1 price on the coefficients keeps an
-    # over-parametrised fit (order above the curve's) from drifting into large cancelling
-    # coefficients, whose roots would be inaccurate
+    nz = G.shape[1]
     nc = nz - 1
     I = np.eye(nc)
     rows = [
         np.hstack([eq[None], np.zeros((1, nc))]),
         np.hstack([G, np.zeros((G.shape[0], nc))]),
-        np.hstack([np.zeros((1, nz - 1)), [[1.0]], np.zeros((1, nc))]),
+        np.hstack([np.zeros((1, nc)), [[1.0]], np.zeros((1, nc))]),
         np.hstack([I, np.zeros((nc, 1)), -I]),
         np.hstack([-I, np.zeros((nc, 1)), -I]),
     ]
     A = sp.csc_matrix(np.vstack(rows))
     rhs = np.concatenate([[1.0], np.zeros(G.shape[0]), [1.0], np.zeros(2 * nc)])
-    q = np.concatenate([np.zeros(nc), [-1.0], np.full(nc, prob.price / nc)])
+    q = np.concatenate([c, np.full(nc, price / nc)])
     settings = clarabel.DefaultSettings()
     settings.verbose = False
     settings.max_iter = 100
@@ -227,8 +244,70 @@ def _solve_lp(prob: _Problem, gamma: float) -> tuple[np.ndarray, np.ndarray] | N
     sol = clarabel.DefaultSolver(sp.csc_matrix((nz + nc, nz + nc)), q, A, rhs, cones, settings).solve()
     if str(sol.status) not in ("Solved", "AlmostSolved"):
         return None
-    z = np.asarray(sol.x)
-    return (z[:n1], z[n1 : 2 * n1]) if z[nz - 1] > 0 else None
+    return np.asarray(sol.x)[:nz]
+
+
+def _solve_lp(prob: _Problem, gamma: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """A strictly feasible (a, b) for the tolerance ``gamma`` (nepers), or None.
+
+    Variables ``[a, b, s]``; maximise the slack ``s`` (capped at 1) of
+    ``A <= t_k y_k (B - s)``, ``A >= y_k (B + s) / t_k`` (or ``A >= y_k B`` for an upper
+    bound), where ``t_k = exp(2 gamma / w_k)``; normalisation ``mean(B / D) = 1``. The slack
+    is relative to ``B``, so a positive one means a strictly smaller error. Clarabel's
+    interior point gives a well-centred solution.
+    """
+    G, eq = _lp_rows(prob, gamma)
+    n1 = (G.shape[1] - 1) // 2
+    c = np.zeros(G.shape[1])
+    c[-1] = -1.0
+    z = _clarabel_lp(c, G, eq, prob.price)
+    return (z[:n1], z[n1 : 2 * n1]) if z is not None and z[-1] > 0 else None
+
+
+def _mean_overbound(prob: _Problem, a: np.ndarray, b: np.ndarray) -> float:
+    """Weighted mean of ``ln(|W| / mag)`` after the gain shift that covers every point."""
+    A, B = prob.phi @ a, prob.phi @ b
+    if np.any(A <= 0) or np.any(B <= 0):
+        return np.inf
+    e = 0.5 * (np.log(A / B) - np.log(prob.y))
+    return float(np.sum((e - e.min()) * prob.wt) / np.sum(prob.wt))
+
+
+def _tighten(prob: _Problem, a: np.ndarray, b: np.ndarray, cap: float, deadline: float, n_iter: int = 6):
+    """From a covering fit, lower the mean log overbound (Sanathanan-Koerner-like steps).
+
+    Each LP minimises ``sum w_k A_k / A_prev_k`` (the linearised ``sum w_k ln A_k``) subject
+    to ``A_k >= y_k B_k``, ``sum B_k / B_prev_k = n`` (the linearised fixed ``sum ln B_k``),
+    the guards and ``A_k <= t y_k B_k`` with the overbound ``cap`` (nepers; at the minimax
+    optimum this only breaks its ties, larger it trades the worst point for the typical
+    one). Grid midpoints that spike above the cap join the points. The best iterate by
+    the mean criterion is kept.
+    """
+    best, best_val, n_lp, it = (a, b), _mean_overbound(prob, a, b), 0, 0
+    while it < n_iter and n_lp < 4 * n_iter and time.perf_counter() < deadline:
+        phi, n1 = prob.phi, prob.phi.shape[1]
+        A_prev, B_prev = np.maximum(phi @ best[0], 1e-300), np.maximum(phi @ best[1], 1e-300)
+        G, _ = _lp_rows(prob, cap)
+        G = np.hstack([G[:, :-1], np.zeros((G.shape[0], 1))])  # no slack variable
+        c = np.concatenate([(prob.wt / A_prev) @ phi, np.zeros(n1), [0.0]])
+        eq = np.concatenate([np.zeros(n1), (1.0 / B_prev) @ phi / phi.shape[0], [0.0]])
+        z = _clarabel_lp(c / np.abs(c).max(), G, eq, prob.price)
+        n_lp += 1
+        if z is None:
+            break
+        sol = z[:n1], z[n1 : 2 * n1]
+        bad = _guard_violations(prob, *sol)
+        if bad.size:
+            prob.guard = np.vstack([prob.guard, prob.guard_all[bad]])
+            continue
+        if _cut_midpoints(prob, *sol, cap):
+            continue
+        it += 1
+        val = _mean_overbound(prob, *sol)
+        if not val < best_val - 1e-6:
+            break
+        best, best_val = sol, val
+    return best[0], best[1], n_lp
 
 
 def _achieved(prob: _Problem, a: np.ndarray, b: np.ndarray) -> float:
@@ -267,6 +346,8 @@ def _minimise(prob: _Problem, hi: float, tol: float, deadline: float) -> tuple[n
             bad = _guard_violations(prob, *sol)
             if bad.size:
                 prob.guard = np.vstack([prob.guard, prob.guard_all[bad]])
+                continue
+            if _cut_midpoints(prob, *sol, gamma):
                 continue
         err = np.inf if sol is None else _achieved(prob, *sol)
         if np.isfinite(err):
@@ -309,6 +390,26 @@ def _lhp(x_roots: np.ndarray, w0: float) -> np.ndarray:
     return np.concatenate([s, np.array(pairs, dtype=complex)])
 
 
+def _damping_floor(roots: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Roots no more lightly damped than the grid resolves: ``zeta >= dw / (4 w)`` (the local
+    relative spacing of the grid over 4, at most 0.05).
+
+    A pole or zero narrower than the grid spacing is invisible to the fit (A or B touching
+    zero between two points): it would only put a needless near-``j w``-axis root into
+    ``W`` or ``W^-1``. Its frequency ``|s|`` is kept.
+    """
+    if roots.size == 0 or w.size < 2:
+        return roots
+    mag = np.abs(roots)
+    k = np.clip(np.searchsorted(w, mag), 1, w.size - 1)
+    rel = (w[k] - w[k - 1]) / np.maximum(mag, 1e-300)
+    zeta_min = np.clip(0.25 * rel, 1e-6, 0.05)
+    zeta = -roots.real / np.maximum(mag, 1e-300)
+    low = zeta < zeta_min
+    fixed = mag * (-zeta_min + 1j * np.sign(roots.imag) * np.sqrt(1 - zeta_min**2))
+    return np.where(low, fixed, roots)
+
+
 def _proper(zeros: np.ndarray, n_poles: int) -> np.ndarray:
     """Drop the fastest zeros beyond the number of poles (far above the grid: the
     properness constraint keeps ``|W(inf)|`` bounded, so their product is fixed by the gain)."""
@@ -316,7 +417,9 @@ def _proper(zeros: np.ndarray, n_poles: int) -> np.ndarray:
         return zeros
     keep = np.argsort(np.abs(zeros))[:n_poles]
     kept = zeros[keep]
-    if np.abs(kept.imag).max(initial=0) > 0 and not np.allclose(np.sort_complex(kept), np.sort_complex(kept.conj())):
+    if np.abs(kept.imag).max(initial=0) > 0 and not np.allclose(
+        np.sort_complex(kept), np.sort_complex(kept.conj())
+    ):
         keep = np.argsort(np.abs(zeros))[: n_poles - 1]  # do not split a conjugate pair
         kept = zeros[keep]
     return kept
@@ -453,14 +556,13 @@ def _realise(
     basis: _Basis, a: np.ndarray, b: np.ndarray, w: np.ndarray, m: np.ndarray, upper_bound: bool
 ) -> tuple[np.ndarray, np.ndarray, float, float]:
     """Spectral factors of ``A / B``, the gain, and the realised max log error (dB)."""
-    zeros = _lhp(basis.roots(a), basis.w0)
-    poles = _lhp(basis.roots(b), basis.w0)
+    zeros = _damping_floor(_lhp(basis.roots(a), basis.w0), w)
+    poles = _damping_floor(_lhp(basis.roots(b), basis.w0), w)
     zeros = _proper(zeros, poles.size)
     r = np.log(m / np.abs(_response(zeros, poles, 1j * w)))
-    if upper_bound:  # the smallest gain that covers every point (with a rounding margin)
-        k = float(np.exp(r.max())) * (1.0 + 1e-9)
-    else:
-        k = float(np.exp(0.5 * (r.max() + r.min())))  # equioscillating gain
+    # an upper bound takes the smallest gain that covers every point (with a rounding margin),
+    # a fit the equioscillating gain
+    k = float(np.exp(r.max())) * (1.0 + 1e-9) if upper_bound else float(np.exp(0.5 * (r.max() + r.min())))
     return zeros, poles, k, float(DB_PER_NEPER * np.max(np.abs(np.log(k) - r)))
 
 
@@ -471,6 +573,7 @@ def fit_magnitude_details(
     *,
     upper_bound: bool = False,
     point_weights: Any = None,
+    objective: str = "max",
     tol_db: float = 0.05,
     time_budget_s: float = 10.0,
     name: str | None = None,
@@ -480,8 +583,15 @@ def fit_magnitude_details(
     f, m = _check_curve(f_hz, mag)
     order = _check_order(order)
     wt = _check_point_weights(point_weights, f.size)
+    if objective not in ("max", "mean") or (objective == "mean" and not upper_bound):
+        raise FitError(
+            f'objective must be "max" (log-Chebyshev) or, with upper_bound=True, "mean" (the smallest '
+            f"mean overbound); got {objective!r} with upper_bound={upper_bound!r}."
+        )
     if not (np.isfinite(tol_db) and tol_db > 0) or not (np.isfinite(time_budget_s) and time_budget_s > 0):
-        raise FitError(f"tol_db and time_budget_s must be finite and positive; got {tol_db!r}, {time_budget_s!r}.")
+        raise FitError(
+            f"tol_db and time_budget_s must be finite and positive; got {tol_db!r}, {time_budget_s!r}."
+        )
     use = wt > 0
     logm = np.log(m)
     scale = float(np.exp(np.mean(logm[use])))
@@ -502,6 +612,7 @@ def fit_magnitude_details(
             guard_all=basis.matrix(_guard_points(x)),
             upper_bound=bool(upper_bound),
             y_inf=HF_CAP**2 * float(y.max()),
+            **_midpoints(basis, x[use], y, wt[use]),
         )
         spread = 0.5 * float(np.log(y.max() / y.min()))
         hi = (2.0 * spread if upper_bound else spread) + 1e-3
@@ -511,10 +622,18 @@ def fit_magnitude_details(
             prob.price = price
             a, b, n = _minimise(prob, hi, tol, t0 + float(time_budget_s))
             n_lp += n
+            if upper_bound:  # ties of the minimax fit broken by the mean ("max"), or a traded worst point
+                g_star = _achieved(prob, a, b)
+                cap, n_it = (g_star + tol, 2) if objective == "max" else (2.0 * g_star + tol, 6)
+                a, b, n = _tighten(prob, a, b, cap, t0 + float(time_budget_s), n_it)
+                n_lp += n
             cand = _realise(basis, a, b, w[use], m[use], bool(upper_bound))
             if best is None or cand[3] < best[3]:
                 best = cand
-            if cand[3] <= DB_PER_NEPER * _achieved(prob, a, b) + tol_db or time.perf_counter() > t0 + time_budget_s:
+            if (
+                cand[3] <= DB_PER_NEPER * _achieved(prob, a, b) + tol_db
+                or time.perf_counter() > t0 + time_budget_s
+            ):
                 break  # the roots reproduce the LP's curve
         zeros, poles, k, _ = best
     sys = zpk_statespace(zeros, poles, k, name=name)
@@ -540,6 +659,7 @@ def fit_magnitude(
     *,
     upper_bound: bool = False,
     point_weights: Any = None,
+    objective: str = "max",
     tol_db: float = 0.05,
     time_budget_s: float = 10.0,
     name: str | None = None,
@@ -568,6 +688,10 @@ def fit_magnitude(
     point_weights : array_like (n,), optional
         Non-negative weights of the log error per point (the error allowed at a point is
         inversely proportional to its weight; 0 drops the point).
+    objective : {"max", "mean"}
+        ``"max"``: the log-Chebyshev fit. ``"mean"`` (with ``upper_bound=True``): start from
+        it, then lower the weighted mean overbound ``mean ln(|W| / mag)`` by a few
+        linearised LPs (a tighter cover over most of the band, see :func:`_tighten`).
     tol_db : float
         Bisection tolerance on the max error (dB).
     time_budget_s : float
@@ -598,6 +722,7 @@ def fit_magnitude(
         order,
         upper_bound=upper_bound,
         point_weights=point_weights,
+        objective=objective,
         tol_db=tol_db,
         time_budget_s=time_budget_s,
         name=name,
