@@ -33,7 +33,7 @@ Rosenbrock pencil of that representation (no polynomial coefficients are formed)
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -46,9 +46,13 @@ DB_PER_NEPER = 20.0 / np.log(10.0)
 
 #: Largest order accepted (the partial-fraction basis stays sound well beyond; the LP does not need more).
 MAX_ORDER = 20
-#: Prices of the coefficients' L1 norm against the slack in each LP (see :func:`_solve_lp`),
-#: tried in turn while the roots fail to reproduce the LP's curve (large cancelling coefficients).
-L1_PRICES = (1e-6, 1e-4, 1e-2)
+#: Prices of the coefficients' L1 norm (relative to that of the unpriced solution) against the
+#: slack in each LP (see :func:`_clarabel_lp`), tried in turn while the roots fail to reproduce
+#: the LP's curve (an over-parametrised fit drifting into large cancelling coefficients).
+L1_PRICES = (0.0, 1e-6, 1e-4, 1e-2)
+#: Excursion (nepers, 10 dB) beyond tolerance and interpolation allowed between two grid points
+#: before the midpoint joins the fit (a spike or notch the grid would miss).
+MID_SLACK = 1.15
 #: ``|W(inf)|`` is kept below this factor times the curve's largest value (a proper W).
 HF_CAP = 10.0
 
@@ -98,7 +102,10 @@ def _check_point_weights(point_weights: Any, n: int) -> np.ndarray:
 # ---------------------------------------------------------------------------- basis
 @dataclass(frozen=True)
 class _Basis:
-    """The partial-fraction basis ``{1, p_j / (x + p_j)}`` in scaled ``x = (w / w0)^2``."""
+    """The partial-fraction basis ``{1, p_j / (x + p_j)}``, ``j = 1..n``, in scaled
+    ``x = (w / w0)^2``: ``A(x) / D(x)`` with ``deg A <= n``, ``D = prod (x + p_j)``. Every
+    basis function lies in (0, 1]; at ``x = inf`` the row is ``[1, 0, ...]`` (``A``'s leading
+    coefficient)."""
 
     w0: float
     p: np.ndarray
@@ -130,16 +137,23 @@ class _Basis:
 def _basis(w: np.ndarray, order: int) -> tuple[_Basis, np.ndarray]:
     w0 = float(np.sqrt(w[0] * w[-1]))
     x = (w / w0) ** 2
-    p = np.geomspace(x[0], x[-1], order) if order > 1 else np.array([1.0])[:order]
-    if order > 1 and x[-1] / x[0] < 1.5:  # a narrow grid: spread the poles anyway
-        p = np.geomspace(x[0] / 4, x[-1] * 4, order)
+    lo, hi = x[0], x[-1]
+    if hi / lo < 1e2:  # a narrow grid: spread the poles anyway
+        lo, hi = lo / 10, hi * 10
+    p = np.geomspace(lo, hi, order) if order > 1 else np.array([1.0])
     return _Basis(w0, p, float(x[-1])), x
 
 
 def _midpoints(basis: _Basis, x: np.ndarray, y: np.ndarray, wt: np.ndarray) -> dict[str, np.ndarray]:
     """Geometric midpoints of the fitted grid with log-interpolated targets (cut candidates)."""
     xm = np.sqrt(x[:-1] * x[1:])
-    return dict(mid_phi=basis.matrix(xm), mid_y=np.sqrt(y[:-1] * y[1:]), mid_wt=np.minimum(wt[:-1], wt[1:]))
+    slack = 0.25 * np.abs(np.diff(np.log(y))) + MID_SLACK
+    return dict(
+        mid_phi=basis.matrix(xm),
+        mid_y=np.sqrt(y[:-1] * y[1:]),
+        mid_wt=np.minimum(wt[:-1], wt[1:]),
+        mid_slack=slack,
+    )
 
 
 def _guard_points(x: np.ndarray) -> np.ndarray:
@@ -163,7 +177,13 @@ class _Problem:
     mid_phi: np.ndarray  # basis at the geometric midpoints of the grid (candidate cuts)
     mid_y: np.ndarray  # interpolated squared targets there
     mid_wt: np.ndarray
-    price: float = 1e-6  # L1 price of the coefficients
+    mid_slack: np.ndarray  # allowed excursion beyond the tolerance there (nepers)
+    price: float = 0.0  # L1 price of the coefficients, per unit of ``zscale``
+    zscale: float = 1.0  # L1 norm of the unpriced solution's coefficients
+    b_ref: np.ndarray | None = None  # B of the last feasible point (scales the slack)
+    guard_used: np.ndarray = field(
+        default_factory=lambda: np.zeros(0, dtype=int)
+    )  # rows of guard_all in the LP
 
 
 def _cut_midpoints(prob: _Problem, a: np.ndarray, b: np.ndarray, gamma: float, limit: int = 20) -> bool:
@@ -173,21 +193,24 @@ def _cut_midpoints(prob: _Problem, a: np.ndarray, b: np.ndarray, gamma: float, l
     if prob.mid_y.size == 0:
         return False
     A, B = prob.mid_phi @ a, prob.mid_phi @ b
+    pos = (A > 0) & (B > 0)  # signs are the guards' business (solver noise near zero)
     with np.errstate(divide="ignore", invalid="ignore"):
-        e = 0.5 * (np.log(np.maximum(A, 1e-300) / np.maximum(B, 1e-300)) - np.log(prob.mid_y))
-    bad_sign = (A <= 0) | (B <= 0)
-    over = np.abs(e) * prob.mid_wt - gamma
+        e = np.where(pos, 0.5 * (np.log(np.where(pos, A / B, 1.0)) - np.log(prob.mid_y)), 0.0)
+    # the log interpolation is itself uncertain by about half the step between the two
+    # neighbours (a sharp peak between them): only larger excursions are cut
+    over = np.abs(e) * prob.mid_wt - gamma - prob.mid_slack
     if prob.upper_bound:  # a spike above the tolerance, or a notch below the interpolated bound
-        over = np.where(e < 0, -e - 1e-3, over)
-    viol = np.flatnonzero(bad_sign | (over > 1e-6 + 1e-3 * gamma))
+        over = np.where(e < 0, -e - prob.mid_slack, over)
+    viol = np.flatnonzero(over > 1e-6 + 1e-3 * gamma)
     if viol.size == 0:
         return False
-    take = viol[np.argsort(-np.where(bad_sign[viol], np.inf, over[viol]))[:limit]]
+    take = viol[np.argsort(-over[viol])[:limit]]
     prob.phi = np.vstack([prob.phi, prob.mid_phi[take]])
     prob.y = np.concatenate([prob.y, prob.mid_y[take]])
     prob.wt = np.concatenate([prob.wt, prob.mid_wt[take]])
     keep = np.setdiff1d(np.arange(prob.mid_y.size), take)
     prob.mid_phi, prob.mid_y, prob.mid_wt = prob.mid_phi[keep], prob.mid_y[keep], prob.mid_wt[keep]
+    prob.mid_slack = prob.mid_slack[keep]
     return True
 
 
@@ -196,17 +219,24 @@ def _lp_rows(prob: _Problem, gamma: float) -> tuple[np.ndarray, np.ndarray]:
     phi, y, n1 = prob.phi, prob.y, prob.phi.shape[1]
     t = np.exp(2.0 * gamma / prob.wt)
     ys = y[:, None]
-    # A - t y B + s t y <= 0, i.e. A / (y B) <= t (1 - s / B)
-    up = np.hstack([phi, -(t * y)[:, None] * phi, (t * y)[:, None]])
+    # the slack is measured relative to B of the last feasible point (B may span decades)
+    if prob.b_ref is None:
+        bref = np.ones(y.size)
+    else:
+        bref = np.abs(phi @ prob.b_ref)
+        bref = np.maximum(bref, 1e-9 * bref.max()) / bref.mean()
+    # A - t y B + s t y Bref <= 0, i.e. A / (y B) <= t (1 - s Bref / B)
+    up = np.hstack([phi, -(t * y)[:, None] * phi, (t * y * bref)[:, None]])
     if prob.upper_bound:
         lo = np.hstack([-phi, ys * phi, np.zeros((y.size, 1))])  # y B - A <= 0
-    else:  # y B / t - A + s y / t <= 0, i.e. A / (y B) >= (1 + s / B) / t
-        lo = np.hstack([-phi, (y / t)[:, None] * phi, (y / t)[:, None]])
+    else:  # y B / t - A + s y Bref / t <= 0, i.e. A / (y B) >= (1 + s Bref / B) / t
+        lo = np.hstack([-phi, (y / t)[:, None] * phi, (y / t * bref)[:, None]])
     g = prob.guard
     zg, z1 = np.zeros_like(g), np.zeros((g.shape[0], 1))
     guard = np.vstack([np.hstack([-g, zg, z1]), np.hstack([zg, -g, z1])])
-    proper = np.zeros((1, 2 * n1 + 1))  # |W(inf)|^2 = a0 / b0 <= cap (a proper W)
-    proper[0, 0], proper[0, n1] = 1.0, -prob.y_inf * float(np.max(t))
+    proper = np.zeros((1, 2 * n1 + 1))  # |W(inf)|^2 = lead A / lead B <= cap (a proper W)
+    inf_row = prob.guard_all[1]  # the basis read at x = inf
+    proper[0, :n1], proper[0, n1 : 2 * n1] = inf_row, -prob.y_inf * float(np.max(t)) * inf_row
     G = np.vstack([up, lo, guard, proper])
     G /= np.maximum(np.abs(G).max(axis=1, keepdims=True), 1e-300)
     eq = np.zeros(2 * n1 + 1)
@@ -217,9 +247,9 @@ def _lp_rows(prob: _Problem, gamma: float) -> tuple[np.ndarray, np.ndarray]:
 def _clarabel_lp(c: np.ndarray, G: np.ndarray, eq: np.ndarray, price: float) -> np.ndarray | None:
     """``min c z + price |z[:-1]|_1 / n`` s.t. ``G z <= 0``, ``eq z = 1``, ``z[-1] <= 1`` (Clarabel).
 
-    The small L1 price on the coefficients keeps an over-parametrised fit (an order above
-    the curve's) from drifting into large cancelling coefficients, whose roots would be
-    inaccurate. Returns None unless solved.
+    An L1 price on the coefficients (when the unpriced fit's roots fail) keeps an
+    over-parametrised fit (an order above the curve's) from drifting into large cancelling
+    coefficients, whose roots would be inaccurate. Returns None unless solved.
     """
     import clarabel
     import scipy.sparse as sp
@@ -242,26 +272,43 @@ def _clarabel_lp(c: np.ndarray, G: np.ndarray, eq: np.ndarray, price: float) -> 
     settings.max_iter = 100
     cones = [clarabel.ZeroConeT(1), clarabel.NonnegativeConeT(G.shape[0] + 1 + 2 * nc)]
     sol = clarabel.DefaultSolver(sp.csc_matrix((nz + nc, nz + nc)), q, A, rhs, cones, settings).solve()
-    if str(sol.status) not in ("Solved", "AlmostSolved"):
+    status = str(sol.status)
+    if status in ("Solved", "AlmostSolved"):
+        return np.asarray(sol.x)[:nz]
+    if "Infeasible" in status:
         return None
-    return np.asarray(sol.x)[:nz]
+    # numerical trouble (thin feasible set): HiGHS's simplex on the same LP
+    from scipy.optimize import linprog
+
+    res = linprog(
+        q,
+        A_ub=A[1:].toarray(),
+        b_ub=rhs[1:],
+        A_eq=A[:1].toarray(),
+        b_eq=rhs[:1],
+        bounds=[(None, None)] * (nz + nc),
+        method="highs",
+    )
+    return res.x[:nz] if res.status == 0 else None
 
 
 def _solve_lp(prob: _Problem, gamma: float) -> tuple[np.ndarray, np.ndarray] | None:
-    """A strictly feasible (a, b) for the tolerance ``gamma`` (nepers), or None.
+    """The (a, b) of largest slack for the tolerance ``gamma`` (nepers), or None.
 
     Variables ``[a, b, s]``; maximise the slack ``s`` (capped at 1) of
     ``A <= t_k y_k (B - s)``, ``A >= y_k (B + s) / t_k`` (or ``A >= y_k B`` for an upper
     bound), where ``t_k = exp(2 gamma / w_k)``; normalisation ``mean(B / D) = 1``. The slack
-    is relative to ``B``, so a positive one means a strictly smaller error. Clarabel's
+    is relative to ``B`` (of the last feasible point), so a positive one means a strictly
+    smaller error; the caller judges feasibility by the solution's own error, which is
+    robust to the solver's tolerance when the feasible set is thin. Clarabel's
     interior point gives a well-centred solution.
     """
     G, eq = _lp_rows(prob, gamma)
     n1 = (G.shape[1] - 1) // 2
     c = np.zeros(G.shape[1])
     c[-1] = -1.0
-    z = _clarabel_lp(c, G, eq, prob.price)
-    return (z[:n1], z[n1 : 2 * n1]) if z is not None and z[-1] > 0 else None
+    z = _clarabel_lp(c, G, eq, prob.price / prob.zscale)
+    return None if z is None else (z[:n1], z[n1 : 2 * n1])
 
 
 def _mean_overbound(prob: _Problem, a: np.ndarray, b: np.ndarray) -> float:
@@ -291,14 +338,12 @@ def _tighten(prob: _Problem, a: np.ndarray, b: np.ndarray, cap: float, deadline:
         G = np.hstack([G[:, :-1], np.zeros((G.shape[0], 1))])  # no slack variable
         c = np.concatenate([(prob.wt / A_prev) @ phi, np.zeros(n1), [0.0]])
         eq = np.concatenate([np.zeros(n1), (1.0 / B_prev) @ phi / phi.shape[0], [0.0]])
-        z = _clarabel_lp(c / np.abs(c).max(), G, eq, prob.price)
+        z = _clarabel_lp(c / np.abs(c).max(), G, eq, prob.price / prob.zscale)
         n_lp += 1
         if z is None:
             break
         sol = z[:n1], z[n1 : 2 * n1]
-        bad = _guard_violations(prob, *sol)
-        if bad.size:
-            prob.guard = np.vstack([prob.guard, prob.guard_all[bad]])
+        if _guard_violations(prob, *sol):
             continue
         if _cut_midpoints(prob, *sol, cap):
             continue
@@ -322,11 +367,19 @@ def _achieved(prob: _Problem, a: np.ndarray, b: np.ndarray) -> float:
     return float(np.max(np.abs(e) * prob.wt))
 
 
-def _guard_violations(prob: _Problem, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Indices of the full guard set where ``A`` or ``B`` is negative."""
+def _guard_violations(prob: _Problem, a: np.ndarray, b: np.ndarray) -> bool:
+    """Add to the LP the guard points (not yet in it) where ``A`` or ``B`` is negative beyond
+    the solver's accuracy; True if any was added."""
     g = prob.guard_all
-    tol = 1e-12 * (np.abs(a).sum() + np.abs(b).sum())
-    return np.flatnonzero((g @ a < -tol) | (g @ b < -tol))
+    A, B = g @ a, g @ b
+    tol_a, tol_b = 1e-8 * np.abs(A).max(), 1e-8 * np.abs(B).max()
+    bad = np.flatnonzero((-tol_a > A) | (-tol_b > B))
+    bad = np.setdiff1d(bad, prob.guard_used)
+    if bad.size == 0:
+        return False
+    prob.guard = np.vstack([prob.guard, g[bad]])
+    prob.guard_used = np.union1d(prob.guard_used, bad)
+    return True
 
 
 def _minimise(prob: _Problem, hi: float, tol: float, deadline: float) -> tuple[np.ndarray, np.ndarray, int]:
@@ -342,16 +395,12 @@ def _minimise(prob: _Problem, hi: float, tol: float, deadline: float) -> tuple[n
         gamma = hi if best is None else 0.5 * (lo + hi)
         sol = _solve_lp(prob, gamma)
         n_lp += 1
-        if sol is not None:
-            bad = _guard_violations(prob, *sol)
-            if bad.size:
-                prob.guard = np.vstack([prob.guard, prob.guard_all[bad]])
-                continue
-            if _cut_midpoints(prob, *sol, gamma):
-                continue
         err = np.inf if sol is None else _achieved(prob, *sol)
-        if np.isfinite(err):
+        if err <= gamma + 1e-7:
+            if _guard_violations(prob, *sol) or _cut_midpoints(prob, *sol, gamma):
+                continue
             best, hi = sol, min(err, gamma)
+            prob.b_ref = sol[1]
         elif best is None:
             hi *= 2.0  # not expected: a constant is feasible at the start
             if hi > 1e3:
@@ -487,29 +536,68 @@ def zpk_statespace(zeros: Any, poles: Any, gain: float, *, name: str | None = No
         raise FitError("more zeros than poles: the weight would be improper.")
     if not pg:
         return control.ss([], [], [], [[float(gain)]], name=name)
-    # poles in pairs of degree <= 2; zeros distributed to sections with room
-    pg.sort(key=lambda g: -g.size)
-    dens, sections = [], []
-    singles = [g for g in pg if g.size == 1]
-    doubles = [g for g in pg if g.size == 2]
-    while len(singles) >= 2:
-        doubles.append(np.concatenate([singles.pop(), singles.pop()]))
-    dens = [[g] for g in doubles] + [[g] for g in singles]
-    room = [sum(x.size for x in d) for d in dens]
-    nums: list[list[np.ndarray]] = [[] for _ in dens]
-    for z in sorted(zg, key=lambda g: -g.size):
-        k = next((i for i, r in enumerate(room) if r >= z.size), None)
-        if k is None:  # a real zero left with only single slots: split a real pair
-            k = int(np.argmax(room))
-        nums[k].append(z)
-        room[k] -= z.size
+    dens, nums = _assign(zg, pg)
+    sections = []
     for den, num in zip(dens, nums):
-        sections.append(_section(_poly(num), _poly(den)))
-    sys = sections[0]
-    for sec in sections[1:]:
-        sys = _series(sys, sec)
+        A, B, C, D = _section(_poly(num), _poly(den))
+        # unit gain at the section's pole magnitude keeps the cascade's internal gains balanced
+        wp = float(np.abs(np.concatenate(den)).max()) or 1.0
+        h = _response(np.concatenate(num) if num else np.zeros(0), np.concatenate(den), np.array([1j * wp]))
+        g = 1.0 / max(abs(complex(h[0])), 1e-300)
+        sections.append((A, B, C * g, D * g, g))
+    scale = float(gain) / float(np.prod([sec[4] for sec in sections]))
+    per = abs(scale) ** (1.0 / len(sections))
+    sys = None
+    for i, (A, B, C, D, _) in enumerate(sections):
+        f = per * (np.sign(scale) if i == 0 and scale != 0 else 1.0)
+        sec = (A, B, C * f, D * f)
+        sys = sec if sys is None else _series(sys, sec)
     A, B, C, D = sys
-    return control.ss(A, B, C * gain, D * gain, name=name)
+    return control.ss(A, B, C, D, name=name)
+
+
+def _assign(
+    zg: list[np.ndarray], pg: list[np.ndarray]
+) -> tuple[list[list[np.ndarray]], list[list[np.ndarray]]]:
+    """Sections of at most two poles, each with the zeros nearest to its poles in magnitude.
+
+    Complex pole pairs make second-order sections, real poles first-order ones; a complex
+    zero pair takes the nearest complex pole pair without zeros, or else merges the two
+    real poles nearest to it into one section. Real zeros then go, nearest first, to
+    sections with room (a zero count not above the pole count keeps each section proper).
+    """
+    dens = [[g] for g in pg]
+    nums: list[list[np.ndarray]] = [[] for _ in dens]
+
+    def size(k: int) -> int:
+        return sum(x.size for x in dens[k])
+
+    def room(k: int) -> int:
+        return size(k) - sum(x.size for x in nums[k])
+
+    def dist(z: np.ndarray, k: int) -> float:
+        return abs(np.log(np.abs(z[0]) + 1e-300) - np.log(np.abs(np.concatenate(dens[k])).max() + 1e-300))
+
+    for z in [g for g in zg if g.size == 2]:
+        free = [k for k in range(len(dens)) if size(k) == 2 and room(k) == 2]
+        if not free:
+            reals = sorted(
+                (k for k in range(len(dens)) if size(k) == 1 and room(k) == 1), key=lambda k: dist(z, k)
+            )
+            if len(reals) < 2:  # not expected while zeros <= poles
+                raise FitError("cannot place a complex zero pair: the weight would be improper.")
+            a, b = reals[:2]
+            dens[a] = dens[a] + dens[b]
+            nums[a] = nums[a] + nums[b]
+            del dens[b], nums[b]
+            free = [a if a < b else a - 1]
+        k = min(free, key=lambda k: dist(z, k))
+        nums[k].append(z)
+    for z in sorted([g for g in zg if g.size == 1], key=lambda g: -abs(g[0])):
+        open_ = [k for k in range(len(dens)) if room(k) >= 1]
+        k = min(open_, key=lambda k: dist(z, k))
+        nums[k].append(z)
+    return dens, nums
 
 
 # ---------------------------------------------------------------------------- public
@@ -552,18 +640,94 @@ def _response(zeros: np.ndarray, poles: np.ndarray, s: np.ndarray) -> np.ndarray
     return out
 
 
+def _pack(zeros: np.ndarray, poles: np.ndarray) -> tuple[np.ndarray, list[tuple[str, int]]]:
+    """Real parameters of left-half-plane roots: ``ln|r|`` for a real root; ``ln|s|`` and
+    ``atanh(2 zeta - 1)`` for a complex pair (upper member)."""
+    theta, layout = [], []
+    for kind, roots in (("z", zeros), ("p", poles)):
+        for g in _pair(roots):
+            if g.size == 1:
+                theta.append(np.log(abs(g[0].real)))
+                layout.append((kind, 1))
+            else:
+                r = abs(g[0])
+                zeta = float(np.clip(-g[0].real / r, 1e-6, 1 - 1e-9))
+                theta += [np.log(r), np.arctanh(2 * zeta - 1)]
+                layout.append((kind, 2))
+    return np.array(theta), layout
+
+
+def _unpack(theta: np.ndarray, layout: list[tuple[str, int]]) -> tuple[np.ndarray, np.ndarray]:
+    theta = np.clip(theta, -60.0, 60.0)
+    out: dict[str, list[complex]] = {"z": [], "p": []}
+    k = 0
+    for kind, size in layout:
+        if size == 1:
+            out[kind].append(-np.exp(theta[k]) + 0j)
+            k += 1
+        else:
+            r, zeta = np.exp(theta[k]), 0.5 * (1 + np.tanh(theta[k + 1]))
+            s = r * (-zeta + 1j * np.sqrt(max(1 - zeta**2, 0.0)))
+            out[kind] += [s, np.conj(s)]
+            k += 2
+    return np.array(out["z"], dtype=complex), np.array(out["p"], dtype=complex)
+
+
+def _polish(zeros: np.ndarray, poles: np.ndarray, w: np.ndarray, target: np.ndarray, wt: np.ndarray):
+    """Refine roots so ``ln|W|`` matches the LP's own curve ``target`` (least squares, gain
+    free): a safety net when the roots of large cancelling coefficients came out inaccurate.
+    The parametrisation keeps every root in the left half plane."""
+    from scipy.optimize import least_squares
+
+    theta0, layout = _pack(zeros, poles)
+    if theta0.size == 0:
+        return zeros, poles
+
+    def resid(theta):
+        z, p = _unpack(theta, layout)
+        r = np.log(np.abs(_response(z, p, 1j * w))) - target
+        return wt * (r - np.average(r, weights=wt))
+
+    sol = least_squares(resid, theta0, max_nfev=10 * theta0.size, x_scale="jac")
+    return _unpack(sol.x, layout)
+
+
 def _realise(
-    basis: _Basis, a: np.ndarray, b: np.ndarray, w: np.ndarray, m: np.ndarray, upper_bound: bool
+    basis: _Basis,
+    a: np.ndarray,
+    b: np.ndarray,
+    w: np.ndarray,
+    m: np.ndarray,
+    wt: np.ndarray,
+    upper_bound: bool,
 ) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """Spectral factors of ``A / B``, the gain, and the realised max log error (dB)."""
+    """Spectral factors of ``A / B``, the gain, and the realised weighted max log error (dB)."""
     zeros = _damping_floor(_lhp(basis.roots(a), basis.w0), w)
     poles = _damping_floor(_lhp(basis.roots(b), basis.w0), w)
     zeros = _proper(zeros, poles.size)
+    Phi = basis.matrix((w / basis.w0) ** 2)
+    target = 0.5 * np.log(np.maximum(Phi @ a, 1e-300) / np.maximum(Phi @ b, 1e-300))
+    shape = np.log(np.abs(_response(zeros, poles, 1j * w)))
+    if np.ptp(shape - target) > 1e-2:  # the roots do not reproduce the LP's curve: polish them
+        zp = _polish(zeros, poles, w, target, np.maximum(wt, 1e-3))
+        shape_p = np.log(np.abs(_response(*zp, 1j * w)))
+        if np.ptp(shape_p - target) < np.ptp(shape - target):
+            zeros, poles = _damping_floor(zp[0], w), _damping_floor(zp[1], w)
     r = np.log(m / np.abs(_response(zeros, poles, 1j * w)))
-    # an upper bound takes the smallest gain that covers every point (with a rounding margin),
-    # a fit the equioscillating gain
-    k = float(np.exp(r.max())) * (1.0 + 1e-9) if upper_bound else float(np.exp(0.5 * (r.max() + r.min())))
-    return zeros, poles, k, float(DB_PER_NEPER * np.max(np.abs(np.log(k) - r)))
+    if upper_bound:  # the smallest gain that covers every point (with a rounding margin)
+        c = float(r.max()) + 1e-9
+    else:  # the weighted Chebyshev centre of the log ratios
+        from scipy.optimize import minimize_scalar
+
+        c = float(
+            minimize_scalar(
+                lambda c: np.max(wt * np.abs(r - c)),
+                bounds=(r.min(), r.max()),
+                method="bounded",
+                options={"xatol": 1e-10},
+            ).x
+        )
+    return zeros, poles, float(np.exp(c)), float(DB_PER_NEPER * np.max(wt * np.abs(c - r)))
 
 
 def fit_magnitude_details(
@@ -622,12 +786,14 @@ def fit_magnitude_details(
             prob.price = price
             a, b, n = _minimise(prob, hi, tol, t0 + float(time_budget_s))
             n_lp += n
+            if price == 0.0:
+                prob.zscale = max(float(np.abs(a).sum() + np.abs(b).sum()), 1e-300)
             if upper_bound:  # ties of the minimax fit broken by the mean ("max"), or a traded worst point
                 g_star = _achieved(prob, a, b)
                 cap, n_it = (g_star + tol, 2) if objective == "max" else (2.0 * g_star + tol, 6)
                 a, b, n = _tighten(prob, a, b, cap, t0 + float(time_budget_s), n_it)
                 n_lp += n
-            cand = _realise(basis, a, b, w[use], m[use], bool(upper_bound))
+            cand = _realise(basis, a, b, w[use], m[use], wt[use], bool(upper_bound))
             if best is None or cand[3] < best[3]:
                 best = cand
             if (
