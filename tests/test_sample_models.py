@@ -100,7 +100,7 @@ def test_samples_respect_bounds_by_rejection(noisy_update):
     squeezed = dataclasses.replace(
         upd,
         model=upd.model.with_params(
-            [dataclasses.replace(upd.model.param("k1"), bounds=(k1 + 8 * se, k1 + 9 * se))]
+            [dataclasses.replace(upd.model.param("k1"), bounds=(k1 - 1e-6 * se, k1 + 1e-6 * se))]
         ),
     )
     with pytest.raises(rc.FitError, match=r"fell within the parameter bounds"):
