@@ -876,6 +876,15 @@ def fit_magnitude(
         Non-positive, NaN or mismatched magnitudes; unsorted or duplicated frequencies;
         an order outside 0-20.
 
+    Notes
+    -----
+    The LP works on ``|W|^2``: a curve spanning more than ~100 dB at a low order leaves a
+    thin feasible set that the solver resolves only to ~1e-8, and the fit can stop several
+    dB short of the optimum (D-scales and uncertainty envelopes span far less). Roots that
+    do not reproduce the LP's own curve (an order above the curve's, with large cancelling
+    coefficients) are polished by least squares on ``ln|W|``; poles and zeros more lightly
+    damped than the grid resolves get the damping the grid can see (``_damping_floor``).
+
     Examples
     --------
     >>> import numpy as np, robustctl as rc
