@@ -19,8 +19,8 @@ from scipy.io import loadmat, savemat
 from scipy.signal import cont2discrete, dlsim, sosfreqz
 
 import robustctl as rc
-from robustctl import controller_files
 from robustctl.errors import DataError, ModelError
+from robustctl.export import files as controller_files
 from robustctl.lti import freqresp_array
 
 C_CLIENT = Path(__file__).parent / "c_client" / "run_controller.c"
@@ -184,8 +184,11 @@ def test_round_trip_is_bit_exact(tmp_path, fmt, case):
         "light": light_controller(),
         "gain": control.ss([], [], [], [[1.5, -0.25]], inputs=["a", "b"], outputs=["c"]),
     }[case]
-    rep = _export(K, tmp_path / f"ctrl.{fmt}", fs=400.0, units={"disp_1": "m", "force_1": "N"})
+    units = {K.input_labels[0]: "m", K.output_labels[0]: "N"}
+    rep = _export(K, tmp_path / f"ctrl.{fmt}", fs=400.0, units=units)
     back = rc.load_controller(rep.path)
+    if fmt != "h":  # the C header carries numbers and names only
+        assert controller_files.READERS["." + fmt](rep.path).units == units
     Kd = rep.controller
     for key in "ABCD":  # every format stores exact decimal (or binary) doubles
         np.testing.assert_array_equal(getattr(back, key), getattr(Kd, key), err_msg=f"{fmt} {key}")
@@ -525,3 +528,59 @@ def test_c_client_matches_dlsim(tmp_path, case, balance):
     err_double, err_float = _run_c_client(tmp_path, K, fs, balance=balance)
     assert err_double < 1e-9, f"double error {err_double:.3g} relative to the output's peak"
     assert err_float < 1e-4, f"float error {err_float:.3g} relative to the output's peak"
+
+
+WEIRD = ["a,b", 'say "hi"', "back\\slash", "Δx [m/s²]", "end */ of comment", "two\nlines"]
+
+
+@pytest.mark.parametrize("fmt", [*FORMATS, "sos"])
+def test_signal_names_survive_every_format(tmp_path, fmt):
+    """Commas, quotes, backslashes, non-ASCII, a C comment terminator and a newline in names."""
+    rng = np.random.default_rng(4)
+    n_in, n_out = (1, 1) if fmt == "sos" else (3, 3)
+    sys = control.rss(4, n_out, n_in)
+    A = sys.A - (np.max(np.linalg.eigvals(sys.A).real) + 1.0) * np.eye(4)
+    K = control.ss(
+        A, sys.B, sys.C, rng.normal(size=(n_out, n_in)), inputs=WEIRD[:n_in], outputs=WEIRD[-n_out:]
+    )
+    rep = _export(K, tmp_path / f"k.{fmt}", fs=100.0, provenance={"note": "a */ in provenance"})
+    back = rc.load_controller(rep.path)
+    assert back.input_labels == WEIRD[:n_in] and back.output_labels == WEIRD[-n_out:]
+    # sections are a different realisation: exact only to their own fidelity (sos_error)
+    assert _rel_response_error(rep.controller, back) < (1e-12 if fmt != "sos" else 1e-9)
+
+
+def test_header_compiles_with_weird_names_and_refuses_float_overflow(tmp_path):
+    cc = shutil.which("cc")
+    if cc is None:
+        pytest.skip("no C compiler (cc) on PATH")
+    K = control.ss(
+        [[-1.0]], [[1.0, 2.0]], [[1.0], [3.0]], np.zeros((2, 2)), inputs=WEIRD[:2], outputs=WEIRD[-2:]
+    )
+    rep = _export(K, tmp_path / "kctl.h", fs=10.0, provenance={"note": "*/ #endif"})
+    subprocess.run(
+        [cc, "-std=c99", "-Wall", "-Werror", "-fsyntax-only", "-x", "c", str(rep.path)],
+        check=True,
+        capture_output=True,
+        timeout=60,
+    )
+    huge = control.ss([[-1.0]], [[1e40]], [[1.0]], 0.0)
+    with pytest.raises(DataError, match="float range"):
+        _export(huge, tmp_path / "huge.h", fs=10.0)
+    assert not (tmp_path / "huge.h").exists()
+
+
+def test_sos_of_a_zero_channel_and_of_a_static_gain(tmp_path):
+    K = control.ss(
+        np.diag([-1.0, -2.0]),
+        [[1, 0], [1, 0]],
+        np.eye(2),
+        [[0, 0], [0, 0.5]],
+        inputs=["a", "b"],
+        outputs=["c", "d"],
+    )
+    zero = _export(K, tmp_path / "z.sos", fs=10.0, channel=("c", "b"))
+    assert zero.sos_error == 0.0 and np.max(np.abs(freqresp_array(rc.load_controller(zero.path), [1.0]))) == 0
+    gain = _export(K, tmp_path / "g.sos", fs=10.0, channel=("d", "b"))
+    back = rc.load_controller(gain.path)
+    assert back.nstates == 0 and back.D[0, 0] == 0.5 and gain.sos_error < 1e-15

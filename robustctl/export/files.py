@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import io
 import json
 import re
 from dataclasses import dataclass, field
@@ -23,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from .errors import DataError
-from .frd import _cell, _mat_names, _mat_string
+from ..errors import DataError
+from ..frd import _cell, _mat_names, _mat_string
 
 __all__ = ["ControllerData", "WRITERS", "READERS", "FORMATS"]
 
@@ -232,13 +233,15 @@ def _csv_index(text: str, line: int, size: int, what: str) -> int:
 
 def read_csv(path: Path) -> ControllerData:
     try:
-        lines = [ln for ln in path.read_text(encoding="utf-8").splitlines() if not ln.startswith("#")]
-        rows = list(csv.reader(lines))
+        lines = path.read_text(encoding="utf-8").splitlines(keepends=True)
+        skip = next((k for k, ln in enumerate(lines) if not ln.startswith("#")), len(lines))
+        reader = csv.reader(io.StringIO("".join(lines[skip:]), newline=""))
+        rows = [(skip + reader.line_num, r) for r in reader]  # (line number in the file, fields)
     except (UnicodeDecodeError, csv.Error) as exc:
         raise DataError(f"not a readable text CSV file ({exc}).") from None
-    if not rows or [h.strip() for h in rows[0]] != CSV_HEADER:
-        raise DataError(f"the first non-comment line must be the header {','.join(CSV_HEADER)}.")
-    body = [(k, r) for k, r in enumerate(rows[1:], start=2) if r]
+    if not rows or [h.strip() for h in rows[0][1]] != CSV_HEADER:
+        raise DataError(f"the first line after the # comments must be the header {','.join(CSV_HEADER)}.")
+    body = [(k, r) for k, r in rows[1:] if r]
     for line, r in body:
         if len(r) != 4:
             raise DataError(f"line {line} has {len(r)} fields; expected 4 ({','.join(CSV_HEADER)}).")
@@ -417,10 +420,17 @@ def write_header(ctrl: ControllerData, path: Path, prefix: str | None = None, **
     P = prefix if prefix is not None else c_prefix(path, None)
     n, m, p = ctrl.A.shape[0], ctrl.D.shape[1], ctrl.D.shape[0]
     comment = json.dumps(ctrl.meta, indent=1, allow_nan=False).replace("*/", "* /")
+    names = json.dumps({"u": list(ctrl.inputs), "y": list(ctrl.outputs)}).replace("*/", "* /")
+    big = max((float(np.max(np.abs(getattr(ctrl, k)), initial=0.0)) for k in "ABCD"), default=0.0)
+    if big > float(np.finfo(np.float32).max):
+        raise DataError(
+            f"a coefficient of magnitude {big:.3g} exceeds the float range of the header's _F "
+            "arrays; rescale the controller's states (balance=True) or its signals."
+        )
     out = [
         f"/* Discrete controller exported by robustctl (C header layout v1).\n"
         f" * {EQUATIONS}; sample rate {P}_FS_HZ.\n"
-        f" * u = inputs {list(ctrl.inputs)}, y = outputs {list(ctrl.outputs)}.\n"
+        f" * Signals (u = inputs, y = outputs): {names}.\n"
         f" * Arrays are row-major: {P}_A[i * {P}_NX + j] = A(i, j). Double arrays reproduce the exported\n"
         f" * coefficients exactly; the _F arrays are the same values rounded to float.\n"
         f" * Metadata:\n{comment}\n */\n",
