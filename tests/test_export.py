@@ -20,7 +20,7 @@ from scipy.signal import cont2discrete, dlsim, sosfreqz
 
 import robustctl as rc
 from robustctl.errors import DataError, ModelError
-from robustctl.export import files as controller_files
+from robustctl.export import formats, sos_file
 from robustctl.lti import freqresp_array
 
 C_CLIENT = Path(__file__).parent / "c_client" / "run_controller.c"
@@ -188,7 +188,7 @@ def test_round_trip_is_bit_exact(tmp_path, fmt, case):
     rep = _export(K, tmp_path / f"ctrl.{fmt}", fs=400.0, units=units)
     back = rc.load_controller(rep.path)
     if fmt != "h":  # the C header carries numbers and names only
-        assert controller_files.READERS["." + fmt](rep.path).units == units
+        assert formats.READERS["." + fmt](rep.path).units == units
     Kd = rep.controller
     for key in "ABCD":  # every format stores exact decimal (or binary) doubles
         np.testing.assert_array_equal(getattr(back, key), getattr(Kd, key), err_msg=f"{fmt} {key}")
@@ -236,7 +236,7 @@ def test_load_a_users_continuous_mat_file(tmp_path):
 def test_sos_round_trip_siso(tmp_path):
     K = notch_lead()
     rep = _export(K, tmp_path / "k.sos", fs=1000.0)
-    sos, meta = controller_files.read_sos_file(rep.path)
+    sos, meta = sos_file.read_sos_file(rep.path)
     back = rc.load_controller(rep.path)
     f = _grid(1e-3)
     _, h = sosfreqz(sos, worN=2 * np.pi * f * 1e-3)
@@ -289,7 +289,7 @@ def test_failed_write_leaves_no_partial_file(tmp_path, monkeypatch, existing):
         tmp.write_text("field,row,col,value\nA,0,0,1.0\n")  # half a file, then the disk fills up
         raise OSError("No space left on device")
 
-    monkeypatch.setitem(controller_files.WRITERS, ".csv", broken)
+    monkeypatch.setitem(formats.WRITERS, ".csv", broken)
     with pytest.raises(OSError, match="No space"):
         _export(light_controller(), path, fs=1000.0, overwrite=True)
     assert sorted(p.name for p in tmp_path.iterdir()) == (["k.csv"] if existing else [])

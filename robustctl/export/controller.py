@@ -12,7 +12,8 @@ import numpy as np
 
 from ..errors import DataError, ModelError
 from ..frd import _jsonable, write_atomically
-from . import files
+from . import files, formats
+from .c_header import c_prefix
 from .discretize import (
     METHODS,
     choice,
@@ -48,13 +49,13 @@ _BALANCE = ("diagonal", "balanced")
 def _format(path: Path, format: str | None) -> str:
     if format is None:
         suffix = path.suffix.lower()
-        if suffix[1:] not in files.FORMATS:
+        if suffix[1:] not in formats.FORMATS:
             raise DataError(
                 f"cannot tell the format of {path.name!r} from its extension; use one of "
-                f"{', '.join('.' + f for f in files.FORMATS)} or pass format=."
+                f"{', '.join('.' + f for f in formats.FORMATS)} or pass format=."
             )
         return suffix[1:]
-    fmt = choice(format, "format", files.FORMATS)
+    fmt = choice(format, "format", formats.FORMATS)
     if path.suffix.lower() != "." + fmt:
         raise DataError(
             f"format={fmt!r} but the file name {path.name!r} ends in {path.suffix!r}; "
@@ -194,8 +195,8 @@ def export_controller(
     }
     names = (tuple(Kd.input_labels), tuple(Kd.output_labels), tuple(Kd.state_labels))
     ctrl = files.ControllerData(*mats, Kd.dt, *names, units=units, meta=_jsonable(meta))
-    writer = files.WRITERS["." + fmt]
-    prefix = files.c_prefix(path, prefix) if fmt == "h" else None  # from the final name, not the temp file
+    writer = formats.WRITERS["." + fmt]
+    prefix = c_prefix(path, prefix) if fmt == "h" else None  # from the final name, not the temp file
     write_atomically(path, lambda tmp: writer(ctrl, tmp, prefix=prefix, sos=sos), overwrite)
     return ExportReport(
         path=path,
@@ -324,11 +325,11 @@ def load_controller(path: str | PathLike):
         message names the field).
     """
     path = _as_path(path)
-    reader = files.READERS.get(path.suffix.lower())
+    reader = formats.READERS.get(path.suffix.lower())
     if reader is None:
         raise DataError(
             f"cannot read {path.name!r}: supported extensions are "
-            f"{', '.join('.' + f for f in files.FORMATS)}."
+            f"{', '.join('.' + f for f in formats.FORMATS)}."
         )
     if not path.is_file():
         raise DataError(f"cannot load {str(path)!r}: no such file.")
