@@ -62,7 +62,7 @@ def parallel_map(
     list
         The results, in the order of ``items``. An exception raised by ``fn`` propagates.
     """
-    from tqdm.auto import tqdm
+    from tqdm import tqdm
 
     check_executor(executor)
     items = list(items)
