@@ -22,3 +22,19 @@ def test_a_returned_figure_displays_as_png_in_a_kernel():
     outputs = nb.cells[0].outputs
     assert any("image/png" in o.get("data", {}) for o in outputs), outputs
     assert not any(o.get("name") == "stderr" and "IProgress" in o.get("text", "") for o in outputs)
+
+
+def test_stored_notebooks_show_a_picture_for_every_plot_cell():
+    """The notebooks are stored executed, so they read well on a code host."""
+    from pathlib import Path
+
+    notebooks = sorted((Path(__file__).resolve().parents[1] / "notebooks").glob("*.ipynb"))
+    assert notebooks
+    for path in notebooks:
+        nb = nbformat.read(path, as_version=4)
+        for cell in nb.cells:
+            if cell.cell_type != "code":
+                continue
+            last = cell.source.strip().splitlines()[-1] if cell.source.strip() else ""
+            if ".plot(" in last:
+                assert any("image/png" in o.get("data", {}) for o in cell.outputs), (path.name, last)
