@@ -584,3 +584,24 @@ def test_sos_of_a_zero_channel_and_of_a_static_gain(tmp_path):
     gain = _export(K, tmp_path / "g.sos", fs=10.0, channel=("d", "b"))
     back = rc.load_controller(gain.path)
     assert back.nstates == 0 and back.D[0, 0] == 0.5 and gain.sos_error < 1e-15
+
+
+# ---------------------------------------------------------------------------- command line
+def test_cli_export_discretises_a_users_mat_file(tmp_path, capsys):
+    from robustctl.cli import main
+
+    K = lqg_controller()
+    savemat(tmp_path / "K.mat", {"A": K.A, "B": K.B, "C": K.C, "D": K.D, "Ts": 0.0})
+    args = [str(tmp_path / "K.mat"), str(tmp_path / "K.h"), "--fs", "200", "--prewarp-hz", "2.5",
+            "--balance", "diagonal"]
+    assert main(["export", *args]) == 0
+    out = capsys.readouterr().out
+    assert "controller written to" in out and "dynamic range after diagonal balancing" in out
+    back = rc.load_controller(tmp_path / "K.h")
+    ref = rc.discretize(K, 200.0, prewarp_hz=2.5)
+    assert _rel_response_error(ref, back) < 1e-12
+    assert main(["export", *args]) == 2  # exists: refused without --overwrite
+    assert "already exists" in capsys.readouterr().err
+    assert main(["export", *args, "--overwrite"]) == 0
+    assert main(["export", str(tmp_path / "K.h"), str(tmp_path / "K1.sos"), "--channel", "y[1]", "u[0]"]) == 0
+    assert rc.load_controller(tmp_path / "K1.sos").output_labels == ["y[1]"]

@@ -104,6 +104,12 @@ class ControllerData:
         )
 
 
+def default_names(what: str, count: int) -> list[str]:
+    """python-control's default signal names: ``u[i]`` inputs, ``y[i]`` outputs, ``x[i]`` states."""
+    letter = {"inputs": "u", "outputs": "y", "states": "x"}[what]
+    return [f"{letter}[{i}]" for i in range(count)]
+
+
 def _sizes(ctrl: ControllerData) -> dict[str, int]:
     return {"n_states": ctrl.A.shape[0], "n_inputs": ctrl.D.shape[1], "n_outputs": ctrl.D.shape[0]}
 
@@ -170,7 +176,7 @@ def from_dict(doc: Any, what: str) -> ControllerData:
     if fs is not None and dt > 0 and abs(float(_number(fs, "fs_hz")) * dt - 1.0) > 1e-12:
         raise DataError(f"fs_hz = {fs!r} and dt_s = {dt!r} disagree (fs must be 1/dt); fix one of them.")
     names = {
-        k: doc.get(k, [f"{k[0]}[{i}]" for i in range(c)])
+        k: doc.get(k, default_names(k, c))
         for k, c in (("inputs", m), ("outputs", p), ("states", n))
     }
     for k, v in names.items():
@@ -360,7 +366,7 @@ def read_mat(path: Path) -> ControllerData:
     }
     for key, count in (("inputs", m), ("outputs", p), ("states", n)):
         if names[key] is None:
-            names[key] = [f"{key[0]}[{i}]" for i in range(count)]
+            names[key] = default_names(key, count)
     units = {}
     for key, var in (("inputs", "InputUnit"), ("outputs", "OutputUnit")):
         got = _mat_names(mdict, var) or []

@@ -88,6 +88,8 @@ def select_channel(ss: Any, channel: Any) -> tuple[int, int]:
         raise DataError(f"channel must be a pair (output, input) of names or indices; got {channel!r}.")
     out = []
     for item, labels, what in zip(channel, (ss.output_labels, ss.input_labels), ("output", "input")):
+        if isinstance(item, str) and item not in labels and item.isdigit():  # an index typed as text
+            item = int(item)
         if isinstance(item, str) and item in labels:
             out.append(list(labels).index(item))
         elif isinstance(item, (int, np.integer)) and not isinstance(item, bool) and 0 <= item < len(labels):
