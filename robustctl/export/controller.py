@@ -13,18 +13,9 @@ import numpy as np
 from ..errors import DataError, ModelError
 from ..frd import _jsonable, write_atomically
 from . import files, formats
+from .arguments import choice, flag, is_discrete, positive, unwrap
 from .c_header import c_prefix
-from .discretize import (
-    METHODS,
-    choice,
-    discretization_error,
-    discretize,
-    flag,
-    is_discrete,
-    peak_gain_hz,
-    positive,
-    unwrap,
-)
+from .discretize import METHODS, discretization_error, discretize, peak_gain_hz
 from .realization import (
     balance_diagonal,
     balance_gramian,

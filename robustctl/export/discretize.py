@@ -17,54 +17,12 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..errors import DataError, ModelError
-from ..lti import as_statespace, freqresp_array
+from ..lti import freqresp_array
+from .arguments import choice, is_discrete, positive, unwrap
 
 __all__ = ["discretize", "discretization_error", "peak_gain_hz"]
 
 METHODS = ("tustin", "zoh")
-
-
-# ---------------------------------------------------------------------------- argument checks
-def positive(value: Any, name: str, fix: str) -> float:
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise DataError(f"{name} must be a positive number; got {value!r}. {fix}")
-    if not (np.isfinite(value) and value > 0):
-        raise DataError(f"{name} must be a positive finite number; got {value!r}. {fix}")
-    return float(value)
-
-
-def flag(value: Any, name: str) -> bool:
-    if not isinstance(value, (bool, np.bool_)):
-        raise DataError(f"{name} must be True or False; got {value!r}.")
-    return bool(value)
-
-
-def choice(value: Any, name: str, options: tuple[str, ...]) -> str:
-    if not isinstance(value, str) or value.lower() not in options:
-        raise DataError(f"{name} must be one of {', '.join(map(repr, options))}; got {value!r}.")
-    return value.lower()
-
-
-def unwrap(K: Any) -> tuple[Any, dict]:
-    """A synthesis result (anything with ``.K``) -> its controller and design figures."""
-    import control
-
-    if isinstance(K, control.StateSpace) or not hasattr(K, "K"):
-        return as_statespace(K), {}
-    design = {}
-    for key, attr in (("gamma", "gamma"), ("mu", "mu_peak")):
-        value = getattr(K, attr, None)
-        if isinstance(value, (int, float, np.floating)) and np.isfinite(value):
-            design[key] = float(value)
-    return as_statespace(K.K), design
-
-
-def is_discrete(ss: Any) -> bool:
-    if ss.dt is True:
-        raise ModelError(
-            "the controller is discrete with an unspecified sampling time (dt=True); set dt in s."
-        )
-    return ss.dt not in (0, None)
 
 
 # ---------------------------------------------------------------------------- discretisation

@@ -175,10 +175,7 @@ def from_dict(doc: Any, what: str) -> ControllerData:
     fs = doc.get("fs_hz")
     if fs is not None and dt > 0 and abs(float(_number(fs, "fs_hz")) * dt - 1.0) > 1e-12:
         raise DataError(f"fs_hz = {fs!r} and dt_s = {dt!r} disagree (fs must be 1/dt); fix one of them.")
-    names = {
-        k: doc.get(k, default_names(k, c))
-        for k, c in (("inputs", m), ("outputs", p), ("states", n))
-    }
+    names = {k: doc.get(k, default_names(k, c)) for k, c in (("inputs", m), ("outputs", p), ("states", n))}
     for k, v in names.items():
         if not isinstance(v, list):
             raise DataError(f"{k} must be a list of names; got {v!r}.")
