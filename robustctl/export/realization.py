@@ -49,16 +49,15 @@ def balance_diagonal(A, B, C):
 
 
 def balance_gramian(A, B, C):
-    """Balanced realisation of a stable, minimal discrete system (square-root method, Laub et al.
-    1987): equal, diagonal controllability and observability Gramians ``P = Q = Sigma``."""
+    """Balanced realisation of a stable, minimal discrete system: equal, diagonal controllability
+    and observability Gramians ``P = Q = Sigma`` (square-root method, Laub et al. 1987; Gramian
+    factors by Hammarling's method, SLICOT SB03OD, falling back to a clipped eigendecomposition)."""
     n = A.shape[0]
     if n == 0:
         return A, B, C
     if spectral_radius(A) >= 1:
         raise ModelError("balance='balanced' needs a stable discrete controller; use balance='diagonal'.")
-    P = sla.solve_discrete_lyapunov(A, B @ B.T)
-    Q = sla.solve_discrete_lyapunov(A.T, C.T @ C)
-    Lc, Lo = _psd_factor(P), _psd_factor(Q)
+    Lc, Lo = _gramian_factor(A, B, observability=False), _gramian_factor(A, C, observability=True)
     U, s, Vt = np.linalg.svd(Lo.T @ Lc)
     if s[-1] <= 1e-12 * s[0]:
         raise ModelError(
@@ -71,9 +70,38 @@ def balance_gramian(A, B, C):
     return Tl @ A @ Tr, Tl @ B, C @ Tr
 
 
-def _psd_factor(X: np.ndarray) -> np.ndarray:
+def _gramian_factor(A: np.ndarray, B: np.ndarray, observability: bool) -> np.ndarray:
+    """``L`` with ``L L^T = P`` (``A P A^T - P + B B^T = 0``) or, for ``observability`` and
+    ``B = C``, ``L L^T = Q`` (``A^T Q A - Q + C^T C = 0``)."""
+    L = _factor_slycot(A, B, observability)
+    if L is not None and np.all(np.isfinite(L)):
+        return L
+    rhs = B.T @ B if observability else B @ B.T
+    X = sla.solve_discrete_lyapunov(A.T if observability else A, rhs)
     w, V = np.linalg.eigh((X + X.T) / 2)
     return V * np.sqrt(np.clip(w, 0, None))
+
+
+def _factor_slycot(A: np.ndarray, B: np.ndarray, observability: bool) -> np.ndarray | None:
+    try:
+        from slycot import sb03od
+    except ImportError:
+        return None
+    n = A.shape[0]
+    try:
+        if observability:  # A^T Q A - Q = -C^T C, C (p, n): Q = U^T U
+            p = B.shape[0]
+            rhs = np.zeros((max(p, n), n))
+            rhs[:p] = B
+            u, scale, _ = sb03od(n, p, A.copy(), np.zeros((n, n)), rhs, "D", trans="N")
+            return np.triu(u[:n, :n]).T / scale
+        m = B.shape[1]  # A P A^T - P = -B B^T, B (n, m): P = U U^T
+        rhs = np.zeros((n, max(m, n)))
+        rhs[:, :m] = B
+        u, scale, _ = sb03od(n, m, A.copy(), np.zeros((n, n)), rhs, "D", trans="T")
+        return np.triu(u[:n, :n]) / scale
+    except Exception:  # slycot raises on non-convergence: fall back to scipy
+        return None
 
 
 def select_channel(ss: Any, channel: Any) -> tuple[int, int]:
