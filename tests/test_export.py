@@ -187,8 +187,7 @@ def test_round_trip_is_bit_exact(tmp_path, fmt, case):
     units = {K.input_labels[0]: "m", K.output_labels[0]: "N"}
     rep = _export(K, tmp_path / f"ctrl.{fmt}", fs=400.0, units=units)
     back = rc.load_controller(rep.path)
-    if fmt != "h":  # the C header carries numbers and names only
-        assert formats.READERS["." + fmt](rep.path).units == units
+    assert formats.READERS["." + fmt](rep.path).units == units
     Kd = rep.controller
     for key in "ABCD":  # every format stores exact decimal (or binary) doubles
         np.testing.assert_array_equal(getattr(back, key), getattr(Kd, key), err_msg=f"{fmt} {key}")
@@ -430,6 +429,7 @@ def _corrupt_json(doc):
         (lambda d: d["B"][0].__setitem__(0, "x"), "matrix of numbers"),
         (lambda d: d.update(inputs=["only one"]), "inputs must be 2 names"),
         (lambda d: d.update(n_states=-1), "whole number"),
+        (lambda d: d.update(version=99), "newer than this robustctl"),
     ],
 )
 def test_load_refuses_hand_edited_json(tmp_path, edit, message):

@@ -77,7 +77,8 @@ def write_header(ctrl: ControllerData, path: Path, prefix: str | None = None, **
     P = prefix if prefix is not None else c_prefix(path, None)
     n, m, p = ctrl.A.shape[0], ctrl.D.shape[1], ctrl.D.shape[0]
     comment = json.dumps(ctrl.meta, indent=1, allow_nan=False).replace("*/", "* /")
-    names = json.dumps({"u": list(ctrl.inputs), "y": list(ctrl.outputs)}).replace("*/", "* /")
+    signals = {"u": list(ctrl.inputs), "y": list(ctrl.outputs), "units": dict(ctrl.units)}
+    names = json.dumps(signals).replace("*/", "* /")
     big = max((float(np.max(np.abs(getattr(ctrl, k)), initial=0.0)) for k in "ABCD"), default=0.0)
     if big > float(np.finfo(np.float32).max):
         raise DataError(
@@ -150,7 +151,9 @@ def read_header(path: Path) -> ControllerData:
             names = [json.loads(s) for s in re.findall(r'"(?:[^"\\]|\\.)*"', match.group(1))]
             doc[key] = names if doc[f"n_{key}"] else []
     meta = re.search(r" \* Metadata:\n(.*)\n \*/", text, re.S)
-    if meta:
-        with contextlib.suppress(ValueError):  # the comment informs; the arrays are the contract
-            doc.update(json.loads(meta.group(1).replace("* /", "*/")))
+    signals = re.search(r"^ \* Signals \(u = inputs, y = outputs\): (.*)\.$", text, re.M)
+    with contextlib.suppress(ValueError, AttributeError):  # comments inform; the arrays are the contract
+        doc.update(json.loads(meta.group(1).replace("* /", "*/")))
+    with contextlib.suppress(ValueError, AttributeError, KeyError, TypeError):
+        doc["units"] = dict(json.loads(signals.group(1).replace("* /", "*/"))["units"])
     return from_dict(doc, "C header")

@@ -167,6 +167,12 @@ def write_json(ctrl: ControllerData, path: Path, **_: Any) -> None:
 def from_dict(doc: Any, what: str) -> ControllerData:
     if not isinstance(doc, dict) or doc.get("format") != FORMAT_TAG:
         raise DataError(f"not a robustctl controller {what}: the 'format' field must be {FORMAT_TAG!r}.")
+    version = doc.get("version", FORMAT_VERSION)
+    if not isinstance(version, int) or isinstance(version, bool) or version > FORMAT_VERSION:
+        raise DataError(
+            f"layout version {version!r} is newer than this robustctl reads ({FORMAT_VERSION}); "
+            "update robustctl."
+        )
     missing = [k for k in ("dt_s", "n_states", "n_inputs", "n_outputs", "A", "B", "C", "D") if k not in doc]
     if missing:
         raise DataError(f"the {what} lacks the field(s) {', '.join(missing)}.")

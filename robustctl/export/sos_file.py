@@ -31,6 +31,7 @@ def write_sos(ctrl: ControllerData, path: Path, sos: np.ndarray | None = None, *
         **ctrl.meta,
     }
     meta.pop("n_states")
+    meta.pop("equations")  # the sections are a transfer function, not the state-space update
     lines = [SOS_LAYOUT, f"# meta: {json.dumps(meta, allow_nan=False)}\n", "b0,b1,b2,a0,a1,a2\n"]
     lines += [",".join(repr(float(v)) for v in row) + "\n" for row in np.asarray(sos)]
     path.write_text("".join(lines), encoding="utf-8")
