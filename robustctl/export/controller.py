@@ -38,21 +38,16 @@ _BALANCE = ("diagonal", "balanced")
 
 
 def _format(path: Path, format: str | None) -> str:
-    if format is None:
-        suffix = path.suffix.lower()
-        if suffix[1:] not in formats.FORMATS:
-            raise DataError(
-                f"cannot tell the format of {path.name!r} from its extension; use one of "
-                f"{', '.join('.' + f for f in formats.FORMATS)} or pass format=."
-            )
-        return suffix[1:]
-    fmt = choice(format, "format", formats.FORMATS)
-    if path.suffix.lower() != "." + fmt:
+    """The format named by ``format``, else by the file's extension."""
+    if format is not None:
+        return choice(format, "format", formats.FORMATS)
+    suffix = path.suffix.lower()
+    if suffix[1:] not in formats.FORMATS:
         raise DataError(
-            f"format={fmt!r} but the file name {path.name!r} ends in {path.suffix!r}; "
-            f"name it *.{fmt} so load_controller can read it back."
+            f"cannot tell the format of {path.name!r} from its extension; use one of "
+            f"{', '.join('.' + f for f in formats.FORMATS)} or pass format= (one of {formats.FORMATS})."
         )
-    return fmt
+    return suffix[1:]
 
 
 def _provenance(user: Any) -> dict:
@@ -97,12 +92,14 @@ def export_controller(
     fs : float, optional
         Sample rate in Hz (required for a continuous K).
     format : {"json", "csv", "h", "mat", "sos"}, optional
-        Default: from the extension. ``json``: matrices, ``fs``, names, units, method, design
-        figures, checks, provenance; ``csv``: one coefficient per line (layout in the file's
-        comment header); ``h``: C header with double and float arrays, size macros and an
-        inline step function; ``mat``: MATLAB ``A, B, C, D, Ts, InputName, OutputName``
-        (``ss(A,B,C,D,Ts)``); ``sos``: second-order sections (scipy.signal layout) of one SISO
-        channel.
+        Default: from the extension (pass the same ``format`` to :func:`load_controller` for a
+        file named otherwise, e.g. ``coeffs.txt`` with ``format="sos"``).
+
+        * ``json``: matrices, ``fs``, names, units, method, design figures, checks, provenance;
+        * ``csv``: one coefficient per line (layout in the file's comment header);
+        * ``h``: C header with double and float arrays, size macros and an inline step function;
+        * ``mat``: MATLAB ``A, B, C, D, Ts, InputName, OutputName`` (``ss(A,B,C,D,Ts)``);
+        * ``sos``: second-order sections (scipy.signal layout) of one SISO channel.
     method, prewarp_hz
         See :func:`discretize`.
     overwrite : bool
@@ -294,7 +291,7 @@ def _with(Kd: Any, mats: list[np.ndarray]):
     return control.ss(*mats, Kd.dt, inputs=list(Kd.input_labels), outputs=list(Kd.output_labels))
 
 
-def load_controller(path: str | PathLike):
+def load_controller(path: str | PathLike, format: str | None = None):
     """Read a controller written by :func:`export_controller` (or a user's ``.mat`` with A, B, C, D, Ts).
 
     Parameters
@@ -302,6 +299,8 @@ def load_controller(path: str | PathLike):
     path : str or path-like
         ``.json``, ``.csv``, ``.mat``, ``.h`` (the header layout written by
         :func:`export_controller`) or ``.sos`` (returned as a cascade realisation of the sections).
+    format : {"json", "csv", "h", "mat", "sos"}, optional
+        For a file whose extension does not say (default: from the extension).
 
     Returns
     -------
@@ -316,12 +315,7 @@ def load_controller(path: str | PathLike):
         message names the field).
     """
     path = _as_path(path)
-    reader = formats.READERS.get(path.suffix.lower())
-    if reader is None:
-        raise DataError(
-            f"cannot read {path.name!r}: supported extensions are "
-            f"{', '.join('.' + f for f in formats.FORMATS)}."
-        )
+    reader = formats.READERS["." + _format(path, format)]
     if not path.is_file():
         raise DataError(f"cannot load {str(path)!r}: no such file.")
     try:
