@@ -15,11 +15,14 @@ import control
 import numpy as np
 import pytest
 import scipy.linalg as sla
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from scipy.io import loadmat, savemat
 from scipy.signal import cont2discrete, dlsim, sosfreqz
 
 import robustctl as rc
 from robustctl.errors import DataError, ModelError
+from robustctl.export import files as controller_data
 from robustctl.export import formats, sos_file
 from robustctl.lti import freqresp_array
 
@@ -641,3 +644,40 @@ def test_format_argument_for_other_file_names(tmp_path):
     assert rc.load_controller(rep.path, format="csv").nstates == 12
     with pytest.raises(DataError, match="not valid JSON"):
         rc.load_controller(rep.path)
+
+
+# ---------------------------------------------------------------------------- property: exact numbers
+_VALUES = st.one_of(
+    st.floats(-1e300, 1e300, allow_nan=False, allow_infinity=False),
+    st.sampled_from([0.0, -0.0, 5e-324, 2.2250738585072014e-308, 0.1, 1 / 3, -1e-300]),
+)
+
+
+@st.composite
+def _controller_data(draw, float_range: bool):
+    n, m, p = draw(st.integers(0, 3)), draw(st.integers(1, 3)), draw(st.integers(1, 3))
+    values = _VALUES.filter(lambda v: abs(v) < 3e38) if float_range else _VALUES
+    mats = [
+        np.array(draw(st.lists(values, min_size=r * c, max_size=r * c)), dtype=float).reshape(r, c)
+        for r, c in ((n, n), (n, m), (p, n), (p, m))
+    ]
+    dt = draw(st.floats(1e-6, 10.0))
+    names = {
+        k: tuple(f"{k[0]}{i}" for i in range(c)) for k, c in (("inputs", m), ("outputs", p), ("states", n))
+    }
+    return controller_data.ControllerData(*mats, dt, **names)
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_every_double_survives_the_file_bit_exact(tmp_path, fmt, data):
+    ctrl = data.draw(_controller_data(float_range=fmt == "h"))
+    path = tmp_path / f"k.{fmt}"
+    formats.WRITERS["." + fmt](ctrl, path, prefix="K")
+    back = formats.READERS["." + fmt](path)
+    for key in "ABCD":
+        a, b = getattr(ctrl, key), getattr(back, key)
+        assert a.shape == b.shape and a.tobytes() == b.tobytes(), key  # bit-exact, the sign of -0.0 too
+    assert back.dt == ctrl.dt
+    path.unlink()
