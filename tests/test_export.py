@@ -681,3 +681,9 @@ def test_every_double_survives_the_file_bit_exact(tmp_path, fmt, data):
         assert a.shape == b.shape and a.tobytes() == b.tobytes(), key  # bit-exact, the sign of -0.0 too
     assert back.dt == ctrl.dt
     path.unlink()
+
+
+def test_c_client_skips_with_a_message_without_a_compiler(tmp_path, monkeypatch):
+    monkeypatch.setattr(shutil, "which", lambda name: None)
+    with pytest.raises(pytest.skip.Exception, match="no C compiler"):
+        _run_c_client(tmp_path, notch_lead(), 1000.0)
