@@ -687,3 +687,16 @@ def test_c_client_skips_with_a_message_without_a_compiler(tmp_path, monkeypatch)
     monkeypatch.setattr(shutil, "which", lambda name: None)
     with pytest.raises(pytest.skip.Exception, match="no C compiler"):
         _run_c_client(tmp_path, notch_lead(), 1000.0)
+
+
+def test_report_table_summary_and_html(tmp_path):
+    result = SimpleNamespace(K=lqg_controller(), gamma=2.5, mu_peak=0.9)
+    rep = _export(result, tmp_path / "k.sos", fs=200.0, channel=(1, 0), balance="diagonal", crossover_hz=2.0)
+    rows = dict(rep.table().rows)
+    assert rows["SOS channel (output <- input)"] == "force_2 <- disp_1"
+    assert rows["gamma"] == 2.5 and rows["mu peak"] == 0.9 and rows["stable"] is True
+    assert rows["relative discretisation error"] == rep.discretization_error
+    assert rows["dynamic range after diagonal balancing"] == rep.dynamic_range_balanced
+    text = rep.summary()
+    assert "stable" in text and f"{100 * rep.discretization_error:.3g} % at 2 Hz" in text
+    assert "<table>" in rep._repr_html_() and "force_2" in rep._repr_html_()

@@ -135,7 +135,7 @@ def discretize(K: Any, fs: float | None, method: str = "tustin", prewarp_hz: flo
         inputs=list(ss.input_labels),
         outputs=list(ss.output_labels),
         states=list(ss.state_labels),
-        name=ss.name,
+        name=f"{ss.name}$sampled",
     )
 
 

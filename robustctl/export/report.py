@@ -86,6 +86,7 @@ class ExportReport:
             ("relative discretisation error", self.discretization_error),
             ("coefficient dynamic range", self.dynamic_range),
             (f"dynamic range after {self.balance or 'no'} balancing", self.dynamic_range_balanced),
+            ("SOS channel (output <- input)", None if self.channel is None else " <- ".join(self.channel)),
             ("SOS max relative error", self.sos_error),
             ("gamma", self.gamma),
             ("mu peak", self.mu),
