@@ -17,6 +17,7 @@ from .correlate import (
 )
 from .errors import DataError, FitError, ModelError, RobustctlError, SynthesisError
 from .estimate import combine_experiments, estimate_frf, simulate_experiment
+from .export import ExportReport, discretize, export_controller, load_controller
 from .frd import FrequencyData, load_frd
 from .identify import (
     MeasurementModel,
@@ -98,6 +99,10 @@ __all__ = [
     "modal_model",
     "modal_statespace",
     "MatrixStructure",
+    "discretize",
+    "export_controller",
+    "load_controller",
+    "ExportReport",
     # robust design: weights
     "makeweight",
     "fit_magnitude",
