@@ -127,7 +127,7 @@ def test_caltech_cover_of_residual_and_spread_bounds_the_truth():
     g_t = res.truth.freqresp(f).response
     g_u = res.update.model.freqresp(f).response
     err = np.linalg.svd(g_t - g_u, compute_uv=False)[:, 0]
-    w = np.abs(control.frequency_response(cov.weight, 2 * np.pi * f).fresp[0, 0])
+    w = np.abs(control.frequency_response(cov.weight, 2 * np.pi * f).frdata[0, 0])
     assert np.all(w >= err)
     # the spread alone is far smaller than the residual: the data, not the parameters, set W
     assert cov.source_errors[1:].max() < cov.source_errors[0].max()
