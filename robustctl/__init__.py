@@ -43,6 +43,19 @@ from .physical import (
 )
 from .threads import blas_threads, set_blas_threads
 
+# --- mu analysis (mu helper) ---
+from .robust import (
+    Block,
+    BlockStructure,
+    MuResult,
+    WorstCaseGain,
+    as_block_structure,
+    mu,
+    robust_performance,
+    robust_stability,
+    worst_case_gain,
+)
+
 __version__ = "0.1.0"
 
 __all__ = [
@@ -89,4 +102,14 @@ __all__ = [
     "modal_model",
     "modal_statespace",
     "MatrixStructure",
+    # --- mu analysis (mu helper) ---
+    "Block",
+    "BlockStructure",
+    "as_block_structure",
+    "mu",
+    "MuResult",
+    "robust_stability",
+    "robust_performance",
+    "worst_case_gain",
+    "WorstCaseGain",
 ]
