@@ -267,7 +267,7 @@ def _bounds_chunk(M: np.ndarray, bs: BlockStructure, lower: bool, method: str, s
     t1 = time.perf_counter()
     out = {"upper": ub.upper, "d": ub.dblocks, "g": ub.gblocks, "newton": ub.iterations, "t_upper": t1 - t0}
     if lower:
-        lb = lower_bound(M, lay, ub.a0, ub.w0, seed=seed)
+        lb = lower_bound(M, lay, ub.a0, ub.w0, ub.upper, seed=seed)
         out.update(lower=lb.lower, delta=lb.delta, power=lb.iterations)
     else:
         out.update(lower=np.zeros(M.shape[0]), delta=np.zeros((M.shape[0], lay.n_in, lay.n_out), complex), power=0)

@@ -94,6 +94,24 @@ class Layout:
         """``G_b^T`` flattened to (n_out n_in, n_g): ``tr(X G_b)`` as one product."""
         return np.swapaxes(self.gen_g, 1, 2).reshape(self.n_g, -1).T
 
+    @cached_property
+    def diagonal(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The D generators as 0/1 vectors ``(l (n_d, n_out), r (n_d, n_in))`` when they are all
+        diagonal (no repeated scalar block of multiplicity > 1), else None (fast path)."""
+        if any(m > 1 for m in self.dsize):
+            return None
+        return (np.diagonal(self.gen_left, axis1=1, axis2=2).real.copy(),
+                np.diagonal(self.gen_right, axis1=1, axis2=2).real.copy())
+
+    @cached_property
+    def param_slices(self) -> tuple[tuple[slice, slice], ...]:
+        """(rows, columns) of ``M`` scaled by each D parameter (diagonal case)."""
+        out = []
+        for gl, gr in zip(*self.diagonal):
+            rows, cols = np.flatnonzero(gl), np.flatnonzero(gr)
+            out.append((slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1)))
+        return tuple(out)
+
     @property
     def n_blocks(self) -> int:
         return len(self.kinds)

@@ -33,7 +33,10 @@ from .mu_layout import Layout
 
 __all__ = ["LowerBound", "lower_bound"]
 
-MAX_POWER = 100
+#: iteration caps and relative tolerances on beta: complex structures converge quickly; with
+#: real blocks the vectors must settle tightly for the eigenvalue of M Q to come out real
+MAX_POWER = {"complex": 60, "mixed": 300}
+POWER_TOL = {"complex": 1e-6, "mixed": 1e-11}
 #: relative imaginary part below which an eigenvalue counts as real (mixed structures)
 REAL_TOL = 1e-7
 
@@ -102,24 +105,28 @@ def _step(M, MH, a, w, ix: _Index):
     return a, w, beta, b, delta
 
 
-def _structured_q(b, w, delta, ix: _Index, lay: Layout, vertex: bool) -> np.ndarray:
-    """``Q`` (nf, n_in, n_out) with ``||Q_i|| <= 1`` from the iteration's vectors."""
+def _structured_q(b, w, delta, ix: _Index, lay: Layout, vertex: bool) -> tuple[np.ndarray, np.ndarray]:
+    """``Q`` (nf, n_in, n_out) with ``||Q_i|| <= 1`` from the iteration's vectors, and ``max_i ||Q_i||``."""
     nf = b.shape[0]
     Q = np.zeros((nf, lay.n_in, lay.n_out), complex)
+    qn = np.zeros(nf)
     nb, nw = ix.norms(b, "out"), ix.norms(w, "in")
     for j, (o, i, kind) in enumerate(zip(lay.out, lay.inp, lay.kinds)):
-        if kind == "full":
-            den = np.where((nw[:, j] * nb[:, j]) > 0, nw[:, j] * nb[:, j], 1.0)
-            Q[:, i, o] = w[:, i, None] * b[:, o].conj()[:, None, :] / den[:, None, None]
+        if kind == "full":  # rank one w_i b_i^H / (|w_i| |b_i|): norm 1 (0 if a vector vanishes)
+            prod = nw[:, j] * nb[:, j]
+            ok = prod > 0
+            Q[:, i, o] = w[:, i, None] * b[:, o].conj()[:, None, :] / np.where(ok, prod, 1.0)[:, None, None]
+            qn = np.maximum(qn, ok.astype(float))
         else:
             d = delta[:, j]
             if vertex and kind == "real":
                 d = np.where(d.real >= 0, 1.0, -1.0)
             Q[:, i, o] = d[:, None, None] * np.eye(i.stop - i.start)
-    return Q
+            qn = np.maximum(qn, np.abs(d))
+    return Q, qn
 
 
-def _certify(M, Q, lay: Layout):
+def _certify(M, Q, qn, lay: Layout):
     """Best admissible eigenvalue of ``M Q``: the lower bound and its ``Delta``."""
     MQ = M @ Q
     lam = np.linalg.eigvals(MQ)
@@ -131,53 +138,25 @@ def _certify(M, Q, lay: Layout):
     k = np.argmax(mag, axis=1)
     lam_best = lam[np.arange(lam.shape[0]), k]
     best = mag[np.arange(lam.shape[0]), k]
-    qn = np.max([np.linalg.norm(Q[:, i, o], ord=2, axis=(1, 2)) for o, i in zip(lay.out, lay.inp)], axis=0)
     lower = np.where(qn > 0, best / np.where(qn > 0, qn, 1.0), 0.0)
     rot = np.where(lam_best.real >= 0, 1.0, -1.0) if lay.has_real else np.exp(-1j * np.angle(lam_best))
     scale = np.where(best > 0, rot / np.where(best > 0, best, 1.0), 0.0)
     return lower, Q * scale[:, None, None]
 
 
-def lower_bound(M: np.ndarray, lay: Layout, a0: np.ndarray | None = None, w0: np.ndarray | None = None,
-                *, seed: int = 0, max_iter: int = MAX_POWER, tol: float = 1e-7) -> LowerBound:
-    """Power-iteration lower bound of mu at every frequency of ``M`` (nf, n_out, n_in).
-
-    Parameters
-    ----------
-    M : ndarray, complex, (nf, n_out, n_in)
-    lay : Layout
-    a0, w0 : ndarray, (nf, n_in), optional
-        Start vectors (e.g. from the upper bound's principal directions); a seeded random
-        start is always run next to them.
-    seed : int
-        Seed of the random start.
-    max_iter : int
-        Iteration cap.
-    tol : float
-        A frequency stops iterating when ``beta`` changes by less than ``tol`` (relative).
-    """
+def _power(M: np.ndarray, a: np.ndarray, w: np.ndarray, ix: _Index, lay: Layout, max_iter: int, tol: float):
+    """Run the power iteration from ``(a, w)`` and certify: (lower, Delta, iterations)."""
     nf = M.shape[0]
-    ix = _Index(lay)
-    rng = np.random.default_rng(seed)
-    rnd = rng.standard_normal((2, nf, lay.n_in)) + 1j * rng.standard_normal((2, nf, lay.n_in))
-    starts_a, starts_w = [rnd[0]], [rnd[1]]
-    if a0 is not None and w0 is not None:
-        starts_a.insert(0, a0)
-        starts_w.insert(0, w0)
-    n_s = len(starts_a)
-    Ms = np.concatenate([M] * n_s)
-    MH = np.swapaxes(Ms, 1, 2).conj()
-    a = np.concatenate(starts_a)
-    w = np.concatenate(starts_w)
+    MH = np.swapaxes(M, 1, 2).conj()
     a = a / np.maximum(np.linalg.norm(a, axis=1), 1e-300)[:, None]
     w = w / np.maximum(np.linalg.norm(w, axis=1), 1e-300)[:, None]
-    b = np.zeros((nf * n_s, lay.n_out), complex)
-    delta = np.ones((nf * n_s, lay.n_blocks), complex)
-    beta_old = np.zeros(nf * n_s)
-    active = np.arange(nf * n_s)
+    b = np.zeros((nf, lay.n_out), complex)
+    delta = np.ones((nf, lay.n_blocks), complex)
+    beta_old = np.zeros(nf)
+    active = np.arange(nf)
     it = 0
-    for it in range(1, max_iter + 1):
-        sub = (Ms[active], MH[active], a[active], w[active])
+    for it in range(1, max_iter + 1):  # noqa: B007 - the count is reported
+        sub = (M[active], MH[active], a[active], w[active])
         b_old = b[active]
         a[active], w[active], beta, b[active], delta[active] = _step(*sub, ix)
         moving = np.abs(beta - beta_old[active]) > tol * np.maximum(beta, 1e-300)
@@ -187,15 +166,52 @@ def lower_bound(M: np.ndarray, lay: Layout, a0: np.ndarray | None = None, w0: np
         active = active[moving]
         if active.size == 0:
             break
-    cands = [_structured_q(b, w, delta, ix, lay, vertex=False)]
-    if lay.has_real:
-        cands.append(_structured_q(b, w, delta, ix, lay, vertex=True))
     lower, delta_out = np.zeros(nf), np.zeros((nf, lay.n_in, lay.n_out), complex)
-    for Q in cands:
-        lo, dl = _certify(Ms, Q, lay)
-        for s in range(n_s):
-            part = slice(s * nf, (s + 1) * nf)
-            better = lo[part] > lower
-            lower = np.where(better, lo[part], lower)
-            delta_out[better] = dl[part][better]
-    return LowerBound(lower, delta_out, it)
+    for vertex in (False, True) if lay.has_real else (False,):
+        lo, dl = _certify(M, *_structured_q(b, w, delta, ix, lay, vertex=vertex), lay)
+        better = lo > lower
+        lower[better], delta_out[better] = lo[better], dl[better]
+    return lower, delta_out, it
+
+
+def lower_bound(M: np.ndarray, lay: Layout, a0: np.ndarray | None = None, w0: np.ndarray | None = None,
+                upper: np.ndarray | None = None, *, seed: int = 0, max_iter: int | None = None,
+                tol: float | None = None) -> LowerBound:
+    """Power-iteration lower bound of mu at every frequency of ``M`` (nf, n_out, n_in).
+
+    Parameters
+    ----------
+    M : ndarray, complex, (nf, n_out, n_in)
+    lay : Layout
+    a0, w0 : ndarray, (nf, n_in), optional
+        Start vectors (e.g. from the upper bound's principal directions).
+    upper : ndarray (nf,), optional
+        A known upper bound: a seeded random restart is run only where the first run stays
+        more than 0.1 % below it (everywhere when not given, or without start vectors).
+    seed : int
+        Seed of the random start.
+    max_iter : int, optional
+        Iteration cap (default :data:`MAX_POWER`).
+    tol : float, optional
+        A frequency stops iterating when ``beta`` changes by less than ``tol`` (relative;
+        default :data:`POWER_TOL`).
+    """
+    nf = M.shape[0]
+    kind = "mixed" if lay.has_real else "complex"
+    max_iter = MAX_POWER[kind] if max_iter is None else max_iter
+    tol = POWER_TOL[kind] if tol is None else tol
+    ix = _Index(lay)
+    lower, delta, iters = np.zeros(nf), np.zeros((nf, lay.n_in, lay.n_out), complex), 0
+    if a0 is not None and w0 is not None:
+        lower, delta, iters = _power(M, a0.copy(), w0.copy(), ix, lay, max_iter, tol)
+    redo = np.ones(nf, bool) if upper is None or a0 is None else lower < (1 - 1e-3) * upper
+    if redo.any():
+        rng = np.random.default_rng(seed)
+        n = int(redo.sum())
+        rnd = rng.standard_normal((2, n, lay.n_in)) + 1j * rng.standard_normal((2, n, lay.n_in))
+        lo, dl, it = _power(M[redo], rnd[0], rnd[1], ix, lay, max_iter, tol)
+        idx = np.flatnonzero(redo)
+        better = lo > lower[idx]
+        lower[idx[better]], delta[idx[better]] = lo[better], dl[better]
+        iters = max(iters, it)
+    return LowerBound(lower, delta, iters)

@@ -154,6 +154,27 @@ def _pair_trace(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
     return _flat(X) @ np.swapaxes(_flat(np.swapaxes(Y, -1, -2)), -1, -2)
 
 
+def _diagonal_terms(A, Bm, Q, lay: Layout):
+    """Fast path for block-identity generators (every D parameter scales one block).
+
+    ``A_a = (l_a 1^T - 1 r_a^T) o A`` elementwise (``l_a``, ``r_a`` the block's 0/1 row and
+    column masks), and ``Q^H Bm A_a Q = (Q^H Bm)[:, out_a] (A Q)[out_a, :] -
+    (Q^H Bm A)[:, in_a] Q[in_a, :]``: two thin products per parameter.
+    """
+    l, r = lay.diagonal
+    Ad = (l[:, :, None] - r[:, None, :])[None] * A[:, None]
+    Pm = _herm(Q) @ Bm
+    AQ, PmA = A @ Q, Pm @ A
+    Xq = np.empty((A.shape[0], lay.n_d, lay.n_in, lay.n_in), complex)
+    for a, (o, i) in enumerate(lay.param_slices):
+        Xq[:, a] = Pm[:, :, o] @ AQ[:, o, :] - PmA[:, :, i] @ Q[:, i, :]
+
+    def cross_of(Y):
+        return l @ (A * np.swapaxes(Y, 1, 2)) @ r.T
+
+    return Ad, Xq, cross_of
+
+
 def _derivatives(A, G, lam, Q, w, tau, lay: Layout):
     """Gradient (na, k) and Hessian (na, k, k) of ``F_tau`` in the local coordinates.
 
@@ -164,13 +185,18 @@ def _derivatives(A, G, lam, Q, w, tau, lay: Layout):
     gl, gr, gg = lay.gen_left, lay.gen_right, lay.gen_g
     nd = lay.n_d
     Bm = _herm(A) if G is None else _herm(A) + 1j * G
-    LA = gl[None] @ A[:, None]
-    Ad = LA - A[:, None] @ gr[None]
-    parts = [Bm[:, None] @ Ad]
+    if lay.diagonal is not None:
+        Ad, Xq, cross_of = _diagonal_terms(A, Bm, Q, lay)
+    else:
+        LA = gl[None] @ A[:, None]
+        Ad = LA - A[:, None] @ gr[None]
+        Xq = _herm(Q)[:, None] @ (Bm[:, None] @ Ad) @ Q[:, None]
+
+        def cross_of(Y):
+            return _pair_trace(LA, gr[None] @ Y[:, None])
     if lay.n_g:
-        parts.append(1j * (gg[None] @ A[:, None]))
-    X = np.concatenate(parts, axis=1)
-    Xq = _herm(Q)[:, None] @ X @ Q[:, None]
+        Xg = _herm(Q)[:, None] @ (1j * (gg[None] @ A[:, None])) @ Q[:, None]
+        Xq = np.concatenate([Xq, Xg], axis=1)
     Hh = Xq + _herm(Xq)
     g = (np.diagonal(Hh, axis1=2, axis2=3).real * w[:, None, :]).sum(axis=2)
     dl = lam[:, :, None] - lam[:, None, :]
@@ -187,7 +213,7 @@ def _derivatives(A, G, lam, Q, w, tau, lay: Layout):
     k2 = (nd, nd)
     tll = (_flat(np.swapaxes(PL, 1, 2)) @ lay.ll_flat.T).reshape((-1,) + k2)
     trr = (_flat(np.swapaxes(PR, 1, 2)) @ lay.rr_flat.T).reshape((-1,) + k2)
-    cross = _pair_trace(LA, gr[None] @ Y[:, None])
+    cross = cross_of(Y)
     t = 0.5 * (tll + np.swapaxes(tll, 1, 2) + trr + np.swapaxes(trr, 1, 2)) - cross - np.swapaxes(cross, 1, 2)
     hess[:, :nd, :nd] += dd + 2.0 * t.real
     if lay.n_g:
@@ -224,6 +250,23 @@ def _expm_blocks(theta_d: np.ndarray, lay: Layout, sign: float) -> tuple[np.ndar
                 X[:, s, s] = (V * np.exp(ev)[:, None, :]) @ _herm(V)
         outs.append(X)
     return outs[0], outs[1]
+
+
+def _step_scales(theta_d: np.ndarray, lay: Layout) -> tuple[np.ndarray, np.ndarray]:
+    """``exp(E_L)`` and ``exp(-E_R)`` of a step: vectors (diagonal case) or matrices."""
+    if lay.diagonal is not None:
+        l, r = lay.diagonal
+        return np.exp(theta_d @ l), np.exp(-(theta_d @ r))
+    return _expm_blocks(theta_d, lay, 1.0)[0], _expm_blocks(theta_d, lay, -1.0)[1]
+
+
+def _scale(left: np.ndarray | None, X: np.ndarray, right: np.ndarray | None) -> np.ndarray:
+    """``left @ X @ right`` where each factor is a stack of matrices, of diagonals (vectors) or None."""
+    if left is not None:
+        X = left[:, :, None] * X if left.ndim == 2 else left @ X
+    if right is not None:
+        X = X * right[:, None, :] if right.ndim == 2 else X @ right
+    return X
 
 
 class _State:
@@ -281,9 +324,8 @@ def upper_bound(M: np.ndarray, lay: Layout, *, time_budget_s: float = 60.0,
         cur = st.take(idx)
         s = _newton_step(cur["g"], cur["hess"], mu_damp[idx])
         dec = -np.einsum("fa,fa->f", cur["g"], s)
-        eL, eR = _expm_blocks(s[:, : lay.n_d], lay, 1.0)
-        _, eRi = _expm_blocks(s[:, : lay.n_d], lay, -1.0)
-        At = eL @ cur["A"] @ eRi
+        left, right_inv = _step_scales(s[:, : lay.n_d], lay)
+        At = _scale(left, cur["A"], right_inv)
         Gt = None if G is None else cur["G"] + np.einsum("fa,aij->fij", s[:, lay.n_d:], lay.gen_g)
         lam, Q = np.linalg.eigh(_hmatrix(At, Gt))
         Ft, w = _smoothed(lam, tau[idx])
@@ -294,8 +336,8 @@ def upper_bound(M: np.ndarray, lay: Layout, *, time_budget_s: float = 60.0,
             g, h = _derivatives(At[ok], None if Gt is None else Gt[ok], lam[ok], Q[ok], w[ok], tau[acc], lay)
             st.A[acc], st.lam[acc], st.Q[acc], st.F[acc], st.w[acc] = At[ok], lam[ok], Q[ok], Ft[ok], w[ok]
             st.g[acc], st.hess[acc] = g, h
-            st.DL[acc] = eL[ok] @ st.DL[acc]
-            st.DRi[acc] = st.DRi[acc] @ eRi[ok]
+            st.DL[acc] = _scale(left[ok], st.DL[acc], None)
+            st.DRi[acc] = _scale(None, st.DRi[acc], right_inv[ok])
             if G is not None:
                 st.G[acc] = Gt[ok]
             better = lam[ok, -1] < best[acc]
