@@ -307,3 +307,23 @@ def test_result_presentation():
     assert "mu upper bound" in labels and "mu lower bound" in labels
     lo, hi = res.stability_margin_bounds
     assert lo == pytest.approx(1 / res.peak) and hi >= lo * (1 - 1e-12)
+
+
+def test_edge_cases_zero_nilpotent_scale_and_single_real():
+    M = np.zeros((3, 3, 3), complex)
+    M[1] = np.triu(np.ones((3, 3)), 1)  # nilpotent: mu = 0, approached by extreme D-scales
+    M[2] = 2.0 * np.eye(3)
+    res = rc.mu(M, [[1, 0]] * 3)
+    assert res.upper[0] == 0 and res.lower[0] == 0
+    assert res.upper[1] < 1e-6 and res.lower[1] == 0
+    assert res.upper[2] == pytest.approx(2.0) and res.lower[2] == pytest.approx(2.0)
+    base = np.array([[1.0, 2.0], [0.5j, -1.0]])
+    ref = rc.mu(base, [[1, 0], [1, 0]])
+    for c in (1e-200, 1e200):  # mu(c M) = c mu(M) without over- or underflow
+        res = rc.mu(c * base, [[1, 0], [1, 0]])
+        assert res.upper[0] == pytest.approx(c * ref.upper[0], rel=1e-9)
+        assert res.lower[0] == pytest.approx(c * ref.lower[0], rel=1e-9)
+    # one real scalar: mu = |m| for real m, 0 for purely imaginary m (1 - j delta never vanishes)
+    assert rc.mu(np.array([[-3.0]]), [[-1, 0]]).lower[0] == pytest.approx(3.0)
+    assert rc.mu(np.array([[-3.0]]), [[-1, 0]]).upper[0] == pytest.approx(3.0)
+    assert rc.mu(np.array([[2j]]), [[-1, 0]]).upper[0] < 1e-6

@@ -263,17 +263,21 @@ def _bounds_chunk(M: np.ndarray, bs: BlockStructure, lower: bool, method: str, s
     """Bounds on one chunk of frequencies (top level, so executors can pickle it)."""
     lay = layout_of(bs)
     t0 = time.perf_counter()
+    size = np.abs(M).max(axis=(1, 2))
+    size = np.where(size > 0, size, 1.0)  # mu(c M) = c mu(M): work at unit size (no over/underflow)
+    M = M / size[:, None, None]
     ub = upper_bound(M, lay)
     t1 = time.perf_counter()
-    out = {"upper": ub.upper, "d": ub.dblocks, "g": ub.gblocks, "newton": ub.iterations, "t_upper": t1 - t0}
+    out = {"upper": ub.upper * size, "d": ub.dblocks, "g": [g * size[:, None, None] for g in ub.gblocks],
+           "newton": ub.iterations, "t_upper": t1 - t0}
     if lower:
         lb = lower_bound(M, lay, ub.a0, ub.w0, ub.upper, seed=seed)
-        out.update(lower=lb.lower, delta=lb.delta, power=lb.iterations)
+        out.update(lower=lb.lower * size, delta=lb.delta / size[:, None, None], power=lb.iterations)
     else:
         out.update(lower=np.zeros(M.shape[0]), delta=np.zeros((M.shape[0], lay.n_in, lay.n_out), complex), power=0)
     out["t_lower"] = time.perf_counter() - t1
     if method == "lmi":
-        _lmi_replace(M, lay, out)
+        _lmi_replace(M * size[:, None, None], lay, out)
     return out
 
 

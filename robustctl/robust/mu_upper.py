@@ -77,8 +77,7 @@ def _osborne(B2: np.ndarray, sweeps: int = 12) -> np.ndarray:
     """log d minimising ``sum_ij B2_ij d_i^2 / d_j^2`` (off-diagonal) by exact coordinate steps."""
     nf, k, _ = B2.shape
     off = B2 * (1.0 - np.eye(k))
-    floor = 1e-14 * np.maximum(off.sum(axis=(1, 2)), 1e-300)
-    off = off + floor[:, None, None] * (1.0 - np.eye(k))
+    off = off + 1e-14 * (1.0 - np.eye(k))  # B2 is normalised to max 1
     x = np.zeros((nf, k))
     for _ in range(sweeps):
         for i in range(k - 1):
@@ -92,7 +91,7 @@ def _osborne(B2: np.ndarray, sweeps: int = 12) -> np.ndarray:
 def _perron(B: np.ndarray) -> np.ndarray:
     """log d of the Perron scaling ``d_i = sqrt(y_i / x_i)`` of the block-norm matrix."""
     k = B.shape[1]
-    Bp = B + 1e-12 * np.maximum(B.max(axis=(1, 2)), 1e-300)[:, None, None] * np.ones((k, k))
+    Bp = B + 1e-12  # B is normalised to max 1; positive entries make the Perron root simple
     x = np.ones(B.shape[:2]) / np.sqrt(k)
     y = x.copy()
     for _ in range(30):  # power iteration: Bp is positive, the Perron root is simple
@@ -117,6 +116,8 @@ def _scaled_norm(M: np.ndarray, lay: Layout, logd: np.ndarray) -> np.ndarray:
 def balancing_start(M: np.ndarray, lay: Layout) -> tuple[np.ndarray, np.ndarray]:
     """Scalar D-scales (log, (nf, k)) from Osborne or Perron, whichever bounds lower; and that bound."""
     B = block_norms(M, lay)
+    top = B.max(axis=(1, 2))
+    B = B / np.where(top > 0, top, 1.0)[:, None, None]  # the scaling does not depend on |M|
     cands = [_osborne(B**2), _perron(B)]
     bounds = [_scaled_norm(M, lay, x) for x in cands]
     pick = bounds[1] < bounds[0]
@@ -182,21 +183,21 @@ def _derivatives(A, G, lam, Q, w, tau, lay: Layout):
     spectral function ``F_tau`` (Lewis & Sendov 2001), plus the curvature of ``H`` itself
     along the generators (``A(theta) = exp(E_L) A exp(-E_R)``, ``G^(theta) = G^ + dG``).
     """
-    gl, gr, gg = lay.gen_left, lay.gen_right, lay.gen_g
     nd = lay.n_d
     Bm = _herm(A) if G is None else _herm(A) + 1j * G
-    if lay.diagonal is not None:
+    Ad = Xq = cross_of = None
+    if nd and lay.diagonal is not None:
         Ad, Xq, cross_of = _diagonal_terms(A, Bm, Q, lay)
-    else:
-        LA = gl[None] @ A[:, None]
-        Ad = LA - A[:, None] @ gr[None]
+    elif nd:
+        LA = lay.gen_left[None] @ A[:, None]
+        Ad = LA - A[:, None] @ lay.gen_right[None]
         Xq = _herm(Q)[:, None] @ (Bm[:, None] @ Ad) @ Q[:, None]
 
         def cross_of(Y):
-            return _pair_trace(LA, gr[None] @ Y[:, None])
+            return _pair_trace(LA, lay.gen_right[None] @ Y[:, None])
     if lay.n_g:
-        Xg = _herm(Q)[:, None] @ (1j * (gg[None] @ A[:, None])) @ Q[:, None]
-        Xq = np.concatenate([Xq, Xg], axis=1)
+        Xg = _herm(Q)[:, None] @ (1j * (lay.gen_g[None] @ A[:, None])) @ Q[:, None]
+        Xq = Xg if Xq is None else np.concatenate([Xq, Xg], axis=1)
     Hh = Xq + _herm(Xq)
     g = (np.diagonal(Hh, axis1=2, axis2=3).real * w[:, None, :]).sum(axis=2)
     dl = lam[:, :, None] - lam[:, None, :]
@@ -205,14 +206,21 @@ def _derivatives(A, G, lam, Q, w, tau, lay: Layout):
                    (w[:, :, None] - w[:, None, :]) / np.where(small, 1.0, dl))
     hess = (_flat(Hh * gam[:, None]) @ np.swapaxes(_flat(Hh).conj(), 1, 2)).real
     hess -= g[:, :, None] * g[:, None, :] / tau[:, None, None]
+    if nd:
+        _add_curvature(hess, A, Ad, Q, w, Bm, cross_of, lay)
+    return g, hess
+
+
+def _add_curvature(hess, A, Ad, Q, w, Bm, cross_of, lay: Layout) -> None:
+    """Add ``tr(W d2H)`` (``W = Q diag(w) Q^H``) for the D-D and D-G parameter pairs."""
+    nd = lay.n_d
     W = (Q * w[:, None, :]) @ _herm(Q)
     AW = Ad @ W[:, None]
     dd = 2.0 * (_flat(AW) @ np.swapaxes(_flat(Ad).conj(), 1, 2)).real
     Y = W @ Bm
     PL, PR = A @ Y, Y @ A
-    k2 = (nd, nd)
-    tll = (_flat(np.swapaxes(PL, 1, 2)) @ lay.ll_flat.T).reshape((-1,) + k2)
-    trr = (_flat(np.swapaxes(PR, 1, 2)) @ lay.rr_flat.T).reshape((-1,) + k2)
+    tll = (_flat(np.swapaxes(PL, 1, 2)) @ lay.ll_flat.T).reshape((-1, nd, nd))
+    trr = (_flat(np.swapaxes(PR, 1, 2)) @ lay.rr_flat.T).reshape((-1, nd, nd))
     cross = cross_of(Y)
     t = 0.5 * (tll + np.swapaxes(tll, 1, 2) + trr + np.swapaxes(trr, 1, 2)) - cross - np.swapaxes(cross, 1, 2)
     hess[:, :nd, :nd] += dd + 2.0 * t.real
@@ -220,18 +228,25 @@ def _derivatives(A, G, lam, Q, w, tau, lay: Layout):
         dg = 2.0 * (1j * (_flat(AW) @ lay.g_flat_t)).real
         hess[:, :nd, nd:] += dg
         hess[:, nd:, :nd] += np.swapaxes(dg, 1, 2)
-    return g, hess
 
 
-def _newton_step(g: np.ndarray, hess: np.ndarray, mu: np.ndarray) -> np.ndarray:
-    """``-(|Hess| + mu I)^{-1} g`` with the Hessian's eigenvalues made positive; capped length."""
-    ev, V = np.linalg.eigh(hess)
-    scale = np.maximum(np.abs(ev).max(axis=1, keepdims=True), 1e-12)
-    ev = np.maximum(np.abs(ev), 1e-8 * scale) + mu[:, None] * scale
-    s = -V @ ((np.swapaxes(V, 1, 2) @ g[:, :, None])[:, :, 0] / ev)[:, :, None]
-    s = s[:, :, 0]
+def _newton_step(g: np.ndarray, hess: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """``-|Hess|^{-1} g`` (the Hessian's eigenvalues made positive), cut to ``|s|_inf <= radius``.
+
+    A positive definite Hessian (the usual case) is solved directly; otherwise its
+    eigenvalues are replaced by their absolute values (floored at 1e-8 of the largest).
+    """
+    scale = np.maximum(np.abs(hess).max(axis=(1, 2)), 1e-12)
+    reg = hess + (1e-10 * scale)[:, None, None] * np.eye(hess.shape[1])
+    try:
+        np.linalg.cholesky(reg)
+        s = -np.linalg.solve(reg, g[:, :, None])[:, :, 0]
+    except np.linalg.LinAlgError:
+        ev, V = np.linalg.eigh(hess)
+        ev = np.maximum(np.abs(ev), 1e-8 * scale[:, None])
+        s = -(V @ ((np.swapaxes(V, 1, 2) @ g[:, :, None])[:, :, 0] / ev)[:, :, None])[:, :, 0]
     big = np.abs(s).max(axis=1)
-    return s * np.minimum(1.0, MAX_STEP / np.maximum(big, 1e-300))[:, None]
+    return s * np.minimum(1.0, radius / np.maximum(big, 1e-300))[:, None]
 
 
 def _expm_blocks(theta_d: np.ndarray, lay: Layout, sign: float) -> tuple[np.ndarray, np.ndarray]:
@@ -312,17 +327,19 @@ def upper_bound(M: np.ndarray, lay: Layout, *, time_budget_s: float = 60.0,
     stage = np.zeros(nf, int)
     tau = np.full(nf, TAU_STAGES[0])
     st = _State(A, G, DL, DRi, tau, lay)
+    lam_ref = np.maximum(st.lam[:, -1], 1e-300)  # tau is relative to lambda_max at the stage start
     best = st.lam[:, -1].copy()
     best_DL, best_DRi = DL.copy(), DRi.copy()
     best_G = None if G is None else G.copy()
-    mu_damp = np.full(nf, 1e-8)
+    radius = np.full(nf, MAX_STEP)  # trust region on the step (inf-norm, log units)
     active = (sig0 > 0) & (best > 0) & (lay.n_d + lay.n_g > 0)
     t0, it = time.perf_counter(), 0
     while active.any() and it < max_newton and time.perf_counter() - t0 < time_budget_s:
         it += 1
         idx = np.flatnonzero(active)
         cur = st.take(idx)
-        s = _newton_step(cur["g"], cur["hess"], mu_damp[idx])
+        s = _newton_step(cur["g"], cur["hess"], radius[idx])
+        size = np.abs(s).max(axis=1) if s.shape[1] else np.zeros(idx.size)
         dec = -np.einsum("fa,fa->f", cur["g"], s)
         left, right_inv = _step_scales(s[:, : lay.n_d], lay)
         At = _scale(left, cur["A"], right_inv)
@@ -330,7 +347,7 @@ def upper_bound(M: np.ndarray, lay: Layout, *, time_budget_s: float = 60.0,
         lam, Q = np.linalg.eigh(_hmatrix(At, Gt))
         Ft, w = _smoothed(lam, tau[idx])
         ok = Ft <= cur["F"] - 1e-4 * dec
-        mu_damp[idx] = np.where(ok, mu_damp[idx] / 4.0, np.maximum(mu_damp[idx] * 10.0, 1e-6))
+        radius[idx] = np.where(ok, np.minimum(MAX_STEP, np.maximum(radius[idx], 2.0 * size)), 0.25 * size)
         acc = idx[ok]
         if acc.size:
             g, h = _derivatives(At[ok], None if Gt is None else Gt[ok], lam[ok], Q[ok], w[ok], tau[acc], lay)
@@ -346,18 +363,21 @@ def upper_bound(M: np.ndarray, lay: Layout, *, time_budget_s: float = 60.0,
             best_DL[b], best_DRi[b] = st.DL[b], st.DRi[b]
             if G is not None:
                 best_G[b] = st.G[b]
-        # stage control: a small Newton decrement (or stalled damping) ends a stage
-        done = (dec < STAGE_TOL * tau[idx]) | (mu_damp[idx] > 1e6)
-        done &= ok | (mu_damp[idx] > 1e6)
+        # stage control: a small Newton decrement (or a collapsed trust region) ends a stage
+        stalled = radius[idx] < 1e-9
+        done = ((dec < STAGE_TOL * tau[idx]) & ok) | stalled
         adv = idx[done]
         stage[adv] += 1
+        # lambda_max fell far below the stage's reference: restart the stage with tau relative to it
+        shrunk = idx[ok & ~done & (lam[:, -1] < 0.25 * lam_ref[idx]) & (lam[:, -1] > 0)]
         fin = adv[stage[adv] >= len(TAU_STAGES)]
         active[fin] = False
         active[best <= 0] = False
-        nxt = adv[stage[adv] < len(TAU_STAGES)]
+        nxt = np.concatenate([adv[stage[adv] < len(TAU_STAGES)], shrunk])
         if nxt.size:
-            tau[nxt] = np.array(TAU_STAGES)[stage[nxt]]
-            mu_damp[nxt] = 1e-8
+            lam_ref[nxt] = np.maximum(st.lam[nxt, -1], 1e-300)
+            tau[nxt] = np.array(TAU_STAGES)[np.minimum(stage[nxt], len(TAU_STAGES) - 1)] * lam_ref[nxt]
+            radius[nxt] = MAX_STEP
             _restage(st, nxt, tau, lay)
     return _finish(M, lay, best, best_DL, best_DRi, best_G, norm, it)
 
