@@ -123,7 +123,8 @@ def run() -> dict:
     return {
         "name": "mu",
         "description": "rc.mu upper+lower bounds, 6x6, blocks [[1,0],[1,0],[1,0],[3,3]], 1000 frequencies "
-                       "(warm, best of 3, CPU time) vs the per-frequency LMI (cvxpy + Clarabel) at 12 frequencies",
+                       "(warm, best of 3, CPU time) vs the per-frequency LMI (cvxpy + Clarabel) "
+                       "at 12 frequencies",
         "metrics": metrics,
         "targets": TARGETS,
         "passed": passed,

@@ -41,9 +41,6 @@ from .physical import (
     modal_statespace,
     structural_model,
 )
-from .threads import blas_threads, set_blas_threads
-
-# --- mu analysis (mu helper) ---
 from .robust import (
     Block,
     BlockStructure,
@@ -55,6 +52,7 @@ from .robust import (
     robust_stability,
     worst_case_gain,
 )
+from .threads import blas_threads, set_blas_threads
 
 __version__ = "0.1.0"
 

@@ -263,7 +263,7 @@ def test_bad_options_are_refused():
 # ---------------------------------------------------------------------------- analyses
 def test_robust_stability_performance_and_worst_case_gain():
     rng = np.random.default_rng(1)
-    N = 0.4 * crandn(rng, 8, 2, 2)  # [[N11, N12], [N21, N22]]: one complex scalar uncertainty, SISO performance
+    N = 0.4 * crandn(rng, 8, 2, 2)  # [[N11, N12], [N21, N22]]: complex scalar uncertainty, SISO performance
     th = np.exp(1j * np.linspace(0, 2 * np.pi, 20001))
     rs = rc.robust_stability(N, [[1, 0]])
     np.testing.assert_allclose(rs.upper, np.abs(N[:, 0, 0]), rtol=1e-10)

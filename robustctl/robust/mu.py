@@ -145,7 +145,8 @@ class MuResult:
         where = f" at {self.f_peak_hz:.4g} Hz" if np.isfinite(self.f_peak_hz) else ""
         lines = [
             f"mu over {nf} frequenc{'y' if nf == 1 else 'ies'}, blocks {self.blocks.mussv().tolist()} "
-            f"({self.method}): peak upper bound {self.peak:.4g}{where}, peak lower bound {self.lower_peak:.4g}.",
+            f"({self.method}): peak upper bound {self.peak:.4g}{where}, "
+            f"peak lower bound {self.lower_peak:.4g}.",
         ]
         lo, hi = self.stability_margin_bounds
         lines.append(
@@ -164,8 +165,9 @@ class MuResult:
         return summary + self.table()._repr_html_()
 
     def __repr__(self) -> str:
-        return (f"MuResult(peak={self.peak:.4g}, f_peak_hz={self.f_peak_hz:.4g}, lower_peak={self.lower_peak:.4g}, "
-                f"n_freq={self.f_hz.size}, blocks={self.blocks.mussv().tolist()})")
+        return (f"MuResult(peak={self.peak:.4g}, f_peak_hz={self.f_peak_hz:.4g}, "
+                f"lower_peak={self.lower_peak:.4g}, n_freq={self.f_hz.size}, "
+                f"blocks={self.blocks.mussv().tolist()})")
 
     def plot(self, fig: Any = None, *, title: str = "") -> Any:
         """Upper and lower bound against frequency (log axis); returns the matplotlib Figure."""
@@ -206,7 +208,9 @@ def as_frequency_array(M: Any, f_hz: Any = None, what: str = "M") -> tuple[np.nd
     """
     if isinstance(M, FrequencyData):
         if f_hz is not None:
-            raise SynthesisError(f"{what} is a FrequencyData, which carries its own frequencies; do not pass f_hz.")
+            raise SynthesisError(
+                f"{what} is a FrequencyData, which carries its own frequencies; do not pass f_hz."
+            )
         return np.asarray(M.response, complex), np.asarray(M.f_hz, float)
     if _is_system(M):
         if f_hz is None:
@@ -231,7 +235,9 @@ def as_frequency_array(M: Any, f_hz: Any = None, what: str = "M") -> tuple[np.nd
         return arr, np.full(arr.shape[0], np.nan)
     f = _frequencies(f_hz)
     if f.size != arr.shape[0]:
-        raise SynthesisError(f"f_hz has {f.size} frequencies but {what} has {arr.shape[0]}; give one per matrix.")
+        raise SynthesisError(
+            f"f_hz has {f.size} frequencies but {what} has {arr.shape[0]}; give one per matrix."
+        )
     return arr, f
 
 
@@ -249,7 +255,9 @@ def _frequencies(f_hz: Any) -> np.ndarray:
 
 def _check(M: np.ndarray, bs: BlockStructure) -> None:
     if M.shape[0] == 0 or M.shape[1] == 0 or M.shape[2] == 0:
-        raise SynthesisError(f"M is empty (shape {M.shape}); mu needs at least one frequency and one channel.")
+        raise SynthesisError(
+            f"M is empty (shape {M.shape}); mu needs at least one frequency and one channel."
+        )
     bs.check_matrix_shape(M.shape)
     bad = ~np.isfinite(M).all(axis=(1, 2))
     if bad.any():
@@ -274,7 +282,8 @@ def _bounds_chunk(M: np.ndarray, bs: BlockStructure, lower: bool, method: str, s
         lb = lower_bound(M, lay, ub.a0, ub.w0, ub.upper, seed=seed)
         out.update(lower=lb.lower * size, delta=lb.delta / size[:, None, None], power=lb.iterations)
     else:
-        out.update(lower=np.zeros(M.shape[0]), delta=np.zeros((M.shape[0], lay.n_in, lay.n_out), complex), power=0)
+        nf = M.shape[0]
+        out.update(lower=np.zeros(nf), delta=np.zeros((nf, lay.n_in, lay.n_out), complex), power=0)
     out["t_lower"] = time.perf_counter() - t1
     if method == "lmi":
         _lmi_replace(M * size[:, None, None], lay, out)
@@ -379,7 +388,9 @@ def mu(M: Any, blocks: Any, f_hz: Any = None, *, lower: bool = True, method: str
     arr, f = as_frequency_array(M, f_hz)
     _check(arr, bs)
     if executor is not None and not isinstance(executor, Executor):
-        raise SynthesisError(f"executor must be a concurrent.futures.Executor; got {type(executor).__name__}.")
+        raise SynthesisError(
+            f"executor must be a concurrent.futures.Executor; got {type(executor).__name__}."
+        )
     t0 = time.perf_counter()
     slices = _chunks(arr.shape[0], executor, chunk)
     if executor is None:

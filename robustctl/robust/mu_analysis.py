@@ -36,8 +36,9 @@ def _split(closed_loop: Any, blocks: Any, f_hz: Any):
     n_out, n_in = N.shape[1], N.shape[2]
     if bs.n_out > n_out or bs.n_in > n_in:
         raise SynthesisError(
-            f"the uncertainty blocks {bs.mussv().tolist()} need {bs.n_out} outputs x {bs.n_in} inputs; the closed "
-            f"loop has only {n_out} x {n_in}. Its first outputs/inputs must be the uncertainty channels."
+            f"the uncertainty blocks {bs.mussv().tolist()} need {bs.n_out} outputs x {bs.n_in} inputs; "
+            f"the closed loop has only {n_out} x {n_in}. Its first outputs/inputs must be the "
+            "uncertainty channels."
         )
     return N, f, bs
 
@@ -74,8 +75,9 @@ def _with_performance(bs: BlockStructure, n_out: int, n_in: int) -> tuple[BlockS
         return bs, last.rows, last.cols
     if pw <= 0 or pz <= 0:
         raise SynthesisError(
-            f"the closed loop has {n_out} outputs x {n_in} inputs and the uncertainty blocks use {bs.n_out} x "
-            f"{bs.n_in}; the performance channels (the rest) need at least one input and one output."
+            f"the closed loop has {n_out} outputs x {n_in} inputs and the uncertainty blocks use "
+            f"{bs.n_out} x {bs.n_in}; the performance channels (the rest) need at least one input and "
+            "one output."
         )
     return BlockStructure(bs.blocks + (Block("full", pw, pz, "performance"),)), pw, pz
 
@@ -142,7 +144,8 @@ class WorstCaseGain:
         return f"<p>{html.escape(self.summary())}</p>" + self.table()._repr_html_()
 
     def __repr__(self) -> str:
-        return f"WorstCaseGain(peak={self.peak:.4g}, f_peak_hz={self.f_peak_hz:.4g}, lower_peak={self.lower_peak:.4g})"
+        return (f"WorstCaseGain(peak={self.peak:.4g}, f_peak_hz={self.f_peak_hz:.4g}, "
+                f"lower_peak={self.lower_peak:.4g})")
 
     def plot(self, fig: Any = None) -> Any:
         """Nominal and worst-case gain bounds against frequency (log axes)."""
