@@ -25,7 +25,7 @@ import numpy as np
 from ..errors import SynthesisError
 from ..table import Table
 from .blocks import Block, BlockStructure, as_block_structure
-from .mu import MuResult, _check, as_frequency_array, mu
+from .mu import MuResult, as_frequency_array, mu, validate_mu_input
 
 __all__ = ["robust_stability", "robust_performance", "worst_case_gain", "WorstCaseGain"]
 
@@ -212,7 +212,7 @@ def worst_case_gain(closed_loop: Any, blocks: Any, f_hz: Any = None, *, rel_tol:
     """
     N, f, bs = _split(closed_loop, blocks, f_hz)
     full, _, _ = _with_performance(bs, N.shape[1], N.shape[2])
-    _check(N, full)
+    validate_mu_input(N, full)
     if not (np.isfinite(rel_tol) and rel_tol > 0):
         raise SynthesisError(f"rel_tol must be a positive number; got {rel_tol!r}.")
     n_unc_out = bs.n_out

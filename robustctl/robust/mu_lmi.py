@@ -16,6 +16,8 @@ batched bound in :mod:`robustctl.robust.mu_upper`.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from ..errors import SynthesisError
@@ -75,7 +77,9 @@ def _feasible(prob, t, s, value: float) -> bool:
 
     t.value = value
     try:
-        prob.solve(solver=cp.CLARABEL)
+        with warnings.catch_warnings():  # "solution may be inaccurate" near the optimum: s decides
+            warnings.simplefilter("ignore", UserWarning)
+            prob.solve(solver=cp.CLARABEL)
     except cp.error.SolverError:
         return False
     if s.value is None:
