@@ -327,3 +327,27 @@ def test_edge_cases_zero_nilpotent_scale_and_single_real():
     assert rc.mu(np.array([[-3.0]]), [[-1, 0]]).lower[0] == pytest.approx(3.0)
     assert rc.mu(np.array([[-3.0]]), [[-1, 0]]).upper[0] == pytest.approx(3.0)
     assert rc.mu(np.array([[2j]]), [[-1, 0]]).upper[0] < 1e-6
+
+
+def test_analyses_on_a_system_and_worst_case_presentation():
+    # closed loop with one complex scalar uncertainty channel and one performance channel
+    A = np.array([[-0.3, 2.0], [-2.0, -0.3]])
+    B = np.array([[0.3, 1.0], [0.2, 0.0]])
+    C = np.array([[0.4, 0.1], [0.0, 1.0]])
+    sys = control.ss(A, B, C, np.zeros((2, 2)))
+    f = np.geomspace(0.05, 2.0, 40)
+    N = rc.freqresp(sys, f).response
+    rs = rc.robust_stability(sys, [[1, 0]], f)
+    np.testing.assert_allclose(rs.upper, np.abs(N[:, 0, 0]), rtol=1e-9)
+    assert rs.peak < 1
+    wc = rc.worst_case_gain(sys, [[1, 0]], f, rel_tol=1e-4)
+    th = np.exp(1j * np.linspace(0, 2 * np.pi, 4001))
+    a, b, c, d = (N[:, i, j, None] for i, j in ((0, 0), (0, 1), (1, 0), (1, 1)))
+    brute = np.abs(d + c * th * b / (1 - a * th)).max(axis=1)  # F_u(N, delta) over |delta| = 1
+    np.testing.assert_allclose(wc.upper, brute, rtol=2e-3)
+    assert np.all(wc.lower <= brute * (1 + 1e-6)) and np.all(wc.upper >= brute * (1 - 1e-6))
+    assert np.all(wc.upper >= wc.nominal * (1 - 1e-9))
+    assert wc.f_peak_hz == f[int(np.argmax(wc.upper))]
+    assert "Worst-case gain" in wc.summary() and "<table>" in wc._repr_html_()
+    assert wc.table().column("worst-case gain <=")[0] == pytest.approx(wc.peak)
+    assert wc.plot().axes[0].get_yscale() == "log"
