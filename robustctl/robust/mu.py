@@ -47,6 +47,8 @@ def as_frequency_array(M: Any, f_hz: Any = None, what: str = "M") -> tuple[np.nd
     Accepts a constant matrix, an (nf, n_out, n_in) array, a FrequencyData, or a system
     (anything :func:`robustctl.lti.as_statespace` accepts) evaluated on ``f_hz``.
     """
+    if type(M).__name__ == "FrequencyResponseData":  # python-control's FRD
+        M = FrequencyData.from_control(M)
     if isinstance(M, FrequencyData):
         if f_hz is not None:
             raise SynthesisError(
@@ -68,7 +70,9 @@ def as_frequency_array(M: Any, f_hz: Any = None, what: str = "M") -> tuple[np.nd
     except (TypeError, ValueError) as exc:
         raise SynthesisError(f"{what} must be a matrix, an (nf, n_out, n_in) array, a FrequencyData or a "
                              f"system; got {type(M).__name__}.") from exc
-    if arr.ndim == 2:
+    if arr.ndim == 0:
+        arr = arr.reshape(1, 1, 1)
+    elif arr.ndim == 2:
         arr = arr[None]
     if arr.ndim != 3:
         raise SynthesisError(f"{what} must be (n_out, n_in) or (nf, n_out, n_in); got shape {arr.shape}.")
@@ -109,14 +113,15 @@ def validate_mu_input(M: np.ndarray, bs: BlockStructure) -> None:
 
 # ---------------------------------------------------------------------------- computation
 @limit_blas
-def _bounds_chunk(M: np.ndarray, bs: BlockStructure, lower: bool, method: str, seed: int) -> dict:
+def _bounds_chunk(M: np.ndarray, bs: BlockStructure, lower: bool, method: str, seed: int,
+                  time_budget_s: float = 120.0) -> dict:
     """Bounds on one chunk of frequencies (top level, so executors can pickle it)."""
     lay = layout_of(bs)
     t0 = time.perf_counter()
     size = np.abs(M).max(axis=(1, 2))
     size = np.where(size > 0, size, 1.0)  # mu(c M) = c mu(M): work at unit size (no over/underflow)
     M = M / size[:, None, None]
-    ub = upper_bound(M, lay)
+    ub = upper_bound(M, lay, time_budget_s=time_budget_s)
     t1 = time.perf_counter()
     out = {"upper": ub.upper * size, "d": ub.dblocks, "g": [g * size[:, None, None] for g in ub.gblocks],
            "newton": ub.iterations, "t_upper": t1 - t0}
@@ -180,14 +185,15 @@ def _scalar_of(d: np.ndarray) -> np.ndarray:
 
 
 def mu(M: Any, blocks: Any, f_hz: Any = None, *, lower: bool = True, method: str = "auto",
-       executor: Executor | None = None, chunk: int | None = None, seed: int = 0) -> MuResult:
+       executor: Executor | None = None, chunk: int | None = None, seed: int = 0,
+       time_budget_s: float = 120.0) -> MuResult:
     """Upper and lower bounds of the structured singular value, over frequency.
 
     Parameters
     ----------
     M : array_like, FrequencyData or system
-        A constant matrix (n_out, n_in), an array (nf, n_out, n_in), a FrequencyData
-        (response (nf, n_out, n_in)), or a system (control.StateSpace, TransferFunction,
+        A constant matrix (n_out, n_in) or scalar, an array (nf, n_out, n_in), a FrequencyData
+        (response (nf, n_out, n_in)) or python-control FrequencyResponseData, or a system (control.StateSpace, TransferFunction,
         anything with ``.statespace()``) evaluated at ``f_hz``. ``Delta`` closes the loop from
         the outputs of ``M`` back to its inputs: ``det(I - M Delta)``.
     blocks : BlockStructure, list of Block, or MATLAB mussv rows
@@ -207,6 +213,9 @@ def mu(M: Any, blocks: Any, f_hz: Any = None, *, lower: bool = True, method: str
         Frequencies per chunk (default: about an eighth of the grid with an executor).
     seed : int
         Seed of the lower bound's random start.
+    time_budget_s : float
+        Wall-clock limit of the upper bound's refinement per chunk (s); the bound stays valid
+        (only less tight) when it stops early.
 
     Returns
     -------
@@ -226,6 +235,8 @@ def mu(M: Any, blocks: Any, f_hz: Any = None, *, lower: bool = True, method: str
     """
     if method not in _METHODS:
         raise SynthesisError(f"method must be one of {_METHODS}; got {method!r}.")
+    if not (isinstance(time_budget_s, (int, float)) and time_budget_s > 0):
+        raise SynthesisError(f"time_budget_s must be a positive number of seconds; got {time_budget_s!r}.")
     bs = as_block_structure(blocks)
     arr, f = as_frequency_array(M, f_hz)
     validate_mu_input(arr, bs)
@@ -236,9 +247,10 @@ def mu(M: Any, blocks: Any, f_hz: Any = None, *, lower: bool = True, method: str
     t0 = time.perf_counter()
     slices = _chunks(arr.shape[0], executor, chunk)
     if executor is None:
-        parts = [_bounds_chunk(arr[s], bs, lower, method, seed) for s in slices]
+        parts = [_bounds_chunk(arr[s], bs, lower, method, seed, time_budget_s) for s in slices]
     else:
-        futures = [executor.submit(_bounds_chunk, arr[s], bs, lower, method, seed) for s in slices]
+        futures = [executor.submit(_bounds_chunk, arr[s], bs, lower, method, seed, time_budget_s)
+                   for s in slices]
         parts = [fut.result() for fut in futures]
     out = _merge(parts)
     out["info"]["t_total_s"] = time.perf_counter() - t0
