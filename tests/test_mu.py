@@ -351,3 +351,15 @@ def test_analyses_on_a_system_and_worst_case_presentation():
     assert "Worst-case gain" in wc.summary() and "<table>" in wc._repr_html_()
     assert wc.table().column("worst-case gain <=")[0] == pytest.approx(wc.peak)
     assert wc.plot().axes[0].get_yscale() == "log"
+
+
+def test_scalar_and_python_control_frd_inputs():
+    assert rc.mu(3.0, [[1, 0]]).upper[0] == pytest.approx(3.0)
+    f = np.array([0.1, 1.0])
+    g = rc.freqresp(control.tf([1.0], [1.0, 1.0]), f)
+    frd = control.frd(g.response[:, 0, 0], 2 * np.pi * f)
+    res = rc.mu(frd, [[1, 1]])
+    np.testing.assert_allclose(res.upper, np.abs(g.response[:, 0, 0]), rtol=1e-10)
+    np.testing.assert_allclose(res.f_hz, f)
+    with pytest.raises(rc.SynthesisError, match="time_budget_s"):
+        rc.mu(np.eye(2), [[1, 0], [1, 0]], time_budget_s=0)

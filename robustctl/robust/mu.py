@@ -193,8 +193,9 @@ def mu(M: Any, blocks: Any, f_hz: Any = None, *, lower: bool = True, method: str
     ----------
     M : array_like, FrequencyData or system
         A constant matrix (n_out, n_in) or scalar, an array (nf, n_out, n_in), a FrequencyData
-        (response (nf, n_out, n_in)) or python-control FrequencyResponseData, or a system (control.StateSpace, TransferFunction,
-        anything with ``.statespace()``) evaluated at ``f_hz``. ``Delta`` closes the loop from
+        (response (nf, n_out, n_in)) or python-control FrequencyResponseData, or a system
+        (control.StateSpace, TransferFunction, anything with ``.statespace()``) evaluated at
+        ``f_hz``. ``Delta`` closes the loop from
         the outputs of ``M`` back to its inputs: ``det(I - M Delta)``.
     blocks : BlockStructure, list of Block, or MATLAB mussv rows
         ``[[-r, 0]]`` repeated real scalar, ``[[r, 0]]`` repeated complex scalar, ``[[r, c]]``
