@@ -363,3 +363,16 @@ def test_scalar_and_python_control_frd_inputs():
     np.testing.assert_allclose(res.f_hz, f)
     with pytest.raises(rc.SynthesisError, match="time_budget_s"):
         rc.mu(np.eye(2), [[1, 0], [1, 0]], time_budget_s=0)
+
+
+def test_repeated_scalar_blocks_get_hermitian_d_matrices():
+    rng = np.random.default_rng(8)
+    M = crandn(rng, 6, 5, 5)
+    res = rc.mu(M, [[3, 0], [2, 2]])
+    D = res.d_matrices[0]
+    assert D.shape == (6, 3, 3)
+    np.testing.assert_allclose(D, np.swapaxes(D, 1, 2).conj(), atol=1e-12)
+    assert np.all(np.linalg.eigvalsh(D) > 0)
+    for k in range(6):  # the scaled matrix attains the bound
+        DL, DR = _dl_dr(res, k)
+        assert np.linalg.norm(DL @ M[k] @ np.linalg.inv(DR), 2) == pytest.approx(res.upper[k], rel=1e-9)

@@ -289,6 +289,14 @@ def _restage(st: _State, idx: np.ndarray, tau: np.ndarray, lay: Layout) -> None:
     st.F[idx], st.w[idx], st.g[idx], st.hess[idx] = F, w, g, h
 
 
+def _hermitian_factor(D: np.ndarray) -> np.ndarray:
+    """The Hermitian positive definite ``sqrt(D^H D)`` (same ``X = D^H D``, hence the same bound)."""
+    if D.shape[-1] == 1:
+        return np.abs(D).astype(complex)
+    ev, V = np.linalg.eigh(_herm(D) @ D)
+    return (V * np.sqrt(np.maximum(ev, 0.0))[:, None, :]) @ _herm(V)
+
+
 def _finish(M, lay, best, DL, DRi, G, norm, iterations) -> UpperBound:
     """Unscale: the bound, per-block D (normalised, last block 1) and G of the LMI, top vectors."""
     nf = M.shape[0]
@@ -298,9 +306,9 @@ def _finish(M, lay, best, DL, DRi, G, norm, iterations) -> UpperBound:
     last = dblocks[-1]
     c = np.abs(np.linalg.det(last)) ** (1.0 / last.shape[-1])
     c = np.where(c > 0, c, 1.0)
-    dblocks = [d / c[:, None, None] for d in dblocks]
+    dblocks = [_hermitian_factor(d / c[:, None, None]) for d in dblocks]
     gblocks = []
-    for _k, (o, i, kind) in enumerate(zip(lay.out, lay.inp, lay.kinds)):
+    for o, i, kind in zip(lay.out, lay.inp, lay.kinds):
         r = i.stop - i.start
         if kind != "real" or G is None:
             gblocks.append(np.zeros((nf, r, r), complex) if kind != "full" else np.zeros((nf, 1, 1), complex))
