@@ -199,6 +199,17 @@ class _State:
         else:
             self.g, self.hess = _derivatives(A, G, self.lam, self.Q, self.w, tau, lay)
 
+    def accept(self, acc, ok, At, Gt, lam, Q, Ft, w, left, right_inv, tau, lay) -> None:
+        """Move the frequencies ``acc`` (``ok`` among the trial points) to their trial points."""
+        G = None if Gt is None else Gt[ok]
+        self.g[acc], self.hess[acc] = _derivatives(At[ok], G, lam[ok], Q[ok], w[ok], tau[acc], lay)
+        self.A[acc], self.lam[acc], self.Q[acc] = At[ok], lam[ok], Q[ok]
+        self.F[acc], self.w[acc] = Ft[ok], w[ok]
+        self.DL[acc] = _scale(left[ok], self.DL[acc], None)
+        self.DRi[acc] = _scale(None, self.DRi[acc], right_inv[ok])
+        if G is not None:
+            self.G[acc] = G
+
     def take(self, idx):
         """Copy of the fields at the frequencies ``idx`` (for in-place updates)."""
         return {k: getattr(self, k)[idx] for k in ("A", "G", "DL", "DRi", "lam", "Q", "F", "w", "g", "hess")
@@ -252,16 +263,9 @@ def upper_bound(M: np.ndarray, lay: Layout, *, time_budget_s: float = 60.0,
         radius[idx] = np.where(ok, np.minimum(MAX_STEP, np.maximum(radius[idx], 2.0 * size)), 0.25 * size)
         acc = idx[ok]
         if acc.size:
-            g, h = _derivatives(At[ok], None if Gt is None else Gt[ok], lam[ok], Q[ok], w[ok], tau[acc], lay)
-            st.A[acc], st.lam[acc], st.Q[acc], st.F[acc], st.w[acc] = At[ok], lam[ok], Q[ok], Ft[ok], w[ok]
-            st.g[acc], st.hess[acc] = g, h
-            st.DL[acc] = _scale(left[ok], st.DL[acc], None)
-            st.DRi[acc] = _scale(None, st.DRi[acc], right_inv[ok])
-            if G is not None:
-                st.G[acc] = Gt[ok]
-            better = lam[ok, -1] < best[acc]
-            b = acc[better]
-            best[b] = lam[ok, -1][better]
+            st.accept(acc, ok, At, Gt, lam, Q, Ft, w, left, right_inv, tau, lay)
+            b = acc[lam[ok, -1] < best[acc]]
+            best[b] = st.lam[b, -1]
             best_DL[b], best_DRi[b] = st.DL[b], st.DRi[b]
             if G is not None:
                 best_G[b] = st.G[b]
