@@ -82,10 +82,10 @@ def positive_number(
     what = "non-negative" if allow_zero else "positive"
     unit = f" ({unit})" if unit else ""
     if not _is_real_number(value) or not np.isfinite(float(value)):
-        raise error(f"{name} must be a {what} finite number{unit}; got {value!r}.")
+        raise error(f"{name} must be {what} and finite{unit}; got {value!r}.")
     v = float(value)
     if v < 0 or (v == 0 and not allow_zero):
-        raise error(f"{name} must be a {what} finite number{unit}; got {value!r}.")
+        raise error(f"{name} must be {what} and finite{unit}; got {value!r}.")
     return v
 
 

@@ -15,13 +15,15 @@ from __future__ import annotations
 
 import html
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
 
 from ..errors import FitError
 from ..frd import FrequencyData
+from ..lti import rebuild_statespace, statespace_state
+from ..modes import Mode
 from ..table import Table
 from ..threads import limit_blas
 from ._problem import as_frequency_data
@@ -37,37 +39,6 @@ __all__ = ["Mode", "MeasurementModel", "fit_measurement_model"]
 
 #: fixed-point steps of the leakage correction
 LEAKAGE_STEPS = 4
-
-
-@dataclass(frozen=True, eq=False)
-class Mode:
-    """One identified mode (or a group of ``rank`` modes sharing a pole).
-
-    Attributes
-    ----------
-    f_hz : float
-        Natural frequency ``|p| / 2 pi``, Hz.
-    zeta : float
-        Damping ratio ``-Re p / |p|``.
-    pole : complex
-        Pole with ``Im p > 0``, rad/s.
-    residue : ndarray, complex, shape (n_out, n_in)
-        Residue matrix (rank ``rank``).
-    rank : int
-        Number of modes at this pole (1 for an isolated physical mode).
-    output_shape : ndarray, complex, shape (n_out, rank)
-        ``C = U sqrt(S)`` of the residue's SVD (Caltech eq. 10).
-    input_shape : ndarray, complex, shape (rank, n_in)
-        ``B = sqrt(S) V^*``.
-    """
-
-    f_hz: float
-    zeta: float
-    pole: complex
-    residue: np.ndarray
-    rank: int
-    output_shape: np.ndarray
-    input_shape: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,6 +73,41 @@ class MeasurementModel:
     raw_data: FrequencyData
     leakage_corrected: bool = False
     order_scan: tuple[tuple[int, float], ...] = ()
+
+    def statespace(self):
+        """The real modal ``control.StateSpace`` (the state-space protocol, :func:`rc.as_statespace`)."""
+        return self.sys
+
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        return tuple(self.fit.inputs)
+
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        return tuple(self.fit.outputs)
+
+    def summary(self) -> str:
+        """A few sentences in plain words."""
+        lo, hi = self.band_hz
+        lines = [
+            f"MeasurementModel of {len(self.outputs)} outputs x {len(self.inputs)} inputs on "
+            f"{lo:.4g}-{hi:.4g} Hz: {self.n_modes} modes, {self.sys.nstates} states.",
+            f"Complex-log cost J = {self.cost.total:.4g} (MACE eq. 5), rms log-magnitude error "
+            f"{self.cost.rms_db_total:.3g} dB.",
+        ]
+        if self.leakage_corrected:
+            lines.append("The data were corrected for the H1 estimator's window leakage before fitting.")
+        if self.order_scan:
+            lines.append(
+                "Orders tried (n_modes: J): " + ", ".join(f"{n}: {j:.3g}" for n, j in self.order_scan) + "."
+            )
+        return "\n".join(lines)
+
+    def __reduce__(self):
+        """Pickle the state space as matrices and names (python-control's StateSpace holds a lambda)."""
+        state = {f.name: getattr(self, f.name) for f in fields(self)}
+        state["sys"] = statespace_state(self.sys)
+        return (_rebuild_measurement_model, (state,))
 
     @property
     def n_modes(self) -> int:
@@ -144,11 +150,8 @@ class MeasurementModel:
         )
 
     def _repr_html_(self) -> str:
-        head = html.escape(
-            f"MeasurementModel: {self.n_modes} modes, {self.sys.nstates} states, "
-            f"{len(self.fit.outputs)} outputs x {len(self.fit.inputs)} inputs"
-        )
-        return f"<p><b>{head}</b></p>" + self.table()._repr_html_() + self.cost.table()._repr_html_()
+        summary = "".join(f"<p>{html.escape(line)}</p>" for line in self.summary().splitlines())
+        return summary + self.table()._repr_html_() + self.cost.table()._repr_html_()
 
     def __repr__(self) -> str:
         return (
@@ -265,7 +268,8 @@ def _modes(fit: RationalFit) -> tuple[Mode, ...]:
         if p.imag == 0 or k == 0:
             continue
         c, b = residue_factors(r, int(k))
-        out.append(Mode(float(f), float(z), complex(p), r, int(k), c, b))
+        mode = Mode(float(f), float(z), r, complex(p), int(k), output_shape=c, input_shape=b)
+        out.append(mode)
     return tuple(out)
 
 
@@ -377,3 +381,8 @@ def _check_modes(n_modes: Any) -> int:
     if isinstance(n_modes, (bool, np.bool_)) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
         raise FitError(f"n_modes must be a positive integer (or None for automatic); got {n_modes!r}.")
     return int(n_modes)
+
+
+def _rebuild_measurement_model(state: dict) -> MeasurementModel:
+    state = dict(state, sys=rebuild_statespace(state["sys"]))
+    return MeasurementModel(**state)
