@@ -3,7 +3,6 @@ sensor / actuator / structural split of the log error, on a 3-DOF spring-mass ch
 
 from __future__ import annotations
 
-
 import control
 import matplotlib
 import numpy as np

@@ -32,7 +32,7 @@ from ..frd import FrequencyData
 from ..lti import DB_PER_NEPER, as_statespace, pole_frequency_damping
 from ..modes import Mode
 from ..table import Table
-from .residual import Residual, as_model, log_ratio
+from .residual import NEGLIGIBLE_DB, Residual, as_model, log_ratio
 
 __all__ = [
     "Comparison",
@@ -677,7 +677,7 @@ def compare(
     threshold_db: float = 3.0,
     n_bands: int = 5,
     max_zeta: float = 0.5,
-    min_channel_db: float | None = -80.0,
+    min_channel_db: float | None = NEGLIGIBLE_DB,
     weights: Any = None,
 ) -> Comparison:
     """Compare a physical model with measured frequency responses (MACE eq. 5, Table 1).

@@ -45,9 +45,15 @@ __all__ = [
     "alignment",
     "orthogonality",
     "normalized",
+    "NEGLIGIBLE_DB",
     "as_model",
     "physical_model",
 ]
+
+#: Default level (dB) below which a channel counts as negligible (decoupled) and gets weight 0
+#: in compare, update and diagnose (one rule, so they report one cost).
+NEGLIGIBLE_DB = -80.0
+
 
 class _FixedSystem:
     """A system without parameters (StateSpace, transfer function, MeasurementModel, fit) seen
@@ -157,7 +163,7 @@ class Residual:
         data: FrequencyData,
         band: Sequence[float] | None = None,
         point_weights: Any = "auto",
-        min_channel_db: float | None = -80.0,
+        min_channel_db: float | None = NEGLIGIBLE_DB,
         *,
         weights: Any = None,
     ) -> None:

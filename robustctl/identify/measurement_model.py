@@ -20,13 +20,13 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import as_frequency_data, band_data, renamed_keyword
 from ..errors import FitError
 from ..frd import FrequencyData
 from ..lti import rebuild_statespace, statespace_state
 from ..modes import Mode
 from ..table import Table
 from ..threads import limit_blas
-from ._problem import as_frequency_data
 from .cost import LogCost, channel_cost
 from .grouping import group_modes
 from .leakage import EstimatorSettings, estimator_settings, leakage_factor
@@ -280,7 +280,7 @@ def fit_measurement_model(
     band: tuple[float, float] | None = None,
     method: str = "vf",
     groups: Any = None,
-    weights: Any = None,
+    point_weights: Any = "auto",
     correct_leakage: bool | str = False,
     rank_tol: float = 0.1,
     max_modes: int = 24,
@@ -288,6 +288,8 @@ def fit_measurement_model(
     target_db: float | None = None,
     max_iter: int | None = None,
     refine: bool = True,
+    *,
+    weights: Any = None,
 ) -> MeasurementModel:
     """Identify a measurement model of frequency-response data in one call.
 
@@ -308,8 +310,10 @@ def fit_measurement_model(
     groups : optional
         Use the Caltech route: one SIMO fit of ``n_modes`` modes per input, combined, then
         grouped by :func:`group_modes` with this ``groups`` argument (e.g. ``(2, 1, 2, 1)``).
-    weights : array_like, optional
-        Per-frequency weights (default: coherence-based).
+    point_weights : "auto", None, "coherence" or array_like
+        Data-point weights of the fits on the squared log error
+        (:func:`robustctl.checks.point_weights`; default coherence weights when the data carry
+        coherence). ``weights=`` is the deprecated name. The reported ``cost`` is unweighted.
     correct_leakage : False, True or "auto"
         Undo the H1 estimator's window leakage (see :mod:`robustctl.identify.leakage`). It
         assumes white (flat-spectrum) ZOH excitation, as in the Caltech random-noise tests, and
@@ -337,25 +341,26 @@ def fit_measurement_model(
     MeasurementModel
     """
     max_modes, parsimony = _check_selection(max_modes, parsimony)
+    point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     fd = as_frequency_data(data)
-    band_data = fd if band is None else fd.band(*band)
+    band_fd = band_data(fd, band)
     st = _settings(fd, correct_leakage)
-    kw = dict(method=method, weights=weights, max_iter=max_iter)
+    kw = dict(method=method, point_weights=point_weights, max_iter=max_iter)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifyWarning)
         if n_modes is None:
             (fit, used, cost), scan = _select_order(
-                band_data, groups, st, kw, rank_tol, max_modes, parsimony, target_db, refine
+                band_fd, groups, st, kw, rank_tol, max_modes, parsimony, target_db, refine
             )
         else:
-            fit, used = _fit_corrected(band_data, 2 * _check_modes(n_modes), groups, st, kw, rank_tol, refine)
+            fit, used = _fit_corrected(band_fd, 2 * _check_modes(n_modes), groups, st, kw, rank_tol, refine)
             cost, scan = _score(fit, used), ()
     if target_db is not None and cost.rms_db_total > target_db:
         raise FitError(
             f"the measurement model reaches {cost.rms_db_total:.3g} dB rms log-magnitude error, above the "
             f"target {target_db:g} dB; raise n_modes (or leave it None), narrow the band or relax target_db."
         )
-    return MeasurementModel(fit.statespace(), _modes(fit), cost, fit, used, band_data, st is not None, scan)
+    return MeasurementModel(fit.statespace(), _modes(fit), cost, fit, used, band_fd, st is not None, scan)
 
 
 def _check_selection(max_modes: Any, parsimony: Any) -> tuple[int, float]:
