@@ -49,6 +49,7 @@ __all__ = [
     "flag",
     "probability",
     "renamed_keyword",
+    "user_stacklevel",
 ]
 
 #: Coherence above this counts as this in :func:`coherence_weights` (a floor on the error
@@ -136,12 +137,25 @@ def renamed_keyword(new: Any, old: Any, new_name: str, old_name: str, default: A
         return new
     if new is not default and not (isinstance(new, str) and isinstance(default, str) and new == default):
         raise DataError(f"give {new_name}= only; {old_name}= is its deprecated old name.")
+    what = " (data-point weights on the squared log error)" if new_name == "point_weights" else ""
     warnings.warn(
-        f"{old_name}= is deprecated; call it {new_name}= (data-point weights on the squared log error).",
+        f"{old_name}= is deprecated; call it {new_name}={what}.",
         DeprecationWarning,
-        stacklevel=3,
+        stacklevel=user_stacklevel(),
     )
     return old
+
+
+def user_stacklevel() -> int:
+    """The ``stacklevel`` of ``warnings.warn`` that points at the first caller outside robustctl."""
+    import os
+    import sys
+
+    package = os.path.dirname(os.path.abspath(__file__))
+    frame, level = sys._getframe(1), 1
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(package):
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 # ---------------------------------------------------------------------------- band

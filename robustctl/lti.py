@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from .checks import as_frequency_data, band_mask, match_channels, renamed_keyword
+from .checks import as_frequency_data, band_mask, match_channels, renamed_keyword, user_stacklevel
 from .checks import point_weights as point_weights_of
 from .errors import DataError, ModelError
 from .frd import FrequencyData, _as_frequencies
@@ -500,7 +500,7 @@ def _model_and_data(model: Any, data: Any, func: str) -> tuple[Any, FrequencyDat
         warnings.warn(
             f"{func}(data, model) is deprecated; the order is {func}(model, data) as in rc.compare.",
             DeprecationWarning,
-            stacklevel=3,
+            stacklevel=user_stacklevel(),
         )
         model, data = data, model
     return model, as_frequency_data(data)

@@ -28,6 +28,7 @@ import scipy.optimize
 import scipy.signal
 
 from ..checks import integer, match_channels, positive_number, renamed_keyword
+from ..cost import LogCost, cost_report
 from ..frd import FrequencyData
 from ..lti import DB_PER_NEPER, as_statespace, pole_frequency_damping
 from ..modes import Mode
@@ -440,12 +441,11 @@ class Comparison:
 
     Attributes
     ----------
-    cost : float
-        MACE's J (eq. 5) on the band, with the weights given.
-    cost_per_point : float
-        ``cost / (n_freq * n_out * n_in)`` (comparable across bands and data sets).
-    channel_cost : ndarray (n_out, n_in)
-        J per channel (sums to ``cost``).
+    log_cost : LogCost
+        The cost report (the package's one type): MACE's J (eq. 5) on the band with the
+        point weights, per channel and in total. ``cost`` (= ``log_cost.total``),
+        ``channel_cost`` (= ``log_cost.per_channel``) and ``cost_per_point``
+        (= ``log_cost.mean``) read it.
     f_hz : ndarray (n_freq,)
         Band frequencies, Hz.
     error : ndarray complex (n_freq, n_out, n_in)
@@ -471,9 +471,7 @@ class Comparison:
         Negligible channels left out of the cost (weight 0).
     """
 
-    cost: float
-    cost_per_point: float
-    channel_cost: np.ndarray
+    log_cost: LogCost
     f_hz: np.ndarray
     error: np.ndarray
     mag_error_db: np.ndarray
@@ -489,6 +487,21 @@ class Comparison:
     model_name: str = "model"
     threshold_db: float = 3.0
     dropped: tuple[tuple[str, str, float], ...] = ()
+
+    @property
+    def cost(self) -> float:
+        """MACE's J (eq. 5) on the band, with the point weights."""
+        return self.log_cost.total
+
+    @property
+    def channel_cost(self) -> np.ndarray:
+        """J per channel, shape (n_out, n_in) (sums to ``cost``)."""
+        return self.log_cost.per_channel
+
+    @property
+    def cost_per_point(self) -> float:
+        """``cost / (n_freq * n_out * n_in)`` (comparable across bands and data sets)."""
+        return self.log_cost.mean
 
     # ------------------------------------------------------------------ tables
     def table(self) -> Table:
@@ -729,8 +742,7 @@ def compare(
     d = res.data
     error = log_ratio(d.response, g_model)
     weighted = res.weights * error
-    channel_cost = np.sum(np.abs(weighted) ** 2, axis=0)
-    cost = float(channel_cost.sum())
+    report = cost_report(error, d.outputs, d.inputs, point_weights=res.point_weights)
     f = d.f_hz
     span = (float(f[0]), float(f[-1]))
     model_modes = statespace_modes(model.statespace(), span, res._out_idx, res._in_idx, max_zeta=max_zeta)
@@ -741,9 +753,7 @@ def compare(
         data_modes = peak_pick_modes(f, d.response)
         source = "peak picking"
     return Comparison(
-        cost=cost,
-        cost_per_point=cost / error.size,
-        channel_cost=channel_cost,
+        log_cost=report,
         f_hz=f,
         error=error,
         mag_error_db=error.real * DB_PER_NEPER,
