@@ -49,6 +49,7 @@ __all__ = [
     "flag",
     "probability",
     "renamed_keyword",
+    "UNSET",
     "user_stacklevel",
 ]
 
@@ -128,12 +129,26 @@ def probability(value: Any, name: str, error: type[RobustctlError] = DataError) 
     return float(value)
 
 
+class _Unset:
+    """The default of a deprecated keyword: tells "not given" apart from an explicit None."""
+
+    def __repr__(self) -> str:
+        return "<not given>"
+
+    def __reduce__(self):
+        return "UNSET"
+
+
+#: Default of deprecated keywords (``weights=``, ``update_params=``).
+UNSET: Any = _Unset()
+
+
 def renamed_keyword(new: Any, old: Any, new_name: str, old_name: str, default: Any = None) -> Any:
     """Resolve a renamed keyword: ``old`` (deprecated, warns) or ``new``; refuses both at once.
 
-    ``old`` is the sentinel ``None`` when not given.
+    ``old`` is :data:`UNSET` when not given.
     """
-    if old is None:
+    if old is UNSET:
         return new
     if new is not default and not (isinstance(new, str) and isinstance(default, str) and new == default):
         raise DataError(f"give {new_name}= only; {old_name}= is its deprecated old name.")
@@ -362,7 +377,7 @@ def as_frequency_data(data: Any, name: str = "data"):
         return data
     if isinstance(data, tuple) and len(data) == 2:
         return FrequencyData(*data)
-    if hasattr(data, "omega") and (hasattr(data, "fresp") or hasattr(data, "frdata")):
+    if hasattr(data, "omega") and (hasattr(data, "frdata") or hasattr(data, "fresp")):
         return FrequencyData.from_control(data)
     raise DataError(
         f"{name} must be a FrequencyData, a control.FrequencyResponseData or a pair (f_hz, response); "

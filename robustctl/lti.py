@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from .checks import as_frequency_data, band_mask, match_channels, renamed_keyword, user_stacklevel
+from .checks import UNSET, as_frequency_data, band_mask, match_channels, renamed_keyword, user_stacklevel
 from .checks import point_weights as point_weights_of
 from .errors import DataError, ModelError
 from .frd import FrequencyData, _as_frequencies
@@ -561,7 +561,7 @@ def log_cost(
     band: tuple[float, float] | None = None,
     point_weights: Any = "auto",
     *,
-    weights: Any = None,
+    weights: Any = UNSET,
 ) -> float:
     """The weighted complex-log cost of MACE eq. 5: ``J = sum W |log(G_data / G_model)|^2``.
 

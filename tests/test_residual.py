@@ -219,7 +219,7 @@ def test_band_outside_data(model, truth_data):
 
 def test_bad_weights(model, truth_data):
     with pytest.raises(rc.DataError, match=r"no coherence"):
-        Residual(model, truth_data, point_point_weights="coherence")
+        Residual(model, truth_data, point_weights="coherence")
     with pytest.raises(rc.DataError, match=r"point_weights of shape \(7,\) do not fit"):
         Residual(model, truth_data, point_weights=np.ones(7))
 

@@ -27,7 +27,7 @@ import numpy as np
 import scipy.optimize
 import scipy.signal
 
-from ..checks import integer, match_channels, positive_number, renamed_keyword
+from ..checks import UNSET, integer, match_channels, positive_number, renamed_keyword
 from ..cost import LogCost, cost_report
 from ..frd import FrequencyData
 from ..lti import DB_PER_NEPER, as_statespace, pole_frequency_damping
@@ -691,7 +691,7 @@ def compare(
     n_bands: int = 5,
     max_zeta: float = 0.5,
     min_channel_db: float | None = NEGLIGIBLE_DB,
-    weights: Any = None,
+    weights: Any = UNSET,
 ) -> Comparison:
     """Compare a physical model with measured frequency responses (MACE eq. 5, Table 1).
 

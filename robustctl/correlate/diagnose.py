@@ -47,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import renamed_keyword
+from ..checks import UNSET, renamed_keyword
 from ..errors import FitError, ModelError, RobustctlError
 from ..frd import FrequencyData
 from ..table import Table
@@ -792,8 +792,8 @@ def diagnose(
     alpha: float = ALPHA,
     min_gain: float = MIN_GAIN,
     time_budget_s: float = 120.0,
-    update_params: Sequence[str] | None = None,
-    weights: Any = None,
+    update_params: Any = UNSET,
+    weights: Any = UNSET,
 ) -> Diagnosis:
     """Rank physical effects by how much of the model-data residual each explains.
 

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..checks import (
+    UNSET,
     as_frequency_data,
     band_data,
     band_mask,
@@ -165,7 +166,7 @@ class Residual:
         point_weights: Any = "auto",
         min_channel_db: float | None = NEGLIGIBLE_DB,
         *,
-        weights: Any = None,
+        weights: Any = UNSET,
     ) -> None:
         point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
         data = as_frequency_data(data)

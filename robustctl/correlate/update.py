@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import renamed_keyword
+from ..checks import UNSET, renamed_keyword
 from ..errors import FitError
 from ..frd import FrequencyData
 from ..table import Table
@@ -547,7 +547,7 @@ def update(
     ftol: float = 1e-5,
     progress: bool | None = None,
     min_channel_db: float | None = NEGLIGIBLE_DB,
-    weights: Any = None,
+    weights: Any = UNSET,
 ) -> UpdateResult:
     """Update physical parameters so the model matches measured FRFs (MACE eqs. 5-9).
 

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import renamed_keyword
+from ..checks import UNSET, renamed_keyword
 from ..errors import DataError, ModelError
 from ..frd import FrequencyData
 from ..table import Table
@@ -210,7 +210,7 @@ def verify(
     *,
     band: Sequence[float] | None = None,
     point_weights: Any = "auto",
-    weights: Any = None,
+    weights: Any = UNSET,
     cost_ratio_tol: float = 2.0,
     freq_tol_pct: float = 4.0,
     cost_floor: float = 1e-6,

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import as_frequency_data, band_data, renamed_keyword
+from ..checks import UNSET, as_frequency_data, band_data, renamed_keyword
 from ..errors import FitError
 from ..frd import FrequencyData
 from ..lti import rebuild_statespace, statespace_state
@@ -289,7 +289,7 @@ def fit_measurement_model(
     max_iter: int | None = None,
     refine: bool = True,
     *,
-    weights: Any = None,
+    weights: Any = UNSET,
 ) -> MeasurementModel:
     """Identify a measurement model of frequency-response data in one call.
 

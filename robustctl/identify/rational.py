@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import renamed_keyword
+from ..checks import UNSET, renamed_keyword
 from ..errors import FitError
 from ..frd import FrequencyData
 from ..lti import pole_frequency_damping
@@ -206,7 +206,7 @@ def fit_rational(
     feedthrough: bool = True,
     rank_tol: float = 1e-8,
     *,
-    weights: Any = None,
+    weights: Any = UNSET,
 ) -> RationalFit:
     """Fit a rational model with one common denominator to SIMO/MIMO frequency-response data.
 

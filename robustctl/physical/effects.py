@@ -44,6 +44,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from ..checks import check_band
 from ..errors import ModelError
 from ..threads import limit_blas
 from . import electronics as el
@@ -1261,6 +1262,7 @@ def candidates(
     """
     if not isinstance(model, PhysicalModel):
         raise ModelError(f"candidates needs a PhysicalModel; got {type(model).__name__}.")
+    band = check_band(band)
     if kinds is not None:
         kinds = set(kinds)
         unknown = sorted(kinds - set(EFFECT_KINDS))

@@ -306,7 +306,9 @@ class PhysicalModel:
         return self._structure(self._theta(overrides))
 
     def _structure(self, theta: Mapping[str, float]) -> Structure:
-        struct = _fresh(self.structure(theta), self.name)
+        struct = self.structure(theta)
+        if self.structure_stages:  # effects change the structure in place
+            struct = _fresh(struct, self.name)
         if self.excluded_tags:
             struct = struct.without(self.excluded_tags)
         for stage in self.structure_stages:
