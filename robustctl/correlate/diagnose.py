@@ -52,7 +52,7 @@ from ..errors import FitError, ModelError, RobustctlError
 from ..frd import FrequencyData
 from ..table import Table
 from ..threads import limit_blas
-from .optimize import _bounds, levenberg_marquardt
+from .optimize import _bounds, levenberg_marquardt, marquardt_step
 from .residual import NEGLIGIBLE_DB, Residual, physical_model, sensitivities
 
 __all__ = ["diagnose", "Diagnosis", "CandidateResult", "effective_points"]
@@ -445,15 +445,6 @@ class _Null:
         return self._Q
 
 
-def _damped_step(A: np.ndarray, r: np.ndarray, lam: float) -> np.ndarray:
-    """Marquardt step ``min |A d + r|^2 + lam |diag(A^T A)^(1/2) d|^2``."""
-    d2 = np.sum(A**2, axis=0)
-    d2 = np.maximum(d2, 1e-12 * max(d2.max(initial=0.0), 1e-300))
-    M = np.vstack([A, np.diag(np.sqrt(lam * d2))])
-    rhs = np.concatenate([-r, np.zeros(A.shape[1])])
-    return np.linalg.lstsq(M, rhs, rcond=None)[0]
-
-
 def _fit_one(
     res_u: Residual, null: _Null, screen: dict[str, Any], max_iter: int, budget: float
 ) -> dict[str, Any]:
@@ -563,7 +554,7 @@ def _marquardt_try(A, r, cost, lam, to_point, evaluate, tries: int = 4):
     Returns ``(point, r_new, cost_new, lam_next)`` or None.
     """
     for _ in range(tries):
-        point = to_point(_damped_step(A, r, lam))
+        point = to_point(marquardt_step(A, r, lam))
         r_new = evaluate(*point)
         if r_new is not None:
             c_new = float(r_new @ r_new)
