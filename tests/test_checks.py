@@ -158,7 +158,8 @@ def test_compare_update_diagnose_log_cost_give_one_cost(chain, data):
     g2 = np.clip(data.coherence[keep], 0, rc.checks.COHERENCE_CAP)
     W = g2 / (1 - g2) / np.mean(g2 / (1 - g2))
     err = rc.log_error(chain, data, band=band)
-    assert rc.log_cost(chain, data, band=band) == pytest.approx(float(np.sum(W * np.abs(err) ** 2)), rel=1e-12)
+    direct = float(np.sum(W * np.abs(err) ** 2))
+    assert rc.log_cost(chain, data, band=band) == pytest.approx(direct, rel=1e-12)
 
 
 def test_measurement_model_cost_is_the_same_number_everywhere(data):
@@ -229,8 +230,14 @@ def test_results_pickle_and_share_one_convention(chain, data, systems):
     assert red.sys.nstates == 6 and red.bound == systems["BalancedTruncation"].bound
     cmp = rc.compare(chain, data)
     assert pickle.loads(pickle.dumps(cmp)).cost == cmp.cost
+    upd = rc.update(chain, data, params=["k_ground"], passes=1, drift_bands=0, max_iter=2)
+    diag = rc.diagnose(chain, data, [fx.SensorGain("a3")], n_fit=1, update_iter=2)
+    ver = rc.verify(upd.model, data, {"k_ground": 4.1e3})
+    assert pickle.loads(pickle.dumps(upd)).cost_after == upd.cost_after
+    assert pickle.loads(pickle.dumps(diag)).cost_nominal == diag.cost_nominal
+    assert pickle.loads(pickle.dumps(ver)).comparison.cost == ver.comparison.cost
     assert pickle.loads(pickle.dumps(mm.cost)).total == mm.cost.total
-    for result in (mm, systems["BalancedTruncation"], cmp, mm.cost):
+    for result in (mm, systems["BalancedTruncation"], cmp, mm.cost, upd, diag, ver):
         assert str(result.table())
         assert isinstance(result.summary(), str) and result.summary()
         assert "<table>" in result._repr_html_()
@@ -266,7 +273,7 @@ def test_anything_to_frequency_data(chain, data):
         assert rc.log_cost(rc.as_statespace(ss, inputs=["u1", "u2"], outputs=["y1", "y2"]), d,
                            point_weights=None) == pytest.approx(j, rel=1e-10)
     assert rc.compare(chain, frd).cost == pytest.approx(rc.compare(chain, data, point_weights=None).cost)
-    with pytest.raises(rc.DataError, match=r"^data must be a FrequencyData, a control.FrequencyResponseData or a"):
+    with pytest.raises(rc.DataError, match=r"^data must be a FrequencyData, a control.FrequencyResponseData"):
         rc.compare(chain, np.ones(3))
     with pytest.raises(rc.ModelError, match="is measured data, not a model"):
         rc.as_statespace(data)
