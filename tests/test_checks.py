@@ -122,14 +122,18 @@ def test_every_entry_point_refuses_mismatched_names_in_the_same_words(chain, dat
 
 
 def test_default_names_match_by_position_only_with_equal_counts(chain, data):
-    """u[0]/y[0] (python-control) or u1/y1 (FrequencyData) on either side: by position."""
+    """python-control's u[0]/y[0] on either side: by position; FrequencyData's u1/y1 are names."""
     sys = control.ss(chain.statespace())  # keep names
     unnamed = control.ss(sys.A, sys.B, sys.C, sys.D)  # u[0], u[1] / y[0], y[1]
     j_named = rc.log_cost(sys, data)
     assert rc.log_cost(unnamed, data) == pytest.approx(j_named, rel=1e-12)
     assert rc.compare(unnamed, data).cost == pytest.approx(rc.compare(sys, data).cost, rel=1e-12)
+    unnamed_data = rc.freqresp(unnamed, F_HZ).replace(response=data.response, coherence=data.coherence)
+    assert unnamed_data.inputs == ("u[0]", "u[1]")
+    assert rc.log_cost(sys, unnamed_data) == pytest.approx(j_named, rel=1e-12)
     plain = rc.FrequencyData(data.f_hz, data.response, coherence=data.coherence)  # u1, u2 / y1, y2
-    assert rc.log_cost(sys, plain) == pytest.approx(j_named, rel=1e-12)
+    with pytest.raises(rc.DataError, match=r"the model's outputs \['a2', 'a3'\] do not match the data's"):
+        rc.log_cost(sys, plain)
     with pytest.raises(rc.DataError, match=r"^the model has 1 outputs \['y\[0\]'\] but the data has 2"):
         rc.log_cost(unnamed[0, :], data)
     # the same names in another order are reordered, not matched by position
@@ -269,9 +273,9 @@ def test_anything_to_frequency_data(chain, data):
     pair = (data.f_hz, data.response)
     frd = data.to_control()
     j = rc.log_cost(ss, data, point_weights=None)
-    for d in (pair, frd):
-        assert rc.log_cost(rc.as_statespace(ss, inputs=["u1", "u2"], outputs=["y1", "y2"]), d,
-                           point_weights=None) == pytest.approx(j, rel=1e-10)
+    renamed = rc.as_statespace(ss, inputs=["u1", "u2"], outputs=["y1", "y2"])  # a pair's default names
+    assert rc.log_cost(renamed, pair, point_weights=None) == pytest.approx(j, rel=1e-10)
+    assert rc.log_cost(ss, frd, point_weights=None) == pytest.approx(j, rel=1e-10)  # names kept
     assert rc.compare(chain, frd).cost == pytest.approx(rc.compare(chain, data, point_weights=None).cost)
     with pytest.raises(rc.DataError, match=r"^data must be a FrequencyData, a control.FrequencyResponseData"):
         rc.compare(chain, np.ones(3))
