@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 import robustctl as rc
-from robustctl.physical import effects as fx
 
 matplotlib.use("Agg")
+fx = rc.effects
 
 F_HZ = np.linspace(0.5, 40.0, 300)
 M3 = np.diag([2.0, 1.0, 0.5])
@@ -248,8 +248,7 @@ def test_results_pickle_and_share_one_convention(chain, data, systems):
         assert result.plot() is not None
     assert "MeasurementModel of 2 outputs x 2 inputs" in mm.summary()
     assert all(isinstance(m, rc.Mode) for m in mm.modes)
-    from robustctl.correlate.compare import peak_pick_modes
-    assert all(isinstance(m, rc.Mode) for m in peak_pick_modes(data.f_hz, data.response))
+    assert all(isinstance(m, rc.Mode) for m in cmp.data_modes)
 
 
 def test_old_spellings_still_work_for_one_release(chain, data):

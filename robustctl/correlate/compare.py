@@ -469,6 +469,9 @@ class Comparison:
         Threshold used for the bands.
     dropped : tuple of (output, input, level_dB)
         Negligible channels left out of the cost (weight 0).
+    model_modes, data_modes : tuple of Mode
+        The modes found in the model and in the data (measurement model or peak picking) on
+        the band, before pairing (:class:`robustctl.Mode`).
     """
 
     log_cost: LogCost
@@ -487,6 +490,8 @@ class Comparison:
     model_name: str = "model"
     threshold_db: float = 3.0
     dropped: tuple[tuple[str, str, float], ...] = ()
+    model_modes: tuple[Mode, ...] = field(default=(), repr=False)
+    data_modes: tuple[Mode, ...] = field(default=(), repr=False)
 
     @property
     def cost(self) -> float:
@@ -769,4 +774,6 @@ def compare(
         model_name=getattr(model, "name", "model"),
         threshold_db=float(threshold_db),
         dropped=tuple(res.dropped),
+        model_modes=tuple(model_modes),
+        data_modes=tuple(data_modes),
     )
