@@ -253,8 +253,10 @@ def test_bad_input_is_refused_clearly(M, blocks, f_hz, words):
 def test_bad_options_are_refused():
     with pytest.raises(rc.SynthesisError, match="method"):
         rc.mu(np.eye(2), [[1, 0], [1, 0]], method="bisect")
-    with pytest.raises(rc.SynthesisError, match="Executor"):
+    with pytest.raises(rc.RobustctlError, match="executor must be"):
         rc.mu(np.eye(2), [[1, 0], [1, 0]], executor=object())
+    with pytest.raises(rc.SynthesisError, match="chunk"):
+        rc.mu(np.eye(2), [[1, 0], [1, 0]], chunk=0)
     fd = rc.freqresp(control.tf([1.0], [1.0, 1.0]), [1.0, 2.0])
     with pytest.raises(rc.SynthesisError, match="own frequencies"):
         rc.mu(fd, [[1, 1]], [1.0, 2.0])

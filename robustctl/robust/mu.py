@@ -17,12 +17,15 @@ from __future__ import annotations
 
 import time
 from concurrent.futures import Executor
+from functools import partial
 from typing import Any
 
 import numpy as np
 
+from ..checks import as_frequency_data, integer
 from ..errors import RobustctlError, SynthesisError
 from ..frd import FrequencyData
+from ..parallel import check_executor, parallel_map
 from ..threads import limit_blas
 from .blocks import BlockStructure, as_block_structure
 from .mu_layout import Layout, layout_of
@@ -47,8 +50,8 @@ def as_frequency_array(M: Any, f_hz: Any = None, what: str = "M") -> tuple[np.nd
     Accepts a constant matrix, an (nf, n_out, n_in) array, a FrequencyData, or a system
     (anything :func:`robustctl.lti.as_statespace` accepts) evaluated on ``f_hz``.
     """
-    if type(M).__name__ == "FrequencyResponseData":  # python-control's FRD
-        M = FrequencyData.from_control(M)
+    if hasattr(M, "omega") and (hasattr(M, "frdata") or hasattr(M, "fresp")):  # python-control's FRD
+        M = as_frequency_data(M, what)
     if isinstance(M, FrequencyData):
         if f_hz is not None:
             raise SynthesisError(
@@ -209,7 +212,8 @@ def mu(M: Any, blocks: Any, f_hz: Any = None, *, lower: bool = True, method: str
         within about 0.2 % of the LMI optimum); ``"lmi"``: solve the LMI with cvxpy + Clarabel
         at every frequency (slow, tenths of a second per frequency; the reference).
     executor : concurrent.futures.Executor, optional
-        Split the frequency grid into chunks and compute them on this executor.
+        Split the frequency grid into chunks and compute them on this executor (anything with
+        ``.submit``: thread or process pools, a dask ``Client.get_executor()``).
     chunk : int, optional
         Frequencies per chunk (default: about an eighth of the grid with an executor).
     seed : int
@@ -241,18 +245,13 @@ def mu(M: Any, blocks: Any, f_hz: Any = None, *, lower: bool = True, method: str
     bs = as_block_structure(blocks)
     arr, f = as_frequency_array(M, f_hz)
     validate_mu_input(arr, bs)
-    if executor is not None and not isinstance(executor, Executor):
-        raise SynthesisError(
-            f"executor must be a concurrent.futures.Executor; got {type(executor).__name__}."
-        )
+    check_executor(executor)
+    if chunk is not None:
+        chunk = integer(chunk, "chunk", SynthesisError, lo=1)
     t0 = time.perf_counter()
     slices = _chunks(arr.shape[0], executor, chunk)
-    if executor is None:
-        parts = [_bounds_chunk(arr[s], bs, lower, method, seed, time_budget_s) for s in slices]
-    else:
-        futures = [executor.submit(_bounds_chunk, arr[s], bs, lower, method, seed, time_budget_s)
-                   for s in slices]
-        parts = [fut.result() for fut in futures]
+    work = partial(_bounds_chunk, bs=bs, lower=lower, method=method, seed=seed, time_budget_s=time_budget_s)
+    parts = parallel_map(work, [arr[s] for s in slices], executor, desc="mu", progress=len(slices) > 1)
     out = _merge(parts)
     out["info"]["t_total_s"] = time.perf_counter() - t0
     return _result(out, f, bs, method)
