@@ -378,3 +378,16 @@ def test_repeated_scalar_blocks_get_hermitian_d_matrices():
     for k in range(6):  # the scaled matrix attains the bound
         DL, DR = _dl_dr(res, k)
         assert np.linalg.norm(DL @ M[k] @ np.linalg.inv(DR), 2) == pytest.approx(res.upper[k], rel=1e-9)
+
+
+def test_results_pickle():
+    import pickle
+
+    rng = np.random.default_rng(2)
+    N = 0.3 * crandn(rng, 5, 3, 3)
+    res = rc.mu(N, [[-1, 0], [2, 2]], np.linspace(1.0, 5.0, 5))
+    back = pickle.loads(pickle.dumps(res))
+    np.testing.assert_array_equal(back.upper, res.upper)
+    assert back.blocks == res.blocks and back.summary() == res.summary()
+    wc = rc.worst_case_gain(N, [[1, 0], [1, 0]])
+    assert pickle.loads(pickle.dumps(wc)).peak == wc.peak
