@@ -272,6 +272,8 @@ def test_robust_stability_performance_and_worst_case_gain():
     assert rs.stability_margin == pytest.approx(1 / np.abs(N[:, 0, 0]).max())
     rp = rc.robust_performance(N, [[1, 0]])
     assert rp.blocks.mussv().tolist() == [[1, 0], [1, 1]]
+    assert rp.blocks[-1].name == "performance"
+    np.testing.assert_allclose(rc.robust_performance(N, [[1, 0], [1, 1]]).upper, rp.upper)  # given in full
     wc = rc.worst_case_gain(N, [[1, 0]])
     assert np.any(np.abs(N[:, 0, 0]) >= 1) and np.any(np.abs(N[:, 0, 0]) < 1)
     for k in range(8):
