@@ -26,6 +26,7 @@ from .identify import (
     fit_rational,
     group_modes,
 )
+from .interconnect import PartitionedPlant, feedback, lft, parallel, series, star, upper_lft
 from .lti import freqresp, log_cost, log_error
 from .physical import (
     Frame,
@@ -40,6 +41,14 @@ from .physical import (
     modal_model,
     modal_statespace,
     structural_model,
+)
+from .signals import (
+    combine_inputs,
+    combine_outputs,
+    rename_signals,
+    scale_inputs,
+    scale_outputs,
+    select_signals,
 )
 from .threads import blas_threads, set_blas_threads
 
@@ -89,4 +98,18 @@ __all__ = [
     "modal_model",
     "modal_statespace",
     "MatrixStructure",
+    # named interconnection (interconnect.py, signals.py) and the generalized plant (robust/plant.py)
+    "PartitionedPlant",
+    "lft",
+    "upper_lft",
+    "star",
+    "series",
+    "parallel",
+    "feedback",
+    "rename_signals",
+    "scale_inputs",
+    "scale_outputs",
+    "select_signals",
+    "combine_inputs",
+    "combine_outputs",
 ]
