@@ -263,7 +263,7 @@ def _star_arrays(p1, p2, n_forward: int, n_back: int, what: str):
 
 
 def _loop_count(value: Any, default: int, what: str, upper: int) -> int:
-    return default if value is None else _count(value, what, upper)
+    return _count(default if value is None else value, what, upper)
 
 
 def _match_by_name(K: Any, inputs: Sequence[str], outputs: Sequence[str]):
@@ -449,6 +449,13 @@ def _as_gain_system(value: Any, n_out: int, n_in: int, inputs, outputs, what: st
 _BY_POSITION = "Pass by_name=False to connect by position."
 
 
+def _default_names(sys: Any) -> bool:
+    """True when ``sys`` carries python-control's default names ``u[i]`` / ``y[i]``, which say nothing."""
+    return list(sys.input_labels) == [f"u[{i}]" for i in range(sys.ninputs)] and list(
+        sys.output_labels
+    ) == [f"y[{i}]" for i in range(sys.noutputs)]
+
+
 def _series_arrays(p1, p2):
     """Cascade ``p2 * p1`` of ``(A, B, C, D)`` tuples (``p1`` acts first; states ``[x1; x2]``)."""
     A1, B1, C1, D1 = p1
@@ -464,7 +471,7 @@ def _series_pair(s1: Any, s2: Any, by_name: bool):
                              "a static gain in series")
     else:
         s2 = _system(s2, "a system in series")
-    if by_name:
+    if by_name and not _default_names(s2):
         T = _selection(list(s2.input_labels), s1.output_labels, "input(s) of the later system",
                        "In series(a, b) every input of b must be an output of a. " + _BY_POSITION)
     elif s2.ninputs != s1.noutputs:
@@ -483,9 +490,10 @@ def series(*systems: Any, by_name: bool = True):
     """Series connection ``systems[-1] * ... * systems[0]``, connecting signals by name.
 
     Each system after the first reads, by name, outputs of the one before it (outputs not
-    read are dropped); with ``by_name=False`` all outputs feed all inputs by position, as
-    ``control.series``. A number or array after the first system is a static gain on its
-    outputs (names kept).
+    read are dropped); with ``by_name=False``, or when the later system carries
+    python-control's default names ``u[i]``/``y[i]`` (which say nothing), all outputs feed
+    all inputs by position, as ``control.series``. A number or array after the first
+    system is a static gain on its outputs (names kept).
 
     Returns
     -------
@@ -559,8 +567,9 @@ def feedback(sys1: Any, sys2: Any = 1.0, sign: float = -1, *, by_name: bool = Tr
     ``sys2`` reads the outputs of ``sys1`` named like its inputs and adds (with ``sign``) to
     the inputs of ``sys1`` named like its outputs; a controller whose inputs are the plant's
     measurement names and outputs its control names closes the loop on those channels only.
-    With ``by_name=False`` (or a number / array ``sys2``) all outputs feed all inputs by
-    position, as ``control.feedback``.
+    With ``by_name=False``, a number / array ``sys2``, or a ``sys2`` with python-control's
+    default names ``u[i]``/``y[i]``, all outputs feed all inputs by position, as
+    ``control.feedback``.
 
     Parameters
     ----------
@@ -585,7 +594,7 @@ def feedback(sys1: Any, sys2: Any = 1.0, sign: float = -1, *, by_name: bool = Tr
         Sy, Su = np.eye(p), np.eye(m)
     else:
         K = _system(sys2, "the feedback system")
-        if by_name:
+        if by_name and not _default_names(K):
             hint = "In feedback(G, K) K's inputs must be outputs of G and K's outputs inputs of G. "
             Sy = _selection(list(K.input_labels), G.output_labels, "input(s) of the feedback system",
                             hint + _BY_POSITION)
