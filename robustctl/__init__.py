@@ -26,7 +26,7 @@ from .identify import (
     fit_rational,
     group_modes,
 )
-from .interconnect import PartitionedPlant, feedback, lft, parallel, series, star, upper_lft
+from .interconnect import PartitionedPlant, block_diagonal, feedback, lft, parallel, series, star, upper_lft
 from .lti import freqresp, log_cost, log_error
 from .physical import (
     Frame,
@@ -42,6 +42,7 @@ from .physical import (
     modal_statespace,
     structural_model,
 )
+from .robust import GeneralizedPlant, PlantWeight, generalized_plant, mixed_sensitivity
 from .signals import (
     combine_inputs,
     combine_outputs,
@@ -112,4 +113,9 @@ __all__ = [
     "select_signals",
     "combine_inputs",
     "combine_outputs",
+    "block_diagonal",
+    "GeneralizedPlant",
+    "PlantWeight",
+    "generalized_plant",
+    "mixed_sensitivity",
 ]

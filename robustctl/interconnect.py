@@ -27,7 +27,7 @@ import numpy as np
 from .errors import ModelError
 from .signals import _arrays, select_signals
 
-__all__ = ["PartitionedPlant", "lft", "upper_lft", "star", "series", "parallel", "feedback"]
+__all__ = ["PartitionedPlant", "lft", "upper_lft", "star", "series", "parallel", "feedback", "block_diagonal"]
 
 
 def _count(value: Any, what: str, upper: int) -> int:
@@ -408,6 +408,27 @@ def star(P1: Any, P2: Any, n_forward: int | None = None, n_back: int | None = No
     ins = list(S1.input_labels[:m1]) + list(S2.input_labels[n_forward:])
     outs = list(S1.output_labels[:q1]) + list(S2.output_labels[n_back:])
     return _named(A, B, C, D, dt, ins, outs, "star product")
+
+
+def block_diagonal(*systems: Any):
+    """Systems side by side, ``diag(G1, G2, ...)`` (MATLAB ``append``), keeping all names.
+
+    Returns
+    -------
+    control.StateSpace
+        Inputs and outputs concatenated in order (repeated names raise ModelError);
+        states first system first.
+    """
+    from scipy.linalg import block_diag
+
+    if not systems:
+        raise ModelError("block_diagonal needs at least one system.")
+    parts = [_system(s, f"system {i} of the block diagonal") for i, s in enumerate(systems)]
+    mats = [_arrays(s) for s in parts]
+    A, B, C, D = (block_diag(*[m[k] for m in mats]) for k in range(4))
+    ins = [n for s in parts for n in s.input_labels]
+    outs = [n for s in parts for n in s.output_labels]
+    return _named(A, B, C, D, _timebase(*parts), ins, outs, "block diagonal")
 
 
 # ============================================================================ series, parallel, feedback
