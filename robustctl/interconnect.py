@@ -36,8 +36,49 @@ def _count(value: Any, what: str, upper: int) -> int:
     return int(value)
 
 
+def _pack(value: Any) -> Any:
+    """A picklable stand-in for a ``control.StateSpace`` (python-control's holds a lambda)."""
+    import control
+
+    if isinstance(value, control.StateSpace):
+        return _PackedStateSpace(
+            *(np.array(m, dtype=float) for m in (value.A, value.B, value.C, value.D)), value.dt,
+            tuple(value.input_labels), tuple(value.output_labels), tuple(value.state_labels),
+        )
+    return value
+
+
 @dataclass(frozen=True)
-class PartitionedPlant:
+class _PackedStateSpace:
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    dt: Any
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    states: tuple[str, ...]
+
+    def unpack(self):
+        import control
+
+        return control.ss(self.A, self.B, self.C, self.D, self.dt, inputs=list(self.inputs),
+                          outputs=list(self.outputs), states=list(self.states))
+
+
+class PicklesStateSpaces:
+    """Mixin for frozen dataclasses holding ``control.StateSpace`` fields: pickle by matrices and names."""
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {k: _pack(v) for k, v in self.__dict__.items()}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        for k, v in state.items():
+            object.__setattr__(self, k, v.unpack() if isinstance(v, _PackedStateSpace) else v)
+
+
+@dataclass(frozen=True)
+class PartitionedPlant(PicklesStateSpaces):
     """A plant ``P: [w; u] -> [z; y]`` with named signal groups.
 
     Parameters

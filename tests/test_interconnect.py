@@ -199,3 +199,34 @@ def test_servo_stage_pd_option_equals_the_pd_controller_loop():
         el.servo_stage("encoder", "motor", 1.0, lead_hz=1.0, integral_hz=0.1)
     with pytest.raises(rc.ModelError, match="rolloff_order"):
         el.servo_stage("encoder", "motor", 1.0, rolloff_order=2)
+
+
+def test_named_signal_maps_live_in_one_place():
+    from robustctl.examples import _assembly
+
+    assert el.scale_outputs is rc.scale_outputs and el.rename_signals is rc.rename_signals
+    assert _assembly.combine_inputs is rc.combine_inputs and _assembly.select_signals is rc.select_signals
+    assert _assembly.pd_controller is el.pd_controller
+    assert not hasattr(_assembly, "pd_servo_stage")
+
+
+def test_block_diagonal_agrees_with_control_append_and_keeps_names():
+    A = _random(61, 2, 1, 2, ["a1", "a2"], ["p"], d_scale=0.3)
+    B = _random(62, 3, 2, 1, ["b"], ["q1", "q2"], d_scale=0.3)
+    both = rc.block_diagonal(A, B, 2.0)
+    assert list(both.input_labels) == ["a1", "a2", "b", "u[0]"]
+    assert list(both.output_labels) == ["p", "q1", "q2", "y[0]"]
+    ref = control.append(A, B, control.ss([], [], [], [[2.0]]))
+    assert _max_rel_diff(both, ref) < 1e-12
+    with pytest.raises(rc.ModelError, match="repeated input names"):
+        rc.block_diagonal(A, A)
+
+
+def test_partitioned_plant_pickles_by_matrices_and_names():
+    import pickle
+
+    P = _plant(71, 4, 2, 1, 2, 1)
+    pp = rc.PartitionedPlant(P, nmeas=1, ncon=1)
+    back = pickle.loads(pickle.dumps(pp))
+    assert back.w_names == pp.w_names and back.y_names == pp.y_names and back.nmeas == 1
+    assert all(np.array_equal(back.matrices()[k], pp.matrices()[k]) for k in pp.matrices())

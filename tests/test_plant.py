@@ -314,3 +314,15 @@ def test_cover_results_and_models_are_accepted():
         rc.mixed_sensitivity(G)
     with pytest.raises(rc.ModelError, match="W2"):
         rc.mixed_sensitivity(G, None, _stable(2, 1, 3, 3))
+
+
+def test_generalized_plant_pickles_and_accepts_a_physical_model():
+    import pickle
+
+    model = rc.examples.caltech_truss()
+    gp = rc.generalized_plant(model, additive=WA, input_mult=0.04, output_mult=0.04)
+    assert gp.P.nstates == _truss().nstates + 9 and gp.u_names == ["A1", "A2", "A3"]
+    back = pickle.loads(pickle.dumps(gp))
+    assert back.blocks == gp.blocks and back.w_names == gp.w_names
+    assert np.array_equal(back.P.A, gp.P.A) and back.weights[0].role == "additive uncertainty"
+    assert back.weights[0].gain(np.inf) == pytest.approx(8.0)  # eq. 14 is biproper, gain 8 at infinity

@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ModelError
-from ..interconnect import PartitionedPlant, block_diagonal, upper_lft
+from ..interconnect import PartitionedPlant, PicklesStateSpaces, block_diagonal, upper_lft
 from ..table import Table
 from .blocks import Block, BlockStructure
 
@@ -54,7 +54,7 @@ RANK_TOL = 1e-10
 
 # ============================================================================ result types
 @dataclass(frozen=True)
-class PlantWeight:
+class PlantWeight(PicklesStateSpaces):
     """One weight used in a generalized plant.
 
     Attributes
