@@ -303,8 +303,17 @@ def _star_arrays(p1, p2, n_forward: int, n_back: int, what: str):
     return top[:, :n], top[:, n:], bot[:, :n], bot[:, n:]
 
 
-def _loop_count(value: Any, default: int, what: str, upper: int) -> int:
-    return _count(default if value is None else value, what, upper)
+def _loop_sizes(P: Any, X: Any, who: str, into: tuple, back: tuple) -> tuple[int, int]:
+    """Checked numbers of P outputs into X and of X outputs back into P (default: X's size)."""
+    (key_in, text_in, n_in), (key_out, text_out, n_out) = into, back
+    n_in = _count(X.ninputs if n_in is None else n_in, f"{key_in} ({text_in})", P.noutputs)
+    n_out = _count(X.noutputs if n_out is None else n_out, f"{key_out} ({text_out})", P.ninputs)
+    if (X.ninputs, X.noutputs) != (n_in, n_out):
+        raise ModelError(
+            f"{who} must have {key_in} = {n_in} inputs and {key_out} = {n_out} outputs; it has "
+            f"{X.ninputs} inputs and {X.noutputs} outputs."
+        )
+    return n_in, n_out
 
 
 def _match_by_name(K: Any, inputs: Sequence[str], outputs: Sequence[str]):
@@ -354,13 +363,8 @@ def lft(P: Any, K: Any, nmeas: int | None = None, ncon: int | None = None):
         ncon = P.ncon if ncon is None else ncon
     Pss = _system(P, "the plant P")
     Kss = _system(K, "the controller K")
-    nmeas = _loop_count(nmeas, Kss.ninputs, "nmeas (number of measurements)", Pss.noutputs)
-    ncon = _loop_count(ncon, Kss.noutputs, "ncon (number of control inputs)", Pss.ninputs)
-    if (Kss.ninputs, Kss.noutputs) != (nmeas, ncon):
-        raise ModelError(
-            f"K must have nmeas = {nmeas} inputs and ncon = {ncon} outputs; it has {Kss.ninputs} inputs "
-            f"and {Kss.noutputs} outputs."
-        )
+    nmeas, ncon = _loop_sizes(Pss, Kss, "K", ("nmeas", "number of measurements", nmeas),
+                              ("ncon", "number of control inputs", ncon))
     nw, nz = Pss.ninputs - ncon, Pss.noutputs - nmeas
     y_names, u_names = list(Pss.output_labels[nz:]), list(Pss.input_labels[nw:])
     if not _is_static(K):
@@ -393,13 +397,8 @@ def upper_lft(P: Any, Delta: Any, n_delta_in: int | None = None, n_delta_out: in
     """
     Pss = _system(P, "the plant P")
     Dss = _system(Delta, "the perturbation Delta")
-    n_in = _loop_count(n_delta_in, Dss.ninputs, "n_delta_in (outputs of P into Delta)", Pss.noutputs)
-    n_out = _loop_count(n_delta_out, Dss.noutputs, "n_delta_out (inputs of P from Delta)", Pss.ninputs)
-    if (Dss.ninputs, Dss.noutputs) != (n_in, n_out):
-        raise ModelError(
-            f"Delta must have n_delta_in = {n_in} inputs and n_delta_out = {n_out} outputs; it has "
-            f"{Dss.ninputs} inputs and {Dss.noutputs} outputs."
-        )
+    n_in, n_out = _loop_sizes(Pss, Dss, "Delta", ("n_delta_in", "outputs of P into Delta", n_delta_in),
+                              ("n_delta_out", "inputs of P from Delta", n_delta_out))
     A, B, C, D = _arrays(Pss)
     ii = np.r_[n_out:Pss.ninputs, 0:n_out]  # uncertainty channels last: a lower LFT
     oo = np.r_[n_in:Pss.noutputs, 0:n_in]

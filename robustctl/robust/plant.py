@@ -440,7 +440,6 @@ def generalized_plant(
         multiplicative level <= 0; performance outputs without performance inputs (or the
         reverse); nothing to build; a rank-deficient D12 / D21 (``check_rank=True``).
     """
-    import control
 
     from ..lti import as_statespace
 
@@ -542,7 +541,6 @@ def generalized_plant(
         blocks.append(Block("full", n_perf_w, n_perf_z, "performance"))
 
     P = net.close(w_names, u_names, z_eqs, list(zip(y_names, y_meas)))
-    P = control.ss(P.A, P.B, P.C, P.D, inputs=list(P.input_labels), outputs=list(P.output_labels))
     gp = GeneralizedPlant(P, ny, nu, BlockStructure(tuple(blocks)), n_perf_w, n_perf_z, tuple(weights))
     if check_rank:
         _check_regular(gp)
