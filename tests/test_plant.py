@@ -326,3 +326,17 @@ def test_generalized_plant_pickles_and_accepts_a_physical_model():
     assert back.blocks == gp.blocks and back.w_names == gp.w_names
     assert np.array_equal(back.P.A, gp.P.A) and back.weights[0].role == "additive uncertainty"
     assert back.weights[0].gain(np.inf) == pytest.approx(8.0)  # eq. 14 is biproper, gain 8 at infinity
+
+
+def test_multiplicative_block_structure_options_change_blocks_only():
+    G = _flex(nu=3, ny=2)
+    full = rc.generalized_plant(G, input_mult=0.04, output_mult=0.1)
+    diag = rc.generalized_plant(G, input_mult=0.04, output_mult=0.1, mult_structure="diagonal")
+    rep = rc.generalized_plant(G, input_mult=0.04, output_mult=0.1, mult_structure="repeated")
+    assert full.blocks.mussv().tolist() == [[3, 3], [2, 2]]
+    assert diag.blocks.mussv().tolist() == [[1, 1]] * 5
+    assert diag.blocks[0].name == "input multiplicative [A1]"
+    assert rep.blocks.mussv().tolist() == [[3, 0], [2, 0]]
+    assert np.array_equal(full.P.D, diag.P.D) and np.array_equal(full.P.A, rep.P.A)
+    with pytest.raises(rc.ModelError, match="mult_structure"):
+        rc.generalized_plant(G, additive=WA, mult_structure="blockwise")

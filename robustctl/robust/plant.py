@@ -387,6 +387,7 @@ def generalized_plant(
     control_weight: Any = None,
     disturbances: Any = None,
     noise: Any = None,
+    mult_structure: str = "full",
     check_rank: bool = True,
 ) -> GeneralizedPlant:
     """The mu / H-infinity interconnection of a nominal model with uncertainty and performance weights.
@@ -419,6 +420,11 @@ def generalized_plant(
         Inputs ``dist[...]`` and ``dist_out[...]``.
     noise : number or weight, optional
         Sensor-noise weight ``W_n`` (SISO or ``ny x k``); inputs ``noise[...]``.
+    mult_structure : {"full", "diagonal", "repeated"}
+        Structure of each multiplicative ``Delta``: one full complex block (default; couples
+        the channels), one complex scalar per channel (``"diagonal"``: independent actuator /
+        sensor errors), or one repeated complex scalar ``delta I`` (``"repeated"``). The
+        channels, and so ``P``, are the same; only ``blocks`` changes.
     check_rank : bool
         Refuse a plant whose ``D12`` (u -> z) lacks full column rank or ``D21`` (w -> y)
         lacks full row rank, which the Riccati H-infinity solution needs (default). The
@@ -450,6 +456,7 @@ def generalized_plant(
         )
     nu, ny = G.ninputs, G.noutputs
     u_names, y_names = list(G.input_labels), list(G.output_labels)
+    _mult_blocks(mult_structure, u_names, "")  # refuse a bad structure before any work
     Wa = None if additive is None else _additive_weight(additive, nu, ny)
     Wi = None if input_mult is None else _weight(input_mult, "input_mult (input multiplicative weight)",
                                                  n_in=nu, n_out=nu)
@@ -511,7 +518,7 @@ def generalized_plant(
         weights.append(PlantWeight("input multiplicative uncertainty", Wi))
         w_names += w_im_names
         z_eqs += list(zip(_labels("unc_inmult_out", u_names, nu), net.component("Wi", Wi, u_sig)))
-        blocks.append(Block("full", nu, nu, "input multiplicative"))
+        blocks += _mult_blocks(mult_structure, u_names, "input multiplicative")
 
     # --- output multiplicative: z_om = W_o y_add, y_true = y_add + w_om (+ W_do d_out)
     y_true = y_add
@@ -521,7 +528,7 @@ def generalized_plant(
         w_names += w_om_names
         z_eqs += list(zip(_labels("unc_outmult_out", y_names, ny), net.component("Wo", Wo, y_add)))
         y_true = _add(y_add, _signals(w_om_names))
-        blocks.append(Block("full", ny, ny, "output multiplicative"))
+        blocks += _mult_blocks(mult_structure, y_names, "output multiplicative")
     if Wdo is not None:
         y_true = _add(y_true, net.component("Wdo", Wdo, _signals(d_out_names)))
     y_meas = _add(y_true, net.component("Wn", Wn, _signals(n_names))) if Wn is not None else y_true
@@ -545,6 +552,18 @@ def generalized_plant(
     if check_rank:
         _check_regular(gp)
     return gp
+
+
+def _mult_blocks(structure: str, names: Sequence[str], label: str) -> list[Block]:
+    """The blocks of one multiplicative uncertainty over ``names`` channels."""
+    n = len(names)
+    if structure == "full":
+        return [Block("full", n, n, label)]
+    if structure == "diagonal":
+        return [Block("full", 1, 1, f"{label} [{name}]") for name in names]
+    if structure == "repeated":
+        return [Block("complex", n, n, label)]
+    raise ModelError(f"mult_structure must be 'full', 'diagonal' or 'repeated'; got {structure!r}.")
 
 
 def _check_performance_pairs(n_perf_w: int, n_perf_z: int) -> None:
