@@ -273,8 +273,14 @@ def _star_arrays(p1, p2, n_forward: int, n_back: int, what: str):
     n1, n2 = A1.shape[0], A2.shape[0]
     m1, q1 = B1.shape[1] - n_back, C1.shape[0] - n_forward
     m2, q2 = B2.shape[1] - n_forward, C2.shape[0] - n_back
-    z = np.zeros
-    M = np.block([[np.eye(n_forward), -D1[q1:, m1:]], [-D2[:n_back, :n_forward], np.eye(n_back)]])
+    nf, nb, n = n_forward, n_back, n1 + n2
+    # loop equations M [e; v] = N [x1; x2; a1; a2]
+    M = np.eye(nf + nb)
+    M[:nf, nf:] = -D1[q1:, m1:]
+    M[nf:, :nf] = -D2[:nb, :nf]
+    N = np.zeros((nf + nb, n + m1 + m2))
+    N[:nf, :n1], N[:nf, n:n + m1] = C1[q1:], D1[q1:, :m1]
+    N[nf:, n1:n], N[nf:, n + m1:] = C2[:nb], D2[:nb, nf:]
     if M.size:
         cond = np.linalg.cond(M)
         if not np.isfinite(cond) or cond > 1e12:
@@ -283,23 +289,20 @@ def _star_arrays(p1, p2, n_forward: int, n_back: int, what: str):
                 f"(condition number {cond:.3g}); make one of the two systems strictly proper in the loop "
                 "(e.g. a controller with roll-off) or change the feedthrough."
             )
-    N = np.block([
-        [C1[q1:], z((n_forward, n2)), D1[q1:, :m1], z((n_forward, m2))],
-        [z((n_back, n1)), C2[:n_back], z((n_back, m1)), D2[:n_back, n_forward:]],
-    ])
-    sol = np.linalg.solve(M, N) if M.size else N
-    top = np.block([
-        [A1, z((n1, n2)), B1[:, :m1], z((n1, m2))],
-        [z((n2, n1)), A2, z((n2, m1)), B2[:, n_forward:]],
-    ])
-    bot = np.block([
-        [C1[:q1], z((q1, n2)), D1[:q1, :m1], z((q1, m2))],
-        [z((q2, n1)), C2[n_back:], z((q2, m1)), D2[n_back:, n_forward:]],
-    ])
-    to_state = np.block([[z((n1, n_forward)), B1[:, m1:]], [B2[:, :n_forward], z((n2, n_back))]])
-    to_output = np.block([[z((q1, n_forward)), D1[:q1, m1:]], [D2[n_back:, :n_forward], z((q2, n_back))]])
-    top, bot = top + to_state @ sol, bot + to_output @ sol
-    n = n1 + n2
+        sol = np.linalg.solve(M, N)
+    else:
+        sol = N
+    # [x1'; x2'] and [b1; b2] before the loop signals, then the loop signals' share
+    top = np.zeros((n, n + m1 + m2))
+    top[:n1, :n1], top[:n1, n:n + m1] = A1, B1[:, :m1]
+    top[n1:, n1:n], top[n1:, n + m1:] = A2, B2[:, nf:]
+    top[:n1] += B1[:, m1:] @ sol[nf:]
+    top[n1:] += B2[:, :nf] @ sol[:nf]
+    bot = np.zeros((q1 + q2, n + m1 + m2))
+    bot[:q1, :n1], bot[:q1, n:n + m1] = C1[:q1], D1[:q1, :m1]
+    bot[q1:, n1:n], bot[q1:, n + m1:] = C2[nb:], D2[nb:, nf:]
+    bot[:q1] += D1[:q1, m1:] @ sol[nf:]
+    bot[q1:] += D2[nb:, :nf] @ sol[:nf]
     return top[:, :n], top[:, n:], bot[:, :n], bot[:, n:]
 
 
