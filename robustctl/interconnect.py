@@ -192,6 +192,35 @@ class PartitionedPlant(PicklesStateSpaces):
             inputs=list(P.input_labels[inp]), outputs=list(P.output_labels[out]),
         )
 
+    def closed_loop(self, K: Any):
+        """``Fl(P, K)``: the loop closed by the controller ``K`` (y -> u), ``w -> z`` with names."""
+        return lft(self, K)
+
+    # ------------------------------------------------------------------ reports
+    def table(self):
+        """One row per signal group: role, count and names."""
+        from .table import Table
+
+        rows = [
+            ("w", "exogenous inputs", self.nw, ", ".join(self.w_names)),
+            ("u", "control inputs", self.nu, ", ".join(self.u_names)),
+            ("z", "regulated outputs", self.nz, ", ".join(self.z_names)),
+            ("y", "measurements", self.ny, ", ".join(self.y_names)),
+        ]
+        return Table(("group", "role", "count", "names"), rows, title=f"{type(self).__name__} signals")
+
+    def summary(self) -> str:
+        """One sentence in plain words."""
+        return (
+            f"{type(self).__name__} with {self.P.nstates} states: w = {self.nw}, u = {self.nu} -> "
+            f"z = {self.nz}, y = {self.ny}; a controller takes {self.y_names} to {self.u_names}."
+        )
+
+    def _repr_html_(self) -> str:
+        import html
+
+        return f"<p>{html.escape(self.summary())}</p>" + self.table()._repr_html_()
+
     def __repr__(self) -> str:
         return (
             f"{type(self).__name__}(states={self.P.nstates}, w={self.nw}, u={self.nu}, "

@@ -227,6 +227,10 @@ def test_partitioned_plant_pickles_by_matrices_and_names():
 
     P = _plant(71, 4, 2, 1, 2, 1)
     pp = rc.PartitionedPlant(P, nmeas=1, ncon=1)
+    static = control.ss([], [], [], [[0.1]])
+    assert _max_rel_diff(pp.closed_loop(0.1 * np.ones((1, 1))), P.lft(static)) < 1e-12
+    assert "w = 2, u = 1 -> z = 2, y = 1" in pp.summary() and "y0" in pp._repr_html_()
+    assert [row[2] for row in pp.table().rows] == [2, 1, 2, 1]
     back = pickle.loads(pickle.dumps(pp))
     assert back.w_names == pp.w_names and back.y_names == pp.y_names and back.nmeas == 1
     assert all(np.array_equal(back.matrices()[k], pp.matrices()[k]) for k in pp.matrices())
