@@ -454,104 +454,146 @@ def generalized_plant(
         raise ModelError(
             f"the nominal model is discrete-time (dt={G.dt}); the generalized plant is continuous-time."
         )
-    nu, ny = G.ninputs, G.noutputs
-    u_names, y_names = list(G.input_labels), list(G.output_labels)
-    _mult_blocks(mult_structure, u_names, "")  # refuse a bad structure before any work
-    Wa = None if additive is None else _additive_weight(additive, nu, ny)
-    Wi = None if input_mult is None else _weight(input_mult, "input_mult (input multiplicative weight)",
-                                                 n_in=nu, n_out=nu)
-    Wo = None if output_mult is None else _weight(output_mult, "output_mult (output multiplicative weight)",
-                                                  n_in=ny, n_out=ny)
-    Wp = None if performance is None else _weight(performance, "the performance weight", n_in=ny)
-    Wu = None if control_weight is None else _weight(control_weight, "control_weight", n_in=nu)
-    dist = _disturbance_specs(disturbances)
-    Wdi = None if dist.get("input") is None else _weight(dist["input"], "the input-disturbance weight",
-                                                         n_out=nu)
-    Wdo = None if dist.get("output") is None else _weight(dist["output"], "the output-disturbance weight",
-                                                          n_out=ny)
-    Wn = None if noise is None else _weight(noise, "the noise weight", n_out=ny)
+    _mult_blocks(mult_structure, ["check"], "")  # refuse a bad structure before any work
+    W = _plant_weights(G, additive, input_mult, output_mult, performance, control_weight, disturbances, noise)
+    gp = _PlantBuilder(G, W, mult_structure).build()
+    if check_rank:
+        _check_regular(gp)
+    return gp
 
-    n_perf_w = sum(W.ninputs for W in (Wdi, Wdo, Wn) if W is not None)
-    n_perf_z = sum(W.noutputs for W in (Wp, Wu) if W is not None)
+
+def _plant_weights(G, additive, input_mult, output_mult, performance, control_weight, disturbances,
+                   noise) -> dict[str, Any]:
+    """Every weight sized and checked (None where not given); refuse unpaired performance channels."""
+    nu, ny = G.ninputs, G.noutputs
+    dist = _disturbance_specs(disturbances)
+    specs = {
+        "Wa": (additive, None),
+        "Wi": (input_mult, dict(what="input_mult (input multiplicative weight)", n_in=nu, n_out=nu)),
+        "Wo": (output_mult, dict(what="output_mult (output multiplicative weight)", n_in=ny, n_out=ny)),
+        "Wp": (performance, dict(what="the performance weight", n_in=ny)),
+        "Wu": (control_weight, dict(what="control_weight", n_in=nu)),
+        "Wdi": (dist.get("input"), dict(what="the input-disturbance weight", n_out=nu)),
+        "Wdo": (dist.get("output"), dict(what="the output-disturbance weight", n_out=ny)),
+        "Wn": (noise, dict(what="the noise weight", n_out=ny)),
+    }
+    W: dict[str, Any] = {}
+    for key, (spec, kw) in specs.items():
+        if spec is None:
+            W[key] = None
+        elif key == "Wa":
+            W[key] = _additive_weight(spec, nu, ny)
+        else:
+            W[key] = _weight(spec, kw.pop("what"), **kw)
+    n_perf_w = sum(W[k].ninputs for k in ("Wdi", "Wdo", "Wn") if W[k] is not None)
+    n_perf_z = sum(W[k].noutputs for k in ("Wp", "Wu") if W[k] is not None)
     _check_performance_pairs(n_perf_w, n_perf_z)
-    if n_perf_w == 0 and all(W is None for W in (Wa, Wi, Wo)):
+    if n_perf_w == 0 and all(W[k] is None for k in ("Wa", "Wi", "Wo")):
         raise ModelError(
             "nothing to build: give at least one uncertainty weight (additive, input_mult, output_mult) "
             "or performance channels (performance/control_weight with disturbances/noise)."
         )
+    return W
 
-    net = _Wiring()
-    u_sig = _signals(u_names)
-    w_names: list[str] = []
-    z_eqs: list[tuple[str, dict]] = []
-    blocks: list[Block] = []
-    weights: list[PlantWeight] = []
 
-    # --- plant input: u + w_im + W_di d_in
-    w_add_names = _labels("unc_add_in", y_names, ny)
-    w_im_names = _labels("unc_inmult_in", u_names, nu) if Wi is not None else []
-    d_in_names = _labels("dist", u_names, Wdi.ninputs) if Wdi is not None else []
-    d_out_names = _labels("dist_out", y_names, Wdo.ninputs) if Wdo is not None else []
-    n_names = _labels("noise", y_names, Wn.ninputs) if Wn is not None else []
-    uG = _add(u_sig, _signals(w_im_names) if Wi is not None else None,
-              net.component("Wdi", Wdi, _signals(d_in_names)) if Wdi is not None else None)
+class _PlantBuilder:
+    """The signal flow of the module docstring, one step per uncertainty / performance piece."""
 
-    # --- additive uncertainty around G
-    add_input_side = Wa is not None and Wa.ninputs == nu and Wa.noutputs == nu
-    gout = net.component("G", G, uG)
-    if Wa is not None:
-        weights.append(PlantWeight("additive uncertainty", Wa))
-        if add_input_side:
-            z_add = net.component("Wa", Wa, uG)
-            y_add = _add(gout, _signals(w_add_names))
+    def __init__(self, G: Any, W: dict[str, Any], mult_structure: str) -> None:
+        self.G, self.W, self.structure = G, W, mult_structure
+        self.u_names, self.y_names = list(G.input_labels), list(G.output_labels)
+        self.net = _Wiring()
+        self.u = _signals(self.u_names)
+        self.w_names: list[str] = []
+        self.z_eqs: list[tuple[str, dict]] = []
+        self.blocks: list[Block] = []
+        self.weights: list[PlantWeight] = []
+
+    def _channels(self, prefix: str, names: Sequence[str], key: str) -> list[str]:
+        W = self.W[key]
+        return [] if W is None else _labels(prefix, names, W.ninputs)
+
+    def _weighted(self, key: str, names: list[str]):
+        return None if self.W[key] is None else self.net.component(key, self.W[key], _signals(names))
+
+    def _record(self, key: str, role: str) -> bool:
+        if self.W[key] is not None:
+            self.weights.append(PlantWeight(role, self.W[key]))
+        return self.W[key] is not None
+
+    def build(self) -> GeneralizedPlant:
+        W, u_names, y_names = self.W, self.u_names, self.y_names
+        d_in = self._channels("dist", u_names, "Wdi")
+        d_out = self._channels("dist_out", y_names, "Wdo")
+        noise = self._channels("noise", y_names, "Wn")
+        w_im = _labels("unc_inmult_in", u_names, len(u_names)) if W["Wi"] is not None else []
+        uG = _add(self.u, _signals(w_im) if w_im else None, self._weighted("Wdi", d_in))
+        y_add = self._additive(uG)
+        self._input_mult(w_im)
+        y_true = self._output_mult(y_add)
+        if W["Wdo"] is not None:
+            y_true = _add(y_true, self._weighted("Wdo", d_out))
+        y_meas = _add(y_true, self._weighted("Wn", noise)) if W["Wn"] is not None else y_true
+        self.w_names += d_in + d_out + noise
+        n_perf_w, n_perf_z = self._performance(y_true, d_in + d_out + noise)
+        P = self.net.close(self.w_names, u_names, self.z_eqs, list(zip(y_names, y_meas)))
+        return GeneralizedPlant(P, len(y_names), len(u_names), BlockStructure(tuple(self.blocks)),
+                                n_perf_w, n_perf_z, tuple(self.weights))
+
+    def _additive(self, uG):
+        """``y_add = G u_G + W_a Delta_add (...)``; the weight on the z side (inputs) or w side (outputs)."""
+        gout = self.net.component("G", self.G, uG)
+        if not self._record("Wa", "additive uncertainty"):
+            return gout
+        ny, nu = len(self.y_names), len(self.u_names)
+        w_add = _labels("unc_add_in", self.y_names, ny)
+        Wa = self.W["Wa"]
+        if (Wa.ninputs, Wa.noutputs) == (nu, nu):
+            z_add, y_add = self.net.component("Wa", Wa, uG), _add(gout, _signals(w_add))
         else:
-            z_add = uG
-            y_add = _add(gout, net.component("Wa", Wa, _signals(w_add_names)))
-        w_names += w_add_names
-        z_eqs += list(zip(_labels("unc_add_out", u_names, nu), z_add))
-        blocks.append(Block("full", ny, nu, "additive"))
-    else:
-        y_add = gout
+            z_add, y_add = uG, _add(gout, self._weighted("Wa", w_add))
+        self.w_names += w_add
+        self.z_eqs += list(zip(_labels("unc_add_out", self.u_names, nu), z_add))
+        self.blocks.append(Block("full", ny, nu, "additive"))
+        return y_add
 
-    # --- input multiplicative: z_im = W_i u
-    if Wi is not None:
-        weights.append(PlantWeight("input multiplicative uncertainty", Wi))
-        w_names += w_im_names
-        z_eqs += list(zip(_labels("unc_inmult_out", u_names, nu), net.component("Wi", Wi, u_sig)))
-        blocks += _mult_blocks(mult_structure, u_names, "input multiplicative")
+    def _input_mult(self, w_im: list[str]) -> None:
+        """``z_im = W_i u``; ``w_im`` adds to the plant input."""
+        if self._record("Wi", "input multiplicative uncertainty"):
+            self.w_names += w_im
+            z = self.net.component("Wi", self.W["Wi"], self.u)
+            self.z_eqs += list(zip(_labels("unc_inmult_out", self.u_names, len(self.u_names)), z))
+            self.blocks += _mult_blocks(self.structure, self.u_names, "input multiplicative")
 
-    # --- output multiplicative: z_om = W_o y_add, y_true = y_add + w_om (+ W_do d_out)
-    y_true = y_add
-    if Wo is not None:
-        weights.append(PlantWeight("output multiplicative uncertainty", Wo))
-        w_om_names = _labels("unc_outmult_in", y_names, ny)
-        w_names += w_om_names
-        z_eqs += list(zip(_labels("unc_outmult_out", y_names, ny), net.component("Wo", Wo, y_add)))
-        y_true = _add(y_add, _signals(w_om_names))
-        blocks += _mult_blocks(mult_structure, y_names, "output multiplicative")
-    if Wdo is not None:
-        y_true = _add(y_true, net.component("Wdo", Wdo, _signals(d_out_names)))
-    y_meas = _add(y_true, net.component("Wn", Wn, _signals(n_names))) if Wn is not None else y_true
+    def _output_mult(self, y_add):
+        """``z_om = W_o y_add``, ``y_true = y_add + w_om``."""
+        if not self._record("Wo", "output multiplicative uncertainty"):
+            return y_add
+        ny = len(self.y_names)
+        w_om = _labels("unc_outmult_in", self.y_names, ny)
+        self.w_names += w_om
+        z = self.net.component("Wo", self.W["Wo"], y_add)
+        self.z_eqs += list(zip(_labels("unc_outmult_out", self.y_names, ny), z))
+        self.blocks += _mult_blocks(self.structure, self.y_names, "output multiplicative")
+        return _add(y_add, _signals(w_om))
 
-    # --- performance channels
-    w_names += d_in_names + d_out_names + n_names
-    for W, role in ((Wdi, "input disturbance"), (Wdo, "output disturbance"), (Wn, "sensor noise")):
-        if W is not None:
-            weights.append(PlantWeight(role, W))
-    if Wp is not None:
-        weights.append(PlantWeight("performance on the sensors", Wp))
-        z_eqs += list(zip(_labels("perf_y", y_names, Wp.noutputs), net.component("Wp", Wp, y_true)))
-    if Wu is not None:
-        weights.append(PlantWeight("control weight", Wu))
-        z_eqs += list(zip(_labels("perf_u", u_names, Wu.noutputs), net.component("Wu", Wu, u_sig)))
-    if n_perf_w:
-        blocks.append(Block("full", n_perf_w, n_perf_z, "performance"))
-
-    P = net.close(w_names, u_names, z_eqs, list(zip(y_names, y_meas)))
-    gp = GeneralizedPlant(P, ny, nu, BlockStructure(tuple(blocks)), n_perf_w, n_perf_z, tuple(weights))
-    if check_rank:
-        _check_regular(gp)
-    return gp
+    def _performance(self, y_true, perf_w: list[str]) -> tuple[int, int]:
+        """``z_perf = [W_p y_true; W_u u]`` and the performance block last."""
+        for key, role in (("Wdi", "input disturbance"), ("Wdo", "output disturbance"),
+                          ("Wn", "sensor noise")):
+            self._record(key, role)
+        n_z = 0
+        for key, role, prefix, names, source in (
+            ("Wp", "performance on the sensors", "perf_y", self.y_names, y_true),
+            ("Wu", "control weight", "perf_u", self.u_names, self.u),
+        ):
+            if self._record(key, role):
+                z = self.net.component(key, self.W[key], source)
+                self.z_eqs += list(zip(_labels(prefix, names, self.W[key].noutputs), z))
+                n_z += len(z)
+        if perf_w:
+            self.blocks.append(Block("full", len(perf_w), n_z, "performance"))
+        return len(perf_w), n_z
 
 
 def _mult_blocks(structure: str, names: Sequence[str], label: str) -> list[Block]:
