@@ -3,7 +3,9 @@
 * ``robustctl demo`` runs the whole pipeline on the embedded default example;
 * ``robustctl compare MODEL DATA``, ``robustctl diagnose MODEL DATA`` and
   ``robustctl identify DATA`` run one stage on a user's own files and write an HTML report
-  section plus ``summary.json`` into ``--out``.
+  section plus ``summary.json`` into ``--out``;
+* ``robustctl export SOURCE TARGET`` writes a controller file as another coefficient file
+  (e.g. a continuous ``K.mat`` as a C header at ``--fs``), printing the export checks.
 
 MODEL is ``FILE.py[:NAME]`` or ``package.module[:NAME]`` (see :mod:`robustctl.cli_inputs`);
 DATA is any file :func:`robustctl.load_frd` reads (.npz, .csv, .mat, .uff/.unv). Errors are
@@ -72,8 +74,36 @@ def _parser() -> argparse.ArgumentParser:
     ident.add_argument("--modes", type=int, default=None, help="number of modes (default: automatic)")
     _add_common(ident, "out-identify")
 
+    _export_parser(sub)
     sub.add_parser("info", help="print the versions robustctl runs with")
     return parser
+
+
+def _export_parser(sub: Any) -> None:
+    exp = sub.add_parser(
+        "export",
+        help="write a controller file (json/csv/mat/h/sos) as another coefficient file",
+        description="Read a controller with robustctl.load_controller (a continuous .mat or .json with "
+        "Ts = 0 is discretised at --fs) and write it with robustctl.export_controller; prints the checks "
+        "(stability, discretisation error, coefficient dynamic range).",
+    )
+    exp.add_argument("source", help="controller file: .json, .csv, .mat (A, B, C, D, Ts), .h or .sos")
+    exp.add_argument("target", help="file to write: .json, .csv, .h, .mat or .sos")
+    exp.add_argument("--fs", type=float, default=None, help="sample rate in Hz (for a continuous source)")
+    exp.add_argument("--method", choices=("tustin", "zoh"), default="tustin", help="discretisation method")
+    exp.add_argument("--prewarp-hz", type=float, default=None, help="Tustin prewarping frequency in Hz")
+    exp.add_argument("--crossover-hz", type=float, default=None, help="where to check the discretisation")
+    exp.add_argument(
+        "--balance", choices=("none", "diagonal", "balanced"), default="none",
+        help="rescale the states for fixed-point use (the transfer function is unchanged)",
+    )
+    exp.add_argument(
+        "--channel", nargs=2, metavar=("OUTPUT", "INPUT"), default=None,
+        help="the channel of a MIMO controller to write as second-order sections",
+    )
+    exp.add_argument("--prefix", default=None, help="C header macro/array prefix (default: the file stem)")
+    exp.add_argument("--on-unstable", choices=("warn", "raise", "ignore"), default="warn")
+    exp.add_argument("--overwrite", action="store_true", help="replace an existing target file")
 
 
 def _info() -> int:
@@ -157,11 +187,33 @@ def _run_identify(args: argparse.Namespace) -> Path:
     return report.write()
 
 
+def _run_export(args: argparse.Namespace) -> Path:
+    from .export import export_controller, load_controller
+
+    report = export_controller(
+        load_controller(args.source),
+        args.target,
+        fs=args.fs,
+        method=args.method,
+        prewarp_hz=args.prewarp_hz,
+        crossover_hz=args.crossover_hz,
+        balance=False if args.balance == "none" else args.balance,
+        channel=None if args.channel is None else tuple(args.channel),
+        prefix=args.prefix,
+        on_unstable=args.on_unstable,
+        overwrite=args.overwrite,
+        provenance={"converted_from": str(args.source)},
+    )
+    print(report.table())
+    return report.path
+
+
 _COMMANDS: dict[str, Callable[[argparse.Namespace], Path]] = {
     "demo": _run_demo,
     "compare": _run_compare,
     "diagnose": _run_diagnose,
     "identify": _run_identify,
+    "export": _run_export,
 }
 
 
@@ -178,7 +230,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except RobustctlError as exc:
         print(f"robustctl {args.command}: {_one_line(exc)}", file=sys.stderr)
         return 2
-    print(f"report written to {path} in {time.perf_counter() - start:.1f} s")
+    what = "controller" if args.command == "export" else "report"
+    print(f"{what} written to {path} in {time.perf_counter() - start:.1f} s")
     return 0
 
 
