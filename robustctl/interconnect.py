@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from .checks import integer, is_default_names
 from .errors import ModelError
 from .signals import _arrays, select_signals
 
@@ -31,9 +32,7 @@ __all__ = ["PartitionedPlant", "lft", "upper_lft", "star", "series", "parallel",
 
 
 def _count(value: Any, what: str, upper: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= value <= upper:
-        raise ModelError(f"{what} must be an integer in [0, {upper}]; got {value!r}.")
-    return int(value)
+    return integer(value, what, ModelError, lo=0, hi=upper)
 
 
 def _pack(value: Any) -> Any:
@@ -544,9 +543,7 @@ _BY_POSITION = "Pass by_name=False to connect by position."
 
 def _default_names(sys: Any) -> bool:
     """True when ``sys`` carries python-control's default names ``u[i]`` / ``y[i]``, which say nothing."""
-    return list(sys.input_labels) == [f"u[{i}]" for i in range(sys.ninputs)] and list(
-        sys.output_labels
-    ) == [f"y[{i}]" for i in range(sys.noutputs)]
+    return is_default_names(sys.input_labels, "u") and is_default_names(sys.output_labels, "y")
 
 
 def _series_arrays(p1, p2):

@@ -234,3 +234,22 @@ def test_partitioned_plant_pickles_by_matrices_and_names():
     back = pickle.loads(pickle.dumps(pp))
     assert back.w_names == pp.w_names and back.y_names == pp.y_names and back.nmeas == 1
     assert all(np.array_equal(back.matrices()[k], pp.matrices()[k]) for k in pp.matrices())
+
+
+def test_partitioned_plant_groups_partitions_and_errors():
+    P = _plant(81, 5, 3, 2, 2, 1)  # w0..w2, u0, u1 -> z0, z1, y0
+    pp = rc.PartitionedPlant(P, nmeas=1, ncon=2)
+    assert (pp.nw, pp.nu, pp.nz, pp.ny) == (3, 2, 2, 1)
+    assert pp.w_names == ["w0", "w1", "w2"] and pp.u_names == ["u0", "u1"] and pp.y_names == ["y0"]
+    m = pp.matrices()
+    assert m["B2"].shape == (5, 2) and m["D21"].shape == (1, 3) and np.array_equal(m["D12"], P.D[:2, 3:])
+    P21 = pp.sub("y", "w")
+    assert list(P21.input_labels) == pp.w_names and list(P21.output_labels) == ["y0"]
+    for s in S_POINTS:
+        assert np.allclose(_resp(P21, s), _resp(P, s)[2:, :3], rtol=1e-12)
+    with pytest.raises(rc.ModelError, match=r"nmeas \(number of measurements\) must be an integer in \[0, 3"):
+        rc.PartitionedPlant(P, nmeas=4, ncon=1)
+    with pytest.raises(rc.ModelError, match="as_statespace"):
+        rc.PartitionedPlant(np.eye(2), 1, 1)
+    with pytest.raises(rc.ModelError, match="rows in"):
+        pp.sub("w", "z")

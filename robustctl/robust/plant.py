@@ -34,13 +34,13 @@ channels (``Delta_i`` maps ``z_i -> w_i``); the performance block is last.
 from __future__ import annotations
 
 import html
-import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from ..checks import is_default_names
 from ..errors import ModelError
 from ..interconnect import PartitionedPlant, PicklesStateSpaces, block_diagonal, upper_lft
 from ..table import Table
@@ -356,7 +356,7 @@ def _labels(prefix: str, names: Sequence[str], count: int) -> list[str]:
 
     python-control's default names (``u[0]``, ``y[0]``) say nothing and give ``prefix[0]``.
     """
-    default = all(re.fullmatch(r"[uy]\[\d+\]", n) for n in names)
+    default = is_default_names(names, "u") or is_default_names(names, "y")
     if count == len(names) and not default:
         return [f"{prefix}[{n}]" for n in names]
     return [f"{prefix}[{i}]" for i in range(count)]
