@@ -340,3 +340,20 @@ def test_multiplicative_block_structure_options_change_blocks_only():
     assert np.array_equal(full.P.D, diag.P.D) and np.array_equal(full.P.A, rep.P.A)
     with pytest.raises(rc.ModelError, match="mult_structure"):
         rc.generalized_plant(G, additive=WA, mult_structure="blockwise")
+
+
+def test_plot_draws_every_weight_and_the_nominal():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    gp = rc.generalized_plant(_flex(), additive=WA, input_mult=0.04, performance=WP, control_weight=0.1,
+                              disturbances=1.0, noise=0.01)
+    fig = gp.plot(np.geomspace(0.01, 100, 50))
+    lines = fig.axes[0].get_lines()
+    assert len(lines) == len(gp.weights) + 1
+    eq14 = lines[0].get_ydata()
+    f = np.geomspace(0.01, 100, 50)
+    assert np.allclose(eq14, np.abs(WA(2j * np.pi * f)), rtol=1e-10)
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)

@@ -168,6 +168,37 @@ class GeneralizedPlant(PartitionedPlant):
         return Table(("weight", "size", "states", "gain at 0 Hz", "gain at inf"), rows,
                      title="Weights of the generalized plant")
 
+    def plot(self, f_hz: Any = None, fig: Any = None) -> Any:
+        """Largest singular value of every weight (and of the nominal ``y <- u``) against frequency.
+
+        Parameters
+        ----------
+        f_hz : array_like, optional
+            Frequencies in Hz (default: 400 log-spaced points over 1e-3 to 1e3 Hz).
+        fig : matplotlib Figure, optional
+
+        Returns
+        -------
+        matplotlib Figure
+        """
+        from ..lti import freqresp_array
+        from ..plots import new_figure
+
+        f = np.geomspace(1e-3, 1e3, 400) if f_hz is None else np.asarray(f_hz, dtype=float)
+        fig = fig or new_figure(8.0, 4.5)
+        ax = fig.add_subplot(1, 1, 1)
+        for wt in self.weights:
+            g = freqresp_array(wt.system, f)
+            ax.loglog(f, np.linalg.norm(g, ord=2, axis=(1, 2)), label=f"{wt.role} ({wt.size})")
+        nominal = freqresp_array(self.nominal_performance().sub("y", "u"), f)
+        ax.loglog(f, np.linalg.norm(nominal, ord=2, axis=(1, 2)), "k--", lw=1, label="nominal y <- u")
+        ax.set_xlabel("frequency (Hz)")
+        ax.set_ylabel("largest singular value")
+        ax.set_title("Weights of the generalized plant")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+        return fig
+
     def summary(self) -> str:
         """A few sentences in plain words."""
         unc = self.uncertainty_blocks
