@@ -1,15 +1,22 @@
 """robustctl.robust (see DESIGN.md)."""
 
-# --- mu analysis (mu helper) ---
 from .blocks import Block, BlockStructure, as_block_structure
+
+# --- mu analysis (mu helper) ---
 from .mu import MuResult, mu
 from .mu_analysis import WorstCaseGain, robust_performance, robust_stability, worst_case_gain
+from .plant import GeneralizedPlant, PlantWeight, generalized_plant, mixed_sensitivity
 
 __all__ = [
-    # --- mu analysis (mu helper) ---
     "Block",
     "BlockStructure",
     "as_block_structure",
+    # generalized plant (plant.py)
+    "GeneralizedPlant",
+    "PlantWeight",
+    "generalized_plant",
+    "mixed_sensitivity",
+    # --- mu analysis (mu helper) ---
     "mu",
     "MuResult",
     "robust_stability",
