@@ -393,3 +393,20 @@ def test_results_pickle():
     assert back.blocks == res.blocks and back.summary() == res.summary()
     wc = rc.worst_case_gain(N, [[1, 0], [1, 0]])
     assert pickle.loads(pickle.dumps(wc)).peak == wc.peak
+
+
+def test_analyses_take_a_generalized_plant_and_its_blocks():
+    num = [[[1.0], [0.5]], [[0.2], [1.0]]]
+    den = [[[1.0, 0.4, 1.0], [1.0, 1.0]], [[1.0, 2.0], [1.0, 0.6, 4.0]]]
+    G = control.ss(control.tf(num, den))
+    gp = rc.generalized_plant(G, input_mult=0.1, output_mult=0.1, performance=0.5, noise=0.01)
+    assert gp.blocks[-1].name == "performance"
+    cl = rc.interconnect.lft(gp, control.ss([], [], [], -0.5 * np.eye(2)))
+    f = np.geomspace(0.05, 2.0, 30)
+    unc = as_block_structure(gp.blocks.blocks[:-1])
+    rs_plain = rc.robust_stability(cl, unc, f)
+    np.testing.assert_allclose(rc.robust_stability(cl, gp.blocks, f).upper, rs_plain.upper)
+    np.testing.assert_allclose(rc.robust_stability(cl, gp, f).upper, rs_plain.upper)
+    rp = rc.robust_performance(cl, gp, f)
+    assert rp.blocks.mussv().tolist() == gp.blocks.mussv().tolist()
+    assert np.all(rp.upper >= rs_plain.upper * (1 - 1e-9))  # adding a block cannot lower mu

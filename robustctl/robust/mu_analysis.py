@@ -30,10 +30,21 @@ from .mu import MuResult, as_frequency_array, mu, validate_mu_input
 __all__ = ["robust_stability", "robust_performance", "worst_case_gain", "WorstCaseGain"]
 
 
+def _uncertainty_structure(blocks: Any, n_out: int, n_in: int) -> BlockStructure:
+    """The uncertainty blocks: ``blocks`` itself, a GeneralizedPlant's blocks, or either without
+    a trailing full block named ``"performance"`` that covers the last channels."""
+    bs = as_block_structure(getattr(blocks, "blocks", blocks) if hasattr(blocks, "n_perf_w") else blocks)
+    last = bs.blocks[-1]
+    if (len(bs) > 1 and last.kind == "full" and last.name == "performance"
+            and (bs.n_out, bs.n_in) == (n_out, n_in)):
+        bs = BlockStructure(bs.blocks[:-1])
+    return bs
+
+
 def _split(closed_loop: Any, blocks: Any, f_hz: Any):
     N, f = as_frequency_array(closed_loop, f_hz, what="closed_loop")
-    bs = as_block_structure(blocks)
     n_out, n_in = N.shape[1], N.shape[2]
+    bs = _uncertainty_structure(blocks, n_out, n_in)
     if bs.n_out > n_out or bs.n_in > n_in:
         raise SynthesisError(
             f"the uncertainty blocks {bs.mussv().tolist()} need {bs.n_out} outputs x {bs.n_in} inputs; "
@@ -52,8 +63,9 @@ def robust_stability(closed_loop: Any, blocks: Any, f_hz: Any = None, **mu_optio
     ----------
     closed_loop : system, FrequencyData or array (nf, n_out, n_in)
         Uncertainty channels first; any further (performance) channels are ignored.
-    blocks : anything :func:`as_block_structure` accepts
-        The uncertainty blocks only.
+    blocks : anything :func:`as_block_structure` accepts, or a GeneralizedPlant
+        The uncertainty blocks (a trailing full block named ``"performance"`` covering the
+        last channels, as in ``GeneralizedPlant.blocks``, is left out).
     f_hz : array_like, optional
         Frequencies (Hz); required for a system.
     **mu_options
@@ -86,9 +98,10 @@ def robust_performance(closed_loop: Any, blocks: Any, f_hz: Any = None, **mu_opt
     """mu of the whole closed loop with a full performance block appended (S&P Thm 8.7).
 
     Robust performance (``||F_u(N, Delta)|| < 1`` for every ``||Delta|| <= 1``) holds iff
-    ``peak < 1``. ``blocks`` are the uncertainty blocks; a full block from the remaining
-    outputs to the remaining inputs is added (if ``blocks`` already cover all channels, its
-    last block is taken as the performance block).
+    ``peak < 1``. ``blocks`` are the uncertainty blocks (or a GeneralizedPlant, or its
+    ``.blocks``); a full ``"performance"`` block from the remaining outputs to the remaining
+    inputs is added (if ``blocks`` already cover all channels, its last block is taken as the
+    performance block).
     """
     N, f, bs = _split(closed_loop, blocks, f_hz)
     full, _, _ = _with_performance(bs, N.shape[1], N.shape[2])
