@@ -3,7 +3,8 @@
 ``import robustctl as rc`` gives the whole public API, flat.
 """
 
-from . import examples
+# shared ground: one checks module, one system coercion, one cost report, one Mode
+from . import checks, examples
 from .correlate import (
     Comparison,
     Diagnosis,
@@ -15,6 +16,7 @@ from .correlate import (
     update,
     verify,
 )
+from .cost import LogCost
 from .errors import DataError, FitError, ModelError, RobustctlError, SynthesisError
 from .estimate import combine_experiments, estimate_frf, simulate_experiment
 from .export import ExportReport, discretize, export_controller, load_controller
@@ -27,7 +29,9 @@ from .identify import (
     fit_rational,
     group_modes,
 )
-from .lti import freqresp, log_cost, log_error
+from .interconnect import PartitionedPlant, block_diagonal, feedback, lft, parallel, series, star, upper_lft
+from .lti import as_statespace, freqresp, log_cost, log_error
+from .modes import Mode
 from .physical import (
     Frame,
     MatrixStructure,
@@ -45,11 +49,32 @@ from .physical import (
 
 # robust design: weights
 from .robust import (
+    Block,
+    BlockStructure,
+    GeneralizedPlant,
+    MuResult,
+    PlantWeight,
     UncertaintyCover,
+    WorstCaseGain,
+    as_block_structure,
     cover_additive,
     cover_multiplicative,
     fit_magnitude,
+    generalized_plant,
     makeweight,
+    mixed_sensitivity,
+    mu,
+    robust_performance,
+    robust_stability,
+    worst_case_gain,
+)
+from .signals import (
+    combine_inputs,
+    combine_outputs,
+    rename_signals,
+    scale_inputs,
+    scale_outputs,
+    select_signals,
 )
 from .threads import blas_threads, set_blas_threads
 
@@ -99,10 +124,44 @@ __all__ = [
     "modal_model",
     "modal_statespace",
     "MatrixStructure",
+    # named interconnection (interconnect.py, signals.py) and the generalized plant (robust/plant.py)
+    "PartitionedPlant",
+    "lft",
+    "upper_lft",
+    "star",
+    "series",
+    "parallel",
+    "feedback",
+    "rename_signals",
+    "scale_inputs",
+    "scale_outputs",
+    "select_signals",
+    "combine_inputs",
+    "combine_outputs",
+    "block_diagonal",
+    "GeneralizedPlant",
+    "PlantWeight",
+    "generalized_plant",
+    "mixed_sensitivity",
+    # shared ground: one checks module, one system coercion, one cost report, one Mode
+    "checks",
+    "as_statespace",
+    "LogCost",
+    "Mode",
     "discretize",
     "export_controller",
     "load_controller",
     "ExportReport",
+    # --- mu analysis (mu helper) ---
+    "Block",
+    "BlockStructure",
+    "as_block_structure",
+    "mu",
+    "MuResult",
+    "robust_stability",
+    "robust_performance",
+    "worst_case_gain",
+    "WorstCaseGain",
     # robust design: weights
     "makeweight",
     "fit_magnitude",
