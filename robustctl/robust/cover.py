@@ -251,8 +251,8 @@ def _responses(
             fd = FrequencyData(
                 f, _on_grid(src, f, label), inputs=src.inputs, outputs=src.outputs, coherence=coh
             )
-            fd = _align(g0, fd)
-            noise.append(_random_error(fd, _n_averages(src)))
+            noise.append(_random_error(fd, _n_averages(src)))  # a Frobenius norm: channel order is moot
+            fd = _align(g0, fd)  # (drops the coherence)
         else:
             fd = _align(g0, freqresp(src, f))
             noise.append(None)
