@@ -3,6 +3,21 @@
 Every error a user can trigger by bad input is a :class:`RobustctlError` subclass whose
 message says what was wrong and what to do about it. They derive from ``ValueError`` so
 that code written against numpy/scipy conventions keeps working.
+
+The one rule for arguments (enforced through :mod:`robustctl.checks`):
+
+* **Every** refused argument -- a wrong value, a wrong range *and a wrong type* -- raises a
+  :class:`RobustctlError` subclass, never a bare ``TypeError``/``AttributeError``/
+  ``LinAlgError`` from inside. The subclass names the *stage that owns the argument*, not the
+  kind of mistake: :class:`DataError` for data, files and signal settings,
+  :class:`ModelError` for model settings, :class:`FitError` for fit/update/diagnose
+  settings, :class:`SynthesisError` for controller synthesis and robustness analysis. So
+  ``except RobustctlError`` (or ``except ValueError``) catches every bad input, and there is
+  no separate TypeError branch to remember. (A wrong type is a bad value of the argument.)
+* The message names the argument, shows the value given (``repr``) and says the fix.
+* Flags are real booleans (``overwrite="False"`` is refused, not read as truthy).
+* Numbers are real and finite (NaN, inf, complex, bool and strings are refused); counts are
+  ``int`` (``2.5`` is refused); time budgets and tolerances are positive.
 """
 
 from __future__ import annotations

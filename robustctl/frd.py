@@ -29,7 +29,14 @@ def _check_names(names: Sequence[str] | None, count: int, what: str, prefix: str
         return _default_names(prefix, count)
     if isinstance(names, str):
         names = (names,)
+    if not isinstance(names, Sequence) and not isinstance(names, np.ndarray):
+        raise DataError(f"{what} must be a list of signal names (str); got {names!r}. Example: {what}=['F'].")
+    if not all(isinstance(n, (str, np.str_)) for n in names):
+        raise DataError(f"{what} names must be strings; got {list(names)!r}.")
     names = tuple(str(n) for n in names)
+    bad = [n for n in names if "\x00" in n or not n]
+    if bad:
+        raise DataError(f"{what} names must be non-empty and hold no NUL characters; got {bad!r}.")
     if len(names) != count:
         raise DataError(
             f"{what} has {len(names)} names but the response has {count} {what}; "
@@ -41,13 +48,30 @@ def _check_names(names: Sequence[str] | None, count: int, what: str, prefix: str
     return names
 
 
+def _numeric_array(value: Any, name: str, kinds: str) -> np.ndarray:
+    """``value`` as an array of numbers of the dtype kinds ``kinds`` ("iuf" real, "iufc" complex)."""
+    try:
+        arr = np.asarray(value)
+    except (TypeError, ValueError) as exc:  # ragged nested lists
+        raise DataError(f"{name} must be an array of numbers; got {type(value).__name__} ({exc}).") from None
+    if arr.dtype.kind == "c" and "c" not in kinds:
+        raise DataError(f"{name} must be real; got complex values. Pass its real part if that is meant.")
+    if arr.dtype.kind not in kinds or arr.dtype.kind == "b":
+        raise DataError(f"{name} must be an array of numbers; got an array of dtype {arr.dtype}.")
+    return arr
+
+
 def _as_response(response: Any) -> np.ndarray:
-    arr = np.asarray(response)
+    arr = _numeric_array(response, "response", "iufc")
     if arr.ndim == 1:
         arr = arr[:, None, None]
     if arr.ndim != 3:
         raise DataError(
             f"response must have shape (n_freq, n_out, n_in); got an array of shape {arr.shape}."
+        )
+    if 0 in arr.shape[1:]:
+        raise DataError(
+            f"response of shape {arr.shape} has no channels; give at least one output and one input."
         )
     arr = arr.astype(complex)
     if not np.all(np.isfinite(arr)):
@@ -56,7 +80,7 @@ def _as_response(response: Any) -> np.ndarray:
 
 
 def _as_frequencies(f_hz: Any) -> np.ndarray:
-    f = np.asarray(f_hz, dtype=float).reshape(-1)
+    f = _numeric_array(f_hz, "f_hz", "iuf").astype(float).reshape(-1)
     if f.size == 0:
         raise DataError("f_hz is empty; give at least one frequency in Hz.")
     if not np.all(np.isfinite(f)):
@@ -68,6 +92,16 @@ def _as_frequencies(f_hz: Any) -> np.ndarray:
     if f.size > 1 and np.any(np.diff(f) <= 0):
         raise DataError("f_hz must be strictly increasing; sort the data and remove duplicates.")
     return f
+
+
+def _mapping(value: Any, name: str, example: str) -> dict:
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise DataError(f"{name} must be a mapping (dict) or None; got {value!r}. Example: {name}={example}.")
+    if name == "units" and not all(isinstance(k, str) and isinstance(v, str) for k, v in value.items()):
+        raise DataError(f"units must map signal names (str) to unit names (str); got {dict(value)!r}.")
+    return dict(value)
 
 
 @dataclass(frozen=True, eq=False)
@@ -110,7 +144,7 @@ class FrequencyData:
         inputs = _check_names(self.inputs, g.shape[2], "inputs", "u")
         coh = None
         if self.coherence is not None:
-            coh = np.asarray(self.coherence, dtype=float)
+            coh = _numeric_array(self.coherence, "coherence", "iuf").astype(float)
             if coh.ndim == 1 and g.shape[1:] == (1, 1):
                 coh = coh[:, None, None]
             if coh.shape != g.shape:
@@ -129,8 +163,8 @@ class FrequencyData:
         object.__setattr__(self, "inputs", inputs)
         object.__setattr__(self, "outputs", outputs)
         object.__setattr__(self, "coherence", coh)
-        object.__setattr__(self, "units", dict(self.units or {}))
-        object.__setattr__(self, "meta", dict(self.meta or {}))
+        object.__setattr__(self, "units", _mapping(self.units, "units", "{'u1': 'V'}"))
+        object.__setattr__(self, "meta", _mapping(self.meta, "meta", "{'source': 'test 3'}"))
 
     # ------------------------------------------------------------------ basic views
     @property

@@ -47,6 +47,8 @@ def load_frd(path: str | PathLike) -> FrequencyData:
         Unknown extension, missing file, corrupt or inconsistent content.
     """
     path = _check_path(path)
+    if path.is_dir():
+        raise DataError(f"cannot load {str(path)!r}: it is a directory, not a file; give the file's path.")
     if not path.is_file():
         raise DataError(f"cannot load {str(path)!r}: no such file.")
     try:

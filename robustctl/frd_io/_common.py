@@ -14,9 +14,26 @@ import numpy as np
 from ..errors import DataError
 from ..frd import FrequencyData
 
-__all__ = ["FORMAT", "jsonable", "json_dumps", "json_loads", "write_atomically", "build"]
+__all__ = [
+    "FORMAT", "MAX_FILE_BYTES", "jsonable", "json_dumps", "json_loads", "write_atomically", "build",
+    "read_limited",
+]
 
 FORMAT = "robustctl.FrequencyData"
+#: Largest FrequencyData file read (bytes); a larger one is refused before it is read.
+MAX_FILE_BYTES = 1 << 30
+
+
+def read_limited(path: Path, limit: int) -> bytes:
+    """The bytes of ``path``; refuses a file larger than ``limit`` or one that cannot be read."""
+    try:
+        size = path.stat().st_size
+        if size > limit:
+            raise DataError(f"the file has {size} bytes, more than the {limit} read; is it the right file?")
+        with open(path, "rb") as fh:
+            return fh.read(limit + 1)
+    except OSError as exc:
+        raise DataError(f"cannot read the file ({type(exc).__name__}: {exc.strerror or exc}).") from None
 
 
 def jsonable(obj: Any) -> Any:
@@ -58,19 +75,41 @@ def write_atomically(path: Path, write: Callable[[Path], None], overwrite: bool)
     Raises
     ------
     DataError
-        The folder does not exist, or ``path`` exists and ``overwrite`` is False.
+        The folder does not exist, ``path`` is a folder or a read-only file, ``path`` exists and
+        ``overwrite`` is False, or the write fails (permissions, full disk: the cause is named and
+        an existing file is left unchanged).
     """
     if not path.parent.is_dir():
         raise DataError(f"cannot save to {str(path)!r}: the directory {str(path.parent)!r} does not exist.")
+    if path.is_dir():
+        raise DataError(f"cannot save to {str(path)!r}: it is a directory; give a file name.")
     if path.exists() and not overwrite:
         raise DataError(
             f"{str(path)!r} already exists; pass overwrite=True to replace it or choose another name."
         )
+    if path.exists() and not os.access(path, os.W_OK):
+        raise DataError(
+            f"cannot save to {str(path)!r}: the file is read-only; make it writable to replace it "
+            "or choose another name."
+        )
+    try:
+        _write_via_temporary(path, write, overwrite)
+    except OSError as exc:  # read-only folder or file, disk full, quota, ...
+        reason = exc.strerror or str(exc)
+        raise DataError(
+            f"cannot save to {str(path)!r}: {reason} ({type(exc).__name__}); the existing file, if any, "
+            "is unchanged. Check the folder's permissions and free space, or choose another path."
+        ) from exc
+    return path
+
+
+def _write_via_temporary(path: Path, write: Callable[[Path], None], overwrite: bool) -> None:
     fd, tmp_name = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=path.suffix, dir=path.parent)
     os.close(fd)
     tmp = Path(tmp_name)
     try:
         write(tmp)
+        _default_permissions(tmp)
         if overwrite:
             os.replace(tmp, path)
         else:
@@ -78,7 +117,23 @@ def write_atomically(path: Path, write: Callable[[Path], None], overwrite: bool)
     finally:
         if tmp.exists():
             tmp.unlink()
-    return path
+
+
+def _default_permissions(tmp: Path) -> None:
+    """``mkstemp`` makes the file private (0600); give it the mode a plain ``open`` would (umask)."""
+    os.chmod(tmp, 0o666 & ~_current_umask())
+
+
+def _current_umask() -> int:
+    """The process umask, read without changing it (``os.umask`` would race with other threads)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    return 0o022
 
 
 def move_no_clobber(tmp: Path, path: Path) -> None:

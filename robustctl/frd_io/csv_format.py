@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import io
 from pathlib import Path
 
 import numpy as np
@@ -41,11 +42,17 @@ def _csv_float(text: str, line: int, column: str) -> float:
 def _csv_rows(path: Path) -> tuple[bool, list[list[str]]]:
     try:
         with open(path, newline="", encoding="utf-8") as fh:
-            rows = list(csv.reader(fh))
+            text = fh.read()
+        rows = list(csv.reader(io.StringIO(text)))
     except (UnicodeDecodeError, csv.Error) as exc:
         raise DataError(f"not a readable text CSV file ({exc}).") from None
     if not rows:
         raise DataError("the CSV file is empty.")
+    if not text.endswith("\n"):
+        raise DataError(
+            "the CSV file does not end with a line break: it is truncated (the last row may be cut "
+            "short); write it again or add the missing end."
+        )
     header = [h.strip() for h in rows[0]]
     if header not in (_CSV_HEADER, _CSV_HEADER + ["coherence"]):
         raise DataError(

@@ -10,7 +10,8 @@ import numpy as np
 
 from ..errors import DataError
 from ..frd import FrequencyData
-from ._common import FORMAT, build, json_dumps, json_loads
+from ._common import FORMAT, MAX_FILE_BYTES, build, json_dumps, json_loads, read_limited
+from .mat5_check import check_mat5
 
 __all__ = ["read_mat", "write_mat"]
 
@@ -75,10 +76,14 @@ def _mat_array(mdict: dict, key: str, shape: tuple[int, ...]) -> np.ndarray:
 
 
 def read_mat(path: Path) -> FrequencyData:
+    import io
+
     from scipy.io import loadmat
 
+    raw = read_limited(path, MAX_FILE_BYTES)
+    check_mat5(raw)  # scipy's reader can crash the interpreter on a corrupt file
     try:
-        mdict = loadmat(path, squeeze_me=False, chars_as_strings=True)
+        mdict = loadmat(io.BytesIO(raw), squeeze_me=False, chars_as_strings=True)
     except Exception as exc:  # scipy raises ValueError, TypeError, MatReadError, ...
         raise DataError(f"not a readable MAT file ({type(exc).__name__}: {exc}).") from None
     for key in ("Frequency", "ResponseData"):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import zipfile
+import zlib
 from pathlib import Path
 from typing import Any
 
@@ -36,10 +37,17 @@ def _npz_array(npz: Any, key: str, kinds: str) -> np.ndarray:
         raise DataError(f"the npz file has no {key!r} array; it was not written by FrequencyData.save.")
     try:
         arr = npz[key]
-    except ValueError as exc:  # object arrays need pickle, which is refused
+    except ValueError as exc:
+        if "allow_pickle" in str(exc):  # object arrays need pickle, which is refused
+            raise DataError(
+                f"array {key!r} holds pickled Python objects, which robustctl never loads "
+                "(allow_pickle=False)."
+            ) from None
+        raise DataError(f"array {key!r} has a corrupt .npy header or data ({exc}).") from None
+    except (NotImplementedError, RuntimeError, EOFError, OSError, zlib.error, zipfile.BadZipFile) as exc:
+        # NotImplementedError: zipfile meets an unknown compression method (a flipped bit in its field)
         raise DataError(
-            f"array {key!r} holds pickled Python objects, which robustctl never loads "
-            f"(allow_pickle=False): {exc}"
+            f"the npz archive is corrupt: array {key!r} cannot be read ({type(exc).__name__}: {exc})."
         ) from None
     if arr.dtype.kind not in kinds:
         raise DataError(f"array {key!r} has dtype {arr.dtype}, expected kind {kinds!r}.")
@@ -49,8 +57,8 @@ def _npz_array(npz: Any, key: str, kinds: str) -> np.ndarray:
 def read_npz(path: Path) -> FrequencyData:
     try:
         npz = np.load(path, allow_pickle=False)
-    except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
-        raise DataError(f"not a readable npz file ({exc}).") from None
+    except (ValueError, OSError, zipfile.BadZipFile, EOFError, NotImplementedError, RuntimeError) as exc:
+        raise DataError(f"not a readable npz file ({type(exc).__name__}: {exc}).") from None
     if not isinstance(npz, np.lib.npyio.NpzFile):
         raise DataError("the file holds a single array, not a FrequencyData npz archive.")
     with npz:

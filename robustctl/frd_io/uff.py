@@ -8,22 +8,31 @@ import numpy as np
 
 from ..errors import DataError
 from ..frd import FrequencyData
-from ._common import build
+from ._common import MAX_FILE_BYTES, build, read_limited
 
 __all__ = ["read_uff", "write_uff"]
 
 _UFF_ID = "robustctl FrequencyData"
+_SHAPE_TAG = "robustctl shape"
 
 
 def _uff_name_ok(name: str) -> bool:
     return 0 < len(name) <= 80 and name == name.strip() and name.isprintable()
 
 
-def _uff_record(f: np.ndarray, values: np.ndarray, func_type: int, o: int, i: int, names: tuple[str, str]):
+def _uff_shape_id(data: FrequencyData) -> str:
+    """ID line 3 of every record: the complete set, so a reader can tell a truncated file."""
+    n_rec = data.n_out * data.n_in * (1 if data.coherence is None else 2)
+    return f"{_SHAPE_TAG} {data.n_out}x{data.n_in} records={n_rec}"
+
+
+def _uff_record(
+    f: np.ndarray, values: np.ndarray, func_type: int, o: int, i: int, names: tuple[str, str], id3: str
+):
     import pyuff
 
     return pyuff.prepare_58(
-        binary=1, id1=_UFF_ID, id2="coherence" if func_type == 6 else "frf", id3="NONE",
+        binary=1, id1=_UFF_ID, id2="coherence" if func_type == 6 else "frf", id3=id3,
         id4=names[0], id5=names[1], func_type=func_type, rsp_node=o + 1, rsp_dir=0, ref_node=i + 1,
         ref_dir=0, data=values, x=f, abscissa_spacing=0, abscissa_spec_data_type=18,
         abscissa_axis_units_lab="Hz", ordinate_spec_data_type=0, orddenom_spec_data_type=0,
@@ -42,13 +51,13 @@ def write_uff(data: FrequencyData, path: Path) -> None:
             f"signal names {bad} cannot be stored in UFF ID lines (printable characters, 1-80 of them, no "
             "leading/trailing spaces); rename the signals or save as .npz."
         )
-    records = []
+    records, id3 = [], _uff_shape_id(data)
     for o, out in enumerate(data.outputs):
         for i, inp in enumerate(data.inputs):
-            records.append(_uff_record(data.f_hz, data.response[:, o, i], 4, o, i, (out, inp)))
+            records.append(_uff_record(data.f_hz, data.response[:, o, i], 4, o, i, (out, inp), id3))
             if data.coherence is not None:
                 coh = data.coherence[:, o, i].astype(float)
-                records.append(_uff_record(data.f_hz, coh, 6, o, i, (out, inp)))
+                records.append(_uff_record(data.f_hz, coh, 6, o, i, (out, inp), id3))
     path.unlink()  # pyuff opens the file itself; "add" mode (its binary "overwrite" truncates the header)
     try:
         pyuff.UFF(str(path)).write_sets(records, mode="add")
@@ -63,9 +72,45 @@ def _uff_names(rec: dict) -> tuple[str, str]:
     return out, f"{rec.get('ref_node', 0)}:{rec.get('ref_dir', 0)}"
 
 
+def _uff_complete(path: Path) -> None:
+    """Refuse a file whose last dataset is cut off (every dataset ends with a ``-1`` line)."""
+    raw = read_limited(path, MAX_FILE_BYTES)
+    if not raw.rstrip(b" \r\n").endswith(b"    -1"):
+        raise DataError(
+            "the universal file does not end with a dataset delimiter ('    -1'): it is truncated or "
+            "corrupt, so it may not hold complete channels."
+        )
+
+
+def _uff_check_record(rec: dict) -> None:
+    n_x, n_y = np.size(rec.get("x", [])), np.size(rec.get("data", []))
+    n_pts = rec.get("num_pts", n_x)
+    if not n_x == n_y == int(n_pts) or n_x == 0:
+        raise DataError(
+            f"a dataset 58 record holds {n_x} frequencies and {n_y} values but declares {n_pts}; "
+            "the file is truncated or corrupt."
+        )
+
+
+def _uff_check_shape(sets: list[dict]) -> None:
+    """For files written by robustctl: the records present are the complete set named in ID line 3."""
+    for rec in sets:
+        id3 = str(rec.get("id3", "")).strip()
+        if str(rec.get("id1", "")).strip() != _UFF_ID or not id3.startswith(_SHAPE_TAG):
+            continue
+        want = id3.rsplit("records=", 1)[-1]
+        if not want.isdigit() or int(want) != len(sets):
+            raise DataError(
+                f"the universal file holds {len(sets)} FRF/coherence records but was written with "
+                f"{want} ({id3[len(_SHAPE_TAG):].strip()}); it is truncated or corrupt."
+            )
+        return
+
+
 def _uff_sets(path: Path) -> list[dict]:
     import pyuff
 
+    _uff_complete(path)
     try:
         uff = pyuff.UFF(str(path))
         idx = [k for k, t in enumerate(uff.get_set_types()) if int(t) == 58]
@@ -73,7 +118,16 @@ def _uff_sets(path: Path) -> list[dict]:
     except Exception as exc:  # pyuff raises bare Exceptions
         raise DataError(f"not a readable universal file ({exc}).") from None
     sets = [sets] if isinstance(sets, dict) else list(sets)
-    return [s for s in sets if int(s.get("func_type", -1)) in (4, 6)]
+    if len(sets) != len(idx):
+        raise DataError(f"pyuff read {len(sets)} of the {len(idx)} dataset 58 records; the file is corrupt.")
+    try:
+        sets = [s for s in sets if int(s.get("func_type", -1)) in (4, 6)]
+    except (TypeError, ValueError):
+        raise DataError("a dataset 58 record has an unreadable function type; the file is corrupt.") from None
+    for rec in sets:
+        _uff_check_record(rec)
+    _uff_check_shape(sets)
+    return sets
 
 
 def _uff_collect(sets: list[dict]):
