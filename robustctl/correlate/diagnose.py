@@ -46,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import UNSET, renamed_keyword
+from ..checks import UNSET, finite_number, integer, positive_number, renamed_keyword
 from ..errors import FitError, ModelError, RobustctlError
 from ..frd import FrequencyData
 from ..parallel import check_executor, parallel_map
@@ -601,13 +601,30 @@ def _prepare(model, data, candidates, band, update_params, weights, min_db) -> t
     return res0, ignored, upd, cands
 
 
-def _screen_all(res_u: Residual, model_u: Any, null: _Null, cands: list, executor) -> tuple:
+def _check_budget(deadline: float, budget: float, stage: str) -> float:
+    """Seconds left before ``deadline``; a FitError naming the stage when none are (the
+    budget covers the whole call: a partial ranking would be a wrong answer without warning)."""
+    left = deadline - time.perf_counter()
+    if left <= 0:
+        raise FitError(
+            f"time_budget_s={budget:g} s ran out during {stage}; raise time_budget_s, pass fewer "
+            "candidates= or a narrower band=."
+        )
+    return left
+
+
+def _screen_all(
+    res_u: Residual, model_u: Any, null: _Null, cands: list, executor, deadline: float, budget: float
+) -> tuple:
     """Screen every candidate (step 2): the screens, indistinguishable twins, and the
     order of the others by the fraction they explain."""
     r_perp = _project(null.Q, null.j)
-    screens = parallel_map(
-        lambda c: _screen_one(res_u, model_u, null.j, null.Q, r_perp, c), cands, executor, desc="screening"
-    )
+
+    def screen(c: Any) -> dict:
+        _check_budget(deadline, budget, f"the screening of {len(cands)} candidates")
+        return _screen_one(res_u, model_u, null.j, null.Q, r_perp, c)
+
+    screens = parallel_map(screen, cands, executor, desc="screening")
     twins = _equivalent(screens)
     order = sorted(
         (k for k in range(len(screens)) if k not in twins),
@@ -834,12 +851,17 @@ def diagnose(
     """
     t0 = time.perf_counter()
     check_executor(executor)
+    time_budget_s = positive_number(time_budget_s, "time_budget_s", FitError, unit="s, the whole call")
+    max_iter = integer(max_iter, "max_iter", FitError, lo=1)
+    update_iter = integer(update_iter, "update_iter", FitError, lo=1)
+    deadline = t0 + time_budget_s
     params = renamed_keyword(params, update_params, "params", "update_params")
     point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     model = physical_model(model, "diagnose")
     res0, ignored, upd, cands = _prepare(model, data, candidates, band, params, point_weights, min_channel_db)
+    alpha, min_gain = finite_number(alpha, "alpha", FitError), finite_number(min_gain, "min_gain", FitError)
     if not 0 < alpha < 1 or not 0 <= min_gain < 1:
-        raise FitError(f"alpha must lie in (0, 1) and min_gain in [0, 1); got {alpha}, {min_gain}.")
+        raise FitError(f"alpha must lie in (0, 1) and min_gain in [0, 1); got {alpha!r}, {min_gain!r}.")
     if isinstance(n_fit, bool) or not isinstance(n_fit, (int, np.integer)) or n_fit < 0:
         raise FitError(
             f"n_fit is the number of best-screened candidates given a local fit: a whole number >= 0; "
@@ -855,11 +877,12 @@ def diagnose(
     model_u = model.with_values(**x_u) if x_u else model
     res_u = _residual_for(res0, model_u)
     # 2. secant screening
-    screens, twins, order = _screen_all(res_u, model_u, null, cands, executor)
+    _check_budget(deadline, time_budget_s, "the null fit")
+    screens, twins, order = _screen_all(res_u, model_u, null, cands, executor, deadline, time_budget_s)
     evals += sum(s["evals"] for s in screens)
     top = [k for k in order[:n_fit] if screens[k]["fraction"] > 0]
     # 3. local fits
-    remaining = max(time_budget_s - (time.perf_counter() - t0), 1.0)
+    remaining = _check_budget(deadline, time_budget_s, "the screening")
     fits = parallel_map(
         lambda k: _fit_one(res_u, null, screens[k], max_iter, remaining / max(len(top), 1)),
         top,

@@ -30,6 +30,7 @@ from ..checks import (
     band_data,
     band_mask,
     check_band,
+    finite_number,
     match_channels,
     renamed_keyword,
 )
@@ -197,6 +198,7 @@ class Residual:
         if min_db is None:
             _check_no_zero_channel(self.data)
             return []
+        min_db = finite_number(min_db, "min_channel_db", DataError)
         d = self.data
         found = {(o, i): lvl for o, i, lvl in _negligible_channels(d.response, d.outputs, d.inputs, min_db)}
         model_level = _negligible_channels(self.model_response(), d.outputs, d.inputs, min_db)

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import UNSET, renamed_keyword
+from ..checks import UNSET, flag, integer, positive_number, probability, renamed_keyword
 from ..errors import FitError
 from ..frd import FrequencyData
 from ..parallel import check_executor
@@ -598,6 +598,17 @@ def _passes(
     return fit, tuple(history), notes, n_evals
 
 
+def _check_update_settings(
+    max_iter: Any, ftol: Any, time_budget_s: Any, min_alignment: Any, max_orthogonality: Any
+) -> None:
+    """The iteration cap, tolerance, budget and selection thresholds of :func:`update`."""
+    integer(max_iter, "max_iter", FitError, lo=1)
+    positive_number(ftol, "ftol", FitError)
+    positive_number(time_budget_s, "time_budget_s", FitError, unit="s")
+    probability(min_alignment, "min_alignment", FitError)
+    probability(max_orthogonality, "max_orthogonality", FitError)
+
+
 def update(
     model: Any,
     data: FrequencyData,
@@ -685,7 +696,11 @@ def update(
     for what, value, least in (("passes", passes, 1), ("drift_bands", drift_bands, 0)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
             raise FitError(f"{what} must be an integer >= {least}; got {value!r}.")
-    progress = sys.stderr.isatty() if progress is None else bool(progress)
+    _check_update_settings(max_iter, ftol, time_budget_s, min_alignment, max_orthogonality)
+    drift_sigma = positive_number(drift_sigma, "drift_sigma", FitError)
+    drift_floor = positive_number(drift_floor, "drift_floor", FitError, allow_zero=True)
+    select = flag(select, "select", FitError)
+    progress = sys.stderr.isatty() if progress is None else flag(progress, "progress", FitError)
     point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     model = physical_model(model, "update")
     residual = Residual(model, data, band=band, point_weights=point_weights, min_channel_db=min_channel_db)
