@@ -39,13 +39,19 @@ def apply_perturbation(model: Any, perturbation: Any) -> tuple[Any, str]:
         value set), a mapping of parameter overrides ``{"m_offset": 0.8}``, or a callable
         ``model -> model`` (e.g. ``lambda m: m.without("suspension", "gravity")``).
     """
+    if isinstance(perturbation, type):
+        raise ModelError(
+            f"perturbation is the class {perturbation.__name__}; create the effect with its value, "
+            "e.g. rc.effects.AddedMass('dof 3', mass=0.2)."
+        )
     if hasattr(perturbation, "apply") and callable(perturbation.apply):
         return perturbation.apply(model), str(getattr(perturbation, "name", type(perturbation).__name__))
     if isinstance(perturbation, Mapping):
         if not perturbation:
             raise ModelError("the perturbation dict is empty; give the parameter values that change.")
-        desc = ", ".join(f"{k} = {v:g}" for k, v in perturbation.items())
-        return model.with_values(**perturbation), desc
+        perturbed = model.with_values(**perturbation)  # refuses unknown names and non-numbers
+        desc = ", ".join(f"{k} = {float(v):g}" for k, v in perturbation.items())
+        return perturbed, desc
     if callable(perturbation):
         return perturbation(model), getattr(perturbation, "__name__", "custom perturbation")
     raise ModelError(

@@ -36,7 +36,9 @@ _DEFINITENESS_CHECK_LIMIT = 800
 
 def _matrix(a: Any, n: int | None, what: str):
     """A float matrix (dense or CSR): square, finite, symmetric, and of size ``n`` when given."""
-    mat = sp.csr_matrix(a, dtype=float) if sp.issparse(a) else np.array(a, dtype=float, ndmin=2)
+    mat = _float_matrix(a, what)
+    if mat.shape[0] == 0 or mat.ndim != 2:
+        raise ModelError(f"the {what} matrix is empty (shape {mat.shape}); give an n x n matrix, n >= 1.")
     _check_square_symmetric(what, mat)
     if n is not None and mat.shape[0] != n:
         raise ModelError(
@@ -44,6 +46,44 @@ def _matrix(a: Any, n: int | None, what: str):
             "all matrices must have the size of the mass matrix."
         )
     return mat
+
+
+def _float_matrix(a: Any, what: str):
+    """``a`` as a real float matrix (dense or CSR); refuses text, ragged lists and complex values
+    (``astype(float)`` would drop the imaginary part with only a ComplexWarning)."""
+    try:
+        if sp.issparse(a):
+            kind = a.dtype.kind
+            mat = sp.csr_matrix(a, dtype=float) if kind in "biuf" else None
+        else:
+            arr = np.asarray(a)
+            kind = arr.dtype.kind
+            mat = np.array(arr, dtype=float, ndmin=2) if kind in "iuf" else None
+    except (TypeError, ValueError) as exc:
+        raise ModelError(f"the {what} matrix must be an array of real numbers ({exc}).") from None
+    if mat is None:
+        what_kind = "complex" if kind == "c" else f"dtype {kind!r}"
+        raise ModelError(f"the {what} matrix must hold real numbers; got {what_kind} values.")
+    return mat
+
+
+def _check_damping(damping, labels: Sequence[str]) -> None:
+    """A concentrated damping matrix must be positive semi-definite: a negative dashpot feeds
+    energy in and makes the model unstable (the modal damping ``Phi^T C Phi`` is then indefinite)."""
+    diag = damping.diagonal()
+    bad = np.flatnonzero(diag < 0)
+    if bad.size:
+        raise ModelError(
+            f"concentrated_damping has a negative diagonal entry at {labels[bad[0]]!r} ({diag[bad[0]]:g}); "
+            "dashpot constants must be >= 0 (a negative one makes the model unstable)."
+        )
+    if damping.shape[0] <= _DEFINITENESS_CHECK_LIMIT:
+        lam = np.linalg.eigvalsh(_dense(damping))
+        if lam.min() < -1e-9 * max(abs(lam).max(), 1e-300):
+            raise ModelError(
+                f"concentrated_damping is not positive semi-definite (eigenvalue {lam.min():.3g}); a "
+                "damping matrix with a negative direction makes the model unstable."
+            )
 
 
 def _check_definite(mass, stiffness, labels: Sequence[str]) -> None:
@@ -119,6 +159,8 @@ class MatrixStructure(Structure):
         self._K = _matrix(stiffness, n, "stiffness")
         self._C = None if damping is None else _matrix(damping, n, "damping")
         _check_definite(self._M, self._K, self._labels)
+        if self._C is not None:
+            _check_damping(self._C, self._labels)
         self._inputs, self._b = self._input_vectors(inputs)
         self._outputs, self._c, self._kinds = self._output_vectors(outputs)
         self._groups = {
@@ -144,7 +186,10 @@ class MatrixStructure(Structure):
             e = np.zeros(self.n_dof)
             e[self._dof(v)] = 1.0
             return e
-        vec = np.asarray(v, dtype=float).reshape(-1)
+        try:
+            vec = np.asarray(v, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            vec = np.full(1, np.nan)
         if vec.size != self.n_dof or not np.all(np.isfinite(vec)):
             raise ModelError(
                 f"the vector of {what} has {vec.size} entries; it needs one finite entry per DOF "

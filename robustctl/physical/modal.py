@@ -31,6 +31,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..checks import check_band, flag, integer, positive_number
 from ..errors import ModelError
 from ..table import Table
 from .eigen import solve_modes
@@ -503,6 +504,13 @@ def modal_dynamics(
     by matrix content (last 4 structures), so changing only the damping, or building again
     with equal matrices, does not solve the eigenproblem again.
     """
+    if n_modes is not None:
+        n_modes = integer(n_modes, "n_modes", ModelError, lo=1)
+    band_hz = check_band(band_hz, "band_hz")
+    rigid_body_damping = positive_number(
+        rigid_body_damping, "rigid_body_damping", ModelError, allow_zero=True
+    )
+    residual_flexibility = flag(residual_flexibility, "residual_flexibility", ModelError)
     cache = _ModeCache()
 
     def dynamics(theta: Mapping[str, float], structure: Structure | None):

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import finite_number
 from ..errors import ModelError
 from ..threads import limit_blas
 from .parameters import Parameter
@@ -239,9 +240,9 @@ class PhysicalModel:
                 raise ModelError(
                     f"unknown parameter {key!r}; the model has {list(self.param_names)}."
                 )
-            if not np.isfinite(value):
-                raise ModelError(f"parameter {key!r} override {value!r} is not finite.")
-            theta[key] = float(value)
+            if isinstance(value, np.ndarray) and value.ndim == 0:
+                value = value.item()
+            theta[key] = finite_number(value, f"parameter {key!r} (override)", ModelError)
         return theta
 
     def with_values(self, **values: float) -> PhysicalModel:
@@ -277,8 +278,18 @@ class PhysicalModel:
 
     def with_effect(self, effect: Any) -> PhysicalModel:
         """A copy with a physical ``Effect`` added (see :mod:`robustctl.effects`)."""
+        from .effects.base import Effect
+
         if effect is None:
             raise ModelError("with_effect got None: the diagnosis found no significant effect.")
+        if not isinstance(effect, Effect):
+            hint = (
+                " (a class: create the effect with its arguments, "
+                "e.g. rc.effects.AddedMass('dof 3', mass=0.1))"
+                if isinstance(effect, type) else
+                " (give an Effect object, e.g. diag.best or rc.effects.AddedMass('dof 3', mass=0.1))"
+            )
+            raise ModelError(f"with_effect needs an rc.effects Effect; got {effect!r}{hint}.")
         return effect.apply(self)
 
     def without(self, *tags: str) -> PhysicalModel:

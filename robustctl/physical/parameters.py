@@ -3,11 +3,35 @@
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, replace
 
+import numpy as np
+
+from ..checks import finite_number, flag
 from ..errors import ModelError
 
 __all__ = ["Parameter"]
+
+
+def _scalar(value: object) -> object:
+    """A 0-d numpy array as its item (optimisers hand those over); anything else unchanged."""
+    return value.item() if isinstance(value, np.ndarray) and value.ndim == 0 else value
+
+
+def _bounds_pair(name: str, bounds: object) -> tuple[float, float]:
+    """``(lo, hi)`` as floats; infinite ends allowed, NaN, strings and other lengths refused."""
+    items = list(bounds) if isinstance(bounds, (tuple, list, np.ndarray)) else []
+    ok = len(items) == 2 and all(
+        isinstance(b, (numbers.Real, np.floating, np.integer)) and not isinstance(b, (bool, np.bool_))
+        and not math.isnan(float(b)) for b in items
+    )
+    if not ok:
+        raise ModelError(
+            f"parameter {name!r}: bounds must be a pair (lo, hi) of real numbers (inf allowed); "
+            f"got {bounds!r}."
+        )
+    return float(items[0]), float(items[1])
 
 
 @dataclass(frozen=True)
@@ -52,10 +76,8 @@ class Parameter:
     def __post_init__(self) -> None:
         if not self.name or not isinstance(self.name, str):
             raise ModelError("a Parameter needs a non-empty string name.")
-        value = float(self.value)
-        lo, hi = (float(b) for b in self.bounds)
-        if not math.isfinite(value):
-            raise ModelError(f"parameter {self.name!r} has a non-finite value {value!r}.")
+        value = finite_number(_scalar(self.value), f"parameter {self.name!r}: value", ModelError)
+        lo, hi = _bounds_pair(self.name, self.bounds)
         if lo > hi:
             raise ModelError(f"parameter {self.name!r} has bounds {self.bounds} with lower > upper.")
         if not lo <= value <= hi:
@@ -72,6 +94,15 @@ class Parameter:
                 f"parameter {self.name!r}: rel_step must be a finite number > 0 and abs_step a "
                 f"finite number >= 0; got rel_step={self.rel_step!r}, abs_step={self.abs_step!r}."
             )
+        if self.neutral is not None:
+            neutral = finite_number(self.neutral, f"parameter {self.name!r}: neutral", ModelError)
+            if not lo <= neutral <= hi:
+                raise ModelError(
+                    f"parameter {self.name!r}: neutral={neutral:g} (the value at which the effect vanishes) "
+                    f"lies outside the bounds [{lo:g}, {hi:g}]; widen the bounds or fix the neutral value."
+                )
+            object.__setattr__(self, "neutral", neutral)
+        object.__setattr__(self, "free", flag(self.free, f"parameter {self.name!r}: free", ModelError))
         object.__setattr__(self, "value", value)
         object.__setattr__(self, "rel_step", rel_step)
         object.__setattr__(self, "abs_step", abs_step)
@@ -81,7 +112,8 @@ class Parameter:
 
     def with_value(self, value: float) -> Parameter:
         """A copy holding ``value`` (checked against the bounds)."""
-        return replace(self, value=float(value))
+        value = finite_number(_scalar(value), f"parameter {self.name!r}: value", ModelError)
+        return replace(self, value=value)
 
     def step(self, value: float | None = None) -> float:
         """Finite-difference step at ``value`` (default: the current value)."""
