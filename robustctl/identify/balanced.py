@@ -145,6 +145,11 @@ def _as_ss(sys: Any):
     ss = as_statespace(sys)
     if ss.dt not in (0, None):
         raise ModelError("balanced_truncation handles continuous-time systems only (dt = 0).")
+    if not all(np.all(np.isfinite(np.asarray(m, dtype=complex))) for m in (ss.A, ss.B, ss.C, ss.D)):
+        raise ModelError(
+            "the system's state-space matrices hold NaN or inf; balanced truncation needs a finite "
+            "system (check the model that produced it)."
+        )
     return ss
 
 

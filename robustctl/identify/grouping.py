@@ -9,11 +9,13 @@ the group's residue matrices are summed and split by an SVD (eq. 10) into the ke
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
+from ..checks import flag, integer, positive_number, probability
 from ..errors import FitError
 from ..frd import FrequencyData
 from ..threads import limit_blas
@@ -54,6 +56,10 @@ def combine_simo(fits: Sequence[RationalFit]) -> RationalFit:
     RationalFit
         ``method="combined"``; inputs in the order of ``fits``.
     """
+    if isinstance(fits, RationalFit) or not isinstance(fits, (Sequence, np.ndarray)):
+        raise FitError(
+            f"combine_simo needs a list of RationalFit (one per input); got {type(fits).__name__}."
+        )
     fits = list(fits)
     if not fits or not all(isinstance(f, RationalFit) for f in fits):
         raise FitError("combine_simo needs a non-empty sequence of RationalFit (one per input).")
@@ -172,6 +178,36 @@ def _merge(poles: np.ndarray, residues: np.ndarray, keep: int) -> list[tuple[com
 
 
 @limit_blas
+def _check_grouping(groups: Any, tol: Any, rank_tol: Any) -> tuple[float, float, Any]:
+    """``tol`` > 0 (relative frequency spacing of one cluster), ``0 <= rank_tol < 1``, and
+    ``groups`` None, a positive tolerance, counts >= 1, or explicit bands (checked later)."""
+    tol = positive_number(tol, "tol", FitError)
+    rank_tol = probability(rank_tol, "rank_tol", FitError)
+    if isinstance(groups, (bool, np.bool_, str, bytes)):
+        raise FitError(f"groups must be None, a positive tolerance, or a sequence; got {groups!r}.")
+    if isinstance(groups, (int, np.integer)):
+        raise FitError(
+            f"groups={groups!r}: give a list of mode counts per group (e.g. [1, 2, 1]) or a float "
+            "relative clustering tolerance (e.g. 0.05)."
+        )
+    if isinstance(groups, (numbers.Real, np.floating)):
+        groups = positive_number(groups, "groups (a relative clustering tolerance)", FitError)
+    elif groups is not None:
+        try:
+            groups = list(groups)
+        except TypeError:
+            raise FitError(
+                f"groups must be None, a positive tolerance, a sequence of mode counts or of "
+                f"((f_lo_hz, f_hi_hz), n_modes); got {groups!r}."
+            ) from None
+        if not groups:
+            raise FitError("groups is empty; give None for automatic grouping or one entry per group.")
+        for g in groups:
+            if isinstance(g, (int, np.integer, numbers.Real)) and not isinstance(g, (bool, np.bool_)):
+                integer(g, "each mode count in groups", FitError, lo=1)
+    return tol, rank_tol, groups
+
+
 def group_modes(
     model: RationalFit,
     groups: Any = None,
@@ -217,6 +253,8 @@ def group_modes(
         raise FitError(
             f"group_modes needs a RationalFit (e.g. from combine_simo); got {type(model).__name__}."
         )
+    tol, rank_tol, groups = _check_grouping(groups, tol, rank_tol)
+    refine = flag(refine, "refine", FitError)
     resolved = _resolve_groups(model, groups, tol, rank_tol)
     used = np.zeros(len(model.poles), dtype=bool)
     poles, residues, ranks = [], [], []

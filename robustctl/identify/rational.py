@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import UNSET, renamed_keyword
+from ..checks import UNSET, flag, positive_number, renamed_keyword
 from ..errors import FitError
 from ..frd import FrequencyData
 from ..lti import pole_frequency_damping
@@ -193,6 +193,31 @@ def _fit_simo_each(data: Any, order: int, band: Any, weights: Any, **kw: Any) ->
 
 
 @limit_blas
+def _check_tolerances(tol: Any, rank_tol: Any) -> tuple[float, float]:
+    """``tol`` > 0 (relative pole change that stops the iteration) and ``0 <= rank_tol < 1``
+    (singular values below ``rank_tol`` times the largest do not count in a residue's rank)."""
+    tol = positive_number(tol, "tol", FitError)
+    rank_tol = positive_number(rank_tol, "rank_tol", FitError, allow_zero=True)
+    if rank_tol >= 1:
+        raise FitError(
+            f"rank_tol is relative to the largest singular value: give 0 <= rank_tol < 1; got {rank_tol!r}."
+        )
+    return tol, rank_tol
+
+
+def _check_scale(g: np.ndarray) -> None:
+    """Refuse responses whose magnitudes the fit's squares would overflow or underflow."""
+    mag = np.abs(g[g != 0])
+    if mag.size == 0:
+        raise FitError("the response is zero at every point in the band; there is nothing to fit.")
+    lo, hi = float(mag.min()), float(mag.max())
+    if lo < 1e-150 or hi > 1e150:
+        raise FitError(
+            f"the response magnitudes span {lo:.3g} to {hi:.3g}; their squares leave the floating-point "
+            "range. Rescale the data (other units, e.g. mm instead of m) to magnitudes near 1."
+        )
+
+
 def fit_rational(
     data: Any,
     order: int,
@@ -260,17 +285,28 @@ def fit_rational(
     weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     method = _check_method(method)
     max_iter = _check_iter(DEFAULT_MAX_ITER[method] if max_iter is None else max_iter)
+    tol, rank_tol = _check_tolerances(tol, rank_tol)
+    stable, feedthrough = flag(stable, "stable", FitError), flag(feedthrough, "feedthrough", FitError)
+    common_denominator = flag(common_denominator, "common_denominator", FitError)
     kw = dict(
         method=method, stable=stable, max_iter=max_iter, tol=tol, feedthrough=feedthrough, rank_tol=rank_tol
     )
     prob = prepare_problem(data, order, band, weights)
+    _check_scale(prob.g)
     if not common_denominator and len(prob.inputs) > 1:
         return _fit_simo_each(data, order, band, weights, common_denominator=True, **kw)
-    poles, iters, converged = _pole_kernel(prob, method, max_iter, tol, stable)
-    if stable:
-        poles, _ = reflect_unstable(poles)
-    rw = np.sqrt(prob.w) / np.abs(prob.g)
-    residues, d = fit_residues(prob.s, prob.g, rw, poles, feedthrough)
+    try:
+        poles, iters, converged = _pole_kernel(prob, method, max_iter, tol, stable)
+        if stable:
+            poles, _ = reflect_unstable(poles)
+        rw = np.sqrt(prob.w) / np.abs(prob.g)
+        residues, d = fit_residues(prob.s, prob.g, rw, poles, feedthrough)
+    except np.linalg.LinAlgError as exc:
+        raise FitError(
+            f"the least-squares problem of the {method} fit is singular ({exc}): the data hold fewer "
+            f"independent features than order={order} poles (e.g. a constant or nearly constant "
+            "response); lower the order or widen the band."
+        ) from None
     ranks = np.array([residue_rank(r, rank_tol) for r in residues], dtype=int)
     if not converged:
         warnings.warn(
