@@ -48,6 +48,7 @@ __all__ = [
     "integer",
     "flag",
     "probability",
+    "check_seed",
     "renamed_keyword",
     "UNSET",
     "user_stacklevel",
@@ -127,6 +128,16 @@ def probability(value: Any, name: str, error: type[RobustctlError] = DataError) 
     if not _is_real_number(value) or not 0.0 <= float(value) <= 1.0:
         raise error(f"{name} must be a number in [0, 1]; got {value!r}.")
     return float(value)
+
+
+def check_seed(seed: Any, name: str = "seed", error: type[RobustctlError] = DataError) -> Any:
+    """A seed ``numpy.random.default_rng`` accepts: None, an int >= 0, a SeedSequence or a
+    Generator (returned unchanged); refuses negatives, floats, strings and bools."""
+    if seed is None or isinstance(
+        seed, (np.random.Generator, np.random.SeedSequence, np.random.BitGenerator)
+    ):
+        return seed
+    return integer(seed, name, error, lo=0)
 
 
 class _Unset:

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from .checks import integer, match_channels, positive_number
+from .checks import check_seed, flag, integer, match_channels, positive_number
 from .errors import DataError, ModelError
 from .frd import FrequencyData
 from .threads import limit_blas
@@ -25,6 +25,10 @@ MAX_SAMPLES = 50_000_000
 
 
 # ---------------------------------------------------------------------------- helpers
+#: Largest signal magnitude: squares summed over a window stay far below the float64 limit.
+_MAX_SIGNAL = 1e100
+
+
 def _as_signals(x: Any, name: str) -> np.ndarray:
     """A real (n_samples, n_channels) float array; 1-D input is one channel."""
     arr = np.asarray(x)
@@ -45,6 +49,12 @@ def _as_signals(x: Any, name: str) -> np.ndarray:
     if not np.all(np.isfinite(arr)):
         bad = int(np.flatnonzero(~np.all(np.isfinite(arr), axis=1))[0])
         raise DataError(f"{name} contains NaN or inf (first at sample {bad}); repair or cut the record.")
+    peak = float(np.max(np.abs(arr))) if arr.size else 0.0
+    if peak > _MAX_SIGNAL:
+        raise DataError(
+            f"{name} reaches {peak:.3g}; its spectra (squares summed over a window) would overflow "
+            f"beyond {_MAX_SIGNAL:g}. Rescale the record (other units) to magnitudes near 1."
+        )
     return arr
 
 
@@ -64,13 +74,9 @@ def _window(window: Any, nperseg: int) -> np.ndarray:
 
 def _segment_settings(n_samples: int, nperseg: Any, noverlap: Any) -> tuple[int, int, int]:
     """Validated ``(nperseg, noverlap, n_averages)`` (Welch, 1967)."""
-    if isinstance(nperseg, bool) or int(nperseg) != nperseg or nperseg < 2:
-        raise DataError(f"nperseg must be an integer >= 2 samples; got {nperseg!r}.")
-    nperseg = int(nperseg)
+    nperseg = integer(nperseg, "nperseg (samples per window)", DataError, lo=2)
     noverlap = nperseg // 2 if noverlap is None else noverlap
-    if isinstance(noverlap, bool) or int(noverlap) != noverlap or noverlap < 0:
-        raise DataError(f"noverlap must be a non-negative integer number of samples; got {noverlap!r}.")
-    noverlap = int(noverlap)
+    noverlap = integer(noverlap, "noverlap (samples shared by neighbouring windows)", DataError, lo=0)
     if noverlap >= nperseg:
         raise DataError(
             f"noverlap ({noverlap}) must be smaller than nperseg ({nperseg}); "
@@ -177,6 +183,7 @@ def estimate_frf(
             "sampled together (same length)."
         )
     fs = positive_number(fs, "fs", unit="sampling frequency, Hz")
+    detrend = flag(detrend, "detrend")
     nperseg, noverlap, n_avg = _segment_settings(u.shape[0], nperseg, noverlap)
     n_in = u.shape[1]
     if n_avg < n_in:
@@ -418,11 +425,16 @@ def simulate_experiment(
     fs = positive_number(fs, "fs", unit="sampling frequency, Hz")
     n_samples = integer(n_samples, "n_samples", lo=2, hi=MAX_SAMPLES)
     A, B, C, D = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
+    if not all(np.all(np.isfinite(m)) for m in (A, B, C, D)):
+        raise ModelError(
+            "the system's state-space matrices hold NaN or inf; simulate a finite system "
+            "(check the model that produced it)."
+        )
     idx = _pick_inputs(inputs, list(ss.input_labels))
     B, D = B[:, idx], D[:, idx]
     rms_u = _per_channel(input_rms, len(idx), "input_rms", allow_zero=False)
     rms_y = _per_channel(noise_rms, C.shape[0], "noise_rms", allow_zero=True)
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(check_seed(seed))
     u = rng.standard_normal((n_samples, len(idx))) * rms_u
     n = A.shape[0]
     if n == 0:

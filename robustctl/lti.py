@@ -125,6 +125,11 @@ def _as_statespace(sys: Any):
             f"cannot convert {type(sys).__name__} to a state space ({exc}); pass a control.StateSpace, "
             "a transfer function or a robustctl PhysicalModel."
         ) from exc
+    if not isinstance(ss, control.StateSpace):  # control.ss(None) gives a NonlinearIOSystem
+        raise ModelError(
+            f"cannot convert {sys!r} to a state space; pass a control.StateSpace, a transfer function "
+            "or a robustctl PhysicalModel."
+        )
     return ss
 
 
@@ -410,6 +415,13 @@ def _response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, s: np.
     finite = np.all(np.isfinite(out), axis=(1, 2))
     if not np.all(finite):
         k = int(np.flatnonzero(~finite)[0])
+        gap = float(np.min(np.abs(np.linalg.eigvals(A) - s[k])))
+        if gap > 1e-8 * max(1.0, abs(s[k])):  # no pole there: the arithmetic overflowed
+            raise ModelError(
+                f"the response at s = {s[k]:.6g} (point {k}) overflows the floating-point range; "
+                "the frequency is far beyond the model's dynamics. Evaluate at frequencies in a "
+                "physical range."
+            )
         raise ModelError(
             f"the system has a pole at s = {s[k]:.6g} on the frequency grid (point {k}); "
             "the response is infinite there. Evaluate at other frequencies."

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import UNSET, flag, integer, positive_number, probability, renamed_keyword
+from ..checks import UNSET, check_seed, flag, integer, positive_number, probability, renamed_keyword
 from ..errors import FitError
 from ..frd import FrequencyData
 from ..parallel import check_executor
@@ -340,7 +340,7 @@ class UpdateResult:
         root = vec * np.sqrt(np.clip(lam, 0.0, None))
         lo = np.array([self.model.param(k).bounds[0] for k in names], dtype=float)
         hi = np.array([self.model.param(k).bounds[1] for k in names], dtype=float)
-        rng = np.random.default_rng(seed)
+        rng = np.random.default_rng(check_seed(seed, error=FitError))
         kept, drawn = [], 0
         while sum(len(k) for k in kept) < n and drawn < max_draws * n:
             batch = mean + rng.standard_normal((n, len(names))) @ root.T

@@ -18,7 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ModelError
+from ..checks import check_band, flag
+from ..errors import DataError, ModelError
 from ..physical.electronics import pd_controller
 from ..physical.parameters import Parameter
 from ..signals import combine_inputs, combine_outputs, select_signals
@@ -71,6 +72,23 @@ def check_int(value: Any, name: str, lo: int, hi: int) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
         raise ModelError(f"{name} must be an integer in {lo}..{hi}; got {value!r}.")
     return int(value)
+
+
+def check_band_hz(band_hz: Any) -> tuple[float, float] | None:
+    """A model's modal band ``(lo, hi)`` in Hz with ``0 <= lo < hi`` (or None), else a ModelError."""
+    try:
+        band = check_band(band_hz, "band_hz")
+    except DataError as exc:
+        raise ModelError(str(exc)) from None
+    if band is not None and band[0] < 0:
+        raise ModelError(f"band_hz must be (lo, hi) in Hz with 0 <= lo < hi; got {band_hz!r}.")
+    return band
+
+
+def check_flags(**flags: Any) -> None:
+    """Every keyword a real boolean (``gravity="False"`` would otherwise be truthy)."""
+    for name, value in flags.items():
+        flag(value, name, ModelError)
 
 
 # ============================================================================ sections

@@ -83,12 +83,13 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ..errors import ModelError
 from ..physical.electronics import butterworth_stage, gain_stage
 from ..physical.modal import modal_dynamics
 from ..physical.model import PhysicalModel
 from ._assembly import (
     G_STANDARD,
+    check_band_hz,
+    check_flags,
     check_int,
     get_param,
     param,
@@ -278,8 +279,8 @@ def caltech_truss(
     (('A1', 'A2', 'A3'), ('S1', 'S2', 'S3'))
     """
     n_el = check_int(n_elements_per_member, "n_elements_per_member", 1, 12)
-    if band_hz is not None and (len(band_hz) != 2 or not 0 <= band_hz[0] < band_hz[1]):
-        raise ModelError(f"band_hz must be (lo, hi) in Hz with 0 <= lo < hi; got {band_hz!r}.")
+    band_hz = check_band_hz(band_hz)
+    check_flags(gravity=gravity, diagonals=diagonals)
     params = _params(bool(gravity), bool(diagonals))
 
     def structure(theta: Mapping[str, float]):

@@ -22,7 +22,9 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import DataError, ModelError
+from ..checks import flag, integer, positive_number
+from ..correlate.residual import physical_model
+from ..errors import ModelError
 from ..estimate import combine_experiments, estimate_frf, simulate_experiment
 from ..frd import FrequencyData
 from ..threads import limit_blas
@@ -114,10 +116,15 @@ def make_experiment(
     truth : PhysicalModel
         The model the data were simulated from.
     """
+    model = physical_model(model, "make_experiment")
+    if param_errors is not None and not isinstance(param_errors, Mapping):
+        raise ModelError(f"param_errors must map parameter names to relative errors; got {param_errors!r}.")
     errors = dict(param_errors or {})
+    noise_rms = positive_number(noise_rms, "noise_rms (a fraction of the output RMS)", allow_zero=True)
+    seed = integer(seed, "seed", lo=0)
+    simultaneous = flag(simultaneous, "simultaneous")
+    hold_correction = flag(hold_correction, "hold_correction")
     truth = _truth(model, hidden, errors)
-    if not noise_rms >= 0 or not np.isfinite(noise_rms):
-        raise DataError(f"noise_rms is a fraction of the output RMS, >= 0; got {noise_rms!r}.")
     sys = truth.statespace()
     inputs = list(sys.input_labels)
     outputs = list(sys.output_labels)

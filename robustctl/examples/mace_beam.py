@@ -107,12 +107,13 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ..errors import ModelError
 from ..physical.electronics import bessel_stage, delay_stage, gain_stage, rate_gyro_stage, servo_stage
 from ..physical.modal import modal_dynamics
 from ..physical.model import PhysicalModel, Stage
 from ..signals import select_signals
 from ._assembly import (
+    check_band_hz,
+    check_flags,
     check_int,
     cylinder_inertia,
     get_param,
@@ -351,8 +352,11 @@ def mace_beam(
     """
     n_el = check_int(n_elements_per_member, "n_elements_per_member", 1, 12)
     n_rod = check_int(n_rod_elements, "n_rod_elements", 2, 40)
-    if band_hz is not None and (len(band_hz) != 2 or not 0 <= band_hz[0] < band_hz[1]):
-        raise ModelError(f"band_hz must be (lo, hi) in Hz with 0 <= lo < hi; got {band_hz!r}.")
+    band_hz = check_band_hz(band_hz)
+    check_flags(
+        gravity=gravity, suspension=suspension, zero_g=zero_g, servo_loops=servo_loops,
+        disturbance_inputs=disturbance_inputs, encoder_outputs=encoder_outputs,
+    )
     zero_g = bool(zero_g)
     params = _params(zero_g)
 
