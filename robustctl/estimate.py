@@ -309,7 +309,11 @@ def _pick_inputs(inputs: Any, names: Sequence[str]) -> list[int]:
 
 
 def _per_channel(value: Any, count: int, what: str, allow_zero: bool) -> np.ndarray:
-    arr = np.asarray(value, dtype=float).reshape(-1)
+    items = value if isinstance(value, (list, tuple, np.ndarray)) else [value]
+    arr = np.asarray(items)
+    if arr.dtype.kind not in "iuf" or arr.size == 0:  # text, complex, bool, None: not a level
+        raise DataError(f"{what} must be a real number or one per channel; got {value!r}.")
+    arr = arr.astype(float).reshape(-1)
     if arr.size == 1:
         arr = np.full(count, arr[0])
     if arr.size != count:

@@ -46,6 +46,8 @@ def load_frd(path: str | PathLike) -> FrequencyData:
     DataError
         Unknown extension, missing file, corrupt or inconsistent content.
     """
+    if isinstance(path, (str, PathLike)) and Path(path).is_dir():
+        raise DataError(f"cannot load {str(path)!r}: it is a directory, not a file; give the file's path.")
     path = _check_path(path)
     if path.is_dir():
         raise DataError(f"cannot load {str(path)!r}: it is a directory, not a file; give the file's path.")

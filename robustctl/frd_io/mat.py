@@ -15,6 +15,8 @@ from .mat5_check import check_mat5
 
 __all__ = ["read_mat", "write_mat"]
 
+_CONTENTS = "robustctl_contents"
+
 def _cell(names: Sequence[str]) -> np.ndarray:
     cell = np.empty((len(names), 1), dtype=object)
     for k, name in enumerate(names):
@@ -37,6 +39,8 @@ def write_mat(data: FrequencyData, path: Path) -> None:
     }
     if data.coherence is not None:
         mdict["Coherence"] = np.transpose(data.coherence, (1, 2, 0))
+    # written first: the list of every variable, so a file cut at a variable boundary is refused
+    mdict = {_CONTENTS: ",".join(mdict), **mdict}
     with open(path, "wb") as fh:
         savemat(fh, mdict, do_compression=True)
 
@@ -86,6 +90,10 @@ def read_mat(path: Path) -> FrequencyData:
         mdict = loadmat(io.BytesIO(raw), squeeze_me=False, chars_as_strings=True)
     except Exception as exc:  # scipy raises ValueError, TypeError, MatReadError, ...
         raise DataError(f"not a readable MAT file ({type(exc).__name__}: {exc}).") from None
+    if _CONTENTS in mdict:
+        missing = [k for k in _mat_string(mdict[_CONTENTS]).split(",") if k and k not in mdict]
+        if missing:
+            raise DataError(f"the MAT file lacks {missing}, listed in its {_CONTENTS}; it is truncated.")
     for key in ("Frequency", "ResponseData"):
         if key not in mdict:
             raise DataError(f"the MAT file has no {key!r} variable (expected Frequency, ResponseData).")

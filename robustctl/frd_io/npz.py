@@ -15,6 +15,10 @@ from ._common import FORMAT, build, json_dumps, json_loads
 
 __all__ = ["read_npz", "write_npz"]
 
+_NPZ_KEYS = {
+    "format", "version", "f_hz", "response", "inputs", "outputs", "units_json", "meta_json", "coherence",
+}
+
 def write_npz(data: FrequencyData, path: Path) -> None:
     arrays = {
         "format": np.array(FORMAT),
@@ -62,6 +66,12 @@ def read_npz(path: Path) -> FrequencyData:
     if not isinstance(npz, np.lib.npyio.NpzFile):
         raise DataError("the file holds a single array, not a FrequencyData npz archive.")
     with npz:
+        unexpected = sorted(set(npz.files) - _NPZ_KEYS)
+        if unexpected:
+            raise DataError(
+                f"the npz archive holds unexpected arrays {unexpected}; it is corrupt or was not "
+                "written by FrequencyData.save."
+            )
         try:
             fmt = str(_npz_array(npz, "format", "U"))
             if fmt != FORMAT:

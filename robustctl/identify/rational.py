@@ -172,7 +172,7 @@ def _check_method(method: str) -> str:
 
 
 def _check_iter(max_iter: Any) -> int:
-    if not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
+    if isinstance(max_iter, (bool, np.bool_)) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
         raise FitError(f"max_iter must be a positive integer iteration cap; got {max_iter!r}.")
     return int(max_iter)
 

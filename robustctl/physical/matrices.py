@@ -198,6 +198,8 @@ class MatrixStructure(Structure):
         return vec
 
     def _input_vectors(self, inputs: Mapping[str, Any]):
+        if not isinstance(inputs, Mapping):
+            raise ModelError(f"inputs must be a dict name -> force vector or DOF label; got {inputs!r}.")
         if not inputs:
             raise ModelError("give at least one input: inputs={'F': force_vector_or_dof_label}.")
         names = tuple(str(k) for k in inputs)
@@ -205,6 +207,8 @@ class MatrixStructure(Structure):
         return names, b
 
     def _output_vectors(self, outputs: Mapping[str, tuple[Any, str]]):
+        if not isinstance(outputs, Mapping):
+            raise ModelError(f"outputs must be a dict name -> (vector or DOF label, kind); got {outputs!r}.")
         if not outputs:
             raise ModelError(
                 "give at least one output: outputs={'x': (vector_or_dof_label, 'displacement')}."

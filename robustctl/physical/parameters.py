@@ -85,10 +85,10 @@ class Parameter:
                 f"parameter {self.name!r} = {value:g} {self.unit} lies outside its bounds "
                 f"[{lo:g}, {hi:g}]; widen the bounds or change the value."
             )
-        try:
+        rel_step = abs_step = math.nan
+        steps = (self.rel_step, self.abs_step)
+        if all(isinstance(x, numbers.Real) and not isinstance(x, bool) for x in steps):
             rel_step, abs_step = float(self.rel_step), float(self.abs_step)
-        except (TypeError, ValueError):
-            rel_step = abs_step = math.nan
         if not (math.isfinite(rel_step) and rel_step > 0 and math.isfinite(abs_step) and abs_step >= 0):
             raise ModelError(
                 f"parameter {self.name!r}: rel_step must be a finite number > 0 and abs_step a "
