@@ -589,15 +589,20 @@ def _residual(model: Any, data: FrequencyData, band, weights, min_db) -> tuple[R
     return res, tuple((o, i) for o, i, _level in res.dropped)
 
 
-def _prepare(model, data, candidates, band, update_params, weights, min_db) -> tuple:
-    """Validated residual (decoupled channels ignored), update parameters and candidates."""
+def _prepare(model, data, candidates, band, update_params, weights, min_db, deadline, budget) -> tuple:
+    """Validated residual (decoupled channels ignored), update parameters and candidates
+    (the default candidates' calibration counts against the time budget)."""
     from ..physical.effects import candidates as all_candidates
 
     res0, ignored = _residual(model, data, band, weights, min_db)
     upd = _check_update(model, update_params)
-    cands = _check_candidates(
-        model, all_candidates(model, band=res0.band) if candidates is None else list(candidates)
-    )
+    if candidates is None:
+        left = _check_budget(deadline, budget, "the residual set-up")
+        try:
+            candidates = all_candidates(model, band=res0.band, time_budget_s=left)
+        except FitError as exc:
+            raise FitError(str(exc).replace(f"time_budget_s={left:g}", f"time_budget_s={budget:g}")) from None
+    cands = _check_candidates(model, list(candidates))
     return res0, ignored, upd, cands
 
 
@@ -858,7 +863,9 @@ def diagnose(
     params = renamed_keyword(params, update_params, "params", "update_params")
     point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     model = physical_model(model, "diagnose")
-    res0, ignored, upd, cands = _prepare(model, data, candidates, band, params, point_weights, min_channel_db)
+    res0, ignored, upd, cands = _prepare(
+        model, data, candidates, band, params, point_weights, min_channel_db, deadline, time_budget_s
+    )
     alpha, min_gain = finite_number(alpha, "alpha", FitError), finite_number(min_gain, "min_gain", FitError)
     if not 0 < alpha < 1 or not 0 <= min_gain < 1:
         raise FitError(f"alpha must lie in (0, 1) and min_gain in [0, 1); got {alpha!r}, {min_gain!r}.")

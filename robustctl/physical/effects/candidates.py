@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import re
+import time
 from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from ...checks import check_band
-from ...errors import ModelError
+from ...checks import check_band, flag, positive_number
+from ...errors import FitError, ModelError
 from ...threads import limit_blas
 from ..model import PhysicalModel
 from .base import (
@@ -151,6 +152,7 @@ def candidates(
     points: bool = True,
     locations: Iterable[str] | None = None,
     calibrate: bool = True,
+    time_budget_s: float | None = None,
 ) -> list[Effect]:
     """The effects applicable to ``model``, one per kind and location, at their neutral value.
 
@@ -179,6 +181,9 @@ def candidates(
         the most affected modal ``w^2`` by :data:`SHIFT_TARGET` (a dashpot: the damping
         ratio by :data:`DAMPING_TARGET`), from one eigensolution and one assembly per
         candidate (first-order perturbation, ``dw^2 = phi^T (dK - w^2 dM) phi``).
+    time_budget_s : float, optional
+        Wall-clock budget (s) of the calibration (``rc.diagnose`` passes what is left of
+        its own); a :class:`~robustctl.errors.FitError` when it runs out. Default: none.
 
     Returns
     -------
@@ -187,6 +192,11 @@ def candidates(
     if not isinstance(model, PhysicalModel):
         raise ModelError(f"candidates needs a PhysicalModel; got {type(model).__name__}.")
     band = check_band(band)
+    points, calibrate = flag(points, "points", ModelError), flag(calibrate, "calibrate", ModelError)
+    deadline = None
+    if time_budget_s is not None:
+        budget = positive_number(time_budget_s, "time_budget_s", FitError, unit="s")
+        deadline = (time.perf_counter() + budget, budget)
     if kinds is not None:
         kinds = set(kinds)
         unknown = sorted(kinds - set(EFFECT_KINDS))
@@ -200,7 +210,7 @@ def candidates(
         if kinds is not None:
             cands = [c for c in cands if c.kind in kinds]
         if calibrate:
-            omega, _, cands = _calibrate(model, cands, band)
+            omega, _, cands = _calibrate(model, cands, band, deadline)
         else:
             omega = _modes(model, band)[0]
         cands += _modal_damping_candidates(omega / (2 * np.pi), band)
@@ -273,13 +283,22 @@ def calibrate(
     return _calibrate(model, list(effects), band)[2]
 
 
-def _calibrate(model: PhysicalModel, cands: list[Effect], band) -> tuple[np.ndarray, np.ndarray, list]:
-    """Give each structural candidate a secant step that moves the modes by about 1 %."""
+def _calibrate(
+    model: PhysicalModel, cands: list[Effect], band, deadline: tuple[float, float] | None = None
+) -> tuple[np.ndarray, np.ndarray, list]:
+    """Give each structural candidate a secant step that moves the modes by about 1 %.
+
+    ``deadline`` is ``(time.perf_counter() limit, budget)``: checked before each candidate."""
     omega, phi, (M0, K0, mats0) = _modes(model, band)
     if omega.size == 0:
         return omega, phi, cands
     out = []
-    for c in cands:
+    for k, c in enumerate(cands):
+        if deadline is not None and time.perf_counter() > deadline[0]:
+            raise FitError(
+                f"time_budget_s={deadline[1]:g} s ran out while calibrating candidate {k + 1} of "
+                f"{len(cands)}; raise time_budget_s, or pass fewer candidates (kinds=, locations=)."
+            )
         if c.domain != "structure" or c.kind == "gravity":
             out.append(c)
             continue
