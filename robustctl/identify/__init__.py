@@ -12,7 +12,8 @@ from .cost import LogCost, channel_cost
 from .grouping import cluster_modes, combine_simo, group_modes
 from .leakage import estimator_settings, expected_h1, leakage_factor
 from .measurement_model import MeasurementModel, Mode, fit_measurement_model
-from .rational import IdentifyWarning, RationalFit, fit_rational
+from .rational import fit_rational
+from .rational_fit import IdentifyWarning, RationalFit
 
 __all__ = [
     "fit_rational",

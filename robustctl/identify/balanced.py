@@ -19,7 +19,7 @@ import scipy.linalg as sla
 
 from ..errors import FitError, ModelError
 from ..threads import limit_blas
-from .rational import RationalFit
+from .rational_fit import RationalFit
 
 __all__ = ["BalancedTruncation", "balanced_truncation", "gramian_factor"]
 

@@ -29,7 +29,8 @@ from .cost import LogCost, channel_cost
 from .grouping import group_modes
 from .leakage import EstimatorSettings, estimator_settings, leakage_factor
 from .modal_refine import ZETA_MIN, refine_modes
-from .rational import IdentifyWarning, RationalFit, fit_rational
+from .rational import fit_rational
+from .rational_fit import IdentifyWarning, RationalFit
 from .realization import residue_factors
 from .refine import refine_residues
 

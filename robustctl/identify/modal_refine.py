@@ -22,7 +22,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from .poles import evaluate
-from .rational import RationalFit
+from .rational_fit import RationalFit
 from .realization import residue_factors
 from .refine import _row_weights
 

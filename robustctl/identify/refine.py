@@ -17,7 +17,7 @@ import numpy as np
 from ..threads import limit_blas
 from ._problem import coherence_weights
 from .poles import evaluate
-from .rational import RationalFit
+from .rational_fit import RationalFit
 from .realization import residue_factors
 
 __all__ = ["refine_residues"]
