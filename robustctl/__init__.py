@@ -18,14 +18,19 @@ from .correlate import (
 from .errors import DataError, FitError, ModelError, RobustctlError, SynthesisError
 from .estimate import combine_experiments, estimate_frf, simulate_experiment
 from .frd import FrequencyData, load_frd
+
+# identification at modal-test scale: impact testing, stabilisation diagram
 from .identify import (
     MeasurementModel,
+    StabilisationDiagram,  # noqa: E402
     balanced_truncation,
     combine_simo,
     fit_measurement_model,
     fit_rational,
     group_modes,
 )
+from .estimate import advised_nperseg  # noqa: E402
+from .impact import ImpactWarning, estimate_frf_impact  # noqa: E402
 from .lti import freqresp, log_cost, log_error
 from .physical import (
     Frame,
@@ -89,4 +94,9 @@ __all__ = [
     "modal_model",
     "modal_statespace",
     "MatrixStructure",
+    # identification at modal-test scale
+    "estimate_frf_impact",
+    "ImpactWarning",
+    "advised_nperseg",
+    "StabilisationDiagram",
 ]

@@ -17,10 +17,23 @@ from .errors import DataError, ModelError
 from .frd import FrequencyData
 from .threads import limit_blas
 
-__all__ = ["estimate_frf", "combine_experiments", "simulate_experiment"]
+__all__ = ["estimate_frf", "combine_experiments", "simulate_experiment", "advised_nperseg"]
 
 #: the largest record simulate_experiment will produce (samples), a memory guard
 MAX_SAMPLES = 50_000_000
+#: fewest Welch averages for a usable H1 estimate (random error ~ 1/sqrt(n_avg), Bendat & Piersol 9.90)
+MIN_AVERAGES = 8
+
+
+def advised_nperseg(n_samples: int, min_averages: int = MIN_AVERAGES, longest: int = 4096) -> int:
+    """Segment length for a record of ``n_samples``: the Caltech 4096 (``longest``) when it gives at
+    least ``min_averages`` averages with 50 % overlap, else the largest power of two that does
+    (at least 16). ``n_avg = 1 + (n - L) // (L / 2) >= m`` holds for ``L <= 2 n / (m + 1)``."""
+    limit = 2 * int(n_samples) / (min_averages + 1)
+    length = 16
+    while length * 2 <= min(limit, longest):
+        length *= 2
+    return length
 
 
 # ---------------------------------------------------------------------------- helpers
@@ -63,8 +76,10 @@ def _window(window: Any, nperseg: int) -> np.ndarray:
 
 def _segment_settings(n_samples: int, nperseg: Any, noverlap: Any) -> tuple[int, int, int]:
     """Validated ``(nperseg, noverlap, n_averages)`` (Welch, 1967)."""
-    if isinstance(nperseg, bool) or int(nperseg) != nperseg or nperseg < 2:
-        raise DataError(f"nperseg must be an integer >= 2 samples; got {nperseg!r}.")
+    if isinstance(nperseg, str) and nperseg == "auto":
+        nperseg = advised_nperseg(n_samples)
+    if isinstance(nperseg, (str, bool)) or int(nperseg) != nperseg or nperseg < 2:
+        raise DataError(f"nperseg must be an integer >= 2 samples or 'auto'; got {nperseg!r}.")
     nperseg = int(nperseg)
     noverlap = nperseg // 2 if noverlap is None else noverlap
     if isinstance(noverlap, bool) or int(noverlap) != noverlap or noverlap < 0:
@@ -81,6 +96,16 @@ def _segment_settings(n_samples: int, nperseg: Any, noverlap: Any) -> tuple[int,
             "record longer or choose a smaller nperseg (coarser frequency resolution)."
         )
     n_avg = 1 + (n_samples - nperseg) // (nperseg - noverlap)
+    if n_avg < MIN_AVERAGES:
+        import warnings
+
+        warnings.warn(
+            f"nperseg={nperseg} leaves {n_avg} averages on a {n_samples}-sample record; the H1 estimate's "
+            f"random error falls as 1/sqrt(averages) and {MIN_AVERAGES} or more are advised: use "
+            f"nperseg={advised_nperseg(n_samples)} (or nperseg='auto').",
+            UserWarning,
+            stacklevel=4,
+        )
     return nperseg, noverlap, n_avg
 
 
@@ -118,7 +143,7 @@ def estimate_frf(
     u: Any,
     y: Any,
     fs: float,
-    nperseg: int = 4096,
+    nperseg: int | str = 4096,
     noverlap: int | None = None,
     window: Any = "hamming",
     inputs: Sequence[str] | None = None,
@@ -144,8 +169,11 @@ def estimate_frf(
         Output signals (e.g. m/s^2).
     fs : float
         Sampling frequency in Hz.
-    nperseg : int
+    nperseg : int or "auto"
         Window length in samples (default 4096, as Caltech); resolution ``fs / nperseg`` Hz.
+        ``"auto"``: :func:`advised_nperseg` of the record length (4096 when it gives at least 8
+        averages, else the largest power of two that does). Fewer than 8 averages is warned
+        about, with the advised length.
     noverlap : int, optional
         Overlap of consecutive windows in samples; default ``nperseg // 2``.
     window : str, tuple or array_like

@@ -7,11 +7,15 @@
 * :func:`make_experiment`, :func:`caltech_truss_experiment`, :func:`mace_beam_experiment` --
   truth generators: simulated test data of a model with a hidden physical effect and
   parameter errors.
+* :func:`modal_test_case`, :func:`impact_test_case` -- synthetic modal tests at the size of
+  real ones (many channels and modes, close pairs; shaker FRF or hammer hits).
 """
 
 from .caltech_truss import caltech_truss, truss_modes
 from .experiments import caltech_truss_experiment, mace_beam_experiment, make_experiment
 from .mace_beam import mace_beam, mace_modes
+from .modal_test import ModalTruth, impact_test_case, modal_test_case
 
 __all__ = ["caltech_truss", "truss_modes", "mace_beam", "mace_modes"]
 __all__ += ["make_experiment", "caltech_truss_experiment", "mace_beam_experiment"]
+__all__ += ["modal_test_case", "impact_test_case", "ModalTruth"]

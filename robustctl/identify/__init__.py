@@ -14,6 +14,7 @@ from .leakage import estimator_settings, expected_h1, leakage_factor
 from .measurement_model import MeasurementModel, Mode, fit_measurement_model
 from .rational import fit_rational
 from .rational_fit import IdentifyWarning, RationalFit
+from .stabilisation import StabilisationDiagram
 
 __all__ = [
     "fit_rational",
@@ -32,4 +33,5 @@ __all__ = [
     "estimator_settings",
     "expected_h1",
     "leakage_factor",
+    "StabilisationDiagram",
 ]

@@ -34,9 +34,9 @@ F_TOL = 0.01  #: relative frequency change of a stable pole between orders
 ZETA_TOL = 0.2  #: relative damping change of a stable pole
 MAC_TOL = 0.9  #: modal assurance criterion of the residues of a stable pole
 CHAIN = 3  #: consecutive stable orders that make a pole physical
-MIN_CONTRIBUTION = 2e-3  #: smallest weighted share of the data a physical pole carries
+MIN_CONTRIBUTION = 1e-2  #: smallest weighted share of the data a physical pole carries
 PATIENCE = 4  #: orders without a new physical pole and without ``min_gain`` cost gain before stopping
-WARM_ITERS = 12  #: VF relocations per order (warm start)
+WARM_ITERS = 8  #: VF relocations per order (warm start)
 
 
 @dataclass(frozen=True, eq=False)
