@@ -16,7 +16,12 @@ from .correlate import (
     verify,
 )
 from .errors import DataError, FitError, ModelError, RobustctlError, SynthesisError
-from .estimate import combine_experiments, estimate_frf, simulate_experiment
+from .estimate import (
+    advised_nperseg,  # noqa: E402
+    combine_experiments,
+    estimate_frf,
+    simulate_experiment,
+)
 from .frd import FrequencyData, load_frd
 
 # identification at modal-test scale: impact testing, stabilisation diagram
@@ -29,7 +34,6 @@ from .identify import (
     fit_rational,
     group_modes,
 )
-from .estimate import advised_nperseg  # noqa: E402
 from .impact import ImpactWarning, estimate_frf_impact  # noqa: E402
 from .lti import freqresp, log_cost, log_error
 from .physical import (
