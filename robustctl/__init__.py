@@ -17,24 +17,22 @@ from .correlate import (
 )
 from .errors import DataError, FitError, ModelError, RobustctlError, SynthesisError
 from .estimate import (
-    advised_nperseg,  # noqa: E402
+    advised_nperseg,
     combine_experiments,
     estimate_frf,
     simulate_experiment,
 )
 from .frd import FrequencyData, load_frd
-
-# identification at modal-test scale: impact testing, stabilisation diagram
 from .identify import (
     MeasurementModel,
-    StabilisationDiagram,  # noqa: E402
+    StabilisationDiagram,
     balanced_truncation,
     combine_simo,
     fit_measurement_model,
     fit_rational,
     group_modes,
 )
-from .impact import ImpactWarning, estimate_frf_impact  # noqa: E402
+from .impact import ImpactWarning, estimate_frf_impact
 from .lti import freqresp, log_cost, log_error
 from .physical import (
     Frame,
