@@ -64,9 +64,10 @@ class ModalTruth:
 
 
 def _mode_frequencies(rng, n_modes: int, f_lo: float, f_hi: float, n_pairs: int) -> np.ndarray:
-    """``n_modes - n_pairs`` frequencies spread (log-jittered) over the band, the first
-    ``n_pairs`` of them (at spread positions) doubled into close pairs 0.3-0.6 % apart."""
+    """``n_modes - n_pairs`` frequencies spread (log-jittered) over the band, 1-2 % inside its
+    edges, ``n_pairs`` of them (at spread positions) doubled into close pairs 0.3-0.6 % apart."""
     n_single = n_modes - n_pairs
+    f_lo, f_hi = 1.01 * f_lo, f_hi / 1.02  # keep the modes (and pair partners) off the band edges
     base = np.geomspace(f_lo, f_hi, n_single)
     jitter = np.exp(rng.uniform(-0.25, 0.25, n_single) * np.log(f_hi / f_lo) / n_single)
     f = np.sort(np.clip(base * jitter, f_lo, f_hi))

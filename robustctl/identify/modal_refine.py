@@ -29,6 +29,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import least_squares
 
+from ..threads import limit_blas
 from .poles import evaluate
 from .rational_fit import RationalFit
 from .realization import residue_factors
@@ -119,6 +120,7 @@ def _stack(z: np.ndarray) -> np.ndarray:
     return np.concatenate([z.real.reshape(-1, *z.shape[3:]), z.imag.reshape(-1, *z.shape[3:])])
 
 
+@limit_blas
 def refine_modes(
     fit: RationalFit, weights: np.ndarray | None = None, max_nfev: int = 60, which: np.ndarray | None = None
 ) -> RationalFit:
@@ -217,6 +219,7 @@ def _window(f_data: np.ndarray, f_hz: np.ndarray, zeta: np.ndarray, block: np.nd
     return np.arange(i0, i1)
 
 
+@limit_blas
 def refine_modes_local(
     fit: RationalFit,
     weights: np.ndarray | None = None,

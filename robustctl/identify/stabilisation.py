@@ -9,7 +9,8 @@ the previous order: stable in frequency (``F_TOL``), damping (``ZETA_TOL``) and 
 assurance criterion of the residues above ``MAC_TOL``) -- the classical stabilisation diagram
 of experimental modal analysis (Ewins, *Modal Testing*, sec. 4.4; Peeters et al. 2004,
 PolyMAX). A pole stable over ``CHAIN`` consecutive orders, inside the band, below the filler
-damping and carrying at least ``MIN_CONTRIBUTION`` of the weighted data is physical. There is
+damping and carrying at least ``MIN_CONTRIBUTION`` of the weighted data (and
+``REL_CONTRIBUTION`` of the largest pole's share) is physical. There is
 no damping floor: very lightly damped modes count when they are stable. The scan stops when
 neither the number of physical poles nor the cost has improved for ``PATIENCE`` orders.
 """
@@ -35,6 +36,7 @@ ZETA_TOL = 0.2  #: relative damping change of a stable pole
 MAC_TOL = 0.9  #: modal assurance criterion of the residues of a stable pole
 CHAIN = 3  #: consecutive stable orders that make a pole physical
 MIN_CONTRIBUTION = 1e-2  #: smallest weighted share of the data a physical pole carries
+REL_CONTRIBUTION = 1e-3  #: ... and smallest share relative to the largest pole's
 PATIENCE = 4  #: orders without a new physical pole and without ``min_gain`` cost gain before stopping
 WARM_ITERS = 8  #: VF relocations per order (warm start)
 
@@ -277,7 +279,8 @@ def stabilisation_scan(
         c = poles.imag != 0
         status, chain = _compare(prev, (f[c], z[c], res[c]))
         inside = (f[c] >= band_hz[0]) & (f[c] <= band_hz[1]) & (z[c] < ZETA_FILLER)
-        phys = (chain >= CHAIN - 1) & inside & (contrib[c] >= MIN_CONTRIBUTION)
+        floor = max(MIN_CONTRIBUTION, REL_CONTRIBUTION * float(contrib.max(initial=0.0)))
+        phys = (chain >= CHAIN - 1) & inside & (contrib[c] >= floor)
         rows.append((n, f[c], z[c], contrib[c], status, chain, phys, cost))
         prev = (f[c], z[c], res[c], chain)
         kept = distinct_modes(np.flatnonzero(c)[phys], poles, res, contrib)
