@@ -93,10 +93,13 @@ def test_double_hit_and_overload_are_warned_naming_the_hit(hits):
     assert data.meta["double_hits"] == [2]
     top = 0.3 * np.abs(resp[4]).max()
     resp[4] = np.clip(resp[4], -top, top)  # a clipped accelerometer
-    with pytest.warns(rc.ImpactWarning, match=r"overload in hit\(s\) \[4\]"):
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
         rc.estimate_frf_impact(force, resp, fs=FS)
-    with pytest.warns(rc.ImpactWarning, match=r"overload in hit\(s\) \[0"):
         rc.estimate_frf_impact(force, resp, fs=FS, force_range=0.5)
+    messages = [str(w.message) for w in seen if issubclass(w.category, rc.ImpactWarning)]
+    assert any("overload in hit(s) [4]" in m for m in messages)
+    assert any("overload in hit(s) [0, 1, 2, 3, 4]" in m for m in messages)
 
 
 def test_bad_impact_input_is_refused_with_the_fix(hits):

@@ -154,14 +154,18 @@ def fit_best(
     band: FrequencyData, n_modes: int, run: FitSettings, first: RationalFit | None = None, prefer=None
 ) -> tuple[RationalFit, int, FrequencyData]:
     """:func:`fit_with_leakage` with spare poles; on small problems (dense refinement affordable)
-    also with exactly ``2 n_modes`` poles, keeping the one that returns ``n_modes`` modes, of the
-    two (or if neither does) the lower weighted complex-log cost (MACE eq. 5)."""
-    out = fit_with_leakage(band, n_modes, run, first, prefer)
+    the route with exactly ``2 n_modes`` poles is tried too and the better modal start (before
+    refinement) goes on: the one that gives ``n_modes`` modes, of the two (or if neither does)
+    the lower weighted complex-log cost (MACE eq. 5)."""
     if run.groups is not None or not _small(band, n_modes) or run.expired():
-        return out
-    alt = fit_with_leakage(band, n_modes, replace(run, spare=False))
-    rank = [(o[1] != n_modes, _log_cost(o[0], o[2])) for o in (out, alt)]
-    return out if rank[0] <= rank[1] else alt
+        return fit_with_leakage(band, n_modes, run, first, prefer)
+    staged = []
+    for r, start, pref in ((run, first, prefer), (replace(run, spare=False), None, None)):
+        start = rational_fit(band, n_modes, r) if start is None else start
+        modal, n_found = select_modes(start, n_modes, pref)
+        staged.append(((n_found != n_modes, _log_cost(modal, band)), r, start, pref))
+    _, r, start, pref = min(staged, key=lambda item: item[0])
+    return fit_with_leakage(band, n_modes, r, start, pref)
 
 
 def _log_cost(fit: RationalFit, data: FrequencyData) -> float:
