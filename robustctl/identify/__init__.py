@@ -4,7 +4,9 @@ Rational fits with one common denominator (Chebyshev/Sanathanan-Koerner as in th
 paper, or relaxed vector fitting), conversion to real modal state space, the Caltech
 SIMO-to-MIMO combination and SVD grouping of modes, balanced truncation with its error bound,
 the estimator-leakage correction, and the one-call measurement model scored by the
-complex-log cost (MACE eq. 5).
+complex-log cost (MACE eq. 5): spare-pole fits with mode selection by contribution (exactly
+``n_modes`` modes, fillers apart), block variable-projection refinement that scales with the
+channels and modes, and the automatic order from a one-pass stabilisation diagram.
 """
 
 from .balanced import BalancedTruncation, balanced_truncation

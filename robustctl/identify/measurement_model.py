@@ -1,14 +1,18 @@
 """``fit_measurement_model``: the project's yardstick, the best linear description of what was
 measured, in one call.
 
-The procedure: (1) a common-denominator rational fit (VF or Chebyshev) of the band, or the
-Caltech route of one SIMO fit per input joined by :func:`combine_simo` and reduced by
-:func:`group_modes`; (2) optionally, for white-noise tests estimated by :func:`robustctl.estimate_frf`,
-a few fixed-point steps that undo the estimator's window leakage (see :mod:`.leakage`); (3) the
-residue of each mode given its physical rank (1 per mode, or the group's count) and refined
-together with the poles by nonlinear least squares (:mod:`.modal_refine`); (4) the
-complex-log cost of MACE eq. 5. With ``n_modes=None`` the order is chosen from the cost
-versus order with a parsimony rule.
+The procedure (:mod:`.modal_fit`): (1) a common-denominator rational fit (VF or Chebyshev)
+of the band with spare poles, or the Caltech route of one SIMO fit per input joined by
+:func:`combine_simo` and reduced by :func:`group_modes`; (2) exactly ``n_modes`` modes chosen
+by contribution (:mod:`.selection`; close pairs split by residue rank, fillers apart), each
+with a rank-1 residue (Caltech eq. 9); (3) poles and shapes refined together by nonlinear
+least squares (:mod:`.modal_refine`: all at once on small problems, block by block by
+variable projection on large ones); (4) optionally, for white-noise tests estimated by
+:func:`robustctl.estimate_frf`, a few fixed-point steps that undo the estimator's window
+leakage (see :mod:`.leakage`); (5) for impact data with an exponential window, the window's
+damping removed; (6) the complex-log cost of MACE eq. 5. With ``n_modes=None`` the order
+comes from a one-pass stabilisation diagram (:mod:`.stabilisation`). Every step honours the
+call's time budget.
 """
 
 from __future__ import annotations
@@ -79,7 +83,7 @@ class MeasurementModel:
     sys : control.StateSpace
         Real modal realisation with the data's signal names.
     modes : tuple of Mode
-        Complex modes sorted by frequency (real poles, if any, are in ``sys`` and ``fit`` only).
+        Exactly ``n_modes`` modes (complex poles), sorted by frequency; fillers are apart.
     cost : LogCost
         MACE eq. 5 of ``sys`` against ``data`` (per channel and total).
     fit : RationalFit
@@ -313,7 +317,8 @@ def fit_measurement_model(
         iterations and refinement stop with the best model so far (an :class:`IdentifyWarning`
         says so). ``None``: no budget.
     progress : bool, optional
-        tqdm bar over the order scan (default: when stderr is a terminal).
+        tqdm bars over the order scan and the block refinement (default: when stderr is a
+        terminal).
 
     Returns
     -------
@@ -332,7 +337,7 @@ def fit_measurement_model(
     show = sys.stderr.isatty() if progress is None else bool(progress)
     deadline = None if budget is None else start + budget
     kw = dict(method=method, weights=weights, max_iter=max_iter)
-    run = FitSettings(groups, st, kw, rank_tol, refine, deadline)
+    run = FitSettings(groups, st, kw, rank_tol, refine, deadline, progress=show)
     diagram = None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifyWarning)

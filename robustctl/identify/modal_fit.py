@@ -62,6 +62,7 @@ class FitSettings:
     refine: bool
     deadline: float | None = None
     spare: bool = True
+    progress: bool = False
 
     def expired(self) -> bool:
         return self.deadline is not None and time.perf_counter() > self.deadline
@@ -69,10 +70,11 @@ class FitSettings:
 
 def rational_fit(band: FrequencyData, n_modes: int, run: FitSettings) -> RationalFit:
     """Step 1: common-denominator fit with spare poles, or one SIMO fit per input (Caltech)."""
+    left = None if run.deadline is None else max(0.0, run.deadline - time.perf_counter())
     if run.groups is not None:
-        return fit_rational(band, 2 * n_modes, common_denominator=False, **run.fit_kw)
+        return fit_rational(band, 2 * n_modes, common_denominator=False, time_budget_s=left, **run.fit_kw)
     spare = spare_pairs(n_modes) if run.spare else 0
-    return fit_rational(band, 2 * (n_modes + spare), **run.fit_kw)
+    return fit_rational(band, 2 * (n_modes + spare), time_budget_s=left, **run.fit_kw)
 
 
 def _splits(modes: np.ndarray, counts: np.ndarray, key: np.ndarray, n_modes: int) -> np.ndarray:
@@ -139,7 +141,7 @@ def modal_model(
     """Steps 2-3 on a rational fit: the modal structure, then the refinement (if asked and in time)."""
     fit, n_mode_poles = _grouped(fit, run) if run.groups is not None else select_modes(fit, n_modes, prefer)
     if run.refine and not run.expired():
-        fit = refine_modes_auto(fit, deadline=run.deadline)
+        fit = refine_modes_auto(fit, deadline=run.deadline, progress=run.progress)
     return fit, n_mode_poles
 
 
@@ -194,7 +196,8 @@ def fit_with_leakage(
             break
         data = band.replace(response=band.response * leakage_factor(fit, band.f_hz, st))
         if run.refine:
-            fit = refine_modes_auto(refine_residues(replace(fit, data=data)), deadline=run.deadline)
+            fit = refine_residues(replace(fit, data=data))
+            fit = refine_modes_auto(fit, deadline=run.deadline, progress=run.progress)
         else:
             fit = rational_fit(data, n_modes, run)
     if st is not None and not run.refine:

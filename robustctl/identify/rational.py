@@ -9,6 +9,7 @@ modal state space with named signals.
 
 from __future__ import annotations
 
+import time
 import warnings
 from typing import Any
 
@@ -33,14 +34,20 @@ DEFAULT_MAX_ITER = {"chebyshev": 100, "vf": 30}
 
 # --------------------------------------------------------------------------- fitting
 def _pole_kernel(
-    prob: FitProblem, method: str, max_iter: int, tol: float, stable: bool
+    prob: FitProblem, method: str, max_iter: int, tol: float, stable: bool, deadline: float | None = None
 ) -> tuple[np.ndarray, int, bool]:
     w_s = float(np.max(np.abs(prob.s)))
     k = prob.s.size
     g = prob.g.reshape(k, -1)
     rw = np.sqrt(prob.w.reshape(k, -1)) / np.abs(g)
-    kernel = chebyshev_poles if method == "chebyshev" else vf_poles
-    poles, iters, ok = kernel(prob.s / w_s, g, rw, prob.order, max_iter=max_iter, tol=tol, stable=stable)
+    if method == "chebyshev":
+        poles, iters, ok = chebyshev_poles(
+            prob.s / w_s, g, rw, prob.order, max_iter=max_iter, tol=tol, stable=stable
+        )
+    else:
+        poles, iters, ok = vf_poles(
+            prob.s / w_s, g, rw, prob.order, max_iter=max_iter, tol=tol, stable=stable, deadline=deadline
+        )
     return poles * w_s, iters, ok
 
 
@@ -95,6 +102,7 @@ def fit_rational(
     tol: float = 1e-6,
     feedthrough: bool = True,
     rank_tol: float = 1e-8,
+    time_budget_s: float | None = None,
 ) -> RationalFit:
     """Fit a rational model with one common denominator to SIMO/MIMO frequency-response data.
 
@@ -131,6 +139,9 @@ def fit_rational(
         Fit a constant term ``D``.
     rank_tol : float
         Residue singular values below ``rank_tol * sigma_1`` are dropped in the realisation.
+    time_budget_s : float, optional
+        Wall-time budget of the VF pole iteration (seconds); when it runs out the best poles so
+        far are used and the fit is flagged not converged.
 
     Returns
     -------
@@ -151,7 +162,8 @@ def fit_rational(
     prob = prepare_problem(data, order, band, weights)
     if not common_denominator and len(prob.inputs) > 1:
         return _fit_simo_each(data, order, band, weights, common_denominator=True, **kw)
-    poles, iters, converged = _pole_kernel(prob, method, max_iter, tol, stable)
+    deadline = None if time_budget_s is None else time.perf_counter() + float(time_budget_s)
+    poles, iters, converged = _pole_kernel(prob, method, max_iter, tol, stable, deadline)
     if stable:
         poles, _ = reflect_unstable(poles)
     rw = np.sqrt(prob.w) / np.abs(prob.g)
