@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from .checks import positive_number
 from .errors import DataError
 from .frd import FrequencyData
 
@@ -166,8 +167,7 @@ def estimate_frf_impact(
     ImpactWarning
         Double hits, overloads, fewer than 3 hits (no meaningful coherence).
     """
-    if not np.isfinite(fs) or fs <= 0:
-        raise DataError(f"fs must be a positive sampling frequency in Hz; got {fs!r}.")
+    fs = positive_number(fs, "fs", unit="sampling frequency, Hz")
     f = _as_hits(force, "force", None)[:, :, 0]
     y = _as_hits(response, "response", f.shape[0])
     if y.shape[:2] != f.shape:
@@ -178,7 +178,6 @@ def estimate_frf_impact(
     if not 0 < double_hit_ratio < 1:
         raise DataError(f"double_hit_ratio must lie in (0, 1); got {double_hit_ratio!r}.")
     n_hits, n = f.shape
-    fs = float(fs)
     pulses = [_pulse(fk) for fk in f]
     doubles = [
         k

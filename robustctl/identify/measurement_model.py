@@ -19,17 +19,19 @@ from __future__ import annotations
 
 import html
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
 
+from ..checks import UNSET, as_frequency_data, band_data, renamed_keyword
 from ..errors import FitError
 from ..frd import FrequencyData
-from ..lti import pole_frequency_damping
+from ..lti import pole_frequency_damping, rebuild_statespace, statespace_state
+from ..modes import Mode
 from ..table import Table
 from ..threads import limit_blas
-from ._problem import as_frequency_data, prepare_problem
+from ._problem import prepare_problem
 from .cost import LogCost, channel_cost
 from .leakage import EstimatorSettings, estimator_settings
 from .modal_fit import FitSettings, fit_best, shift_poles, spare_pairs
@@ -41,37 +43,6 @@ __all__ = ["Mode", "MeasurementModel", "fit_measurement_model", "StabilisationDi
 
 #: default time budget of one fit_measurement_model call, seconds
 TIME_BUDGET_S = 600.0
-
-
-@dataclass(frozen=True, eq=False)
-class Mode:
-    """One identified mode (or a group of ``rank`` modes sharing a pole).
-
-    Attributes
-    ----------
-    f_hz : float
-        Natural frequency ``|p| / 2 pi``, Hz.
-    zeta : float
-        Damping ratio ``-Re p / |p|``.
-    pole : complex
-        Pole with ``Im p > 0``, rad/s.
-    residue : ndarray, complex, shape (n_out, n_in)
-        Residue matrix (rank ``rank``).
-    rank : int
-        Number of modes at this pole (1 for an isolated physical mode).
-    output_shape : ndarray, complex, shape (n_out, rank)
-        ``C = U sqrt(S)`` of the residue's SVD (Caltech eq. 10).
-    input_shape : ndarray, complex, shape (rank, n_in)
-        ``B = sqrt(S) V^*``.
-    """
-
-    f_hz: float
-    zeta: float
-    pole: complex
-    residue: np.ndarray
-    rank: int
-    output_shape: np.ndarray
-    input_shape: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,6 +91,52 @@ class MeasurementModel:
     stabilisation: Any = None
     window_tau_s: float | None = None
 
+    def statespace(self):
+        """The real modal ``control.StateSpace`` (the state-space protocol, :func:`rc.as_statespace`)."""
+        return self.sys
+
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        return tuple(self.fit.inputs)
+
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        return tuple(self.fit.outputs)
+
+    def summary(self) -> str:
+        """A few sentences in plain words."""
+        lo, hi = self.band_hz
+        lines = [
+            f"MeasurementModel of {len(self.outputs)} outputs x {len(self.inputs)} inputs on "
+            f"{lo:.4g}-{hi:.4g} Hz: {self.n_modes} modes, {self.sys.nstates} states.",
+            f"Complex-log cost J = {self.cost.total:.4g} (MACE eq. 5), rms log-magnitude error "
+            f"{self.cost.rms_db_total:.3g} dB.",
+        ]
+        if self.fillers:
+            lines.append(
+                f"{len(self.fillers)} filler pole(s) outside the band or heavily damped are kept in the "
+                "model and listed in .fillers."
+            )
+        if self.leakage_corrected:
+            lines.append("The data were corrected for the H1 estimator's window leakage before fitting.")
+        if self.window_tau_s is not None:
+            lines.append(
+                f"The exponential window's damping (tau = {self.window_tau_s:.4g} s) was removed from "
+                "the modes."
+            )
+        if self.stabilisation is not None:
+            lines.append(
+                f"Order chosen by the stabilisation diagram over {self.stabilisation.orders.size} orders "
+                "(.stabilisation.plot())."
+            )
+        return "\n".join(lines)
+
+    def __reduce__(self):
+        """Pickle the state space as matrices and names (python-control's StateSpace holds a lambda)."""
+        state = {f.name: getattr(self, f.name) for f in fields(self)}
+        state["sys"] = statespace_state(self.sys)
+        return (_rebuild_measurement_model, (state,))
+
     @property
     def n_modes(self) -> int:
         """Number of modes (sum of mode ranks)."""
@@ -162,11 +179,8 @@ class MeasurementModel:
         )
 
     def _repr_html_(self) -> str:
-        head = html.escape(
-            f"MeasurementModel: {self.n_modes} modes, {self.sys.nstates} states, "
-            f"{len(self.fit.outputs)} outputs x {len(self.fit.inputs)} inputs"
-        )
-        return f"<p><b>{head}</b></p>" + self.table()._repr_html_() + self.cost.table()._repr_html_()
+        summary = "".join(f"<p>{html.escape(line)}</p>" for line in self.summary().splitlines())
+        return summary + self.table()._repr_html_() + self.cost.table()._repr_html_()
 
     def __repr__(self) -> str:
         return (
@@ -197,7 +211,7 @@ def _score(fit: RationalFit, data: FrequencyData) -> LogCost:
 def _mode(p: complex, r: np.ndarray, k: int) -> Mode:
     f, z = pole_frequency_damping(np.array([p]))
     c, b = residue_factors(r.real if p.imag == 0 else r, int(k))
-    return Mode(float(f[0]), float(z[0]), complex(p), r, int(k), c, b)
+    return Mode(float(f[0]), float(z[0]), r, complex(p), int(k), output_shape=c, input_shape=b)
 
 
 def _modes(fit: RationalFit, n_mode_poles: int) -> tuple[tuple[Mode, ...], tuple[Mode, ...]]:
@@ -247,7 +261,7 @@ def fit_measurement_model(
     band: tuple[float, float] | None = None,
     method: str = "vf",
     groups: Any = None,
-    weights: Any = None,
+    point_weights: Any = "auto",
     correct_leakage: bool | str = False,
     rank_tol: float = 0.1,
     max_modes: int = 60,
@@ -256,6 +270,7 @@ def fit_measurement_model(
     max_iter: int | None = None,
     refine: bool = True,
     *,
+    weights: Any = UNSET,
     correct_window: bool = True,
     time_budget_s: float | None = TIME_BUDGET_S,
     progress: bool | None = None,
@@ -283,8 +298,10 @@ def fit_measurement_model(
     groups : optional
         Use the Caltech route: one SIMO fit of ``n_modes`` modes per input, combined, then
         grouped by :func:`group_modes` with this ``groups`` argument (e.g. ``(2, 1, 2, 1)``).
-    weights : array_like, optional
-        Per-frequency weights (default: coherence-based).
+    point_weights : "auto", None, "coherence" or array_like
+        Data-point weights of the fits on the squared log error
+        (:func:`robustctl.checks.point_weights`; default coherence weights when the data carry
+        coherence). ``weights=`` is the deprecated name. The reported ``cost`` is unweighted.
     correct_leakage : False, True or "auto"
         Undo the H1 estimator's window leakage (see :mod:`robustctl.identify.leakage`). It
         assumes white (flat-spectrum) ZOH excitation, as in the Caltech random-noise tests, and
@@ -330,21 +347,24 @@ def fit_measurement_model(
     max_modes, parsimony = _check_selection(max_modes, parsimony)
     budget = _check_budget(time_budget_s)
     start = time.perf_counter()
+    point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     fd = as_frequency_data(data)
-    band_data = fd if band is None else fd.band(*band)
+    band_fd = band_data(fd, band)
     st = _settings(fd, correct_leakage)
     tau = _window_tau(fd, correct_window)
     show = sys.stderr.isatty() if progress is None else bool(progress)
     deadline = None if budget is None else start + budget
-    kw = dict(method=method, weights=weights, max_iter=max_iter)
+    kw = dict(method=method, point_weights=point_weights, max_iter=max_iter)
     run = FitSettings(groups, st, kw, rank_tol, refine, deadline, progress=show)
     diagram = None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifyWarning)
         if n_modes is None:
-            fit, n_mode_poles, used, diagram = _automatic(band_data, run, max_modes, parsimony, weights, show)
+            fit, n_mode_poles, used, diagram = _automatic(
+                band_fd, run, max_modes, parsimony, point_weights, show
+            )
         else:
-            fit, n_mode_poles, used = fit_best(band_data, _check_modes(n_modes), run)
+            fit, n_mode_poles, used = fit_best(band_fd, _check_modes(n_modes), run)
     cost = _score(fit, used)
     scan = () if diagram is None else tuple((int(n), float(c)) for n, c in zip(diagram.orders, diagram.cost))
     if target_db is not None and cost.rms_db_total > target_db:
@@ -371,7 +391,7 @@ def fit_measurement_model(
             stacklevel=3,
         )
     return MeasurementModel(
-        fit.statespace(), modes, cost, fit, used, band_data, st is not None, scan, fillers, diagram, tau
+        fit.statespace(), modes, cost, fit, used, band_fd, st is not None, scan, fillers, diagram, tau
     )
 
 
@@ -410,3 +430,8 @@ def _check_modes(n_modes: Any) -> int:
     if isinstance(n_modes, (bool, np.bool_)) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
         raise FitError(f"n_modes must be a positive integer (or None for automatic); got {n_modes!r}.")
     return int(n_modes)
+
+
+def _rebuild_measurement_model(state: dict) -> MeasurementModel:
+    state = dict(state, sys=rebuild_statespace(state["sys"]))
+    return MeasurementModel(**state)
