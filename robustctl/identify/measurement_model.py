@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import html
 import warnings
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
@@ -37,7 +37,9 @@ from .leakage import EstimatorSettings, estimator_settings
 from .modal_fit import FitSettings, fit_best, shift_poles, spare_pairs
 from .rational_fit import IdentifyWarning, RationalFit
 from .realization import residue_factors
-from .stabilisation import StabilisationDiagram, stabilisation_scan
+from .refine import _row_weights
+from .selection import ZETA_FILLER, pole_contributions
+from .stabilisation import MIN_CONTRIBUTION, REL_CONTRIBUTION, StabilisationDiagram, stabilisation_scan
 
 __all__ = ["Mode", "MeasurementModel", "fit_measurement_model", "StabilisationDiagram"]
 
@@ -224,26 +226,48 @@ def _modes(fit: RationalFit, n_mode_poles: int) -> tuple[tuple[Mode, ...], tuple
     return tuple(modes), tuple(fillers)
 
 
-def _automatic(band: FrequencyData, run: FitSettings, max_modes: int, parsimony: float, weights, progress):
-    """Stabilisation-diagram order selection, then the modal model of the chosen order."""
+def _scan(band: FrequencyData, run: FitSettings, max_modes: int, parsimony: float, weights, progress):
+    """The stabilisation diagram of ``band`` and the number of modes it finds (1..max_modes)."""
     prob = prepare_problem(band, 2, None, weights)
     k = prob.s.size
     g = prob.g.reshape(k, -1)
     rw = np.sqrt(prob.w.reshape(k, -1)) / np.abs(g)
-    diagram, (poles, res, d, phys) = stabilisation_scan(
+    diagram, last = stabilisation_scan(
         prob.s, g, rw, prob.band_hz, max_modes + spare_pairs(max_modes), run.deadline, progress, parsimony
     )
-    n = int(min(max(phys.size, 1), max_modes))
+    return prob, diagram, last, int(min(max(last[3].size, 1), max_modes))
+
+
+def _weak_modes(fit: RationalFit, n_mode_poles: int) -> int:
+    """Modes of a fitted model whose contribution is below the stabilisation diagram's floor
+    (``MIN_CONTRIBUTION``, ``REL_CONTRIBUTION`` of the largest) or that are fillers promoted to
+    make up the count: poles the scan counted that the final model does not need (e.g. a second
+    pole on a leakage-broadened peak)."""
+    s = 2j * np.pi * fit.data.f_hz
+    contrib = pole_contributions(s, fit.data.response, _row_weights(fit, None), fit.poles, fit.residues)
+    floor = max(MIN_CONTRIBUTION, REL_CONTRIBUTION * float(contrib.max(initial=0.0)))
+    f, zeta = fit.f_hz[:n_mode_poles], fit.zeta[:n_mode_poles]
+    filler = (f < fit.band_hz[0]) | (f > fit.band_hz[1]) | (zeta >= ZETA_FILLER)  # promoted to fill the count
+    return int(np.sum((contrib[:n_mode_poles] < floor) | filler))
+
+
+def _automatic(band: FrequencyData, run: FitSettings, max_modes: int, parsimony: float, weights, progress):
+    """Stabilisation-diagram order selection, then the modal model of the chosen order; modes the
+    final model does not need (below the contribution floor) are dropped by one refit."""
+    prob, diagram, (poles, res, d, phys), n = _scan(band, run, max_modes, parsimony, weights, progress)
     if run.settings is not None or run.groups is not None:
         fit, n_mode_poles, used = fit_best(band, n, run)
-        return fit, n_mode_poles, used, diagram
-    shape = (poles.size,) + prob.g.shape[1:]
-    first = RationalFit(
-        poles, res.reshape(shape), d.reshape(prob.g.shape[1:]), np.ones(poles.size, dtype=int),
-        prob.inputs, prob.outputs, prob.band_hz, "vf", int(diagram.orders[-1]), True, prob.data,
-    )
-    prefer = np.isin(np.arange(poles.size), phys)
-    fit, n_mode_poles, used = fit_best(band, n, run, first=first, prefer=prefer)
+    else:
+        shape = (poles.size,) + prob.g.shape[1:]
+        first = RationalFit(
+            poles, res.reshape(shape), d.reshape(prob.g.shape[1:]), np.ones(poles.size, dtype=int),
+            prob.inputs, prob.outputs, prob.band_hz, "vf", int(diagram.orders[-1]), True, prob.data,
+        )
+        prefer = np.isin(np.arange(poles.size), phys)
+        fit, n_mode_poles, used = fit_best(band, n, run, first=first, prefer=prefer)
+    weak = _weak_modes(replace(fit, data=used), n_mode_poles) if run.groups is None else 0
+    if 0 < weak < n and not run.expired():
+        fit, n_mode_poles, used = fit_best(band, n - weak, run)
     return fit, n_mode_poles, used, diagram
 
 

@@ -31,6 +31,7 @@ from .rational_fit import RationalFit
 from .realization import residue_rank
 from .refine import _row_weights, refine_residues
 from .selection import classify_poles, mode_counts, pole_contributions, split_pole
+from .stabilisation import distinct_modes
 
 __all__ = [
     "FitSettings",
@@ -92,7 +93,8 @@ def select_modes(fit: RationalFit, n_modes: int, prefer: np.ndarray | None = Non
     """Step 2: keep exactly ``n_modes`` modes and the fillers; poles ordered modes (by frequency)
     then fillers; modes get rank-1 residues, fillers their numerical rank. A pole whose residue
     has rank 2 (:func:`.selection.mode_counts`) stands for a close pair and is split in two
-    (:func:`.selection.split_pole`). ``prefer`` (bool per pole) ranks those poles first (the
+    (:func:`.selection.split_pole`); two poles on one peak with one shape (window leakage) are one
+    mode (:func:`.stabilisation.distinct_modes`). ``prefer`` (bool per pole) ranks those poles first (the
     stabilisation diagram's physical poles).
 
     Returns the new fit and the number of mode poles (the first ones)."""
@@ -101,8 +103,11 @@ def select_modes(fit: RationalFit, n_modes: int, prefer: np.ndarray | None = Non
     rw = _row_weights(fit, None)
     contrib = pole_contributions(s, data.response, rw, fit.poles, fit.residues)
     key = contrib if prefer is None else contrib + np.where(prefer, 1e6, 0.0)
-    counts = mode_counts(fit.residues)
-    cls = classify_poles(fit.poles, key, fit.band_hz, n_modes, counts=counts)
+    counts = mode_counts(fit.residues, fit.poles)
+    cplx = np.flatnonzero(fit.poles.imag != 0)
+    duplicate = ~np.isin(np.arange(fit.poles.size), distinct_modes(cplx, fit.poles, fit.residues, key))
+    exclude = duplicate & (fit.poles.imag != 0)
+    cls = classify_poles(fit.poles, key, fit.band_hz, n_modes, counts=counts, exclude=exclude)
     split = _splits(cls.modes, counts, key, n_modes)
     poles, residues = [], []
     for j, k in enumerate(cls.modes):

@@ -80,14 +80,26 @@ def pole_contributions(s: np.ndarray, g: np.ndarray, rw: np.ndarray, poles, resi
     return out / max(float(np.linalg.norm(w * g.reshape(k, -1))), np.finfo(float).tiny)
 
 
-def mode_counts(residues: np.ndarray, ratio: float = SPLIT_RATIO) -> np.ndarray:
+def mode_counts(
+    residues: np.ndarray, poles: np.ndarray | None = None, ratio: float = SPLIT_RATIO
+) -> np.ndarray:
     """Modes each pole stands for: 2 when its residue's second singular value exceeds ``ratio``
-    times the first (two close modes with different shapes merged into one pole, Caltech eq. 10),
-    else 1."""
+    times the first (two close modes with different shapes merged into one pole, Caltech eq. 10)
+    and, given ``poles``, no other complex pole lies within its half-power band ``f (1 +- 2 zeta)``
+    (then the pair already has its two poles); else 1."""
     if residues.size == 0 or min(residues.shape[1:]) < 2:
         return np.ones(len(residues), dtype=int)
     sv = np.linalg.svd(residues, compute_uv=False)
-    return np.where(sv[:, 1] > ratio * np.maximum(sv[:, 0], 1e-300), 2, 1)
+    counts = np.where(sv[:, 1] > ratio * np.maximum(sv[:, 0], 1e-300), 2, 1)
+    if poles is not None:
+        f, zeta = pole_frequency_damping(poles)
+        cplx = poles.imag != 0
+        for i in np.flatnonzero(counts == 2):
+            near = cplx & (np.abs(f - f[i]) < 2 * zeta[i] * f[i])
+            near[i] = False
+            if np.any(near):
+                counts[i] = 1
+    return counts
 
 
 def split_pole(pole: complex, residue: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -109,6 +121,7 @@ def classify_poles(
     zeta_filler: float = ZETA_FILLER,
     min_contribution: float = 0.0,
     counts: np.ndarray | None = None,
+    exclude: np.ndarray | None = None,
 ) -> PoleClasses:
     """Sort poles into modes, fillers and dropped poles (see module doc).
 
@@ -131,11 +144,14 @@ def classify_poles(
     counts : ndarray of int, optional
         Modes each pole stands for (:func:`mode_counts`); a pole counting 2 uses two of the
         ``n_modes`` (the caller splits it with :func:`split_pole`), or 1 when only one is left.
+    exclude : ndarray of bool, optional
+        Poles that are no candidates (duplicates of a mode); they are dropped.
     """
     f, zeta = pole_frequency_damping(poles)
     cplx = poles.imag != 0
     cand = cplx & (f >= band_hz[0]) & (f <= band_hz[1]) & (zeta < zeta_filler)
-    idx = np.flatnonzero(cand)
+    skip = np.zeros(poles.size, dtype=bool) if exclude is None else np.asarray(exclude, dtype=bool)
+    idx = np.flatnonzero(cand & ~skip)
     idx = idx[np.argsort(-contribution[idx], kind="stable")]
     if n_modes is None:
         modes = idx[contribution[idx] >= min_contribution]
@@ -146,11 +162,12 @@ def classify_poles(
         if modes.size < idx.size and int(cnt[modes].sum()) < n_modes:
             modes = idx[: modes.size + 1]  # the next one, counted once
         n_found = int(np.minimum(cnt[modes], n_modes).sum())
-        if n_found < n_modes:
-            extra = np.flatnonzero(cplx & ~cand)
-            extra = extra[np.argsort(-contribution[extra], kind="stable")]
-            modes = np.concatenate([modes, extra[: n_modes - n_found]])
-    fillers = np.flatnonzero(~cand & ~np.isin(np.arange(poles.size), modes))
-    dropped = np.setdiff1d(idx, modes)
+        if n_found < n_modes:  # promote excluded candidates first, then complex fillers
+            extra = []
+            for pool in (np.flatnonzero(cand & skip), np.flatnonzero(cplx & ~cand)):
+                extra += list(pool[np.argsort(-contribution[pool], kind="stable")])
+            modes = np.concatenate([modes, np.array(extra[: n_modes - n_found], dtype=int)])
+    fillers = np.flatnonzero(~cand & ~skip & ~np.isin(np.arange(poles.size), modes))
+    dropped = np.setdiff1d(np.flatnonzero(cand | skip), modes)
     modes = modes[np.argsort(f[modes], kind="stable")]
     return PoleClasses(modes.astype(int), fillers.astype(int), dropped.astype(int), contribution)

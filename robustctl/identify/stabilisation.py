@@ -34,11 +34,14 @@ __all__ = ["StabilisationDiagram", "stabilisation_scan", "residues_normal", "dis
 F_TOL = 0.01  #: relative frequency change of a stable pole between orders
 ZETA_TOL = 0.2  #: relative damping change of a stable pole
 MAC_TOL = 0.9  #: modal assurance criterion of the residues of a stable pole
+DUPLICATE_MAC = 0.9  #: MAC above which two poles on one peak are one mode (close modes differ more)
 CHAIN = 3  #: consecutive stable orders that make a pole physical
 MIN_CONTRIBUTION = 1e-2  #: smallest weighted share of the data a physical pole carries
 REL_CONTRIBUTION = 1e-3  #: ... and smallest share relative to the largest pole's
 PATIENCE = 4  #: orders without a new physical pole and without ``min_gain`` cost gain before stopping
 WARM_ITERS = 8  #: VF relocations per order (warm start)
+INHERIT_TOL = 0.02  #: frequency change over which a physical pole passes its status on
+INHERIT_SHARE = 0.3  #: share of the physical pole's contribution the inheriting pole needs
 
 
 @dataclass(frozen=True, eq=False)
@@ -178,21 +181,39 @@ def _compare(prev, cur) -> tuple[np.ndarray, np.ndarray]:
         if abs(fp[i] - f[j]) > F_TOL * f[j]:
             continue
         status[j] = "f"
+        same_shape = _mac(rp[i], r[j]) >= MAC_TOL
         if abs(zp[i] - z[j]) > ZETA_TOL * max(z[j], 1e-12):
+            # damping is the noisiest estimate (leakage, noise): a pole stable in frequency and
+            # shape keeps its chain, without extending it
+            chain[j] = chp[i] if same_shape else 0
             continue
         status[j] = "fd"
-        if _mac(rp[i], r[j]) < MAC_TOL:
+        if not same_shape:
             continue
         status[j] = "fds"
         chain[j] = chp[i] + 1
     return status, chain
 
 
+def _inherited(ever, f: np.ndarray, contrib: np.ndarray) -> np.ndarray:
+    """Poles within ``INHERIT_TOL`` in frequency of a pole physical at the previous order and
+    carrying at least ``INHERIT_SHARE`` of its contribution: a physical mode stays physical while
+    the added poles reshuffle its neighbourhood (its damping and shape may move for an order)."""
+    out = np.zeros(f.size, dtype=bool)
+    if ever is None or ever[0].size == 0:
+        return out
+    fp, cp = ever
+    for j in range(f.size):
+        i = int(np.argmin(np.abs(fp - f[j])))
+        out[j] = abs(fp[i] - f[j]) <= INHERIT_TOL * f[j] and contrib[j] >= INHERIT_SHARE * cp[i]
+    return out
+
+
 def distinct_modes(
     idx: np.ndarray, poles: np.ndarray, residues: np.ndarray, contrib: np.ndarray
 ) -> np.ndarray:
     """Drop poles that duplicate a neighbour: closer than three half-power half-widths
-    (``3 zeta f``) with the same shape (MAC of the residues above ``MAC_TOL``). Window leakage
+    (``3 zeta f``) with the same shape (MAC of the residues above ``DUPLICATE_MAC``). Window leakage
     and noise make a fit spend two poles on one broadened peak; two real modes that close have
     different shapes (the Caltech bending pairs), which is what tells them apart. Keeps the
     larger contributor of each duplicate; returns the kept indices."""
@@ -204,7 +225,7 @@ def distinct_modes(
             i
             for i in out
             if abs(f[i] - f[j]) < 3 * max(z[i] * f[i], z[j] * f[j])
-            and _mac(residues[i].ravel(), residues[j].ravel()) > MAC_TOL
+            and _mac(residues[i].ravel(), residues[j].ravel()) > DUPLICATE_MAC
         ]
         if not near:
             out.append(j)
@@ -249,7 +270,8 @@ def stabilisation_scan(
     Returns
     -------
     diagram : StabilisationDiagram
-    last : tuple (poles, residues (n_p, n_ch), d (n_ch,), physical mask) of the last order
+    last : tuple (poles, residues (n_p, n_ch), d (n_ch,), indices of the distinct physical poles)
+        of the latest order with the most distinct physical poles
     """
     from tqdm.auto import tqdm
 
@@ -257,7 +279,7 @@ def stabilisation_scan(
     f_data = np.abs(s) / (2 * np.pi)
     rows: list[tuple] = []
     prev, poles, best_cost, stale, best_phys = None, None, np.inf, 0, 0
-    last, resid_w2 = None, None
+    last, resid_w2, ever = None, None, None
     bar = tqdm(total=max_pairs, desc="order scan", disable=not progress, leave=False)
     for n in range(1, max_pairs + 1):
         if deadline is not None and time.perf_counter() > deadline and rows:
@@ -281,10 +303,13 @@ def stabilisation_scan(
         inside = (f[c] >= band_hz[0]) & (f[c] <= band_hz[1]) & (z[c] < ZETA_FILLER)
         floor = max(MIN_CONTRIBUTION, REL_CONTRIBUTION * float(contrib.max(initial=0.0)))
         phys = (chain >= CHAIN - 1) & inside & (contrib[c] >= floor)
+        phys |= _inherited(ever, f[c], contrib[c]) & inside & (contrib[c] >= floor)
         rows.append((n, f[c], z[c], contrib[c], status, chain, phys, cost))
         prev = (f[c], z[c], res[c], chain)
+        ever = (f[c][phys], contrib[c][phys])
         kept = distinct_modes(np.flatnonzero(c)[phys], poles, res, contrib)
-        last = (poles, res, d, kept)
+        if last is None or kept.size >= last[3].size:  # the latest order with the most modes
+            last = (poles, res, d, kept)
         bar.update(1)
         improved = kept.size > best_phys or cost < (1 - min_gain) * best_cost
         best_phys, best_cost = max(best_phys, kept.size), min(best_cost, cost)
