@@ -152,9 +152,13 @@ def vf_step(
     scale = np.sqrt(np.sum(np.abs(rw * g) ** 2)) / s.size
     con = _constraint(phi, scale)
     normal = _gram_normal(phi, g, rw) if gram else None
+    x = None
     if normal is not None:
-        x, cost = _solve_sigma_gram(normal[0], con, s.size * scale), normal[1]
-    else:
+        try:
+            x, cost = _solve_sigma_gram(normal[0], con, s.size * scale), normal[1]
+        except np.linalg.LinAlgError:  # singular normal equations (spare poles on exact data): QR path
+            x = None
+    if x is None:
         blocks, cost = _channel_blocks(phi, g, rw)
         x = _solve_sigma_qr(blocks, con, s.size * scale)
     a, b = _sigma_realisation(poles)
