@@ -41,6 +41,7 @@ from .physical import (
     modal_statespace,
     structural_model,
 )
+from .robust import HinfResult, hinfnorm, hinfsyn
 from .threads import blas_threads, set_blas_threads
 
 __version__ = "0.1.0"
@@ -89,4 +90,8 @@ __all__ = [
     "modal_model",
     "modal_statespace",
     "MatrixStructure",
+    # H-infinity norm and synthesis
+    "hinfnorm",
+    "hinfsyn",
+    "HinfResult",
 ]

@@ -44,8 +44,15 @@ import numpy as np
 import scipy.linalg
 
 from ..errors import ModelError, RobustctlError
-from ..lti import _blocks, _diag_response, _matrices, _modal_terms, _schur_response, _small_block_scaling
-from ..lti import as_statespace
+from ..lti import (
+    _blocks,
+    _diag_response,
+    _matrices,
+    _modal_terms,
+    _schur_response,
+    _small_block_scaling,
+    as_statespace,
+)
 from ..threads import limit_blas
 
 __all__ = ["hinfnorm"]
@@ -205,8 +212,14 @@ def imaginary_axis_frequencies(H: np.ndarray) -> np.ndarray:
 
 # ---------------------------------------------------------------------------- the iteration
 def _level_set_iteration(
-    A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, sigma: _SigmaMax,
-    gamma: float, w_peak: float, tol: float,
+    A: np.ndarray,
+    B: np.ndarray,
+    C: np.ndarray,
+    D: np.ndarray,
+    sigma: _SigmaMax,
+    gamma: float,
+    w_peak: float,
+    tol: float,
 ) -> tuple[float, float, int]:
     """Bruinsma-Steinbuch (1990) iteration from the lower bound ``gamma``; returns (norm, w_peak, steps)."""
     for step in range(1, MAX_ITER + 1):
@@ -225,7 +238,9 @@ def _level_set_iteration(
         above = np.flatnonzero(s > level)
         s_ref, w_ref = _refine(sigma, edges[above], edges[above + 1])
         j = int(np.argmax(s_ref))
-        gamma, w_peak = (float(s_ref[j]), float(w_ref[j])) if s_ref[j] > s[k] else (float(s[k]), float(mids[k]))
+        gamma, w_peak = (
+            (float(s_ref[j]), float(w_ref[j])) if s_ref[j] > s[k] else (float(s[k]), float(mids[k]))
+        )
     return gamma, w_peak, MAX_ITER
 
 
@@ -248,10 +263,8 @@ def hinfnorm_matrices(
     if A.shape[0] == 0:
         return float(np.linalg.norm(D, 2)), np.inf
     gamma, w_peak = _initial_bound(sigma, D)
-    if gamma == 0.0:  # G(jw) = 0 at every candidate, D = 0: test a tiny level
-        gamma = np.finfo(float).tiny ** 0.5
-        if imaginary_axis_frequencies(hamiltonian(A, B, C, D, gamma)).size == 0:
-            return 0.0, 0.0
+    if gamma == 0.0:  # G = 0 at 0, infinity and every modal frequency: G is identically zero
+        return 0.0, 0.0
     gamma, w_peak, _ = _level_set_iteration(A, B, C, D, sigma, gamma, w_peak, tol)
     return float(gamma), float(w_peak)
 
@@ -271,9 +284,7 @@ def _check_tol(tol: Any) -> float:
         raise RobustctlError(f"tol must be a relative tolerance in (0, 0.1]; got {tol!r}.")
     tol = float(tol)
     if not 0.0 < tol <= 0.1:
-        raise RobustctlError(
-            f"tol must be a relative tolerance in (0, 0.1]; got {tol!r}. Use e.g. tol=1e-6."
-        )
+        raise RobustctlError(f"tol must be a relative tolerance in (0, 0.1]; got {tol!r}. Use e.g. tol=1e-6.")
     return tol
 
 
