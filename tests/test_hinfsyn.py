@@ -173,6 +173,13 @@ def test_partitioned_plant_and_signal_names():
     assert list(res.closed_loop.output_labels) == ["e_w", "u_w"]
     same = rc.hinfsyn(names, 1, 1)
     assert same.gamma_opt == pytest.approx(res.gamma_opt, rel=1e-12)
+
+    class GeneralizedPlantLike:  # any object with .P, .nmeas, .ncon (e.g. rc.generalized_plant's result)
+        P, nmeas, ncon = names, 1, 1
+
+    duck = rc.hinfsyn(GeneralizedPlantLike())
+    assert duck.gamma_opt == pytest.approx(res.gamma_opt, rel=1e-12)
+    assert list(duck.K.input_labels) == ["y_meas"]
     assert "gamma" in str(res.table()) and "verified" in res.summary()
     assert "<table>" in res._repr_html_() and "HinfResult(" in repr(res)
 

@@ -83,20 +83,23 @@ def _check_stabilisable(A, B2, C2) -> None:
         )
 
 
+def _numerical_rank(M: np.ndarray, scale: float) -> int:
+    s = np.linalg.svd(M, compute_uv=False) if M.size else np.zeros(0)
+    return int(np.sum(s > rank_tol(M, scale)))
+
+
 def _check_ranks(D12, D21, scale: float) -> None:
     m2, p2 = D12.shape[1], D21.shape[0]
-    s12 = np.linalg.svd(D12, compute_uv=False) if D12.size else np.zeros(0)
-    rank12 = int(np.sum(s12 > rank_tol(D12, scale)))
-    if D12.shape[0] < m2 or rank12 < m2:
+    rank12 = _numerical_rank(D12, scale)
+    if rank12 < m2:
         raise SynthesisError(
             f"assumption (A2) violated: D12 (z <- u, {D12.shape[0]}x{m2}) has rank {rank12} < ncon = {m2}: "
             "some control input is not penalised at high frequency, so the controller gain is unbounded. "
             "Fix: add a small weight on u (e.g. a constant W2 = 1e-3 on every control input in "
             "the regulated outputs), or use method='lmi'."
         )
-    s21 = np.linalg.svd(D21, compute_uv=False) if D21.size else np.zeros(0)
-    rank21 = int(np.sum(s21 > rank_tol(D21, scale)))
-    if D21.shape[1] < p2 or rank21 < p2:
+    rank21 = _numerical_rank(D21, scale)
+    if rank21 < p2:
         raise SynthesisError(
             f"assumption (A2) violated: D21 (y <- w, {p2}x{D21.shape[1]}) has rank {rank21} < nmeas = {p2}: "
             "some measurement is noise free, which asks for infinite-bandwidth estimation. Fix: add "

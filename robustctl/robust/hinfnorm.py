@@ -324,8 +324,9 @@ def hinfnorm(sys: Any, tol: float = 1e-6) -> tuple[float, float]:
     Examples
     --------
     >>> import control, robustctl as rc
-    >>> rc.hinfnorm(control.tf([1], [1, 0.02, 1]))   # zeta = 0.01: 1 / (2 zeta sqrt(1 - zeta^2))
-    (50.0025..., 0.15913...)
+    >>> g, f_peak = rc.hinfnorm(control.tf([1], [1, 0.02, 1]))  # zeta = 0.01
+    >>> round(g, 4), round(f_peak, 5)  # 1 / (2 zeta sqrt(1 - zeta^2)) at sqrt(1 - 2 zeta^2) / (2 pi) Hz
+    (50.0025, 0.15914)
     """
     tol = _check_tol(tol)
     ss = as_statespace(sys)

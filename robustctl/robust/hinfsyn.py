@@ -128,6 +128,11 @@ class HinfResult:
 
 # ---------------------------------------------------------------------------- input checks
 def _as_partitioned(P: Any, nmeas: Any, ncon: Any) -> PartitionedPlant:
+    if not isinstance(P, PartitionedPlant) and all(hasattr(P, k) for k in ("P", "nmeas", "ncon")):
+        try:  # a duck-typed generalized plant (any object with .P, .nmeas, .ncon)
+            P = PartitionedPlant(as_statespace(P.P), P.nmeas, P.ncon)
+        except ModelError as exc:
+            raise SynthesisError(f"hinfsyn: {exc}") from exc
     if isinstance(P, PartitionedPlant):
         for name, given, have in (("nmeas", nmeas, P.nmeas), ("ncon", ncon, P.ncon)):
             if given is not None and given != have:
@@ -447,7 +452,7 @@ def hinfsyn(
     --------
     >>> import control, robustctl as rc
     >>> G = control.tf([1], [1, 0.2, 1])
-    >>> P = control.augw(G, w1=control.tf([0.5, 1], [1, 0.01]), w2=0.1)
+    >>> P = control.augw(G, w1=control.tf([0.5, 1], [1, 0.01]), w2=control.tf(0.1, 1))
     >>> res = rc.hinfsyn(P, 1, 1)
     >>> res.gamma <= res.info["gamma_design"] * (1 + 1e-6)
     True
