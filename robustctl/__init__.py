@@ -17,6 +17,7 @@ from .correlate import (
 )
 from .errors import DataError, FitError, ModelError, RobustctlError, SynthesisError
 from .estimate import combine_experiments, estimate_frf, simulate_experiment
+from .export import ExportReport, discretize, export_controller, load_controller
 from .frd import FrequencyData, load_frd
 from .identify import (
     MeasurementModel,
@@ -90,6 +91,10 @@ __all__ = [
     "modal_model",
     "modal_statespace",
     "MatrixStructure",
+    "discretize",
+    "export_controller",
+    "load_controller",
+    "ExportReport",
     # H-infinity norm and synthesis
     "hinfnorm",
     "hinfsyn",

@@ -11,7 +11,7 @@ import json
 import os
 import tempfile
 import zipfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from os import PathLike
 from pathlib import Path
@@ -368,6 +368,22 @@ def _json_loads(text: str, what: str) -> dict:
 def _save(data: FrequencyData, path: Any, overwrite: bool) -> Path:
     """Write to a temporary file next to ``path`` and move it into place (never clobbering)."""
     path = _check_path(path)
+    writer = _WRITERS[path.suffix.lower()]
+    return write_atomically(path, lambda tmp: writer(data, tmp), overwrite)
+
+
+def write_atomically(path: Path, write: Callable[[Path], None], overwrite: bool) -> Path:
+    """Call ``write(tmp)`` on a temporary file in ``path``'s folder, then move it to ``path``.
+
+    The move is ``os.replace`` (``overwrite=True``) or a hard link that fails if ``path``
+    appeared meanwhile, so a reader never sees a partial file and an existing file is only
+    replaced when asked. The temporary file is removed if ``write`` raises.
+
+    Raises
+    ------
+    DataError
+        The folder does not exist, or ``path`` exists and ``overwrite`` is False.
+    """
     if not path.parent.is_dir():
         raise DataError(f"cannot save to {str(path)!r}: the directory {str(path.parent)!r} does not exist.")
     if path.exists() and not overwrite:
@@ -378,7 +394,7 @@ def _save(data: FrequencyData, path: Any, overwrite: bool) -> Path:
     os.close(fd)
     tmp = Path(tmp_name)
     try:
-        _WRITERS[path.suffix.lower()](data, tmp)
+        write(tmp)
         if overwrite:
             os.replace(tmp, path)
         else:
