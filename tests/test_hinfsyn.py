@@ -122,6 +122,20 @@ def test_mimo_modal_plant_matches_sb10ad():
     assert_verified(res, P, 2, 2)
 
 
+@pytest.mark.parametrize("zeta", [1e-3, 1e-4])
+def test_lightly_damped_noncollocated_plant(zeta):
+    """Riccati and LMI agree; SB10AD's controller does not do better than ours in reality (its reported
+    gamma, about 0.52 here, is not what its controller achieves: about 3.4 for zeta = 1e-3)."""
+    P = mixed_sensitivity(3, seed=3, zeta=zeta, flip=0.3)
+    ric = rc.hinfsyn(P, 1, 1)
+    lmi = rc.hinfsyn(P, 1, 1, method="lmi")
+    assert ric.gamma_opt == pytest.approx(lmi.gamma_opt, rel=0.01)
+    assert_verified(ric, P, 1, 1)
+    status, value, _ = slycot_hinfsyn(P, 1, 1, SLYCOT_TIMEOUT_S)
+    if status == "ok":
+        assert ric.gamma <= closed_loop_norm(P, 1, 1, value[1]) * 1.02
+
+
 # ---------------------------------------------------------------------------- Riccati vs LMI
 @pytest.mark.parametrize("seed", [0, 2])
 def test_riccati_matches_lmi_general_plant(seed):
