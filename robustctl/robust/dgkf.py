@@ -220,9 +220,12 @@ def _spectral_radius_ok(X: np.ndarray, Y: np.ndarray, gamma: float) -> float:
     return rho
 
 
-def gamma_test(p: Normalised, gamma: float) -> GammaTest:
-    """Is there a controller with ``||Fl(P, K)||_inf < gamma``? (Glover & Doyle 1988; ZDG Thm 17.1.)"""
-    bound = parrott_bound(p)
+def gamma_test(p: Normalised, gamma: float, bound: float | None = None) -> GammaTest:
+    """Is there a controller with ``||Fl(P, K)||_inf < gamma``? (Glover & Doyle 1988; ZDG Thm 17.1.)
+
+    ``bound``: the Parrott bound of ``p`` when already known (computed otherwise).
+    """
+    bound = parrott_bound(p) if bound is None else bound
     if not gamma > bound * (1.0 + 1e-12):
         return GammaTest(gamma, False, f"gamma <= Parrott bound {bound:.6g} of D11")
     try:

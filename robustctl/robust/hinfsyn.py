@@ -270,12 +270,13 @@ def _bisect(
 ) -> tuple[float, float, bool]:
     """Bracket and bisect gamma; returns ``(gamma_opt, gamma_lower, stopped_by_budget)``."""
 
+    lower = dgkf.parrott_bound(p)
+
     def test(g: float) -> bool:
-        t = dgkf.gamma_test(p, g)
+        t = dgkf.gamma_test(p, g, lower)
         history.append((g, t.feasible, t.reason))
         return t.feasible
 
-    lower = dgkf.parrott_bound(p)
     hi = _upper_start(m, lower)
     lo = lower
     for _ in range(MAX_BRACKET_STEPS):
