@@ -66,6 +66,7 @@ def test_python_control_first_order_example():
     status, value, _ = slycot_hinfsyn(P, 1, 1, SLYCOT_TIMEOUT_S)
     assert status == "ok" and value[0] < 1e-6  # SB10AD's gamma: the infimum is 0
     assert res.gamma < 1e-5 and res.gamma_opt < 1e-5
+    assert res.info["gamma_lower"] == 0.0  # nothing was shown infeasible: the Parrott bound of D11 = 0
     assert_verified(res, P, 1, 1)
 
 
@@ -82,7 +83,7 @@ def test_skogestad_postlethwaite_example_2_11():
     assert_verified(res, P, 1, 1)
 
 
-@pytest.mark.parametrize("n_modes", [1, 5, 10])
+@pytest.mark.parametrize("n_modes", [1, 5])
 def test_modal_mixed_sensitivity_matches_sb10ad(n_modes):
     P = mixed_sensitivity(n_modes, seed=n_modes)
     res = rc.hinfsyn(P, 1, 1)
@@ -93,9 +94,9 @@ def test_modal_mixed_sensitivity_matches_sb10ad(n_modes):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("n_modes", [15, 29])
+@pytest.mark.parametrize("n_modes", [10, 15, 29])
 def test_modal_mixed_sensitivity_matches_sb10ad_large(n_modes):
-    P = mixed_sensitivity(n_modes, seed=n_modes)  # orders 32 and 60
+    P = mixed_sensitivity(n_modes, seed=n_modes)  # orders 22, 32 and 60
     res = rc.hinfsyn(P, 1, 1)
     status, value, _ = slycot_hinfsyn(P, 1, 1, 300.0)
     assert status == "ok"

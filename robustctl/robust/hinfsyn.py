@@ -294,8 +294,9 @@ def _bisect(
             "holds only marginally (a nearly unobservable/uncontrollable unstable or undamped mode); "
             "rescale the weights or try method='lmi'."
         )
+    proven = lo  # largest gamma shown infeasible (or the Parrott bound)
     if lo <= 0:
-        lo = hi * 1e-8
+        lo = hi * 1e-8  # a floor for the geometric bisection, not a proven bound
     stopped = False
     for _ in range(MAX_BISECTION_STEPS):
         if hi <= lo * (1.0 + gamma_tol):
@@ -307,8 +308,8 @@ def _bisect(
         if test(mid):
             hi = mid
         else:
-            lo = mid
-    return hi, max(lo, lower), stopped
+            lo = proven = mid
+    return hi, proven, stopped
 
 
 def _riccati_design(m: dict[str, np.ndarray], gamma: float) -> tuple[np.ndarray, ...]:
