@@ -66,7 +66,7 @@ def test_python_control_first_order_example():
     status, value, _ = slycot_hinfsyn(P, 1, 1, SLYCOT_TIMEOUT_S)
     assert status == "ok" and value[0] < 1e-6  # SB10AD's gamma: the infimum is 0
     assert res.gamma < 1e-5 and res.gamma_opt < 1e-5
-    assert res.info["gamma_lower"] == 0.0  # nothing was shown infeasible: the Parrott bound of D11 = 0
+    assert res.info["gamma_lower"] < 1e-6  # the Parrott bound is 0; the Riccati tests fail only near 2e-7
     assert_verified(res, P, 1, 1)
 
 
