@@ -199,6 +199,13 @@ def test_partitioned_plant_and_signal_names():
     assert "<table>" in res._repr_html_() and "HinfResult(" in repr(res)
 
 
+def test_plot_shows_the_verified_peak():
+    res = rc.hinfsyn(mixed_sensitivity(2), 1, 1)
+    fig = res.plot()
+    line = fig.axes[0].lines[0]
+    assert max(line.get_ydata()) == pytest.approx(res.gamma, rel=1e-6)  # the grid includes the peak
+
+
 def test_result_is_frozen():
     res = rc.hinfsyn(mixed_sensitivity(1), 1, 1)
     with pytest.raises(AttributeError):

@@ -115,6 +115,45 @@ class HinfResult:
             )
         return "\n".join(lines)
 
+    def plot(self, f_hz: Any = None, fig: Any = None) -> Any:
+        """Singular values of the closed loop ``w -> z`` over frequency, with gamma and gamma_opt.
+
+        Parameters
+        ----------
+        f_hz : array_like, optional
+            Frequencies in Hz (default: 800 log-spaced points a decade beyond the closed
+            loop's pole frequencies, plus the peak).
+        fig : matplotlib Figure, optional
+
+        Returns the matplotlib Figure.
+        """
+        from ..lti import freqresp_array
+        from ..plots import new_figure
+
+        f_peak = self.info.get("f_peak_hz", np.nan)
+        if f_hz is None:
+            A = np.asarray(self.closed_loop.A)
+            poles = np.abs(np.linalg.eigvals(A)) / (2 * np.pi) if A.size else np.zeros(0)
+            poles = poles[poles > 0]
+            lo, hi = (poles.min() / 10, poles.max() * 10) if poles.size else (1e-2, 1e2)
+            f_hz = np.geomspace(lo, hi, 800)
+            if np.isfinite(f_peak) and f_peak > 0:
+                f_hz = np.sort(np.append(f_hz, f_peak))
+        f_hz = np.asarray(f_hz, dtype=float)
+        sv = np.linalg.svd(freqresp_array(self.closed_loop, f_hz), compute_uv=False)
+        fig = fig or new_figure(7.0, 4.0)
+        ax = fig.add_subplot(1, 1, 1)
+        ax.loglog(f_hz, sv, lw=1)
+        ax.axhline(self.gamma, color="k", ls="--", lw=1, label=f"gamma = {self.gamma:.4g} (verified)")
+        ax.axhline(self.gamma_opt, color="C3", ls=":", lw=1, label=f"gamma_opt = {self.gamma_opt:.4g}")
+        if np.isfinite(f_peak) and f_peak > 0:
+            ax.plot([f_peak], [self.gamma], "ko", ms=4)
+        ax.set_xlabel("frequency (Hz)")
+        ax.set_ylabel("singular values of Fl(P, K)")
+        ax.set_title("H-infinity closed loop w -> z")
+        ax.legend(fontsize=8)
+        return fig
+
     def _repr_html_(self) -> str:
         summary = "".join(f"<p>{html.escape(s)}</p>" for s in self.summary().splitlines())
         return summary + self.table()._repr_html_()
