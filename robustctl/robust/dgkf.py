@@ -156,17 +156,22 @@ def _schur_eigs(T: np.ndarray) -> np.ndarray:
 def stabilising_solution(H: np.ndarray, what: str) -> np.ndarray:
     """``X = Ric(H) = X2 X1^-1`` from the stable invariant subspace ``[X1; X2]`` of a Hamiltonian.
 
-    Ordered real Schur form (LAPACK ``gees`` with the left half plane first), then the checks
-    of ZDG sec. 13.1: exactly ``n`` stable eigenvalues, none on the imaginary axis (relative
-    test ``|Re lambda| <= IMAG_RTOL |lambda| + IMAG_ATOL ||H||_1``), ``X1`` invertible. Raises
+    ``H`` is first balanced by a diagonal similarity ``Hb = S^-1 H S`` (LAPACK ``gebal``; the
+    stable subspace of ``H`` is ``S`` times that of ``Hb``), which keeps eigenvalues accurate
+    when the scalings of D12/D21 make ``B2 B2^T`` or ``C2^T C2`` huge (cheap control weights).
+    Ordered real Schur form of ``Hb`` (LAPACK ``gees`` with the left half plane first), then
+    the checks of ZDG sec. 13.1: exactly ``n`` stable eigenvalues, none on the imaginary axis
+    (``|Re lambda| <= IMAG_RTOL |lambda| + IMAG_ATOL ||Hb||_1``), ``X1`` invertible. Raises
     ``_InfeasibleError``.
     """
     n = H.shape[0] // 2
     if not np.all(np.isfinite(H)):
         raise _InfeasibleError(f"{what}: the Hamiltonian has NaN/inf entries")
-    T, Z, sdim = scipy.linalg.schur(H, output="real", sort="lhp", check_finite=False)
+    Hb, (sc, _) = scipy.linalg.matrix_balance(H, permute=False, separate=True)
+    T, Z, sdim = scipy.linalg.schur(Hb, output="real", sort="lhp", check_finite=False)
+    Z = Z * sc[:, None]  # back to the coordinates of H
     ev = _schur_eigs(T)
-    scale = max(float(np.abs(H).sum(axis=0).max()), np.finfo(float).tiny)
+    scale = max(float(np.abs(Hb).sum(axis=0).max()), np.finfo(float).tiny)
     if np.any(np.abs(ev.real) <= IMAG_RTOL * np.abs(ev) + IMAG_ATOL * scale):
         raise _InfeasibleError(f"{what}: Hamiltonian eigenvalues on the imaginary axis")
     if sdim != n:
