@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg
 
+from ..checks import positive_number
 from ..errors import ModelError, RobustctlError
 from ..lti import (
     _blocks,
@@ -298,10 +299,8 @@ def _discrete_to_continuous(A, B, C, D) -> tuple[np.ndarray, ...]:
 
 
 def _check_tol(tol: Any) -> float:
-    if isinstance(tol, bool) or not isinstance(tol, (int, float, np.floating, np.integer)):
-        raise RobustctlError(f"tol must be a relative tolerance in (0, 0.1]; got {tol!r}.")
-    tol = float(tol)
-    if not 0.0 < tol <= 0.1:
+    tol = positive_number(tol, "tol", RobustctlError)
+    if tol > 0.1:
         raise RobustctlError(f"tol must be a relative tolerance in (0, 0.1]; got {tol!r}. Use e.g. tol=1e-6.")
     return tol
 

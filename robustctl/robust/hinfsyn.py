@@ -32,7 +32,8 @@ from typing import Any
 import numpy as np
 import scipy.linalg
 
-from ..errors import ModelError, RobustctlError, SynthesisError
+from ..checks import positive_number
+from ..errors import ModelError, SynthesisError
 from ..interconnect import PartitionedPlant
 from ..lti import as_statespace
 from ..table import Table
@@ -209,12 +210,11 @@ def _as_partitioned(P: Any, nmeas: Any, ncon: Any) -> PartitionedPlant:
     return plant
 
 
-def _positive(value: Any, name: str, upper: float = np.inf, allow_zero: bool = False) -> float:
-    ok_type = isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool)
-    v = float(value) if ok_type else np.nan
-    if not (ok_type and np.isfinite(v) and (v > 0 or (allow_zero and v == 0)) and v <= upper):
-        rng = f"[0, {upper:g}]" if allow_zero else f"(0, {upper:g}]"
-        raise RobustctlError(f"{name} must be a number in {rng}; got {value!r}.")
+def _bounded(value: Any, name: str, upper: float, allow_zero: bool = False, unit: str = "") -> float:
+    """A finite number in ``(0, upper]`` (``[0, upper]`` with ``allow_zero``), by the shared checks."""
+    v = positive_number(value, name, SynthesisError, allow_zero=allow_zero, unit=unit)
+    if v > upper:
+        raise SynthesisError(f"{name} must be at most {upper:g}; got {value!r}.")
     return v
 
 
@@ -500,9 +500,9 @@ def hinfsyn(
     """
     if method not in ("riccati", "lmi"):
         raise SynthesisError(f"method must be 'riccati' or 'lmi'; got {method!r}.")
-    gamma_tol = _positive(gamma_tol, "gamma_tol", 0.5)
-    backoff = _positive(backoff, "backoff", 10.0, allow_zero=True)
-    time_budget_s = _positive(time_budget_s, "time_budget_s")
+    gamma_tol = _bounded(gamma_tol, "gamma_tol", 0.5)
+    backoff = _bounded(backoff, "backoff", 10.0, allow_zero=True)
+    time_budget_s = positive_number(time_budget_s, "time_budget_s", SynthesisError, unit="s")
     plant = _as_partitioned(P, nmeas, ncon)
     m = plant.matrices()
     if not all(np.all(np.isfinite(v)) for v in m.values()):
