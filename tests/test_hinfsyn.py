@@ -235,6 +235,19 @@ def test_plot_shows_the_verified_peak():
     assert max(line.get_ydata()) == pytest.approx(res.gamma, rel=1e-6)  # the grid includes the peak
 
 
+def test_static_plant_reaches_the_parrott_bound():
+    """No states: the optimum of a static problem is the Parrott bound of D11 (ZDG Theorem 2.22)."""
+    P = control.ss([], [], [], [[0.5, 1.0, 0.3], [0.2, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    res = rc.hinfsyn(P, 2, 1)
+    assert res.K.nstates == 0
+    assert res.gamma == pytest.approx(res.info["parrott_bound"], rel=1e-9)
+    # y = w: u cancels the part of z along D12 = [0.3; 1]; what is left is the orthogonal part of D11
+    u_perp = np.array([1.0, -0.3]) / np.hypot(1.0, 0.3)
+    assert res.gamma == pytest.approx(np.linalg.norm(u_perp @ np.array([[0.5, 1.0], [0.2, 0.0]])), rel=1e-9)
+    with pytest.raises(SynthesisError, match="static plant"):
+        rc.hinfsyn(P, 2, 1, method="lmi")
+
+
 def test_result_is_frozen():
     res = rc.hinfsyn(mixed_sensitivity(1), 1, 1)
     with pytest.raises(AttributeError):

@@ -165,6 +165,8 @@ def stabilising_solution(H: np.ndarray, what: str) -> np.ndarray:
     ``_InfeasibleError``.
     """
     n = H.shape[0] // 2
+    if n == 0:  # a static plant: no state, no Riccati equation
+        return np.zeros((0, 0))
     if not np.all(np.isfinite(H)):
         raise _InfeasibleError(f"{what}: the Hamiltonian has NaN/inf entries")
     Hb, (sc, _) = scipy.linalg.matrix_balance(H, permute=False, separate=True)

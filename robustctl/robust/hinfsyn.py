@@ -420,6 +420,11 @@ def _riccati(m, gamma_tol, backoff, clock, info):
 def _lmi(m, backoff, clock, info):
     from .hinf_lmi import lmi_controller, lmi_gamma
 
+    if m["A"].shape[0] == 0:
+        raise SynthesisError(
+            "method='lmi' needs a plant with states; a static plant is a Parrott problem, solved by "
+            "method='riccati'."
+        )
     check_assumptions(m, ranks=False)
     m0 = dict(m, D22=np.zeros_like(m["D22"]))  # (no balancing: it can inflate the Lyapunov matrices)
     scale = max(1.0, float(np.abs(m["D11"]).max()) if m["D11"].size else 1.0)
