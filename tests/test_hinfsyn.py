@@ -248,6 +248,20 @@ def test_static_plant_reaches_the_parrott_bound():
         rc.hinfsyn(P, 2, 1, method="lmi")
 
 
+def test_accepts_generalized_plant_from_mixed_sensitivity():
+    """rc.hinfsyn(gp) with the plant helper's GeneralizedPlant: the same gamma as python-control's augw."""
+    G = modal_plant(3, 2)
+    W1, W2 = control.tf([0.5, 0.5], [1.0, 5e-4]), control.tf([0.01, 0.01], [0.01, 1.0])
+    gp = rc.mixed_sensitivity(G, W1=W1, W2=W2)
+    res = rc.hinfsyn(gp)
+    ref = rc.hinfsyn(augw(G, w1=W1, w2=W2), 1, 1)
+    assert res.gamma_opt == pytest.approx(ref.gamma_opt, rel=2e-3)
+    assert list(res.K.input_labels) == gp.y_names and list(res.K.output_labels) == gp.u_names
+    assert list(res.closed_loop.input_labels) == gp.w_names
+    assert list(res.closed_loop.output_labels) == gp.z_names
+    assert_verified(res)
+
+
 def test_result_is_frozen():
     res = rc.hinfsyn(mixed_sensitivity(1), 1, 1)
     with pytest.raises(AttributeError):

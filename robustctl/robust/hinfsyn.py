@@ -34,7 +34,7 @@ import scipy.linalg
 
 from ..checks import positive_number
 from ..errors import ModelError, SynthesisError
-from ..interconnect import PartitionedPlant
+from ..interconnect import PartitionedPlant, lft
 from ..lti import as_statespace
 from ..table import Table
 from ..threads import limit_blas
@@ -221,6 +221,9 @@ def _bounded(value: Any, name: str, upper: float, allow_zero: bool = False, unit
 # ---------------------------------------------------------------------------- LFT kernel
 def lower_lft_matrices(m: dict[str, np.ndarray], Ak, Bk, Ck, Dk) -> tuple[np.ndarray, ...]:
     """``Fl(P, K)`` as ``(A, B, C, D)``, states ``[x_P; x_K]`` (ZDG sec. 10.1).
+
+    The array kernel of the design loop's closed-loop check (no named systems are built per
+    retry); the result's named ``closed_loop`` comes from :func:`robustctl.interconnect.lft`.
 
     ``u = Ck xk + Dk y``, ``y = C2 x + D21 w + D22 u``; raises SynthesisError when
     ``I - Dk D22`` is singular (the loop is not well posed).
@@ -536,7 +539,5 @@ def _result(plant: PartitionedPlant, m, K, norm: float, gamma_opt: float, info: 
         states=[f"xK{i + 1}" for i in range(Ak.shape[0])],
         name="K",
     )
-    A, B, C, D = _closed_loop(m, K)
-    states = list(plant.P.state_labels) + [f"xK{i + 1}" for i in range(Ak.shape[0])]
-    cl = control.ss(A, B, C, D, inputs=plant.w_names, outputs=plant.z_names, states=states, name="Fl(P,K)")
+    cl = lft(plant, Kss)  # the shared named interconnection: w -> z with the plant's names
     return HinfResult(K=Kss, gamma=float(norm), gamma_opt=float(gamma_opt), closed_loop=cl, info=info)
