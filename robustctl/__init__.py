@@ -36,6 +36,7 @@ from .identify import (
     group_modes,
 )
 from .impact import ImpactWarning, estimate_frf_impact
+from .interconnect import PartitionedPlant, block_diagonal, feedback, lft, parallel, series, star, upper_lft
 from .lti import as_statespace, freqresp, log_cost, log_error
 from .modes import Mode
 from .physical import (
@@ -51,6 +52,39 @@ from .physical import (
     modal_model,
     modal_statespace,
     structural_model,
+)
+
+# robust design: weights
+from .robust import (
+    Block,
+    BlockStructure,
+    GeneralizedPlant,
+    HinfResult,
+    MuResult,
+    PlantWeight,
+    UncertaintyCover,
+    WorstCaseGain,
+    as_block_structure,
+    cover_additive,
+    cover_multiplicative,
+    fit_magnitude,
+    generalized_plant,
+    hinfnorm,
+    hinfsyn,
+    makeweight,
+    mixed_sensitivity,
+    mu,
+    robust_performance,
+    robust_stability,
+    worst_case_gain,
+)
+from .signals import (
+    combine_inputs,
+    combine_outputs,
+    rename_signals,
+    scale_inputs,
+    scale_outputs,
+    select_signals,
 )
 from .threads import blas_threads, set_blas_threads
 
@@ -100,6 +134,25 @@ __all__ = [
     "modal_model",
     "modal_statespace",
     "MatrixStructure",
+    # named interconnection (interconnect.py, signals.py) and the generalized plant (robust/plant.py)
+    "PartitionedPlant",
+    "lft",
+    "upper_lft",
+    "star",
+    "series",
+    "parallel",
+    "feedback",
+    "rename_signals",
+    "scale_inputs",
+    "scale_outputs",
+    "select_signals",
+    "combine_inputs",
+    "combine_outputs",
+    "block_diagonal",
+    "GeneralizedPlant",
+    "PlantWeight",
+    "generalized_plant",
+    "mixed_sensitivity",
     # shared ground: one checks module, one system coercion, one cost report, one Mode
     "checks",
     "as_statespace",
@@ -114,4 +167,24 @@ __all__ = [
     "ImpactWarning",
     "advised_nperseg",
     "StabilisationDiagram",
+    # --- mu analysis (mu helper) ---
+    "Block",
+    "BlockStructure",
+    "as_block_structure",
+    "mu",
+    "MuResult",
+    "robust_stability",
+    "robust_performance",
+    "worst_case_gain",
+    "WorstCaseGain",
+    # robust design: weights
+    "makeweight",
+    "fit_magnitude",
+    "cover_additive",
+    "cover_multiplicative",
+    "UncertaintyCover",
+    # H-infinity norm and synthesis
+    "hinfnorm",
+    "hinfsyn",
+    "HinfResult",
 ]

@@ -9,9 +9,12 @@
   parameter errors.
 * :func:`modal_test_case`, :func:`impact_test_case` -- synthetic modal tests at the size of
   real ones (many channels and modes, close pairs; shaker FRF or hammer hits).
+* :func:`caltech_additive_weight` -- the seed's additive weight (eq. 14);
+  :func:`caltech_truss_weights` -- weights computed from the truss's residuals beside it.
 """
 
 from .caltech_truss import caltech_truss, truss_modes
+from .caltech_weights import CaltechWeights, caltech_additive_weight, caltech_truss_weights
 from .experiments import caltech_truss_experiment, mace_beam_experiment, make_experiment
 from .mace_beam import mace_beam, mace_modes
 from .modal_test import ModalTruth, impact_test_case, modal_test_case
@@ -19,3 +22,4 @@ from .modal_test import ModalTruth, impact_test_case, modal_test_case
 __all__ = ["caltech_truss", "truss_modes", "mace_beam", "mace_modes"]
 __all__ += ["make_experiment", "caltech_truss_experiment", "mace_beam_experiment"]
 __all__ += ["modal_test_case", "impact_test_case", "ModalTruth"]
+__all__ += ["caltech_additive_weight", "caltech_truss_weights", "CaltechWeights"]
