@@ -1,0 +1,424 @@
+"""The measurement-model yardstick: score controllers designed on different models on the data.
+
+MACE (Glaese & Miller, seed paper, "General Modeling Approach" and "Closed-loop
+updating"): "because the measurement model is the most accurate representation of the
+experimental data, [controllers designed on it] should achieve the highest performance.
+The performance achieved using the measurement model is compared with that achieved using
+the FEM. When these performances are comparable, the FEM updating has converged."
+
+:func:`yardstick` designs one mu-controller per model with :func:`~robustctl.robust.dk.dksyn`
+(the same weights and objectives for each, from one ``recipe``) and scores each controller
+on the *measured* frequency responses:
+
+* **attenuation** -- the loop is closed on the measured plant frequency by frequency: an
+  input disturbance ``d`` (at the actuators) reaches the sensors through
+  ``T(jw) = (I - s G(jw) K(jw))^-1 G(jw)`` where ``u = K y`` and the plant's measurement
+  is ``y = s G u`` (``s = +-1``, read from the generalized plant). The score is
+  ``20 log10(rms ||G||_F / rms ||T||_F)`` over the band (dB; the RMS response to a white
+  disturbance, open over closed loop);
+* **stability** -- the generalized Nyquist criterion on the data: the closed loop is stable
+  iff ``det(I - s G K)`` encircles the origin counter-clockwise as many times as ``G K`` has
+  open-loop unstable poles (Maciejowski 1989, sec. 2.8; Skogestad & Postlethwaite 2005,
+  Theorem 4.9), counted from the plant model's and the controller's poles. The winding
+  outside the measured band is known only when the loop gain is below 1 there (then each
+  eigenvalue of ``I - s G K`` stays in the right half plane); otherwise the verdict is
+  "cannot tell";
+* **robustness** -- mu of each controller against each model's uncertainty set.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Mapping
+from concurrent.futures import Executor
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import DataError, SynthesisError
+from ..frd import FrequencyData
+from ..table import Table
+from .dk import DKResult, _mu_of, closed_loop, default_grid, dksyn
+
+__all__ = ["NyquistVerdict", "Yardstick", "nyquist_stability", "yardstick"]
+
+#: The loop gain must be below this at the band edges (and the model's outside) to count encirclements.
+EDGE_LOOP_GAIN = 0.9
+
+
+# ---------------------------------------------------------------------------- Nyquist on data
+@dataclass(frozen=True)
+class NyquistVerdict:
+    """Generalized Nyquist test of one loop on measured data.
+
+    Attributes
+    ----------
+    stable : bool or None
+        None when the data cannot tell.
+    encirclements : float
+        Counter-clockwise encirclements of the origin by ``det(I - L)`` over the whole
+        imaginary axis (NaN when not countable).
+    open_loop_unstable : int
+        Open-loop unstable poles of the loop (plant model + controller).
+    reason : str
+        Why the data cannot tell, or a short verdict.
+    """
+
+    stable: bool | None
+    encirclements: float
+    open_loop_unstable: int
+    reason: str
+
+    @property
+    def label(self) -> str:
+        """"stable", "unstable" or "cannot tell"."""
+        return {True: "stable", False: "unstable", None: "cannot tell"}[self.stable]
+
+
+def _eig_arg_sum(L: np.ndarray) -> float:
+    """Sum of principal arguments of the eigenvalues of ``I - L``."""
+    return float(np.sum(np.angle(np.linalg.eigvals(np.eye(L.shape[0]) - L))))
+
+
+def nyquist_stability(
+    f_hz: np.ndarray,
+    loop: np.ndarray,
+    open_loop_unstable: int,
+    outside_gain: float = 0.0,
+    *,
+    max_step_rad: float = np.pi / 3,
+) -> NyquistVerdict:
+    """Closed-loop stability of ``u = L u`` from ``L(j 2 pi f)`` measured on ``f_hz``.
+
+    Parameters
+    ----------
+    f_hz : ndarray, shape (nf,)
+        Increasing positive frequencies (Hz).
+    loop : ndarray, shape (nf, n, n)
+        Loop transfer matrix ``L = s G K`` (positive feedback ``det(I - L)``).
+    open_loop_unstable : int
+        Number of open-loop poles of ``L`` in the open right half plane.
+    outside_gain : float
+        Largest ``sigma_max(L)`` outside the measured band (from a model of the plant); the
+        winding there is known only when it is below 1.
+    max_step_rad : float
+        Largest phase step of ``det(I - L)`` between neighbouring points that still counts as
+        resolved.
+
+    Returns
+    -------
+    NyquistVerdict
+
+    Notes
+    -----
+    With ``sigma_max(L) < 1`` on ``[0, f_min]`` and ``[f_max, inf)`` every eigenvalue of
+    ``I - L`` has a positive real part there, so the argument of ``det(I - L)`` changes by
+    ``S(f_min) - S(0)`` and ``S(inf) - S(f_max)``, with ``S`` the sum of the eigenvalues'
+    principal arguments; ``S(0) = S(inf) = 0`` for a real-rational loop. The data supply
+    the unwrapped change in between; the negative frequencies mirror it.
+    """
+    f = np.asarray(f_hz, dtype=float)
+    L = np.asarray(loop, dtype=complex)
+    gain = np.linalg.norm(L, ord=2, axis=(1, 2))
+    n_edge = min(3, f.size)
+    if gain[:n_edge].max() >= EDGE_LOOP_GAIN or gain[-n_edge:].max() >= EDGE_LOOP_GAIN:
+        edge = "low" if gain[:n_edge].max() >= EDGE_LOOP_GAIN else "high"
+        worst = max(gain[:n_edge].max(), gain[-n_edge:].max())
+        return NyquistVerdict(None, np.nan, open_loop_unstable,
+                              f"the loop gain is {worst:.2g} at the {edge} end of the data "
+                              f"({f[0]:.3g}-{f[-1]:.3g} Hz): the data do not cover the crossover band")
+    if outside_gain >= 1.0:
+        return NyquistVerdict(None, np.nan, open_loop_unstable,
+                              f"the model's loop gain reaches {outside_gain:.2g} outside the measured band")
+    det = np.linalg.det(np.eye(L.shape[1])[None] - L)
+    phase = np.unwrap(np.angle(det))
+    steps = np.abs(np.diff(phase))
+    if steps.size and steps.max() > max_step_rad:
+        k = int(np.argmax(steps))
+        return NyquistVerdict(None, np.nan, open_loop_unstable,
+                              f"det(I - GK) turns by {steps[k]:.2g} rad between {f[k]:.4g} and "
+                              f"{f[k + 1]:.4g} Hz: the data are too coarse to follow it")
+    delta = _eig_arg_sum(L[0]) + (phase[-1] - phase[0]) - _eig_arg_sum(L[-1])
+    n_ccw = delta / np.pi
+    rounded = int(np.round(n_ccw))
+    if abs(n_ccw - rounded) > 0.1:
+        return NyquistVerdict(None, n_ccw, open_loop_unstable,
+                              f"the winding number {n_ccw:.2f} is not close to an integer")
+    unstable_cl = open_loop_unstable - rounded
+    if unstable_cl == 0:
+        return NyquistVerdict(True, float(rounded), open_loop_unstable, "stable")
+    return NyquistVerdict(False, float(rounded), open_loop_unstable,
+                          f"{unstable_cl} closed-loop pole(s) in the right half plane")
+
+
+def _n_unstable(sys1: Any, what: str) -> int:
+    if sys1.nstates == 0:
+        return 0
+    p = np.linalg.eigvals(np.asarray(sys1.A, dtype=float))
+    scale = max(1.0, float(np.abs(p).max()))
+    if np.any(np.abs(p.real) <= 1e-9 * scale):
+        raise SynthesisError(
+            f"the {what} has poles on the imaginary axis; the Nyquist count on data needs them moved off "
+            "(e.g. a pole at -1e-6 instead of an integrator)."
+        )
+    return int(np.sum(p.real > 0))
+
+
+# ---------------------------------------------------------------------------- helpers
+def _measurement_sign(gp: Any, G: Any) -> float:
+    """``s`` with ``P_yu = s G`` (the recipe's measurement is +-the plant output)."""
+    from ..lti import freqresp_array
+
+    Pyu = gp.sub("y", "u") if hasattr(gp, "sub") else None
+    if Pyu is None or Pyu.noutputs != G.noutputs or Pyu.ninputs != G.ninputs:
+        raise SynthesisError(
+            f"the recipe's plant must measure the model's {G.noutputs} outputs with its "
+            f"{G.ninputs} inputs as controls; got y x u = {gp.nmeas} x {gp.ncon}."
+        )
+    f = default_grid(G, per_decade=5, max_points=60)
+    a, b = freqresp_array(Pyu, f), freqresp_array(G, f)
+    for s in (1.0, -1.0):
+        if np.linalg.norm(a - s * b) <= 1e-6 * max(np.linalg.norm(b), 1e-300):
+            return s
+    raise SynthesisError(
+        "the recipe's u -> y channel is not +-the model (P_yu != +-G); yardstick closes the loop on the "
+        "measured G, so the measurements must be the plant's outputs (noise and weights on w only)."
+    )
+
+
+def _aligned_response(data: FrequencyData, G: Any) -> np.ndarray:
+    """The data's response with channels in the model's order (by name, else by position)."""
+    if data.shape[1:] != (G.noutputs, G.ninputs):
+        raise DataError(
+            f"the data have {data.n_out} outputs x {data.n_in} inputs but the models have "
+            f"{G.noutputs} x {G.ninputs}; select matching channels (data.select(...))."
+        )
+    outs, ins = list(G.output_labels), list(G.input_labels)
+    if set(outs) == set(data.outputs) and set(ins) == set(data.inputs):
+        data = data.select(outputs=outs, inputs=ins)
+    return np.asarray(data.response, dtype=complex)
+
+
+def _rms_frobenius(X: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.sum(np.abs(X) ** 2, axis=(1, 2)))))
+
+
+def _outside_gain(G: Any, K: Any, sign: float, f_lo: float, f_hi: float) -> float:
+    """Largest ``sigma_max(s G K)`` of the model loop below ``f_lo`` and above ``f_hi`` (Hz)."""
+    from ..lti import freqresp_array
+
+    f = np.concatenate([np.logspace(np.log10(f_lo) - 4, np.log10(f_lo), 80)[:-1],
+                        np.logspace(np.log10(f_hi), np.log10(f_hi) + 4, 120)[1:]])
+    L = sign * freqresp_array(G, f) @ freqresp_array(K, f)
+    return float(np.linalg.norm(L, ord=2, axis=(1, 2)).max())
+
+
+# ---------------------------------------------------------------------------- result
+@dataclass(frozen=True)
+class Yardstick:
+    """Controllers designed on several models, scored on the measured data.
+
+    Attributes
+    ----------
+    labels : tuple of str
+        Model labels, in the order given.
+    reference : str
+        The measurement model's label (the yardstick).
+    designs : dict
+        label -> :class:`~robustctl.robust.dk.DKResult`.
+    attenuation_db : dict
+        label -> disturbance attenuation on the data over the band (dB, larger is better).
+    stability : dict
+        label -> :class:`NyquistVerdict` of the loop closed on the measured plant.
+    mu_cross : ndarray, shape (n, n)
+        Peak mu of controller ``i`` (row) against model ``j``'s uncertainty set (column);
+        inf when that loop is unstable.
+    band_hz : tuple of float
+    f_hz : ndarray
+        The data's frequencies in the band.
+    open_loop : ndarray
+        ``sigma_max(G_data)`` over ``f_hz``.
+    closed_loop : dict
+        label -> ``sigma_max(T)`` over ``f_hz`` with the measured ``G``.
+    """
+
+    labels: tuple[str, ...]
+    reference: str
+    designs: dict[str, DKResult] = field(repr=False)
+    attenuation_db: dict[str, float]
+    stability: dict[str, NyquistVerdict] = field(repr=False)
+    mu_cross: np.ndarray = field(repr=False)
+    band_hz: tuple[float, float]
+    f_hz: np.ndarray = field(repr=False)
+    open_loop: np.ndarray = field(repr=False)
+    closed_loop: dict[str, np.ndarray] = field(repr=False)
+
+    def gap_db(self, label: str) -> float:
+        """How many dB less than the reference controller ``label``'s controller attenuates."""
+        return float(self.attenuation_db[self.reference] - self.attenuation_db[label])
+
+    def ratio(self, label: str) -> float:
+        """``label``'s attenuation (dB) as a fraction of the reference's (1 = as good)."""
+        ref = self.attenuation_db[self.reference]
+        return float(self.attenuation_db[label] / ref) if ref != 0 else float("nan")
+
+    def table(self) -> Table:
+        """One row per model: design mu, attenuation on the data, gap to the yardstick, stability."""
+        rows = []
+        for i, lab in enumerate(self.labels):
+            dk = self.designs[lab]
+            rows.append((
+                lab + (" (yardstick)" if lab == self.reference else ""),
+                dk.K.nstates, dk.mu_peak, float(np.max(self.mu_cross[i])),
+                self.attenuation_db[lab], self.gap_db(lab), self.ratio(lab), self.stability[lab].label,
+            ))
+        cols = ("controller designed on", "K order", "mu (own set)", "mu (worst set)",
+                "attenuation (dB)", "gap (dB)", "ratio", "on the data")
+        return Table(cols, rows, title=f"Yardstick on the data, {self.band_hz[0]:g}-{self.band_hz[1]:g} Hz")
+
+    def mu_table(self) -> Table:
+        """Peak mu of each controller (rows) against each model's uncertainty set (columns)."""
+        rows = [(lab, *self.mu_cross[i]) for i, lab in enumerate(self.labels)]
+        return Table(("controller \\ model set", *self.labels), rows, title="Peak mu across models")
+
+    def summary(self) -> str:
+        """MACE's convergence test in one paragraph."""
+        ref = self.reference
+        parts = [f"The {ref}-model controller attenuates the disturbance by "
+                 f"{self.attenuation_db[ref]:.1f} dB on the data "
+                 f"({self.band_hz[0]:g}-{self.band_hz[1]:g} Hz)."]
+        for lab in self.labels:
+            if lab == ref:
+                continue
+            parts.append(f"{lab}: {self.attenuation_db[lab]:.1f} dB (gap {self.gap_db(lab):.1f} dB, "
+                         f"ratio {self.ratio(lab):.2f}; {self.stability[lab].label} on the data).")
+        return " ".join(parts)
+
+    def plot(self):
+        """Disturbance response on the data (open loop and each controller) and the scores."""
+        from ..plots import new_figure
+
+        fig = new_figure(10.0, 4.5)
+        ax1, ax2 = fig.subplots(1, 2, width_ratios=(2, 1))
+        ax1.loglog(self.f_hz, self.open_loop, "k", lw=1.0, label="open loop (data)")
+        for lab in self.labels:
+            ax1.loglog(self.f_hz, self.closed_loop[lab], lw=1.2, label=f"K from {lab}")
+        ax1.set(xlabel="frequency (Hz)", ylabel="sigma_max, disturbance -> sensors",
+                title="Loops closed on the measured plant")
+        ax1.legend(fontsize=8)
+        ax2.bar(range(len(self.labels)), [self.attenuation_db[lab] for lab in self.labels])
+        ax2.set_xticks(range(len(self.labels)), self.labels, rotation=20)
+        ax2.set(ylabel="attenuation on the data (dB)", title="Yardstick")
+        return fig
+
+    def _repr_html_(self) -> str:
+        import html
+
+        return f"<p>{html.escape(self.summary())}</p>" + self.table()._repr_html_()
+
+
+# ---------------------------------------------------------------------------- the function
+def _check_inputs(data: Any, models: Any, recipe: Any, reference: str | None) -> tuple:
+    from ..identify._problem import as_frequency_data
+
+    data = as_frequency_data(data)
+    if not isinstance(models, Mapping) or len(models) < 2:
+        raise SynthesisError(
+            "models must map at least two labels to systems, e.g. {'nominal': model, 'measurement': mm}; "
+            f"got {type(models).__name__}."
+        )
+    if not callable(recipe):
+        raise SynthesisError(f"recipe must be a callable nominal -> GeneralizedPlant; got {recipe!r}.")
+    labels = tuple(str(k) for k in models)
+    if reference is None:
+        reference = "measurement" if "measurement" in labels else labels[-1]
+    if reference not in labels:
+        raise SynthesisError(f"reference {reference!r} is not one of the model labels {list(labels)}.")
+    return data, labels, reference
+
+
+def yardstick(
+    data: Any,
+    models: Mapping[str, Any],
+    recipe: Callable[[Any], Any],
+    *,
+    reference: str | None = None,
+    band: tuple[float, float] | None = None,
+    executor: Executor | None = None,
+    progress: bool | None = None,
+    **dk_options: Any,
+) -> Yardstick:
+    """Design one mu-controller per model and score each on the measured data (MACE's yardstick).
+
+    Parameters
+    ----------
+    data : FrequencyData
+        Measured plant responses (actuators -> sensors).
+    models : mapping of str to system
+        Labels -> models (anything ``rc.as_statespace`` accepts), e.g. ``{"nominal": model,
+        "updated": upd.model, "measurement": mm}``.
+    recipe : callable
+        ``nominal -> GeneralizedPlant`` (the same weights and objectives for every model);
+        its measurements must be +-the model's outputs, its controls the model's inputs.
+    reference : str, optional
+        The yardstick's label (default ``"measurement"`` if present, else the last one).
+    band : (f_lo_hz, f_hi_hz), optional
+        Band of the attenuation score (default: the whole data).
+    executor : concurrent.futures.Executor, optional
+        Runs the designs in parallel.
+    progress : bool, optional
+        tqdm bar over the designs (default: when stderr is a terminal).
+    **dk_options
+        Passed to :func:`~robustctl.robust.dk.dksyn` (``max_iter``, ``order_d`` ...).
+
+    Returns
+    -------
+    Yardstick
+    """
+    from tqdm.auto import tqdm
+
+    from ..lti import as_statespace, freqresp_array
+
+    data, labels, reference = _check_inputs(data, models, recipe, reference)
+    systems = {lab: as_statespace(models[lab]) for lab in labels}
+    plants = {lab: recipe(models[lab]) for lab in labels}
+    signs = {lab: _measurement_sign(plants[lab], systems[lab]) for lab in labels}
+    show = sys.stderr.isatty() if progress is None else bool(progress)
+    if executor is None:
+        designs = {lab: dksyn(plants[lab], progress=False, **dk_options)
+                   for lab in tqdm(labels, desc="yardstick designs", disable=not show, leave=False)}
+    else:
+        futures = {lab: executor.submit(dksyn, plants[lab], progress=False, **dk_options) for lab in labels}
+        designs = {lab: futures[lab].result()
+                   for lab in tqdm(labels, desc="yardstick designs", disable=not show, leave=False)}
+    f_all = np.asarray(data.f_hz, dtype=float)
+    lo, hi = (f_all[0], f_all[-1]) if band is None else (float(band[0]), float(band[1]))
+    in_band = (f_all >= lo) & (f_all <= hi)
+    if lo >= hi or in_band.sum() < 2:
+        raise DataError(f"band ({lo:g}, {hi:g}) Hz holds fewer than 2 data points; the data span "
+                        f"{f_all[0]:g}-{f_all[-1]:g} Hz.")
+    attenuation, stability, closed = {}, {}, {}
+    G_ref = _aligned_response(data, systems[reference])
+    open_rms = _rms_frobenius(G_ref[in_band])
+    for lab in labels:
+        K, s = designs[lab].K, signs[lab]
+        G_all = _aligned_response(data, systems[lab])
+        Kf = freqresp_array(K, f_all)
+        L = s * G_all @ Kf
+        T = np.linalg.solve(np.eye(L.shape[1])[None] - L, G_all)
+        attenuation[lab] = float(20 * np.log10(open_rms / _rms_frobenius(T[in_band])))
+        closed[lab] = np.linalg.norm(T[in_band], ord=2, axis=(1, 2))
+        n_ol = _n_unstable(systems[lab], f"model {lab!r}") + _n_unstable(K, f"controller for {lab!r}")
+        outside = _outside_gain(systems[lab], K, s, f_all[0], f_all[-1])
+        stability[lab] = nyquist_stability(f_all, L, n_ol, outside)
+    mu_cross = np.full((len(labels), len(labels)), np.inf)
+    for i, lab_k in enumerate(labels):
+        for j, lab_m in enumerate(labels):
+            gp = plants[lab_m]
+            cl = closed_loop(gp.P, designs[lab_k].K, gp.nmeas, gp.ncon)
+            if cl.nstates and np.all(np.linalg.eigvals(np.asarray(cl.A)).real < 0):
+                mu_cross[i, j] = _mu_of(cl, designs[lab_m].blocks, default_grid(gp.P), refine=True)[0].peak
+    return Yardstick(labels=labels, reference=reference, designs=designs, attenuation_db=attenuation,
+                     stability=stability, mu_cross=mu_cross, band_hz=(lo, hi), f_hz=f_all[in_band],
+                     open_loop=np.linalg.norm(G_ref[in_band], ord=2, axis=(1, 2)), closed_loop=closed)
