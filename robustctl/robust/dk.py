@@ -38,6 +38,8 @@ __all__ = ["DKIteration", "DKResult", "Reduction", "dksyn"]
 MAX_AUTO_ORDER_D = 8
 #: The K step designs at gamma_opt (1 + HINF_BACKOFF): a 1 % back-off would cost 1 % of mu per iteration.
 HINF_BACKOFF = 1e-3
+#: Most states one block's D-scale may add to the scaled plant (order x (rows + cols)).
+MAX_D_STATES_PER_BLOCK = 24
 #: Target accuracy of each D fit (dB), passed to fit_magnitude.
 FIT_TOL_DB = 0.2
 #: Accept the lowest D order whose scaled bound peak is within this fraction of mu's peak.
@@ -262,6 +264,9 @@ def _fit_d_scales(
     if nb == 0:
         return [], (), float(np.max(m.upper))
     orders = _orders(order_d, nb)
+    if order_d is None:
+        orders = [[o for o in cand if o * (b.rows + b.cols) <= MAX_D_STATES_PER_BLOCK] or [0]
+                  for cand, b in zip(orders, blocks)]
     if order_d is None and len(previous) == nb:
         orders = [[o for o in cand if o >= p - 1] for cand, p in zip(orders, previous)]
     peak = float(np.max(m.upper))
@@ -543,7 +548,8 @@ def dksyn(
     order_d : int, sequence of int or None
         Order of each D-scale fit (one per block but the last); None chooses per block the
         lowest order in 0..8 that keeps the scaled bound within 5 % of the peak of mu
-        (from one below the previous iteration's order).
+        (from one below the previous iteration's order; at most 24 added states per block,
+        e.g. order 4 for a 3 x 3 block).
     f_hz : array_like, optional
         Analysis grid (Hz). Default: :func:`default_grid` of ``P``, refined at the lightly
         damped closed-loop poles each iteration.
