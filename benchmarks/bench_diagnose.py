@@ -49,7 +49,7 @@ def _brute_force(model, data, cands, band) -> tuple[float, str, int]:
     best, evals = (np.inf, ""), 0
     for c in cands:
         fitted = c.with_values(**{c.param_names[0]: c.typical_size}) if c.kind != "gravity" else c
-        res = Residual(fitted.apply(model), data, band=band, weights="coherence")
+        res = Residual(fitted.apply(model), data, band=band, point_weights="coherence")
         lm = levenberg_marquardt(res, UPDATE + c.param_names, max_iter=8)
         evals += lm.n_evals
         best = min(best, (lm.cost, c.name))
@@ -65,15 +65,15 @@ def run() -> dict:
         band = (0.5, float(f[np.searchsorted(f, 0.5) + N_FREQ - 1]))
         cands = _candidates(model)
         t0 = time.perf_counter()
-        serial = rc.diagnose(model, data, cands, band=band, update_params=UPDATE)
+        serial = rc.diagnose(model, data, cands, band=band, params=UPDATE)
         t_serial = time.perf_counter() - t0
         with ThreadPoolExecutor(max_workers=2) as pool:
             t0 = time.perf_counter()
-            par = rc.diagnose(model, data, cands, band=band, update_params=UPDATE, executor=pool)
+            par = rc.diagnose(model, data, cands, band=band, params=UPDATE, executor=pool)
             t_par = time.perf_counter() - t0
         t_brute, brute_top, brute_evals = _brute_force(model, data, cands, band)
         t0 = time.perf_counter()  # a user's default call: every candidate, 0.5-50 Hz
-        full = rc.diagnose(model, data, band=(0.5, 50.0), update_params=UPDATE)
+        full = rc.diagnose(model, data, band=(0.5, 50.0), params=UPDATE)
         t_full = time.perf_counter() - t0
     top = serial.ranking[0]
     names = [r.name for r in serial.ranking]

@@ -116,8 +116,8 @@ def _case_b(model) -> dict:
     data, _ = rc.examples.make_experiment(model, None, param_errors=ERRORS, noise_rms=0.01, seed=0)
     f = data.f_hz
     band = (0.5, float(f[np.searchsorted(f, 0.5) + N_FREQ - 1]))
-    upd, t = _timed_update(model, data, band=band, weights="coherence")
-    j_truth = rc.compare(model.with_values(**truth), data, band=band, weights="coherence").cost
+    upd, t = _timed_update(model, data, band=band, point_weights="coherence")
+    j_truth = rc.compare(model.with_values(**truth), data, band=band, point_weights="coherence").cost
     return {
         "time_serial_s": round(t, 3),
         "n_frequencies": int(np.count_nonzero((f >= band[0]) & (f <= band[1]))),

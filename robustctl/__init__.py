@@ -3,7 +3,8 @@
 ``import robustctl as rc`` gives the whole public API, flat.
 """
 
-from . import examples
+# shared ground: one checks module, one system coercion, one cost report, one Mode
+from . import checks, examples
 from .correlate import (
     Comparison,
     Diagnosis,
@@ -15,8 +16,10 @@ from .correlate import (
     update,
     verify,
 )
+from .cost import LogCost
 from .errors import DataError, FitError, ModelError, RobustctlError, SynthesisError
 from .estimate import combine_experiments, estimate_frf, simulate_experiment
+from .export import ExportReport, discretize, export_controller, load_controller
 from .frd import FrequencyData, load_frd
 from .identify import (
     MeasurementModel,
@@ -26,7 +29,8 @@ from .identify import (
     fit_rational,
     group_modes,
 )
-from .lti import freqresp, log_cost, log_error
+from .lti import as_statespace, freqresp, log_cost, log_error
+from .modes import Mode
 from .physical import (
     Frame,
     MatrixStructure,
@@ -89,4 +93,13 @@ __all__ = [
     "modal_model",
     "modal_statespace",
     "MatrixStructure",
+    # shared ground: one checks module, one system coercion, one cost report, one Mode
+    "checks",
+    "as_statespace",
+    "LogCost",
+    "Mode",
+    "discretize",
+    "export_controller",
+    "load_controller",
+    "ExportReport",
 ]

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from .checks import integer, match_channels, positive_number
 from .errors import DataError, ModelError
 from .frd import FrequencyData
 from .threads import limit_blas
@@ -175,9 +176,7 @@ def estimate_frf(
             f"u has {u.shape[0]} samples but y has {y.shape[0]}; inputs and outputs must be "
             "sampled together (same length)."
         )
-    if not np.isfinite(fs) or fs <= 0:
-        raise DataError(f"fs must be a positive sampling frequency in Hz; got {fs!r}.")
-    fs = float(fs)
+    fs = positive_number(fs, "fs", unit="sampling frequency, Hz")
     nperseg, noverlap, n_avg = _segment_settings(u.shape[0], nperseg, noverlap)
     n_in = u.shape[1]
     if n_avg < n_in:
@@ -247,12 +246,9 @@ def combine_experiments(experiments: Sequence[FrequencyData]) -> FrequencyData:
                 f"{e.f_hz[0]:g}-{e.f_hz[-1]:g} Hz) from experiment 0 ({ref.n_freq} points, "
                 f"{ref.f_hz[0]:g}-{ref.f_hz[-1]:g} Hz); estimate all with the same fs and nperseg."
             )
-        if e.outputs != ref.outputs:
-            raise DataError(
-                f"experiment {k} has outputs {list(e.outputs)} but experiment 0 has "
-                f"{list(ref.outputs)}; every experiment must measure the same outputs in the same order "
-                "(use .select(outputs=...) to reorder)."
-            )
+        if e.outputs != ref.outputs:  # the one channel-name policy; same names are reordered
+            idx = match_channels(e.outputs, ref.outputs, "outputs", sides=(f"experiment {k}", "experiment 0"))
+            exps[k] = e.select(outputs=[e.outputs[i] for i in idx]).replace(outputs=ref.outputs)
     inputs = [name for e in exps for name in e.inputs]
     if len(set(inputs)) != len(inputs):
         dup = sorted({n for n in inputs if inputs.count(n) > 1})
@@ -419,11 +415,8 @@ def simulate_experiment(
             f"simulate_experiment needs a continuous-time system; this one has dt={ss.dt}. "
             "Pass the continuous model; sampling is done here (zero-order hold)."
         )
-    if not np.isfinite(fs) or fs <= 0:
-        raise DataError(f"fs must be a positive sampling frequency in Hz; got {fs!r}.")
-    if isinstance(n_samples, bool) or int(n_samples) != n_samples or not 2 <= n_samples <= MAX_SAMPLES:
-        raise DataError(f"n_samples must be an integer in [2, {MAX_SAMPLES}]; got {n_samples!r}.")
-    n_samples = int(n_samples)
+    fs = positive_number(fs, "fs", unit="sampling frequency, Hz")
+    n_samples = integer(n_samples, "n_samples", lo=2, hi=MAX_SAMPLES)
     A, B, C, D = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
     idx = _pick_inputs(inputs, list(ss.input_labels))
     B, D = B[:, idx], D[:, idx]

@@ -28,6 +28,8 @@ from typing import Any
 
 import numpy as np
 
+from .checks import UNSET, as_frequency_data, band_mask, match_channels, renamed_keyword, user_stacklevel
+from .checks import point_weights as point_weights_of
 from .errors import DataError, ModelError
 from .frd import FrequencyData, _as_frequencies
 from .threads import limit_blas
@@ -36,6 +38,8 @@ __all__ = [
     "freqresp",
     "freqresp_array",
     "as_statespace",
+    "statespace_state",
+    "rebuild_statespace",
     "log_ratio",
     "log_error",
     "log_cost",
@@ -116,23 +120,33 @@ def _as_statespace(sys: Any):
 
 
 def as_statespace(sys: Any, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None):
-    """``sys`` as a ``control.StateSpace`` with named signals.
+    """``sys`` as a ``control.StateSpace`` with named signals: the one system coercion.
 
     Parameters
     ----------
-    sys : control.StateSpace, PhysicalModel, or anything ``control.ss`` converts
-        A robustctl ``PhysicalModel`` is converted via its ``.statespace()``.
+    sys : system
+        A ``control.StateSpace`` (returned as is), anything with a ``.statespace()`` method
+        (PhysicalModel, MeasurementModel, RationalFit, BalancedTruncation), or anything
+        ``control.ss`` converts (a transfer function, a ``(A, B, C, D)`` tuple).
     inputs, outputs : sequence of str, optional
         New signal names (one per input / output); default: keep the system's names.
 
     Returns
     -------
     control.StateSpace
+
+    Raises
+    ------
+    ModelError
+        ``sys`` is measured data (FrequencyData) or cannot be converted.
     """
     import control
 
-    if isinstance(sys, FrequencyData):
-        raise ModelError("a FrequencyData is measured data, not a model; it has no state space.")
+    if isinstance(sys, FrequencyData) or type(sys).__name__ == "FrequencyResponseData":
+        raise ModelError(
+            f"a {type(sys).__name__} is measured data, not a model; it has no state space. Pass a "
+            "PhysicalModel, MeasurementModel, control.StateSpace or transfer function."
+        )
     if isinstance(sys, control.StateSpace):
         ss = sys
     elif hasattr(sys, "statespace") and callable(sys.statespace):
@@ -144,6 +158,29 @@ def as_statespace(sys: Any, inputs: Sequence[str] | None = None, outputs: Sequen
     ins = list(ss.input_labels) if inputs is None else _names(inputs, ss.ninputs, "inputs")
     outs = list(ss.output_labels) if outputs is None else _names(outputs, ss.noutputs, "outputs")
     return control.ss(ss.A, ss.B, ss.C, ss.D, ss.dt, inputs=ins, outputs=outs, states=ss.state_labels)
+
+
+def statespace_state(ss: Any) -> dict:
+    """A picklable description of a ``control.StateSpace``: matrices, dt and signal names.
+
+    python-control 0.10's StateSpace holds a lambda and does not pickle; results store this
+    and rebuild with :func:`rebuild_statespace`.
+    """
+    return {
+        "A": np.asarray(ss.A), "B": np.asarray(ss.B), "C": np.asarray(ss.C), "D": np.asarray(ss.D),
+        "dt": ss.dt, "inputs": list(ss.input_labels), "outputs": list(ss.output_labels),
+        "states": list(ss.state_labels), "name": ss.name,
+    }
+
+
+def rebuild_statespace(state: dict):
+    """The ``control.StateSpace`` described by :func:`statespace_state`."""
+    import control
+
+    return control.ss(
+        state["A"], state["B"], state["C"], state["D"], state["dt"], inputs=state["inputs"],
+        outputs=state["outputs"], states=state["states"], name=state["name"],
+    )
 
 
 def _names(names: Sequence[str] | str, count: int, what: str) -> list[str]:
@@ -435,35 +472,12 @@ def freqresp(sys: Any, f_hz: Any) -> FrequencyData:
 
 
 # ---------------------------------------------------------------------------- log error
-def _is_default(names: Sequence[str], prefix: str) -> bool:
-    n = len(names)
-    return tuple(names) in (
-        tuple(f"{prefix}{k + 1}" for k in range(n)),
-        tuple(f"{prefix}[{k}]" for k in range(n)),
-    )
-
-
 def _align(data: FrequencyData, model: FrequencyData) -> FrequencyData:
-    """``model`` with its channels in ``data``'s order; refuses mismatched names or counts."""
-    if model.shape[1:] != data.shape[1:]:
-        raise DataError(
-            f"the model has {model.n_out} outputs x {model.n_in} inputs but the data has "
-            f"{data.n_out} x {data.n_in}; select matching channels (data.select(...))."
-        )
-    for what, prefix in (("outputs", "y"), ("inputs", "u")):
-        dn, mn = getattr(data, what), getattr(model, what)
-        if dn == mn:
-            continue
-        if set(dn) == set(mn):
-            model = model.select(**{what: list(dn)})
-            continue
-        if _is_default(dn, prefix) or _is_default(mn, prefix):
-            continue  # unnamed signals match by position
-        raise DataError(
-            f"the model's {what} {list(mn)} do not match the data's {list(dn)}; rename the model's "
-            "signals (rc.lti.as_statespace(sys, inputs=..., outputs=...)) or select matching channels."
-        )
-    return model
+    """``model`` with its channels in ``data``'s order (:func:`robustctl.checks.match_channels`)."""
+    out_idx = match_channels(model.outputs, data.outputs, "outputs")
+    in_idx = match_channels(model.inputs, data.inputs, "inputs")
+    g = model.response[:, out_idx][:, :, in_idx]
+    return model.replace(response=g, outputs=data.outputs, inputs=data.inputs, coherence=None)
 
 
 def _model_response(data: FrequencyData, model: Any) -> FrequencyData:
@@ -479,7 +493,20 @@ def _model_response(data: FrequencyData, model: Any) -> FrequencyData:
     return _align(data, freqresp(model, data.f_hz))
 
 
-def log_error(data: FrequencyData, model: Any, band: tuple[float, float] | None = None) -> np.ndarray:
+def _model_and_data(model: Any, data: Any, func: str) -> tuple[Any, FrequencyData]:
+    """The ``(model, data)`` order; an old ``(data, system)`` call is recognised and warned about."""
+    old_order = isinstance(model, FrequencyData) and not isinstance(data, (FrequencyData, tuple))
+    if old_order and data is not None and not hasattr(data, "omega"):
+        warnings.warn(
+            f"{func}(data, model) is deprecated; the order is {func}(model, data) as in rc.compare.",
+            DeprecationWarning,
+            stacklevel=user_stacklevel(),
+        )
+        model, data = data, model
+    return model, as_frequency_data(data)
+
+
+def log_error(model: Any, data: Any, band: tuple[float, float] | None = None) -> np.ndarray:
     """The complex-log error ``log(G_data / G_model)`` (MACE eq. 5), shape (n_freq, n_out, n_in).
 
     Its real part is the log-magnitude error in nepers (x ``DB_PER_NEPER`` = 20/ln 10 for
@@ -487,24 +514,33 @@ def log_error(data: FrequencyData, model: Any, band: tuple[float, float] | None 
 
     Parameters
     ----------
-    data : FrequencyData
-        The measured response.
-    model : FrequencyData on the same grid, or anything :func:`freqresp` accepts
-        A model is evaluated at ``data.f_hz``. Channels are matched by name (reordered if
-        needed); default names (``u1``/``u[0]`` ...) otherwise match by position.
-    band : (lo_hz, hi_hz), optional
-        Restrict to this frequency band (Hz), inclusive.
+    model : system, or FrequencyData on the data's grid
+        Anything :func:`as_statespace` accepts (evaluated at ``data.f_hz``), or a computed
+        response. Channels are matched by :func:`robustctl.checks.match_channels`: by name
+        (reordered if needed), or by position when one side carries default names.
+    data : FrequencyData, (f_hz, response) pair or control.FrequencyResponseData
+        The measured response. The old order ``log_error(data, system)`` still works (with a
+        DeprecationWarning) when it is unambiguous; two FrequencyData are read as (model, data).
+    band : (f_lo_hz, f_hi_hz), optional
+        Restrict to this frequency band (Hz), inclusive (:func:`robustctl.checks.check_band`).
 
     Returns
     -------
     ndarray, complex
     """
-    if not isinstance(data, FrequencyData):
-        raise DataError(f"data must be a FrequencyData; got {type(data).__name__}.")
-    if band is not None:
-        data = data.band(*band)
-        if isinstance(model, FrequencyData):
-            model = model.band(*band)
+    model, data = _model_and_data(model, data, "log_error")
+    return _log_error(model, data, band_mask(data.f_hz, band))
+
+
+def _log_error(model: Any, data: FrequencyData, mask: np.ndarray) -> np.ndarray:
+    if not np.all(mask):
+        if isinstance(model, FrequencyData) and model.n_freq == mask.size:
+            model = model.replace(f_hz=model.f_hz[mask], response=model.response[mask], coherence=None)
+        data = data.replace(
+            f_hz=data.f_hz[mask],
+            response=data.response[mask],
+            coherence=None if data.coherence is None else data.coherence[mask],
+        )
     gm = _model_response(data, model).response
     gd = data.response
     for name, g in (("data", gd), ("model", gm)):
@@ -520,45 +556,38 @@ def log_error(data: FrequencyData, model: Any, band: tuple[float, float] | None 
 
 
 def log_cost(
-    data: FrequencyData,
     model: Any,
+    data: Any,
     band: tuple[float, float] | None = None,
-    weights: Any = None,
+    point_weights: Any = "auto",
+    *,
+    weights: Any = UNSET,
 ) -> float:
-    """The complex-log cost of MACE eq. 5: ``sum w |log(G_data / G_model)|^2``.
+    """The weighted complex-log cost of MACE eq. 5: ``J = sum W |log(G_data / G_model)|^2``.
+
+    The same number as ``rc.compare(model, data, band, point_weights).cost`` (with
+    ``min_channel_db=None``, which keeps every channel) and as a MeasurementModel's cost.
 
     Parameters
     ----------
-    data, model, band
-        As for :func:`log_error`.
-    weights : array_like, optional
-        Non-negative weights broadcastable to (n_freq, n_out, n_in) of the (band-limited)
-        data; a 1-D array of length n_freq is read as per-frequency weights. When ``band``
-        is given, per-frequency weights may also be given on the full data grid.
+    model, data, band
+        As for :func:`log_error` (same order as :func:`robustctl.compare`).
+    point_weights : None, "auto", "coherence" or array_like
+        Data-point weights ``W`` on the squared error (:func:`robustctl.checks.point_weights`):
+        ``"auto"`` (default) coherence weights when the data carry coherence, else uniform;
+        ``None`` uniform; an array of shape (n_freq,) or broadcastable to (n_freq, n_out,
+        n_in), on the band's points or on the full data grid.
+    weights
+        Deprecated name of ``point_weights``.
 
     Returns
     -------
     float
         The weighted sum over channels and frequencies (dimensionless).
     """
-    err = log_error(data, model, band=band)
-    e2 = np.abs(err) ** 2
-    if weights is None:
-        return float(e2.sum())
-    w = np.asarray(weights, dtype=float)
-    if w.ndim >= 1 and band is not None and w.shape[0] == data.n_freq != e2.shape[0]:
-        lo, hi = band
-        keep = (data.f_hz >= (-np.inf if lo is None else lo)) & (data.f_hz <= (np.inf if hi is None else hi))
-        w = w[keep]
-    if w.ndim == 1 and w.size == e2.shape[0]:
-        w = w[:, None, None]
-    try:
-        w = np.broadcast_to(w, e2.shape)
-    except ValueError:
-        raise DataError(
-            f"weights of shape {np.shape(weights)} do not broadcast to the error's shape {e2.shape} "
-            "(n_freq, n_out, n_in); give per-frequency weights (n_freq,) or per-entry weights."
-        ) from None
-    if not np.all(np.isfinite(w)) or np.any(w < 0):
-        raise DataError("weights must be finite and non-negative.")
-    return float(np.sum(w * e2))
+    point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
+    model, data = _model_and_data(model, data, "log_cost")
+    mask = band_mask(data.f_hz, band)
+    w = point_weights_of(point_weights, data, mask)
+    err = _log_error(model, data, mask)
+    return float(np.sum(w * np.abs(err) ** 2))

@@ -58,7 +58,7 @@ def cands(chain):
     ids=lambda e: e.kind,
 )
 def test_diagnose_ranks_the_hidden_effect_first_and_recovers_it(chain, cands, hidden):
-    diag = rc.diagnose(chain, _data(chain, hidden), cands, update_params=["k_ground", "zeta_modal"])
+    diag = rc.diagnose(chain, _data(chain, hidden), cands, params=["k_ground", "zeta_modal"])
     top = diag.ranking[0]
     assert (top.kind, top.location) == (hidden.kind, hidden.location)
     assert diag.best is not None and diag.best.name == hidden.name
@@ -71,7 +71,7 @@ def test_diagnose_ranks_the_hidden_effect_first_and_recovers_it(chain, cands, hi
 
 def test_parameter_errors_alone_give_no_significant_effect(chain, cands):
     diag = rc.diagnose(chain, _data(chain, None, k_error=0.05), cands,
-                       update_params=["k_ground", "zeta_modal"])
+                       params=["k_ground", "zeta_modal"])
     assert diag.best is None and diag.best_result is None
     assert diag.cost_update < 0.05 * diag.cost_nominal  # the update parameter explains the error
     text = diag.summary()
@@ -126,7 +126,7 @@ def test_bad_input_is_refused_with_the_fix(chain, cands):
     with pytest.raises(rc.ModelError, match="unknown location 'dof 9'"):
         rc.diagnose(chain, data, [fx.AddedMass("dof 9")])
     with pytest.raises(rc.ModelError, match="unknown update parameter"):
-        rc.diagnose(chain, data, cands, update_params=["E_steel"])
+        rc.diagnose(chain, data, cands, params=["E_steel"])
     with pytest.raises(rc.ModelError, match="must be Effect objects"):
         rc.diagnose(chain, data, ["output delay"])
     modal = rc.modal_model([2.0, 5.0], 0.02, [[1.0, 0.5]], [[1.0, -0.3]], inputs=["u"], outputs=["y"])

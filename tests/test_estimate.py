@@ -140,7 +140,7 @@ def test_combine_checks_grids_names():
     assert both.inputs == ("a", "b") and both.coherence is None
     with pytest.raises(DataError, match="different frequency grid"):
         rc.combine_experiments([_siso(f, "a"), _siso(f * 1.01, "b")])
-    with pytest.raises(DataError, match="same outputs"):
+    with pytest.raises(DataError, match=r"experiment 1.s outputs \[.y2.\] do not match the experiment 0.s"):
         rc.combine_experiments([_siso(f, "a"), _siso(f, "b", outputs=("y2",))])
     with pytest.raises(DataError, match="input names repeat"):
         rc.combine_experiments([_siso(f, "a"), _siso(f, "a")])
@@ -206,7 +206,7 @@ def test_simulate_refuses_bad_input():
         rc.simulate_experiment(control.sample_system(sys, 0.01), n_samples=100)
     with pytest.raises(ModelError, match="unstable"):
         rc.simulate_experiment(control.ss([[0.5]], [[1]], [[1]], [[0]]), n_samples=100)
-    with pytest.raises(DataError, match="fs must be a positive"):
+    with pytest.raises(DataError, match="fs must be positive and finite"):
         rc.simulate_experiment(sys, fs=-1.0)
     with pytest.raises(DataError, match="n_samples must be an integer"):
         rc.simulate_experiment(sys, n_samples=1.5)
@@ -244,7 +244,7 @@ def test_estimate_refuses_bad_input(record):
         rc.estimate_frf(u, y, FS, nperseg=256, noverlap=256)
     with pytest.raises(DataError, match="shorter than one window"):
         rc.estimate_frf(u[:4000], y[:4000], FS)
-    with pytest.raises(DataError, match="fs must be a positive sampling frequency"):
+    with pytest.raises(DataError, match="fs must be positive and finite"):
         rc.estimate_frf(u, y, 0.0, nperseg=256)
     with pytest.raises(DataError, match="complex"):
         rc.estimate_frf(u + 1j, y, FS, nperseg=256)

@@ -76,9 +76,9 @@ def test_bad_input_messages():
 
 
 def test_bad_views(data):
-    with pytest.raises(DataError, match="holds no data points"):
+    with pytest.raises(DataError, match="holds 0 data points"):
         data.band(20.0, 30.0)
-    with pytest.raises(DataError, match="is empty; give lo_hz < hi_hz"):
+    with pytest.raises(DataError, match="is empty or not finite; give finite f_lo_hz < f_hi_hz"):
         data.band(5.0, 2.0)
     with pytest.raises(DataError, match=r"unknown output 'zz'; the data has outputs \['a1', 'a2'\]"):
         data.select(outputs="zz")

@@ -60,7 +60,7 @@ def _key(effect):
 
 def _run(model, cands, hidden, seed):
     data, truth = rc.examples.make_experiment(model, hidden, ERRORS, noise_rms=0.01, seed=seed)
-    diag = rc.diagnose(model, data, cands, band=BAND, update_params=UPDATE)
+    diag = rc.diagnose(model, data, cands, band=BAND, params=UPDATE)
     return data, truth, diag
 
 
@@ -79,9 +79,9 @@ def test_caltech_hidden_effect_is_found_fixed_and_recovered(truss, which):
 
     fixed = model.with_effect(diag.best)
     (pname,) = hidden.param_names
-    upd = rc.update(fixed, data, params=UPDATE + (pname,), band=BAND, weights="coherence",
+    upd = rc.update(fixed, data, params=UPDATE + (pname,), band=BAND, point_weights="coherence",
                     select=False, drift_bands=0)
-    nominal = Residual(model, data, band=BAND, weights="coherence").cost()
+    nominal = Residual(model, data, band=BAND, point_weights="coherence").cost()
     assert upd.cost_after <= 0.10 * nominal, (upd.cost_after, nominal)
     assert upd.model.param(pname).value == pytest.approx(hidden.values[pname], rel=0.05)
     # the parameter errors are found as well (coarsely: they trade off with each other)
@@ -175,13 +175,13 @@ def test_mace_hidden_effect_is_found_fixed_and_recovered(mace, which):
     hidden = MACE_HIDDEN[which]
     data, truth = rc.examples.make_experiment(model, hidden, MACE_ERRORS, noise_rms=0.01, seed=3,
                                               n_samples=40960, nperseg=1024)
-    diag = rc.diagnose(model, data, cands, band=MACE_BAND, update_params=MACE_UPDATE)
+    diag = rc.diagnose(model, data, cands, band=MACE_BAND, params=MACE_UPDATE)
     assert _key(diag.ranking[0].effect) == _key(hidden), diag.summary()
     assert diag.best is not None and diag.ranking[0].significant
     assert diag.ignored_channels  # decoupled channels are left out, and said so
     (pname,) = hidden.param_names
     upd = rc.update(model.with_effect(diag.best), data, params=MACE_UPDATE + (pname,), band=MACE_BAND,
-                    weights=diag.weights, select=False, drift_bands=0)
-    nominal = Residual(model, data, band=MACE_BAND, weights=diag.weights).cost()
+                    point_weights=diag.point_weights, select=False, drift_bands=0)
+    nominal = Residual(model, data, band=MACE_BAND, point_weights=diag.point_weights).cost()
     assert upd.cost_after <= 0.10 * nominal, (upd.cost_after, nominal)
     assert upd.model.param(pname).value == pytest.approx(hidden.values[pname], rel=0.05)

@@ -156,13 +156,13 @@ def test_nan_weights_and_unknown_method_are_refused():
     data = exact_data(truss_system(), F_GRID)
     w = np.ones(F_GRID.size)
     w[3] = np.nan
-    with pytest.raises(rc.FitError, match="weights must be finite"):
-        rc.fit_rational(data, 12, weights=w)
+    with pytest.raises(rc.DataError, match="point_weights must be finite"):
+        rc.fit_rational(data, 12, point_weights=w)
     with pytest.raises(rc.FitError, match="unknown method"):
         rc.fit_rational(data, 12, method="prony")
     with pytest.raises(rc.FitError, match="max_iter"):
         rc.fit_rational(data, 12, max_iter=0)
-    with pytest.raises(rc.FitError, match="band .* holds no data"):
+    with pytest.raises(rc.DataError, match="band .* holds 0 data points"):
         rc.fit_rational(data, 12, band=(100, 200))
 
 

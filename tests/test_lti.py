@@ -159,17 +159,17 @@ def data_and_model():
 
 def test_log_error_closed_forms(data_and_model):
     data, sys = data_and_model
-    np.testing.assert_allclose(rc.log_error(data, sys), 0.0, atol=1e-12)
+    np.testing.assert_allclose(rc.log_error(sys, data), 0.0, atol=1e-12)
     tau = 0.003  # a pure delay of 3 ms and a gain of 2 in the data
     delayed = data.replace(response=2 * data.response * np.exp(-2j * np.pi * F * tau)[:, None, None])
-    err = rc.log_error(delayed, sys)
+    err = rc.log_error(sys, delayed)
     np.testing.assert_allclose(err.real, np.log(2.0), rtol=1e-12)
     phase = np.broadcast_to(np.angle(np.exp(-2j * np.pi * F * tau))[:, None, None], err.shape)
     np.testing.assert_allclose(err.imag, phase, atol=1e-12)
     assert err.shape == data.shape
     model_frd = rc.freqresp(sys, F)
-    np.testing.assert_allclose(rc.log_error(delayed, model_frd), err, atol=1e-12)
-    banded = rc.log_error(delayed, model_frd, band=(1.0, 10.0))
+    np.testing.assert_allclose(rc.log_error(model_frd, delayed), err, atol=1e-12)
+    banded = rc.log_error(model_frd, delayed, band=(1.0, 10.0))
     assert banded.shape[0] == np.count_nonzero((F >= 1) & (F <= 10))
 
 
@@ -177,39 +177,43 @@ def test_log_cost_mace_eq5(data_and_model):
     data, sys = data_and_model
     scaled = data.replace(response=data.response * np.exp(0.1 + 0.2j))
     n = data.response.size
-    np.testing.assert_allclose(rc.log_cost(scaled, sys), n * (0.1**2 + 0.2**2), rtol=1e-10)
+    np.testing.assert_allclose(rc.log_cost(sys, scaled), n * (0.1**2 + 0.2**2), rtol=1e-10)
     w = np.linspace(0, 1, data.n_freq)
-    np.testing.assert_allclose(rc.log_cost(scaled, sys, weights=w), w.sum() * 4 * 0.05, rtol=1e-10)
+    np.testing.assert_allclose(rc.log_cost(sys, scaled, point_weights=w), w.sum() * 4 * 0.05, rtol=1e-10)
     w_entry = np.array([[1.0, 0.0], [0.0, 0.0]])
-    np.testing.assert_allclose(rc.log_cost(scaled, sys, weights=w_entry), data.n_freq * 0.05, rtol=1e-10)
+    np.testing.assert_allclose(rc.log_cost(sys, scaled, point_weights=w_entry), data.n_freq * 0.05,
+                               rtol=1e-10)
     band = (1.0, 10.0)
     k = np.count_nonzero((F >= 1) & (F <= 10))
-    np.testing.assert_allclose(rc.log_cost(scaled, sys, band=band), k * 4 * 0.05, rtol=1e-10)
-    np.testing.assert_allclose(rc.log_cost(scaled, sys, band=band, weights=np.ones(data.n_freq)),
+    np.testing.assert_allclose(rc.log_cost(sys, scaled, band=band), k * 4 * 0.05, rtol=1e-10)
+    np.testing.assert_allclose(rc.log_cost(sys, scaled, band=band, point_weights=np.ones(data.n_freq)),
                                k * 4 * 0.05, rtol=1e-10)
-    with pytest.raises(DataError, match="do not broadcast"):
-        rc.log_cost(scaled, sys, weights=np.ones(3))
+    with pytest.raises(DataError, match="do not fit the banded data"):
+        rc.log_cost(sys, scaled, point_weights=np.ones(3))
     with pytest.raises(DataError, match="non-negative"):
-        rc.log_cost(scaled, sys, weights=-w)
+        rc.log_cost(sys, scaled, point_weights=-w)
 
 
 def test_log_error_matches_names_and_refuses_mismatch(data_and_model):
     data, sys = data_and_model
     swapped = lti.as_statespace(sys[:, ::-1], inputs=["u2", "u1"])
-    np.testing.assert_allclose(rc.log_error(data, swapped), 0.0, atol=1e-12)  # reordered by name
+    np.testing.assert_allclose(rc.log_error(swapped, data), 0.0, atol=1e-12)  # reordered by name
     other = lti.as_statespace(sys, outputs=["acc", "vel"])
     with pytest.raises(DataError, match=r"model's outputs \['acc', 'vel'\] do not match"):
-        rc.log_error(data, other)
-    with pytest.raises(DataError, match="1 outputs x 2 inputs but the data has 2 x 2"):
-        rc.log_error(data, sys[0, :])
+        rc.log_error(other, data)
+    with pytest.raises(DataError, match=r"the model has 1 outputs \['x1'\] but the data has 2"):
+        rc.log_error(sys[0, :], data)
     with pytest.raises(DataError, match="evaluate the model on data.f_hz"):
-        rc.log_error(data, rc.freqresp(sys, F[:-1]))
+        rc.log_error(rc.freqresp(sys, F[:-1]), data)
     zero = data.response.copy()
     zero[5, 1, 0] = 0.0
     with pytest.raises(DataError, match=r"data response is exactly zero at .* \(output 'x2', input 'u1'\)"):
-        rc.log_error(data.replace(response=zero), sys)
+        rc.log_error(sys, data.replace(response=zero))
     with pytest.raises(DataError, match="data must be a FrequencyData"):
-        rc.log_error(np.ones(3), sys)
+        rc.log_error(sys, np.ones(3))
+    with pytest.warns(DeprecationWarning, match=r"log_error\(model, data\)"):
+        old = rc.log_error(data, swapped)  # the old (data, system) order, unambiguous
+    np.testing.assert_allclose(old, 0.0, atol=1e-12)
 
 
 def test_physical_ordering_modal_form_splits_into_blocks():

@@ -203,7 +203,7 @@ def test_lm_reuses_start_sensitivities_without_changing_the_fit(model, truth_dat
 # ---------------------------------------------------------------------- bad input
 def test_bad_signal_names_and_counts(model, truth_data):
     renamed = truth_data.replace(outputs=["a1", "a2"])
-    with pytest.raises(rc.DataError, match=r"not outputs of the model"):
+    with pytest.raises(rc.DataError, match=r"outputs .* do not match the data"):
         Residual(model, renamed)
     fewer = truth_data.select(outputs=["x1"])
     with pytest.raises(rc.DataError, match=r"model has 2 outputs .* data has 1"):
@@ -213,15 +213,15 @@ def test_bad_signal_names_and_counts(model, truth_data):
 def test_band_outside_data(model, truth_data):
     with pytest.raises(rc.DataError, match=r"holds 0 data point.*span 0.5-12 Hz"):
         Residual(model, truth_data, band=(20.0, 40.0))
-    with pytest.raises(rc.DataError, match=r"lo_hz < hi_hz"):
+    with pytest.raises(rc.DataError, match=r"f_lo_hz < f_hi_hz"):
         Residual(model, truth_data, band=(5.0, 2.0))
 
 
 def test_bad_weights(model, truth_data):
     with pytest.raises(rc.DataError, match=r"no coherence"):
-        Residual(model, truth_data, weights="coherence")
-    with pytest.raises(rc.DataError, match=r"do not broadcast"):
-        Residual(model, truth_data, weights=np.ones(7))
+        Residual(model, truth_data, point_weights="coherence")
+    with pytest.raises(rc.DataError, match=r"point_weights of shape \(7,\) do not fit"):
+        Residual(model, truth_data, point_weights=np.ones(7))
 
 
 def test_unknown_names_and_bad_bounds(model, truth_data):
@@ -273,8 +273,11 @@ def test_failed_model_builds_are_survived(model, truth_data):
 
 
 def test_cost_matches_lti_log_cost(model, truth_data):
-    """One number for MACE eq. 5 across the package (Residual weights act on the residual)."""
+    """One number for MACE eq. 5 across the package: point weights act on the squared error."""
     w = np.linspace(0.5, 2.0, F_HZ.size)[:, None, None] * np.ones((1, 2, 2))
-    res = Residual(model, truth_data, band=(1.0, 10.0), weights=w[(F_HZ >= 1.0) & (F_HZ <= 10.0)])
-    ref = rc.log_cost(truth_data, model.statespace(), band=(1.0, 10.0), weights=w**2)
+    res = Residual(model, truth_data, band=(1.0, 10.0), point_weights=w[(F_HZ >= 1.0) & (F_HZ <= 10.0)])
+    ref = rc.log_cost(model.statespace(), truth_data, band=(1.0, 10.0), point_weights=w)
     assert res.cost() == pytest.approx(ref, rel=1e-10)
+    with pytest.warns(DeprecationWarning, match="point_weights"):  # the old keyword, one release
+        old = Residual(model, truth_data, band=(1.0, 10.0), weights=w[(F_HZ >= 1.0) & (F_HZ <= 10.0)])
+    assert old.cost() == pytest.approx(ref, rel=1e-10)

@@ -189,10 +189,10 @@ def test_caltech_truss_update_on_estimated_frf(truss):
         truss.with_values(**truth), fs=200.0, n_samples=81920, noise_rms=0.005, seed=3
     )
     data = rc.estimate_frf(u, y, fs=200.0, nperseg=4096, inputs=truss.inputs, outputs=truss.outputs)
-    upd = update(truss, data, params=list(truth), band=(0.5, 5.5), weights="coherence")
+    upd = update(truss, data, params=list(truth), band=(0.5, 5.5), point_weights="coherence")
     # the estimate's own error (leakage, finite averaging) is a floor no parameter removes:
     # the truth model itself scores J_truth > 0. The update must close >= 90 % of the gap.
-    j_truth = rc.compare(truss.with_values(**truth), data, band=(0.5, 5.5), weights="coherence").cost
+    j_truth = rc.compare(truss.with_values(**truth), data, band=(0.5, 5.5), point_weights="coherence").cost
     assert (upd.cost_before - upd.cost_after) / (upd.cost_before - j_truth) >= 0.9
     assert upd.cost_after <= j_truth * 1.001
     for n, v in truth.items():

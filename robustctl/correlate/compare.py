@@ -20,18 +20,20 @@ from __future__ import annotations
 
 import html
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 import scipy.optimize
 import scipy.signal
 
-from ..errors import DataError
+from ..checks import UNSET, integer, match_channels, positive_number, renamed_keyword
+from ..cost import LogCost, cost_report
 from ..frd import FrequencyData
-from ..lti import DB_PER_NEPER, pole_frequency_damping
+from ..lti import DB_PER_NEPER, as_statespace, pole_frequency_damping
+from ..modes import Mode
 from ..table import Table
-from .residual import Residual, log_ratio
+from .residual import NEGLIGIBLE_DB, Residual, as_model, log_ratio
 
 __all__ = [
     "Comparison",
@@ -47,15 +49,6 @@ __all__ = [
 ]
 
 # ---------------------------------------------------------------------------- modes
-
-
-@dataclass(frozen=True)
-class Mode:
-    """One mode: ``f_hz`` (Hz), ``zeta`` (ratio, not %), ``shape`` (complex, n_out*n_in) or None."""
-
-    f_hz: float
-    zeta: float
-    shape: np.ndarray | None = None
 
 
 def mac(a: np.ndarray | None, b: np.ndarray | None) -> float:
@@ -99,85 +92,31 @@ def statespace_modes(
         if not band[0] <= f <= band[1] or zeta >= max_zeta:
             continue
         res = np.outer(C[out_idx] @ V[:, k], W[k] @ B[:, in_idx])
-        modes.append(Mode(float(f), float(zeta), res.ravel()))
+        modes.append(Mode(float(f), float(zeta), residue=res, pole=complex(lam[k])))
     return sorted(modes, key=lambda m: m.f_hz)
-
-
-def _get(obj: Any, *names: str) -> Any:
-    for n in names:
-        if isinstance(obj, dict) and n in obj:
-            return obj[n]
-        if hasattr(obj, n):
-            return getattr(obj, n)
-    return None
-
-
-def _residue_order(mm: Any, outputs, inputs) -> tuple[list[int], list[int]] | None:
-    """Index arrays taking the measurement model's channel order to the data's (or None)."""
-    src = _get(mm, "fit") or mm
-    m_out, m_in = _get(src, "outputs"), _get(src, "inputs")
-    if m_out is None or m_in is None:
-        return None
-    try:
-        return [list(m_out).index(n) for n in outputs], [list(m_in).index(n) for n in inputs]
-    except ValueError:
-        return None
 
 
 def measurement_modes(
     mm: Any, band: tuple[float, float], outputs, inputs, max_zeta: float = 0.5
 ) -> list[Mode]:
-    """Modes of a measurement model (``rc.fit_measurement_model`` result, duck-typed).
+    """Modes of a measurement model inside ``band`` (Hz), residues in the data's channel order.
 
-    Reads ``mm.modes`` (a sequence of records with ``f_hz``/``zeta`` and optional
-    ``residue``/``shape``, or an object with arrays ``f_hz``, ``zeta``, ``residues``);
-    falls back to the eigenstructure of ``mm.sys`` (or ``mm.statespace()``).
+    A result whose ``.modes`` is a sequence of :class:`~robustctl.modes.Mode` (a
+    ``MeasurementModel``) gives its identified modes (a group of rank > 1 stays one mode);
+    any other system (see :func:`robustctl.as_statespace`) gives the eigenstructure of its
+    state space (:func:`statespace_modes`). Channels are matched by
+    :func:`robustctl.checks.match_channels`.
     """
-    modes = _get(mm, "modes")
-    found: list[Mode] = []
-    order = _residue_order(mm, outputs, inputs)
-    if modes is not None and not callable(modes):
-        f = _get(modes, "f_hz", "frequency_hz", "freq_hz")
-        if f is not None and np.ndim(f) == 1:
-            z = np.asarray(_get(modes, "zeta", "damping"), dtype=float)
-            res = _get(modes, "residues", "shapes")
-            for k, fk in enumerate(np.asarray(f, dtype=float)):
-                shape = None if res is None else np.asarray(res[k]).ravel()
-                found.append(Mode(float(fk), float(z[k]), shape))
-        else:
-            for rec in modes:
-                fk = _get(rec, "f_hz", "frequency_hz", "freq_hz")
-                if fk is None:
-                    found = []
-                    break
-                shape = _get(rec, "residue", "shape")
-                if (
-                    shape is not None
-                    and order is not None
-                    and np.shape(shape) == (len(order[0]), len(order[1]))
-                ):
-                    shape = np.asarray(shape)[np.ix_(*order)]
-                zk = _get(rec, "zeta", "damping")
-                found.append(
-                    Mode(
-                        float(fk),
-                        float(zk) if zk is not None else np.nan,
-                        None if shape is None else np.asarray(shape).ravel(),
-                    )
-                )
-    if found:
+    sys = as_statespace(mm)
+    out_idx = match_channels(sys.output_labels, outputs, "outputs")
+    in_idx = match_channels(sys.input_labels, inputs, "inputs")
+    modes = getattr(mm, "modes", None)
+    if isinstance(modes, (tuple, list)) and modes and all(isinstance(m, Mode) for m in modes):
+        found = [
+            replace(m, residue=None if m.residue is None else np.asarray(m.residue)[np.ix_(out_idx, in_idx)])
+            for m in modes
+        ]
         return sorted((m for m in found if band[0] <= m.f_hz <= band[1]), key=lambda m: m.f_hz)
-    sys = _get(mm, "sys")
-    if sys is None and hasattr(mm, "statespace"):
-        sys = mm.statespace()
-    if sys is None:
-        return []
-    o_lab, i_lab = list(sys.output_labels), list(sys.input_labels)
-    try:
-        out_idx = [o_lab.index(n) for n in outputs]
-        in_idx = [i_lab.index(n) for n in inputs]
-    except ValueError:
-        out_idx, in_idx = None, None
     return statespace_modes(sys, band, out_idx, in_idx, max_zeta=max_zeta)
 
 
@@ -236,7 +175,7 @@ def peak_pick_modes(
                 off = 0.5 * (y0 - y2) / den
                 fk = f[k] + off * (f[k + 1] - f[k - 1]) / 2
         zeta = _half_power(f, s, k, bounds[j], bounds[j + 1])
-        modes.append(Mode(float(fk), float(zeta), flat[k].copy()))
+        modes.append(Mode(float(fk), float(zeta), residue=g[k].copy()))
     return modes
 
 
@@ -502,12 +441,11 @@ class Comparison:
 
     Attributes
     ----------
-    cost : float
-        MACE's J (eq. 5) on the band, with the weights given.
-    cost_per_point : float
-        ``cost / (n_freq * n_out * n_in)`` (comparable across bands and data sets).
-    channel_cost : ndarray (n_out, n_in)
-        J per channel (sums to ``cost``).
+    log_cost : LogCost
+        The cost report (the package's one type): MACE's J (eq. 5) on the band with the
+        point weights, per channel and in total. ``cost`` (= ``log_cost.total``),
+        ``channel_cost`` (= ``log_cost.per_channel``) and ``cost_per_point``
+        (= ``log_cost.mean``) read it.
     f_hz : ndarray (n_freq,)
         Band frequencies, Hz.
     error : ndarray complex (n_freq, n_out, n_in)
@@ -531,11 +469,12 @@ class Comparison:
         Threshold used for the bands.
     dropped : tuple of (output, input, level_dB)
         Negligible channels left out of the cost (weight 0).
+    model_modes, data_modes : tuple of Mode
+        The modes found in the model and in the data (measurement model or peak picking) on
+        the band, before pairing (:class:`robustctl.Mode`).
     """
 
-    cost: float
-    cost_per_point: float
-    channel_cost: np.ndarray
+    log_cost: LogCost
     f_hz: np.ndarray
     error: np.ndarray
     mag_error_db: np.ndarray
@@ -551,6 +490,23 @@ class Comparison:
     model_name: str = "model"
     threshold_db: float = 3.0
     dropped: tuple[tuple[str, str, float], ...] = ()
+    model_modes: tuple[Mode, ...] = field(default=(), repr=False)
+    data_modes: tuple[Mode, ...] = field(default=(), repr=False)
+
+    @property
+    def cost(self) -> float:
+        """MACE's J (eq. 5) on the band, with the point weights."""
+        return self.log_cost.total
+
+    @property
+    def channel_cost(self) -> np.ndarray:
+        """J per channel, shape (n_out, n_in) (sums to ``cost``)."""
+        return self.log_cost.per_channel
+
+    @property
+    def cost_per_point(self) -> float:
+        """``cost / (n_freq * n_out * n_in)`` (comparable across bands and data sets)."""
+        return self.log_cost.mean
 
     # ------------------------------------------------------------------ tables
     def table(self) -> Table:
@@ -733,29 +689,34 @@ def compare(
     model: Any,
     data: FrequencyData,
     band: Sequence[float] | None = None,
-    weights: Any = "auto",
+    point_weights: Any = "auto",
     measurement_model: Any = None,
     *,
     threshold_db: float = 3.0,
     n_bands: int = 5,
     max_zeta: float = 0.5,
-    min_channel_db: float | None = -80.0,
+    min_channel_db: float | None = NEGLIGIBLE_DB,
+    weights: Any = UNSET,
 ) -> Comparison:
     """Compare a physical model with measured frequency responses (MACE eq. 5, Table 1).
 
     Parameters
     ----------
-    model : PhysicalModel
-        Signal names must match the data's.
-    data : FrequencyData
+    model : system
+        A PhysicalModel, MeasurementModel, ``control.StateSpace``, transfer function or
+        anything :func:`robustctl.as_statespace` accepts. Channels are matched by
+        :func:`robustctl.checks.match_channels`.
+    data : FrequencyData, (f_hz, response) pair or control.FrequencyResponseData
         Measured responses (Hz).
-    band : (lo_hz, hi_hz), optional
-        Band in Hz; default every data point.
-    weights : "auto", None, "coherence" or array_like
-        Weights of the cost (see :class:`Residual`); the dB/phase errors are unweighted.
-    measurement_model : optional
-        An ``rc.fit_measurement_model`` result; its ``.modes`` (or the eigenstructure of its
-        ``.sys``) give the measured modes. Default: peak picking of the data.
+    band : (f_lo_hz, f_hi_hz), optional
+        Band in Hz; default every data point (:func:`robustctl.checks.check_band`).
+    point_weights : "auto", None, "coherence" or array_like
+        Data-point weights ``W`` on the squared log error (:func:`robustctl.checks.point_weights`);
+        the dB/phase errors are unweighted. ``weights=`` is its deprecated name.
+    measurement_model : system, optional
+        An ``rc.fit_measurement_model`` result (its identified ``.modes``) or any other system
+        (the eigenstructure of its state space) gives the measured modes. Default: peak
+        picking of the data.
     threshold_db : float
         RMS error over channels (dB-equivalent ``|log ratio|``; 1 rad of phase = 8.7 dB) above
         which a frequency point belongs to a failing band.
@@ -776,19 +737,17 @@ def compare(
     DataError
         Mismatched signal names or counts, or a band outside the data.
     """
-    if not threshold_db > 0 or not np.isfinite(threshold_db):
-        raise DataError(f"threshold_db must be positive and finite (dB); got {threshold_db!r}.")
-    if isinstance(n_bands, bool) or not isinstance(n_bands, (int, np.integer)) or n_bands < 0:
-        raise DataError(
-            f"n_bands must be a non-negative integer (how many worst bands to keep); got {n_bands!r}."
-        )
-    res = Residual(model, data, band=band, weights=weights, min_channel_db=min_channel_db)
+    point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
+    threshold_db = positive_number(threshold_db, "threshold_db", unit="dB")
+    n_bands = integer(n_bands, "n_bands", lo=0)
+    max_zeta = positive_number(max_zeta, "max_zeta")
+    model = as_model(model)
+    res = Residual(model, data, band=band, point_weights=point_weights, min_channel_db=min_channel_db)
     g_model = res.model_response()
     d = res.data
     error = log_ratio(d.response, g_model)
     weighted = res.weights * error
-    channel_cost = np.sum(np.abs(weighted) ** 2, axis=0)
-    cost = float(channel_cost.sum())
+    report = cost_report(error, d.outputs, d.inputs, point_weights=res.point_weights)
     f = d.f_hz
     span = (float(f[0]), float(f[-1]))
     model_modes = statespace_modes(model.statespace(), span, res._out_idx, res._in_idx, max_zeta=max_zeta)
@@ -799,9 +758,7 @@ def compare(
         data_modes = peak_pick_modes(f, d.response)
         source = "peak picking"
     return Comparison(
-        cost=cost,
-        cost_per_point=cost / error.size,
-        channel_cost=channel_cost,
+        log_cost=report,
         f_hz=f,
         error=error,
         mag_error_db=error.real * DB_PER_NEPER,
@@ -817,4 +774,6 @@ def compare(
         model_name=getattr(model, "name", "model"),
         threshold_db=float(threshold_db),
         dropped=tuple(res.dropped),
+        model_modes=tuple(model_modes),
+        data_modes=tuple(data_modes),
     )

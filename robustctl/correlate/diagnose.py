@@ -38,7 +38,6 @@ from __future__ import annotations
 import copy
 import html
 import math
-import sys
 import time
 from collections.abc import Sequence
 from concurrent.futures import Executor
@@ -47,19 +46,23 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import DataError, FitError, ModelError, RobustctlError
+from ..checks import UNSET, renamed_keyword
+from ..errors import FitError, ModelError, RobustctlError
 from ..frd import FrequencyData
+from ..parallel import check_executor, parallel_map
 from ..table import Table
 from ..threads import limit_blas
-from .optimize import _bounds, levenberg_marquardt
-from .residual import Residual, sensitivities
+from .optimize import _bounds, levenberg_marquardt, marquardt_step
+from .residual import NEGLIGIBLE_DB, Residual, physical_model, sensitivities
 
 __all__ = ["diagnose", "Diagnosis", "CandidateResult", "effective_points"]
 
 #: Significance level of the partial F-test before the Bonferroni correction.
 ALPHA = 0.01
 #: A channel this far (dB) below its row's and column's largest model response is ignored.
-DECOUPLED_DB = -60.0
+#: Deprecated alias of :data:`~robustctl.correlate.residual.NEGLIGIBLE_DB` (one rule for compare,
+#: update and diagnose).
+DECOUPLED_DB = NEGLIGIBLE_DB
 #: Smallest share of the null-fit residual an effect must explain to be proposed.
 MIN_GAIN = 0.25
 _DB = 20.0 / math.log(10.0)
@@ -164,8 +167,9 @@ class Diagnosis:
         Where the null-fit residual sits (band, channels, magnitude or phase).
     ignored_channels : tuple of (output, input)
         Channels the model leaves decoupled, weighted 0 (see ``_residual``).
-    weights : ndarray (n_freq, n_out, n_in)
-        The residual weights used (pass to ``rc.update(..., weights=...)``).
+    point_weights : ndarray (n_freq, n_out, n_in)
+        The data-point weights used, zero on ignored channels (pass
+        ``rc.update(..., point_weights=diag.point_weights)`` for the same cost).
     band : (float, float) or None
     n_evals : int
         Model evaluations spent.
@@ -187,10 +191,15 @@ class Diagnosis:
     n_evals: int
     time_s: float
     ignored_channels: tuple[tuple[str, str], ...] = ()
-    weights: np.ndarray = field(repr=False, default=None)
+    point_weights: np.ndarray = field(repr=False, default=None)
     residual_update: np.ndarray = field(repr=False, default=None)
     f_hz: np.ndarray = field(repr=False, default=None)
     explained: dict = field(repr=False, default_factory=dict)
+
+    @property
+    def weights(self) -> np.ndarray:
+        """Deprecated name of :attr:`point_weights` (weights on the squared error)."""
+        return self.point_weights
 
     @property
     def best_result(self) -> CandidateResult | None:
@@ -259,8 +268,8 @@ class Diagnosis:
             more = "" if len(self.ignored_channels) <= 6 else f" and {len(self.ignored_channels) - 6} more"
             lines.append(
                 f"Ignored {len(self.ignored_channels)} channel(s) the model leaves decoupled "
-                f"(>{-DECOUPLED_DB:.0f} dB below their row and column): {chans}{more}; pass "
-                "weights=diag.weights to rc.update for the same cost."
+                f"(negligible against their row and column): {chans}{more}; pass "
+                "point_weights=diag.point_weights to rc.update for the same cost."
             )
         return "\n".join(lines)
 
@@ -361,16 +370,6 @@ def _project(Q: np.ndarray, x: np.ndarray) -> np.ndarray:
     return x - Q @ (Q.T @ x) if Q.shape[1] else x
 
 
-def _map(fn, items: list, executor: Executor | None, desc: str) -> list:
-    from tqdm.auto import tqdm
-
-    show = sys.stderr.isatty()
-    if executor is None:
-        return [fn(it) for it in tqdm(items, desc=desc, disable=not show, leave=False)]
-    futures = [executor.submit(fn, it) for it in items]
-    return [f.result() for f in tqdm(futures, desc=desc, disable=not show, leave=False)]
-
-
 def _screen_one(
     res_u: Residual, model_u: Any, j_u: np.ndarray, Q: np.ndarray, r_perp: np.ndarray, effect: Any
 ) -> dict[str, Any]:
@@ -434,15 +433,6 @@ class _Null:
         if not hasattr(self, "_Q"):
             self._Q = _orthonormal(self.jac)
         return self._Q
-
-
-def _damped_step(A: np.ndarray, r: np.ndarray, lam: float) -> np.ndarray:
-    """Marquardt step ``min |A d + r|^2 + lam |diag(A^T A)^(1/2) d|^2``."""
-    d2 = np.sum(A**2, axis=0)
-    d2 = np.maximum(d2, 1e-12 * max(d2.max(initial=0.0), 1e-300))
-    M = np.vstack([A, np.diag(np.sqrt(lam * d2))])
-    rhs = np.concatenate([-r, np.zeros(A.shape[1])])
-    return np.linalg.lstsq(M, rhs, rcond=None)[0]
 
 
 def _fit_one(
@@ -554,7 +544,7 @@ def _marquardt_try(A, r, cost, lam, to_point, evaluate, tries: int = 4):
     Returns ``(point, r_new, cost_new, lam_next)`` or None.
     """
     for _ in range(tries):
-        point = to_point(_damped_step(A, r, lam))
+        point = to_point(marquardt_step(A, r, lam))
         r_new = evaluate(*point)
         if r_new is not None:
             c_new = float(r_new @ r_new)
@@ -586,26 +576,24 @@ def _equivalent(screens: list[dict[str, Any]]) -> dict[int, int]:
     return twins
 
 
-def _residual(model: Any, data: FrequencyData, band, weights) -> tuple[Residual, tuple]:
+def _residual(model: Any, data: FrequencyData, band, weights, min_db) -> tuple[Residual, tuple]:
     """The residual, with channels the model leaves decoupled weighted 0.
 
-    A channel whose model response stays :data:`DECOUPLED_DB` below both the largest
+    A channel whose model response stays ``min_db`` dB below both the largest
     channel of its output row and of its input column (decoupled by symmetry, e.g. a
     torque about one axis seen by a gyro about another) gives a log error of the data's
     noise against a numerically zero model: no effect can explain it, so it would only
     blur the statistics. It is left out and listed in ``Diagnosis.ignored_channels``.
     """
-    res = Residual(model, data, band=band, weights=weights, min_channel_db=DECOUPLED_DB)
+    res = Residual(model, data, band=band, point_weights=weights, min_channel_db=min_db)
     return res, tuple((o, i) for o, i, _level in res.dropped)
 
 
-def _prepare(model, data, candidates, band, update_params, weights) -> tuple:
+def _prepare(model, data, candidates, band, update_params, weights, min_db) -> tuple:
     """Validated residual (decoupled channels ignored), update parameters and candidates."""
     from ..physical.effects import candidates as all_candidates
 
-    if not isinstance(data, FrequencyData):
-        raise DataError(f"data must be a FrequencyData; got {type(data).__name__}.")
-    res0, ignored = _residual(model, data, band, weights)
+    res0, ignored = _residual(model, data, band, weights, min_db)
     upd = _check_update(model, update_params)
     cands = _check_candidates(
         model, all_candidates(model, band=res0.band) if candidates is None else list(candidates)
@@ -617,8 +605,8 @@ def _screen_all(res_u: Residual, model_u: Any, null: _Null, cands: list, executo
     """Screen every candidate (step 2): the screens, indistinguishable twins, and the
     order of the others by the fraction they explain."""
     r_perp = _project(null.Q, null.j)
-    screens = _map(
-        lambda c: _screen_one(res_u, model_u, null.j, null.Q, r_perp, c), cands, executor, "screening"
+    screens = parallel_map(
+        lambda c: _screen_one(res_u, model_u, null.j, null.Q, r_perp, c), cands, executor, desc="screening"
     )
     twins = _equivalent(screens)
     order = sorted(
@@ -775,15 +763,18 @@ def diagnose(
     candidates: Sequence[Any] | None = None,
     band: tuple[float, float] | None = None,
     executor: Executor | None = None,
-    update_params: Sequence[str] | None = None,
+    params: Sequence[str] | None = None,
     *,
-    weights: Any = "auto",
+    point_weights: Any = "auto",
+    min_channel_db: float | None = NEGLIGIBLE_DB,
     n_fit: int = 4,
     max_iter: int = 8,
     update_iter: int = 10,
     alpha: float = ALPHA,
     min_gain: float = MIN_GAIN,
     time_budget_s: float = 120.0,
+    update_params: Any = UNSET,
+    weights: Any = UNSET,
 ) -> Diagnosis:
     """Rank physical effects by how much of the model-data residual each explains.
 
@@ -799,14 +790,19 @@ def diagnose(
     executor : concurrent.futures.Executor, optional
         Screens and fits candidates in parallel (a thread pool works with any model; a
         process pool needs a picklable model).
-    update_params : sequence of str, optional
+    params : sequence of str, optional
         Parameters the update may change (default: the model's free parameters); what they
-        can absorb is projected out before the effects are scored.
-    weights : "auto", None, "coherence" or array
-        Residual weights (see :class:`~robustctl.correlate.residual.Residual`). ``"auto"``
-        (default) uses the coherence when the data carry it: ``w = sqrt(g2 / (1 - g2))`` is
-        the inverse standard deviation of the log estimate, so noisy bins (low coherence,
-        at anti-resonances and far from the excited modes) do not drown the systematic error.
+        can absorb is projected out before the effects are scored (as ``params=`` of
+        :func:`update`; ``update_params=`` is the deprecated name).
+    point_weights : "auto", None, "coherence" or array
+        Data-point weights on the squared log error (:func:`robustctl.checks.point_weights`;
+        ``weights=`` is the deprecated name). ``"auto"`` (default) uses the coherence when
+        the data carry it: ``W = g2 / (1 - g2)`` is the inverse variance of the log estimate,
+        so noisy bins (low coherence, at anti-resonances and far from the excited modes) do
+        not drown the systematic error.
+    min_channel_db : float or None
+        Channels the model or data leave decoupled (this many dB below their row and column)
+        get weight 0, as in :func:`compare` and :func:`update` (same default, same cost).
     n_fit : int
         Number of best-screened candidates given the local fit.
     max_iter, update_iter : int
@@ -837,7 +833,11 @@ def diagnose(
     >>> upd = rc.update(model.with_effect(diag.best), data)              # doctest: +SKIP
     """
     t0 = time.perf_counter()
-    res0, ignored, upd, cands = _prepare(model, data, candidates, band, update_params, weights)
+    check_executor(executor)
+    params = renamed_keyword(params, update_params, "params", "update_params")
+    point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
+    model = physical_model(model, "diagnose")
+    res0, ignored, upd, cands = _prepare(model, data, candidates, band, params, point_weights, min_channel_db)
     if not 0 < alpha < 1 or not 0 <= min_gain < 1:
         raise FitError(f"alpha must lie in (0, 1) and min_gain in [0, 1); got {alpha}, {min_gain}.")
     if isinstance(n_fit, bool) or not isinstance(n_fit, (int, np.integer)) or n_fit < 0:
@@ -860,11 +860,11 @@ def diagnose(
     top = [k for k in order[:n_fit] if screens[k]["fraction"] > 0]
     # 3. local fits
     remaining = max(time_budget_s - (time.perf_counter() - t0), 1.0)
-    fits = _map(
+    fits = parallel_map(
         lambda k: _fit_one(res_u, null, screens[k], max_iter, remaining / max(len(top), 1)),
         top,
         executor,
-        "local fits",
+        desc="local fits",
     )
     evals += sum(f["evals"] for f in fits)
     # 4. significance and words
@@ -898,7 +898,7 @@ def diagnose(
         n_evals=evals,
         time_s=time.perf_counter() - t0,
         ignored_channels=ignored,
-        weights=res0.weights,
+        point_weights=res0.point_weights,
         residual_update=e_u,
         f_hz=res0.f_hz,
         explained=explained,

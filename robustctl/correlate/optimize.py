@@ -22,7 +22,7 @@ import numpy as np
 from ..errors import FitError, ModelError, RobustctlError
 from .residual import Residual, Sensitivities, _check_names, sensitivities
 
-__all__ = ["LMResult", "levenberg_marquardt"]
+__all__ = ["LMResult", "levenberg_marquardt", "marquardt_step"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -172,17 +172,24 @@ class _State:
     n_evals: int = 0
 
 
+def marquardt_step(J: np.ndarray, r: np.ndarray, lam: float) -> np.ndarray:
+    """The damped Gauss-Newton (Marquardt, 1963) step ``d`` minimising
+    ``|J d + r|^2 + lam |D d|^2`` with ``D = diag(J^T J)^(1/2)`` (Nocedal & Wright eq. 10.34),
+    solved as one stacked least-squares problem. The one implementation used by
+    :func:`levenberg_marquardt` and by ``rc.diagnose``'s local fits."""
+    d2 = np.sum(J**2, axis=0)
+    d2 = np.maximum(d2, 1e-12 * max(d2.max(initial=0.0), 1e-300))
+    A = np.vstack([J, np.diag(np.sqrt(lam * d2))])
+    b = np.concatenate([-r, np.zeros(J.shape[1])])
+    return np.linalg.lstsq(A, b, rcond=None)[0]
+
+
 def _solve_step(J: np.ndarray, r: np.ndarray, lam: float, free: np.ndarray) -> np.ndarray:
-    """Damped Gauss-Newton step on the free columns: min |J d + r|^2 + lam |D d|^2 (Marquardt D)."""
+    """Damped Gauss-Newton step on the free columns (:func:`marquardt_step`)."""
     step = np.zeros(J.shape[1])
     if not np.any(free):
         return step
-    Jf = J[:, free]
-    d2 = np.sum(Jf**2, axis=0)
-    d2 = np.maximum(d2, 1e-12 * max(d2.max(), 1e-300))
-    A = np.vstack([Jf, np.diag(np.sqrt(lam * d2))])
-    b = np.concatenate([-r, np.zeros(Jf.shape[1])])
-    step[free] = np.linalg.lstsq(A, b, rcond=None)[0]
+    step[free] = marquardt_step(J[:, free], r, lam)
     return step
 
 
@@ -314,7 +321,7 @@ def levenberg_marquardt(
     FitError
         Bounds that exclude the start, malformed ``x0`` or bounds, or a non-finite cost.
     """
-    from tqdm.auto import tqdm
+    from tqdm import tqdm
 
     t_start = time.perf_counter()
     model = residual.model

@@ -17,16 +17,27 @@ finite-difference derivatives with respect to named parameters (eqs. 7-8).
 
 from __future__ import annotations
 
-import sys
+import functools
 from collections.abc import Mapping, Sequence
 from concurrent.futures import Executor
 from typing import Any
 
 import numpy as np
 
+from ..checks import (
+    UNSET,
+    as_frequency_data,
+    band_data,
+    band_mask,
+    check_band,
+    match_channels,
+    renamed_keyword,
+)
+from ..checks import point_weights as point_weights_of
 from ..errors import DataError, FitError, ModelError, RobustctlError
 from ..frd import FrequencyData
-from ..lti import log_ratio
+from ..lti import as_statespace, freqresp, log_ratio
+from ..parallel import parallel_map
 
 __all__ = [
     "Residual",
@@ -36,72 +47,49 @@ __all__ = [
     "alignment",
     "orthogonality",
     "normalized",
+    "NEGLIGIBLE_DB",
+    "as_model",
+    "physical_model",
 ]
 
-def _band_data(data: FrequencyData, band: Sequence[float] | None) -> FrequencyData:
-    if band is None:
-        return data
-    try:
-        lo, hi = (float(b) for b in band)
-    except (TypeError, ValueError):
-        raise DataError(f"band must be a pair (lo_hz, hi_hz) in Hz; got {band!r}.") from None
-    if not lo < hi:
-        raise DataError(f"band ({lo:g}, {hi:g}) Hz is empty; give lo_hz < hi_hz.")
-    f = data.f_hz
-    inside = (f >= lo) & (f <= hi)
-    if np.count_nonzero(inside) < 2:
-        raise DataError(
-            f"band ({lo:g}, {hi:g}) Hz holds {np.count_nonzero(inside)} data point(s); the data "
-            f"span {f[0]:g}-{f[-1]:g} Hz. Choose a band inside the measured range."
-        )
-    return data.band(lo, hi)
+#: Default level (dB) below which a channel counts as negligible (decoupled) and gets weight 0
+#: in compare, update and diagnose (one rule, so they report one cost).
+NEGLIGIBLE_DB = -80.0
 
 
-def _channel_index(model_names: Sequence[str], data_names: Sequence[str], what: str) -> list[int]:
-    model_names = list(model_names)
-    data_names = list(data_names)
-    if len(model_names) != len(data_names):
-        raise DataError(
-            f"the model has {len(model_names)} {what} {model_names} but the data has "
-            f"{len(data_names)} {data_names}; restrict the data with data.select(...) or give "
-            "the model the measured channels."
-        )
-    missing = [n for n in data_names if n not in model_names]
-    if missing:
-        raise DataError(
-            f"data {what} {missing} are not {what} of the model (model {what}: {model_names}); "
-            "rename the data channels (data.replace(" + what + "=[...])) to the model's signal names."
-        )
-    return [model_names.index(n) for n in data_names]
+class _FixedSystem:
+    """A system without parameters (StateSpace, transfer function, MeasurementModel, fit) seen
+    through the two PhysicalModel methods a :class:`Residual` uses."""
+
+    def __init__(self, sys: Any) -> None:
+        self.sys = as_statespace(sys)
+        self.name = getattr(sys, "name", None) or type(sys).__name__
+        self.param_names: tuple[str, ...] = ()
+
+    def statespace(self, **overrides: float):
+        if overrides:
+            raise ModelError(f"a {self.name} has no parameters to override; got {sorted(overrides)}.")
+        return self.sys
+
+    def freqresp(self, f_hz: Any, **overrides: float) -> FrequencyData:
+        return freqresp(self.statespace(**overrides), f_hz)
 
 
-def _weights(weights: Any, data: FrequencyData) -> np.ndarray:
-    shape = data.shape
-    if isinstance(weights, str) and weights == "auto":
-        weights = "coherence" if data.coherence is not None else None
-    if weights is None:
-        return np.ones(shape)
-    if isinstance(weights, str):
-        if weights != "coherence":
-            raise DataError(f"weights must be 'auto', None, 'coherence' or an array; got {weights!r}.")
-        if data.coherence is None:
-            raise DataError(
-                "weights='coherence' but the data carry no coherence; estimate the FRF with "
-                "rc.estimate_frf (which returns coherence) or pass weights=None."
-            )
-        g2 = np.clip(data.coherence, 0.0, 0.999)
-        w = np.sqrt(g2 / (1.0 - g2))
-        return w / np.sqrt(np.mean(w**2))
-    try:
-        w = np.broadcast_to(np.asarray(weights, dtype=float), shape).copy()
-    except ValueError:
-        raise DataError(
-            f"weights of shape {np.shape(weights)} do not broadcast to the banded data shape "
-            f"{shape} (n_freq, n_out, n_in)."
-        ) from None
-    if not np.all(np.isfinite(w)) or np.any(w < 0) or not np.any(w > 0):
-        raise DataError("weights must be finite, non-negative and not all zero.")
-    return w
+def as_model(model: Any) -> Any:
+    """A PhysicalModel as is; any other system (see :func:`robustctl.as_statespace`) wrapped."""
+    if hasattr(model, "param_names") and hasattr(model, "freqresp") and hasattr(model, "statespace"):
+        return model
+    return _FixedSystem(model)
+
+
+def physical_model(model: Any, func: str) -> Any:
+    """``model`` if it is a PhysicalModel (it has parameters to change); else a ModelError."""
+    if hasattr(model, "param_names") and hasattr(model, "with_values") and hasattr(model, "statespace"):
+        return model
+    raise ModelError(
+        f"{func} changes a model's physical parameters, so it needs a PhysicalModel; got "
+        f"{type(model).__name__}. Use rc.compare for a model without parameters."
+    )
 
 
 def _negligible_channels(
@@ -137,13 +125,12 @@ class Residual:
         Measured (or simulated) responses, shape (n_freq, n_out, n_in), Hz.
     band : (float, float), optional
         Frequency band ``(lo_hz, hi_hz)`` in Hz; default: every data point.
-    weights : "auto", None, "coherence" or array_like, optional
-        ``"auto"`` (default) is ``"coherence"`` when the data carry coherence, else ``None``.
-        Per-point weights ``w`` on the residual (broadcast to the banded data shape), so the
-        cost is ``sum w^2 |log ratio|^2``: ``Residual(m, d, weights=w).cost()`` equals
-        ``rc.log_cost(d, m, weights=w**2)``, whose weights act on the squared error. ``"coherence"``
-        uses ``w = sqrt(g2 / (1 - g2))`` (inverse standard deviation of the log estimate,
-        g2 the coherence clipped at 0.999), normalised to mean(w^2) = 1.
+    point_weights : "auto", None, "coherence" or array_like, optional
+        Data-point weights ``W`` on the squared log error (:func:`robustctl.checks.point_weights`),
+        so the cost is ``sum W |log ratio|^2``, the number ``rc.log_cost(m, d, point_weights=W)``
+        gives. ``"auto"`` (default): coherence weights ``W = g2 / (1 - g2)`` (inverse variance
+        of the log estimate, g2 clipped at 0.999, normalised to mean 1) when the data carry
+        coherence, else uniform. The residual vector carries ``sqrt(W)``.
     min_channel_db : float or None
         Channels whose RMS magnitude on the band, in the data or in the nominal model, lies
         more than this many dB below the geometric mean of the largest channel in their row
@@ -159,6 +146,9 @@ class Residual:
     data : FrequencyData
         The banded data, channels in data order.
     weights : ndarray, shape (n_freq_band, n_out, n_in)
+        ``sqrt(W)``: the factor on each complex log error in :meth:`complex`.
+    point_weights : ndarray, shape (n_freq_band, n_out, n_in)
+        ``W``, the weights on the squared error (zero on dropped channels).
     dropped : list of (output, input, level_db)
         Channels given weight 0 as negligible, with their relative level in dB.
 
@@ -174,28 +164,33 @@ class Residual:
         model: Any,
         data: FrequencyData,
         band: Sequence[float] | None = None,
-        weights: Any = "auto",
-        min_channel_db: float | None = -80.0,
+        point_weights: Any = "auto",
+        min_channel_db: float | None = NEGLIGIBLE_DB,
+        *,
+        weights: Any = UNSET,
     ) -> None:
-        if not isinstance(data, FrequencyData):
-            raise DataError(f"data must be a FrequencyData; got {type(data).__name__}.")
-        if not hasattr(model, "freqresp") or not hasattr(model, "statespace"):
-            raise ModelError(
-                f"model must be a PhysicalModel (with .freqresp and .statespace); got {type(model).__name__}."
-            )
+        point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
+        data = as_frequency_data(data)
+        model = as_model(model)
         self.model = model
-        self.band = None if band is None else tuple(float(b) for b in band)
-        self.data = _band_data(data, band)
+        self.band = check_band(band)
+        mask = band_mask(data.f_hz, self.band)
+        self.data = band_data(data, self.band)
         sys0 = model.statespace()
-        self._out_idx = _channel_index(sys0.output_labels, self.data.outputs, "outputs")
-        self._in_idx = _channel_index(sys0.input_labels, self.data.inputs, "inputs")
-        self.weights = _weights(weights, self.data)
+        self._out_idx = match_channels(sys0.output_labels, self.data.outputs, "outputs")
+        self._in_idx = match_channels(sys0.input_labels, self.data.inputs, "inputs")
+        self.weights = np.sqrt(point_weights_of(point_weights, data, mask))
         self.dropped = self._negligible(min_channel_db)
         for o, i, _level in self.dropped:
             self.weights[:, self.data.outputs.index(o), self.data.inputs.index(i)] = 0.0
         if not np.any(self.weights > 0):
             raise DataError("every channel has zero weight; nothing is left to compare.")
         self.n = 2 * self.data.response.size
+
+    @property
+    def point_weights(self) -> np.ndarray:
+        """``W`` on the squared log error (zero on dropped channels), shape of the banded data."""
+        return self.weights**2
 
     def _negligible(self, min_db: float | None) -> list[tuple[str, str, float]]:
         """Channels negligible in the data or in the nominal model (decoupled by symmetry)."""
@@ -332,16 +327,6 @@ def _evaluate(residual: Residual, overrides: dict[str, float]) -> np.ndarray | R
         return exc
 
 
-def _map(fn, residual: Residual, points: list[dict], executor: Executor | None, progress: bool, desc: str):
-    from tqdm.auto import tqdm
-
-    show = bool(progress) and sys.stderr.isatty()
-    if executor is None:
-        return [fn(residual, p) for p in tqdm(points, desc=desc, disable=not show, leave=False)]
-    futures = [executor.submit(fn, residual, p) for p in points]
-    return [f.result() for f in tqdm(futures, desc=desc, disable=not show, leave=False)]
-
-
 def sensitivities(
     residual: Residual,
     names: Sequence[str],
@@ -436,7 +421,9 @@ def sensitivities(
     if j0 is None:
         points = [base_point] + points
         n_evals += 1
-    vectors = _map(_evaluate, residual, points, executor, progress, "sensitivities")
+    vectors = parallel_map(
+        functools.partial(_evaluate, residual), points, executor, desc="sensitivities", progress=progress
+    )
     if j0 is None:
         j0, vectors = vectors[0], vectors[1:]
         if isinstance(j0, RobustctlError):

@@ -28,17 +28,21 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import UNSET, renamed_keyword
 from ..errors import FitError
 from ..frd import FrequencyData
+from ..parallel import check_executor
 from ..table import Table
 from .optimize import LMResult, levenberg_marquardt
 from .residual import (
+    NEGLIGIBLE_DB,
     Residual,
     Sensitivities,
     _check_names,
     alignment,
     normalized,
     orthogonality,
+    physical_model,
     sensitivities,
 )
 
@@ -531,7 +535,7 @@ def update(
     band: Sequence[float] | None = None,
     max_iter: int = 20,
     executor: Executor | None = None,
-    weights: Any = "auto",
+    point_weights: Any = "auto",
     *,
     select: bool = True,
     passes: int = 3,
@@ -543,7 +547,8 @@ def update(
     time_budget_s: float = 600.0,
     ftol: float = 1e-5,
     progress: bool | None = None,
-    min_channel_db: float | None = -80.0,
+    min_channel_db: float | None = NEGLIGIBLE_DB,
+    weights: Any = UNSET,
 ) -> UpdateResult:
     """Update physical parameters so the model matches measured FRFs (MACE eqs. 5-9).
 
@@ -561,8 +566,9 @@ def update(
         Levenberg-Marquardt iteration cap.
     executor : concurrent.futures.Executor, optional
         Runs the sensitivity evaluations in parallel.
-    weights : "auto", None, "coherence" or array
-        See :class:`~robustctl.correlate.residual.Residual`.
+    point_weights : "auto", None, "coherence" or array
+        Data-point weights on the squared log error (:func:`robustctl.checks.point_weights`);
+        ``weights=`` is the deprecated name.
     select : bool
         Apply the alignment and orthogonality tests (eqs. 8-9); ``False`` updates every
         candidate.
@@ -605,11 +611,14 @@ def update(
         ``drift_bands < 0``.
     """
     t0 = time.perf_counter()
+    check_executor(executor)
     for what, value, least in (("passes", passes, 1), ("drift_bands", drift_bands, 0)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
             raise FitError(f"{what} must be an integer >= {least}; got {value!r}.")
     progress = sys.stderr.isatty() if progress is None else bool(progress)
-    residual = Residual(model, data, band=band, weights=weights, min_channel_db=min_channel_db)
+    point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
+    model = physical_model(model, "update")
+    residual = Residual(model, data, band=band, point_weights=point_weights, min_channel_db=min_channel_db)
     if params is None:
         params = [p.name for p in model.free_params]
         if not params:

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import UNSET, renamed_keyword
 from ..errors import DataError, ModelError
 from ..frd import FrequencyData
 from ..table import Table
@@ -208,7 +209,8 @@ def verify(
     reference_data: FrequencyData | None = None,
     *,
     band: Sequence[float] | None = None,
-    weights: Any = "auto",
+    point_weights: Any = "auto",
+    weights: Any = UNSET,
     cost_ratio_tol: float = 2.0,
     freq_tol_pct: float = 4.0,
     cost_floor: float = 1e-6,
@@ -230,8 +232,9 @@ def verify(
         Data of the unperturbed structure: the accuracy to hold.
     band : (lo_hz, hi_hz), optional
         Band of both comparisons (Hz).
-    weights : "auto", None, "coherence" or array
-        Weights of the cost (see :class:`~robustctl.correlate.residual.Residual`).
+    point_weights : "auto", None, "coherence" or array
+        Data-point weights on the squared log error (:func:`robustctl.checks.point_weights`);
+        ``weights=`` is the deprecated name.
     cost_ratio_tol : float
         The accuracy holds if the cost per point on the perturbed data is at most this
         multiple of the nominal one (or below ``cost_floor``).
@@ -261,12 +264,14 @@ def verify(
     ):
         if not (np.isfinite(value) and value >= 0):
             raise DataError(f"{what} must be a finite tolerance >= 0; got {value!r}.")
+    point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     perturbed_model, desc = apply_perturbation(updated_model, perturbation)
     cmp = compare(
-        perturbed_model, perturbed_data, band=band, weights=weights, measurement_model=measurement_model
+        perturbed_model, perturbed_data, band=band, point_weights=point_weights,
+        measurement_model=measurement_model,
     )
     nominal = (
-        compare(updated_model, reference_data, band=band, weights=weights)
+        compare(updated_model, reference_data, band=band, point_weights=point_weights)
         if reference_data is not None
         else None
     )

@@ -7,11 +7,12 @@ the estimator-leakage correction, and the one-call measurement model scored by t
 complex-log cost (MACE eq. 5).
 """
 
+from ..modes import Mode
 from .balanced import BalancedTruncation, balanced_truncation
 from .cost import LogCost, channel_cost
 from .grouping import cluster_modes, combine_simo, group_modes
 from .leakage import estimator_settings, expected_h1, leakage_factor
-from .measurement_model import MeasurementModel, Mode, fit_measurement_model
+from .measurement_model import MeasurementModel, fit_measurement_model
 from .rational import IdentifyWarning, RationalFit, fit_rational
 
 __all__ = [

@@ -12,13 +12,13 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import as_frequency_data, band_mask, coherence_weights, point_weights
 from ..errors import DataError, FitError
 from ..frd import FrequencyData
 
 __all__ = ["FitProblem", "as_frequency_data", "prepare_problem", "coherence_weights"]
 
-#: cap of the coherence weight c / (1 - c): coherence above 0.99 counts as 0.99.
-COHERENCE_WEIGHT_CAP = 99.0
+# band, point weights and coercion follow the one rule of robustctl.checks
 
 
 @dataclass(frozen=True)
@@ -34,7 +34,8 @@ class FitProblem:
     g : ndarray, complex, shape (K, n_out, n_in)
         Measured response inside the band.
     w : ndarray, shape (K, n_out, n_in)
-        Non-negative weights on the *squared* residuals (inverse variances).
+        Non-negative weights on the *squared* residuals (inverse variances):
+        :func:`robustctl.checks.point_weights`.
     order : int
         Number of poles (states of a SISO realisation).
     inputs, outputs : tuple of str
@@ -59,31 +60,6 @@ class FitProblem:
         return self.g.shape[1] * self.g.shape[2]
 
 
-def as_frequency_data(data: Any) -> FrequencyData:
-    """Accept FrequencyData, a ``control.FrequencyResponseData`` or a ``(f_hz, response)`` pair."""
-    if isinstance(data, FrequencyData):
-        return data
-    if isinstance(data, tuple) and len(data) == 2:
-        return FrequencyData(*data)
-    if hasattr(data, "omega") and hasattr(data, "fresp"):
-        return FrequencyData.from_control(data)
-    raise DataError(
-        f"data must be a FrequencyData, a control.FrequencyResponseData or a tuple (f_hz, response); "
-        f"got {type(data).__name__}."
-    )
-
-
-def coherence_weights(coherence: np.ndarray) -> np.ndarray:
-    """Inverse-variance weights ``c / (1 - c)`` of an H1 estimate, capped at coherence 0.99.
-
-    The variance of ``log |G_hat|`` of a Welch estimate is proportional to ``(1 - c) / c``
-    (Bendat & Piersol), so ``c / (1 - c)`` weights each squared log residual by its inverse
-    variance.
-    """
-    c = np.clip(np.asarray(coherence, dtype=float), 0.0, 0.99)
-    return c / (1.0 - c)
-
-
 def _check_order(order: Any) -> int:
     if isinstance(order, (bool, np.bool_)) or not isinstance(order, (int, np.integer)):
         raise FitError(f"order must be a positive integer number of poles (2 per mode); got {order!r}.")
@@ -93,46 +69,6 @@ def _check_order(order: Any) -> int:
             "Use order=2*n_modes."
         )
     return int(order)
-
-
-def _band_mask(f_hz: np.ndarray, band: Any) -> np.ndarray:
-    if band is None:
-        return np.ones(f_hz.size, dtype=bool)
-    try:
-        lo, hi = (float(b) for b in band)
-    except (TypeError, ValueError) as exc:
-        raise FitError(f"band must be a pair (f_lo_hz, f_hi_hz); got {band!r}.") from exc
-    if not (np.isfinite(lo) and np.isfinite(hi)) or lo >= hi:
-        raise FitError(f"band ({lo:g}, {hi:g}) Hz is empty or not finite; give f_lo_hz < f_hi_hz.")
-    mask = (f_hz >= lo) & (f_hz <= hi)
-    if not np.any(mask):
-        raise FitError(
-            f"band ({lo:g}, {hi:g}) Hz holds no data points; the data span {f_hz[0]:g}-{f_hz[-1]:g} Hz."
-        )
-    return mask
-
-
-def _weights(data: FrequencyData, weights: Any, mask: np.ndarray) -> np.ndarray:
-    shape = data.response.shape
-    if weights is None:
-        w = np.ones(shape) if data.coherence is None else coherence_weights(data.coherence)
-    else:
-        w = np.asarray(weights, dtype=float)
-        if w.ndim == 1 and w.size == shape[0]:
-            w = w[:, None, None]
-        try:
-            w = np.broadcast_to(w, shape)
-        except ValueError as exc:
-            raise FitError(
-                f"weights of shape {np.shape(weights)} do not fit the data of shape {shape}; give one "
-                "weight per frequency (n_freq,) or per entry (n_freq, n_out, n_in)."
-            ) from exc
-        if not np.all(np.isfinite(w)) or np.any(w < 0):
-            raise FitError("weights must be finite and non-negative; remove NaN/inf or negative weights.")
-    w = np.array(w[mask], dtype=float)
-    if not np.any(w > 0):
-        raise FitError("all weights inside the band are zero; nothing would be fitted.")
-    return w
 
 
 def _check_channels(g: np.ndarray, outputs: tuple[str, ...], inputs: tuple[str, ...]) -> None:
@@ -148,11 +84,11 @@ def _check_channels(g: np.ndarray, outputs: tuple[str, ...], inputs: tuple[str, 
         )
 
 
-def prepare_problem(data: Any, order: Any, band: Any = None, weights: Any = None) -> FitProblem:
-    """Validate ``data``, ``order``, ``band`` and ``weights`` and return a :class:`FitProblem`."""
+def prepare_problem(data: Any, order: Any, band: Any = None, weights: Any = "auto") -> FitProblem:
+    """Validate ``data``, ``order``, ``band`` and the point ``weights`` and return a :class:`FitProblem`."""
     fd = as_frequency_data(data)
     n = _check_order(order)
-    mask = _band_mask(fd.f_hz, band)
+    mask = band_mask(fd.f_hz, band)
     f = fd.f_hz[mask]
     g = np.array(fd.response[mask])
     _check_channels(g, fd.outputs, fd.inputs)
@@ -161,7 +97,7 @@ def prepare_problem(data: Any, order: Any, band: Any = None, weights: Any = None
             f"the band holds {f.size} frequency points but a fit with {n} poles has {2 * n + 1} real "
             f"unknowns per channel and needs at least {n + 1} points; widen the band or lower the order."
         )
-    w = _weights(fd, weights, mask)
+    w = point_weights(weights, fd, mask)
     # tiny entries would blow up the relative weighting 1/|g|: floor them per channel
     floor = 1e-12 * np.max(np.abs(g), axis=0, keepdims=True)
     g = np.where(np.abs(g) < floor, floor, g)

@@ -11,6 +11,7 @@ singular values, which is what keeps lightly damped systems with dozens of modes
 
 from __future__ import annotations
 
+import html
 from dataclasses import dataclass
 from typing import Any
 
@@ -18,8 +19,9 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..errors import FitError, ModelError
+from ..lti import as_statespace, rebuild_statespace, statespace_state
+from ..table import Table
 from ..threads import limit_blas
-from .rational import RationalFit
 
 __all__ = ["BalancedTruncation", "balanced_truncation", "gramian_factor"]
 
@@ -45,8 +47,56 @@ class BalancedTruncation:
     bound: float
     order: int
 
+    def statespace(self):
+        """The reduced ``control.StateSpace`` (the state-space protocol, :func:`rc.as_statespace`)."""
+        return self.sys
+
+    def table(self) -> Table:
+        """One row per Hankel singular value: its value, relative size and whether it is kept."""
+        rows = [
+            (k, float(h), float(h / self.hsv[0]) if self.hsv[0] > 0 else 0.0, k <= self.order)
+            for k, h in enumerate(self.hsv, start=1)
+        ]
+        return Table(
+            ("state", "Hankel singular value", "relative", "kept"),
+            rows,
+            title=f"Balanced truncation to {self.order} of {self.hsv.size} states (Caltech eq. 13)",
+        )
+
+    def summary(self) -> str:
+        """One sentence: states kept and the a-priori error bound."""
+        return (
+            f"Balanced truncation kept {self.order} of {self.hsv.size} states; "
+            f"||G - G_r||_inf <= {self.bound:.4g} (2 x the sum of the discarded Hankel singular values)."
+        )
+
+    def plot(self, fig: Any = None) -> Any:
+        """The Hankel singular values, kept ones filled (matplotlib Figure)."""
+        from ..plots import new_figure
+
+        fig = fig or new_figure(6, 3.5)
+        ax = fig.add_subplot(1, 1, 1)
+        k = np.arange(1, self.hsv.size + 1)
+        ax.semilogy(k[: self.order], self.hsv[: self.order], "C0o", label="kept")
+        ax.semilogy(k[self.order :], self.hsv[self.order :], "C0o", mfc="none", label="discarded")
+        ax.set_xlabel("state")
+        ax.set_ylabel("Hankel singular value")
+        ax.legend()
+        return fig
+
+    def _repr_html_(self) -> str:
+        return f"<p>{html.escape(self.summary())}</p>" + self.table()._repr_html_()
+
+    def __reduce__(self):
+        """Pickle the state space as matrices and names (python-control's StateSpace holds a lambda)."""
+        return (_rebuild, (statespace_state(self.sys), self.hsv, self.bound, self.order))
+
     def __repr__(self) -> str:
         return f"BalancedTruncation(order {self.order} of {self.hsv.size}, bound {self.bound:.4g})"
+
+
+def _rebuild(state: dict, hsv: np.ndarray, bound: float, order: int) -> BalancedTruncation:
+    return BalancedTruncation(rebuild_statespace(state), hsv, bound, order)
 
 
 def _factor_slycot(a: np.ndarray, b: np.ndarray, transpose: bool) -> np.ndarray | None:
@@ -92,14 +142,7 @@ def gramian_factor(a: np.ndarray, b: np.ndarray, observability: bool = False) ->
 
 
 def _as_ss(sys: Any):
-    import control
-
-    if isinstance(sys, RationalFit):
-        return sys.statespace()
-    try:
-        ss = control.ss(sys)
-    except Exception as exc:
-        raise ModelError(f"balanced_truncation needs a state-space model; got {type(sys).__name__}.") from exc
+    ss = as_statespace(sys)
     if ss.dt not in (0, None):
         raise ModelError("balanced_truncation handles continuous-time systems only (dt = 0).")
     return ss
@@ -124,7 +167,9 @@ def balanced_truncation(sys: Any, order: int) -> BalancedTruncation:
 
     Parameters
     ----------
-    sys : control.StateSpace, RationalFit or anything ``control.ss`` accepts
+    sys : system
+        Anything :func:`robustctl.as_statespace` accepts: a PhysicalModel, MeasurementModel,
+        RationalFit, ``control.StateSpace`` or transfer function.
         Continuous-time, asymptotically stable (e.g. the Caltech 12-mode model, 24 states).
     order : int
         States to keep (2 per mode: 12 for six modes).

@@ -15,16 +15,18 @@ from __future__ import annotations
 
 import html
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
 
+from ..checks import UNSET, as_frequency_data, band_data, renamed_keyword
 from ..errors import FitError
 from ..frd import FrequencyData
+from ..lti import rebuild_statespace, statespace_state
+from ..modes import Mode
 from ..table import Table
 from ..threads import limit_blas
-from ._problem import as_frequency_data
 from .cost import LogCost, channel_cost
 from .grouping import group_modes
 from .leakage import EstimatorSettings, estimator_settings, leakage_factor
@@ -37,37 +39,6 @@ __all__ = ["Mode", "MeasurementModel", "fit_measurement_model"]
 
 #: fixed-point steps of the leakage correction
 LEAKAGE_STEPS = 4
-
-
-@dataclass(frozen=True, eq=False)
-class Mode:
-    """One identified mode (or a group of ``rank`` modes sharing a pole).
-
-    Attributes
-    ----------
-    f_hz : float
-        Natural frequency ``|p| / 2 pi``, Hz.
-    zeta : float
-        Damping ratio ``-Re p / |p|``.
-    pole : complex
-        Pole with ``Im p > 0``, rad/s.
-    residue : ndarray, complex, shape (n_out, n_in)
-        Residue matrix (rank ``rank``).
-    rank : int
-        Number of modes at this pole (1 for an isolated physical mode).
-    output_shape : ndarray, complex, shape (n_out, rank)
-        ``C = U sqrt(S)`` of the residue's SVD (Caltech eq. 10).
-    input_shape : ndarray, complex, shape (rank, n_in)
-        ``B = sqrt(S) V^*``.
-    """
-
-    f_hz: float
-    zeta: float
-    pole: complex
-    residue: np.ndarray
-    rank: int
-    output_shape: np.ndarray
-    input_shape: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,6 +73,41 @@ class MeasurementModel:
     raw_data: FrequencyData
     leakage_corrected: bool = False
     order_scan: tuple[tuple[int, float], ...] = ()
+
+    def statespace(self):
+        """The real modal ``control.StateSpace`` (the state-space protocol, :func:`rc.as_statespace`)."""
+        return self.sys
+
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        return tuple(self.fit.inputs)
+
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        return tuple(self.fit.outputs)
+
+    def summary(self) -> str:
+        """A few sentences in plain words."""
+        lo, hi = self.band_hz
+        lines = [
+            f"MeasurementModel of {len(self.outputs)} outputs x {len(self.inputs)} inputs on "
+            f"{lo:.4g}-{hi:.4g} Hz: {self.n_modes} modes, {self.sys.nstates} states.",
+            f"Complex-log cost J = {self.cost.total:.4g} (MACE eq. 5), rms log-magnitude error "
+            f"{self.cost.rms_db_total:.3g} dB.",
+        ]
+        if self.leakage_corrected:
+            lines.append("The data were corrected for the H1 estimator's window leakage before fitting.")
+        if self.order_scan:
+            lines.append(
+                "Orders tried (n_modes: J): " + ", ".join(f"{n}: {j:.3g}" for n, j in self.order_scan) + "."
+            )
+        return "\n".join(lines)
+
+    def __reduce__(self):
+        """Pickle the state space as matrices and names (python-control's StateSpace holds a lambda)."""
+        state = {f.name: getattr(self, f.name) for f in fields(self)}
+        state["sys"] = statespace_state(self.sys)
+        return (_rebuild_measurement_model, (state,))
 
     @property
     def n_modes(self) -> int:
@@ -144,11 +150,8 @@ class MeasurementModel:
         )
 
     def _repr_html_(self) -> str:
-        head = html.escape(
-            f"MeasurementModel: {self.n_modes} modes, {self.sys.nstates} states, "
-            f"{len(self.fit.outputs)} outputs x {len(self.fit.inputs)} inputs"
-        )
-        return f"<p><b>{head}</b></p>" + self.table()._repr_html_() + self.cost.table()._repr_html_()
+        summary = "".join(f"<p>{html.escape(line)}</p>" for line in self.summary().splitlines())
+        return summary + self.table()._repr_html_() + self.cost.table()._repr_html_()
 
     def __repr__(self) -> str:
         return (
@@ -265,7 +268,8 @@ def _modes(fit: RationalFit) -> tuple[Mode, ...]:
         if p.imag == 0 or k == 0:
             continue
         c, b = residue_factors(r, int(k))
-        out.append(Mode(float(f), float(z), complex(p), r, int(k), c, b))
+        mode = Mode(float(f), float(z), r, complex(p), int(k), output_shape=c, input_shape=b)
+        out.append(mode)
     return tuple(out)
 
 
@@ -276,7 +280,7 @@ def fit_measurement_model(
     band: tuple[float, float] | None = None,
     method: str = "vf",
     groups: Any = None,
-    weights: Any = None,
+    point_weights: Any = "auto",
     correct_leakage: bool | str = False,
     rank_tol: float = 0.1,
     max_modes: int = 24,
@@ -284,6 +288,8 @@ def fit_measurement_model(
     target_db: float | None = None,
     max_iter: int | None = None,
     refine: bool = True,
+    *,
+    weights: Any = UNSET,
 ) -> MeasurementModel:
     """Identify a measurement model of frequency-response data in one call.
 
@@ -304,8 +310,10 @@ def fit_measurement_model(
     groups : optional
         Use the Caltech route: one SIMO fit of ``n_modes`` modes per input, combined, then
         grouped by :func:`group_modes` with this ``groups`` argument (e.g. ``(2, 1, 2, 1)``).
-    weights : array_like, optional
-        Per-frequency weights (default: coherence-based).
+    point_weights : "auto", None, "coherence" or array_like
+        Data-point weights of the fits on the squared log error
+        (:func:`robustctl.checks.point_weights`; default coherence weights when the data carry
+        coherence). ``weights=`` is the deprecated name. The reported ``cost`` is unweighted.
     correct_leakage : False, True or "auto"
         Undo the H1 estimator's window leakage (see :mod:`robustctl.identify.leakage`). It
         assumes white (flat-spectrum) ZOH excitation, as in the Caltech random-noise tests, and
@@ -333,25 +341,26 @@ def fit_measurement_model(
     MeasurementModel
     """
     max_modes, parsimony = _check_selection(max_modes, parsimony)
+    point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     fd = as_frequency_data(data)
-    band_data = fd if band is None else fd.band(*band)
+    band_fd = band_data(fd, band)
     st = _settings(fd, correct_leakage)
-    kw = dict(method=method, weights=weights, max_iter=max_iter)
+    kw = dict(method=method, point_weights=point_weights, max_iter=max_iter)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifyWarning)
         if n_modes is None:
             (fit, used, cost), scan = _select_order(
-                band_data, groups, st, kw, rank_tol, max_modes, parsimony, target_db, refine
+                band_fd, groups, st, kw, rank_tol, max_modes, parsimony, target_db, refine
             )
         else:
-            fit, used = _fit_corrected(band_data, 2 * _check_modes(n_modes), groups, st, kw, rank_tol, refine)
+            fit, used = _fit_corrected(band_fd, 2 * _check_modes(n_modes), groups, st, kw, rank_tol, refine)
             cost, scan = _score(fit, used), ()
     if target_db is not None and cost.rms_db_total > target_db:
         raise FitError(
             f"the measurement model reaches {cost.rms_db_total:.3g} dB rms log-magnitude error, above the "
             f"target {target_db:g} dB; raise n_modes (or leave it None), narrow the band or relax target_db."
         )
-    return MeasurementModel(fit.statespace(), _modes(fit), cost, fit, used, band_data, st is not None, scan)
+    return MeasurementModel(fit.statespace(), _modes(fit), cost, fit, used, band_fd, st is not None, scan)
 
 
 def _check_selection(max_modes: Any, parsimony: Any) -> tuple[int, float]:
@@ -377,3 +386,8 @@ def _check_modes(n_modes: Any) -> int:
     if isinstance(n_modes, (bool, np.bool_)) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
         raise FitError(f"n_modes must be a positive integer (or None for automatic); got {n_modes!r}.")
     return int(n_modes)
+
+
+def _rebuild_measurement_model(state: dict) -> MeasurementModel:
+    state = dict(state, sys=rebuild_statespace(state["sys"]))
+    return MeasurementModel(**state)

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import UNSET, renamed_keyword
 from ..errors import FitError
 from ..frd import FrequencyData
 from ..lti import pole_frequency_damping
@@ -178,17 +179,16 @@ def _check_iter(max_iter: Any) -> int:
 
 def _fit_simo_each(data: Any, order: int, band: Any, weights: Any, **kw: Any) -> RationalFit:
     """One SIMO fit per input column (own denominator each), joined by :func:`combine_simo`."""
-    from ._problem import as_frequency_data
+    from ..checks import as_frequency_data, point_weights
     from .grouping import combine_simo
 
     fd = as_frequency_data(data)
-    if weights is not None:
-        w = np.asarray(weights, dtype=float)
-        weights = np.broadcast_to(w[:, None, None] if w.ndim == 1 else w, fd.shape)
+    if weights is not None and not isinstance(weights, str):
+        weights = point_weights(weights, fd)
     fits = []
     for j, name in enumerate(fd.inputs):
-        wj = None if weights is None else weights[:, :, j : j + 1]
-        fits.append(fit_rational(fd.select(inputs=[name]), order, band, weights=wj, **kw))
+        wj = weights[:, :, j : j + 1] if isinstance(weights, np.ndarray) else weights
+        fits.append(fit_rational(fd.select(inputs=[name]), order, band, point_weights=wj, **kw))
     return combine_simo(fits)
 
 
@@ -198,13 +198,15 @@ def fit_rational(
     order: int,
     band: tuple[float, float] | None = None,
     method: str = "vf",
-    weights: Any = None,
+    point_weights: Any = "auto",
     common_denominator: bool = True,
     stable: bool = True,
     max_iter: int | None = None,
     tol: float = 1e-6,
     feedthrough: bool = True,
     rank_tol: float = 1e-8,
+    *,
+    weights: Any = UNSET,
 ) -> RationalFit:
     """Fit a rational model with one common denominator to SIMO/MIMO frequency-response data.
 
@@ -222,11 +224,13 @@ def fit_rational(
         channel. ``"chebyshev"``: Caltech eq. 4 with Chebyshev bases and the SK re-weighting of
         steps 1-6; it agrees with VF on narrow bands (0.5-5.5 Hz) but SK stalls in poorer
         fixed points on wide bands with spare poles (Caltech truss 0.5-30 Hz: 1.0 dB vs 0.44 dB).
-    weights : array_like, optional
-        Weights on the squared residuals, shape (n_freq,) or (n_freq, n_out, n_in). Default:
-        ``c/(1-c)`` (coherence capped at 0.99) when the data carries coherence, else 1. Each
-        row is further normalised by ``|g|`` (and by ``|d|`` in the SK loop) so the fit has
-        constant relative accuracy in log magnitude and phase.
+    point_weights : "auto", None, "coherence" or array_like
+        Data-point weights on the squared residuals (:func:`robustctl.checks.point_weights`):
+        ``"auto"`` (default) the coherence weights ``g2/(1-g2)`` (capped at 0.999, mean 1)
+        when the data carry coherence, else 1; an array of shape (n_freq,) or (n_freq, n_out,
+        n_in). Each row is further normalised by ``|g|`` (and by ``|d|`` in the SK loop) so
+        the fit has constant relative accuracy in log magnitude and phase. ``weights=`` is the
+        deprecated name.
     common_denominator : bool
         ``True``: one denominator for all channels. ``False``: one per input column (SIMO
         fits, the Caltech procedure), joined by :func:`combine_simo`.
@@ -253,6 +257,7 @@ def fit_rational(
     DataError
         Malformed data, NaN, all-zero channels.
     """
+    weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     method = _check_method(method)
     max_iter = _check_iter(DEFAULT_MAX_ITER[method] if max_iter is None else max_iter)
     kw = dict(

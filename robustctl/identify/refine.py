@@ -14,8 +14,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..checks import coherence_weights
 from ..threads import limit_blas
-from ._problem import coherence_weights
 from .poles import evaluate
 from .rational import RationalFit
 from .realization import residue_factors

@@ -17,7 +17,10 @@ does not solve the eigenproblem again.
 
 from __future__ import annotations
 
+import copy
+import functools
 import threading
+import weakref
 from collections import OrderedDict
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -112,6 +115,42 @@ class _RecordingTheta(Mapping):
 
     def __len__(self) -> int:
         return len(self._values)
+
+
+#: Structures handed to a build (id -> weak reference): effects change a structure in place,
+#: so a structure callable that returns one shared object would accumulate them build by build.
+_HANDED_OUT: dict[int, weakref.ref] = {}
+_HANDED_OUT_LOCK = threading.Lock()
+
+
+def _fresh(struct: Any, name: str) -> Any:
+    """``struct`` if no earlier build has seen it; refuses a structure returned twice.
+
+    A structure callable must return a new object per call (build it inside the callable, or
+    return ``template.copy()``): effect stages such as an added mass change the structure in
+    place, so a shared object would carry the mass of the first build into the second.
+    """
+    try:
+        ref = weakref.ref(struct, functools.partial(_forget, id(struct)))
+    except TypeError:  # not weak-referenceable: copy it every time instead
+        return copy.deepcopy(struct)
+    with _HANDED_OUT_LOCK:
+        seen = _HANDED_OUT.get(id(struct))
+        if seen is not None and seen() is struct:
+            raise ModelError(
+                f"the structure callable of model {name!r} returned the same {type(struct).__name__} "
+                "object as an earlier build; effects change the structure in place, so an added mass "
+                "would count twice. Return a fresh structure on every call (build it inside the "
+                "callable, or return template.copy())."
+            )
+        _HANDED_OUT[id(struct)] = ref
+    return struct
+
+
+def _forget(key: int, ref: weakref.ref) -> None:
+    with _HANDED_OUT_LOCK:
+        if _HANDED_OUT.get(key) is ref:
+            del _HANDED_OUT[key]
 
 
 def _model_from_bytes(payload: bytes) -> PhysicalModel:
@@ -268,6 +307,8 @@ class PhysicalModel:
 
     def _structure(self, theta: Mapping[str, float]) -> Structure:
         struct = self.structure(theta)
+        if self.structure_stages:  # effects change the structure in place
+            struct = _fresh(struct, self.name)
         if self.excluded_tags:
             struct = struct.without(self.excluded_tags)
         for stage in self.structure_stages:

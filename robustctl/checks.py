@@ -1,0 +1,393 @@
+"""Argument checks shared by every public entry point: one rule, one error class, one wording.
+
+Like python-control's ``_process_indices``/``_process_labels``, each check is written once
+here and imported by ``frd``, ``estimate``, ``lti``, ``correlate`` and ``identify``:
+
+* :func:`check_band`, :func:`band_mask`, :func:`band_data` -- a frequency band
+  ``(f_lo_hz, f_hi_hz)``: a pair of finite numbers in Hz with ``f_lo < f_hi`` that holds at
+  least one data point. Always a :class:`~robustctl.errors.DataError`.
+* :func:`point_weights` -- data-point weights ``W`` on the *squared* complex-log error
+  (MACE eq. 5 weighted: ``J = sum W |log(G_data / G_model)|^2``). ``None`` = uniform,
+  ``"auto"`` = coherence weights when the data carry coherence (else uniform),
+  ``"coherence"`` = coherence weights (refused without coherence), or an array. The one
+  coherence formula is :func:`coherence_weights`. Always a ``DataError``. These are not the
+  robust half's uncertainty/performance weights, which are LTI systems; hence the name.
+* :func:`match_channels` -- model signal names against data signal names (see there for the
+  one policy). Always a ``DataError``.
+* :func:`as_frequency_data` -- FrequencyData, ``(f_hz, response)`` pairs and
+  ``control.FrequencyResponseData`` to FrequencyData. Always a ``DataError``.
+* generic validators (:func:`finite_number`, :func:`positive_number`, :func:`integer`,
+  :func:`flag`, :func:`probability`): the wording is fixed here; the error class follows the
+  stage that owns the argument (``DataError`` for data and signal settings, ``FitError`` for
+  fit and update settings, ``ModelError`` for model settings), given by the caller.
+"""
+
+from __future__ import annotations
+
+import numbers
+import warnings
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from .errors import DataError, RobustctlError
+
+__all__ = [
+    "COHERENCE_CAP",
+    "check_band",
+    "band_mask",
+    "band_data",
+    "coherence_weights",
+    "point_weights",
+    "match_channels",
+    "is_default_names",
+    "as_frequency_data",
+    "finite_number",
+    "positive_number",
+    "integer",
+    "flag",
+    "probability",
+    "renamed_keyword",
+    "UNSET",
+    "user_stacklevel",
+]
+
+#: Coherence above this counts as this in :func:`coherence_weights` (a floor on the error
+#: variance: no data point is trusted more than ``0.999 / 0.001 = 999`` times a coherence-0.5 one).
+COHERENCE_CAP = 0.999
+
+
+# ---------------------------------------------------------------------------- numbers
+def _is_real_number(value: Any) -> bool:
+    return isinstance(value, (numbers.Real, np.floating, np.integer)) and not isinstance(
+        value, (bool, np.bool_)
+    )
+
+
+def finite_number(value: Any, name: str, error: type[RobustctlError] = DataError) -> float:
+    """``value`` as a float; refuses non-numbers, booleans, NaN and inf."""
+    if not _is_real_number(value) or not np.isfinite(float(value)):
+        raise error(f"{name} must be a finite real number; got {value!r}.")
+    return float(value)
+
+
+def positive_number(
+    value: Any,
+    name: str,
+    error: type[RobustctlError] = DataError,
+    *,
+    allow_zero: bool = False,
+    unit: str = "",
+) -> float:
+    """``value`` as a float ``> 0`` (``>= 0`` with ``allow_zero``), finite."""
+    what = "non-negative" if allow_zero else "positive"
+    unit = f" ({unit})" if unit else ""
+    if not _is_real_number(value) or not np.isfinite(float(value)):
+        raise error(f"{name} must be {what} and finite{unit}; got {value!r}.")
+    v = float(value)
+    if v < 0 or (v == 0 and not allow_zero):
+        raise error(f"{name} must be {what} and finite{unit}; got {value!r}.")
+    return v
+
+
+def integer(
+    value: Any,
+    name: str,
+    error: type[RobustctlError] = DataError,
+    *,
+    lo: int | None = None,
+    hi: int | None = None,
+) -> int:
+    """``value`` as an int in ``[lo, hi]`` (either end open when None); refuses bools and floats."""
+    ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+    if ok and (lo is None or value >= lo) and (hi is None or value <= hi):
+        return int(value)
+    if lo is not None and hi is not None:
+        rng = f"in [{lo}, {hi}]"
+    elif lo is not None:
+        rng = f">= {lo}"
+    elif hi is not None:
+        rng = f"<= {hi}"
+    else:
+        rng = "(any)"
+    raise error(f"{name} must be an integer {rng}; got {value!r}.")
+
+
+def flag(value: Any, name: str, error: type[RobustctlError] = DataError) -> bool:
+    """A real boolean (``True``/``False``, numpy bools included); refuses strings and numbers
+    (``overwrite="False"`` would otherwise be truthy)."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    raise error(f"{name} must be True or False; got {value!r}.")
+
+
+def probability(value: Any, name: str, error: type[RobustctlError] = DataError) -> float:
+    """A finite number in [0, 1]."""
+    if not _is_real_number(value) or not 0.0 <= float(value) <= 1.0:
+        raise error(f"{name} must be a number in [0, 1]; got {value!r}.")
+    return float(value)
+
+
+class _Unset:
+    """The default of a deprecated keyword: tells "not given" apart from an explicit None."""
+
+    def __repr__(self) -> str:
+        return "<not given>"
+
+    def __reduce__(self):
+        return "UNSET"
+
+
+#: Default of deprecated keywords (``weights=``, ``update_params=``).
+UNSET: Any = _Unset()
+
+
+def renamed_keyword(new: Any, old: Any, new_name: str, old_name: str, default: Any = None) -> Any:
+    """Resolve a renamed keyword: ``old`` (deprecated, warns) or ``new``; refuses both at once.
+
+    ``old`` is :data:`UNSET` when not given.
+    """
+    if old is UNSET:
+        return new
+    if new is not default and not (isinstance(new, str) and isinstance(default, str) and new == default):
+        raise DataError(f"give {new_name}= only; {old_name}= is its deprecated old name.")
+    what = " (data-point weights on the squared log error)" if new_name == "point_weights" else ""
+    warnings.warn(
+        f"{old_name}= is deprecated; call it {new_name}={what}.",
+        DeprecationWarning,
+        stacklevel=user_stacklevel(),
+    )
+    return old
+
+
+def user_stacklevel() -> int:
+    """The ``stacklevel`` of ``warnings.warn`` that points at the first caller outside robustctl."""
+    import os
+    import sys
+
+    package = os.path.dirname(os.path.abspath(__file__))
+    frame, level = sys._getframe(1), 1
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(package):
+        frame, level = frame.f_back, level + 1
+    return level
+
+
+# ---------------------------------------------------------------------------- band
+def check_band(band: Any, name: str = "band") -> tuple[float, float] | None:
+    """The band ``(f_lo_hz, f_hi_hz)`` as two floats, or None for the whole data.
+
+    Raises
+    ------
+    DataError
+        Not a pair of real numbers, not finite, or ``f_lo >= f_hi``.
+    """
+    if band is None:
+        return None
+    try:
+        items = list(band)
+    except TypeError:
+        items = []
+    if isinstance(band, (str, bytes)) or len(items) != 2 or not all(_is_real_number(b) for b in items):
+        raise DataError(
+            f"{name} must be a pair (f_lo_hz, f_hi_hz) of finite frequencies in Hz; got {band!r}."
+        )
+    lo, hi = float(items[0]), float(items[1])
+    if not (np.isfinite(lo) and np.isfinite(hi)) or not lo < hi:
+        raise DataError(
+            f"{name} ({lo:g}, {hi:g}) Hz is empty or not finite; give finite f_lo_hz < f_hi_hz in Hz."
+        )
+    return lo, hi
+
+
+def band_mask(f_hz: np.ndarray, band: Any, name: str = "band") -> np.ndarray:
+    """Boolean mask of ``lo <= f <= hi`` over ``f_hz``; refuses a band holding no point."""
+    f = np.asarray(f_hz, dtype=float)
+    checked = check_band(band, name)
+    if checked is None:
+        return np.ones(f.size, dtype=bool)
+    lo, hi = checked
+    mask = (f >= lo) & (f <= hi)
+    if not np.any(mask):
+        raise DataError(
+            f"{name} ({lo:g}, {hi:g}) Hz holds 0 data points; the data span {f[0]:g}-{f[-1]:g} Hz. "
+            "Choose a band that overlaps the measured range."
+        )
+    return mask
+
+
+def band_data(data: Any, band: Any, name: str = "band"):
+    """``data`` (a FrequencyData) restricted to the band (itself when ``band`` is None)."""
+    mask = band_mask(data.f_hz, band, name)
+    if np.all(mask):
+        return data
+    return data.replace(
+        f_hz=data.f_hz[mask],
+        response=data.response[mask],
+        coherence=None if data.coherence is None else data.coherence[mask],
+    )
+
+
+# ---------------------------------------------------------------------------- point weights
+def coherence_weights(coherence: np.ndarray) -> np.ndarray:
+    """The one coherence weighting: ``W = g2 / (1 - g2)`` normalised to ``mean(W) = 1``.
+
+    The variance of ``log G_hat`` of an H1 (Welch) estimate is proportional to
+    ``(1 - g2) / g2`` (Bendat & Piersol, *Random Data*, eq. 9.73; Pintelon & Schoukens), so
+    ``W`` weights each squared log error by its inverse variance. ``g2`` is clipped at
+    :data:`COHERENCE_CAP`. The normalisation keeps the cost in units of an unweighted cost
+    per point.
+
+    Raises
+    ------
+    DataError
+        The coherence is zero everywhere.
+    """
+    g2 = np.clip(np.asarray(coherence, dtype=float), 0.0, COHERENCE_CAP)
+    w = g2 / (1.0 - g2)
+    mean = float(np.mean(w)) if w.size else 0.0
+    if not mean > 0:
+        raise DataError(
+            "the coherence is zero at every point in the band, so coherence weights are all zero; "
+            "pass point_weights=None (uniform)."
+        )
+    return w / mean
+
+
+def point_weights(
+    spec: Any, data: Any, mask: np.ndarray | None = None, name: str = "point_weights"
+) -> np.ndarray:
+    """Data-point weights ``W`` on the squared complex-log error, shape of the banded data.
+
+    Parameters
+    ----------
+    spec : None, "auto", "coherence" or array_like
+        ``None``: uniform (``W = 1``). ``"auto"``: :func:`coherence_weights` when ``data``
+        carries coherence, else uniform. ``"coherence"``: coherence weights, refused when the
+        data carry none. An array: ``W`` itself, broadcast to ``(n_freq, n_out, n_in)``; a
+        1-D array of length ``n_freq`` weights frequencies. With ``mask``, an array may be
+        given on the banded points or on the full grid of ``data``.
+    data : FrequencyData
+        The full data (``mask`` selects the band) or the banded data (``mask`` None).
+    mask : ndarray of bool, optional
+        Band mask over ``data.f_hz``.
+
+    Returns
+    -------
+    ndarray, shape (n_band, n_out, n_in)
+        Finite, non-negative, with at least one positive entry.
+    """
+    mask = np.ones(data.n_freq, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
+    shape = (int(mask.sum()),) + tuple(data.shape[1:])
+    if isinstance(spec, str):
+        if spec not in ("auto", "coherence"):
+            raise DataError(
+                f"{name} must be None, 'auto', 'coherence' or an array of weights on the squared log "
+                f"error; got {spec!r}."
+            )
+        if data.coherence is None:
+            if spec == "coherence":
+                raise DataError(
+                    f"{name}='coherence' but the data carry no coherence; estimate the FRF with "
+                    f"rc.estimate_frf (which returns coherence) or pass {name}=None."
+                )
+            return np.ones(shape)
+        return coherence_weights(data.coherence[mask])
+    if spec is None:
+        return np.ones(shape)
+    return _array_weights(spec, data.n_freq, mask, shape, name)
+
+
+def _array_weights(spec: Any, n_full: int, mask: np.ndarray, shape: tuple, name: str) -> np.ndarray:
+    try:
+        w = np.asarray(spec, dtype=float)
+    except (TypeError, ValueError):
+        w = np.full(1, np.nan)
+    if w.ndim >= 1 and w.shape[0] == n_full != shape[0]:
+        w = w[mask]
+    if w.ndim == 1 and w.size == shape[0]:
+        w = w[:, None, None]
+    try:
+        w = np.array(np.broadcast_to(w, shape), dtype=float)
+    except ValueError:
+        raise DataError(
+            f"{name} of shape {np.shape(spec)} do not fit the banded data of shape {shape} "
+            "(n_freq, n_out, n_in); give one weight per frequency (n_freq,) or per entry."
+        ) from None
+    if not np.all(np.isfinite(w)) or np.any(w < 0) or not np.any(w > 0):
+        raise DataError(
+            f"{name} must be finite and non-negative with at least one positive weight in the band; "
+            "remove NaN/inf or negative weights."
+        )
+    return w
+
+
+# ---------------------------------------------------------------------------- channel names
+def is_default_names(names: Sequence[str], prefix: str) -> bool:
+    """True for python-control's default names ``u[0], u[1], ...`` (prefix ``"u"``) or
+    ``y[0], y[1], ...`` (prefix ``"y"``): signals nobody named."""
+    names = tuple(names)
+    return names == tuple(f"{prefix}[{k}]" for k in range(len(names)))
+
+
+def match_channels(
+    model_names: Sequence[str],
+    data_names: Sequence[str],
+    what: str,
+    sides: tuple[str, str] = ("model", "data"),
+) -> list[int]:
+    """Index of each data channel among the model's channels: the one matching policy.
+
+    1. The counts must agree.
+    2. The same names (in any order) match by name: the model is reordered to the data's order.
+    3. Otherwise, when either side carries python-control's default names (``u[0], u[1], ...``
+       or ``y[0], y[1], ...``: a system nobody named), they match by position.
+    4. Anything else is refused. (FrequencyData's own defaults ``u1``/``y1`` are names: data
+       built without names must be named, or the model renamed, to match a named model.)
+
+    Parameters
+    ----------
+    model_names, data_names : sequence of str
+    what : {"inputs", "outputs"}
+    sides : (str, str)
+        What the two sides are called in the message (default ``("model", "data")``).
+
+    Raises
+    ------
+    DataError
+        Counts or names that do not match; the message says how to rename.
+    """
+    model_names, data_names = [str(n) for n in model_names], [str(n) for n in data_names]
+    a, b = sides
+    if len(model_names) != len(data_names):
+        raise DataError(
+            f"the {a} has {len(model_names)} {what} {model_names} but the {b} has "
+            f"{len(data_names)} {data_names}; select matching channels with data.select(...)."
+        )
+    if set(model_names) == set(data_names) and len(set(model_names)) == len(model_names):
+        return [model_names.index(n) for n in data_names]
+    prefix = "u" if what == "inputs" else "y"
+    if is_default_names(model_names, prefix) or is_default_names(data_names, prefix):
+        return list(range(len(data_names)))
+    raise DataError(
+        f"the {a}'s {what} {model_names} do not match the {b}'s {data_names}; rename the model's "
+        f"signals (rc.as_statespace(sys, {what}=[...])) or the data's (data.replace({what}=[...]))."
+    )
+
+
+# ---------------------------------------------------------------------------- FrequencyData
+def as_frequency_data(data: Any, name: str = "data"):
+    """``data`` as a FrequencyData: a FrequencyData, a ``(f_hz, response)`` pair or a
+    ``control.FrequencyResponseData`` (omega in rad/s)."""
+    from .frd import FrequencyData
+
+    if isinstance(data, FrequencyData):
+        return data
+    if isinstance(data, tuple) and len(data) == 2:
+        return FrequencyData(*data)
+    if hasattr(data, "omega") and (hasattr(data, "frdata") or hasattr(data, "fresp")):
+        return FrequencyData.from_control(data)
+    raise DataError(
+        f"{name} must be a FrequencyData, a control.FrequencyResponseData or a pair (f_hz, response); "
+        f"got {type(data).__name__}."
+    )

@@ -1,0 +1,119 @@
+"""FrequencyData in universal files, dataset 58 (``.uff``/``.unv``, via pyuff)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DataError
+from ..frd import FrequencyData
+from ._common import build
+
+__all__ = ["read_uff", "write_uff"]
+
+_UFF_ID = "robustctl FrequencyData"
+
+
+def _uff_name_ok(name: str) -> bool:
+    return 0 < len(name) <= 80 and name == name.strip() and name.isprintable()
+
+
+def _uff_record(f: np.ndarray, values: np.ndarray, func_type: int, o: int, i: int, names: tuple[str, str]):
+    import pyuff
+
+    return pyuff.prepare_58(
+        binary=1, id1=_UFF_ID, id2="coherence" if func_type == 6 else "frf", id3="NONE",
+        id4=names[0], id5=names[1], func_type=func_type, rsp_node=o + 1, rsp_dir=0, ref_node=i + 1,
+        ref_dir=0, data=values, x=f, abscissa_spacing=0, abscissa_spec_data_type=18,
+        abscissa_axis_units_lab="Hz", ordinate_spec_data_type=0, orddenom_spec_data_type=0,
+        z_axis_spec_data_type=0,
+    )
+
+
+def write_uff(data: FrequencyData, path: Path) -> None:
+    import pyuff
+
+    if data.n_freq < 2:
+        raise DataError("UFF dataset 58 needs at least 2 frequencies; save single points as .npz or .csv.")
+    bad = [n for n in data.outputs + data.inputs if not _uff_name_ok(n)]
+    if bad:
+        raise DataError(
+            f"signal names {bad} cannot be stored in UFF ID lines (printable characters, 1-80 of them, no "
+            "leading/trailing spaces); rename the signals or save as .npz."
+        )
+    records = []
+    for o, out in enumerate(data.outputs):
+        for i, inp in enumerate(data.inputs):
+            records.append(_uff_record(data.f_hz, data.response[:, o, i], 4, o, i, (out, inp)))
+            if data.coherence is not None:
+                coh = data.coherence[:, o, i].astype(float)
+                records.append(_uff_record(data.f_hz, coh, 6, o, i, (out, inp)))
+    path.unlink()  # pyuff opens the file itself; "add" mode (its binary "overwrite" truncates the header)
+    try:
+        pyuff.UFF(str(path)).write_sets(records, mode="add")
+    except Exception as exc:  # pyuff raises bare Exceptions
+        raise DataError(f"pyuff could not write the universal file ({exc}).") from None
+
+
+def _uff_names(rec: dict) -> tuple[str, str]:
+    if str(rec.get("id1", "")).strip() == _UFF_ID:
+        return str(rec["id4"]), str(rec["id5"])
+    out = f"{rec.get('rsp_node', 0)}:{rec.get('rsp_dir', 0)}"
+    return out, f"{rec.get('ref_node', 0)}:{rec.get('ref_dir', 0)}"
+
+
+def _uff_sets(path: Path) -> list[dict]:
+    import pyuff
+
+    try:
+        uff = pyuff.UFF(str(path))
+        idx = [k for k, t in enumerate(uff.get_set_types()) if int(t) == 58]
+        sets = uff.read_sets(idx) if idx else []
+    except Exception as exc:  # pyuff raises bare Exceptions
+        raise DataError(f"not a readable universal file ({exc}).") from None
+    sets = [sets] if isinstance(sets, dict) else list(sets)
+    return [s for s in sets if int(s.get("func_type", -1)) in (4, 6)]
+
+
+def _uff_collect(sets: list[dict]):
+    f_ref = None
+    outs: dict[str, int] = {}
+    ins: dict[str, int] = {}
+    found: dict[tuple[int, int, int], np.ndarray] = {}
+    for rec in sets:
+        out, inp = _uff_names(rec)
+        x = np.asarray(rec["x"], dtype=float)
+        if "rad" in str(rec.get("abscissa_axis_units_lab", "")).lower():
+            x = x / (2.0 * np.pi)
+        if f_ref is None:
+            f_ref = x
+        elif x.shape != f_ref.shape or not np.array_equal(x, f_ref):
+            raise DataError(
+                f"record {out!r}/{inp!r} has a different frequency axis ({x.size} points) from the first "
+                f"({f_ref.size} points); all records must share one grid."
+            )
+        key = (int(rec["func_type"]), outs.setdefault(out, len(outs)), ins.setdefault(inp, len(ins)))
+        if key in found:
+            raise DataError(f"two records for output {out!r}, input {inp!r} (function type {key[0]}).")
+        found[key] = np.asarray(rec["data"])
+    return f_ref, list(outs), list(ins), found
+
+
+def read_uff(path: Path) -> FrequencyData:
+    sets = _uff_sets(path)
+    if not any(int(s["func_type"]) == 4 for s in sets):
+        raise DataError("the universal file has no dataset 58 frequency-response (function type 4) records.")
+    f, outs, ins, found = _uff_collect(sets)
+    shape = (f.size, len(outs), len(ins))
+    resp = np.empty(shape, complex)
+    coh = np.empty(shape) if any(k[0] == 6 for k in found) else None
+    for o, i in np.ndindex(shape[1], shape[2]):
+        if (4, o, i) not in found:
+            raise DataError(f"no FRF record for output {outs[o]!r}, input {ins[i]!r}; every pair is needed.")
+        resp[:, o, i] = found[(4, o, i)]
+        if coh is not None:
+            if (6, o, i) not in found:
+                raise DataError(f"coherence is given for some pairs but not for {outs[o]!r}/{ins[i]!r}.")
+            coh[:, o, i] = np.real(found[(6, o, i)])
+    return build("UFF", f_hz=f, response=resp, outputs=outs, inputs=ins, coherence=coh)
