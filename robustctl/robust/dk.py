@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import SynthesisError
+from ..parallel import check_executor, parallel_map
 from ..table import Table
 from .blocks import Block, BlockStructure, as_block_structure
 
@@ -274,7 +275,8 @@ def _fit_d_scales(
     joint = d.copy()
     for i in range(nb):
         jobs = [(f, d[:, i], o) for o in orders[i]]
-        fits = executor.map(_fit_one, jobs) if executor is not None else (_fit_one(j) for j in jobs)
+        fits = (parallel_map(_fit_one, jobs, executor, progress=False) if executor is not None
+                else (_fit_one(j) for j in jobs))
         best = None
         for o, fit in zip(orders[i], fits):
             if not _dynamics_in_band(fit, f):
@@ -586,16 +588,17 @@ def dksyn(
     >>> dk = rc.dksyn((P, 2, 2, [[1, 1], [1, 1], [2, 2]]))   # doctest: +SKIP
     >>> dk.mu_peak, dk.table()                                # doctest: +SKIP
     """
-    from tqdm.auto import tqdm
+    from tqdm import tqdm
 
     from ..interconnect import PartitionedPlant
     from .hinfsyn import hinfsyn
 
     grid = _check_args(max_iter, time_budget_s, f_hz)
+    check_executor(executor)
     plant = _as_plant(gp)
     blocks = _complexified(plant.blocks)
     base = default_grid(plant.P) if grid is None else grid
-    show = sys.stderr.isatty() if progress is None else bool(progress)
+    show = sys.stderr.isatty() and (progress is None or bool(progress))
     t_start = time.perf_counter()
     history: list[DKIteration] = []
     best: dict[str, Any] | None = None

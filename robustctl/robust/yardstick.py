@@ -30,7 +30,7 @@ on the *measured* frequency responses:
 
 from __future__ import annotations
 
-import sys
+import functools
 from collections.abc import Callable, Mapping
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
@@ -40,6 +40,7 @@ import numpy as np
 
 from ..errors import DataError, SynthesisError
 from ..frd import FrequencyData
+from ..parallel import check_executor, parallel_map
 from ..table import Table
 from .dk import DKResult, _mu_of, closed_loop, default_grid, dksyn
 
@@ -302,6 +303,11 @@ def _interpolated(data: FrequencyData, systems: dict, reference: str, f: np.ndar
     return fine, out
 
 
+def _design(gp: Any, options: dict) -> DKResult:
+    """One D-K design (module level so a process executor can pickle it)."""
+    return dksyn(gp, progress=False, **options)
+
+
 def _system_of(model: Any) -> Any:
     """The model as a system: a MeasurementModel (``.sys``, no ``.statespace()``) gives its ``sys``."""
     if not hasattr(model, "statespace") and hasattr(model, "sys"):
@@ -491,7 +497,7 @@ def yardstick(
     executor : concurrent.futures.Executor, optional
         Runs the designs in parallel.
     progress : bool, optional
-        tqdm bar over the designs (default: when stderr is a terminal).
+        tqdm bar over the designs (only when stderr is a terminal; False switches it off).
     **dk_options
         Passed to :func:`~robustctl.robust.dk.dksyn` (``max_iter``, ``order_d`` ...).
 
@@ -499,23 +505,17 @@ def yardstick(
     -------
     Yardstick
     """
-    from tqdm.auto import tqdm
-
     from ..lti import as_statespace, freqresp_array
 
     data, labels, reference = _check_inputs(data, models, recipe, reference)
+    check_executor(executor)
     given = {lab: _system_of(models[lab]) for lab in labels}
     systems = {lab: as_statespace(given[lab]) for lab in labels}
     plants = {lab: recipe(given[lab]) for lab in labels}
     signs = {lab: _measurement_sign(plants[lab], systems[lab]) for lab in labels}
-    show = sys.stderr.isatty() if progress is None else bool(progress)
-    if executor is None:
-        designs = {lab: dksyn(plants[lab], progress=False, **dk_options)
-                   for lab in tqdm(labels, desc="yardstick designs", disable=not show, leave=False)}
-    else:
-        futures = {lab: executor.submit(dksyn, plants[lab], progress=False, **dk_options) for lab in labels}
-        designs = {lab: futures[lab].result()
-                   for lab in tqdm(labels, desc="yardstick designs", disable=not show, leave=False)}
+    results = parallel_map(functools.partial(_design, options=dk_options), [plants[lab] for lab in labels],
+                           executor, desc="yardstick designs", progress=progress is None or bool(progress))
+    designs = dict(zip(labels, results))
     f_all = np.asarray(data.f_hz, dtype=float)
     lo, hi = (f_all[0], f_all[-1]) if band is None else (float(band[0]), float(band[1]))
     in_band = (f_all >= lo) & (f_all <= hi)
