@@ -7,28 +7,13 @@ import numpy as np
 import pytest
 
 from robustctl.errors import SynthesisError
+from robustctl.examples import DISTILLATION_BLOCKS, distillation_plant
 from robustctl.lti import freqresp_array
 from robustctl.robust.blocks import as_block_structure
 from robustctl.robust.dk import _as_plant, _scale_plant, closed_loop, dksyn
 from robustctl.robust.yardstick import nyquist_stability
 
-BOOK_BLOCKS = [[1, 1], [1, 1], [2, 2]]
-
-
-def distillation_plant(eps: float = 1e-6) -> control.StateSpace:
-    """Skogestad & Postlethwaite sec. 8.12.4: inputs [di; w; u], outputs [wI u; wP e; -e], e = G(u+di)+w.
-
-    G = 1/(75s+1) [[87.8, -86.4], [108.2, -109.6]], wI = (s+0.2)/(0.5s+1) = 2 - 3.6/(s+2),
-    wP = 0.5(10s+1)/(10s+1e-5) = 0.5 + 0.5(0.1-1e-6)/(s+1e-6).
-    """
-    G0 = np.array([[87.8, -86.4], [108.2, -109.6]])
-    I2, Z2 = np.eye(2), np.zeros((2, 2))
-    A = np.block([[-I2 / 75, Z2, Z2], [Z2, -2 * I2, Z2], [G0, Z2, -eps * I2]])
-    B = np.block([[I2 / 75, Z2, I2 / 75], [Z2, Z2, I2], [Z2, I2, Z2]])
-    C = np.block([[Z2, -3.6 * I2, Z2], [0.5 * G0, Z2, 0.5 * (0.1 - eps) * I2], [-G0, Z2, Z2]])
-    D = np.block([[Z2, Z2, 2 * I2], [Z2, 0.5 * I2, Z2], [Z2, -I2, Z2]])
-    return control.ss(A, B, C, D, inputs=["di1", "di2", "w1", "w2", "u1", "u2"],
-                      outputs=["zi1", "zi2", "zp1", "zp2", "y1", "y2"])
+BOOK_BLOCKS = DISTILLATION_BLOCKS
 
 
 def test_distillation_plant_matches_its_transfer_functions():

@@ -9,32 +9,13 @@ import pytest
 from robustctl.errors import SynthesisError
 from robustctl.lti import as_statespace, freqresp_array
 
-W_BAND = (2 * np.pi * 0.3, 2 * np.pi * 8.0)   # performance band-pass corners (rad/s)
-
-
-def six_modes(model) -> control.StateSpace:
-    """The six global modes (12 states) by balanced truncation, as the seed did for its MIMO model."""
-    from robustctl.identify.balanced import balanced_truncation
-
-    G = as_statespace(model)
-    if G.nstates <= 12:
-        return G
-    bt = balanced_truncation(G, 12)
-    return control.ss(bt.sys.A, bt.sys.B, bt.sys.C, bt.sys.D, inputs=list(G.input_labels),
-                      outputs=list(G.output_labels))
-
 
 def caltech_recipe(nominal, level: float = 1.0):
-    """The seed's uncertainty (eq. 14 additive, 4 % input/output multiplicative) around six modes,
-    input disturbances, and a band-pass performance weight on the sensors (0.3-8 Hz, gain
-    ``level``: 1 asks for more than robust performance allows, which separates the models)."""
-    from robustctl.robust.plant import generalized_plant
-    from robustctl.robust.weights import caltech_additive_weight
+    """The yardstick's recipe: level 1 asks for more than robust performance allows, which
+    separates the models."""
+    from robustctl.examples import caltech_design_plant
 
-    w1, w2 = W_BAND
-    wp = control.ss(control.tf([level * w2, 0.0], np.polymul([1.0, w1], [1.0, w2])))
-    return generalized_plant(six_modes(nominal), additive=caltech_additive_weight(), input_mult=0.04,
-                             output_mult=0.04, performance=wp, disturbances=1.0)
+    return caltech_design_plant(nominal, level=level)
 
 
 @pytest.fixture(scope="module")
