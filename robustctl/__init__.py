@@ -45,6 +45,8 @@ from .physical import (
     modal_statespace,
     structural_model,
 )
+from .robust.dk import DKResult, dksyn
+from .robust.yardstick import Yardstick, yardstick
 from .threads import blas_threads, set_blas_threads
 
 __version__ = "0.1.0"
@@ -102,4 +104,9 @@ __all__ = [
     "export_controller",
     "load_controller",
     "ExportReport",
+    # D-K iteration and the measurement-model yardstick
+    "dksyn",
+    "DKResult",
+    "yardstick",
+    "Yardstick",
 ]
