@@ -11,9 +11,9 @@ Cases:
   the sensors, level 0.3), 2 iterations: peak mu (robust performance) and mu over the
   uncertainty blocks (robust stability).
 
-Side by side: dkpy (the closest Python prior art: python-control + slycot + cvxpy, LMI
+Side by side: dkpy 0.1.9 (the closest Python prior art: python-control + slycot + cvxpy, LMI
 bisection mu) on the distillation problem with its README settings (4th-order fits, 61
-frequencies, Clarabel instead of MOSEK), run in a separate virtual environment
+frequencies, 3 iterations, Clarabel instead of MOSEK), run in a separate virtual environment
 (``DKPY_PYTHON``, default ``/tmp/dkpy_venv/bin/python``) in a subprocess with a deadline;
 reported as not run when it is not installed. Targets: < 10 s each, distillation peak mu
 <= 1.00 (the issue's target), Caltech robust stability certified.
@@ -59,13 +59,14 @@ P = control.ss(A, B, C, D)
 t = time.perf_counter()
 dk_iter = dkpy.DkIterFixedOrder(
     controller_synthesis=dkpy.HinfSynSlicot(),
-    structured_singular_value=dkpy.SsvLmiBisection(solver_params=dict(solver="CLARABEL")),
-    transfer_function_fit=dkpy.TfFitSlicot(),
+    structured_singular_value=dkpy.SsvLmiBisection(solver_params=dict(solver="CLARABEL"), n_jobs=1),
+    d_scale_fit=dkpy.DScaleFitSlicot(),
     n_iterations=3,
     fit_order=4,
 )
 omega = np.logspace(-3, 3, 61)
-K, N, mu, info = dk_iter.synthesize(P, 2, 2, omega, np.array([[1, 1], [1, 1], [2, 2]]))
+out = dk_iter.synthesize(P, 2, 2, omega, np.array([[1, 1], [1, 1], [2, 2]]))
+K, mu = out[0], out[2]
 print(json.dumps({"mu": float(np.max(mu)), "time_s": time.perf_counter() - t, "K_order": int(K.nstates)}))
 '''
 

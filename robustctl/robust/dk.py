@@ -532,7 +532,7 @@ def dksyn(
     progress: bool | None = None,
     *,
     rtol: float = 1e-3,
-    patience: int = 1,
+    patience: int = 2,
     hinf_options: dict[str, Any] | None = None,
     callback: Callable[[DKIteration], None] | None = None,
 ) -> DKResult:
