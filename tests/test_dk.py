@@ -203,3 +203,19 @@ def test_nyquist_cannot_tell():
 def test_block_structure_of_the_book_example():
     bs = as_block_structure(BOOK_BLOCKS)
     assert (bs.n_in, bs.n_out) == (4, 4)
+
+
+@pytest.mark.slow
+def test_executor_gives_the_same_iteration_and_results_render():
+    from concurrent.futures import ThreadPoolExecutor
+
+    P = distillation_plant()
+    serial = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=2, progress=False, rtol=-1.0)
+    with ThreadPoolExecutor(2) as ex:
+        threaded = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=2, progress=False, rtol=-1.0, executor=ex)
+    assert [h.d_orders for h in threaded.history] == [h.d_orders for h in serial.history]
+    assert threaded.mu_peak == pytest.approx(serial.mu_peak, rel=1e-6)
+    assert serial.history[1].mu_peak < serial.history[0].mu_peak
+    assert serial.plot() is not None and "<table>" in serial._repr_html_()
+    with pytest.raises(Exception, match="executor"):
+        dksyn((P, 2, 2, BOOK_BLOCKS), executor="threads")
