@@ -52,6 +52,7 @@ from .robust import (
     Block,
     BlockStructure,
     GeneralizedPlant,
+    HinfResult,
     MuResult,
     PlantWeight,
     UncertaintyCover,
@@ -61,6 +62,8 @@ from .robust import (
     cover_multiplicative,
     fit_magnitude,
     generalized_plant,
+    hinfnorm,
+    hinfsyn,
     makeweight,
     mixed_sensitivity,
     mu,
@@ -170,6 +173,10 @@ __all__ = [
     "cover_additive",
     "cover_multiplicative",
     "UncertaintyCover",
+    # H-infinity norm and synthesis
+    "hinfnorm",
+    "hinfsyn",
+    "HinfResult",
     # D-K iteration and the measurement-model yardstick
     "dksyn",
     "DKResult",

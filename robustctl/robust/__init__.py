@@ -7,6 +7,10 @@ from .cover import UncertaintyCover, cover_additive, cover_multiplicative, error
 
 # D-K iteration and the measurement-model yardstick (dk.py, yardstick.py)
 from .dk import DKIteration, DKResult, Reduction, dksyn
+
+# H-infinity norm and synthesis (hinf helper)
+from .hinfnorm import hinfnorm
+from .hinfsyn import HinfResult, hinfsyn
 from .magfit import MagnitudeFit, fit_magnitude, fit_magnitude_details, zpk_statespace
 
 # --- mu analysis (mu helper) ---
@@ -44,6 +48,10 @@ __all__ = [
     "UncertaintyCover",
     "caltech_additive_weight",
     "CALTECH_MULTIPLICATIVE",
+    # H-infinity norm and synthesis
+    "hinfnorm",
+    "hinfsyn",
+    "HinfResult",
     # D-K iteration and yardstick
     "dksyn",
     "DKResult",
