@@ -168,28 +168,13 @@ def _balanced(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, 
 
 
 def closed_loop(P: Any, K: Any, nmeas: int, ncon: int):
-    """The lower LFT ``Fl(P, K)``: ``w -> z`` with ``u = K y`` (Zhou, Doyle & Glover eq. 10.1).
+    """The lower LFT ``Fl(P, K)`` (``w -> z``, ``u = K y``; Zhou, Doyle & Glover eq. 10.1).
 
-    Handles a nonzero ``D22`` through ``(I - D_K D22)^-1``.
+    :func:`robustctl.interconnect.lft` with the plant's partition given explicitly.
     """
-    import control
+    from ..interconnect import lft
 
-    A, B, C, D = (np.asarray(m, dtype=float) for m in (P.A, P.B, P.C, P.D))
-    nw, nz = B.shape[1] - ncon, C.shape[0] - nmeas
-    B1, B2, C1, C2 = B[:, :nw], B[:, nw:], C[:nz], C[nz:]
-    D11, D12, D21, D22 = D[:nz, :nw], D[:nz, nw:], D[nz:, :nw], D[nz:, nw:]
-    Ak, Bk, Ck, Dk = (np.asarray(m, dtype=float).reshape(s) for m, s in (
-        (K.A, (K.nstates, K.nstates)), (K.B, (K.nstates, nmeas)),
-        (K.C, (ncon, K.nstates)), (K.D, (ncon, nmeas))))
-    R = np.linalg.solve(np.eye(ncon) - Dk @ D22, np.eye(ncon))  # u = R (Dk C2 x + Ck xk + Dk D21 w)
-    Ux, Uk, Uw = R @ Dk @ C2, R @ Ck, R @ Dk @ D21
-    Yx, Yk, Yw = C2 + D22 @ Ux, D22 @ Uk, D21 + D22 @ Uw
-    Acl = np.block([[A + B2 @ Ux, B2 @ Uk], [Bk @ Yx, Ak + Bk @ Yk]])
-    Bcl = np.vstack([B1 + B2 @ Uw, Bk @ Yw])
-    Ccl = np.hstack([C1 + D12 @ Ux, D12 @ Uk])
-    Dcl = D11 + D12 @ Uw
-    return control.ss(Acl, Bcl, Ccl, Dcl, inputs=list(P.input_labels[:nw]),
-                      outputs=list(P.output_labels[:nz]))
+    return lft(P, K, nmeas, ncon)
 
 
 def _is_stable(sys1: Any) -> bool:
