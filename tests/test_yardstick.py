@@ -28,9 +28,8 @@ def caltech():
 
 @pytest.mark.slow
 def test_dk_on_the_caltech_truss_certifies_robust_stability_and_stabilises_the_truth(caltech):
-    from robustctl.robust.mu import mu
-
     from robustctl.robust.dk import dksyn
+    from robustctl.robust.mu import mu
 
     data, truth, model = caltech
     gp = caltech_recipe(model, level=0.3)   # robust performance reachable (mu ~ 0.8)
