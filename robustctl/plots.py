@@ -187,7 +187,8 @@ def bode_grid(
         if phase:
             axp = stack[row]
             for n, d in enumerate(datasets):
-                axp.plot(d.f_hz, np.degrees(np.angle(d.response[:, i, j])), lw=0.8, color=f"C{n}" if n else "k")
+                phase_deg = np.degrees(np.angle(d.response[:, i, j]))
+                axp.plot(d.f_hz, phase_deg, lw=0.8, color=f"C{n}" if n else "k")
             axp.set_ylabel("phase (deg)", fontsize=8)
             row += 1
         if coherence:
