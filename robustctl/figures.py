@@ -101,8 +101,14 @@ def plot_singular_values(systems: Any, f_hz: Any = None, labels: Sequence[str] |
     for n, (d, lab) in enumerate(zip(sets, labels)):
         sv = np.linalg.svd(d.response, compute_uv=False)
         for k in range(sv.shape[1]):
-            ax.loglog(d.f_hz, sv[:, k], color=f"C{n}", lw=1.2 if k == 0 else 0.8, ls="-" if k == 0 else "--",
-                      label=f"{lab}: sigma_max" if k == 0 else (f"{lab}: other sigma" if k == 1 else None))
+            ax.loglog(
+                d.f_hz,
+                sv[:, k],
+                color=f"C{n}",
+                lw=1.2 if k == 0 else 0.8,
+                ls="-" if k == 0 else "--",
+                label=f"{lab}: sigma_max" if k == 0 else (f"{lab}: other sigma" if k == 1 else None),
+            )
     units = sets[0].units or {}
     unit = "" if not units else f" ({'/'.join(sorted(set(units.values())))})"
     ax.set_ylabel(f"singular value{unit}")
@@ -154,7 +160,8 @@ def plot_compare(
         Measured responses.
     models : mapping name -> system, or sequence of systems
         Anything :func:`robustctl.freqresp` evaluates (PhysicalModel, StateSpace, MeasurementModel
-        ...) or a FrequencyData on the data's grid; channels are matched to the data by name.
+        ...) or a FrequencyData on the data's grid; channels are matched to the data by name, and
+        a model with more channels than the data is cut to the data's.
     phase : bool
         Add a phase row (deg).
     band : (lo_hz, hi_hz), optional
@@ -177,9 +184,9 @@ def plot_compare(
         models = {getattr(m, "name", None) or f"model {k + 1}": m for k, m in enumerate(models)}
     if not models:
         raise DataError("plot_compare needs at least one model; got none.")
-    responses = {name: _model_response(data, m) for name, m in models.items()}
+    responses = {name: _model_response(data, _cut_to_data(data, m)) for name, m in models.items()}
     fits = {name: fit_percent(data, r) for name, r in responses.items()}
-    pairs = [(i, j) for j in range(data.n_in) for i in range(data.n_out)][:max_channels]
+    pairs = [(i, j) for i in range(data.n_out) for j in range(data.n_in)][:max_channels]
     notes = [[]] + [[f"fit {fits[name][i, j]:.0f}%" for i, j in pairs] for name in responses]
     fig = bode_grid(
         [data, *responses.values()],
@@ -191,6 +198,17 @@ def plot_compare(
     )
     fig.fit_percent = fits
     return fig
+
+
+def _cut_to_data(data: FrequencyData, model: Any) -> Any:
+    """The model's response on the data's grid, restricted to the data's channels when the model
+    has more (a single-shaker test against a multi-input model); other models unchanged."""
+    from .lti import freqresp
+
+    response = model if isinstance(model, FrequencyData) else freqresp(model, data.f_hz)
+    if set(data.outputs) <= set(response.outputs) and set(data.inputs) <= set(response.inputs):
+        return response.select(outputs=list(data.outputs), inputs=list(data.inputs))
+    return response
 
 
 # ---------------------------------------------------------------------------- MAC
@@ -228,8 +246,10 @@ def mac_matrix(a: Any, b: Any = None) -> np.ndarray:
     sa, _ = _shapes(a)
     sb, _ = _shapes(a if b is None else b)
     if len({s.size for s in sa + sb}) != 1:
-        raise DataError(f"mode shapes have different lengths {sorted({s.size for s in sa + sb})}; "
-                        "use shapes over the same channels.")
+        raise DataError(
+            f"mode shapes have different lengths {sorted({s.size for s in sa + sb})}; "
+            "use shapes over the same channels."
+        )
     return np.array([[mac(x, y) for y in sb] for x in sa])
 
 
@@ -258,8 +278,15 @@ def plot_mac(a: Any, b: Any = None, labels: tuple[str, str] = ("model", "data"))
     if n * m <= 400:
         for i in range(n):
             for k in range(m):
-                ax.text(k, i, f"{values[i, k]:.2f}", ha="center", va="center", fontsize=6,
-                        color="w" if values[i, k] < 0.6 else "k")
+                ax.text(
+                    k,
+                    i,
+                    f"{values[i, k]:.2f}",
+                    ha="center",
+                    va="center",
+                    fontsize=6,
+                    color="w" if values[i, k] < 0.6 else "k",
+                )
     second = labels[0] if b is None else labels[1]
     ax.set_xlabel(f"{second} mode")
     ax.set_ylabel(f"{labels[0]} mode")
@@ -279,8 +306,13 @@ def _real_shape(vector: np.ndarray) -> np.ndarray:
     return r / np.max(np.abs(r))
 
 
-def plot_mode_shapes(model: Any, outputs: Sequence[str] | None = None, *, band: Sequence[float] | None = None,
-                     max_modes: int = 12):
+def plot_mode_shapes(
+    model: Any,
+    outputs: Sequence[str] | None = None,
+    *,
+    band: Sequence[float] | None = None,
+    max_modes: int = 12,
+):
     """Mode shapes at the sensors: one bar chart per mode, a bar per output.
 
     The shape of a mode is the output column of its residue (``C v`` of the state space, or

@@ -62,7 +62,7 @@ def new_figure(width: float = 9.0, height: float = 6.0):
 
 
 def _channels(reference: FrequencyData, max_channels: int) -> list[tuple[int, int]]:
-    pairs = [(i, j) for j in range(reference.n_in) for i in range(reference.n_out)]
+    pairs = [(i, j) for i in range(reference.n_out) for j in range(reference.n_in)]
     return pairs[:max_channels]
 
 
@@ -139,7 +139,8 @@ def bode_grid(
     labels : sequence of str, optional
         Legend entries, one per dataset.
     max_channels : int
-        At most this many channels (output/input pairs, input-major) are drawn.
+        At most this many channels (output/input pairs, row by row: output-major) are drawn;
+        a full matrix is laid out with one row per output and one column per input.
     shade_bands : sequence of (lo_hz, hi_hz)
         Frequency bands to shade (e.g. where a model fails).
     title : str

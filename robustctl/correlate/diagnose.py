@@ -276,6 +276,14 @@ class Diagnosis:
     def __str__(self) -> str:
         return self.summary() + "\n\n" + str(self.table())
 
+    def __repr__(self) -> str:
+        best = "none significant" if self.best is None else repr(self.best.name)
+        return (
+            f"Diagnosis({len(self.ranking)} candidates, best {best}, cost {self.cost_nominal:.4g} nominal, "
+            f"{self.cost_update:.4g} after updating {len(self.update_params)} parameter(s); "
+            "str() or .summary() / .table() for details)"
+        )
+
     def _repr_html_(self) -> str:
         text = "".join(f"<p>{html.escape(s)}</p>" for s in self.summary().splitlines())
         return text + self.table()._repr_html_()
