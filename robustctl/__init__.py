@@ -53,6 +53,7 @@ from .robust import (
     Block,
     BlockStructure,
     GeneralizedPlant,
+    HinfResult,
     MuResult,
     PlantWeight,
     UncertaintyCover,
@@ -62,6 +63,8 @@ from .robust import (
     cover_multiplicative,
     fit_magnitude,
     generalized_plant,
+    hinfnorm,
+    hinfsyn,
     makeweight,
     mixed_sensitivity,
     mu,
@@ -176,4 +179,8 @@ __all__ = [
     "cover_additive",
     "cover_multiplicative",
     "UncertaintyCover",
+    # H-infinity norm and synthesis
+    "hinfnorm",
+    "hinfsyn",
+    "HinfResult",
 ]

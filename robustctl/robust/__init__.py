@@ -4,6 +4,10 @@ from .blocks import Block, BlockStructure, as_block_structure
 
 # weights (uncertainty and performance weights, magnitude fits, covers)
 from .cover import UncertaintyCover, cover_additive, cover_multiplicative, error_envelope
+
+# H-infinity norm and synthesis (hinf helper)
+from .hinfnorm import hinfnorm
+from .hinfsyn import HinfResult, hinfsyn
 from .magfit import MagnitudeFit, fit_magnitude, fit_magnitude_details, zpk_statespace
 
 # --- mu analysis (mu helper) ---
@@ -40,4 +44,8 @@ __all__ = [
     "UncertaintyCover",
     "caltech_additive_weight",
     "CALTECH_MULTIPLICATIVE",
+    # H-infinity norm and synthesis
+    "hinfnorm",
+    "hinfsyn",
+    "HinfResult",
 ]
