@@ -339,3 +339,5 @@ def test_diagnosis_repr_is_a_few_lines(experiment):
     text = repr(diag)
     assert len(text) < 300 and text.count("\n") <= 2
     assert f"{len(ranking)} candidates" in text and ranking[0].effect.name in text
+    legend = diag.plot().axes[0].get_legend()
+    assert [t.get_text() for t in legend.get_texts()] == ["screening only"]  # every bar drawn is grey
