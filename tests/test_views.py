@@ -169,6 +169,15 @@ def test_mode_shape_bars_at_the_sensors(experiment):
         assert ax.get_ylabel() and ax.get_xlabel() and "Hz" in ax.get_title()
 
 
+def test_cost_table_and_chart_use_the_one_channel_label_style():
+    from robustctl.cost import cost_report
+
+    cost = cost_report(np.full((4, 2, 1), 0.1 + 0j), outputs=("S1", "S2"), inputs=("A1",))
+    assert [row[0] for row in cost.table().rows] == ["S1 <- A1", "S2 <- A1", "total"]
+    ax = cost.plot().axes[0]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["S1 <- A1", "S2 <- A1"] and ax.get_xlabel()
+
+
 def test_alignment_legend_names_only_the_colours_drawn():
     from robustctl.correlate.update import _alignment_legend
     from robustctl.plots import new_figure
