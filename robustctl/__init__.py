@@ -72,6 +72,8 @@ from .robust import (
     robust_stability,
     worst_case_gain,
 )
+from .robust.dk import DKResult, dksyn
+from .robust.yardstick import Yardstick, yardstick
 from .signals import (
     combine_inputs,
     combine_outputs,
@@ -183,4 +185,9 @@ __all__ = [
     "hinfnorm",
     "hinfsyn",
     "HinfResult",
+    # D-K iteration and the measurement-model yardstick
+    "dksyn",
+    "DKResult",
+    "yardstick",
+    "Yardstick",
 ]
