@@ -25,6 +25,7 @@ from .estimate import (
     simulate_experiment,
 )
 from .export import ExportReport, discretize, export_controller, load_controller
+from .figures import fit_percent, mac_matrix, plot_compare, plot_mac, plot_mode_shapes, plot_singular_values
 from .frd import FrequencyData, load_frd
 from .identify import (
     MeasurementModel,
@@ -93,6 +94,13 @@ from .threads import blas_threads, set_blas_threads
 __version__ = "0.1.0"
 
 __all__ = [
+    # figures (the modal engineer's)
+    "fit_percent",
+    "mac_matrix",
+    "plot_compare",
+    "plot_mac",
+    "plot_mode_shapes",
+    "plot_singular_values",
     "examples",
     "compare",
     "Comparison",

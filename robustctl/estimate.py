@@ -8,7 +8,7 @@ actuator, 4096-point Hamming windows overlapping by 2048 points (39 averages).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -151,6 +151,7 @@ def estimate_frf(
     outputs: Sequence[str] | None = None,
     *,
     detrend: bool = True,
+    units: Mapping[str, str] | None = None,
 ) -> FrequencyData:
     """H1 frequency-response estimate from averaged cross-spectra (Welch's method).
 
@@ -183,6 +184,9 @@ def estimate_frf(
         Signal names (default ``u1..``, ``y1..``).
     detrend : bool
         Remove each segment's mean before windowing (as ``scipy.signal.welch``).
+    units : mapping, optional
+        Units of the signals by name, e.g. ``{"A1": "V", "S1": "m/s^2"}``; carried into
+        ``FrequencyData.units`` (axis labels, UFF ordinate types). Unknown names are refused.
 
     Returns
     -------
@@ -239,7 +243,23 @@ def estimate_frf(
         "n_samples": int(u.shape[0]),
         "resolution_hz": fs / nperseg,
     }
-    return FrequencyData(f, H, inputs=names_in, outputs=outputs, coherence=coh, meta=meta)
+    data = FrequencyData(f, H, inputs=names_in, outputs=outputs, coherence=coh, meta=meta)
+    return data.replace(units=_check_units(units, data))
+
+
+def _check_units(units: Mapping[str, str] | None, data: FrequencyData) -> dict[str, str]:
+    """``units`` as a dict of strings keyed by the data's signal names."""
+    if units is None:
+        return {}
+    if not isinstance(units, Mapping):
+        raise DataError(f"units must be a mapping signal name -> unit string; got {type(units).__name__}.")
+    unknown = sorted(set(units) - set(data.inputs + data.outputs))
+    if unknown:
+        raise DataError(
+            f"units names signals {unknown} that the estimate does not have; its signals are "
+            f"{list(data.inputs + data.outputs)}."
+        )
+    return {str(k): str(v) for k, v in units.items()}
 
 
 # ---------------------------------------------------------------------------- combine

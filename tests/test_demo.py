@@ -42,6 +42,8 @@ def test_demo_report_holds_every_section_with_numbers(demo_out):
     bodies = re.split(r"<h2>.*?</h2>", page)[1:]
     for heading, body in zip(headings, bodies):
         assert re.search(r"<td>[-+]?\d", body) or "data:image/png;base64," in body, heading
+    figures = {h.split(" ")[0]: b.count("data:image/png;base64,") for h, b in zip(headings, bodies)}
+    assert figures["1."] >= 1 and figures["4."] >= 1  # measured FRFs; the diagnosis figure
     summary = json.loads((demo_out / "summary.json").read_text())
     assert summary["cost_reduction_percent"] > 90
     assert summary["robust_stability_peak_mu"] < 1  # robust stability certified for the seed's weights
