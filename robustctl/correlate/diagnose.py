@@ -410,9 +410,54 @@ def _screen_one(
     left = r_perp + d_perp * c_clip
     fraction = max(0.0, 1.0 - float(left @ left) / rr)
     angle = math.degrees(math.acos(min(1.0, math.sqrt(cos2))))
-    return dict(
-        effect=effect, model=m_c, fraction=fraction, angle=angle, value=clipped, d=d, evals=sens.n_evals
-    )
+    evals = sens.n_evals
+    if effect.kind != "gravity":  # a switch has no sizes to probe
+        probed, value_p, n_p = _probe_sizes(res_c, pname, (v0, lo, hi), trial - v0, coef, Q, rr)
+        evals += n_p
+        if probed > fraction:
+            fraction, clipped = probed, value_p
+    return dict(effect=effect, model=m_c, fraction=fraction, angle=angle, value=clipped, d=d, evals=evals)
+
+
+#: Multiples of the calibrated step (a 2 % change of the most affected modal ``w^2``) at
+#: which each candidate is also evaluated in screening: an effect that moves a mode by a
+#: factor of 4 changes its ``w^2`` by 1500 %, far outside the secant's linear range.
+SCREEN_MULTIPLES = (10.0, 100.0, 1000.0)
+
+
+def _probe_sizes(
+    res_c: Residual, pname: str, span: tuple, step: float, coef: float, Q: np.ndarray, rr: float
+) -> tuple[float, float, int]:
+    """Screen a candidate at sizes spanning decades (large effects are far from linear).
+
+    The candidate is evaluated at ``v0 + m * step`` for ``m`` in :data:`SCREEN_MULTIPLES`
+    (in the direction of the secant's linear estimate, within the bounds), each with the
+    update parameters re-fitted linearly: the share explained is ``1 - |P j(v)|^2 / |P j_u|^2``
+    (``P`` projects out the update parameters' sensitivities, as in step 2). The probe walks
+    outwards and stops once the share falls (the cost along the ray has passed its minimum).
+    Returns ``(share, value, evaluations)``; the share is 0 when nothing was evaluated.
+    """
+    v0, lo, hi = span
+    sign = 1.0 if coef >= 0 else -1.0
+    best, best_v, n, last = 0.0, v0, 0, -np.inf
+    for m in SCREEN_MULTIPLES:
+        v = float(np.clip(v0 + sign * m * step, lo, hi))
+        if v == v0 or (n and v == best_v):
+            break
+        n += 1
+        try:
+            j = res_c.vector(**{pname: v})
+        except RobustctlError:  # e.g. a mass so large the preload fails: stop walking out
+            break
+        if not np.all(np.isfinite(j)):
+            break
+        share = 1.0 - float(np.sum(_project(Q, j) ** 2)) / rr
+        if share > best:
+            best, best_v = share, v
+        if share < last:
+            break
+        last = share
+    return max(best, 0.0), best_v, n
 
 
 @dataclass
@@ -505,7 +550,7 @@ def _fit_one(
 
 
 #: Multiples of an effect's typical size tried as starting values of its local fit.
-_START_MULTIPLES = (1.0, 3.0, 10.0, 30.0)
+_START_MULTIPLES = (1.0, 3.0, 10.0, 30.0, 100.0)
 
 
 def _start_value(effect: Any, v_lin: float, discrete: bool, evaluate, Q: np.ndarray, starts: list):

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from ..checks import UNSET, renamed_keyword
-from ..errors import FitError
+from ..errors import FitError, RobustctlError
 from ..frd import FrequencyData
 from ..parallel import check_executor
 from ..table import Table
@@ -490,13 +490,19 @@ def _passes(
     executor: Executor | None,
     progress: bool,
     start: Sensitivities | None = None,
+    x0: dict[str, float] | None = None,
 ) -> tuple[LMResult, tuple[float, ...], list[str], int]:
-    """Optimise ``selected`` (from the sensitivities ``start`` at the model's values, if
-    given); then repeat the tests on the remaining error and add parameters."""
+    """Optimise ``selected`` (from the sensitivities ``start`` at the model's values, or from
+    ``x0``); then repeat the tests on the remaining error and add parameters."""
     t0 = time.perf_counter()
     kw = dict(max_iter=max_iter, ftol=ftol, executor=executor, progress=progress)
-    fit = levenberg_marquardt(residual, selected, time_budget_s=budget, start=start, **kw)
-    history, notes, n_evals = list(fit.history), [], fit.n_evals
+    if x0:
+        fit = levenberg_marquardt(residual, selected, x0=x0, time_budget_s=budget, **kw)
+        history = [float(start[0] @ start[0]), *fit.history] if start is not None else list(fit.history)
+    else:
+        fit = levenberg_marquardt(residual, selected, time_budget_s=budget, start=start, **kw)
+        history = list(fit.history)
+    notes, n_evals = [], fit.n_evals
     for k in range(2, int(passes) + 1):
         left = budget - (time.perf_counter() - t0)
         if left <= 0 or len(selected) == len(names) or fit.cost <= 0:
@@ -526,6 +532,49 @@ def _passes(
         history += list(fit.history[1:])
         n_evals += fit.n_evals
     return fit, tuple(history), notes, n_evals
+
+
+#: Multiples of an effect parameter's distance from neutral tried as starting values.
+START_MULTIPLES = (0.1, 0.3, 3.0, 10.0)
+
+
+def _coarse_start(
+    residual: Residual, selected: tuple[str, ...], sens: Sensitivities, effect_params: tuple[str, ...]
+) -> tuple[dict[str, float], int]:
+    """Starting values for effect parameters far from their best value (multi-start).
+
+    The complex-log cost is multimodal once a mode crosses another or moves by several
+    half-power bandwidths, so an effect added at a size a decade off (``rc.effects``'
+    typical size, a hand guess) leads Levenberg-Marquardt into a local minimum. Each effect
+    parameter is tried at :data:`START_MULTIPLES` of its distance from neutral, scored by
+    ``|P j|^2`` -- the cost left after re-fitting the other selected parameters linearly
+    (``P`` projects out their sensitivity columns, MACE eq. 8) -- and the best becomes the
+    start. Returns ``({name: start}, evaluations)``; empty when the model's values are best.
+    """
+    j0, dJ = sens
+    model, x0, n = residual.model, {}, 0
+    for name in (p for p in effect_params if p in selected):
+        par = model.param(name)
+        v, neutral = float(par.value), float(par.neutral or 0.0)
+        if v == neutral:
+            continue
+        others = [k for k, nm in enumerate(sens.names) if nm != name and nm in selected]
+        Q = np.linalg.qr(dJ[:, others])[0] if others else np.zeros((j0.size, 0))
+        best, best_v = float(np.sum((j0 - Q @ (Q.T @ j0)) ** 2)), v
+        lo, hi = par.bounds
+        for m in START_MULTIPLES:
+            trial = float(np.clip(neutral + m * (v - neutral), lo, hi))
+            n += 1
+            try:
+                j = residual.vector(**x0, **{name: trial})
+            except RobustctlError:
+                continue
+            score = float(np.sum((j - Q @ (Q.T @ j)) ** 2))
+            if np.isfinite(score) and score < best:
+                best, best_v = score, trial
+        if best_v != v:
+            x0[name] = best_v
+    return x0, n
 
 
 def update(
@@ -638,6 +687,13 @@ def update(
         selected, notes, suggestions = names, [], []
     if not selected:
         raise FitError("no parameter passed the selection tests; lower min_alignment or give params=[...].")
+    x0, n_coarse = _coarse_start(residual, tuple(selected), sens, effect_params)
+    if x0:
+        notes.append(
+            "started "
+            + ", ".join(f"{k} at {v:.4g} (model {model.param(k).value:.4g})" for k, v in x0.items())
+            + ": a lower cost than the model's value once the other parameters are re-fitted."
+        )
     fit, history, extra, n_evals = _passes(
         residual,
         names,
@@ -651,6 +707,7 @@ def update(
         executor,
         progress,
         start=sens,
+        x0={**{n: model.param(n).value for n in selected}, **x0} if x0 else None,
     )
     notes += extra
     if residual.dropped:
@@ -680,5 +737,5 @@ def update(
         warnings=tuple(_warnings(fit, drift, reduction)),
         band=residual.band,
         time_s=time.perf_counter() - t0,
-        n_evals=n_evals + sens.n_evals,
+        n_evals=n_evals + sens.n_evals + n_coarse,
     )
