@@ -133,5 +133,36 @@ def test_update_from_an_effect_size_a_decade_off_finds_the_global_minimum(chain)
     pname = hidden.param_names[0]
     upd = rc.update(guess, data, params=UPDATE + (pname,), select=False, drift_bands=0)
     assert upd.model.param(pname).value == pytest.approx(600.0, rel=0.02)
-    assert any("started suspension_spring__dof_6 at 600" in n for n in upd.notes), upd.notes
+    started = [n for n in upd.notes if n.startswith("started")]
+    assert started and "suspension_spring__dof_6 at 600 (model 60)" in started[0], upd.notes
     assert upd.cost_after <= 0.05 * upd.cost_before
+
+
+# ---------------------------------------------------------------------------- mode pairing
+def _mode(f_hz, shape):
+    return rc.Mode(f_hz, 0.02, residue=np.asarray(shape, dtype=complex).reshape(2, 2))
+
+
+def test_pairing_follows_the_shapes_through_large_shifts_and_crossings():
+    from robustctl.correlate.compare import pair_modes
+
+    e = np.eye(4)
+    model = [_mode(1.0, e[0]), _mode(2.5, e[1]), _mode(6.0, e[2])]
+    # mode 1 moved x 3 past mode 2 (a crossing); mode 3 by +31 %
+    data = [_mode(2.4, e[1]), _mode(3.0, e[0]), _mode(7.86, e[2])]
+    assert pair_modes(model, data) == [(0, 1), (1, 0), (2, 2)]
+    # without shapes (NaN MAC) only the frequency rule pairs: the far modes stay apart
+    bare = [rc.Mode(m.f_hz, 0.02) for m in data]
+    assert (0, None) in pair_modes(model, bare) and (None, 1) in pair_modes(model, bare)
+    # beyond max_ratio nothing pairs, however alike the shapes
+    assert pair_modes([_mode(1.0, e[0])], [_mode(5.0, e[0])]) == [(0, None), (None, 0)]
+    # dissimilar shapes far apart stay unpaired
+    assert pair_modes([_mode(1.0, e[0])], [_mode(1.5, e[3])]) == [(0, None), (None, 0)]
+
+
+def test_diagnose_warns_when_the_time_budget_cuts_its_fits(chain):
+    """A ranking that depends on the machine's load says so (the budget is a safety cap)."""
+    model, cands = chain
+    data = _data(model, model.with_effect(fx.AddedMass("dof 3", mass=0.05)), seed=7)
+    with pytest.warns(RuntimeWarning, match="time budget .* stopped the null fit"):
+        rc.diagnose(model, data, cands[:4], params=UPDATE, time_budget_s=1e-9)

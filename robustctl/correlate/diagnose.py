@@ -39,6 +39,7 @@ import copy
 import html
 import math
 import time
+import warnings
 from collections.abc import Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
@@ -472,6 +473,7 @@ class _Null:
     jac: np.ndarray  # d j / d alpha per unit parameter, (n, p)
     j: np.ndarray
     cost: float
+    cut: bool = False  # the time budget stopped the fit
 
     @property
     def Q(self) -> np.ndarray:  # noqa: N802 - the orthonormal basis of span(jac)
@@ -515,8 +517,10 @@ def _fit_one(
         return dict(x=dict(null.x), cost=null.cost, vector=null.j, evals=counter[0], value=float(par.neutral))
     u, v, r = start
     cost, lam = float(r @ r), 1e-2
+    cut = False
     for _ in range(int(max_iter)):
         if time.perf_counter() - t0 > budget:
+            cut = True
             break
         cols = [null.jac]
         if not discrete:
@@ -546,7 +550,8 @@ def _fit_one(
         rel, u, v, cost = (cost - c_new) / cost, u_new, v_new, c_new
         if rel < 1e-3:
             break
-    return dict(x=dict(zip(names, (float(x) for x in u))), cost=cost, vector=r, evals=counter[0], value=v)
+    return dict(x=dict(zip(names, (float(x) for x in u))), cost=cost, vector=r, evals=counter[0], value=v,
+                cut=cut)
 
 
 #: Multiples of an effect's typical size tried as starting values of its local fit.
@@ -678,6 +683,7 @@ def _null_fit(
         res0, upd, max_iter=max_iter, executor=executor, time_budget_s=budget, start=start
     )
     null = _Null(upd, dict(lm.x), dict(lm.x0), lo, hi, lm.jacobian, lm.vector, lm.cost)
+    null.cut = "time budget" in lm.stop_reason
     return null, start.n_evals + lm.n_evals
 
 
@@ -817,7 +823,7 @@ def diagnose(
     update_iter: int = 10,
     alpha: float = ALPHA,
     min_gain: float = MIN_GAIN,
-    time_budget_s: float = 120.0,
+    time_budget_s: float = 600.0,
     update_params: Any = UNSET,
     weights: Any = UNSET,
 ) -> Diagnosis:
@@ -857,7 +863,8 @@ def diagnose(
     min_gain : float
         Smallest share (0..1) of the null-fit residual an effect must remove to be proposed.
     time_budget_s : float
-        Wall-clock budget (s) for the fits.
+        Wall-clock budget (s) for the fits: a safety cap, not a stopping rule (a RuntimeWarning
+        says when it stopped a fit, since the ranking then depends on the machine's load).
 
     Returns
     -------
@@ -912,6 +919,7 @@ def diagnose(
         desc="local fits",
     )
     evals += sum(f["evals"] for f in fits)
+    _warn_if_hurried(null.cut, sum(bool(f.get("cut")) for f in fits), time_budget_s)
     # 4. significance and words
     e_u = res0.unstack(j_u)
     n_eff, rho = effective_points(e_u)
@@ -947,6 +955,21 @@ def diagnose(
         residual_update=e_u,
         f_hz=res0.f_hz,
         explained=explained,
+    )
+
+
+def _warn_if_hurried(null_cut: bool, n_cut: int, budget: float) -> None:
+    """Say so when the wall-clock budget, not convergence, stopped a fit: the ranking then
+    depends on the machine's speed and load (a fit cut short understates its candidate)."""
+    if not null_cut and not n_cut:
+        return
+    what = ["the null fit"] if null_cut else []
+    what += [f"{n_cut} local fit{'s' if n_cut > 1 else ''}"] if n_cut else []
+    warnings.warn(
+        f"diagnose: the time budget ({budget:g} s) stopped {' and '.join(what)} before convergence; "
+        "the ranking may differ from an unhurried run. Raise time_budget_s (or pass fewer candidates).",
+        RuntimeWarning,
+        stacklevel=3,
     )
 
 

@@ -536,44 +536,54 @@ def _passes(
 
 #: Multiples of an effect parameter's distance from neutral tried as starting values.
 START_MULTIPLES = (0.1, 0.3, 3.0, 10.0)
+#: Factors on a physical parameter's value tried as starting values (+-50 % errors and beyond).
+START_FACTORS = (0.5, 0.7, 1.4, 2.0)
+
+
+def _trial_values(par: Any, effect: bool) -> list[float]:
+    """Coarse starting values of one parameter: decades for an effect (from neutral), factors
+    for a physical parameter, within its bounds (none when its value is zero or neutral)."""
+    v, lo, hi = float(par.value), *(float(b) for b in par.bounds)
+    neutral = float(par.neutral or 0.0) if effect else 0.0
+    if v == neutral:
+        return []
+    mults = START_MULTIPLES if effect else START_FACTORS
+    return list(dict.fromkeys(float(np.clip(neutral + m * (v - neutral), lo, hi)) for m in mults))
 
 
 def _coarse_start(
     residual: Residual, selected: tuple[str, ...], sens: Sensitivities, effect_params: tuple[str, ...]
 ) -> tuple[dict[str, float], int]:
-    """Starting values for effect parameters far from their best value (multi-start).
+    """Starting values for parameters far from their best value (a coarse multi-start).
 
     The complex-log cost is multimodal once a mode crosses another or moves by several
-    half-power bandwidths, so an effect added at a size a decade off (``rc.effects``'
-    typical size, a hand guess) leads Levenberg-Marquardt into a local minimum. Each effect
-    parameter is tried at :data:`START_MULTIPLES` of its distance from neutral, scored by
+    half-power bandwidths, so a parameter 40 % off or an effect added at a size a decade off
+    (a hand guess) leads Levenberg-Marquardt into a local minimum. One parameter at a time
+    (coordinate-wise, accepting improvements), each is tried at :data:`START_MULTIPLES` of an
+    effect's distance from neutral or :data:`START_FACTORS` of a physical value, scored by
     ``|P j|^2`` -- the cost left after re-fitting the other selected parameters linearly
     (``P`` projects out their sensitivity columns, MACE eq. 8) -- and the best becomes the
     start. Returns ``({name: start}, evaluations)``; empty when the model's values are best.
     """
     j0, dJ = sens
     model, x0, n = residual.model, {}, 0
-    for name in (p for p in effect_params if p in selected):
-        par = model.param(name)
-        v, neutral = float(par.value), float(par.neutral or 0.0)
-        if v == neutral:
+    j_best = j0
+    for name in selected:
+        trials = _trial_values(model.param(name), name in effect_params)
+        if not trials:
             continue
         others = [k for k, nm in enumerate(sens.names) if nm != name and nm in selected]
         Q = np.linalg.qr(dJ[:, others])[0] if others else np.zeros((j0.size, 0))
-        best, best_v = float(np.sum((j0 - Q @ (Q.T @ j0)) ** 2)), v
-        lo, hi = par.bounds
-        for m in START_MULTIPLES:
-            trial = float(np.clip(neutral + m * (v - neutral), lo, hi))
+        best = float(np.sum((j_best - Q @ (Q.T @ j_best)) ** 2))
+        for trial in trials:
             n += 1
             try:
-                j = residual.vector(**x0, **{name: trial})
+                j = residual.vector(**{**x0, name: trial})
             except RobustctlError:
                 continue
             score = float(np.sum((j - Q @ (Q.T @ j)) ** 2))
             if np.isfinite(score) and score < best:
-                best, best_v = score, trial
-        if best_v != v:
-            x0[name] = best_v
+                best, j_best, x0[name] = score, j, trial
     return x0, n
 
 
