@@ -413,7 +413,7 @@ def _screen_one(
     angle = math.degrees(math.acos(min(1.0, math.sqrt(cos2))))
     evals = sens.n_evals
     if effect.kind != "gravity":  # a switch has no sizes to probe
-        probed, value_p, n_p = _probe_sizes(res_c, pname, (v0, lo, hi), trial - v0, coef, Q, rr)
+        probed, value_p, n_p = _probe_sizes(res_c, pname, (v0, lo, hi), trial - v0, coef, Q, rr, fraction)
         evals += n_p
         if probed > fraction:
             fraction, clipped = probed, value_p
@@ -427,7 +427,14 @@ SCREEN_MULTIPLES = (10.0, 100.0, 1000.0)
 
 
 def _probe_sizes(
-    res_c: Residual, pname: str, span: tuple, step: float, coef: float, Q: np.ndarray, rr: float
+    res_c: Residual,
+    pname: str,
+    span: tuple,
+    step: float,
+    coef: float,
+    Q: np.ndarray,
+    rr: float,
+    linear_share: float = 0.0,
 ) -> tuple[float, float, int]:
     """Screen a candidate at sizes spanning decades (large effects are far from linear).
 
@@ -435,12 +442,13 @@ def _probe_sizes(
     (in the direction of the secant's linear estimate, within the bounds), each with the
     update parameters re-fitted linearly: the share explained is ``1 - |P j(v)|^2 / |P j_u|^2``
     (``P`` projects out the update parameters' sensitivities, as in step 2). The probe walks
-    outwards and stops once the share falls (the cost along the ray has passed its minimum).
+    outwards while the share grows, starting from ``linear_share`` (the secant's prediction):
+    an effect the secant already describes costs one evaluation more, a large one a few.
     Returns ``(share, value, evaluations)``; the share is 0 when nothing was evaluated.
     """
     v0, lo, hi = span
     sign = 1.0 if coef >= 0 else -1.0
-    best, best_v, n, last = 0.0, v0, 0, -np.inf
+    best, best_v, n, last = 0.0, v0, 0, float(linear_share)
     for m in SCREEN_MULTIPLES:
         v = float(np.clip(v0 + sign * m * step, lo, hi))
         if v == v0 or (n and v == best_v):
