@@ -46,7 +46,31 @@ from .physical import (
     modal_statespace,
     structural_model,
 )
-from .robust import GeneralizedPlant, PlantWeight, generalized_plant, mixed_sensitivity
+
+# robust design: weights
+from .robust import (
+    Block,
+    BlockStructure,
+    GeneralizedPlant,
+    HinfResult,
+    MuResult,
+    PlantWeight,
+    UncertaintyCover,
+    WorstCaseGain,
+    as_block_structure,
+    cover_additive,
+    cover_multiplicative,
+    fit_magnitude,
+    generalized_plant,
+    hinfnorm,
+    hinfsyn,
+    makeweight,
+    mixed_sensitivity,
+    mu,
+    robust_performance,
+    robust_stability,
+    worst_case_gain,
+)
 from .signals import (
     combine_inputs,
     combine_outputs,
@@ -131,4 +155,24 @@ __all__ = [
     "export_controller",
     "load_controller",
     "ExportReport",
+    # --- mu analysis (mu helper) ---
+    "Block",
+    "BlockStructure",
+    "as_block_structure",
+    "mu",
+    "MuResult",
+    "robust_stability",
+    "robust_performance",
+    "worst_case_gain",
+    "WorstCaseGain",
+    # robust design: weights
+    "makeweight",
+    "fit_magnitude",
+    "cover_additive",
+    "cover_multiplicative",
+    "UncertaintyCover",
+    # H-infinity norm and synthesis
+    "hinfnorm",
+    "hinfsyn",
+    "HinfResult",
 ]
