@@ -14,7 +14,11 @@ parameters can already explain:
    Projecting out ``span(dJ_u)`` (``P = I - Q Q^T``, ``Q`` an orthonormal basis), the
    fraction of the remaining residual the candidate explains is ``cos^2`` of the principal
    angle between ``P j_u`` and ``P d`` (with the fitted coefficient clipped to the
-   parameter bounds, so an added mass cannot be negative).
+   parameter bounds, so an added mass cannot be negative). A large effect (a spring that
+   moves a mode by a factor of 4 changes its ``w^2`` 750 times more than the step) is far
+   outside the secant's linear range, so each candidate is also evaluated at 10, 100 and
+   1000 steps (walking outwards while the share explained grows, with the update
+   parameters re-fitted linearly) and scored by the best size (:func:`_probe_sizes`).
 3. **Local fit.** The best few candidates are fitted together with the update parameters
    (bounded LM, few iterations) from the screening estimate; the cost reduction against
    the nominal model and the *gain* ``1 - J_c / J_u`` against the null fit are reported.
