@@ -48,7 +48,7 @@ def _measure(report: Report, seed: int) -> tuple[Any, Any]:
     if data.coherence is not None:
         band = data.band(*DEMO_BAND_HZ)
         report.record("median_coherence_in_band", float(np.median(band.coherence)))
-    fig = bode_grid([data.band(*DEMO_BAND_HZ)], ["measured"], phase=False, title="Measured FRFs")
+    fig = bode_grid([data], ["measured"], phase=False, title="Measured FRFs")
     report.figure(fig, "measured", "H1 estimates of the nine transfer functions AiSj.")
     return data, truth
 
@@ -125,6 +125,7 @@ def run_demo(out: str | Path = "out", seed: int = 0, design: bool = True) -> Pat
     diag = diagnose(model, data, band=DEMO_BAND_HZ)
     report.text(diag.summary())
     report.table(diag.table())
+    report.figure(diag.plot(), "diagnose", "Candidate effects ranked by the share of the error they explain.")
     if diag.best is None:
         report.text("No candidate effect is significant; updating the existing parameters only.", note=True)
         candidate = model

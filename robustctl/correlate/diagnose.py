@@ -284,6 +284,14 @@ class Diagnosis:
     def __str__(self) -> str:
         return self.summary() + "\n\n" + str(self.table())
 
+    def __repr__(self) -> str:
+        best = "none significant" if self.best is None else repr(self.best.name)
+        return (
+            f"Diagnosis({len(self.ranking)} candidates, best {best}, cost {self.cost_nominal:.4g} nominal, "
+            f"{self.cost_update:.4g} after updating {len(self.update_params)} parameter(s); "
+            "str() or .summary() / .table() for details)"
+        )
+
     def _repr_html_(self) -> str:
         text = "".join(f"<p>{html.escape(s)}</p>" for s in self.summary().splitlines())
         return text + self.table()._repr_html_()
@@ -295,7 +303,7 @@ class Diagnosis:
         -------
         matplotlib.figure.Figure
         """
-        from ..plots import new_figure
+        from ..plots import log_frequency_axis, new_figure
 
         fig = new_figure(10.0, 6.5)
         ax1, ax2 = fig.subplots(2, 1)
@@ -306,16 +314,26 @@ class Diagnosis:
         ax1.set_yticks(range(len(top)), [r.name for r in top], fontsize=8)
         ax1.set_xlabel("share of the residual left by updating that the effect explains (%)")
         ax1.axvline(100 * MIN_GAIN, color="k", lw=0.8, ls=":")
-        ax1.set_title("Diagnosis (green: significant, blue: fitted, grey: screening only)")
+        ax1.set_title("Diagnosis: candidate effects")
+        _status_legend(ax1, colors)
         if self.residual_update is not None:
             e = self.residual_update
             ax2.semilogy(self.f_hz, np.sum(np.abs(e) ** 2, axis=(1, 2)), label="residual after updating")
             for label, de in self.explained.items():
                 ax2.semilogy(self.f_hz, np.sum(np.abs(de) ** 2, axis=(1, 2)), label=f"explained by {label}")
-            ax2.set_xlabel("frequency (Hz)")
-            ax2.set_ylabel("|log error|^2 summed over channels")
+            log_frequency_axis(ax2, self.f_hz)
+            ax2.set_ylabel("|log error|^2 summed over channels (-)")
             ax2.legend(fontsize=8)
         return fig
+
+
+def _status_legend(ax: Any, colors: list[str]) -> None:
+    """A legend naming only the bar colours drawn (significant / fitted / screening only)."""
+    from matplotlib.patches import Patch
+
+    names = {"tab:green": "significant", "tab:blue": "fitted, not significant", "tab:gray": "screening only"}
+    handles = [Patch(color=c, label=label) for c, label in names.items() if c in colors]
+    ax.legend(handles=handles, fontsize=7, loc="lower right")
 
 
 # ============================================================================ statistics
