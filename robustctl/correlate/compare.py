@@ -180,13 +180,18 @@ def peak_pick_modes(
 
 
 def pair_modes(
-    model: list[Mode], measured: list[Mode], tol: float = 0.2
+    model: list[Mode], measured: list[Mode], tol: float = 0.2, *, max_ratio: float = 4.0, min_mac: float = 0.8
 ) -> list[tuple[int | None, int | None]]:
     """Pair model and measured modes (Hungarian assignment on frequency distance and MAC).
 
-    Cost of a pair: ``10 |ln(f_model / f_data)| + (1 - MAC)``; pairs further apart than
-    ``tol`` (relative) are not allowed. Returns ``(i_model, i_measured)`` index pairs
-    sorted by frequency, with ``None`` on the side of an unpaired mode.
+    Cost of a pair within ``tol`` (relative frequency distance): ``10 |ln(f_model / f_data)|
+    + (1 - MAC)``. A pair further apart -- a mode moved by a large model error, up to a
+    factor ``max_ratio`` -- is allowed when its shapes agree (``MAC >= min_mac``, MAC-first
+    pairing as in FE model updating practice, e.g. Friswell & Mottershead, *Finite Element
+    Model Updating in Structural Dynamics*, sec. 4.2), at a cost above every within-``tol``
+    pair: ``10 ln(1 + tol) + (1 - MAC) + |ln(f_model / f_data)|``. Returns
+    ``(i_model, i_measured)`` index pairs sorted by frequency, with ``None`` on the side of
+    an unpaired mode.
     """
     nm, nd = len(model), len(measured)
     pairs: list[tuple[int | None, int | None]] = []
@@ -194,12 +199,18 @@ def pair_modes(
     if nm and nd:
         big = 1e6
         cost = np.full((nm, nd), big)
+        near, far = np.log1p(tol), np.log(max(float(max_ratio), 1.0 + tol))
         for i, a in enumerate(model):
             for j, b in enumerate(measured):
                 rel = abs(np.log(a.f_hz / b.f_hz))
-                if rel <= np.log1p(tol):
-                    m = mac(a.shape, b.shape)
-                    cost[i, j] = 10 * rel + (1 - (0.0 if np.isnan(m) else m))
+                if rel > far:
+                    continue
+                m = mac(a.shape, b.shape)
+                m = 0.0 if np.isnan(m) else m
+                if rel <= near:
+                    cost[i, j] = 10 * rel + (1 - m)
+                elif m >= min_mac:
+                    cost[i, j] = 10 * near + (1 - m) + rel
         rows, cols = scipy.optimize.linear_sum_assignment(cost)
         for i, j in zip(rows, cols):
             if cost[i, j] < big:
@@ -629,40 +640,51 @@ class Comparison:
         return f"Comparison(cost={self.cost:.4g}, kind={self.structure.kind!r}, bands={len(self.bands)})"
 
     # ------------------------------------------------------------------ plots
-    def plot(self, fig: Any = None) -> Any:
-        """Data vs model magnitude per channel (failing bands shaded) and an error map.
+    def plot(self, fig: Any = None, *, phase: bool = False) -> Any:
+        """Data vs model per channel (failing bands shaded; ``phase=True`` adds a phase row) and
+        an error map, on log-frequency axes.
 
         Returns the matplotlib Figure.
         """
-        from ..plots import new_figure
+        from ..plots import channel_label, colorbar, log_frequency_axis, magnitude_label, new_figure
 
         nf, no, ni = self.error.shape
-        fig = fig or new_figure(3.2 * ni + 1, 2.4 * no + 3)
-        grid = fig.add_gridspec(no + 1, ni, height_ratios=[1.0] * no + [1.2])
+        rows = 2 if phase else 1
+        fig = fig or new_figure(3.2 * ni + 1, (2.4 + 1.4 * phase) * no + 3)
+        grid = fig.add_gridspec(rows * no + 1, ni, height_ratios=[1.0, 0.6][:rows] * no + [1.2])
         f = self.f_hz
-        xscale = "log" if f[-1] > 10 * f[0] else "linear"  # a structural-dynamics Bode habit
         for o in range(no):
             for i in range(ni):
-                ax = fig.add_subplot(grid[o, i])
-                ax.semilogy(f, np.abs(self.data.response[:, o, i]), "k.", ms=2, label="data")
-                ax.semilogy(f, np.abs(self.model_response[:, o, i]), "C0-", lw=1, label=self.model_name)
-                ax.set_xscale(xscale)
+                ax = fig.add_subplot(grid[rows * o, i])
+                ax.loglog(f, np.abs(self.data.response[:, o, i]), "k.", ms=2, label="data")
+                ax.loglog(f, np.abs(self.model_response[:, o, i]), "C0-", lw=1, label=self.model_name)
                 for b in self.bands:
                     ax.axvspan(b.lo_hz, b.hi_hz, color="C3", alpha=0.15, lw=0)
-                ax.set_title(f"{self.outputs[o]} <- {self.inputs[i]}", fontsize=8)
+                ax.set_title(channel_label(self.outputs[o], self.inputs[i]), fontsize=8)
+                ax.set_ylabel(magnitude_label(self.data, self.outputs[o], self.inputs[i]), fontsize=7)
+                log_frequency_axis(ax, f, label=not phase)
+                ax.xaxis.label.set_size(7)
                 ax.tick_params(labelsize=7)
                 if o == 0 and i == 0:
                     ax.legend(fontsize=7)
-        ax = fig.add_subplot(grid[no, :])
+                if phase:
+                    axp = fig.add_subplot(grid[rows * o + 1, i], sharex=ax)
+                    axp.plot(f, np.degrees(np.angle(self.data.response[:, o, i])), "k.", ms=2)
+                    axp.plot(f, np.degrees(np.angle(self.model_response[:, o, i])), "C0-", lw=1)
+                    axp.set_ylabel("phase (deg)", fontsize=7)
+                    log_frequency_axis(axp, f)
+                    axp.xaxis.label.set_size(7)
+                    axp.tick_params(labelsize=7)
+        ax = fig.add_subplot(grid[rows * no, :])
         emap = np.abs(self.error.reshape(nf, -1)).T * DB_PER_NEPER
         im = ax.pcolormesh(f, np.arange(no * ni), emap, cmap="magma", shading="nearest")
-        ax.set_xscale(xscale)
+        log_frequency_axis(ax, f)
         ax.invert_yaxis()
         ax.set_yticks(range(no * ni))
-        ax.set_yticklabels([f"{a}<-{b}" for a in self.outputs for b in self.inputs], fontsize=6)
-        ax.set_xlabel("frequency (Hz)")
+        ax.set_yticklabels([channel_label(a, b) for a in self.outputs for b in self.inputs], fontsize=6)
+        ax.set_ylabel("channel", fontsize=7)
         ax.set_title("|log(G_data / G_model)| (dB equivalent)", fontsize=8)
-        fig.colorbar(im, ax=ax)
+        colorbar(fig, im, ax, "error (dB)")
         return fig
 
 

@@ -14,7 +14,11 @@ parameters can already explain:
    Projecting out ``span(dJ_u)`` (``P = I - Q Q^T``, ``Q`` an orthonormal basis), the
    fraction of the remaining residual the candidate explains is ``cos^2`` of the principal
    angle between ``P j_u`` and ``P d`` (with the fitted coefficient clipped to the
-   parameter bounds, so an added mass cannot be negative).
+   parameter bounds, so an added mass cannot be negative). A large effect (a spring that
+   moves a mode by a factor of 4 changes its ``w^2`` 750 times more than the step) is far
+   outside the secant's linear range, so each candidate is also evaluated at 10, 100 and
+   1000 steps (walking outwards while the share explained grows, with the update
+   parameters re-fitted linearly) and scored by the best size (:func:`_probe_sizes`).
 3. **Local fit.** The best few candidates are fitted together with the update parameters
    (bounded LM, few iterations) from the screening estimate; the cost reduction against
    the nominal model and the *gain* ``1 - J_c / J_u`` against the null fit are reported.
@@ -39,6 +43,7 @@ import copy
 import html
 import math
 import time
+import warnings
 from collections.abc import Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
@@ -53,16 +58,19 @@ from ..parallel import check_executor, parallel_map
 from ..table import Table
 from ..threads import limit_blas
 from .optimize import _bounds, levenberg_marquardt, marquardt_step
-from .residual import NEGLIGIBLE_DB, Residual, physical_model, sensitivities
+from .residual import Residual, physical_model, sensitivities
 
 __all__ = ["diagnose", "Diagnosis", "CandidateResult", "effective_points"]
 
 #: Significance level of the partial F-test before the Bonferroni correction.
 ALPHA = 0.01
 #: A channel this far (dB) below its row's and column's largest model response is ignored.
-#: Deprecated alias of :data:`~robustctl.correlate.residual.NEGLIGIBLE_DB` (one rule for compare,
-#: update and diagnose).
-DECOUPLED_DB = NEGLIGIBLE_DB
+#: Default negligible-channel level of diagnose (dB): stricter than compare's and update's
+#: :data:`~robustctl.correlate.residual.NEGLIGIBLE_DB` (-80 dB), because a channel the model
+#: leaves nearly decoupled carries noise no effect explains and would blur the F-tests (the
+#: MACE bus has 13 such channels at -60 dB, 12 at -80 dB). Pass ``min_channel_db=`` to change it;
+#: ``rc.update(..., point_weights=diag.point_weights)`` reproduces diagnose's cost.
+DECOUPLED_DB = -60.0
 #: Smallest share of the null-fit residual an effect must explain to be proposed.
 MIN_GAIN = 0.25
 _DB = 20.0 / math.log(10.0)
@@ -276,6 +284,14 @@ class Diagnosis:
     def __str__(self) -> str:
         return self.summary() + "\n\n" + str(self.table())
 
+    def __repr__(self) -> str:
+        best = "none significant" if self.best is None else repr(self.best.name)
+        return (
+            f"Diagnosis({len(self.ranking)} candidates, best {best}, cost {self.cost_nominal:.4g} nominal, "
+            f"{self.cost_update:.4g} after updating {len(self.update_params)} parameter(s); "
+            "str() or .summary() / .table() for details)"
+        )
+
     def _repr_html_(self) -> str:
         text = "".join(f"<p>{html.escape(s)}</p>" for s in self.summary().splitlines())
         return text + self.table()._repr_html_()
@@ -287,7 +303,7 @@ class Diagnosis:
         -------
         matplotlib.figure.Figure
         """
-        from ..plots import new_figure
+        from ..plots import log_frequency_axis, new_figure
 
         fig = new_figure(10.0, 6.5)
         ax1, ax2 = fig.subplots(2, 1)
@@ -298,16 +314,26 @@ class Diagnosis:
         ax1.set_yticks(range(len(top)), [r.name for r in top], fontsize=8)
         ax1.set_xlabel("share of the residual left by updating that the effect explains (%)")
         ax1.axvline(100 * MIN_GAIN, color="k", lw=0.8, ls=":")
-        ax1.set_title("Diagnosis (green: significant, blue: fitted, grey: screening only)")
+        ax1.set_title("Diagnosis: candidate effects")
+        _status_legend(ax1, colors)
         if self.residual_update is not None:
             e = self.residual_update
             ax2.semilogy(self.f_hz, np.sum(np.abs(e) ** 2, axis=(1, 2)), label="residual after updating")
             for label, de in self.explained.items():
                 ax2.semilogy(self.f_hz, np.sum(np.abs(de) ** 2, axis=(1, 2)), label=f"explained by {label}")
-            ax2.set_xlabel("frequency (Hz)")
-            ax2.set_ylabel("|log error|^2 summed over channels")
+            log_frequency_axis(ax2, self.f_hz)
+            ax2.set_ylabel("|log error|^2 summed over channels (-)")
             ax2.legend(fontsize=8)
         return fig
+
+
+def _status_legend(ax: Any, colors: list[str]) -> None:
+    """A legend naming only the bar colours drawn (significant / fitted / screening only)."""
+    from matplotlib.patches import Patch
+
+    names = {"tab:green": "significant", "tab:blue": "fitted, not significant", "tab:gray": "screening only"}
+    handles = [Patch(color=c, label=label) for c, label in names.items() if c in colors]
+    ax.legend(handles=handles, fontsize=7, loc="lower right")
 
 
 # ============================================================================ statistics
@@ -410,9 +436,62 @@ def _screen_one(
     left = r_perp + d_perp * c_clip
     fraction = max(0.0, 1.0 - float(left @ left) / rr)
     angle = math.degrees(math.acos(min(1.0, math.sqrt(cos2))))
-    return dict(
-        effect=effect, model=m_c, fraction=fraction, angle=angle, value=clipped, d=d, evals=sens.n_evals
-    )
+    evals = sens.n_evals
+    if effect.kind != "gravity":  # a switch has no sizes to probe
+        probed, value_p, n_p = _probe_sizes(res_c, pname, (v0, lo, hi), trial - v0, coef, Q, rr, fraction)
+        evals += n_p
+        if probed > fraction:
+            fraction, clipped = probed, value_p
+    return dict(effect=effect, model=m_c, fraction=fraction, angle=angle, value=clipped, d=d, evals=evals)
+
+
+#: Multiples of the calibrated step (a 2 % change of the most affected modal ``w^2``) at
+#: which each candidate is also evaluated in screening: an effect that moves a mode by a
+#: factor of 4 changes its ``w^2`` by 1500 %, far outside the secant's linear range.
+SCREEN_MULTIPLES = (10.0, 100.0, 1000.0)
+
+
+def _probe_sizes(
+    res_c: Residual,
+    pname: str,
+    span: tuple,
+    step: float,
+    coef: float,
+    Q: np.ndarray,
+    rr: float,
+    linear_share: float = 0.0,
+) -> tuple[float, float, int]:
+    """Screen a candidate at sizes spanning decades (large effects are far from linear).
+
+    The candidate is evaluated at ``v0 + m * step`` for ``m`` in :data:`SCREEN_MULTIPLES`
+    (in the direction of the secant's linear estimate, within the bounds), each with the
+    update parameters re-fitted linearly: the share explained is ``1 - |P j(v)|^2 / |P j_u|^2``
+    (``P`` projects out the update parameters' sensitivities, as in step 2). The probe walks
+    outwards while the share grows, starting from ``linear_share`` (the secant's prediction):
+    an effect the secant already describes costs one evaluation more, a large one a few.
+    Returns ``(share, value, evaluations)``; the share is 0 when nothing was evaluated.
+    """
+    v0, lo, hi = span
+    sign = 1.0 if coef >= 0 else -1.0
+    best, best_v, n, last = 0.0, v0, 0, float(linear_share)
+    for m in SCREEN_MULTIPLES:
+        v = float(np.clip(v0 + sign * m * step, lo, hi))
+        if v == v0 or (n and v == best_v):
+            break
+        n += 1
+        try:
+            j = res_c.vector(**{pname: v})
+        except RobustctlError:  # e.g. a mass so large the preload fails: stop walking out
+            break
+        if not np.all(np.isfinite(j)):
+            break
+        share = 1.0 - float(np.sum(_project(Q, j) ** 2)) / rr
+        if share > best:
+            best, best_v = share, v
+        if share < last:
+            break
+        last = share
+    return max(best, 0.0), best_v, n
 
 
 @dataclass
@@ -427,6 +506,7 @@ class _Null:
     jac: np.ndarray  # d j / d alpha per unit parameter, (n, p)
     j: np.ndarray
     cost: float
+    cut: bool = False  # the time budget stopped the fit
 
     @property
     def Q(self) -> np.ndarray:  # noqa: N802 - the orthonormal basis of span(jac)
@@ -470,8 +550,10 @@ def _fit_one(
         return dict(x=dict(null.x), cost=null.cost, vector=null.j, evals=counter[0], value=float(par.neutral))
     u, v, r = start
     cost, lam = float(r @ r), 1e-2
+    cut = False
     for _ in range(int(max_iter)):
         if time.perf_counter() - t0 > budget:
+            cut = True
             break
         cols = [null.jac]
         if not discrete:
@@ -501,11 +583,12 @@ def _fit_one(
         rel, u, v, cost = (cost - c_new) / cost, u_new, v_new, c_new
         if rel < 1e-3:
             break
-    return dict(x=dict(zip(names, (float(x) for x in u))), cost=cost, vector=r, evals=counter[0], value=v)
+    return dict(x=dict(zip(names, (float(x) for x in u))), cost=cost, vector=r, evals=counter[0], value=v,
+                cut=cut)
 
 
 #: Multiples of an effect's typical size tried as starting values of its local fit.
-_START_MULTIPLES = (1.0, 3.0, 10.0, 30.0)
+_START_MULTIPLES = (1.0, 3.0, 10.0, 30.0, 100.0)
 
 
 def _start_value(effect: Any, v_lin: float, discrete: bool, evaluate, Q: np.ndarray, starts: list):
@@ -655,6 +738,7 @@ def _null_fit(
         res0, upd, max_iter=max_iter, executor=executor, time_budget_s=budget, start=start
     )
     null = _Null(upd, dict(lm.x), dict(lm.x0), lo, hi, lm.jacobian, lm.vector, lm.cost)
+    null.cut = "time budget" in lm.stop_reason
     return null, start.n_evals + lm.n_evals
 
 
@@ -788,13 +872,13 @@ def diagnose(
     params: Sequence[str] | None = None,
     *,
     point_weights: Any = "auto",
-    min_channel_db: float | None = NEGLIGIBLE_DB,
+    min_channel_db: float | None = DECOUPLED_DB,
     n_fit: int = 4,
     max_iter: int = 8,
     update_iter: int = 10,
     alpha: float = ALPHA,
     min_gain: float = MIN_GAIN,
-    time_budget_s: float = 120.0,
+    time_budget_s: float = 600.0,
     update_params: Any = UNSET,
     weights: Any = UNSET,
 ) -> Diagnosis:
@@ -824,7 +908,9 @@ def diagnose(
         not drown the systematic error.
     min_channel_db : float or None
         Channels the model or data leave decoupled (this many dB below their row and column)
-        get weight 0, as in :func:`compare` and :func:`update` (same default, same cost).
+        get weight 0, by the rule of :func:`compare` and :func:`update`; the default
+        :data:`DECOUPLED_DB` (-60 dB) is stricter than theirs (-80 dB). With the same value
+        (or ``point_weights=diag.point_weights`` handed on) the costs agree.
     n_fit : int
         Number of best-screened candidates given the local fit.
     max_iter, update_iter : int
@@ -834,7 +920,8 @@ def diagnose(
     min_gain : float
         Smallest share (0..1) of the null-fit residual an effect must remove to be proposed.
     time_budget_s : float
-        Wall-clock budget (s) for the fits.
+        Wall-clock budget (s) for the fits: a safety cap, not a stopping rule (a RuntimeWarning
+        says when it stopped a fit, since the ranking then depends on the machine's load).
 
     Returns
     -------
@@ -897,6 +984,7 @@ def diagnose(
         desc="local fits",
     )
     evals += sum(f["evals"] for f in fits)
+    _warn_if_hurried(null.cut, sum(bool(f.get("cut")) for f in fits), time_budget_s)
     # 4. significance and words
     e_u = res0.unstack(j_u)
     n_eff, rho = effective_points(e_u)
@@ -932,6 +1020,21 @@ def diagnose(
         residual_update=e_u,
         f_hz=res0.f_hz,
         explained=explained,
+    )
+
+
+def _warn_if_hurried(null_cut: bool, n_cut: int, budget: float) -> None:
+    """Say so when the wall-clock budget, not convergence, stopped a fit: the ranking then
+    depends on the machine's speed and load (a fit cut short understates its candidate)."""
+    if not null_cut and not n_cut:
+        return
+    what = ["the null fit"] if null_cut else []
+    what += [f"{n_cut} local fit{'s' if n_cut > 1 else ''}"] if n_cut else []
+    warnings.warn(
+        f"diagnose: the time budget ({budget:g} s) stopped {' and '.join(what)} before convergence; "
+        "the ranking may differ from an unhurried run. Raise time_budget_s (or pass fewer candidates).",
+        RuntimeWarning,
+        stacklevel=3,
     )
 
 

@@ -180,7 +180,7 @@ class Residual:
         sys0 = model.statespace()
         self._out_idx = match_channels(sys0.output_labels, self.data.outputs, "outputs")
         self._in_idx = match_channels(sys0.input_labels, self.data.inputs, "inputs")
-        self.weights = np.sqrt(point_weights_of(point_weights, data, mask))
+        self.weights = point_weights_of(point_weights, data, mask, amplitude=True)
         self.dropped = self._negligible(min_channel_db)
         for o, i, _level in self.dropped:
             self.weights[:, self.data.outputs.index(o), self.data.inputs.index(i)] = 0.0

@@ -19,7 +19,7 @@ from ..checks import flag, integer, positive_number, probability
 from ..errors import FitError
 from ..frd import FrequencyData
 from ..threads import limit_blas
-from .rational import RationalFit
+from .rational_fit import RationalFit
 from .realization import residue_rank
 from .refine import refine_residues
 
