@@ -1023,5 +1023,6 @@ def test_outcome_totals():
     """Runs last in this module: at least 2,000 generated cases, all refused."""
     if sum(OUTCOMES.values()) == 0:
         pytest.skip("run with the property cases")
+    print(f"\nproperty cases: {dict(OUTCOMES)}")
     assert sum(OUTCOMES.values()) >= 2000, OUTCOMES
     assert set(OUTCOMES) <= {"refused"}, OUTCOMES
