@@ -6,10 +6,10 @@ index past a buffer (sizes in a tag or in a matrix's dimensions that disagree wi
 bytes that follow), and the interpreter dies with SIGSEGV/SIGBUS instead of raising.
 (Observed: every crash in a mutation run of 400 files was one byte inserted inside a
 miCOMPRESSED variable. Its tag's byte count no longer reaches the end of the zlib stream;
-scipy inflates the truncated stream without asking for its end, so the next variable's tag is read one byte off and the Cython reader,
-``VarReader5`` called from ``_mio5.py`` ``read_var_array``, acts on garbage sizes. A precedent
-is scipy issue #6072, a segfault on truncated files.) So
-every file is walked here first, with only ``struct`` and ``zlib``, against the layout of
+scipy inflates the truncated stream without asking for its end, so the next variable's tag
+is read one byte off and the Cython reader, ``VarReader5`` called from ``_mio5.py``
+``read_var_array``, acts on garbage sizes. A precedent is scipy issue #6072, a segfault on
+truncated files.) So every file is walked here first, with only ``struct`` and ``zlib``, against the layout of
 the MAT-File Format reference (MathWorks, "MAT-File Format", 2024, ch. 1: 128-byte header,
 8-byte tags, small data elements, miMATRIX sub-elements, miCOMPRESSED zlib streams):
 
