@@ -208,6 +208,7 @@ def estimate_frf(
         "window": window if isinstance(window, (str, tuple)) else "user array",
         "detrend": bool(detrend),
         "n_averages": n_avg,
+        "n_inputs": n_in,
         "n_samples": int(u.shape[0]),
         "resolution_hz": fs / nperseg,
     }

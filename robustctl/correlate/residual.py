@@ -35,8 +35,10 @@ from ..checks import (
 )
 from ..checks import point_weights as point_weights_of
 from ..errors import DataError, FitError, ModelError, RobustctlError
+from ..estimator import EstimatorSettings, estimator_settings, estimator_view
 from ..frd import FrequencyData
 from ..lti import as_statespace, freqresp, log_ratio
+from ..noise import NoiseModel, noise_model
 
 __all__ = [
     "Residual",
@@ -49,6 +51,8 @@ __all__ = [
     "NEGLIGIBLE_DB",
     "as_model",
     "physical_model",
+    "check_complex_response",
+    "resolve_estimator",
 ]
 
 #: Default level (dB) below which a channel counts as negligible (decoupled) and gets weight 0
@@ -62,6 +66,7 @@ class _FixedSystem:
 
     def __init__(self, sys: Any) -> None:
         self.sys = as_statespace(sys)
+        self.source = sys
         self.name = getattr(sys, "name", None) or type(sys).__name__
         self.param_names: tuple[str, ...] = ()
 
@@ -113,6 +118,58 @@ def _check_no_zero_channel(data: FrequencyData) -> None:
         )
 
 
+def check_complex_response(data: FrequencyData, name: str = "data") -> None:
+    """Refuse "FRFs" that cannot be complex responses: magnitude only, or levels in dB.
+
+    A measured frequency response has a phase; an array whose imaginary part is zero at every
+    point is a magnitude (non-negative) or a level in dB (signed) and would give meaningless
+    complex-log errors.
+    """
+    g = data.response
+    if np.any(g.imag != 0):
+        return
+    if np.all(g.real >= 0):
+        raise DataError(
+            f"{name} is real and non-negative at every point: a magnitude without phase, not a frequency "
+            "response. Give the complex response G(j 2 pi f) (e.g. magnitude * exp(1j * phase_rad))."
+        )
+    raise DataError(
+        f"{name} is real-valued with negative values ({g.real.min():.3g} to {g.real.max():.3g}): it looks "
+        "like a level in dB, not a complex response. Convert it: 10 ** (dB / 20) * exp(1j * phase_rad)."
+    )
+
+
+def _sees_estimator(model: Any) -> bool:
+    """False for a fit to the H1 estimates themselves (a MeasurementModel fitted without leakage
+    correction already contains the estimator's leakage)."""
+    src = model.source if isinstance(model, _FixedSystem) else model
+    return bool(getattr(src, "leakage_corrected", True))
+
+
+def resolve_estimator(spec: Any, data: FrequencyData, model: Any) -> EstimatorSettings | None:
+    """The H1 estimator settings to see ``model`` through, or None.
+
+    ``"auto"``: the data's recorded settings (``meta``: fs_hz, nperseg, window), unless the
+    model is itself a fit to the estimates; ``True``: required; ``False``/``None``: off; an
+    :class:`~robustctl.estimator.EstimatorSettings`: those.
+    """
+    if isinstance(spec, EstimatorSettings):
+        return spec
+    if spec is None or spec is False:
+        return None
+    if isinstance(spec, str) and spec == "auto":
+        return estimator_settings(data.meta) if _sees_estimator(model) else None
+    if spec is True:
+        st = estimator_settings(data.meta)
+        if st is None:
+            raise DataError(
+                "estimator=True needs the H1 estimator settings (fs_hz, nperseg, window) in data.meta, as "
+                "rc.estimate_frf records them; pass estimator=False for other data."
+            )
+        return st
+    raise DataError(f"estimator must be 'auto', True, False or EstimatorSettings; got {spec!r}.")
+
+
 class Residual:
     """Weighted complex-log residual of a model against data on a band (MACE eqs. 5-6).
 
@@ -137,6 +194,14 @@ class Residual:
         symmetric structure measure noise against a numerically zero model, a log error no
         physical parameter can explain, and it would swamp the cost. ``None`` keeps every
         channel and refuses identically zero ones.
+    estimator : "auto", True, False or EstimatorSettings
+        See the model "as the H1 estimator sees it" (:func:`robustctl.estimator.estimator_view`:
+        window leakage of a white-noise Welch estimate) when the data carry their estimator
+        settings (``"auto"``, default) -- the model's response is then the expected H1
+        estimate, not ``G(jw)``. ``False``: compare ``G(jw)`` itself.
+    noise : "auto", NoiseModel or None
+        The noise model of the data (:func:`robustctl.noise.noise_model`); ``"auto"``: from
+        coherence and the recorded number of averages when possible, else None.
 
     Attributes
     ----------
@@ -167,14 +232,19 @@ class Residual:
         min_channel_db: float | None = NEGLIGIBLE_DB,
         *,
         weights: Any = UNSET,
+        estimator: Any = "auto",
+        noise: Any = "auto",
     ) -> None:
         point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
         data = as_frequency_data(data)
+        check_complex_response(data)
         model = as_model(model)
         self.model = model
         self.band = check_band(band)
         mask = band_mask(data.f_hz, self.band)
         self.data = band_data(data, self.band)
+        self.estimator = resolve_estimator(estimator, data, model)
+        self.noise = self._noise(noise, data, mask)
         sys0 = model.statespace()
         self._out_idx = match_channels(sys0.output_labels, self.data.outputs, "outputs")
         self._in_idx = match_channels(sys0.input_labels, self.data.inputs, "inputs")
@@ -185,6 +255,23 @@ class Residual:
         if not np.any(self.weights > 0):
             raise DataError("every channel has zero weight; nothing is left to compare.")
         self.n = 2 * self.data.response.size
+
+    @staticmethod
+    def _noise(spec: Any, data: FrequencyData, mask: np.ndarray) -> NoiseModel | None:
+        if isinstance(spec, NoiseModel):
+            return spec.on(data.f_hz[mask]) if spec.f_hz.size != int(mask.sum()) else spec
+        if spec is None:
+            return None
+        if isinstance(spec, str) and spec == "auto":
+            nm = noise_model(data)
+            return None if nm is None else nm.band(mask)
+        raise DataError(f"noise must be 'auto', a NoiseModel or None; got {type(spec).__name__}.")
+
+    def describe_estimator(self) -> str:
+        """``"model seen through the H1 estimator: 4096-pt hamming at 200 Hz"`` or ``""``."""
+        if self.estimator is None:
+            return ""
+        return f"model seen through the H1 estimator: {self.estimator.describe()}"
 
     @property
     def point_weights(self) -> np.ndarray:
@@ -210,8 +297,15 @@ class Residual:
         return self.data.f_hz
 
     def model_response(self, **overrides: float) -> np.ndarray:
-        """Model response (n_freq_band, n_out, n_in) on the band, in data channel order."""
-        g = self.model.freqresp(self.data.f_hz, **overrides).response
+        """Model response (n_freq_band, n_out, n_in) on the band, in data channel order.
+
+        With estimator settings this is the expected H1 estimate of the model without the
+        hold (:func:`robustctl.estimator.estimator_view`), else ``G(j 2 pi f)``.
+        """
+        if self.estimator is not None:
+            g = estimator_view(self.model.statespace(**overrides), self.data.f_hz, self.estimator)
+        else:
+            g = self.model.freqresp(self.data.f_hz, **overrides).response
         return g[:, self._out_idx][:, :, self._in_idx]
 
     def complex(self, **overrides: float) -> np.ndarray:
