@@ -12,7 +12,7 @@ scatter. :func:`noise_model` gives that scatter:
   :func:`robustctl.estimator.effective_averages`); with ``q`` simultaneous inputs and the
   multiple coherence, ``n_d - q + 1`` (Bendat & Piersol, sec. 9.3.3).
 * **from the residual of a measurement model** (data without coherence): a robust local
-  scale (1.4826 x the running median absolute value of ``Re e`` and ``Im e`` over 21 points)
+  scale (1.4826 x the running median absolute value of ``Re e`` and ``Im e`` over 33 points)
   of ``ln(G_data / G_mm)`` per channel.
 * otherwise **none**: results then say "no noise estimate: no significance claims".
 
@@ -39,7 +39,7 @@ __all__ = ["NoiseModel", "noise_model", "averages_of", "NO_NOISE_SENTENCE", "chi
 NO_NOISE_SENTENCE = "no noise estimate: no significance claims"
 
 #: half-width (points) of the running robust scale of a measurement model's residual
-RESIDUAL_HALF_WIDTH = 10
+RESIDUAL_HALF_WIDTH = 16
 
 #: smallest sigma (nepers / rad): coherence 1 would otherwise claim a perfect estimate
 SIGMA_FLOOR = 1e-4
@@ -165,12 +165,15 @@ def _from_coherence(data: Any, nd: np.ndarray) -> NoiseModel:
 
 
 def _running_scale(x: np.ndarray, half: int) -> np.ndarray:
-    """1.4826 x running median of ``|x|`` along axis 0 (a robust local standard deviation)."""
+    """1.4826 x running median of ``|x|`` over axes 0 and 1 (a robust local standard deviation).
+
+    ``x`` has shape (nf, 2, n_out, n_in): real and imaginary parts pooled.
+    """
     n = x.shape[0]
     out = np.empty(x.shape[:1] + x.shape[2:])
     for k in range(n):
         lo, hi = max(0, k - half), min(n, k + half + 1)
-        out[k] = 1.4826 * np.median(np.abs(x[lo:hi]), axis=0)
+        out[k] = 1.4826 * np.median(np.abs(x[lo:hi]), axis=(0, 1))
     return out
 
 
@@ -184,10 +187,11 @@ def _from_residual(data: Any, measurement_model: Any) -> NoiseModel:
     g = freqresp(sys, data.f_hz).response[:, out_idx][:, :, in_idx]
     e = log_ratio(data.response, g)
     both = np.stack([e.real, e.imag], axis=1)  # (nf, 2, n_out, n_in): pool Re and Im
-    sigma = _running_scale(both.reshape(both.shape[0], -1, *e.shape[1:]), RESIDUAL_HALF_WIDTH)
+    sigma = _running_scale(both, RESIDUAL_HALF_WIDTH)
     sigma = np.maximum(sigma, SIGMA_FLOOR)
     modes = getattr(measurement_model, "n_modes", None)
-    what = f"a {modes}-mode measurement model" if modes else "a measurement model"
+    article = "an" if modes and str(modes)[0] in "8" or modes in (11, 18) else "a"
+    what = f"{article} {modes}-mode measurement model" if modes else "a measurement model"
     return NoiseModel(data.f_hz, sigma, f"noise estimated from the residual of {what}", None,
                       _dof_factor(dict(data.meta)), "residual")
 
