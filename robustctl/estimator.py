@@ -21,6 +21,7 @@ the estimates at neighbouring frequency bins.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -122,6 +123,11 @@ def _window(window: Any, n: int) -> np.ndarray:
 
 def lag_window(window: Any, n: int) -> np.ndarray:
     """``r_w[k] / r_w[0]``, k = 0..n-1: the normalised autocorrelation of the window."""
+    return _lag_window_cached(window, int(n)).copy()
+
+
+@lru_cache(maxsize=16)
+def _lag_window_cached(window: Any, n: int) -> np.ndarray:
     w = _window(window, n)
     spec = np.fft.rfft(w, 2 * n)
     r = np.fft.irfft(np.abs(spec) ** 2, 2 * n)[:n]
@@ -187,14 +193,18 @@ def _zoh_impulse_modal(poles, residues, d, fs: float, n: int) -> np.ndarray:
     if len(poles) == 0:
         return h
     poles = np.asarray(poles, dtype=complex)
+    flat = np.asarray(residues).reshape(len(poles), -1)
+    # one pole of each conjugate pair (x 2) and the real poles: the sum is real
+    upper = poles.imag > 0
+    real = poles.imag == 0
+    keep = upper | real
+    poles, flat = poles[keep], flat[keep] * np.where(upper[keep], 2.0, 1.0)[:, None]
     zp = np.exp(poles * t)
     with np.errstate(divide="ignore", invalid="ignore"):
         gain = np.where(np.abs(poles) > 0, (zp - 1.0) / poles, t)
-    k = np.arange(n - 1)[:, None]
-    # zp**k for every pole; |zp| < 1 for stable poles, so no overflow
-    powers = np.exp(k * np.log(zp)[None, :]) if np.all(zp != 0) else zp[None, :] ** k
+    # zp**k, k = 0..n-2, by a running product (|zp| < 1 for stable poles: no overflow)
+    powers = np.cumprod(np.broadcast_to(zp, (n - 1, zp.size)), axis=0) / zp
     seq = powers * gain[None, :]
-    flat = np.asarray(residues).reshape(len(poles), -1)
     h[1:] = np.real(seq @ flat).reshape((n - 1,) + np.shape(d))
     return h
 
