@@ -4,7 +4,7 @@
 """
 
 # shared ground: one checks module, one system coercion, one cost report, one Mode
-from . import checks, examples
+from . import checks, estimator, examples
 from .correlate import (
     Comparison,
     Diagnosis,
@@ -30,6 +30,7 @@ from .identify import (
 )
 from .lti import as_statespace, freqresp, log_cost, log_error
 from .modes import Mode
+from .noise import NoiseModel, noise_model
 from .physical import (
     Frame,
     MatrixStructure,
@@ -97,4 +98,8 @@ __all__ = [
     "as_statespace",
     "LogCost",
     "Mode",
+    # trust: the noise model of an estimate and the estimator's view of a model
+    "estimator",
+    "NoiseModel",
+    "noise_model",
 ]
