@@ -39,7 +39,11 @@ __all__ = [
     "estimator_view",
     "effective_averages",
     "bin_correlation",
+    "HOLD_TAG",
 ]
+
+#: tag of the zero-order-hold stage (:func:`robustctl.physical.electronics.zero_order_hold_stage`)
+HOLD_TAG = "zero_order_hold"
 
 
 class EstimatorSettings(tuple):
@@ -203,7 +207,9 @@ def _zoh_impulse_modal(poles, residues, d, fs: float, n: int) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         gain = np.where(np.abs(poles) > 0, (zp - 1.0) / poles, t)
     # zp**k, k = 0..n-2, by a running product (|zp| < 1 for stable poles: no overflow)
-    powers = np.cumprod(np.broadcast_to(zp, (n - 1, zp.size)), axis=0) / zp
+    powers = np.ones((n - 1, zp.size), dtype=complex)
+    if n > 2:
+        powers[1:] = np.cumprod(np.broadcast_to(zp, (n - 2, zp.size)), axis=0)
     seq = powers * gain[None, :]
     h[1:] = np.real(seq @ flat).reshape((n - 1,) + np.shape(d))
     return h
@@ -230,8 +236,8 @@ def _zoh_impulse_loop(sys: Any, fs: float, n: int) -> np.ndarray:
 def _spectrum(h: np.ndarray, f_hz: np.ndarray, settings: EstimatorSettings) -> np.ndarray:
     fs, n, window = settings
     f = np.asarray(f_hz, dtype=float)
-    if np.any(f >= fs / 2):
-        raise DataError(f"frequencies must lie below the Nyquist frequency {fs / 2:g} Hz of the estimate.")
+    if np.any(f > fs / 2 * (1 + 1e-12)):
+        raise DataError(f"frequencies must not exceed the Nyquist frequency {fs / 2:g} Hz of the estimate.")
     h = h * lag_window(window, n)[:, None, None]
     bins = f * n / fs
     idx = np.rint(bins).astype(int)
@@ -271,14 +277,19 @@ def expected_h1(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np.ndarray:
     return _spectrum(_zoh_impulse_loop(ss, settings.fs_hz, settings.nperseg), f_hz, settings)
 
 
-def estimator_view(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np.ndarray:
-    """The continuous system "as the H1 estimator sees it": window leakage, without the hold.
+def estimator_view(sys: Any, f_hz: Any, settings: EstimatorSettings, *, hold: bool = False) -> np.ndarray:
+    """A continuous system "as the H1 estimator sees it".
 
-    ``E[H1 of sys] / hold(f)``: the expected estimate divided by the zero-order hold's
-    response, so the hold is not silently added to the model. A DAC's hold is a known
-    electronics stage the user adds deliberately
-    (:func:`robustctl.physical.electronics.zero_order_hold_stage`); data divided by the hold
-    (``meta["hold_divided"]``) need nothing more.
+    ``hold=False``: ``E[H1 of sys] / hold(f)``, the expected estimate divided by the
+    zero-order hold's response -- window leakage only, so no hold is silently added to the
+    model. ``hold=True``: ``E[H1 of sys]`` itself, the exact sampled experiment with a DAC's
+    hold (aliasing and the direct feedthrough's timing included); used when the user added
+    the hold deliberately (:func:`robustctl.physical.electronics.zero_order_hold_stage`) and
+    ``sys`` is the model without that stage. Data divided by the hold
+    (``meta["hold_divided"]``) are compared with ``hold=False``.
     """
     f = np.asarray(f_hz, dtype=float)
-    return expected_h1(sys, f, settings) / hold_response(f, settings.fs_hz)[:, None, None]
+    g = expected_h1(sys, f, settings)
+    if hold:
+        return g
+    return g / hold_response(f, settings.fs_hz)[:, None, None]

@@ -41,6 +41,18 @@ NO_NOISE_SENTENCE = "no noise estimate: no significance claims"
 #: half-width (points) of the running robust scale of a measurement model's residual
 RESIDUAL_HALF_WIDTH = 16
 
+#: largest sigma (nepers / rad) a point may have to be tested: beyond it (coherence below about
+#: 1 / (1 + 2 n_d 0.25)) the estimate is noise-dominated, ln H1 is far from Gaussian and biased
+#: (Bendat & Piersol's error formulas assume small errors), so such points say nothing
+SIGMA_TESTABLE = 0.5
+
+#: false-alarm probability of "the coherence is not zero": a point is tested only when its
+#: estimated coherence exceeds the level that zero true coherence reaches with this
+#: probability, ``1 - p^(1 / (n_d - 1))`` (Carter, Knapp & Nuttall 1973): at zero true
+#: coherence the estimate is about 1/n_d, and the B&P error formula, fed such an estimate,
+#: would claim a small error where the estimate is pure noise
+COHERENCE_NULL_P = 1e-4
+
 #: smallest sigma (nepers / rad): coherence 1 would otherwise claim a perfect estimate
 SIGMA_FLOOR = 1e-4
 
@@ -64,6 +76,9 @@ class NoiseModel:
         independent points).
     kind : str
         ``"coherence"`` or ``"residual"``.
+    testable : ndarray of bool (nf, n_out, n_in) or None
+        Points where the log-normal error model holds (coherence significantly above zero
+        and ``sigma <= SIGMA_TESTABLE``); verdicts use only these. None: every point.
     """
 
     f_hz: np.ndarray
@@ -72,12 +87,29 @@ class NoiseModel:
     averages: np.ndarray | None = None
     dof_factor: float = 1.0
     kind: str = "coherence"
+    testable: np.ndarray | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        f = np.asarray(self.f_hz, dtype=float).reshape(-1)
+        sigma = np.asarray(self.sigma, dtype=float)
+        if sigma.ndim == 1:
+            sigma = sigma[:, None, None]
+        if sigma.ndim != 3 or sigma.shape[0] != f.size:
+            raise DataError(
+                f"sigma must have shape (n_freq, n_out, n_in) with n_freq = {f.size}; got {sigma.shape}."
+            )
+        if not np.all(np.isfinite(sigma)) or np.any(sigma <= 0):
+            raise DataError("sigma (standard deviation of ln G, nepers/rad) must be finite and positive.")
+        ok = sigma <= SIGMA_TESTABLE if self.testable is None else np.asarray(self.testable, dtype=bool)
+        object.__setattr__(self, "f_hz", f)
+        object.__setattr__(self, "sigma", sigma)
+        object.__setattr__(self, "testable", ok & (sigma <= SIGMA_TESTABLE))
 
     def band(self, mask: np.ndarray) -> NoiseModel:
         """The model on the points selected by a boolean mask over ``f_hz``."""
         mask = np.asarray(mask, dtype=bool)
         return NoiseModel(self.f_hz[mask], self.sigma[mask], self.source, self.averages, self.dof_factor,
-                          self.kind)
+                          self.kind, self.testable[mask])
 
     def on(self, f_hz: np.ndarray) -> NoiseModel:
         """The model on the data points ``f_hz`` (a subset of its own grid)."""
@@ -88,7 +120,8 @@ class NoiseModel:
             raise DataError(
                 "the noise model was made on another frequency grid; build it from the same data."
             )
-        return NoiseModel(f, self.sigma[idx], self.source, self.averages, self.dof_factor, self.kind)
+        return NoiseModel(f, self.sigma[idx], self.source, self.averages, self.dof_factor, self.kind,
+                          self.testable[idx])
 
     def normalised(self, error: np.ndarray) -> np.ndarray:
         """``error / sigma`` (complex): unit variance in each of the real and imaginary parts."""
@@ -156,12 +189,14 @@ def _from_coherence(data: Any, nd: np.ndarray) -> NoiseModel:
     g2 = np.clip(np.asarray(data.coherence, dtype=float), 1e-12, 1.0)
     sigma = np.sqrt((1.0 - g2) / (2.0 * nd[None, None, :] * g2))
     sigma = np.maximum(sigma, SIGMA_FLOOR)
+    null_level = 1.0 - COHERENCE_NULL_P ** (1.0 / np.maximum(nd - 1.0, 1.0))
+    testable = g2 > null_level[None, None, :]
     nd_txt = ", ".join(f"{v:.3g}" for v in np.unique(np.round(nd, 2)))
     source = (
-        f"noise from coherence and {nd_txt} effective averages (H1 random error, Bendat & Piersol "
+        f"the H1 random error from coherence and {nd_txt} effective averages (Bendat & Piersol "
         "Table 9.6)"
     )
-    return NoiseModel(data.f_hz, sigma, source, nd, _dof_factor(dict(data.meta)), "coherence")
+    return NoiseModel(data.f_hz, sigma, source, nd, _dof_factor(dict(data.meta)), "coherence", testable)
 
 
 def _running_scale(x: np.ndarray, half: int) -> np.ndarray:

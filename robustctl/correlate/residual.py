@@ -35,7 +35,7 @@ from ..checks import (
 )
 from ..checks import point_weights as point_weights_of
 from ..errors import DataError, FitError, ModelError, RobustctlError
-from ..estimator import EstimatorSettings, estimator_settings, estimator_view
+from ..estimator import HOLD_TAG, EstimatorSettings, estimator_settings, estimator_view
 from ..frd import FrequencyData
 from ..lti import as_statespace, freqresp, log_ratio
 from ..noise import NoiseModel, noise_model
@@ -267,6 +267,23 @@ class Residual:
             return None if nm is None else nm.band(mask)
         raise DataError(f"noise must be 'auto', a NoiseModel or None; got {type(spec).__name__}.")
 
+    def _without_hold(self) -> tuple[Any, bool]:
+        """The model without its zero-order-hold stage (cached per model) and whether it had one.
+
+        With the hold added deliberately (``electronics.zero_order_hold_stage``), the estimator
+        view samples the bare model through an exact hold instead of the stage's rational
+        approximation (aliasing and the feedthrough's timing included).
+        """
+        model = self.model
+        cached = getattr(self, "_bare_cache", None)
+        if cached is not None and cached[0] is model:
+            return cached[1], cached[2]
+        stages = getattr(model, "io_stages", ())
+        has = any(HOLD_TAG in getattr(s, "tags", ()) for s in stages) and hasattr(model, "without")
+        bare = model.without(HOLD_TAG) if has else model
+        self._bare_cache = (model, bare, has)
+        return bare, has
+
     def describe_estimator(self) -> str:
         """``"model seen through the H1 estimator: 4096-pt hamming at 200 Hz"`` or ``""``."""
         if self.estimator is None:
@@ -303,7 +320,11 @@ class Residual:
         hold (:func:`robustctl.estimator.estimator_view`), else ``G(j 2 pi f)``.
         """
         if self.estimator is not None:
-            g = estimator_view(self.model.statespace(**overrides), self.data.f_hz, self.estimator)
+            bare, hold = self._without_hold()
+            hold = hold and not self.estimator.hold_divided
+            if bare is not self.model:
+                overrides = {k: v for k, v in overrides.items() if k in bare.param_names}
+            g = estimator_view(bare.statespace(**overrides), self.data.f_hz, self.estimator, hold=hold)
         else:
             g = self.model.freqresp(self.data.f_hz, **overrides).response
         return g[:, self._out_idx][:, :, self._in_idx]

@@ -58,11 +58,15 @@ class NoiseTest:
         Family-wise false-alarm rate; a cell fails when ``p < alpha / len(cells)``.
     source : str
         Where the noise estimate came from (``NoiseModel.source``).
+    n_untested : int
+        Points left out as noise-dominated (coherence not significantly above zero, or sigma
+        above ``SIGMA_TESTABLE``: the log-normal error model fails there).
     """
 
     cells: tuple[Cell, ...]
     alpha: float
     source: str
+    n_untested: int = 0
 
     @property
     def threshold(self) -> float:
@@ -95,6 +99,8 @@ class NoiseTest:
         n = len(self.cells)
         head = f"Noise model: {self.source}."
         test = f"chi-square per channel and section, family-wise alpha {self.alpha:g} over {n} cells"
+        if self.n_untested:
+            test += f"; {self.n_untested} noise-dominated points left out"
         if self.within:
             worst = min(self.cells, key=lambda c: c.p_value) if self.cells else None
             tail = f"; smallest {format_p(worst.p_value)}" if worst else ""
@@ -146,26 +152,34 @@ def noise_test(
 ) -> NoiseTest | None:
     """Chi-square test of ``error`` (n_freq, n_out, n_in) against ``noise``; None without noise.
 
-    ``keep`` (n_out, n_in) bool leaves channels out (e.g. negligible ones).
+    ``keep`` (n_out, n_in) bool leaves channels out (e.g. negligible ones). Points whose
+    sigma exceeds :data:`robustctl.noise.SIGMA_TESTABLE` are noise-dominated and left out
+    (counted in ``n_untested``).
     """
     if noise is None:
         return None
     z = noise.normalised(error)
+    testable = noise.testable
     f = np.asarray(f_hz, dtype=float)
     no, ni = z.shape[1:]
     keep = np.ones((no, ni), dtype=bool) if keep is None else np.asarray(keep, dtype=bool)
     raw: list[tuple[Any, ...]] = []
+    untested = 0
     for sl in sections(f.size, n_sections):
         for o in range(no):
             for i in range(ni):
                 if not keep[o, i]:
                     continue
-                ratio, dof, p = chi2_verdict(z[sl, o, i], noise.dof_factor)
-                raw.append((outputs[o], inputs[i], float(f[sl][0]), float(f[sl][-1]), sl.stop - sl.start,
+                ok = testable[sl, o, i]
+                untested += int(ok.size - ok.sum())
+                if not ok.any():
+                    continue
+                ratio, dof, p = chi2_verdict(z[sl, o, i][ok], noise.dof_factor)
+                raw.append((outputs[o], inputs[i], float(f[sl][0]), float(f[sl][-1]), int(ok.sum()),
                             ratio, dof, p))
     limit = alpha / max(len(raw), 1)
     cells = tuple(Cell(*r, within=bool(r[-1] >= limit)) for r in raw)
-    return NoiseTest(cells, float(alpha), noise.source)
+    return NoiseTest(cells, float(alpha), noise.source, untested)
 
 
 def no_noise_sentence() -> str:

@@ -762,8 +762,12 @@ def zero_order_hold_stage(signals, fs_hz: Value, order: int = 4, *, side="inputs
     Add it deliberately when the data come from sampled records whose excitation was held
     by a DAC (``rc.simulate_experiment`` + ``rc.estimate_frf`` do exactly that): the hold's
     half-sample delay (2.5 ms at 200 Hz) is then a known part of the model, not an effect
-    for ``rc.diagnose`` to find.
+    for ``rc.diagnose`` to find. The stage is tagged ``"zero_order_hold"``: compare, update
+    and diagnose, which see a model through the H1 estimator when the data carry its
+    settings, then sample the rest of the model through an exact hold instead of this
+    rational approximation (aliasing and a direct feedthrough's timing included).
     """
+    kw.setdefault("tags", ("electronics", "zero_order_hold"))
     return filter_stage(
         signals, lambda fs_hz: zero_order_hold(fs_hz, order), side=side,
         name=kw.pop("name", f"zero-order hold on {', '.join(_names(signals))}"), fs_hz=fs_hz, **kw,
