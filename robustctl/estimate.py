@@ -267,7 +267,11 @@ def combine_experiments(experiments: Sequence[FrequencyData]) -> FrequencyData:
     units: dict[str, str] = {}
     for e in exps:
         units.update(e.units)
-    meta = {"combined_from": len(exps), "experiments": [dict(e.meta) for e in exps]}
+    meta = {
+        "combined_from": len(exps),
+        "experiments": [dict(e.meta) for e in exps],
+        "experiment_of_input": [k for k, e in enumerate(exps) for _ in range(e.n_in)],
+    }
     return FrequencyData(ref.f_hz, response, inputs=inputs, outputs=ref.outputs, coherence=coh,
                          units=units, meta=meta)
 

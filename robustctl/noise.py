@@ -135,6 +135,12 @@ class NoiseModel:
 def _experiment_metas(meta: dict, n_in: int) -> list[dict] | None:
     """One meta dict per input column, or None."""
     subs = meta.get("experiments")
+    owner = meta.get("experiment_of_input")
+    if isinstance(subs, (list, tuple)) and subs and isinstance(owner, (list, tuple)):
+        if len(owner) != n_in or not all(0 <= int(k) < len(subs) for k in owner):
+            return None
+        picked = [subs[int(k)] for k in owner]
+        return picked if all(isinstance(m, dict) for m in picked) else None
     if isinstance(subs, (list, tuple)) and subs:
         cols: list[dict] = []
         for m in subs:
