@@ -232,7 +232,8 @@ def _drift(
     At the optimum ``x`` the sub-band estimate is ``x - (J_b^T J_b)^-1 J_b^T r_b`` to first
     order, with covariance ``s_b^2 (J_b^T J_b)^-1`` -- or, with a noise model, the sandwich
     ``(J_b^T J_b)^-1 J_b^T diag(v) J_b (J_b^T J_b)^-1`` with the rows' noise variances ``v``
-    (the same noise as compare's verdicts): no new model evaluations. Two sub-band estimates
+    (the same noise as compare's verdicts, on the same testable points): no new model
+    evaluations. Two sub-band estimates
     disagree when they differ by more than ``k`` combined standard errors, ``k`` the
     Bonferroni normal quantile at family-wise ``alpha`` when ``k_sigma`` is None.
     """
@@ -249,6 +250,9 @@ def _drift(
         keep = np.zeros(f.size, dtype=bool)
         keep[idx] = True
         rows = _row_mask(residual, keep)
+        if residual.noise is not None:  # noise-dominated points say nothing (as in the verdicts)
+            ok = residual.noise.testable.ravel()
+            rows = rows & np.concatenate([ok, ok])
         J, r = fit.jacobian[rows], fit.vector[rows]
         norms = np.linalg.norm(J, axis=0)
         norms = np.where(norms > 0, norms, 1.0)
@@ -270,7 +274,9 @@ def _drift(
     for p, name in enumerate(fit.names):
         v, s = est[:, p], ses[:, p]
         ref = max(abs(fit.x[name]), 1e-300)
-        usable = s < 0.5 * ref  # a sub-band that cannot see the parameter says nothing
+        # a sub-band that cannot pin the parameter to 20 % says nothing: its one linear step
+        # from the full-band optimum would leave the range where the linearisation holds
+        usable = s < 0.2 * ref
         flagged = False
         for i in np.flatnonzero(usable):
             for k in np.flatnonzero(usable):
