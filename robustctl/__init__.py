@@ -19,6 +19,7 @@ from .correlate import (
 from .cost import LogCost
 from .errors import DataError, FitError, ModelError, RobustctlError, SynthesisError
 from .estimate import combine_experiments, estimate_frf, simulate_experiment
+from .export import ExportReport, discretize, export_controller, load_controller
 from .frd import FrequencyData, load_frd
 from .identify import (
     MeasurementModel,
@@ -102,4 +103,8 @@ __all__ = [
     "estimator",
     "NoiseModel",
     "noise_model",
+    "discretize",
+    "export_controller",
+    "load_controller",
+    "ExportReport",
 ]

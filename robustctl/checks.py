@@ -324,26 +324,33 @@ def _array_weights(spec: Any, n_full: int, mask: np.ndarray, shape: tuple, name:
 
 # ---------------------------------------------------------------------------- channel names
 def is_default_names(names: Sequence[str], prefix: str) -> bool:
-    """True for python-control's default names (``u[0], u[1], ...``) or FrequencyData's
-    (``u1, u2, ...``) with this prefix (``"u"`` inputs, ``"y"`` outputs)."""
+    """True for python-control's default names ``u[0], u[1], ...`` (prefix ``"u"``) or
+    ``y[0], y[1], ...`` (prefix ``"y"``): signals nobody named."""
     names = tuple(names)
-    n = len(names)
-    return names in (tuple(f"{prefix}[{k}]" for k in range(n)), tuple(f"{prefix}{k + 1}" for k in range(n)))
+    return names == tuple(f"{prefix}[{k}]" for k in range(len(names)))
 
 
-def match_channels(model_names: Sequence[str], data_names: Sequence[str], what: str) -> list[int]:
+def match_channels(
+    model_names: Sequence[str],
+    data_names: Sequence[str],
+    what: str,
+    sides: tuple[str, str] = ("model", "data"),
+) -> list[int]:
     """Index of each data channel among the model's channels: the one matching policy.
 
     1. The counts must agree.
     2. The same names (in any order) match by name: the model is reordered to the data's order.
-    3. Otherwise, when either side carries default names (python-control's ``u[0]``/``y[0]`` or
-       FrequencyData's ``u1``/``y1``: signals nobody named), they match by position.
-    4. Anything else is refused.
+    3. Otherwise, when either side carries python-control's default names (``u[0], u[1], ...``
+       or ``y[0], y[1], ...``: a system nobody named), they match by position.
+    4. Anything else is refused. (FrequencyData's own defaults ``u1``/``y1`` are names: data
+       built without names must be named, or the model renamed, to match a named model.)
 
     Parameters
     ----------
     model_names, data_names : sequence of str
     what : {"inputs", "outputs"}
+    sides : (str, str)
+        What the two sides are called in the message (default ``("model", "data")``).
 
     Raises
     ------
@@ -351,9 +358,10 @@ def match_channels(model_names: Sequence[str], data_names: Sequence[str], what: 
         Counts or names that do not match; the message says how to rename.
     """
     model_names, data_names = [str(n) for n in model_names], [str(n) for n in data_names]
+    a, b = sides
     if len(model_names) != len(data_names):
         raise DataError(
-            f"the model has {len(model_names)} {what} {model_names} but the data has "
+            f"the {a} has {len(model_names)} {what} {model_names} but the {b} has "
             f"{len(data_names)} {data_names}; select matching channels with data.select(...)."
         )
     if set(model_names) == set(data_names) and len(set(model_names)) == len(model_names):
@@ -362,7 +370,7 @@ def match_channels(model_names: Sequence[str], data_names: Sequence[str], what: 
     if is_default_names(model_names, prefix) or is_default_names(data_names, prefix):
         return list(range(len(data_names)))
     raise DataError(
-        f"the model's {what} {model_names} do not match the data's {data_names}; rename the model's "
+        f"the {a}'s {what} {model_names} do not match the {b}'s {data_names}; rename the model's "
         f"signals (rc.as_statespace(sys, {what}=[...])) or the data's (data.replace({what}=[...]))."
     )
 

@@ -1,28 +1,109 @@
-"""The ``robustctl`` command: ``robustctl demo --out out`` runs the whole pipeline on the
-embedded default example and writes an HTML report."""
+"""The ``robustctl`` command.
+
+* ``robustctl demo`` runs the whole pipeline on the embedded default example;
+* ``robustctl compare MODEL DATA``, ``robustctl diagnose MODEL DATA`` and
+  ``robustctl identify DATA`` run one stage on a user's own files and write an HTML report
+  section plus ``summary.json`` into ``--out``;
+* ``robustctl export SOURCE TARGET`` writes a controller file as another coefficient file
+  (e.g. a continuous ``K.mat`` as a C header at ``--fs``), printing the export checks.
+
+MODEL is ``FILE.py[:NAME]`` or ``package.module[:NAME]`` (see :mod:`robustctl.cli_inputs`);
+DATA is any file :func:`robustctl.load_frd` reads (.npz, .csv, .mat, .uff/.unv). Errors are
+one line on standard error and exit status 2.
+"""
 
 from __future__ import annotations
 
 import argparse
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
 
 __all__ = ["main"]
+
+_MODEL_HELP = (
+    "the model: FILE.py[:NAME] or package.module[:NAME]; NAME (default 'model') is a model or a "
+    "function returning one, e.g. robustctl.examples:caltech_truss"
+)
+_DATA_HELP = "measured frequency responses: .npz, .csv, .mat or .uff/.unv (robustctl.load_frd)"
+
+
+def _add_common(p: argparse.ArgumentParser, default_out: str) -> None:
+    p.add_argument("--band", nargs=2, type=float, metavar=("LO_HZ", "HI_HZ"), help="frequency band in Hz")
+    p.add_argument("--out", default=default_out, help=f"report folder (default: {default_out})")
 
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="robustctl", description="Robust control of flexible structures: measure, model, correlate."
+        prog="robustctl",
+        description="Robust control of flexible structures: measure, model, correlate, identify, design.",
     )
     sub = parser.add_subparsers(dest="command", required=True)
-    demo = sub.add_parser(
-        "demo", help="run the full pipeline on the embedded Caltech truss and write a report"
-    )
+    demo = sub.add_parser("demo", help="run the full pipeline on the embedded Caltech truss; write a report")
     demo.add_argument("--out", default="out", help="report folder (default: out)")
     demo.add_argument("--seed", type=int, default=0, help="random seed of the simulated experiment")
+
+    cmp = sub.add_parser(
+        "compare", help="where does MODEL fail against DATA (channels, bands, modes)?",
+        description="Compare a model with measured FRFs: per-channel cost (MACE eq. 5), failing bands, "
+        "a mode table paired through a measurement model, the error's structure.",
+    )
+    cmp.add_argument("model", help=_MODEL_HELP)
+    cmp.add_argument("data", help=_DATA_HELP)
+    cmp.add_argument("--modes", type=int, default=None,
+                     help="also fit a measurement model with this many modes to pair modes through")
+    _add_common(cmp, "out-compare")
+
+    diag = sub.add_parser(
+        "diagnose", help="which physical effect is MODEL missing, judged on DATA?",
+        description="Rank candidate physical effects (delays, filters, springs, masses, dashpots, taut "
+        "wires, ...) by what they explain of the model's error, with a significance test.",
+    )
+    diag.add_argument("model", help=_MODEL_HELP)
+    diag.add_argument("data", help=_DATA_HELP)
+    diag.add_argument("--time-budget", type=float, default=120.0, help="seconds (default 120)")
+    _add_common(diag, "out-diagnose")
+
+    ident = sub.add_parser(
+        "identify", help="fit a measurement model (the yardstick) to DATA",
+        description="Identify a modal measurement model (vector fitting, SVD mode grouping) of the data.",
+    )
+    ident.add_argument("data", help=_DATA_HELP)
+    ident.add_argument("--modes", type=int, default=None, help="number of modes (default: automatic)")
+    _add_common(ident, "out-identify")
+
+    _export_parser(sub)
     sub.add_parser("info", help="print the versions robustctl runs with")
     return parser
+
+
+def _export_parser(sub: Any) -> None:
+    exp = sub.add_parser(
+        "export",
+        help="write a controller file (json/csv/mat/h/sos) as another coefficient file",
+        description="Read a controller with robustctl.load_controller (a continuous .mat or .json with "
+        "Ts = 0 is discretised at --fs) and write it with robustctl.export_controller; prints the checks "
+        "(stability, discretisation error, coefficient dynamic range).",
+    )
+    exp.add_argument("source", help="controller file: .json, .csv, .mat (A, B, C, D, Ts), .h or .sos")
+    exp.add_argument("target", help="file to write: .json, .csv, .h, .mat or .sos")
+    exp.add_argument("--fs", type=float, default=None, help="sample rate in Hz (for a continuous source)")
+    exp.add_argument("--method", choices=("tustin", "zoh"), default="tustin", help="discretisation method")
+    exp.add_argument("--prewarp-hz", type=float, default=None, help="Tustin prewarping frequency in Hz")
+    exp.add_argument("--crossover-hz", type=float, default=None, help="where to check the discretisation")
+    exp.add_argument(
+        "--balance", choices=("none", "diagonal", "balanced"), default="none",
+        help="rescale the states for fixed-point use (the transfer function is unchanged)",
+    )
+    exp.add_argument(
+        "--channel", nargs=2, metavar=("OUTPUT", "INPUT"), default=None,
+        help="the channel of a MIMO controller to write as second-order sections",
+    )
+    exp.add_argument("--prefix", default=None, help="C header macro/array prefix (default: the file stem)")
+    exp.add_argument("--on-unstable", choices=("warn", "raise", "ignore"), default="warn")
+    exp.add_argument("--overwrite", action="store_true", help="replace an existing target file")
 
 
 def _info() -> int:
@@ -37,22 +118,125 @@ def _info() -> int:
     return 0
 
 
+def _band(args: argparse.Namespace) -> tuple[float, float] | None:
+    return None if args.band is None else (args.band[0], args.band[1])
+
+
+def _report(args: argparse.Namespace, title: str):
+    from .report import Report
+
+    return Report(Path(args.out), title=title)
+
+
+def _run_demo(args: argparse.Namespace) -> Path:
+    from .demo import run_demo
+
+    return run_demo(args.out, seed=args.seed)
+
+
+def _run_compare(args: argparse.Namespace) -> Path:
+    from .cli_inputs import load_model_spec
+    from .correlate import compare
+    from .frd import load_frd
+    from .identify import fit_measurement_model
+
+    model, data = load_model_spec(args.model), load_frd(args.data)
+    band = _band(args)
+    mm = None if args.modes is None else fit_measurement_model(data, n_modes=args.modes, band=band)
+    cmp = compare(model, data, band=band, measurement_model=mm)
+    report = _report(args, f"robustctl compare: {args.model} against {Path(args.data).name}")
+    report.heading("Where the model fails")
+    report.text(cmp.summary())
+    report.table(cmp.table())
+    report.table(cmp.mode_table())
+    report.figure(cmp.plot(), "compare", "Data against model; failing bands shaded.")
+    report.record("cost", float(cmp.cost))
+    report.record("failing_bands_hz", [(float(b.lo_hz), float(b.hi_hz)) for b in cmp.bands])
+    return report.write()
+
+
+def _run_diagnose(args: argparse.Namespace) -> Path:
+    from .cli_inputs import load_model_spec
+    from .correlate import diagnose
+    from .frd import load_frd
+
+    model, data = load_model_spec(args.model), load_frd(args.data)
+    diag = diagnose(model, data, band=_band(args), time_budget_s=args.time_budget)
+    report = _report(args, f"robustctl diagnose: {args.model} against {Path(args.data).name}")
+    report.heading("Which physical effect is missing?")
+    report.text(diag.summary())
+    report.table(diag.table())
+    report.figure(diag.plot(), "diagnose", "Candidate effects ranked by the share of the error they explain.")
+    report.record("best", None if diag.best is None else diag.best.name)
+    report.record("ranking", [r.name for r in diag.ranking[:10]])
+    return report.write()
+
+
+def _run_identify(args: argparse.Namespace) -> Path:
+    from .frd import load_frd
+    from .identify import fit_measurement_model
+
+    data = load_frd(args.data)
+    mm = fit_measurement_model(data, n_modes=args.modes, band=_band(args))
+    report = _report(args, f"robustctl identify: {Path(args.data).name}")
+    report.heading("Measurement model")
+    report.table(mm.table())
+    report.figure(mm.plot(), "measurement_model", "Measurement model against the data.")
+    report.record("n_modes", int(mm.n_modes))
+    report.record("modes", [{"f_hz": float(m.f_hz), "zeta": float(m.zeta)} for m in mm.modes])
+    return report.write()
+
+
+def _run_export(args: argparse.Namespace) -> Path:
+    from .export import export_controller, load_controller
+
+    report = export_controller(
+        load_controller(args.source),
+        args.target,
+        fs=args.fs,
+        method=args.method,
+        prewarp_hz=args.prewarp_hz,
+        crossover_hz=args.crossover_hz,
+        balance=False if args.balance == "none" else args.balance,
+        channel=None if args.channel is None else tuple(args.channel),
+        prefix=args.prefix,
+        on_unstable=args.on_unstable,
+        overwrite=args.overwrite,
+        provenance={"converted_from": str(args.source)},
+    )
+    print(report.table())
+    return report.path
+
+
+_COMMANDS: dict[str, Callable[[argparse.Namespace], Path]] = {
+    "demo": _run_demo,
+    "compare": _run_compare,
+    "diagnose": _run_diagnose,
+    "identify": _run_identify,
+    "export": _run_export,
+}
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``robustctl`` command; returns the exit status."""
+    """Entry point of the ``robustctl`` command; returns the exit status (2 on bad input)."""
     args = _parser().parse_args(argv)
     if args.command == "info":
         return _info()
-    from .demo import run_demo
     from .errors import RobustctlError
 
     start = time.perf_counter()
     try:
-        path = run_demo(args.out, seed=args.seed)
+        path = _COMMANDS[args.command](args)
     except RobustctlError as exc:
-        print(f"robustctl: {exc}", file=sys.stderr)
+        print(f"robustctl {args.command}: {_one_line(exc)}", file=sys.stderr)
         return 2
-    print(f"report written to {path} in {time.perf_counter() - start:.1f} s")
+    what = "controller" if args.command == "export" else "report"
+    print(f"{what} written to {path} in {time.perf_counter() - start:.1f} s")
     return 0
+
+
+def _one_line(exc: Any) -> str:
+    return " ".join(str(exc).split())
 
 
 if __name__ == "__main__":

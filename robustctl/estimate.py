@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from .checks import integer, positive_number
+from .checks import integer, match_channels, positive_number
 from .errors import DataError, ModelError
 from .frd import FrequencyData
 from .threads import limit_blas
@@ -247,12 +247,9 @@ def combine_experiments(experiments: Sequence[FrequencyData]) -> FrequencyData:
                 f"{e.f_hz[0]:g}-{e.f_hz[-1]:g} Hz) from experiment 0 ({ref.n_freq} points, "
                 f"{ref.f_hz[0]:g}-{ref.f_hz[-1]:g} Hz); estimate all with the same fs and nperseg."
             )
-        if e.outputs != ref.outputs:
-            raise DataError(
-                f"experiment {k} has outputs {list(e.outputs)} but experiment 0 has "
-                f"{list(ref.outputs)}; every experiment must measure the same outputs in the same order "
-                "(use .select(outputs=...) to reorder)."
-            )
+        if e.outputs != ref.outputs:  # the one channel-name policy; same names are reordered
+            idx = match_channels(e.outputs, ref.outputs, "outputs", sides=(f"experiment {k}", "experiment 0"))
+            exps[k] = e.select(outputs=[e.outputs[i] for i in idx]).replace(outputs=ref.outputs)
     inputs = [name for e in exps for name in e.inputs]
     if len(set(inputs)) != len(inputs):
         dup = sorted({n for n in inputs if inputs.count(n) > 1})

@@ -297,4 +297,8 @@ class FrequencyData:
         )
 
 
-from .frd_io import SUPPORTED_FORMATS, load_frd  # noqa: E402  (re-export; frd_io needs FrequencyData)
+# re-exports (frd_io needs FrequencyData, so it is imported last); robustctl.export uses the helpers
+from .frd_io import SUPPORTED_FORMATS, load_frd  # noqa: E402
+from .frd_io._common import jsonable as _jsonable  # noqa: E402, F401
+from .frd_io._common import write_atomically  # noqa: E402, F401
+from .frd_io.mat import _cell, _mat_names, _mat_string  # noqa: E402, F401

@@ -1,11 +1,14 @@
 """Matplotlib figures shared by the result objects and the report.
 
-Figures are built with ``matplotlib.figure.Figure`` (no pyplot state), so they work headless,
-in scripts and in Jupyter (a Figure renders itself inline).
+Figures are built with ``matplotlib.figure.Figure`` (no pyplot state), so scripts never leak
+open figures and nothing is shown twice. Inside a Jupyter kernel the first figure registers
+IPython's PNG formatter for figures (what ``%matplotlib inline`` does, unless the user chose
+a format already): a returned Figure then displays as a picture with no magic.
 """
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Sequence
 
 import numpy as np
@@ -16,10 +19,36 @@ from .frd import FrequencyData
 __all__ = ["bode_grid", "new_figure"]
 
 
+def _show_figures_in_kernel(figure_class: type) -> None:
+    """Inside an IPython kernel (Jupyter, VS Code), make returned Figures display as PNG.
+
+    Does nothing in scripts and terminals, or when a figure formatter is registered already
+    (the user's ``%matplotlib inline`` / ``%config InlineBackend.figure_formats`` win).
+    """
+    ipython = sys.modules.get("IPython")
+    shell = ipython.get_ipython() if ipython is not None else None
+    if shell is None or getattr(shell, "kernel", None) is None:
+        return
+    formatters = shell.display_formatter.formatters
+    for mime in ("image/png", "image/svg+xml", "application/pdf", "image/jpeg"):
+        try:
+            formatters[mime].lookup_by_type(figure_class)
+            return
+        except KeyError:
+            continue
+    from IPython.core.pylabtools import select_figure_formats
+
+    select_figure_formats(shell, {"png"})
+
+
 def new_figure(width: float = 9.0, height: float = 6.0):
-    """A fresh ``matplotlib.figure.Figure`` of the given size (inches)."""
+    """A fresh ``matplotlib.figure.Figure`` of the given size (inches).
+
+    In a Jupyter kernel the returned Figure renders as a picture (see the module docstring).
+    """
     from matplotlib.figure import Figure
 
+    _show_figures_in_kernel(Figure)
     return Figure(figsize=(width, height), layout="constrained")
 
 

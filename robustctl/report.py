@@ -1,12 +1,14 @@
 """A self-contained HTML report: headings, text, tables and figures, written under one folder.
 
-Figures are saved as PNG files beside ``report.html`` and referenced relatively, so the
-folder can be zipped and mailed. Nothing outside the folder is touched, and an existing
-report is replaced only inside the folder robustctl created for it.
+Figures are embedded in ``report.html`` as base64 PNG (the page is one self-contained file
+that can be mailed on its own) and also saved as PNG files beside it for slides. Nothing
+outside the folder is touched, and an existing report is replaced only inside the folder
+robustctl created for it.
 """
 
 from __future__ import annotations
 
+import base64
 import html
 import json
 from dataclasses import dataclass, field
@@ -79,12 +81,16 @@ class Report:
         self._parts.append(table._repr_html_())
 
     def figure(self, fig: Any, name: str, caption: str = "") -> Path:
-        """Save a matplotlib figure as PNG in the folder and show it in the report."""
+        """Save a matplotlib figure as PNG in the folder and embed it in the report."""
         self._figures += 1
         path = self.folder / f"{self._figures:02d}_{name}.png"
         fig.savefig(path, dpi=110)
+        encoded = base64.b64encode(path.read_bytes()).decode("ascii")
         cap = f"<p><em>{html.escape(caption)}</em></p>" if caption else ""
-        self._parts.append(f'<img src="{html.escape(path.name)}" alt="{html.escape(name)}">{cap}')
+        self._parts.append(
+            f'<img src="data:image/png;base64,{encoded}" alt="{html.escape(name)}" '
+            f'title="{html.escape(path.name)}">{cap}'
+        )
         return path
 
     def record(self, key: str, value: Any) -> None:

@@ -140,7 +140,7 @@ def test_combine_checks_grids_names():
     assert both.inputs == ("a", "b") and both.coherence is None
     with pytest.raises(DataError, match="different frequency grid"):
         rc.combine_experiments([_siso(f, "a"), _siso(f * 1.01, "b")])
-    with pytest.raises(DataError, match="same outputs"):
+    with pytest.raises(DataError, match=r"experiment 1.s outputs \[.y2.\] do not match the experiment 0.s"):
         rc.combine_experiments([_siso(f, "a"), _siso(f, "b", outputs=("y2",))])
     with pytest.raises(DataError, match="input names repeat"):
         rc.combine_experiments([_siso(f, "a"), _siso(f, "a")])

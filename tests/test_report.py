@@ -25,6 +25,13 @@ def test_report_writes_html_figures_and_summary(tmp_path):
     path = rep.write()
     page = path.read_text()
     assert "a &lt; b" in page and png.name in page and "<td>1.5</td>" in page
+    # self-contained: the figure is embedded byte for byte, nothing is linked
+    import base64
+    import re
+
+    embedded = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', page)
+    assert [base64.b64decode(e) for e in embedded] == [png.read_bytes()]
+    assert not re.search(r'src="(?!data:)', page)
     assert png.stat().st_size > 1000
     assert json.loads((tmp_path / "out" / "summary.json").read_text()) == {"cost": 1.25}
     Report(tmp_path / "out")  # a folder robustctl wrote may be reused

@@ -480,6 +480,9 @@ class Comparison:
         compared as the estimator sees it, else ``""``.
     warnings : tuple of str
         Warnings raised while comparing (e.g. units).
+    model_modes, data_modes : tuple of Mode
+        The modes found in the model and in the data (measurement model or peak picking) on
+        the band, before pairing (:class:`robustctl.Mode`).
     """
 
     log_cost: LogCost
@@ -507,6 +510,8 @@ class Comparison:
     def within_noise(self) -> bool | None:
         """True/False: the misfit is / is not within the noise everywhere; None: no noise model."""
         return None if self.noise_test is None else self.noise_test.within
+    model_modes: tuple[Mode, ...] = field(default=(), repr=False)
+    data_modes: tuple[Mode, ...] = field(default=(), repr=False)
 
     @property
     def cost(self) -> float:
@@ -835,6 +840,8 @@ def compare(
         noise_test=test,
         estimator_note=res.describe_estimator(),
         warnings=tuple(notes),
+        model_modes=tuple(model_modes),
+        data_modes=tuple(data_modes),
     )
 
 

@@ -37,7 +37,6 @@ from __future__ import annotations
 import copy
 import html
 import math
-import sys
 import time
 from collections.abc import Sequence
 from concurrent.futures import Executor
@@ -51,6 +50,7 @@ from ..errors import FitError, ModelError, RobustctlError
 from ..estimator import estimator_settings
 from ..frd import FrequencyData
 from ..noise import NO_NOISE_SENTENCE, format_p, noise_model
+from ..parallel import check_executor, parallel_map
 from ..table import Table
 from ..threads import limit_blas
 from .optimize import _bounds, levenberg_marquardt, marquardt_step
@@ -402,16 +402,6 @@ def _project(Q: np.ndarray, x: np.ndarray) -> np.ndarray:
     return x - Q @ (Q.T @ x) if Q.shape[1] else x
 
 
-def _map(fn, items: list, executor: Executor | None, desc: str) -> list:
-    from tqdm.auto import tqdm
-
-    show = sys.stderr.isatty()
-    if executor is None:
-        return [fn(it) for it in tqdm(items, desc=desc, disable=not show, leave=False)]
-    futures = [executor.submit(fn, it) for it in items]
-    return [f.result() for f in tqdm(futures, desc=desc, disable=not show, leave=False)]
-
-
 def _screen_one(
     res_u: Residual, model_u: Any, j_u: np.ndarray, Q: np.ndarray, r_perp: np.ndarray, effect: Any
 ) -> dict[str, Any]:
@@ -650,8 +640,8 @@ def _screen_all(res_u: Residual, model_u: Any, null: _Null, cands: list, executo
     """Screen every candidate (step 2): the screens, indistinguishable twins, and the
     order of the others by the fraction they explain."""
     r_perp = _project(null.Q, null.j)
-    screens = _map(
-        lambda c: _screen_one(res_u, model_u, null.j, null.Q, r_perp, c), cands, executor, "screening"
+    screens = parallel_map(
+        lambda c: _screen_one(res_u, model_u, null.j, null.Q, r_perp, c), cands, executor, desc="screening"
     )
     twins = _equivalent(screens)
     order = sorted(
@@ -914,6 +904,7 @@ def diagnose(
     >>> upd = rc.update(model.with_effect(diag.best), data)              # doctest: +SKIP
     """
     t0 = time.perf_counter()
+    check_executor(executor)
     params = renamed_keyword(params, update_params, "params", "update_params")
     point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     model = physical_model(model, "diagnose")
@@ -943,11 +934,11 @@ def diagnose(
     top = [k for k in order[:n_fit] if screens[k]["fraction"] > 0]
     # 3. local fits
     remaining = max(time_budget_s - (time.perf_counter() - t0), 1.0)
-    fits = _map(
+    fits = parallel_map(
         lambda k: _fit_one(res_u, null, screens[k], max_iter, remaining / max(len(top), 1)),
         top,
         executor,
-        "local fits",
+        desc="local fits",
     )
     evals += sum(f["evals"] for f in fits)
     # 4. significance and words

@@ -321,7 +321,7 @@ def levenberg_marquardt(
     FitError
         Bounds that exclude the start, malformed ``x0`` or bounds, or a non-finite cost.
     """
-    from tqdm.auto import tqdm
+    from tqdm import tqdm
 
     t_start = time.perf_counter()
     model = residual.model

@@ -17,7 +17,7 @@ finite-difference derivatives with respect to named parameters (eqs. 7-8).
 
 from __future__ import annotations
 
-import sys
+import functools
 from collections.abc import Mapping, Sequence
 from concurrent.futures import Executor
 from typing import Any
@@ -39,6 +39,7 @@ from ..estimator import HOLD_TAG, EstimatorSettings, estimator_settings, estimat
 from ..frd import FrequencyData
 from ..lti import as_statespace, freqresp, log_ratio
 from ..noise import NoiseModel, noise_model
+from ..parallel import parallel_map
 
 __all__ = [
     "Residual",
@@ -441,16 +442,6 @@ def _evaluate(residual: Residual, overrides: dict[str, float]) -> np.ndarray | R
         return exc
 
 
-def _map(fn, residual: Residual, points: list[dict], executor: Executor | None, progress: bool, desc: str):
-    from tqdm.auto import tqdm
-
-    show = bool(progress) and sys.stderr.isatty()
-    if executor is None:
-        return [fn(residual, p) for p in tqdm(points, desc=desc, disable=not show, leave=False)]
-    futures = [executor.submit(fn, residual, p) for p in points]
-    return [f.result() for f in tqdm(futures, desc=desc, disable=not show, leave=False)]
-
-
 def sensitivities(
     residual: Residual,
     names: Sequence[str],
@@ -545,7 +536,9 @@ def sensitivities(
     if j0 is None:
         points = [base_point] + points
         n_evals += 1
-    vectors = _map(_evaluate, residual, points, executor, progress, "sensitivities")
+    vectors = parallel_map(
+        functools.partial(_evaluate, residual), points, executor, desc="sensitivities", progress=progress
+    )
     if j0 is None:
         j0, vectors = vectors[0], vectors[1:]
         if isinstance(j0, RobustctlError):

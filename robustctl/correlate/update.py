@@ -32,6 +32,7 @@ from ..checks import UNSET, renamed_keyword
 from ..errors import FitError
 from ..frd import FrequencyData
 from ..noise import NO_NOISE_SENTENCE, noise_model
+from ..parallel import check_executor
 from ..table import Table
 from .optimize import LMResult, levenberg_marquardt
 from .residual import (
@@ -713,6 +714,7 @@ def update(
         ``drift_bands < 0``.
     """
     t0 = time.perf_counter()
+    check_executor(executor)
     for what, value, least in (("passes", passes, 1), ("drift_bands", drift_bands, 0)):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
             raise FitError(f"{what} must be an integer >= {least}; got {value!r}.")

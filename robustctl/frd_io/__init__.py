@@ -7,8 +7,6 @@ refuses inconsistent content with a :class:`~robustctl.errors.DataError`.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from os import PathLike
 from pathlib import Path
 from typing import Any
@@ -16,7 +14,7 @@ from typing import Any
 from ..checks import flag
 from ..errors import DataError
 from ..frd import FrequencyData
-from ._common import move_no_clobber
+from ._common import write_atomically
 from .csv_format import read_csv, write_csv
 from .mat import read_mat, write_mat
 from .npz import read_npz, write_npz
@@ -73,30 +71,14 @@ def _check_path(path: Any) -> Path:
 def save_frd(data: FrequencyData, path: Any, overwrite: bool = False) -> Path:
     """Write ``data`` to ``path`` (format from the extension; see :meth:`FrequencyData.save`).
 
-    Writes to a temporary file next to ``path`` and moves it into place, never clobbering an
-    existing file unless ``overwrite`` is True (a real boolean).
+    Writes to a temporary file next to ``path`` and moves it into place
+    (:func:`~robustctl.frd_io._common.write_atomically`), never clobbering an existing file
+    unless ``overwrite`` is True (a real boolean).
     """
     overwrite = flag(overwrite, "overwrite")
     path = _check_path(path)
-    if not path.parent.is_dir():
-        raise DataError(f"cannot save to {str(path)!r}: the directory {str(path.parent)!r} does not exist.")
-    if path.exists() and not overwrite:
-        raise DataError(
-            f"{str(path)!r} already exists; pass overwrite=True to replace it or choose another name."
-        )
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    tmp = Path(tmp_name)
-    try:
-        _WRITERS[path.suffix.lower()](data, tmp)
-        if overwrite:
-            os.replace(tmp, path)
-        else:
-            move_no_clobber(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    return path
+    writer = _WRITERS[path.suffix.lower()]
+    return write_atomically(path, lambda tmp: writer(data, tmp), overwrite)
 
 
 _WRITERS = {".npz": write_npz, ".mat": write_mat, ".csv": write_csv, ".uff": write_uff, ".unv": write_uff}

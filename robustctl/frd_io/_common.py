@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Mapping
+import tempfile
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -13,19 +14,19 @@ import numpy as np
 from ..errors import DataError
 from ..frd import FrequencyData
 
-__all__ = ["FORMAT", "json_dumps", "json_loads", "move_no_clobber", "build"]
+__all__ = ["FORMAT", "jsonable", "json_dumps", "json_loads", "write_atomically", "build"]
 
 FORMAT = "robustctl.FrequencyData"
 
 
-def _jsonable(obj: Any) -> Any:
+def jsonable(obj: Any) -> Any:
     """A JSON-serialisable copy of ``obj`` (numpy values to Python, others to repr)."""
     if isinstance(obj, Mapping):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
+        return {str(k): jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
+        return [jsonable(v) for v in obj]
     if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
+        return jsonable(obj.tolist())
     if isinstance(obj, np.generic):
         obj = obj.item()
     if obj is None or isinstance(obj, (str, bool, int, float)):
@@ -34,7 +35,7 @@ def _jsonable(obj: Any) -> Any:
 
 
 def json_dumps(obj: Any) -> str:
-    return json.dumps(_jsonable(obj))
+    return json.dumps(jsonable(obj))
 
 
 def json_loads(text: str, what: str) -> dict:
@@ -45,6 +46,39 @@ def json_loads(text: str, what: str) -> dict:
     if not isinstance(value, dict):
         raise DataError(f"the stored {what} must be a JSON object; got {type(value).__name__}.")
     return value
+
+
+def write_atomically(path: Path, write: Callable[[Path], None], overwrite: bool) -> Path:
+    """Call ``write(tmp)`` on a temporary file in ``path``'s folder, then move it to ``path``.
+
+    The move is ``os.replace`` (``overwrite=True``) or a hard link that fails if ``path``
+    appeared meanwhile, so a reader never sees a partial file and an existing file is only
+    replaced when asked. The temporary file is removed if ``write`` raises.
+
+    Raises
+    ------
+    DataError
+        The folder does not exist, or ``path`` exists and ``overwrite`` is False.
+    """
+    if not path.parent.is_dir():
+        raise DataError(f"cannot save to {str(path)!r}: the directory {str(path.parent)!r} does not exist.")
+    if path.exists() and not overwrite:
+        raise DataError(
+            f"{str(path)!r} already exists; pass overwrite=True to replace it or choose another name."
+        )
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    tmp = Path(tmp_name)
+    try:
+        write(tmp)
+        if overwrite:
+            os.replace(tmp, path)
+        else:
+            move_no_clobber(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return path
 
 
 def move_no_clobber(tmp: Path, path: Path) -> None:

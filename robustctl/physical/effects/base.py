@@ -1,0 +1,299 @@
+"""The Effect base class and its typed parameter spec (:class:`ParamSpec`)."""
+
+from __future__ import annotations
+
+import math
+import re
+import weakref
+from abc import ABC, abstractmethod
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any, ClassVar
+
+from ...errors import ModelError
+from ..model import PhysicalModel, Stage
+from ..parameters import Parameter
+
+#: Tag carried by every effect parameter and stage.
+EFFECT_TAG = "effect"
+#: Relative change of the most affected squared natural frequency that a calibrated
+#: candidate step produces (``candidates``): 2 % in w^2, i.e. about 1 % in frequency.
+SHIFT_TARGET = 0.02
+#: Damping-ratio change that a calibrated dashpot step produces.
+DAMPING_TARGET = 0.005
+#: Finite-difference step of an effect parameter at (or near) its neutral value, as a
+#: fraction of its typical size ``Effect.scale`` (the secant step of ``diagnose``).
+_FD_FRACTION = 0.1
+#: Modes used for calibration when no band is given.
+_N_CAL_MODES = 12
+
+
+def _slug(text: str) -> str:
+    """``"p2 c"`` -> ``"p2_c"``: a location as a parameter-name suffix."""
+    slug = re.sub(r"[^0-9A-Za-z]+", "_", str(text)).strip("_")
+    return slug or "x"
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """The typed description of one effect parameter (what ``Effect._specs`` returns, one per
+    value field).
+
+    Attributes
+    ----------
+    base : str
+        Parameter name before the location suffix (``"added_mass"`` -> ``added_mass__p2_c``).
+    unit : str
+        SI unit of the value.
+    bounds : (float, float)
+        Admissible range.
+    neutral : float
+        The value at which the effect vanishes exactly.
+    default_scale : float
+        Typical size (the secant step from neutral) when the effect is not calibrated.
+    meaning : str
+        One line of physics.
+    free : bool
+        Whether updating may change it.
+    """
+
+    base: str
+    unit: str
+    bounds: tuple[float, float]
+    neutral: float
+    default_scale: float
+    meaning: str
+    free: bool = True
+
+
+# ============================================================================ base class
+@dataclass(frozen=True)
+class Effect(ABC):
+    """A physical effect with parameters that vanish at their neutral value.
+
+    Subclasses are frozen dataclasses whose value fields (``delay``, ``mass`` ...) hold the
+    parameter values in SI units; ``location`` names where the effect acts (a node or DOF,
+    an element group, a signal) or is ``None`` for a global effect.
+
+    Attributes
+    ----------
+    location : str or None
+        Where the effect acts.
+    scale : float or None
+        Typical size of the (first) parameter: the secant step from the neutral value that
+        ``diagnose`` uses; the parameter's finite-difference ``abs_step`` is a tenth of it.
+        ``None`` uses the kind's default; :func:`candidates` calibrates it on the model.
+    """
+
+    location: str | None = None
+    scale: float | None = field(default=None, kw_only=True, repr=False)
+
+    kind: ClassVar[str] = "effect"
+    domain: ClassVar[str] = "io"
+    _value_fields: ClassVar[tuple[str, ...]] = ()
+    _extra_tags: ClassVar[tuple[str, ...]] = ()
+
+    def __post_init__(self) -> None:
+        self.parameters  # noqa: B018 - check the values against their bounds now
+
+    # ---------------------------------------------------------------- description
+    @property
+    @abstractmethod
+    def name(self) -> str:
+        """Plain-words name, e.g. ``"added mass at node p2_c"``."""
+
+    @property
+    @abstractmethod
+    def description(self) -> str:
+        """One or two sentences of physics."""
+
+    @abstractmethod
+    def _specs(self) -> list[ParamSpec]:
+        """One :class:`ParamSpec` per value field."""
+
+    def _suffix(self) -> str:
+        return "" if self.location is None else "__" + _slug(self.location)
+
+    # ---------------------------------------------------------------- parameters
+    @property
+    def parameters(self) -> tuple[Parameter, ...]:
+        """The effect's parameters, holding the current values (units in ``Parameter.unit``)."""
+        out = []
+        for k, (fname, spec) in enumerate(zip(self._value_fields, self._specs())):
+            default = spec.default_scale
+            step = self.scale if (k == 0 and self.scale is not None) else default
+            lo, hi = spec.bounds
+            value = float(getattr(self, fname))
+            if not lo <= value <= hi:
+                raise ModelError(
+                    f"{self.name}: {fname} = {value:g} {spec.unit} lies outside the admissible "
+                    f"range [{lo:g}, {hi:g}]; give a value inside it."
+                )
+            out.append(
+                Parameter(
+                    name=spec.base + self._suffix(),
+                    value=value,
+                    unit=spec.unit,
+                    bounds=(lo, hi),
+                    rel_step=1e-3,
+                    abs_step=_FD_FRACTION * abs(float(step)),
+                    meaning=spec.meaning,
+                    tags=(EFFECT_TAG, self.kind) + self._extra_tags,
+                    free=spec.free,
+                    neutral=spec.neutral,
+                )
+            )
+        return tuple(out)
+
+    @property
+    def typical_size(self) -> float:
+        """Typical size of the first parameter (its secant step from neutral), in its unit."""
+        return float(self.scale) if self.scale is not None else float(self._specs()[0].default_scale)
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.parameters)
+
+    @property
+    def values(self) -> dict[str, float]:
+        """Parameter values by parameter name (``{"added_mass__p2_c": 0.12}``)."""
+        return {p.name: p.value for p in self.parameters}
+
+    @property
+    def neutral_values(self) -> dict[str, float]:
+        """Parameter values at which the effect vanishes."""
+        return {p.name: float(p.neutral) for p in self.parameters}
+
+    @property
+    def is_neutral(self) -> bool:
+        return all(p.value == p.neutral for p in self.parameters)
+
+    def with_values(self, **values: float) -> Effect:
+        """A copy with values changed, keyed by parameter name or field name.
+
+        ``AddedMass("p2_c").with_values(added_mass__p2_c=0.1)`` and
+        ``.with_values(mass=0.1)`` are the same.
+        """
+        by_param = dict(zip(self.param_names, self._value_fields))
+        changes = {}
+        for key, value in values.items():
+            fname = by_param.get(key, key if key in self._value_fields else None)
+            if fname is None:
+                raise ModelError(
+                    f"{self.name} has no parameter {key!r}; its parameters are "
+                    f"{list(self.param_names)} (or fields {list(self._value_fields)})."
+                )
+            changes[fname] = float(value)
+        return replace(self, **changes)
+
+    def with_scale(self, scale: float) -> Effect:
+        """A copy whose secant step (typical size of the first parameter) is ``scale``."""
+        return replace(self, scale=float(scale))
+
+    # ---------------------------------------------------------------- application
+    def check(self, model: PhysicalModel) -> None:
+        """Raise ModelError if the effect cannot act on ``model`` (wrong domain, location)."""
+        if not isinstance(model, PhysicalModel):
+            raise ModelError(f"effects apply to a PhysicalModel; got {type(model).__name__}.")
+        taken = [n for n in self.param_names if n in model.param_names]
+        if taken:
+            raise ModelError(
+                f"the model already has parameter(s) {taken}: {self.name} was applied before. "
+                "Change its value with model.with_values(...) instead of adding it twice."
+            )
+        self._check_location(model)
+
+    def _check_location(self, model: PhysicalModel) -> None:  # noqa: B027 - optional hook
+        """Subclasses with a location check it against the model (global effects need not)."""
+
+    def apply(self, model: PhysicalModel) -> PhysicalModel:
+        """``model`` with this effect: its parameters added and its build stage appended."""
+        self.check(model)
+        stage = Stage(self.name, self._stage_fn(), (EFFECT_TAG, self.kind) + self._extra_tags)
+        if self.domain == "structure":
+            return model.add_structure_stage(stage, self.parameters)
+        return model.add_io_stage(stage, self.parameters)
+
+    @abstractmethod
+    def _stage_fn(self):
+        """The build-stage function ``(theta, structure_or_statespace) -> same`` of this effect."""
+
+    def describe_value(self, values: Mapping[str, float] | None = None) -> str:
+        """The effect's size in words (``"3.6 ms"``), from ``values`` or its own."""
+        vals = self.values if values is None else values
+        spec = self._specs()[0]
+        v = float(vals.get(self.param_names[0], getattr(self, self._value_fields[0])))
+        return _fmt_quantity(v, spec.unit)
+
+    def __str__(self) -> str:
+        vals = ", ".join(
+            f"{k} = {_fmt_quantity(v, p.unit)}" for (k, v), p in zip(self.values.items(), self.parameters)
+        )
+        return f"{self.name} ({vals})"
+
+
+def _fmt_quantity(value: float, unit: str) -> str:
+    if unit == "s":
+        return f"{value * 1e3:.3g} ms"
+    if unit == "rad":
+        return f"{math.degrees(value):.3g} deg"
+    if unit in ("", "1"):
+        return f"{value * 100:+.3g} %"
+    return f"{value:.3g} {unit}"
+
+
+# ============================================================================ helpers
+_model_info: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _structure_info(model: PhysicalModel) -> dict[str, Any]:
+    """Locations and element groups of a structural model (cached per model object)."""
+    if model.structure is None:
+        raise ModelError(
+            f"model {model.name!r} has no structural description (it was built from modal data or "
+            "a state space), so structural effects cannot act on it; use an input/output effect, or "
+            "build the model with rc.structural_model / an example with a structure."
+        )
+    info = _model_info.setdefault(model, {})
+    if "locations" not in info:
+        struct = model.build_structure()
+        info.update(
+            locations=tuple(struct.locations()),
+            groups=tuple(struct.element_groups()),
+            gravity=type(struct).set_gravity is not _base_set_gravity(),
+            gravity_on=getattr(struct, "gravity_enabled", None),
+        )
+    return info
+
+
+def _base_set_gravity():
+    from ..structure_base import Structure
+
+    return Structure.set_gravity
+
+
+def _signals(model: PhysicalModel, side: str) -> tuple[str, ...]:
+    info = _model_info.setdefault(model, {})
+    key = "signals_" + side
+    if key not in info:
+        sys = model.statespace()
+        info["signals_output"] = tuple(sys.output_labels)
+        info["signals_input"] = tuple(sys.input_labels)
+    return info[key]
+
+
+def _close(name: str, options: Sequence[str]) -> str:
+    import difflib
+
+    near = difflib.get_close_matches(str(name), list(options), n=3)
+    return f" Did you mean {near}?" if near else ""
+
+
+def _require(name: str | None, options: Sequence[str], what: str, effect: Effect) -> None:
+    if name is None:
+        raise ModelError(f"{effect.kind} needs a {what}; choose one of {list(options)}.")
+    if name not in options:
+        raise ModelError(
+            f"unknown {what} {name!r} for {effect.kind}; the model has {what}s {list(options)}."
+            + _close(name, options)
+        )

@@ -1,0 +1,314 @@
+"""Candidate effects of a model at every location, with secant steps calibrated on the model."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterable, Sequence
+
+import numpy as np
+
+from ...checks import check_band
+from ...errors import ModelError
+from ...threads import limit_blas
+from ..model import PhysicalModel
+from .base import (
+    _N_CAL_MODES,
+    DAMPING_TARGET,
+    SHIFT_TARGET,
+    Effect,
+    _close,
+    _signals,
+    _structure_info,
+)
+from .io_effects import (
+    ActuatorGain,
+    ActuatorLowPass,
+    InputDelay,
+    OutputDelay,
+    SensorGain,
+    SensorLowPass,
+    SensorMisalignment,
+)
+from .structural import (
+    AddedMass,
+    Dashpot,
+    GravityStiffening,
+    GroupStiffness,
+    GroupTension,
+    ModalDamping,
+    Pendulum,
+    SuspensionSpring,
+)
+
+EFFECT_KINDS: dict[str, type[Effect]] = {
+    cls.kind: cls
+    for cls in (
+        OutputDelay,
+        InputDelay,
+        SensorLowPass,
+        ActuatorLowPass,
+        SensorGain,
+        ActuatorGain,
+        SensorMisalignment,
+        AddedMass,
+        SuspensionSpring,
+        Dashpot,
+        Pendulum,
+        GroupStiffness,
+        GroupTension,
+        GravityStiffening,
+        ModalDamping,
+    )
+}
+
+
+# ============================================================================ candidates
+def _io_candidates(model: PhysicalModel) -> list[Effect]:
+    outs = _signals(model, "output")
+    cands: list[Effect] = [
+        OutputDelay(),
+        InputDelay(),
+        SensorLowPass(order=1),
+        SensorLowPass(order=2),
+        ActuatorLowPass(order=1),
+        ActuatorLowPass(order=2),
+    ]
+    cands += [SensorGain(o) for o in outs]
+    cands += [SensorMisalignment(a, partner=b) for i, a in enumerate(outs) for b in outs[i + 1 :]]
+    return cands
+
+
+_DIR_RE = re.compile(r"^(?:node\s+)?(?P<loc>.+?)[\s_:/-]+u?(?P<dir>[xyz])$")
+
+
+def _directions(labels: Sequence[str], locations: Sequence[str]) -> dict[str, list[str | None]]:
+    """Translational directions present per location, read from the DOF labels.
+
+    A location whose DOF label is the location itself (``"dof 3"``) is scalar (``[None]``).
+    """
+    out: dict[str, list[str | None]] = {loc: [] for loc in locations}
+    for lab in labels:
+        if lab in out:
+            out[lab] = [None]
+            continue
+        m = _DIR_RE.match(lab)
+        if m and m.group("loc") in out and m.group("dir") not in out[m.group("loc")]:
+            out[m.group("loc")].append(m.group("dir"))
+    directed = any(d is not None for dirs in out.values() for d in dirs)
+    # A location without DOFs of its own (a rigid-link slave) takes the model's directions.
+    default: list[str | None] = ["x", "y", "z"] if directed else [None]
+    return {loc: (dirs or list(default)) for loc, dirs in out.items()}
+
+
+def _structure_candidates(model: PhysicalModel, include_points: bool) -> list[Effect]:
+    info = _structure_info(model)
+    struct = model.build_structure()
+    mats = struct.matrices()
+    cands: list[Effect] = []
+    if include_points:
+        dirs = _directions(mats.dof_labels, info["locations"])
+        for loc in info["locations"]:
+            cands.append(AddedMass(loc))
+            for d in dirs[loc]:
+                cands.append(SuspensionSpring(loc, direction=d))
+            for d in dirs[loc]:
+                cands.append(Dashpot(loc, direction=d))
+            if info["gravity_on"] and {"x", "y"} <= set(dirs[loc]):  # a hanging rod needs gravity
+                cands.append(Pendulum(loc))
+    for group in info["groups"]:
+        cands += [GroupStiffness(group), GroupTension(group)]
+    if info["gravity"]:  # only the switch that changes the model's current state
+        state = info["gravity_on"]
+        cands += [GravityStiffening(enabled=on) for on in (True, False) if state is None or on != state]
+    return cands
+
+
+def _modal_damping_candidates(f_modes: np.ndarray, band: tuple[float, float] | None) -> list[Effect]:
+    f = np.asarray(f_modes, dtype=float)
+    f = f[f > 0]
+    if band is not None:
+        f = f[(f >= band[0]) & (f <= band[1])]
+    if f.size == 0:
+        return []
+    groups, start = [], f[0]
+    cur = [f[0]]
+    for fk in f[1:]:  # octave-wide groups
+        if fk <= 2.0 * start:
+            cur.append(fk)
+        else:
+            groups.append(cur)
+            cur, start = [fk], fk
+    groups.append(cur)
+    return [ModalDamping(lo_hz=0.97 * g[0], hi_hz=1.03 * g[-1]) for g in groups]
+
+
+@limit_blas
+def candidates(
+    model: PhysicalModel,
+    *,
+    band: tuple[float, float] | None = None,
+    kinds: Iterable[str] | None = None,
+    points: bool = True,
+    locations: Iterable[str] | None = None,
+    calibrate: bool = True,
+) -> list[Effect]:
+    """The effects applicable to ``model``, one per kind and location, at their neutral value.
+
+    I/O effects (delays, first- and second-order sensor and actuator low-passes on all
+    channels, a gain error per sensor, a misalignment per sensor pair) apply to any model.
+    Structural effects need a structural model: an added mass, a suspension spring and a
+    dashpot per location and direction (nodes of the frame FEM, each DOF of a user's
+    matrices), a suspension pendulum (horizontal x-y stiffness) per node of a structure
+    under gravity, a stiffness change and a tension per element group, gravity preload
+    on/off (frame FEM), and a modal damping change per octave-wide group of modes.
+
+    Parameters
+    ----------
+    model : PhysicalModel
+    band : (float, float), optional
+        Frequency band in Hz of interest: modal damping groups and step calibration use
+        the modes inside it.
+    kinds : iterable of str, optional
+        Keep only these kinds (see :data:`EFFECT_KINDS`).
+    points : bool
+        Include the point effects (mass, spring, dashpot at every location).
+    locations : iterable of str, optional
+        Put point effects only at these locations (e.g. where hardware sits); default all.
+    calibrate : bool
+        Set each structural candidate's secant step (``Effect.scale``) so that it changes
+        the most affected modal ``w^2`` by :data:`SHIFT_TARGET` (a dashpot: the damping
+        ratio by :data:`DAMPING_TARGET`), from one eigensolution and one assembly per
+        candidate (first-order perturbation, ``dw^2 = phi^T (dK - w^2 dM) phi``).
+
+    Returns
+    -------
+    list of Effect
+    """
+    if not isinstance(model, PhysicalModel):
+        raise ModelError(f"candidates needs a PhysicalModel; got {type(model).__name__}.")
+    band = check_band(band)
+    if kinds is not None:
+        kinds = set(kinds)
+        unknown = sorted(kinds - set(EFFECT_KINDS))
+        if unknown:
+            raise ModelError(f"unknown effect kinds {unknown}; known kinds: {sorted(EFFECT_KINDS)}.")
+    cands = _io_candidates(model)
+    if model.structure is not None:
+        cands += _structure_candidates(model, points)
+        if locations is not None:
+            cands = _at_locations(model, cands, locations)
+        if kinds is not None:
+            cands = [c for c in cands if c.kind in kinds]
+        if calibrate:
+            omega, _, cands = _calibrate(model, cands, band)
+        else:
+            omega = _modes(model, band)[0]
+        cands += _modal_damping_candidates(omega / (2 * np.pi), band)
+    taken = set(model.param_names)
+    cands = [c for c in cands if not taken.intersection(c.param_names)]
+    if kinds is not None:
+        cands = [c for c in cands if c.kind in kinds]
+    return cands
+
+
+_POINT_KINDS = ("added_mass", "suspension_spring", "dashpot", "pendulum")
+
+
+def _at_locations(model: PhysicalModel, cands: list[Effect], locations: Iterable[str]) -> list[Effect]:
+    """Keep point effects only at ``locations`` (checked against the model)."""
+    locations = (locations,) if isinstance(locations, str) else tuple(locations)
+    known = _structure_info(model)["locations"]
+    for loc in locations:
+        if loc not in known:
+            raise ModelError(
+                f"unknown location {loc!r}; the model has locations {list(known)}." + _close(loc, known)
+            )
+    return [c for c in cands if c.kind not in _POINT_KINDS or c.location in locations]
+
+
+# ---------------------------------------------------------------------------- calibration
+def _dense(a) -> np.ndarray:
+    return a.toarray() if hasattr(a, "toarray") else np.asarray(a, dtype=float)
+
+
+def _modes(model: PhysicalModel, band):
+    from ..eigen import solve_modes
+
+    mats = model.build_structure().matrices()
+    M, K = _dense(mats.mass), _dense(mats.stiffness)
+    omega, phi = solve_modes(M, K)
+    keep = omega > 0
+    if band is not None:
+        f = omega / (2 * np.pi)
+        inside = keep & (f >= band[0]) & (f <= band[1])
+        keep = inside if np.any(inside) else keep
+    idx = np.flatnonzero(keep)[:_N_CAL_MODES] if band is None else np.flatnonzero(keep)
+    return omega[idx], phi[:, idx], (M, K, mats)
+
+
+@limit_blas
+def calibrate(
+    model: PhysicalModel, effects: Sequence[Effect], band: tuple[float, float] | None = None
+) -> list:
+    """Structural effects with secant steps calibrated on ``model`` (I/O effects unchanged).
+
+    Each structural effect's ``scale`` becomes the size that changes the most affected
+    modal ``w^2`` (modes in ``band`` Hz, else the lowest 12) by :data:`SHIFT_TARGET` to
+    first order (a dashpot: a damping ratio by :data:`DAMPING_TARGET`); effects that cannot
+    change the modes at all (a spring on a clamped node) are dropped.
+
+    Parameters
+    ----------
+    model : PhysicalModel
+    effects : sequence of Effect
+    band : (float, float), optional
+        Hz.
+
+    Returns
+    -------
+    list of Effect
+    """
+    if model.structure is None or not any(e.domain == "structure" for e in effects):
+        return list(effects)
+    return _calibrate(model, list(effects), band)[2]
+
+
+def _calibrate(model: PhysicalModel, cands: list[Effect], band) -> tuple[np.ndarray, np.ndarray, list]:
+    """Give each structural candidate a secant step that moves the modes by about 1 %."""
+    omega, phi, (M0, K0, mats0) = _modes(model, band)
+    if omega.size == 0:
+        return omega, phi, cands
+    out = []
+    for c in cands:
+        if c.domain != "structure" or c.kind == "gravity":
+            out.append(c)
+            continue
+        unit = 1.0 if c.kind not in ("group_stiffness",) else 0.1
+        probe = c.with_values(**{c._value_fields[0]: unit})
+        struct = model.build_structure()
+        mats = probe._stage_fn()({probe.param_names[0]: unit}, struct).matrices()
+        if mats.n_dof != M0.shape[0]:
+            out.append(c)
+            continue
+        dM = _dense(mats.mass) - M0
+        dK = _dense(mats.stiffness) - K0
+        if c.kind == "dashpot":
+            C = _dense(mats.damping) if mats.damping is not None else np.zeros_like(M0)
+            C0 = _dense(mats0.damping) if mats0.damping is not None else np.zeros_like(M0)
+            dz = np.abs(np.einsum("ij,ik,kj->j", phi, C - C0, phi)) / (2 * omega) / unit
+            size = DAMPING_TARGET / dz.max() if dz.max() > 0 else None
+        else:
+            dw2 = (
+                np.abs(
+                    np.einsum("ij,ik,kj->j", phi, dK, phi) - omega**2 * np.einsum("ij,ik,kj->j", phi, dM, phi)
+                )
+                / unit
+            )
+            rel = dw2 / omega**2
+            size = SHIFT_TARGET / rel.max() if rel.max() > 0 else None
+        if size is None or not np.isfinite(size):
+            continue  # the effect cannot change this model's modes (e.g. a spring on a clamped node)
+        lo, hi = c.parameters[0].bounds
+        size = min(size, 0.5 * (hi - lo) if np.isfinite(hi - lo) else size)
+        out.append(c.with_scale(size))
+    return omega, phi, out

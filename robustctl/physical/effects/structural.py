@@ -1,0 +1,505 @@
+"""Structural effects: added mass, suspension, dashpots, pendulums, element groups, gravity, damping."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+from ...errors import ModelError
+from .base import (
+    Effect,
+    ParamSpec,
+    _require,
+    _slug,
+    _structure_info,
+)
+
+
+@dataclass(frozen=True)
+class _StructEffect(Effect):
+    domain: ClassVar[str] = "structure"
+    _where_word: ClassVar[str] = "node"
+
+    def _check_location(self, model):
+        info = _structure_info(model)
+        _require(self.location, info["locations"], "location", self)
+
+    def _at(self) -> str:
+        word = "dof" if str(self.location).startswith("dof") else self._where_word
+        loc = str(self.location)
+        return loc if loc.startswith(word) else f"{word} {loc}"
+
+
+@dataclass(frozen=True)
+class _DirectedEffect(_StructEffect):
+    direction: str | None = None
+
+    def _suffix(self) -> str:
+        d = "" if self.direction is None else "_" + _slug(self.direction)
+        return "__" + _slug(self.location) + d
+
+    def _dir_text(self) -> str:
+        return "" if self.direction is None else f" along {self.direction}"
+
+
+@dataclass(frozen=True)
+class AddedMass(_StructEffect):
+    """A point mass at a node or DOF (a sensor, cable clamp, bracket, bolt...).
+
+    Parameters
+    ----------
+    location : str
+        Node (frame FEM) or DOF (``"dof k"``) name.
+    mass : float
+        Added mass in kg (neutral 0).
+    """
+
+    mass: float = 0.0
+
+    kind: ClassVar[str] = "added_mass"
+    _value_fields: ClassVar[tuple[str, ...]] = ("mass",)
+
+    @property
+    def name(self) -> str:
+        return f"added mass at {self._at()}"
+
+    @property
+    def description(self) -> str:
+        return (
+            f"Unmodelled mass at {self._at()} (hardware, cabling, a sensor): lowers the frequencies "
+            "of the modes that move that point, most where the mode shape is largest."
+        )
+
+    def _specs(self):
+        return [
+            ParamSpec(
+                base="added_mass",
+                unit="kg",
+                bounds=(0.0, 1e6),
+                neutral=0.0,
+                default_scale=0.01,
+                meaning=f"point mass added at {self._at()}",
+            )
+        ]
+
+    def _stage_fn(self):
+        pname, loc = self.param_names[0], self.location
+
+        def fn(theta, struct):
+            m = float(theta[pname])
+            return struct if m == 0.0 else struct.add_mass(loc, m)
+
+        return fn
+
+
+@dataclass(frozen=True)
+class SuspensionSpring(_DirectedEffect):
+    """A grounded spring at a node (suspension device, cable, support flexibility).
+
+    Parameters
+    ----------
+    location : str
+    direction : str or None
+        ``"x"``, ``"y"``, ``"z"`` for frame nodes; ``None`` for a scalar DOF.
+    stiffness : float
+        Spring stiffness in N/m (neutral 0).
+    """
+
+    stiffness: float = 0.0
+
+    kind: ClassVar[str] = "suspension_spring"
+    _value_fields: ClassVar[tuple[str, ...]] = ("stiffness",)
+    _extra_tags: ClassVar[tuple[str, ...]] = ("suspension",)
+
+    @property
+    def name(self) -> str:
+        return f"suspension spring at {self._at()}{self._dir_text()}"
+
+    @property
+    def description(self) -> str:
+        return (
+            f"A spring from {self._at()} to ground{self._dir_text()} (suspension device, support or "
+            "cable): raises the frequencies of modes moving that point, above all the "
+            "low (suspension / rigid-body) ones."
+        )
+
+    def _specs(self):
+        return [
+            ParamSpec(
+                base="suspension_spring",
+                unit="N/m",
+                bounds=(0.0, 1e12),
+                neutral=0.0,
+                default_scale=100.0,
+                meaning=f"grounded spring at {self._at()}{self._dir_text()}",
+            )
+        ]
+
+    def _stage_fn(self):
+        pname, loc, d = self.param_names[0], self.location, self.direction
+
+        def fn(theta, struct):
+            k = float(theta[pname])
+            return struct if k == 0.0 else struct.add_spring(loc, k, d)
+
+        return fn
+
+
+@dataclass(frozen=True)
+class Dashpot(_DirectedEffect):
+    """A grounded viscous damper at a node (a suspension device's dashpot, a joint).
+
+    Parameters
+    ----------
+    location, direction : see :class:`SuspensionSpring`
+    damping : float
+        Damping coefficient in N s/m (neutral 0).
+    """
+
+    damping: float = 0.0
+
+    kind: ClassVar[str] = "dashpot"
+    _value_fields: ClassVar[tuple[str, ...]] = ("damping",)
+
+    @property
+    def name(self) -> str:
+        return f"dashpot at {self._at()}{self._dir_text()}"
+
+    @property
+    def description(self) -> str:
+        return (
+            f"A concentrated viscous damper at {self._at()}{self._dir_text()} (MACE's suspension "
+            "dashpots): widens and lowers the resonance peaks of the modes that move that point."
+        )
+
+    def _specs(self):
+        return [
+            ParamSpec(
+                base="dashpot",
+                unit="N s/m",
+                bounds=(0.0, 1e9),
+                neutral=0.0,
+                default_scale=1.0,
+                meaning=f"grounded dashpot at {self._at()}{self._dir_text()}",
+            )
+        ]
+
+    def _stage_fn(self):
+        pname, loc, d = self.param_names[0], self.location, self.direction
+
+        def fn(theta, struct):
+            c = float(theta[pname])
+            return struct if c == 0.0 else struct.add_dashpot(loc, c, d)
+
+        return fn
+
+
+@dataclass(frozen=True)
+class Pendulum(_StructEffect):
+    """Pendular stiffness of a suspension rod or cable holding a node: ``k = W / L``.
+
+    A weight ``W`` hanging on a rod of length ``L`` resists horizontal motion of its
+    attachment with stiffness ``W / L`` (N/m) in both horizontal directions (MACE's 5 m
+    load rods gave 0.23 Hz pendulum modes).
+
+    Parameters
+    ----------
+    location : str
+    stiffness : float
+        ``W / L`` in N/m (neutral 0).
+    directions : tuple of str
+        The horizontal directions (default ``("x", "y")``: gravity along z).
+    """
+
+    stiffness: float = 0.0
+    directions: tuple[str, ...] = ("x", "y")
+
+    kind: ClassVar[str] = "pendulum"
+    _value_fields: ClassVar[tuple[str, ...]] = ("stiffness",)
+    _extra_tags: ClassVar[tuple[str, ...]] = ("suspension",)
+
+    @property
+    def name(self) -> str:
+        return f"suspension pendulum at {self._at()}"
+
+    @property
+    def description(self) -> str:
+        return (
+            f"A suspension rod or cable at {self._at()}: horizontal stiffness W/L in "
+            f"{' and '.join(self.directions)}, raising the pendulum (rigid-body) frequencies."
+        )
+
+    def _specs(self):
+        return [
+            ParamSpec(
+                base="pendulum_stiffness",
+                unit="N/m",
+                bounds=(0.0, 1e12),
+                neutral=0.0,
+                default_scale=100.0,
+                meaning=f"pendular stiffness W/L at {self._at()}",
+            )
+        ]
+
+    def _stage_fn(self):
+        pname, loc, dirs = self.param_names[0], self.location, tuple(self.directions)
+
+        def fn(theta, struct):
+            k = float(theta[pname])
+            if k == 0.0:
+                return struct
+            for d in dirs:
+                struct = struct.add_spring(loc, k, d)
+            return struct
+
+        return fn
+
+
+@dataclass(frozen=True)
+class GroupStiffness(_StructEffect):
+    """A relative change of the elastic stiffness of an element group (joints, material, section).
+
+    Parameters
+    ----------
+    location : str
+        Element group name.
+    change : float
+        Relative stiffness change (``K_group <- (1 + change) K_group``; neutral 0).
+    """
+
+    change: float = 0.0
+
+    kind: ClassVar[str] = "group_stiffness"
+    _value_fields: ClassVar[tuple[str, ...]] = ("change",)
+    _where_word: ClassVar[str] = "group"
+
+    @property
+    def name(self) -> str:
+        return f"stiffness change of {self.location}"
+
+    @property
+    def description(self) -> str:
+        return (
+            f"The elements of {self.location} are stiffer or softer than modelled (joints, "
+            "material, cross-section): shifts the modes that strain them."
+        )
+
+    def _check_location(self, model):
+        _require(self.location, _structure_info(model)["groups"], "element group", self)
+
+    def _specs(self):
+        return [
+            ParamSpec(
+                base="stiffness_change",
+                unit="",
+                bounds=(-0.95, 10.0),
+                neutral=0.0,
+                default_scale=0.05,
+                meaning=f"relative stiffness change of {self.location}",
+            )
+        ]
+
+    def _stage_fn(self):
+        pname, group = self.param_names[0], self.location
+
+        def fn(theta, struct):
+            c = float(theta[pname])
+            return struct if c == 0.0 else struct.scale_group_stiffness(group, 1.0 + c)
+
+        return fn
+
+
+@dataclass(frozen=True)
+class GroupTension(_StructEffect):
+    """Axial tension along an element group: taut wires or cables fixed to its members.
+
+    The Caltech truss authors explain their FEM error this way: "the wires to the
+    accelerometers were tightly fixed to the columns and pulled taut, thereby adding
+    stiffness to the longerons". The tension's geometric stiffness stiffens the members in
+    bending (``Structure.add_group_tension``).
+
+    Parameters
+    ----------
+    location : str
+        Element group name (e.g. ``"longerons_story_1"``).
+    tension : float
+        Tension in N (neutral 0; negative is compression).
+    """
+
+    tension: float = 0.0
+
+    kind: ClassVar[str] = "group_tension"
+    _value_fields: ClassVar[tuple[str, ...]] = ("tension",)
+    _where_word: ClassVar[str] = "group"
+
+    @property
+    def name(self) -> str:
+        return f"taut wires (tension) along {self.location}"
+
+    @property
+    def description(self) -> str:
+        return (
+            f"Axial tension along {self.location} (taut wires or cables fixed to the members): "
+            "geometric stiffness stiffens their bending, raising the modes that bend them."
+        )
+
+    def _check_location(self, model):
+        _require(self.location, _structure_info(model)["groups"], "element group", self)
+
+    def _specs(self):
+        return [
+            ParamSpec(
+                base="tension",
+                unit="N",
+                bounds=(-1e7, 1e7),
+                neutral=0.0,
+                default_scale=10.0,
+                meaning=f"axial tension along {self.location}",
+            )
+        ]
+
+    def _stage_fn(self):
+        pname, group = self.param_names[0], self.location
+
+        def fn(theta, struct):
+            t = float(theta[pname])
+            return struct if t == 0.0 else struct.add_group_tension(group, t)
+
+        return fn
+
+
+@dataclass(frozen=True)
+class GravityStiffening(_StructEffect):
+    """Gravity preload (stress stiffening) switched on (``enabled=True``) or off.
+
+    A discrete effect: its parameter ``gravity_on``/``gravity_off`` is 0 (neutral, the
+    model as it is) or 1 (gravity preload forced on / off). It is not fitted
+    (``free=False``); diagnose compares the two states.
+    """
+
+    enabled: bool = True
+    switch: float = 0.0
+
+    kind: ClassVar[str] = "gravity"
+    _value_fields: ClassVar[tuple[str, ...]] = ("switch",)
+    _extra_tags: ClassVar[tuple[str, ...]] = ("gravity",)
+
+    @property
+    def name(self) -> str:
+        return f"gravity stiffening switched {'on' if self.enabled else 'off'}"
+
+    @property
+    def description(self) -> str:
+        return (
+            "The static gravity preload and its stress stiffening (MACE's 1-g model) "
+            f"{'added to' if self.enabled else 'removed from'} the structure: shifts modes whose "
+            "members carry the weight, and pendulum modes."
+        )
+
+    def _check_location(self, model):
+        info = _structure_info(model)
+        if not info["gravity"]:
+            raise ModelError(
+                f"{self.name}: the model's structure has no gravity preload to switch (only the "
+                "built-in frame FEM has one); drop this effect."
+            )
+
+    def _suffix(self) -> str:
+        return ""
+
+    def _specs(self):
+        return [
+            ParamSpec(
+                base="gravity_on" if self.enabled else "gravity_off",
+                unit="switch",
+                bounds=(0.0, 1.0),
+                neutral=0.0,
+                default_scale=1.0,
+                free=False,
+                meaning=f"1: gravity preload {'on' if self.enabled else 'off'}; 0: as modelled",
+            )
+        ]
+
+    def _stage_fn(self):
+        pname, enabled = self.param_names[0], bool(self.enabled)
+
+        def fn(theta, struct):
+            return struct.set_gravity(enabled) if float(theta[pname]) >= 0.5 else struct
+
+        return fn
+
+    def describe_value(self, values=None) -> str:
+        vals = self.values if values is None else values
+        on = float(vals.get(self.param_names[0], self.switch)) >= 0.5
+        return "switched" if on else "as modelled"
+
+
+@dataclass(frozen=True)
+class ModalDamping(_StructEffect):
+    """A relative change of the modal damping ratios of the modes in a frequency band.
+
+    Parameters
+    ----------
+    lo_hz, hi_hz : float
+        The band in Hz holding the mode group.
+    change : float
+        Relative change (``zeta <- (1 + change) zeta``; neutral 0).
+    """
+
+    lo_hz: float = 0.0
+    hi_hz: float = math.inf
+    change: float = 0.0
+
+    kind: ClassVar[str] = "modal_damping"
+    _value_fields: ClassVar[tuple[str, ...]] = ("change",)
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.lo_hz < self.hi_hz:
+            raise ModelError(
+                f"modal damping band needs 0 <= lo_hz < hi_hz (Hz); got ({self.lo_hz}, {self.hi_hz})."
+            )
+        if self.location is None:
+            object.__setattr__(self, "location", f"modes {self.lo_hz:.3g}-{self.hi_hz:.3g} Hz")
+        super().__post_init__()
+
+    @property
+    def name(self) -> str:
+        return f"modal damping change of the {self.location}"
+
+    @property
+    def description(self) -> str:
+        return (
+            f"The damping of the {self.location} differs from the model (joints, friction, "
+            "cabling): changes peak heights and widths, not frequencies."
+        )
+
+    def _check_location(self, model):
+        _structure_info(model)
+
+    def _suffix(self) -> str:
+        return f"__{_slug(f'{self.lo_hz:.3g}')}_{_slug(f'{self.hi_hz:.3g}')}Hz"
+
+    def _specs(self):
+        return [
+            ParamSpec(
+                base="modal_damping_change",
+                unit="",
+                bounds=(-0.95, 20.0),
+                neutral=0.0,
+                default_scale=0.2,
+                meaning=f"relative modal damping change of the {self.location}",
+            )
+        ]
+
+    def _stage_fn(self):
+        pname, lo, hi = self.param_names[0], float(self.lo_hz), float(self.hi_hz)
+
+        def fn(theta, struct):
+            c = float(theta[pname])
+            return struct if c == 0.0 else struct.scale_modal_damping(lo, hi, 1.0 + c)
+
+        return fn
+
+
+#: Every effect class by kind.
