@@ -40,6 +40,9 @@ __all__ = [
     "effective_averages",
     "bin_correlation",
     "HOLD_TAG",
+    "resolve_estimator",
+    "split_hold",
+    "model_view",
 ]
 
 #: tag of the zero-order-hold stage (:func:`robustctl.physical.electronics.zero_order_hold_stage`)
@@ -80,12 +83,13 @@ def estimator_settings(meta: Mapping[str, Any] | None) -> EstimatorSettings | No
     """Settings recorded by :func:`robustctl.estimate_frf` in ``FrequencyData.meta``, or None.
 
     Data joined by ``combine_experiments`` carries them per experiment; they are used when
-    every experiment agrees. ``meta["hold_divided"]`` (set by
+    every experiment agrees. Data marked ``meta["leakage_corrected"]`` (a measurement model's
+    corrected data) have none: the estimator's effects are gone. ``meta["hold_divided"]`` (set by
     :func:`robustctl.examples.make_experiment`) records that the estimate was divided by the
     zero-order hold's response.
     """
-    if not isinstance(meta, Mapping):
-        return None
+    if not isinstance(meta, Mapping) or meta.get("leakage_corrected"):
+        return None  # data already corrected for the estimator (rc.fit_measurement_model's)
     subs = meta.get("experiments")
     hold = bool(meta.get("hold_divided", False))
     if subs and "fs_hz" not in meta:
@@ -293,3 +297,62 @@ def estimator_view(sys: Any, f_hz: Any, settings: EstimatorSettings, *, hold: bo
     if hold:
         return g
     return g / hold_response(f, settings.fs_hz)[:, None, None]
+
+
+# ---------------------------------------------------------------------------- models seen
+def _sees_estimator(model: Any) -> bool:
+    """False for a fit to the H1 estimates themselves: a MeasurementModel fitted without the
+    leakage correction already contains the estimator's leakage."""
+    src = getattr(model, "source", model)
+    return bool(getattr(src, "leakage_corrected", True))
+
+
+def resolve_estimator(spec: Any, meta: Mapping[str, Any] | None, model: Any) -> EstimatorSettings | None:
+    """The H1 estimator settings to see ``model`` through, or None (the one rule of compare,
+    update, diagnose, verify and ``rc.log_cost``).
+
+    ``"auto"``: the data's recorded settings (``meta``: fs_hz, nperseg, window), unless the
+    model is itself a fit to the estimates; ``True``: required; ``False``/``None``: off; an
+    :class:`EstimatorSettings`: those.
+    """
+    if isinstance(spec, EstimatorSettings):
+        return spec
+    if spec is None or spec is False:
+        return None
+    if isinstance(spec, str) and spec == "auto":
+        return estimator_settings(meta) if _sees_estimator(model) else None
+    if spec is True:
+        st = estimator_settings(meta)
+        if st is None:
+            raise DataError(
+                "estimator=True needs the H1 estimator settings (fs_hz, nperseg, window) in data.meta, as "
+                "rc.estimate_frf records them; pass estimator=False for other data."
+            )
+        return st
+    raise DataError(f"estimator must be 'auto', True, False or EstimatorSettings; got {spec!r}.")
+
+
+def split_hold(model: Any) -> tuple[Any, bool]:
+    """``(model without its zero-order-hold stage, whether it had one)``.
+
+    With the hold added deliberately (``electronics.zero_order_hold_stage``, tagged
+    :data:`HOLD_TAG`), the estimator view samples the bare model through an exact hold
+    instead of the stage's rational approximation (aliasing and a feedthrough's timing).
+    """
+    stages = getattr(model, "io_stages", ())
+    has = any(HOLD_TAG in getattr(s, "tags", ()) for s in stages) and hasattr(model, "without")
+    return (model.without(HOLD_TAG) if has else model), has
+
+
+def model_view(bare: Any, has_hold: bool, f_hz: Any, settings: EstimatorSettings, **overrides: float):
+    """The response of a (split) model as the estimator sees it, shape (K, n_out, n_in), in the
+    model's channel order: :func:`estimator_view` of ``bare.statespace(**overrides)``."""
+    if overrides and hasattr(bare, "param_names"):
+        overrides = {k: v for k, v in overrides.items() if k in bare.param_names}
+    if hasattr(bare, "param_names") and hasattr(bare, "statespace"):
+        sys = bare.statespace(**overrides)
+    else:
+        from .lti import as_statespace
+
+        sys = as_statespace(bare)
+    return estimator_view(sys, f_hz, settings, hold=has_hold and not settings.hold_divided)

@@ -197,3 +197,16 @@ def test_numbers_in_sentences_equal_those_in_tables(caltech):
         assert claimed == r.significant == (r.p_value < r.level and r.gain >= r.min_gain)
     # no p-value anywhere is printed as 0
     assert not re.search(r"p = 0(?![.\d])", diag.summary() + str(table))
+
+
+def test_one_cost_with_the_estimator_view_everywhere():
+    data, truth = rc.examples.caltech_truss_experiment(seed=1, n_samples=16384, nperseg=1024)
+    band = (0.5, 29.8)
+    j = rc.compare(truth, data, band=band, min_channel_db=None).cost
+    assert rc.log_cost(truth, data, band=band) == pytest.approx(j, rel=1e-12)
+    assert rc.log_cost(truth, data, band=band, estimator=False) != pytest.approx(j, rel=1e-3)
+    # a leakage-corrected measurement model's data are not seen through the estimator again
+    mm = rc.fit_measurement_model(data, n_modes=6, band=(0.5, 5.5), correct_leakage=True)
+    assert rc.compare(mm, mm.data, point_weights=None, min_channel_db=None).cost == pytest.approx(
+        mm.cost.total, rel=1e-9)
+    assert rc.log_cost(mm, mm.data, point_weights=None) == pytest.approx(mm.cost.total, rel=1e-9)

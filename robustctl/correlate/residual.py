@@ -35,7 +35,7 @@ from ..checks import (
 )
 from ..checks import point_weights as point_weights_of
 from ..errors import DataError, FitError, ModelError, RobustctlError
-from ..estimator import HOLD_TAG, EstimatorSettings, estimator_settings, estimator_view
+from ..estimator import model_view, resolve_estimator, split_hold
 from ..frd import FrequencyData
 from ..lti import as_statespace, freqresp, log_ratio
 from ..noise import NoiseModel, noise_model
@@ -140,37 +140,6 @@ def check_complex_response(data: FrequencyData, name: str = "data") -> None:
     )
 
 
-def _sees_estimator(model: Any) -> bool:
-    """False for a fit to the H1 estimates themselves (a MeasurementModel fitted without leakage
-    correction already contains the estimator's leakage)."""
-    src = model.source if isinstance(model, _FixedSystem) else model
-    return bool(getattr(src, "leakage_corrected", True))
-
-
-def resolve_estimator(spec: Any, data: FrequencyData, model: Any) -> EstimatorSettings | None:
-    """The H1 estimator settings to see ``model`` through, or None.
-
-    ``"auto"``: the data's recorded settings (``meta``: fs_hz, nperseg, window), unless the
-    model is itself a fit to the estimates; ``True``: required; ``False``/``None``: off; an
-    :class:`~robustctl.estimator.EstimatorSettings`: those.
-    """
-    if isinstance(spec, EstimatorSettings):
-        return spec
-    if spec is None or spec is False:
-        return None
-    if isinstance(spec, str) and spec == "auto":
-        return estimator_settings(data.meta) if _sees_estimator(model) else None
-    if spec is True:
-        st = estimator_settings(data.meta)
-        if st is None:
-            raise DataError(
-                "estimator=True needs the H1 estimator settings (fs_hz, nperseg, window) in data.meta, as "
-                "rc.estimate_frf records them; pass estimator=False for other data."
-            )
-        return st
-    raise DataError(f"estimator must be 'auto', True, False or EstimatorSettings; got {spec!r}.")
-
-
 class Residual:
     """Weighted complex-log residual of a model against data on a band (MACE eqs. 5-6).
 
@@ -244,7 +213,7 @@ class Residual:
         self.band = check_band(band)
         mask = band_mask(data.f_hz, self.band)
         self.data = band_data(data, self.band)
-        self.estimator = resolve_estimator(estimator, data, model)
+        self.estimator = resolve_estimator(estimator, data.meta, model)
         self.noise = self._noise(noise, data, mask)
         sys0 = model.statespace()
         self._out_idx = match_channels(sys0.output_labels, self.data.outputs, "outputs")
@@ -279,9 +248,7 @@ class Residual:
         cached = getattr(self, "_bare_cache", None)
         if cached is not None and cached[0] is model:
             return cached[1], cached[2]
-        stages = getattr(model, "io_stages", ())
-        has = any(HOLD_TAG in getattr(s, "tags", ()) for s in stages) and hasattr(model, "without")
-        bare = model.without(HOLD_TAG) if has else model
+        bare, has = split_hold(model)
         self._bare_cache = (model, bare, has)
         return bare, has
 
@@ -322,10 +289,7 @@ class Residual:
         """
         if self.estimator is not None:
             bare, hold = self._without_hold()
-            hold = hold and not self.estimator.hold_divided
-            if bare is not self.model:
-                overrides = {k: v for k, v in overrides.items() if k in bare.param_names}
-            g = estimator_view(bare.statespace(**overrides), self.data.f_hz, self.estimator, hold=hold)
+            g = model_view(bare, hold, self.data.f_hz, self.estimator, **overrides)
         else:
             g = self.model.freqresp(self.data.f_hz, **overrides).response
         return g[:, self._out_idx][:, :, self._in_idx]

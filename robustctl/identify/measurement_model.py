@@ -202,7 +202,8 @@ def _fit_corrected(band: FrequencyData, order: int, groups: Any, st, kw: dict, r
         fit = _fit_once(band, order, groups, kw)
     data = band
     for _ in range(LEAKAGE_STEPS if st is not None else 0):
-        data = band.replace(response=band.response * leakage_factor(fit, band.f_hz, st))
+        data = band.replace(response=band.response * leakage_factor(fit, band.f_hz, st),
+                            meta={**band.meta, "leakage_corrected": True})
         if refine:
             fit = refine_modes(refine_residues(replace(fit, data=data)))
         else:
