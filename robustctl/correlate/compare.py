@@ -13,7 +13,12 @@ The complex log error ``e = log(G_data / G_model)`` (MACE eq. 5) is broken down
   column), the per-frequency two-way split ``e_ij(w) = mu(w) + a_i(w) + b_j(w) + r_ij(w)``
   (least squares, i.e. a two-way analysis of variance) tells sensor-side (rows ``a``),
   actuator-side (columns ``b``) and structural (the non-separable rest ``r``, and a common
-  part ``mu`` that is not a pure gain or delay) errors apart.
+  part ``mu`` that is not a pure gain or delay) errors apart;
+* against the noise: per channel and frequency section, a chi-square test of the residual
+  normalised by the data's noise model (:mod:`robustctl.noise`,
+  :mod:`robustctl.correlate.verdict`) says whether the misfit is within the noise; only what
+  is not is flagged as failing. Data that carry their H1 estimator settings are compared with
+  the model as the estimator sees it (window leakage, :mod:`robustctl.estimator`).
 """
 
 from __future__ import annotations
