@@ -544,7 +544,7 @@ class Comparison:
                         out,
                         inp,
                         float(self.channel_cost[o, i]),
-                        float(self.channel_cost[o, i] / self.cost) if self.cost > 0 else 0.0,
+                        float(100 * self.channel_cost[o, i] / self.cost) if self.cost > 0 else 0.0,
                         float(np.sqrt(np.mean(self.mag_error_db[:, o, i] ** 2))),
                         float(np.sqrt(np.mean(self.phase_error_deg[:, o, i] ** 2))),
                         float(np.max(np.abs(self.mag_error_db[:, o, i]))),
@@ -556,7 +556,7 @@ class Comparison:
                 "output",
                 "input",
                 "cost J",
-                "share",
+                "share (%)",
                 "rms mag err (dB)",
                 "rms phase err (deg)",
                 "max |mag err| (dB)",
@@ -597,9 +597,9 @@ class Comparison:
 
     def band_table(self) -> Table:
         """The worst bands."""
-        rows = [(b.lo_hz, b.hi_hz, b.peak_hz, b.peak_error_db, b.share, b.channel) for b in self.bands]
+        rows = [(b.lo_hz, b.hi_hz, b.peak_hz, b.peak_error_db, 100 * b.share, b.channel) for b in self.bands]
         return Table(
-            ("lo (Hz)", "hi (Hz)", "peak (Hz)", "peak rms err (dB)", "share of cost", "worst channel"),
+            ("lo (Hz)", "hi (Hz)", "peak (Hz)", "peak rms err (dB)", "share of cost (%)", "worst channel"),
             rows,
             title=f"bands where the RMS error exceeds {self.threshold_db:g} dB",
         )
@@ -616,7 +616,7 @@ class Comparison:
         o, i = np.unravel_index(int(np.argmax(self.channel_cost)), self.channel_cost.shape)
         lines.append(
             f"Worst channel: {self.outputs[o]} <- {self.inputs[i]} "
-            f"({self.channel_cost[o, i] / max(self.cost, 1e-300):.0%} of the cost)."
+            f"({100 * self.channel_cost[o, i] / max(self.cost, 1e-300):.4g}% of the cost)."
         )
         if self.estimator_note:
             lines.append(self.estimator_note[:1].upper() + self.estimator_note[1:] + ".")
@@ -627,8 +627,8 @@ class Comparison:
         verb = "fails most" if self.noise_test is not None else "is largest"
         if self.bands:
             parts = [
-                f"{b.lo_hz:.3g}-{b.hi_hz:.3g} Hz ({b.share:.0%}, peak {b.peak_error_db:.1f} dB at "
-                f"{b.peak_hz:.3g} Hz)"
+                f"{b.lo_hz:.4g}-{b.hi_hz:.4g} Hz ({100 * b.share:.4g}% of the cost, peak "
+                f"{b.peak_error_db:.4g} dB at {b.peak_hz:.4g} Hz)"
                 for b in self.bands[:3]
             ]
             lines.append(f"It {verb} in " + "; ".join(parts) + ".")
@@ -639,7 +639,7 @@ class Comparison:
             worst = max(paired, key=lambda m: abs(m.f_error_pct))
             lines.append(
                 f"{len(paired)} modes paired ({self.mode_source}); largest frequency error "
-                f"{worst.f_error_pct:+.2f}% at {worst.f_model:.4g} Hz (model) vs "
+                f"{worst.f_error_pct:+.4g}% at {worst.f_model:.4g} Hz (model) vs "
                 f"{worst.f_data:.4g} Hz (data)."
             )
         if self.noise_test is not None and self.noise_test.within:

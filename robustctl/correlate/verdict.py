@@ -130,6 +130,7 @@ class NoiseTest:
             ("output", "input", "lo (Hz)", "hi (Hz)", "points", "S / 2n", "dof", "p", "within noise"),
             rows,
             title=f"misfit against the noise (fails when p < {self.threshold:.2g})",
+            digits=3,
         )
 
 
