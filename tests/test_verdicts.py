@@ -183,6 +183,10 @@ def test_numbers_in_sentences_equal_those_in_tables(caltech):
     rows = {(r[0], r[1], r[2]): r for r in cmp.noise_test.table().rows}
     row = rows[(worst.output, worst.input, worst.lo_hz)]
     assert row[7] == format_p(worst.p_value) and row[8] is False
+    top = max(cmp.table().rows, key=lambda r: r[2])
+    assert f"Worst channel: {top[0]} <- {top[1]} ({top[3]:.4g}% of the cost)." in cmp.summary()
+    band = cmp.band_table().rows[0]
+    assert f"({band[4]:.4g}% of the cost, peak {band[3]:.4g} dB" in cmp.summary()
     # diagnose: the sentence's percentages and p-values are the table's
     chain = _chain()
     d = _experiment(chain.with_effect(fx.AddedMass("dof 3", mass=0.1)), seed=5)
