@@ -369,16 +369,6 @@ def effective_points(e: np.ndarray) -> tuple[float, float]:
     return n * (1.0 - rho) / (1.0 + rho), rho
 
 
-def _f_test(cost_null: float, cost_alt: float, q: int, n_eff: float, p: int) -> tuple[float, float]:
-    from scipy.stats import f as f_dist
-
-    dof = max(n_eff - p, 1.0)
-    if cost_alt <= 0:
-        return math.inf, 0.0
-    f_stat = max(cost_null - cost_alt, 0.0) / q / (cost_alt / dof)
-    return float(f_stat), float(f_dist.sf(f_stat, q, dof))
-
-
 # ============================================================================ helpers
 def _residual_for(base: Residual, model: Any) -> Residual:
     """The same data, band and weights with another model (channels are unchanged)."""
