@@ -143,6 +143,15 @@ def test_simulate_estimate_diagnose_with_the_hold_as_a_known_stage_finds_the_eff
     assert "Noise model: the H1 random error from coherence" in diag.summary()
 
 
+def test_without_coherence_diagnose_finds_the_effect_against_a_measurement_models_noise(chain):
+    truth = chain.with_effect(fx.AddedMass("dof 3", mass=0.1))
+    bare = _experiment(truth, seed=5).replace(coherence=None)
+    mm = rc.fit_measurement_model(bare, n_modes=3, band=(0.5, 40.0))
+    diag = rc.diagnose(_hold(chain), bare, band=(0.5, 40.0), measurement_model=mm)
+    assert diag.best is not None and diag.best.kind == "added_mass" and diag.best_result.significant
+    assert "Noise model: noise estimated from the residual of a 3-mode measurement model." in diag.summary()
+
+
 def test_a_half_sample_delay_is_named_the_dac_zero_order_hold(chain):
     data = _experiment(chain, seed=7)
     diag = rc.diagnose(chain, data, [fx.OutputDelay(), fx.SensorGain("v3")], band=(0.5, 40.0))

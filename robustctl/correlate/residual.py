@@ -156,7 +156,9 @@ class Residual:
         so the cost is ``sum W |log ratio|^2``, the number ``rc.log_cost(m, d, point_weights=W)``
         gives. ``"auto"`` (default): coherence weights ``W = g2 / (1 - g2)`` (inverse variance
         of the log estimate, g2 clipped at 0.999, normalised to mean 1) when the data carry
-        coherence, else uniform. The residual vector carries ``sqrt(W)``.
+        coherence; else the inverse variance ``1 / sigma^2`` of a given noise model (data
+        without coherence, noise from a measurement model's residual); else uniform. The
+        residual vector carries ``sqrt(W)``.
     min_channel_db : float or None
         Channels whose RMS magnitude on the band, in the data or in the nominal model, lies
         more than this many dB below the geometric mean of the largest channel in their row
@@ -218,7 +220,7 @@ class Residual:
         sys0 = model.statespace()
         self._out_idx = match_channels(sys0.output_labels, self.data.outputs, "outputs")
         self._in_idx = match_channels(sys0.input_labels, self.data.inputs, "inputs")
-        self.weights = np.sqrt(point_weights_of(point_weights, data, mask))
+        self.weights = np.sqrt(self._point_weights(point_weights, data, mask))
         self.dropped = self._negligible(min_channel_db)
         for o, i, _level in self.dropped:
             self.weights[:, self.data.outputs.index(o), self.data.inputs.index(i)] = 0.0
@@ -251,6 +253,17 @@ class Residual:
         bare, has = split_hold(model)
         self._bare_cache = (model, bare, has)
         return bare, has
+
+    def _point_weights(self, spec: Any, data: FrequencyData, mask: np.ndarray) -> np.ndarray:
+        """The shared rule (:func:`robustctl.checks.point_weights`), except that ``"auto"`` on data
+        without coherence but with a noise model (e.g. from a measurement model's residual) uses
+        the inverse noise variance ``1 / sigma^2`` (mean 1) -- what coherence weights are for
+        data with coherence -- instead of falling back to uniform weights."""
+        auto = isinstance(spec, str) and spec == "auto"
+        if auto and data.coherence is None and self.noise is not None:
+            w = 1.0 / self.noise.sigma**2
+            return w / float(np.mean(w))
+        return point_weights_of(spec, data, mask)
 
     def describe_estimator(self) -> str:
         """``"model seen through the H1 estimator: 4096-pt hamming at 200 Hz"`` or ``""``."""
