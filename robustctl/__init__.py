@@ -29,6 +29,7 @@ from .identify import (
     fit_rational,
     group_modes,
 )
+from .interconnect import PartitionedPlant, block_diagonal, feedback, lft, parallel, series, star, upper_lft
 from .lti import as_statespace, freqresp, log_cost, log_error
 from .modes import Mode
 from .noise import NoiseModel, noise_model
@@ -45,6 +46,39 @@ from .physical import (
     modal_model,
     modal_statespace,
     structural_model,
+)
+
+# robust design: weights
+from .robust import (
+    Block,
+    BlockStructure,
+    GeneralizedPlant,
+    HinfResult,
+    MuResult,
+    PlantWeight,
+    UncertaintyCover,
+    WorstCaseGain,
+    as_block_structure,
+    cover_additive,
+    cover_multiplicative,
+    fit_magnitude,
+    generalized_plant,
+    hinfnorm,
+    hinfsyn,
+    makeweight,
+    mixed_sensitivity,
+    mu,
+    robust_performance,
+    robust_stability,
+    worst_case_gain,
+)
+from .signals import (
+    combine_inputs,
+    combine_outputs,
+    rename_signals,
+    scale_inputs,
+    scale_outputs,
+    select_signals,
 )
 from .threads import blas_threads, set_blas_threads
 
@@ -94,6 +128,25 @@ __all__ = [
     "modal_model",
     "modal_statespace",
     "MatrixStructure",
+    # named interconnection (interconnect.py, signals.py) and the generalized plant (robust/plant.py)
+    "PartitionedPlant",
+    "lft",
+    "upper_lft",
+    "star",
+    "series",
+    "parallel",
+    "feedback",
+    "rename_signals",
+    "scale_inputs",
+    "scale_outputs",
+    "select_signals",
+    "combine_inputs",
+    "combine_outputs",
+    "block_diagonal",
+    "GeneralizedPlant",
+    "PlantWeight",
+    "generalized_plant",
+    "mixed_sensitivity",
     # shared ground: one checks module, one system coercion, one cost report, one Mode
     "checks",
     "as_statespace",
@@ -107,4 +160,24 @@ __all__ = [
     "export_controller",
     "load_controller",
     "ExportReport",
+    # --- mu analysis (mu helper) ---
+    "Block",
+    "BlockStructure",
+    "as_block_structure",
+    "mu",
+    "MuResult",
+    "robust_stability",
+    "robust_performance",
+    "worst_case_gain",
+    "WorstCaseGain",
+    # robust design: weights
+    "makeweight",
+    "fit_magnitude",
+    "cover_additive",
+    "cover_multiplicative",
+    "UncertaintyCover",
+    # H-infinity norm and synthesis
+    "hinfnorm",
+    "hinfsyn",
+    "HinfResult",
 ]

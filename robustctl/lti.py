@@ -32,6 +32,7 @@ from .checks import UNSET, as_frequency_data, band_mask, match_channels, renamed
 from .checks import point_weights as point_weights_of
 from .errors import DataError, ModelError
 from .frd import FrequencyData, _as_frequencies
+from .interconnect import PartitionedPlant, feedback, lft, parallel, series, star, upper_lft
 from .threads import limit_blas
 
 __all__ = [
@@ -45,6 +46,14 @@ __all__ = [
     "log_cost",
     "DB_PER_NEPER",
     "pole_frequency_damping",
+    # named interconnection (robustctl.interconnect), re-exported: lti holds the LFTs
+    "PartitionedPlant",
+    "lft",
+    "upper_lft",
+    "star",
+    "series",
+    "parallel",
+    "feedback",
 ]
 
 #: dB per neper, ``20 / ln 10``: the real part of :func:`log_ratio` (nepers) times this is

@@ -371,6 +371,76 @@ class UpdateResult:
         """Updated values of the selected parameters."""
         return dict(self.fit.x)
 
+    def sample_parameters(self, n: int, seed: Any = None, *, max_draws: int = 100) -> np.ndarray:
+        """Parameter sets drawn from the fit's normal approximation, within the bounds.
+
+        The updated values are Gauss-Newton estimates with covariance ``s^2 (J^T J)^+``
+        (``fit.covariance``: the standard errors and their correlations, parameter units);
+        draws follow ``N(values, covariance)`` (a symmetric square root by eigenvalues, so a
+        singular covariance is fine) truncated to each parameter's bounds by rejection:
+        a draw outside a bound is discarded (at most ``max_draws * n`` draws in total).
+
+        Parameters
+        ----------
+        n : int
+            Number of parameter sets (>= 1).
+        seed : int, numpy Generator or None
+            Random seed.
+        max_draws : int
+            Rejection cap, in multiples of ``n``.
+
+        Returns
+        -------
+        ndarray (n, n_selected)
+            Columns in the order of ``selected``.
+
+        Raises
+        ------
+        FitError
+            ``n`` not a positive integer, no updated parameter, or too many draws fall outside
+            the bounds (the fit ended near a bound: widen it or fix that parameter).
+        """
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise FitError(f"n must be a positive integer (number of parameter sets); got {n!r}.")
+        names = self.fit.names
+        if not names:
+            raise FitError("the update changed no parameter: there is no spread to sample.")
+        mean = self.fit.x_array
+        cov = 0.5 * (self.fit.covariance + self.fit.covariance.T)
+        lam, vec = np.linalg.eigh(cov)
+        root = vec * np.sqrt(np.clip(lam, 0.0, None))
+        lo = np.array([self.model.param(k).bounds[0] for k in names], dtype=float)
+        hi = np.array([self.model.param(k).bounds[1] for k in names], dtype=float)
+        rng = np.random.default_rng(seed)
+        kept, drawn = [], 0
+        while sum(len(k) for k in kept) < n and drawn < max_draws * n:
+            batch = mean + rng.standard_normal((n, len(names))) @ root.T
+            drawn += n
+            kept.append(batch[np.all((batch >= lo) & (batch <= hi), axis=1)])
+        out = np.concatenate(kept)[:n]
+        if out.shape[0] < n:
+            raise FitError(
+                f"only {out.shape[0]} of {drawn} draws fell within the parameter bounds of {list(names)}; "
+                "the fit lies at or near a bound. Widen that bound or leave the parameter out of the update."
+            )
+        return out
+
+    def sample_models(self, n: int, seed: Any = None, *, max_draws: int = 100) -> tuple[Any, ...]:
+        """Models with parameters drawn from the fitted covariance (see :meth:`sample_parameters`).
+
+        Their spread about ``model`` is the parameter uncertainty the data leave; a cover of
+        the measured residual plus this spread (``rc.cover_additive(upd.model, [data,
+        *upd.sample_models(50)])``) is an honest uncertainty weight for the updated model.
+
+        Returns
+        -------
+        tuple of PhysicalModel
+            ``model.with_values(...)`` for each drawn set.
+        """
+        draws = self.sample_parameters(n, seed, max_draws=max_draws)
+        names = self.fit.names
+        return tuple(self.model.with_values(**dict(zip(names, map(float, row)))) for row in draws)
+
     def table(self) -> Table:
         """Before/after parameter table with standard errors and the selection tests."""
         a_max = float(self.alignment.max()) if self.alignment.size else 1.0

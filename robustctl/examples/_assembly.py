@@ -4,12 +4,9 @@ Small pieces the frame FEM and the electronics module do not provide themselves:
 
 * cross-section and rigid-body inertia formulas (solid rod, thin-walled tube, equilateral
   triangular plate, solid cylinder), all textbook results in SI units;
-* static channel combinations of a named ``control.StateSpace`` (a torque *pair* acting on
-  two bodies from two single torques, a *relative* rotation read by an encoder from two
-  absolute rotations, keeping a subset of channels) and a ``dynamics`` wrapper applying
-  them right after the modal state space;
-* a PD servo compensator with roll-off and sampling delay (MACE Fig. 1 gimbal servo: the
-  encoder angle is differentiated digitally and fed back as angle and rate) and its Stage;
+* a ``dynamics`` wrapper applying static channel combinations (``robustctl.signals``: a
+  torque *pair* acting on two bodies from two single torques, a *relative* rotation read
+  by an encoder from two absolute rotations) right after the modal state space;
 * parameter helpers that tolerate the parameters dropped by ``PhysicalModel.without``.
 """
 
@@ -22,9 +19,9 @@ from typing import Any
 import numpy as np
 
 from ..errors import ModelError
-from ..physical.electronics import close_servo_loop, pade_delay, series
-from ..physical.model import Stage
+from ..physical.electronics import pd_controller
 from ..physical.parameters import Parameter
+from ..signals import combine_inputs, combine_outputs, select_signals
 
 __all__ = [
     "param",
@@ -39,7 +36,6 @@ __all__ = [
     "select_signals",
     "mapped_dynamics",
     "pd_controller",
-    "pd_servo_stage",
     "check_int",
 ]
 
@@ -129,82 +125,6 @@ def unit(v: Sequence[float]) -> np.ndarray:
 
 
 # ============================================================================ channel maps
-def _ss(A, B, C, D, inputs, outputs):
-    import control
-
-    return control.ss(A, B, C, D, inputs=list(inputs), outputs=list(outputs))
-
-
-def _combination(labels: Sequence[str], combos: Mapping[str, Mapping[str, float]], what: str):
-    """Matrix T (old x new) and the new labels: each combo replaces the channels it uses."""
-    labels = list(labels)
-    used: dict[str, str] = {}
-    for new, parts in combos.items():
-        if not parts:
-            raise ModelError(f"the {what} combination {new!r} uses no {what}s.")
-        for old in parts:
-            if old not in labels:
-                raise ModelError(
-                    f"the {what} combination {new!r} uses unknown {what} {old!r}; have {labels}."
-                )
-            if old in used:
-                raise ModelError(f"{what} {old!r} is used by both {used[old]!r} and {new!r}.")
-            used[old] = new
-    new_labels: list[str] = []
-    for lab in labels:
-        target = used.get(lab, lab)
-        if target not in new_labels:
-            new_labels.append(target)
-    if len(set(new_labels)) != len(new_labels):
-        raise ModelError(f"a combined {what} name repeats an existing one: {new_labels}.")
-    T = np.zeros((len(labels), len(new_labels)))
-    for j, lab in enumerate(new_labels):
-        if lab in combos:
-            for old, coeff in combos[lab].items():
-                T[labels.index(old), j] = float(coeff)
-        else:
-            T[labels.index(lab), j] = 1.0
-    return T, new_labels
-
-
-def combine_inputs(sys: Any, combos: Mapping[str, Mapping[str, float]]):
-    """Replace inputs by static combinations: ``u_old = sum_new coeff * u_new``.
-
-    ``combine_inputs(sys, {"gimbal x": {"torque on payload": 1, "torque on bus": -1}})``
-    makes one motor torque acting equal and opposite on payload and bus. Inputs not used
-    by any combination keep their names; a combination takes the place of its first input.
-    """
-    T, names = _combination(sys.input_labels, combos, "input")
-    A, B, C, D = (np.asarray(m, float) for m in (sys.A, sys.B, sys.C, sys.D))
-    return _ss(A, B @ T, C, D @ T, names, sys.output_labels)
-
-
-def combine_outputs(sys: Any, combos: Mapping[str, Mapping[str, float]]):
-    """Replace outputs by static combinations: ``y_new = sum_old coeff * y_old``.
-
-    ``combine_outputs(sys, {"encoder x": {"payload rx": 1, "bus rx": -1}})`` is the
-    relative rotation an encoder reads between a gimbal payload and the bus.
-    """
-    T, names = _combination(sys.output_labels, combos, "output")
-    A, B, C, D = (np.asarray(m, float) for m in (sys.A, sys.B, sys.C, sys.D))
-    return _ss(A, B, T.T @ C, T.T @ D, sys.input_labels, names)
-
-
-def select_signals(sys: Any, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None):
-    """Keep the named inputs and outputs (in the given order); ``None`` keeps all."""
-    ins = list(sys.input_labels) if inputs is None else list(inputs)
-    outs = list(sys.output_labels) if outputs is None else list(outputs)
-    for name, labels, what in [(n, sys.input_labels, "input") for n in ins] + [
-        (n, sys.output_labels, "output") for n in outs
-    ]:
-        if name not in labels:
-            raise ModelError(f"unknown {what} {name!r}; the system has {list(labels)}.")
-    ii = [list(sys.input_labels).index(n) for n in ins]
-    oo = [list(sys.output_labels).index(n) for n in outs]
-    A, B, C, D = (np.asarray(m, float) for m in (sys.A, sys.B, sys.C, sys.D))
-    return _ss(A, B[:, ii], C[oo], D[np.ix_(oo, ii)], ins, outs)
-
-
 def mapped_dynamics(
     dynamics: Callable[[Mapping[str, float], Any], Any],
     *,
@@ -226,90 +146,3 @@ def mapped_dynamics(
         return sys
 
     return wrapped
-
-
-# ============================================================================ servo
-def pd_controller(
-    gain: float,
-    lead_hz: float,
-    *,
-    lowpass_hz: float = math.inf,
-    delay_s: float = 0.0,
-    rolloff_order: int = 2,
-    pade_order: int = 2,
-):
-    """PD servo compensator ``K(s) = gain (1 + s / w_d) R(s) e^{-s delay}`` with roll-off R.
-
-    ``R(s) = w_c / (s + w_c)`` (``rolloff_order=1``) or the Butterworth pair
-    ``w_c^2 / (s^2 + sqrt(2) w_c s + w_c^2)`` (``rolloff_order=2``), unit gain at DC.
-
-    Parameters
-    ----------
-    gain : float
-        Proportional gain (actuator units per sensor unit, e.g. V/rad).
-    lead_hz : float
-        Derivative corner ``w_d / 2 pi`` in Hz (the rate feedback of MACE's digitally
-        differentiated encoder); must be finite and > 0.
-    lowpass_hz : float
-        Roll-off corner ``w_c / 2 pi`` in Hz (> ``lead_hz``); must be finite (a PD without
-        roll-off is improper).
-    delay_s : float
-        Sampling delay of the digital loop in s (Pade approximant of ``pade_order``).
-    rolloff_order : {1, 2}
-        Order of the roll-off.
-
-    Returns
-    -------
-    control.StateSpace
-        SISO, input ``u`` (error), output ``y`` (actuator command).
-    """
-    wd = 2 * math.pi * float(lead_hz)
-    wc = 2 * math.pi * float(lowpass_hz)
-    if not (math.isfinite(wd) and wd > 0):
-        raise ModelError(f"the PD lead corner must be a finite frequency > 0 Hz; got {lead_hz!r}.")
-    if not (math.isfinite(wc) and wc > wd):
-        raise ModelError(
-            f"the PD roll-off ({lowpass_hz!r} Hz) must be finite and above the lead corner ({lead_hz!r} Hz)."
-        )
-    if rolloff_order not in (1, 2):
-        raise ModelError(f"rolloff_order must be 1 or 2; got {rolloff_order!r}.")
-    g = float(gain)
-    if rolloff_order == 1:
-        # gain (1 + s/wd) wc/(s + wc) = gain wc/wd + gain wc (1 - wc/wd)/(s + wc)
-        pd = _ss([[-wc]], [[wc]], [[g * (1 - wc / wd)]], [[g * wc / wd]], ["u"], ["y"])
-    else:
-        # states scaled by wc: x1' = wc x2, x2' = -wc x1 - sqrt2 wc x2 + wc u; R = x1
-        z = math.sqrt(2.0)
-        A = [[0.0, wc], [-wc, -z * wc]]
-        pd = _ss(A, [[0.0], [wc]], [[g, g * wc / wd]], [[0.0]], ["u"], ["y"])
-    if delay_s:
-        pd = series(pd, pade_delay(delay_s, pade_order))
-    return pd
-
-
-def pd_servo_stage(
-    sensor: str,
-    actuator: str,
-    gain: str | float,
-    lead_hz: str | float,
-    *,
-    lowpass_hz: str | float,
-    delay_s: str | float = 0.0,
-    rolloff_order: int = 2,
-    reference_input_name: str | None = None,
-    name: str | None = None,
-    tags: Sequence[str] = ("electronics", "servo"),
-) -> Stage:
-    """Stage closing ``u_actuator = K_PD (r - y_sensor)`` with numbers or parameter names."""
-
-    def value(theta: Mapping[str, float], v: str | float) -> float:
-        return float(theta[v]) if isinstance(v, str) else float(v)
-
-    def fn(theta: Mapping[str, float], sys: Any):
-        k = pd_controller(
-            value(theta, gain), value(theta, lead_hz), lowpass_hz=value(theta, lowpass_hz),
-            delay_s=value(theta, delay_s), rolloff_order=rolloff_order,
-        )
-        return close_servo_loop(sys, sensor, actuator, k, reference_input_name)
-
-    return Stage(name or f"PD servo {sensor} -> {actuator}", fn, tuple(tags))

@@ -108,18 +108,17 @@ from collections.abc import Mapping
 import numpy as np
 
 from ..errors import ModelError
-from ..physical.electronics import bessel_stage, delay_stage, gain_stage, rate_gyro_stage
+from ..physical.electronics import bessel_stage, delay_stage, gain_stage, rate_gyro_stage, servo_stage
 from ..physical.modal import modal_dynamics
 from ..physical.model import PhysicalModel, Stage
+from ..signals import select_signals
 from ._assembly import (
     check_int,
     cylinder_inertia,
     get_param,
     mapped_dynamics,
     param,
-    pd_servo_stage,
     rod_section,
-    select_signals,
     tube_section,
 )
 
@@ -379,8 +378,8 @@ def mace_beam(
     if servo_loops:
         for w in GIMBALS:
             for d in AXES:
-                stages.append(pd_servo_stage(
-                    f"{w} encoder {d}", f"{w} gimbal {d}", f"k_servo_{d}", f"f_servo_lead_{d}",
+                stages.append(servo_stage(
+                    f"{w} encoder {d}", f"{w} gimbal {d}", f"k_servo_{d}", lead_hz=f"f_servo_lead_{d}",
                     lowpass_hz=f"f_servo_lowpass_{d}", delay_s="delay_sampling",
                     reference_input_name=f"{w} gimbal {d} command", name=f"{w} gimbal {d} servo",
                 ))

@@ -30,6 +30,8 @@ import numpy as np
 import scipy.signal as signal
 
 from ..errors import ModelError
+from ..interconnect import _series_arrays
+from ..signals import _abcd, _index, _names, _ss, rename_signals, scale_inputs, scale_outputs
 from .model import Stage
 
 __all__ = [
@@ -46,6 +48,7 @@ __all__ = [
     "zero_order_hold",
     "pi_controller",
     "servo_controller",
+    "pd_controller",
     "series",
     # functions on named systems
     "scale_outputs",
@@ -85,34 +88,6 @@ _MAX_PADE_ORDER = 10
 
 
 # ============================================================================ helpers
-def _ss(A, B, C, D, inputs: Sequence[str], outputs: Sequence[str]):
-    import control
-
-    return control.ss(
-        np.asarray(A, float), np.asarray(B, float), np.asarray(C, float), np.asarray(D, float),
-        inputs=list(inputs), outputs=list(outputs),
-    )
-
-
-def _abcd(sys: Any, what: str = "system"):
-    """Arrays of a continuous-time LTI system (StateSpace, TransferFunction or number)."""
-    import control
-
-    if isinstance(sys, (int, float, np.integer, np.floating)):
-        return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.array([[float(sys)]])
-    try:
-        ss = control.ss(sys)
-    except Exception as exc:  # python-control raises several types
-        raise ModelError(f"cannot use {type(sys).__name__} as a {what}: {exc}") from exc
-    if ss.isdtime(strict=True):
-        raise ModelError(f"the {what} is discrete-time (dt={ss.dt}); the I/O model is continuous-time.")
-    return tuple(np.asarray(m, dtype=float).reshape(s) for m, s in zip(
-        (ss.A, ss.B, ss.C, ss.D),
-        ((ss.nstates, ss.nstates), (ss.nstates, ss.ninputs), (ss.noutputs, ss.nstates),
-         (ss.noutputs, ss.ninputs)),
-    ))
-
-
 def _siso(filt: Any, what: str = "filter"):
     A, B, C, D = _abcd(filt, what)
     if B.shape[1] != 1 or C.shape[0] != 1:
@@ -121,17 +96,6 @@ def _siso(filt: Any, what: str = "filter"):
             f"channel); got {C.shape[0]} outputs and {B.shape[1]} inputs."
         )
     return A, B, C, D
-
-
-def _names(names: str | Sequence[str]) -> tuple[str, ...]:
-    return (names,) if isinstance(names, str) else tuple(names)
-
-
-def _index(labels: Sequence[str], name: str, what: str) -> int:
-    labels = list(labels)
-    if name not in labels:
-        raise ModelError(f"unknown {what} {name!r}; the system has {what}s {labels}.")
-    return labels.index(name)
 
 
 def _positive(value: float, what: str, unit: str, allow_inf: bool = False) -> float:
@@ -148,19 +112,10 @@ def _order(order: int, limit: int, what: str) -> int:
     return int(order)
 
 
-def _series(f1, f2):
-    """SISO cascade ``f2 * f1`` of (A, B, C, D) tuples."""
-    A1, B1, C1, D1 = f1
-    A2, B2, C2, D2 = f2
-    n1, n2 = A1.shape[0], A2.shape[0]
-    A = np.block([[A1, np.zeros((n1, n2))], [B2 @ C1, A2]])
-    return A, np.vstack([B1, B2 @ D1]), np.hstack([D2 @ C1, C2]), D2 @ D1
-
-
 def _cascade(sections: Sequence[tuple]) -> Any:
     out = _identity_abcd()
     for sec in sections:
-        out = _series(out, sec)
+        out = _series_arrays(out, sec)
     return _ss(*out, ["u"], ["y"])
 
 
@@ -413,6 +368,66 @@ def servo_controller(
     return series(pi_controller(gain, integral_hz), lowpass1(lowpass_hz), pade_delay(delay_s, pade_order))
 
 
+def pd_controller(
+    gain: float,
+    lead_hz: float,
+    *,
+    lowpass_hz: float = math.inf,
+    delay_s: float = 0.0,
+    rolloff_order: int = 2,
+    pade_order: int = 2,
+):
+    """PD servo compensator ``K(s) = gain (1 + s / w_d) R(s) e^{-s delay}`` with roll-off R.
+
+    ``R(s) = w_c / (s + w_c)`` (``rolloff_order=1``) or the Butterworth pair
+    ``w_c^2 / (s^2 + sqrt(2) w_c s + w_c^2)`` (``rolloff_order=2``), unit gain at DC.
+    MACE Fig. 1's gimbal servo: the encoder angle is differentiated digitally and fed back
+    as angle and rate.
+
+    Parameters
+    ----------
+    gain : float
+        Proportional gain (actuator units per sensor unit, e.g. V/rad).
+    lead_hz : float
+        Derivative corner ``w_d / 2 pi`` in Hz (the rate feedback of MACE's digitally
+        differentiated encoder); must be finite and > 0.
+    lowpass_hz : float
+        Roll-off corner ``w_c / 2 pi`` in Hz (> ``lead_hz``); must be finite (a PD without
+        roll-off is improper).
+    delay_s : float
+        Sampling delay of the digital loop in s (Pade approximant of ``pade_order``).
+    rolloff_order : {1, 2}
+        Order of the roll-off.
+
+    Returns
+    -------
+    control.StateSpace
+        SISO, input ``u`` (error), output ``y`` (actuator command).
+    """
+    wd = 2 * math.pi * float(lead_hz)
+    wc = 2 * math.pi * float(lowpass_hz)
+    if not (math.isfinite(wd) and wd > 0):
+        raise ModelError(f"the PD lead corner must be a finite frequency > 0 Hz; got {lead_hz!r}.")
+    if not (math.isfinite(wc) and wc > wd):
+        raise ModelError(
+            f"the PD roll-off ({lowpass_hz!r} Hz) must be finite and above the lead corner ({lead_hz!r} Hz)."
+        )
+    if rolloff_order not in (1, 2):
+        raise ModelError(f"rolloff_order must be 1 or 2; got {rolloff_order!r}.")
+    g = float(gain)
+    if rolloff_order == 1:
+        # gain (1 + s/wd) wc/(s + wc) = gain wc/wd + gain wc (1 - wc/wd)/(s + wc)
+        pd = _ss([[-wc]], [[wc]], [[g * (1 - wc / wd)]], [[g * wc / wd]], ["u"], ["y"])
+    else:
+        # states scaled by wc: x1' = wc x2, x2' = -wc x1 - sqrt2 wc x2 + wc u; R = x1
+        z = math.sqrt(2.0)
+        A = [[0.0, wc], [-wc, -z * wc]]
+        pd = _ss(A, [[0.0], [wc]], [[g, g * wc / wd]], [[0.0]], ["u"], ["y"])
+    if delay_s:
+        pd = series(pd, pade_delay(delay_s, pade_order))
+    return pd
+
+
 def series(*parts: Any):
     """SISO series connection: ``parts[0]`` acts first, ``parts[-1]`` last.
 
@@ -429,50 +444,11 @@ def series(*parts: Any):
     """
     out = _identity_abcd()
     for part in parts:
-        out = _series(out, _siso(part))
+        out = _series_arrays(out, _siso(part))
     return _ss(*out, ["u"], ["y"])
 
 
 # ============================================================================ named systems
-def scale_outputs(sys: Any, gains: Mapping[str, float]):
-    """Multiply named outputs by gains (e.g. V per rad/s of a rate gyro's electronics).
-
-    ``y_name <- gains[name] * y_name``; other outputs and all names are unchanged.
-    """
-    A, B, C, D = _abcd(sys)
-    C, D = C.copy(), D.copy()
-    for name, g in gains.items():
-        i = _index(sys.output_labels, name, "output")
-        C[i] *= float(g)
-        D[i] *= float(g)
-    return _ss(A, B, C, D, sys.input_labels, sys.output_labels)
-
-
-def scale_inputs(sys: Any, gains: Mapping[str, float]):
-    """Multiply named inputs by gains: ``u_phys = gains[name] * u_name`` (e.g. N m per V)."""
-    A, B, C, D = _abcd(sys)
-    B, D = B.copy(), D.copy()
-    for name, g in gains.items():
-        j = _index(sys.input_labels, name, "input")
-        B[:, j] *= float(g)
-        D[:, j] *= float(g)
-    return _ss(A, B, C, D, sys.input_labels, sys.output_labels)
-
-
-def rename_signals(
-    sys: Any, inputs: Mapping[str, str] | None = None, outputs: Mapping[str, str] | None = None
-):
-    """A copy with signals renamed (``{"gyro x": "gyro x (V)"}``)."""
-    ins, outs = list(sys.input_labels), list(sys.output_labels)
-    for old, new in (inputs or {}).items():
-        ins[_index(ins, old, "input")] = new
-    for old, new in (outputs or {}).items():
-        outs[_index(outs, old, "output")] = new
-    if len(set(ins)) != len(ins) or len(set(outs)) != len(outs):
-        raise ModelError(f"renaming would repeat a signal name: inputs {ins}, outputs {outs}.")
-    return _ss(*_abcd(sys), ins, outs)
-
-
 def _filter_one_output(abcd, i: int, f):
     A, B, C, D = abcd
     Af, Bf, Cf, Df = f
@@ -806,26 +782,52 @@ def servo_stage(
     gain: Value,
     *,
     integral_hz: Value | None = None,
+    lead_hz: Value | None = None,
     lowpass_hz: Value = math.inf,
+    rolloff_order: int | None = None,
     delay_s: Value = 0.0,
     pade_order: int = 2,
     reference_input_name: str | None = None,
     name: str | None = None,
     tags: Sequence[str] = ("electronics", "servo"),
 ) -> Stage:
-    """Stage: :func:`close_servo_loop` with a :func:`servo_controller` built from theta."""
+    """Stage: :func:`close_servo_loop` with a compensator built from theta at build time.
 
-    def fn(theta, sys):
-        k = servo_controller(
+    Without ``lead_hz`` the compensator is :func:`servo_controller` (gain, optional PI,
+    first-order low-pass, delay); with ``lead_hz`` it is the PD servo :func:`pd_controller`
+    (MACE Fig. 1 gimbal servo; ``lowpass_hz`` finite, ``rolloff_order`` 1 or 2, default 2).
+    Every number may be a constant, a parameter name or a function of theta.
+    """
+    if lead_hz is not None and integral_hz is not None:
+        raise ModelError(
+            "servo_stage builds a PI (integral_hz) or a PD (lead_hz) compensator, not both; "
+            f"got integral_hz={integral_hz!r} and lead_hz={lead_hz!r}."
+        )
+    if lead_hz is None and rolloff_order not in (None, 1):
+        raise ModelError(
+            f"the P/PI servo has a first-order roll-off; rolloff_order={rolloff_order!r} needs lead_hz (PD)."
+        )
+
+    def controller(theta):
+        if lead_hz is not None:
+            return pd_controller(
+                _value(theta, gain), _value(theta, lead_hz), lowpass_hz=_value(theta, lowpass_hz),
+                delay_s=_value(theta, delay_s), rolloff_order=2 if rolloff_order is None else rolloff_order,
+                pade_order=pade_order,
+            )
+        return servo_controller(
             _value(theta, gain),
             integral_hz=None if integral_hz is None else _value(theta, integral_hz),
             lowpass_hz=_value(theta, lowpass_hz),
             delay_s=_value(theta, delay_s),
             pade_order=pade_order,
         )
-        return close_servo_loop(sys, sensor, actuator, k, reference_input_name)
 
-    return Stage(name or f"servo {sensor} -> {actuator}", fn, tuple(tags))
+    def fn(theta, sys):
+        return close_servo_loop(sys, sensor, actuator, controller(theta), reference_input_name)
+
+    kind = "PD servo" if lead_hz is not None else "servo"
+    return Stage(name or f"{kind} {sensor} -> {actuator}", fn, tuple(tags))
 
 
 def misalignment_stage(pair: Sequence[str], angle_rad: Value, *, side="outputs", **kw) -> Stage:

@@ -1,1 +1,51 @@
 """robustctl.robust (see DESIGN.md)."""
+
+from .blocks import Block, BlockStructure, as_block_structure
+
+# weights (uncertainty and performance weights, magnitude fits, covers)
+from .cover import UncertaintyCover, cover_additive, cover_multiplicative, error_envelope
+
+# H-infinity norm and synthesis (hinf helper)
+from .hinfnorm import hinfnorm
+from .hinfsyn import HinfResult, hinfsyn
+from .magfit import MagnitudeFit, fit_magnitude, fit_magnitude_details, zpk_statespace
+
+# --- mu analysis (mu helper) ---
+from .mu import MuResult, mu
+from .mu_analysis import WorstCaseGain, robust_performance, robust_stability, worst_case_gain
+from .plant import GeneralizedPlant, PlantWeight, generalized_plant, mixed_sensitivity
+from .weights import CALTECH_MULTIPLICATIVE, caltech_additive_weight, makeweight
+
+__all__ = [
+    "Block",
+    "BlockStructure",
+    "as_block_structure",
+    # generalized plant (plant.py)
+    "GeneralizedPlant",
+    "PlantWeight",
+    "generalized_plant",
+    "mixed_sensitivity",
+    # --- mu analysis (mu helper) ---
+    "mu",
+    "MuResult",
+    "robust_stability",
+    "robust_performance",
+    "worst_case_gain",
+    "WorstCaseGain",
+    # weights
+    "makeweight",
+    "fit_magnitude",
+    "fit_magnitude_details",
+    "MagnitudeFit",
+    "zpk_statespace",
+    "cover_additive",
+    "cover_multiplicative",
+    "error_envelope",
+    "UncertaintyCover",
+    "caltech_additive_weight",
+    "CALTECH_MULTIPLICATIVE",
+    # H-infinity norm and synthesis
+    "hinfnorm",
+    "hinfsyn",
+    "HinfResult",
+]

@@ -1,0 +1,543 @@
+"""H-infinity synthesis that never hangs: ``rc.hinfsyn(P, nmeas, ncon)`` -> :class:`HinfResult`.
+
+Two routes, both verified on the closed loop:
+
+* ``method="riccati"`` (default): the DGKF / Glover-Doyle gamma iteration of
+  :mod:`robustctl.robust.dgkf` (Zhou, Doyle & Glover 1996, ch. 16-17) on the plant with
+  ``D12``, ``D21`` normalised and ``D22`` loop-shifted away (Safonov, Limebeer & Chiang 1989),
+  after the assumption checks of :mod:`robustctl.robust.hinf_assumptions`. The optimal
+  ``gamma`` is bracketed below by the Parrott bound of ``D11`` and above by ``||P11||_inf``
+  (the open loop ``K = 0``, when ``P`` is stable) or by a geometric search, and bisected
+  geometrically to the relative tolerance ``gamma_tol``; each test is two Riccati
+  equations (real Schur forms of order ``2n``).
+* ``method="lmi"``: the Gahinet-Apkarian (1994) LMIs in cvxpy/Clarabel
+  (:mod:`robustctl.robust.hinf_lmi`), without bisection and without the rank and
+  imaginary-axis-zero assumptions; slower (a reference and a fallback for singular problems).
+
+The controller is designed at ``gamma_opt (1 + backoff)``, because the Riccati solutions
+blow up at the optimum (ZDG sec. 16.9), then ``Fl(P, K)`` is formed, and the result is
+accepted only when the closed loop is stable and ``||Fl(P, K)||_inf <= gamma_design (1 + 1e-6)``
+(by :func:`robustctl.robust.hinfnorm.hinfnorm`); otherwise gamma is raised and the design
+repeated (at most ``MAX_RETRIES`` times). Every loop is capped and the whole call obeys
+``time_budget_s``.
+"""
+
+from __future__ import annotations
+
+import html
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.linalg
+
+from ..checks import positive_number
+from ..errors import ModelError, SynthesisError
+from ..interconnect import PartitionedPlant, lft
+from ..lti import as_statespace
+from ..table import Table
+from ..threads import limit_blas
+from . import dgkf
+from .hinf_assumptions import check_assumptions
+from .hinfnorm import hinfnorm_matrices
+
+__all__ = ["HinfResult", "hinfsyn"]
+
+#: Design attempts above the bisection's gamma before giving up (each raises gamma).
+MAX_RETRIES = 8
+#: Gamma tests of the upper-bound search (factor 10 each) and of the bisection.
+MAX_BRACKET_STEPS = 16
+MAX_BISECTION_STEPS = 60
+#: Relative slack of the closed-loop check ``||Fl(P, K)||_inf <= gamma_design (1 + VERIFY_TOL)``.
+VERIFY_TOL = 1e-6
+
+
+# ---------------------------------------------------------------------------- result
+@dataclass(frozen=True)
+class HinfResult:
+    """An H-infinity design.
+
+    Attributes
+    ----------
+    K : control.StateSpace
+        The controller ``u = K y``: inputs named like the plant's measurements, outputs like
+        its control inputs.
+    gamma : float
+        Verified closed-loop H-infinity norm ``||Fl(P, K)||_inf`` (by :func:`hinfnorm`).
+    gamma_opt : float
+        Best achievable gamma found (the bisection's smallest feasible gamma, or the LMI optimum).
+    closed_loop : control.StateSpace
+        ``Fl(P, K)``: ``w -> z`` with the plant's names.
+    info : dict
+        ``method``, ``gamma_design``, ``backoff``, ``gamma_lower`` (largest gamma shown
+        infeasible, or the Parrott bound), ``n_gamma_tests``, ``history`` (list of
+        ``(gamma, feasible, reason)``), ``retries``, ``closed_loop_max_real_pole`` (rad/s),
+        ``f_peak_hz``, ``time_s``, ``stopped_by_budget``.
+    """
+
+    K: Any
+    gamma: float
+    gamma_opt: float
+    closed_loop: Any
+    info: dict = field(default_factory=dict)
+
+    def table(self) -> Table:
+        """The design's key numbers, one per row."""
+        i = self.info
+        rows = [
+            ("method", i.get("method", "")),
+            ("gamma (verified closed-loop norm)", self.gamma),
+            ("gamma_opt (best feasible)", self.gamma_opt),
+            ("gamma lower bound", i.get("gamma_lower", float("nan"))),
+            ("gamma design (backed off)", i.get("gamma_design", float("nan"))),
+            ("closed-loop peak frequency (Hz)", i.get("f_peak_hz", float("nan"))),
+            ("controller order", self.K.nstates),
+            ("slowest closed-loop pole Re (rad/s)", i.get("closed_loop_max_real_pole", float("nan"))),
+            ("gamma tests", i.get("n_gamma_tests", 0)),
+            ("time (s)", i.get("time_s", float("nan"))),
+        ]
+        return Table(("quantity", "value"), rows, title="H-infinity synthesis", digits=6)
+
+    def summary(self) -> str:
+        """A few sentences in plain words."""
+        i = self.info
+        lines = [
+            f"H-infinity controller ({i.get('method', '?')} route) of order {self.K.nstates} for "
+            f"{self.K.ninputs} measurement(s) and {self.K.noutputs} control input(s).",
+            f"Closed-loop H-infinity norm {self.gamma:.6g} (verified; peak at "
+            f"{i.get('f_peak_hz', np.nan):.4g} Hz), designed at gamma = {i.get('gamma_design', np.nan):.6g}, "
+            f"{100 * i.get('backoff', 0):.3g}% above "
+            f"the best feasible gamma {self.gamma_opt:.6g} (lower bound {i.get('gamma_lower', np.nan):.6g}).",
+        ]
+        if i.get("stopped_by_budget"):
+            lines.append(
+                "The gamma bisection stopped at the time budget; gamma_opt may be above the optimum."
+            )
+        return "\n".join(lines)
+
+    def plot(self, f_hz: Any = None, fig: Any = None) -> Any:
+        """Singular values of the closed loop ``w -> z`` over frequency, with gamma and gamma_opt.
+
+        Parameters
+        ----------
+        f_hz : array_like, optional
+            Frequencies in Hz (default: 800 log-spaced points a decade beyond the closed
+            loop's pole frequencies, plus the peak).
+        fig : matplotlib Figure, optional
+
+        Returns the matplotlib Figure.
+        """
+        from ..lti import freqresp_array
+        from ..plots import new_figure
+
+        f_peak = self.info.get("f_peak_hz", np.nan)
+        if f_hz is None:
+            A = np.asarray(self.closed_loop.A)
+            poles = np.abs(np.linalg.eigvals(A)) / (2 * np.pi) if A.size else np.zeros(0)
+            poles = poles[poles > 0]
+            lo, hi = (poles.min() / 10, poles.max() * 10) if poles.size else (1e-2, 1e2)
+            f_hz = np.geomspace(lo, hi, 800)
+            if np.isfinite(f_peak) and f_peak > 0:
+                f_hz = np.sort(np.append(f_hz, f_peak))
+        f_hz = np.asarray(f_hz, dtype=float)
+        sv = np.linalg.svd(freqresp_array(self.closed_loop, f_hz), compute_uv=False)
+        fig = fig or new_figure(7.0, 4.0)
+        ax = fig.add_subplot(1, 1, 1)
+        ax.loglog(f_hz, sv, lw=1)
+        ax.axhline(self.gamma, color="k", ls="--", lw=1, label=f"gamma = {self.gamma:.4g} (verified)")
+        ax.axhline(self.gamma_opt, color="C3", ls=":", lw=1, label=f"gamma_opt = {self.gamma_opt:.4g}")
+        if np.isfinite(f_peak) and f_peak > 0:
+            ax.plot([f_peak], [self.gamma], "ko", ms=4)
+        ax.set_xlabel("frequency (Hz)")
+        ax.set_ylabel("singular values of Fl(P, K)")
+        ax.set_title("H-infinity closed loop w -> z")
+        ax.legend(fontsize=8)
+        return fig
+
+    def _repr_html_(self) -> str:
+        summary = "".join(f"<p>{html.escape(s)}</p>" for s in self.summary().splitlines())
+        return summary + self.table()._repr_html_()
+
+    def __repr__(self) -> str:
+        return (
+            f"HinfResult(gamma={self.gamma:.6g}, gamma_opt={self.gamma_opt:.6g}, "
+            f"order={self.K.nstates}, method={self.info.get('method')!r})"
+        )
+
+
+# ---------------------------------------------------------------------------- input checks
+def _as_partitioned(P: Any, nmeas: Any, ncon: Any) -> PartitionedPlant:
+    if not isinstance(P, PartitionedPlant) and all(hasattr(P, k) for k in ("P", "nmeas", "ncon")):
+        try:  # a duck-typed generalized plant (any object with .P, .nmeas, .ncon)
+            P = PartitionedPlant(as_statespace(P.P), P.nmeas, P.ncon)
+        except ModelError as exc:
+            raise SynthesisError(f"hinfsyn: {exc}") from exc
+    if isinstance(P, PartitionedPlant):
+        for name, given, have in (("nmeas", nmeas, P.nmeas), ("ncon", ncon, P.ncon)):
+            if given is not None and given != have:
+                raise SynthesisError(
+                    f"{name}={given!r} contradicts the partitioned plant's {name}={have}; omit {name}."
+                )
+        plant = P
+    else:
+        if nmeas is None or ncon is None:
+            raise SynthesisError(
+                "hinfsyn(P, nmeas, ncon): give the number of measurements nmeas and of control inputs "
+                "ncon, or pass a PartitionedPlant / generalized plant (which carries them)."
+            )
+        try:
+            plant = PartitionedPlant(as_statespace(P), nmeas, ncon)
+        except ModelError as exc:
+            raise SynthesisError(f"hinfsyn: {exc}") from exc
+    if plant.P.dt not in (0, None):
+        raise SynthesisError(
+            f"hinfsyn designs continuous-time controllers; the plant is discrete (dt = {plant.P.dt}). "
+            "Design on a continuous-time plant and discretise the controller afterwards."
+        )
+    for what, count in (
+        ("nmeas", plant.nmeas),
+        ("ncon", plant.ncon),
+        ("nw (exogenous inputs)", plant.nw),
+        ("nz (regulated outputs)", plant.nz),
+    ):
+        if count < 1:
+            raise SynthesisError(
+                f"hinfsyn needs at least one of each signal group; {what} = {count} for a plant with "
+                f"{plant.P.ninputs} inputs and {plant.P.noutputs} outputs "
+                f"(nmeas={plant.nmeas}, ncon={plant.ncon})."
+            )
+    return plant
+
+
+def _bounded(value: Any, name: str, upper: float, allow_zero: bool = False, unit: str = "") -> float:
+    """A finite number in ``(0, upper]`` (``[0, upper]`` with ``allow_zero``), by the shared checks."""
+    v = positive_number(value, name, SynthesisError, allow_zero=allow_zero, unit=unit)
+    if v > upper:
+        raise SynthesisError(f"{name} must be at most {upper:g}; got {value!r}.")
+    return v
+
+
+# ---------------------------------------------------------------------------- LFT kernel
+def lower_lft_matrices(m: dict[str, np.ndarray], Ak, Bk, Ck, Dk) -> tuple[np.ndarray, ...]:
+    """``Fl(P, K)`` as ``(A, B, C, D)``, states ``[x_P; x_K]`` (ZDG sec. 10.1).
+
+    The array kernel of the design loop's closed-loop check (no named systems are built per
+    retry); the result's named ``closed_loop`` comes from :func:`robustctl.interconnect.lft`.
+
+    ``u = Ck xk + Dk y``, ``y = C2 x + D21 w + D22 u``; raises SynthesisError when
+    ``I - Dk D22`` is singular (the loop is not well posed).
+    """
+    A, B1, B2, C1, C2 = m["A"], m["B1"], m["B2"], m["C1"], m["C2"]
+    D11, D12, D21, D22 = m["D11"], m["D12"], m["D21"], m["D22"]
+    n, nk = A.shape[0], Ak.shape[0]
+    E = np.eye(Dk.shape[0]) - Dk @ D22
+    if np.linalg.cond(E) > 1e12:
+        raise SynthesisError("the loop u = K y is not well posed: I - Dk D22 is singular.")
+    Fu = np.linalg.solve(E, np.hstack([Dk @ C2, Ck, Dk @ D21]))  # u = Fu [x; xk; w]
+    Fy = np.hstack([C2, np.zeros((C2.shape[0], nk)), D21]) + D22 @ Fu  # y = Fy [x; xk; w]
+    top = np.hstack([A, np.zeros((n, nk)), B1]) + B2 @ Fu
+    mid = np.hstack([np.zeros((nk, n)), Ak, np.zeros((nk, B1.shape[1]))]) + Bk @ Fy
+    bot = np.hstack([C1, np.zeros((C1.shape[0], nk)), D11]) + D12 @ Fu
+    nx = n + nk
+    state = np.vstack([top, mid])
+    return state[:, :nx], state[:, nx:], bot[:, :nx], bot[:, nx:]
+
+
+def _closed_loop(m, K):
+    return lower_lft_matrices(m, *K)
+
+
+def _loop_shift(K: tuple[np.ndarray, ...], D22: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``K = K0 (I + D22 K0)^-1`` (Safonov, Limebeer & Chiang 1989): the controller for the plant with D22."""
+    Ak, Bk, Ck, Dk = K
+    if not np.any(D22):
+        return K
+    M = np.linalg.inv(np.eye(Dk.shape[0]) + Dk @ D22)
+    Ck2, Dk2 = M @ Ck, M @ Dk
+    return Ak - Bk @ D22 @ Ck2, Bk - Bk @ D22 @ Dk2, Ck2, Dk2
+
+
+# ---------------------------------------------------------------------------- Riccati route
+class _Clock:
+    def __init__(self, budget: float) -> None:
+        self.t0, self.budget = time.monotonic(), budget
+
+    def elapsed(self) -> float:
+        return time.monotonic() - self.t0
+
+    def left(self) -> float:
+        return self.budget - self.elapsed()
+
+
+def _balance(m: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """A diagonal state similarity balancing ``[[A, B], [C, 0]]`` (LAPACK gebal, like MATLAB's ssbal).
+
+    Balancing ``A`` alone can inflate ``B`` or ``C`` by orders of magnitude (a slow weight
+    pole next to a large coupling), which inflates the Hamiltonians' norms and spoils the
+    imaginary-axis test; including ``B`` and ``C`` keeps all three in proportion.
+    """
+    A = m["A"]
+    n = A.shape[0]
+    if n == 0:
+        return dict(m)
+    B = np.hstack([m["B1"], m["B2"]])
+    C = np.vstack([m["C1"], m["C2"]])
+    M = np.zeros((n + C.shape[0] + B.shape[1],) * 2)
+    M[:n, :n], M[:n, n + C.shape[0] :], M[n : n + C.shape[0], :n] = A, B, C
+    _, (scale, _) = scipy.linalg.matrix_balance(M, permute=False, separate=True)
+    scale = scale[:n]
+    out = dict(m)
+    out["A"] = A * (scale[None, :] / scale[:, None])
+    for k in ("B1", "B2"):
+        out[k] = m[k] / scale[:, None]
+    for k in ("C1", "C2"):
+        out[k] = m[k] * scale[None, :]
+    return out
+
+
+def _upper_start(m: dict[str, np.ndarray], lower: float) -> float:
+    """A first gamma to test: ``||P11||_inf`` (achieved by K = 0) when P is stable, else a guess."""
+    A = m["A"]
+    stable = A.shape[0] == 0 or np.max(np.linalg.eigvals(A).real) < 0
+    if stable:
+        g, _ = hinfnorm_matrices(A, m["B1"], m["C1"], m["D11"], 1e-3)
+        if np.isfinite(g) and g > lower:
+            return g * 1.01
+    return max(2.0 * lower, 1.0)
+
+
+def _bisect(
+    p: dgkf.Normalised, m, clock: _Clock, gamma_tol: float, history: list
+) -> tuple[float, float, bool]:
+    """Bracket and bisect gamma; returns ``(gamma_opt, gamma_lower, stopped_by_budget)``."""
+
+    lower = dgkf.parrott_bound(p)
+
+    def test(g: float) -> bool:
+        t = dgkf.gamma_test(p, g, lower)
+        history.append((g, t.feasible, t.reason))
+        return t.feasible
+
+    hi = _upper_start(m, lower)
+    lo = lower
+    for _ in range(MAX_BRACKET_STEPS):
+        if test(hi):
+            break
+        if clock.left() <= 0:
+            raise SynthesisError(
+                f"time budget exhausted before any feasible gamma was found (tested up to {hi:.3g})."
+            )
+        lo, hi = hi, hi * 10.0
+    else:
+        reasons = "; ".join(sorted({h[2] for h in history[-3:]}))
+        raise SynthesisError(
+            f"no feasible gamma up to {hi / 10:.3g} ({reasons}). The plant is badly scaled or an assumption "
+            "holds only marginally (a nearly unobservable/uncontrollable unstable or undamped mode); "
+            "rescale the weights or try method='lmi'."
+        )
+    proven = lo  # largest gamma shown infeasible (or the Parrott bound)
+    if lo <= 0:
+        lo = hi * 1e-8  # a floor for the geometric bisection, not a proven bound
+    stopped = False
+    for _ in range(MAX_BISECTION_STEPS):
+        if hi <= lo * (1.0 + gamma_tol):
+            break
+        if clock.left() <= 0:
+            stopped = True
+            break
+        mid = float(np.sqrt(lo * hi))
+        if test(mid):
+            hi = mid
+        else:
+            lo = proven = mid
+    return hi, proven, stopped
+
+
+def _riccati_design(m: dict[str, np.ndarray], gamma: float) -> tuple[np.ndarray, ...]:
+    """Central controller at ``gamma`` in the plant's own (u, y) coordinates, D22 loop-shifted back."""
+    p = dgkf.normalise(m["A"], m["B1"], m["B2"], m["C1"], m["C2"], m["D11"], m["D12"], m["D21"])
+    Ak, Bk, Ck, Dk = dgkf.central_controller(p, gamma)
+    K0 = (Ak, Bk @ p.y_scale, p.u_scale @ Ck, p.u_scale @ Dk @ p.y_scale)
+    return _loop_shift(K0, m["D22"])
+
+
+def _verify(m, K, gamma_design: float) -> tuple[bool, float, float, float]:
+    """Stable and ``||Fl(P,K)|| <= gamma_design (1+VERIFY_TOL)``? Returns (ok, norm, w_peak, max Re(pole))."""
+    A, B, C, D = _closed_loop(m, K)
+    if not np.all(np.isfinite(A)) or not np.all(np.isfinite(B)):
+        return False, np.inf, np.nan, np.inf
+    max_re = float(np.max(np.linalg.eigvals(A).real)) if A.size else -np.inf
+    norm, w = hinfnorm_matrices(A, B, C, D, 1e-7)
+    return bool(max_re < 0 and norm <= gamma_design * (1 + VERIFY_TOL)), norm, w, max_re
+
+
+def _design_and_verify(m, design, gamma0: float, backoff: float, clock: _Clock, info: dict):
+    """Design at ``gamma0 (1 + backoff)``, raise gamma until the closed-loop check passes (bounded)."""
+    gamma_d = gamma0 * (1.0 + backoff)
+    step = max(backoff, 0.01)
+    last = ""
+    for attempt in range(MAX_RETRIES + 1):
+        try:
+            K = design(gamma_d)
+            ok, norm, w, max_re = _verify(m, K, gamma_d)
+            last = f"closed-loop norm {norm:.6g}, max Re(pole) {max_re:.3g}"
+        except (dgkf._InfeasibleError, np.linalg.LinAlgError, SynthesisError) as exc:
+            ok, last = False, str(exc)
+        if ok:
+            info.update(
+                gamma_design=gamma_d,
+                retries=attempt,
+                closed_loop_max_real_pole=max_re,
+                f_peak_hz=w / (2 * np.pi),
+            )
+            return K, norm
+        if clock.left() <= 0:
+            break
+        gamma_d *= 1.0 + step
+        step *= 2.0
+    raise SynthesisError(
+        f"no controller passed the closed-loop check (stable, ||Fl(P,K)|| <= gamma) up to gamma = "
+        f"{gamma_d:.6g} after {attempt + 1} attempts (last: {last}). Increase backoff, rescale the plant, "
+        "or try method='lmi'."
+    )
+
+
+def _riccati(m, gamma_tol, backoff, clock, info):
+    check_assumptions(m)
+    mb = _balance(m)
+    p = dgkf.normalise(mb["A"], mb["B1"], mb["B2"], mb["C1"], mb["C2"], mb["D11"], mb["D12"], mb["D21"])
+    history: list = []
+    gamma_opt, lower, stopped = _bisect(p, mb, clock, gamma_tol, history)
+    info.update(
+        gamma_lower=lower,
+        parrott_bound=dgkf.parrott_bound(p),
+        n_gamma_tests=len(history),
+        history=history,
+        stopped_by_budget=stopped,
+    )
+    K, norm = _design_and_verify(m, lambda g: _riccati_design(mb, g), gamma_opt, backoff, clock, info)
+    return K, norm, gamma_opt
+
+
+def _lmi(m, backoff, clock, info):
+    from .hinf_lmi import lmi_controller, lmi_gamma
+
+    if m["A"].shape[0] == 0:
+        raise SynthesisError(
+            "method='lmi' needs a plant with states; a static plant is a Parrott problem, solved by "
+            "method='riccati'."
+        )
+    check_assumptions(m, ranks=False)
+    m0 = dict(m, D22=np.zeros_like(m["D22"]))  # (no balancing: it can inflate the Lyapunov matrices)
+    scale = max(1.0, float(np.abs(m["D11"]).max()) if m["D11"].size else 1.0)
+    gamma_opt, R0, S0 = lmi_gamma(m0, 1e-8 * scale, clock.left())
+    rho = (
+        10.0 * max(1.0, float(np.linalg.eigvalsh(R0)[-1]), float(np.linalg.eigvalsh(S0)[-1]))
+        if R0.size
+        else 1.0
+    )
+    info.update(
+        gamma_lower=gamma_opt,
+        n_gamma_tests=1,
+        history=[(gamma_opt, True, "LMI optimum")],
+        stopped_by_budget=False,
+    )
+
+    def design(g):
+        return _loop_shift(lmi_controller(m0, g, rho, max(clock.left(), 1.0)), m["D22"])
+
+    K, norm = _design_and_verify(m, design, gamma_opt, backoff, clock, info)
+    return K, norm, gamma_opt
+
+
+# ---------------------------------------------------------------------------- surface
+@limit_blas
+def hinfsyn(
+    P: Any,
+    nmeas: int | None = None,
+    ncon: int | None = None,
+    *,
+    method: str = "riccati",
+    gamma_tol: float = 1e-3,
+    backoff: float = 0.01,
+    time_budget_s: float = 60.0,
+) -> HinfResult:
+    """H-infinity controller ``K`` minimising ``||Fl(P, K)||_inf`` (continuous time).
+
+    Parameters
+    ----------
+    P : PartitionedPlant, GeneralizedPlant, control.StateSpace, ...
+        The generalized plant ``[z; y] = P [w; u]``. A PartitionedPlant (or a generalized
+        plant built by ``rc.generalized_plant``) carries ``nmeas`` and ``ncon``; anything
+        else is converted by :func:`robustctl.lti.as_statespace` and needs them.
+    nmeas, ncon : int, optional
+        Number of measurements (last outputs) and control inputs (last inputs).
+    method : {"riccati", "lmi"}
+        "riccati" (default): DGKF gamma bisection (fast; needs the standard assumptions).
+        "lmi": Gahinet-Apkarian LMIs in cvxpy/Clarabel (slow; singular problems too).
+    gamma_tol : float
+        Relative width of the final gamma bracket, ``gamma_opt <= gamma_lower (1 + gamma_tol)``.
+    backoff : float
+        The controller is designed at ``gamma_opt (1 + backoff)`` (relative, default 1%),
+        which keeps the Riccati solutions well conditioned.
+    time_budget_s : float
+        Wall-clock budget (s) of the whole call; the bisection stops early (reported in
+        ``info["stopped_by_budget"]``) and nothing runs unbounded.
+
+    Returns
+    -------
+    HinfResult
+        ``K`` (inputs = the plant's measurement names, outputs = its control names),
+        ``gamma`` (verified ``||Fl(P, K)||_inf``), ``gamma_opt``, ``closed_loop``, ``info``.
+
+    Raises
+    ------
+    SynthesisError
+        A violated assumption (named, with a fix), bad ``nmeas``/``ncon``, a discrete plant,
+        or no verified controller within the retries or the time budget.
+
+    Examples
+    --------
+    >>> import control, robustctl as rc
+    >>> G = control.tf([1], [1, 0.2, 1])
+    >>> P = control.augw(G, w1=control.tf([0.5, 1], [1, 0.01]), w2=control.tf(0.1, 1))
+    >>> res = rc.hinfsyn(P, 1, 1)
+    >>> res.gamma <= res.info["gamma_design"] * (1 + 1e-6)
+    True
+    """
+    if method not in ("riccati", "lmi"):
+        raise SynthesisError(f"method must be 'riccati' or 'lmi'; got {method!r}.")
+    gamma_tol = _bounded(gamma_tol, "gamma_tol", 0.5)
+    backoff = _bounded(backoff, "backoff", 10.0, allow_zero=True)
+    time_budget_s = positive_number(time_budget_s, "time_budget_s", SynthesisError, unit="s")
+    plant = _as_partitioned(P, nmeas, ncon)
+    m = plant.matrices()
+    if not all(np.all(np.isfinite(v)) for v in m.values()):
+        raise SynthesisError("the plant's state-space matrices contain NaN or inf.")
+    clock = _Clock(time_budget_s)
+    info: dict = {"method": method, "backoff": backoff, "gamma_tol": gamma_tol}
+    if method == "riccati":
+        K, norm, gamma_opt = _riccati(m, gamma_tol, backoff, clock, info)
+    else:
+        K, norm, gamma_opt = _lmi(m, backoff, clock, info)
+    info["time_s"] = clock.elapsed()
+    return _result(plant, m, K, norm, gamma_opt, info)
+
+
+def _result(plant: PartitionedPlant, m, K, norm: float, gamma_opt: float, info: dict) -> HinfResult:
+    import control
+
+    Ak, Bk, Ck, Dk = K
+    Kss = control.ss(
+        Ak,
+        Bk,
+        Ck,
+        Dk,
+        inputs=plant.y_names,
+        outputs=plant.u_names,
+        states=[f"xK{i + 1}" for i in range(Ak.shape[0])],
+        name="K",
+    )
+    cl = lft(plant, Kss)  # the shared named interconnection: w -> z with the plant's names
+    return HinfResult(K=Kss, gamma=float(norm), gamma_opt=float(gamma_opt), closed_loop=cl, info=info)

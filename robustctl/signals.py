@@ -1,0 +1,187 @@
+"""Named-signal operations on one ``control.StateSpace``: select, rename, scale, combine.
+
+Every function takes a named continuous- or discrete-time system and returns a new
+``control.StateSpace`` whose signals keep their names (or get the names asked for); the
+state vector is unchanged. They are the static channel maps used by the electronics of
+the I/O model (``physical/electronics.py``), the embedded examples and the generalized
+plant (``robust/plant.py``); the dynamic interconnections (LFT, star product, series,
+parallel, feedback) are in :mod:`robustctl.interconnect`.
+
+Unknown names raise :class:`~robustctl.errors.ModelError` listing the names the system has.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from .errors import ModelError
+
+__all__ = [
+    "rename_signals",
+    "scale_inputs",
+    "scale_outputs",
+    "select_signals",
+    "combine_inputs",
+    "combine_outputs",
+]
+
+
+# ============================================================================ helpers
+def _ss(A, B, C, D, inputs: Sequence[str], outputs: Sequence[str], dt: Any = 0):
+    """A named ``control.StateSpace`` from arrays (``dt=0``: continuous time)."""
+    import control
+
+    return control.ss(
+        np.asarray(A, float), np.asarray(B, float), np.asarray(C, float), np.asarray(D, float), dt,
+        inputs=list(inputs), outputs=list(outputs),
+    )
+
+
+def _abcd(sys: Any, what: str = "system"):
+    """Arrays ``(A, B, C, D)`` of a continuous-time LTI system (StateSpace, TransferFunction or number)."""
+    import control
+
+    if isinstance(sys, (int, float, np.integer, np.floating)):
+        return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.array([[float(sys)]])
+    try:
+        ss = control.ss(sys)
+    except Exception as exc:  # python-control raises several types
+        raise ModelError(f"cannot use {type(sys).__name__} as a {what}: {exc}") from exc
+    if ss.isdtime(strict=True):
+        raise ModelError(f"the {what} is discrete-time (dt={ss.dt}); the I/O model is continuous-time.")
+    return _arrays(ss)
+
+
+def _arrays(ss: Any):
+    """``(A, B, C, D)`` of a StateSpace as float arrays of consistent 2-D shapes."""
+    return tuple(np.asarray(m, dtype=float).reshape(s) for m, s in zip(
+        (ss.A, ss.B, ss.C, ss.D),
+        ((ss.nstates, ss.nstates), (ss.nstates, ss.ninputs), (ss.noutputs, ss.nstates),
+         (ss.noutputs, ss.ninputs)),
+    ))
+
+
+def _names(names: str | Sequence[str]) -> tuple[str, ...]:
+    return (names,) if isinstance(names, str) else tuple(names)
+
+
+def _index(labels: Sequence[str], name: str, what: str) -> int:
+    """Position of ``name`` in ``labels`` or a ModelError listing the known names."""
+    labels = list(labels)
+    if name not in labels:
+        raise ModelError(f"unknown {what} {name!r}; the system has {what}s {labels}.")
+    return labels.index(name)
+
+
+# ============================================================================ rename and scale
+def scale_outputs(sys: Any, gains: Mapping[str, float]):
+    """Multiply named outputs by gains (e.g. V per rad/s of a rate gyro's electronics).
+
+    ``y_name <- gains[name] * y_name``; other outputs and all names are unchanged.
+    """
+    A, B, C, D = _abcd(sys)
+    C, D = C.copy(), D.copy()
+    for name, g in gains.items():
+        i = _index(sys.output_labels, name, "output")
+        C[i] *= float(g)
+        D[i] *= float(g)
+    return _ss(A, B, C, D, sys.input_labels, sys.output_labels)
+
+
+def scale_inputs(sys: Any, gains: Mapping[str, float]):
+    """Multiply named inputs by gains: ``u_phys = gains[name] * u_name`` (e.g. N m per V)."""
+    A, B, C, D = _abcd(sys)
+    B, D = B.copy(), D.copy()
+    for name, g in gains.items():
+        j = _index(sys.input_labels, name, "input")
+        B[:, j] *= float(g)
+        D[:, j] *= float(g)
+    return _ss(A, B, C, D, sys.input_labels, sys.output_labels)
+
+
+def rename_signals(
+    sys: Any, inputs: Mapping[str, str] | None = None, outputs: Mapping[str, str] | None = None
+):
+    """A copy with signals renamed (``{"gyro x": "gyro x (V)"}``)."""
+    ins, outs = list(sys.input_labels), list(sys.output_labels)
+    for old, new in (inputs or {}).items():
+        ins[_index(ins, old, "input")] = new
+    for old, new in (outputs or {}).items():
+        outs[_index(outs, old, "output")] = new
+    if len(set(ins)) != len(ins) or len(set(outs)) != len(outs):
+        raise ModelError(f"renaming would repeat a signal name: inputs {ins}, outputs {outs}.")
+    return _ss(*_abcd(sys), ins, outs)
+
+
+# ============================================================================ select and combine
+def _combination(labels: Sequence[str], combos: Mapping[str, Mapping[str, float]], what: str):
+    """Matrix T (old x new) and the new labels: each combo replaces the channels it uses."""
+    labels = list(labels)
+    used: dict[str, str] = {}
+    for new, parts in combos.items():
+        if not parts:
+            raise ModelError(f"the {what} combination {new!r} uses no {what}s.")
+        for old in parts:
+            if old not in labels:
+                raise ModelError(
+                    f"the {what} combination {new!r} uses unknown {what} {old!r}; have {labels}."
+                )
+            if old in used:
+                raise ModelError(f"{what} {old!r} is used by both {used[old]!r} and {new!r}.")
+            used[old] = new
+    new_labels: list[str] = []
+    for lab in labels:
+        target = used.get(lab, lab)
+        if target not in new_labels:
+            new_labels.append(target)
+    if len(set(new_labels)) != len(new_labels):
+        raise ModelError(f"a combined {what} name repeats an existing one: {new_labels}.")
+    T = np.zeros((len(labels), len(new_labels)))
+    for j, lab in enumerate(new_labels):
+        if lab in combos:
+            for old, coeff in combos[lab].items():
+                T[labels.index(old), j] = float(coeff)
+        else:
+            T[labels.index(lab), j] = 1.0
+    return T, new_labels
+
+
+def combine_inputs(sys: Any, combos: Mapping[str, Mapping[str, float]]):
+    """Replace inputs by static combinations: ``u_old = sum_new coeff * u_new``.
+
+    ``combine_inputs(sys, {"gimbal x": {"torque on payload": 1, "torque on bus": -1}})``
+    makes one motor torque acting equal and opposite on payload and bus. Inputs not used
+    by any combination keep their names; a combination takes the place of its first input.
+    """
+    T, names = _combination(sys.input_labels, combos, "input")
+    A, B, C, D = (np.asarray(m, float) for m in (sys.A, sys.B, sys.C, sys.D))
+    return _ss(A, B @ T, C, D @ T, names, sys.output_labels, sys.dt)
+
+
+def combine_outputs(sys: Any, combos: Mapping[str, Mapping[str, float]]):
+    """Replace outputs by static combinations: ``y_new = sum_old coeff * y_old``.
+
+    ``combine_outputs(sys, {"encoder x": {"payload rx": 1, "bus rx": -1}})`` is the
+    relative rotation an encoder reads between a gimbal payload and the bus.
+    """
+    T, names = _combination(sys.output_labels, combos, "output")
+    A, B, C, D = (np.asarray(m, float) for m in (sys.A, sys.B, sys.C, sys.D))
+    return _ss(A, B, T.T @ C, T.T @ D, sys.input_labels, names, sys.dt)
+
+
+def select_signals(sys: Any, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None):
+    """Keep the named inputs and outputs (in the given order); ``None`` keeps all."""
+    ins = list(sys.input_labels) if inputs is None else list(inputs)
+    outs = list(sys.output_labels) if outputs is None else list(outputs)
+    for name, labels, what in [(n, sys.input_labels, "input") for n in ins] + [
+        (n, sys.output_labels, "output") for n in outs
+    ]:
+        if name not in labels:
+            raise ModelError(f"unknown {what} {name!r}; the system has {list(labels)}.")
+    ii = [list(sys.input_labels).index(n) for n in ins]
+    oo = [list(sys.output_labels).index(n) for n in outs]
+    A, B, C, D = _arrays(sys)
+    return _ss(A, B[:, ii], C[oo], D[np.ix_(oo, ii)], ins, outs, sys.dt)
