@@ -18,17 +18,25 @@ from .correlate import (
 )
 from .cost import LogCost
 from .errors import DataError, FitError, ModelError, RobustctlError, SynthesisError
-from .estimate import combine_experiments, estimate_frf, simulate_experiment
+from .estimate import (
+    advised_nperseg,
+    combine_experiments,
+    estimate_frf,
+    simulate_experiment,
+)
 from .export import ExportReport, discretize, export_controller, load_controller
+from .figures import fit_percent, mac_matrix, plot_compare, plot_mac, plot_mode_shapes, plot_singular_values
 from .frd import FrequencyData, load_frd
 from .identify import (
     MeasurementModel,
+    StabilisationDiagram,
     balanced_truncation,
     combine_simo,
     fit_measurement_model,
     fit_rational,
     group_modes,
 )
+from .impact import ImpactWarning, estimate_frf_impact
 from .interconnect import PartitionedPlant, block_diagonal, feedback, lft, parallel, series, star, upper_lft
 from .lti import as_statespace, freqresp, log_cost, log_error
 from .modes import Mode
@@ -72,6 +80,8 @@ from .robust import (
     robust_stability,
     worst_case_gain,
 )
+from .robust.dk import DKResult, dksyn
+from .robust.yardstick import Yardstick, yardstick
 from .signals import (
     combine_inputs,
     combine_outputs,
@@ -85,6 +95,13 @@ from .threads import blas_threads, set_blas_threads
 __version__ = "0.1.0"
 
 __all__ = [
+    # figures (the modal engineer's)
+    "fit_percent",
+    "mac_matrix",
+    "plot_compare",
+    "plot_mac",
+    "plot_mode_shapes",
+    "plot_singular_values",
     "examples",
     "compare",
     "Comparison",
@@ -160,6 +177,11 @@ __all__ = [
     "export_controller",
     "load_controller",
     "ExportReport",
+    # identification at modal-test scale
+    "estimate_frf_impact",
+    "ImpactWarning",
+    "advised_nperseg",
+    "StabilisationDiagram",
     # --- mu analysis (mu helper) ---
     "Block",
     "BlockStructure",
@@ -180,4 +202,9 @@ __all__ = [
     "hinfnorm",
     "hinfsyn",
     "HinfResult",
+    # D-K iteration and the measurement-model yardstick
+    "dksyn",
+    "DKResult",
+    "yardstick",
+    "Yardstick",
 ]

@@ -229,14 +229,15 @@ def band_data(data: Any, band: Any, name: str = "band"):
 
 
 # ---------------------------------------------------------------------------- point weights
-def coherence_weights(coherence: np.ndarray) -> np.ndarray:
+def coherence_weights(coherence: np.ndarray, amplitude: bool = False) -> np.ndarray:
     """The one coherence weighting: ``W = g2 / (1 - g2)`` normalised to ``mean(W) = 1``.
 
     The variance of ``log G_hat`` of an H1 (Welch) estimate is proportional to
     ``(1 - g2) / g2`` (Bendat & Piersol, *Random Data*, eq. 9.73; Pintelon & Schoukens), so
     ``W`` weights each squared log error by its inverse variance. ``g2`` is clipped at
     :data:`COHERENCE_CAP`. The normalisation keeps the cost in units of an unweighted cost
-    per point.
+    per point. With ``amplitude`` the square root ``sqrt(W)`` is returned (the factor on the
+    complex error in a residual vector), computed as ``s / rms(s)``, ``s = sqrt(g2 / (1 - g2))``.
 
     Raises
     ------
@@ -244,18 +245,19 @@ def coherence_weights(coherence: np.ndarray) -> np.ndarray:
         The coherence is zero everywhere.
     """
     g2 = np.clip(np.asarray(coherence, dtype=float), 0.0, COHERENCE_CAP)
-    w = g2 / (1.0 - g2)
-    mean = float(np.mean(w)) if w.size else 0.0
-    if not mean > 0:
+    s = np.sqrt(g2 / (1.0 - g2))
+    ms = float(np.mean(s**2)) if s.size else 0.0
+    if not ms > 0:
         raise DataError(
             "the coherence is zero at every point in the band, so coherence weights are all zero; "
             "pass point_weights=None (uniform)."
         )
-    return w / mean
+    s = s / np.sqrt(ms)
+    return s if amplitude else s**2
 
 
 def point_weights(
-    spec: Any, data: Any, mask: np.ndarray | None = None, name: str = "point_weights"
+    spec: Any, data: Any, mask: np.ndarray | None = None, name: str = "point_weights", amplitude: bool = False
 ) -> np.ndarray:
     """Data-point weights ``W`` on the squared complex-log error, shape of the banded data.
 
@@ -271,6 +273,8 @@ def point_weights(
         The full data (``mask`` selects the band) or the banded data (``mask`` None).
     mask : ndarray of bool, optional
         Band mask over ``data.f_hz``.
+    amplitude : bool
+        Return ``sqrt(W)`` (the factor on the complex error of a residual vector) instead.
 
     Returns
     -------
@@ -292,10 +296,11 @@ def point_weights(
                     f"rc.estimate_frf (which returns coherence) or pass {name}=None."
                 )
             return np.ones(shape)
-        return coherence_weights(data.coherence[mask])
+        return coherence_weights(data.coherence[mask], amplitude=amplitude)
     if spec is None:
         return np.ones(shape)
-    return _array_weights(spec, data.n_freq, mask, shape, name)
+    w = _array_weights(spec, data.n_freq, mask, shape, name)
+    return np.sqrt(w) if amplitude else w
 
 
 def _array_weights(spec: Any, n_full: int, mask: np.ndarray, shape: tuple, name: str) -> np.ndarray:

@@ -44,6 +44,8 @@ def _parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="run the full pipeline on the embedded Caltech truss; write a report")
     demo.add_argument("--out", default="out", help="report folder (default: out)")
     demo.add_argument("--seed", type=int, default=0, help="random seed of the simulated experiment")
+    demo.add_argument("--no-design", action="store_true",
+                      help="stop after the model update (skip weights, D-K, mu, yardstick and export)")
 
     cmp = sub.add_parser(
         "compare", help="where does MODEL fail against DATA (channels, bands, modes)?",
@@ -131,7 +133,7 @@ def _report(args: argparse.Namespace, title: str):
 def _run_demo(args: argparse.Namespace) -> Path:
     from .demo import run_demo
 
-    return run_demo(args.out, seed=args.seed)
+    return run_demo(args.out, seed=args.seed, design=not args.no_design)
 
 
 def _run_compare(args: argparse.Namespace) -> Path:

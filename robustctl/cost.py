@@ -64,7 +64,7 @@ class LogCost:
     def table(self) -> Table:
         """One row per channel: cost, rms magnitude error (dB), rms phase error (deg)."""
         rows = [
-            (f"{o}<-{i}", self.per_channel[a, b], self.rms_db[a, b], self.rms_phase_deg[a, b])
+            (f"{o} <- {i}", self.per_channel[a, b], self.rms_db[a, b], self.rms_phase_deg[a, b])
             for a, o in enumerate(self.outputs)
             for b, i in enumerate(self.inputs)
         ]
@@ -84,15 +84,16 @@ class LogCost:
 
     def plot(self, fig: Any = None) -> Any:
         """Cost per channel as a bar chart (matplotlib Figure)."""
-        from .plots import new_figure
+        from .plots import channel_label, new_figure
 
         fig = fig or new_figure(max(4.0, 0.5 * self.per_channel.size + 2), 3.5)
         ax = fig.add_subplot(1, 1, 1)
-        labels = [f"{o}<-{i}" for o in self.outputs for i in self.inputs]
+        labels = [channel_label(o, i) for o in self.outputs for i in self.inputs]
         ax.bar(range(len(labels)), self.per_channel.ravel())
         ax.set_xticks(range(len(labels)))
         ax.set_xticklabels(labels, rotation=60, fontsize=7)
         ax.set_ylabel("J per channel (MACE eq. 5)")
+        ax.set_xlabel("channel (output <- input)")
         return fig
 
     def _repr_html_(self) -> str:

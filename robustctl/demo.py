@@ -10,7 +10,9 @@ The demo does what a user would do and never peeks at the truth until the last s
 3. identify a measurement model (the yardstick) and pair modes through it;
 4. diagnose which physical effect is missing, add it, update the physical parameters and
    watch the cost fall;
-5. reveal the truth and check what was recovered.
+5. reveal the truth and check what was recovered;
+6. design (robustctl.demo_design): uncertainty weights, the seed's generalized plant, D-K
+   iteration, mu over frequency, the measurement-model yardstick, exported controller files.
 """
 
 from __future__ import annotations
@@ -46,7 +48,7 @@ def _measure(report: Report, seed: int) -> tuple[Any, Any]:
     if data.coherence is not None:
         band = data.band(*DEMO_BAND_HZ)
         report.record("median_coherence_in_band", float(np.median(band.coherence)))
-    fig = bode_grid([data.band(*DEMO_BAND_HZ)], ["measured"], phase=False, title="Measured FRFs")
+    fig = bode_grid([data], ["measured"], phase=False, title="Measured FRFs")
     report.figure(fig, "measured", "H1 estimates of the nine transfer functions AiSj.")
     return data, truth
 
@@ -83,7 +85,7 @@ def _compare(report: Report, model: Any, data: Any, mm: Any, label: str) -> Any:
     return cmp
 
 
-def run_demo(out: str | Path = "out", seed: int = 0) -> Path:
+def run_demo(out: str | Path = "out", seed: int = 0, design: bool = True) -> Path:
     """Run the pipeline on the embedded Caltech truss and write ``out/report.html``.
 
     Parameters
@@ -92,6 +94,9 @@ def run_demo(out: str | Path = "out", seed: int = 0) -> Path:
         Report folder (created; an existing folder must be one robustctl wrote).
     seed : int
         Seed of the simulated experiment (noise and excitation).
+    design : bool
+        Also run the design half (sections 8-12: weights, generalized plant, D-K, mu,
+        yardstick, exported controller files in ``out``); False stops after the update.
 
     Returns
     -------
@@ -122,6 +127,7 @@ def run_demo(out: str | Path = "out", seed: int = 0) -> Path:
     diag = diagnose(model, data, band=DEMO_BAND_HZ, time_budget_s=900.0)
     report.text(diag.summary())
     report.table(diag.table())
+    report.figure(diag.plot(), "diagnose", "Candidate effects ranked by the share of the error they explain.")
     if diag.best is None:
         report.text("No candidate effect is significant; updating the existing parameters only.", note=True)
         candidate = model
@@ -143,4 +149,8 @@ def run_demo(out: str | Path = "out", seed: int = 0) -> Path:
     _compare(report, upd.model, data, mm, "6. Updated physical model")
 
     _reveal(report, data, truth, model, upd)
+    if design:
+        from .demo_design import design_sections
+
+        design_sections(report, data, truth, model, upd, mm)
     return report.write()

@@ -8,7 +8,7 @@ actuator, 4096-point Hamming windows overlapping by 2048 points (39 averages).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -18,10 +18,23 @@ from .errors import DataError, ModelError
 from .frd import FrequencyData
 from .threads import limit_blas
 
-__all__ = ["estimate_frf", "combine_experiments", "simulate_experiment"]
+__all__ = ["estimate_frf", "combine_experiments", "simulate_experiment", "advised_nperseg"]
 
 #: the largest record simulate_experiment will produce (samples), a memory guard
 MAX_SAMPLES = 50_000_000
+#: fewest Welch averages for a usable H1 estimate (random error ~ 1/sqrt(n_avg), Bendat & Piersol 9.90)
+MIN_AVERAGES = 8
+
+
+def advised_nperseg(n_samples: int, min_averages: int = MIN_AVERAGES, longest: int = 4096) -> int:
+    """Segment length for a record of ``n_samples``: the Caltech 4096 (``longest``) when it gives at
+    least ``min_averages`` averages with 50 % overlap, else the largest power of two that does
+    (at least 16). ``n_avg = 1 + (n - L) // (L / 2) >= m`` holds for ``L <= 2 n / (m + 1)``."""
+    limit = 2 * int(n_samples) / (min_averages + 1)
+    length = 16
+    while length * 2 <= min(limit, longest):
+        length *= 2
+    return length
 
 
 # ---------------------------------------------------------------------------- helpers
@@ -64,8 +77,10 @@ def _window(window: Any, nperseg: int) -> np.ndarray:
 
 def _segment_settings(n_samples: int, nperseg: Any, noverlap: Any) -> tuple[int, int, int]:
     """Validated ``(nperseg, noverlap, n_averages)`` (Welch, 1967)."""
-    if isinstance(nperseg, bool) or int(nperseg) != nperseg or nperseg < 2:
-        raise DataError(f"nperseg must be an integer >= 2 samples; got {nperseg!r}.")
+    if isinstance(nperseg, str) and nperseg == "auto":
+        nperseg = advised_nperseg(n_samples)
+    if isinstance(nperseg, (str, bool)) or int(nperseg) != nperseg or nperseg < 2:
+        raise DataError(f"nperseg must be an integer >= 2 samples or 'auto'; got {nperseg!r}.")
     nperseg = int(nperseg)
     noverlap = nperseg // 2 if noverlap is None else noverlap
     if isinstance(noverlap, bool) or int(noverlap) != noverlap or noverlap < 0:
@@ -82,6 +97,16 @@ def _segment_settings(n_samples: int, nperseg: Any, noverlap: Any) -> tuple[int,
             "record longer or choose a smaller nperseg (coarser frequency resolution)."
         )
     n_avg = 1 + (n_samples - nperseg) // (nperseg - noverlap)
+    if n_avg < MIN_AVERAGES:
+        import warnings
+
+        warnings.warn(
+            f"nperseg={nperseg} leaves {n_avg} averages on a {n_samples}-sample record; the H1 estimate's "
+            f"random error falls as 1/sqrt(averages) and {MIN_AVERAGES} or more are advised: use "
+            f"nperseg={advised_nperseg(n_samples)} (or nperseg='auto').",
+            UserWarning,
+            stacklevel=4,
+        )
     return nperseg, noverlap, n_avg
 
 
@@ -119,13 +144,14 @@ def estimate_frf(
     u: Any,
     y: Any,
     fs: float,
-    nperseg: int = 4096,
+    nperseg: int | str = 4096,
     noverlap: int | None = None,
     window: Any = "hamming",
     inputs: Sequence[str] | None = None,
     outputs: Sequence[str] | None = None,
     *,
     detrend: bool = True,
+    units: Mapping[str, str] | None = None,
 ) -> FrequencyData:
     """H1 frequency-response estimate from averaged cross-spectra (Welch's method).
 
@@ -145,8 +171,11 @@ def estimate_frf(
         Output signals (e.g. m/s^2).
     fs : float
         Sampling frequency in Hz.
-    nperseg : int
+    nperseg : int or "auto"
         Window length in samples (default 4096, as Caltech); resolution ``fs / nperseg`` Hz.
+        ``"auto"``: :func:`advised_nperseg` of the record length (4096 when it gives at least 8
+        averages, else the largest power of two that does). Fewer than 8 averages is warned
+        about, with the advised length.
     noverlap : int, optional
         Overlap of consecutive windows in samples; default ``nperseg // 2``.
     window : str, tuple or array_like
@@ -155,6 +184,9 @@ def estimate_frf(
         Signal names (default ``u1..``, ``y1..``).
     detrend : bool
         Remove each segment's mean before windowing (as ``scipy.signal.welch``).
+    units : mapping, optional
+        Units of the signals by name, e.g. ``{"A1": "V", "S1": "m/s^2"}``; carried into
+        ``FrequencyData.units`` (axis labels, UFF ordinate types). Unknown names are refused.
 
     Returns
     -------
@@ -212,7 +244,23 @@ def estimate_frf(
         "n_samples": int(u.shape[0]),
         "resolution_hz": fs / nperseg,
     }
-    return FrequencyData(f, H, inputs=names_in, outputs=outputs, coherence=coh, meta=meta)
+    data = FrequencyData(f, H, inputs=names_in, outputs=outputs, coherence=coh, meta=meta)
+    return data.replace(units=_check_units(units, data))
+
+
+def _check_units(units: Mapping[str, str] | None, data: FrequencyData) -> dict[str, str]:
+    """``units`` as a dict of strings keyed by the data's signal names."""
+    if units is None:
+        return {}
+    if not isinstance(units, Mapping):
+        raise DataError(f"units must be a mapping signal name -> unit string; got {type(units).__name__}.")
+    unknown = sorted(set(units) - set(data.inputs + data.outputs))
+    if unknown:
+        raise DataError(
+            f"units names signals {unknown} that the estimate does not have; its signals are "
+            f"{list(data.inputs + data.outputs)}."
+        )
+    return {str(k): str(v) for k, v in units.items()}
 
 
 # ---------------------------------------------------------------------------- combine

@@ -289,6 +289,36 @@ class FrequencyData:
 
         return save_frd(self, path, overwrite)
 
+    # ------------------------------------------------------------------ views
+    def plot(self, *, phase: bool = True, coherence: bool | None = None, max_channels: int = 9):
+        """Bode plot: magnitude, phase and coherence (when present) per channel, log frequency.
+
+        See :func:`robustctl.figures.plot_frf`; returns a matplotlib Figure.
+        """
+        from .figures import plot_frf
+
+        return plot_frf(self, phase=phase, coherence=coherence, max_channels=max_channels)
+
+    def plot_sv(self):
+        """Singular values over frequency (:func:`robustctl.figures.plot_singular_values`)."""
+        from .figures import plot_singular_values
+
+        return plot_singular_values(self, labels=["data"])
+
+    def _repr_html_(self) -> str:
+        import html
+
+        units = ", ".join(f"{k}: {v}" for k, v in self.units.items()) or "none given"
+        rows = [
+            ("frequencies", f"{self.n_freq} points, {self.f_hz[0]:.4g}-{self.f_hz[-1]:.4g} Hz"),
+            ("outputs", ", ".join(self.outputs)),
+            ("inputs", ", ".join(self.inputs)),
+            ("coherence", "yes" if self.coherence is not None else "no"),
+            ("units", units),
+        ]
+        body = "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in rows)
+        return f"<table><caption>FrequencyData</caption>{body}</table>"
+
     def __repr__(self) -> str:
         return (
             f"FrequencyData({self.n_freq} points, {self.f_hz[0]:.4g}-{self.f_hz[-1]:.4g} Hz, "

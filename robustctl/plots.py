@@ -10,13 +10,22 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
 from .errors import DataError
 from .frd import FrequencyData
 
-__all__ = ["bode_grid", "new_figure"]
+__all__ = [
+    "bode_grid",
+    "channel_label",
+    "colorbar",
+    "grid_columns",
+    "log_frequency_axis",
+    "magnitude_label",
+    "new_figure",
+]
 
 
 def _show_figures_in_kernel(figure_class: type) -> None:
@@ -53,8 +62,56 @@ def new_figure(width: float = 9.0, height: float = 6.0):
 
 
 def _channels(reference: FrequencyData, max_channels: int) -> list[tuple[int, int]]:
-    pairs = [(i, j) for j in range(reference.n_in) for i in range(reference.n_out)]
+    pairs = [(i, j) for i in range(reference.n_out) for j in range(reference.n_in)]
     return pairs[:max_channels]
+
+
+def channel_label(output: str, input: str) -> str:
+    """The one channel-label style of every figure and table: ``"output <- input"``."""
+    return f"{output} <- {input}"
+
+
+def magnitude_label(data: FrequencyData, output: str, input: str) -> str:
+    """``"|G| (m/s^2/V)"`` from ``data.units`` (output unit over input unit), ``"|G|"`` if unknown."""
+    units = data.units or {}
+    out_u, in_u = units.get(output), units.get(input)
+    if out_u and in_u:
+        return f"|G| ({out_u}/{in_u})"
+    if out_u or in_u:
+        return f"|G| ({out_u or '1'}/{in_u or '1'})"
+    return "|G| (data units)"
+
+
+def grid_columns(n_panels: int, n_in: int) -> int:
+    """Columns of a channel grid: one per input when the full matrix fits (2x2 on 2 columns), else 3."""
+    if n_panels % max(n_in, 1) == 0 and n_in <= 3 and n_panels > n_in:
+        return n_in
+    return max(1, min(3, n_panels))
+
+
+def log_frequency_axis(ax: Any, f_hz: np.ndarray, label: bool = True) -> None:
+    """Log frequency axis over the data's full range, labelled in Hz."""
+    ax.set_xscale("log")
+    ax.set_xlim(float(f_hz[0]), float(f_hz[-1]))
+    if label:
+        ax.set_xlabel("frequency (Hz)")
+
+
+def _channel_axes(fig: Any, pairs: list[tuple[int, int]], n_in: int, rows_per: int) -> list[list[Any]]:
+    """``rows_per`` stacked axes per channel (magnitude first), channels on a grid; unused cells hidden."""
+    ncols = grid_columns(len(pairs), n_in)
+    nrows = int(np.ceil(len(pairs) / ncols))
+    axes = fig.subplots(nrows * rows_per, ncols, squeeze=False, sharex=True)
+    stacks = []
+    for k in range(nrows * ncols):
+        r, c = divmod(k, ncols)
+        cell = [axes[r * rows_per + rr, c] for rr in range(rows_per)]
+        if k < len(pairs):
+            stacks.append(cell)
+        else:
+            for ax in cell:
+                fig.delaxes(ax)
+    return stacks
 
 
 def bode_grid(
@@ -65,8 +122,15 @@ def bode_grid(
     shade_bands: Sequence[tuple[float, float]] = (),
     title: str = "",
     phase: bool = False,
+    coherence: bool = False,
+    channel_notes: Sequence[Sequence[str]] | None = None,
 ):
-    """Magnitude (and optionally phase) of several FRD sets, one panel per channel.
+    """Magnitude (and optionally phase and coherence) of several FRD sets, one panel per channel.
+
+    Every axis is labelled with its quantity and units (``data.units`` of the first set), the
+    frequency axis is logarithmic over the first set's full range, channels are titled
+    ``"output <- input"`` and a full ``n_out x n_in`` matrix of up to 3 inputs is laid out
+    one column per input.
 
     Parameters
     ----------
@@ -75,13 +139,18 @@ def bode_grid(
     labels : sequence of str, optional
         Legend entries, one per dataset.
     max_channels : int
-        At most this many channels (output/input pairs, input-major) are drawn.
+        At most this many channels (output/input pairs, row by row: output-major) are drawn;
+        a full matrix is laid out with one row per output and one column per input.
     shade_bands : sequence of (lo_hz, hi_hz)
         Frequency bands to shade (e.g. where a model fails).
     title : str
         Figure title.
     phase : bool
-        Add a phase row under each magnitude panel.
+        Add a phase row (deg) under each magnitude panel.
+    coherence : bool
+        Add a coherence row for every set that carries coherence.
+    channel_notes : sequence (per dataset) of sequence (per channel) of str, optional
+        Appended to the legend entry of that dataset in that channel (e.g. ``"fit 87%"``).
 
     Returns
     -------
@@ -97,31 +166,51 @@ def bode_grid(
             )
     labels = list(labels) if labels is not None else [f"set {k + 1}" for k in range(len(datasets))]
     pairs = _channels(ref, max_channels)
-    ncols = min(3, len(pairs))
+    coherence = coherence and any(d.coherence is not None for d in datasets)
+    rows_per = 1 + bool(phase) + bool(coherence)
+    ncols = grid_columns(len(pairs), ref.n_in)
     nrows = int(np.ceil(len(pairs) / ncols))
-    rows_per = 2 if phase else 1
-    fig = new_figure(3.4 * ncols, 2.4 * nrows * rows_per)
-    axes = fig.subplots(nrows * rows_per, ncols, squeeze=False, sharex=True)
-    for k, (i, j) in enumerate(pairs):
-        r, c = divmod(k, ncols)
-        ax = axes[r * rows_per, c]
-        for d, lab in zip(datasets, labels):
-            ax.semilogy(d.f_hz, np.abs(d.response[:, i, j]), label=lab, lw=1.0)
+    fig = new_figure(3.6 * ncols + 0.4, (2.3 + 1.4 * (rows_per - 1)) * nrows + 0.6)
+    stacks = _channel_axes(fig, pairs, ref.n_in, rows_per)
+    for k, ((i, j), stack) in enumerate(zip(pairs, stacks)):
+        ax = stack[0]
+        for n, (d, lab) in enumerate(zip(datasets, labels)):
+            note = channel_notes[n][k] if channel_notes is not None and channel_notes[n] else ""
+            style = dict(lw=1.0, color=f"C{n}") if n else dict(lw=1.2, color="k")
+            ax.loglog(d.f_hz, np.abs(d.response[:, i, j]), label=f"{lab} ({note})" if note else lab, **style)
         for lo, hi in shade_bands:
             ax.axvspan(lo, hi, color="tab:red", alpha=0.12, lw=0)
-        ax.set_title(f"{ref.inputs[j]} -> {ref.outputs[i]}", fontsize=9)
+        ax.set_title(channel_label(ref.outputs[i], ref.inputs[j]), fontsize=9)
+        ax.set_ylabel(magnitude_label(ref, ref.outputs[i], ref.inputs[j]), fontsize=8)
+        if channel_notes is not None or k == 0:
+            ax.legend(fontsize=7)
+        row = 1
         if phase:
-            axp = axes[r * rows_per + 1, c]
-            for d in datasets:
-                axp.plot(d.f_hz, np.degrees(np.angle(d.response[:, i, j])), lw=0.8)
+            axp = stack[row]
+            for n, d in enumerate(datasets):
+                phase_deg = np.degrees(np.angle(d.response[:, i, j]))
+                axp.plot(d.f_hz, phase_deg, lw=0.8, color=f"C{n}" if n else "k")
             axp.set_ylabel("phase (deg)", fontsize=8)
-    for ax in axes[-1]:
-        ax.set_xlabel("frequency (Hz)")
-    for k in range(len(pairs), nrows * ncols):
-        r, c = divmod(k, ncols)
-        for rr in range(rows_per):
-            axes[r * rows_per + rr, c].set_visible(False)
-    axes[0, 0].legend(fontsize=7)
+            row += 1
+        if coherence:
+            axc = stack[row]
+            for n, d in enumerate(datasets):
+                if d.coherence is not None:
+                    axc.plot(d.f_hz, d.coherence[:, i, j], lw=0.8, color=f"C{n}" if n else "k")
+            axc.set_ylim(0, 1.05)
+            axc.set_ylabel("coherence (-)", fontsize=8)
+        for ax_k in stack:
+            log_frequency_axis(ax_k, ref.f_hz, label=ax_k is stack[-1])
+            ax_k.tick_params(labelsize=7)
     if title:
         fig.suptitle(title)
     return fig
+
+
+def colorbar(fig: Any, mappable: Any, ax: Any, label: str) -> Any:
+    """A labelled colour bar without minor ticks (their labels overlap on a log or short bar)."""
+    bar = fig.colorbar(mappable, ax=ax)
+    bar.minorticks_off()
+    bar.set_label(label, fontsize=8)
+    bar.ax.tick_params(labelsize=7)
+    return bar

@@ -94,7 +94,9 @@ def test_csv_round_trip(data):
 @settings(max_examples=8, deadline=None)
 @given(data=frequency_data(uff=True), suffix=st.sampled_from([".uff", ".unv"]))
 def test_uff_round_trip(data, suffix):
-    _check(_round_trip(data, suffix), data, exact=False, keeps_meta=False)
+    loaded = _round_trip(data, suffix)
+    _check(loaded, data, exact=False, keeps_meta=False)
+    assert loaded.units == data.units  # ordinate (output) and denominator (input) unit labels
 
 
 def test_csv_layout_and_mat_matlab_layout(tmp_path):

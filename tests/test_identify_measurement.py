@@ -89,8 +89,13 @@ def test_expected_h1_matches_brute_force_double_sum():
 def test_automatic_order_selection_finds_six_modes():
     mm = rc.fit_measurement_model(caltech_measurement(), band=BAND, max_modes=9, correct_leakage="auto")
     assert mm.n_modes == 6
-    costs = dict(mm.order_scan)
-    assert costs[6] < 0.1 * costs[5]  # the sixth mode is what the data need
+    f, _ = _match(mm, F_MODES)
+    np.testing.assert_allclose(f, F_MODES, rtol=0.005)
+    # the scan is a stabilisation diagram over rational fits (pole pairs), returned to the user:
+    # window leakage makes it spend two poles on some broadened peaks; the shape test merges them
+    diagram = mm.stabilisation
+    assert diagram is not None and dict(mm.order_scan) == dict(zip(diagram.orders, diagram.cost))
+    assert diagram.n_physical.max() >= 6
 
 
 def test_unreachable_accuracy_is_a_clear_fit_error():

@@ -666,40 +666,51 @@ class Comparison:
         return f"Comparison(cost={self.cost:.4g}, kind={self.structure.kind!r}, bands={len(self.bands)})"
 
     # ------------------------------------------------------------------ plots
-    def plot(self, fig: Any = None) -> Any:
-        """Data vs model magnitude per channel (failing bands shaded) and an error map.
+    def plot(self, fig: Any = None, *, phase: bool = False) -> Any:
+        """Data vs model per channel (failing bands shaded; ``phase=True`` adds a phase row) and
+        an error map, on log-frequency axes.
 
         Returns the matplotlib Figure.
         """
-        from ..plots import new_figure
+        from ..plots import channel_label, colorbar, log_frequency_axis, magnitude_label, new_figure
 
         nf, no, ni = self.error.shape
-        fig = fig or new_figure(3.2 * ni + 1, 2.4 * no + 3)
-        grid = fig.add_gridspec(no + 1, ni, height_ratios=[1.0] * no + [1.2])
+        rows = 2 if phase else 1
+        fig = fig or new_figure(3.2 * ni + 1, (2.4 + 1.4 * phase) * no + 3)
+        grid = fig.add_gridspec(rows * no + 1, ni, height_ratios=[1.0, 0.6][:rows] * no + [1.2])
         f = self.f_hz
-        xscale = "log" if f[-1] > 10 * f[0] else "linear"  # a structural-dynamics Bode habit
         for o in range(no):
             for i in range(ni):
-                ax = fig.add_subplot(grid[o, i])
-                ax.semilogy(f, np.abs(self.data.response[:, o, i]), "k.", ms=2, label="data")
-                ax.semilogy(f, np.abs(self.model_response[:, o, i]), "C0-", lw=1, label=self.model_name)
-                ax.set_xscale(xscale)
+                ax = fig.add_subplot(grid[rows * o, i])
+                ax.loglog(f, np.abs(self.data.response[:, o, i]), "k.", ms=2, label="data")
+                ax.loglog(f, np.abs(self.model_response[:, o, i]), "C0-", lw=1, label=self.model_name)
                 for b in self.bands:
                     ax.axvspan(b.lo_hz, b.hi_hz, color="C3", alpha=0.15, lw=0)
-                ax.set_title(f"{self.outputs[o]} <- {self.inputs[i]}", fontsize=8)
+                ax.set_title(channel_label(self.outputs[o], self.inputs[i]), fontsize=8)
+                ax.set_ylabel(magnitude_label(self.data, self.outputs[o], self.inputs[i]), fontsize=7)
+                log_frequency_axis(ax, f, label=not phase)
+                ax.xaxis.label.set_size(7)
                 ax.tick_params(labelsize=7)
                 if o == 0 and i == 0:
                     ax.legend(fontsize=7)
-        ax = fig.add_subplot(grid[no, :])
+                if phase:
+                    axp = fig.add_subplot(grid[rows * o + 1, i], sharex=ax)
+                    axp.plot(f, np.degrees(np.angle(self.data.response[:, o, i])), "k.", ms=2)
+                    axp.plot(f, np.degrees(np.angle(self.model_response[:, o, i])), "C0-", lw=1)
+                    axp.set_ylabel("phase (deg)", fontsize=7)
+                    log_frequency_axis(axp, f)
+                    axp.xaxis.label.set_size(7)
+                    axp.tick_params(labelsize=7)
+        ax = fig.add_subplot(grid[rows * no, :])
         emap = np.abs(self.error.reshape(nf, -1)).T * DB_PER_NEPER
         im = ax.pcolormesh(f, np.arange(no * ni), emap, cmap="magma", shading="nearest")
-        ax.set_xscale(xscale)
+        log_frequency_axis(ax, f)
         ax.invert_yaxis()
         ax.set_yticks(range(no * ni))
-        ax.set_yticklabels([f"{a}<-{b}" for a in self.outputs for b in self.inputs], fontsize=6)
-        ax.set_xlabel("frequency (Hz)")
+        ax.set_yticklabels([channel_label(a, b) for a in self.outputs for b in self.inputs], fontsize=6)
+        ax.set_ylabel("channel", fontsize=7)
         ax.set_title("|log(G_data / G_model)| (dB equivalent)", fontsize=8)
-        fig.colorbar(im, ax=ax)
+        colorbar(fig, im, ax, "error (dB)")
         return fig
 
 

@@ -220,7 +220,7 @@ class Residual:
         sys0 = model.statespace()
         self._out_idx = match_channels(sys0.output_labels, self.data.outputs, "outputs")
         self._in_idx = match_channels(sys0.input_labels, self.data.inputs, "inputs")
-        self.weights = np.sqrt(self._point_weights(point_weights, data, mask))
+        self.weights = self._point_weights(point_weights, data, mask)
         self.dropped = self._negligible(min_channel_db)
         for o, i, _level in self.dropped:
             self.weights[:, self.data.outputs.index(o), self.data.inputs.index(i)] = 0.0
@@ -255,15 +255,15 @@ class Residual:
         return bare, has
 
     def _point_weights(self, spec: Any, data: FrequencyData, mask: np.ndarray) -> np.ndarray:
-        """The shared rule (:func:`robustctl.checks.point_weights`), except that ``"auto"`` on data
-        without coherence but with a noise model (e.g. from a measurement model's residual) uses
-        the inverse noise variance ``1 / sigma^2`` (mean 1) -- what coherence weights are for
-        data with coherence -- instead of falling back to uniform weights."""
+        """``sqrt(W)`` by the shared rule (:func:`robustctl.checks.point_weights`), except that
+        ``"auto"`` on data without coherence but with a noise model (e.g. from a measurement
+        model's residual) uses the inverse noise variance ``1 / sigma^2`` (mean 1) -- what
+        coherence weights are for data with coherence -- instead of falling back to uniform."""
         auto = isinstance(spec, str) and spec == "auto"
         if auto and data.coherence is None and self.noise is not None:
             w = 1.0 / self.noise.sigma**2
-            return w / float(np.mean(w))
-        return point_weights_of(spec, data, mask)
+            return np.sqrt(w / float(np.mean(w)))
+        return point_weights_of(spec, data, mask, amplitude=True)
 
     def describe_estimator(self) -> str:
         """``"model seen through the H1 estimator: 4096-pt hamming at 200 Hz"`` or ``""``."""

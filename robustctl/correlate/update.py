@@ -531,7 +531,7 @@ class UpdateResult:
 
     def plot(self, fig: Any = None) -> Any:
         """Cost per iteration, alignment bar chart (Fig. 3) and orthogonality matrix (Fig. 4)."""
-        from ..plots import new_figure
+        from ..plots import colorbar, new_figure
 
         fig = fig or new_figure(13.0, 4.0)
         ax1, ax2, ax3 = fig.subplots(1, 3)
@@ -544,7 +544,9 @@ class UpdateResult:
         ax2.bar(range(len(a)), a, color=colors)
         ax2.set_xticks(range(len(a)))
         ax2.set_xticklabels(self.candidates, rotation=60, ha="right", fontsize=7)
-        ax2.set_title("alignment |j0^T dJ| (rel.; blue = updated)")
+        ax2.set_ylabel("alignment (relative, -)")
+        ax2.set_title("alignment |j0^T dJ| (MACE eq. 8)")
+        _alignment_legend(ax2, [n in self.selected for n in self.candidates])
         im = ax3.imshow(self.orthogonality, vmin=0, vmax=1, cmap="viridis")
         n = len(self.candidates)
         ax3.set_xticks(range(n))
@@ -564,8 +566,18 @@ class UpdateResult:
                         color="w" if self.orthogonality[i, k] < 0.6 else "k",
                     )
         ax3.set_title("orthogonality |dJn^T dJn|")
-        fig.colorbar(im, ax=ax3)
+        colorbar(fig, im, ax3, "orthogonality (-)")
         return fig
+
+
+def _alignment_legend(ax: Any, selected: list[bool]) -> None:
+    """A legend naming only the bar colours actually drawn (updated / not updated)."""
+    from matplotlib.patches import Patch
+
+    handles = [Patch(color="C0", label="updated")] if any(selected) else []
+    if not all(selected):
+        handles.append(Patch(color="0.7", label="not updated"))
+    ax.legend(handles=handles, fontsize=7)
 
 
 # ---------------------------------------------------------------------------- update

@@ -7,15 +7,23 @@
 * :func:`make_experiment`, :func:`caltech_truss_experiment`, :func:`mace_beam_experiment` --
   truth generators: simulated test data of a model with a hidden physical effect and
   parameter errors.
+* :func:`modal_test_case`, :func:`impact_test_case` -- synthetic modal tests at the size of
+  real ones (many channels and modes, close pairs; shaker FRF or hammer hits).
 * :func:`caltech_additive_weight` -- the seed's additive weight (eq. 14);
   :func:`caltech_truss_weights` -- weights computed from the truss's residuals beside it.
+* :func:`distillation_plant`, :func:`caltech_design_plant` -- mu-synthesis examples
+  (Skogestad & Postlethwaite's D-K example; the Caltech seed's design plant).
 """
 
 from .caltech_truss import caltech_truss, truss_modes
 from .caltech_weights import CaltechWeights, caltech_additive_weight, caltech_truss_weights
 from .experiments import caltech_truss_experiment, mace_beam_experiment, make_experiment
 from .mace_beam import mace_beam, mace_modes
+from .modal_test import ModalTruth, impact_test_case, modal_test_case
+from .robust_design import DISTILLATION_BLOCKS, caltech_design_plant, distillation_plant, six_modes
 
 __all__ = ["caltech_truss", "truss_modes", "mace_beam", "mace_modes"]
 __all__ += ["make_experiment", "caltech_truss_experiment", "mace_beam_experiment"]
+__all__ += ["modal_test_case", "impact_test_case", "ModalTruth"]
 __all__ += ["caltech_additive_weight", "caltech_truss_weights", "CaltechWeights"]
+__all__ += ["distillation_plant", "DISTILLATION_BLOCKS", "caltech_design_plant", "six_modes"]

@@ -175,7 +175,7 @@ def caltech_truss_experiment(seed: int = 0, **kwargs: Any) -> tuple[FrequencyDat
     Returns
     -------
     data : FrequencyData
-        Inputs A1-A3, outputs S1-S3, 0.049-100 Hz.
+        Inputs A1-A3, outputs S1-S3 (units V: actuator and sensor volts), 0.049-100 Hz.
     truth : PhysicalModel
     """
     from ..physical.effects import GroupTension
@@ -185,7 +185,9 @@ def caltech_truss_experiment(seed: int = 0, **kwargs: Any) -> tuple[FrequencyDat
     hidden = GroupTension(group, **values)
     kw = dict(param_errors=CALTECH_TRUTH["param_errors"], noise_rms=CALTECH_TRUTH["noise_rms"], seed=seed)
     kw.update(kwargs)
-    return make_experiment(caltech_truss(), hidden, **kw)
+    data, truth = make_experiment(caltech_truss(), hidden, **kw)
+    volts = {name: "V" for name in data.inputs + data.outputs}  # actuator and sensor volts (caltech_truss)
+    return data.replace(units=volts), truth
 
 
 #: The hidden truth of :func:`mace_beam_experiment`.

@@ -13,22 +13,44 @@ from ._common import build
 __all__ = ["read_uff", "write_uff"]
 
 _UFF_ID = "robustctl FrequencyData"
+#: UFF "specific data type" codes of common SI units (dataset 58, ID-line 9/10 fields; unknown 0).
+_DATA_TYPES = {"m": 8, "N": 13, "m/s": 11, "m/s^2": 12, "m/s2": 12, "Pa": 15, "kg": 16, "s": 17, "Hz": 18}
+_TYPE_UNITS = {code: unit for unit, code in reversed(list(_DATA_TYPES.items()))}
+_UNIT_LABEL_MAX = 20  # characters of an axis-unit label in dataset 58
 
 
 def _uff_name_ok(name: str) -> bool:
     return 0 < len(name) <= 80 and name == name.strip() and name.isprintable()
 
 
-def _uff_record(f: np.ndarray, values: np.ndarray, func_type: int, o: int, i: int, names: tuple[str, str]):
+def _uff_record(
+    f: np.ndarray, values: np.ndarray, func_type: int, o: int, i: int, names: tuple[str, str],
+    units: tuple[str, str] = ("", ""),
+):
+    """One dataset-58 record; ``units`` (output, input) go to the ordinate numerator and
+    denominator labels and data types (an FRF is output units per input unit)."""
     import pyuff
 
+    out_u, in_u = units if func_type == 4 else ("", "")
     return pyuff.prepare_58(
         binary=1, id1=_UFF_ID, id2="coherence" if func_type == 6 else "frf", id3="NONE",
         id4=names[0], id5=names[1], func_type=func_type, rsp_node=o + 1, rsp_dir=0, ref_node=i + 1,
         ref_dir=0, data=values, x=f, abscissa_spacing=0, abscissa_spec_data_type=18,
-        abscissa_axis_units_lab="Hz", ordinate_spec_data_type=0, orddenom_spec_data_type=0,
-        z_axis_spec_data_type=0,
+        abscissa_axis_units_lab="Hz", ordinate_spec_data_type=_DATA_TYPES.get(out_u, 0),
+        ordinate_axis_units_lab=out_u, orddenom_spec_data_type=_DATA_TYPES.get(in_u, 0),
+        orddenom_axis_units_lab=in_u, z_axis_spec_data_type=0,
     )
+
+
+def _signal_units(data: FrequencyData) -> dict[str, str]:
+    units = {n: str(data.units.get(n, "")) for n in data.outputs + data.inputs}
+    bad = {n: u for n, u in units.items() if len(u) > _UNIT_LABEL_MAX or not u.isprintable()}
+    if bad:
+        raise DataError(
+            f"units {bad} do not fit a UFF axis label (printable, at most {_UNIT_LABEL_MAX} characters); "
+            "shorten them (data.replace(units=...)) or save as .npz."
+        )
+    return units
 
 
 def write_uff(data: FrequencyData, path: Path) -> None:
@@ -42,10 +64,13 @@ def write_uff(data: FrequencyData, path: Path) -> None:
             f"signal names {bad} cannot be stored in UFF ID lines (printable characters, 1-80 of them, no "
             "leading/trailing spaces); rename the signals or save as .npz."
         )
+    units = _signal_units(data)
     records = []
     for o, out in enumerate(data.outputs):
         for i, inp in enumerate(data.inputs):
-            records.append(_uff_record(data.f_hz, data.response[:, o, i], 4, o, i, (out, inp)))
+            records.append(
+                _uff_record(data.f_hz, data.response[:, o, i], 4, o, i, (out, inp), (units[out], units[inp]))
+            )
             if data.coherence is not None:
                 coh = data.coherence[:, o, i].astype(float)
                 records.append(_uff_record(data.f_hz, coh, 6, o, i, (out, inp)))
@@ -74,6 +99,29 @@ def _uff_sets(path: Path) -> list[dict]:
         raise DataError(f"not a readable universal file ({exc}).") from None
     sets = [sets] if isinstance(sets, dict) else list(sets)
     return [s for s in sets if int(s.get("func_type", -1)) in (4, 6)]
+
+
+def _record_unit(rec: dict, side: str) -> str:
+    """The unit of the ordinate numerator (``side="ordinate"``) or denominator (``"orddenom"``):
+    the axis label when given, else the SI unit of the specific data type."""
+    label = str(rec.get(f"{side}_axis_units_lab", "") or "").strip()
+    if label and label.upper() != "NONE":
+        return label
+    return _TYPE_UNITS.get(int(rec.get(f"{side}_spec_data_type", 0) or 0), "")
+
+
+def _uff_units(sets: list[dict]) -> dict[str, str]:
+    """Signal units from the FRF records (output: numerator, input: denominator); first one wins."""
+    units: dict[str, str] = {}
+    for rec in sets:
+        if int(rec["func_type"]) != 4:
+            continue
+        out, inp = _uff_names(rec)
+        for name, side in ((out, "ordinate"), (inp, "orddenom")):
+            unit = _record_unit(rec, side)
+            if unit:
+                units.setdefault(name, unit)
+    return units
 
 
 def _uff_collect(sets: list[dict]):
@@ -116,4 +164,5 @@ def read_uff(path: Path) -> FrequencyData:
             if (6, o, i) not in found:
                 raise DataError(f"coherence is given for some pairs but not for {outs[o]!r}/{ins[i]!r}.")
             coh[:, o, i] = np.real(found[(6, o, i)])
-    return build("UFF", f_hz=f, response=resp, outputs=outs, inputs=ins, coherence=coh)
+    units = _uff_units(sets)
+    return build("UFF", f_hz=f, response=resp, outputs=outs, inputs=ins, coherence=coh, units=units)

@@ -4,7 +4,9 @@ Rational fits with one common denominator (Chebyshev/Sanathanan-Koerner as in th
 paper, or relaxed vector fitting), conversion to real modal state space, the Caltech
 SIMO-to-MIMO combination and SVD grouping of modes, balanced truncation with its error bound,
 the estimator-leakage correction, and the one-call measurement model scored by the
-complex-log cost (MACE eq. 5).
+complex-log cost (MACE eq. 5): spare-pole fits with mode selection by contribution (exactly
+``n_modes`` modes, fillers apart), block variable-projection refinement that scales with the
+channels and modes, and the automatic order from a one-pass stabilisation diagram.
 """
 
 from ..modes import Mode
@@ -13,7 +15,9 @@ from .cost import LogCost, channel_cost
 from .grouping import cluster_modes, combine_simo, group_modes
 from .leakage import estimator_settings, expected_h1, leakage_factor
 from .measurement_model import MeasurementModel, fit_measurement_model
-from .rational import IdentifyWarning, RationalFit, fit_rational
+from .rational import fit_rational
+from .rational_fit import IdentifyWarning, RationalFit
+from .stabilisation import StabilisationDiagram
 
 __all__ = [
     "fit_rational",
@@ -32,4 +36,5 @@ __all__ = [
     "estimator_settings",
     "expected_h1",
     "leakage_factor",
+    "StabilisationDiagram",
 ]

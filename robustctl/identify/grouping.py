@@ -17,7 +17,7 @@ import numpy as np
 from ..errors import FitError
 from ..frd import FrequencyData
 from ..threads import limit_blas
-from .rational import RationalFit
+from .rational_fit import RationalFit
 from .realization import residue_rank
 from .refine import refine_residues
 

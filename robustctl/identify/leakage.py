@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import FitError
 from ..estimator import EstimatorSettings, estimator_settings, lag_window
 from ..threads import limit_blas
-from .rational import RationalFit
+from .rational_fit import RationalFit
 
 __all__ = ["EstimatorSettings", "estimator_settings", "expected_h1", "leakage_factor"]
 

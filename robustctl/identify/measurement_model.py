@@ -1,14 +1,18 @@
 """``fit_measurement_model``: the project's yardstick, the best linear description of what was
 measured, in one call.
 
-The procedure: (1) a common-denominator rational fit (VF or Chebyshev) of the band, or the
-Caltech route of one SIMO fit per input joined by :func:`combine_simo` and reduced by
-:func:`group_modes`; (2) optionally, for white-noise tests estimated by :func:`robustctl.estimate_frf`,
-a few fixed-point steps that undo the estimator's window leakage (see :mod:`.leakage`); (3) the
-residue of each mode given its physical rank (1 per mode, or the group's count) and refined
-together with the poles by nonlinear least squares (:mod:`.modal_refine`); (4) the
-complex-log cost of MACE eq. 5. With ``n_modes=None`` the order is chosen from the cost
-versus order with a parsimony rule.
+The procedure (:mod:`.modal_fit`): (1) a common-denominator rational fit (VF or Chebyshev)
+of the band with spare poles, or the Caltech route of one SIMO fit per input joined by
+:func:`combine_simo` and reduced by :func:`group_modes`; (2) exactly ``n_modes`` modes chosen
+by contribution (:mod:`.selection`; close pairs split by residue rank, fillers apart), each
+with a rank-1 residue (Caltech eq. 9); (3) poles and shapes refined together by nonlinear
+least squares (:mod:`.modal_refine`: all at once on small problems, block by block by
+variable projection on large ones); (4) optionally, for white-noise tests estimated by
+:func:`robustctl.estimate_frf`, a few fixed-point steps that undo the estimator's window
+leakage (see :mod:`.leakage`); (5) for impact data with an exponential window, the window's
+damping removed; (6) the complex-log cost of MACE eq. 5. With ``n_modes=None`` the order
+comes from a one-pass stabilisation diagram (:mod:`.stabilisation`). Every step honours the
+call's time budget.
 """
 
 from __future__ import annotations
@@ -23,22 +27,24 @@ import numpy as np
 from ..checks import UNSET, as_frequency_data, band_data, renamed_keyword
 from ..errors import FitError
 from ..frd import FrequencyData
-from ..lti import rebuild_statespace, statespace_state
+from ..lti import pole_frequency_damping, rebuild_statespace, statespace_state
 from ..modes import Mode
 from ..table import Table
 from ..threads import limit_blas
+from ._problem import prepare_problem
 from .cost import LogCost, channel_cost
-from .grouping import group_modes
-from .leakage import EstimatorSettings, estimator_settings, leakage_factor
-from .modal_refine import ZETA_MIN, refine_modes
-from .rational import IdentifyWarning, RationalFit, fit_rational
+from .leakage import EstimatorSettings, estimator_settings
+from .modal_fit import FitSettings, fit_best, shift_poles, spare_pairs
+from .rational_fit import IdentifyWarning, RationalFit
 from .realization import residue_factors
-from .refine import refine_residues
+from .refine import _row_weights
+from .selection import ZETA_FILLER, pole_contributions
+from .stabilisation import MIN_CONTRIBUTION, REL_CONTRIBUTION, StabilisationDiagram, stabilisation_scan
 
-__all__ = ["Mode", "MeasurementModel", "fit_measurement_model"]
+__all__ = ["Mode", "MeasurementModel", "fit_measurement_model", "StabilisationDiagram"]
 
-#: fixed-point steps of the leakage correction
-LEAKAGE_STEPS = 4
+#: default time budget of one fit_measurement_model call, seconds
+TIME_BUDGET_S = 600.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,7 +56,7 @@ class MeasurementModel:
     sys : control.StateSpace
         Real modal realisation with the data's signal names.
     modes : tuple of Mode
-        Complex modes sorted by frequency (real poles, if any, are in ``sys`` and ``fit`` only).
+        Exactly ``n_modes`` modes (complex poles), sorted by frequency; fillers are apart.
     cost : LogCost
         MACE eq. 5 of ``sys`` against ``data`` (per channel and total).
     fit : RationalFit
@@ -62,7 +68,17 @@ class MeasurementModel:
     leakage_corrected : bool
         Whether the estimator's window leakage was undone before fitting.
     order_scan : tuple of (int, float)
-        ``(n_modes, total cost)`` of every order tried by the automatic order selection.
+        ``(pole pairs, total cost)`` of every order tried by the automatic order selection.
+    fillers : tuple of Mode
+        Poles kept in ``sys`` and ``fit`` that are not modes: outside the band, heavily damped
+        (``zeta >= 0.2``) or real (``f_hz`` 0 is not given for real poles: see ``fit``); they
+        stand for out-of-band modes and residual flexibility.
+    stabilisation : StabilisationDiagram or None
+        The automatic order's stabilisation diagram (``None`` with a given ``n_modes``).
+    window_tau_s : float or None
+        Time constant of the exponential window undone in ``sys``, ``modes`` and ``fit``
+        (poles moved by ``+1/tau``); ``cost`` and :meth:`plot` compare the windowed model
+        with the (windowed) data.
     """
 
     sys: Any
@@ -73,6 +89,9 @@ class MeasurementModel:
     raw_data: FrequencyData
     leakage_corrected: bool = False
     order_scan: tuple[tuple[int, float], ...] = ()
+    fillers: tuple[Mode, ...] = ()
+    stabilisation: Any = None
+    window_tau_s: float | None = None
 
     def statespace(self):
         """The real modal ``control.StateSpace`` (the state-space protocol, :func:`rc.as_statespace`)."""
@@ -95,11 +114,22 @@ class MeasurementModel:
             f"Complex-log cost J = {self.cost.total:.4g} (MACE eq. 5), rms log-magnitude error "
             f"{self.cost.rms_db_total:.3g} dB.",
         ]
+        if self.fillers:
+            lines.append(
+                f"{len(self.fillers)} filler pole(s) outside the band or heavily damped are kept in the "
+                "model and listed in .fillers."
+            )
         if self.leakage_corrected:
             lines.append("The data were corrected for the H1 estimator's window leakage before fitting.")
-        if self.order_scan:
+        if self.window_tau_s is not None:
             lines.append(
-                "Orders tried (n_modes: J): " + ", ".join(f"{n}: {j:.3g}" for n, j in self.order_scan) + "."
+                f"The exponential window's damping (tau = {self.window_tau_s:.4g} s) was removed from "
+                "the modes."
+            )
+        if self.stabilisation is not None:
+            lines.append(
+                f"Order chosen by the stabilisation diagram over {self.stabilisation.orders.size} orders "
+                "(.stabilisation.plot())."
             )
         return "\n".join(lines)
 
@@ -139,7 +169,8 @@ class MeasurementModel:
         """Data and model per channel, magnitude and phase (matplotlib Figure)."""
         from ..plots import bode_grid
 
-        model = self.fit.freqresp(self.data.f_hz)
+        fit = self.fit if self.window_tau_s is None else shift_poles(self.fit, -1.0 / self.window_tau_s)
+        model = fit.freqresp(self.data.f_hz)
         label = "data (leakage-corrected)" if self.leakage_corrected else "data"
         return bode_grid(
             [self.data, model],
@@ -175,103 +206,76 @@ def _settings(fd: FrequencyData, correct_leakage: Any) -> EstimatorSettings | No
     return st
 
 
-def _fit_once(band: FrequencyData, order: int, groups: Any, kw: dict) -> RationalFit:
-    """The rational fit: common denominator, or one SIMO fit per input (Caltech) when grouping."""
-    return fit_rational(band, order, common_denominator=groups is None, **kw)
-
-
-def _modal(fit: RationalFit, groups: Any, rank_tol: float, refine: bool) -> RationalFit:
-    """Physical structure: SVD groups (Caltech) or one rank-1 mode per pole, then (optionally) the
-    joint nonlinear refinement of poles and shapes (:func:`refine_modes`)."""
-    if groups is not None:
-        fit = group_modes(fit, groups, rank_tol=rank_tol)
-    else:
-        fit = refine_residues(replace(fit, ranks=np.ones(len(fit.poles), dtype=int)))
-    return refine_modes(fit) if refine else fit
-
-
-def _fit_corrected(band: FrequencyData, order: int, groups: Any, st, kw: dict, rank_tol: float, refine: bool):
-    """Fit, then undo leakage in LEAKAGE_STEPS fixed-point steps; returns (final fit, data used).
-
-    With ``refine`` each step re-refines the current modal model on the newly corrected data
-    (warm start); without, the rational fit is redone and the modal structure imposed at the end.
-    """
-    if st is None or refine:
-        fit = _modal(_fit_once(band, order, groups, kw), groups, rank_tol, refine)
-    else:
-        fit = _fit_once(band, order, groups, kw)
-    data = band
-    for _ in range(LEAKAGE_STEPS if st is not None else 0):
-        data = band.replace(response=band.response * leakage_factor(fit, band.f_hz, st),
-                            meta={**band.meta, "leakage_corrected": True})
-        if refine:
-            fit = refine_modes(refine_residues(replace(fit, data=data)))
-        else:
-            fit = _fit_once(data, order, groups, kw)
-    if st is not None and not refine:
-        fit = _modal(fit, groups, rank_tol, refine)
-    return fit, data
-
-
 def _score(fit: RationalFit, data: FrequencyData) -> LogCost:
     return channel_cost(data.response, fit.response(data.f_hz), fit.outputs, fit.inputs)
 
 
-def _final_prediction_error(fit: RationalFit, cost: LogCost) -> float:
-    """Akaike's final prediction error ``J (N + p) / (N - p)``: the cost penalised by the model's
-    real parameter count ``p`` (per complex pole 2 + 2 rank (n_out + n_in), per real pole
-    1 + n_out n_in, plus D) against the ``N`` real residuals, so fitting noise does not pay."""
-    n_out, n_in = fit.d.shape
-    cplx = fit.poles.imag != 0
-    p = np.sum(np.where(cplx, 2 + 2 * fit.ranks * (n_out + n_in), 1 + n_out * n_in)) + n_out * n_in
-    n = 2 * cost.n_freq * n_out * n_in
-    return cost.total * (n + p) / (n - p) if p < n else np.inf
+def _mode(p: complex, r: np.ndarray, k: int) -> Mode:
+    f, z = pole_frequency_damping(np.array([p]))
+    c, b = residue_factors(r.real if p.imag == 0 else r, int(k))
+    return Mode(float(f[0]), float(z[0]), r, complex(p), int(k), output_shape=c, input_shape=b)
 
 
-def _spurious(fit: RationalFit) -> bool:
-    """True when a mode's damping sits at the refinement's lower bound ``ZETA_MIN``: an undamped
-    line that fits noise or estimator artefacts next to a real peak, not structure."""
-    cplx = fit.poles.imag != 0
-    return bool(np.any(fit.zeta[cplx] < 1.5 * ZETA_MIN))
+def _modes(fit: RationalFit, n_mode_poles: int) -> tuple[tuple[Mode, ...], tuple[Mode, ...]]:
+    """Modes (the first ``n_mode_poles`` poles, sorted by frequency) and fillers."""
+    items = [_mode(p, r, k) for p, r, k in zip(fit.poles, fit.residues, fit.ranks) if k > 0]
+    ranked = [k > 0 for k in fit.ranks]
+    first = sum(ranked[:n_mode_poles])
+    modes = sorted(items[:first], key=lambda m: m.f_hz)
+    fillers = sorted(items[first:], key=lambda m: m.f_hz)
+    return tuple(modes), tuple(fillers)
 
 
-def _select_order(band, groups, st, kw, rank_tol, max_modes, parsimony, target_db, refine):
-    """Cost versus order: the smallest n_modes without spurious modes whose final prediction
-    error is within ``parsimony`` of the best such (or the smallest meeting ``target_db``); the
-    scan stops after three orders without a 5 % gain."""
-    scan, results, best, stale = [], {}, np.inf, 0
-    for n in range(1, max_modes + 1):
-        try:
-            fit, data = _fit_corrected(band, 2 * n, groups, st, kw, rank_tol, refine)
-        except FitError:
-            break
-        cost = _score(fit, data)
-        fpe = _final_prediction_error(fit, cost)
-        scan.append((n, cost.total))
-        results[n] = (fit, data, cost, fpe)
-        if target_db is not None and cost.rms_db_total <= target_db:
-            return results[n][:3], tuple(scan)
-        stale = 0 if fpe < 0.95 * best else stale + 1
-        best = min(best, fpe)
-        if stale >= 3:
-            break
-    if not results:
-        raise FitError("no order could be fitted; check the band (too few points?) and the data.")
-    clean = {n: r for n, r in results.items() if not _spurious(r[0])} or results
-    best_clean = min(r[3] for r in clean.values())
-    chosen = min(n for n, r in clean.items() if r[3] <= (1 + parsimony) * best_clean)
-    return results[chosen][:3], tuple(scan)
+def _scan(band: FrequencyData, run: FitSettings, max_modes: int, parsimony: float, weights, progress):
+    """The stabilisation diagram of ``band`` and the number of modes it finds (1..max_modes)."""
+    prob = prepare_problem(band, 2, None, weights)
+    k = prob.s.size
+    g = prob.g.reshape(k, -1)
+    rw = np.sqrt(prob.w.reshape(k, -1)) / np.abs(g)
+    diagram, last = stabilisation_scan(
+        prob.s, g, rw, prob.band_hz, max_modes + spare_pairs(max_modes), run.deadline, progress, parsimony
+    )
+    return prob, diagram, last, int(min(max(last[3].size, 1), max_modes))
 
 
-def _modes(fit: RationalFit) -> tuple[Mode, ...]:
-    out = []
-    for p, f, z, r, k in zip(fit.poles, fit.f_hz, fit.zeta, fit.residues, fit.ranks):
-        if p.imag == 0 or k == 0:
-            continue
-        c, b = residue_factors(r, int(k))
-        mode = Mode(float(f), float(z), r, complex(p), int(k), output_shape=c, input_shape=b)
-        out.append(mode)
-    return tuple(out)
+def _weak_modes(fit: RationalFit, n_mode_poles: int) -> int:
+    """Modes of a fitted model whose contribution is below the stabilisation diagram's floor
+    (``MIN_CONTRIBUTION``, ``REL_CONTRIBUTION`` of the largest) or that are fillers promoted to
+    make up the count: poles the scan counted that the final model does not need (e.g. a second
+    pole on a leakage-broadened peak)."""
+    s = 2j * np.pi * fit.data.f_hz
+    contrib = pole_contributions(s, fit.data.response, _row_weights(fit, None), fit.poles, fit.residues)
+    floor = max(MIN_CONTRIBUTION, REL_CONTRIBUTION * float(contrib.max(initial=0.0)))
+    f, zeta = fit.f_hz[:n_mode_poles], fit.zeta[:n_mode_poles]
+    filler = (f < fit.band_hz[0]) | (f > fit.band_hz[1]) | (zeta >= ZETA_FILLER)  # promoted to fill the count
+    return int(np.sum((contrib[:n_mode_poles] < floor) | filler))
+
+
+def _automatic(band: FrequencyData, run: FitSettings, max_modes: int, parsimony: float, weights, progress):
+    """Stabilisation-diagram order selection, then the modal model of the chosen order; modes the
+    final model does not need (below the contribution floor) are dropped by one refit."""
+    prob, diagram, (poles, res, d, phys), n = _scan(band, run, max_modes, parsimony, weights, progress)
+    if run.settings is not None or run.groups is not None:
+        fit, n_mode_poles, used = fit_best(band, n, run)
+    else:
+        shape = (poles.size,) + prob.g.shape[1:]
+        first = RationalFit(
+            poles, res.reshape(shape), d.reshape(prob.g.shape[1:]), np.ones(poles.size, dtype=int),
+            prob.inputs, prob.outputs, prob.band_hz, "vf", int(diagram.orders[-1]), True, prob.data,
+        )
+        prefer = np.isin(np.arange(poles.size), phys)
+        fit, n_mode_poles, used = fit_best(band, n, run, first=first, prefer=prefer)
+    weak = _weak_modes(replace(fit, data=used), n_mode_poles) if run.groups is None else 0
+    if 0 < weak < n and not run.expired():
+        fit, n_mode_poles, used = fit_best(band, n - weak, run)
+    return fit, n_mode_poles, used, diagram
+
+
+def _window_tau(fd: FrequencyData, correct_window: Any) -> float | None:
+    tau = fd.meta.get("exp_window_tau_s") if isinstance(fd.meta, dict) else None
+    if correct_window is False or tau is None:
+        return None
+    return float(tau)
 
 
 @limit_blas
@@ -284,13 +288,16 @@ def fit_measurement_model(
     point_weights: Any = "auto",
     correct_leakage: bool | str = False,
     rank_tol: float = 0.1,
-    max_modes: int = 24,
-    parsimony: float = 0.1,
+    max_modes: int = 60,
+    parsimony: float = 0.02,
     target_db: float | None = None,
     max_iter: int | None = None,
     refine: bool = True,
     *,
     weights: Any = UNSET,
+    correct_window: bool = True,
+    time_budget_s: float | None = TIME_BUDGET_S,
+    progress: bool | None = None,
 ) -> MeasurementModel:
     """Identify a measurement model of frequency-response data in one call.
 
@@ -299,11 +306,15 @@ def fit_measurement_model(
     data : FrequencyData (or what :func:`fit_rational` accepts)
         Measured response, Hz.
     n_modes : int, optional
-        Number of lightly damped modes (the fit has ``2 n_modes`` poles; with ``groups`` this
-        is the modes per SIMO fit). ``None``: chosen automatically from the cost versus order:
-        among the orders without spurious modes (damping at the refinement's lower bound
-        ``ZETA_MIN``), the smallest whose final prediction error (the cost penalised by
-        the parameter count, Akaike) is within ``parsimony`` (relative) of the best.
+        Number of modes: exactly this many are returned (sorted by frequency). The rational fit
+        behind them has ``2 (n_modes + spare)`` poles (``spare = max(2, ceil(n_modes/5))``),
+        which finds close pairs a fit of ``2 n_modes`` poles merges; the ``n_modes`` in-band,
+        lightly damped poles of largest contribution are the modes, out-of-band and heavily
+        damped ones are kept as ``fillers``, the others dropped (:mod:`.selection`). With
+        ``groups``: the modes per SIMO fit. ``None``: chosen automatically in one pass by the
+        stabilisation diagram of a warm-started order scan (:mod:`.stabilisation`; returned as
+        ``stabilisation``): the poles stable in frequency, damping and shape over three
+        orders that carry a share of the data. No damping floor.
     band : (f_lo, f_hi), optional
         Band in Hz.
     method : {"vf", "chebyshev"}
@@ -323,45 +334,101 @@ def fit_measurement_model(
         white-noise leakage model is wrong and makes the fit worse.
     rank_tol : float
         With ``groups``: relative singular-value threshold of automatic mode counts in
-        :func:`group_modes`. Without: unused, every pole is one physical mode with a rank-1
-        residue ``c b^T`` refined by least squares (:func:`refine_residues`).
+        :func:`group_modes`. Without: unused (every mode has a rank-1 residue ``c b^T``).
     max_modes : int
-        Largest ``n_modes`` tried by the automatic selection.
+        Largest number of modes the automatic selection returns.
     parsimony : float
-        Relative cost slack of the automatic selection (0.1: within 10 % of the best).
+        Automatic selection: the relative cost decrease an added order must bring (besides a
+        new stable pole) for the scan to go on.
     target_db : float, optional
         Required rms log-magnitude error (dB); a :class:`FitError` says so when it is missed.
     max_iter : int, optional
         Iteration cap of each pole identification (default: that of :func:`fit_rational`).
     refine : bool
         Refine poles and mode shapes together by nonlinear least squares with the rank
-        structure imposed (:func:`refine_modes`); this is what resolves near-coincident modes.
+        structure imposed (:func:`refine_modes`, block by block on large problems:
+        :func:`~robustctl.identify.modal_refine.refine_modes_auto`); this is what resolves
+        near-coincident modes.
+    correct_window : bool
+        When ``data.meta`` holds ``exp_window_tau_s`` (set by
+        :func:`robustctl.estimate_frf_impact` with an exponential window), move every pole by
+        ``+1/tau``: ``zeta_true = zeta_meas - 1/(tau w_n)`` (Ewins, sec. 3.11).
+    time_budget_s : float or None
+        Wall-time budget of the whole call, seconds; when it runs out the order scan, pole
+        iterations and refinement stop with the best model so far (an :class:`IdentifyWarning`
+        says so). ``None``: no budget.
+    progress : bool, optional
+        tqdm bars over the order scan and the block refinement (default: when stderr is a
+        terminal).
 
     Returns
     -------
     MeasurementModel
     """
+    import sys
+    import time
+
     max_modes, parsimony = _check_selection(max_modes, parsimony)
+    budget = _check_budget(time_budget_s)
+    start = time.perf_counter()
     point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     fd = as_frequency_data(data)
     band_fd = band_data(fd, band)
     st = _settings(fd, correct_leakage)
+    tau = _window_tau(fd, correct_window)
+    show = sys.stderr.isatty() if progress is None else bool(progress)
+    deadline = None if budget is None else start + budget
     kw = dict(method=method, point_weights=point_weights, max_iter=max_iter)
+    run = FitSettings(groups, st, kw, rank_tol, refine, deadline, progress=show)
+    diagram = None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IdentifyWarning)
         if n_modes is None:
-            (fit, used, cost), scan = _select_order(
-                band_fd, groups, st, kw, rank_tol, max_modes, parsimony, target_db, refine
+            fit, n_mode_poles, used, diagram = _automatic(
+                band_fd, run, max_modes, parsimony, point_weights, show
             )
         else:
-            fit, used = _fit_corrected(band_fd, 2 * _check_modes(n_modes), groups, st, kw, rank_tol, refine)
-            cost, scan = _score(fit, used), ()
+            fit, n_mode_poles, used = fit_best(band_fd, _check_modes(n_modes), run)
+    cost = _score(fit, used)
+    scan = () if diagram is None else tuple((int(n), float(c)) for n, c in zip(diagram.orders, diagram.cost))
     if target_db is not None and cost.rms_db_total > target_db:
         raise FitError(
             f"the measurement model reaches {cost.rms_db_total:.3g} dB rms log-magnitude error, above the "
             f"target {target_db:g} dB; raise n_modes (or leave it None), narrow the band or relax target_db."
         )
-    return MeasurementModel(fit.statespace(), _modes(fit), cost, fit, used, band_fd, st is not None, scan)
+    if run.expired():
+        warnings.warn(
+            f"the time budget of {budget:g} s ran out; the model is the best found so far. Raise "
+            "time_budget_s, narrow the band or give n_modes.",
+            IdentifyWarning,
+            stacklevel=3,
+        )
+    if tau is not None:
+        fit = shift_poles(fit, 1.0 / tau)
+    modes, fillers = _modes(fit, n_mode_poles)
+    if fillers:
+        warnings.warn(
+            f"{len(fillers)} filler pole(s) (outside the band, heavily damped or real) are kept in the "
+            "model to stand for out-of-band dynamics; they are listed in MeasurementModel.fillers, not "
+            "in .modes.",
+            IdentifyWarning,
+            stacklevel=3,
+        )
+    return MeasurementModel(
+        fit.statespace(), modes, cost, fit, used, band_fd, st is not None, scan, fillers, diagram, tau
+    )
+
+
+def _check_budget(value: Any) -> float | None:
+    if value is None:
+        return None
+    try:
+        budget = float(value)
+    except (TypeError, ValueError):
+        budget = float("nan")
+    if not (np.isfinite(budget) and budget > 0):
+        raise FitError(f"time_budget_s must be a positive number of seconds or None; got {value!r}.")
+    return budget
 
 
 def _check_selection(max_modes: Any, parsimony: Any) -> tuple[int, float]:

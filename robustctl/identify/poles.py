@@ -21,6 +21,7 @@ __all__ = [
     "pole_change",
     "weighted_cost",
     "BestPoles",
+    "lstsq_normal",
 ]
 
 #: |Im p| below this fraction of |p| counts as a real pole.
@@ -91,6 +92,27 @@ def coefficients_to_residues(x: np.ndarray, poles: np.ndarray) -> np.ndarray:
     return np.array(out)
 
 
+def lstsq_normal(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Least squares ``min |a x - b|`` through the column-scaled normal equations (one GEMM and a
+    Cholesky factorisation, several times faster than LAPACK's SVD solver on tall problems);
+    falls back to ``numpy.linalg.lstsq`` when the scaled Gram matrix is not safely positive
+    definite (condition number above about 1e10)."""
+    norm = np.linalg.norm(a, axis=0)
+    norm[norm == 0] = 1.0
+    a_s = a / norm
+    gram = a_s.T @ a_s
+    try:
+        chol = np.linalg.cholesky(gram)
+        diag = np.diag(chol)
+        if diag.min() < 1e-5 * diag.max():
+            raise np.linalg.LinAlgError("ill-conditioned")
+        y = np.linalg.solve(chol, a_s.T @ b)
+        x = np.linalg.solve(chol.T, y)
+    except np.linalg.LinAlgError:
+        x = np.linalg.lstsq(a_s, b, rcond=None)[0]
+    return x / (norm if x.ndim == 1 else norm[:, None])
+
+
 def _real_stack(m: np.ndarray) -> np.ndarray:
     return np.concatenate([m.real, m.imag], axis=0)
 
@@ -134,9 +156,7 @@ def fit_residues(
             wk = row_weight[:, i, j][:, None]
             a = _real_stack(basis * wk)
             b = _real_stack(g[:, i, j] * row_weight[:, i, j])
-            colnorm = np.linalg.norm(a, axis=0)
-            colnorm[colnorm == 0] = 1.0
-            x[:, i, j] = np.linalg.lstsq(a / colnorm, b, rcond=None)[0] / colnorm
+            x[:, i, j] = lstsq_normal(a, b)
     n_basis = n_states(poles)
     residues = coefficients_to_residues(x[:n_basis], poles)
     d = x[n_basis] if feedthrough else np.zeros((n_out, n_in))

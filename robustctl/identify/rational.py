@@ -9,22 +9,22 @@ modal state space with named signals.
 
 from __future__ import annotations
 
+import time
 import warnings
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from ..checks import UNSET, renamed_keyword
 from ..errors import FitError
-from ..frd import FrequencyData
 from ..lti import pole_frequency_damping
 from ..threads import limit_blas
-from ._problem import FitProblem, prepare_problem
+from ._problem import FitProblem, as_frequency_data, prepare_problem
 from .chebyshev import chebyshev_poles
-from .cost import LogCost, channel_cost
-from .poles import evaluate, fit_residues, n_states, reflect_unstable
-from .realization import modal_statespace, residue_rank
+from .grouping import combine_simo
+from .poles import fit_residues, reflect_unstable
+from .rational_fit import IdentifyWarning, RationalFit
+from .realization import residue_rank
 from .vector_fitting import vf_poles
 
 __all__ = ["RationalFit", "fit_rational", "IdentifyWarning"]
@@ -33,122 +33,22 @@ METHODS = ("chebyshev", "vf")
 DEFAULT_MAX_ITER = {"chebyshev": 100, "vf": 30}
 
 
-class IdentifyWarning(UserWarning):
-    """A fit succeeded but something deserves a look (pole outside the band, no convergence)."""
-
-
-@dataclass(frozen=True, eq=False)
-class RationalFit:
-    """A pole-residue model ``G(s) = D + sum_k R_k/(s-p_k) (+ conjugates)``.
-
-    Attributes
-    ----------
-    poles : ndarray, complex, shape (n_p,)
-        One pole of each complex-conjugate pair (``Im p > 0``) and the real poles, rad/s.
-    residues : ndarray, complex, shape (n_p, n_out, n_in)
-        Residue matrix of each pole.
-    d : ndarray, shape (n_out, n_in)
-        Feedthrough.
-    ranks : ndarray of int, shape (n_p,)
-        Modes each pole stands for: the rank kept of its residue in the state space
-        (1 for SIMO fits and physical modes; up to min(n_out, n_in) for raw MIMO fits).
-    inputs, outputs : tuple of str
-        Signal names.
-    band_hz : tuple of float
-        Fitted band (Hz).
-    method : str
-        ``"chebyshev"``, ``"vf"``, ``"combined"``, ``"grouped"``.
-    iterations : int
-        Pole-relocation iterations used.
-    converged : bool
-        Whether the pole iteration met its tolerance before the cap.
-    data : FrequencyData or None
-        The fitted data (band only), kept for scoring and plots.
-    """
-
-    poles: np.ndarray
-    residues: np.ndarray
-    d: np.ndarray
-    ranks: np.ndarray
-    inputs: tuple[str, ...]
-    outputs: tuple[str, ...]
-    band_hz: tuple[float, float]
-    method: str
-    iterations: int = 0
-    converged: bool = True
-    data: FrequencyData | None = field(default=None, repr=False)
-
-    # ----------------------------------------------------------------- properties
-    @property
-    def order(self) -> int:
-        """Number of poles counting conjugates (states of a SISO realisation)."""
-        return n_states(self.poles)
-
-    @property
-    def n_modes(self) -> int:
-        """Modes in the state-space realisation: sum of the ranks of the complex poles."""
-        return int(np.sum(self.ranks[self.poles.imag != 0]))
-
-    @property
-    def n_states(self) -> int:
-        """States of :meth:`statespace` (2 per complex pole and rank, 1 per real pole and rank)."""
-        return int(np.sum(np.where(self.poles.imag != 0, 2, 1) * self.ranks))
-
-    @property
-    def f_hz(self) -> np.ndarray:
-        """Natural frequency ``|p|/(2 pi)`` of each pole, Hz."""
-        return pole_frequency_damping(self.poles)[0]
-
-    @property
-    def zeta(self) -> np.ndarray:
-        """Damping ratio ``-Re p / |p|`` of each pole."""
-        return pole_frequency_damping(self.poles)[1]
-
-    # ----------------------------------------------------------------- evaluation
-    def response(self, f_hz: Any) -> np.ndarray:
-        """Complex response at ``f_hz`` (Hz), shape (n_freq, n_out, n_in)."""
-        s = 2j * np.pi * np.asarray(f_hz, dtype=float).reshape(-1)
-        return evaluate(s, self.poles, self.residues, self.d)
-
-    def freqresp(self, f_hz: Any) -> FrequencyData:
-        """The response at ``f_hz`` (Hz) as FrequencyData with the model's signal names."""
-        return FrequencyData(f_hz, self.response(f_hz), inputs=self.inputs, outputs=self.outputs)
-
-    def statespace(self, name: str | None = None):
-        """Real modal ``control.StateSpace`` (2x2 block per complex pole and kept rank)."""
-        return modal_statespace(
-            self.poles, self.residues, self.d, self.ranks, self.inputs, self.outputs, name=name
-        )
-
-    @property
-    def sys(self):
-        """Shorthand for :meth:`statespace`."""
-        return self.statespace()
-
-    def cost(self, data: FrequencyData | None = None) -> LogCost:
-        """MACE eq. 5 against ``data`` (default: the fitted band data)."""
-        data = self.data if data is None else data
-        if data is None:
-            raise FitError("this fit keeps no data; pass data=FrequencyData to score it.")
-        return channel_cost(data.response, self.response(data.f_hz), self.outputs, self.inputs)
-
-    def __repr__(self) -> str:
-        return (
-            f"RationalFit({self.method}, {self.order} poles, {self.n_modes} modes, {len(self.outputs)}x"
-            f"{len(self.inputs)}, band {self.band_hz[0]:.4g}-{self.band_hz[1]:.4g} Hz)"
-        )
-
-
 # --------------------------------------------------------------------------- fitting
 def _pole_kernel(
-    prob: FitProblem, method: str, max_iter: int, tol: float, stable: bool
+    prob: FitProblem, method: str, max_iter: int, tol: float, stable: bool, deadline: float | None = None
 ) -> tuple[np.ndarray, int, bool]:
     w_s = float(np.max(np.abs(prob.s)))
     k = prob.s.size
     g = prob.g.reshape(k, -1)
     rw = np.sqrt(prob.w.reshape(k, -1)) / np.abs(g)
-    kernel = chebyshev_poles if method == "chebyshev" else vf_poles
-    poles, iters, ok = kernel(prob.s / w_s, g, rw, prob.order, max_iter=max_iter, tol=tol, stable=stable)
+    if method == "chebyshev":
+        poles, iters, ok = chebyshev_poles(
+            prob.s / w_s, g, rw, prob.order, max_iter=max_iter, tol=tol, stable=stable
+        )
+    else:
+        poles, iters, ok = vf_poles(
+            prob.s / w_s, g, rw, prob.order, max_iter=max_iter, tol=tol, stable=stable, deadline=deadline
+        )
     return poles * w_s, iters, ok
 
 
@@ -179,8 +79,7 @@ def _check_iter(max_iter: Any) -> int:
 
 def _fit_simo_each(data: Any, order: int, band: Any, weights: Any, **kw: Any) -> RationalFit:
     """One SIMO fit per input column (own denominator each), joined by :func:`combine_simo`."""
-    from ..checks import as_frequency_data, point_weights
-    from .grouping import combine_simo
+    from ..checks import point_weights
 
     fd = as_frequency_data(data)
     if weights is not None and not isinstance(weights, str):
@@ -205,6 +104,7 @@ def fit_rational(
     tol: float = 1e-6,
     feedthrough: bool = True,
     rank_tol: float = 1e-8,
+    time_budget_s: float | None = None,
     *,
     weights: Any = UNSET,
 ) -> RationalFit:
@@ -245,6 +145,9 @@ def fit_rational(
         Fit a constant term ``D``.
     rank_tol : float
         Residue singular values below ``rank_tol * sigma_1`` are dropped in the realisation.
+    time_budget_s : float, optional
+        Wall-time budget of the VF pole iteration (seconds); when it runs out the best poles so
+        far are used and the fit is flagged not converged.
 
     Returns
     -------
@@ -266,7 +169,8 @@ def fit_rational(
     prob = prepare_problem(data, order, band, weights)
     if not common_denominator and len(prob.inputs) > 1:
         return _fit_simo_each(data, order, band, weights, common_denominator=True, **kw)
-    poles, iters, converged = _pole_kernel(prob, method, max_iter, tol, stable)
+    deadline = None if time_budget_s is None else time.perf_counter() + float(time_budget_s)
+    poles, iters, converged = _pole_kernel(prob, method, max_iter, tol, stable, deadline)
     if stable:
         poles, _ = reflect_unstable(poles)
     rw = np.sqrt(prob.w) / np.abs(prob.g)

@@ -16,8 +16,8 @@ import numpy as np
 
 from ..checks import coherence_weights
 from ..threads import limit_blas
-from .poles import evaluate
-from .rational import RationalFit
+from .poles import evaluate, lstsq_normal
+from .rational_fit import RationalFit
 from .realization import residue_factors
 
 __all__ = ["refine_residues"]
@@ -51,7 +51,7 @@ def _solve_outputs(s, target, rw, poles, bs):
     for o in range(target.shape[1]):
         a = (basis * rw[:, o, :, None]).reshape(-1, basis.shape[-1])
         y = (target[:, o, :] * rw[:, o, :]).reshape(-1)
-        x = np.linalg.lstsq(np.concatenate([a.real, a.imag]), np.concatenate([y.real, y.imag]), rcond=None)[0]
+        x = lstsq_normal(np.concatenate([a.real, a.imag]), np.concatenate([y.real, y.imag]))
         cs.append(x[:n_c:2] + 1j * x[1:n_c:2])
         d[o] = x[n_c:]
     cs = np.array(cs)  # (n_out, sum k)

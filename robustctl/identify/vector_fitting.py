@@ -10,6 +10,8 @@ channels. The zeros of ``sigma`` are the new poles; unstable ones are reflected.
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from .poles import BestPoles, partial_fraction_basis, pole_change, reflect_unstable, split_poles
@@ -150,9 +152,13 @@ def vf_step(
     scale = np.sqrt(np.sum(np.abs(rw * g) ** 2)) / s.size
     con = _constraint(phi, scale)
     normal = _gram_normal(phi, g, rw) if gram else None
+    x = None
     if normal is not None:
-        x, cost = _solve_sigma_gram(normal[0], con, s.size * scale), normal[1]
-    else:
+        try:
+            x, cost = _solve_sigma_gram(normal[0], con, s.size * scale), normal[1]
+        except np.linalg.LinAlgError:  # singular normal equations (spare poles on exact data): QR path
+            x = None
+    if x is None:
         blocks, cost = _channel_blocks(phi, g, rw)
         x = _solve_sigma_qr(blocks, con, s.size * scale)
     a, b = _sigma_realisation(poles)
@@ -170,6 +176,8 @@ def vf_poles(
     tol: float = 1e-8,
     stable: bool = True,
     spacing: str = "lin",
+    start: np.ndarray | None = None,
+    deadline: float | None = None,
 ) -> tuple[np.ndarray, int, bool]:
     """Common poles of all channels by relaxed, fast vector fitting.
 
@@ -193,16 +201,24 @@ def vf_poles(
         Reflect unstable poles after every relocation (pole flipping).
     spacing : {"lin", "log"}
         Spacing of the starting poles over the band.
+    start : ndarray, complex, optional
+        Starting poles (scaled like ``s``; one per conjugate pair), e.g. the previous order's
+        poles plus new ones, instead of the spread of :func:`initial_poles`.
+    deadline : float, optional
+        ``time.perf_counter()`` value after which the best poles so far are returned
+        (``converged`` False).
 
     Returns
     -------
     poles, iterations, converged
     """
     w = np.abs(s)
-    poles = initial_poles(order, float(w.min()), float(w.max()), spacing)
+    poles = initial_poles(order, float(w.min()), float(w.max()), spacing) if start is None else start
     best = BestPoles(s, g, rw)
     change = np.inf
     for it in range(1, max_iter + 1):
+        if deadline is not None and it > 1 and time.perf_counter() > deadline:
+            return best.best, it - 1, False
         new, cost = vf_step(s, g, rw, poles, stable, gram=change > GRAM_UNTIL)
         stalled = best.record(poles, cost)
         change = pole_change(poles, new)

@@ -783,6 +783,15 @@ class Frame(Structure):
         new._group_tension = {g: v for g, v in new._group_tension.items() if g in groups}
         return new
 
+    def tags(self) -> tuple[str, ...]:
+        """Tags of the components :meth:`without` can remove (``"gravity"`` when a preload is on)."""
+        parts = [*self._nodes.values(), *self._elements.values(), *self._masses, *self._springs,
+                 *self._links, *self._fixes, *self._inputs.values(), *self._outputs.values()]
+        found = {t for part in parts for t in getattr(part, "tags", ())}
+        if self._g > 0:
+            found.add("gravity")
+        return tuple(sorted(found))
+
     # ------------------------------------------------------------------ assembly
     def matrices(self, *, sparse: bool | None = None) -> StructuralMatrices:
         """Assemble mass, stiffness (elastic + geometric) and dashpot damping of the free DOFs.

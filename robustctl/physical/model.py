@@ -276,18 +276,84 @@ class PhysicalModel:
         return self.with_params(params)._copy(io_stages=self.io_stages + (stage,))
 
     def with_effect(self, effect: Any) -> PhysicalModel:
-        """A copy with a physical ``Effect`` added (see :mod:`robustctl.effects`)."""
+        """A copy with a physical ``Effect`` added (see :mod:`robustctl.effects`).
+
+        Parameters
+        ----------
+        effect : Effect, str or CandidateResult
+            An effect instance (e.g. ``diag.best``, with its fitted values); a candidate's name
+            as :func:`robustctl.diagnose` prints it (``"suspension spring at dof 6"``), which adds
+            that candidate at its neutral value for :func:`robustctl.update` to fit; or a row of
+            ``diag.ranking``.
+        """
+        from .effects import Effect
+
         if effect is None:
             raise ModelError("with_effect got None: the diagnosis found no significant effect.")
+        if isinstance(effect, type):
+            raise ModelError(
+                f"with_effect needs an Effect instance, not the class {effect.__name__}; give its "
+                f"location and value, e.g. rc.effects.{effect.__name__}(...), or pass a candidate name."
+            )
+        if isinstance(effect, str):
+            effect = self._candidate_named(effect)
+        elif not isinstance(effect, Effect) and isinstance(getattr(effect, "effect", None), Effect):
+            effect = effect.effect  # a diagnosis row (CandidateResult)
+        if not isinstance(effect, Effect):
+            raise ModelError(
+                "with_effect needs an Effect (rc.effects.*) or a candidate name; "
+                f"got {type(effect).__name__}."
+            )
         return effect.apply(self)
+
+    def _candidate_named(self, name: str) -> Any:
+        """The candidate effect of :func:`robustctl.effects.candidates` called ``name``."""
+        import difflib
+
+        from .effects import candidates
+
+        found = {" ".join(c.name.lower().split()): c for c in candidates(self, calibrate=False)}
+        key = " ".join(name.lower().split())
+        if key in found:
+            return found[key]
+        names = [c.name for c in found.values()]
+        close = difflib.get_close_matches(name, names, n=5, cutoff=0.5)
+        hint = f"close matches: {close}" if close else f"the {len(names)} candidates include {names[:8]}"
+        raise ModelError(
+            f"no candidate effect of model {self.name!r} is called {name!r}; {hint}. "
+            "List them with [c.name for c in rc.effects.candidates(model)]."
+        )
+
+    def known_tags(self) -> tuple[str, ...]:
+        """Tags :meth:`without` can remove: of parameters, stages and structure components.
+
+        ``"gravity"`` is always known (a model without a gravity preload is its own 0-g model).
+        """
+        found = {"gravity"} | {t for p in self.params for t in p.tags}
+        found |= {t for s in self.structure_stages + self.io_stages for t in s.tags}
+        if self.structure is not None:
+            tags = getattr(self.build_structure(), "tags", None)
+            found |= set(tags()) if callable(tags) else set()
+        return tuple(sorted(found))
 
     def without(self, *tags: str) -> PhysicalModel:
         """A copy with every component tagged by one of ``tags`` removed.
 
         ``model.without("suspension", "gravity")`` gives MACE's 0-g model: suspension
         devices and their parameters are dropped and the gravity preload is not applied.
+
+        Raises
+        ------
+        ModelError
+            A tag that nothing in the model carries (a typo would silently give the 1-g model);
+            the message lists :meth:`known_tags`.
         """
         tags = frozenset(tags)
+        unknown = sorted(tags - self.excluded_tags - set(self.known_tags()))
+        if unknown:
+            raise ModelError(
+                f"model {self.name!r} has nothing tagged {unknown}; known tags: {list(self.known_tags())}."
+            )
         params = tuple(p for p in self.params if not tags.intersection(p.tags))
         return self._copy(
             params=params,
@@ -297,6 +363,38 @@ class PhysicalModel:
             ),
             excluded_tags=self.excluded_tags | tags,
         )
+
+    def select(
+        self, inputs: Sequence[str] | str | None = None, outputs: Sequence[str] | str | None = None
+    ) -> PhysicalModel:
+        """A copy whose I/O model keeps only the named inputs and outputs, in the order given.
+
+        For a test with fewer shakers or sensors than the model has, e.g.
+        ``model.select(inputs=["A1"])`` against single-shaker data. The selection is the last
+        I/O stage: add effects before selecting.
+
+        Parameters
+        ----------
+        inputs, outputs : str or sequence of str, optional
+            Signal names (``None`` keeps all).
+        """
+        sys = self.statespace()
+        in_idx = _signal_indices(inputs, tuple(sys.input_labels), "inputs", self.name)
+        out_idx = _signal_indices(outputs, tuple(sys.output_labels), "outputs", self.name)
+
+        def pick(theta: Theta, ss: Any) -> Any:
+            import control
+
+            ins, outs = list(ss.input_labels), list(ss.output_labels)
+            return control.ss(
+                ss.A, ss.B[:, in_idx], ss.C[out_idx], ss.D[np.ix_(out_idx, in_idx)],
+                inputs=[ins[k] for k in in_idx], outputs=[outs[k] for k in out_idx],
+                states=list(ss.state_labels), dt=ss.dt,
+            )
+
+        stage = Stage(f"select outputs {[sys.output_labels[k] for k in out_idx]}, "
+                      f"inputs {[sys.input_labels[k] for k in in_idx]}", pick)
+        return self._copy(io_stages=self.io_stages + (stage,))
 
     # ------------------------------------------------------------------ building
     def build_structure(self, **overrides: float) -> Structure:
@@ -357,3 +455,38 @@ class PhysicalModel:
             f"{len(self.structure_stages)} structural and {len(self.io_stages)} I/O stages"
             f"{', without ' + ', '.join(sorted(self.excluded_tags)) if self.excluded_tags else ''})"
         )
+
+    def _repr_html_(self) -> str:
+        import html
+
+        free = [p.name for p in self.free_params]
+        try:
+            signals = f"outputs {', '.join(self.outputs)}; inputs {', '.join(self.inputs)}"
+        except Exception as exc:  # a broken build must not break the notebook display
+            signals = f"(build failed: {exc})"
+        rows = [
+            ("parameters", f"{len(self.params)} ({len(free)} free: {', '.join(free[:8])}"
+                           f"{' ...' if len(free) > 8 else ''})"),
+            ("stages", ", ".join(s.name for s in self.structure_stages + self.io_stages) or "none"),
+            ("signals", signals),
+            ("without", ", ".join(sorted(self.excluded_tags)) or "nothing"),
+        ]
+        body = "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in rows)
+        return f"<table><caption>PhysicalModel {html.escape(self.name)}</caption>{body}</table>"
+
+
+def _signal_indices(
+    wanted: Sequence[str] | str | None, names: tuple[str, ...], what: str, model: str
+) -> list[int]:
+    """Indices of the ``wanted`` signal names among ``names``; all when ``wanted`` is None."""
+    if wanted is None:
+        return list(range(len(names)))
+    wanted = [wanted] if isinstance(wanted, str) else list(wanted)
+    unknown = [w for w in wanted if w not in names]
+    if unknown or not wanted:
+        raise ModelError(
+            f"model {model!r} has no {what} {unknown or '(empty selection)'}; its {what} are {list(names)}."
+        )
+    if len(set(wanted)) != len(wanted):
+        raise ModelError(f"{what} {wanted} name a signal twice; give each once.")
+    return [names.index(w) for w in wanted]

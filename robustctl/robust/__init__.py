@@ -5,6 +5,9 @@ from .blocks import Block, BlockStructure, as_block_structure
 # weights (uncertainty and performance weights, magnitude fits, covers)
 from .cover import UncertaintyCover, cover_additive, cover_multiplicative, error_envelope
 
+# D-K iteration and the measurement-model yardstick (dk.py, yardstick.py)
+from .dk import DKIteration, DKResult, Reduction, dksyn
+
 # H-infinity norm and synthesis (hinf helper)
 from .hinfnorm import hinfnorm
 from .hinfsyn import HinfResult, hinfsyn
@@ -15,6 +18,7 @@ from .mu import MuResult, mu
 from .mu_analysis import WorstCaseGain, robust_performance, robust_stability, worst_case_gain
 from .plant import GeneralizedPlant, PlantWeight, generalized_plant, mixed_sensitivity
 from .weights import CALTECH_MULTIPLICATIVE, caltech_additive_weight, makeweight
+from .yardstick import NyquistVerdict, Yardstick, nyquist_stability, yardstick
 
 __all__ = [
     "Block",
@@ -48,4 +52,13 @@ __all__ = [
     "hinfnorm",
     "hinfsyn",
     "HinfResult",
+    # D-K iteration and yardstick
+    "dksyn",
+    "DKResult",
+    "DKIteration",
+    "Reduction",
+    "yardstick",
+    "Yardstick",
+    "NyquistVerdict",
+    "nyquist_stability",
 ]

@@ -1,0 +1,156 @@
+"""Benchmark: D-K iteration on the distillation column and on the Caltech truss plant.
+
+Cases:
+
+* Skogestad & Postlethwaite's distillation example (sec. 8.12.4, Table 8.2: peak mu
+  1.1818, 1.0238, 1.0189 for three iterations with 4th-order D fits; MATLAB's 2008
+  ``dksyn`` reached 0.9975, the mu-optimal controller 0.974): ``rc.dksyn`` with automatic
+  D orders (6 iterations) and with the book's 4th-order fits (3 iterations);
+* the Caltech seed's design plant (six-mode nominal by balanced truncation, eq. 14's
+  additive weight, 4 % input/output multiplicative uncertainty, band-pass performance on
+  the sensors, level 0.3), 2 iterations: peak mu (robust performance) and mu over the
+  uncertainty blocks (robust stability).
+
+Side by side: dkpy 0.1.9 (the closest Python prior art: python-control + slycot + cvxpy, LMI
+bisection mu) on the distillation problem with its README settings (4th-order fits, 61
+frequencies, 3 iterations, Clarabel instead of MOSEK), run in a separate virtual environment
+(``DKPY_PYTHON``, default ``/tmp/dkpy_venv/bin/python``) in a subprocess with a deadline;
+reported as not run when it is not installed. Targets: < 10 s each, distillation peak mu
+<= 1.00 (the issue's target), Caltech robust stability certified.
+
+Run: ``python -m benchmarks dk``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+from robustctl.examples import DISTILLATION_BLOCKS, caltech_design_plant, caltech_truss, distillation_plant
+from robustctl.lti import freqresp_array
+from robustctl.robust.dk import dksyn
+
+TARGETS = {
+    "distillation_time_s": "< 10",
+    "distillation_mu": "<= 1.0",
+    "caltech_time_s": "< 10",
+    "caltech_rs_mu": "< 1",
+}
+DKPY_TIMEOUT_S = 300
+
+_DKPY_SCRIPT = r'''
+import json, sys, time
+import numpy as np
+import control
+import dkpy
+G0 = np.array([[87.8, -86.4], [108.2, -109.6]])
+eps = 1e-6
+I2, Z2 = np.eye(2), np.zeros((2, 2))
+A = np.block([[-I2 / 75, Z2, Z2], [Z2, -2 * I2, Z2], [G0, Z2, -eps * I2]])
+B = np.block([[I2 / 75, Z2, I2 / 75], [Z2, Z2, I2], [Z2, I2, Z2]])
+C = np.block([[Z2, -3.6 * I2, Z2], [0.5 * G0, Z2, 0.5 * (0.1 - eps) * I2], [-G0, Z2, Z2]])
+D = np.block([[Z2, Z2, 2 * I2], [Z2, 0.5 * I2, Z2], [Z2, -I2, Z2]])
+P = control.ss(A, B, C, D)
+t = time.perf_counter()
+dk_iter = dkpy.DkIterFixedOrder(
+    controller_synthesis=dkpy.HinfSynSlicot(),
+    structured_singular_value=dkpy.SsvLmiBisection(solver_params=dict(solver="CLARABEL"), n_jobs=1),
+    d_scale_fit=dkpy.DScaleFitSlicot(),
+    n_iterations=3,
+    fit_order=4,
+)
+omega = np.logspace(-3, 3, 61)
+out = dk_iter.synthesize(P, 2, 2, omega, np.array([[1, 1], [1, 1], [2, 2]]))
+K, mu = out[0], out[2]
+print(json.dumps({"mu": float(np.max(mu)), "time_s": time.perf_counter() - t, "K_order": int(K.nstates)}))
+'''
+
+
+def _dkpy() -> dict:
+    python = os.environ.get("DKPY_PYTHON", "/tmp/dkpy_venv/bin/python")
+    if not os.path.exists(python):
+        return {"status": f"not run: no dkpy environment at {python}"}
+    try:
+        out = subprocess.run([python, "-c", _DKPY_SCRIPT], capture_output=True, text=True,
+                             timeout=DKPY_TIMEOUT_S, check=False)
+    except subprocess.TimeoutExpired:
+        return {"status": f"timed out after {DKPY_TIMEOUT_S} s"}
+    lines = [ln for ln in out.stdout.splitlines() if ln.startswith("{")]
+    if out.returncode != 0 or not lines:
+        tail = (out.stderr.strip().splitlines() or ["?"])[-1][:200]
+        return {"status": f"failed: {tail}"}
+    return {"status": "ok", **json.loads(lines[-1])}
+
+
+def _distillation() -> dict:
+    P = distillation_plant()
+    t = time.perf_counter()
+    auto = dksyn((P, 2, 2, DISTILLATION_BLOCKS), max_iter=6, progress=False)
+    t_auto = time.perf_counter() - t
+    t = time.perf_counter()
+    book = dksyn((P, 2, 2, DISTILLATION_BLOCKS), max_iter=3, order_d=4, rtol=-1.0, progress=False)
+    t_book = time.perf_counter() - t
+    return {
+        "distillation_time_s": round(t_auto, 2),
+        "distillation_mu": round(auto.mu_peak, 4),
+        "distillation_mu_per_iteration": [round(h.mu_peak, 4) for h in auto.history],
+        "distillation_iterations": len(auto.history),
+        "distillation_K_order": auto.K.nstates,
+        "distillation_gap_to_mu_optimal_0974": round(auto.mu_peak - 0.974, 4),
+        "distillation_book_order4_mu_per_iteration": [round(h.mu_peak, 4) for h in book.history],
+        "distillation_book_order4_time_s": round(t_book, 2),
+    }
+
+
+def _caltech() -> dict:
+    from robustctl.robust.mu import mu
+
+    gp = caltech_design_plant(caltech_truss(), level=0.3)
+    t = time.perf_counter()
+    dk = dksyn(gp, max_iter=2, progress=False)
+    elapsed = time.perf_counter() - t
+    ub = gp.uncertainty_blocks
+    H = freqresp_array(dk.closed_loop, dk.mu.f_hz)[:, :ub.n_out, :ub.n_in]
+    rs = mu(H, ub, f_hz=dk.mu.f_hz)
+    return {
+        "caltech_time_s": round(elapsed, 2),
+        "caltech_rp_mu_per_iteration": [round(h.mu_peak, 4) for h in dk.history],
+        "caltech_rs_mu": round(float(rs.peak), 4),
+        "caltech_K_order": dk.K.nstates,
+        "caltech_plant_states": gp.P.nstates,
+    }
+
+
+def run() -> dict:
+    """D-K on both plants, and dkpy on the distillation plant when available."""
+    metrics = {**_distillation(), **_caltech()}
+    dkpy = _dkpy()
+    metrics["dkpy_status"] = dkpy["status"]
+    if dkpy["status"] == "ok":
+        metrics["dkpy_distillation_mu"] = round(dkpy["mu"], 4)
+        metrics["dkpy_distillation_time_s"] = round(dkpy["time_s"], 2)
+        ratio = dkpy["time_s"] / max(metrics["distillation_time_s"], 1e-9)
+        metrics["dkpy_time_over_robustctl"] = round(ratio, 1)
+    passed = bool(metrics["distillation_time_s"] < 10 and metrics["distillation_mu"] <= 1.0
+                  and metrics["caltech_time_s"] < 10 and metrics["caltech_rs_mu"] < 1)
+    return {
+        "name": "dk",
+        "description": "rc.dksyn on S&P's distillation example (auto and 4th-order D fits) and the Caltech "
+                       "design plant; dkpy side by side on the distillation example",
+        "metrics": metrics,
+        "targets": TARGETS,
+        "passed": passed,
+        "python": sys.version.split()[0],
+        "numpy": np.__version__,
+    }
+
+
+if __name__ == "__main__":
+    from benchmarks.run import main
+
+    raise SystemExit(main(["dk"]))

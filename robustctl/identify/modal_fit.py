@@ -1,0 +1,222 @@
+"""The steps of :func:`~robustctl.identify.fit_measurement_model` between data and modal model.
+
+1. A rational fit with spare poles (``2 (n + spare)`` for ``n`` modes, vector fitting with the
+   QR/Gram channel compression of Deschrijver et al. 2008, linear in the channels), or the
+   Caltech route (one SIMO fit per input, SVD grouping, Balas & Doyle eqs. 9-10).
+2. Mode selection (:mod:`.selection`): exactly ``n`` modes by contribution, out-of-band and
+   heavily damped poles kept as fillers (listed apart), the rest dropped; rank-1 residues
+   ``c b^T`` (Caltech eq. 9) refitted by alternating least squares.
+3. Joint refinement of poles and shapes (:func:`.modal_refine.refine_modes_auto`: all at once
+   on small problems, block by block on large ones), within the time budget.
+4. Optionally the H1 leakage correction (:mod:`.leakage`) in a few fixed-point steps.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from ..frd import FrequencyData
+from ..lti import log_ratio
+from .grouping import group_modes
+from .leakage import leakage_factor
+from .modal_refine import DENSE_MAX_ENTRIES, ZETA_MIN, refine_modes_auto
+from .poles import fit_residues
+from .rational import fit_rational
+from .rational_fit import RationalFit
+from .realization import residue_rank
+from .refine import _row_weights, refine_residues
+from .selection import classify_poles, mode_counts, pole_contributions, split_pole
+from .stabilisation import distinct_modes
+
+__all__ = [
+    "FitSettings",
+    "spare_pairs",
+    "select_modes",
+    "modal_model",
+    "fit_with_leakage",
+    "fit_best",
+    "shift_poles",
+]
+
+#: fixed-point steps of the leakage correction
+LEAKAGE_STEPS = 4
+
+
+def spare_pairs(n_modes: int) -> int:
+    """Spare pole pairs of the rational fit behind ``n_modes`` modes: ``max(2, ceil(n / 5))``."""
+    return max(2, math.ceil(n_modes / 5))
+
+
+@dataclass(frozen=True)
+class FitSettings:
+    """Settings shared by the steps (validated by the caller)."""
+
+    groups: Any
+    settings: Any  # EstimatorSettings or None
+    fit_kw: dict
+    rank_tol: float
+    refine: bool
+    deadline: float | None = None
+    spare: bool = True
+    progress: bool = False
+
+    def expired(self) -> bool:
+        return self.deadline is not None and time.perf_counter() > self.deadline
+
+
+def rational_fit(band: FrequencyData, n_modes: int, run: FitSettings) -> RationalFit:
+    """Step 1: common-denominator fit with spare poles, or one SIMO fit per input (Caltech)."""
+    left = None if run.deadline is None else max(0.0, run.deadline - time.perf_counter())
+    if run.groups is not None:
+        return fit_rational(band, 2 * n_modes, common_denominator=False, time_budget_s=left, **run.fit_kw)
+    spare = spare_pairs(n_modes) if run.spare else 0
+    return fit_rational(band, 2 * (n_modes + spare), time_budget_s=left, **run.fit_kw)
+
+
+def _splits(modes: np.ndarray, counts: np.ndarray, key: np.ndarray, n_modes: int) -> np.ndarray:
+    """Which selected poles to split into close pairs: those counting 2, largest contribution first,
+    while the total stays within ``n_modes``."""
+    split = np.zeros(modes.size, dtype=bool)
+    total = modes.size
+    for j in np.argsort(-key[modes], kind="stable"):
+        if counts[modes[j]] == 2 and total < n_modes:
+            split[j], total = True, total + 1
+    return split
+
+
+def select_modes(fit: RationalFit, n_modes: int, prefer: np.ndarray | None = None) -> tuple[RationalFit, int]:
+    """Step 2: keep exactly ``n_modes`` modes and the fillers; poles ordered modes (by frequency)
+    then fillers; modes get rank-1 residues, fillers their numerical rank. A pole whose residue
+    has rank 2 (:func:`.selection.mode_counts`) stands for a close pair and is split in two
+    (:func:`.selection.split_pole`); two poles on one peak with one shape (window leakage) are one
+    mode (:func:`.stabilisation.distinct_modes`). ``prefer`` (bool per pole) ranks those poles first (the
+    stabilisation diagram's physical poles).
+
+    Returns the new fit and the number of mode poles (the first ones)."""
+    data = fit.data
+    s = 2j * np.pi * data.f_hz
+    rw = _row_weights(fit, None)
+    contrib = pole_contributions(s, data.response, rw, fit.poles, fit.residues)
+    key = contrib if prefer is None else contrib + np.where(prefer, 1e6, 0.0)
+    counts = mode_counts(fit.residues, fit.poles)
+    cplx = np.flatnonzero(fit.poles.imag != 0)
+    duplicate = ~np.isin(np.arange(fit.poles.size), distinct_modes(cplx, fit.poles, fit.residues, key))
+    exclude = duplicate & (fit.poles.imag != 0)
+    cls = classify_poles(fit.poles, key, fit.band_hz, n_modes, counts=counts, exclude=exclude)
+    split = _splits(cls.modes, counts, key, n_modes)
+    poles, residues = [], []
+    for j, k in enumerate(cls.modes):
+        if split[j]:
+            p2, r2 = split_pole(fit.poles[k], fit.residues[k])
+            poles += list(p2)
+            residues += list(r2)
+        else:
+            poles.append(fit.poles[k])
+            residues.append(fit.residues[k])
+    n = len(poles)
+    poles = np.array(poles + list(fit.poles[cls.fillers]))
+    order = np.r_[np.argsort(np.abs(poles[:n]), kind="stable"), n : poles.size]
+    poles = poles[order]
+    residues, d = fit_residues(s, data.response, rw, poles)
+    # a filler stands for one out-of-band mode (rank 1) unless its residue vanishes
+    filler_ranks = [
+        min(1, residue_rank(r.real if p.imag == 0 else r, 1e-8)) for p, r in zip(poles[n:], residues[n:])
+    ]
+    ranks = np.array([1] * n + filler_ranks, dtype=int)
+    new = replace(fit, poles=poles, residues=residues, d=d, ranks=ranks)
+    return refine_residues(new, sweeps=2), n
+
+
+def _grouped(fit: RationalFit, run: FitSettings) -> tuple[RationalFit, int]:
+    """Caltech route: SVD grouping; complex poles are the modes, real poles the fillers."""
+    fit = group_modes(fit, run.groups, rank_tol=run.rank_tol)
+    order = np.argsort(fit.poles.imag == 0, kind="stable")
+    fit = replace(fit, poles=fit.poles[order], residues=fit.residues[order], ranks=fit.ranks[order])
+    return fit, int(np.sum(fit.poles.imag != 0))
+
+
+def modal_model(
+    fit: RationalFit, n_modes: int, run: FitSettings, prefer: np.ndarray | None = None
+) -> tuple[RationalFit, int]:
+    """Steps 2-3 on a rational fit: the modal structure, then the refinement (if asked and in time)."""
+    fit, n_mode_poles = _grouped(fit, run) if run.groups is not None else select_modes(fit, n_modes, prefer)
+    if run.refine and not run.expired():
+        fit = refine_modes_auto(fit, deadline=run.deadline, progress=run.progress)
+    return fit, n_mode_poles
+
+
+def _small(band: FrequencyData, n_modes: int) -> bool:
+    """Whether the dense joint refinement of ``n_modes`` modes is affordable on ``band``."""
+    n_out, n_in = band.response.shape[1:]
+    n_par = (n_modes + spare_pairs(n_modes)) * (2 + 2 * (n_out + n_in)) + n_out * n_in
+    return band.f_hz.size * n_out * n_in * n_par <= DENSE_MAX_ENTRIES
+
+
+def fit_best(
+    band: FrequencyData, n_modes: int, run: FitSettings, first: RationalFit | None = None, prefer=None
+) -> tuple[RationalFit, int, FrequencyData]:
+    """:func:`fit_with_leakage` with spare poles; on small problems (dense refinement affordable)
+    the route with exactly ``2 n_modes`` poles is tried too and the better modal start (before
+    refinement) goes on: the one that gives ``n_modes`` modes, of the two (or if neither does)
+    the lower weighted complex-log cost (MACE eq. 5)."""
+    if run.groups is not None or not _small(band, n_modes) or run.expired():
+        return fit_with_leakage(band, n_modes, run, first, prefer)
+    staged = []
+    for r, start, pref in ((run, first, prefer), (replace(run, spare=False), None, None)):
+        start = rational_fit(band, n_modes, r) if start is None else start
+        modal, n_found = select_modes(start, n_modes, pref)
+        staged.append(((n_found != n_modes, _log_cost(modal, band)), r, start, pref))
+    _, r, start, pref = min(staged, key=lambda item: item[0])
+    return fit_with_leakage(band, n_modes, r, start, pref)
+
+
+def _log_cost(fit: RationalFit, data: FrequencyData) -> float:
+    """Weighted complex-log cost ``sum w |log(g / G)|^2`` (the weights of the fit, MACE eq. 5)."""
+    w = (_row_weights(replace(fit, data=data), None) * np.abs(data.response)) ** 2
+    return float(np.sum(w * np.abs(log_ratio(data.response, fit.response(data.f_hz))) ** 2))
+
+
+def fit_with_leakage(
+    band: FrequencyData, n_modes: int, run: FitSettings, first: RationalFit | None = None, prefer=None
+) -> tuple[RationalFit, int, FrequencyData]:
+    """Steps 1-4: fit (or start from ``first``), modal structure, leakage fixed point.
+
+    With ``refine`` each leakage step re-refines the modal model on the newly corrected data
+    (warm start); without, the rational fit is redone and the modal structure imposed at the end.
+    Returns (fit, number of mode poles, data used).
+    """
+    st = run.settings
+    fit = rational_fit(band, n_modes, run) if first is None else first
+    n_mode_poles = 0
+    if st is None or run.refine:
+        fit, n_mode_poles = modal_model(fit, n_modes, run, prefer)
+    data = band
+    for _ in range(LEAKAGE_STEPS if st is not None else 0):
+        if run.expired():
+            break
+        data = band.replace(response=band.response * leakage_factor(fit, band.f_hz, st),
+                            meta={**band.meta, "leakage_corrected": True})
+        if run.refine:
+            fit = refine_residues(replace(fit, data=data))
+            fit = refine_modes_auto(fit, deadline=run.deadline, progress=run.progress)
+        else:
+            fit = rational_fit(data, n_modes, run)
+    if st is not None and not run.refine:
+        fit, n_mode_poles = modal_model(fit, n_modes, run)
+    return fit, n_mode_poles, data
+
+
+def shift_poles(fit: RationalFit, sigma: float) -> RationalFit:
+    """Add ``sigma`` (1/s) to every pole's real part, keeping it below ``-ZETA_MIN |p|``.
+
+    An exponential window ``exp(-t/tau)`` on an impulse response moves every pole by ``-1/tau``
+    (``r e^{pt} e^{-t/tau} = r e^{(p - 1/tau) t}``), so ``sigma = 1/tau`` undoes it: the damping
+    ratio falls by ``1/(tau w_n)`` (Ewins, *Modal Testing*, sec. 3.11)."""
+    p = fit.poles + sigma
+    p = np.where(p.real < -ZETA_MIN * np.abs(p), p, -ZETA_MIN * np.abs(p) + 1j * p.imag)
+    return replace(fit, poles=p.astype(complex))

@@ -1,0 +1,286 @@
+"""Impact-hammer tests: FRF estimates from repeated hits, with force and exponential windows.
+
+Each hit is one average of an H1 estimate (Ewins, *Modal Testing*, sec. 3.11; Bendat &
+Piersol eq. 7.27 with one segment per hit): ``H = sum_k conj(F_k) Y_k / sum_k |F_k|^2`` and the
+coherence over hits ``|sum conj(F) Y|^2 / (sum |F|^2 sum |Y|^2)``. No detrending (the segment
+mean of a transient is signal, not drift); the pre-trigger mean (DC offset) is removed.
+
+* **Force window**: the force is kept from the record start to the end of the pulse plus a
+  margin and zeroed after (with a short cosine taper), which removes the noise the force
+  channel adds over the rest of the record.
+* **Exponential window** ``exp(-(t - t0)/tau)`` from the hit time ``t0`` on force and response
+  makes a response that has not died out by the end of the record decay (no leakage). It
+  adds ``1/tau`` to every pole's decay rate, i.e. ``zeta_meas = zeta_true + 1/(tau w_n)``;
+  ``tau`` is recorded in ``meta["exp_window_tau_s"]`` and
+  :func:`robustctl.fit_measurement_model` undoes it on the identified modes.
+* **Double hits** (a second force pulse after the first has ended) and **overloads** (a
+  channel at its range, or clipped: several consecutive samples at the record's extreme) are
+  warned about, naming the hit.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from .checks import positive_number
+from .errors import DataError
+from .frd import FrequencyData
+
+__all__ = ["estimate_frf_impact", "ImpactWarning"]
+
+#: the force pulse is where |force| exceeds this fraction of the hit's peak
+PULSE_LEVEL = 0.05
+#: a response that keeps more than this fraction of its peak envelope at the end leaks
+DECAY_LEVEL = 0.01
+
+
+class ImpactWarning(UserWarning):
+    """An impact record deserves a look (double hit, overload, too few hits)."""
+
+
+def _as_hits(x: Any, name: str, n_hits: int | None) -> np.ndarray:
+    arr = np.asarray(x, dtype=float)
+    if arr.ndim == 1:
+        arr = arr[None, :, None]
+    elif arr.ndim == 2:
+        arr = arr[:, :, None] if n_hits is None or arr.shape[0] == n_hits else arr[None]
+    if arr.ndim != 3:
+        raise DataError(
+            f"{name} must have shape (n_samples,), (n_hits, n_samples) or (n_hits, n_samples, n_channels); "
+            f"got {np.shape(x)}."
+        )
+    if not np.all(np.isfinite(arr)):
+        raise DataError(f"{name} contains NaN or inf; repair or drop that hit.")
+    return arr
+
+
+def _pulse(f: np.ndarray) -> tuple[int, int, float]:
+    """Start, end (exclusive) and peak of the main force pulse of one hit."""
+    a = np.abs(f)
+    k = int(np.argmax(a))
+    peak = float(a[k])
+    if peak == 0:
+        raise DataError("a force record is identically zero; that hit carries no impact.")
+    low = a < PULSE_LEVEL * peak
+    before = np.flatnonzero(low[:k])
+    after = np.flatnonzero(low[k:])
+    start = int(before[-1] + 1) if before.size else 0
+    end = int(k + after[0]) if after.size else f.size
+    return start, end, peak
+
+
+def _double_hit(f: np.ndarray, end: int, peak: float, ratio: float, fs: float) -> float | None:
+    """Time (s) of a second pulse above ``ratio * peak`` after the first one ended, or None."""
+    later = np.flatnonzero(np.abs(f[end:]) > ratio * peak)
+    return None if later.size == 0 else float((end + later[0]) / fs)
+
+
+def _overloaded(x: np.ndarray, level: float | None) -> bool:
+    """At the range ``level`` or clipped: three consecutive samples at the record's extreme."""
+    a = np.abs(x)
+    top = float(a.max())
+    if level is not None:
+        return bool(top >= 0.999 * level)
+    if top == 0:
+        return False
+    at = a >= top * (1 - 1e-9)
+    return bool(np.any(at[:-2] & at[1:-1] & at[2:]))
+
+
+def _force_window(n: int, end: int, margin: int) -> np.ndarray:
+    w = np.ones(n)
+    taper = max(2, margin)
+    stop = min(n, end + margin)
+    if stop < n:
+        ramp = 0.5 * (1 + np.cos(np.pi * np.arange(1, taper + 1) / taper))
+        w[stop : stop + taper] = ramp[: max(0, min(taper, n - stop))]
+        w[stop + taper :] = 0.0
+    return w
+
+
+def _auto_tau(y: np.ndarray, start: int, fs: float) -> float | None:
+    """``tau`` making the window fall to DECAY_LEVEL at the record end, when the response has not
+    decayed below DECAY_LEVEL of its peak in the last 10 % of the record; else None."""
+    env = np.max(np.abs(y), axis=-1)
+    tail = env[int(0.9 * env.size) :].max()
+    if tail <= DECAY_LEVEL * env.max():
+        return None
+    return (env.size - start) / fs / np.log(1 / DECAY_LEVEL)
+
+
+def estimate_frf_impact(
+    force: Any,
+    response: Any,
+    fs: float,
+    *,
+    exp_window: float | str | None = "auto",
+    force_window: float | str | None = "auto",
+    double_hit_ratio: float = 0.1,
+    force_range: float | None = None,
+    response_range: float | Sequence[float] | None = None,
+    inputs: Sequence[str] | None = None,
+    outputs: Sequence[str] | None = None,
+) -> FrequencyData:
+    """H1 FRF from repeated hammer hits, one hit per average, with force and exponential windows.
+
+    Parameters
+    ----------
+    force : array_like, shape (n_hits, n_samples) or (n_samples,)
+        Hammer force of every hit, N; one record per hit, all of the same length.
+    response : array_like, shape (n_hits, n_samples, n_out), (n_hits, n_samples) or (n_samples,)
+        Responses (e.g. m/s^2), sampled with the force.
+    fs : float
+        Sampling frequency, Hz.
+    exp_window : "auto", float or None
+        Time constant ``tau`` (s) of the exponential window from the hit; "auto": the window
+        falls to 1 % at the record end, applied only when the response has not decayed below
+        1 % of its peak by then (else no window); None: rectangular (leakage if the response
+        has not decayed). Recorded in ``meta["exp_window_tau_s"]`` (None when not applied);
+        :func:`robustctl.fit_measurement_model` corrects the damping it adds,
+        ``zeta_true = zeta_meas - 1/(tau w_n)``.
+    force_window : "auto", float or None
+        Length (s) kept after the end of the force pulse before a cosine taper to zero; "auto":
+        the pulse's own duration (at least 4 samples); None: no force window.
+    double_hit_ratio : float
+        A second force pulse above this fraction of the hit's peak, after the first has ended,
+        is a double hit (warned; the hit is still used).
+    force_range, response_range : float, optional
+        Ranges of the acquisition channels (same units as the data); a record reaching 99.9 % of
+        its range is an overload. Without them, three consecutive samples at a record's extreme
+        count as clipping.
+    inputs, outputs : sequence of str, optional
+        Signal names (default ``force``; ``y1 ..``).
+
+    Returns
+    -------
+    FrequencyData
+        ``(n_freq, n_out, 1)`` at ``k fs / n_samples`` Hz (DC dropped), coherence over hits,
+        ``meta`` with ``method``, ``fs_hz``, ``n_hits``, ``exp_window_tau_s``,
+        ``force_window_s``, ``resolution_hz``, ``double_hits`` and ``overloads`` (hit indices).
+
+    Warns
+    -----
+    ImpactWarning
+        Double hits, overloads, fewer than 3 hits (no meaningful coherence).
+    """
+    fs = positive_number(fs, "fs", unit="sampling frequency, Hz")
+    f = _as_hits(force, "force", None)[:, :, 0]
+    y = _as_hits(response, "response", f.shape[0])
+    if y.shape[:2] != f.shape:
+        raise DataError(
+            f"response has {y.shape[0]} hits of {y.shape[1]} samples but force has {f.shape[0]} of "
+            f"{f.shape[1]}; give one response record per hit, sampled with the force."
+        )
+    if not 0 < double_hit_ratio < 1:
+        raise DataError(f"double_hit_ratio must lie in (0, 1); got {double_hit_ratio!r}.")
+    n_hits, n = f.shape
+    pulses = [_pulse(fk) for fk in f]
+    doubles = [
+        k
+        for k, (fk, (_, end, peak)) in enumerate(zip(f, pulses))
+        if _double_hit(fk, end, peak, double_hit_ratio, fs) is not None
+    ]
+    y_range = _range(response_range)
+    overloads = [k for k in range(n_hits) if _overloaded(f[k], force_range) or _overloaded(y[k], y_range)]
+    _warn(doubles, overloads, n_hits)
+    fw, yw = _offsets_removed(f, y, pulses)
+    if force_window is not None:
+        for k, (start, end, _) in enumerate(pulses):
+            auto = force_window == "auto"
+            margin = max(4, end - start) if auto else max(1, int(round(float(force_window) * fs)))
+            fw[k] *= _force_window(n, end, margin)
+    tau = _window_tau(exp_window, yw, pulses, fs)
+    if tau is not None:
+        t = np.arange(n) / fs
+        for k, (start, _, _) in enumerate(pulses):
+            win = np.exp(-np.maximum(t - start / fs, 0.0) / tau)
+            fw[k] *= win
+            yw[k] *= win[:, None]
+    F = np.fft.rfft(fw, axis=1)[:, 1:]
+    Y = np.fft.rfft(yw, axis=1)[:, 1:, :]
+    sff = np.sum(np.abs(F) ** 2, axis=0)
+    syf = np.sum(np.conj(F)[:, :, None] * Y, axis=0)
+    syy = np.sum(np.abs(Y) ** 2, axis=0)
+    h = syf / np.maximum(sff, 1e-300)[:, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        coh = np.where(syy > 0, np.abs(syf) ** 2 / (sff[:, None] * syy), 0.0)
+    freqs = np.fft.rfftfreq(n, 1.0 / fs)[1:]
+    meta = {
+        "method": "H1 impact (one average per hit)",
+        "fs_hz": fs,
+        "n_hits": n_hits,
+        "n_samples": n,
+        "exp_window_tau_s": tau,
+        "force_window_s": None if force_window is None else force_window,
+        "resolution_hz": fs / n,
+        "double_hits": doubles,
+        "overloads": overloads,
+    }
+    return FrequencyData(
+        freqs,
+        h[:, :, None],
+        inputs=list(inputs) if inputs is not None else ["force"],
+        outputs=outputs,
+        coherence=np.clip(coh, 0.0, 1.0)[:, :, None],
+        meta=meta,
+    )
+
+
+def _range(value: Any) -> float | None:
+    if value is None:
+        return None
+    return float(np.min(np.asarray(value, dtype=float)))
+
+
+def _offsets_removed(f: np.ndarray, y: np.ndarray, pulses) -> tuple[np.ndarray, np.ndarray]:
+    """Copies of force and response with each hit's pre-trigger mean (DC offset) removed."""
+    fw, yw = np.array(f), np.array(y)
+    for k, (start, _, _) in enumerate(pulses):
+        if start >= 8:
+            fw[k] -= f[k, :start].mean()
+            yw[k] -= y[k, :start].mean(axis=0)
+    return fw, yw
+
+
+def _window_tau(exp_window: Any, y: np.ndarray, pulses, fs: float) -> float | None:
+    """One time constant for every hit: the given one, or with "auto" the shortest any hit needs."""
+    if exp_window is None:
+        return None
+    if exp_window != "auto":
+        tau = float(exp_window)
+        if not (np.isfinite(tau) and tau > 0):
+            raise DataError(
+                f"exp_window must be 'auto', None or a positive time constant in s; got {exp_window!r}."
+            )
+        return tau
+    taus = [_auto_tau(yk, start, fs) for yk, (start, _, _) in zip(y, pulses)]
+    given = [t for t in taus if t is not None]
+    return min(given) if given else None
+
+
+def _warn(doubles: list[int], overloads: list[int], n_hits: int) -> None:
+    if doubles:
+        warnings.warn(
+            f"double hit(s) in hit(s) {doubles}: a second force pulse after the first; the input spectrum "
+            "has notches there. Repeat those hits (or drop them) for a clean estimate.",
+            ImpactWarning,
+            stacklevel=3,
+        )
+    if overloads:
+        warnings.warn(
+            f"overload in hit(s) {overloads}: a channel reached its range or clipped. Hit softer or raise "
+            "the range, and repeat those hits.",
+            ImpactWarning,
+            stacklevel=3,
+        )
+    if n_hits < 3:
+        warnings.warn(
+            f"{n_hits} hit(s): the coherence over hits means little below 3 (it is 1 for one hit); "
+            "average 5 or more hits.",
+            ImpactWarning,
+            stacklevel=3,
+        )

@@ -1,0 +1,221 @@
+"""D-K iteration (robustctl.robust.dk) and the generalized Nyquist test of the yardstick."""
+
+from __future__ import annotations
+
+import control
+import numpy as np
+import pytest
+
+from robustctl.errors import SynthesisError
+from robustctl.examples import DISTILLATION_BLOCKS, distillation_plant
+from robustctl.lti import freqresp_array
+from robustctl.robust.blocks import as_block_structure
+from robustctl.robust.dk import _as_plant, _scale_plant, closed_loop, dksyn
+from robustctl.robust.yardstick import nyquist_stability
+
+BOOK_BLOCKS = DISTILLATION_BLOCKS
+
+
+def test_distillation_plant_matches_its_transfer_functions():
+    P = distillation_plant()
+    s = 2j * np.pi * 0.03
+    G = np.array([[87.8, -86.4], [108.2, -109.6]]) / (75 * s + 1)
+    wI, wP = (s + 0.2) / (0.5 * s + 1), 0.5 * (10 * s + 1) / (10 * s + 1e-5)
+    R = freqresp_array(P, [0.03])[0]
+    I2 = np.eye(2)
+    expect = np.block([[0 * I2, 0 * I2, wI * I2], [wP * G, wP * I2, wP * G], [-G, -I2, -G]])
+    assert np.allclose(R, expect, rtol=1e-10, atol=1e-12)
+
+
+def _brute_lft(P, K, nmeas, ncon, f):
+    Pf, Kf = freqresp_array(P, f), freqresp_array(K, f)
+    nz, nw = P.noutputs - nmeas, P.ninputs - ncon
+    P11, P12, P21, P22 = Pf[:, :nz, :nw], Pf[:, :nz, nw:], Pf[:, nz:, :nw], Pf[:, nz:, nw:]
+    inner = np.linalg.solve(np.eye(nmeas)[None] - P22 @ Kf, P21)
+    return P11 + P12 @ Kf @ inner
+
+
+@pytest.mark.parametrize("with_d22", [False, True])
+def test_closed_loop_is_the_lower_lft(with_d22):
+    rng = np.random.default_rng(3)
+    P = control.rss(5, 5, 4, strictly_proper=False)
+    if not with_d22:
+        D = np.array(P.D)
+        D[3:, 2:] = 0.0
+        P = control.ss(P.A, P.B, P.C, D)
+    K = control.ss(np.diag([-1.0, -2.0, -3.0]), rng.normal(size=(3, 2)), 0.3 * rng.normal(size=(2, 3)),
+                   0.2 * rng.normal(size=(2, 2)))
+    f = np.logspace(-2, 1, 7)
+    assert np.allclose(freqresp_array(closed_loop(P, K, 2, 2), f), _brute_lft(P, K, 2, 2, f), atol=1e-10)
+
+
+def test_scaled_plant_is_d_p_dinv_on_the_uncertainty_channels():
+    P = distillation_plant()
+    plant = _as_plant((P, 2, 2, BOOK_BLOCKS))
+    d1 = control.ss(control.tf([2.0, 1.0], [1.0, 3.0]))
+    d2 = control.ss(control.tf([1.0, 0.5, 2.0], [1.0, 2.0, 1.0]))
+    Ps = _scale_plant(plant, [d1, d2])
+    f = np.logspace(-3, 1, 9)
+    a, b = freqresp_array(d1, f)[:, 0, 0], freqresp_array(d2, f)[:, 0, 0]
+    one = np.ones_like(a)
+    left = np.stack([a, b, one, one, one, one], axis=1)      # z1, z2, zp1, zp2, y1, y2
+    right = np.stack([1 / a, 1 / b, one, one, one, one], axis=1)  # di1, di2, w1, w2, u1, u2
+    expect = left[:, :, None] * freqresp_array(P, f) * right[:, None, :]
+    assert np.allclose(freqresp_array(Ps, f), expect, rtol=1e-9, atol=1e-9)
+    assert list(Ps.input_labels) == list(P.input_labels)
+
+
+def test_bad_plants_and_arguments_are_refused():
+    P = distillation_plant()
+    with pytest.raises(SynthesisError, match="nw=4"):
+        dksyn((P, 2, 2, [[1, 1], [2, 2]]))
+    with pytest.raises(SynthesisError, match="tuple"):
+        dksyn(P)
+    with pytest.raises(SynthesisError, match="max_iter"):
+        dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=0)
+    with pytest.raises(SynthesisError, match="time_budget_s"):
+        dksyn((P, 2, 2, BOOK_BLOCKS), time_budget_s=-1)
+    with pytest.raises(SynthesisError, match="f_hz"):
+        dksyn((P, 2, 2, BOOK_BLOCKS), f_hz=[1.0, 0.5, 2.0])
+    with pytest.raises(SynthesisError, match="order_d"):
+        dksyn((P, 2, 2, BOOK_BLOCKS), order_d=[1, 2, 3], max_iter=2)
+
+
+def test_one_iteration_is_the_hinf_controller_and_its_mu():
+    """Iteration 1 (no scaling): S&P Table 8.2 gives peak mu 1.1818 for the H-infinity controller."""
+    P = distillation_plant()
+    dk = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False)
+    assert len(dk.history) == 1 and dk.best_iteration == 1
+    assert dk.mu_peak == pytest.approx(1.1818, abs=0.005)
+    assert dk.history[0].gamma == pytest.approx(1.1818, abs=0.005)
+    assert dk.K.nstates == P.nstates
+    # the closed loop is Fl(P, K) and the mu result belongs to it
+    f = dk.mu.f_hz[::10]
+    assert np.allclose(freqresp_array(dk.closed_loop, f), _brute_lft(P, dk.K, 2, 2, f), atol=1e-9)
+    assert "mu peak" in str(dk.table()) and "not certified" in dk.summary()
+
+
+@pytest.mark.slow
+def test_distillation_reproduces_the_book_with_fourth_order_scales():
+    """S&P Table 8.2 (4th-order D fits): 1.1818, 1.0238, 1.0189."""
+    dk = dksyn((distillation_plant(), 2, 2, BOOK_BLOCKS), max_iter=3, order_d=4, progress=False,
+               rtol=-1.0)
+    peaks = [h.mu_peak for h in dk.history]
+    assert peaks[0] == pytest.approx(1.1818, abs=0.005)
+    assert peaks[1] == pytest.approx(1.0238, abs=0.01)
+    assert peaks[2] == pytest.approx(1.0189, abs=0.01)
+    assert all(h.d_orders == (4, 4) for h in dk.history[1:])
+
+
+@pytest.mark.slow
+def test_distillation_dk_with_automatic_scales():
+    """The automatic D orders beat the book's third iteration (1.0189) within 6 iterations.
+
+    The issue's target (<= 1.00, MATLAB's 2008 dksyn: 0.9975; mu-optimal 0.974) is not
+    reached: see the report for the figures.
+    """
+    dk = dksyn((distillation_plant(), 2, 2, BOOK_BLOCKS), max_iter=6, progress=False)
+    assert len(dk.history) <= 6
+    assert dk.mu_peak <= 1.015
+    # the kept controller is the best of the history, and the mu bound holds for it
+    assert dk.mu_peak == pytest.approx(min(h.mu_peak for h in dk.history))
+    assert dk.mu.lower.max() <= dk.mu_peak * (1 + 1e-6)
+
+
+def test_reduction_is_rechecked_by_mu():
+    P = distillation_plant()
+    dk = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, reduce=4)
+    r = dk.reduction
+    assert r is not None and r.order_before == 6 and r.order_after == 4
+    if r.accepted:
+        assert dk.K.nstates == 4 and dk.mu_peak == pytest.approx(r.mu_peak_after)
+        assert r.mu_peak_after <= r.mu_peak_before * 1.02
+    else:
+        assert dk.K.nstates == 6 and r.reason
+    with pytest.raises(SynthesisError, match="reduce"):
+        dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, reduce=0)
+
+
+# ---------------------------------------------------------------------------- Nyquist on data
+def _loop(L_sys):
+    return lambda f: freqresp_array(L_sys, f)
+
+
+def _stable(cl) -> bool:
+    return bool(np.all(np.linalg.eigvals(np.asarray(cl.A)).real < 0))
+
+
+@pytest.mark.parametrize("k", [1.0, 2.5, 2.9, 5.0])
+def test_nyquist_on_data_matches_closed_loop_poles(k):
+    """L = k s/(s+1)^3 with det(I - L): the closed loop s^3 + 3s^2 + (3-k)s + 1 is stable iff k < 8/3."""
+    L = k * control.ss(control.tf([1.0, 0.0], [1.0, 3.0, 3.0, 1.0]))
+    f = np.linspace(1e-3, 200.0, 40000)
+    v = nyquist_stability(f, _loop(L)(f), 0)
+    assert v.stable is (k < 8 / 3)
+    assert _stable(control.feedback(L, 1, sign=1)) is (k < 8 / 3)
+
+
+@pytest.mark.parametrize("a", [-3.0, -1.5])
+def test_nyquist_counts_open_loop_unstable_poles(a):
+    """L = a(s+1)/((s-1)(s+2)): one RHP pole; det(I - L) stable iff s^2 + (1-a)s - 2 - a is Hurwitz."""
+    L = control.ss(control.tf([a, a], [1.0, 1.0, -2.0]))
+    f = np.linspace(1e-3, 300.0, 60000)
+    v = nyquist_stability(f, _loop(L)(f), 1, model_loop=_loop(L))
+    truth = _stable(control.feedback(L, 1, sign=1))
+    assert truth is (a == -3.0)
+    assert v.stable is truth
+    # without the model below the band, |L(0)| = -a/2 > 0.9 leaves the low end unknown
+    assert nyquist_stability(f, _loop(L)(f), 1).stable is (None if a == -3.0 else False)
+
+
+def test_nyquist_mimo_against_closed_loop_poles():
+    G = control.ss(control.tf([[[1.0], [0.5]], [[0.2], [2.0]]],
+                              [[[1.0, 2.0, 1.0], [1.0, 1.0]], [[1.0, 3.0], [1.0, 2.0, 4.0]]]))
+    f = np.linspace(1e-3, 500.0, 100000)
+    verdicts = []
+    for k in (0.5, 3.0, 30.0):
+        L = -k * G
+        truth = _stable(control.feedback(L, control.ss([], [], [], np.eye(2)), sign=1))
+        v = nyquist_stability(f, _loop(L)(f), 0, model_loop=_loop(L))
+        assert v.stable is truth
+        verdicts.append(truth)
+    assert True in verdicts and False in verdicts
+
+
+def test_nyquist_cannot_tell():
+    L = -30.0 * control.ss(control.tf([1.0], [1.0, 0.4, 1.0]))
+    f = np.linspace(1e-3, 0.1, 2000)   # stops below the crossover (|L| ~ 30 at 0.16 Hz)
+    v = nyquist_stability(f, _loop(L)(f), 0, model_loop=_loop(L))
+    assert v.stable is None and v.label == "cannot tell" and "crossover" in v.reason
+    f = np.linspace(1e-3, 50.0, 20000)
+    v = nyquist_stability(f, _loop(L)(f), 0, model_loop=_loop(2 * L))
+    assert v.stable is None and "disagree" in v.reason
+    # a sharp resonance between the points: the unstable loop would look stable point by point
+    L = 3.0 * control.ss(control.tf([1.0, 0.0], [1.0, 0.02, 1.0]))
+    assert not _stable(control.feedback(L, 1, sign=1))
+    f = np.linspace(1e-3, 50.0, 50)
+    v = nyquist_stability(f, _loop(L)(f), 0, model_loop=_loop(L))
+    assert v.stable is None and "coarse" in v.reason
+    f = np.linspace(1e-3, 50.0, 400000)
+    assert nyquist_stability(f, _loop(L)(f), 0, model_loop=_loop(L)).stable is False
+
+
+def test_block_structure_of_the_book_example():
+    bs = as_block_structure(BOOK_BLOCKS)
+    assert (bs.n_in, bs.n_out) == (4, 4)
+
+
+@pytest.mark.slow
+def test_executor_gives_the_same_iteration_and_results_render():
+    from concurrent.futures import ThreadPoolExecutor
+
+    P = distillation_plant()
+    serial = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=2, progress=False, rtol=-1.0)
+    with ThreadPoolExecutor(2) as ex:
+        threaded = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=2, progress=False, rtol=-1.0, executor=ex)
+    assert [h.d_orders for h in threaded.history] == [h.d_orders for h in serial.history]
+    assert threaded.mu_peak == pytest.approx(serial.mu_peak, rel=1e-6)
+    assert serial.history[1].mu_peak < serial.history[0].mu_peak
+    assert serial.plot() is not None and "<table>" in serial._repr_html_()
+    with pytest.raises(Exception, match="executor"):
+        dksyn((P, 2, 2, BOOK_BLOCKS), executor="threads")
