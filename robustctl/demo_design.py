@@ -52,7 +52,7 @@ def _dk(report: Report, gp: Any) -> Any:
 
     report.heading("9. Generalized plant and D-K iteration")
     report.text(gp.summary())
-    dk = dksyn(gp, max_iter=6, time_budget_s=120.0)
+    dk = dksyn(gp, max_iter=4, time_budget_s=120.0)
     report.text(dk.summary())
     report.table(dk.table())
     report.figure(dk.plot(), "dk", "mu upper bound per D-K iteration, and the iteration history.")
@@ -94,7 +94,7 @@ def _yardstick(report: Report, data: Any, models: dict[str, Any]) -> Any:
     from .robust import yardstick
 
     report.heading("11. The yardstick: controllers scored on the measured data")
-    yard = yardstick(data, models, caltech_design_plant, reference="measurement", max_iter=6)
+    yard = yardstick(data, models, caltech_design_plant, reference="measurement", max_iter=4)
     report.text(yard.summary())
     report.table(yard.table())
     report.table(yard.mu_table())

@@ -241,7 +241,12 @@ def test_results_pickle_and_share_one_convention(chain, data, systems):
     assert pickle.loads(pickle.dumps(diag)).cost_nominal == diag.cost_nominal
     assert pickle.loads(pickle.dumps(ver)).comparison.cost == ver.comparison.cost
     assert pickle.loads(pickle.dumps(mm.cost)).total == mm.cost.total
-    for result in (mm, systems["BalancedTruncation"], cmp, mm.cost, upd, diag, ver):
+    fit = mm.fit
+    back_fit = pickle.loads(pickle.dumps(fit))
+    np.testing.assert_array_equal(back_fit.response(F_HZ), fit.response(F_HZ))
+    assert f"{fit.order} poles, {fit.n_modes} modes" in fit.summary()
+    assert fit.summary().endswith(f"{fit.cost().rms_db_total:.3g} dB.")
+    for result in (mm, fit, systems["BalancedTruncation"], cmp, mm.cost, upd, diag, ver):
         assert str(result.table())
         assert isinstance(result.summary(), str) and result.summary()
         assert "<table>" in result._repr_html_()

@@ -60,3 +60,21 @@ def test_bad_input():
         rc.balanced_truncation(stable, 0)
     with pytest.raises(rc.FitError, match="order must be an integer"):
         rc.balanced_truncation(stable, 3)
+
+
+def test_hammarling_factor_uses_slicot_and_matches_the_gramians():
+    """SB03OD is really called (it silently never was: a wrong argument order fell back to scipy)."""
+    pytest.importorskip("slycot", reason="slycot comes with the dev extra")
+    import scipy.linalg as sla
+
+    from robustctl.identify.balanced import hammarling_factor
+
+    rng = np.random.default_rng(4)
+    A = rng.standard_normal((8, 8)) - 6 * np.eye(8)
+    B, C = rng.standard_normal((8, 2)), rng.standard_normal((3, 8))
+    P = sla.solve_continuous_lyapunov(A, -B @ B.T)
+    Q = sla.solve_continuous_lyapunov(A.T, -C.T @ C)
+    Lc, Lo = hammarling_factor(A, B, False), hammarling_factor(A, C, True)
+    assert Lc is not None and Lo is not None
+    np.testing.assert_allclose(Lc @ Lc.T, P, atol=1e-10 * np.abs(P).max())
+    np.testing.assert_allclose(Lo @ Lo.T, Q, atol=1e-10 * np.abs(Q).max())

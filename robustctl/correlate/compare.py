@@ -187,13 +187,18 @@ def peak_pick_modes(
 
 
 def pair_modes(
-    model: list[Mode], measured: list[Mode], tol: float = 0.2
+    model: list[Mode], measured: list[Mode], tol: float = 0.2, *, max_ratio: float = 4.0, min_mac: float = 0.8
 ) -> list[tuple[int | None, int | None]]:
     """Pair model and measured modes (Hungarian assignment on frequency distance and MAC).
 
-    Cost of a pair: ``10 |ln(f_model / f_data)| + (1 - MAC)``; pairs further apart than
-    ``tol`` (relative) are not allowed. Returns ``(i_model, i_measured)`` index pairs
-    sorted by frequency, with ``None`` on the side of an unpaired mode.
+    Cost of a pair within ``tol`` (relative frequency distance): ``10 |ln(f_model / f_data)|
+    + (1 - MAC)``. A pair further apart -- a mode moved by a large model error, up to a
+    factor ``max_ratio`` -- is allowed when its shapes agree (``MAC >= min_mac``, MAC-first
+    pairing as in FE model updating practice, e.g. Friswell & Mottershead, *Finite Element
+    Model Updating in Structural Dynamics*, sec. 4.2), at a cost above every within-``tol``
+    pair: ``10 ln(1 + tol) + (1 - MAC) + |ln(f_model / f_data)|``. Returns
+    ``(i_model, i_measured)`` index pairs sorted by frequency, with ``None`` on the side of
+    an unpaired mode.
     """
     nm, nd = len(model), len(measured)
     pairs: list[tuple[int | None, int | None]] = []
@@ -201,12 +206,18 @@ def pair_modes(
     if nm and nd:
         big = 1e6
         cost = np.full((nm, nd), big)
+        near, far = np.log1p(tol), np.log(max(float(max_ratio), 1.0 + tol))
         for i, a in enumerate(model):
             for j, b in enumerate(measured):
                 rel = abs(np.log(a.f_hz / b.f_hz))
-                if rel <= np.log1p(tol):
-                    m = mac(a.shape, b.shape)
-                    cost[i, j] = 10 * rel + (1 - (0.0 if np.isnan(m) else m))
+                if rel > far:
+                    continue
+                m = mac(a.shape, b.shape)
+                m = 0.0 if np.isnan(m) else m
+                if rel <= near:
+                    cost[i, j] = 10 * rel + (1 - m)
+                elif m >= min_mac:
+                    cost[i, j] = 10 * near + (1 - m) + rel
         rows, cols = scipy.optimize.linear_sum_assignment(cost)
         for i, j in zip(rows, cols):
             if cost[i, j] < big:

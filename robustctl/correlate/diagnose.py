@@ -14,7 +14,11 @@ parameters can already explain:
    Projecting out ``span(dJ_u)`` (``P = I - Q Q^T``, ``Q`` an orthonormal basis), the
    fraction of the remaining residual the candidate explains is ``cos^2`` of the principal
    angle between ``P j_u`` and ``P d`` (with the fitted coefficient clipped to the
-   parameter bounds, so an added mass cannot be negative).
+   parameter bounds, so an added mass cannot be negative). A large effect (a spring that
+   moves a mode by a factor of 4 changes its ``w^2`` 750 times more than the step) is far
+   outside the secant's linear range, so each candidate is also evaluated at 10, 100 and
+   1000 steps (walking outwards while the share explained grows, with the update
+   parameters re-fitted linearly) and scored by the best size (:func:`_probe_sizes`).
 3. **Local fit.** The best few candidates are fitted together with the update parameters
    (bounded LM, few iterations) from the screening estimate; the cost reduction against
    the nominal model and the *gain* ``1 - J_c / J_u`` against the null fit are reported.
@@ -38,6 +42,7 @@ import copy
 import html
 import math
 import time
+import warnings
 from collections.abc import Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
@@ -453,9 +458,62 @@ def _screen_one(
     left = r_perp + d_perp * c_clip
     fraction = max(0.0, 1.0 - float(left @ left) / rr)
     angle = math.degrees(math.acos(min(1.0, math.sqrt(cos2))))
-    return dict(
-        effect=effect, model=m_c, fraction=fraction, angle=angle, value=clipped, d=d, evals=sens.n_evals
-    )
+    evals = sens.n_evals
+    if effect.kind != "gravity":  # a switch has no sizes to probe
+        probed, value_p, n_p = _probe_sizes(res_c, pname, (v0, lo, hi), trial - v0, coef, Q, rr, fraction)
+        evals += n_p
+        if probed > fraction:
+            fraction, clipped = probed, value_p
+    return dict(effect=effect, model=m_c, fraction=fraction, angle=angle, value=clipped, d=d, evals=evals)
+
+
+#: Multiples of the calibrated step (a 2 % change of the most affected modal ``w^2``) at
+#: which each candidate is also evaluated in screening: an effect that moves a mode by a
+#: factor of 4 changes its ``w^2`` by 1500 %, far outside the secant's linear range.
+SCREEN_MULTIPLES = (10.0, 100.0, 1000.0)
+
+
+def _probe_sizes(
+    res_c: Residual,
+    pname: str,
+    span: tuple,
+    step: float,
+    coef: float,
+    Q: np.ndarray,
+    rr: float,
+    linear_share: float = 0.0,
+) -> tuple[float, float, int]:
+    """Screen a candidate at sizes spanning decades (large effects are far from linear).
+
+    The candidate is evaluated at ``v0 + m * step`` for ``m`` in :data:`SCREEN_MULTIPLES`
+    (in the direction of the secant's linear estimate, within the bounds), each with the
+    update parameters re-fitted linearly: the share explained is ``1 - |P j(v)|^2 / |P j_u|^2``
+    (``P`` projects out the update parameters' sensitivities, as in step 2). The probe walks
+    outwards while the share grows, starting from ``linear_share`` (the secant's prediction):
+    an effect the secant already describes costs one evaluation more, a large one a few.
+    Returns ``(share, value, evaluations)``; the share is 0 when nothing was evaluated.
+    """
+    v0, lo, hi = span
+    sign = 1.0 if coef >= 0 else -1.0
+    best, best_v, n, last = 0.0, v0, 0, float(linear_share)
+    for m in SCREEN_MULTIPLES:
+        v = float(np.clip(v0 + sign * m * step, lo, hi))
+        if v == v0 or (n and v == best_v):
+            break
+        n += 1
+        try:
+            j = res_c.vector(**{pname: v})
+        except RobustctlError:  # e.g. a mass so large the preload fails: stop walking out
+            break
+        if not np.all(np.isfinite(j)):
+            break
+        share = 1.0 - float(np.sum(_project(Q, j) ** 2)) / rr
+        if share > best:
+            best, best_v = share, v
+        if share < last:
+            break
+        last = share
+    return max(best, 0.0), best_v, n
 
 
 @dataclass
@@ -470,6 +528,7 @@ class _Null:
     jac: np.ndarray  # d j / d alpha per unit parameter, (n, p)
     j: np.ndarray
     cost: float
+    cut: bool = False  # the time budget stopped the fit
 
     @property
     def Q(self) -> np.ndarray:  # noqa: N802 - the orthonormal basis of span(jac)
@@ -513,8 +572,10 @@ def _fit_one(
         return dict(x=dict(null.x), cost=null.cost, vector=null.j, evals=counter[0], value=float(par.neutral))
     u, v, r = start
     cost, lam = float(r @ r), 1e-2
+    cut = False
     for _ in range(int(max_iter)):
         if time.perf_counter() - t0 > budget:
+            cut = True
             break
         cols = [null.jac]
         if not discrete:
@@ -544,11 +605,12 @@ def _fit_one(
         rel, u, v, cost = (cost - c_new) / cost, u_new, v_new, c_new
         if rel < 1e-3:
             break
-    return dict(x=dict(zip(names, (float(x) for x in u))), cost=cost, vector=r, evals=counter[0], value=v)
+    return dict(x=dict(zip(names, (float(x) for x in u))), cost=cost, vector=r, evals=counter[0], value=v,
+                cut=cut)
 
 
 #: Multiples of an effect's typical size tried as starting values of its local fit.
-_START_MULTIPLES = (1.0, 3.0, 10.0, 30.0)
+_START_MULTIPLES = (1.0, 3.0, 10.0, 30.0, 100.0)
 
 
 def _start_value(effect: Any, v_lin: float, discrete: bool, evaluate, Q: np.ndarray, starts: list):
@@ -679,6 +741,7 @@ def _null_fit(
         res0, upd, max_iter=max_iter, executor=executor, time_budget_s=budget, start=start
     )
     null = _Null(upd, dict(lm.x), dict(lm.x0), lo, hi, lm.jacobian, lm.vector, lm.cost)
+    null.cut = "time budget" in lm.stop_reason
     return null, start.n_evals + lm.n_evals
 
 
@@ -843,7 +906,7 @@ def diagnose(
     update_iter: int = 10,
     alpha: float = ALPHA,
     min_gain: float = MIN_GAIN,
-    time_budget_s: float = 120.0,
+    time_budget_s: float = 600.0,
     update_params: Any = UNSET,
     weights: Any = UNSET,
     estimator: Any = "auto",
@@ -889,7 +952,8 @@ def diagnose(
     min_gain : float
         Smallest share (0..1) of the null-fit residual an effect must remove to be proposed.
     time_budget_s : float
-        Wall-clock budget (s) for the fits.
+        Wall-clock budget (s) for the fits: a safety cap, not a stopping rule (a RuntimeWarning
+        says when it stopped a fit, since the ranking then depends on the machine's load).
     estimator : "auto", True, False or EstimatorSettings
         See the model through the H1 estimator (as :func:`robustctl.compare`).
     noise : "auto", NoiseModel or None
@@ -954,6 +1018,7 @@ def diagnose(
         desc="local fits",
     )
     evals += sum(f["evals"] for f in fits)
+    _warn_if_hurried(null.cut, sum(bool(f.get("cut")) for f in fits), time_budget_s)
     # 4. significance and words
     e_u = res0.unstack(j_u)
     n_eff, rho = effective_points(e_u)
@@ -1011,6 +1076,21 @@ def _row_noise(res: Residual) -> np.ndarray | None:
         return None
     v = (res.point_weights * res.noise.sigma**2 * res.noise.dof_factor).ravel()
     return np.concatenate([v, v])
+
+
+def _warn_if_hurried(null_cut: bool, n_cut: int, budget: float) -> None:
+    """Say so when the wall-clock budget, not convergence, stopped a fit: the ranking then
+    depends on the machine's speed and load (a fit cut short understates its candidate)."""
+    if not null_cut and not n_cut:
+        return
+    what = ["the null fit"] if null_cut else []
+    what += [f"{n_cut} local fit{'s' if n_cut > 1 else ''}"] if n_cut else []
+    warnings.warn(
+        f"diagnose: the time budget ({budget:g} s) stopped {' and '.join(what)} before convergence; "
+        "the ranking may differ from an unhurried run. Raise time_budget_s (or pass fewer candidates).",
+        RuntimeWarning,
+        stacklevel=3,
+    )
 
 
 def _score(

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from ..checks import UNSET, renamed_keyword
-from ..errors import FitError
+from ..errors import FitError, RobustctlError
 from ..frd import FrequencyData
 from ..noise import NO_NOISE_SENTENCE, noise_model
 from ..parallel import check_executor
@@ -662,13 +662,19 @@ def _passes(
     executor: Executor | None,
     progress: bool,
     start: Sensitivities | None = None,
+    x0: dict[str, float] | None = None,
 ) -> tuple[LMResult, tuple[float, ...], list[str], int]:
-    """Optimise ``selected`` (from the sensitivities ``start`` at the model's values, if
-    given); then repeat the tests on the remaining error and add parameters."""
+    """Optimise ``selected`` (from the sensitivities ``start`` at the model's values, or from
+    ``x0``); then repeat the tests on the remaining error and add parameters."""
     t0 = time.perf_counter()
     kw = dict(max_iter=max_iter, ftol=ftol, executor=executor, progress=progress)
-    fit = levenberg_marquardt(residual, selected, time_budget_s=budget, start=start, **kw)
-    history, notes, n_evals = list(fit.history), [], fit.n_evals
+    if x0:
+        fit = levenberg_marquardt(residual, selected, x0=x0, time_budget_s=budget, **kw)
+        history = [float(start[0] @ start[0]), *fit.history] if start is not None else list(fit.history)
+    else:
+        fit = levenberg_marquardt(residual, selected, time_budget_s=budget, start=start, **kw)
+        history = list(fit.history)
+    notes, n_evals = [], fit.n_evals
     for k in range(2, int(passes) + 1):
         left = budget - (time.perf_counter() - t0)
         if left <= 0 or len(selected) == len(names) or fit.cost <= 0:
@@ -698,6 +704,59 @@ def _passes(
         history += list(fit.history[1:])
         n_evals += fit.n_evals
     return fit, tuple(history), notes, n_evals
+
+
+#: Multiples of an effect parameter's distance from neutral tried as starting values.
+START_MULTIPLES = (0.1, 0.3, 3.0, 10.0)
+#: Factors on a physical parameter's value tried as starting values (+-50 % errors and beyond).
+START_FACTORS = (0.5, 0.7, 1.4, 2.0)
+
+
+def _trial_values(par: Any, effect: bool) -> list[float]:
+    """Coarse starting values of one parameter: decades for an effect (from neutral), factors
+    for a physical parameter, within its bounds (none when its value is zero or neutral)."""
+    v, lo, hi = float(par.value), *(float(b) for b in par.bounds)
+    neutral = float(par.neutral or 0.0) if effect else 0.0
+    if v == neutral:
+        return []
+    mults = START_MULTIPLES if effect else START_FACTORS
+    return list(dict.fromkeys(float(np.clip(neutral + m * (v - neutral), lo, hi)) for m in mults))
+
+
+def _coarse_start(
+    residual: Residual, selected: tuple[str, ...], sens: Sensitivities, effect_params: tuple[str, ...]
+) -> tuple[dict[str, float], int]:
+    """Starting values for parameters far from their best value (a coarse multi-start).
+
+    The complex-log cost is multimodal once a mode crosses another or moves by several
+    half-power bandwidths, so a parameter 40 % off or an effect added at a size a decade off
+    (a hand guess) leads Levenberg-Marquardt into a local minimum. One parameter at a time
+    (coordinate-wise, accepting improvements), each is tried at :data:`START_MULTIPLES` of an
+    effect's distance from neutral or :data:`START_FACTORS` of a physical value, scored by
+    ``|P j|^2`` -- the cost left after re-fitting the other selected parameters linearly
+    (``P`` projects out their sensitivity columns, MACE eq. 8) -- and the best becomes the
+    start. Returns ``({name: start}, evaluations)``; empty when the model's values are best.
+    """
+    j0, dJ = sens
+    model, x0, n = residual.model, {}, 0
+    j_best = j0
+    for name in selected:
+        trials = _trial_values(model.param(name), name in effect_params)
+        if not trials:
+            continue
+        others = [k for k, nm in enumerate(sens.names) if nm != name and nm in selected]
+        Q = np.linalg.qr(dJ[:, others])[0] if others else np.zeros((j0.size, 0))
+        best = float(np.sum((j_best - Q @ (Q.T @ j_best)) ** 2))
+        for trial in trials:
+            n += 1
+            try:
+                j = residual.vector(**{**x0, name: trial})
+            except RobustctlError:
+                continue
+            score = float(np.sum((j - Q @ (Q.T @ j)) ** 2))
+            if np.isfinite(score) and score < best:
+                best, j_best, x0[name] = score, j, trial
+    return x0, n
 
 
 def update(
@@ -828,6 +887,13 @@ def update(
         selected, notes, suggestions = names, [], []
     if not selected:
         raise FitError("no parameter passed the selection tests; lower min_alignment or give params=[...].")
+    x0, n_coarse = _coarse_start(residual, tuple(selected), sens, effect_params)
+    if x0:
+        notes.append(
+            "started "
+            + ", ".join(f"{k} at {v:.4g} (model {model.param(k).value:.4g})" for k, v in x0.items())
+            + ": a lower cost than the model's value once the other parameters are re-fitted."
+        )
     fit, history, extra, n_evals = _passes(
         residual,
         names,
@@ -841,6 +907,7 @@ def update(
         executor,
         progress,
         start=sens,
+        x0={**{n: model.param(n).value for n in selected}, **x0} if x0 else None,
     )
     notes += extra
     if residual.dropped:
@@ -871,7 +938,7 @@ def update(
         warnings=tuple(_warnings(fit, drift, reduction, before, after)),
         band=residual.band,
         time_s=time.perf_counter() - t0,
-        n_evals=n_evals + sens.n_evals + (2 if after is not None else 0),
+        n_evals=n_evals + sens.n_evals + n_coarse + (2 if after is not None else 0),
         noise_before=before,
         noise_after=after,
         estimator_note=residual.describe_estimator(),

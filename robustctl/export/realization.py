@@ -10,6 +10,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..errors import DataError, ModelError
+from ..identify.balanced import hammarling_factor
 from ..lti import freqresp_array
 
 __all__ = [
@@ -73,35 +74,13 @@ def balance_gramian(A, B, C):
 def _gramian_factor(A: np.ndarray, B: np.ndarray, observability: bool) -> np.ndarray:
     """``L`` with ``L L^T = P`` (``A P A^T - P + B B^T = 0``) or, for ``observability`` and
     ``B = C``, ``L L^T = Q`` (``A^T Q A - Q + C^T C = 0``)."""
-    L = _factor_slycot(A, B, observability)
+    L = hammarling_factor(A, B, observability, dico="D")
     if L is not None and np.all(np.isfinite(L)):
         return L
     rhs = B.T @ B if observability else B @ B.T
     X = sla.solve_discrete_lyapunov(A.T if observability else A, rhs)
     w, V = np.linalg.eigh((X + X.T) / 2)
     return V * np.sqrt(np.clip(w, 0, None))
-
-
-def _factor_slycot(A: np.ndarray, B: np.ndarray, observability: bool) -> np.ndarray | None:
-    try:
-        from slycot import sb03od
-    except ImportError:
-        return None
-    n = A.shape[0]
-    try:
-        if observability:  # A^T Q A - Q = -C^T C, C (p, n): Q = U^T U
-            p = B.shape[0]
-            rhs = np.zeros((max(p, n), n))
-            rhs[:p] = B
-            u, scale, _ = sb03od(n, p, A.copy(), np.zeros((n, n)), rhs, "D", trans="N")
-            return np.triu(u[:n, :n]).T / scale
-        m = B.shape[1]  # A P A^T - P = -B B^T, B (n, m): P = U U^T
-        rhs = np.zeros((n, max(m, n)))
-        rhs[:, :m] = B
-        u, scale, _ = sb03od(n, m, A.copy(), np.zeros((n, n)), rhs, "D", trans="T")
-        return np.triu(u[:n, :n]) / scale
-    except Exception:  # slycot raises on non-convergence: fall back to scipy
-        return None
 
 
 def select_channel(ss: Any, channel: Any) -> tuple[int, int]:

@@ -99,24 +99,30 @@ def _rebuild(state: dict, hsv: np.ndarray, bound: float, order: int) -> Balanced
     return BalancedTruncation(rebuild_statespace(state), hsv, bound, order)
 
 
-def _factor_slycot(a: np.ndarray, b: np.ndarray, transpose: bool) -> np.ndarray | None:
-    """Hammarling's Cholesky factor via SLICOT SB03OD (None when slycot is missing or fails)."""
+def hammarling_factor(a: np.ndarray, b: np.ndarray, transpose: bool, dico: str = "C") -> np.ndarray | None:
+    """Cholesky factor of a Gramian by Hammarling's method, SLICOT SB03OD (None when unavailable).
+
+    ``dico="C"``: ``A X + X A^T = -B B^T`` (``transpose=False``, ``X = U U^T``) or
+    ``A^T X + X A = -C^T C`` (``transpose=True``, ``b`` is C, ``X = U^T U``); ``dico="D"``: the
+    discrete Stein equations ``A X A^T - X = -B B^T`` / ``A^T X A - X = -C^T C``. Returns None when
+    slycot is missing or SB03OD fails (not stable, no convergence), so callers fall back to scipy.
+    """
     try:
         from slycot import sb03od
     except ImportError:
         return None
     n = a.shape[0]
     try:
-        if transpose:  # A^T X + X A = -C^T C, C is (p, n): X = U^T U
+        if transpose:
             m = b.shape[0]
             bb = np.zeros((max(m, n), n))
             bb[:m] = b
-            u, scale, _ = sb03od("C", n, m, a.copy(), np.zeros((n, n)), bb, trans="N")
+            u, scale, _ = sb03od(n, m, a.copy(), np.zeros((n, n)), bb, dico, trans="N")
             return np.triu(u[:n, :n]).T / scale
-        m = b.shape[1]  # A X + X A^T = -B B^T, B is (n, m): X = U U^T
+        m = b.shape[1]
         bb = np.zeros((n, max(m, n)))
         bb[:, :m] = b
-        u, scale, _ = sb03od("C", n, m, a.copy(), np.zeros((n, n)), bb, trans="T")
+        u, scale, _ = sb03od(n, m, a.copy(), np.zeros((n, n)), bb, dico, trans="T")
         return np.triu(u[:n, :n]) / scale
     except Exception:  # slycot raises on non-convergence or a non-stable A: fall back to scipy
         return None
@@ -135,7 +141,7 @@ def _factor_scipy(a: np.ndarray, b: np.ndarray, transpose: bool) -> np.ndarray:
 def gramian_factor(a: np.ndarray, b: np.ndarray, observability: bool = False) -> np.ndarray:
     """A factor ``L`` with ``L L^T`` = the controllability Gramian of ``(A, B)`` (or, with
     ``observability=True`` and ``b = C``, the observability Gramian of ``(A, C)``)."""
-    lc = _factor_slycot(a, b, observability)
+    lc = hammarling_factor(a, b, observability)
     if lc is None or not np.all(np.isfinite(lc)):
         lc = _factor_scipy(a, b, observability)
     return lc

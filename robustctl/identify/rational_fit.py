@@ -121,6 +121,42 @@ class RationalFit:
             raise FitError("this fit keeps no data; pass data=FrequencyData to score it.")
         return channel_cost(data.response, self.response(data.f_hz), self.outputs, self.inputs)
 
+    # ----------------------------------------------------------------- presentation
+    def summary(self) -> str:
+        """One sentence: method, poles, modes, band, convergence and (with data) the cost."""
+        text = (
+            f"{self.method} fit of {len(self.outputs)} outputs x {len(self.inputs)} inputs on "
+            f"{self.band_hz[0]:.4g}-{self.band_hz[1]:.4g} Hz: {self.order} poles, {self.n_modes} modes, "
+            f"{self.iterations} iterations ({'converged' if self.converged else 'not converged'})."
+        )
+        if self.data is not None:
+            cost = self.cost()
+            text += f" J = {cost.total:.4g} (MACE eq. 5), rms log-magnitude error {cost.rms_db_total:.3g} dB."
+        return text
+
+    def table(self):
+        """One row per pole: frequency (Hz), damping (%), rank, largest residue entry."""
+        from ..table import Table
+
+        rows = [
+            (k, float(f), 100 * float(z), int(r), float(np.max(np.abs(res))))
+            for k, (f, z, r, res) in enumerate(zip(self.f_hz, self.zeta, self.ranks, self.residues), start=1)
+        ]
+        return Table(("pole", "f (Hz)", "damping (%)", "rank", "max |residue|"), rows, title=self.summary())
+
+    def plot(self, max_channels: int = 9):
+        """The fitted data and the fit per channel, magnitude and phase (needs the fitted data)."""
+        from ..plots import bode_grid
+
+        if self.data is None:
+            raise FitError("this fit keeps no data to plot against; use rc.freqresp(fit, f_hz) instead.")
+        model = self.freqresp(self.data.f_hz)
+        return bode_grid([self.data, model], ["data", f"fit ({self.order} poles)"], max_channels=max_channels,
+                         phase=True, title=self.summary().split(":")[0])
+
+    def _repr_html_(self) -> str:
+        return self.table()._repr_html_()
+
     def __repr__(self) -> str:
         return (
             f"RationalFit({self.method}, {self.order} poles, {self.n_modes} modes, {len(self.outputs)}x"

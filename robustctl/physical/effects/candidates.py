@@ -273,11 +273,61 @@ def calibrate(
     return _calibrate(model, list(effects), band)[2]
 
 
+def _probe_copies(model: PhysicalModel):
+    """A function returning fresh, cheap copies of the model's structure for probing effects,
+    and the matrices of that structure.
+
+    The structure is built once; each probe works on a copy (``Frame.without()`` shares the
+    frozen components, ``MatrixStructure.copy()`` the arrays). A frame's gravity preload is
+    switched off in the copies: the calibration needs the effect's own first-order ``dM``,
+    ``dK`` (the preload's response to the effect is second order and costs a static
+    iteration per candidate, most of the time of a full rebuild).
+    """
+    base = model.build_structure()
+    if hasattr(base, "copy"):  # a MatrixStructure (its without() works in place)
+
+        def fresh():
+            return base.copy()
+
+    elif hasattr(base, "set_gravity"):  # a Frame: copy containers, gravity preload off
+
+        def fresh():
+            return base.without("gravity")
+
+    else:
+
+        def fresh():
+            return model.build_structure()
+
+    return fresh, fresh().matrices()
+
+
+def _changes_preload(effect: Effect, model: PhysicalModel, struct) -> bool:
+    """Whether an effect changes a frame's gravity preload to first order: an added mass
+    (more weight in the suspension) or a spring along gravity (it takes some of the weight),
+    which changes the pendulum stiffness of the suspension modes."""
+    if not getattr(struct, "gravity_enabled", False):
+        return False
+    if effect.kind == "added_mass":
+        return True
+    axis = {"x": 0, "y": 1, "z": 2}.get(getattr(effect, "direction", None) or "")
+    gdir = np.asarray(getattr(struct, "_gdir", (0.0, 0.0, 1.0)), dtype=float)
+    return effect.kind == "suspension_spring" and axis is not None and abs(gdir[axis]) > 1e-9
+
+
 def _calibrate(model: PhysicalModel, cands: list[Effect], band) -> tuple[np.ndarray, np.ndarray, list]:
-    """Give each structural candidate a secant step that moves the modes by about 1 %."""
-    omega, phi, (M0, K0, mats0) = _modes(model, band)
+    """Give each structural candidate a secant step that moves the modes by about 2 %
+    (:data:`SHIFT_TARGET` of ``w^2``; first-order perturbation ``phi^T (dK - w^2 dM) phi``,
+    Rayleigh quotient, e.g. Geradin & Rixen, *Mechanical Vibrations*, sec. 2.9)."""
+    omega, phi, (_, _, mats0) = _modes(model, band)  # with the preload
     if omega.size == 0:
         return omega, phi, cands
+    fresh, mats_base = _probe_copies(model)
+    if mats_base.n_dof != phi.shape[0]:  # gravity alone holds some DOFs: probe the full model
+        fresh, mats_base = model.build_structure, mats0
+    full = (_dense(mats0.mass), _dense(mats0.stiffness), mats0)
+    light = (_dense(mats_base.mass), _dense(mats_base.stiffness), mats_base)
+    nominal = model.build_structure()
     out = []
     for c in cands:
         if c.domain != "structure" or c.kind == "gravity":
@@ -285,7 +335,9 @@ def _calibrate(model: PhysicalModel, cands: list[Effect], band) -> tuple[np.ndar
             continue
         unit = 1.0 if c.kind not in ("group_stiffness",) else 0.1
         probe = c.with_values(**{c._value_fields[0]: unit})
-        struct = model.build_structure()
+        heavy = _changes_preload(c, model, nominal)
+        M0, K0, mats_ref = full if heavy else light
+        struct = model.build_structure() if heavy else fresh()
         mats = probe._stage_fn()({probe.param_names[0]: unit}, struct).matrices()
         if mats.n_dof != M0.shape[0]:
             out.append(c)
@@ -294,7 +346,7 @@ def _calibrate(model: PhysicalModel, cands: list[Effect], band) -> tuple[np.ndar
         dK = _dense(mats.stiffness) - K0
         if c.kind == "dashpot":
             C = _dense(mats.damping) if mats.damping is not None else np.zeros_like(M0)
-            C0 = _dense(mats0.damping) if mats0.damping is not None else np.zeros_like(M0)
+            C0 = _dense(mats_ref.damping) if mats_ref.damping is not None else np.zeros_like(M0)
             dz = np.abs(np.einsum("ij,ik,kj->j", phi, C - C0, phi)) / (2 * omega) / unit
             size = DAMPING_TARGET / dz.max() if dz.max() > 0 else None
         else:
