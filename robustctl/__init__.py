@@ -4,7 +4,7 @@
 """
 
 # shared ground: one checks module, one system coercion, one cost report, one Mode
-from . import checks, examples
+from . import checks, estimator, examples
 from .correlate import (
     Comparison,
     Diagnosis,
@@ -40,6 +40,7 @@ from .impact import ImpactWarning, estimate_frf_impact
 from .interconnect import PartitionedPlant, block_diagonal, feedback, lft, parallel, series, star, upper_lft
 from .lti import as_statespace, freqresp, log_cost, log_error
 from .modes import Mode
+from .noise import NoiseModel, noise_model
 from .physical import (
     Frame,
     MatrixStructure,
@@ -169,6 +170,10 @@ __all__ = [
     "as_statespace",
     "LogCost",
     "Mode",
+    # trust: the noise model of an estimate and the estimator's view of a model
+    "estimator",
+    "NoiseModel",
+    "noise_model",
     "discretize",
     "export_controller",
     "load_controller",

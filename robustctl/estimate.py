@@ -247,6 +247,7 @@ def estimate_frf(
         "window": window if isinstance(window, (str, tuple)) else "user array",
         "detrend": bool(detrend),
         "n_averages": n_avg,
+        "n_inputs": n_in,
         "n_samples": int(u.shape[0]),
         "resolution_hz": fs / nperseg,
     }
@@ -318,7 +319,11 @@ def combine_experiments(experiments: Sequence[FrequencyData]) -> FrequencyData:
     units: dict[str, str] = {}
     for e in exps:
         units.update(e.units)
-    meta = {"combined_from": len(exps), "experiments": [dict(e.meta) for e in exps]}
+    meta = {
+        "combined_from": len(exps),
+        "experiments": [dict(e.meta) for e in exps],
+        "experiment_of_input": [k for k, e in enumerate(exps) for _ in range(e.n_in)],
+    }
     return FrequencyData(ref.f_hz, response, inputs=inputs, outputs=ref.outputs, coherence=coh,
                          units=units, meta=meta)
 
@@ -440,6 +445,17 @@ def simulate_experiment(
     The record starts in the stationary state (a draw from the solution of
     ``P = Ad P Ad^T + Bd S Bd^T``), so there is no start-up transient; marginally stable
     systems start at rest. Defaults are the Caltech settings (200 Hz, 81,920 samples).
+
+    The zero-order hold is part of the simulated experiment, as of a real one driven by a
+    DAC: an H1 estimate of ``u -> y`` (:func:`estimate_frf`) carries the hold's half-sample
+    delay (2.5 ms at 200 Hz) and sinc droop, ``(1 - e^{-sT}) / (sT)``. A continuous model
+    compared with such data needs the hold as a known stage, added deliberately:
+    ``model.add_io_stage(rc.electronics.zero_order_hold_stage(model.inputs, fs))`` (or divide
+    the estimate by ``rc.estimator.hold_response(f_hz, fs)``, as
+    ``rc.examples.make_experiment`` does, recording ``meta["hold_divided"]``). Otherwise
+    ``rc.diagnose`` finds the hold and names it as such (a delay of about half a sample).
+    An anti-alias filter in the measurement chain is added the same way
+    (``rc.electronics.anti_alias_stage``).
 
     Parameters
     ----------

@@ -104,6 +104,22 @@ def _mapping(value: Any, name: str, example: str) -> dict:
     return dict(value)
 
 
+def _select_experiments(meta: Mapping[str, Any], n_in: int, columns: list[int]) -> dict:
+    """``meta`` with ``experiment_of_input`` (the experiment each input column came from, for
+    data joined by ``combine_experiments``) following a selection of input columns."""
+    meta = dict(meta)
+    subs = meta.get("experiments")
+    if not isinstance(subs, (list, tuple)) or not subs:
+        return meta
+    owner = meta.get("experiment_of_input")
+    if owner is None:
+        owner = [k for k, m in enumerate(subs)
+                 for _ in range(int(m.get("n_inputs", 1)) if isinstance(m, Mapping) else 1)]
+    if len(owner) == n_in:
+        meta["experiment_of_input"] = [int(owner[k]) for k in columns]
+    return meta
+
+
 @dataclass(frozen=True, eq=False)
 class FrequencyData:
     """Frequency-response data of a multi-input, multi-output system.
@@ -247,6 +263,7 @@ class FrequencyData:
         return self.replace(
             response=g,
             coherence=coh,
+            meta=_select_experiments(self.meta, self.n_in, ii),
             outputs=[self.outputs[k] for k in oi],
             inputs=[self.inputs[k] for k in ii],
         )

@@ -501,7 +501,7 @@ def _align(data: FrequencyData, model: FrequencyData) -> FrequencyData:
     return model.replace(response=g, outputs=data.outputs, inputs=data.inputs, coherence=None)
 
 
-def _model_response(data: FrequencyData, model: Any) -> FrequencyData:
+def _model_response(data: FrequencyData, model: Any, estimator: Any = False) -> FrequencyData:
     if isinstance(model, FrequencyData):
         model = _align(data, model)
         if model.n_freq != data.n_freq or not np.allclose(model.f_hz, data.f_hz, rtol=1e-9, atol=0):
@@ -511,7 +511,16 @@ def _model_response(data: FrequencyData, model: Any) -> FrequencyData:
                 f"({data.f_hz[0]:g}-{data.f_hz[-1]:g} Hz); evaluate the model on data.f_hz."
             )
         return model
-    return _align(data, freqresp(model, data.f_hz))
+    from .estimator import model_view, resolve_estimator, split_hold
+
+    settings = resolve_estimator(estimator, data.meta, model)
+    if settings is None:
+        return _align(data, freqresp(model, data.f_hz))
+    bare, hold = split_hold(model)
+    sys = as_statespace(bare)
+    g = model_view(sys, hold, data.f_hz, settings)
+    return _align(data, FrequencyData(data.f_hz, g, inputs=list(sys.input_labels),
+                                      outputs=list(sys.output_labels)))
 
 
 def _model_and_data(model: Any, data: Any, func: str) -> tuple[Any, FrequencyData]:
@@ -527,7 +536,9 @@ def _model_and_data(model: Any, data: Any, func: str) -> tuple[Any, FrequencyDat
     return model, as_frequency_data(data)
 
 
-def log_error(model: Any, data: Any, band: tuple[float, float] | None = None) -> np.ndarray:
+def log_error(
+    model: Any, data: Any, band: tuple[float, float] | None = None, *, estimator: Any = "auto"
+) -> np.ndarray:
     """The complex-log error ``log(G_data / G_model)`` (MACE eq. 5), shape (n_freq, n_out, n_in).
 
     Its real part is the log-magnitude error in nepers (x ``DB_PER_NEPER`` = 20/ln 10 for
@@ -544,16 +555,19 @@ def log_error(model: Any, data: Any, band: tuple[float, float] | None = None) ->
         DeprecationWarning) when it is unambiguous; two FrequencyData are read as (model, data).
     band : (f_lo_hz, f_hi_hz), optional
         Restrict to this frequency band (Hz), inclusive (:func:`robustctl.checks.check_band`).
+    estimator : "auto", True, False or EstimatorSettings
+        See a system "as the H1 estimator sees it" when the data carry their estimator settings
+        (:func:`robustctl.estimator.resolve_estimator`; the rule of ``rc.compare``).
 
     Returns
     -------
     ndarray, complex
     """
     model, data = _model_and_data(model, data, "log_error")
-    return _log_error(model, data, band_mask(data.f_hz, band))
+    return _log_error(model, data, band_mask(data.f_hz, band), estimator)
 
 
-def _log_error(model: Any, data: FrequencyData, mask: np.ndarray) -> np.ndarray:
+def _log_error(model: Any, data: FrequencyData, mask: np.ndarray, estimator: Any = "auto") -> np.ndarray:
     if not np.all(mask):
         if isinstance(model, FrequencyData) and model.n_freq == mask.size:
             model = model.replace(f_hz=model.f_hz[mask], response=model.response[mask], coherence=None)
@@ -562,7 +576,7 @@ def _log_error(model: Any, data: FrequencyData, mask: np.ndarray) -> np.ndarray:
             response=data.response[mask],
             coherence=None if data.coherence is None else data.coherence[mask],
         )
-    gm = _model_response(data, model).response
+    gm = _model_response(data, model, estimator).response
     gd = data.response
     for name, g in (("data", gd), ("model", gm)):
         zero = np.argwhere(g == 0)
@@ -583,6 +597,7 @@ def log_cost(
     point_weights: Any = "auto",
     *,
     weights: Any = UNSET,
+    estimator: Any = "auto",
 ) -> float:
     """The weighted complex-log cost of MACE eq. 5: ``J = sum W |log(G_data / G_model)|^2``.
 
@@ -600,6 +615,8 @@ def log_cost(
         n_in), on the band's points or on the full data grid.
     weights
         Deprecated name of ``point_weights``.
+    estimator : "auto", True, False or EstimatorSettings
+        As for :func:`log_error` (and ``rc.compare``): one cost for the same inputs.
 
     Returns
     -------
@@ -610,5 +627,5 @@ def log_cost(
     model, data = _model_and_data(model, data, "log_cost")
     mask = band_mask(data.f_hz, band)
     w = point_weights_of(point_weights, data, mask)
-    err = _log_error(model, data, mask)
+    err = _log_error(model, data, mask, estimator)
     return float(np.sum(w * np.abs(err) ** 2))

@@ -53,7 +53,7 @@ def _data(model, truth, seed):
     g = g * np.exp(NOISE * (rng.standard_normal(g.shape) + 1j * rng.standard_normal(g.shape)))
     g2 = 1.0 / (1.0 + 2 * N_AVERAGES * NOISE**2)  # (1 - g2) / (2 n g2) = NOISE^2
     return rc.FrequencyData(F_HZ, g, inputs=model.inputs, outputs=model.outputs,
-                            coherence=np.full(g.shape, g2))
+                            coherence=np.full(g.shape, g2), meta={"n_averages": N_AVERAGES})
 
 
 def _lowest_hz(model):

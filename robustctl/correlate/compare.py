@@ -13,7 +13,12 @@ The complex log error ``e = log(G_data / G_model)`` (MACE eq. 5) is broken down
   column), the per-frequency two-way split ``e_ij(w) = mu(w) + a_i(w) + b_j(w) + r_ij(w)``
   (least squares, i.e. a two-way analysis of variance) tells sensor-side (rows ``a``),
   actuator-side (columns ``b``) and structural (the non-separable rest ``r``, and a common
-  part ``mu`` that is not a pure gain or delay) errors apart.
+  part ``mu`` that is not a pure gain or delay) errors apart;
+* against the noise: per channel and frequency section, a chi-square test of the residual
+  normalised by the data's noise model (:mod:`robustctl.noise`,
+  :mod:`robustctl.correlate.verdict`) says whether the misfit is within the noise; only what
+  is not is flagged as failing. Data that carry their H1 estimator settings are compared with
+  the model as the estimator sees it (window leakage, :mod:`robustctl.estimator`).
 """
 
 from __future__ import annotations
@@ -32,8 +37,10 @@ from ..cost import LogCost, cost_report
 from ..frd import FrequencyData
 from ..lti import DB_PER_NEPER, as_statespace, pole_frequency_damping
 from ..modes import Mode
+from ..noise import NoiseModel, noise_model
 from ..table import Table
 from .residual import NEGLIGIBLE_DB, Residual, as_model, log_ratio
+from .verdict import ALPHA, NoiseTest, no_noise_sentence, noise_test
 
 __all__ = [
     "Comparison",
@@ -480,6 +487,15 @@ class Comparison:
         Threshold used for the bands.
     dropped : tuple of (output, input, level_dB)
         Negligible channels left out of the cost (weight 0).
+    noise : NoiseModel or None
+        The data's noise model on the band (None: no significance claims are made).
+    noise_test : NoiseTest or None
+        Chi-square verdicts per channel and section (:mod:`robustctl.correlate.verdict`).
+    estimator_note : str
+        ``"model seen through the H1 estimator: 4096-pt hamming at 200 Hz"`` when the model was
+        compared as the estimator sees it, else ``""``.
+    warnings : tuple of str
+        Warnings raised while comparing (e.g. units).
     model_modes, data_modes : tuple of Mode
         The modes found in the model and in the data (measurement model or peak picking) on
         the band, before pairing (:class:`robustctl.Mode`).
@@ -501,6 +517,15 @@ class Comparison:
     model_name: str = "model"
     threshold_db: float = 3.0
     dropped: tuple[tuple[str, str, float], ...] = ()
+    noise: NoiseModel | None = field(default=None, repr=False)
+    noise_test: NoiseTest | None = None
+    estimator_note: str = ""
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def within_noise(self) -> bool | None:
+        """True/False: the misfit is / is not within the noise everywhere; None: no noise model."""
+        return None if self.noise_test is None else self.noise_test.within
     model_modes: tuple[Mode, ...] = field(default=(), repr=False)
     data_modes: tuple[Mode, ...] = field(default=(), repr=False)
 
@@ -530,7 +555,7 @@ class Comparison:
                         out,
                         inp,
                         float(self.channel_cost[o, i]),
-                        float(self.channel_cost[o, i] / self.cost) if self.cost > 0 else 0.0,
+                        float(100 * self.channel_cost[o, i] / self.cost) if self.cost > 0 else 0.0,
                         float(np.sqrt(np.mean(self.mag_error_db[:, o, i] ** 2))),
                         float(np.sqrt(np.mean(self.phase_error_deg[:, o, i] ** 2))),
                         float(np.max(np.abs(self.mag_error_db[:, o, i]))),
@@ -542,7 +567,7 @@ class Comparison:
                 "output",
                 "input",
                 "cost J",
-                "share",
+                "share (%)",
                 "rms mag err (dB)",
                 "rms phase err (deg)",
                 "max |mag err| (dB)",
@@ -583,9 +608,9 @@ class Comparison:
 
     def band_table(self) -> Table:
         """The worst bands."""
-        rows = [(b.lo_hz, b.hi_hz, b.peak_hz, b.peak_error_db, b.share, b.channel) for b in self.bands]
+        rows = [(b.lo_hz, b.hi_hz, b.peak_hz, b.peak_error_db, 100 * b.share, b.channel) for b in self.bands]
         return Table(
-            ("lo (Hz)", "hi (Hz)", "peak (Hz)", "peak rms err (dB)", "share of cost", "worst channel"),
+            ("lo (Hz)", "hi (Hz)", "peak (Hz)", "peak rms err (dB)", "share of cost (%)", "worst channel"),
             rows,
             title=f"bands where the RMS error exceeds {self.threshold_db:g} dB",
         )
@@ -602,26 +627,37 @@ class Comparison:
         o, i = np.unravel_index(int(np.argmax(self.channel_cost)), self.channel_cost.shape)
         lines.append(
             f"Worst channel: {self.outputs[o]} <- {self.inputs[i]} "
-            f"({self.channel_cost[o, i] / max(self.cost, 1e-300):.0%} of the cost)."
+            f"({100 * self.channel_cost[o, i] / max(self.cost, 1e-300):.4g}% of the cost)."
         )
+        if self.estimator_note:
+            lines.append(self.estimator_note[:1].upper() + self.estimator_note[1:] + ".")
+        if self.noise_test is None:
+            lines.append(no_noise_sentence())
+        else:
+            lines.append(self.noise_test.sentence())
+        verb = "fails most" if self.noise_test is not None else "is largest"
         if self.bands:
             parts = [
-                f"{b.lo_hz:.3g}-{b.hi_hz:.3g} Hz ({b.share:.0%}, peak {b.peak_error_db:.1f} dB at "
-                f"{b.peak_hz:.3g} Hz)"
+                f"{b.lo_hz:.4g}-{b.hi_hz:.4g} Hz ({100 * b.share:.4g}% of the cost, peak "
+                f"{b.peak_error_db:.4g} dB at {b.peak_hz:.4g} Hz)"
                 for b in self.bands[:3]
             ]
-            lines.append("It fails most in " + "; ".join(parts) + ".")
-        else:
+            lines.append(f"It {verb} in " + "; ".join(parts) + ".")
+        elif self.noise_test is None or not self.noise_test.within:
             lines.append(f"The RMS error stays below {self.threshold_db:g} dB everywhere in the band.")
         paired = [m for m in self.modes if np.isfinite(m.f_model) and np.isfinite(m.f_data)]
         if paired:
             worst = max(paired, key=lambda m: abs(m.f_error_pct))
             lines.append(
                 f"{len(paired)} modes paired ({self.mode_source}); largest frequency error "
-                f"{worst.f_error_pct:+.2f}% at {worst.f_model:.4g} Hz (model) vs "
+                f"{worst.f_error_pct:+.4g}% at {worst.f_model:.4g} Hz (model) vs "
                 f"{worst.f_data:.4g} Hz (data)."
             )
-        lines.append("Error structure: " + self.structure.describe())
+        if self.noise_test is not None and self.noise_test.within:
+            lines.append("Error structure: not assessed (the misfit is noise).")
+        else:
+            lines.append("Error structure: " + self.structure.describe())
+        lines += [f"Warning: {w}" for w in self.warnings]
         if self.dropped:
             names = ", ".join(f"{o} <- {i} ({lv:.0f} dB)" for o, i, lv in self.dropped)
             lines.append(f"Left out as negligible (decoupled) channels: {names}.")
@@ -634,6 +670,7 @@ class Comparison:
             + self.table()._repr_html_()
             + self.band_table()._repr_html_()
             + self.mode_table()._repr_html_()
+            + ("" if self.noise_test is None else self.noise_test.table()._repr_html_())
         )
 
     def __repr__(self) -> str:
@@ -719,6 +756,10 @@ def compare(
     max_zeta: float = 0.5,
     min_channel_db: float | None = NEGLIGIBLE_DB,
     weights: Any = UNSET,
+    estimator: Any = "auto",
+    noise: Any = "auto",
+    alpha: float = ALPHA,
+    n_sections: int = 6,
 ) -> Comparison:
     """Compare a physical model with measured frequency responses (MACE eq. 5, Table 1).
 
@@ -749,10 +790,23 @@ def compare(
     min_channel_db : float or None
         Negligible channels (see :class:`Residual`) get weight 0 and are left out of the
         cost, the bands and the structure split; they stay in the dB/phase maps.
+    estimator : "auto", True, False or EstimatorSettings
+        Compare the model "as the H1 estimator sees it" (window leakage,
+        :func:`robustctl.estimator.estimator_view`) when the data carry their estimator
+        settings (``"auto"``); stated in the summary.
+    noise : "auto", NoiseModel or None
+        The data's noise model. ``"auto"``: :func:`robustctl.noise_model` (coherence and
+        averages; else the measurement model's residual; else none, and no significance claims).
+    alpha : float
+        Family-wise false-alarm rate of the chi-square verdicts (:mod:`~robustctl.correlate.verdict`).
+    n_sections : int
+        Frequency sections (equal point counts) per channel for the verdicts.
 
     Returns
     -------
     Comparison
+        Failing bands are listed only where the misfit is beyond the noise (all of them when
+        there is no noise model).
 
     Raises
     ------
@@ -764,7 +818,14 @@ def compare(
     n_bands = integer(n_bands, "n_bands", lo=0)
     max_zeta = positive_number(max_zeta, "max_zeta")
     model = as_model(model)
-    res = Residual(model, data, band=band, point_weights=point_weights, min_channel_db=min_channel_db)
+    alpha = positive_number(alpha, "alpha")
+    n_sections = integer(n_sections, "n_sections", lo=1)
+    if isinstance(noise, str) and noise == "auto":
+        from ..checks import as_frequency_data
+
+        noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
+    res = Residual(model, data, band=band, point_weights=point_weights, min_channel_db=min_channel_db,
+                   estimator=estimator, noise=noise)
     g_model = res.model_response()
     d = res.data
     error = log_ratio(d.response, g_model)
@@ -779,13 +840,19 @@ def compare(
     else:
         data_modes = peak_pick_modes(f, d.response)
         source = "peak picking"
+    keep = np.any(res.weights > 0, axis=0)
+    test = noise_test(error, res.noise, f, d.outputs, d.inputs, keep, n_sections, alpha)
+    bands = _worst_bands(f, error * (res.weights > 0), d.outputs, d.inputs, threshold_db, n_bands)
+    if test is not None:
+        bands = tuple(b for b in bands if test.fails_at(b.lo_hz, b.hi_hz))
+    notes = _units_warnings(model, data_modes, span, res, max_zeta)
     return Comparison(
         log_cost=report,
         f_hz=f,
         error=error,
         mag_error_db=error.real * DB_PER_NEPER,
         phase_error_deg=np.degrees(error.imag),
-        bands=_worst_bands(f, error * (res.weights > 0), d.outputs, d.inputs, threshold_db, n_bands),
+        bands=bands,
         modes=_mode_rows(model_modes, data_modes),
         mode_source=source,
         structure=error_structure(weighted, d.w, d.outputs, d.inputs),
@@ -796,6 +863,39 @@ def compare(
         model_name=getattr(model, "name", "model"),
         threshold_db=float(threshold_db),
         dropped=tuple(res.dropped),
+        noise=res.noise,
+        noise_test=test,
+        estimator_note=res.describe_estimator(),
+        warnings=tuple(notes),
         model_modes=tuple(model_modes),
         data_modes=tuple(data_modes),
     )
+
+
+def _units_warnings(model: Any, data_modes: list[Mode], span: tuple[float, float], res: Residual,
+                    max_zeta: float) -> list[str]:
+    """Warn when the model's modes sit a factor near 2 pi from the data's (Hz against rad/s)."""
+    wide = (span[0] / 8.0, span[1] * 8.0)
+    model_modes = statespace_modes(model.statespace(), wide, res._out_idx, res._in_idx, max_zeta=max_zeta)
+    notes = []
+    fm = np.array([m.f_hz for m in model_modes])
+    fd = np.array([m.f_hz for m in data_modes])
+    if fm.size == 0 or fd.size == 0:
+        return notes
+
+    def hits(factor: float) -> int:
+        return int(sum(np.any(np.abs(np.log(fd / (factor * x))) < 0.05) for x in fm))
+
+    direct, up, down = hits(1.0), hits(2 * np.pi), hits(1 / (2 * np.pi))
+    if max(up, down) >= 2 and max(up, down) > direct:
+        which = "rad/s where Hz is expected (data frequencies 2 pi too high)" if up > down else (
+            "Hz where rad/s was expected (model frequencies 2 pi too high)")
+        msg = (
+            f"{max(up, down)} of the model's modes sit a factor 2 pi = 6.28 from the data's modes: a "
+            f"units slip, {which}? rc.FrequencyData takes f_hz in Hz; a model's s-domain is in rad/s."
+        )
+        import warnings as _w
+
+        _w.warn(msg, UserWarning, stacklevel=3)
+        notes.append(msg)
+    return notes

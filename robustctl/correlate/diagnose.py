@@ -22,19 +22,18 @@ parameters can already explain:
 3. **Local fit.** The best few candidates are fitted together with the update parameters
    (bounded LM, few iterations) from the screening estimate; the cost reduction against
    the nominal model and the *gain* ``1 - J_c / J_u`` against the null fit are reported.
-4. **Significance.** A partial F-test of the candidate's ``q`` parameters,
-   ``F = ((J_u - J_c) / q) / (J_c / (n_eff - p))``, with a Bonferroni level
+4. **Significance.** Against the data's noise model (:mod:`robustctl.noise`, the same one
+   compare's verdicts use): under "the effect is absent" the cost drop of the local fit is
+   noise projected on one direction, ``Delta J ~ v chi2_1`` with ``v`` the noise variance
+   along the fitted change (window bin correlation included); a Bonferroni level
    ``alpha / m`` over the ``m`` screened candidates, plus a practical threshold
-   (``min_gain``): an effect must explain a real share of what updating leaves.
+   (``min_gain``): an effect must explain a real share of what updating leaves. Without a
+   noise model no significance claims are made (p-values NaN; the best candidate is
+   proposed on its share alone, and the result says so).
 
-The effective number of independent points ``n_eff``: Welch/Hamming estimates at
-neighbouring frequency bins are correlated (50 % overlapping Hamming segments correlate
-adjacent bins), and a model error is smooth in frequency, so the ``n`` residual entries
-are far from independent. ``n_eff = n (1 - rho) / (1 + rho)`` uses ``rho``, the lag-one
-autocorrelation along frequency of the null-fit residual (pooled over channels, real and
-imaginary parts; the AR(1) effective sample size, Bartlett 1946). White estimation noise
-gives ``rho`` of a few tenths; a systematic, unexplained model error gives ``rho`` near 1
-and hence few effective points, so only large improvements are then significant.
+``n_eff`` (reported): the AR(1) effective number of independent residual entries,
+``n (1 - rho) / (1 + rho)`` with ``rho`` the lag-one autocorrelation along frequency of the
+null-fit residual (Bartlett 1946); a systematic, unexplained model error gives ``rho`` near 1.
 """
 
 from __future__ import annotations
@@ -51,9 +50,11 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import UNSET, finite_number, integer, positive_number, renamed_keyword
+from ..checks import UNSET, as_frequency_data, finite_number, integer, positive_number, renamed_keyword
 from ..errors import FitError, ModelError, RobustctlError
+from ..estimator import estimator_settings
 from ..frd import FrequencyData
+from ..noise import NO_NOISE_SENTENCE, format_p, noise_model
 from ..parallel import check_executor, parallel_map
 from ..table import Table
 from ..threads import limit_blas
@@ -102,7 +103,9 @@ class CandidateResult:
         ``1 - J / J_update``: share of the residual left by updating alone that the effect
         removes (0..1).
     f_stat, p_value : float
-        Partial F statistic and its p-value (NaN when not fitted).
+        The test statistic (``Delta J`` over the noise variance along the fitted change; a
+        chi-square with one degree of freedom under "absent") and its p-value (NaN when not
+        fitted or without a noise model).
     significant : bool
     update_values : dict
         Update-parameter values of the local fit.
@@ -113,6 +116,13 @@ class CandidateResult:
     equivalent : tuple of str
         Names of candidates whose secant is identical (e.g. a delay on every output and one
         on every input): the data cannot tell them apart; they are not ranked separately.
+    level : float
+        The per-candidate p-value threshold (Bonferroni); NaN without a noise model.
+    min_gain : float
+        The practical threshold on ``gain``.
+    note : str
+        What the effect is physically when it can be named (a delay of half a sample: the
+        DAC zero-order hold).
     """
 
     effect: Any
@@ -129,6 +139,9 @@ class CandidateResult:
     where: str = ""
     sentence: str = ""
     equivalent: tuple[str, ...] = ()
+    level: float = math.nan
+    min_gain: float = MIN_GAIN
+    note: str = ""
 
     @property
     def name(self) -> str:
@@ -182,6 +195,11 @@ class Diagnosis:
     n_evals : int
         Model evaluations spent.
     time_s : float
+    noise_source : str
+        Where the noise estimate behind the p-values came from; ``""``: none (no significance
+        claims are made, p-values are NaN).
+    estimator_note : str
+        How the model was seen (through the H1 estimator, or ``""``).
     """
 
     ranking: tuple[CandidateResult, ...]
@@ -203,6 +221,8 @@ class Diagnosis:
     residual_update: np.ndarray = field(repr=False, default=None)
     f_hz: np.ndarray = field(repr=False, default=None)
     explained: dict = field(repr=False, default_factory=dict)
+    noise_source: str = ""
+    estimator_note: str = ""
 
     @property
     def weights(self) -> np.ndarray:
@@ -212,7 +232,9 @@ class Diagnosis:
     @property
     def best_result(self) -> CandidateResult | None:
         """The CandidateResult of :attr:`best` (or None)."""
-        return next((r for r in self.ranking if r.significant), None)
+        if self.best is None:
+            return None
+        return next((r for r in self.ranking if r.effect is self.best), None)
 
     def table(self, n: int = 12) -> Table:
         """The top ``n`` candidates: rank, effect, value, fraction, cost reduction, gain, p, significance."""
@@ -226,7 +248,7 @@ class Diagnosis:
                     100 * r.fraction,
                     100 * r.reduction if r.fitted else None,
                     100 * r.gain if r.fitted else None,
-                    r.p_value if r.fitted else None,
+                    format_p(r.p_value) if r.fitted and np.isfinite(r.p_value) else None,
                     r.significant,
                 )
             )
@@ -235,9 +257,9 @@ class Diagnosis:
                 "rank",
                 "effect",
                 "size",
-                "explains (linear, %)",
+                "first-order share (%)",
                 "cost reduction (%)",
-                "gain over update (%)",
+                "explains (%)",
                 "p-value",
                 "significant",
             ),
@@ -256,6 +278,12 @@ class Diagnosis:
             if self.cost_nominal > 0
             else "The model matches the data exactly."
         ]
+        if self.estimator_note:
+            lines.append(self.estimator_note[:1].upper() + self.estimator_note[1:] + ".")
+        if self.noise_source:
+            lines.append(f"Noise model: {self.noise_source}.")
+        else:
+            lines.append(NO_NOISE_SENTENCE[:1].upper() + NO_NOISE_SENTENCE[1:] + ".")
         best = self.best_result
         if best is not None:
             lines.append("Proposed: " + best.sentence)
@@ -263,10 +291,14 @@ class Diagnosis:
             for r in others:
                 lines.append("Next: " + r.sentence)
         else:
+            test = (
+                f"chi-square against the noise at {self.alpha:.2g} per candidate"
+                if self.noise_source
+                else "no noise estimate"
+            )
             lines.append(
                 "No candidate effect is significant: none explains enough of what updating leaves "
-                f"(F-test at {self.alpha:.2g} per candidate and at least {100 * MIN_GAIN:.0f}% of the "
-                "residual)."
+                f"({test}, and at least {100 * MIN_GAIN:.0f}% of the residual)."
             )
             if self.ranking:
                 lines.append("Closest: " + self.ranking[0].sentence)
@@ -361,16 +393,6 @@ def effective_points(e: np.ndarray) -> tuple[float, float]:
     rho = float(np.sum(x[1:] * x[:-1]) / den) if den > 0 else 0.0
     rho = min(max(rho, 0.0), 0.995)
     return n * (1.0 - rho) / (1.0 + rho), rho
-
-
-def _f_test(cost_null: float, cost_alt: float, q: int, n_eff: float, p: int) -> tuple[float, float]:
-    from scipy.stats import f as f_dist
-
-    dof = max(n_eff - p, 1.0)
-    if cost_alt <= 0:
-        return math.inf, 0.0
-    f_stat = max(cost_null - cost_alt, 0.0) / q / (cost_alt / dof)
-    return float(f_stat), float(f_dist.sf(f_stat, q, dof))
 
 
 # ============================================================================ helpers
@@ -659,7 +681,8 @@ def _equivalent(screens: list[dict[str, Any]]) -> dict[int, int]:
     return twins
 
 
-def _residual(model: Any, data: FrequencyData, band, weights, min_db) -> tuple[Residual, tuple]:
+def _residual(model: Any, data: FrequencyData, band, weights, min_db, estimator="auto",
+              noise="auto") -> tuple[Residual, tuple]:
     """The residual, with channels the model leaves decoupled weighted 0.
 
     A channel whose model response stays ``min_db`` dB below both the largest
@@ -668,16 +691,20 @@ def _residual(model: Any, data: FrequencyData, band, weights, min_db) -> tuple[R
     noise against a numerically zero model: no effect can explain it, so it would only
     blur the statistics. It is left out and listed in ``Diagnosis.ignored_channels``.
     """
-    res = Residual(model, data, band=band, point_weights=weights, min_channel_db=min_db)
+    res = Residual(model, data, band=band, point_weights=weights, min_channel_db=min_db,
+                   estimator=estimator, noise=noise)
     return res, tuple((o, i) for o, i, _level in res.dropped)
 
 
-def _prepare(model, data, candidates, band, update_params, weights, min_db, deadline, budget) -> tuple:
+def _prepare(
+    model, data, candidates, band, update_params, weights, min_db, deadline, budget,
+    estimator="auto", noise="auto",
+) -> tuple:
     """Validated residual (decoupled channels ignored), update parameters and candidates
     (the default candidates' calibration counts against the time budget)."""
     from ..physical.effects import candidates as all_candidates
 
-    res0, ignored = _residual(model, data, band, weights, min_db)
+    res0, ignored = _residual(model, data, band, weights, min_db, estimator, noise)
     upd = _check_update(model, update_params)
     if candidates is None:
         left = _check_budget(deadline, budget, "the residual set-up")
@@ -815,16 +842,41 @@ def _sentence(r: CandidateResult) -> str:
     head = head[:1].upper() + head[1:]
     if r.equivalent:
         head += f" (the data cannot tell it from: {', '.join(r.equivalent)})"
+    if r.note:
+        head += f" ({r.note})"
     if r.fitted:
-        verdict = "significant" if r.significant else "not significant"
-        p = "p < 1e-12" if r.p_value < 1e-12 else f"p = {r.p_value:.2g}"
+        if not np.isfinite(r.p_value):
+            verdict = NO_NOISE_SENTENCE
+        elif r.significant:
+            verdict = f"significant ({format_p(r.p_value)} < {r.level:.2g})"
+        elif r.p_value < r.level:
+            verdict = (
+                f"beyond the noise ({format_p(r.p_value)}) but below the {100 * r.min_gain:.0f}% needed "
+                "to propose it"
+            )
+        else:
+            verdict = f"not significant ({format_p(r.p_value)} >= {r.level:.2g})"
         return (
-            f"{head} explains {100 * r.gain:.0f}% of the residual left by updating ({r.where}); "
-            f"cost {100 * r.reduction:.0f}% below the nominal model; {verdict} ({p})."
+            f"{head} explains {100 * r.gain:.3g}% of the residual left by updating ({r.where}); "
+            f"cost {100 * r.reduction:.3g}% below the nominal model; {verdict}."
         )
     return (
-        f"{head} would explain about {100 * r.fraction:.0f}% of the residual left by updating to first "
+        f"{head} would explain about {100 * r.fraction:.3g}% of the residual left by updating to first "
         "order (not fitted)."
+    )
+
+
+def _hold_note(effect: Any, fs_hz: float | None) -> str:
+    """Name a delay of about half a sample (data sampled at ``fs_hz``) as the DAC's hold."""
+    if fs_hz is None or effect.kind not in ("output_delay", "input_delay"):
+        return ""
+    delay = float(next(iter(effect.values.values()), 0.0))
+    half = 0.5 / fs_hz
+    if not 0.7 * half <= delay <= 1.3 * half:
+        return ""
+    return (
+        f"about half a sample at {fs_hz:g} Hz ({1e3 * half:.3g} ms): the DAC zero-order hold, not an unknown "
+        "delay; add it as a known stage, rc.electronics.zero_order_hold_stage(...)"
     )
 
 
@@ -881,6 +933,9 @@ def diagnose(
     time_budget_s: float = 600.0,
     update_params: Any = UNSET,
     weights: Any = UNSET,
+    estimator: Any = "auto",
+    noise: Any = "auto",
+    measurement_model: Any = None,
 ) -> Diagnosis:
     """Rank physical effects by how much of the model-data residual each explains.
 
@@ -916,12 +971,20 @@ def diagnose(
     max_iter, update_iter : int
         LM iteration caps of the local fits and of the null fit.
     alpha : float
-        F-test level before the Bonferroni correction over the screened candidates.
+        Level of the test against the noise before the Bonferroni correction over the screened
+        candidates.
     min_gain : float
         Smallest share (0..1) of the null-fit residual an effect must remove to be proposed.
     time_budget_s : float
         Wall-clock budget (s) for the fits: a safety cap, not a stopping rule (a RuntimeWarning
         says when it stopped a fit, since the ranking then depends on the machine's load).
+    estimator : "auto", True, False or EstimatorSettings
+        See the model through the H1 estimator (as :func:`robustctl.compare`).
+    noise : "auto", NoiseModel or None
+        The data's noise model behind the p-values (:func:`robustctl.noise_model`;
+        ``measurement_model`` supplies it for data without coherence). Without one, the
+        ranking is still given but no significance claims are made (p-values NaN) and the best
+        candidate is proposed only on its share of the residual.
 
     Returns
     -------
@@ -950,8 +1013,11 @@ def diagnose(
     params = renamed_keyword(params, update_params, "params", "update_params")
     point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     model = physical_model(model, "diagnose")
+    if isinstance(noise, str) and noise == "auto":
+        noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
     res0, ignored, upd, cands = _prepare(
-        model, data, candidates, band, params, point_weights, min_channel_db, deadline, time_budget_s
+        model, data, candidates, band, params, point_weights, min_channel_db, deadline, time_budget_s,
+        estimator, noise,
     )
     alpha, min_gain = finite_number(alpha, "alpha", FitError), finite_number(min_gain, "min_gain", FitError)
     if not 0 < alpha < 1 or not 0 <= min_gain < 1:
@@ -989,6 +1055,7 @@ def diagnose(
     e_u = res0.unstack(j_u)
     n_eff, rho = effective_points(e_u)
     level = alpha / len(cands)
+    settings = estimator_settings(res0.data.meta)
     stats = dict(
         cost_u=cost_u,
         cost_nominal=cost_nominal,
@@ -997,9 +1064,11 @@ def diagnose(
         level=level,
         min_gain=min_gain,
         upd=upd,
+        row_noise=_row_noise(res0),
+        fs_hz=None if settings is None else settings.fs_hz,
     )
     results, explained = _score(res0, screens, order, top, fits, twins, j_u, stats)
-    best = next((r.effect for r in results if r.significant), None)
+    best = _best(results, res0.noise is not None, min_gain)
     return Diagnosis(
         ranking=tuple(results),
         best=best,
@@ -1020,7 +1089,25 @@ def diagnose(
         residual_update=e_u,
         f_hz=res0.f_hz,
         explained=explained,
+        noise_source="" if res0.noise is None else res0.noise.source,
+        estimator_note=res0.describe_estimator(),
     )
+
+
+def _best(results: list, have_noise: bool, min_gain: float) -> Any:
+    """The top significant candidate; without a noise model, the top fitted one that explains at
+    least ``min_gain`` of the residual (proposed without a significance claim)."""
+    if have_noise:
+        return next((r.effect for r in results if r.significant), None)
+    return next((r.effect for r in results if r.fitted and r.gain >= min_gain), None)
+
+
+def _row_noise(res: Residual) -> np.ndarray | None:
+    """Noise variance of each row of the weighted residual vector (see update), or None."""
+    if res.noise is None:
+        return None
+    v = (res.point_weights * res.noise.sigma**2 * res.noise.dof_factor).ravel()
+    return np.concatenate([v, v])
 
 
 def _warn_if_hurried(null_cut: bool, n_cut: int, budget: float) -> None:
@@ -1057,9 +1144,9 @@ def _score(
     for k, fit in zip(top, fits):
         s = screens[k]
         effect = s["effect"].with_values(**{s["effect"].param_names[0]: fit["value"]})
-        f_stat, p_val = _f_test(st["cost_u"], fit["cost"], 1, st["n_eff"], st["p"] + 1)
         gain = _reduction(fit["cost"], st["cost_u"])
         delta = j_u - fit["vector"]
+        f_stat, p_val = _noise_test(st["cost_u"] - fit["cost"], delta, st["row_noise"])
         results.append(
             CandidateResult(
                 effect=effect,
@@ -1079,6 +1166,9 @@ def _score(
                 update_values={n: v for n, v in fit["x"].items() if n in st["upd"]},
                 where=_where(res0, delta),
                 equivalent=twins_of(k),
+                level=st["level"] if st["row_noise"] is not None else math.nan,
+                min_gain=st["min_gain"],
+                note=_hold_note(effect, st["fs_hz"]),
             )
         )
         explained[effect.name] = res0.unstack(delta)
@@ -1101,9 +1191,32 @@ def _score(
                 reduction=_reduction(cost, st["cost_nominal"]),
                 gain=s["fraction"],
                 equivalent=twins_of(k),
+                min_gain=st["min_gain"],
+                note=_hold_note(effect, st["fs_hz"]),
             )
         )
     return [_with_sentence(r) for r in results], explained
+
+
+def _noise_test(drop: float, delta: np.ndarray, row_noise: np.ndarray | None) -> tuple[float, float]:
+    """``T = Delta J / v_delta`` and its chi-square(1) p-value; NaNs without a noise model.
+
+    Under "the effect is absent" the fitted change ``delta`` of the weighted residual is noise
+    projected on one direction: ``Delta J ~ v_delta chi2_1`` with ``v_delta = sum delta_i^2 v_i /
+    sum delta_i^2`` the noise variance along it (``v_i`` from the noise model, with the window's
+    bin correlation; :mod:`robustctl.noise`).
+    """
+    if row_noise is None:
+        return math.nan, math.nan
+    from scipy.stats import chi2
+
+    d2 = np.asarray(delta, dtype=float) ** 2
+    total = float(d2.sum())
+    if total <= 0 or drop <= 0:
+        return 0.0, 1.0
+    v = float(d2 @ row_noise) / total
+    t = drop / max(v, 1e-300)
+    return t, float(chi2.sf(t, 1))
 
 
 def _with_sentence(r: CandidateResult) -> CandidateResult:

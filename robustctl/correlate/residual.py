@@ -36,8 +36,10 @@ from ..checks import (
 )
 from ..checks import point_weights as point_weights_of
 from ..errors import DataError, FitError, ModelError, RobustctlError
+from ..estimator import model_view, resolve_estimator, split_hold
 from ..frd import FrequencyData
 from ..lti import as_statespace, freqresp, log_ratio
+from ..noise import NoiseModel, noise_model
 from ..parallel import parallel_map
 
 __all__ = [
@@ -51,6 +53,8 @@ __all__ = [
     "NEGLIGIBLE_DB",
     "as_model",
     "physical_model",
+    "check_complex_response",
+    "resolve_estimator",
 ]
 
 #: Default level (dB) below which a channel counts as negligible (decoupled) and gets weight 0
@@ -64,6 +68,7 @@ class _FixedSystem:
 
     def __init__(self, sys: Any) -> None:
         self.sys = as_statespace(sys)
+        self.source = sys
         self.name = getattr(sys, "name", None) or type(sys).__name__
         self.param_names: tuple[str, ...] = ()
 
@@ -115,6 +120,27 @@ def _check_no_zero_channel(data: FrequencyData) -> None:
         )
 
 
+def check_complex_response(data: FrequencyData, name: str = "data") -> None:
+    """Refuse "FRFs" that cannot be complex responses: magnitude only, or levels in dB.
+
+    A measured frequency response has a phase; an array whose imaginary part is zero at every
+    point is a magnitude (non-negative) or a level in dB (signed) and would give meaningless
+    complex-log errors.
+    """
+    g = data.response
+    if np.any(g.imag != 0):
+        return
+    if np.all(g.real >= 0):
+        raise DataError(
+            f"{name} is real and non-negative at every point: a magnitude without phase, not a frequency "
+            "response. Give the complex response G(j 2 pi f) (e.g. magnitude * exp(1j * phase_rad))."
+        )
+    raise DataError(
+        f"{name} is real-valued with negative values ({g.real.min():.3g} to {g.real.max():.3g}): it looks "
+        "like a level in dB, not a complex response. Convert it: 10 ** (dB / 20) * exp(1j * phase_rad)."
+    )
+
+
 class Residual:
     """Weighted complex-log residual of a model against data on a band (MACE eqs. 5-6).
 
@@ -131,7 +157,9 @@ class Residual:
         so the cost is ``sum W |log ratio|^2``, the number ``rc.log_cost(m, d, point_weights=W)``
         gives. ``"auto"`` (default): coherence weights ``W = g2 / (1 - g2)`` (inverse variance
         of the log estimate, g2 clipped at 0.999, normalised to mean 1) when the data carry
-        coherence, else uniform. The residual vector carries ``sqrt(W)``.
+        coherence; else the inverse variance ``1 / sigma^2`` of a given noise model (data
+        without coherence, noise from a measurement model's residual); else uniform. The
+        residual vector carries ``sqrt(W)``.
     min_channel_db : float or None
         Channels whose RMS magnitude on the band, in the data or in the nominal model, lies
         more than this many dB below the geometric mean of the largest channel in their row
@@ -139,6 +167,14 @@ class Residual:
         symmetric structure measure noise against a numerically zero model, a log error no
         physical parameter can explain, and it would swamp the cost. ``None`` keeps every
         channel and refuses identically zero ones.
+    estimator : "auto", True, False or EstimatorSettings
+        See the model "as the H1 estimator sees it" (:func:`robustctl.estimator.estimator_view`:
+        window leakage of a white-noise Welch estimate) when the data carry their estimator
+        settings (``"auto"``, default) -- the model's response is then the expected H1
+        estimate, not ``G(jw)``. ``False``: compare ``G(jw)`` itself.
+    noise : "auto", NoiseModel or None
+        The noise model of the data (:func:`robustctl.noise.noise_model`); ``"auto"``: from
+        coherence and the recorded number of averages when possible, else None.
 
     Attributes
     ----------
@@ -169,24 +205,72 @@ class Residual:
         min_channel_db: float | None = NEGLIGIBLE_DB,
         *,
         weights: Any = UNSET,
+        estimator: Any = "auto",
+        noise: Any = "auto",
     ) -> None:
         point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
         data = as_frequency_data(data)
+        check_complex_response(data)
         model = as_model(model)
         self.model = model
         self.band = check_band(band)
         mask = band_mask(data.f_hz, self.band)
         self.data = band_data(data, self.band)
+        self.estimator = resolve_estimator(estimator, data.meta, model)
+        self.noise = self._noise(noise, data, mask)
         sys0 = model.statespace()
         self._out_idx = match_channels(sys0.output_labels, self.data.outputs, "outputs")
         self._in_idx = match_channels(sys0.input_labels, self.data.inputs, "inputs")
-        self.weights = point_weights_of(point_weights, data, mask, amplitude=True)
+        self.weights = self._point_weights(point_weights, data, mask)
         self.dropped = self._negligible(min_channel_db)
         for o, i, _level in self.dropped:
             self.weights[:, self.data.outputs.index(o), self.data.inputs.index(i)] = 0.0
         if not np.any(self.weights > 0):
             raise DataError("every channel has zero weight; nothing is left to compare.")
         self.n = 2 * self.data.response.size
+
+    @staticmethod
+    def _noise(spec: Any, data: FrequencyData, mask: np.ndarray) -> NoiseModel | None:
+        if isinstance(spec, NoiseModel):
+            return spec.on(data.f_hz[mask]) if spec.f_hz.size != int(mask.sum()) else spec
+        if spec is None:
+            return None
+        if isinstance(spec, str) and spec == "auto":
+            nm = noise_model(data)
+            return None if nm is None else nm.band(mask)
+        raise DataError(f"noise must be 'auto', a NoiseModel or None; got {type(spec).__name__}.")
+
+    def _without_hold(self) -> tuple[Any, bool]:
+        """The model without its zero-order-hold stage (cached per model) and whether it had one.
+
+        With the hold added deliberately (``electronics.zero_order_hold_stage``), the estimator
+        view samples the bare model through an exact hold instead of the stage's rational
+        approximation (aliasing and the feedthrough's timing included).
+        """
+        model = self.model
+        cached = getattr(self, "_bare_cache", None)
+        if cached is not None and cached[0] is model:
+            return cached[1], cached[2]
+        bare, has = split_hold(model)
+        self._bare_cache = (model, bare, has)
+        return bare, has
+
+    def _point_weights(self, spec: Any, data: FrequencyData, mask: np.ndarray) -> np.ndarray:
+        """``sqrt(W)`` by the shared rule (:func:`robustctl.checks.point_weights`), except that
+        ``"auto"`` on data without coherence but with a noise model (e.g. from a measurement
+        model's residual) uses the inverse noise variance ``1 / sigma^2`` (mean 1) -- what
+        coherence weights are for data with coherence -- instead of falling back to uniform."""
+        auto = isinstance(spec, str) and spec == "auto"
+        if auto and data.coherence is None and self.noise is not None:
+            w = 1.0 / self.noise.sigma**2
+            return np.sqrt(w / float(np.mean(w)))
+        return point_weights_of(spec, data, mask, amplitude=True)
+
+    def describe_estimator(self) -> str:
+        """``"model seen through the H1 estimator: 4096-pt hamming at 200 Hz"`` or ``""``."""
+        if self.estimator is None:
+            return ""
+        return f"model seen through the H1 estimator: {self.estimator.describe()}"
 
     @property
     def point_weights(self) -> np.ndarray:
@@ -213,8 +297,16 @@ class Residual:
         return self.data.f_hz
 
     def model_response(self, **overrides: float) -> np.ndarray:
-        """Model response (n_freq_band, n_out, n_in) on the band, in data channel order."""
-        g = self.model.freqresp(self.data.f_hz, **overrides).response
+        """Model response (n_freq_band, n_out, n_in) on the band, in data channel order.
+
+        With estimator settings this is the expected H1 estimate of the model without the
+        hold (:func:`robustctl.estimator.estimator_view`), else ``G(j 2 pi f)``.
+        """
+        if self.estimator is not None:
+            bare, hold = self._without_hold()
+            g = model_view(bare, hold, self.data.f_hz, self.estimator, **overrides)
+        else:
+            g = self.model.freqresp(self.data.f_hz, **overrides).response
         return g[:, self._out_idx][:, :, self._in_idx]
 
     def complex(self, **overrides: float) -> np.ndarray:

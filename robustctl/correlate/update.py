@@ -31,6 +31,7 @@ import numpy as np
 from ..checks import UNSET, check_seed, flag, integer, positive_number, probability, renamed_keyword
 from ..errors import FitError, RobustctlError
 from ..frd import FrequencyData
+from ..noise import NO_NOISE_SENTENCE, noise_model
 from ..parallel import check_executor
 from ..table import Table
 from .optimize import LMResult, levenberg_marquardt
@@ -45,6 +46,7 @@ from .residual import (
     physical_model,
     sensitivities,
 )
+from .verdict import ALPHA, NoiseTest, noise_test
 
 __all__ = ["UpdateResult", "update", "select_parameters", "superparameter"]
 
@@ -179,18 +181,67 @@ def _row_mask(residual: Residual, keep_freq: np.ndarray) -> np.ndarray:
     return np.concatenate([half, half])
 
 
+def _row_noise(residual: Residual) -> np.ndarray | None:
+    """Variance of each row of the residual vector from the noise model, or None.
+
+    A row is ``sqrt(W) Re e`` or ``sqrt(W) Im e``: variance ``W sigma^2``, inflated by the
+    Satterthwaite factor of the window's bin correlation (neighbouring rows are not
+    independent).
+    """
+    nm = residual.noise
+    if nm is None:
+        return None
+    v = (residual.point_weights * nm.sigma**2 * nm.dof_factor).ravel()
+    return np.concatenate([v, v])
+
+
+def _noise_std_errors(residual: Residual, fit: LMResult) -> dict[str, float] | None:
+    """Standard errors of the fitted parameters from the noise model (sandwich covariance
+    ``(J^T J)^-1 J^T diag(v) J (J^T J)^-1``, ``v`` the rows' noise variances), or None."""
+    v = _row_noise(residual)
+    if v is None or not len(fit.names):
+        return None
+    J = np.asarray(fit.jacobian, dtype=float)
+    norms = np.linalg.norm(J, axis=0)
+    norms = np.where(norms > 0, norms, 1.0)
+    Js = J / norms
+    inv = np.linalg.pinv(Js.T @ Js)
+    cov = inv @ ((Js * v[:, None]).T @ Js) @ inv / np.outer(norms, norms)
+    return {n: float(np.sqrt(max(cov[k, k], 0.0))) for k, n in enumerate(fit.names)}
+
+
+def _drift_threshold(k_sigma: float | None, n_params: int, n_bands: int, alpha: float) -> float:
+    """``k_sigma``, or with a noise model the Bonferroni normal quantile over all band pairs."""
+    if k_sigma is not None:
+        return float(k_sigma)
+    from scipy.stats import norm
+
+    n_tests = max(n_params * n_bands * (n_bands - 1) // 2, 1)
+    return float(norm.isf(alpha / (2 * n_tests)))
+
+
 def _drift(
     residual: Residual,
     fit: LMResult,
     n_bands: int,
-    k_sigma: float,
+    k_sigma: float | None,
     rel_floor: float,
+    alpha: float = ALPHA,
 ) -> tuple[Drift, ...]:
     """One Gauss-Newton step from the full-band optimum on each sub-band's rows.
 
     At the optimum ``x`` the sub-band estimate is ``x - (J_b^T J_b)^-1 J_b^T r_b`` to first
-    order, with covariance ``s_b^2 (J_b^T J_b)^-1``: no new model evaluations.
+    order, with covariance ``s_b^2 (J_b^T J_b)^-1`` -- or, with a noise model, the sandwich
+    ``(J_b^T J_b)^-1 J_b^T diag(v) J_b (J_b^T J_b)^-1`` with the rows' noise variances ``v``
+    (the same noise as compare's verdicts, on the same testable points): no new model
+    evaluations. Two sub-band estimates
+    disagree when they differ by more than ``k`` combined standard errors, ``k`` the
+    Bonferroni normal quantile at family-wise ``alpha`` when ``k_sigma`` is None.
     """
+    v_rows = _row_noise(residual)
+    if k_sigma is None and v_rows is None:
+        k_sigma = 3.0
+    k_sigma = _drift_threshold(k_sigma, len(fit.names), n_bands, alpha)
     f = residual.f_hz
     if n_bands < 2 or f.size < 4 * n_bands:
         return ()
@@ -200,14 +251,22 @@ def _drift(
         keep = np.zeros(f.size, dtype=bool)
         keep[idx] = True
         rows = _row_mask(residual, keep)
+        if residual.noise is not None:  # noise-dominated points say nothing (as in the verdicts)
+            ok = residual.noise.testable.ravel()
+            rows = rows & np.concatenate([ok, ok])
         J, r = fit.jacobian[rows], fit.vector[rows]
         norms = np.linalg.norm(J, axis=0)
         norms = np.where(norms > 0, norms, 1.0)
         Js = J / norms  # unit-norm columns: parameters of very different units
         step = -np.linalg.lstsq(Js, r, rcond=None)[0] / norms
         rr = r + J @ step
-        s2 = float(rr @ rr) / max(J.shape[0] - J.shape[1], 1)
-        cov = s2 * np.linalg.pinv(Js.T @ Js) / np.outer(norms, norms)
+        inv = np.linalg.pinv(Js.T @ Js)
+        if v_rows is None:
+            s2 = float(rr @ rr) / max(J.shape[0] - J.shape[1], 1)
+            cov = s2 * inv / np.outer(norms, norms)
+        else:
+            meat = (Js * v_rows[rows][:, None]).T @ Js
+            cov = inv @ meat @ inv / np.outer(norms, norms)
         est.append(fit.x_array + step)
         ses.append(np.sqrt(np.clip(np.diag(cov), 0, None)))
         bands.append((float(f[idx[0]]), float(f[idx[-1]])))
@@ -216,7 +275,9 @@ def _drift(
     for p, name in enumerate(fit.names):
         v, s = est[:, p], ses[:, p]
         ref = max(abs(fit.x[name]), 1e-300)
-        usable = s < 0.5 * ref  # a sub-band that cannot see the parameter says nothing
+        # a sub-band that cannot pin the parameter to 20 % says nothing: its one linear step
+        # from the full-band optimum would leave the range where the linearisation holds
+        usable = s < 0.2 * ref
         flagged = False
         for i in np.flatnonzero(usable):
             for k in np.flatnonzero(usable):
@@ -255,7 +316,9 @@ class UpdateResult:
     fit : LMResult
         The Levenberg-Marquardt run (Jacobian, covariance, stop reason).
     std_errors : dict
-        Standard errors of the updated parameters (parameter units).
+        Standard errors of the updated parameters (parameter units): from the noise model when
+        there is one (sandwich covariance with the window's bin correlation), else from the
+        residual's scatter (``fit.std_errors``).
     drift : tuple of Drift
         Sub-band estimates (model-form check).
     notes, suggestions, warnings : tuple of str
@@ -265,6 +328,11 @@ class UpdateResult:
         Wall-clock time (s).
     n_evals : int
         Model evaluations (frequency responses) over all passes.
+    noise_before, noise_after : NoiseTest or None
+        Chi-square verdicts of the misfit against the data's noise before and after the update
+        (None without a noise model: no significance claims).
+    estimator_note : str
+        How the model was seen (through the H1 estimator, or ``""``).
     """
 
     model: Any
@@ -285,6 +353,9 @@ class UpdateResult:
     band: tuple[float, float] | None = None
     time_s: float = 0.0
     n_evals: int = 0
+    noise_before: NoiseTest | None = None
+    noise_after: NoiseTest | None = None
+    estimator_note: str = ""
 
     @property
     def n_iter(self) -> int:
@@ -437,6 +508,12 @@ class UpdateResult:
                 f"  {name}: {p0:.5g} -> {p1:.5g} {self.model.param(name).unit} "
                 f"({change}+- {self.std_errors.get(name, 0):.2g})"
             )
+        if self.estimator_note:
+            lines.append(self.estimator_note[:1].upper() + self.estimator_note[1:] + ".")
+        if self.noise_after is None:
+            lines.append(NO_NOISE_SENTENCE[:1].upper() + NO_NOISE_SENTENCE[1:] + ".")
+        else:
+            lines.append("After the update: " + self.noise_after.sentence())
         lines += [f"Note: {n}" for n in self.notes]
         lines += [f"Suggestion: {s}" for s in self.suggestions]
         lines += [f"Warning: {w}" for w in self.warnings]
@@ -504,7 +581,9 @@ def _alignment_legend(ax: Any, selected: list[bool]) -> None:
 
 
 # ---------------------------------------------------------------------------- update
-def _warnings(fit: LMResult, drift: tuple[Drift, ...], reduction: float) -> list[str]:
+def _warnings(fit: LMResult, drift: tuple[Drift, ...], reduction: float,
+              before: NoiseTest | None = None, after: NoiseTest | None = None) -> list[str]:
+    """Things to look at; with a noise model "cannot explain" means "still beyond the noise"."""
     out = []
     if not fit.success:
         out.append(f"the optimisation did not converge ({fit.stop_reason}); raise max_iter or time_budget_s.")
@@ -523,8 +602,19 @@ def _warnings(fit: LMResult, drift: tuple[Drift, ...], reduction: float) -> list
                 f"{d.name} drifts across frequency bands ({vals}): the estimates disagree beyond their "
                 "standard errors, a sign of a missing effect (model-form error); try rc.diagnose."
             )
-    if reduction < 0.1:
-        out.append(f"the cost fell by only {reduction:.1%}: the parameters cannot explain the error.")
+    if after is not None:
+        if not after.within:
+            worst = after.failing[0]
+            out.append(
+                f"after the update the misfit is still beyond the noise in {len(after.failing)} of "
+                f"{len(after.cells)} channel-bands (worst {worst.channel} at {worst.lo_hz:.3g}-"
+                f"{worst.hi_hz:.3g} Hz): the parameters cannot explain the error; try rc.diagnose."
+            )
+    elif reduction < 0.1:
+        out.append(
+            f"the cost fell by only {reduction:.1%}: the parameters cannot explain the error "
+            f"({NO_NOISE_SENTENCE} on whether the rest is noise)."
+        )
     return out
 
 
@@ -694,13 +784,17 @@ def update(
     min_alignment: float = 0.01,
     max_orthogonality: float = 0.95,
     drift_bands: int = 3,
-    drift_sigma: float = 3.0,
+    drift_sigma: float | None = None,
     drift_floor: float = 0.01,
     time_budget_s: float = 600.0,
     ftol: float = 1e-5,
     progress: bool | None = None,
     min_channel_db: float | None = NEGLIGIBLE_DB,
     weights: Any = UNSET,
+    estimator: Any = "auto",
+    noise: Any = "auto",
+    measurement_model: Any = None,
+    alpha: float = ALPHA,
 ) -> UpdateResult:
     """Update physical parameters so the model matches measured FRFs (MACE eqs. 5-9).
 
@@ -736,7 +830,9 @@ def update(
         Sub-bands for the model-form check (0 or 1 switches it off).
     drift_sigma, drift_floor :
         A parameter drifts when two sub-band estimates differ by more than ``drift_sigma``
-        combined standard errors and by more than ``drift_floor`` (relative).
+        combined standard errors and by more than ``drift_floor`` (relative). ``drift_sigma``
+        None (default): with a noise model, the standard errors come from the noise and the
+        threshold is the Bonferroni normal quantile at family-wise ``alpha``; without one, 3.
     time_budget_s : float
         Wall-clock budget of the optimisation (s).
     ftol : float
@@ -747,6 +843,13 @@ def update(
     min_channel_db : float or None
         Negligible (decoupled) channels get weight 0; see
         :class:`~robustctl.correlate.residual.Residual`.
+    estimator : "auto", True, False or EstimatorSettings
+        See the model through the H1 estimator (as :func:`robustctl.compare`).
+    noise : "auto", NoiseModel or None
+        The data's noise model (as :func:`robustctl.compare`); ``measurement_model`` supplies
+        it for data without coherence.
+    alpha : float
+        Family-wise false-alarm rate of the noise verdicts and the drift test.
 
     Returns
     -------
@@ -774,7 +877,12 @@ def update(
     progress = sys.stderr.isatty() if progress is None else flag(progress, "progress", FitError)
     point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     model = physical_model(model, "update")
-    residual = Residual(model, data, band=band, point_weights=point_weights, min_channel_db=min_channel_db)
+    if isinstance(noise, str) and noise == "auto":
+        from ..checks import as_frequency_data
+
+        noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
+    residual = Residual(model, data, band=band, point_weights=point_weights, min_channel_db=min_channel_db,
+                        estimator=estimator, noise=noise)
     if params is None:
         params = [p.name for p in model.free_params]
         if not params:
@@ -824,8 +932,9 @@ def update(
             + "."
         )
     selected = fit.names
-    drift = _drift(residual, fit, drift_bands, drift_sigma, drift_floor) if len(selected) else ()
+    drift = _drift(residual, fit, drift_bands, drift_sigma, drift_floor, alpha) if len(selected) else ()
     reduction = 1.0 - fit.cost / history[0] if history[0] > 0 else 0.0
+    before, after = (_verdict(residual, x, alpha) for x in ({}, fit.x))
     return UpdateResult(
         model=model.with_values(**fit.x),
         initial_model=model,
@@ -837,12 +946,27 @@ def update(
         orthogonality=orthogonality(dJ),
         selected=tuple(selected),
         fit=fit,
-        std_errors=dict(fit.std_errors),
+        std_errors=_noise_std_errors(residual, fit) or dict(fit.std_errors),
         drift=drift,
         notes=tuple(notes),
         suggestions=tuple(suggestions),
-        warnings=tuple(_warnings(fit, drift, reduction)),
+        warnings=tuple(_warnings(fit, drift, reduction, before, after)),
         band=residual.band,
         time_s=time.perf_counter() - t0,
-        n_evals=n_evals + sens.n_evals + n_coarse,
+        n_evals=n_evals + sens.n_evals + n_coarse + (2 if after is not None else 0),
+        noise_before=before,
+        noise_after=after,
+        estimator_note=residual.describe_estimator(),
     )
+
+
+def _verdict(residual: Residual, values: dict[str, float], alpha: float) -> NoiseTest | None:
+    """The chi-square verdict of the residual at ``values`` (compare's test, same cells)."""
+    if residual.noise is None:
+        return None
+    from ..lti import log_ratio
+
+    d = residual.data
+    e = log_ratio(d.response, residual.model_response(**values))
+    keep = np.any(residual.weights > 0, axis=0)
+    return noise_test(e, residual.noise, d.f_hz, d.outputs, d.inputs, keep, alpha=alpha)

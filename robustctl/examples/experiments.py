@@ -26,24 +26,13 @@ from ..checks import flag, integer, positive_number
 from ..correlate.residual import physical_model
 from ..errors import ModelError
 from ..estimate import combine_experiments, estimate_frf, simulate_experiment
+from ..estimator import hold_response
 from ..frd import FrequencyData
 from ..threads import limit_blas
 
 __all__ = ["make_experiment", "caltech_truss_experiment", "mace_beam_experiment", "hold_response"]
 
 
-def hold_response(f_hz: np.ndarray, fs: float) -> np.ndarray:
-    """Frequency response of a zero-order hold, ``(1 - e^{-sT}) / (sT)`` at ``s = j 2 pi f``.
-
-    Parameters
-    ----------
-    f_hz : ndarray
-        Frequencies in Hz.
-    fs : float
-        Sampling frequency in Hz (``T = 1 / fs``).
-    """
-    x = 2j * np.pi * np.asarray(f_hz, dtype=float) / float(fs)
-    return (1.0 - np.exp(-x)) / x
 
 
 def _truth(model: Any, hidden: Any, param_errors: Mapping[str, float]) -> Any:
@@ -138,7 +127,10 @@ def make_experiment(
         exps.append(estimate_frf(u, y, fs, nperseg=nperseg, inputs=group, outputs=outputs))
     data = exps[0] if len(exps) == 1 else combine_experiments(exps)
     if hold_correction:
-        data = data.replace(response=data.response / hold_response(data.f_hz, fs)[:, None, None])
+        data = data.replace(
+            response=data.response / hold_response(data.f_hz, fs)[:, None, None],
+            meta={**data.meta, "hold_divided": True},
+        )
     if band is not None:
         data = data.band(*band)
     meta = dict(data.meta)

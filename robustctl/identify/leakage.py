@@ -16,60 +16,14 @@ few fixed-point steps.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
-
 import numpy as np
 
 from ..errors import FitError
+from ..estimator import EstimatorSettings, estimator_settings, lag_window
 from ..threads import limit_blas
 from .rational_fit import RationalFit
 
 __all__ = ["EstimatorSettings", "estimator_settings", "expected_h1", "leakage_factor"]
-
-
-class EstimatorSettings(tuple):
-    """``(fs_hz, nperseg, window)`` of a Welch H1 estimate."""
-
-    @property
-    def fs_hz(self) -> float:
-        return self[0]
-
-    @property
-    def nperseg(self) -> int:
-        return self[1]
-
-    @property
-    def window(self) -> Any:
-        return self[2]
-
-
-def estimator_settings(meta: Mapping[str, Any]) -> EstimatorSettings | None:
-    """Settings recorded by :func:`robustctl.estimate_frf` in ``FrequencyData.meta``, or None.
-
-    Data joined by ``combine_experiments`` carries them per experiment; they are used when
-    every experiment agrees.
-    """
-    subs = meta.get("experiments") if isinstance(meta, Mapping) else None
-    if subs and "fs_hz" not in meta:
-        found = {estimator_settings(m) for m in subs}
-        return found.pop() if len(found) == 1 else None
-    try:
-        fs, n, win = float(meta["fs_hz"]), int(meta["nperseg"]), meta["window"]
-    except (KeyError, TypeError, ValueError):
-        return None
-    if not isinstance(win, (str, tuple)):
-        return None
-    return EstimatorSettings((fs, n, win))
-
-
-def _lag_window(window: Any, n: int) -> np.ndarray:
-    from scipy.signal import get_window
-
-    w = get_window(window, n, fftbins=True)
-    spec = np.fft.rfft(w, 2 * n)
-    r = np.fft.irfft(np.abs(spec) ** 2, 2 * n)[:n]
-    return r / r[0]
 
 
 def _zoh_impulse(model: RationalFit, fs: float, n: int) -> np.ndarray:
@@ -96,7 +50,7 @@ def expected_h1(model: RationalFit, f_hz: np.ndarray, settings: EstimatorSetting
     f = np.asarray(f_hz, dtype=float)
     if np.any(f >= fs / 2):
         raise FitError(f"frequencies must lie below the Nyquist frequency {fs / 2:g} Hz (leakage model).")
-    h = _zoh_impulse(model, fs, n) * _lag_window(window, n)[:, None, None]
+    h = _zoh_impulse(model, fs, n) * lag_window(window, n)[:, None, None]
     spec = np.fft.rfft(h, n, axis=0)
     bins = f * n / fs
     idx = np.rint(bins).astype(int)

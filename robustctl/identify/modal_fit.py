@@ -199,7 +199,8 @@ def fit_with_leakage(
     for _ in range(LEAKAGE_STEPS if st is not None else 0):
         if run.expired():
             break
-        data = band.replace(response=band.response * leakage_factor(fit, band.f_hz, st))
+        data = band.replace(response=band.response * leakage_factor(fit, band.f_hz, st),
+                            meta={**band.meta, "leakage_corrected": True})
         if run.refine:
             fit = refine_residues(replace(fit, data=data))
             fit = refine_modes_auto(fit, deadline=run.deadline, progress=run.progress)

@@ -45,6 +45,7 @@ __all__ = [
     "rate_gyro",
     "pade_delay",
     "pade_coefficients",
+    "zero_order_hold",
     "pi_controller",
     "servo_controller",
     "pd_controller",
@@ -71,6 +72,8 @@ __all__ = [
     "notch_stage",
     "rate_gyro_stage",
     "delay_stage",
+    "zero_order_hold_stage",
+    "anti_alias_stage",
     "servo_stage",
     "misalignment_stage",
     "sensor_gain_error_stage",
@@ -302,6 +305,42 @@ def pade_delay(delay_s: float, order: int = 2):
             A, B, _, _ = _lowpass_section(wn, zeta)
             sections.append((A, B, np.array([[0.0, -4.0 * zeta]]), np.ones((1, 1))))
     return _cascade(sections)
+
+
+def zero_order_hold(fs_hz: float, order: int = 4):
+    """Rational model of a DAC's zero-order hold, ``(1 - e^{-sT}) / (sT)``, ``T = 1 / fs_hz``.
+
+    A hold delays by half a sample and droops like ``sinc(f / fs)`` (Franklin, Powell &
+    Workman, *Digital Control*, sec. 4.3.4). With the [n/n] Pade approximant
+    ``e^{-x} ~ D(-x) / D(x)`` (``x = sT``, :func:`pade_coefficients`) the hold is
+    ``2 sum_{k odd} c_k x^(k-1) / D(x)``: unit DC gain, strictly proper for even ``n``.
+
+    Parameters
+    ----------
+    fs_hz : float
+        Sampling (update) rate of the DAC, Hz.
+    order : int
+        Pade order n, 1..10 (4: phase error below 0.01 deg up to fs / 4).
+
+    Returns
+    -------
+    control.StateSpace
+        SISO, input ``u``, output ``y``.
+    """
+    import control
+
+    fs = float(fs_hz)
+    if not math.isfinite(fs) or fs <= 0:
+        raise ModelError(f"fs_hz (the DAC's sampling rate, Hz) must be a positive number; got {fs_hz!r}.")
+    c = pade_coefficients(order)
+    t = 1.0 / fs
+    den = [c[k] * t**k for k in range(c.size)][::-1]
+    num = [2.0 * c[k] * t ** (k - 1) for k in range(1, c.size, 2)]
+    num_poly = np.zeros(c.size - 1)
+    for j, k in enumerate(range(1, c.size, 2)):
+        num_poly[k - 1] = num[j]
+    sys = control.ss(control.tf(num_poly[::-1], den))
+    return _ss(sys.A, sys.B, sys.C, sys.D, ["u"], ["y"])
 
 
 def pi_controller(gain: float, integral_hz: float | None = None):
@@ -691,6 +730,33 @@ def delay_stage(signals, delay_s: Value, order: int = 2, *, side="outputs", **kw
         signals, lambda delay_s: pade_delay(delay_s, order), side=side,
         name=kw.pop("name", f"delay on {', '.join(_names(signals))}"), delay_s=delay_s, **kw,
     )
+
+
+def zero_order_hold_stage(signals, fs_hz: Value, order: int = 4, *, side="inputs", **kw) -> Stage:
+    """Stage: the DAC's zero-order hold (:func:`zero_order_hold`) on named signals (inputs).
+
+    Add it deliberately when the data come from sampled records whose excitation was held
+    by a DAC (``rc.simulate_experiment`` + ``rc.estimate_frf`` do exactly that): the hold's
+    half-sample delay (2.5 ms at 200 Hz) is then a known part of the model, not an effect
+    for ``rc.diagnose`` to find. The stage is tagged ``"zero_order_hold"``: compare, update
+    and diagnose, which see a model through the H1 estimator when the data carry its
+    settings, then sample the rest of the model through an exact hold instead of this
+    rational approximation (aliasing and a direct feedthrough's timing included).
+    """
+    kw.setdefault("tags", ("electronics", "zero_order_hold"))
+    return filter_stage(
+        signals, lambda fs_hz: zero_order_hold(fs_hz, order), side=side,
+        name=kw.pop("name", f"zero-order hold on {', '.join(_names(signals))}"), fs_hz=fs_hz, **kw,
+    )
+
+
+def anti_alias_stage(signals, cutoff_hz: Value, order: int = 4, *, kind: str = "butterworth", **kw) -> Stage:
+    """Stage: an anti-alias low-pass (Butterworth or Bessel, ``order``) on named outputs."""
+    if kind not in ("butterworth", "bessel"):
+        raise ModelError(f"kind must be 'butterworth' or 'bessel'; got {kind!r}.")
+    make = bessel_stage if kind == "bessel" else butterworth_stage
+    return make(signals, order, cutoff_hz, side="outputs",
+                name=kw.pop("name", f"anti-alias {kind} {order} on {', '.join(_names(signals))}"), **kw)
 
 
 def gain_stage(

@@ -1,0 +1,358 @@
+"""What the H1 (Welch) estimator makes of a system: its expected estimate, window statistics.
+
+A Welch H1 estimate (:func:`robustctl.estimate_frf`) of a system excited by a white,
+zero-order-held (ZOH) input has the exact expected value
+
+    E[H1](theta) = sum_{k=0}^{N-1} h[k] r_w[k] / r_w[0] exp(-j theta k),   theta = 2 pi f / fs,
+
+with ``h`` the sampled (ZOH) impulse response and ``r_w[k] = sum_n w[n] w[n+k]`` the
+autocorrelation of the ``N``-point window: the estimator sees the impulse response through a
+lag window. Lightly damped modes whose impulse response outlives the window look broadened
+(window leakage; with 200 Hz and 4096-point Hamming windows a 1.8 %-damped mode at 1.17 Hz
+looks about 50 % more damped), and the ZOH adds a half-sample delay and a sinc droop.
+
+This module is shared by ``identify`` (the leakage correction of a measurement model) and
+``correlate`` (compare/update/diagnose see a physical model "as the estimator sees it"), so
+neither imports the other. It also holds the window statistics the noise model needs:
+Welch's (1967) effective number of averages of overlapped segments and the correlation of
+the estimates at neighbouring frequency bins.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from .errors import DataError
+from .threads import limit_blas
+
+__all__ = [
+    "EstimatorSettings",
+    "estimator_settings",
+    "hold_response",
+    "lag_window",
+    "expected_h1",
+    "expected_h1_modal",
+    "estimator_view",
+    "effective_averages",
+    "bin_correlation",
+    "HOLD_TAG",
+    "resolve_estimator",
+    "split_hold",
+    "model_view",
+]
+
+#: tag of the zero-order-hold stage (:func:`robustctl.physical.electronics.zero_order_hold_stage`)
+HOLD_TAG = "zero_order_hold"
+
+
+class EstimatorSettings(tuple):
+    """``(fs_hz, nperseg, window)`` of a Welch H1 estimate, plus optional ``noverlap``."""
+
+    def __new__(cls, values: tuple, noverlap: int | None = None, hold_divided: bool = False):
+        obj = super().__new__(cls, values)
+        obj.noverlap = noverlap
+        obj.hold_divided = hold_divided
+        return obj
+
+    def __reduce__(self):
+        return (EstimatorSettings, (tuple(self), self.noverlap, self.hold_divided))
+
+    @property
+    def fs_hz(self) -> float:
+        return self[0]
+
+    @property
+    def nperseg(self) -> int:
+        return self[1]
+
+    @property
+    def window(self) -> Any:
+        return self[2]
+
+    def describe(self) -> str:
+        """``"4096-pt hamming at 200 Hz"``."""
+        win = self.window if isinstance(self.window, str) else str(self.window)
+        return f"{self.nperseg}-pt {win} at {self.fs_hz:g} Hz"
+
+
+def estimator_settings(meta: Mapping[str, Any] | None) -> EstimatorSettings | None:
+    """Settings recorded by :func:`robustctl.estimate_frf` in ``FrequencyData.meta``, or None.
+
+    Data joined by ``combine_experiments`` carries them per experiment; they are used when
+    every experiment agrees. Data marked ``meta["leakage_corrected"]`` (a measurement model's
+    corrected data) have none: the estimator's effects are gone. ``meta["hold_divided"]`` (set by
+    :func:`robustctl.examples.make_experiment`) records that the estimate was divided by the
+    zero-order hold's response.
+    """
+    if not isinstance(meta, Mapping) or meta.get("leakage_corrected"):
+        return None  # data already corrected for the estimator (rc.fit_measurement_model's)
+    subs = meta.get("experiments")
+    hold = bool(meta.get("hold_divided", False))
+    if subs and "fs_hz" not in meta:
+        found = {estimator_settings(m) for m in subs if isinstance(m, Mapping)}
+        if len(found) != 1 or None in found:
+            return None
+        one = found.pop()
+        return EstimatorSettings(tuple(one), one.noverlap, hold or one.hold_divided)
+    try:
+        fs, n, win = float(meta["fs_hz"]), int(meta["nperseg"]), meta["window"]
+    except (KeyError, TypeError, ValueError):
+        return None
+    if isinstance(win, list):
+        win = tuple(win)
+    if not isinstance(win, (str, tuple)):
+        return None
+    nov = meta.get("noverlap")
+    return EstimatorSettings((fs, n, win), None if nov is None else int(nov), hold)
+
+
+def hold_response(f_hz: Any, fs: float) -> np.ndarray:
+    """Frequency response of a zero-order hold, ``(1 - e^{-sT}) / (sT)`` at ``s = j 2 pi f``.
+
+    ``T = 1 / fs`` (s): a delay of half a sample and a sinc droop
+    (Franklin, Powell & Workman, *Digital Control*, sec. 4.3.4).
+    """
+    x = 2j * np.pi * np.asarray(f_hz, dtype=float) / float(fs)
+    return (1.0 - np.exp(-x)) / x
+
+
+def _window(window: Any, n: int) -> np.ndarray:
+    from scipy.signal import get_window
+
+    try:
+        return get_window(window, n, fftbins=True)
+    except (ValueError, TypeError) as exc:
+        raise DataError(f"unknown window {window!r} in the estimator settings: {exc}.") from exc
+
+
+def lag_window(window: Any, n: int) -> np.ndarray:
+    """``r_w[k] / r_w[0]``, k = 0..n-1: the normalised autocorrelation of the window."""
+    return _lag_window_cached(window, int(n)).copy()
+
+
+@lru_cache(maxsize=16)
+def _lag_window_cached(window: Any, n: int) -> np.ndarray:
+    w = _window(window, n)
+    spec = np.fft.rfft(w, 2 * n)
+    r = np.fft.irfft(np.abs(spec) ** 2, 2 * n)[:n]
+    return r / r[0]
+
+
+def effective_averages(n_averages: int, window: Any, nperseg: int, noverlap: int | None) -> float:
+    """Welch's (1967) effective number of independent averages of overlapped segments.
+
+    ``var ratio = (1/K) [1 + 2 sum_{j=1}^{K-1} (1 - j/K) c(j S)^2]`` with ``S`` the step
+    between segments and ``c(l) = sum_n w[n] w[n+l] / sum_n w[n]^2`` the window's overlap
+    correlation (Welch 1967, eq. 12; Harris 1978); the result is ``1 / var ratio``.
+    """
+    k = int(n_averages)
+    if k <= 1 or noverlap is None or noverlap <= 0:
+        return float(max(k, 1))
+    step = int(nperseg) - int(noverlap)
+    r = lag_window(window, int(nperseg))
+    j = np.arange(1, k)
+    lags = j * step
+    c = np.where(lags < nperseg, r[np.minimum(lags, nperseg - 1)], 0.0)
+    ratio = (1.0 + 2.0 * np.sum((1.0 - j / k) * c**2)) / k
+    return float(1.0 / ratio)
+
+
+def bin_correlation(window: Any, nperseg: int, max_lag: int = 4) -> np.ndarray:
+    """Correlation of the H1 estimation errors at bins 0..max_lag apart.
+
+    The windowed DFT of white noise at bins ``m`` apart has the correlation
+    ``rho_m = sum_n w[n]^2 e^{-j 2 pi m n / N} / sum_n w[n]^2``; the H1 error is a product
+    of the noise and input spectra (``N U* / |U|^2``), so its correlation is ``|rho_m|^2``
+    (1 at lag 0). Hamming, 4096 points: 0.39 at one bin, 0.018 at two.
+    """
+    w2 = _window(window, int(nperseg)) ** 2
+    spec = np.fft.fft(w2)
+    rho = np.abs(spec[: max_lag + 1]) / abs(spec[0])
+    return rho**2
+
+
+# ---------------------------------------------------------------------------- expected H1
+def _modal(sys: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Poles, residues (n, n_out, n_in) and D of a state space, or None when defective."""
+    A, B, C, D = (np.asarray(m, dtype=float) for m in (sys.A, sys.B, sys.C, sys.D))
+    if A.size == 0:
+        return np.zeros(0, complex), np.zeros((0,) + D.shape, complex), D
+    lam, V = np.linalg.eig(A)
+    if np.linalg.cond(V) > 1e10:
+        return None
+    W = np.linalg.solve(V, B.astype(complex))
+    CV = C @ V
+    res = np.einsum("ok,ki->koi", CV, W)
+    return lam, res, D
+
+
+def _zoh_impulse_modal(poles, residues, d, fs: float, n: int) -> np.ndarray:
+    """Sampled ZOH impulse response ``h[k]`` (n, n_out, n_in): ``h[0] = D``, ``h[k] = C Ad^(k-1) Bd``.
+
+    Poles and residues form conjugate-closed sets (or real ones); the sum is real.
+    """
+    t = 1.0 / fs
+    h = np.zeros((n,) + np.shape(d))
+    h[0] = d
+    if len(poles) == 0:
+        return h
+    poles = np.asarray(poles, dtype=complex)
+    flat = np.asarray(residues).reshape(len(poles), -1)
+    # one pole of each conjugate pair (x 2) and the real poles: the sum is real
+    upper = poles.imag > 0
+    real = poles.imag == 0
+    keep = upper | real
+    poles, flat = poles[keep], flat[keep] * np.where(upper[keep], 2.0, 1.0)[:, None]
+    zp = np.exp(poles * t)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gain = np.where(np.abs(poles) > 0, (zp - 1.0) / poles, t)
+    # zp**k, k = 0..n-2, by a running product (|zp| < 1 for stable poles: no overflow)
+    powers = np.ones((n - 1, zp.size), dtype=complex)
+    if n > 2:
+        powers[1:] = np.cumprod(np.broadcast_to(zp, (n - 2, zp.size)), axis=0)
+    seq = powers * gain[None, :]
+    h[1:] = np.real(seq @ flat).reshape((n - 1,) + np.shape(d))
+    return h
+
+
+def _zoh_impulse_loop(sys: Any, fs: float, n: int) -> np.ndarray:
+    from scipy.linalg import expm
+
+    A, B, C, D = (np.asarray(m, dtype=float) for m in (sys.A, sys.B, sys.C, sys.D))
+    ns, m = B.shape
+    M = np.zeros((ns + m, ns + m))
+    M[:ns, :ns] = A / fs
+    M[:ns, ns:] = B / fs
+    E = expm(M)
+    Ad, X = E[:ns, :ns], E[:ns, ns:]
+    h = np.zeros((n,) + D.shape)
+    h[0] = D
+    for k in range(1, n):
+        h[k] = C @ X
+        X = Ad @ X
+    return h
+
+
+def _spectrum(h: np.ndarray, f_hz: np.ndarray, settings: EstimatorSettings) -> np.ndarray:
+    fs, n, window = settings
+    f = np.asarray(f_hz, dtype=float)
+    if np.any(f > fs / 2 * (1 + 1e-12)):
+        raise DataError(f"frequencies must not exceed the Nyquist frequency {fs / 2:g} Hz of the estimate.")
+    h = h * lag_window(window, n)[:, None, None]
+    bins = f * n / fs
+    idx = np.rint(bins).astype(int)
+    if np.allclose(bins, idx, atol=1e-6):
+        return np.fft.rfft(h, n, axis=0)[idx]
+    phase = np.exp(-2j * np.pi * np.outer(f / fs, np.arange(n)))  # off-grid: direct DTFT
+    return np.einsum("fk,koi->foi", phase, h)
+
+
+@limit_blas
+def expected_h1_modal(poles, residues, d, f_hz: Any, settings: EstimatorSettings) -> np.ndarray:
+    """Expected H1 of ``sum_k residue_k / (s - pole_k) + d`` at ``f_hz`` (Hz); (K, n_out, n_in).
+
+    ``poles`` must be closed under conjugation (every complex pole with its conjugate).
+    """
+    h = _zoh_impulse_modal(poles, residues, np.asarray(d, dtype=float), settings.fs_hz, settings.nperseg)
+    return _spectrum(h, f_hz, settings)
+
+
+@limit_blas
+def expected_h1(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np.ndarray:
+    """Expected H1 estimate of a continuous state space at ``f_hz`` (Hz) for white ZOH excitation.
+
+    The system (anything :func:`robustctl.as_statespace` accepts) is diagonalised, or
+    sampled step by step when its modes are defective.
+
+    Returns
+    -------
+    ndarray, complex, shape (K, n_out, n_in)
+    """
+    from .lti import as_statespace
+
+    ss = as_statespace(sys)
+    modal = _modal(ss)
+    if modal is not None:
+        return expected_h1_modal(*modal, f_hz, settings)
+    return _spectrum(_zoh_impulse_loop(ss, settings.fs_hz, settings.nperseg), f_hz, settings)
+
+
+def estimator_view(sys: Any, f_hz: Any, settings: EstimatorSettings, *, hold: bool = False) -> np.ndarray:
+    """A continuous system "as the H1 estimator sees it".
+
+    ``hold=False``: ``E[H1 of sys] / hold(f)``, the expected estimate divided by the
+    zero-order hold's response -- window leakage only, so no hold is silently added to the
+    model. ``hold=True``: ``E[H1 of sys]`` itself, the exact sampled experiment with a DAC's
+    hold (aliasing and the direct feedthrough's timing included); used when the user added
+    the hold deliberately (:func:`robustctl.physical.electronics.zero_order_hold_stage`) and
+    ``sys`` is the model without that stage. Data divided by the hold
+    (``meta["hold_divided"]``) are compared with ``hold=False``.
+    """
+    f = np.asarray(f_hz, dtype=float)
+    g = expected_h1(sys, f, settings)
+    if hold:
+        return g
+    return g / hold_response(f, settings.fs_hz)[:, None, None]
+
+
+# ---------------------------------------------------------------------------- models seen
+def _sees_estimator(model: Any) -> bool:
+    """False for a fit to the H1 estimates themselves: a MeasurementModel fitted without the
+    leakage correction already contains the estimator's leakage."""
+    src = getattr(model, "source", model)
+    return bool(getattr(src, "leakage_corrected", True))
+
+
+def resolve_estimator(spec: Any, meta: Mapping[str, Any] | None, model: Any) -> EstimatorSettings | None:
+    """The H1 estimator settings to see ``model`` through, or None (the one rule of compare,
+    update, diagnose, verify and ``rc.log_cost``).
+
+    ``"auto"``: the data's recorded settings (``meta``: fs_hz, nperseg, window), unless the
+    model is itself a fit to the estimates; ``True``: required; ``False``/``None``: off; an
+    :class:`EstimatorSettings`: those.
+    """
+    if isinstance(spec, EstimatorSettings):
+        return spec
+    if spec is None or spec is False:
+        return None
+    if isinstance(spec, str) and spec == "auto":
+        return estimator_settings(meta) if _sees_estimator(model) else None
+    if spec is True:
+        st = estimator_settings(meta)
+        if st is None:
+            raise DataError(
+                "estimator=True needs the H1 estimator settings (fs_hz, nperseg, window) in data.meta, as "
+                "rc.estimate_frf records them; pass estimator=False for other data."
+            )
+        return st
+    raise DataError(f"estimator must be 'auto', True, False or EstimatorSettings; got {spec!r}.")
+
+
+def split_hold(model: Any) -> tuple[Any, bool]:
+    """``(model without its zero-order-hold stage, whether it had one)``.
+
+    With the hold added deliberately (``electronics.zero_order_hold_stage``, tagged
+    :data:`HOLD_TAG`), the estimator view samples the bare model through an exact hold
+    instead of the stage's rational approximation (aliasing and a feedthrough's timing).
+    """
+    stages = getattr(model, "io_stages", ())
+    has = any(HOLD_TAG in getattr(s, "tags", ()) for s in stages) and hasattr(model, "without")
+    return (model.without(HOLD_TAG) if has else model), has
+
+
+def model_view(bare: Any, has_hold: bool, f_hz: Any, settings: EstimatorSettings, **overrides: float):
+    """The response of a (split) model as the estimator sees it, shape (K, n_out, n_in), in the
+    model's channel order: :func:`estimator_view` of ``bare.statespace(**overrides)``."""
+    if overrides and hasattr(bare, "param_names"):
+        overrides = {k: v for k, v in overrides.items() if k in bare.param_names}
+    if hasattr(bare, "param_names") and hasattr(bare, "statespace"):
+        sys = bare.statespace(**overrides)
+    else:
+        from .lti import as_statespace
+
+        sys = as_statespace(bare)
+    return estimator_view(sys, f_hz, settings, hold=has_hold and not settings.hold_divided)

@@ -1,0 +1,308 @@
+"""The noise model of a frequency response estimate: how far ``ln G_data`` scatters at each point.
+
+Every verdict of the correlate stage ("within the noise", p-values, drift) is a statement
+about the complex-log residual ``e = ln(G_data / G_model)`` measured in units of its own
+scatter. :func:`noise_model` gives that scatter:
+
+* **from coherence and the number of averages** (data made by :func:`robustctl.estimate_frf`):
+  the normalised random error of ``|H1|`` and the standard deviation of its phase (rad) are
+  both ``sqrt(1 - g2) / (|g| sqrt(2 n_d))`` (Bendat & Piersol, *Random Data*, 4th ed.,
+  sec. 9.2.3, Table 9.6), the standard deviation of ``Re ln H1`` (nepers) and of ``Im ln H1``
+  (rad). ``n_d`` is the effective number of averages of the overlapped windows (Welch 1967;
+  :func:`robustctl.estimator.effective_averages`); with ``q`` simultaneous inputs and the
+  multiple coherence, ``n_d - q + 1`` (Bendat & Piersol, sec. 9.3.3).
+* **from the residual of a measurement model** (data without coherence): a robust local
+  scale (1.4826 x the running median absolute value of ``Re e`` and ``Im e`` over 33 points)
+  of ``ln(G_data / G_mm)`` per channel.
+* otherwise **none**: results then say "no noise estimate: no significance claims".
+
+Neighbouring frequency bins of a windowed estimate are correlated; ``dof_factor`` is the
+Satterthwaite (1946) factor ``1 + 2 sum_m rho_m^2`` by which a sum of squared normalised
+residuals over contiguous bins is more variable than for independent points
+(:func:`robustctl.estimator.bin_correlation`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .checks import as_frequency_data
+from .errors import DataError
+from .estimator import bin_correlation, effective_averages, estimator_settings
+
+__all__ = ["NoiseModel", "noise_model", "averages_of", "NO_NOISE_SENTENCE", "chi2_verdict", "format_p"]
+
+#: what a result says when it has no noise estimate
+NO_NOISE_SENTENCE = "no noise estimate: no significance claims"
+
+#: half-width (points) of the running robust scale of a measurement model's residual
+RESIDUAL_HALF_WIDTH = 16
+
+#: largest sigma (nepers / rad) a point may have to be tested: beyond it (coherence below about
+#: 1 / (1 + 2 n_d 0.25)) the estimate is noise-dominated, ln H1 is far from Gaussian and biased
+#: (Bendat & Piersol's error formulas assume small errors), so such points say nothing
+SIGMA_TESTABLE = 0.5
+
+#: false-alarm probability of "the coherence is not zero": a point is tested only when its
+#: estimated coherence exceeds the level that zero true coherence reaches with this
+#: probability, ``1 - p^(1 / (n_d - 1))`` (Carter, Knapp & Nuttall 1973): at zero true
+#: coherence the estimate is about 1/n_d, and the B&P error formula, fed such an estimate,
+#: would claim a small error where the estimate is pure noise
+COHERENCE_NULL_P = 1e-4
+
+#: smallest sigma (nepers / rad): coherence 1 would otherwise claim a perfect estimate
+SIGMA_FLOOR = 1e-4
+
+
+@dataclass(frozen=True, eq=False)
+class NoiseModel:
+    """Standard deviation of the complex-log estimate at every data point.
+
+    Attributes
+    ----------
+    f_hz : ndarray (nf,)
+        Frequencies (Hz) the model describes.
+    sigma : ndarray (nf, n_out, n_in)
+        Standard deviation of ``Re ln G_data`` (nepers) and of ``Im ln G_data`` (rad), each.
+    source : str
+        Where the estimate came from, as a sentence fragment for results.
+    averages : ndarray (n_in,) or None
+        Effective number of averages per input column (coherence-based models).
+    dof_factor : float
+        Satterthwaite factor ``1 + 2 sum_m rho_m^2`` for sums over contiguous bins (1:
+        independent points).
+    kind : str
+        ``"coherence"`` or ``"residual"``.
+    testable : ndarray of bool (nf, n_out, n_in) or None
+        Points where the log-normal error model holds (coherence significantly above zero
+        and ``sigma <= SIGMA_TESTABLE``); verdicts use only these. None: every point.
+    """
+
+    f_hz: np.ndarray
+    sigma: np.ndarray = field(repr=False)
+    source: str
+    averages: np.ndarray | None = None
+    dof_factor: float = 1.0
+    kind: str = "coherence"
+    testable: np.ndarray | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        f = np.asarray(self.f_hz, dtype=float).reshape(-1)
+        sigma = np.asarray(self.sigma, dtype=float)
+        if sigma.ndim == 1:
+            sigma = sigma[:, None, None]
+        if sigma.ndim != 3 or sigma.shape[0] != f.size:
+            raise DataError(
+                f"sigma must have shape (n_freq, n_out, n_in) with n_freq = {f.size}; got {sigma.shape}."
+            )
+        if not np.all(np.isfinite(sigma)) or np.any(sigma <= 0):
+            raise DataError("sigma (standard deviation of ln G, nepers/rad) must be finite and positive.")
+        ok = sigma <= SIGMA_TESTABLE if self.testable is None else np.asarray(self.testable, dtype=bool)
+        object.__setattr__(self, "f_hz", f)
+        object.__setattr__(self, "sigma", sigma)
+        object.__setattr__(self, "testable", ok & (sigma <= SIGMA_TESTABLE))
+
+    def band(self, mask: np.ndarray) -> NoiseModel:
+        """The model on the points selected by a boolean mask over ``f_hz``."""
+        mask = np.asarray(mask, dtype=bool)
+        return NoiseModel(self.f_hz[mask], self.sigma[mask], self.source, self.averages, self.dof_factor,
+                          self.kind, self.testable[mask])
+
+    def on(self, f_hz: np.ndarray) -> NoiseModel:
+        """The model on the data points ``f_hz`` (a subset of its own grid)."""
+        f = np.asarray(f_hz, dtype=float)
+        idx = np.searchsorted(self.f_hz, f)
+        idx = np.clip(idx, 0, self.f_hz.size - 1)
+        if not np.allclose(self.f_hz[idx], f, rtol=1e-9, atol=0):
+            raise DataError(
+                "the noise model was made on another frequency grid; build it from the same data."
+            )
+        return NoiseModel(f, self.sigma[idx], self.source, self.averages, self.dof_factor, self.kind,
+                          self.testable[idx])
+
+    def normalised(self, error: np.ndarray) -> np.ndarray:
+        """``error / sigma`` (complex): unit variance in each of the real and imaginary parts."""
+        return np.asarray(error) / self.sigma
+
+    def __repr__(self) -> str:
+        return f"NoiseModel({self.kind}: {self.source}; median sigma {np.median(self.sigma):.3g})"
+
+
+# ---------------------------------------------------------------------------- averages
+def _experiment_metas(meta: dict, n_in: int) -> list[dict] | None:
+    """One meta dict per input column, or None."""
+    subs = meta.get("experiments")
+    owner = meta.get("experiment_of_input")
+    if isinstance(subs, (list, tuple)) and subs and isinstance(owner, (list, tuple)):
+        if len(owner) != n_in or not all(0 <= int(k) < len(subs) for k in owner):
+            return None
+        picked = [subs[int(k)] for k in owner]
+        return picked if all(isinstance(m, dict) for m in picked) else None
+    if isinstance(subs, (list, tuple)) and subs:
+        cols: list[dict] = []
+        for m in subs:
+            if not isinstance(m, dict):
+                return None
+            k = int(m.get("n_inputs", 1))
+            cols += [m] * k
+        return cols if len(cols) == n_in else None
+    if "n_averages" in meta:
+        return [meta] * n_in
+    return None
+
+
+def averages_of(data: Any) -> np.ndarray | None:
+    """Effective number of independent averages per input column, or None when unknown.
+
+    Reads ``meta["n_averages"]`` (and ``nperseg``, ``noverlap``, ``window`` for Welch's
+    overlap correction) as :func:`robustctl.estimate_frf` records them, or
+    ``meta["experiments"][k]`` for data joined by :func:`robustctl.combine_experiments`;
+    ``q`` simultaneous inputs with multiple coherence leave ``n_d - q + 1``.
+    """
+    data = as_frequency_data(data)
+    metas = _experiment_metas(dict(data.meta), data.n_in)
+    if metas is None:
+        return None
+    out = []
+    for m in metas:
+        try:
+            k = int(m["n_averages"])
+        except (KeyError, TypeError, ValueError):
+            return None
+        nd = float(k)
+        welch = all(key in m for key in ("nperseg", "noverlap", "window"))
+        if welch and isinstance(m["window"], (str, list, tuple)):
+            win = tuple(m["window"]) if isinstance(m["window"], list) else m["window"]
+            nd = effective_averages(k, win, int(m["nperseg"]), int(m["noverlap"]))
+        q = int(m.get("n_inputs", 1))
+        out.append(max(nd - q + 1, 1.0))
+    return np.asarray(out)
+
+
+def _dof_factor(meta: dict) -> float:
+    st = estimator_settings(meta)
+    if st is None:
+        return 1.0
+    rho = bin_correlation(st.window, st.nperseg)
+    return float(1.0 + 2.0 * np.sum(rho[1:] ** 2))
+
+
+# ---------------------------------------------------------------------------- noise_model
+def _from_coherence(data: Any, nd: np.ndarray) -> NoiseModel:
+    g2 = np.clip(np.asarray(data.coherence, dtype=float), 1e-12, 1.0)
+    sigma = np.sqrt((1.0 - g2) / (2.0 * nd[None, None, :] * g2))
+    sigma = np.maximum(sigma, SIGMA_FLOOR)
+    null_level = 1.0 - COHERENCE_NULL_P ** (1.0 / np.maximum(nd - 1.0, 1.0))
+    testable = g2 > null_level[None, None, :]
+    nd_txt = ", ".join(f"{v:.3g}" for v in np.unique(np.round(nd, 2)))
+    source = (
+        f"the H1 random error from coherence and {nd_txt} effective averages (Bendat & Piersol "
+        "Table 9.6)"
+    )
+    return NoiseModel(data.f_hz, sigma, source, nd, _dof_factor(dict(data.meta)), "coherence", testable)
+
+
+def _running_scale(x: np.ndarray, half: int) -> np.ndarray:
+    """1.4826 x running median of ``|x|`` over axes 0 and 1 (a robust local standard deviation).
+
+    ``x`` has shape (nf, 2, n_out, n_in): real and imaginary parts pooled.
+    """
+    n = x.shape[0]
+    out = np.empty(x.shape[:1] + x.shape[2:])
+    for k in range(n):
+        lo, hi = max(0, k - half), min(n, k + half + 1)
+        out[k] = 1.4826 * np.median(np.abs(x[lo:hi]), axis=(0, 1))
+    return out
+
+
+def _from_residual(data: Any, measurement_model: Any) -> NoiseModel:
+    from .checks import match_channels
+    from .lti import as_statespace, freqresp, log_ratio
+
+    sys = as_statespace(measurement_model)
+    out_idx = match_channels(sys.output_labels, data.outputs, "outputs")
+    in_idx = match_channels(sys.input_labels, data.inputs, "inputs")
+    g = freqresp(sys, data.f_hz).response[:, out_idx][:, :, in_idx]
+    e = log_ratio(data.response, g)
+    both = np.stack([e.real, e.imag], axis=1)  # (nf, 2, n_out, n_in): pool Re and Im
+    sigma = _running_scale(both, RESIDUAL_HALF_WIDTH)
+    sigma = np.maximum(sigma, SIGMA_FLOOR)
+    modes = getattr(measurement_model, "n_modes", None)
+    article = "an" if modes and str(modes)[0] in "8" or modes in (11, 18) else "a"
+    what = f"{article} {modes}-mode measurement model" if modes else "a measurement model"
+    return NoiseModel(data.f_hz, sigma, f"noise estimated from the residual of {what}", None,
+                      _dof_factor(dict(data.meta)), "residual")
+
+
+def noise_model(data: Any, *, measurement_model: Any = None, n_averages: Any = None) -> NoiseModel | None:
+    """The noise model of an FRF estimate (see the module notes), or None when none can be made.
+
+    Parameters
+    ----------
+    data : FrequencyData
+        The estimate (Hz).
+    measurement_model : system, optional
+        A measurement model fitted to ``data`` (``rc.fit_measurement_model``) whose residual
+        gives the noise when the data carry no coherence.
+    n_averages : int or array_like (n_in,), optional
+        Effective number of averages when the data's ``meta`` does not record them.
+
+    Returns
+    -------
+    NoiseModel or None
+        From coherence when the data carry coherence and the averages are known; else from
+        the measurement model's residual; else None.
+    """
+    data = as_frequency_data(data)
+    if data.coherence is not None:
+        nd = averages_of(data) if n_averages is None else _check_averages(n_averages, data.n_in)
+        if nd is not None:
+            return _from_coherence(data, nd)
+    if measurement_model is not None:
+        return _from_residual(data, measurement_model)
+    return None
+
+
+def _check_averages(value: Any, n_in: int) -> np.ndarray:
+    arr = np.asarray(value, dtype=float).reshape(-1)
+    if arr.size == 1:
+        arr = np.full(n_in, arr[0])
+    if arr.size != n_in or not np.all(np.isfinite(arr)) or np.any(arr < 1):
+        raise DataError(
+            f"n_averages must be a number >= 1 or one per input ({n_in}); got {value!r}."
+        )
+    return arr
+
+
+# ---------------------------------------------------------------------------- tests and words
+def chi2_verdict(z: np.ndarray, dof_factor: float) -> tuple[float, float, float]:
+    """Chi-square test of normalised complex residuals ``z`` (unit variance per real part).
+
+    ``S = sum |z|^2`` over ``n`` complex points has mean ``2n``; with correlated neighbouring
+    bins it is approximately ``c chi2_nu`` (Satterthwaite 1946) with ``c = dof_factor`` and
+    ``nu = 2n / c``. Returns ``(S / 2n, nu, p)``, ``p`` the upper-tail probability.
+    """
+    from scipy.stats import chi2
+
+    z = np.asarray(z)
+    n = z.size
+    if n == 0:
+        return float("nan"), 0.0, float("nan")
+    s = float(np.sum(np.abs(z) ** 2))
+    c = max(float(dof_factor), 1.0)
+    nu = 2.0 * n / c
+    return s / (2.0 * n), nu, float(chi2.sf(s / c, nu))
+
+
+def format_p(p: float) -> str:
+    """A p-value in words: ``"p = 0.031"``, ``"p = 2.1e-05"`` or a bound ``"p < 1e-300"``, never 0."""
+    if not np.isfinite(p):
+        return "p = n/a"
+    if p < 1e-300:
+        return "p < 1e-300"
+    if p < 1e-3:
+        return f"p = {p:.1e}"
+    return f"p = {p:.2g}"

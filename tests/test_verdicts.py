@@ -1,0 +1,225 @@
+"""Verdicts against the noise (issue 12): a true model is within the noise everywhere, update
+on it moves nothing and warns of nothing, the hold is a known stage, numbers agree."""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+import pytest
+
+import robustctl as rc
+from robustctl.noise import NO_NOISE_SENTENCE, format_p
+from robustctl.physical import effects as fx
+
+CALTECH_BAND = (0.5, 29.8)
+FS = 200.0
+
+
+# ---------------------------------------------------------------------------- fixtures
+@pytest.fixture(scope="module")
+def caltech():
+    data, truth = rc.examples.caltech_truss_experiment(seed=0)
+    return data, truth
+
+
+def _chain() -> rc.PhysicalModel:
+    """A user's own matrices: three masses on a grounded spring, velocity sensors."""
+    m3 = np.diag([2.0, 1.0, 0.5])
+    kc = 1e3 * np.array([[1.0, -1.0, 0.0], [-1.0, 2.0, -1.0], [0.0, -1.0, 1.0]])
+    k_par = rc.Parameter("k_ground", 4e3, "N/m", (1e3, 1e4), meaning="ground spring of mass 1")
+    return rc.structural_model(
+        m3, lambda th: kc + np.diag([th["k_ground"], 0.0, 0.0]),
+        inputs={"F1": "dof 1", "F3": "dof 3"},
+        outputs={"v2": ("dof 2", "velocity"), "v3": ("dof 3", "velocity")},
+        damping=0.02, params=[k_par], name="3-mass chain",
+    )
+
+
+def _experiment(truth, seed: int = 0, noise: float = 0.01) -> rc.FrequencyData:
+    """rc.simulate_experiment + rc.estimate_frf, one SIMO experiment per input (no hold division)."""
+    ss = truth.statespace()
+    exps = []
+    for k, name in enumerate(ss.input_labels):
+        u, y = rc.simulate_experiment(ss, fs=FS, n_samples=32768, seed=seed + k, inputs=[name])
+        y = y + np.random.default_rng([seed, k]).standard_normal(y.shape) * noise * y.std(axis=0)
+        exps.append(rc.estimate_frf(u, y, FS, nperseg=1024, inputs=[name], outputs=list(ss.output_labels)))
+    return rc.combine_experiments(exps)
+
+
+def _hold(model):
+    return model.add_io_stage(rc.electronics.zero_order_hold_stage(model.inputs, FS))
+
+
+@pytest.fixture(scope="module")
+def chain():
+    return _chain()
+
+
+def _assert_within(cmp):
+    assert cmp.within_noise is True, cmp.summary()
+    assert all(c.within for c in cmp.noise_test.cells)
+    assert cmp.bands == () and "fails most" not in cmp.summary()
+    assert "within the noise in every channel and band" in cmp.summary()
+
+
+# ---------------------------------------------------------------------------- true models
+@pytest.mark.parametrize("band", [CALTECH_BAND, (0.5, 50.0)])
+def test_caltech_truth_is_within_the_noise_everywhere(caltech, band):
+    data, truth = caltech
+    cmp = rc.compare(truth, data, band=band)
+    _assert_within(cmp)
+    assert 0.8 < cmp.noise_test.overall_ratio < 1.2  # calibrated: the residual is the noise
+    assert "Model seen through the H1 estimator: 4096-pt hamming at 200 Hz." in cmp.summary()
+    # a wrong model is not: the nominal truss lacks the taut wires and has parameter errors
+    nominal = rc.compare(rc.examples.caltech_truss(), data, band=band)
+    assert nominal.within_noise is False and "fails most in" in nominal.summary()
+
+
+def test_mace_truth_is_within_the_noise_everywhere():
+    data, truth = rc.examples.mace_beam_experiment(seed=0)
+    cmp = rc.compare(truth, data, band=(0.3, 50.0))
+    _assert_within(cmp)
+    assert len(cmp.noise_test.cells) > 60  # 13 decoupled channels are left out, not tested
+
+
+def test_caltech_truth_without_coherence_is_within_the_noise_of_a_measurement_model(caltech):
+    data, truth = caltech
+    bare = data.replace(coherence=None)
+    mm = rc.fit_measurement_model(bare, band=CALTECH_BAND, n_modes=8)
+    cmp = rc.compare(truth, bare, band=CALTECH_BAND, measurement_model=mm)
+    _assert_within(cmp)
+    assert "noise estimated from the residual of an 8-mode measurement model" in cmp.summary()
+    nominal = rc.compare(rc.examples.caltech_truss(), bare, band=CALTECH_BAND, measurement_model=mm)
+    assert nominal.within_noise is False
+
+
+def test_update_on_the_caltech_truth_moves_nothing_and_warns_of_nothing(caltech):
+    data, truth = caltech
+    upd = rc.update(truth, data, band=CALTECH_BAND)
+    assert upd.warnings == () and not any(d.flagged for d in upd.drift)
+    for name in upd.selected:
+        moved = upd.model.param(name).value - truth.param(name).value
+        assert abs(moved) < 3 * upd.std_errors[name], name
+    assert upd.noise_after.within and "within the noise" in upd.summary()
+    # one cost: update's starting cost is compare's cost on the same inputs
+    assert upd.cost_before == pytest.approx(rc.compare(truth, data, band=CALTECH_BAND).cost, rel=1e-12)
+
+
+@pytest.mark.parametrize("with_coherence", [True, False])
+def test_a_user_matrix_model_with_the_hold_added_is_within_the_noise(chain, with_coherence):
+    data = _experiment(chain)
+    held = _hold(chain)
+    if with_coherence:
+        cmp = rc.compare(held, data, band=(0.5, 40.0))
+    else:
+        bare = data.replace(coherence=None)
+        mm = rc.fit_measurement_model(bare, n_modes=3, band=(0.5, 40.0))
+        cmp = rc.compare(held, bare, band=(0.5, 40.0), measurement_model=mm)
+        assert "noise estimated from the residual of a 3-mode measurement model" in cmp.summary()
+    _assert_within(cmp)
+    # without the hold the half-sample delay is beyond the noise
+    assert rc.compare(chain, data, band=(0.5, 40.0)).within_noise is False
+
+
+def test_update_on_a_user_matrix_truth_moves_nothing_and_warns_of_nothing(chain):
+    data = _experiment(chain, seed=3)
+    held = _hold(chain)
+    upd = rc.update(held, data, band=(0.5, 40.0))
+    assert upd.warnings == ()
+    for name in upd.selected:
+        assert abs(upd.model.param(name).value - held.param(name).value) < 3 * upd.std_errors[name]
+
+
+# ---------------------------------------------------------------------------- the hold
+def test_simulate_estimate_diagnose_with_the_hold_as_a_known_stage_finds_the_effect_and_no_delay(chain):
+    truth = chain.with_effect(fx.AddedMass("dof 3", mass=0.1))
+    data = _experiment(truth, seed=5)
+    diag = rc.diagnose(_hold(chain), data, band=(0.5, 40.0))
+    assert diag.best is not None and diag.best.kind == "added_mass" and diag.best.location == "dof 3"
+    assert next(iter(diag.best.values.values())) == pytest.approx(0.1, rel=0.05)
+    assert not any(r.significant and "delay" in r.kind for r in diag.ranking)
+    assert "Noise model: the H1 random error from coherence" in diag.summary()
+
+
+def test_without_coherence_diagnose_finds_the_effect_against_a_measurement_models_noise(chain):
+    truth = chain.with_effect(fx.AddedMass("dof 3", mass=0.1))
+    bare = _experiment(truth, seed=5).replace(coherence=None)
+    mm = rc.fit_measurement_model(bare, n_modes=3, band=(0.5, 40.0))
+    diag = rc.diagnose(_hold(chain), bare, band=(0.5, 40.0), measurement_model=mm)
+    assert diag.best is not None and diag.best.kind == "added_mass" and diag.best_result.significant
+    assert "Noise model: noise estimated from the residual of a 3-mode measurement model." in diag.summary()
+
+
+def test_a_half_sample_delay_is_named_the_dac_zero_order_hold(chain):
+    data = _experiment(chain, seed=7)
+    diag = rc.diagnose(chain, data, [fx.OutputDelay(), fx.SensorGain("v3")], band=(0.5, 40.0))
+    delay = next(r for r in diag.ranking if r.kind == "output_delay")
+    assert delay.significant
+    assert next(iter(delay.effect.values.values())) == pytest.approx(0.5 / FS, rel=0.2)
+    assert "the DAC zero-order hold, not an unknown delay" in delay.sentence
+    assert "zero_order_hold_stage" in delay.sentence
+
+
+# ---------------------------------------------------------------------------- no noise estimate
+def test_without_any_noise_estimate_no_significance_claims_are_made(chain):
+    f = np.linspace(0.5, 40.0, 300)
+    truth = chain.with_effect(fx.AddedMass("dof 3", mass=0.1))
+    g = truth.freqresp(f).response
+    rng = np.random.default_rng(0)
+    g = g * np.exp(0.01 * (rng.standard_normal(g.shape) + 1j * rng.standard_normal(g.shape)))
+    data = rc.FrequencyData(f, g, inputs=chain.inputs, outputs=chain.outputs)
+    cmp = rc.compare(chain, data)
+    assert cmp.within_noise is None and cmp.noise_test is None
+    assert NO_NOISE_SENTENCE in cmp.summary().lower() and "fails most" not in cmp.summary()
+    diag = rc.diagnose(chain, data, [fx.AddedMass("dof 3"), fx.SensorGain("v3")])
+    assert all(not r.significant and math.isnan(r.p_value) for r in diag.ranking)
+    assert NO_NOISE_SENTENCE in diag.summary().lower()
+    assert diag.best is not None and diag.best.kind == "added_mass"  # proposed on its share alone
+    assert NO_NOISE_SENTENCE in diag.best_result.sentence
+    upd = rc.update(chain, data)
+    assert NO_NOISE_SENTENCE in upd.summary().lower()
+
+
+# ---------------------------------------------------------------------------- numbers agree
+def test_numbers_in_sentences_equal_those_in_tables(caltech):
+    data, _ = caltech
+    cmp = rc.compare(rc.examples.caltech_truss(), data, band=CALTECH_BAND)
+    text = cmp.noise_test.sentence()
+    worst = cmp.noise_test.failing[0]
+    assert f"{worst.ratio:.3g} x the noise variance, {format_p(worst.p_value)}" in text
+    rows = {(r[0], r[1], r[2]): r for r in cmp.noise_test.table().rows}
+    row = rows[(worst.output, worst.input, worst.lo_hz)]
+    assert row[7] == format_p(worst.p_value) and row[8] is False
+    top = max(cmp.table().rows, key=lambda r: r[2])
+    assert f"Worst channel: {top[0]} <- {top[1]} ({top[3]:.4g}% of the cost)." in cmp.summary()
+    band = cmp.band_table().rows[0]
+    assert f"({band[4]:.4g}% of the cost, peak {band[3]:.4g} dB" in cmp.summary()
+    # diagnose: the sentence's percentages and p-values are the table's
+    chain = _chain()
+    d = _experiment(chain.with_effect(fx.AddedMass("dof 3", mass=0.1)), seed=5)
+    diag = rc.diagnose(_hold(chain), d, [fx.AddedMass("dof 3"), fx.SensorGain("v3")], band=(0.5, 40.0))
+    table = diag.table()
+    fitted = [(row, r) for row, r in zip(table.rows, diag.ranking) if r.fitted]
+    assert fitted
+    for row, r in fitted:
+        assert f"{100 * r.gain:.3g}%" in r.sentence and row[5] == pytest.approx(100 * r.gain)
+        assert row[6] == format_p(r.p_value) and format_p(r.p_value) in r.sentence
+        claimed = "; significant (" in r.sentence
+        assert claimed == r.significant == (r.p_value < r.level and r.gain >= r.min_gain)
+    # no p-value anywhere is printed as 0
+    assert not re.search(r"p = 0(?![.\d])", diag.summary() + str(table))
+
+
+def test_one_cost_with_the_estimator_view_everywhere():
+    data, truth = rc.examples.caltech_truss_experiment(seed=1, n_samples=16384, nperseg=1024)
+    band = (0.5, 29.8)
+    j = rc.compare(truth, data, band=band, min_channel_db=None).cost
+    assert rc.log_cost(truth, data, band=band) == pytest.approx(j, rel=1e-12)
+    assert rc.log_cost(truth, data, band=band, estimator=False) != pytest.approx(j, rel=1e-3)
+    # a leakage-corrected measurement model's data are not seen through the estimator again
+    mm = rc.fit_measurement_model(data, n_modes=6, band=(0.5, 5.5), correct_leakage=True)
+    assert rc.compare(mm, mm.data, point_weights=None, min_channel_db=None).cost == pytest.approx(
+        mm.cost.total, rel=1e-9)
+    assert rc.log_cost(mm, mm.data, point_weights=None) == pytest.approx(mm.cost.total, rel=1e-9)
