@@ -871,7 +871,8 @@ def update(
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
             raise FitError(f"{what} must be an integer >= {least}; got {value!r}.")
     _check_update_settings(max_iter, ftol, time_budget_s, min_alignment, max_orthogonality)
-    drift_sigma = positive_number(drift_sigma, "drift_sigma", FitError)
+    if drift_sigma is not None:
+        drift_sigma = positive_number(drift_sigma, "drift_sigma", FitError)
     drift_floor = positive_number(drift_floor, "drift_floor", FitError, allow_zero=True)
     select = flag(select, "select", FitError)
     progress = sys.stderr.isatty() if progress is None else flag(progress, "progress", FitError)
