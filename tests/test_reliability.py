@@ -396,7 +396,11 @@ CASES = [
     ("update.max_iter", lambda e, v: rc.update(e["model"], e["data"], max_iter=v), bad_count(1)),
     ("update.ftol", lambda e, v: rc.update(e["model"], e["data"], ftol=v), bad_positive()),
     ("update.time_budget_s", lambda e, v: rc.update(e["model"], e["data"], time_budget_s=v), bad_positive()),
-    ("update.drift_sigma", lambda e, v: rc.update(e["model"], e["data"], drift_sigma=v), bad_positive()),
+    (
+        "update.drift_sigma",
+        lambda e, v: rc.update(e["model"], e["data"], drift_sigma=v),
+        bad_positive().filter(lambda x: x is not None),
+    ),
     ("update.drift_floor", lambda e, v: rc.update(e["model"], e["data"], drift_floor=v), bad_nonnegative()),
     ("update.min_alignment", lambda e, v: rc.update(e["model"], e["data"], min_alignment=v), bad_fraction()),
     (
