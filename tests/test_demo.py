@@ -41,7 +41,7 @@ def test_demo_report_holds_every_section_with_numbers(demo_out):
     # every section has a table or a figure with numbers in it
     bodies = re.split(r"<h2>.*?</h2>", page)[1:]
     for heading, body in zip(headings, bodies):
-        assert re.search(r"<td>[-+]?\d", body) or "data:image/png;base64," in body, heading
+        assert re.search(r"<td>[^<]*\d", body) or "data:image/png;base64," in body, heading
     figures = {h.split(" ")[0]: b.count("data:image/png;base64,") for h, b in zip(headings, bodies)}
     assert figures["1."] >= 1 and figures["4."] >= 1  # measured FRFs; the diagnosis figure
     summary = json.loads((demo_out / "summary.json").read_text())
