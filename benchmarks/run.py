@@ -32,6 +32,8 @@ HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results"
 MAX_CELL = 60  # characters of a value shown in the summary table
 _TARGET = re.compile(r"^\s*(<=|>=|==|!=|<|>)\s*([-+0-9.eE]+|inf|nan)\s*$")
+_RANGE = re.compile(r"^\s*([-+0-9.eE]+)\s*\.\.\s*([-+0-9.eE]+)\s*$")
+_BOOL = re.compile(r"^\s*(==|!=)\s*(True|False)\s*$")
 
 
 def discover() -> list[str]:
@@ -95,10 +97,16 @@ def blas_info() -> dict[str, Any]:
 
 
 def target_met(value: Any, target: Any) -> bool | None:
-    """Whether ``value`` meets ``target`` (``"< 1e-9"``, ``">= 50"``, or a value to equal)."""
+    """Whether ``value`` meets ``target``: ``"< 1e-9"``, ``">= 50"``, a closed range ``"0.85 .. 1.15"``,
+    ``"== True"`` / ``"== False"``, or a value to equal."""
     if target is None:
         return None
     if isinstance(target, str):
+        if (r := _RANGE.match(target)) and isinstance(value, (int, float)) and not isinstance(value, bool):
+            return float(r.group(1)) <= value <= float(r.group(2))
+        if b := _BOOL.match(target):
+            wanted = b.group(2) == "True"
+            return (value is wanted) if b.group(1) == "==" else (value is not wanted)
         m = _TARGET.match(target)
         if m:
             if not isinstance(value, (int, float)) or isinstance(value, bool):

@@ -30,3 +30,10 @@ def test_update_readme_replaces_only_between_markers(tmp_path):
     assert readme.read_text() == f"head\n{README_START}\nnew table\n{README_END}\ntail\n"
     (tmp_path / "other.md").write_text("no markers")
     assert not update_readme("x", tmp_path / "other.md")
+
+
+def test_target_met_reads_ranges_and_booleans():
+    assert target_met(1.02, "0.85 .. 1.15") is True
+    assert target_met(0.84, "0.85 .. 1.15") is False
+    assert target_met(True, "== True") is True and target_met(False, "== True") is False
+    assert target_met(False, "== False") is True and target_met(1, "== True") is False
