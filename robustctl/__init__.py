@@ -82,6 +82,7 @@ from .robust import (
     worst_case_gain,
 )
 from .robust.dk import DKResult, dksyn
+from .robust.sweep import DesignSweep, design_sweep
 from .robust.yardstick import Yardstick, yardstick
 from .signals import (
     combine_inputs,
@@ -191,6 +192,8 @@ __all__ = [
     "MuResult",
     "robust_stability",
     "caltech_additive_weight",
+    "design_sweep",
+    "DesignSweep",
     "robust_performance",
     "worst_case_gain",
     "WorstCaseGain",

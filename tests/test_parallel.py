@@ -64,3 +64,31 @@ def test_diagnose_on_a_local_dask_cluster_matches_serial():
         assert a.cost == pytest.approx(b.cost, rel=1e-9)
         assert a.p_value == pytest.approx(b.p_value, rel=1e-6, nan_ok=True)
     assert spread.best.values == pytest.approx(serial.best.values, rel=1e-9)
+
+
+def _distillation(eps):
+    return (rc.examples.distillation_plant(eps=eps), 2, 2, rc.examples.DISTILLATION_BLOCKS)
+
+
+@pytest.mark.slow
+def test_design_sweep_on_a_local_dask_cluster_matches_serial():
+    distributed = pytest.importorskip("distributed", reason="install robustctl[distributed] for dask")
+    recipes = {"eps 1e-6": _distillation(1e-6), "eps 1e-4": _distillation(1e-4)}
+    serial = rc.design_sweep(recipes, max_iter=2)
+    # iteration 1 of the book's example (Skogestad & Postlethwaite Table 8.2): 1.1818
+    assert serial.results["eps 1e-6"].history[0].mu_peak == pytest.approx(1.1818, abs=0.005)
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster, distributed.Client(cluster) as client:
+        spread = rc.design_sweep(recipes, max_iter=2, executor=client.get_executor())
+    assert spread.labels == serial.labels and spread.best == serial.best
+    for k in recipes:
+        assert spread.results[k].mu_peak == pytest.approx(serial.results[k].mu_peak, rel=1e-9)
+    assert "best" in serial.table().title and serial.plot() is not None
+
+
+def test_design_sweep_refuses_bad_recipes():
+    with pytest.raises(rc.SynthesisError, match="non-empty mapping"):
+        rc.design_sweep([])
+    with pytest.raises(rc.RobustctlError, match="executor must be"):
+        rc.design_sweep({"a": _distillation(1e-6)}, executor="dask")

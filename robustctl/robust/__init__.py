@@ -17,6 +17,7 @@ from .magfit import MagnitudeFit, fit_magnitude, fit_magnitude_details, zpk_stat
 from .mu import MuResult, mu
 from .mu_analysis import WorstCaseGain, robust_performance, robust_stability, worst_case_gain
 from .plant import GeneralizedPlant, PlantWeight, generalized_plant, mixed_sensitivity
+from .sweep import DesignSweep, design_sweep
 from .weights import CALTECH_MULTIPLICATIVE, caltech_additive_weight, makeweight
 from .yardstick import NyquistVerdict, Yardstick, nyquist_stability, yardstick
 
@@ -61,4 +62,6 @@ __all__ = [
     "Yardstick",
     "NyquistVerdict",
     "nyquist_stability",
+    "design_sweep",
+    "DesignSweep",
 ]
