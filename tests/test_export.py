@@ -292,7 +292,7 @@ def test_failed_write_leaves_no_partial_file(tmp_path, monkeypatch, existing):
         raise OSError("No space left on device")
 
     monkeypatch.setitem(formats.WRITERS, ".csv", broken)
-    with pytest.raises(OSError, match="No space"):
+    with pytest.raises(rc.DataError, match="No space"):  # the cause is named (reliability rule)
         _export(light_controller(), path, fs=1000.0, overwrite=True)
     assert sorted(p.name for p in tmp_path.iterdir()) == (["k.csv"] if existing else [])
     if existing:

@@ -162,12 +162,17 @@ def test_pairing_follows_the_shapes_through_large_shifts_and_crossings():
     assert pair_modes([_mode(1.0, e[0])], [_mode(1.5, e[3])]) == [(0, None), (None, 0)]
 
 
-def test_diagnose_warns_when_the_time_budget_cuts_its_fits(chain):
-    """A ranking that depends on the machine's load says so (the budget is a safety cap)."""
+def test_diagnose_says_when_the_time_budget_cuts_its_fits(chain):
+    """A budget that runs out is an error (no partial ranking); one that cuts fits short warns
+    that the ranking depends on the machine's load (the budget is a safety cap)."""
+    from robustctl.correlate.diagnose import _warn_if_hurried
+
     model, cands = chain
     data = _data(model, model.with_effect(fx.AddedMass("dof 3", mass=0.05)), seed=7)
-    with pytest.warns(RuntimeWarning, match="time budget .* stopped the null fit"):
+    with pytest.raises(rc.FitError, match=r"time_budget_s=1e-09 s ran out during"):
         rc.diagnose(model, data, cands[:4], params=UPDATE, time_budget_s=1e-9)
+    with pytest.warns(RuntimeWarning, match=r"time budget \(5 s\) stopped the null fit and 2 local fits"):
+        _warn_if_hurried(True, 2, 5.0)
 
 
 # ---------------------------------------------------------------------------- a frame
