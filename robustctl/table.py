@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Table"]
+__all__ = ["Table", "result_html"]
 
 
 def _fmt(value: Any, digits: int) -> str:
@@ -104,3 +104,9 @@ class Table:
             return cls((), (), title, digits)
         columns = tuple(records[0])
         return cls(columns, tuple(tuple(r[c] for c in columns) for r in records), title, digits)
+
+
+def result_html(summary: str, *tables: Any) -> str:
+    """A result's ``_repr_html_``: its summary, one paragraph per line, then its tables (None skipped)."""
+    paras = "".join(f"<p>{html.escape(line)}</p>" for line in summary.splitlines())
+    return paras + "".join(t._repr_html_() for t in tables if t is not None)

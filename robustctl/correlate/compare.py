@@ -23,7 +23,6 @@ The complex log error ``e = log(G_data / G_model)`` (MACE eq. 5) is broken down
 
 from __future__ import annotations
 
-import html
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -38,7 +37,7 @@ from ..frd import FrequencyData
 from ..lti import DB_PER_NEPER, as_statespace, pole_frequency_damping
 from ..modes import Mode
 from ..noise import NoiseModel, noise_model
-from ..table import Table
+from ..table import Table, result_html
 from .residual import NEGLIGIBLE_DB, Residual, as_model, log_ratio
 from .verdict import ALPHA, NoiseTest, no_noise_sentence, noise_test
 
@@ -664,14 +663,8 @@ class Comparison:
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:
-        summary = "".join(f"<p>{html.escape(s)}</p>" for s in self.summary().splitlines())
-        return (
-            summary
-            + self.table()._repr_html_()
-            + self.band_table()._repr_html_()
-            + self.mode_table()._repr_html_()
-            + ("" if self.noise_test is None else self.noise_test.table()._repr_html_())
-        )
+        noise = None if self.noise_test is None else self.noise_test.table()
+        return result_html(self.summary(), self.table(), self.band_table(), self.mode_table(), noise)
 
     def __repr__(self) -> str:
         return f"Comparison(cost={self.cost:.4g}, kind={self.structure.kind!r}, bands={len(self.bands)})"

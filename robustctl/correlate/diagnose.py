@@ -39,7 +39,6 @@ null-fit residual (Bartlett 1946); a systematic, unexplained model error gives `
 from __future__ import annotations
 
 import copy
-import html
 import math
 import time
 import warnings
@@ -56,7 +55,7 @@ from ..estimator import estimator_settings
 from ..frd import FrequencyData
 from ..noise import NO_NOISE_SENTENCE, format_p, noise_model
 from ..parallel import check_executor, parallel_map
-from ..table import Table
+from ..table import Table, result_html
 from ..threads import limit_blas
 from .optimize import _bounds, levenberg_marquardt, marquardt_step
 from .residual import Residual, physical_model, sensitivities
@@ -325,8 +324,7 @@ class Diagnosis:
         )
 
     def _repr_html_(self) -> str:
-        text = "".join(f"<p>{html.escape(s)}</p>" for s in self.summary().splitlines())
-        return text + self.table()._repr_html_()
+        return result_html(self.summary(), self.table())
 
     def plot(self, n: int = 12):
         """Bar chart of the candidates and the residual left by updating over frequency.

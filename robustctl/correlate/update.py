@@ -18,7 +18,6 @@
 
 from __future__ import annotations
 
-import html
 import sys
 import time
 from collections.abc import Sequence
@@ -33,7 +32,7 @@ from ..errors import FitError, RobustctlError
 from ..frd import FrequencyData
 from ..noise import NO_NOISE_SENTENCE, noise_model
 from ..parallel import check_executor
-from ..table import Table
+from ..table import Table, result_html
 from .optimize import LMResult, levenberg_marquardt
 from .residual import (
     NEGLIGIBLE_DB,
@@ -520,8 +519,7 @@ class UpdateResult:
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:
-        paras = "".join(f"<p>{html.escape(s)}</p>" for s in self.summary().splitlines())
-        return paras + self.table()._repr_html_()
+        return result_html(self.summary(), self.table())
 
     def __repr__(self) -> str:
         return (

@@ -12,7 +12,6 @@ unperturbed data are given, with the accuracy on those.
 
 from __future__ import annotations
 
-import html
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -22,7 +21,7 @@ import numpy as np
 from ..checks import UNSET, renamed_keyword
 from ..errors import DataError, ModelError
 from ..frd import FrequencyData
-from ..table import Table
+from ..table import Table, result_html
 from .compare import Comparison, compare, pair_modes, statespace_modes
 
 __all__ = ["Verification", "verify", "apply_perturbation"]
@@ -153,8 +152,7 @@ class Verification:
         return "\n".join([head] + [f"  {r}" for r in self.reasons])
 
     def _repr_html_(self) -> str:
-        paras = "".join(f"<p>{html.escape(s)}</p>" for s in self.summary().splitlines())
-        return paras + self.table()._repr_html_()
+        return result_html(self.summary(), self.table())
 
     def plot(self, fig: Any = None) -> Any:
         """The perturbed comparison's plot (data vs perturbed model, failing bands)."""

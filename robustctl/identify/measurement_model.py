@@ -17,7 +17,6 @@ call's time budget.
 
 from __future__ import annotations
 
-import html
 import warnings
 from dataclasses import dataclass, fields, replace
 from typing import Any
@@ -29,7 +28,7 @@ from ..errors import FitError
 from ..frd import FrequencyData
 from ..lti import pole_frequency_damping, rebuild_statespace, statespace_state
 from ..modes import Mode
-from ..table import Table
+from ..table import Table, result_html
 from ..threads import limit_blas
 from ._problem import prepare_problem
 from .cost import LogCost, channel_cost
@@ -181,8 +180,7 @@ class MeasurementModel:
         )
 
     def _repr_html_(self) -> str:
-        summary = "".join(f"<p>{html.escape(line)}</p>" for line in self.summary().splitlines())
-        return summary + self.table()._repr_html_() + self.cost.table()._repr_html_()
+        return result_html(self.summary(), self.table(), self.cost.table())
 
     def __repr__(self) -> str:
         return (

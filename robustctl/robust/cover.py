@@ -22,7 +22,6 @@ every point is covered (Zhou-Doyle-Glover sec. 8.1; Skogestad-Postlethwaite sec.
 
 from __future__ import annotations
 
-import html
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -32,7 +31,7 @@ import numpy as np
 
 from ..errors import DataError, FitError
 from ..frd import FrequencyData
-from ..table import Table
+from ..table import Table, result_html
 from .magfit import DB_PER_NEPER, fit_magnitude_details
 
 __all__ = ["UncertaintyCover", "cover_additive", "cover_multiplicative", "error_envelope"]
@@ -142,8 +141,7 @@ class UncertaintyCover:
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:
-        paras = "".join(f"<p>{html.escape(s)}</p>" for s in self.summary().splitlines())
-        return paras + self.table()._repr_html_()
+        return result_html(self.summary(), self.table())
 
     def __repr__(self) -> str:
         return (

@@ -24,7 +24,6 @@ repeated (at most ``MAX_RETRIES`` times). Every loop is capped and the whole cal
 
 from __future__ import annotations
 
-import html
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -36,7 +35,7 @@ from ..checks import positive_number
 from ..errors import ModelError, SynthesisError
 from ..interconnect import PartitionedPlant, lft
 from ..lti import as_statespace
-from ..table import Table
+from ..table import Table, result_html
 from ..threads import limit_blas
 from . import dgkf
 from .hinf_assumptions import check_assumptions
@@ -156,8 +155,7 @@ class HinfResult:
         return fig
 
     def _repr_html_(self) -> str:
-        summary = "".join(f"<p>{html.escape(s)}</p>" for s in self.summary().splitlines())
-        return summary + self.table()._repr_html_()
+        return result_html(self.summary(), self.table())
 
     def __repr__(self) -> str:
         return (

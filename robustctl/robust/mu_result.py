@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import html
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from ..table import Table
+from ..table import Table, result_html
 from .blocks import BlockStructure
 
 __all__ = ["MuResult"]
@@ -136,8 +135,7 @@ class MuResult:
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:
-        summary = "".join(f"<p>{html.escape(s)}</p>" for s in self.summary().splitlines())
-        return summary + self.table()._repr_html_()
+        return result_html(self.summary(), self.table())
 
     def __repr__(self) -> str:
         return (f"MuResult(peak={self.peak:.4g}, f_peak_hz={self.f_peak_hz:.4g}, "
