@@ -168,7 +168,7 @@ class HinfResult:
 def _as_partitioned(P: Any, nmeas: Any, ncon: Any) -> PartitionedPlant:
     if not isinstance(P, PartitionedPlant) and all(hasattr(P, k) for k in ("P", "nmeas", "ncon")):
         try:  # a duck-typed generalized plant (any object with .P, .nmeas, .ncon)
-            P = PartitionedPlant(as_statespace(P.P), P.nmeas, P.ncon)
+            P = PartitionedPlant(as_statespace(P.P, name="P"), P.nmeas, P.ncon)
         except ModelError as exc:
             raise SynthesisError(f"hinfsyn: {exc}") from exc
     if isinstance(P, PartitionedPlant):
@@ -185,7 +185,7 @@ def _as_partitioned(P: Any, nmeas: Any, ncon: Any) -> PartitionedPlant:
                 "ncon, or pass a PartitionedPlant / generalized plant (which carries them)."
             )
         try:
-            plant = PartitionedPlant(as_statespace(P), nmeas, ncon)
+            plant = PartitionedPlant(as_statespace(P, name="P"), nmeas, ncon)
         except ModelError as exc:
             raise SynthesisError(f"hinfsyn: {exc}") from exc
     if plant.P.dt not in (0, None):
@@ -504,7 +504,7 @@ def hinfsyn(
     >>> res.gamma <= res.info["gamma_design"] * (1 + 1e-6)
     True
     """
-    if method not in ("riccati", "lmi"):
+    if not isinstance(method, str) or method not in ("riccati", "lmi"):
         raise SynthesisError(f"method must be 'riccati' or 'lmi'; got {method!r}.")
     gamma_tol = _bounded(gamma_tol, "gamma_tol", 0.5)
     backoff = _bounded(backoff, "backoff", 10.0, allow_zero=True)
