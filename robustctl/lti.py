@@ -163,7 +163,8 @@ def as_statespace(
 
     if isinstance(sys, FrequencyData) or type(sys).__name__ == "FrequencyResponseData":
         raise ModelError(
-            f"{name} is a {type(sys).__name__}: measured data, not a model; it has no state space. Pass a "
+            f"{name} is a {type(sys).__name__}, which is measured data, not a model; it has no state space. "
+            "Pass a "
             "PhysicalModel, MeasurementModel, control.StateSpace or transfer function."
         )
     if isinstance(sys, control.StateSpace):
