@@ -9,7 +9,6 @@ CORE_STAMP := $(VENV)/.installed
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
 
 # The demo needs only the core dependencies (a cold install of the dev extras
 # roughly doubles the download); the tests need the dev extra.
