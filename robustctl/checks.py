@@ -17,9 +17,12 @@ here and imported by ``frd``, ``estimate``, ``lti``, ``correlate`` and ``identif
 * :func:`as_frequency_data` -- FrequencyData, ``(f_hz, response)`` pairs and
   ``control.FrequencyResponseData`` to FrequencyData. Always a ``DataError``.
 * generic validators (:func:`finite_number`, :func:`positive_number`, :func:`integer`,
-  :func:`flag`, :func:`probability`): the wording is fixed here; the error class follows the
-  stage that owns the argument (``DataError`` for data and signal settings, ``FitError`` for
-  fit and update settings, ``ModelError`` for model settings), given by the caller.
+  :func:`flag`, :func:`probability`, :func:`real_array`, :func:`optional_text`): the wording is
+  fixed here; the error class follows the stage that owns the argument (``DataError`` for data
+  and signal settings, ``FitError`` for fit and update settings, ``ModelError`` for model
+  settings, ``SynthesisError`` for synthesis and robustness analysis), given by the caller.
+* systems: :func:`robustctl.lti.as_statespace` (``name=`` the argument) is the one system
+  check: it names the argument and refuses what cannot be converted and NaN/inf matrices.
 """
 
 from __future__ import annotations

@@ -491,8 +491,8 @@ CASES = [
 
 
 @pytest.mark.parametrize("label, call, values, names", CASES, ids=[c[0] for c in CASES])
-def test_bad_argument_is_refused_naming_it(env, tmp_path, label, call, values, names):
-    bad = []
+def test_bad_argument_is_refused_naming_it(env, record_property, label, call, values, names):
+    bad, counts = [], Counter()
     before = env["saved"].read_bytes()
 
     @settings(max_examples=EXAMPLES_PER_CASE, deadline=None, database=None, derandomize=True,
@@ -506,12 +506,14 @@ def test_bad_argument_is_refused_naming_it(env, tmp_path, label, call, values, n
             outcome = "unnamed"
         if env["saved"].read_bytes() != before:
             outcome = "data loss"
-        OUTCOMES[outcome] += 1
+        counts[outcome] += 1
         if outcome != "refused":
             bad.append((outcome, repr(value)[:60], detail[:200]))
 
     run()
+    OUTCOMES.update(counts)
     SEEN.add(label)
+    record_property("reliability_outcomes", dict(counts))  # summed over xdist workers by conftest.py
     assert not bad, f"{label}: {len(bad)} bad outcomes, e.g. {bad[:4]}"
 
 
