@@ -434,6 +434,17 @@ CASES = [
                                                                                _floats(min_value=1.0))),
     case("worst_case_gain.max_iter", lambda e, v: _wcg(e, max_iter=v), bad_count(1)),
     case("worst_case_gain.gamma_max", lambda e, v: _wcg(e, gamma_max=v), bad_positive()),
+    # result objects
+    case("MuResult.table.count", lambda e, v: _mu(e).table(v), bad_count(1)),
+    case("WorstCaseGain.table.count", lambda e, v: _wcg(e).table(v), bad_count(1)),
+    case("HinfResult.plot.f_hz", lambda e, v: e["hinf"].plot(v), bad_grid()),
+    case("hinfsyn.nmeas(GeneralizedPlant)", lambda e, v: rc.hinfsyn(e["gp"], v),
+         st.sampled_from([True, 2, 0, -1, 1.5, "1", NAN, [1]]), ("nmeas",)),
+    case("caltech_additive_weight.name", lambda e, v: rc.caltech_additive_weight(name=v),
+         st.sampled_from([5, 1.5, [], object(), b"x", "a\x00"])),
+    case("combine_outputs.combos", lambda e, v: rc.combine_outputs(e["G"], v),
+         st.sampled_from([5, "abc", {"a": 1.0}, {"a": {"nope": 1.0}}, {"a": {"y": NAN}}, {"a": {}},
+                          object()])),
     # discretisation and export
     case("discretize.K", lambda e, v: rc.discretize(v, 100.0), st.one_of(bad_system(), st.just(DISCRETE))),
     case("discretize.fs", lambda e, v: rc.discretize(e["K"], v),

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg
 
-from ..checks import positive_number
+from ..checks import integer, positive_number
 from ..errors import ModelError, SynthesisError
 from ..interconnect import PartitionedPlant, lft
 from ..lti import as_statespace
@@ -131,6 +131,10 @@ class HinfResult:
         from ..plots import new_figure
 
         f_peak = self.info.get("f_peak_hz", np.nan)
+        if f_hz is not None:
+            from .mu import _frequencies
+
+            f_hz = _frequencies(f_hz)  # finite numbers >= 0 Hz, at least one
         if f_hz is None:
             A = np.asarray(self.closed_loop.A)
             poles = np.abs(np.linalg.eigvals(A)) / (2 * np.pi) if A.size else np.zeros(0)
@@ -173,7 +177,7 @@ def _as_partitioned(P: Any, nmeas: Any, ncon: Any) -> PartitionedPlant:
             raise SynthesisError(f"hinfsyn: {exc}") from exc
     if isinstance(P, PartitionedPlant):
         for name, given, have in (("nmeas", nmeas, P.nmeas), ("ncon", ncon, P.ncon)):
-            if given is not None and given != have:
+            if given is not None and integer(given, name, SynthesisError, lo=0) != have:
                 raise SynthesisError(
                     f"{name}={given!r} contradicts the partitioned plant's {name}={have}; omit {name}."
                 )

@@ -152,6 +152,7 @@ class WorstCaseGain:
 
     def table(self, count: int = 8) -> Table:
         """The frequencies of the largest worst-case gains."""
+        count = integer(count, "count", SynthesisError, lo=1)
         order = np.argsort(-np.where(np.isfinite(self.upper), self.upper, np.inf))[:count]
         rows = [(float(self.f_hz[k]), float(self.nominal[k]), float(self.lower[k]), float(self.upper[k]))
                 for k in order]

@@ -104,4 +104,5 @@ def caltech_additive_weight(*, name: str = "W_additive"):
     control.StateSpace
         Three states, stable and minimum phase.
     """
+    optional_text(name, "name", FitError)
     return zpk_statespace([-6.0, -12.0, -24.0], [-0.6, -400.0, -400.0], 8.0, name=name)
