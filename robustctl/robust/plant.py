@@ -260,10 +260,7 @@ def _weight(spec: Any, what: str, *, n_in: int | None = None, n_out: int | None 
         return control.ss(np.zeros((0, 0)), np.zeros((0, n_rep)), np.zeros((n_rep, 0)), c * np.eye(n_rep))
     if isinstance(spec, control.TransferFunction):
         _check_proper(spec, what)
-    try:
-        W = as_statespace(spec)
-    except ModelError as exc:
-        raise ModelError(f"{what}: {exc}") from exc
+    W = as_statespace(spec, name=what)
     if W.isdtime(strict=True):
         raise ModelError(f"{what} is discrete-time (dt={W.dt}); weights are continuous-time.")
     poles = np.linalg.eigvals(np.asarray(W.A, float)) if W.nstates else np.zeros(0)
