@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import control
 import numpy as np
 import pytest
@@ -104,7 +106,8 @@ def _hidden_effect_case(seed: int, tension: float):
     model = caltech_truss()
     data, truth = make_experiment(model, GroupTension("longerons_story_1", tension=tension),
                                   param_errors=CALTECH_TRUTH["param_errors"], noise_rms=0.01, seed=seed)
-    with pytest.warns(Warning):   # the measurement model keeps filler poles (an IdentifyWarning)
+    with warnings.catch_warnings():   # some seeds keep filler poles (an IdentifyWarning)
+        warnings.simplefilter("ignore")
         mm = fit_measurement_model(data, n_modes=6, band=(0.5, 5.5), correct_leakage=True)
     upd = update(model.with_effect(GroupTension("longerons_story_1", tension=5.0)), data, band=(0.5, 50),
                  progress=False)
