@@ -20,10 +20,11 @@ of the textbook form that balances them).
 
 Robustness for lightly damped structures:
 
-* the starting lower bound is the largest singular value at the modal peaks (``|Im p|``
-  and ``|p|`` of every pole), at ``w = 0`` and at ``w = inf`` (``sigma_max(D)``), and the
-  best few are refined by a bounded scalar search (Brent) inside the half-power band of
-  their mode, so that the first Hamiltonian test usually already certifies the norm;
+* the starting lower bound is the largest singular value on a grid over the band of every
+  mode (``|Im p| +- 4 |Re p|``), at ``w = 0`` and at ``w = inf`` (``sigma_max(D)``); the
+  best few bands are zoomed (a vectorised grid search and a final parabolic step), so
+  that the first Hamiltonian test usually already certifies the norm and it costs one
+  eigenvalue computation of order ``2 n``;
 * the imaginary-axis test is generous (relative tolerance ``1e-6`` plus an absolute
   ``1e-10 ||H||``; LAPACK ``geev`` balances ``H`` first): a spurious "crossing" costs one
   evaluation of ``sigma_max`` at the midpoints, which then shows no level crossing and
