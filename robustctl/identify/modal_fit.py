@@ -23,7 +23,7 @@ import numpy as np
 from ..frd import FrequencyData
 from ..lti import log_ratio
 from .grouping import group_modes
-from .leakage import leakage_factor
+from .leakage import TruncationSettings, corrected_response, leaks
 from .modal_refine import DENSE_MAX_ENTRIES, ZETA_MIN, refine_modes_auto
 from .poles import fit_residues
 from .rational import fit_rational
@@ -45,6 +45,11 @@ __all__ = [
 
 #: fixed-point steps of the leakage correction
 LEAKAGE_STEPS = 4
+#: most fixed-point steps of an impact record's truncation correction (each removes the share
+#: ``|exp(p (T - t_h))|`` of the error, up to 0.5 for modes far from decayed: 12 steps leave 2e-4)
+TRUNCATION_STEPS = 12
+#: rms relative change of the corrected data below which the truncation fixed point has converged
+TRUNCATION_TOL = 1e-4
 
 
 def spare_pairs(n_modes: int) -> int:
@@ -196,19 +201,41 @@ def fit_with_leakage(
     if st is None or run.refine:
         fit, n_mode_poles = modal_model(fit, n_modes, run, prefer)
     data = band
-    for _ in range(LEAKAGE_STEPS if st is not None else 0):
+    for _ in range(_leakage_steps(fit, band, st)):
         if run.expired():
             break
-        data = band.replace(response=band.response * leakage_factor(fit, band.f_hz, st),
+        previous = data.response
+        data = band.replace(response=corrected_response(fit, band, st, _row_weights(fit, None)),
                             meta={**band.meta, "leakage_corrected": True})
+        if _converged(previous, data.response, st):
+            break
         if run.refine:
-            fit = refine_residues(replace(fit, data=data))
-            fit = refine_modes_auto(fit, deadline=run.deadline, progress=run.progress)
+            try:
+                fit = refine_modes_auto(refine_residues(replace(fit, data=data)), deadline=run.deadline,
+                                        progress=run.progress)
+            except ValueError:  # two poles merged onto one peak: a singular step; keep the last model
+                break
         else:
             fit = rational_fit(data, n_modes, run)
     if st is not None and not run.refine:
         fit, n_mode_poles = modal_model(fit, n_modes, run)
     return fit, n_mode_poles, data
+
+
+def _leakage_steps(fit: RationalFit, band: FrequencyData, st) -> int:
+    """Fixed-point steps: none without settings or when an impact record has decayed."""
+    if st is None or not leaks(fit, band, st):
+        return 0
+    return TRUNCATION_STEPS if isinstance(st, TruncationSettings) else LEAKAGE_STEPS
+
+
+def _converged(previous: np.ndarray, current: np.ndarray, st) -> bool:
+    """Truncation fixed point: the corrected data moved by less than ``TRUNCATION_TOL`` (rms of the
+    relative change over the band)."""
+    if not isinstance(st, TruncationSettings):
+        return False
+    change = np.abs(current - previous) / np.maximum(np.abs(current), np.finfo(float).tiny)
+    return float(np.sqrt(np.mean(change**2))) < TRUNCATION_TOL
 
 
 def shift_poles(fit: RationalFit, sigma: float) -> RationalFit:
