@@ -39,6 +39,7 @@ import numpy as np
 from ..errors import FitError
 from ..estimator import EstimatorSettings, estimator_settings, lag_window
 from ..threads import limit_blas
+from .modal_refine import ZETA_MIN
 from .poles import coefficients_to_residues, lstsq_normal, partial_fraction_basis
 from .rational_fit import RationalFit
 
@@ -56,11 +57,8 @@ __all__ = [
     "tail_share",
 ]
 
-#: damping ratio at or below which a pole sits at the modal refinement's bound (1.5 ``ZETA_MIN``)
-BOUND_ZETA = 1.5e-6
-#: tail share (eq. T1) from which the leakage shapes the automatic order (a second scan runs on
-#: the corrected data); an exponential window leaves about 1 %
-TAIL_SCAN = 0.1
+#: damping ratio below which a pole sits at the modal refinement's lower bound ``ZETA_MIN``
+BOUND_ZETA = 1.5 * ZETA_MIN
 
 #: relative size of the record-end tail below which an impact record counts as decayed
 TAIL_NEGLIGIBLE = 1e-3

@@ -33,13 +33,13 @@ from ..threads import limit_blas
 from ._problem import prepare_problem
 from .cost import LogCost, channel_cost
 from .leakage import (
+    BOUND_ZETA,
     EstimatorSettings,
     TruncationSettings,
     estimator_settings,
     truncation_settings,
 )
 from .modal_fit import FitSettings, fit_best, fit_with_leakage, shift_poles, spare_pairs
-from .modal_refine import ZETA_MIN
 from .rational_fit import IdentifyWarning, RationalFit
 from .realization import residue_factors
 from .refine import _row_weights
@@ -54,8 +54,6 @@ from .stabilisation import (
 
 __all__ = ["Mode", "MeasurementModel", "fit_measurement_model", "StabilisationDiagram"]
 
-#: a refined damping ratio below ``BOUND_SLACK * ZETA_MIN`` sits at the refinement's bound
-BOUND_SLACK = 1.5
 #: default time budget of one fit_measurement_model call, seconds
 TIME_BUDGET_S = 600.0
 
@@ -265,16 +263,17 @@ def _scan(band: FrequencyData, run: FitSettings, max_modes: int, parsimony: floa
 def _weak_modes(fit: RationalFit, n_mode_poles: int) -> np.ndarray:
     """Modes of a fitted model (bool over its poles) whose contribution is below the stabilisation
     diagram's floor (``MIN_CONTRIBUTION``, ``REL_CONTRIBUTION`` of the largest), that are fillers
-    promoted to make up the count, or whose damping the refinement left at its lower bound
-    ``ZETA_MIN`` (no interior optimum: the data do not determine that pole's decay, as for a pole
-    fitting the noise of an antiresonance; a real lightly damped mode has an interior optimum
-    however small): poles the scan counted that the final model does not need."""
+    promoted to make up the count, that duplicate a neighbour (one peak, one shape), or whose
+    damping the refinement left at its lower bound ``ZETA_MIN`` (below ``BOUND_ZETA``: no interior
+    optimum, the data do not determine that pole's decay, as for a pole fitting the noise of an
+    antiresonance; a real lightly damped mode has an interior optimum however small): poles the
+    scan counted that the final model does not need."""
     s = 2j * np.pi * fit.data.f_hz
     contrib = pole_contributions(s, fit.data.response, _row_weights(fit, None), fit.poles, fit.residues)
     floor = max(MIN_CONTRIBUTION, REL_CONTRIBUTION * float(contrib.max(initial=0.0)))
     f, zeta = fit.f_hz[:n_mode_poles], fit.zeta[:n_mode_poles]
     filler = (f < fit.band_hz[0]) | (f > fit.band_hz[1]) | (zeta >= ZETA_FILLER)  # promoted to fill the count
-    at_bound = zeta < BOUND_SLACK * ZETA_MIN
+    at_bound = zeta < BOUND_ZETA
     idx = np.arange(n_mode_poles)
     twin = ~np.isin(idx, distinct_modes(idx, fit.poles, fit.residues, contrib))  # one peak, one shape
     weak = np.zeros(fit.poles.size, dtype=bool)
@@ -367,7 +366,9 @@ def fit_measurement_model(
     n_modes : int, optional
         Number of modes: exactly this many are returned (sorted by frequency). The rational fit
         behind them has ``2 (n_modes + spare)`` poles (``spare = max(2, ceil(n_modes/5))``),
-        which finds close pairs a fit of ``2 n_modes`` poles merges; the ``n_modes`` in-band,
+        which finds close pairs a fit of ``2 n_modes`` poles merges (on small problems the fits
+        with 0 and up to 2 more spare pairs are finished too and the lowest weighted cost wins,
+        see :func:`~robustctl.identify.modal_fit.fit_best`); the ``n_modes`` in-band,
         lightly damped poles of largest contribution are the modes, out-of-band and heavily
         damped ones are kept as ``fillers``, the others dropped (:mod:`.selection`). With
         ``groups``: the modes per SIMO fit. ``None``: chosen automatically in one pass by the

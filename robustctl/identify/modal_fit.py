@@ -8,7 +8,8 @@
    ``c b^T`` (Caltech eq. 9) refitted by alternating least squares.
 3. Joint refinement of poles and shapes (:func:`.modal_refine.refine_modes_auto`: all at once
    on small problems, block by block on large ones), within the time budget.
-4. Optionally the H1 leakage correction (:mod:`.leakage`) in a few fixed-point steps.
+4. Optionally the H1 leakage correction (:mod:`.leakage`) in a few fixed-point steps; for impact
+   records the truncation at the record end (eq. T1), iterated until the corrected data settle.
 """
 
 from __future__ import annotations
