@@ -199,9 +199,11 @@ def corrected_response(
     """``band``'s response with the estimator's leakage undone for ``model``: times
     :func:`leakage_factor` (Welch settings) or plus :func:`record_tail` (impact truncation; with
     ``row_weight`` the residues are first refitted to the raw data by :func:`truncated_residues`).
-    Poles whose damping sits at the modal refinement's bound (``BOUND_ZETA``) get no tail: the
-    data do not determine their decay, and a nearly undamped spurious pole would manufacture its
-    own peak in the corrected data."""
+    Only complex poles get a tail. Those whose damping sits at the modal refinement's bound
+    (``BOUND_ZETA``) do not: the data do not determine their decay, and a nearly undamped spurious
+    pole would manufacture its own peak in the corrected data. Nor do real poles: they are
+    fillers for out-of-band dynamics and residual flexibility, not decays the record saw (a slow
+    real filler with a large residue would add a large, meaningless tail)."""
     if not isinstance(settings, TruncationSettings):
         return band.response * leakage_factor(model, band.f_hz, settings)
     if row_weight is not None:
@@ -209,7 +211,7 @@ def corrected_response(
         res, d = truncated_residues(s, band.response, row_weight, model.poles, settings)
         model = replace(model, residues=res, d=d)
     zeta = -model.poles.real / np.maximum(np.abs(model.poles), np.finfo(float).tiny)
-    trusted = (model.poles.imag == 0) | (zeta > BOUND_ZETA)
+    trusted = (model.poles.imag != 0) & (zeta > BOUND_ZETA)
     model = replace(model, poles=model.poles[trusted], residues=model.residues[trusted])
     return band.response + record_tail(model, band.f_hz, settings)
 
