@@ -167,8 +167,8 @@ def test_nan_weights_and_unknown_method_are_refused():
 
 
 def test_fast_gram_elimination_equals_the_qr_elimination():
-    """The VF Gram path (one product for all channels) must give the same normal matrix of the
-    sigma unknowns and the same current-pole cost as the per-channel QR path."""
+    """The VF Gram path (partial-fraction moments for all channels) must give the same normal
+    matrix of the sigma unknowns and the same current-pole cost as the per-channel QR path."""
     from robustctl.identify.poles import partial_fraction_basis
     from robustctl.identify.vector_fitting import _channel_blocks, _gram_normal, initial_poles
 
@@ -176,12 +176,35 @@ def test_fast_gram_elimination_equals_the_qr_elimination():
     s = 1j * np.linspace(0.1, 1, 200)
     g = rng.normal(size=(200, 4)) + 1j * rng.normal(size=(200, 4))
     rw = rng.uniform(0.5, 2, size=(200, 4))
-    phi = partial_fraction_basis(s, initial_poles(7, 0.1, 1.0))
-    normal, cost = _gram_normal(phi, g, rw)
+    poles = initial_poles(7, 0.1, 1.0)
+    phi = partial_fraction_basis(s, poles)
+    normal, cost = _gram_normal(s, poles, g, rw)
     blocks, cost_qr = _channel_blocks(phi, g, rw)
     ref = sum(b.T @ b for b in blocks)
     np.testing.assert_allclose(normal, ref, rtol=1e-10, atol=1e-12 * np.abs(ref).max())
     np.testing.assert_allclose(cost, cost_qr, rtol=1e-10)
+
+
+def test_moment_gram_equals_the_direct_product_for_light_damping_and_close_pairs():
+    """basis_gram forms Re(B^H diag(v) B) from first moments of the partial fractions; it must
+    match the O(K n^2) product to ~eps relative to the diagonal even with damping 1e-5, a pair
+    0.01 % apart, a real pole and complex weights (a cancellation would show as 1e-8 or worse)."""
+    from robustctl.identify.poles import basis_gram, partial_fraction_basis
+
+    rng = np.random.default_rng(1)
+    s = 1j * np.linspace(0.1, 1.0, 500)
+    wn = rng.uniform(0.15, 0.95, 8)
+    zeta = np.r_[1e-5, rng.uniform(1e-4, 0.05, 7)]
+    poles = np.r_[-zeta * wn + 1j * wn, (-zeta[3] * wn[3] + 1j * wn[3]) * (1 + 1e-4), -0.4 + 0j]
+    basis = np.hstack([partial_fraction_basis(s, poles), np.ones((s.size, 1))])
+    noise = rng.normal(size=(s.size, 2)) + 1j * rng.normal(size=(s.size, 2))
+    v = np.c_[rng.uniform(0.2, 3, (s.size, 2)), noise]
+    gram = basis_gram(s, poles, v)
+    assert gram.shape == (4, basis.shape[1], basis.shape[1])
+    for c in range(v.shape[1]):
+        ref = ((np.conj(basis).T * v[:, c]) @ basis).real
+        d = np.sqrt(np.abs(np.diag(ref)))
+        assert np.max(np.abs(gram[c] - ref) / np.outer(d, d)) < 1e-12
 
 
 @settings(max_examples=25, deadline=None)

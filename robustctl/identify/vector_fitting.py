@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from .poles import BestPoles, partial_fraction_basis, pole_change, reflect_unstable, split_poles
+from .poles import BestPoles, basis_gram, partial_fraction_basis, pole_change, reflect_unstable, split_poles
 
 __all__ = ["initial_poles", "vf_poles"]
 
@@ -72,34 +72,20 @@ def _channel_blocks(phi: np.ndarray, g: np.ndarray, rw: np.ndarray) -> tuple[lis
     return blocks, float(cost)
 
 
-def _gram_normal(phi: np.ndarray, g: np.ndarray, rw: np.ndarray) -> tuple[np.ndarray, float] | None:
+def _gram_normal(
+    s: np.ndarray, poles: np.ndarray, g: np.ndarray, rw: np.ndarray
+) -> tuple[np.ndarray, float] | None:
     """Gram path: ``sum_c S_c`` with ``S_c`` the Schur complement of the sigma unknowns ``[d, c]`` in
-    ``Re(M_c^H M_c)``, all channels' Gram blocks from one matrix product (every block is
-    ``Re(B^H diag(v) B)`` for a per-channel weight vector ``v``). Returns None when a Cholesky
+    ``Re(M_c^H M_c)``. Every channel block is ``Re(B^H diag(v) B)`` for a per-channel weight vector
+    ``v`` (``rw^2``, ``rw^2 g``, ``rw^2 |g|^2``), formed from first moments of the partial
+    fractions (:func:`.poles.basis_gram`, O(K n) per channel). Returns None when a Cholesky
     factorisation fails (ill-conditioned basis); the caller then takes the QR path."""
-    k, n = phi.shape
-    m = n + 1
-    base = np.hstack([phi, np.ones((k, 1))])
+    n = int(np.sum(np.where(poles.imag != 0, 2, 1)))
     w2 = rw**2
     n_ch = g.shape[1]
-    # Re(B^H diag(v) B) for v = rw^2, rw^2 g (complex: the coupling block), rw^2 |g|^2, formed as
-    # products of the row-wise outer products conj(B_i) B_j with the weight columns, in column
-    # blocks of about a million entries so that the outer products stay in cache
-    v_re = np.hstack([w2, (w2 * g).real, w2 * np.abs(g) ** 2])
-    v_im = (w2 * g).imag
-    cb = np.conj(base)
-    gram = np.empty((m, m, 3 * n_ch))
-    step = max(1, 1_000_000 // (k * m))
-    for i0 in range(0, m, step):
-        i1 = min(m, i0 + step)
-        z = (cb[:, i0:i1, None] * base[:, None, :]).reshape(k, -1)
-        part = np.ascontiguousarray(z.real).T @ v_re
-        part[:, n_ch : 2 * n_ch] -= np.ascontiguousarray(z.imag).T @ v_im
-        gram[i0:i1] = part.reshape(i1 - i0, m, -1)
-    gram = gram.reshape(m, m, 3, n_ch)
-    g11 = np.moveaxis(gram[:, :, 0], -1, 0)
-    g12 = -np.moveaxis(gram[:, :, 1], -1, 0)  # Re(B^H diag(rw^2 g) B) with the minus of -rw g B
-    g22 = np.moveaxis(gram[:, :, 2], -1, 0)
+    blocks = basis_gram(s, poles, np.hstack([w2, w2 * g, w2 * np.abs(g) ** 2]))
+    g11, g12, g22 = blocks.reshape(3, n_ch, n + 1, n + 1)
+    g12 = -g12  # Re(B^H diag(rw^2 g) B) with the minus of -rw g B
     # reorder sigma unknowns from B's [c, d] to [d, c]
     perm = np.r_[n, :n]
     g12, g22 = g12[:, :, perm], g22[:, perm][:, :, perm]
@@ -109,8 +95,8 @@ def _gram_normal(phi: np.ndarray, g: np.ndarray, rw: np.ndarray) -> tuple[np.nda
     except np.linalg.LinAlgError:
         return None
     y = np.linalg.solve(chol, g12 * scale[:, :, None])
-    s = g22 - np.einsum("cij,cik->cjk", y, y)
-    return s.sum(axis=0), float(np.sum(s[:, 0, 0]))
+    schur = g22 - np.matmul(np.swapaxes(y, 1, 2), y)
+    return schur.sum(axis=0), float(np.sum(schur[:, 0, 0]))
 
 
 def _constraint(phi: np.ndarray, scale: float) -> np.ndarray:
@@ -151,7 +137,7 @@ def vf_step(
     phi = partial_fraction_basis(s, poles)
     scale = np.sqrt(np.sum(np.abs(rw * g) ** 2)) / s.size
     con = _constraint(phi, scale)
-    normal = _gram_normal(phi, g, rw) if gram else None
+    normal = _gram_normal(s, poles, g, rw) if gram else None
     x = None
     if normal is not None:
         try:
