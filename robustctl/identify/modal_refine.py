@@ -41,7 +41,7 @@ __all__ = ["refine_modes", "refine_modes_local", "refine_modes_auto", "ZETA_MIN"
 #: judgement on the mode: very lightly damped modes are real in bolted and welded structures)
 ZETA_MIN = 1e-6
 #: largest dense Jacobian (complex entries) refined in one problem; larger ones go block by block
-DENSE_MAX_ENTRIES = 4_000_000
+DENSE_MAX_ENTRIES = 500_000
 
 
 @dataclass(frozen=True)
