@@ -4,8 +4,12 @@ Gustavsen 2006 relaxation, Deschrijver et al. 2008 fast QR formulation).
 Each iteration fits ``sigma(s) g(s) ~ p(s)`` linearly for every channel, where ``sigma`` and
 ``p`` are partial-fraction expansions over the current poles, ``sigma`` sharing the poles and
 its coefficients across all channels (one common denominator). The channel unknowns are
-eliminated by a QR factorisation per channel, so the cost grows linearly with the number of
-channels. The zeros of ``sigma`` are the new poles; unstable ones are reflected.
+eliminated per channel (a Schur complement of its normal equations; a QR factorisation in the
+last, accurate steps), so the cost grows linearly with the number of channels. The channel
+Gram matrices come from first moments of the partial fractions (:func:`.poles.basis_gram`), so
+a step costs O(K n) per channel for the data and O(n^3) for the elimination, not O(K n^2).
+The zeros of ``sigma`` are the new poles; unstable ones are reflected. The iteration starts
+twice, from poles where the data change and from the linear spread (:func:`vf_poles`).
 """
 
 from __future__ import annotations
