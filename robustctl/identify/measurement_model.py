@@ -289,7 +289,8 @@ def _lone_peak(f: np.ndarray, bound: np.ndarray, kept: np.ndarray, contrib: np.n
     out = []
     for k in sorted(np.flatnonzero(bound), key=lambda j: -contrib[j]):
         near = np.abs(f / f[k] - 1) < 0.01
-        if not np.any(near & kept) and not any(abs(f[j] / f[k] - 1) < 0.01 for j in out):
+        doublet = np.count_nonzero(near & bound) >= 2  # a lone pole at the bound is no mode
+        if doublet and not np.any(near & kept) and not any(abs(f[j] / f[k] - 1) < 0.01 for j in out):
             out.append(int(k))
     return out
 

@@ -8,8 +8,8 @@ eliminated per channel (a Schur complement of its normal equations; a QR factori
 last, accurate steps), so the cost grows linearly with the number of channels. The channel
 Gram matrices come from first moments of the partial fractions (:func:`.poles.basis_gram`), so
 a step costs O(K n) per channel for the data and O(n^3) for the elimination, not O(K n^2).
-The zeros of ``sigma`` are the new poles; unstable ones are reflected. The iteration starts
-twice, from poles where the data change and from the linear spread (:func:`vf_poles`).
+The zeros of ``sigma`` are the new poles; unstable ones are reflected. With ``spacing="data"``
+the iteration starts twice, from poles where the data change and from the linear spread.
 """
 
 from __future__ import annotations
@@ -203,7 +203,7 @@ def vf_poles(
     max_iter: int = 20,
     tol: float = 1e-8,
     stable: bool = True,
-    spacing: str = "data",
+    spacing: str = "lin",
     start: np.ndarray | None = None,
     deadline: float | None = None,
 ) -> tuple[np.ndarray, int, bool]:
@@ -228,11 +228,11 @@ def vf_poles(
     stable : bool
         Reflect unstable poles after every relocation (pole flipping).
     spacing : {"data", "lin", "log"}
-        Starting poles over the band: ``"data"`` (default) runs the iteration twice, from poles
+        Starting poles over the band: ``"data"`` runs the iteration twice, from poles
         where the data change (:func:`data_poles`) and from the linear spread, and keeps the
         poles of lower weighted cost (the two starts win on different data: log-spaced dense
         low modes need the first, some measured FRFs end in a better fixed point from the
-        second); ``"lin"`` or ``"log"``: one run from :func:`initial_poles`.
+        second); ``"lin"`` (default) or ``"log"``: one run from :func:`initial_poles`.
     start : ndarray, complex, optional
         Starting poles (scaled like ``s``; one per conjugate pair), e.g. the previous order's
         poles plus new ones, instead of the spread of :func:`initial_poles`.
