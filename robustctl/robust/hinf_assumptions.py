@@ -25,8 +25,10 @@ from ..errors import SynthesisError
 
 __all__ = ["check_assumptions", "rank_tol"]
 
-#: An eigenvalue counts as on the imaginary axis when ``|Re| <= AXIS_RTOL (|lambda| + 1e-3 ||A||)``.
+#: An eigenvalue counts as on the imaginary axis when ``|Re| <= max(AXIS_RTOL |lambda|, err)``, with
+#: ``err = EIG_ERR_FACTOR eps ||A|| kappa(lambda)`` its first-order error bound (see :func:`_eig_error`).
 AXIS_RTOL = 1e-9
+EIG_ERR_FACTOR = 100.0
 #: A PBH matrix loses rank when its smallest singular value is below ``PBH_RTOL`` times its norm.
 PBH_RTOL = 1e-9
 
@@ -45,14 +47,33 @@ def _hz(w: float) -> str:
     return f"{abs(w):.6g} rad/s ({abs(w) / (2 * np.pi):.6g} Hz)"
 
 
+def _eig_error(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues of ``A`` and their first-order error bounds ``EIG_ERR_FACTOR eps ||A||_2 kappa_i``.
+
+    ``kappa_i = 1 / |y_i^H x_i|`` (unit left/right eigenvectors) is the eigenvalue's condition
+    number (Golub & Van Loan 2013, sec. 7.2.2): a backward-stable eigensolver moves a
+    well-conditioned eigenvalue by about ``eps ||A||``, whatever its own size. A tolerance
+    proportional to ``||A||`` alone misread the distillation weight's pole at -1e-5 rad/s as
+    on the axis once D-scales with fast dynamics made ``||A||`` large; this one asks the pole
+    to be distinguishable from 0 by its own accuracy.
+    """
+    import scipy.linalg
+
+    ev, yl, xr = scipy.linalg.eig(A, left=True, right=True)
+    yl = yl / np.linalg.norm(yl, axis=0)
+    xr = xr / np.linalg.norm(xr, axis=0)
+    overlap = np.abs(np.sum(yl.conj() * xr, axis=0))
+    kappa = 1.0 / np.maximum(overlap, np.finfo(float).eps)
+    return ev, EIG_ERR_FACTOR * np.finfo(float).eps * float(np.linalg.norm(A, 2)) * kappa
+
+
 def _unreachable_modes(A: np.ndarray, B: np.ndarray, region: str) -> list[complex]:
     """Eigenvalues of ``A`` in ``region`` ('rhp': Re >= 0, 'axis': Re = 0) where [A - sI, B] drops rank."""
     n = A.shape[0]
     if n == 0:
         return []
-    ev = np.linalg.eigvals(A)
-    scale = 1e-3 * float(np.abs(A).sum(axis=0).max())
-    tol = AXIS_RTOL * (np.abs(ev) + scale)
+    ev, err = _eig_error(A)
+    tol = np.maximum(AXIS_RTOL * np.abs(ev), err)
     pick = ev.real >= -tol if region == "rhp" else np.abs(ev.real) <= tol
     bad = []
     for lam in ev[pick]:
