@@ -368,7 +368,7 @@ def test_time_budget_bounds_the_bisection():
 
 def test_slow_stable_mode_is_not_read_as_on_the_axis_next_to_a_fast_one():
     """A weight pole at -1e-5 rad/s unseen by y next to a -1e8 rad/s mode: ||A|| = 1e8, but the
-    pole is resolved to ~2e-6 (100 eps ||A||, perfect conditioning), so (C2, A) is detectable.
+    pole is resolved to ~2e-6 (100 eps ||A||), so (C2, A) is detectable.
     A tolerance of 1e-12 ||A|| = 1e-4 (the old rule) put it on the axis and refused the plant."""
     from robustctl.robust.hinf_assumptions import _eig_error, _unreachable_modes
 
@@ -380,9 +380,9 @@ def test_slow_stable_mode_is_not_read_as_on_the_axis_next_to_a_fast_one():
     # a mode truly at the origin and unseen by y is still refused
     A0 = np.diag([0.0, -1e8, -1.0])
     assert _unreachable_modes(A0.T, C2.T, "rhp") == [0j]
-    # an ill-conditioned (near-defective) eigenvalue gets a larger error bound
-    J = np.array([[-1e-5, 1e6], [0.0, -2e-5]])
-    assert _eig_error(J)[1].max() > 1e3 * _eig_error(np.diag([-1e-5, -2e-5]))[1].max()
+    # repeated weight poles (identical channels) stay off the axis
+    A3 = np.kron(np.eye(3), np.array([[-400.0]]))
+    assert _unreachable_modes(A3.T, np.zeros((3, 1)), "rhp") == []
 
 
 def test_bracket_restarts_low_when_the_open_loop_norm_fails_numerically(monkeypatch):
