@@ -98,7 +98,7 @@ def _distillation() -> dict:
     auto = dksyn((P, 2, 2, DISTILLATION_BLOCKS), max_iter=6, progress=False)
     t_auto, c_auto = time.perf_counter() - t, time.process_time() - c
     t = time.perf_counter()
-    book = dksyn((P, 2, 2, DISTILLATION_BLOCKS), max_iter=3, order_d=4, rtol=-1.0, progress=False)
+    book = dksyn((P, 2, 2, DISTILLATION_BLOCKS), max_iter=3, order_d=4, patience=10, progress=False)
     t_book = time.perf_counter() - t
     c = time.process_time()
     eps5 = dksyn((distillation_plant(eps=1e-5), 2, 2, DISTILLATION_BLOCKS), max_iter=6, progress=False)
