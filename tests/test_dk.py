@@ -153,6 +153,14 @@ def test_fit_roots_above_the_band_are_moved_to_its_edge():
     assert abs(np.log(abs(b[0] / a[0]))) < 1e-6               # low frequencies kept
     inside = zpk_statespace([-0.5], [-2.0], 1.0)
     assert _into_band(inside, f) is inside
+    # a far zero that rounding put in the right half plane comes back mirrored (stable inverse)
+    rhp = control.ss(control.tf([-1.0 / 3e4, 1.0], [0.5, 1.0]))     # zero at +3e4 rad/s
+    moved = _into_band(rhp, f)
+    assert np.all(np.linalg.eigvals(np.asarray(moved.A)).real < 0)
+    zeros = np.linalg.eigvals(np.asarray(moved.A - moved.B @ moved.C / moved.D[0, 0]))
+    assert np.all(zeros.real < 0)
+    a, b = freqresp_array(rhp, f)[:, 0, 0], freqresp_array(moved, f)[:, 0, 0]
+    assert np.max(np.abs(np.log(np.abs(b / a)))) < 0.006
 
 
 def test_reduction_is_rechecked_by_mu():

@@ -265,7 +265,10 @@ def _into_band(fit: Any, f_hz: np.ndarray, margin: float = 10.0) -> Any:
         r = roots.astype(complex)
         big = np.abs(r) > hi
         gain *= float(np.prod(np.abs(r[big]) / (hi * 0.999))) ** sign
-        r[big] *= hi * 0.999 / np.abs(r[big])
+        u = r[big] / np.abs(r[big])
+        # a root of a nearly strictly proper fit (|D| ~ 1e-9) can come out in the right half
+        # plane from rounding: its mirror image has the same magnitude response
+        r[big] = hi * 0.999 * (-np.abs(u.real) + 1j * u.imag)
         moved.append(r)
     return zpk_statespace(moved[0], moved[1], gain)
 
