@@ -53,6 +53,11 @@ SIGMA_TESTABLE = 0.5
 #: would claim a small error where the estimate is pure noise
 COHERENCE_NULL_P = 1e-4
 
+#: bins next to each bin left out of its neighbour coherence (:func:`neighbour_coherence`)
+NEIGHBOUR_SKIP = 1
+#: bins averaged on each side beyond them
+NEIGHBOUR_HALF = 2
+
 #: smallest sigma (nepers / rad): coherence 1 would otherwise claim a perfect estimate
 SIGMA_FLOOR = 1e-4
 
@@ -191,8 +196,50 @@ def _dof_factor(meta: dict) -> float:
 
 
 # ---------------------------------------------------------------------------- noise_model
+def neighbour_coherence(
+    coherence: np.ndarray, skip: int = NEIGHBOUR_SKIP, half: int = NEIGHBOUR_HALF
+) -> np.ndarray:
+    """The coherence at each bin from its neighbours alone: the mean over bins ``skip + 1`` to
+    ``skip + half`` away on either side (fewer at the ends), the bin itself and its ``skip``
+    correlated neighbours left out.
+
+    A bin's estimated coherence is correlated with its own estimation error: where the noise
+    happens to add in phase with the response, ``|G_yu|`` and hence ``g2`` come out larger. The
+    error formula fed that bin's own ``g2`` then understates its error exactly where ``ln |H1|``
+    came out high, and a test that keeps only bins of clearly non-zero coherence keeps those:
+    on a 3-mass chain at 1 % noise the true model came out 3.5 x the noise variance at 33-40 Hz
+    (coherence 0.1-0.3), with the normalised log-magnitude error averaging +1.8 over the bins
+    kept. The neighbours' coherence carries the same information about the true coherence (a
+    smooth function of frequency away from sharp anti-resonances) without that correlation
+    (Hamming windows: bin correlation 0.39 at one bin, 0.018 at two, :func:`bin_correlation`).
+
+    Parameters
+    ----------
+    coherence : ndarray (nf, ...)
+        Ordinary (or multiple) coherence along axis 0 (frequency).
+    skip, half : int
+        Bins left out next to each bin, and bins averaged on each side beyond them.
+
+    Returns
+    -------
+    ndarray, same shape
+    """
+    g2 = np.asarray(coherence, dtype=float)
+    n = g2.shape[0]
+    acc, cnt = np.zeros_like(g2), np.zeros((n,) + (1,) * (g2.ndim - 1))
+    for lag in range(skip + 1, skip + half + 1):
+        if lag >= n:
+            break
+        acc[lag:] += g2[:-lag]
+        cnt[lag:] += 1
+        acc[:-lag] += g2[lag:]
+        cnt[:-lag] += 1
+    return np.where(cnt > 0, acc / np.maximum(cnt, 1), g2)
+
+
 def _from_coherence(data: Any, nd: np.ndarray) -> NoiseModel:
-    g2 = np.clip(np.asarray(data.coherence, dtype=float), 1e-12, 1.0)
+    own = np.asarray(data.coherence, dtype=float)
+    g2 = np.clip(np.minimum(own, neighbour_coherence(own)), 1e-12, 1.0)
     sigma = np.sqrt((1.0 - g2) / (2.0 * nd[None, None, :] * g2))
     sigma = np.maximum(sigma, SIGMA_FLOOR)
     null_level = 1.0 - COHERENCE_NULL_P ** (1.0 / np.maximum(nd - 1.0, 1.0))

@@ -1353,7 +1353,7 @@ class Indistinguishable:
                 f"{self.differ_hi_hz:.3g} Hz (most at {self.peak_hz:.3g} Hz), within the noise: these "
                 "sensors and actuators can hardly tell them apart; measure elsewhere on the structure."
             )
-        parts = [f"{a:.3g}-{b:.3g}" for a, b in self.stretches]
+        parts = [f"{a:.3g}" if f"{a:.3g}" == f"{b:.3g}" else f"{a:.3g}-{b:.3g}" for a, b in self.stretches]
         where = parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " and " + parts[-1]
         return (
             f"{head}. Their fitted models differ at {where} Hz (up to {self.peak_db:.2g} dB at "
