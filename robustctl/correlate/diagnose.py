@@ -22,6 +22,11 @@ parameters can already explain:
 3. **Local fit.** The best few candidates are fitted together with the update parameters
    (bounded LM, few iterations) from the screening estimate; the cost reduction against
    the nominal model and the *gain* ``1 - J_c / J_u`` against the null fit are reported.
+   Contenders -- local fits within :data:`CONTENDER_RATIO` of the best cost -- are then
+   polished by a full LM fit with refreshed sensitivities (:func:`_polish`): the local fits
+   freeze the update parameters' sensitivities at the null fit and can stop short (on the
+   Caltech truss below 30 Hz the true taut wires stopped at half their tension, behind
+   stiffer diagonals).
 4. **Significance.** Against the data's noise model (:mod:`robustctl.noise`, the same one
    compare's verdicts use): under "the effect is absent" the cost drop of the local fit is
    noise projected on one direction, ``Delta J ~ v chi2_1`` with ``v`` the noise variance
@@ -30,6 +35,12 @@ parameters can already explain:
    (``min_gain``): an effect must explain a real share of what updating leaves. Without a
    noise model no significance claims are made (p-values NaN; the best candidate is
    proposed on its share alone, and the result says so).
+
+5. **Indistinguishable candidates.** Fitted candidates whose best-fit costs differ by no more
+   than the noise explains (Vuong's 1989 test for non-nested models at ``alpha``) and whose
+   fitted changes of the whitened residual are nearly collinear are one explanation as far as
+   this band goes; the result names the group and where the fitted models' responses differ
+   beyond the noise outside the band (:class:`Indistinguishable`): widen the band or measure there.
 
 ``n_eff`` (reported): the AR(1) effective number of independent residual entries,
 ``n (1 - rho) / (1 + rho)`` with ``rho`` the lag-one autocorrelation along frequency of the
@@ -719,19 +730,22 @@ def _equivalent(screens: list[dict[str, Any]]) -> dict[int, int]:
 
     A delay or filter on *every* output acts exactly like one on every input (scalar factors
     commute), so such pairs are indistinguishable; the earlier (sensor-side) one is kept.
+    Distances come from one Gram matrix, ``|d_i - d_k|^2 = |d_i|^2 + |d_k|^2 - 2 d_i.d_k``
+    (a pair that passes is confirmed directly: the expansion cancels digits).
     """
     twins: dict[int, int] = {}
-    for k, sk in enumerate(screens):
-        dk = sk["d"]
-        nk = float(np.linalg.norm(dk))
-        if nk == 0:
+    shapes = {s["d"].shape for s in screens}
+    if len(screens) < 2 or len(shapes) != 1:
+        return twins
+    D = np.array([s["d"] for s in screens], dtype=float)
+    sq = np.einsum("ij,ij->i", D, D)
+    dist2 = sq[:, None] + sq[None, :] - 2.0 * (D @ D.T)
+    for k in range(1, len(screens)):
+        if sq[k] == 0:
             continue
-        for i in range(k):
-            if i in twins:
-                continue
-            di = screens[i]["d"]
-            if di.shape == dk.shape and np.linalg.norm(di - dk) <= 1e-6 * nk:
-                twins[k] = i
+        for i in np.flatnonzero(dist2[k, :k] <= 1e-10 * sq[k]):
+            if i not in twins and np.linalg.norm(D[i] - D[k]) <= 1e-6 * math.sqrt(sq[k]):
+                twins[k] = int(i)
                 break
     return twins
 
