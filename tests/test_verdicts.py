@@ -240,10 +240,10 @@ def test_one_cost_with_the_estimator_view_everywhere():
 
 def test_notebook_04_update_is_within_the_noise_at_low_coherence():
     """Notebook 04's case: at 33-40 Hz v2 <- F1 has coherence 0.1-0.3. With each bin's own
-    coherence in the error formula the true model came out 3.5 x the noise variance there (the
-    bins whose noise added in phase with the response had the larger coherence, the smaller
-    sigma, and were the ones tested); the hold stage was not the cause (the estimator view
-    samples through an exact hold). With the neighbours' coherence the update is within the noise."""
+    coherence deciding which bins are tested, the true model came out 3.5 x the noise variance
+    there (the bins whose noise added in phase with the response had the larger coherence and
+    were the ones tested); the hold stage was not the cause (the estimator view samples through
+    an exact hold). Chosen by the neighbours' coherence, the update is within the noise."""
     from robustctl.noise import neighbour_coherence
 
     chain = _chain()
