@@ -1119,9 +1119,10 @@ def diagnose(
         desc="local fits",
     )
     evals += sum(f["evals"] for f in fits)
-    remaining = _check_budget(deadline, time_budget_s, "the local fits")
-    fits, n_polish = _polish(res_u, null, screens, top, fits, executor, remaining)
-    evals += n_polish
+    remaining = deadline - time.perf_counter()
+    if remaining > 0:  # a budget the local fits used up is reported by the warning below
+        fits, n_polish = _polish(res_u, null, screens, top, fits, executor, remaining)
+        evals += n_polish
     _warn_if_hurried(null.cut, sum(bool(f.get("cut")) for f in fits), time_budget_s)
     # 4. significance and words
     e_u = res0.unstack(j_u)
