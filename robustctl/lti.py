@@ -112,28 +112,32 @@ def pole_frequency_damping(poles: Any) -> tuple[np.ndarray, np.ndarray]:
 COND_LIMIT = 1e6
 #: modal residue growth (relative to the block's I/O gains) above which a block is not diagonalised
 GROWTH_LIMIT = 1e4
+#: Largest single dense block diagonalised with an explicit inverse of its eigenvectors.
+DENSE_INV_MAX = 64
 
 
 # ---------------------------------------------------------------------------- conversions
-def _as_statespace(sys: Any):
+def _as_statespace(sys: Any, name: str = "sys"):
     import control
 
     try:
         ss = control.ss(sys)
     except Exception as exc:  # python-control raises several types
         raise ModelError(
-            f"cannot convert {type(sys).__name__} to a state space ({exc}); pass a control.StateSpace, "
-            "a transfer function or a robustctl PhysicalModel."
+            f"{name}: cannot convert {type(sys).__name__} to a state space ({exc}); pass a "
+            "control.StateSpace, a transfer function or a robustctl PhysicalModel."
         ) from exc
     if not isinstance(ss, control.StateSpace):  # control.ss(None) gives a NonlinearIOSystem
         raise ModelError(
-            f"cannot convert {sys!r} to a state space; pass a control.StateSpace, a transfer function "
-            "or a robustctl PhysicalModel."
+            f"{name}: cannot convert {sys!r} to a state space; pass a control.StateSpace, a transfer "
+            "function or a robustctl PhysicalModel."
         )
     return ss
 
 
-def as_statespace(sys: Any, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None):
+def as_statespace(
+    sys: Any, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None, *, name: str = "sys"
+):
     """``sys`` as a ``control.StateSpace`` with named signals: the one system coercion.
 
     Parameters
@@ -144,6 +148,8 @@ def as_statespace(sys: Any, inputs: Sequence[str] | None = None, outputs: Sequen
         ``control.ss`` converts (a transfer function, a ``(A, B, C, D)`` tuple).
     inputs, outputs : sequence of str, optional
         New signal names (one per input / output); default: keep the system's names.
+    name : str
+        What the caller calls ``sys`` (its argument name), used in error messages.
 
     Returns
     -------
@@ -152,21 +158,25 @@ def as_statespace(sys: Any, inputs: Sequence[str] | None = None, outputs: Sequen
     Raises
     ------
     ModelError
-        ``sys`` is measured data (FrequencyData) or cannot be converted.
+        ``sys`` is measured data (FrequencyData), cannot be converted, or has NaN/inf in its
+        matrices; names that are not one distinct non-empty string per signal.
     """
     import control
 
     if isinstance(sys, FrequencyData) or type(sys).__name__ == "FrequencyResponseData":
         raise ModelError(
-            f"a {type(sys).__name__} is measured data, not a model; it has no state space. Pass a "
+            f"{name} is a {type(sys).__name__}, which is measured data, not a model; it has no state space. "
+            "Pass a "
             "PhysicalModel, MeasurementModel, control.StateSpace or transfer function."
         )
     if isinstance(sys, control.StateSpace):
         ss = sys
     elif hasattr(sys, "statespace") and callable(sys.statespace):
-        ss = _as_statespace(sys.statespace())
+        ss = _as_statespace(sys.statespace(), name)
     else:
-        ss = _as_statespace(sys)
+        ss = _as_statespace(sys, name)
+    if not all(np.all(np.isfinite(np.asarray(m, dtype=float))) for m in (ss.A, ss.B, ss.C, ss.D)):
+        raise ModelError(f"{name} has NaN or inf in its state-space matrices; check the model's parameters.")
     if inputs is None and outputs is None:
         return ss
     ins = list(ss.input_labels) if inputs is None else _names(inputs, ss.ninputs, "inputs")
@@ -198,10 +208,15 @@ def rebuild_statespace(state: dict):
 
 
 def _names(names: Sequence[str] | str, count: int, what: str) -> list[str]:
-    names = [names] if isinstance(names, str) else [str(n) for n in names]
+    names = [names] if isinstance(names, str) else names
+    names = names.tolist() if isinstance(names, np.ndarray) else names
+    if isinstance(names, (bytes, dict)) or not isinstance(names, Sequence):
+        raise ModelError(f"{what} must be a list of {count} signal names (str); got {names!r}.")
+    if not all(isinstance(n, str) and n and "\x00" not in n for n in names):
+        raise ModelError(f"{what} must be non-empty strings (no NUL characters); got {list(names)!r}.")
     if len(names) != count or len(set(names)) != count:
-        raise ModelError(f"give {count} distinct {what} names; got {names}.")
-    return names
+        raise ModelError(f"give {count} distinct {what} names; got {list(names)}.")
+    return list(names)
 
 
 # ---------------------------------------------------------------------------- kernel
@@ -286,6 +301,8 @@ def _modal_terms(A: np.ndarray, B: np.ndarray, C: np.ndarray, blocks: list[np.nd
     """
     io_B = B if io_B is None else io_B
     io_C = C if io_C is None else io_C
+    if len(blocks) == 1 and blocks[0].shape[0] == 1 and A.shape[0] <= DENSE_INV_MAX:
+        return _modal_terms_dense(A, B, C, io_B, io_C)
     lam, cv, w, bad = [], [], [], []
     for idx in blocks:  # idx: (n_blocks, k)
         full = idx.shape == (1, A.shape[0])
@@ -310,6 +327,48 @@ def _modal_terms(A: np.ndarray, B: np.ndarray, C: np.ndarray, blocks: list[np.nd
     if lam:
         return np.concatenate(lam), np.concatenate(cv, axis=1), np.concatenate(w, axis=0), bad
     return np.zeros(0, complex), np.zeros((C.shape[0], 0), complex), np.zeros((0, B.shape[1]), complex), bad
+
+
+def _modal_terms_dense(A: np.ndarray, B: np.ndarray, C: np.ndarray, io_B: np.ndarray, io_C: np.ndarray):
+    """:func:`_modal_terms` for one dense block of order <= ``DENSE_INV_MAX``, without the
+    batching (same tests; ``V^{-1}`` by an explicit inverse, cheap at these orders)."""
+    ev, V = _eig(A)
+    try:
+        Vinv = np.linalg.inv(V)
+    except np.linalg.LinAlgError:
+        Vinv = None
+    if Vinv is not None:
+        cond = np.abs(V).sum(axis=0).max() * np.abs(Vinv).sum(axis=0).max()
+        W, CV = Vinv @ B, C @ V
+        residues = float(np.sqrt(_abs2(CV).sum(axis=0) * _abs2(W).sum(axis=1)).sum())
+        gains = float(np.sqrt((io_C * io_C).sum() * (io_B * io_B).sum()))
+        growth = residues / gains if residues > 0 else 0.0
+        if cond <= COND_LIMIT and growth <= GROWTH_LIMIT:
+            return ev, CV, W, []
+    empty = np.zeros(0, complex), np.zeros((C.shape[0], 0), complex), np.zeros((0, B.shape[1]), complex)
+    return (*empty, [np.arange(A.shape[0])])
+
+
+def _eig(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues and right eigenvectors (complex) of a real matrix by LAPACK ``dgeev`` directly
+    (``np.linalg.eig`` without its wrapper's checks; conjugate pairs rebuilt from the real
+    ``(Re v, Im v)`` column pairs)."""
+    from scipy.linalg import lapack
+
+    wr, wi, _, vr, info = lapack.dgeev(A, compute_vl=0)
+    if info != 0:
+        return np.linalg.eig(A)  # raises LinAlgError as the wrapper does
+    V = vr.astype(complex)
+    pos = np.flatnonzero(wi > 0)  # the first column of each pair (LAPACK: positive imaginary part first)
+    if pos.size:
+        V[:, pos] += 1j * vr[:, pos + 1]
+        V[:, pos + 1] = V[:, pos].conj()
+    return wr + 1j * wi, V
+
+
+def _abs2(z: np.ndarray) -> np.ndarray:
+    """``|z|^2`` of a complex array (no square root)."""
+    return z.real * z.real + z.imag * z.imag
 
 
 def _diag_response(lam: np.ndarray, CV: np.ndarray, W: np.ndarray, s: np.ndarray) -> np.ndarray:

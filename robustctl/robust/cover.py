@@ -29,8 +29,10 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import check_band, positive_number
 from ..errors import DataError, FitError
 from ..frd import FrequencyData
+from ..noise import noise_model
 from ..table import Table, result_html
 from .magfit import DB_PER_NEPER, fit_magnitude_details
 
@@ -195,17 +197,22 @@ def _sources(
 ) -> tuple[np.ndarray, list[tuple[str, Any]]]:
     """The grid (Hz) and the labelled sources (FrequencyData or systems)."""
     from ..frd import _as_frequencies
+    from ..lti import as_statespace
 
     items = list(data_or_models) if isinstance(data_or_models, (list, tuple)) else [data_or_models]
     if not items:
         raise FitError("data_or_models is empty; give measured FrequencyData and/or a list of models.")
+    many = isinstance(data_or_models, (list, tuple))
+    items = [d if isinstance(d, FrequencyData) else as_statespace(
+        d, name=f"data_or_models[{k}]" if many else "data_or_models") for k, d in enumerate(items)]
     datas = [d for d in items if isinstance(d, FrequencyData)]
     if f_hz is not None:
         f = _as_frequencies(f_hz)
     elif datas:
         f = datas[0].f_hz
     else:
-        raise FitError("only models were given: pass f_hz=... (Hz) to evaluate them on.")
+        raise FitError("data_or_models holds only models: pass f_hz=... (Hz) to evaluate them on.")
+    band = check_band(band)
     if band is not None:
         lo, hi = band
         keep = (f >= lo) & (f <= hi)
@@ -247,9 +254,10 @@ def _responses(
         if isinstance(src, FrequencyData):
             coh = None if src.coherence is None else _on_grid_values(src, src.coherence, f, label)
             fd = FrequencyData(
-                f, _on_grid(src, f, label), inputs=src.inputs, outputs=src.outputs, coherence=coh
+                f, _on_grid(src, f, label), inputs=src.inputs, outputs=src.outputs, coherence=coh,
+                meta=src.meta,
             )
-            noise.append(_random_error(fd, _n_averages(src)))  # a Frobenius norm: channel order is moot
+            noise.append(_random_error(fd))  # a Frobenius norm: channel order is moot
             fd = _align(g0, fd)  # (drops the coherence)
         else:
             fd = _align(g0, freqresp(src, f))
@@ -263,29 +271,16 @@ def _on_grid_values(data: FrequencyData, values: np.ndarray, f: np.ndarray, labe
     return values[idx]
 
 
-def _n_averages(data: FrequencyData) -> int | None:
-    meta = data.meta or {}
-    if "n_averages" in meta:
-        return int(meta["n_averages"])
-    exps = meta.get("experiments")
-    if (
-        isinstance(exps, (list, tuple))
-        and exps
-        and all(isinstance(e, dict) and "n_averages" in e for e in exps)
-    ):
-        return int(min(e["n_averages"] for e in exps))
-    return None
-
-
-def _random_error(data: FrequencyData, n_avg: int | None) -> np.ndarray | None:
-    """``||G eps_r||_F`` with ``eps_r = sqrt(1 - g^2) / (|g| sqrt(2 n_d))``, the normalised random
-    error of an H1 estimate from ``n_d`` averages and coherence ``g^2`` (Bendat-Piersol,
-    *Random Data*, eq. 9.90); it bounds the max singular value of the estimate's error."""
-    if data.coherence is None or not n_avg:
+def _random_error(data: FrequencyData) -> np.ndarray | None:
+    """``||G o sigma||_F`` per frequency: the H1 estimate's random error, ``sigma`` the noise
+    model's normalised error ``sqrt(1 - g^2) / (|g| sqrt(2 n_d))`` (Bendat-Piersol, *Random
+    Data*, Table 9.6; :func:`robustctl.noise.noise_model`: Welch's effective number of
+    averages, one per input column). It bounds the max singular value of the estimate's
+    error. None without coherence or a known number of averages."""
+    model = noise_model(data)  # from coherence and averages, or None (no measurement model given)
+    if model is None:
         return None
-    coh = np.clip(data.coherence, 1e-6, 1.0)
-    eps = np.sqrt((1.0 - coh) / (2.0 * n_avg * coh))
-    return np.linalg.norm(np.abs(data.response) * eps, axis=(1, 2))
+    return np.linalg.norm(np.abs(data.response) * model.sigma, axis=(1, 2))
 
 
 def _sigma_max(e: np.ndarray) -> np.ndarray:
@@ -324,10 +319,12 @@ def error_envelope(
     labels : tuple of str
     errors : ndarray (n_sources, nf)
     """
-    if kind not in _KINDS:
+    from ..lti import as_statespace
+
+    if not isinstance(kind, str) or kind not in _KINDS:
         raise FitError(f"kind must be one of {_KINDS}; got {kind!r}.")
-    if not (np.isfinite(data_sigmas) and data_sigmas >= 0):
-        raise FitError(f"data_sigmas must be finite and >= 0; got {data_sigmas!r}.")
+    data_sigmas = positive_number(data_sigmas, "data_sigmas", FitError, allow_zero=True)
+    nominal = as_statespace(nominal, name="nominal")
     f, sources = _sources(data_or_models, f_hz, band)
     g0, gs, noise = _responses(nominal, f, sources)
     if kind == "additive":
@@ -395,13 +392,15 @@ def _fit_cover(
     return fit.system, mag, time.perf_counter() - t0
 
 
-def _check_options(order: Any, smooth_octaves: Any, floor: Any) -> None:
+def _check_options(order: Any, smooth_octaves: Any, floor: Any, time_budget_s: Any, objective: Any) -> None:
     if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not 0 <= order <= 20:
         raise FitError(f"order must be an integer from 0 to 20; got {order!r}.")
-    if not (np.isfinite(smooth_octaves) and smooth_octaves >= 0):
-        raise FitError(f"smooth_octaves must be finite and >= 0 (0: no smoothing); got {smooth_octaves!r}.")
-    if not (np.isfinite(floor) and 0 < floor < 1):
+    positive_number(smooth_octaves, "smooth_octaves (0: no smoothing)", FitError, allow_zero=True)
+    if not (positive_number(floor, "floor", FitError) < 1):
         raise FitError(f"floor must lie in (0, 1) (a fraction of the envelope's peak); got {floor!r}.")
+    positive_number(time_budget_s, "time_budget_s", FitError, unit="s")
+    if not isinstance(objective, str) or objective not in ("max", "mean"):
+        raise FitError(f'objective must be "max" or "mean"; got {objective!r}.')
 
 
 def _cover(
@@ -419,7 +418,7 @@ def _cover(
 ) -> UncertaintyCover:
     from ..lti import freqresp_array
 
-    _check_options(order, smooth_octaves, floor)
+    _check_options(order, smooth_octaves, floor, time_budget_s, objective)
     f, labels, errs = error_envelope(
         nominal, data_or_models, kind, f_hz=f_hz, band=band, data_sigmas=data_sigmas
     )
