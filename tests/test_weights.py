@@ -4,6 +4,8 @@ and uncertainty covers of data and model sets (additive, input/output multiplica
 
 from __future__ import annotations
 
+import warnings
+
 import control
 import matplotlib
 import numpy as np
@@ -70,6 +72,80 @@ def test_fit_magnitude_stable_minimum_phase_every_order(curve, upper):
     assert all(e <= errors[0] + 0.1 for e in errors), errors
     if curve == "eq14":
         assert max(errors[2:]) < 0.12  # order >= 3 holds eq. 14 exactly
+
+
+# The bound the 20 N taut-wire data's updated-model residual gave ModelCoverRecipe (seed 4,
+# 0.3-60 Hz, half-octave running max, 3 digits): frequencies as bins of 1/20.48 Hz, values as runs.
+WIRE_K = [
+    7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31,
+    32, 34, 35, 36, 37, 38, 39, 41, 42, 43, 45, 47, 48, 49, 51, 52, 54, 56, 58, 59, 61, 63, 65, 68,
+    70, 72, 75, 78, 79, 82, 85, 87, 90, 93, 96, 99, 103, 106, 109, 113, 117, 121, 124, 129, 133,
+    137, 142, 146, 151, 156, 161, 166, 172, 177, 183, 189, 195, 202, 210, 215, 222, 230, 237, 245,
+    259, 261, 270, 278, 291, 302, 309, 320, 333, 344, 358, 360, 383, 393, 403, 418, 434, 445, 465,
+    479, 496, 513, 526, 545, 565, 584, 603, 623, 643, 664, 686, 688, 710, 733, 757, 782, 807, 834,
+    861, 890, 919, 949, 980, 1012, 1045, 1080, 1115, 1152, 1189,
+]
+WIRE_RUNS = [(0.0464, 3), (0.04, 2), (0.0364, 4), (0.093, 1), (0.167, 1), (0.484, 1), (1.54, 1), (1.91, 8),
+             (1.46, 1), (0.229, 1), (0.126, 1), (0.0731, 1), (0.208, 1), (1.12, 1), (1.35, 9), (3.65, 12),
+             (0.189, 1), (0.129, 1), (0.102, 1), (0.166, 1), (0.619, 1), (0.873, 11), (0.241, 1), (0.0697, 1),
+             (0.0497, 1), (0.0444, 1), (0.0436, 1), (0.0396, 2), (0.0334, 6), (0.0303, 6), (0.0323, 6),
+             (0.0324, 4), (0.0337, 1), (0.0343, 1), (0.0352, 1), (0.0355, 1), (0.0357, 1), (0.0373, 1),
+             (0.0403, 2), (0.0423, 1), (0.0426, 1), (0.0439, 1), (0.0453, 1), (0.0469, 1), (0.0515, 1),
+             (0.0532, 1), (0.056, 1), (0.0605, 1), (0.0642, 1), (0.0695, 1), (0.0702, 1), (0.0983, 1),
+             (0.143, 1), (0.161, 1), (0.204, 1), (0.291, 1), (0.556, 1), (0.998, 1), (1.02, 11), (0.884, 1),
+             (0.351, 1), (0.219, 2), (0.169, 1), (0.123, 1), (0.0967, 1)]
+
+
+def assert_sane_cover(fit, f, mag, factor=10.0):
+    """Stable, minimum phase, realised as fitted, covering, peak gain within ``factor`` of the curve's."""
+    W = fit.system
+    assert_stable_minimum_phase(W)
+    np.testing.assert_allclose(mag_of(W, f), fit.fitted, rtol=1e-6)
+    assert np.all(fit.fitted >= mag * (1 - 1e-9))
+    assert (fit.fitted / mag).min() < 1.001  # the gain is the smallest that covers
+    dense = np.geomspace(f[0] / 100, f[-1] * 100, 3000)
+    assert mag_of(W, dense).max() <= factor * mag.max()
+
+
+@pytest.mark.parametrize("order, objective", [(5, "max"), (6, "mean")])
+def test_cover_fit_of_a_plateau_curve_stays_sane(order, objective):
+    """Regression (issue 9 area): on this plateau curve the root polish drifted a pole to its
+    clip, exp(60) = 1e26 rad/s, and the cascade realisation returned |W| ~ 1e11 (order 6,
+    "mean"; numpy's "invalid value encountered in cast" from the balancing)."""
+    f = np.array(WIRE_K) / 20.48
+    mag = np.repeat([v for v, _ in WIRE_RUNS], [n for _, n in WIRE_RUNS])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        fit = fit_magnitude_details(f, mag, order, upper_bound=True, objective=objective)
+    assert_sane_cover(fit, f, mag, factor=6.0)
+    w = 2 * np.pi * f
+    for r in np.concatenate([fit.poles, fit.zeros]):
+        assert w[0] / 1e5 <= abs(r) <= w[-1] * 1e5  # none drifted to 0 or infinity
+    assert fit.max_error_db < 30.0  # the minimax overbound of orders 5-6 is 26-28 dB on this curve
+
+
+def random_positive_curve(seed, f):
+    """Smooth random curves and plateaus with steep edges (a running max of resonant errors)."""
+    rng = np.random.default_rng(seed)
+    if seed % 2:
+        return smooth_random(seed, f) * 10.0 ** rng.uniform(-3, 3)
+    edges = np.sort(rng.choice(f.size, rng.integers(3, 8), replace=False))
+    levels = 10.0 ** rng.uniform(-2, 1, edges.size + 1)
+    return levels[np.searchsorted(edges, np.arange(f.size), side="right")]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(4))
+def test_cover_fit_property_random_curves_every_order(seed):
+    """Property: for random positive curves and orders 1-8 a covering fit is stable, minimum
+    phase, realised as fitted, covers every point and peaks within 10x the curve's max."""
+    f = np.geomspace(0.1, 100, 60)
+    mag = random_positive_curve(seed, f)
+    for order in range(1, 9):
+        objective = "mean" if order % 2 else "max"
+        fit = fit_magnitude_details(f, mag, order, upper_bound=True, objective=objective)
+        assert fit.system.nstates <= order
+        assert_sane_cover(fit, f, mag)
 
 
 def test_fit_magnitude_recovers_caltech_eq14():
@@ -156,7 +232,7 @@ def test_fit_magnitude_order_zero_and_mean_objective():
     mn = fit_magnitude_details(F, mag, 3, upper_bound=True, objective="mean")
     assert np.all(mn.fitted >= mag) and np.all(mx.fitted >= mag)
     # "mean" may trade the worst point (up to twice the minimax overbound) for the typical one
-    assert mx.max_error_db <= mn.max_error_db + 0.05
+    assert mx.max_error_db <= mn.max_error_db + 0.05 + 1e-6  # the bisection tolerance (tol_db), to rounding
     assert mn.max_error_db <= 2 * mx.max_error_db + 0.1
     assert np.mean(np.log(mn.fitted / mag)) <= np.mean(np.log(mx.fitted / mag)) + 0.02
 

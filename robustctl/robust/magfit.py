@@ -56,6 +56,11 @@ L1_PRICES = (0.0, 1e-6, 1e-4, 1e-2)
 MID_SLACK = 1.15
 #: ``|W(inf)|`` is kept below this factor times the curve's largest value (a proper W).
 HF_CAP = 10.0
+#: A cover's (``upper_bound``) ``|W|`` is kept below this factor times the curve's largest value
+#: at every grid and guard point (its peak gain; off these points it may overshoot a little).
+PEAK_CAP = 5.0
+#: Poles and zeros of a polished fit stay between ``w_min / ROOT_SPAN`` and ``w_max * ROOT_SPAN``.
+ROOT_SPAN = 1e3
 
 
 # ---------------------------------------------------------------------------- checks
@@ -157,6 +162,33 @@ def _midpoints(basis: _Basis, x: np.ndarray, y: np.ndarray, wt: np.ndarray) -> d
     )
 
 
+def _dense_points(x: np.ndarray, per: int = 8) -> np.ndarray:
+    """``per - 1`` log-spaced points inside each grid interval, and 3 decades of ``w`` beyond
+    each end: where a cover's resonant peak between the grid points is looked for."""
+    t = np.arange(1, per)[None, :] / per
+    inner = (x[:-1, None] * (x[1:, None] / x[:-1, None]) ** t).ravel()
+    lo, hi = np.log10(x[0]), np.log10(x[-1])
+    return np.concatenate([inner, np.logspace(lo - 6, lo, 60), np.logspace(hi, hi + 6, 60)])
+
+
+def _peak_violations(prob: _Problem, a: np.ndarray, b: np.ndarray, limit: int = 20) -> bool:
+    """For a cover, move the dense points where ``|W|^2 = A / B`` exceeds the peak cap (a
+    resonance between grid points) into the LP's cap rows (cutting planes); True if any moved."""
+    if not prob.upper_bound or prob.dense.shape[0] == 0:
+        return False
+    A, B = prob.dense @ a, prob.dense @ b
+    scale = max(float(np.abs(prob.dense @ b).max()), 1e-300)
+    over = (A - prob.y_peak * (1 + 1e-3) * B) / (prob.y_peak * scale)
+    viol = np.flatnonzero(over > 1e-9)
+    if viol.size == 0:
+        return False
+    take = viol[np.argsort(-over[viol])[:limit]]
+    rows = prob.dense[take]
+    prob.peak = rows if prob.peak is None else np.vstack([prob.peak, rows])
+    prob.dense = np.delete(prob.dense, take, axis=0)
+    return True
+
+
 def _guard_points(x: np.ndarray) -> np.ndarray:
     """Where A and B must be non-negative besides the grid: 0, infinity, between and beyond."""
     mid = np.sqrt(x[:-1] * x[1:])
@@ -175,6 +207,8 @@ class _Problem:
     guard_all: np.ndarray  # basis on every guard point (checked after each LP)
     upper_bound: bool
     y_inf: float  # cap of |W(inf)|^2 relative to t (properness)
+    y_peak: float  # cap of a cover's |W|^2 at the points, the guard points and the ``peak`` points
+    dense: np.ndarray  # basis between the grid points and beyond (where a cover's peak is checked)
     mid_phi: np.ndarray  # basis at the geometric midpoints of the grid (candidate cuts)
     mid_y: np.ndarray  # interpolated squared targets there
     mid_wt: np.ndarray
@@ -185,6 +219,7 @@ class _Problem:
     guard_used: np.ndarray = field(
         default_factory=lambda: np.zeros(0, dtype=int)
     )  # rows of guard_all in the LP
+    peak: np.ndarray | None = None  # rows of ``dense`` where a cover's peak cap joined the LP
 
 
 def _cut_midpoints(prob: _Problem, a: np.ndarray, b: np.ndarray, gamma: float, limit: int = 20) -> bool:
@@ -238,7 +273,11 @@ def _lp_rows(prob: _Problem, gamma: float) -> tuple[np.ndarray, np.ndarray]:
     proper = np.zeros((1, 2 * n1 + 1))  # |W(inf)|^2 = lead A / lead B <= cap (a proper W)
     inf_row = prob.guard_all[1]  # the basis read at x = inf
     proper[0, :n1], proper[0, n1 : 2 * n1] = inf_row, -prob.y_inf * float(np.max(t)) * inf_row
-    G = np.vstack([up, lo, guard, proper])
+    rows = [up, lo, guard, proper]
+    if prob.upper_bound:  # a cover's peak: |W|^2 <= y_inf on the points and every guard point
+        pts = np.vstack([phi, prob.guard_all] + ([] if prob.peak is None else [prob.peak]))
+        rows.append(np.hstack([pts, -prob.y_peak * pts, np.zeros((pts.shape[0], 1))]))
+    G = np.vstack(rows)
     G /= np.maximum(np.abs(G).max(axis=1, keepdims=True), 1e-300)
     eq = np.zeros(2 * n1 + 1)
     eq[n1 : 2 * n1] = phi.mean(axis=0)
@@ -344,7 +383,7 @@ def _tighten(prob: _Problem, a: np.ndarray, b: np.ndarray, cap: float, deadline:
         if z is None:
             break
         sol = z[:n1], z[n1 : 2 * n1]
-        if _guard_violations(prob, *sol):
+        if _guard_violations(prob, *sol) or _peak_violations(prob, *sol):
             continue
         if _cut_midpoints(prob, *sol, cap):
             continue
@@ -398,7 +437,8 @@ def _minimise(prob: _Problem, hi: float, tol: float, deadline: float) -> tuple[n
         n_lp += 1
         err = np.inf if sol is None else _achieved(prob, *sol)
         if err <= gamma + 1e-7:
-            if _guard_violations(prob, *sol) or _cut_midpoints(prob, *sol, gamma):
+            cut = _guard_violations(prob, *sol) or _cut_midpoints(prob, *sol, gamma)
+            if cut or _peak_violations(prob, *sol):
                 continue
             best, hi = sol, min(err, gamma)
             prob.b_ref = sol[1]
@@ -683,13 +723,22 @@ def _polish(zeros: np.ndarray, poles: np.ndarray, w: np.ndarray, target: np.ndar
     theta0, layout = _pack(zeros, poles)
     if theta0.size == 0:
         return zeros, poles
+    # a root far outside the grid only tilts ln|W| there, and the free gain absorbs its size:
+    # unbounded, least squares drifts it towards 0 or infinity (a pole at 1e26 rad/s) and the
+    # realisation is lost. Root magnitudes stay within ROOT_SPAN of the grid.
+    lo, hi = np.full(theta0.size, -np.inf), np.full(theta0.size, np.inf)
+    k = 0
+    for _, size in layout:
+        lo[k], hi[k] = np.log(w[0] / ROOT_SPAN), np.log(w[-1] * ROOT_SPAN)
+        k += size
+    theta0 = np.clip(theta0, lo + 1e-9, hi - 1e-9)
 
     def resid(theta):
         z, p = _unpack(theta, layout)
         r = np.log(np.abs(_response(z, p, 1j * w))) - target
         return wt * (r - np.average(r, weights=wt))
 
-    sol = least_squares(resid, theta0, max_nfev=10 * theta0.size, x_scale="jac")
+    sol = least_squares(resid, theta0, bounds=(lo, hi), max_nfev=10 * theta0.size, x_scale="jac")
     return _unpack(sol.x, layout)
 
 
@@ -729,6 +778,34 @@ def _realise(
             ).x
         )
     return zeros, poles, float(np.exp(c)), float(DB_PER_NEPER * np.max(wt * np.abs(c - r)))
+
+
+def _peak_ratio(cand: tuple, w: np.ndarray, m: np.ndarray) -> float:
+    """Peak of a realised cover's ``|W|`` on and between the grid points and 3 decades beyond,
+    over the curve's largest value."""
+    zeros, poles, k, _ = cand
+    wd = np.sqrt(_dense_points(w**2, per=16))
+    return float(k * np.abs(_response(zeros, poles, 1j * np.concatenate([w, wd]))).max() / m.max())
+
+
+def _check_realisation(sys: Any, f_hz: np.ndarray, fitted: np.ndarray, order: int) -> np.ndarray:
+    """The state space's ``|W|`` on the grid; FitError unless it is stable and that is the
+    fitted one (to 1e-6): a realisation that lost it would report a false fit or margin."""
+    from ..lti import freqresp_array
+
+    if sys.nstates == 0:
+        return np.full(f_hz.size, abs(float(sys.D[0, 0])))
+    with np.errstate(all="ignore"):
+        stable = bool(np.all(np.isfinite(sys.A)) and np.all(np.linalg.eigvals(sys.A).real < 0))
+        mag = np.abs(freqresp_array(sys, f_hz)[:, 0, 0]) if stable else np.full(f_hz.size, np.nan)
+        dev = float(np.max(np.abs(np.log(mag / fitted)))) if np.all(np.isfinite(mag) & (mag > 0)) else np.inf
+    if not dev <= 1e-6:
+        why = "is unstable or not finite" if not stable else f"misses the fitted |W| by {dev:.3g} nepers"
+        raise FitError(
+            f"the order-{order} magnitude fit could not be realised faithfully (its state space {why}); "
+            f"the curve may not support {order} poles: try order={max(order - 1, 0)} or fewer."
+        )
+    return mag
 
 
 def fit_magnitude_details(
@@ -777,14 +854,16 @@ def fit_magnitude_details(
             wt=wt[use],
             guard=basis.matrix(np.array([0.0, np.inf])),
             guard_all=basis.matrix(_guard_points(x)),
+            dense=basis.matrix(_dense_points(x[use])) if upper_bound else np.zeros((0, order + 1)),
             upper_bound=bool(upper_bound),
             y_inf=HF_CAP**2 * float(y.max()),
+            y_peak=PEAK_CAP**2 * float(y.max()),
             **_midpoints(basis, x[use], y, wt[use]),
         )
         spread = 0.5 * float(np.log(y.max() / y.min()))
         hi = (2.0 * spread if upper_bound else spread) + 1e-3
         tol = tol_db / DB_PER_NEPER
-        best, n_lp = None, 0
+        best, n_lp, worst_peak = None, 0, 0.0
         for price in L1_PRICES:
             prob.price = price
             a, b, n = _minimise(prob, hi, tol, t0 + float(time_budget_s))
@@ -797,16 +876,28 @@ def fit_magnitude_details(
                 a, b, n = _tighten(prob, a, b, cap, t0 + float(time_budget_s), n_it)
                 n_lp += n
             cand = _realise(basis, a, b, w[use], m[use], wt[use], bool(upper_bound))
-            if best is None or cand[3] < best[3]:
+            peak = _peak_ratio(cand, w[use], m[use]) if upper_bound else 0.0
+            if peak <= 2.0 * PEAK_CAP and (best is None or cand[3] < best[3]):
                 best = cand
-            if (
+            worst_peak = max(worst_peak, peak)
+            if best is cand and (
                 cand[3] <= DB_PER_NEPER * _achieved(prob, a, b) + tol_db
                 or time.perf_counter() > t0 + time_budget_s
             ):
                 break  # the roots reproduce the LP's curve
+        if best is None:
+            raise FitError(
+                f"the order-{order} covering fit peaks {worst_peak:.3g} times above the curve's largest "
+                f"value between or beyond the grid points (a resonance the grid does not resolve); try "
+                f"order={order - 1} or fewer, or a finer grid."
+            )
         zeros, poles, k, _ = best
     sys = zpk_statespace(zeros, poles, k, name=name)
-    fitted = k * np.abs(_response(zeros, poles, 1j * w))
+    fitted = _check_realisation(sys, f, k * np.abs(_response(zeros, poles, 1j * w)), order)
+    short = float(np.max(m[use] / fitted[use]))
+    if upper_bound and short > 1.0:  # the realisation's rounding (~1e-9) must not uncover a point
+        k, fitted = k * short * (1 + 1e-9), fitted * (short * (1 + 1e-9))
+        sys = zpk_statespace(zeros, poles, k, name=name)
     err = 20 * np.log10(fitted[use] / m[use])
     return MagnitudeFit(
         system=sys,
@@ -877,7 +968,9 @@ def fit_magnitude(
     ------
     FitError
         Non-positive, NaN or mismatched magnitudes; unsorted or duplicated frequencies;
-        an order outside 0-20.
+        an order outside 0-20; a fit the state space cannot realise faithfully, or a cover
+        whose every candidate peaks above ``2 PEAK_CAP`` times the curve's largest value
+        (the message suggests a lower order).
 
     Notes
     -----
@@ -887,6 +980,10 @@ def fit_magnitude(
     do not reproduce the LP's own curve (an order above the curve's, with large cancelling
     coefficients) are polished by least squares on ``ln|W|``; poles and zeros more lightly
     damped than the grid resolves get the damping the grid can see (``_damping_floor``).
+    Polished roots stay within ``ROOT_SPAN`` of the grid (a root far outside it only tilts
+    ``ln|W|``, and unbounded least squares drifted one to 1e26 rad/s: a realisation with
+    ``|W| ~ 1e11``). A cover keeps ``|W| <= PEAK_CAP max(mag)`` on the grid, between its points
+    and beyond (cutting planes), and the returned ``|W|`` is checked against the state space.
 
     Examples
     --------
