@@ -17,9 +17,12 @@ here and imported by ``frd``, ``estimate``, ``lti``, ``correlate`` and ``identif
 * :func:`as_frequency_data` -- FrequencyData, ``(f_hz, response)`` pairs and
   ``control.FrequencyResponseData`` to FrequencyData. Always a ``DataError``.
 * generic validators (:func:`finite_number`, :func:`positive_number`, :func:`integer`,
-  :func:`flag`, :func:`probability`): the wording is fixed here; the error class follows the
-  stage that owns the argument (``DataError`` for data and signal settings, ``FitError`` for
-  fit and update settings, ``ModelError`` for model settings), given by the caller.
+  :func:`flag`, :func:`probability`, :func:`real_array`, :func:`optional_text`): the wording is
+  fixed here; the error class follows the stage that owns the argument (``DataError`` for data
+  and signal settings, ``FitError`` for fit and update settings, ``ModelError`` for model
+  settings, ``SynthesisError`` for synthesis and robustness analysis), given by the caller.
+* systems: :func:`robustctl.lti.as_statespace` (``name=`` the argument) is the one system
+  check: it names the argument and refuses what cannot be converted and NaN/inf matrices.
 """
 
 from __future__ import annotations
@@ -50,6 +53,8 @@ __all__ = [
     "probability",
     "choice",
     "check_seed",
+    "real_array",
+    "optional_text",
     "renamed_keyword",
     "UNSET",
     "user_stacklevel",
@@ -136,6 +141,33 @@ def probability(value: Any, name: str, error: type[RobustctlError] = DataError) 
     if not _is_real_number(value) or not 0.0 <= float(value) <= 1.0:
         raise error(f"{name} must be a number in [0, 1]; got {value!r}.")
     return float(value)
+
+
+def real_array(value: Any, name: str, error: type[RobustctlError] = DataError) -> np.ndarray:
+    """``value`` as a float ndarray; refuses None, text, objects, complex and ragged lists.
+
+    NaN and inf pass (the caller says what is allowed and names the point).
+    """
+    try:
+        complex_given = np.iscomplexobj(value)
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        complex_given, arr = False, None
+    if arr is None or complex_given or value is None or isinstance(value, (str, bytes)):
+        raise error(f"{name} must be an array of real numbers; got {_short(value)}.")
+    return arr
+
+
+def optional_text(value: Any, name: str, error: type[RobustctlError] = DataError) -> str | None:
+    """``value`` as a str without NUL characters, or None."""
+    if value is None or (isinstance(value, str) and "\x00" not in value):
+        return value
+    raise error(f"{name} must be a str (or None); got {value!r}.")
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
 
 
 def check_seed(seed: Any, name: str = "seed", error: type[RobustctlError] = DataError) -> Any:

@@ -308,7 +308,10 @@ class FrequencyData:
             ``.npz`` (numpy, no pickles; everything kept), ``.mat`` (MATLAB: ``Frequency``
             in Hz, ``ResponseData`` n_out x n_in x n_freq as MATLAB's ``frd``, ``InputName``,
             ``OutputName``, ``Coherence``), ``.csv`` (long format
-            ``f_hz,output,input,re,im[,coherence]``; numbers and names only) or
+            ``f_hz,output,input,re,im[,coherence]``; numbers and names only; a first line
+            ``# robustctl.FrequencyData csv: F frequencies x O outputs x I inputs = N rows``
+            and a last line ``# end, N rows`` let :func:`load_frd` refuse a truncated file,
+            see :mod:`robustctl.frd_io.csv_format`) or
             ``.uff``/``.unv`` (universal file dataset 58, one binary double-precision record
             per output/input pair, names in ID lines 4 and 5, coherence as function type 6).
         overwrite : bool

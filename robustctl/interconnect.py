@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from .checks import integer, is_default_names
+from .checks import flag, integer, is_default_names
 from .errors import ModelError
 from .signals import _arrays, select_signals
 
@@ -235,14 +235,17 @@ def _system(sys: Any, what: str):
     if isinstance(sys, PartitionedPlant):
         return sys.P
     if _is_static(sys):
-        D = np.atleast_2d(np.asarray(sys, dtype=float))
+        try:
+            D = np.atleast_2d(np.asarray(sys, dtype=float))
+        except (TypeError, ValueError):
+            D = np.full((1, 1), np.nan)
         if D.ndim != 2 or not np.all(np.isfinite(D)):
             raise ModelError(f"{what} as a static gain must be a finite number or 2-D array; got {sys!r}.")
         p, m = D.shape
         return control.ss(np.zeros((0, 0)), np.zeros((0, m)), np.zeros((p, 0)), D)
     from .lti import as_statespace
 
-    return as_statespace(sys)
+    return as_statespace(sys, name=what)
 
 
 def _is_static(sys: Any) -> bool:
@@ -517,7 +520,12 @@ def _selection(names: Sequence[str], known: Sequence[str], what: str, hint: str)
 
 def _static_like(value: Any, n_out: int, n_in: int, what: str) -> np.ndarray:
     """A number (times identity) or array as an ``n_out x n_in`` gain matrix."""
-    D = np.asarray(value, dtype=float)
+    try:
+        D = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        D = np.full(1, np.nan)
+    if not np.all(np.isfinite(D)):
+        raise ModelError(f"{what} must be a finite real number or array; got {value!r}.")
     if D.ndim == 0:
         if n_out != n_in:
             raise ModelError(
@@ -590,6 +598,7 @@ def series(*systems: Any, by_name: bool = True):
     control.StateSpace
         Inputs of ``systems[0]``, outputs of ``systems[-1]``; states first system first.
     """
+    by_name = flag(by_name, "by_name", ModelError)
     if not systems:
         raise ModelError("series needs at least one system.")
     out = _system(systems[0], "the first system in series")
@@ -643,6 +652,7 @@ def parallel(*systems: Any, by_name: bool = True):
     ``control.parallel``. A number (times identity) or array is a static gain with the
     first system's names.
     """
+    by_name = flag(by_name, "by_name", ModelError)
     if not systems:
         raise ModelError("parallel needs at least one system.")
     out = _system(systems[0], "the first system in parallel")
@@ -675,15 +685,16 @@ def feedback(sys1: Any, sys2: Any = 1.0, sign: float = -1, *, by_name: bool = Tr
     control.StateSpace
         ``r -> y1``; states ``[x1; x2]``.
     """
-    G = _system(sys1, "the forward system")
-    if sign not in (-1, 1):
+    by_name = flag(by_name, "by_name", ModelError)
+    G = _system(sys1, "sys1 (the forward system)")
+    if isinstance(sign, (bool, np.bool_)) or sign not in (-1, 1):
         raise ModelError(f"sign must be -1 (negative feedback) or +1 (positive feedback); got {sign!r}.")
     p, m = G.noutputs, G.ninputs
     if _is_static(sys2):
-        K = _as_gain_system(sys2, m, p, G.output_labels, G.input_labels, "the feedback gain")
+        K = _as_gain_system(sys2, m, p, G.output_labels, G.input_labels, "sys2 (the feedback gain)")
         Sy, Su = np.eye(p), np.eye(m)
     else:
-        K = _system(sys2, "the feedback system")
+        K = _system(sys2, "sys2 (the feedback system)")
         if by_name and not _default_names(K):
             hint = "In feedback(G, K) K's inputs must be outputs of G and K's outputs inputs of G. "
             Sy = _selection(list(K.input_labels), G.output_labels, "input(s) of the feedback system",

@@ -115,25 +115,27 @@ GROWTH_LIMIT = 1e4
 
 
 # ---------------------------------------------------------------------------- conversions
-def _as_statespace(sys: Any):
+def _as_statespace(sys: Any, name: str = "sys"):
     import control
 
     try:
         ss = control.ss(sys)
     except Exception as exc:  # python-control raises several types
         raise ModelError(
-            f"cannot convert {type(sys).__name__} to a state space ({exc}); pass a control.StateSpace, "
-            "a transfer function or a robustctl PhysicalModel."
+            f"{name}: cannot convert {type(sys).__name__} to a state space ({exc}); pass a "
+            "control.StateSpace, a transfer function or a robustctl PhysicalModel."
         ) from exc
     if not isinstance(ss, control.StateSpace):  # control.ss(None) gives a NonlinearIOSystem
         raise ModelError(
-            f"cannot convert {sys!r} to a state space; pass a control.StateSpace, a transfer function "
-            "or a robustctl PhysicalModel."
+            f"{name}: cannot convert {sys!r} to a state space; pass a control.StateSpace, a transfer "
+            "function or a robustctl PhysicalModel."
         )
     return ss
 
 
-def as_statespace(sys: Any, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None):
+def as_statespace(
+    sys: Any, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None, *, name: str = "sys"
+):
     """``sys`` as a ``control.StateSpace`` with named signals: the one system coercion.
 
     Parameters
@@ -144,6 +146,8 @@ def as_statespace(sys: Any, inputs: Sequence[str] | None = None, outputs: Sequen
         ``control.ss`` converts (a transfer function, a ``(A, B, C, D)`` tuple).
     inputs, outputs : sequence of str, optional
         New signal names (one per input / output); default: keep the system's names.
+    name : str
+        What the caller calls ``sys`` (its argument name), used in error messages.
 
     Returns
     -------
@@ -152,21 +156,25 @@ def as_statespace(sys: Any, inputs: Sequence[str] | None = None, outputs: Sequen
     Raises
     ------
     ModelError
-        ``sys`` is measured data (FrequencyData) or cannot be converted.
+        ``sys`` is measured data (FrequencyData), cannot be converted, or has NaN/inf in its
+        matrices; names that are not one distinct non-empty string per signal.
     """
     import control
 
     if isinstance(sys, FrequencyData) or type(sys).__name__ == "FrequencyResponseData":
         raise ModelError(
-            f"a {type(sys).__name__} is measured data, not a model; it has no state space. Pass a "
+            f"{name} is a {type(sys).__name__}, which is measured data, not a model; it has no state space. "
+            "Pass a "
             "PhysicalModel, MeasurementModel, control.StateSpace or transfer function."
         )
     if isinstance(sys, control.StateSpace):
         ss = sys
     elif hasattr(sys, "statespace") and callable(sys.statespace):
-        ss = _as_statespace(sys.statespace())
+        ss = _as_statespace(sys.statespace(), name)
     else:
-        ss = _as_statespace(sys)
+        ss = _as_statespace(sys, name)
+    if not all(np.all(np.isfinite(np.asarray(m, dtype=float))) for m in (ss.A, ss.B, ss.C, ss.D)):
+        raise ModelError(f"{name} has NaN or inf in its state-space matrices; check the model's parameters.")
     if inputs is None and outputs is None:
         return ss
     ins = list(ss.input_labels) if inputs is None else _names(inputs, ss.ninputs, "inputs")
@@ -198,10 +206,15 @@ def rebuild_statespace(state: dict):
 
 
 def _names(names: Sequence[str] | str, count: int, what: str) -> list[str]:
-    names = [names] if isinstance(names, str) else [str(n) for n in names]
+    names = [names] if isinstance(names, str) else names
+    names = names.tolist() if isinstance(names, np.ndarray) else names
+    if isinstance(names, (bytes, dict)) or not isinstance(names, Sequence):
+        raise ModelError(f"{what} must be a list of {count} signal names (str); got {names!r}.")
+    if not all(isinstance(n, str) and n and "\x00" not in n for n in names):
+        raise ModelError(f"{what} must be non-empty strings (no NUL characters); got {list(names)!r}.")
     if len(names) != count or len(set(names)) != count:
-        raise ModelError(f"give {count} distinct {what} names; got {names}.")
-    return names
+        raise ModelError(f"give {count} distinct {what} names; got {list(names)}.")
+    return list(names)
 
 
 # ---------------------------------------------------------------------------- kernel

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from .checks import finite_number
 from .errors import ModelError
 
 __all__ = [
@@ -68,11 +69,42 @@ def _names(names: str | Sequence[str]) -> tuple[str, ...]:
     return (names,) if isinstance(names, str) else tuple(names)
 
 
-def _index(labels: Sequence[str], name: str, what: str) -> int:
+def _system(sys: Any):
+    from .lti import as_statespace
+
+    return as_statespace(sys, name="sys")
+
+
+def _mapping(value: Any, name: str, allow_none: bool = False) -> Mapping:
+    """``value`` as a mapping with string keys (``{}`` for None when allowed)."""
+    if value is None and allow_none:
+        return {}
+    if not isinstance(value, Mapping) or not all(isinstance(k, str) for k in value):
+        raise ModelError(f"{name} must be a dict signal name -> value; got {value!r}.")
+    return value
+
+
+def _gain(value: Any, name: str, key: str) -> float:
+    return finite_number(value, f"{name}[{key!r}]", ModelError)
+
+
+def _name_list(value: Any, name: str) -> list[str]:
+    """A list of signal names (a single str is one name)."""
+    items = [value] if isinstance(value, str) else value
+    if isinstance(items, (bytes, Mapping)) or not isinstance(items, (Sequence, np.ndarray)):
+        raise ModelError(f"{name} must be a list of signal names; got {value!r}.")
+    items = list(items)
+    if not all(isinstance(n, str) for n in items):
+        raise ModelError(f"{name} must be signal names (str); got {value!r}.")
+    return items
+
+
+def _index(labels: Sequence[str], name: str, what: str, arg: str = "") -> int:
     """Position of ``name`` in ``labels`` or a ModelError listing the known names."""
     labels = list(labels)
     if name not in labels:
-        raise ModelError(f"unknown {what} {name!r}; the system has {what}s {labels}.")
+        where = f" (a key of {arg})" if arg else ""
+        raise ModelError(f"unknown {what} {name!r}{where}; the system has {what}s {labels}.")
     return labels.index(name)
 
 
@@ -82,23 +114,27 @@ def scale_outputs(sys: Any, gains: Mapping[str, float]):
 
     ``y_name <- gains[name] * y_name``; other outputs and all names are unchanged.
     """
+    sys = _system(sys)
     A, B, C, D = _abcd(sys)
     C, D = C.copy(), D.copy()
-    for name, g in gains.items():
-        i = _index(sys.output_labels, name, "output")
-        C[i] *= float(g)
-        D[i] *= float(g)
+    for name, g in _mapping(gains, "gains").items():
+        i = _index(sys.output_labels, name, "output", "gains")
+        g = _gain(g, "gains", name)
+        C[i] *= g
+        D[i] *= g
     return _ss(A, B, C, D, sys.input_labels, sys.output_labels)
 
 
 def scale_inputs(sys: Any, gains: Mapping[str, float]):
     """Multiply named inputs by gains: ``u_phys = gains[name] * u_name`` (e.g. N m per V)."""
+    sys = _system(sys)
     A, B, C, D = _abcd(sys)
     B, D = B.copy(), D.copy()
-    for name, g in gains.items():
-        j = _index(sys.input_labels, name, "input")
-        B[:, j] *= float(g)
-        D[:, j] *= float(g)
+    for name, g in _mapping(gains, "gains").items():
+        j = _index(sys.input_labels, name, "input", "gains")
+        g = _gain(g, "gains", name)
+        B[:, j] *= g
+        D[:, j] *= g
     return _ss(A, B, C, D, sys.input_labels, sys.output_labels)
 
 
@@ -106,11 +142,13 @@ def rename_signals(
     sys: Any, inputs: Mapping[str, str] | None = None, outputs: Mapping[str, str] | None = None
 ):
     """A copy with signals renamed (``{"gyro x": "gyro x (V)"}``)."""
+    sys = _system(sys)
     ins, outs = list(sys.input_labels), list(sys.output_labels)
-    for old, new in (inputs or {}).items():
-        ins[_index(ins, old, "input")] = new
-    for old, new in (outputs or {}).items():
-        outs[_index(outs, old, "output")] = new
+    for arg, value, labels, what in (("inputs", inputs, ins, "input"), ("outputs", outputs, outs, "output")):
+        for old, new in _mapping(value, arg, allow_none=True).items():
+            if not isinstance(new, str) or not new or "\x00" in new:
+                raise ModelError(f"{arg}[{old!r}] must be a non-empty signal name (str); got {new!r}.")
+            labels[_index(labels, old, what, arg)] = new
     if len(set(ins)) != len(ins) or len(set(outs)) != len(outs):
         raise ModelError(f"renaming would repeat a signal name: inputs {ins}, outputs {outs}.")
     return _ss(*_abcd(sys), ins, outs)
@@ -121,13 +159,16 @@ def _combination(labels: Sequence[str], combos: Mapping[str, Mapping[str, float]
     """Matrix T (old x new) and the new labels: each combo replaces the channels it uses."""
     labels = list(labels)
     used: dict[str, str] = {}
-    for new, parts in combos.items():
+    for new, parts in _mapping(combos, "combos").items():
+        _mapping(parts, f"combos[{new!r}]")
+        for old, coeff in parts.items():
+            _gain(coeff, f"combos[{new!r}]", old)
         if not parts:
-            raise ModelError(f"the {what} combination {new!r} uses no {what}s.")
+            raise ModelError(f"the {what} combination {new!r} (in combos) uses no {what}s.")
         for old in parts:
             if old not in labels:
                 raise ModelError(
-                    f"the {what} combination {new!r} uses unknown {what} {old!r}; have {labels}."
+                    f"the {what} combination {new!r} (in combos) uses unknown {what} {old!r}; have {labels}."
                 )
             if old in used:
                 raise ModelError(f"{what} {old!r} is used by both {used[old]!r} and {new!r}.")
@@ -156,6 +197,7 @@ def combine_inputs(sys: Any, combos: Mapping[str, Mapping[str, float]]):
     makes one motor torque acting equal and opposite on payload and bus. Inputs not used
     by any combination keep their names; a combination takes the place of its first input.
     """
+    sys = _system(sys)
     T, names = _combination(sys.input_labels, combos, "input")
     A, B, C, D = (np.asarray(m, float) for m in (sys.A, sys.B, sys.C, sys.D))
     return _ss(A, B @ T, C, D @ T, names, sys.output_labels, sys.dt)
@@ -167,6 +209,7 @@ def combine_outputs(sys: Any, combos: Mapping[str, Mapping[str, float]]):
     ``combine_outputs(sys, {"encoder x": {"payload rx": 1, "bus rx": -1}})`` is the
     relative rotation an encoder reads between a gimbal payload and the bus.
     """
+    sys = _system(sys)
     T, names = _combination(sys.output_labels, combos, "output")
     A, B, C, D = (np.asarray(m, float) for m in (sys.A, sys.B, sys.C, sys.D))
     return _ss(A, B, T.T @ C, T.T @ D, sys.input_labels, names, sys.dt)
@@ -174,13 +217,14 @@ def combine_outputs(sys: Any, combos: Mapping[str, Mapping[str, float]]):
 
 def select_signals(sys: Any, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None):
     """Keep the named inputs and outputs (in the given order); ``None`` keeps all."""
-    ins = list(sys.input_labels) if inputs is None else list(inputs)
-    outs = list(sys.output_labels) if outputs is None else list(outputs)
+    sys = _system(sys)
+    ins = list(sys.input_labels) if inputs is None else _name_list(inputs, "inputs")
+    outs = list(sys.output_labels) if outputs is None else _name_list(outputs, "outputs")
     for name, labels, what in [(n, sys.input_labels, "input") for n in ins] + [
         (n, sys.output_labels, "output") for n in outs
     ]:
         if name not in labels:
-            raise ModelError(f"unknown {what} {name!r}; the system has {list(labels)}.")
+            raise ModelError(f"unknown {what} {name!r} (in {what}s); the system has {list(labels)}.")
     ii = [list(sys.input_labels).index(n) for n in ins]
     oo = [list(sys.output_labels).index(n) for n in outs]
     A, B, C, D = _arrays(sys)

@@ -104,8 +104,10 @@ def test_csv_layout_and_mat_matlab_layout(tmp_path):
                             inputs=["F"], coherence=np.full((2, 2, 1), 0.25))
     data.save(tmp_path / "d.csv")
     lines = (tmp_path / "d.csv").read_text().splitlines()
-    assert lines[0] == "f_hz,output,input,re,im,coherence"
-    assert lines[1:3] == ["1.0,a,F,0.0,0.5,0.25", "1.0,b,F,1.0,0.5,0.25"]
+    assert lines[0] == "# robustctl.FrequencyData csv: 2 frequencies x 2 outputs x 1 inputs = 4 rows"
+    assert lines[1] == "f_hz,output,input,re,im,coherence"
+    assert lines[2:4] == ["1.0,a,F,0.0,0.5,0.25", "1.0,b,F,1.0,0.5,0.25"]
+    assert lines[-1] == "# end, 4 rows" and len(lines) == 7
     from scipy.io import loadmat
 
     data.save(tmp_path / "d.mat")
@@ -276,6 +278,66 @@ def test_corrupt_csv(tmp_path, text, message):
     path.write_text(text)
     with pytest.raises(DataError, match=message):
         rc.load_frd(path)
+
+
+def _small_csv(tmp_path):
+    data = rc.FrequencyData([1.0, 2.0, 4.0], np.arange(12.0).reshape(3, 2, 2) - 1j, outputs=["a", "b"],
+                            inputs=["F", "G"], coherence=np.full((3, 2, 2), 0.5))
+    return data, data.save(tmp_path / "d.csv").read_text().splitlines(keepends=True)
+
+
+def test_csv_cut_at_every_line_boundary_is_refused_as_truncated(tmp_path):
+    """Issue 14: a CSV cut exactly between two frequency blocks loaded as fewer frequencies."""
+    data, lines = _small_csv(tmp_path)
+    assert len(lines) == 3 * 4 + 3  # preamble, column header, 12 rows, end marker
+    loaded = rc.load_frd(tmp_path / "d.csv")
+    np.testing.assert_array_equal(loaded.response, data.response)
+    np.testing.assert_array_equal(loaded.coherence, data.coherence)
+    for cut in range(len(lines)):
+        (tmp_path / "t.csv").write_text("".join(lines[:cut]))
+        expected = "empty" if cut == 0 else "truncated"
+        with pytest.raises(DataError, match=expected):
+            rc.load_frd(tmp_path / "t.csv")
+    # between frequency blocks (rows 2-5 are frequency 1.0): whole rows, only the marker tells
+    (tmp_path / "t.csv").write_text("".join(lines[:6]))
+    with pytest.raises(DataError, match=r"announces 12 data rows \(3 frequencies\) but it ends after 4 rows"):
+        rc.load_frd(tmp_path / "t.csv")
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda ls: ls[:6] + ls[-1:], r"says 12 data rows but it holds 4"),
+        (lambda ls: ls[1:6] + ls[-1:], r"'# end' line says 12 data rows but it holds 4"),
+        (lambda ls: [ls[0].replace("= 12", "= 13")] + ls[1:],
+         r"first line says 13 data rows but it holds 12"),
+        (lambda ls: [ls[0].replace("3 freq", "4 freq")] + ls[1:], r"holds 3 frequencies .* announces 4"),
+        (lambda ls: [ls[0].replace("robustctl", "robustctI")] + ls[1:], "not robustctl's CSV preamble"),
+        (lambda ls: ls[:-1] + ["# end, twelve rows\n"], "damaged '# end, N rows' marker"),
+        (lambda ls: ls[1:9], r"1 entries are missing, e.g. f_hz=2.0, output 'b', input 'G'"),
+    ],
+)
+def test_csv_markers_are_checked(tmp_path, edit, message):
+    _, lines = _small_csv(tmp_path)
+    (tmp_path / "m.csv").write_text("".join(edit(lines)))
+    with pytest.raises(DataError, match=message):
+        rc.load_frd(tmp_path / "m.csv")
+
+
+def test_csv_without_markers_still_loads(tmp_path):
+    """Older files and a user's own CSV (no preamble, no end line, CRLF line ends) are read,
+    with the checks they had: increasing frequencies, every pair at every frequency."""
+    data, lines = _small_csv(tmp_path)
+    rows = lines[2:-1]
+    body = lines[1] + "".join(rows[4:] + rows[:4])  # whole blocks; frequency 1.0 last
+    (tmp_path / "u.csv").write_bytes(body.replace("\n", "\r\n").encode())
+    with pytest.raises(DataError, match="strictly increasing"):  # as before the markers
+        rc.load_frd(tmp_path / "u.csv")
+    (tmp_path / "u.csv").write_bytes((lines[1] + "".join(rows)).replace("\n", "\r\n").encode())
+    loaded = rc.load_frd(tmp_path / "u.csv")
+    np.testing.assert_array_equal(loaded.response, data.response)
+    np.testing.assert_array_equal(loaded.coherence, data.coherence)
+    assert loaded.outputs == ("a", "b") and loaded.inputs == ("F", "G")
 
 
 def _frf58(rsp_node, ref_node, f):

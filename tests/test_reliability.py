@@ -506,6 +506,7 @@ CASES = [
 ]
 EXAMPLES_PER_CASE = 45
 OUTCOMES: Counter = Counter()
+SEEN: set[str] = set()
 
 
 class _HangError(Exception):
@@ -535,8 +536,8 @@ def classify(call) -> tuple[str, str]:
 
 
 @pytest.mark.parametrize("label, call, values", CASES, ids=[c[0] for c in CASES])
-def test_bad_argument_is_refused(env, label, call, values):
-    bad = []
+def test_bad_argument_is_refused(env, record_property, label, call, values):
+    bad, counts = [], Counter()
 
     @settings(
         max_examples=EXAMPLES_PER_CASE,
@@ -550,10 +551,13 @@ def test_bad_argument_is_refused(env, label, call, values):
         with np.errstate(all="ignore"):
             outcome, detail = classify(lambda: call(env, value))
         OUTCOMES[outcome] += 1
+        counts[outcome] += 1
         if outcome != "refused":
             bad.append((outcome, repr(value)[:60], detail[:160]))
 
     run()
+    SEEN.add(label)
+    record_property("reliability_outcomes", dict(counts))  # summed over xdist workers by conftest.py
     assert not bad, f"{label}: {len(bad)} bad outcomes, e.g. {bad[:3]}"
 
 
@@ -965,8 +969,7 @@ def test_mutated_files_never_crash_leak_or_lose_channels(tmp_path, ext):
         if line.startswith("OK"):
             n_freq, n_out, n_in, coh = line.split()[2:]
             assert (int(n_out), int(n_in), coh) == (2, 2, "True"), f"{fn} ({kinds[fn]}) lost channels: {line}"
-            if ext != ".csv" or kinds[fn] != "truncate":
-                assert int(n_freq) == 16, f"{fn} ({kinds[fn]}) lost frequencies: {line}"
+            assert int(n_freq) == 16, f"{fn} ({kinds[fn]}) lost frequencies: {line}"
 
 
 def test_truncated_uff_and_mat_are_refused_not_smaller(tmp_path):
@@ -1025,8 +1028,8 @@ def test_mat_structure_check_accepts_matlab_style_files(tmp_path):
 
 def test_outcome_totals():
     """Runs last in this module: at least 2,000 generated cases, all refused."""
-    if sum(OUTCOMES.values()) == 0:
-        pytest.skip("run with the property cases")
+    if {c[0] for c in CASES} != SEEN:  # under pytest-xdist: conftest.py prints the totals
+        pytest.skip("the property cases ran (partly) in another process")
     print(f"\nproperty cases: {dict(OUTCOMES)}")
     assert sum(OUTCOMES.values()) >= 2000, OUTCOMES
     assert set(OUTCOMES) <= {"refused"}, OUTCOMES

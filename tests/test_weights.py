@@ -217,9 +217,9 @@ def test_makeweight_bad_input():
         rc.makeweight(1.0, (1.0, 2.0), 0.5)  # gain above both
     with pytest.raises(rc.FitError, match=r"strictly between"):
         rc.makeweight(1.0, (1.0, 1.0), 0.5)  # gain equal to dc
-    with pytest.raises(rc.FitError, match=r"dc_gain must be finite and positive"):
+    with pytest.raises(rc.FitError, match=r"dc_gain must be positive and finite"):
         rc.makeweight(-1.0, (1.0, 0.5), 0.1)
-    with pytest.raises(rc.FitError, match=r"hf_gain must be finite and positive"):
+    with pytest.raises(rc.FitError, match=r"hf_gain must be positive and finite"):
         rc.makeweight(1.0, (1.0, 0.5), float("nan"))
     with pytest.raises(rc.FitError, match=r"crossover frequency"):
         rc.makeweight(1.0, (0.0, 0.5), 0.1)

@@ -34,13 +34,13 @@ def unwrap(K: Any) -> tuple[Any, dict]:
     import control
 
     if isinstance(K, control.StateSpace) or not hasattr(K, "K"):
-        return as_statespace(K), {}
+        return as_statespace(K, name="K"), {}
     design = {}
     for key, attr in (("gamma", "gamma"), ("mu", "mu_peak")):
         value = getattr(K, attr, None)
         if isinstance(value, (int, float, np.floating)) and np.isfinite(value):
             design[key] = float(value)
-    return as_statespace(K.K), design
+    return as_statespace(K.K, name="K.K"), design
 
 
 def is_discrete(ss: Any) -> bool:

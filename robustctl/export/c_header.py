@@ -28,7 +28,7 @@ def c_prefix(path: Path, prefix: str | None) -> str:
         raise DataError(f"prefix must be text (a C identifier); got {prefix!r}.")
     text = path.stem if prefix is None else prefix
     ident = re.sub(r"[^A-Za-z0-9_]", "_", text).upper().strip("_") or "CONTROLLER"
-    if prefix is not None and ident != prefix.upper():
+    if prefix is not None and (ident != prefix.upper() or ident[0].isdigit()):
         raise DataError(
             f"prefix {prefix!r} is not a C identifier; use letters, digits and '_' "
             "(not starting with a digit or '_')."

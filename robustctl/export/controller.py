@@ -44,7 +44,7 @@ def _format(path: Path, format: str | None) -> str:
     suffix = path.suffix.lower()
     if suffix[1:] not in formats.FORMATS:
         raise DataError(
-            f"cannot tell the format of {path.name!r} from its extension; use one of "
+            f"cannot tell the format of path {path.name!r} from its extension; use one of "
             f"{', '.join('.' + f for f in formats.FORMATS)} or pass format= (one of {formats.FORMATS})."
         )
     return suffix[1:]
@@ -59,7 +59,19 @@ def _provenance(user: Any) -> dict:
         "software": f"robustctl {__version__}",
         "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
     }
-    return {**prov, **_jsonable(user or {})}
+    user = _jsonable(user or {})
+    if not _finite_json(user):
+        raise DataError("provenance holds NaN or inf, which JSON cannot store; give finite numbers or text.")
+    return {**prov, **user}
+
+
+def _finite_json(value: Any) -> bool:
+    """True when no float in a JSON-able tree is NaN or inf."""
+    if isinstance(value, dict):
+        return all(_finite_json(v) for v in value.values())
+    if isinstance(value, list):
+        return all(_finite_json(v) for v in value)
+    return not isinstance(value, float) or bool(np.isfinite(value))
 
 
 def export_controller(
@@ -235,9 +247,12 @@ def _units(units: Any, Kd: Any) -> dict[str, str]:
 
 def _as_path(path: Any) -> Path:
     try:
-        return Path(path)
+        path = Path(path)
     except TypeError:
         raise DataError(f"path must be a file name (str or path-like); got {type(path).__name__}.") from None
+    if "\x00" in str(path):
+        raise DataError(f"path must not contain NUL characters; got {str(path)!r}.")
+    return path
 
 
 def _balance_choice(balance: Any) -> str | None:

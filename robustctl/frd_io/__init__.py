@@ -36,6 +36,10 @@ def load_frd(path: str | PathLike) -> FrequencyData:
         holding pickled objects is refused, never executed. MAT files may also come from
         MATLAB (``Frequency``, ``ResponseData``, optional ``FrequencyUnit``); UFF files from
         other modal-test software (dataset 58 FRF records, names from node and direction).
+        CSV files written by robustctl carry completeness markers (a first line with the
+        frequency, output, input and row counts, a last line ``# end, N rows``), so a cut
+        file is refused; a CSV without them (a user's own) is read when every frequency holds
+        every output/input pair (:mod:`robustctl.frd_io.csv_format`).
 
     Returns
     -------
@@ -44,7 +48,7 @@ def load_frd(path: str | PathLike) -> FrequencyData:
     Raises
     ------
     DataError
-        Unknown extension, missing file, corrupt or inconsistent content.
+        Unknown extension, missing file, corrupt, truncated or inconsistent content.
     """
     if isinstance(path, (str, PathLike)) and Path(path).is_dir():
         raise DataError(f"cannot load {str(path)!r}: it is a directory, not a file; give the file's path.")

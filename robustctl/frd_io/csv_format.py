@@ -1,9 +1,28 @@
-"""FrequencyData in long-format ``.csv`` files (``f_hz,output,input,re,im[,coherence]``)."""
+"""FrequencyData in long-format ``.csv`` files (``f_hz,output,input,re,im[,coherence]``).
+
+Layout written by :func:`write_csv` (``N = n_freq * n_out * n_in`` data rows)::
+
+    # robustctl.FrequencyData csv: 16 frequencies x 2 outputs x 2 inputs = 64 rows
+    f_hz,output,input,re,im,coherence
+    1.0,y1,u1,0.25,-0.5,0.9            <- frequency-major: every (output, input) pair of
+    ...                                   one frequency, then the next frequency
+    # end, 64 rows
+
+The first and last lines are the completeness markers. A file cut anywhere -- even exactly
+between two frequency blocks, where every row left is whole -- lacks the ``# end`` line (or
+holds fewer rows than it announces) and :func:`read_csv` refuses it with a
+:class:`~robustctl.errors.DataError` naming the truncation, instead of loading fewer
+frequencies. Files without the markers (written before they existed, or by hand: the column
+header line and the rows) are still read; then every frequency must hold every
+(output, input) pair exactly once, which catches a block cut short but cannot tell a file
+that ends between two frequency blocks from a shorter one.
+"""
 
 from __future__ import annotations
 
 import csv
 import io
+import re
 from pathlib import Path
 
 import numpy as np
@@ -15,11 +34,20 @@ from ._common import build
 __all__ = ["read_csv", "write_csv"]
 
 _CSV_HEADER = ["f_hz", "output", "input", "re", "im"]
+_PREAMBLE = "# robustctl.FrequencyData csv: {} frequencies x {} outputs x {} inputs = {} rows"
+_PREAMBLE_RE = re.compile(
+    r"# robustctl\.FrequencyData csv: (\d+) frequencies x (\d+) outputs x (\d+) inputs = (\d+) rows\s*"
+)
+_END = "# end, {} rows"
+_END_RE = re.compile(r"# end, (\d+) rows\s*")
 
 
 def write_csv(data: FrequencyData, path: Path) -> None:
+    """Write ``data`` with the completeness markers (module docstring)."""
     has_coh = data.coherence is not None
+    n_rows = data.n_freq * data.n_out * data.n_in
     with open(path, "w", newline="", encoding="utf-8") as fh:
+        fh.write(_PREAMBLE.format(data.n_freq, data.n_out, data.n_in, n_rows) + "\n")
         writer = csv.writer(fh, lineterminator="\n")
         writer.writerow(_CSV_HEADER + (["coherence"] if has_coh else []))
         for k, f in enumerate(data.f_hz.tolist()):
@@ -30,6 +58,7 @@ def write_csv(data: FrequencyData, path: Path) -> None:
                     if has_coh:
                         row.append(repr(float(data.coherence[k, o, i])))
                     writer.writerow(row)
+        fh.write(_END.format(n_rows) + "\n")
 
 
 def _csv_float(text: str, line: int, column: str) -> float:
@@ -39,35 +68,91 @@ def _csv_float(text: str, line: int, column: str) -> float:
         raise DataError(f"line {line}: {column} {text!r} is not a number.") from None
 
 
-def _csv_rows(path: Path) -> tuple[bool, list[list[str]]]:
+def _markers(text: str) -> tuple[tuple[int, ...] | None, int | None, str, int]:
+    """``(announced (n_freq, n_out, n_in, n_rows) or None, footer rows or None, body, body's first line)``.
+
+    The preamble is the first line when it starts with ``#``; the footer the last line when it
+    starts with ``# end``. A preamble that is not robustctl's is refused (a damaged marker).
+    """
+    announced, first = None, 1
+    if text.startswith("#"):
+        line, _, text = text.partition("\n")
+        match = _PREAMBLE_RE.fullmatch(line)
+        if match is None:
+            raise DataError(
+                f"line 1 {line[:80]!r} is not robustctl's CSV preamble ('# robustctl.FrequencyData csv: "
+                "F frequencies x O outputs x I inputs = N rows'); the file is damaged. Remove the line to "
+                "read the rows without the completeness check."
+            )
+        announced, first = tuple(int(g) for g in match.groups()), 2
+    footer = None
+    body, _, last = text.rstrip("\n").rpartition("\n")
+    if last.startswith("# end"):
+        match = _END_RE.fullmatch(last)
+        if match is None:
+            raise DataError(f"the last line {last[:40]!r} is a damaged '# end, N rows' marker.")
+        footer, text = int(match.group(1)), body + "\n"
+    return announced, footer, text, first
+
+
+def _csv_rows(path: Path) -> tuple[bool, list[list[str]], tuple[int, ...] | None, int | None, int]:
     try:
         with open(path, newline="", encoding="utf-8") as fh:
             text = fh.read()
-        rows = list(csv.reader(io.StringIO(text)))
-    except (UnicodeDecodeError, csv.Error) as exc:
+    except UnicodeDecodeError as exc:
         raise DataError(f"not a readable text CSV file ({exc}).") from None
-    if not rows:
+    if not text:
         raise DataError("the CSV file is empty.")
     if not text.endswith("\n"):
         raise DataError(
             "the CSV file does not end with a line break: it is truncated (the last row may be cut "
             "short); write it again or add the missing end."
         )
+    announced, footer, body, first = _markers(text)
+    try:
+        rows = list(csv.reader(io.StringIO(body)))
+    except csv.Error as exc:
+        raise DataError(f"not a readable text CSV file ({exc}).") from None
+    if not rows:
+        if announced is not None:
+            raise DataError(
+                f"the CSV file is truncated: its first line announces {announced[3]} data rows but the file "
+                "ends after it. Write the file again."
+            )
+        raise DataError("the CSV file has no column header line (f_hz,output,input,re,im[,coherence]).")
     header = [h.strip() for h in rows[0]]
     if header not in (_CSV_HEADER, _CSV_HEADER + ["coherence"]):
         raise DataError(
             f"the CSV header is {rows[0]}; expected {','.join(_CSV_HEADER)}[,coherence] (long format)."
         )
-    return len(header) == 6, rows
+    return len(header) == 6, rows, announced, footer, first
+
+
+def _check_complete(announced: tuple[int, ...] | None, footer: int | None, n_rows: int) -> None:
+    """Refuse a file whose rows do not match its completeness markers."""
+    if announced is not None and footer is None:
+        raise DataError(
+            f"the CSV file is truncated: its first line announces {announced[3]} data rows "
+            f"({announced[0]} frequencies) but it ends after {n_rows} rows without the '# end, N rows' "
+            "line. Write the file again."
+        )
+    first = None if announced is None else announced[3]
+    for what, count in (("first line", first), ("'# end' line", footer)):
+        if count is not None and count != n_rows:
+            raise DataError(
+                f"the CSV file is truncated or damaged: its {what} says {count} data rows but it holds "
+                f"{n_rows}. Write the file again."
+            )
 
 
 def read_csv(path: Path) -> FrequencyData:
-    has_coh, rows = _csv_rows(path)
+    """Read a long-format CSV file, checking its completeness markers when it has them."""
+    has_coh, rows, announced, footer, first = _csv_rows(path)
     freqs: dict[float, int] = {}
     outs: dict[str, int] = {}
     ins: dict[str, int] = {}
     entries: dict[tuple[int, int, int], tuple[complex, float]] = {}
-    for line, row in enumerate(rows[1:], start=2):
+    for line, row in enumerate(rows[1:], start=first + 1):
         if not row:
             continue
         if len(row) != 5 + has_coh:
@@ -82,9 +167,15 @@ def read_csv(path: Path) -> FrequencyData:
             raise DataError(f"line {line} repeats f_hz={row[0]}, output {row[1]!r}, input {row[2]!r}.")
         g = complex(_csv_float(row[3], line, "re"), _csv_float(row[4], line, "im"))
         entries[key] = (g, _csv_float(row[5], line, "coherence") if has_coh else 0.0)
+    _check_complete(announced, footer, len(entries))
     if not entries:
         raise DataError("the CSV file has a header but no data rows.")
     shape = (len(freqs), len(outs), len(ins))
+    if announced is not None and shape != announced[:3]:
+        raise DataError(
+            f"the CSV file holds {shape[0]} frequencies x {shape[1]} outputs x {shape[2]} inputs but its "
+            f"first line announces {announced[0]} x {announced[1]} x {announced[2]}; it is damaged."
+        )
     missing = [k for k in np.ndindex(*shape) if k not in entries][:1]
     if missing:
         k, o, i = missing[0]

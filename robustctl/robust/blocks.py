@@ -56,7 +56,7 @@ class Block:
     name: str = ""
 
     def __post_init__(self) -> None:
-        if self.kind not in _KINDS:
+        if not isinstance(self.kind, str) or self.kind not in _KINDS:
             raise SynthesisError(f"block kind must be one of {_KINDS}; got {self.kind!r}.")
         for what in ("rows", "cols"):
             v = getattr(self, what)
@@ -64,9 +64,11 @@ class Block:
                 raise SynthesisError(f"block {what} must be a positive integer; got {v!r}.")
         if self.kind != "full" and self.rows != self.cols:
             raise SynthesisError(
-                f"a repeated {self.kind} scalar block is square; got {self.rows} x {self.cols}. "
-                "Use kind='full' for a rectangular block."
+                f"a repeated {self.kind} scalar block is square (rows == cols); got rows={self.rows}, "
+                f"cols={self.cols}. Use kind='full' for a rectangular block."
             )
+        if not isinstance(self.name, str):
+            raise SynthesisError(f"block name must be a str; got {self.name!r}.")
 
     @property
     def is_scalar(self) -> bool:
@@ -109,6 +111,8 @@ class BlockStructure:
             raise SynthesisError(
                 f"mussv block rows must be a list of [r, c] pairs, e.g. [[2, 0], [1, 1]]; got {rows!r}."
             )
+        if np.iscomplexobj(arr):
+            raise SynthesisError(f"mussv block rows must be integers; got {rows!r}.")
         as_float = arr.astype(float)
         if not np.all(np.isfinite(as_float)) or np.any(as_float != np.round(as_float)):
             raise SynthesisError(f"mussv block rows must be integers; got {rows!r}.")

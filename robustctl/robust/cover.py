@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import check_band, positive_number
 from ..errors import DataError, FitError
 from ..frd import FrequencyData
 from ..table import Table, result_html
@@ -195,17 +196,22 @@ def _sources(
 ) -> tuple[np.ndarray, list[tuple[str, Any]]]:
     """The grid (Hz) and the labelled sources (FrequencyData or systems)."""
     from ..frd import _as_frequencies
+    from ..lti import as_statespace
 
     items = list(data_or_models) if isinstance(data_or_models, (list, tuple)) else [data_or_models]
     if not items:
         raise FitError("data_or_models is empty; give measured FrequencyData and/or a list of models.")
+    many = isinstance(data_or_models, (list, tuple))
+    items = [d if isinstance(d, FrequencyData) else as_statespace(
+        d, name=f"data_or_models[{k}]" if many else "data_or_models") for k, d in enumerate(items)]
     datas = [d for d in items if isinstance(d, FrequencyData)]
     if f_hz is not None:
         f = _as_frequencies(f_hz)
     elif datas:
         f = datas[0].f_hz
     else:
-        raise FitError("only models were given: pass f_hz=... (Hz) to evaluate them on.")
+        raise FitError("data_or_models holds only models: pass f_hz=... (Hz) to evaluate them on.")
+    band = check_band(band)
     if band is not None:
         lo, hi = band
         keep = (f >= lo) & (f <= hi)
@@ -324,10 +330,12 @@ def error_envelope(
     labels : tuple of str
     errors : ndarray (n_sources, nf)
     """
-    if kind not in _KINDS:
+    from ..lti import as_statespace
+
+    if not isinstance(kind, str) or kind not in _KINDS:
         raise FitError(f"kind must be one of {_KINDS}; got {kind!r}.")
-    if not (np.isfinite(data_sigmas) and data_sigmas >= 0):
-        raise FitError(f"data_sigmas must be finite and >= 0; got {data_sigmas!r}.")
+    data_sigmas = positive_number(data_sigmas, "data_sigmas", FitError, allow_zero=True)
+    nominal = as_statespace(nominal, name="nominal")
     f, sources = _sources(data_or_models, f_hz, band)
     g0, gs, noise = _responses(nominal, f, sources)
     if kind == "additive":
@@ -395,13 +403,15 @@ def _fit_cover(
     return fit.system, mag, time.perf_counter() - t0
 
 
-def _check_options(order: Any, smooth_octaves: Any, floor: Any) -> None:
+def _check_options(order: Any, smooth_octaves: Any, floor: Any, time_budget_s: Any, objective: Any) -> None:
     if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not 0 <= order <= 20:
         raise FitError(f"order must be an integer from 0 to 20; got {order!r}.")
-    if not (np.isfinite(smooth_octaves) and smooth_octaves >= 0):
-        raise FitError(f"smooth_octaves must be finite and >= 0 (0: no smoothing); got {smooth_octaves!r}.")
-    if not (np.isfinite(floor) and 0 < floor < 1):
+    positive_number(smooth_octaves, "smooth_octaves (0: no smoothing)", FitError, allow_zero=True)
+    if not (positive_number(floor, "floor", FitError) < 1):
         raise FitError(f"floor must lie in (0, 1) (a fraction of the envelope's peak); got {floor!r}.")
+    positive_number(time_budget_s, "time_budget_s", FitError, unit="s")
+    if not isinstance(objective, str) or objective not in ("max", "mean"):
+        raise FitError(f'objective must be "max" or "mean"; got {objective!r}.')
 
 
 def _cover(
@@ -419,7 +429,7 @@ def _cover(
 ) -> UncertaintyCover:
     from ..lti import freqresp_array
 
-    _check_options(order, smooth_octaves, floor)
+    _check_options(order, smooth_octaves, floor, time_budget_s, objective)
     f, labels, errs = error_envelope(
         nominal, data_or_models, kind, f_hz=f_hz, band=band, data_sigmas=data_sigmas
     )

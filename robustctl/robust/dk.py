@@ -21,13 +21,14 @@ from __future__ import annotations
 
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from ..checks import flag, integer, positive_number
 from ..errors import SynthesisError
 from ..parallel import check_executor, parallel_map
 from ..table import Table
@@ -493,17 +494,66 @@ def _mu_of(cl: Any, blocks: BlockStructure, f_hz: np.ndarray, refine: bool) -> t
 def _check_args(max_iter: Any, time_budget_s: Any, f_hz: Any) -> np.ndarray | None:
     if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or not 1 <= max_iter <= 100:
         raise SynthesisError(f"max_iter must be an integer in 1..100; got {max_iter!r}.")
-    if not isinstance(time_budget_s, (int, float)) or not np.isfinite(time_budget_s) or time_budget_s <= 0:
-        raise SynthesisError(f"time_budget_s must be a positive number of seconds; got {time_budget_s!r}.")
+    positive_number(time_budget_s, "time_budget_s", SynthesisError, unit="s")
     if f_hz is None:
         return None
-    f = np.asarray(f_hz, dtype=float).ravel()
+    try:
+        f = np.asarray(f_hz, dtype=float).ravel()
+    except (TypeError, ValueError):
+        f = np.full(1, np.nan)
     if f.size < 3 or not np.all(np.isfinite(f)) or np.any(f <= 0) or np.any(np.diff(f) <= 0):
         raise SynthesisError(
             "f_hz must be at least 3 positive, finite, increasing frequencies in Hz, e.g. "
-            "np.logspace(-3, 2, 200)."
+            f"np.logspace(-3, 2, 200); got {f_hz!r}."
         )
     return f
+
+
+def _check_options(progress: Any, rtol: Any, patience: Any, hinf_options: Any, callback: Any) -> dict:
+    """The keyword options of :func:`dksyn`, checked before any work (SynthesisError naming each)."""
+    if progress is not None:
+        flag(progress, "progress", SynthesisError)
+    positive_number(rtol, "rtol", SynthesisError)
+    integer(patience, "patience", SynthesisError, lo=1)
+    if callback is not None and not callable(callback):
+        raise SynthesisError(f"callback must be a function of one DKIteration (or None); got {callback!r}.")
+    if hinf_options is None:
+        return {}
+    allowed = ("method", "gamma_tol", "backoff", "time_budget_s")
+    if not isinstance(hinf_options, Mapping) or not set(hinf_options) <= set(allowed):
+        raise SynthesisError(
+            f"hinf_options must be a dict with keys among {allowed} (rc.hinfsyn's options); "
+            f"got {hinf_options!r}."
+        )
+    for key in ("gamma_tol", "backoff", "time_budget_s"):
+        if key in hinf_options:
+            positive_number(hinf_options[key], f"hinf_options[{key!r}]", SynthesisError,
+                            allow_zero=key == "backoff")
+    if hinf_options.get("method", "riccati") not in ("riccati", "lmi"):
+        raise SynthesisError(
+            f"hinf_options['method'] must be 'riccati' or 'lmi'; got {hinf_options['method']!r}."
+        )
+    return dict(hinf_options)
+
+
+_DK_OPTIONS = ("max_iter", "order_d", "f_hz", "executor", "time_budget_s", "reduce", "rtol", "patience",
+               "hinf_options", "callback")
+
+
+def check_dk_options(options: Any, where: str) -> None:
+    """Refuse, before any design, keyword options that :func:`dksyn` would refuse (all but
+    ``order_d`` and ``reduce``, which need the plant): unknown names and bad values."""
+    unknown = sorted(set(options) - set(_DK_OPTIONS))
+    if unknown:
+        raise SynthesisError(
+            f"{where} got unknown D-K option(s) {unknown}; the options are {list(_DK_OPTIONS)}."
+        )
+    _check_args(options.get("max_iter", 10), options.get("time_budget_s", 120.0), options.get("f_hz"))
+    _check_options(None, options.get("rtol", 1e-3), options.get("patience", 2), options.get("hinf_options"),
+                   options.get("callback"))
+    check_executor(options.get("executor"))
+    if options.get("order_d") is not None:
+        _orders(options["order_d"], 1 if np.ndim(options["order_d"]) == 0 else len(options["order_d"]))
 
 
 def dksyn(
@@ -579,9 +629,11 @@ def dksyn(
     from .hinfsyn import hinfsyn
 
     grid = _check_args(max_iter, time_budget_s, f_hz)
+    hinf_options = _check_options(progress, rtol, patience, hinf_options, callback)
     check_executor(executor)
     plant = _as_plant(gp)
     blocks = _complexified(plant.blocks)
+    _orders(order_d, len(blocks) - 1)  # refuse a bad order_d now, not at the first D step
     base = default_grid(plant.P) if grid is None else grid
     show = sys.stderr.isatty() and (progress is None or bool(progress))
     t_start = time.perf_counter()

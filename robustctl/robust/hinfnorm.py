@@ -346,7 +346,7 @@ def hinfnorm(sys: Any, tol: float = 1e-6) -> tuple[float, float]:
     (50.0025, 0.15914)
     """
     tol = _check_tol(tol)
-    ss = as_statespace(sys)
+    ss = as_statespace(sys, name="sys")
     A, B, C, D = _matrices(ss)
     dt = ss.dt
     if dt in (0, None):

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg
 
-from ..checks import positive_number
+from ..checks import integer, positive_number
 from ..errors import ModelError, SynthesisError
 from ..interconnect import PartitionedPlant, lft
 from ..lti import as_statespace
@@ -131,6 +131,10 @@ class HinfResult:
         from ..plots import new_figure
 
         f_peak = self.info.get("f_peak_hz", np.nan)
+        if f_hz is not None:
+            from .mu import _frequencies
+
+            f_hz = _frequencies(f_hz)  # finite numbers >= 0 Hz, at least one
         if f_hz is None:
             A = np.asarray(self.closed_loop.A)
             poles = np.abs(np.linalg.eigvals(A)) / (2 * np.pi) if A.size else np.zeros(0)
@@ -168,12 +172,12 @@ class HinfResult:
 def _as_partitioned(P: Any, nmeas: Any, ncon: Any) -> PartitionedPlant:
     if not isinstance(P, PartitionedPlant) and all(hasattr(P, k) for k in ("P", "nmeas", "ncon")):
         try:  # a duck-typed generalized plant (any object with .P, .nmeas, .ncon)
-            P = PartitionedPlant(as_statespace(P.P), P.nmeas, P.ncon)
+            P = PartitionedPlant(as_statespace(P.P, name="P"), P.nmeas, P.ncon)
         except ModelError as exc:
             raise SynthesisError(f"hinfsyn: {exc}") from exc
     if isinstance(P, PartitionedPlant):
         for name, given, have in (("nmeas", nmeas, P.nmeas), ("ncon", ncon, P.ncon)):
-            if given is not None and given != have:
+            if given is not None and integer(given, name, SynthesisError, lo=0) != have:
                 raise SynthesisError(
                     f"{name}={given!r} contradicts the partitioned plant's {name}={have}; omit {name}."
                 )
@@ -185,7 +189,7 @@ def _as_partitioned(P: Any, nmeas: Any, ncon: Any) -> PartitionedPlant:
                 "ncon, or pass a PartitionedPlant / generalized plant (which carries them)."
             )
         try:
-            plant = PartitionedPlant(as_statespace(P), nmeas, ncon)
+            plant = PartitionedPlant(as_statespace(P, name="P"), nmeas, ncon)
         except ModelError as exc:
             raise SynthesisError(f"hinfsyn: {exc}") from exc
     if plant.P.dt not in (0, None):
@@ -504,7 +508,7 @@ def hinfsyn(
     >>> res.gamma <= res.info["gamma_design"] * (1 + 1e-6)
     True
     """
-    if method not in ("riccati", "lmi"):
+    if not isinstance(method, str) or method not in ("riccati", "lmi"):
         raise SynthesisError(f"method must be 'riccati' or 'lmi'; got {method!r}.")
     gamma_tol = _bounded(gamma_tol, "gamma_tol", 0.5)
     backoff = _bounded(backoff, "backoff", 10.0, allow_zero=True)

@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import flag, optional_text, positive_number, real_array
 from ..errors import FitError
 
 __all__ = ["fit_magnitude", "MagnitudeFit", "fit_magnitude_details", "zpk_statespace"]
@@ -65,8 +66,8 @@ def _check_order(order: Any) -> int:
 
 
 def _check_curve(f_hz: Any, mag: Any) -> tuple[np.ndarray, np.ndarray]:
-    f = np.asarray(f_hz, dtype=float).reshape(-1)
-    m = np.asarray(mag, dtype=float).reshape(-1)
+    f = real_array(f_hz, "f_hz", FitError).reshape(-1)
+    m = real_array(mag, "mag", FitError).reshape(-1)
     if f.size != m.size:
         raise FitError(f"f_hz has {f.size} points but mag has {m.size}; give one magnitude per frequency.")
     if f.size < 2:
@@ -91,7 +92,7 @@ def _check_curve(f_hz: Any, mag: Any) -> tuple[np.ndarray, np.ndarray]:
 def _check_point_weights(point_weights: Any, n: int) -> np.ndarray:
     if point_weights is None:
         return np.ones(n)
-    w = np.asarray(point_weights, dtype=float).reshape(-1)
+    w = real_array(point_weights, "point_weights", FitError).reshape(-1)
     if w.size != n:
         raise FitError(f"point_weights has {w.size} values for {n} frequency points; give one per point.")
     if not np.all(np.isfinite(w)) or np.any(w < 0) or not np.any(w > 0):
@@ -747,15 +748,17 @@ def fit_magnitude_details(
     f, m = _check_curve(f_hz, mag)
     order = _check_order(order)
     wt = _check_point_weights(point_weights, f.size)
-    if objective not in ("max", "mean") or (objective == "mean" and not upper_bound):
+    upper_bound = flag(upper_bound, "upper_bound", FitError)
+    optional_text(name, "name", FitError)
+    if not isinstance(objective, str) or objective not in ("max", "mean") or (
+        objective == "mean" and not upper_bound
+    ):
         raise FitError(
             f'objective must be "max" (log-Chebyshev) or, with upper_bound=True, "mean" (the smallest '
             f"mean overbound); got {objective!r} with upper_bound={upper_bound!r}."
         )
-    if not (np.isfinite(tol_db) and tol_db > 0) or not (np.isfinite(time_budget_s) and time_budget_s > 0):
-        raise FitError(
-            f"tol_db and time_budget_s must be finite and positive; got {tol_db!r}, {time_budget_s!r}."
-        )
+    tol_db = positive_number(tol_db, "tol_db", FitError, unit="dB")
+    time_budget_s = positive_number(time_budget_s, "time_budget_s", FitError, unit="s")
     use = wt > 0
     logm = np.log(m)
     scale = float(np.exp(np.mean(logm[use])))

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import as_frequency_data, integer
+from ..checks import as_frequency_data, flag, integer, positive_number
 from ..errors import RobustctlError, SynthesisError
 from ..frd import FrequencyData
 from ..parallel import check_executor, parallel_map
@@ -98,6 +98,8 @@ def _frequencies(f_hz: Any) -> np.ndarray:
         raise SynthesisError("f_hz is empty; give at least one frequency in Hz.")
     if not np.all(np.isfinite(f)):
         raise SynthesisError("f_hz contains NaN or inf; frequencies must be finite numbers in Hz.")
+    if np.any(f < 0):
+        raise SynthesisError(f"f_hz must be frequencies >= 0 Hz; got {f[f < 0][0]:g} Hz.")
     return f
 
 
@@ -238,10 +240,11 @@ def mu(M: Any, blocks: Any, f_hz: Any = None, *, lower: bool = True, method: str
     >>> round(r.peak, 6)
     2.0
     """
-    if method not in _METHODS:
+    if not isinstance(method, str) or method not in _METHODS:
         raise SynthesisError(f"method must be one of {_METHODS}; got {method!r}.")
-    if not (isinstance(time_budget_s, (int, float)) and time_budget_s > 0):
-        raise SynthesisError(f"time_budget_s must be a positive number of seconds; got {time_budget_s!r}.")
+    time_budget_s = positive_number(time_budget_s, "time_budget_s", SynthesisError, unit="s")
+    lower = flag(lower, "lower", SynthesisError)
+    seed = integer(seed, "seed", SynthesisError, lo=0)
     bs = as_block_structure(blocks)
     arr, f = as_frequency_array(M, f_hz)
     validate_mu_input(arr, bs)

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import integer, positive_number
 from ..errors import SynthesisError
 from ..table import Table
 from .blocks import Block, BlockStructure, as_block_structure
@@ -39,6 +40,15 @@ def _uncertainty_structure(blocks: Any, n_out: int, n_in: int) -> BlockStructure
             and (bs.n_out, bs.n_in) == (n_out, n_in)):
         bs = BlockStructure(bs.blocks[:-1])
     return bs
+
+
+_MU_OPTIONS = ("lower", "method", "executor", "chunk", "seed", "time_budget_s")
+
+
+def _check_mu_options(options: dict) -> None:
+    unknown = sorted(set(options) - set(_MU_OPTIONS))
+    if unknown:
+        raise SynthesisError(f"unknown mu option(s) {unknown}; rc.mu takes {list(_MU_OPTIONS)}.")
 
 
 def _split(closed_loop: Any, blocks: Any, f_hz: Any):
@@ -71,6 +81,7 @@ def robust_stability(closed_loop: Any, blocks: Any, f_hz: Any = None, **mu_optio
     **mu_options
         Passed to :func:`robustctl.robust.mu.mu` (``lower``, ``method``, ``executor`` ...).
     """
+    _check_mu_options(mu_options)
     N, f, bs = _split(closed_loop, blocks, f_hz)
     sub = N[:, : bs.n_out, : bs.n_in]
     return mu(sub, bs, None if np.isnan(f).all() else f, **mu_options)
@@ -103,6 +114,7 @@ def robust_performance(closed_loop: Any, blocks: Any, f_hz: Any = None, **mu_opt
     inputs is added (if ``blocks`` already cover all channels, its last block is taken as the
     performance block).
     """
+    _check_mu_options(mu_options)
     N, f, bs = _split(closed_loop, blocks, f_hz)
     full, _, _ = _with_performance(bs, N.shape[1], N.shape[2])
     return mu(N, full, None if np.isnan(f).all() else f, **mu_options)
@@ -140,6 +152,7 @@ class WorstCaseGain:
 
     def table(self, count: int = 8) -> Table:
         """The frequencies of the largest worst-case gains."""
+        count = integer(count, "count", SynthesisError, lo=1)
         order = np.argsort(-np.where(np.isfinite(self.upper), self.upper, np.inf))[:count]
         rows = [(float(self.f_hz[k]), float(self.nominal[k]), float(self.lower[k]), float(self.upper[k]))
                 for k in order]
@@ -223,11 +236,16 @@ def worst_case_gain(closed_loop: Any, blocks: Any, f_hz: Any = None, *, rel_tol:
     gamma_max : float
         Gains above this count as infinite (relative to the nominal gain).
     """
+    rel_tol = positive_number(rel_tol, "rel_tol", SynthesisError)
+    if rel_tol >= 1:
+        raise SynthesisError(f"rel_tol must be a relative accuracy in (0, 1); got {rel_tol!r}.")
+    max_iter = integer(max_iter, "max_iter", SynthesisError, lo=1)
+    gamma_max = positive_number(gamma_max, "gamma_max", SynthesisError)
+    if gamma_max <= 1:
+        raise SynthesisError(f"gamma_max must be > 1 (a factor on the nominal gain); got {gamma_max!r}.")
     N, f, bs = _split(closed_loop, blocks, f_hz)
     full, _, _ = _with_performance(bs, N.shape[1], N.shape[2])
     validate_mu_input(N, full)
-    if not (np.isfinite(rel_tol) and rel_tol > 0):
-        raise SynthesisError(f"rel_tol must be a positive number; got {rel_tol!r}.")
     n_unc_out = bs.n_out
     nominal = np.linalg.norm(N[:, n_unc_out:, bs.n_in:], ord=2, axis=(1, 2))
     rs = mu(N[:, :n_unc_out, : bs.n_in], bs)

@@ -7,6 +7,8 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import integer
+from ..errors import SynthesisError
 from ..table import Table, result_html
 from .blocks import BlockStructure
 
@@ -104,6 +106,7 @@ class MuResult:
 
     def table(self, count: int = 8) -> Table:
         """The largest local peaks of the upper bound: frequency, bounds, gap and D-scales."""
+        count = integer(count, "count", SynthesisError, lo=1)
         names = [b.name or f"{b.kind} {b.rows}x{b.cols}" for b in self.blocks]
         cols = ("f (Hz)", "mu upper", "mu lower", "gap (%)") + tuple(f"d [{n}]" for n in names)
         rows = []

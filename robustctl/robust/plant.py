@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import is_default_names
+from ..checks import flag, is_default_names
 from ..errors import ModelError
 from ..interconnect import PartitionedPlant, PicklesStateSpaces, block_diagonal, upper_lft
 from ..table import Table
@@ -260,10 +260,7 @@ def _weight(spec: Any, what: str, *, n_in: int | None = None, n_out: int | None 
         return control.ss(np.zeros((0, 0)), np.zeros((0, n_rep)), np.zeros((n_rep, 0)), c * np.eye(n_rep))
     if isinstance(spec, control.TransferFunction):
         _check_proper(spec, what)
-    try:
-        W = as_statespace(spec)
-    except ModelError as exc:
-        raise ModelError(f"{what}: {exc}") from exc
+    W = as_statespace(spec, name=what)
     if W.isdtime(strict=True):
         raise ModelError(f"{what} is discrete-time (dt={W.dt}); weights are continuous-time.")
     poles = np.linalg.eigvals(np.asarray(W.A, float)) if W.nstates else np.zeros(0)
@@ -287,7 +284,7 @@ def _weight(spec: Any, what: str, *, n_in: int | None = None, n_out: int | None 
 
 def _additive_weight(spec: Any, nu: int, ny: int):
     """SISO or ``nu x nu`` (on the plant inputs), or ``ny x ny`` (on the plant outputs)."""
-    what = "the additive weight"
+    what = "additive (the additive uncertainty weight)"
     try:
         return _weight(spec, what, n_in=nu, n_out=nu)
     except ModelError as exc:
@@ -480,7 +477,8 @@ def generalized_plant(
 
     from ..lti import as_statespace
 
-    G = as_statespace(nominal)
+    check_rank = flag(check_rank, "check_rank", ModelError)
+    G = as_statespace(nominal, name="nominal")
     if G.isdtime(strict=True):
         raise ModelError(
             f"the nominal model is discrete-time (dt={G.dt}); the generalized plant is continuous-time."
@@ -502,11 +500,11 @@ def _plant_weights(G, additive, input_mult, output_mult, performance, control_we
         "Wa": (additive, None),
         "Wi": (input_mult, dict(what="input_mult (input multiplicative weight)", n_in=nu, n_out=nu)),
         "Wo": (output_mult, dict(what="output_mult (output multiplicative weight)", n_in=ny, n_out=ny)),
-        "Wp": (performance, dict(what="the performance weight", n_in=ny)),
+        "Wp": (performance, dict(what="performance (the performance weight)", n_in=ny)),
         "Wu": (control_weight, dict(what="control_weight", n_in=nu)),
-        "Wdi": (dist.get("input"), dict(what="the input-disturbance weight", n_out=nu)),
-        "Wdo": (dist.get("output"), dict(what="the output-disturbance weight", n_out=ny)),
-        "Wn": (noise, dict(what="the noise weight", n_out=ny)),
+        "Wdi": (dist.get("input"), dict(what="disturbances (the input-disturbance weight)", n_out=nu)),
+        "Wdo": (dist.get("output"), dict(what="disturbances (the output-disturbance weight)", n_out=ny)),
+        "Wn": (noise, dict(what="noise (the sensor-noise weight)", n_out=ny)),
     }
     W: dict[str, Any] = {}
     for key, (spec, kw) in specs.items():
@@ -630,6 +628,8 @@ class _PlantBuilder:
 def _mult_blocks(structure: str, names: Sequence[str], label: str) -> list[Block]:
     """The blocks of one multiplicative uncertainty over ``names`` channels."""
     n = len(names)
+    if not isinstance(structure, str):
+        structure = repr(structure)  # refused below, by name
     if structure == "full":
         return [Block("full", n, n, label)]
     if structure == "diagonal":
@@ -702,7 +702,7 @@ def mixed_sensitivity(G: Any, W1: Any = None, W2: Any = None, W3: Any = None) ->
     """
     from ..lti import as_statespace
 
-    Gs = as_statespace(G)
+    Gs = as_statespace(G, name="G")
     nu, ny = Gs.ninputs, Gs.noutputs
     u_names, y_names = list(Gs.input_labels), list(Gs.output_labels)
     W = [None if spec is None else _weight(spec, what, n_in=n)

@@ -14,10 +14,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..checks import flag
 from ..errors import SynthesisError
 from ..parallel import check_executor, parallel_map
 from ..table import Table
-from .dk import DKResult, dksyn
+from .dk import DKResult, check_dk_options, dksyn
 
 __all__ = ["design_sweep", "DesignSweep"]
 
@@ -77,11 +78,21 @@ class DesignSweep:
         return f"DesignSweep({len(self.labels)} designs, best {self.best!r})"
 
 
+def _is_plant(recipe: Any) -> bool:
+    from ..interconnect import PartitionedPlant
+
+    return isinstance(recipe, (tuple, PartitionedPlant))
+
+
 def _design(item: tuple[Any, dict]) -> DKResult:
     plant, options = item
-    if callable(plant) and not hasattr(plant, "P"):
+    label, plant = plant
+    if not _is_plant(plant):
         plant = plant()
-    return dksyn(plant, **options)
+    try:
+        return dksyn(plant, **options)
+    except SynthesisError as exc:
+        raise SynthesisError(f"recipes[{label!r}]: {exc}") from exc
 
 
 def design_sweep(
@@ -110,15 +121,25 @@ def design_sweep(
     -------
     DesignSweep
     """
+    import control
+
     check_executor(executor)
+    progress = flag(progress, "progress", SynthesisError)
     if not isinstance(recipes, Mapping) or not recipes:
         raise SynthesisError(
             "recipes must be a non-empty mapping label -> plant (GeneralizedPlant, (P, nmeas, ncon, blocks) "
             f"or a callable returning one); got {type(recipes).__name__}."
         )
+    for label, recipe in recipes.items():
+        if not (_is_plant(recipe) or callable(recipe)) or isinstance(recipe, control.LTI):
+            raise SynthesisError(
+                f"recipes[{label!r}] must be a GeneralizedPlant, a (P, nmeas, ncon, blocks) tuple or a "
+                f"callable returning one; got {type(recipe).__name__}."
+            )
+    check_dk_options(dk_options, "design_sweep")
     labels = tuple(str(k) for k in recipes)
     options = {**dk_options, "progress": False}
-    items = [(recipes[k], options) for k in recipes]
+    items = [((str(k), recipes[k]), options) for k in recipes]
     results = parallel_map(_design, items, executor, desc="designs", progress=progress)
     return DesignSweep(labels, dict(zip(labels, results)))
 

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import optional_text, positive_number
 from ..errors import FitError
 from .magfit import zpk_statespace
 
@@ -23,13 +24,7 @@ CALTECH_MULTIPLICATIVE = 0.04
 
 
 def _positive(value: Any, what: str) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise FitError(f"{what} must be a positive number; got {value!r}.") from None
-    if not np.isfinite(v) or v <= 0:
-        raise FitError(f"{what} must be finite and positive; got {value!r}.")
-    return v
+    return positive_number(value, what, FitError)
 
 
 def makeweight(dc_gain: float, crossover: Sequence[float], hf_gain: float, order: int = 1, *, name=None):
@@ -74,20 +69,21 @@ def makeweight(dc_gain: float, crossover: Sequence[float], hf_gain: float, order
     >>> import robustctl as rc
     >>> Wp = rc.makeweight(100.0, (1.0, 1.0), 0.5)  # performance: 40 dB at dc, 0 dB at 1 Hz
     """
+    optional_text(name, "name", FitError)
     d = _positive(dc_gain, "dc_gain")
     h = _positive(hf_gain, "hf_gain")
     try:
         f_c, g = crossover
     except (TypeError, ValueError):
         raise FitError(f"crossover must be a pair (f_hz, gain); got {crossover!r}.") from None
-    f_c = _positive(f_c, "crossover frequency (Hz)")
-    g = _positive(g, "crossover gain")
+    f_c = _positive(f_c, "crossover frequency (crossover[0], Hz)")
+    g = _positive(g, "crossover gain (crossover[1])")
     if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not 1 <= order <= 10:
         raise FitError(f"order must be an integer from 1 to 10; got {order!r}.")
     if not (d < g < h or d > g > h):
         raise FitError(
-            f"the crossover gain {g:g} must lie strictly between dc_gain {d:g} and hf_gain {h:g} "
-            "(dc < gain < hf for a high-pass weight, dc > gain > hf for a low-pass one)."
+            f"the crossover gain {g:g} (crossover[1]) must lie strictly between dc_gain {d:g} and "
+            f"hf_gain {h:g} (dc < gain < hf for a high-pass weight, dc > gain > hf for a low-pass one)."
         )
     d1, g1, h1 = d ** (1.0 / order), g ** (1.0 / order), h ** (1.0 / order)
     w_c = 2.0 * np.pi * f_c
@@ -108,4 +104,5 @@ def caltech_additive_weight(*, name: str = "W_additive"):
     control.StateSpace
         Three states, stable and minimum phase.
     """
+    optional_text(name, "name", FitError)
     return zpk_statespace([-6.0, -12.0, -24.0], [-0.6, -400.0, -400.0], 8.0, name=name)

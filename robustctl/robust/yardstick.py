@@ -38,11 +38,12 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import check_band, flag, match_channels
 from ..errors import DataError, SynthesisError
 from ..frd import FrequencyData
 from ..parallel import check_executor, parallel_map
 from ..table import Table
-from .dk import DKResult, _mu_of, closed_loop, default_grid, dksyn
+from .dk import DKResult, _as_plant, _mu_of, check_dk_options, closed_loop, default_grid, dksyn
 
 __all__ = ["NyquistVerdict", "Yardstick", "nyquist_stability", "yardstick"]
 
@@ -308,6 +309,27 @@ def _design(gp: Any, options: dict) -> DKResult:
     return dksyn(gp, progress=False, **options)
 
 
+def _band_of(data: FrequencyData, band: tuple[float, float] | None) -> tuple:
+    """The data's frequencies, the band (Hz) and its mask; refuses a band with fewer than 2 points."""
+    f_all = np.asarray(data.f_hz, dtype=float)
+    lo, hi = (f_all[0], f_all[-1]) if band is None else band
+    in_band = (f_all >= lo) & (f_all <= hi)
+    if in_band.sum() < 2:
+        raise DataError(f"band ({lo:g}, {hi:g}) Hz holds fewer than 2 data points; the data span "
+                        f"{f_all[0]:g}-{f_all[-1]:g} Hz.")
+    return f_all, lo, hi, in_band
+
+
+def _recipe_plant(recipe: Callable[[Any], Any], model: Any, label: str) -> Any:
+    """``recipe(model)``, refused unless it is a plant :func:`dksyn` takes."""
+    plant = recipe(model)
+    try:
+        _as_plant(plant)
+    except SynthesisError as exc:
+        raise SynthesisError(f"recipe(models[{label!r}]) must return a GeneralizedPlant: {exc}") from exc
+    return plant
+
+
 def _system_of(model: Any) -> Any:
     """The model as a system: a MeasurementModel (``.sys``, no ``.statespace()``) gives its ``sys``."""
     if not hasattr(model, "statespace") and hasattr(model, "sys"):
@@ -316,16 +338,16 @@ def _system_of(model: Any) -> Any:
 
 
 def _aligned_response(data: FrequencyData, G: Any) -> np.ndarray:
-    """The data's response with channels in the model's order (by name, else by position)."""
+    """The data's response with channels in the model's order (:func:`robustctl.checks.match_channels`:
+    by name, by position only when one side has python-control's default names)."""
     if data.shape[1:] != (G.noutputs, G.ninputs):
         raise DataError(
             f"the data have {data.n_out} outputs x {data.n_in} inputs but the models have "
             f"{G.noutputs} x {G.ninputs}; select matching channels (data.select(...))."
         )
-    outs, ins = list(G.output_labels), list(G.input_labels)
-    if set(outs) == set(data.outputs) and set(ins) == set(data.inputs):
-        data = data.select(outputs=outs, inputs=ins)
-    return np.asarray(data.response, dtype=complex)
+    out_idx = match_channels(data.outputs, G.output_labels, "outputs", ("data", "model"))
+    in_idx = match_channels(data.inputs, G.input_labels, "inputs", ("data", "model"))
+    return np.asarray(data.response, dtype=complex)[:, out_idx][:, :, in_idx]
 
 
 def _rms_frobenius(X: np.ndarray) -> float:
@@ -508,20 +530,18 @@ def yardstick(
     from ..lti import as_statespace, freqresp_array
 
     data, labels, reference = _check_inputs(data, models, recipe, reference)
+    f_all, lo, hi, in_band = _band_of(data, check_band(band))
+    if progress is not None:
+        flag(progress, "progress", SynthesisError)
     check_executor(executor)
+    check_dk_options(dk_options, "yardstick")
     given = {lab: _system_of(models[lab]) for lab in labels}
-    systems = {lab: as_statespace(given[lab]) for lab in labels}
-    plants = {lab: recipe(given[lab]) for lab in labels}
+    systems = {lab: as_statespace(given[lab], name=f"models[{lab!r}]") for lab in labels}
+    plants = {lab: _recipe_plant(recipe, given[lab], lab) for lab in labels}
     signs = {lab: _measurement_sign(plants[lab], systems[lab]) for lab in labels}
     results = parallel_map(functools.partial(_design, options=dk_options), [plants[lab] for lab in labels],
                            executor, desc="yardstick designs", progress=progress is None or bool(progress))
     designs = dict(zip(labels, results))
-    f_all = np.asarray(data.f_hz, dtype=float)
-    lo, hi = (f_all[0], f_all[-1]) if band is None else (float(band[0]), float(band[1]))
-    in_band = (f_all >= lo) & (f_all <= hi)
-    if lo >= hi or in_band.sum() < 2:
-        raise DataError(f"band ({lo:g}, {hi:g}) Hz holds fewer than 2 data points; the data span "
-                        f"{f_all[0]:g}-{f_all[-1]:g} Hz.")
     attenuation, stability, closed = {}, {}, {}
     G_ref = _aligned_response(data, systems[reference])
     f_fine, G_fine = _interpolated(data, systems, reference, f_all)
