@@ -10,9 +10,11 @@ Reported separately:
 * the cluster's start-up (LocalCluster + Client, once; a long-lived cluster is the use case),
 * a one-design warm-up on the cluster (imports on the workers),
 * the sweep's wall time serial and on the cluster, and their ratio (bounded by 2 on 2 workers),
+* the shortest and longest design of the serial sweep (wall seconds, from the D-K history),
 * the CPU seconds of the serial sweep and of the two workers during the cluster sweep
   (``Client.run(time.process_time)`` before and after): their ratio shows what shipping and
-  scheduling add, independent of other load on the machine,
+  scheduling add (a worker's event loop also ticks while it waits, so on a loaded machine,
+  where the sweep's wall time stretches, the ratio grows with it),
 * the load average before the run: on a loaded machine the wall-clock ratio says little.
 
 Both runs must give the same peak mu per design. Run: ``python -m benchmarks sweep``.
