@@ -24,7 +24,7 @@ demo: $(CORE_STAMP)
 	$(PY) -m robustctl demo --out out
 
 test: $(STAMP)
-	$(PY) -m pytest -n 2 -q --durations=15 tests --nbmake notebooks
+	$(PY) -m pytest -n 2 --dist loadfile -q --durations=15 tests --nbmake notebooks
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check robustctl tests benchmarks

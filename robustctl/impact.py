@@ -160,7 +160,10 @@ def estimate_frf_impact(
     FrequencyData
         ``(n_freq, n_out, 1)`` at ``k fs / n_samples`` Hz (DC dropped), coherence over hits,
         ``meta`` with ``method``, ``fs_hz``, ``n_hits``, ``exp_window_tau_s``,
-        ``force_window_s``, ``resolution_hz``, ``double_hits`` and ``overloads`` (hit indices).
+        ``force_window_s``, ``resolution_hz``, ``double_hits`` and ``overloads`` (hit indices),
+        ``hit_times_s`` (force-pulse centroids) and ``hit_weights`` (force-energy shares): with
+        them :func:`robustctl.fit_measurement_model` undoes the truncation of a response that
+        has not decayed by the record end (:mod:`robustctl.identify.leakage`, eq. T1).
 
     Warns
     -----
@@ -200,6 +203,8 @@ def estimate_frf_impact(
             win = np.exp(-np.maximum(t - start / fs, 0.0) / tau)
             fw[k] *= win
             yw[k] *= win[:, None]
+    energy = np.sum(fw**2, axis=1)
+    centroid = np.sum(np.arange(n) * np.abs(fw), axis=1) / np.maximum(np.sum(np.abs(fw), axis=1), 1e-300)
     F = np.fft.rfft(fw, axis=1)[:, 1:]
     Y = np.fft.rfft(yw, axis=1)[:, 1:, :]
     sff = np.sum(np.abs(F) ** 2, axis=0)
@@ -219,6 +224,8 @@ def estimate_frf_impact(
         "resolution_hz": fs / n,
         "double_hits": doubles,
         "overloads": overloads,
+        "hit_times_s": [float(c / fs) for c in centroid],
+        "hit_weights": [float(e / energy.sum()) for e in energy],
     }
     return FrequencyData(
         freqs,

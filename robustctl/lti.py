@@ -112,6 +112,8 @@ def pole_frequency_damping(poles: Any) -> tuple[np.ndarray, np.ndarray]:
 COND_LIMIT = 1e6
 #: modal residue growth (relative to the block's I/O gains) above which a block is not diagonalised
 GROWTH_LIMIT = 1e4
+#: Largest single dense block diagonalised with an explicit inverse of its eigenvectors.
+DENSE_INV_MAX = 64
 
 
 # ---------------------------------------------------------------------------- conversions
@@ -299,6 +301,8 @@ def _modal_terms(A: np.ndarray, B: np.ndarray, C: np.ndarray, blocks: list[np.nd
     """
     io_B = B if io_B is None else io_B
     io_C = C if io_C is None else io_C
+    if len(blocks) == 1 and blocks[0].shape[0] == 1 and A.shape[0] <= DENSE_INV_MAX:
+        return _modal_terms_dense(A, B, C, io_B, io_C)
     lam, cv, w, bad = [], [], [], []
     for idx in blocks:  # idx: (n_blocks, k)
         full = idx.shape == (1, A.shape[0])
@@ -323,6 +327,48 @@ def _modal_terms(A: np.ndarray, B: np.ndarray, C: np.ndarray, blocks: list[np.nd
     if lam:
         return np.concatenate(lam), np.concatenate(cv, axis=1), np.concatenate(w, axis=0), bad
     return np.zeros(0, complex), np.zeros((C.shape[0], 0), complex), np.zeros((0, B.shape[1]), complex), bad
+
+
+def _modal_terms_dense(A: np.ndarray, B: np.ndarray, C: np.ndarray, io_B: np.ndarray, io_C: np.ndarray):
+    """:func:`_modal_terms` for one dense block of order <= ``DENSE_INV_MAX``, without the
+    batching (same tests; ``V^{-1}`` by an explicit inverse, cheap at these orders)."""
+    ev, V = _eig(A)
+    try:
+        Vinv = np.linalg.inv(V)
+    except np.linalg.LinAlgError:
+        Vinv = None
+    if Vinv is not None:
+        cond = np.abs(V).sum(axis=0).max() * np.abs(Vinv).sum(axis=0).max()
+        W, CV = Vinv @ B, C @ V
+        residues = float(np.sqrt(_abs2(CV).sum(axis=0) * _abs2(W).sum(axis=1)).sum())
+        gains = float(np.sqrt((io_C * io_C).sum() * (io_B * io_B).sum()))
+        growth = residues / gains if residues > 0 else 0.0
+        if cond <= COND_LIMIT and growth <= GROWTH_LIMIT:
+            return ev, CV, W, []
+    empty = np.zeros(0, complex), np.zeros((C.shape[0], 0), complex), np.zeros((0, B.shape[1]), complex)
+    return (*empty, [np.arange(A.shape[0])])
+
+
+def _eig(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues and right eigenvectors (complex) of a real matrix by LAPACK ``dgeev`` directly
+    (``np.linalg.eig`` without its wrapper's checks; conjugate pairs rebuilt from the real
+    ``(Re v, Im v)`` column pairs)."""
+    from scipy.linalg import lapack
+
+    wr, wi, _, vr, info = lapack.dgeev(A, compute_vl=0)
+    if info != 0:
+        return np.linalg.eig(A)  # raises LinAlgError as the wrapper does
+    V = vr.astype(complex)
+    pos = np.flatnonzero(wi > 0)  # the first column of each pair (LAPACK: positive imaginary part first)
+    if pos.size:
+        V[:, pos] += 1j * vr[:, pos + 1]
+        V[:, pos + 1] = V[:, pos].conj()
+    return wr + 1j * wi, V
+
+
+def _abs2(z: np.ndarray) -> np.ndarray:
+    """``|z|^2`` of a complex array (no square root)."""
+    return z.real * z.real + z.imag * z.imag
 
 
 def _diag_response(lam: np.ndarray, CV: np.ndarray, W: np.ndarray, s: np.ndarray) -> np.ndarray:

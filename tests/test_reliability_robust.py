@@ -689,7 +689,7 @@ def test_exported_controllers_load_back_unchanged(tmp_path_factory, poles, fs, e
 # ---------------------------------------------------------------------------- totals
 def test_outcome_totals():
     """Runs last in this module: >= 1,000 generated bad-argument cases, every one refused
-    naming its argument. (Under pytest-xdist the cases may run in other workers: skipped.)"""
+    naming its argument. (make test runs pytest-xdist with --dist loadfile, so one worker runs them all.)"""
     if {c[0] for c in CASES} != SEEN:
         pytest.skip("the property cases ran (partly) in another process")
     print(f"\nrobust-half property cases: {dict(OUTCOMES)}; valid cases: {dict(VALID)}")

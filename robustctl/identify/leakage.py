@@ -12,18 +12,56 @@ broadened (with the Caltech settings, 200 Hz and 4096-point Hamming windows, a 1
 mode at 1.17 Hz looks about 50 % more damped). Fitting ``data * M(jw) / E[H1 of M]`` instead of
 ``data`` for the current model ``M`` removes that bias (and the ZOH half-sample delay) in a
 few fixed-point steps.
+
+Impact records with a rectangular window (a response truncated at the record end, see
+:func:`robustctl.estimate_frf_impact`) leak differently: one hit at ``t_h`` and a record of
+length ``T`` give, at the DFT bins, the DFT of the impulse response cut ``T - t_h`` after the hit,
+
+    H1(w) = H(jw) - tail(w),   tail(w) = sum_p dt r_p exp((p - jw)(T - t_h)) / (1 - exp((p - jw) dt)),
+
+summed over the poles ``p`` (and conjugates) with residues ``r_p`` of the sampled (impulse-
+invariant) response and averaged over the hits with their force energies (eq. T1). The tail is
+no rational function of ``jw`` (the factor ``exp(-jw (T - t_h))`` turns by a full circle every
+``1/(T - t_h)`` Hz), so a rational fit of leaked data spends extra poles and biases the damping.
+Fitting ``data + tail(M)`` for the current model ``M`` undoes it in a few fixed-point steps
+(each step removes the ratio ``|exp(p (T - t_h))|`` of the remaining error: the decay left at
+the record end).
 """
 
 from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
 from ..errors import FitError
 from ..estimator import EstimatorSettings, estimator_settings, lag_window
 from ..threads import limit_blas
+from .modal_refine import ZETA_MIN
+from .poles import coefficients_to_residues, lstsq_normal, partial_fraction_basis
 from .rational_fit import RationalFit
 
-__all__ = ["EstimatorSettings", "estimator_settings", "expected_h1", "leakage_factor"]
+__all__ = [
+    "EstimatorSettings",
+    "estimator_settings",
+    "expected_h1",
+    "leakage_factor",
+    "TruncationSettings",
+    "truncation_settings",
+    "record_tail",
+    "corrected_response",
+    "truncated_residues",
+    "leaks",
+    "tail_share",
+]
+
+#: damping ratio below which a pole sits at the modal refinement's lower bound ``ZETA_MIN``
+BOUND_ZETA = 1.5 * ZETA_MIN
+
+#: relative size of the record-end tail below which an impact record counts as decayed
+TAIL_NEGLIGIBLE = 1e-3
 
 
 def _zoh_impulse(model: RationalFit, fs: float, n: int) -> np.ndarray:
@@ -66,3 +104,128 @@ def leakage_factor(model: RationalFit, f_hz: np.ndarray, settings: EstimatorSett
     m = model.response(f_hz)
     tiny = np.finfo(float).tiny
     return m / np.where(np.abs(expected) > tiny, expected, tiny)
+
+
+@dataclass(frozen=True)
+class TruncationSettings:
+    """Record length, hit times and hit weights of an impact H1 estimate (eq. T1).
+
+    Attributes
+    ----------
+    fs_hz : float
+        Sampling frequency, Hz.
+    record_s : float
+        Record length ``T``, s.
+    hit_times_s : tuple of float
+        Force-pulse centroid ``t_h`` of every hit from the record start, s.
+    hit_weights : tuple of float
+        Share of every hit in the H1 average (its force energy; they sum to 1).
+    """
+
+    fs_hz: float
+    record_s: float
+    hit_times_s: tuple[float, ...]
+    hit_weights: tuple[float, ...]
+
+
+def truncation_settings(meta: Mapping[str, Any] | None) -> TruncationSettings | None:
+    """The truncation settings recorded by :func:`robustctl.estimate_frf_impact`, or None (other
+    data, or data already corrected: ``meta["leakage_corrected"]``)."""
+    if not isinstance(meta, Mapping) or meta.get("leakage_corrected"):
+        return None
+    try:
+        fs, n = float(meta["fs_hz"]), int(meta["n_samples"])
+        times = tuple(float(t) for t in meta["hit_times_s"])
+        weights = np.asarray(meta["hit_weights"], dtype=float)
+    except (KeyError, TypeError, ValueError):
+        return None
+    if len(times) != weights.size or weights.size == 0 or not weights.sum() > 0:
+        return None
+    return TruncationSettings(fs, n / fs, times, tuple(weights / weights.sum()))
+
+
+def _tail_terms(s: np.ndarray, poles: np.ndarray, settings: TruncationSettings) -> np.ndarray:
+    """``dt sum_h w_h exp((q - s)(T - t_h)) / (1 - exp((q - s) dt))`` for every pole ``q`` and its
+    conjugate: (K, n_p, 2), the tail of eq. T1 per unit residue."""
+    dt = 1.0 / settings.fs_hz
+    cut = settings.record_s - np.asarray(settings.hit_times_s)
+    weights = np.asarray(settings.hit_weights)
+    q = np.stack([poles, np.conj(poles)], axis=-1)  # (n_p, 2)
+    x = q[None, :, :] - s[:, None, None]  # (K, n_p, 2), 1/s
+    share = np.exp(x[..., None] * cut) @ weights
+    return dt * share / -np.expm1(x * dt)
+
+
+def record_tail(model: RationalFit, f_hz: np.ndarray, settings: TruncationSettings) -> np.ndarray:
+    """``tail(w)`` of eq. T1 for ``model``: what the record end cuts off, (K, n_out, n_in)."""
+    s = 2j * np.pi * np.asarray(f_hz, dtype=float)
+    terms = _tail_terms(s, model.poles, settings)
+    real = model.poles.imag == 0
+    out = np.einsum("kp,poi->koi", np.where(real, 0.0, 1.0) * terms[:, :, 0], model.residues)
+    out += np.einsum("kp,poi->koi", np.where(real, 0.0, 1.0) * terms[:, :, 1], np.conj(model.residues))
+    return out + np.einsum("kp,poi->koi", np.where(real, 1.0, 0.0) * terms[:, :, 0], model.residues.real)
+
+
+def truncated_residues(
+    s: np.ndarray, g: np.ndarray, row_weight: np.ndarray, poles: np.ndarray, settings: TruncationSettings
+) -> tuple[np.ndarray, np.ndarray]:
+    """Residues and feedthrough for fixed poles that fit the *truncated* data ``g`` directly:
+    linear least squares on the basis ``1/(s - p) - tail_p(s)`` of eq. T1 (the leaked response of
+    each pole), one solve per channel with the relative row weights of MACE eq. 5.
+
+    This solves the truncation exactly for given poles (no fixed-point contraction), which keeps
+    the correction stable for lightly damped poles whose decay barely starts within the record.
+    """
+    terms = _tail_terms(s, poles, settings)
+    tails = []
+    for p, (tp, tc) in zip(poles, terms.transpose(1, 2, 0)):
+        tails += [tp] if p.imag == 0 else [tp + tc, 1j * (tp - tc)]
+    basis = partial_fraction_basis(s, poles) - (np.stack(tails, axis=1) if tails else 0.0)
+    basis = np.hstack([basis, np.ones((s.size, 1))])
+    _, n_out, n_in = g.shape
+    x = np.zeros((basis.shape[1], n_out, n_in))
+    for i in range(n_out):
+        for j in range(n_in):
+            a = basis * row_weight[:, i, j][:, None]
+            b = g[:, i, j] * row_weight[:, i, j]
+            x[:, i, j] = lstsq_normal(np.concatenate([a.real, a.imag]), np.concatenate([b.real, b.imag]))
+    residues = coefficients_to_residues(x[:-1], poles).reshape(len(poles), n_out, n_in)
+    return residues, x[-1]
+
+
+def corrected_response(
+    model: RationalFit, band, settings, row_weight: np.ndarray | None = None
+) -> np.ndarray:
+    """``band``'s response with the estimator's leakage undone for ``model``: times
+    :func:`leakage_factor` (Welch settings) or plus :func:`record_tail` (impact truncation; with
+    ``row_weight`` the residues are first refitted to the raw data by :func:`truncated_residues`).
+    Only complex poles get a tail. Those whose damping sits at the modal refinement's bound
+    (``BOUND_ZETA``) do not: the data do not determine their decay, and a nearly undamped spurious
+    pole would manufacture its own peak in the corrected data. Nor do real poles: they are
+    fillers for out-of-band dynamics and residual flexibility, not decays the record saw (a slow
+    real filler with a large residue would add a large, meaningless tail)."""
+    if not isinstance(settings, TruncationSettings):
+        return band.response * leakage_factor(model, band.f_hz, settings)
+    if row_weight is not None:
+        s = 2j * np.pi * band.f_hz
+        res, d = truncated_residues(s, band.response, row_weight, model.poles, settings)
+        model = replace(model, residues=res, d=d)
+    zeta = -model.poles.real / np.maximum(np.abs(model.poles), np.finfo(float).tiny)
+    trusted = (model.poles.imag != 0) & (zeta > BOUND_ZETA)
+    model = replace(model, poles=model.poles[trusted], residues=model.residues[trusted])
+    return band.response + record_tail(model, band.f_hz, settings)
+
+
+def tail_share(model: RationalFit, band, settings: TruncationSettings) -> float:
+    """Largest ``|tail| / |model|`` of eq. T1 over the band: how much the record end cuts off."""
+    tail = np.abs(record_tail(model, band.f_hz, settings))
+    model_abs = np.maximum(np.abs(model.response(band.f_hz)), np.finfo(float).tiny)
+    return float(np.max(tail / model_abs))
+
+
+def leaks(model: RationalFit, band, settings) -> bool:
+    """Whether the correction matters: always for Welch settings; for impact records when the
+    tail reaches ``TAIL_NEGLIGIBLE`` of the model's response somewhere in the band."""
+    if not isinstance(settings, TruncationSettings):
+        return True
+    return tail_share(model, band, settings) >= TAIL_NEGLIGIBLE

@@ -32,13 +32,25 @@ from ..table import Table, result_html
 from ..threads import limit_blas
 from ._problem import prepare_problem
 from .cost import LogCost, channel_cost
-from .leakage import EstimatorSettings, estimator_settings
-from .modal_fit import FitSettings, fit_best, shift_poles, spare_pairs
+from .leakage import (
+    BOUND_ZETA,
+    EstimatorSettings,
+    TruncationSettings,
+    estimator_settings,
+    truncation_settings,
+)
+from .modal_fit import FitSettings, fit_best, fit_with_leakage, shift_poles, spare_pairs
 from .rational_fit import IdentifyWarning, RationalFit
 from .realization import residue_factors
 from .refine import _row_weights
 from .selection import ZETA_FILLER, pole_contributions
-from .stabilisation import MIN_CONTRIBUTION, REL_CONTRIBUTION, StabilisationDiagram, stabilisation_scan
+from .stabilisation import (
+    MIN_CONTRIBUTION,
+    REL_CONTRIBUTION,
+    StabilisationDiagram,
+    distinct_modes,
+    stabilisation_scan,
+)
 
 __all__ = ["Mode", "MeasurementModel", "fit_measurement_model", "StabilisationDiagram"]
 
@@ -118,7 +130,12 @@ class MeasurementModel:
                 f"{len(self.fillers)} filler pole(s) outside the band or heavily damped are kept in the "
                 "model and listed in .fillers."
             )
-        if self.leakage_corrected:
+        if self.leakage_corrected and truncation_settings(self.raw_data.meta) is not None:
+            lines.append(
+                "The data were corrected for the truncation of the responses at the record end "
+                "(rectangular-window leakage of the impact test) before fitting."
+            )
+        elif self.leakage_corrected:
             lines.append("The data were corrected for the H1 estimator's window leakage before fitting.")
         if self.window_tau_s is not None:
             lines.append(
@@ -190,7 +207,16 @@ class MeasurementModel:
 
 
 # ---------------------------------------------------------------------------- procedure
-def _settings(fd: FrequencyData, correct_leakage: Any) -> EstimatorSettings | None:
+def _settings(
+    fd: FrequencyData, correct_leakage: Any, correct_window: bool
+) -> EstimatorSettings | TruncationSettings | None:
+    """Welch settings for the H1 leakage correction, or an impact record's truncation settings
+    (applied with ``correct_window``: the rectangular window's leakage), or None."""
+    if correct_leakage not in (True, False, "auto"):
+        raise FitError(f"correct_leakage must be True, False or 'auto'; got {correct_leakage!r}.")
+    impact = truncation_settings(fd.meta)
+    if impact is not None and (correct_window or correct_leakage is True):
+        return impact
     if correct_leakage is False:
         return None
     st = estimator_settings(fd.meta)
@@ -199,8 +225,6 @@ def _settings(fd: FrequencyData, correct_leakage: Any) -> EstimatorSettings | No
             "correct_leakage=True needs the estimator settings (fs_hz, nperseg, window) in data.meta, "
             "as recorded by rc.estimate_frf; pass correct_leakage=False for other data."
         )
-    if correct_leakage not in (True, "auto"):
-        raise FitError(f"correct_leakage must be True, False or 'auto'; got {correct_leakage!r}.")
     return st
 
 
@@ -236,36 +260,72 @@ def _scan(band: FrequencyData, run: FitSettings, max_modes: int, parsimony: floa
     return prob, diagram, last, int(min(max(last[3].size, 1), max_modes))
 
 
-def _weak_modes(fit: RationalFit, n_mode_poles: int) -> int:
-    """Modes of a fitted model whose contribution is below the stabilisation diagram's floor
-    (``MIN_CONTRIBUTION``, ``REL_CONTRIBUTION`` of the largest) or that are fillers promoted to
-    make up the count: poles the scan counted that the final model does not need (e.g. a second
-    pole on a leakage-broadened peak)."""
+def _weak_modes(fit: RationalFit, n_mode_poles: int) -> np.ndarray:
+    """Modes of a fitted model (bool over its poles) whose contribution is below the stabilisation
+    diagram's floor (``MIN_CONTRIBUTION``, ``REL_CONTRIBUTION`` of the largest), that are fillers
+    promoted to make up the count, that duplicate a neighbour (one peak, one shape), or whose
+    damping the refinement left at its lower bound ``ZETA_MIN`` (below ``BOUND_ZETA``: no interior
+    optimum, the data do not determine that pole's decay, as for a pole fitting the noise of an
+    antiresonance; a real lightly damped mode has an interior optimum however small): poles the
+    scan counted that the final model does not need."""
     s = 2j * np.pi * fit.data.f_hz
     contrib = pole_contributions(s, fit.data.response, _row_weights(fit, None), fit.poles, fit.residues)
     floor = max(MIN_CONTRIBUTION, REL_CONTRIBUTION * float(contrib.max(initial=0.0)))
     f, zeta = fit.f_hz[:n_mode_poles], fit.zeta[:n_mode_poles]
     filler = (f < fit.band_hz[0]) | (f > fit.band_hz[1]) | (zeta >= ZETA_FILLER)  # promoted to fill the count
-    return int(np.sum((contrib[:n_mode_poles] < floor) | filler))
+    at_bound = zeta < BOUND_ZETA
+    idx = np.arange(n_mode_poles)
+    twin = ~np.isin(idx, distinct_modes(idx, fit.poles, fit.residues, contrib))  # one peak, one shape
+    weak = np.zeros(fit.poles.size, dtype=bool)
+    weak[:n_mode_poles] = (contrib[:n_mode_poles] < floor) | filler | at_bound | twin
+    return weak
+
+
+def _without_weak(
+    band: FrequencyData, fit: RationalFit, n_mode_poles: int, used: FrequencyData, run, warm: bool = False
+):
+    """Refit without the weak modes: from scratch, or with ``warm`` from ``fit`` without them on
+    the data it used (the remaining modes preferred)."""
+    weak = _weak_modes(replace(fit, data=used), n_mode_poles)
+    n = n_mode_poles - int(weak.sum())
+    if not 0 < n < n_mode_poles or run.expired():
+        return fit, n_mode_poles, used
+    if not warm:
+        return fit_best(band, n, run)
+    keep = ~weak
+    start = replace(fit, poles=fit.poles[keep], residues=fit.residues[keep], ranks=fit.ranks[keep])
+    return fit_with_leakage(band, n, run, first=replace(start, data=used), prefer=np.arange(keep.sum()) < n)
+
+
+def _scan_fit(prob, diagram, last) -> tuple[RationalFit, np.ndarray]:
+    """The scan's chosen order as a RationalFit on the scanned data, and its physical poles (bool)."""
+    poles, res, d, phys = last
+    shape = (poles.size,) + prob.g.shape[1:]
+    first = RationalFit(
+        poles, res.reshape(shape), d.reshape(prob.g.shape[1:]), np.ones(poles.size, dtype=int),
+        prob.inputs, prob.outputs, prob.band_hz, "vf", int(diagram.orders[-1]), True, prob.data,
+    )
+    return first, np.isin(np.arange(poles.size), phys)
 
 
 def _automatic(band: FrequencyData, run: FitSettings, max_modes: int, parsimony: float, weights, progress):
     """Stabilisation-diagram order selection, then the modal model of the chosen order; modes the
-    final model does not need (below the contribution floor) are dropped by one refit."""
-    prob, diagram, (poles, res, d, phys), n = _scan(band, run, max_modes, parsimony, weights, progress)
-    if run.settings is not None or run.groups is not None:
+    final model does not need (below the contribution floor) are dropped by one refit.
+
+    An impact record that leaks (truncated decays, eq. T1 of :mod:`.leakage`) makes the scan of
+    the raw data find extra stable poles that model the leakage; once the truncation fixed point
+    has corrected the data, they no longer carry data or sit at the damping bound, and are
+    dropped by a warm refit."""
+    prob, diagram, last, n = _scan(band, run, max_modes, parsimony, weights, progress)
+    welch = run.settings is not None and not isinstance(run.settings, TruncationSettings)
+    if run.groups is not None or welch:
         fit, n_mode_poles, used = fit_best(band, n, run)
     else:
-        shape = (poles.size,) + prob.g.shape[1:]
-        first = RationalFit(
-            poles, res.reshape(shape), d.reshape(prob.g.shape[1:]), np.ones(poles.size, dtype=int),
-            prob.inputs, prob.outputs, prob.band_hz, "vf", int(diagram.orders[-1]), True, prob.data,
-        )
-        prefer = np.isin(np.arange(poles.size), phys)
+        first, prefer = _scan_fit(prob, diagram, last)
         fit, n_mode_poles, used = fit_best(band, n, run, first=first, prefer=prefer)
-    weak = _weak_modes(replace(fit, data=used), n_mode_poles) if run.groups is None else 0
-    if 0 < weak < n and not run.expired():
-        fit, n_mode_poles, used = fit_best(band, n - weak, run)
+    if run.groups is None:
+        warm = isinstance(run.settings, TruncationSettings)
+        fit, n_mode_poles, used = _without_weak(band, fit, n_mode_poles, used, run, warm)
     return fit, n_mode_poles, used, diagram
 
 
@@ -306,7 +366,9 @@ def fit_measurement_model(
     n_modes : int, optional
         Number of modes: exactly this many are returned (sorted by frequency). The rational fit
         behind them has ``2 (n_modes + spare)`` poles (``spare = max(2, ceil(n_modes/5))``),
-        which finds close pairs a fit of ``2 n_modes`` poles merges; the ``n_modes`` in-band,
+        which finds close pairs a fit of ``2 n_modes`` poles merges (on small problems the fits
+        with 0 and up to 2 more spare pairs are finished too and the lowest weighted cost wins,
+        see :func:`~robustctl.identify.modal_fit.fit_best`); the ``n_modes`` in-band,
         lightly damped poles of largest contribution are the modes, out-of-band and heavily
         damped ones are kept as ``fillers``, the others dropped (:mod:`.selection`). With
         ``groups``: the modes per SIMO fit. ``None``: chosen automatically in one pass by the
@@ -350,7 +412,10 @@ def fit_measurement_model(
     correct_window : bool
         When ``data.meta`` holds ``exp_window_tau_s`` (set by
         :func:`robustctl.estimate_frf_impact` with an exponential window), move every pole by
-        ``+1/tau``: ``zeta_true = zeta_meas - 1/(tau w_n)`` (Ewins, sec. 3.11).
+        ``+1/tau``: ``zeta_true = zeta_meas - 1/(tau w_n)`` (Ewins, sec. 3.11). For every
+        impact record (rectangular or exponential window) whose responses have not decayed by
+        the record end, also undo the truncation (leakage) in a few fixed-point steps
+        (:mod:`robustctl.identify.leakage`, eq. T1).
     time_budget_s : float or None
         Wall-time budget of the whole call, seconds; when it runs out the order scan, pole
         iterations and refinement stop with the best model so far (an :class:`IdentifyWarning`
@@ -372,7 +437,7 @@ def fit_measurement_model(
     point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     fd = as_frequency_data(data)
     band_fd = band_data(fd, band)
-    st = _settings(fd, correct_leakage)
+    st = _settings(fd, correct_leakage, correct_window)
     tau = _window_tau(fd, correct_window)
     show = sys.stderr.isatty() if progress is None else bool(progress)
     deadline = None if budget is None else start + budget
@@ -413,7 +478,8 @@ def fit_measurement_model(
             stacklevel=3,
         )
     return MeasurementModel(
-        fit.statespace(), modes, cost, fit, used, band_fd, st is not None, scan, fillers, diagram, tau
+        fit.statespace(), modes, cost, fit, used, band_fd, bool(used.meta.get("leakage_corrected")), scan,
+        fillers, diagram, tau,
     )
 
 

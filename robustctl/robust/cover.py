@@ -32,6 +32,7 @@ import numpy as np
 from ..checks import check_band, positive_number
 from ..errors import DataError, FitError
 from ..frd import FrequencyData
+from ..noise import noise_model
 from ..table import Table, result_html
 from .magfit import DB_PER_NEPER, fit_magnitude_details
 
@@ -253,9 +254,10 @@ def _responses(
         if isinstance(src, FrequencyData):
             coh = None if src.coherence is None else _on_grid_values(src, src.coherence, f, label)
             fd = FrequencyData(
-                f, _on_grid(src, f, label), inputs=src.inputs, outputs=src.outputs, coherence=coh
+                f, _on_grid(src, f, label), inputs=src.inputs, outputs=src.outputs, coherence=coh,
+                meta=src.meta,
             )
-            noise.append(_random_error(fd, _n_averages(src)))  # a Frobenius norm: channel order is moot
+            noise.append(_random_error(fd))  # a Frobenius norm: channel order is moot
             fd = _align(g0, fd)  # (drops the coherence)
         else:
             fd = _align(g0, freqresp(src, f))
@@ -269,29 +271,16 @@ def _on_grid_values(data: FrequencyData, values: np.ndarray, f: np.ndarray, labe
     return values[idx]
 
 
-def _n_averages(data: FrequencyData) -> int | None:
-    meta = data.meta or {}
-    if "n_averages" in meta:
-        return int(meta["n_averages"])
-    exps = meta.get("experiments")
-    if (
-        isinstance(exps, (list, tuple))
-        and exps
-        and all(isinstance(e, dict) and "n_averages" in e for e in exps)
-    ):
-        return int(min(e["n_averages"] for e in exps))
-    return None
-
-
-def _random_error(data: FrequencyData, n_avg: int | None) -> np.ndarray | None:
-    """``||G eps_r||_F`` with ``eps_r = sqrt(1 - g^2) / (|g| sqrt(2 n_d))``, the normalised random
-    error of an H1 estimate from ``n_d`` averages and coherence ``g^2`` (Bendat-Piersol,
-    *Random Data*, eq. 9.90); it bounds the max singular value of the estimate's error."""
-    if data.coherence is None or not n_avg:
+def _random_error(data: FrequencyData) -> np.ndarray | None:
+    """``||G o sigma||_F`` per frequency: the H1 estimate's random error, ``sigma`` the noise
+    model's normalised error ``sqrt(1 - g^2) / (|g| sqrt(2 n_d))`` (Bendat-Piersol, *Random
+    Data*, Table 9.6; :func:`robustctl.noise.noise_model`: Welch's effective number of
+    averages, one per input column). It bounds the max singular value of the estimate's
+    error. None without coherence or a known number of averages."""
+    model = noise_model(data)  # from coherence and averages, or None (no measurement model given)
+    if model is None:
         return None
-    coh = np.clip(data.coherence, 1e-6, 1.0)
-    eps = np.sqrt((1.0 - coh) / (2.0 * n_avg * coh))
-    return np.linalg.norm(np.abs(data.response) * eps, axis=(1, 2))
+    return np.linalg.norm(np.abs(data.response) * model.sigma, axis=(1, 2))
 
 
 def _sigma_max(e: np.ndarray) -> np.ndarray:

@@ -20,10 +20,11 @@ of the textbook form that balances them).
 
 Robustness for lightly damped structures:
 
-* the starting lower bound is the largest singular value at the modal peaks (``|Im p|``
-  and ``|p|`` of every pole), at ``w = 0`` and at ``w = inf`` (``sigma_max(D)``), and the
-  best few are refined by a bounded scalar search (Brent) inside the half-power band of
-  their mode, so that the first Hamiltonian test usually already certifies the norm;
+* the starting lower bound is the largest singular value on a grid over the band of every
+  mode (``|Im p| +- 4 |Re p|``), at ``w = 0`` and at ``w = inf`` (``sigma_max(D)``); the
+  best few bands are zoomed (a vectorised grid search and a final parabolic step), so
+  that the first Hamiltonian test usually already certifies the norm and it costs one
+  eigenvalue computation of order ``2 n``;
 * the imaginary-axis test is generous (relative tolerance ``1e-6`` plus an absolute
   ``1e-10 ||H||``; LAPACK ``geev`` balances ``H`` first): a spurious "crossing" costs one
   evaluation of ``sigma_max`` at the midpoints, which then shows no level crossing and
@@ -42,11 +43,12 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import scipy.linalg
+from scipy.linalg import lapack as _lapack
 
 from ..checks import positive_number
 from ..errors import ModelError, RobustctlError
 from ..lti import (
+    _abs2,
     _blocks,
     _matrices,
     _modal_terms,
@@ -65,51 +67,73 @@ N_REFINE = 3
 #: Relative and absolute (times ||H||) tolerances on |Re(lambda)| of an imaginary-axis eigenvalue.
 IMAG_RTOL = 1e-6
 IMAG_ATOL = 1e-10
+#: Largest order computed without touching the BLAS thread pools (see hinfnorm_matrices).
+SMALL_N = 32
+#: Frequencies per batch of the modal response (keeps the (batch x n) work array cache-sized).
+CHUNK = 256
 
 
 # ---------------------------------------------------------------------------- frequency response
 class _SigmaMax:
-    """``w -> sigma_max(G(jw))`` for many frequencies, with the modal decomposition done once."""
+    """``w -> sigma_max(G(jw))`` for many frequencies, with the modal decomposition done once.
+
+    The well-conditioned modes are kept as residue matrices ``R_i = (C v_i)(w_i^T B)``
+    (flattened to rows of ``R``, shape (n, p m)), so that ``G(jw) = D + sum_i R_i / (jw - lam_i)``
+    is one complex matrix product per batch of frequencies.
+    """
 
     def __init__(self, A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray) -> None:
         self.D = D
+        self.shape = D.shape
+        self.has_d = bool(D.any())
         self.evaluations = 0
         n = A.shape[0]
         self.poles = np.zeros(0, complex)
         self.lam = np.zeros(0, complex)
+        self.R = np.zeros((0, D.size), complex)
         self.bad: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         if n == 0 or D.size == 0:
             return
         blocks = _blocks(A)
         if max(b.shape[1] for b in blocks) <= 2:
             scale = _small_block_scaling(A, blocks)
-        else:
-            _, (scale, _) = scipy.linalg.matrix_balance(A, permute=False, separate=True)
+        else:  # LAPACK gebal scaling only (no permutation), as scipy.linalg.matrix_balance
+            _, lo, hi, scale, _ = _lapack.dgebal(A, scale=1, permute=0)
         Ab = A * (scale[None, :] / scale[:, None])
         Bb, Cb = B / scale[:, None], C * scale[None, :]
-        self.lam, self.CV, self.W, bad = _modal_terms(Ab, Bb, Cb, blocks, io_B=B, io_C=C)
+        self.lam, CV, W, bad = _modal_terms(Ab, Bb, Cb, blocks, io_B=B, io_C=C)
+        self.R = (CV.T[:, :, None] * W[:, None, :]).reshape(self.lam.size, D.size)
         poles = [self.lam]
         for idx in bad:
             sub = np.ix_(idx, idx)
             self.bad.append((A[sub], B[idx], C[:, idx]))
             poles.append(np.linalg.eigvals(A[sub]))
-        self.poles = np.concatenate(poles)
+        self.poles = np.concatenate(poles) if self.bad else self.lam
 
     def response(self, w: np.ndarray) -> np.ndarray:
-        """``G(jw)``, shape (n_w, p, m)."""
-        s = 1j * np.asarray(w, dtype=float).reshape(-1)
-        out = np.broadcast_to(self.D.astype(complex), (s.size, *self.D.shape)).copy()
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            if self.lam.size:
-                for start in range(0, s.size, 64):  # sum_i CV_i W_i / (s - lam_i), in frequency chunks
-                    r = 1.0 / (s[start:start + 64, None] - self.lam[None, :])
-                    out[start:start + 64] += (self.CV[None, :, :] * r[:, None, :]) @ self.W
-            for Ak, Bk, Ck in self.bad:
-                out += _schur_response(Ak, Bk, Ck, s)
+        """``G(jw)``, shape (n_w, p, m), for a 1-D float array ``w`` (rad/s) of a stable system."""
+        s = 1j * w
+        if self.lam.size:  # sum_i R_i / (s - lam_i), in frequency chunks (no pole on the axis)
+            if s.size <= CHUNK:
+                out = (1.0 / (s[:, None] - self.lam)) @ self.R
+            else:
+                out = np.empty((s.size, self.D.size), complex)
+                for start in range(0, s.size, CHUNK):
+                    np.matmul(1.0 / (s[start : start + CHUNK, None] - self.lam), self.R,
+                              out=out[start : start + CHUNK])
+            if self.has_d:
+                out += self.D.reshape(-1)
+            out = out.reshape(s.size, *self.shape)
+        else:
+            out = np.broadcast_to(self.D.astype(complex), (s.size, *self.shape)).copy()
+        if self.bad:
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                for Ak, Bk, Ck in self.bad:
+                    out += _schur_response(Ak, Bk, Ck, s)
         return out
 
     def __call__(self, w: Any) -> np.ndarray:
-        w = np.atleast_1d(np.asarray(w, dtype=float))
+        w = np.asarray(w, dtype=float).reshape(-1)
         self.evaluations += w.size
         return _sigma_max(self.response(w))
 
@@ -118,123 +142,230 @@ def _sigma_max(G: np.ndarray) -> np.ndarray:
     """Largest singular value of each matrix of a stack (n, p, m), via the smaller Gram matrix.
 
     ``lambda_max(G^H G)`` is accurate to ``eps lambda_max``, so ``sigma_max`` is accurate to ``eps``
-    relative (the small singular values, which squaring would spoil, are not needed).
+    relative (the small singular values, which squaring would spoil, are not needed). Gram
+    matrices of order 2 and 3 use closed forms (:func:`_lambda_max_2`, :func:`_lambda_max_3`),
+    larger ones LAPACK ``heevd``.
     """
+    if G.shape[1] == 1 and G.shape[2] == 1:
+        return np.abs(G.reshape(-1))
     if G.shape[1] == 1 or G.shape[2] == 1:
-        return np.linalg.norm(G.reshape(G.shape[0], -1), axis=1)
+        return np.sqrt(_abs2(G.reshape(G.shape[0], -1)).sum(axis=1))
     Gh = np.conj(np.swapaxes(G, 1, 2))
     gram = Gh @ G if G.shape[2] <= G.shape[1] else G @ Gh
-    if gram.shape[1] == 2:  # closed form for 2x2 Hermitian [[a, b], [b*, c]]
-        a, c, b = gram[:, 0, 0].real, gram[:, 1, 1].real, gram[:, 0, 1]
-        lam = 0.5 * (a + c) + np.sqrt(0.25 * (a - c) ** 2 + np.abs(b) ** 2)
+    if gram.shape[1] == 2:
+        lam = _lambda_max_2(gram)
+    elif gram.shape[1] == 3 and gram.shape[0] >= 32:  # its ~40 array operations beat LAPACK from ~30 on
+        lam = _lambda_max_3(gram)
     else:
         lam = np.linalg.eigvalsh(gram)[:, -1]
     return np.sqrt(np.maximum(lam, 0.0))
 
 
+def _lambda_max_2(M: np.ndarray) -> np.ndarray:
+    """Largest eigenvalue of Hermitian 2x2 matrices ``[[a, b], [b*, c]]``:
+    ``(a + c) / 2 + sqrt(((a - c) / 2)^2 + |b|^2)``."""
+    a, c = M[:, 0, 0].real, M[:, 1, 1].real
+    return 0.5 * (a + c) + np.sqrt(0.25 * (a - c) ** 2 + _abs2(M[:, 0, 1]))
+
+
+def _lambda_max_3(M: np.ndarray) -> np.ndarray:
+    """Largest eigenvalue of Hermitian 3x3 matrices by the trigonometric solution of the cubic.
+
+    With ``q = tr M / 3``, ``p^2 = ||M - q I||_F^2 / 6`` and ``r = det((M - q I) / p) / 2``,
+    ``lambda_max = q + 2 p cos(arccos(r) / 3)`` (Smith 1961, "Eigenvalues of a symmetric 3x3
+    matrix", *Comm. ACM* 4, 168). It is accurate to ``eps ||M||`` except where the two largest
+    eigenvalues (nearly) coincide, ``r -> -1``, where ``arccos`` amplifies rounding to
+    ``sqrt(eps)``: those matrices (``1 + r < 1e-4``), and tiny ones, go to LAPACK ``heevd``.
+    """
+    m = M.reshape(-1, 9)
+    d0, d1, d2 = m[:, 0].real, m[:, 4].real, m[:, 8].real
+    tr = d0 + d1 + d2  # >= 0 (a Gram matrix); the cubic is solved for M / tr: no overflow in det
+    inv = 1.0 / (tr + (tr <= 1e-290))  # (no scaling for tr ~ 0, where 1 / tr would overflow)
+    q = tr * inv * (1.0 / 3.0)
+    b0, b1, b2 = d0 * inv - q, d1 * inv - q, d2 * inv - q
+    m01, m02, m12 = m[:, 1] * inv, m[:, 2] * inv, m[:, 5] * inv
+    a01, a02, a12 = _abs2(m01), _abs2(m02), _abs2(m12)
+    p2 = (b0 * b0 + b1 * b1 + b2 * b2 + 2.0 * (a01 + a02 + a12)) * (1.0 / 6.0)
+    det = b0 * b1 * b2 - b0 * a12 - b1 * a02 - b2 * a01 + 2.0 * (m01 * m12 * m02.conj()).real
+    flat = p2 <= 1e-300  # M = (tr / 3) I (or M = 0)
+    p = np.sqrt(p2 + flat)
+    r = np.minimum(np.maximum(det / (2.0 * p2 * p + flat), -1.0), 1.0)
+    lam = (q + 2.0 * p * np.cos(np.arccos(r) * (1.0 / 3.0)) * ~flat) / inv
+    close = (r < 1e-4 - 1.0) & ~flat | (tr <= 1e-290) & (tr > 0)
+    if close.any():
+        lam[close] = np.linalg.eigvalsh(M[close])[:, -1]
+    return lam
+
+
 # ---------------------------------------------------------------------------- lower bounds
-def _candidates(poles: np.ndarray) -> np.ndarray:
-    """Frequencies (rad/s) of the modal peaks: ``0``, ``|Im p|`` and ``|p|`` of every pole."""
-    w = np.concatenate([[0.0], np.abs(poles.imag), np.abs(poles)])
-    return np.unique(w[np.isfinite(w)])
-
-
-def _refine(sigma: _SigmaMax, lo: np.ndarray, hi: np.ndarray, n_grid: int = 17, n_zoom: int = 4):
+def _refine(
+    sigma: _SigmaMax,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    n_grid: int = 33,
+    n_zoom: int = 3,
+    n_first: int = 17,
+    keep: int | None = None,
+    extra: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """Local maxima of ``sigma_max`` in the bands ``[lo_k, hi_k]`` (rad/s), all bands at once.
 
-    A vectorised zoom search: ``n_grid`` points per band, then the band shrinks to the two
-    grid cells around its best point, ``n_zoom`` times (a final spacing of ``16^-1 8^-(n_zoom-1)``
-    of the band), then one parabolic step through the best point and its two neighbours
-    (near a smooth peak the error of ``sigma_max`` is then about ``1e-14`` relative).
-    Returns ``(sigma, w)``: the best value and frequency per band.
+    A vectorised zoom search: ``n_first`` points per band, then (only for the ``keep`` bands
+    with the largest values, when given) the band shrinks to the two grid cells around its
+    best point and is sampled by ``n_grid`` points, ``n_zoom - 1`` times (by default a final
+    spacing of ``1/4096`` of the band), then one parabolic step through the best point and
+    its two neighbours (near a smooth peak the error of ``sigma_max`` is then about ``1e-14``
+    relative). Each round is one call of ``sigma``, whose cost at small orders is a fixed
+    overhead, hence few rounds of many points; the frequencies ``extra`` are evaluated with
+    the first round and count as one-point bands. Returns ``(sigma, w)``: the best value and
+    frequency per (kept) band.
     """
-    lo, hi = np.asarray(lo, dtype=float).copy(), np.asarray(hi, dtype=float).copy()
-    rows = np.arange(lo.size)
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
     best_s, best_w = np.full(lo.size, -np.inf), 0.5 * (lo + hi)
-    t = np.linspace(0.0, 1.0, n_grid)
-    for _ in range(n_zoom):
-        w = lo[:, None] + (hi - lo)[:, None] * t[None, :]
-        s = sigma(w.ravel()).reshape(w.shape)
+    rows = np.arange(lo.size)
+    n_pts = n_first
+    for it in range(n_zoom):
+        w = lo[:, None] + (hi - lo)[:, None] * _unit_grid(n_pts)[None, :]
+        if it == 0 and extra is not None and extra.size:
+            s_all = sigma(np.concatenate([w.ravel(), extra]))
+            s, s_extra = s_all[: w.size].reshape(w.shape), s_all[w.size :]
+        else:
+            s = sigma(w.ravel()).reshape(w.shape)
         k = np.argmax(s, axis=1)
-        better = s[rows, k] > best_s
-        best_s = np.where(better, s[rows, k], best_s)
-        best_w = np.where(better, w[rows, k], best_w)
-        step = (hi - lo) / (n_grid - 1)
+        s_k = s[rows, k]
+        better = s_k > best_s
+        best_s[better], best_w[better] = s_k[better], w[rows[better], k[better]]
+        step = (hi - lo) / (n_pts - 1)
         lo, hi = np.maximum(lo, best_w - step), np.minimum(hi, best_w + step)
-    inner = (k > 0) & (k < n_grid - 1)
-    if np.any(inner):  # parabola through the last grid's best point and its neighbours
+        if it == 0 and keep is not None and lo.size > keep and n_zoom > 1:
+            top = np.argpartition(best_s, lo.size - keep)[lo.size - keep :]
+            lo, hi, best_s, best_w = lo[top], hi[top], best_s[top], best_w[top]
+            rows = np.arange(keep)
+        n_pts = n_grid
+    inner = (k > 0) & (k < w.shape[1] - 1)
+    if inner.any():  # parabola through the last grid's best point and its neighbours
         r, kk = rows[inner], k[inner]
         s0, sm, sp = s[r, kk], s[r, kk - 1], s[r, kk + 1]
         h = w[r, 1] - w[r, 0]
         curv = sm - 2.0 * s0 + sp
-        with np.errstate(divide="ignore", invalid="ignore"):
-            shift = np.where(curv < 0, 0.5 * h * (sm - sp) / curv, 0.0)
-        w_vertex = w[r, kk] + np.clip(shift, -h, h)
+        concave = curv < 0
+        shift = 0.5 * h * (sm - sp) / np.where(concave, curv, -1.0) * concave
+        w_vertex = w[r, kk] + np.minimum(np.maximum(shift, -h), h)
         s_vertex = sigma(w_vertex)
         better = s_vertex > best_s[r]
         best_s[r[better]], best_w[r[better]] = s_vertex[better], w_vertex[better]
+    if extra is not None and extra.size:
+        best_s, best_w = np.concatenate([best_s, s_extra]), np.concatenate([best_w, extra])
     return best_s, best_w
 
 
-def _pole_bands(w: np.ndarray, poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Search bands around the frequencies ``w`` (rad/s): a few half-power bandwidths of the nearest pole."""
-    if poles.size == 0:
-        return w.copy(), w.copy()
-    k = np.argmin(np.abs(np.abs(poles.imag)[None, :] - w[:, None]), axis=1)
-    half = np.maximum(4.0 * np.abs(poles[k].real), 1e-3 * w)
+_GRIDS: dict[int, np.ndarray] = {}
+
+
+def _unit_grid(n: int) -> np.ndarray:
+    """``linspace(0, 1, n)``, cached."""
+    if n not in _GRIDS:
+        _GRIDS[n] = np.linspace(0.0, 1.0, n)
+    return _GRIDS[n]
+
+
+def _pole_bands(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Search bands (rad/s) around the modal peaks ``|Im p|``: four half-power half-widths
+    ``|Re p|`` either side (at least ``1e-3 |Im p|``), one band per pole pair or real pole."""
+    p = poles[(poles.imag >= 0) & np.isfinite(poles)]
+    w = p.imag
+    half = np.maximum(4.0 * np.abs(p.real), 1e-3 * w)
     return np.maximum(0.0, w - half), w + half
 
 
 def _initial_bound(sigma: _SigmaMax, D: np.ndarray) -> tuple[float, float]:
-    """Lower bound ``(gamma_lb, w_peak)`` from the modal peaks, 0 and infinity, locally refined."""
-    gamma, w_peak = (float(np.linalg.norm(D, 2)) if D.size else 0.0), np.inf
-    w = _candidates(sigma.poles)
-    s = sigma(w)
-    top = np.argsort(s)[::-1][:N_REFINE]
-    if s[top[0]] > gamma:
-        gamma, w_peak = float(s[top[0]]), float(w[top[0]])
-    lo, hi = _pole_bands(w[top], sigma.poles)
-    s_ref, w_ref = _refine(sigma, lo, hi)
+    """Lower bound ``(gamma_lb, w_peak)`` from the modal peaks, 0 and infinity, locally refined.
+
+    One grid round over the band of every mode (and ``w = 0``; 17 points per band for up to
+    8 bands, fewer for more), then the ``N_REFINE`` best bands are zoomed (:func:`_refine`);
+    ``w = inf`` contributes ``sigma_max(D)``.
+    """
+    gamma = float(_sigma_max(D[None].astype(complex))[0]) if D.any() else 0.0
+    w_peak = np.inf
+    lo, hi = _pole_bands(sigma.poles)
+    n_first = 17 if lo.size <= 8 else 9 if lo.size <= 16 else 5  # 5: the centre |Im p|, 2 a and 4 a off
+    s_ref, w_ref = _refine(sigma, lo, hi, n_first=n_first, keep=N_REFINE, extra=_ZERO)
     k = int(np.argmax(s_ref))
     if s_ref[k] > gamma:
         gamma, w_peak = float(s_ref[k]), float(w_ref[k])
     return gamma, w_peak
 
 
+_ZERO = np.zeros(1)
+
+
 # ---------------------------------------------------------------------------- Hamiltonian test
+class _Hamiltonian:
+    """``gamma -> H(gamma)`` of the module docstring (BBK 1989, Theorem 1), the products that do
+    not depend on ``gamma`` formed once. ``gamma`` must exceed ``sigma_max(D)``.
+
+    With ``D = 0`` it is ``[[A, B B^T / gamma], [-C^T C / gamma, -A^T]]``; the matrix is built
+    in Fortran order so that LAPACK ``geev`` works in place.
+    """
+
+    def __init__(self, A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray) -> None:
+        self.A, self.B, self.C, self.D = A, B, C, D
+        self.n = A.shape[0]
+        self.zero_d = not np.any(D)
+        if self.zero_d:
+            self.BBt, self.CtC = B @ B.T, C.T @ C
+        else:
+            self.DtD, self.DDt, self.DtC = D.T @ D, D @ D.T, D.T @ C
+
+    def __call__(self, gamma: float) -> np.ndarray:
+        n = self.n
+        H = np.empty((2 * n, 2 * n), order="F")
+        if self.zero_d:
+            H[:n, :n] = self.A
+            np.multiply(self.BBt, 1.0 / gamma, out=H[:n, n:])
+            np.multiply(self.CtC, -1.0 / gamma, out=H[n:, :n])
+        else:
+            B, C = self.B, self.C
+            R = gamma**2 * np.eye(B.shape[1]) - self.DtD
+            S = gamma**2 * np.eye(C.shape[0]) - self.DDt
+            H[:n, :n] = self.A + B @ np.linalg.solve(R, self.DtC)
+            H[:n, n:] = gamma * B @ np.linalg.solve(R, B.T)
+            H[n:, :n] = -gamma * C.T @ np.linalg.solve(S, C)
+        H[n:, n:] = -H[:n, :n].T
+        return H
+
+
 def hamiltonian(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, gamma: float) -> np.ndarray:
     """The Hamiltonian ``H(gamma)`` of the module docstring (BBK 1989, Theorem 1).
 
     ``gamma`` must exceed ``sigma_max(D)``.
     """
-    m, p = B.shape[1], C.shape[0]
-    R = gamma**2 * np.eye(m) - D.T @ D
-    S = gamma**2 * np.eye(p) - D @ D.T
-    RinvDtC = np.linalg.solve(R, D.T @ C)
-    Ah = A + B @ RinvDtC
-    top = np.hstack([Ah, gamma * B @ np.linalg.solve(R, B.T)])
-    bottom = np.hstack([-gamma * C.T @ np.linalg.solve(S, C), -Ah.T])
-    return np.vstack([top, bottom])
+    return _Hamiltonian(A, B, C, D)(gamma)
 
 
 def imaginary_axis_frequencies(H: np.ndarray) -> np.ndarray:
     """Sorted non-negative frequencies ``w`` (rad/s) of the eigenvalues of ``H`` near ``jw``.
 
     An eigenvalue counts as imaginary when ``|Re lambda| <= IMAG_RTOL |lambda| + IMAG_ATOL ||H||_1``
-    (a generous test; see the module docstring for why).
+    (a generous test; see the module docstring for why). LAPACK ``dgeev`` (balancing, Hessenberg
+    QR, no eigenvectors) overwrites ``H``.
     """
-    ev = scipy.linalg.eigvals(H, overwrite_a=True, check_finite=False)
-    scale = float(np.abs(H).sum(axis=0).max()) if H.size else 0.0
-    on_axis = np.abs(ev.real) <= IMAG_RTOL * np.abs(ev) + IMAG_ATOL * scale
-    return np.unique(np.abs(ev[on_axis].imag))
+    if H.size == 0:
+        return np.zeros(0)
+    scale = float(np.abs(H).sum(axis=0).max())
+    wr, wi, _, _, info = _lapack.dgeev(H, compute_vl=0, compute_vr=0, overwrite_a=1)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"LAPACK dgeev: the QR algorithm did not converge (info={info}).")
+    on_axis = np.abs(wr) <= IMAG_RTOL * np.hypot(wr, wi) + IMAG_ATOL * scale
+    return np.unique(np.abs(wi[on_axis])) if on_axis.any() else _EMPTY
+
+
+_EMPTY = np.zeros(0)
 
 
 # ---------------------------------------------------------------------------- the iteration
 def _level_set_iteration(
-    A: np.ndarray,
-    B: np.ndarray,
-    C: np.ndarray,
-    D: np.ndarray,
+    ham: _Hamiltonian,
     sigma: _SigmaMax,
     gamma: float,
     w_peak: float,
@@ -243,7 +374,7 @@ def _level_set_iteration(
     """Bruinsma-Steinbuch (1990) iteration from the lower bound ``gamma``; returns (norm, w_peak, steps)."""
     for step in range(1, MAX_ITER + 1):
         level = gamma * (1.0 + 2.0 * tol)
-        w_cross = imaginary_axis_frequencies(hamiltonian(A, B, C, D, level))
+        w_cross = imaginary_axis_frequencies(ham(level))
         if w_cross.size == 0:
             return gamma, w_peak, step
         edges = np.unique(np.concatenate([[0.0], w_cross]))
@@ -263,16 +394,10 @@ def _level_set_iteration(
     return gamma, w_peak, MAX_ITER
 
 
-@limit_blas
-def hinfnorm_matrices(
-    A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, tol: float = 1e-6
+def _hinfnorm_kernel(
+    A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, tol: float
 ) -> tuple[float, float]:
-    """H-infinity norm and peak frequency (rad/s) of a continuous-time ``(A, B, C, D)``.
-
-    The numerical kernel of :func:`hinfnorm` (arrays in, no checks of shapes or values).
-    Returns ``(inf, w)`` with ``w = |Im p|`` of the most unstable pole when ``A`` is not
-    Hurwitz, and ``w = inf`` when the peak is at infinite frequency.
-    """
+    """:func:`hinfnorm_matrices` without the BLAS thread limit."""
     if B.shape[1] == 0 or C.shape[0] == 0:
         return 0.0, 0.0
     sigma = _SigmaMax(A, B, C, D)
@@ -284,8 +409,30 @@ def hinfnorm_matrices(
     gamma, w_peak = _initial_bound(sigma, D)
     if gamma == 0.0:  # G = 0 at 0, infinity and every modal frequency: G is identically zero
         return 0.0, 0.0
-    gamma, w_peak, _ = _level_set_iteration(A, B, C, D, sigma, gamma, w_peak, tol)
+    gamma, w_peak, _ = _level_set_iteration(_Hamiltonian(A, B, C, D), sigma, gamma, w_peak, tol)
     return float(gamma), float(w_peak)
+
+
+_hinfnorm_limited = limit_blas(_hinfnorm_kernel)
+
+
+def hinfnorm_matrices(
+    A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, tol: float = 1e-6
+) -> tuple[float, float]:
+    """H-infinity norm and peak frequency (rad/s) of a continuous-time ``(A, B, C, D)``.
+
+    The numerical kernel of :func:`hinfnorm` (arrays in, no checks of shapes or values).
+    Returns ``(inf, w)`` with ``w = |Im p|`` of the most unstable pole when ``A`` is not
+    Hurwitz, and ``w = inf`` when the peak is at infinite frequency.
+
+    Up to ``SMALL_N`` states it runs without the BLAS thread limit of
+    :mod:`robustctl.threads`: its matrices (order ``2 n <= 64``) stay below OpenBLAS's size
+    threshold for threaded level-3 kernels, and setting the thread pools through
+    threadpoolctl costs about a millisecond, more than the whole computation.
+    """
+    if A.shape[0] <= SMALL_N:
+        return _hinfnorm_kernel(A, B, C, D, tol)
+    return _hinfnorm_limited(A, B, C, D, tol)
 
 
 def _discrete_to_continuous(A, B, C, D) -> tuple[np.ndarray, ...]:
@@ -345,7 +492,8 @@ def hinfnorm(sys: Any, tol: float = 1e-6) -> tuple[float, float]:
     >>> round(g, 4), round(f_peak, 5)  # 1 / (2 zeta sqrt(1 - zeta^2)) at sqrt(1 - 2 zeta^2) / (2 pi) Hz
     (50.0025, 0.15914)
     """
-    tol = _check_tol(tol)
+    if type(tol) is not float or not 0.0 < tol <= 0.1:
+        tol = _check_tol(tol)
     ss = as_statespace(sys, name="sys")
     A, B, C, D = _matrices(ss)
     dt = ss.dt
