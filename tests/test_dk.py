@@ -99,7 +99,7 @@ def test_one_iteration_is_the_hinf_controller_and_its_mu():
 def test_distillation_reproduces_the_book_with_fourth_order_scales():
     """S&P Table 8.2 (4th-order D fits): 1.1818, 1.0238, 1.0189."""
     dk = dksyn((distillation_plant(), 2, 2, BOOK_BLOCKS), max_iter=3, order_d=4, progress=False,
-               rtol=-1.0)
+               patience=10)
     peaks = [h.mu_peak for h in dk.history]
     assert peaks[0] == pytest.approx(1.1818, abs=0.005)
     assert peaks[1] == pytest.approx(1.0238, abs=0.01)
@@ -109,17 +109,58 @@ def test_distillation_reproduces_the_book_with_fourth_order_scales():
 
 @pytest.mark.slow
 def test_distillation_dk_with_automatic_scales():
-    """The automatic D orders beat the book's third iteration (1.0189) within 6 iterations.
-
-    The issue's target (<= 1.00, MATLAB's 2008 dksyn: 0.9975; mu-optimal 0.974) is not
-    reached: see the report for the figures.
-    """
+    """The issue's target: peak mu <= 1.00 within 6 iterations (MATLAB's 2008 dksyn: 0.9975;
+    mu-optimal 0.974). Plain D-K creeps (1.0145 at iteration 5); the D step's line search
+    along the change of the scales gets there (0.9897 at iteration 5)."""
     dk = dksyn((distillation_plant(), 2, 2, BOOK_BLOCKS), max_iter=6, progress=False)
     assert len(dk.history) <= 6
-    assert dk.mu_peak <= 1.015
+    assert dk.mu_peak <= 1.00
+    assert dk.history[0].mu_peak == pytest.approx(1.1818, abs=0.005)
+    # the line search was used: an extrapolated D step won at least once
+    assert any(h.d_step > 0 and h.n_candidates > 1 for h in dk.history)
     # the kept controller is the best of the history, and the mu bound holds for it
     assert dk.mu_peak == pytest.approx(min(h.mu_peak for h in dk.history))
     assert dk.mu.lower.max() <= dk.mu_peak * (1 + 1e-6)
+    # certified on a grid 1e-7 .. 100 Hz too (mu is flat down to DC on this problem)
+    from robustctl.robust.mu import mu
+
+    fw = np.logspace(-7, 2, 400)
+    wide = mu(freqresp_array(dk.closed_loop, fw), dk.blocks, f_hz=fw)
+    assert wide.peak <= 1.001
+
+
+@pytest.mark.slow
+def test_distillation_with_the_weight_pole_at_1e5_does_not_stall():
+    """eps = 1e-5: the D-scaled plant's ||P11|| is ~4e5 and the Riccati tests fail numerically
+    there; hinfsyn used to climb from it and stopped D-K at iteration 1 (mu 1.181)."""
+    dk = dksyn((distillation_plant(eps=1e-5), 2, 2, BOOK_BLOCKS), max_iter=2, progress=False)
+    assert len(dk.history) == 2 and "failed" not in dk.stop_reason
+    assert dk.history[0].mu_peak == pytest.approx(1.181, abs=0.005)
+    assert dk.history[1].mu_peak < 1.07
+
+
+def test_fit_roots_above_the_band_are_moved_to_its_edge():
+    from robustctl.robust.dk import _dynamics_in_band, _into_band
+    from robustctl.robust.magfit import zpk_statespace
+
+    f = np.logspace(-3, 1, 50)           # band up to 10 Hz; margin 10 -> 628 rad/s
+    d = zpk_statespace([-3e4, -0.5], [-2.0, -40.0], 1e-3)
+    assert not _dynamics_in_band(d, f)
+    moved = _into_band(d, f)
+    assert _dynamics_in_band(moved, f)
+    a, b = freqresp_array(d, f)[:, 0, 0], freqresp_array(moved, f)[:, 0, 0]
+    assert np.max(np.abs(np.log(np.abs(b / a)))) < 0.006     # at most 0.5 % in the band
+    assert abs(np.log(abs(b[0] / a[0]))) < 1e-6               # low frequencies kept
+    inside = zpk_statespace([-0.5], [-2.0], 1.0)
+    assert _into_band(inside, f) is inside
+    # a far zero that rounding put in the right half plane comes back mirrored (stable inverse)
+    rhp = control.ss(control.tf([-1.0 / 3e4, 1.0], [0.5, 1.0]))     # zero at +3e4 rad/s
+    moved = _into_band(rhp, f)
+    assert np.all(np.linalg.eigvals(np.asarray(moved.A)).real < 0)
+    zeros = np.linalg.eigvals(np.asarray(moved.A - moved.B @ moved.C / moved.D[0, 0]))
+    assert np.all(zeros.real < 0)
+    a, b = freqresp_array(rhp, f)[:, 0, 0], freqresp_array(moved, f)[:, 0, 0]
+    assert np.max(np.abs(np.log(np.abs(b / a)))) < 0.006
 
 
 def test_reduction_is_rechecked_by_mu():
@@ -210,9 +251,9 @@ def test_executor_gives_the_same_iteration_and_results_render():
     from concurrent.futures import ThreadPoolExecutor
 
     P = distillation_plant()
-    serial = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=2, progress=False, rtol=-1.0)
+    serial = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=2, progress=False, patience=10)
     with ThreadPoolExecutor(2) as ex:
-        threaded = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=2, progress=False, rtol=-1.0, executor=ex)
+        threaded = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=2, progress=False, patience=10, executor=ex)
     assert [h.d_orders for h in threaded.history] == [h.d_orders for h in serial.history]
     assert threaded.mu_peak == pytest.approx(serial.mu_peak, rel=1e-6)
     assert serial.history[1].mu_peak < serial.history[0].mu_peak

@@ -25,8 +25,10 @@ from ..errors import SynthesisError
 
 __all__ = ["check_assumptions", "rank_tol"]
 
-#: An eigenvalue counts as on the imaginary axis when ``|Re| <= AXIS_RTOL (|lambda| + 1e-3 ||A||)``.
+#: An eigenvalue counts as on the imaginary axis when ``|Re| <= max(AXIS_RTOL |lambda|, err)``, with
+#: ``err = EIG_ERR_FACTOR eps ||A||_2`` the eigensolver's accuracy (see :func:`_eig_error`).
 AXIS_RTOL = 1e-9
+EIG_ERR_FACTOR = 100.0
 #: A PBH matrix loses rank when its smallest singular value is below ``PBH_RTOL`` times its norm.
 PBH_RTOL = 1e-9
 
@@ -45,14 +47,29 @@ def _hz(w: float) -> str:
     return f"{abs(w):.6g} rad/s ({abs(w) / (2 * np.pi):.6g} Hz)"
 
 
+def _eig_error(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues of ``A`` and the eigensolver's absolute accuracy ``EIG_ERR_FACTOR eps ||A||_2``.
+
+    A backward-stable eigensolver moves a well-conditioned eigenvalue by about
+    ``eps ||A||`` (Golub & Van Loan 2013, sec. 7.2.2), whatever its own size. The former
+    absolute tolerance ``1e-12 ||A||_1`` (45 times this) misread the distillation weight's
+    pole at -1e-5 rad/s as on the axis once D-scales made ``||A||`` large. (Per-eigenvalue
+    condition numbers ``1 / |y^H x|`` are not used: for the repeated poles of identical
+    channel weights the paired eigenvectors are arbitrary and ``y^H x`` can vanish, which put
+    the Caltech plant's -400 rad/s weight poles "on the axis".)
+    """
+    ev = np.linalg.eigvals(A)
+    err = EIG_ERR_FACTOR * np.finfo(float).eps * float(np.linalg.norm(A, 2))
+    return ev, np.full(ev.shape, err)
+
+
 def _unreachable_modes(A: np.ndarray, B: np.ndarray, region: str) -> list[complex]:
     """Eigenvalues of ``A`` in ``region`` ('rhp': Re >= 0, 'axis': Re = 0) where [A - sI, B] drops rank."""
     n = A.shape[0]
     if n == 0:
         return []
-    ev = np.linalg.eigvals(A)
-    scale = 1e-3 * float(np.abs(A).sum(axis=0).max())
-    tol = AXIS_RTOL * (np.abs(ev) + scale)
+    ev, err = _eig_error(A)
+    tol = np.maximum(AXIS_RTOL * np.abs(ev), err)
     pick = ev.real >= -tol if region == "rhp" else np.abs(ev.real) <= tol
     bad = []
     for lam in ev[pick]:

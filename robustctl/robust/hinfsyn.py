@@ -298,15 +298,18 @@ def _balance(m: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     return out
 
 
-def _upper_start(m: dict[str, np.ndarray], lower: float) -> float:
-    """A first gamma to test: ``||P11||_inf`` (achieved by K = 0) when P is stable, else a guess."""
+def _upper_start(m: dict[str, np.ndarray], lower: float) -> tuple[float, bool]:
+    """A first gamma to test and whether it is achievable in exact arithmetic.
+
+    ``||P11||_inf`` (achieved by K = 0) when P is stable (True), else a guess (False).
+    """
     A = m["A"]
     stable = A.shape[0] == 0 or np.max(np.linalg.eigvals(A).real) < 0
     if stable:
         g, _ = hinfnorm_matrices(A, m["B1"], m["C1"], m["D11"], 1e-3)
         if np.isfinite(g) and g > lower:
-            return g * 1.01
-    return max(2.0 * lower, 1.0)
+            return g * 1.01, True
+    return max(2.0 * lower, 1.0), False
 
 
 def _bisect(
@@ -321,7 +324,7 @@ def _bisect(
         history.append((g, t.feasible, t.reason))
         return t.feasible
 
-    hi = _upper_start(m, lower)
+    hi, achievable = _upper_start(m, lower)
     lo = lower
     for _ in range(MAX_BRACKET_STEPS):
         if test(hi):
@@ -330,6 +333,13 @@ def _bisect(
             raise SynthesisError(
                 f"time budget exhausted before any feasible gamma was found (tested up to {hi:.3g})."
             )
+        if achievable:
+            # K = 0 achieves ||P11||, and feasibility is monotone in gamma: this failure is
+            # numerical. ||P11|| of a plant with a near-integrator weight is huge (4e5 on the
+            # distillation example with eps = 1e-5, D-scaled) and its Riccati solutions lose
+            # their sign there, at every larger gamma too. Climb from near the bottom instead.
+            achievable, hi = False, max(2.0 * lower, 1e-6 * hi)
+            continue
         lo, hi = hi, hi * 10.0
     else:
         reasons = "; ".join(sorted({h[2] for h in history[-3:]}))
