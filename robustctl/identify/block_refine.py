@@ -42,11 +42,19 @@ def _solve(x: np.ndarray, target: np.ndarray, rw2: np.ndarray) -> np.ndarray:
     w = np.transpose(rw2, (0, 2, 1)).reshape(k * n_in, -1)  # (K n_in, n_out)
     gram = (z.real.T @ w).T.reshape(-1, u, u)
     xc = np.conj(x).reshape(k * n_in, u)
-    rhs = np.einsum("ru,ro->ou", xc, np.transpose(rw2 * target, (0, 2, 1)).reshape(k * n_in, -1)).real
+    rhs = (xc.T @ np.transpose(rw2 * target, (0, 2, 1)).reshape(k * n_in, -1)).real.T
     scale = 1.0 / np.sqrt(np.maximum(np.einsum("oii->oi", gram), 1e-300))
     gs = gram * scale[:, :, None] * scale[:, None, :]
     gs += 1e-12 * np.eye(gs.shape[-1])[None]
     return np.linalg.solve(gs, (rhs * scale)[:, :, None])[:, :, 0] * scale
+
+
+def _noise_ftol(n_res: int, n_theta: int, n_lin: int) -> float:
+    """Relative cost change below which a step only fits noise: a tenth of the share of the cost
+    that fitting ``n_theta`` free parameters to pure noise removes (each takes out about one noise
+    variance of a cost that holds ``n_res - n_lin - n_theta`` of them), within [1e-7, 1e-3]."""
+    dof = max(n_res - n_lin - n_theta, 1)
+    return float(np.clip(0.1 * n_theta / dof, 1e-7, 1e-3))
 
 
 def _unpack(theta: np.ndarray, m: int, n_in: int):
@@ -94,7 +102,7 @@ def refine_cluster(
         p, b = _unpack(theta, m, n_in)
         x = _basis(s, p, b)
         coef = _solve(x, target, rw2)
-        model = np.einsum("kiu,ou->koi", x, coef)
+        model = np.swapaxes(x @ coef.T, 1, 2)  # (K, n_out, n_in)
         r = rw * (model - target)
         return np.concatenate([r.real.ravel(), r.imag.ravel()])
 
@@ -104,7 +112,8 @@ def refine_cluster(
     n_res = r0.size
     if n_res <= theta0.size:
         return poles, cs, bs, 0.0, 0.0
-    sol = least_squares(resid, theta0, method="lm", x_scale="jac", max_nfev=max_nfev, ftol=1e-7, xtol=1e-7)
+    ftol = _noise_ftol(n_res, theta0.size, 2 * target.shape[1] * (m + n_in))
+    sol = least_squares(resid, theta0, method="lm", x_scale="jac", max_nfev=max_nfev, ftol=ftol, xtol=1e-6)
     before, after = float(r0 @ r0), float(sol.fun @ sol.fun)
     if not after < before:
         return poles, cs, bs, before, before

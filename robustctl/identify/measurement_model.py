@@ -278,7 +278,21 @@ def _weak_modes(fit: RationalFit, n_mode_poles: int) -> np.ndarray:
     twin = ~np.isin(idx, distinct_modes(idx, fit.poles, fit.residues, contrib))  # one peak, one shape
     weak = np.zeros(fit.poles.size, dtype=bool)
     weak[:n_mode_poles] = (contrib[:n_mode_poles] < floor) | filler | at_bound | twin
+    weak[_lone_peak(f, at_bound & (contrib[:n_mode_poles] >= floor), ~weak[:n_mode_poles], contrib)] = False
     return weak
+
+
+def _lone_peak(f: np.ndarray, bound: np.ndarray, kept: np.ndarray, contrib: np.ndarray) -> list[int]:
+    """Of strong poles at the damping bound that straddle one peak (within 1 % of each other, as a
+    truncation-leakage doublet does) with no kept mode there, the strongest: the peak is a mode
+    (its damping comes back in the warm refit); dropping every pole would lose it."""
+    out = []
+    for k in sorted(np.flatnonzero(bound), key=lambda j: -contrib[j]):
+        near = np.abs(f / f[k] - 1) < 0.01
+        doublet = np.count_nonzero(near & bound) >= 2  # a lone pole at the bound is no mode
+        if doublet and not np.any(near & kept) and not any(abs(f[j] / f[k] - 1) < 0.01 for j in out):
+            out.append(int(k))
+    return out
 
 
 def _without_weak(

@@ -84,7 +84,9 @@ def rational_fit(band: FrequencyData, n_modes: int, run: FitSettings) -> Rationa
     if run.groups is not None:
         return fit_rational(band, 2 * n_modes, common_denominator=False, time_budget_s=left, **run.fit_kw)
     spare = spare_pairs(n_modes) + run.extra_spare if run.spare else 0
-    return fit_rational(band, 2 * (n_modes + spare), time_budget_s=left, **run.fit_kw)
+    # large problems: also start VF where the data change (small ones try several candidate fits)
+    start = "lin" if _small(band, n_modes) else "data"
+    return fit_rational(band, 2 * (n_modes + spare), time_budget_s=left, start_poles=start, **run.fit_kw)
 
 
 def _splits(modes: np.ndarray, counts: np.ndarray, key: np.ndarray, n_modes: int) -> np.ndarray:

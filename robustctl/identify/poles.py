@@ -22,6 +22,7 @@ __all__ = [
     "weighted_cost",
     "BestPoles",
     "lstsq_normal",
+    "basis_gram",
 ]
 
 #: |Im p| below this fraction of |p| counts as a real pole.
@@ -77,6 +78,80 @@ def partial_fraction_basis(s: np.ndarray, poles: np.ndarray) -> np.ndarray:
             a, b = 1.0 / (s - p), 1.0 / (s - np.conj(p))
             cols += [a + b, 1j * (a - b)]
     return np.hstack(cols) if cols else np.zeros((s.shape[0], 0), dtype=complex)
+
+
+def _atoms(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The columns of :func:`partial_fraction_basis` as combinations of the atoms ``1/(s - q)``
+    over the poles and their conjugates: column ``j`` is ``coef[j, 0] / (s - q[idx[j, 0]]) +
+    coef[j, 1] / (s - q[idx[j, 1]])`` (a real pole's second coefficient is 0). Returns (q, idx, coef)."""
+    q, idx, coef = [], [], []
+    for p in poles:
+        if p.imag == 0:
+            q.append(complex(p.real))
+            idx.append((len(q) - 1, len(q) - 1))
+            coef.append((1.0, 0.0))
+        else:
+            q += [complex(p), complex(np.conj(p))]
+            k = len(q) - 2
+            idx += [(k, k + 1), (k, k + 1)]
+            coef += [(1.0, 1.0), (1j, -1j)]
+    return np.array(q, dtype=complex), np.array(idx, dtype=int).reshape(-1, 2), np.array(coef).reshape(-1, 2)
+
+
+def _re_products(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """``out[x, w, y] = Re(a0[w, x] b0[x, y] + a1[w, x] b1[x, y])`` as one batched real product."""
+    left = np.stack([a[0].real, a[1].real, -a[0].imag, -a[1].imag], axis=-1)  # (n_w, n, 4)
+    right = np.stack([b[0].real, b[1].real, b[0].imag, b[1].imag], axis=1)  # (n, 4, n)
+    return np.matmul(np.ascontiguousarray(np.swapaxes(left, 0, 1)), right)
+
+
+def basis_gram(s: np.ndarray, poles: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``Re(B^H diag(v_c) B)`` for every weight column ``v_c``, with ``B = [partial_fraction_basis(s,
+    poles), 1]`` and ``s`` on the imaginary axis, in O(K n) per column instead of O(K n^2).
+
+    On ``s = j w``, ``conj(1/(s - q_a)) = -1/(s + conj q_a)``, and the partial fractions
+
+        conj(phi_a) phi_b = [1/(s + conj q_a) - 1/(s - q_b)] / (q_b + conj q_a)
+
+    turn every Gram entry into a difference of two first moments, ``E_a = sum_k v_k/(s_k + conj
+    q_a)`` and ``F_b = sum_k v_k/(s_k - q_b)`` (one matrix product each), times fixed factors. The
+    rounding error of an entry stays of the order of eps times the geometric mean of its two
+    diagonal entries, because ``|q_b + conj q_a| >= |Re q_a| + |Re q_b|`` for stable poles.
+
+    Parameters
+    ----------
+    s : ndarray, complex, shape (K,)
+        Laplace variable ``j w`` (purely imaginary).
+    poles : ndarray, complex
+        One pole per conjugate pair plus real poles, all with ``Re p < 0``.
+    v : ndarray, complex or real, shape (K, n_w)
+        Weight columns.
+
+    Returns
+    -------
+    ndarray, shape (n_w, n + 1, n + 1)
+        Real Gram matrices, basis order of :func:`partial_fraction_basis` then the constant.
+    """
+    q, idx, coef = _atoms(poles)
+    vt = np.ascontiguousarray(np.asarray(v, dtype=complex).T)
+    mirror = vt @ (1.0 / (s[:, None] + np.conj(q)[None, :]))  # E (n_w, M)
+    first = vt @ (1.0 / (s[:, None] - q[None, :]))  # F
+    r = 1.0 / (q[None, :] + np.conj(q)[:, None])  # r[a, b] = 1/(q_b + conj q_a)
+    # P[a, y] = sum_{b in y} t_yb r[a, b];  Q[x, b] = sum_{a in x} conj(t_xa) r[a, b]
+    p_ay = r[:, idx[:, 0]] * coef[:, 0] + r[:, idx[:, 1]] * coef[:, 1]
+    q_xb = np.conj(coef[:, :1]) * r[idx[:, 0]] + np.conj(coef[:, 1:]) * r[idx[:, 1]]
+    n = idx.shape[0]
+    e = [np.conj(coef[:, j]) * mirror[:, idx[:, j]] for j in range(2)]  # conj(t_xa) E_a, (n_w, n)
+    f = [coef[:, j] * first[:, idx[:, j]] for j in range(2)]  # t_yb F_b
+    term_e = _re_products(e, [p_ay[idx[:, j]] for j in range(2)])  # (x, w, y)
+    term_f = _re_products(f, [q_xb[:, idx[:, j]].T for j in range(2)])  # (y, w, x)
+    gram = np.empty((vt.shape[0], n + 1, n + 1))
+    gram[:, :n, :n] = np.swapaxes(term_e, 0, 1)
+    gram[:, :n, :n] -= np.transpose(term_f, (1, 2, 0))
+    gram[:, :n, n] = -(e[0] + e[1]).real  # sum v conj(B_x) = -sum conj(t_xa) E_a
+    gram[:, n, :n] = (f[0] + f[1]).real
+    gram[:, n, n] = vt.sum(axis=1).real
+    return gram
 
 
 def coefficients_to_residues(x: np.ndarray, poles: np.ndarray) -> np.ndarray:

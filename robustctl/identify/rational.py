@@ -35,7 +35,13 @@ DEFAULT_MAX_ITER = {"chebyshev": 100, "vf": 30}
 
 # --------------------------------------------------------------------------- fitting
 def _pole_kernel(
-    prob: FitProblem, method: str, max_iter: int, tol: float, stable: bool, deadline: float | None = None
+    prob: FitProblem,
+    method: str,
+    max_iter: int,
+    tol: float,
+    stable: bool,
+    deadline: float | None = None,
+    start_poles: str = "lin",
 ) -> tuple[np.ndarray, int, bool]:
     w_s = float(np.max(np.abs(prob.s)))
     k = prob.s.size
@@ -47,7 +53,8 @@ def _pole_kernel(
         )
     else:
         poles, iters, ok = vf_poles(
-            prob.s / w_s, g, rw, prob.order, max_iter=max_iter, tol=tol, stable=stable, deadline=deadline
+            prob.s / w_s, g, rw, prob.order, max_iter=max_iter, tol=tol, stable=stable, deadline=deadline,
+            spacing=start_poles,
         )
     return poles * w_s, iters, ok
 
@@ -131,6 +138,7 @@ def fit_rational(
     rank_tol: float = 1e-8,
     time_budget_s: float | None = None,
     *,
+    start_poles: str = "lin",
     weights: Any = UNSET,
 ) -> RationalFit:
     """Fit a rational model with one common denominator to SIMO/MIMO frequency-response data.
@@ -173,6 +181,11 @@ def fit_rational(
     time_budget_s : float, optional
         Wall-time budget of the VF pole iteration (seconds); when it runs out the best poles so
         far are used and the fit is flagged not converged.
+    start_poles : {"lin", "log", "data"}
+        Starting poles of VF: spread linearly (default) or logarithmically over the band, or
+        ``"data"``: two runs, from poles where the data change
+        (:func:`.vector_fitting.data_poles`) and from the linear spread, the lower weighted cost
+        kept (dense low modes of a wide band, which a linear start misses). Unused by Chebyshev.
 
     Returns
     -------
@@ -187,6 +200,8 @@ def fit_rational(
     """
     weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     method = _check_method(method)
+    if start_poles not in ("lin", "log", "data"):
+        raise FitError(f"start_poles must be 'lin', 'log' or 'data'; got {start_poles!r}.")
     max_iter = _check_iter(DEFAULT_MAX_ITER[method] if max_iter is None else max_iter)
     tol, rank_tol = _check_tolerances(tol, rank_tol)
     stable, feedthrough = flag(stable, "stable", FitError), flag(feedthrough, "feedthrough", FitError)
@@ -202,7 +217,7 @@ def fit_rational(
         time_budget_s, "time_budget_s", FitError, unit="s"
     )
     try:
-        poles, iters, converged = _pole_kernel(prob, method, max_iter, tol, stable, deadline)
+        poles, iters, converged = _pole_kernel(prob, method, max_iter, tol, stable, deadline, start_poles)
         if stable:
             poles, _ = reflect_unstable(poles)
         rw = np.sqrt(prob.w) / np.abs(prob.g)

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..checks import coherence_weights
 from ..threads import limit_blas
-from .poles import evaluate, lstsq_normal
+from .poles import basis_gram, evaluate, n_states, partial_fraction_basis
 from .rational_fit import RationalFit
 from .realization import residue_factors
 
@@ -32,31 +32,42 @@ def _row_weights(fit: RationalFit, weights: np.ndarray | None) -> np.ndarray:
     return np.sqrt(np.broadcast_to(weights, data.shape)) / np.maximum(np.abs(data.response), 1e-300)
 
 
-def _solve_outputs(s, target, rw, poles, bs):
-    """Given input factors B_g (k_g, n_in), least-squares C_g rows and D per output."""
-    n_in = target.shape[2]
-    phi = 1.0 / (s[:, None] - poles[None, :])
-    psi = 1.0 / (s[:, None] - np.conj(poles)[None, :])
-    cols = []
-    for g, b in enumerate(bs):
+def _factor_map(factors: list[np.ndarray], n_rows: int) -> np.ndarray:
+    """Real maps ``M_i`` (one per input ``i``) from the real partial-fraction basis (then the
+    constant) to the unknown columns of one output: per term with input factor ``b`` the columns
+    ``phi b + psi conj(b) = c1 Re b + c2 Im b`` and ``j (phi b - psi conj(b)) = -c1 Im b + c2 Re b``
+    (``c1 = phi + psi``, ``c2 = j (phi - psi)``, :func:`.poles.partial_fraction_basis`), then one
+    feedthrough column per input. ``factors[g]`` has shape (k_g, n_in); returns (n_in, n_rows, u)."""
+    n_in = factors[0].shape[1] if factors else 0
+    n_terms = sum(b.shape[0] for b in factors)
+    out = np.zeros((n_in, n_rows, 2 * n_terms + n_in))
+    col = 0
+    for g, b in enumerate(factors):
         for m in range(b.shape[0]):
-            u = phi[:, g, None] * b[m][None, :]
-            v = psi[:, g, None] * np.conj(b[m])[None, :]
-            cols += [u + v, 1j * (u - v)]
-    eye = np.eye(n_in)
-    cols += [np.broadcast_to(eye[j], (s.size, n_in)) + 0j for j in range(n_in)]
-    basis = np.stack(cols, axis=-1)  # (K, n_in, n_unknowns)
-    n_c = len(cols) - n_in
-    cs, d = [], np.zeros((target.shape[1], n_in))
-    for o in range(target.shape[1]):
-        a = (basis * rw[:, o, :, None]).reshape(-1, basis.shape[-1])
-        y = (target[:, o, :] * rw[:, o, :]).reshape(-1)
-        x = lstsq_normal(np.concatenate([a.real, a.imag]), np.concatenate([y.real, y.imag]))
-        cs.append(x[:n_c:2] + 1j * x[1:n_c:2])
-        d[o] = x[n_c:]
-    cs = np.array(cs)  # (n_out, sum k)
-    splits = np.cumsum([b.shape[0] for b in bs])[:-1]
-    return np.split(cs, splits, axis=1), d
+            re, im = b[m].real, b[m].imag
+            out[:, 2 * g, col], out[:, 2 * g + 1, col] = re, im
+            out[:, 2 * g, col + 1], out[:, 2 * g + 1, col + 1] = -im, re
+            col += 2
+    out[np.arange(n_in), n_rows - 1, col + np.arange(n_in)] = 1.0
+    return out
+
+
+def _solve_outputs(gram: np.ndarray, rhs: np.ndarray, factors: list[np.ndarray]):
+    """Given input factors ``B_g`` (k_g, n_in), the weighted least-squares ``C_g`` rows and ``D`` of
+    every output at once, from the basis Gram matrices ``gram[o, i]`` and right-hand sides
+    ``rhs[o, i]`` of each channel (:func:`.poles.basis_gram`): the normal equations of output ``o``
+    are ``sum_i M_i^T gram[o, i] M_i x = sum_i M_i^T rhs[o, i]`` (``M_i``: :func:`_factor_map`),
+    solved column-scaled with a 1e-12 ridge."""
+    maps = _factor_map(factors, gram.shape[-1])
+    normal = np.einsum("iau,oiav->ouv", maps, np.matmul(gram, maps[None]))
+    right = np.einsum("iau,oia->ou", maps, rhs)
+    scale = 1.0 / np.sqrt(np.maximum(np.einsum("oii->oi", normal), 1e-300))
+    scaled = normal * scale[:, :, None] * scale[:, None, :] + 1e-12 * np.eye(normal.shape[-1])
+    x = np.linalg.solve(scaled, (right * scale)[:, :, None])[:, :, 0] * scale
+    n_c = x.shape[1] - maps.shape[0]
+    cs = x[:, :n_c:2] + 1j * x[:, 1:n_c:2]  # (n_out, sum k)
+    splits = np.cumsum([b.shape[0] for b in factors])[:-1]
+    return np.split(cs, splits, axis=1), x[:, n_c:]
 
 
 @limit_blas
@@ -88,12 +99,18 @@ def refine_residues(fit: RationalFit, weights: np.ndarray | None = None, sweeps:
     poles = fit.poles[cplx]
     factors = [residue_factors(fit.residues[g], int(fit.ranks[g])) for g in cplx]
     bs = [f[1] for f in factors]
-    t_in, rw_in = np.transpose(target, (0, 2, 1)), np.transpose(rw, (0, 2, 1))
+    # the Gram matrices and right-hand sides of every channel: fixed poles, so shared by all sweeps
+    k, n_out, n_in = target.shape
+    w2 = (rw**2).reshape(k, -1)
+    gram = basis_gram(s, poles, w2).reshape(n_out, n_in, *(2 * [n_states(poles) + 1]))
+    basis = np.hstack([partial_fraction_basis(s, poles), np.ones((k, 1))])
+    rhs = (np.conj(basis).T @ (w2 * target.reshape(k, -1))).real.T.reshape(n_out, n_in, -1)
+    gram_t, rhs_t = np.swapaxes(gram, 0, 1), np.swapaxes(rhs, 0, 1)
     for _ in range(int(sweeps)):
-        cs, d = _solve_outputs(s, target, rw, poles, bs)
-        bts, _ = _solve_outputs(s, t_in, rw_in, poles, [c.T for c in cs])
+        cs, d = _solve_outputs(gram, rhs, bs)
+        bts, _ = _solve_outputs(gram_t, rhs_t, [c.T for c in cs])
         bs = [b.T for b in bts]
-    cs, d = _solve_outputs(s, target, rw, poles, bs)
+    cs, d = _solve_outputs(gram, rhs, bs)
     residues = np.array(fit.residues)
     for g, c, b in zip(cplx, cs, bs):
         residues[g] = c @ b
