@@ -59,6 +59,15 @@ def _brute_force(model, data, cands, band) -> tuple[float, str, int]:
     return time.perf_counter() - t0, best[1], evals
 
 
+def _group(diag) -> dict | None:
+    """The candidates the band cannot tell from the top one, and where they differ (Hz)."""
+    g = diag.indistinguishable
+    if g is None:
+        return None
+    return {"names": list(g.names), "differ_hz": [[round(a, 2), round(b, 2)] for a, b in g.stretches],
+            "peak_hz": round(g.peak_hz, 2), "peak_db": round(g.peak_db, 3)}
+
+
 def _rank(diag, name: str) -> int | None:
     """1-based rank of the effect ``name`` (or of a candidate it is equivalent to)."""
     for k, r in enumerate(diag.ranking, start=1):
@@ -86,12 +95,12 @@ def run() -> dict:
         t0 = time.perf_counter()  # the default candidate set alone (calibrated on the model)
         default_cands = rc.effects.candidates(model, band=(0.5, 50.0))
         t_cands = time.perf_counter() - t0
-        t0 = time.perf_counter()  # a user's default call: every candidate, 0.5-50 Hz
+        t0, c0 = time.perf_counter(), time.process_time()  # a user's default call: 0.5-50 Hz
         full = rc.diagnose(model, data, band=(0.5, 50.0), params=UPDATE)
-        t_full = time.perf_counter() - t0
-        t0 = time.perf_counter()  # the README demo's band, 0.5-29.8 Hz, default candidates
+        t_full, cpu_full = time.perf_counter() - t0, time.process_time() - c0
+        t0, c0 = time.perf_counter(), time.process_time()  # the README demo's band, 0.5-29.8 Hz
         low = rc.diagnose(model, data, band=(0.5, 29.8), params=UPDATE)
-        t_low = time.perf_counter() - t0
+        t_low, cpu_low = time.perf_counter() - t0, time.process_time() - c0
     top = serial.ranking[0]
     names = [r.name for r in serial.ranking]
     true_name = "taut wires (tension) along longerons_story_1"
@@ -118,20 +127,26 @@ def run() -> dict:
         "speedup_vs_brute_force": round(t_brute / t_serial, 2),
         "default_candidates_0.5_50Hz_n": len(full.ranking) + sum(len(r.equivalent) for r in full.ranking),
         "default_candidates_0.5_50Hz_time_s": round(t_full, 3),
+        "default_candidates_0.5_50Hz_cpu_s": round(cpu_full, 3),
+        "default_candidates_0.5_50Hz_evaluations": full.n_evals,
         "default_candidates_0.5_50Hz_top_effect": full.ranking[0].name,
         "default_candidates_0.5_50Hz_top_value": full.ranking[0].effect.describe_value(),
         "default_candidates_calibration_s": round(t_cands, 3),
         "default_candidates_n": len(default_cands),
         "default_candidates_0.5_29.8Hz_time_s": round(t_low, 3),
+        "default_candidates_0.5_29.8Hz_cpu_s": round(cpu_low, 3),
+        "default_candidates_0.5_29.8Hz_indistinguishable": _group(low),
         "default_candidates_0.5_29.8Hz_top_effect": low.ranking[0].name,
         "default_candidates_0.5_29.8Hz_rank_of_true_effect": _rank(low, true_name),
         "default_candidates_0.5_50Hz_rank_of_true_effect": _rank(full, true_name),
         "cpu_count": os.cpu_count(),
     }
-    # Below 30 Hz the data cannot tell wire tension on the story-1 longerons from stiffer
-    # diagonals (both stiffen story-1 sway; the local modes that separate them lie at
-    # 32-43 Hz), so the ranking is reported, not targeted: tests/test_hidden_effects.py
-    # checks it on the 0.5-50 Hz band.
+    # Below 30 Hz the local fits (update sensitivities frozen at the null fit) left the true
+    # taut wires at half their tension, behind stiffer diagonals; diagnose now polishes the
+    # contenders with a full LM fit, which ranks them first at 15 N. Tension along the
+    # diagonals fits as well within the noise (Vuong's test): the result names them as one
+    # group and where their fitted models differ (the local modes at about 33-45 Hz);
+    # tests/test_indistinguishable.py checks it.
     targets = {"time_serial_s": f"< {TARGET_S}", "time_2_threads_s": f"< {TARGET_S}"}
     passed = bool(t_par < TARGET_S and t_serial < TARGET_S)
     return {

@@ -64,6 +64,22 @@ def _assert_within(cmp):
     assert "within the noise in every channel and band" in cmp.summary()
 
 
+def _assert_moved_nothing(upd, truth):
+    """On noise alone each parameter moves by about N(0, 1) standard errors, so about a third of
+    them exceed one SE (measured over 10 seeds: 46 % of the Caltech truth's 59 moves, 20 % of the
+    chain's 20, none beyond 2.3 SE): the honest check is the joint chi-square test of the move
+    against the noise covariance, plus no single move beyond 3 SE."""
+    moves = upd.moves_se
+    assert set(moves) == set(upd.selected)
+    for name, z in moves.items():
+        moved = upd.model.param(name).value - truth.param(name).value
+        assert z == pytest.approx(moved / upd.std_errors[name]) and abs(z) < 3, name
+    t, dof, p = upd.move_test
+    assert dof == len(upd.selected) and p > 0.01, (t, dof, p)
+    assert "no parameter moved significantly" in upd.summary()
+    assert "move (SE)" in str(upd.table())
+
+
 # ---------------------------------------------------------------------------- true models
 @pytest.mark.parametrize("band", [CALTECH_BAND, (0.5, 50.0)])
 def test_caltech_truth_is_within_the_noise_everywhere(caltech, band):
@@ -99,9 +115,7 @@ def test_update_on_the_caltech_truth_moves_nothing_and_warns_of_nothing(caltech)
     data, truth = caltech
     upd = rc.update(truth, data, band=CALTECH_BAND)
     assert upd.warnings == () and not any(d.flagged for d in upd.drift)
-    for name in upd.selected:
-        moved = upd.model.param(name).value - truth.param(name).value
-        assert abs(moved) < 3 * upd.std_errors[name], name
+    _assert_moved_nothing(upd, truth)
     assert upd.noise_after.within and "within the noise" in upd.summary()
     # one cost: update's starting cost is compare's cost on the same inputs
     assert upd.cost_before == pytest.approx(rc.compare(truth, data, band=CALTECH_BAND).cost, rel=1e-12)
@@ -128,8 +142,7 @@ def test_update_on_a_user_matrix_truth_moves_nothing_and_warns_of_nothing(chain)
     held = _hold(chain)
     upd = rc.update(held, data, band=(0.5, 40.0))
     assert upd.warnings == ()
-    for name in upd.selected:
-        assert abs(upd.model.param(name).value - held.param(name).value) < 3 * upd.std_errors[name]
+    _assert_moved_nothing(upd, held)
 
 
 # ---------------------------------------------------------------------------- the hold
@@ -223,3 +236,33 @@ def test_one_cost_with_the_estimator_view_everywhere():
     assert rc.compare(mm, mm.data, point_weights=None, min_channel_db=None).cost == pytest.approx(
         mm.cost.total, rel=1e-9)
     assert rc.log_cost(mm, mm.data, point_weights=None) == pytest.approx(mm.cost.total, rel=1e-9)
+
+
+def test_notebook_04_update_is_within_the_noise_at_low_coherence():
+    """Notebook 04's case: at 33-40 Hz v2 <- F1 has coherence 0.1-0.3. With each bin's own
+    coherence deciding which bins are tested, the true model came out 3.5 x the noise variance
+    there (the bins whose noise added in phase with the response had the larger coherence and
+    were the ones tested); the hold stage was not the cause (the estimator view samples through
+    an exact hold). Chosen by the neighbours' coherence, the update is within the noise."""
+    from robustctl.noise import neighbour_coherence
+
+    chain = _chain()
+    truth = chain.with_values(k_ground=4.2e3).with_effect(fx.AddedMass("dof 3", mass=0.15))
+    ss = truth.statespace()
+    exps = []
+    for k, name in enumerate(ss.input_labels):  # exactly the notebook's experiment
+        u, y = rc.simulate_experiment(ss, fs=FS, n_samples=32768, seed=k, inputs=[name])
+        y = y + np.random.default_rng(k).standard_normal(y.shape) * 0.01 * y.std(axis=0)
+        exps.append(rc.estimate_frf(u, y, FS, nperseg=1024, inputs=[name], outputs=list(ss.output_labels)))
+    data = rc.combine_experiments(exps)
+    band = (1.0, 40.0)
+    _assert_within(rc.compare(_hold(truth), data, band=band))
+    upd = rc.update(_hold(chain).with_effect(fx.AddedMass("dof 3", mass=0.15)), data, band=band)
+    assert upd.noise_after.within and upd.warnings == (), upd.summary()
+    assert upd.values["k_ground"] == pytest.approx(4.2e3, rel=0.01)
+    # the neighbour coherence leaves each bin and its correlated neighbour out
+    g2 = np.full((20, 1, 1), 0.3)
+    g2[10] = 0.9
+    nb = neighbour_coherence(g2)
+    assert nb[10, 0, 0] == pytest.approx(0.3) and nb[11, 0, 0] == pytest.approx(0.3)
+    assert nb[8, 0, 0] == pytest.approx((0.3 * 3 + 0.9) / 4)

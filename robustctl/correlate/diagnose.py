@@ -22,6 +22,11 @@ parameters can already explain:
 3. **Local fit.** The best few candidates are fitted together with the update parameters
    (bounded LM, few iterations) from the screening estimate; the cost reduction against
    the nominal model and the *gain* ``1 - J_c / J_u`` against the null fit are reported.
+   Contenders -- local fits within :data:`CONTENDER_RATIO` of the best cost -- are then
+   polished by a full LM fit with refreshed sensitivities (:func:`_polish`): the local fits
+   freeze the update parameters' sensitivities at the null fit and can stop short (on the
+   Caltech truss below 30 Hz the true taut wires stopped at half their tension, behind
+   stiffer diagonals).
 4. **Significance.** Against the data's noise model (:mod:`robustctl.noise`, the same one
    compare's verdicts use): under "the effect is absent" the cost drop of the local fit is
    noise projected on one direction, ``Delta J ~ v chi2_1`` with ``v`` the noise variance
@@ -30,6 +35,12 @@ parameters can already explain:
    (``min_gain``): an effect must explain a real share of what updating leaves. Without a
    noise model no significance claims are made (p-values NaN; the best candidate is
    proposed on its share alone, and the result says so).
+
+5. **Indistinguishable candidates.** Fitted candidates whose best-fit costs differ by no more
+   than the noise explains (Vuong's 1989 test for non-nested models at ``alpha``) and whose
+   fitted changes of the whitened residual are nearly collinear are one explanation as far as
+   this band goes; the result names the group and where the fitted models' responses differ
+   beyond the noise outside the band (:class:`Indistinguishable`): widen the band or measure there.
 
 ``n_eff`` (reported): the AR(1) effective number of independent residual entries,
 ``n (1 - rho) / (1 + rho)`` with ``rho`` the lag-one autocorrelation along frequency of the
@@ -60,7 +71,7 @@ from ..threads import limit_blas
 from .optimize import _bounds, levenberg_marquardt, marquardt_step
 from .residual import Residual, physical_model, sensitivities
 
-__all__ = ["diagnose", "Diagnosis", "CandidateResult", "effective_points"]
+__all__ = ["diagnose", "Diagnosis", "CandidateResult", "Indistinguishable", "effective_points"]
 
 #: Significance level of the partial F-test before the Bonferroni correction.
 ALPHA = 0.01
@@ -199,6 +210,10 @@ class Diagnosis:
         claims are made, p-values are NaN).
     estimator_note : str
         How the model was seen (through the H1 estimator, or ``""``).
+    indistinguishable : Indistinguishable or None
+        The fitted candidates the data in this band cannot tell from the top one (equal cost
+        within the noise, nearly collinear fitted changes), with where their fitted models
+        differ; None when the top candidate is clearly the best explanation.
     """
 
     ranking: tuple[CandidateResult, ...]
@@ -222,6 +237,7 @@ class Diagnosis:
     explained: dict = field(repr=False, default_factory=dict)
     noise_source: str = ""
     estimator_note: str = ""
+    indistinguishable: Any = None
 
     @property
     def weights(self) -> np.ndarray:
@@ -302,6 +318,8 @@ class Diagnosis:
             if self.ranking:
                 lines.append("Closest: " + self.ranking[0].sentence)
             lines.append("The unexplained residual sits in " + self.unexplained + ".")
+        if self.indistinguishable is not None:
+            lines.append(self.indistinguishable.sentence())
         if self.ignored_channels:
             chans = ", ".join(f"{o} <- {i}" for o, i in self.ignored_channels[:6])
             more = "" if len(self.ignored_channels) <= 6 else f" and {len(self.ignored_channels) - 6} more"
@@ -607,6 +625,57 @@ def _fit_one(
                 cut=cut)
 
 
+#: A local fit whose cost is within this factor of the best one's is a contender: it is polished
+#: by a full Levenberg-Marquardt fit before the ranking (:func:`_polish`).
+CONTENDER_RATIO = 2.0
+#: Iteration cap of the polishing fits (each refreshes all sensitivities; on the Caltech truss
+#: below 30 Hz two reach the converged costs to four digits).
+POLISH_ITER = 2
+
+
+def _polish(
+    res_u: Residual, null: _Null, screens: list[dict], top: list[int], fits: list[dict], executor: Any,
+    budget: float,
+) -> tuple[list[dict], int]:
+    """Full LM fits of the contenders (step 3b): the local fits freeze the update parameters'
+    sensitivities at the null fit, which may have bent them to mimic the missing effect, so
+    two candidates whose local fits end close may rank in the wrong order (on the Caltech truss
+    below 30 Hz the true taut wires stopped at half their tension, behind stiffer diagonals).
+    Contenders -- fits within :data:`CONTENDER_RATIO` of the best cost -- are refitted with
+    refreshed sensitivities (:func:`levenberg_marquardt`, :data:`POLISH_ITER` iterations) from
+    their local fit; a clear winner costs nothing more. Returns the fits and the evaluations.
+    """
+    costs = [f["cost"] for f in fits]
+    if len(fits) < 2 or not null.names:
+        return fits, 0
+    best = min(costs)
+    todo = [i for i, c in enumerate(costs) if c <= CONTENDER_RATIO * best
+            and screens[top[i]]["effect"].kind != "gravity"]
+    if len(todo) < 2:
+        return fits, 0
+
+    def polish(i: int) -> dict:
+        s, fit = screens[top[i]], fits[i]
+        pname = s["effect"].param_names[0]
+        res_c = _residual_for(res_u, s["model"])
+        try:
+            lm = levenberg_marquardt(res_c, null.names + (pname,), x0={**fit["x"], pname: fit["value"]},
+                                     max_iter=POLISH_ITER, ftol=1e-4, time_budget_s=budget / len(todo))
+        except RobustctlError:
+            return dict(fit, evals=0)
+        if not lm.cost < fit["cost"]:
+            return dict(fit, evals=lm.n_evals)
+        x = dict(lm.x)
+        return dict(x={n: x[n] for n in null.names}, cost=float(lm.cost), vector=lm.vector, evals=lm.n_evals,
+                    value=float(x[pname]), cut="time budget" in lm.stop_reason)
+
+    done = parallel_map(polish, todo, executor, desc="polishing fits")
+    out = list(fits)
+    for i, new in zip(todo, done):
+        out[i] = new
+    return out, sum(f["evals"] for f in done)
+
+
 #: Multiples of an effect's typical size tried as starting values of its local fit.
 _START_MULTIPLES = (1.0, 3.0, 10.0, 30.0, 100.0)
 
@@ -662,19 +731,22 @@ def _equivalent(screens: list[dict[str, Any]]) -> dict[int, int]:
 
     A delay or filter on *every* output acts exactly like one on every input (scalar factors
     commute), so such pairs are indistinguishable; the earlier (sensor-side) one is kept.
+    Distances come from one Gram matrix, ``|d_i - d_k|^2 = |d_i|^2 + |d_k|^2 - 2 d_i.d_k``
+    (a pair that passes is confirmed directly: the expansion cancels digits).
     """
     twins: dict[int, int] = {}
-    for k, sk in enumerate(screens):
-        dk = sk["d"]
-        nk = float(np.linalg.norm(dk))
-        if nk == 0:
+    shapes = {s["d"].shape for s in screens}
+    if len(screens) < 2 or len(shapes) != 1:
+        return twins
+    D = np.array([s["d"] for s in screens], dtype=float)
+    sq = np.einsum("ij,ij->i", D, D)
+    dist2 = sq[:, None] + sq[None, :] - 2.0 * (D @ D.T)
+    for k in range(1, len(screens)):
+        if sq[k] == 0:
             continue
-        for i in range(k):
-            if i in twins:
-                continue
-            di = screens[i]["d"]
-            if di.shape == dk.shape and np.linalg.norm(di - dk) <= 1e-6 * nk:
-                twins[k] = i
+        for i in np.flatnonzero(dist2[k, :k] <= 1e-10 * sq[k]):
+            if i not in twins and np.linalg.norm(D[i] - D[k]) <= 1e-6 * math.sqrt(sq[k]):
+                twins[k] = int(i)
                 break
     return twins
 
@@ -1048,6 +1120,10 @@ def diagnose(
         desc="local fits",
     )
     evals += sum(f["evals"] for f in fits)
+    remaining = deadline - time.perf_counter()
+    if remaining > 0:  # a budget the local fits used up is reported by the warning below
+        fits, n_polish = _polish(res_u, null, screens, top, fits, executor, remaining)
+        evals += n_polish
     _warn_if_hurried(null.cut, sum(bool(f.get("cut")) for f in fits), time_budget_s)
     # 4. significance and words
     e_u = res0.unstack(j_u)
@@ -1067,6 +1143,8 @@ def diagnose(
     )
     results, explained = _score(res0, screens, order, top, fits, twins, j_u, stats)
     best = _best(results, res0.noise is not None, min_gain)
+    fitted = _fitted_models(screens, top, fits)
+    group = _indistinguishable(res0, results, fitted, j_u, stats["row_noise"], alpha)
     return Diagnosis(
         ranking=tuple(results),
         best=best,
@@ -1089,7 +1167,19 @@ def diagnose(
         explained=explained,
         noise_source="" if res0.noise is None else res0.noise.source,
         estimator_note=res0.describe_estimator(),
+        indistinguishable=group,
     )
+
+
+def _fitted_models(screens: list[dict], top: list[int], fits: list[dict]) -> dict[str, dict]:
+    """Each fitted candidate's residual vector and fitted model (update values and its size)."""
+    out = {}
+    for k, fit in zip(top, fits):
+        s = screens[k]
+        pname = s["effect"].param_names[0]
+        values = {**fit["x"], pname: fit["value"]}
+        out[s["effect"].name] = dict(vector=fit["vector"], model=s["model"].with_values(**values))
+    return out
 
 
 def _best(results: list, have_noise: bool, min_gain: float) -> Any:
@@ -1225,3 +1315,175 @@ def _with_sentence(r: CandidateResult) -> CandidateResult:
 
 def _reduction(cost: float, reference: float) -> float:
     return max(0.0, 1.0 - cost / reference) if reference > 0 else 0.0
+
+
+# ============================================================================ indistinguishable
+#: Smallest cosine between two candidates' fitted changes of the (noise-whitened) residual for
+#: them to count as the same explanation: nearly collinear predicted changes.
+COLLINEAR = 0.9
+#: Smallest divergence (nepers, RMS over channels) that counts as "the models differ" (0.2 dB).
+DIFFER_NP = 0.023
+#: Fraction of a channel's peak response below which a divergence counts less (-30 dB).
+MEASURABLE = 10 ** (-30 / 20)
+#: At most this many stretches where fitted models differ are named.
+N_DIFFER_BANDS = 3
+
+
+@dataclass(frozen=True)
+class Indistinguishable:
+    """Candidates that explain the data equally well in the band (:func:`_indistinguishable`).
+
+    Attributes
+    ----------
+    names : tuple of str
+        The group, best-ranked first.
+    z : tuple of float
+        Vuong's statistic of each member against the first (0 for the first).
+    cosine : tuple of float
+        Cosine between each member's fitted change of the whitened residual and the first's.
+    differ_lo_hz, differ_hi_hz, peak_hz : float
+        Where the fitted models' responses diverge beyond the noise, outside the band (Hz);
+        ``differ_lo_hz`` NaN when they agree within the noise everywhere on the grid examined
+        (``differ_hi_hz`` is then its upper end, ``peak_hz`` where they differ most).
+    peak_db : float
+        The largest divergence there (RMS over channels, dB).
+    stretches : tuple of (float, float)
+        The frequency stretches (Hz) where they differ beyond the noise, nearest first.
+    """
+
+    names: tuple[str, ...]
+    z: tuple[float, ...]
+    cosine: tuple[float, ...]
+    differ_lo_hz: float = math.nan
+    differ_hi_hz: float = math.nan
+    peak_hz: float = math.nan
+    peak_db: float = math.nan
+    stretches: tuple[tuple[float, float], ...] = ()
+
+    def sentence(self) -> str:
+        """``"These explain the data equally well in this band: ...; they differ at ..."``."""
+        head = "These explain the data equally well in this band: " + "; ".join(self.names)
+        if not np.isfinite(self.differ_lo_hz):
+            return (
+                f"{head}. Their fitted models differ by at most {self.peak_db:.2g} dB up to "
+                f"{self.differ_hi_hz:.3g} Hz (most at {self.peak_hz:.3g} Hz), within the noise: these "
+                "sensors and actuators can hardly tell them apart; measure elsewhere on the structure."
+            )
+        parts = [f"{a:.3g}" if f"{a:.3g}" == f"{b:.3g}" else f"{a:.3g}-{b:.3g}" for a, b in self.stretches]
+        where = parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " and " + parts[-1]
+        return (
+            f"{head}. Their fitted models differ at {where} Hz (up to {self.peak_db:.2g} dB at "
+            f"{self.peak_hz:.3g} Hz) -- widen the band or measure there."
+        )
+
+
+def _vuong(r_a: np.ndarray, r_b: np.ndarray, row_noise: np.ndarray | None) -> float:
+    """Vuong's (1989) statistic for two non-nested fits: ``z = (J_a - J_b) / (2 sqrt(sum v_i d_i^2))``,
+    ``d = r_a - r_b``. Both fits explaining the data equally well, ``z ~ N(0, 1)`` (the cost
+    difference is the noise projected on ``d``). Without a noise model, ``v_i`` is the pooled
+    residual variance of the better fit."""
+    d = r_a - r_b
+    v = np.full(d.shape, float(r_b @ r_b) / max(r_b.size, 1)) if row_noise is None else row_noise
+    den = 2.0 * math.sqrt(max(float((d * d) @ v), 1e-300))
+    return (float(r_a @ r_a) - float(r_b @ r_b)) / den
+
+
+def _whitened(x: np.ndarray, row_noise: np.ndarray | None) -> np.ndarray:
+    return x if row_noise is None else x / np.sqrt(np.maximum(row_noise, 1e-300))
+
+
+def _cosine(a: np.ndarray, b: np.ndarray) -> float:
+    na, nb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
+    return float(a @ b) / (na * nb) if na > 0 and nb > 0 else 0.0
+
+
+def _indistinguishable(
+    res0: Residual, ranking: list, fitted: dict[str, dict], j_u: np.ndarray, row_noise, alpha: float
+) -> Indistinguishable | None:
+    """The fitted candidates the data cannot tell from the best one, or None.
+
+    Two candidates are one explanation when (a) their best-fit costs differ by no more than the
+    noise explains -- Vuong's (1989) test for non-nested models, ``|z| < z_{alpha/2}`` -- and
+    (b) the changes they make to the (noise-whitened) residual are nearly collinear (cosine >=
+    :data:`COLLINEAR`): they remove the same error the same way. Where they differ is then found
+    from their own predictions (:func:`_where_they_differ`).
+    """
+    from scipy.stats import norm
+
+    fits = [r for r in ranking if r.fitted and r.name in fitted]
+    if len(fits) < 2:
+        return None
+    best = fits[0]
+    r_best = fitted[best.name]["vector"]
+    d_best = _whitened(j_u - r_best, row_noise)
+    z_crit = float(norm.isf(alpha / 2))
+    names, zs, coss = [best.name], [0.0], [1.0]
+    for r in fits[1:]:
+        vec = fitted[r.name]["vector"]
+        z = _vuong(vec, r_best, row_noise)
+        cos = _cosine(_whitened(j_u - vec, row_noise), d_best)
+        if abs(z) < z_crit and cos >= COLLINEAR:
+            names.append(r.name)
+            zs.append(z)
+            coss.append(cos)
+    if len(names) < 2:
+        return None
+    where = _where_they_differ(res0, [fitted[n]["model"] for n in names])
+    return Indistinguishable(tuple(names), tuple(zs), tuple(coss), *where)
+
+
+def _where_they_differ(res0: Residual, models: list) -> tuple:
+    """Outside the band, where the fitted models' responses diverge beyond the noise.
+
+    The models are evaluated on a grid from a tenth of the band's lower edge up to the data's
+    Nyquist frequency when the estimator settings are known (else four times the band's upper
+    edge); the divergence at each frequency is the RMS over channels and over the members of
+    ``|ln(G_k / G_0)|`` against the first, scaled down where ``|G_0|`` is less than
+    :data:`MEASURABLE` of its channel's peak (an anti-resonance: a measurement there is noise, and
+    a zero shifted by a hair gives a large log ratio). The stretches beyond the band where it
+    exceeds ``max(sigma_med, DIFFER_NP)`` (``sigma_med`` the median noise of one testable point of
+    the band -- a stretch of such points tells the models apart -- and :data:`DIFFER_NP`, 0.2 dB)
+    are reported, the nearest first (above the band, else below it; at most
+    :data:`N_DIFFER_BANDS`): ``(lo, hi, peak frequency, peak dB, stretches)`` with ``lo``/``hi``
+    the span of the stretches; if nowhere, ``(NaN, grid end, peak frequency, peak dB, ())`` of the
+    largest divergence outside the band.
+    """
+    lo, hi = float(res0.f_hz[0]), float(res0.f_hz[-1])
+    fs = None if res0.estimator is None else res0.estimator.fs_hz
+    top = 0.5 * fs if fs else 4.0 * hi
+    grid = np.geomspace(max(lo / 10.0, 1e-3), max(top, 1.01 * hi), 600)
+    div = _divergence(models, grid)
+    thr = DIFFER_NP
+    if res0.noise is not None:
+        ok = res0.noise.testable
+        if np.any(ok):
+            thr = max(thr, float(np.median(res0.noise.sigma[ok])))
+    outside = (grid > hi) | (grid < lo)
+    over = outside & (div > thr)
+    if not over.any():  # nowhere beyond the noise: say how little they differ, and where most
+        k = int(np.flatnonzero(outside)[np.argmax(div[outside])]) if outside.any() else int(np.argmax(div))
+        return math.nan, float(grid[-1]), float(grid[k]), float(_DB * div[k]), ()
+    side = over & (grid > hi) if np.any(over & (grid > hi)) else over
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], side.astype(int), [0]])))
+    runs = list(zip(edges[::2], edges[1::2] - 1))
+    runs = runs[:N_DIFFER_BANDS] if np.any(over & (grid > hi)) else runs[::-1][:N_DIFFER_BANDS]
+    stretches = tuple((float(grid[a]), float(grid[b])) for a, b in runs)
+    idx = np.concatenate([np.arange(a, b + 1) for a, b in runs])
+    k = int(idx[np.argmax(div[idx])])
+    span = [f for st in stretches for f in st]
+    return min(span), max(span), float(grid[k]), float(_DB * div[k]), stretches
+
+
+def _divergence(models: list, grid: np.ndarray) -> np.ndarray:
+    """RMS over channels and members of ``|ln(G_k / G_0)|``, discounted at anti-resonances."""
+    g0 = models[0].freqresp(grid).response
+    level = np.abs(g0) / np.maximum(np.max(np.abs(g0), axis=0), 1e-300)
+    seen = np.minimum(1.0, level / MEASURABLE)
+    div = np.zeros(grid.size)
+    for m in models[1:]:
+        g = m.freqresp(grid).response
+        with np.errstate(divide="ignore", invalid="ignore"):
+            e = np.log(g / g0)
+        e = np.where(np.isfinite(e), e, 0.0) * seen
+        div += np.mean(np.abs(e) ** 2, axis=(1, 2))
+    return np.sqrt(div / (len(models) - 1))

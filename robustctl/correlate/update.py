@@ -18,6 +18,7 @@
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from collections.abc import Sequence
@@ -30,7 +31,7 @@ import numpy as np
 from ..checks import UNSET, check_seed, flag, integer, positive_number, probability, renamed_keyword
 from ..errors import FitError, RobustctlError
 from ..frd import FrequencyData
-from ..noise import NO_NOISE_SENTENCE, noise_model
+from ..noise import NO_NOISE_SENTENCE, format_p, noise_model
 from ..parallel import check_executor
 from ..table import Table, result_html
 from .optimize import LMResult, levenberg_marquardt
@@ -47,7 +48,7 @@ from .residual import (
 )
 from .verdict import ALPHA, NoiseTest, noise_test
 
-__all__ = ["UpdateResult", "update", "select_parameters", "superparameter"]
+__all__ = ["UpdateResult", "update", "select_parameters", "superparameter", "move_test"]
 
 
 # ---------------------------------------------------------------------------- selection
@@ -194,9 +195,13 @@ def _row_noise(residual: Residual) -> np.ndarray | None:
     return np.concatenate([v, v])
 
 
-def _noise_std_errors(residual: Residual, fit: LMResult) -> dict[str, float] | None:
-    """Standard errors of the fitted parameters from the noise model (sandwich covariance
-    ``(J^T J)^-1 J^T diag(v) J (J^T J)^-1``, ``v`` the rows' noise variances), or None."""
+def _noise_covariance(residual: Residual, fit: LMResult) -> np.ndarray | None:
+    """Covariance of the fitted parameters from the noise model (parameter units), or None.
+
+    The sandwich ``(J^T J)^-1 J^T diag(v) J (J^T J)^-1`` with ``v`` the rows' noise variances
+    (Gauss-Newton estimate under heteroscedastic noise; White 1980), computed with unit-norm
+    columns so parameters of very different units do not spoil the conditioning.
+    """
     v = _row_noise(residual)
     if v is None or not len(fit.names):
         return None
@@ -205,8 +210,48 @@ def _noise_std_errors(residual: Residual, fit: LMResult) -> dict[str, float] | N
     norms = np.where(norms > 0, norms, 1.0)
     Js = J / norms
     inv = np.linalg.pinv(Js.T @ Js)
-    cov = inv @ ((Js * v[:, None]).T @ Js) @ inv / np.outer(norms, norms)
-    return {n: float(np.sqrt(max(cov[k, k], 0.0))) for k, n in enumerate(fit.names)}
+    return inv @ ((Js * v[:, None]).T @ Js) @ inv / np.outer(norms, norms)
+
+
+def _std_errors(cov: np.ndarray, names: Sequence[str]) -> dict[str, float]:
+    """Square roots of the covariance diagonal by parameter name."""
+    return {n: float(np.sqrt(max(cov[k, k], 0.0))) for k, n in enumerate(names)}
+
+
+def move_test(move: np.ndarray, cov: np.ndarray) -> tuple[float, int, float]:
+    """Joint test of a parameter move against its noise covariance.
+
+    Under "the initial values are the truth" a consistent estimator moves the parameters by
+    ``N(0, C)``, so ``T = m^T C^+ m`` is chi-square with ``r = rank(C)`` degrees of freedom
+    (Wald 1943; Seber & Wild, *Nonlinear Regression*, sec. 5.2). Individual moves of one or two
+    standard errors are then expected (about 32 % of parameters exceed one SE on noise alone);
+    the joint test says whether the data moved the parameters beyond that.
+
+    Parameters
+    ----------
+    move : ndarray (p,)
+        Updated minus initial values (parameter units).
+    cov : ndarray (p, p)
+        Noise covariance of the estimates (parameter units squared).
+
+    Returns
+    -------
+    (T, r, p_value) : (float, int, float)
+    """
+    from scipy.stats import chi2
+
+    m = np.asarray(move, dtype=float)
+    scale = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    scale = np.where(scale > 0, scale, 1.0)
+    c = cov / np.outer(scale, scale)  # a correlation matrix: pinv is well conditioned
+    z = m / scale
+    w, vec = np.linalg.eigh(0.5 * (c + c.T))
+    keep = w > 1e-10 * max(float(w.max()), 1e-300)
+    r = int(keep.sum())
+    if r == 0:
+        return 0.0, 0, 1.0
+    t = float(np.sum((vec[:, keep].T @ z) ** 2 / w[keep]))
+    return t, r, float(chi2.sf(t, r))
 
 
 def _drift_threshold(k_sigma: float | None, n_params: int, n_bands: int, alpha: float) -> float:
@@ -332,6 +377,10 @@ class UpdateResult:
         (None without a noise model: no significance claims).
     estimator_note : str
         How the model was seen (through the H1 estimator, or ``""``).
+    noise_covariance : ndarray (n_selected, n_selected) or None
+        Covariance of the updated values from the noise model (parameter units, order of
+        ``selected``); None without a noise model. Behind :attr:`moves_se` and
+        :attr:`move_test`.
     """
 
     model: Any
@@ -355,6 +404,49 @@ class UpdateResult:
     noise_before: NoiseTest | None = None
     noise_after: NoiseTest | None = None
     estimator_note: str = ""
+    noise_covariance: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def moves_se(self) -> dict[str, float]:
+        """Each updated parameter's move (after - before) in standard errors (NaN without SE).
+
+        On noise alone a consistent estimator moves each parameter by about ``N(0, 1)`` SE: about
+        a third of them beyond one SE, one in 370 beyond three; :attr:`move_test` is the joint
+        verdict.
+        """
+        out = {}
+        for name in self.selected:
+            se = self.std_errors.get(name, math.nan)
+            move = self.model.param(name).value - self.initial_model.param(name).value
+            out[name] = move / se if se and np.isfinite(se) and se > 0 else math.nan
+        return out
+
+    @property
+    def move_test(self) -> tuple[float, int, float] | None:
+        """``(T, dof, p)``: the joint move ``m^T C^+ m`` against chi-square(dof) (:func:`move_test`),
+        or None without a noise model. ``p >= alpha``: no parameter moved beyond what the noise
+        alone would do, i.e. the data do not contradict the initial values."""
+        if self.noise_covariance is None or not self.selected:
+            return None
+        before, after = self.initial_model, self.model
+        move = np.array([after.param(n).value - before.param(n).value for n in self.selected])
+        return move_test(move, self.noise_covariance)
+
+    def move_sentence(self, alpha: float = ALPHA) -> str:
+        """The joint move test in words (``""`` without a noise model)."""
+        test = self.move_test
+        if test is None:
+            return ""
+        t, dof, p = test
+        worst = max(self.moves_se.items(), key=lambda kv: abs(kv[1]) if np.isfinite(kv[1]) else -1.0)
+        head = (
+            f"Parameter moves against the noise: m^T C^-1 m = {t:.3g} on {dof} dof ({format_p(p)}); "
+            f"largest {worst[0]} by {worst[1]:+.2g} SE: "
+        )
+        if p >= alpha:
+            return head + f"no parameter moved significantly (at {alpha:g}): the data do not contradict " \
+                "the initial values."
+        return head + f"the data moved the parameters beyond the noise (p < {alpha:g})."
 
     @property
     def n_iter(self) -> int:
@@ -444,6 +536,7 @@ class UpdateResult:
         """Before/after parameter table with standard errors and the selection tests."""
         a_max = float(self.alignment.max()) if self.alignment.size else 1.0
         drift = {d.name: d.flagged for d in self.drift}
+        moves = self.moves_se
         rows = []
         for k, name in enumerate(self.candidates):
             p0 = self.initial_model.param(name)
@@ -457,6 +550,7 @@ class UpdateResult:
                     after,
                     100.0 * (after - p0.value) / p0.value if p0.value else float("nan"),
                     self.std_errors.get(name, float("nan")) if sel else float("nan"),
+                    moves.get(name, float("nan")) if sel else float("nan"),
                     self.alignment[k] / a_max if a_max > 0 else 0.0,
                     sel,
                     drift.get(name, False) if sel else None,
@@ -470,6 +564,7 @@ class UpdateResult:
                 "after",
                 "change (%)",
                 "std error",
+                "move (SE)",
                 "alignment (rel.)",
                 "updated",
                 "drifts",
@@ -513,6 +608,8 @@ class UpdateResult:
             lines.append(NO_NOISE_SENTENCE[:1].upper() + NO_NOISE_SENTENCE[1:] + ".")
         else:
             lines.append("After the update: " + self.noise_after.sentence())
+        if self.move_test is not None:
+            lines.append(self.move_sentence())
         lines += [f"Note: {n}" for n in self.notes]
         lines += [f"Suggestion: {s}" for s in self.suggestions]
         lines += [f"Warning: {w}" for w in self.warnings]
@@ -934,6 +1031,7 @@ def update(
     drift = _drift(residual, fit, drift_bands, drift_sigma, drift_floor, alpha) if len(selected) else ()
     reduction = 1.0 - fit.cost / history[0] if history[0] > 0 else 0.0
     before, after = (_verdict(residual, x, alpha) for x in ({}, fit.x))
+    noise_cov = _noise_covariance(residual, fit)
     return UpdateResult(
         model=model.with_values(**fit.x),
         initial_model=model,
@@ -945,7 +1043,8 @@ def update(
         orthogonality=orthogonality(dJ),
         selected=tuple(selected),
         fit=fit,
-        std_errors=_noise_std_errors(residual, fit) or dict(fit.std_errors),
+        std_errors=dict(fit.std_errors) if noise_cov is None else _std_errors(noise_cov, fit.names),
+        noise_covariance=noise_cov,
         drift=drift,
         notes=tuple(notes),
         suggestions=tuple(suggestions),

@@ -143,7 +143,9 @@ def _lowest_modes(K, Mreg, k):
     return lam[order], vec[:, order]
 
 
-def solve_static(K, M, f, Z: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def solve_static(
+    K, M, f, Z: np.ndarray | None = None, *, Mreg: sp.csr_matrix | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Static deflection ``K u = f`` of a possibly unsupported structure.
 
     The load component on the null space ``Z`` (rigid-body/mechanism modes, M-orthonormal)
@@ -158,6 +160,9 @@ def solve_static(K, M, f, Z: np.ndarray | None = None) -> tuple[np.ndarray, np.n
         Load in N, N m.
     Z : ndarray (n, r), optional
         Null-space basis from :func:`null_space` (computed when omitted).
+    Mreg : sparse (n, n), optional
+        ``regularised_mass(M)`` when the caller already has it (the preload iteration solves
+        with the same mass every step).
 
     Returns
     -------
@@ -172,7 +177,7 @@ def solve_static(K, M, f, Z: np.ndarray | None = None) -> tuple[np.ndarray, np.n
         When ``K`` is not positive semi-definite (a compressive preload beyond buckling).
     """
     K = sp.csr_matrix(K)
-    Mreg = regularised_mass(M)
+    Mreg = regularised_mass(M) if Mreg is None else Mreg
     if Z is None:
         Z = null_space(K, M)
     MZ = Mreg @ Z
@@ -291,7 +296,7 @@ def preload_iteration(
     for it in range(1, max_iter + 1):
         Kt = K_elastic if N is None else (K_elastic + geometric(N)).tocsr()
         Z = _surviving_null_space(Kt, Z0, lam_ref)
-        u, removed = solve_static(Kt, M, f, Z)
+        u, removed = solve_static(Kt, M, f, Z, Mreg=Mreg)
         N_new = axial_force(u, N) + (n_add if n_add.size else 0.0)
         change = float(np.abs(N_new - (0.0 if N is None else N)).max(initial=0.0))
         history.append(change)

@@ -85,6 +85,90 @@ class _DynamicsCache:
         self.__init__(state["size"])
 
 
+_MISSING = object()
+#: Recently built frames per structure callable: ``(reads, template)``, most recent last.
+_BASES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_BASES_LOCK = threading.Lock()
+_BASES_KEEP = 4
+
+
+class _LoggingTheta(Mapping):
+    """Passes reads through to ``theta`` and logs each key asked for with what it found
+    (``_MISSING`` when absent); iterating over all keys marks the build as not cacheable."""
+
+    def __init__(self, theta: Mapping[str, float]):
+        self._theta = theta
+        self.log: dict[str, Any] = {}
+        self.iterated = False
+
+    def __getitem__(self, key: str) -> float:
+        value = self._theta[key]
+        self.log[key] = value
+        return value
+
+    def get(self, key: str, default: Any = None) -> Any:
+        if key in self._theta:
+            return self[key]
+        self.log[key] = _MISSING
+        return default
+
+    def __contains__(self, key: object) -> bool:
+        found = key in self._theta
+        if not found:
+            self.log[key] = _MISSING
+        return found
+
+    def __iter__(self):
+        self.iterated = True
+        return iter(self._theta)
+
+    def __len__(self) -> int:
+        self.iterated = True
+        return len(self._theta)
+
+
+def _same_reads(theta: Mapping[str, float], log: dict[str, Any]) -> bool:
+    """Whether ``theta`` gives every logged read the same answer (reading it through ``theta``,
+    so a recording mapping notes the reads the build would have made)."""
+    for key, value in log.items():
+        if value is _MISSING:
+            if key in theta:
+                return False
+        elif key not in theta or theta[key] != value:
+            return False
+    return True
+
+
+def _base_structure(build: Callable[[Mapping[str, float]], Any], theta: Mapping[str, float]) -> Any:
+    """``build(theta)``, or a copy of a frame it built recently from the same parameter values.
+
+    Rebuilding a large :class:`~robustctl.physical.fem.Frame` node by node for every model
+    evaluation (a diagnosis makes hundreds, mostly with the base parameters unchanged) costs
+    more than a copy; effects then change the copy in place (``Frame.without()`` copies the
+    containers and shares the frozen parts). Only frames are reused, and only when the build
+    read its parameters by name (the reads, found or missing, are the cache key).
+    """
+    from .fem import Frame
+
+    try:
+        with _BASES_LOCK:
+            entries = list(_BASES.get(build, ()))
+    except TypeError:  # not weak-referenceable
+        return build(theta)
+    for log, template in reversed(entries):
+        if _same_reads(theta, log):
+            return template.without()
+    logged = _LoggingTheta(theta)
+    struct = build(logged)
+    if not isinstance(struct, Frame) or logged.iterated:
+        return struct
+    with _BASES_LOCK:
+        kept = _BASES.setdefault(build, [])
+        kept.append((dict(logged.log), struct))
+        del kept[:-_BASES_KEEP]
+    return struct.without()
+
+
 class _RecordingTheta(Mapping):
     """A read-only parameter mapping that records which keys were read."""
 
@@ -405,7 +489,7 @@ class PhysicalModel:
         return self._structure(self._theta(overrides))
 
     def _structure(self, theta: Mapping[str, float]) -> Structure:
-        struct = self.structure(theta)
+        struct = _base_structure(self.structure, theta)
         if self.structure_stages:  # effects change the structure in place
             struct = _fresh(struct, self.name)
         if self.excluded_tags:
