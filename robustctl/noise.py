@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from .checks import as_frequency_data
+from .checks import as_frequency_data, neighbour_coherence
 from .errors import DataError
 from .estimator import bin_correlation, effective_averages, estimator_settings
 
@@ -56,11 +56,6 @@ SIGMA_TESTABLE = 0.5
 #: coherence the estimate is about 1/n_d, and the B&P error formula, fed such an estimate,
 #: would claim a small error where the estimate is pure noise
 COHERENCE_NULL_P = 1e-4
-
-#: bins next to each bin left out of its neighbour coherence (:func:`neighbour_coherence`)
-NEIGHBOUR_SKIP = 1
-#: bins averaged on each side beyond them
-NEIGHBOUR_HALF = 2
 
 #: smallest sigma (nepers / rad): coherence 1 would otherwise claim a perfect estimate
 SIGMA_FLOOR = 1e-4
@@ -202,50 +197,6 @@ def _dof_factor(meta: dict) -> float:
 
 
 # ---------------------------------------------------------------------------- noise_model
-def neighbour_coherence(
-    coherence: np.ndarray, skip: int = NEIGHBOUR_SKIP, half: int = NEIGHBOUR_HALF
-) -> np.ndarray:
-    """The coherence at each bin from its neighbours alone: the mean over bins ``skip + 1`` to
-    ``skip + half`` away on either side (fewer at the ends), the bin itself and its ``skip``
-    correlated neighbours left out.
-
-    A bin's estimated coherence is correlated with its own estimation error: where the noise
-    happens to add in phase with the response, ``|G_yu|`` and hence ``g2`` come out larger. A
-    test that keeps only bins whose *own* coherence is clearly non-zero therefore keeps the bins
-    whose log-magnitude came out high: on notebook 04's 3-mass chain at 1 % noise the true model
-    came out 3.5 x the noise variance at 33-40 Hz (coherence 0.1-0.3), the normalised
-    log-magnitude error averaging +1.8 over the bins kept. Which bins are tested is therefore
-    decided on the neighbours' coherence, which carries the same information about the true
-    coherence (a smooth function of frequency) without that correlation (Hamming windows: bin
-    correlation 0.39 at one bin, 0.018 at two, :func:`bin_correlation`). The error formula itself
-    keeps the bin's own coherence: its correlation with the error shifts ``z`` by only about
-    ``g2 sigma``, while the neighbours' mean would misstate sigma at sharp resonance peaks and
-    anti-resonances.
-
-    Parameters
-    ----------
-    coherence : ndarray (nf, ...)
-        Ordinary (or multiple) coherence along axis 0 (frequency).
-    skip, half : int
-        Bins left out next to each bin, and bins averaged on each side beyond them.
-
-    Returns
-    -------
-    ndarray, same shape
-    """
-    g2 = np.asarray(coherence, dtype=float)
-    n = g2.shape[0]
-    acc, cnt = np.zeros_like(g2), np.zeros((n,) + (1,) * (g2.ndim - 1))
-    for lag in range(skip + 1, skip + half + 1):
-        if lag >= n:
-            break
-        acc[lag:] += g2[:-lag]
-        cnt[lag:] += 1
-        acc[:-lag] += g2[lag:]
-        cnt[:-lag] += 1
-    return np.where(cnt > 0, acc / np.maximum(cnt, 1), g2)
-
-
 def _sigma_of(g2: np.ndarray, nd: np.ndarray) -> np.ndarray:
     """Bendat & Piersol's random error of ``ln H1``: ``sqrt((1 - g2) / (2 n_d g2))``."""
     return np.sqrt((1.0 - g2) / (2.0 * nd[None, None, :] * g2))
