@@ -152,7 +152,8 @@ class ModelCoverRecipe:
         Corners of the performance weight (Hz).
     cover_order : int
         States of the additive weight (a fit that misses the envelope by more than
-        ``MAX_COVER_MARGIN`` everywhere is refitted one order lower).
+        ``MAX_COVER_MARGIN`` everywhere, or that ``fit_magnitude`` refuses, is refitted one
+        order lower; since the root polish is bounded no margin above 1.2 was seen).
     cover_band_hz : (lo, hi)
         Band of the cover (Hz); the local modes above the design band are in it.
     smooth_octaves : float
@@ -197,13 +198,19 @@ class ModelCoverRecipe:
         band = data.band(lo, min(hi, 0.99 * st.fs_hz / 2))
         seen = band.replace(response=band.response - estimator_view(G0, band.f_hz, st)
                             + freqresp_array(G0, band.f_hz))
+        why = "no fit"
         for order in range(self.cover_order, 1, -1):
-            cov = cover_additive(G0, seen, order, smooth_octaves=self.smooth_octaves,
-                                 data_sigmas=self.data_sigmas)
+            try:  # fit_magnitude refuses an order whose cover it cannot realise sanely
+                cov = cover_additive(G0, seen, order, smooth_octaves=self.smooth_octaves,
+                                     data_sigmas=self.data_sigmas)
+            except FitError as exc:
+                why = str(exc)
+                continue
             if np.isfinite(cov.margin) and cov.margin < MAX_COVER_MARGIN:
                 return cov
+            why = f"margin {cov.margin:.3g}"
         raise FitError(f"no additive weight of order {self.cover_order} or below covers the error of "
-                       f"{getattr(nominal, 'name', 'the model')} tightly (margin {cov.margin:.3g}); "
+                       f"{getattr(nominal, 'name', 'the model')} tightly ({why}); "
                        "lower cover_order or raise smooth_octaves.")
 
     def __call__(self, nominal: Any):
