@@ -971,9 +971,9 @@ def fit_magnitude(
     ------
     FitError
         Non-positive, NaN or mismatched magnitudes; unsorted or duplicated frequencies;
-        an order outside 0-20; a fit the state space cannot realise faithfully, or a cover
-        whose every candidate peaks above ``2 PEAK_CAP`` times the curve's largest value
-        (the message suggests a lower order).
+        an order outside 0-20; an unstable or non-finite realisation; a cover the state
+        space misses by more than 0.01 dB, or whose every candidate peaks above
+        ``2 PEAK_CAP`` times the curve's largest value (the message suggests a lower order).
 
     Notes
     -----
@@ -986,7 +986,8 @@ def fit_magnitude(
     Polished roots stay within ``ROOT_SPAN`` of the grid (a root far outside it only tilts
     ``ln|W|``, and unbounded least squares drifted one to 1e26 rad/s: a realisation with
     ``|W| ~ 1e11``). A cover keeps ``|W| <= PEAK_CAP max(mag)`` on the grid, between its points
-    and beyond (cutting planes), and the returned ``|W|`` is checked against the state space.
+    and beyond (cutting planes), and the returned ``|W|`` is checked against the state space
+    (the reported ``fitted`` and ``max_error_db`` are always the state space's own).
 
     Examples
     --------
