@@ -1047,21 +1047,37 @@ class _Trip:
 
 
 def _point_triplets(frame: Frame, index: dict[str, int]) -> _Trip:
-    """Lumped masses, springs and dashpots as triplets over the full DOFs."""
+    """Lumped masses, springs and dashpots as triplets over the full DOFs (stacked per run of
+    like components, in the frame's order)."""
     parts: list[_Trip] = []
-    for m in frame._masses:
-        block = np.zeros((6, 6))
-        block[:3, :3] = m.mass * np.eye(3)
-        block[3:, 3:] = m.inertia
-        parts.append(_Trip.from_blocks((6 * index[m.node] + np.arange(6))[None], {_M: block[None]}))
+    if frame._masses:
+        blocks = np.zeros((len(frame._masses), 6, 6))
+        blocks[:, :3, :3] = np.array([m.mass for m in frame._masses])[:, None, None] * np.eye(3)
+        blocks[:, 3:, 3:] = np.array([m.inertia for m in frame._masses])
+        dofs = 6 * np.array([index[m.node] for m in frame._masses])[:, None] + np.arange(6)
+        parts.append(_Trip.from_blocks(dofs, {_M: blocks}))
+    run: list[_Spring] = []
     for s in frame._springs:
-        dof, vec = 6 * index[s.node] + np.arange(6), s.vec
-        if s.node2 is not None:
-            dof = np.concatenate([dof, 6 * index[s.node2] + np.arange(6)])
-            vec = np.concatenate([s.vec, -s.vec])
-        column = _K if s.kind == "spring" else _C
-        parts.append(_Trip.from_blocks(dof[None], {column: (s.value * np.outer(vec, vec))[None]}))
+        if run and ((s.node2 is None) != (run[0].node2 is None) or s.kind != run[0].kind):
+            parts.append(_spring_triplets(run, index))
+            run = []
+        run.append(s)
+    if run:
+        parts.append(_spring_triplets(run, index))
     return _Trip.cat(parts)
+
+
+def _spring_triplets(run: list[_Spring], index: dict[str, int]) -> _Trip:
+    """Springs or dashpots of one kind, all grounded or all between two nodes (``k v v^T``)."""
+    dofs = 6 * np.array([index[s.node] for s in run])[:, None] + np.arange(6)
+    vec = np.array([s.vec for s in run], dtype=float)
+    if run[0].node2 is not None:
+        dofs2 = 6 * np.array([index[s.node2] for s in run])[:, None] + np.arange(6)
+        dofs = np.concatenate([dofs, dofs2], axis=1)
+        vec = np.concatenate([vec, -vec], axis=1)
+    value = np.array([s.value for s in run], dtype=float)
+    blocks = value[:, None, None] * (vec[:, :, None] * vec[:, None, :])
+    return _Trip.from_blocks(dofs, {_K if run[0].kind == "spring" else _C: blocks})
 
 
 def _link_roots(frame: Frame) -> dict[str, str]:
