@@ -51,6 +51,7 @@ __all__ = [
     "integer",
     "flag",
     "probability",
+    "choice",
     "check_seed",
     "real_array",
     "optional_text",
@@ -126,6 +127,13 @@ def flag(value: Any, name: str, error: type[RobustctlError] = DataError) -> bool
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
     raise error(f"{name} must be True or False; got {value!r}.")
+
+
+def choice(value: Any, name: str, options: tuple[str, ...], error: type[RobustctlError] = DataError) -> str:
+    """One of ``options`` (case-insensitive), lower case; anything else raises ``error``."""
+    if not isinstance(value, str) or value.lower() not in options:
+        raise error(f"{name} must be one of {', '.join(map(repr, options))}; got {value!r}.")
+    return value.lower()
 
 
 def probability(value: Any, name: str, error: type[RobustctlError] = DataError) -> float:

@@ -1,6 +1,7 @@
 """The ``robustctl`` command.
 
-* ``robustctl demo`` runs the whole pipeline on the embedded default example;
+* ``robustctl demo [--example caltech|mace]`` runs the whole pipeline on an embedded example
+  (default: the Caltech truss);
 * ``robustctl compare MODEL DATA``, ``robustctl diagnose MODEL DATA`` and
   ``robustctl identify DATA`` run one stage on a user's own files and write an HTML report
   section plus ``summary.json`` into ``--out``;
@@ -41,7 +42,9 @@ def _parser() -> argparse.ArgumentParser:
         description="Robust control of flexible structures: measure, model, correlate, identify, design.",
     )
     sub = parser.add_subparsers(dest="command", required=True)
-    demo = sub.add_parser("demo", help="run the full pipeline on the embedded Caltech truss; write a report")
+    demo = sub.add_parser("demo", help="run the full pipeline on an embedded example; write a report")
+    demo.add_argument("--example", choices=("caltech", "mace"), default="caltech",
+                      help="the Caltech truss (default) or the MACE-like bus, with its 0-g prediction")
     demo.add_argument("--out", default="out", help="report folder (default: out)")
     demo.add_argument("--seed", type=int, default=0, help="random seed of the simulated experiment")
     demo.add_argument("--no-design", action="store_true",
@@ -133,7 +136,7 @@ def _report(args: argparse.Namespace, title: str):
 def _run_demo(args: argparse.Namespace) -> Path:
     from .demo import run_demo
 
-    return run_demo(args.out, seed=args.seed, design=not args.no_design)
+    return run_demo(args.out, seed=args.seed, design=not args.no_design, example=args.example)
 
 
 def _run_compare(args: argparse.Namespace) -> Path:

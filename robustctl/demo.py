@@ -1,9 +1,12 @@
-"""The main job: the whole modelling pipeline on the embedded default example.
+"""The main job: the whole modelling pipeline on an embedded example.
 
-The Caltech truss (``rc.examples.caltech_truss``) is "tested" by a simulated experiment
-whose truth carries a physical effect the nominal model lacks, plus a few per cent of error
-in some physical parameters and sensor noise (``rc.examples.caltech_truss_experiment``).
-The demo does what a user would do and never peeks at the truth until the last section:
+The default, the Caltech truss (``rc.examples.caltech_truss``), is "tested" by a simulated
+experiment whose truth carries a physical effect the nominal model lacks, plus a few per cent
+of error in some physical parameters and sensor noise (``rc.examples.caltech_truss_experiment``).
+``example="mace"`` runs the same pipeline on the MACE-like bus (:mod:`robustctl.demo_mace`,
+which also adds the 0-g prediction). Each example is a :class:`DemoExample`: the pipeline is
+shared, the example says what differs. The demo does what a user would do and never peeks at
+the truth until the reveal:
 
 1. measure: three single-input white-noise experiments, H1 Welch estimates with coherence;
 2. compare the physical model with the data: where it fails (channels, bands, modes);
@@ -17,6 +20,8 @@ The demo does what a user would do and never peeks at the truth until the last s
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -25,31 +30,115 @@ import numpy as np
 from .report import Report
 from .table import Table
 
-__all__ = ["run_demo", "DEMO_BAND_HZ"]
+__all__ = ["run_demo", "DEMO_BAND_HZ", "DemoExample", "EXAMPLES", "caltech_example"]
 
 #: The Caltech design band (0.5-5.5 Hz) widened to hold the local longeron and diagonal modes
 #: (32-43 Hz): below 30 Hz taut wires on the longerons and stiffer diagonals look alike.
 DEMO_BAND_HZ = (0.5, 50.0)
 
 
-def _measure(report: Report, seed: int) -> tuple[Any, Any]:
+@dataclass(frozen=True)
+class DemoExample:
+    """What the shared pipeline needs to know about one embedded example.
+
+    Attributes
+    ----------
+    name : str
+        ``robustctl demo --example NAME``.
+    title : str
+        The report's title.
+    experiment : callable
+        ``seed -> (data, truth)``: the simulated test (the truth is revealed in section 7).
+    model : callable
+        ``() -> PhysicalModel``: the nominal model.
+    band_hz : (float, float)
+        Band of compare, diagnose and update (Hz).
+    sensors, actuators : str
+        Plain words for the measurement section ("accelerometers", "voice-coil actuators").
+    fit_measurement_model : callable
+        ``data -> MeasurementModel`` (section 2).
+    mm_caption : str
+        Caption of the measurement-model figure.
+    diagnose_options : callable
+        ``model -> dict`` of keyword arguments of :func:`robustctl.diagnose` besides the band.
+    update_options : callable
+        ``(model, effect or None) -> dict`` of keyword arguments of :func:`robustctl.update`.
+    design : object
+        The design half's recipe (:class:`robustctl.demo_design.DesignSpec`); None: Caltech's.
+    extra_sections : tuple of callables
+        ``(report, data, truth, model, upd) -> None``, run after the design half
+        (MACE: the 0-g prediction).
+    """
+
+    name: str
+    title: str
+    experiment: Callable[[int], tuple[Any, Any]]
+    model: Callable[[], Any]
+    band_hz: tuple[float, float]
+    sensors: str
+    actuators: str
+    fit_measurement_model: Callable[[Any], Any]
+    mm_caption: str
+    diagnose_options: Callable[[Any], dict] = field(default=lambda model: {})
+    update_options: Callable[[Any, Any], dict] = field(default=lambda model, effect: {})
+    design: Any = None
+    extra_sections: tuple[Callable[..., None], ...] = ()
+
+
+def _caltech_measurement_model(data: Any) -> Any:
+    from .identify import fit_measurement_model
+
+    # White-noise excitation (as Caltech's): correct the Hamming window's damping bias.
+    return fit_measurement_model(data, n_modes=6, band=(0.5, 5.5), correct_leakage=True)
+
+
+def caltech_example() -> DemoExample:
+    """The default demo: the Caltech truss with taut accelerometer wires (``--example caltech``)."""
     from . import examples
+
+    return DemoExample(
+        name="caltech",
+        title="robustctl demo: the Caltech truss",
+        experiment=lambda seed: examples.caltech_truss_experiment(seed=seed),
+        model=examples.caltech_truss,
+        band_hz=DEMO_BAND_HZ,
+        sensors="accelerometers",
+        actuators="voice-coil actuators",
+        fit_measurement_model=_caltech_measurement_model,
+        mm_caption="Six-mode measurement model against the data.",
+        # the local fits share a wall-clock budget: on a loaded machine the default (120 s) can
+        # cut them short and rank a look-alike first; the budget is a cap, an idle machine needs ~1 min
+        diagnose_options=lambda model: {"time_budget_s": 900.0},
+    )
+
+
+def _mace_example() -> DemoExample:
+    from .demo_mace import mace_example
+
+    return mace_example()
+
+
+#: ``robustctl demo --example NAME``: the examples the demo runs, by name.
+EXAMPLES: dict[str, Callable[[], DemoExample]] = {"caltech": caltech_example, "mace": _mace_example}
+
+
+def _measure(report: Report, ex: DemoExample, seed: int) -> tuple[Any, Any]:
     from .plots import bode_grid
 
-    data, truth = examples.caltech_truss_experiment(seed=seed)
+    data, truth = ex.experiment(seed)
     settings = data.meta["experiments"][0]
     report.heading("1. Measurements")
     report.text(
-        f"{data.n_out} accelerometers x {data.n_in} voice-coil actuators, one white-noise experiment "
+        f"{data.n_out} {ex.sensors} x {data.n_in} {ex.actuators}, one white-noise experiment "
         f"per actuator ({settings['n_samples']} samples at {settings['fs_hz']:g} Hz); H1 Welch estimates "
         f"with {settings['nperseg']}-point {settings['window']} windows ({settings['n_averages']} averages) "
         f"and coherence; {data.n_freq} points from {data.f_hz[0]:.3g} to {data.f_hz[-1]:.3g} Hz."
     )
     if data.coherence is not None:
-        band = data.band(*DEMO_BAND_HZ)
+        band = data.band(*ex.band_hz)
         report.record("median_coherence_in_band", float(np.median(band.coherence)))
     fig = bode_grid([data], ["measured"], phase=False, title="Measured FRFs")
-    report.figure(fig, "measured", "H1 estimates of the nine transfer functions AiSj.")
+    report.figure(fig, "measured", f"H1 estimates of the {data.n_out * data.n_in} transfer functions.")
     return data, truth
 
 
@@ -72,10 +161,14 @@ def _reveal(report: Report, data: Any, truth: Any, nominal: Any, upd: Any) -> No
     report.record("truth", told)
 
 
-def _compare(report: Report, model: Any, data: Any, mm: Any, label: str) -> Any:
+def _compare(report: Report, model: Any, data: Any, mm: Any, label: str, band_hz: tuple) -> Any:
     from .correlate import compare
 
-    cmp = compare(model, data, band=DEMO_BAND_HZ, measurement_model=mm)
+    # a measurement model of fewer channels (MACE's: the design channels) cannot pair the
+    # modes of every channel: then compare pairs them by peak picking
+    channels = (tuple(data.outputs), tuple(data.inputs))
+    same = mm is not None and (tuple(mm.outputs), tuple(mm.inputs)) == channels
+    cmp = compare(model, data, band=band_hz, measurement_model=mm if same else None)
     report.heading(f"{label}: where the model fails")
     report.text(cmp.summary())
     report.table(cmp.table())
@@ -85,8 +178,8 @@ def _compare(report: Report, model: Any, data: Any, mm: Any, label: str) -> Any:
     return cmp
 
 
-def run_demo(out: str | Path = "out", seed: int = 0, design: bool = True) -> Path:
-    """Run the pipeline on the embedded Caltech truss and write ``out/report.html``.
+def run_demo(out: str | Path = "out", seed: int = 0, design: bool = True, example: str = "caltech") -> Path:
+    """Run the pipeline on an embedded example and write ``out/report.html``.
 
     Parameters
     ----------
@@ -97,34 +190,52 @@ def run_demo(out: str | Path = "out", seed: int = 0, design: bool = True) -> Pat
     design : bool
         Also run the design half (sections 8-12: weights, generalized plant, D-K, mu,
         yardstick, exported controller files in ``out``); False stops after the update.
+    example : {"caltech", "mace"}
+        The Caltech truss (default) or the MACE-like bus (:mod:`robustctl.demo_mace`).
 
     Returns
     -------
     Path
         The report's HTML file.
-    """
-    from . import examples
-    from .correlate import diagnose, update
-    from .identify import fit_measurement_model
 
-    report = Report(Path(out), title="robustctl demo: the Caltech truss")
-    data, truth = _measure(report, seed)
-    model = examples.caltech_truss()
+    Raises
+    ------
+    RobustctlError
+        Unknown ``example``.
+    """
+    from .checks import choice
+
+    ex = EXAMPLES[choice(example, "example", tuple(EXAMPLES))]()
+    report = Report(Path(out), title=ex.title)
+    report.record("example", ex.name)
+    data, truth = _measure(report, ex, seed)
+    model = ex.model()
+    mm, upd = _model_half(report, ex, data, truth, model)
+    if design:
+        from .demo_design import design_sections
+
+        design_sections(report, data, truth, model, upd, mm, ex.design)
+    for section in ex.extra_sections:
+        section(report, data, truth, model, upd)
+    return report.write()
+
+
+def _model_half(report: Report, ex: DemoExample, data: Any, truth: Any, model: Any) -> tuple[Any, Any]:
+    """Sections 2-7: measurement model, compare, diagnose, update, compare again, reveal."""
+    from .correlate import diagnose, update
 
     report.heading("2. Measurement model (the yardstick)")
-    # White-noise excitation (as Caltech's): correct the Hamming window's damping bias.
-    mm = fit_measurement_model(data, n_modes=6, band=(0.5, 5.5), correct_leakage=True)
+    mm = ex.fit_measurement_model(data)
     report.table(mm.table())
-    report.figure(mm.plot(), "measurement_model", "Six-mode measurement model against the data.")
+    report.figure(mm.plot(), "measurement_model", ex.mm_caption)
     report.record("measurement_model_cost", float(mm.cost.total))
 
-    cmp0 = _compare(report, model, data, mm, "3. Nominal physical model")
+    band = ex.band_hz
+    cmp0 = _compare(report, model, data, mm, "3. Nominal physical model", band)
     report.record("cost_nominal", float(cmp0.cost))
 
     report.heading("4. Which physical effect is missing?")
-    # the local fits share a wall-clock budget: on a loaded machine the default (120 s) can cut
-    # them short and rank a look-alike first; the budget is a cap, an idle machine needs ~1 min
-    diag = diagnose(model, data, band=DEMO_BAND_HZ, time_budget_s=900.0)
+    diag = diagnose(model, data, band=band, **ex.diagnose_options(model))
     report.text(diag.summary())
     report.table(diag.table())
     report.figure(diag.plot(), "diagnose", "Candidate effects ranked by the share of the error they explain.")
@@ -137,7 +248,7 @@ def run_demo(out: str | Path = "out", seed: int = 0, design: bool = True) -> Pat
         report.record("diagnosed_effect", diag.best.name)
 
     report.heading("5. Updating the physical parameters")
-    upd = update(candidate, data, band=DEMO_BAND_HZ)
+    upd = update(candidate, data, band=band, **ex.update_options(model, diag.best))
     report.text(
         f"Cost {upd.cost_before:.4g} -> {upd.cost_after:.4g} "
         f"({100 * (1 - upd.cost_after / cmp0.cost):.1f}% below the nominal model's {cmp0.cost:.4g})."
@@ -146,11 +257,7 @@ def run_demo(out: str | Path = "out", seed: int = 0, design: bool = True) -> Pat
     report.figure(upd.plot(), "update", "Cost per iteration, alignment (MACE eq. 8), orthogonality (eq. 9).")
     report.record("cost_updated", float(upd.cost_after))
     report.record("cost_reduction_percent", float(100 * (1 - upd.cost_after / cmp0.cost)))
-    _compare(report, upd.model, data, mm, "6. Updated physical model")
+    _compare(report, upd.model, data, mm, "6. Updated physical model", band)
 
     _reveal(report, data, truth, model, upd)
-    if design:
-        from .demo_design import design_sections
-
-        design_sections(report, data, truth, model, upd, mm)
-    return report.write()
+    return mm, upd

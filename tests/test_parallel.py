@@ -22,6 +22,16 @@ def _chain():
     )
 
 
+@pytest.fixture(scope="module")
+def dask_client():
+    """A local dask cluster of 2 worker processes (one thread each), shared by the module's tests."""
+    distributed = pytest.importorskip("distributed", reason="install robustctl[distributed] for dask")
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster, distributed.Client(cluster) as client:
+        yield client
+
+
 def _square(x):
     return x * x
 
@@ -44,8 +54,7 @@ def test_diagnose_refuses_a_string_executor_before_any_work():
 
 
 @pytest.mark.slow
-def test_diagnose_on_a_local_dask_cluster_matches_serial():
-    distributed = pytest.importorskip("distributed", reason="install robustctl[distributed] for dask")
+def test_diagnose_on_a_local_dask_cluster_matches_serial(dask_client):
     model = _chain()
     truth = model.with_values(k_ground=4.2e3).with_effect(rc.effects.AddedMass("dof 3", mass=0.05))
     rng = np.random.default_rng(0)
@@ -54,10 +63,7 @@ def test_diagnose_on_a_local_dask_cluster_matches_serial():
     data = rc.FrequencyData(F_HZ, g, inputs=model.inputs, outputs=model.outputs)
 
     serial = rc.diagnose(model, data)
-    with distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
-    ) as cluster, distributed.Client(cluster) as client:
-        spread = rc.diagnose(model, data, executor=client.get_executor())
+    spread = rc.diagnose(model, data, executor=dask_client.get_executor())
     assert spread.best.name == serial.best.name
     assert [c.name for c in spread.ranking[:5]] == [c.name for c in serial.ranking[:5]]
     for a, b in zip(spread.ranking[:5], serial.ranking[:5]):
@@ -71,16 +77,12 @@ def _distillation(eps):
 
 
 @pytest.mark.slow
-def test_design_sweep_on_a_local_dask_cluster_matches_serial():
-    distributed = pytest.importorskip("distributed", reason="install robustctl[distributed] for dask")
+def test_design_sweep_on_a_local_dask_cluster_matches_serial(dask_client):
     recipes = {"eps 1e-6": _distillation(1e-6), "eps 1e-4": _distillation(1e-4)}
     serial = rc.design_sweep(recipes, max_iter=2)
     # iteration 1 of the book's example (Skogestad & Postlethwaite Table 8.2): 1.1818
     assert serial.results["eps 1e-6"].history[0].mu_peak == pytest.approx(1.1818, abs=0.005)
-    with distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
-    ) as cluster, distributed.Client(cluster) as client:
-        spread = rc.design_sweep(recipes, max_iter=2, executor=client.get_executor())
+    spread = rc.design_sweep(recipes, max_iter=2, executor=dask_client.get_executor())
     assert spread.labels == serial.labels and spread.best == serial.best
     for k in recipes:
         assert spread.results[k].mu_peak == pytest.approx(serial.results[k].mu_peak, rel=1e-9)
@@ -92,3 +94,47 @@ def test_design_sweep_refuses_bad_recipes():
         rc.design_sweep([])
     with pytest.raises(rc.RobustctlError, match="executor must be"):
         rc.design_sweep({"a": _distillation(1e-6)}, executor="dask")
+
+
+def _lightly_damped_4x4():
+    """A 4x4 system of five lightly damped modes (0.8-31 Hz, 1-3 % damping) with random shapes."""
+    import control
+
+    rng = np.random.default_rng(11)
+    f_n, zeta = np.array([0.8, 2.5, 6.0, 14.0, 31.0]), np.array([0.01, 0.02, 0.015, 0.03, 0.01])
+    w = 2 * np.pi * f_n
+    A = np.zeros((10, 10))
+    for k, (wk, zk) in enumerate(zip(w, zeta)):
+        A[2 * k : 2 * k + 2, 2 * k : 2 * k + 2] = [[0.0, 1.0], [-wk**2, -2 * zk * wk]]
+    B = np.zeros((10, 4))
+    B[1::2] = rng.standard_normal((5, 4))
+    C = np.zeros((4, 10))
+    C[:, 1::2] = rng.standard_normal((4, 5))
+    return control.ss(A, B, C, 0.5 * rng.standard_normal((4, 4)))
+
+
+@pytest.mark.slow
+def test_mu_over_a_large_grid_on_a_local_dask_cluster_matches_serial(dask_client):
+    """mu's frequency grid split into 8 chunks on 2 dask worker processes: the same bounds as
+    the same chunks computed serially (to rounding), and as the unchunked serial run."""
+    G = _lightly_damped_4x4()
+    f_hz = np.geomspace(0.1, 100.0, 800)
+    blocks = [[1, 0], [1, 0], [2, 2]]  # two complex scalars and a full 2x2 block
+    whole = rc.mu(G, blocks, f_hz)
+    chunked = rc.mu(G, blocks, f_hz, chunk=100)
+    spread = rc.mu(G, blocks, f_hz, chunk=100, executor=dask_client.get_executor())
+    assert spread.info["n_chunks"] == chunked.info["n_chunks"] == 8
+    np.testing.assert_allclose(spread.upper, chunked.upper, rtol=1e-12)
+    np.testing.assert_allclose(spread.lower, chunked.lower, rtol=1e-12, atol=1e-300)
+    np.testing.assert_allclose(spread.d_scales, chunked.d_scales, rtol=1e-9)
+    np.testing.assert_allclose(spread.upper, whole.upper, rtol=1e-3)
+    assert spread.peak == pytest.approx(whole.peak, rel=1e-3)
+    assert spread.f_peak_hz == whole.f_peak_hz
+    # the bounds bracket mu: spectral radius <= lower <= upper <= largest singular value
+    M = rc.freqresp(G, f_hz).response
+    sigma = np.linalg.svd(M, compute_uv=False)[:, 0]
+    rho = np.abs(np.linalg.eigvals(M)).max(axis=1)
+    assert np.all(spread.upper <= sigma * (1 + 1e-9))
+    assert np.all(spread.lower <= spread.upper * (1 + 1e-9))
+    assert np.all(spread.upper >= rho * (1 - 1e-9))
+    assert np.median(spread.lower / spread.upper) > 0.9  # a lower bound that works, not zeros

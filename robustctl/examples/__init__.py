@@ -12,7 +12,8 @@
 * :func:`caltech_additive_weight` -- the seed's additive weight (eq. 14);
   :func:`caltech_truss_weights` -- weights computed from the truss's residuals beside it.
 * :func:`distillation_plant`, :func:`caltech_design_plant` -- mu-synthesis examples
-  (Skogestad & Postlethwaite's D-K example; the Caltech seed's design plant).
+  (Skogestad & Postlethwaite's D-K example; the Caltech seed's design plant);
+  :class:`ModelCoverRecipe` -- the yardstick's recipe in which each model pays for its error.
 """
 
 from .caltech_truss import caltech_truss, truss_modes
@@ -20,10 +21,17 @@ from .caltech_weights import CaltechWeights, caltech_additive_weight, caltech_tr
 from .experiments import caltech_truss_experiment, mace_beam_experiment, make_experiment
 from .mace_beam import mace_beam, mace_modes
 from .modal_test import ModalTruth, impact_test_case, modal_test_case
-from .robust_design import DISTILLATION_BLOCKS, caltech_design_plant, distillation_plant, six_modes
+from .robust_design import (
+    DISTILLATION_BLOCKS,
+    ModelCoverRecipe,
+    caltech_design_plant,
+    distillation_plant,
+    six_modes,
+)
 
 __all__ = ["caltech_truss", "truss_modes", "mace_beam", "mace_modes"]
 __all__ += ["make_experiment", "caltech_truss_experiment", "mace_beam_experiment"]
 __all__ += ["modal_test_case", "impact_test_case", "ModalTruth"]
 __all__ += ["caltech_additive_weight", "caltech_truss_weights", "CaltechWeights"]
 __all__ += ["distillation_plant", "DISTILLATION_BLOCKS", "caltech_design_plant", "six_modes"]
+__all__ += ["ModelCoverRecipe"]

@@ -6,15 +6,20 @@
 * :func:`caltech_design_plant` -- the Caltech seed's design problem: six modes, eq. 14's
   additive weight, 4 % input and output multiplicative uncertainty, input disturbances
   and a band-pass performance weight on the sensors.
+* :class:`ModelCoverRecipe` -- the yardstick's recipe on measured data: each model's own
+  additive cover of its error against the data (as the H1 estimator sees it) and a
+  performance weight on the flexible modes.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-__all__ = ["distillation_plant", "DISTILLATION_BLOCKS", "caltech_design_plant", "six_modes"]
+__all__ = ["distillation_plant", "DISTILLATION_BLOCKS", "caltech_design_plant", "six_modes",
+           "ModelCoverRecipe"]
 
 #: mussv blocks of the distillation example: two 1x1 input-uncertainty blocks, the 2x2 performance block.
 DISTILLATION_BLOCKS = [[1, 1], [1, 1], [2, 2]]
@@ -86,12 +91,125 @@ def caltech_design_plant(nominal: Any, level: float = 0.3, band_hz: tuple[float,
     -------
     GeneralizedPlant
     """
-    import control
-
     from ..robust.plant import generalized_plant
     from ..robust.weights import caltech_additive_weight
 
-    w1, w2 = 2 * np.pi * band_hz[0], 2 * np.pi * band_hz[1]
-    wp = control.ss(control.tf([level * w2, 0.0], np.polymul([1.0, w1], [1.0, w2])))
     return generalized_plant(six_modes(nominal), additive=caltech_additive_weight(), input_mult=0.04,
-                             output_mult=0.04, performance=wp, disturbances=1.0)
+                             output_mult=0.04, performance=_band_pass(level, band_hz), disturbances=1.0)
+
+
+def _band_pass(level: float, band_hz: tuple[float, float]):
+    """``level * w2 s / ((s + w1)(s + w2))`` with corners ``band_hz`` (Hz): gain ``level`` in the band."""
+    import control
+
+    w1, w2 = 2 * np.pi * band_hz[0], 2 * np.pi * band_hz[1]
+    return control.ss(control.tf([level * w2, 0.0], np.polymul([1.0, w1], [1.0, w2])))
+
+
+#: A cover whose weight is this many times its envelope at its closest point is a failed fit (refitted lower).
+MAX_COVER_MARGIN = 2.0
+
+
+@dataclass(frozen=True, eq=False)
+class ModelCoverRecipe:
+    """A yardstick recipe (``nominal -> GeneralizedPlant``) in which each model pays for its own error.
+
+    The same procedure for every model: the six-mode design model ``G0 = six_modes(nominal)``,
+    an additive weight covering ``sigma_max(data - E[H1 of G0])`` (the model's error against
+    the measured FRFs as the Welch estimator sees it, the comparison ``rc.compare`` and
+    ``rc.update`` make: window leakage broadens the 1.5 %-damped peaks by about 50 %, so
+    comparing the raw model would charge every model for the estimator), the seed's 4 % input
+    and output multiplicative uncertainty, unit input disturbances, and the band-pass
+    performance weight ``level * w2 s / ((s + w1)(s + w2))`` on the sensors with corners
+    ``band_hz`` around the six flexible modes (1.1-4.5 Hz on the truss).
+
+    Why this recipe separates the models (and the seed's fixed weights do not): the nominal
+    truss's modes are 3-6 % low, one to two half-power bandwidths of a 1.5 %-damped mode, so
+    at every resonance its residual is as large as the response itself (Caltech seed eqs. 1-2:
+    the additive set must hold the plant). A controller that must be robust to that cover
+    cannot act on the resonances; the updated and measurement models' residuals are at the
+    noise level there, so their controllers can. With the seed's eq. 14 weight for every model
+    (0.02-0.06 at the modes, where the plant reaches 20-40) no design pays for its error: on
+    the demo's data :func:`caltech_design_plant` scores 9.4 / 9.5 / 9.8 dB (nominal / updated
+    / measurement); asking for more on the modes (level 1, 0.8-6 Hz) opens a 1.6-2.4 dB gap
+    on four data sets but the measurement-model controller destabilised the fifth, and at
+    level 2 the nominal controller scored best. With this recipe, on five data sets (seeds
+    0-4, wire tension 10-20 N) the nominal controller scores 2.3-3.0 dB against 6.0-7.6 dB
+    for the measurement model's, and the updated one closes 89-154 % of the gap (every loop
+    stable on the data, but for one updated design the data "cannot tell": its loop gain
+    reaches 1 below the lowest measured frequency; it stabilises the truth).
+
+    Parameters
+    ----------
+    data : FrequencyData
+        The measured FRFs with the H1 estimator's settings in ``meta`` (``rc.estimate_frf``).
+    level : float
+        Gain of the performance weight in the band. 0.5 asks for more than robust
+        performance allows (mu 2-3 for the good models), so the uncertainty weights decide
+        how far each design gets; at 1 one measurement-model controller of five data sets
+        was unstable on the data (and on the truth: a 9 Hz loop mode).
+    band_hz : (f1, f2)
+        Corners of the performance weight (Hz).
+    cover_order : int
+        States of the additive weight (a fit that misses the envelope by more than
+        ``MAX_COVER_MARGIN`` everywhere is refitted one order lower).
+    cover_band_hz : (lo, hi)
+        Band of the cover (Hz); the local modes above the design band are in it.
+    smooth_octaves : float
+        Running maximum of the error envelope before the fit (octaves): half an octave
+        spans the two close pairs, so the six-state weight is a smooth hump over the modes
+        rather than a fit that dips between them.
+    data_sigmas : float
+        Passed to :func:`~robustctl.robust.cover.cover_additive` (0: cover the residual as
+        measured; the random error at the low-coherence peaks would otherwise swamp it).
+    """
+
+    data: Any
+    level: float = 0.5
+    band_hz: tuple[float, float] = (0.8, 6.0)
+    cover_order: int = 6
+    cover_band_hz: tuple[float, float] = (0.3, 60.0)
+    smooth_octaves: float = 0.5
+    data_sigmas: float = 0.0
+    _covers: dict = field(default_factory=dict, repr=False)
+
+    def cover(self, nominal: Any):
+        """The additive :class:`~robustctl.robust.cover.UncertaintyCover` of ``six_modes(nominal)``
+        (computed once per model object)."""
+        if id(nominal) not in self._covers:
+            self._covers[id(nominal)] = (nominal, self._fit_cover(nominal))
+        return self._covers[id(nominal)][1]
+
+    def _fit_cover(self, nominal: Any):
+        from ..checks import as_frequency_data
+        from ..errors import DataError, FitError
+        from ..estimator import estimator_settings, estimator_view
+        from ..lti import freqresp_array
+        from ..robust.cover import cover_additive
+
+        data = as_frequency_data(self.data)
+        st = estimator_settings(data.meta)
+        if st is None:
+            raise DataError("ModelCoverRecipe needs the H1 estimator's settings (fs_hz, nperseg, window) in "
+                            "data.meta, as rc.estimate_frf records them.")
+        G0 = six_modes(nominal)
+        lo, hi = self.cover_band_hz
+        band = data.band(lo, min(hi, 0.99 * st.fs_hz / 2))
+        seen = band.replace(response=band.response - estimator_view(G0, band.f_hz, st)
+                            + freqresp_array(G0, band.f_hz))
+        for order in range(self.cover_order, 1, -1):
+            cov = cover_additive(G0, seen, order, smooth_octaves=self.smooth_octaves,
+                                 data_sigmas=self.data_sigmas)
+            if np.isfinite(cov.margin) and cov.margin < MAX_COVER_MARGIN:
+                return cov
+        raise FitError(f"no additive weight of order {self.cover_order} or below covers the error of "
+                       f"{getattr(nominal, 'name', 'the model')} tightly (margin {cov.margin:.3g}); "
+                       "lower cover_order or raise smooth_octaves.")
+
+    def __call__(self, nominal: Any):
+        """The generalized plant of ``nominal`` with its own cover (see the class notes)."""
+        from ..robust.plant import generalized_plant
+
+        return generalized_plant(six_modes(nominal), additive=self.cover(nominal).weight, input_mult=0.04,
+                                 output_mult=0.04, performance=_band_pass(self.level, self.band_hz),
+                                 disturbances=1.0)

@@ -6,6 +6,7 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import choice
 from ..errors import DataError, ModelError
 from ..lti import as_statespace
 
@@ -26,13 +27,6 @@ def flag(value: Any, name: str) -> bool:
     if not isinstance(value, (bool, np.bool_)):
         raise DataError(f"{name} must be True or False; got {value!r}.")
     return bool(value)
-
-
-def choice(value: Any, name: str, options: tuple[str, ...]) -> str:
-    """One of ``options`` (case-insensitive), lower case."""
-    if not isinstance(value, str) or value.lower() not in options:
-        raise DataError(f"{name} must be one of {', '.join(map(repr, options))}; got {value!r}.")
-    return value.lower()
 
 
 def unwrap(K: Any) -> tuple[Any, dict]:
