@@ -3,8 +3,9 @@
 Every ``executor=`` argument in robustctl (diagnose's candidates, sensitivities, mu over a
 large grid, D-K design sweeps) goes through :func:`parallel_map`, so any executor that
 implements ``submit`` works the same everywhere: ``ThreadPoolExecutor``,
-``ProcessPoolExecutor`` (tasks and results travel by cloudpickle, so systems holding lambdas cross), or a dask.distributed
-``Client.get_executor()`` / Ray executor to spread the work past one machine.
+``ProcessPoolExecutor`` (tasks and results travel by cloudpickle, so systems holding lambdas
+cross), or a dask.distributed ``Client.get_executor()`` / Ray executor to spread the work past
+one machine.
 """
 
 from __future__ import annotations
