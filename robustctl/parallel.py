@@ -3,15 +3,19 @@
 Every ``executor=`` argument in robustctl (diagnose's candidates, sensitivities, mu over a
 large grid, D-K design sweeps) goes through :func:`parallel_map`, so any executor that
 implements ``submit`` works the same everywhere: ``ThreadPoolExecutor``,
-``ProcessPoolExecutor`` (robustctl's models pickle by value), or a dask.distributed
-``Client.get_executor()`` / Ray executor to spread the work past one machine.
+``ProcessPoolExecutor`` (tasks and results travel by cloudpickle, so systems holding lambdas
+cross), or a dask.distributed ``Client.get_executor()`` / Ray executor to spread the work past
+one machine.
 """
 
 from __future__ import annotations
 
 import sys
 from collections.abc import Callable, Iterable
+from concurrent.futures import ProcessPoolExecutor
 from typing import Any
+
+import cloudpickle
 
 from .errors import RobustctlError
 
@@ -69,5 +73,17 @@ def parallel_map(
     show = bool(progress) and sys.stderr.isatty()
     if executor is None:
         return [fn(it) for it in tqdm(items, desc=desc, disable=not show, leave=False)]
+    if isinstance(executor, ProcessPoolExecutor):  # standard pickle: no lambdas, no local classes
+        futures = [executor.submit(_call_pickled, cloudpickle.dumps((fn, it))) for it in items]
+        blobs = [f.result() for f in tqdm(futures, desc=desc, disable=not show, leave=False)]
+        return [cloudpickle.loads(b) for b in blobs]
     futures = [executor.submit(fn, it) for it in items]
     return [f.result() for f in tqdm(futures, desc=desc, disable=not show, leave=False)]
+
+
+def _call_pickled(blob: bytes) -> bytes:
+    """Worker side of a ``ProcessPoolExecutor`` task: ``fn(item)`` shipped and returned by
+    cloudpickle, so that systems holding lambdas (python-control's ``StateSpace``) and local
+    functions cross the process boundary (dask does the same by itself)."""
+    fn, item = cloudpickle.loads(blob)
+    return cloudpickle.dumps(fn(item))

@@ -25,8 +25,12 @@ DOFs are six per node ``[ux uy uz rx ry rz]`` in global axes (m, rad). On assemb
 from __future__ import annotations
 
 import copy
+import hashlib
+import threading
+from collections import OrderedDict
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
@@ -1043,21 +1047,37 @@ class _Trip:
 
 
 def _point_triplets(frame: Frame, index: dict[str, int]) -> _Trip:
-    """Lumped masses, springs and dashpots as triplets over the full DOFs."""
+    """Lumped masses, springs and dashpots as triplets over the full DOFs (stacked per run of
+    like components, in the frame's order)."""
     parts: list[_Trip] = []
-    for m in frame._masses:
-        block = np.zeros((6, 6))
-        block[:3, :3] = m.mass * np.eye(3)
-        block[3:, 3:] = m.inertia
-        parts.append(_Trip.from_blocks((6 * index[m.node] + np.arange(6))[None], {_M: block[None]}))
+    if frame._masses:
+        blocks = np.zeros((len(frame._masses), 6, 6))
+        blocks[:, :3, :3] = np.array([m.mass for m in frame._masses])[:, None, None] * np.eye(3)
+        blocks[:, 3:, 3:] = np.array([m.inertia for m in frame._masses])
+        dofs = 6 * np.array([index[m.node] for m in frame._masses])[:, None] + np.arange(6)
+        parts.append(_Trip.from_blocks(dofs, {_M: blocks}))
+    run: list[_Spring] = []
     for s in frame._springs:
-        dof, vec = 6 * index[s.node] + np.arange(6), s.vec
-        if s.node2 is not None:
-            dof = np.concatenate([dof, 6 * index[s.node2] + np.arange(6)])
-            vec = np.concatenate([s.vec, -s.vec])
-        column = _K if s.kind == "spring" else _C
-        parts.append(_Trip.from_blocks(dof[None], {column: (s.value * np.outer(vec, vec))[None]}))
+        if run and ((s.node2 is None) != (run[0].node2 is None) or s.kind != run[0].kind):
+            parts.append(_spring_triplets(run, index))
+            run = []
+        run.append(s)
+    if run:
+        parts.append(_spring_triplets(run, index))
     return _Trip.cat(parts)
+
+
+def _spring_triplets(run: list[_Spring], index: dict[str, int]) -> _Trip:
+    """Springs or dashpots of one kind, all grounded or all between two nodes (``k v v^T``)."""
+    dofs = 6 * np.array([index[s.node] for s in run])[:, None] + np.arange(6)
+    vec = np.array([s.vec for s in run], dtype=float)
+    if run[0].node2 is not None:
+        dofs2 = 6 * np.array([index[s.node2] for s in run])[:, None] + np.arange(6)
+        dofs = np.concatenate([dofs, dofs2], axis=1)
+        vec = np.concatenate([vec, -vec], axis=1)
+    value = np.array([s.value for s in run], dtype=float)
+    blocks = value[:, None, None] * (vec[:, :, None] * vec[:, None, :])
+    return _Trip.from_blocks(dofs, {_K if run[0].kind == "spring" else _C: blocks})
 
 
 def _link_roots(frame: Frame) -> dict[str, str]:
@@ -1170,37 +1190,152 @@ def _strain_row(frame: Frame, sig: _Signal, elem_pos, stacks: _ElementStacks, n_
     return row
 
 
-@limit_blas
-def _assemble(frame: Frame) -> _Assembly:
-    if not frame._nodes:
-        raise ModelError("the frame has no nodes; add nodes and elements first.")
+@dataclass
+class _Geometry:
+    """What the assembly computes from the nodes, elements, links, supports and signals alone
+    (no point masses, springs, tensions or gravity): shared by the frames a diagnosis builds
+    for its candidates, which differ only in those (:func:`_geometry`)."""
+
+    names: tuple[str, ...]
+    index: dict[str, int]
+    X: np.ndarray
+    st: _ElementStacks
+    links: tuple[np.ndarray, np.ndarray]
+    elements: _Trip  # beams, rods and the links' geometric stiffness, over the full DOFs
+    T: sp.csr_matrix
+    dof_of_col: np.ndarray
+    B_full: np.ndarray
+    C_full: np.ndarray
+    reduced: dict  # keep-mask bytes -> (elements reduced, {point pattern key: _Pattern})
+
+
+class _LRU:
+    """A small thread-safe least-recently-used store."""
+
+    def __init__(self, size: int) -> None:
+        self._size, self._store, self._lock = size, OrderedDict(), threading.Lock()
+
+    def get(self, key: Any) -> Any:
+        with self._lock:
+            value = self._store.get(key)
+            if value is not None:
+                self._store.move_to_end(key)
+            return value
+
+    def put(self, key: Any, value: Any) -> Any:
+        with self._lock:
+            self._store[key] = value
+            while len(self._store) > self._size:
+                self._store.popitem(last=False)
+        return value
+
+
+#: Geometry parts of recent assemblies, keyed on the identities of the frozen components
+#: (the value keeps them alive, so an id cannot be reused while its entry exists).
+_GEOMETRY = _LRU(6)
+#: Gravity preloads of recent assemblies, keyed on the geometry and a digest of the loads.
+_PRELOADS = _LRU(16)
+_GEOMETRY_LOCK = threading.Lock()
+
+
+def _geometry_key(frame: Frame) -> tuple[tuple, tuple]:
+    """The frozen components the geometry depends on and a hashable key of their identities."""
+    parts = (
+        tuple(frame._nodes.items()), tuple(frame._elements.values()), tuple(frame._links),
+        tuple(frame._fixes), tuple(frame._inputs.values()), tuple(frame._outputs.values()),
+    )  # fmt: skip
+    ids = tuple(id(x) for x in parts[0] for x in x) + tuple(id(x) for part in parts[1:] for x in part)
+    lengths = tuple(len(part) for part in parts)
+    scale = tuple(sorted(frame._group_scale.items()))
+    return parts, (ids, lengths, scale, tuple(frame._nodes), tuple(frame._inputs), tuple(frame._outputs))
+
+
+def _geometry(frame: Frame) -> _Geometry:
+    """The geometry part of the assembly, computed once per set of frozen components."""
+    parts, key = _geometry_key(frame)
+    found = _GEOMETRY.get(key)
+    if found is not None:
+        return found[1]
     names = tuple(frame._nodes)
     index = {n: i for i, n in enumerate(names)}
     X = np.array([frame._nodes[n].xyz for n in names])
     n_full = 6 * len(names)
     st = _element_stacks(frame, index, X)
     links = _link_pairs(frame, index, X)
-    full = _Trip.cat(
+    elements = _Trip.cat(
         [
             _Trip.from_blocks(st.dofs_beam, {_K: st.K_beam, _M: st.M_beam, _G: st.G_beam}, st.beam_idx),
             _Trip.from_blocks(st.dofs_rod, {_K: st.K_rod, _M: st.M_rod, _G: st.G_rod}, st.rod_idx),
-            _point_triplets(frame, index),
             _link_geometric_triplets(X, links, len(frame._elements)),
         ]
     )
     T, dof_of_col = _constraint_transform(frame, index, X)
     B_full = _signal_matrix(frame, frame._inputs, index, st, n_full)
     C_full = _signal_matrix(frame, frame._outputs, index, st, n_full).T
+    geo = _Geometry(names, index, X, st, links, elements, T, dof_of_col, B_full, C_full, {})
+    return _GEOMETRY.put(key, (parts, geo))[1]
+
+
+def _full_triplets(geo: _Geometry, points: _Trip) -> _Trip:
+    """All triplets in the order of the original assembly (elements, points, links)."""
+    n_link = 36 * geo.links[0].size
+    e = geo.elements
+    cut = e.rows.size - n_link
+    return _Trip.cat([_Trip(e.rows[:cut], e.cols[:cut], e.vals[:cut], e.tag[:cut]), points,
+                      _Trip(e.rows[cut:], e.cols[cut:], e.vals[cut:], e.tag[cut:])])  # fmt: skip
+
+
+def _reduced(
+    geo: _Geometry, points: _Trip, keep: np.ndarray, new_index: np.ndarray
+) -> tuple[_Trip, _Pattern]:
+    """``full.reduce`` and its sparsity pattern; the element part and the pattern are reused
+    (reduction maps each triplet on its own, so it commutes with concatenation)."""
+    n_link = 36 * geo.links[0].size
+    e = geo.elements
+    cut = e.rows.size - n_link
+    key = keep.tobytes()
+    with _GEOMETRY_LOCK:
+        entry = geo.reduced.get(key)
+    if entry is None:
+        head = _Trip(e.rows[:cut], e.cols[:cut], e.vals[:cut], e.tag[:cut]).reduce(geo.T, new_index)
+        tail = _Trip(e.rows[cut:], e.cols[cut:], e.vals[cut:], e.tag[cut:]).reduce(geo.T, new_index)
+        with _GEOMETRY_LOCK:
+            entry = geo.reduced.setdefault(key, (head, tail, {}))
+            while len(geo.reduced) > 8:
+                geo.reduced.pop(next(iter(geo.reduced)))
+    head, tail, patterns = entry
+    red = _Trip.cat([head, points.reduce(geo.T, new_index), tail])
+    pkey = red.rows.tobytes() + b"|" + red.cols.tobytes()
+    with _GEOMETRY_LOCK:
+        pattern = patterns.get(pkey)
+    if pattern is None:
+        pattern = _Pattern(red.rows, red.cols, int(keep.sum()))
+        with _GEOMETRY_LOCK:
+            pattern = patterns.setdefault(pkey, pattern)
+            while len(patterns) > 32:
+                patterns.pop(next(iter(patterns)))
+    return red, pattern
+
+
+@limit_blas
+def _assemble(frame: Frame) -> _Assembly:
+    if not frame._nodes:
+        raise ModelError("the frame has no nodes; add nodes and elements first.")
+    geo = _geometry(frame)
+    names, X, st, links = geo.names, geo.X, geo.st, geo.links
+    n_full = 6 * len(names)
+    points = _point_triplets(frame, geo.index)
+    full = _full_triplets(geo, points)
+    T, dof_of_col = geo.T, geo.dof_of_col
     # DOFs with neither mass nor stiffness (nor damping, nor geometric stiffness) are dropped
     weight_full = np.bincount(full.rows, weights=np.abs(full.vals).sum(axis=1), minlength=n_full)
     keep = abs(T).T @ weight_full > 0
-    B1, Cy1 = T.T @ B_full, np.asarray((T.T @ C_full.T).T)
+    B1, Cy1 = T.T @ geo.B_full, np.asarray((T.T @ geo.C_full.T).T)
     _check_signals_on_empty(frame, keep, dof_of_col, B1, Cy1, names)
     new_index = np.append(-np.ones(T.shape[1], dtype=int), -1)
     new_index[np.flatnonzero(keep)] = np.arange(keep.sum())
-    red = full.reduce(T, new_index)
+    red, pattern = _reduced(geo, points, keep, new_index)
     T, dof_of_col, B1, Cy1 = T[:, keep].tocsr(), dof_of_col[keep], B1[keep], Cy1[:, keep]
-    pattern = _Pattern(red.rows, red.cols, int(keep.sum()))
     K1, M1, C1 = (pattern.matrix(red.vals[:, j]) for j in (_K, _M, _C))
 
     def kg_red(N: np.ndarray) -> sp.csr_matrix:
@@ -1210,13 +1345,31 @@ def _assemble(frame: Frame) -> _Assembly:
     tension = np.concatenate([tension, np.zeros(links[0].size)])  # rigid links: from equilibrium
     preload, axial = None, tension.copy()
     if frame._gravity_on and (len(frame._elements) or links[0].size):
-        preload = _gravity_preload(frame, st, T, full, K1, M1, kg_red, tension, links, X)
+        key = _preload_key(frame, geo, points, keep, tension)
+        found = _PRELOADS.get(key)  # (geometry, preload): the geometry's id is only valid with it
+        if found is not None and found[0] is geo:
+            preload = found[1]
+        else:
+            preload = _gravity_preload(frame, st, T, full, K1, M1, kg_red, tension, links, X)
+            _PRELOADS.put(key, (geo, preload))
         axial = preload.axial_forces
     Kt = (K1 + kg_red(axial)).tocsr() if np.any(axial) else K1
     labels = [f"{names[d // 6]} {_DOF_NAMES[d % 6]}" for d in dof_of_col]
     mats = _condense(Kt, M1, C1, B1, Cy1, labels, frame)
     link_names = tuple(f"{names[m]}->{names[k]}" for m, k in zip(*links))
     return _Assembly(mats, names, tuple(frame._elements) + link_names, T, preload, axial)
+
+
+def _preload_key(frame: Frame, geo: _Geometry, points: _Trip, keep: np.ndarray, tension: np.ndarray) -> tuple:
+    """Everything the gravity preload reads besides the geometry: the point masses and springs
+    (not the dashpots, which it ignores), the kept DOFs, tensions and the gravity settings."""
+    h = hashlib.blake2b(digest_size=20)
+    stiff_or_mass = (points.vals[:, _K] != 0) | (points.vals[:, _M] != 0)
+    for a in (points.rows[stiff_or_mass], points.cols[stiff_or_mass], points.vals[stiff_or_mass][:, [_K, _M]],
+              keep, tension, np.asarray(frame._gdir, float)):
+        h.update(np.ascontiguousarray(a).tobytes() + b"|")
+    h.update(repr((frame._g, frame.gravity_tol, frame.max_gravity_iterations)).encode())
+    return id(geo), h.digest()
 
 
 def _gravity_preload(frame, st, T, full: _Trip, K1, M1, kg_red, tension, links, X) -> PreloadResult:

@@ -85,7 +85,9 @@ def _lambda_ref(K, Mreg) -> float:
     return float(max(ratio.max(), 1e-300))
 
 
-def null_space(K, M, *, tol: float = NULL_TOL, max_modes: int | None = None) -> np.ndarray:
+def null_space(
+    K, M, *, tol: float = NULL_TOL, max_modes: int | None = None, Mreg: sp.csr_matrix | None = None
+) -> np.ndarray:
     """M-orthonormal basis of the rigid-body and mechanism modes of ``K``.
 
     Parameters
@@ -97,6 +99,8 @@ def null_space(K, M, *, tol: float = NULL_TOL, max_modes: int | None = None) -> 
         Relative threshold on the eigenvalues, see :data:`NULL_TOL`.
     max_modes : int, optional
         Cap on the modes examined (default: all DOFs).
+    Mreg : sparse (n, n), optional
+        ``regularised_mass(M)`` when the caller already has it.
 
     Returns
     -------
@@ -104,7 +108,7 @@ def null_space(K, M, *, tol: float = NULL_TOL, max_modes: int | None = None) -> 
         ``Z.T Mreg Z = I`` and ``K Z ~ 0``; ``r = 0`` for a supported structure.
     """
     K = sp.csr_matrix(K)
-    Mreg = regularised_mass(M)
+    Mreg = regularised_mass(M) if Mreg is None else Mreg
     n = K.shape[0]
     if n <= DENSE_LIMIT and _clearly_definite(K.toarray()):
         return np.zeros((n, 0))
@@ -286,7 +290,7 @@ def preload_iteration(
     K_elastic = sp.csr_matrix(K_elastic)
     Mreg = regularised_mass(M)
     lam_ref = _lambda_ref(K_elastic, Mreg)
-    Z0 = null_space(K_elastic, M)
+    Z0 = null_space(K_elastic, M, Mreg=Mreg)
     n_add = np.zeros(0) if n_fixed is None else np.asarray(n_fixed, float)
     N = n_add.copy() if n_add.size else None
     history: list[float] = []

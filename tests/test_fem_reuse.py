@@ -1,0 +1,74 @@
+"""The assembly's reuse of geometry and gravity preloads across frames (issue 12) gives the
+same matrices and preload as a cold rebuild, and is really taken where it should be."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import robustctl as rc
+from robustctl.physical import fem
+
+
+def _cold(build):
+    """``build()`` with the assembly's geometry and preload stores emptied first."""
+    for store in (fem._GEOMETRY, fem._PRELOADS):
+        with store._lock:
+            store._store.clear()
+    return build()
+
+
+def _dense(a):
+    return a.toarray() if hasattr(a, "toarray") else np.asarray(a)
+
+
+@pytest.fixture(scope="module")
+def truss():
+    return rc.examples.caltech_truss()
+
+
+def _effects():
+    fx = rc.effects
+    return [
+        fx.SuspensionSpring("platform_2", direction="x", stiffness=2.0e3),
+        fx.Dashpot("platform_1", direction="y", damping=30.0),
+        fx.AddedMass("platform_2", mass=0.4),
+        fx.GroupTension("longerons_story_1", tension=15.0),
+        fx.GroupStiffness("diagonals", change=0.2),
+    ]
+
+
+@pytest.mark.parametrize("k", range(5))
+def test_reused_assembly_equals_a_cold_rebuild(truss, k):
+    effect = _effects()[k]
+    model = effect.apply(truss)
+    truss.build_structure().matrices()  # warm the stores with the nominal frame
+    warm = model.build_structure(E_aluminium=truss.param("E_aluminium").value * 1.01)
+    mats = warm.matrices()
+    cold = _cold(lambda: model.build_structure(E_aluminium=truss.param("E_aluminium").value * 1.01))
+    ref = cold.matrices()
+    for a, b in ((mats.mass, ref.mass), (mats.stiffness, ref.stiffness), (mats.damping, ref.damping),
+                 (mats.input_matrix, ref.input_matrix), (mats.output_matrix, ref.output_matrix)):
+        np.testing.assert_allclose(_dense(a), _dense(b), rtol=1e-12, atol=0)
+    np.testing.assert_allclose(warm.preload().axial_forces, cold.preload().axial_forces, rtol=1e-12)
+    # the effect is in the matrices: not a stale copy of the nominal frame's
+    nominal = truss.build_structure(E_aluminium=truss.param("E_aluminium").value * 1.01).matrices()
+    changed = [not np.array_equal(_dense(getattr(mats, f)), _dense(getattr(nominal, f)))
+               for f in ("mass", "stiffness", "damping")]
+    assert any(changed)
+
+
+def test_geometry_and_preload_are_shared_where_nothing_they_read_changed(truss):
+    base = truss.build_structure()
+    base.matrices()
+    damped = rc.effects.Dashpot("platform_1", direction="y", damping=30.0).apply(truss).build_structure()
+    damped.matrices()
+    assert fem._geometry(damped) is fem._geometry(base)
+    assert damped.preload() is base.preload()  # a dashpot leaves the static sag alone
+    sprung = rc.effects.SuspensionSpring("platform_2", direction="x", stiffness=2.0e3).apply(truss)
+    s = sprung.build_structure()
+    assert fem._geometry(s) is fem._geometry(base)
+    assert s.preload() is not base.preload()
+    assert not np.allclose(s.preload().axial_forces, base.preload().axial_forces, rtol=1e-9, atol=0)
+    stiff = rc.effects.GroupStiffness("diagonals", change=0.2).apply(truss).build_structure()
+    assert fem._geometry(stiff) is not fem._geometry(base)
