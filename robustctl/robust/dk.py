@@ -654,7 +654,7 @@ def check_dk_options(options: Any, where: str) -> None:
             f"{where} got unknown D-K option(s) {unknown}; the options are {list(_DK_OPTIONS)}."
         )
     _check_args(options.get("max_iter", 10), options.get("time_budget_s", 120.0), options.get("f_hz"))
-    _check_options(None, options.get("rtol", 1e-3), options.get("patience", 2), options.get("hinf_options"),
+    _check_options(None, options.get("rtol", 1e-3), options.get("patience", 1), options.get("hinf_options"),
                    options.get("callback"))
     check_executor(options.get("executor"))
     if options.get("order_d") is not None:
@@ -672,7 +672,7 @@ def dksyn(
     progress: bool | None = None,
     *,
     rtol: float = 1e-3,
-    patience: int = 2,
+    patience: int = 1,
     hinf_options: dict[str, Any] | None = None,
     callback: Callable[[DKIteration], None] | None = None,
 ) -> DKResult:
@@ -708,7 +708,9 @@ def dksyn(
     rtol : float
         The peak of mu must fall by this fraction to count as an improvement.
     patience : int
-        Non-improving iterations tolerated before stopping.
+        Non-improving iterations tolerated before stopping. The default 1 is the D-K rule
+        "repeat while the peak mu falls": on the Caltech design plant a second try after a
+        worse iteration (mu 0.79 -> 0.95 -> 0.80) cost 40 % more time and never won.
     hinf_options : dict, optional
         Extra keyword arguments for :func:`~robustctl.robust.hinfsyn.hinfsyn` (default
         ``backoff=HINF_BACKOFF``, ``time_budget_s`` = what is left of the budget).
