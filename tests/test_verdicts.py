@@ -8,6 +8,7 @@ import re
 
 import numpy as np
 import pytest
+from test_noise import _chain  # the same user-matrix chain as the noise tests
 
 import robustctl as rc
 from robustctl.noise import NO_NOISE_SENTENCE, format_p
@@ -23,18 +24,6 @@ def caltech():
     data, truth = rc.examples.caltech_truss_experiment(seed=0)
     return data, truth
 
-
-def _chain() -> rc.PhysicalModel:
-    """A user's own matrices: three masses on a grounded spring, velocity sensors."""
-    m3 = np.diag([2.0, 1.0, 0.5])
-    kc = 1e3 * np.array([[1.0, -1.0, 0.0], [-1.0, 2.0, -1.0], [0.0, -1.0, 1.0]])
-    k_par = rc.Parameter("k_ground", 4e3, "N/m", (1e3, 1e4), meaning="ground spring of mass 1")
-    return rc.structural_model(
-        m3, lambda th: kc + np.diag([th["k_ground"], 0.0, 0.0]),
-        inputs={"F1": "dof 1", "F3": "dof 3"},
-        outputs={"v2": ("dof 2", "velocity"), "v3": ("dof 3", "velocity")},
-        damping=0.02, params=[k_par], name="3-mass chain",
-    )
 
 
 def _experiment(truth, seed: int = 0, noise: float = 0.01) -> rc.FrequencyData:
