@@ -327,10 +327,12 @@ def _modal_peaks(sigma: _SigmaMax, keep: int = N_REFINE) -> tuple[float, float]:
     to the peak; the next three samples are centred on that vertex with
     ``h = max(|step|, 1e-4 a)``. A band stops when the parabola predicts a gain in
     ``sigma_max^2`` below ``PEAK_RTOL`` relative (its best sample is then that accurate),
-    after ``PEAK_ROUNDS`` rounds at most; a band whose parabola is not convex steps ``2 h``
-    towards its best sample, and a band whose parabola peaks ``PEAK_PRUNE`` (in
-    ``sigma_max^2``) below the best sample so far is dropped. A lightly damped mode takes
-    three rounds. Every sample is a valid lower bound of the norm; the largest is returned.
+    after ``PEAK_ROUNDS`` rounds at most; a step is at most ``max(2 h, a)`` long (a Newton
+    step from a small, accurate stencil may reach a peak that a wide one mislocated), a band
+    whose parabola is not convex steps ``2 h`` towards its best sample, and a band whose
+    parabola peaks ``PEAK_PRUNE`` (in ``sigma_max^2``) below the best sample so far is
+    dropped. A lightly damped mode takes three rounds. Every sample is a valid lower bound of
+    the norm; the largest is returned.
     A peak this search misses (between modes, or of a mode ranked below ``keep``) is found
     by the Hamiltonian test, at the cost of one more level-set step.
 
@@ -362,7 +364,8 @@ def _modal_peaks(sigma: _SigmaMax, keep: int = N_REFINE) -> tuple[float, float]:
                 gain = 0.5 * slope * slope / curv  # y_0 - y at the vertex of the parabola
                 if gain <= PEAK_RTOL * y_0 or y_0 - gain > y_cut:
                     continue
-                step = h * min(max(slope / curv, -2.0), 2.0)
+                reach = max(2.0, aw / h)  # trust region: 2 h, or the half-power half-width a
+                step = h * min(max(slope / curv, -reach), reach)
             else:
                 step = 2.0 * h if s_p > s_m else -2.0 * h
             moving.append((w + step, aw, max(abs(step), 1e-4 * aw)))
