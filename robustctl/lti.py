@@ -331,39 +331,40 @@ def _modal_terms(A: np.ndarray, B: np.ndarray, C: np.ndarray, blocks: list[np.nd
 
 def _modal_terms_dense(A: np.ndarray, B: np.ndarray, C: np.ndarray, io_B: np.ndarray, io_C: np.ndarray):
     """:func:`_modal_terms` for one dense block of order <= ``DENSE_INV_MAX``, without the
-    batching (same tests; ``V^{-1}`` by an explicit inverse, cheap at these orders)."""
-    ev, V = _eig(A)
-    try:
-        Vinv = np.linalg.inv(V)
-    except np.linalg.LinAlgError:
-        Vinv = None
-    if Vinv is not None:
-        cond = np.abs(V).sum(axis=0).max() * np.abs(Vinv).sum(axis=0).max()
-        W, CV = Vinv @ B, C @ V
-        residues = float(np.sqrt(_abs2(CV).sum(axis=0) * _abs2(W).sum(axis=1)).sum())
-        gains = float(np.sqrt((io_C * io_C).sum() * (io_B * io_B).sum()))
-        growth = residues / gains if residues > 0 else 0.0
-        if cond <= COND_LIMIT and growth <= GROWTH_LIMIT:
-            return ev, CV, W, []
-    empty = np.zeros(0, complex), np.zeros((C.shape[0], 0), complex), np.zeros((0, B.shape[1]), complex)
-    return (*empty, [np.arange(A.shape[0])])
+    batching (same tests), in real arithmetic as far as possible.
 
-
-def _eig(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Eigenvalues and right eigenvectors (complex) of a real matrix by LAPACK ``dgeev`` directly
-    (``np.linalg.eig`` without its wrapper's checks; conjugate pairs rebuilt from the real
-    ``(Re v, Im v)`` column pairs)."""
+    LAPACK ``dgeev`` returns the real eigenvector matrix ``X`` whose column pairs
+    ``(x, y)`` hold ``v = x + j y`` for ``lambda = a + j b`` (and ``conj(v)`` for
+    ``conj(lambda)``); ``X`` brings ``A`` to the real block-diagonal form with blocks
+    ``[[a, b], [-b, a]]``, so ``V^{-1}`` follows from the real ``X^{-1}`` (rows ``r1, r2``):
+    the left eigenvector of ``lambda`` is ``(r1 - j r2) / 2``. ``X^{-1} B`` and ``C X`` are
+    real products, and the condition number is that of ``X`` (within a factor 2 of that of
+    ``V``: the two differ by a scaled unitary 2x2 change of basis per pair).
+    """
     from scipy.linalg import lapack
 
-    wr, wi, _, vr, info = lapack.dgeev(A, compute_vl=0)
-    if info != 0:
-        return np.linalg.eig(A)  # raises LinAlgError as the wrapper does
-    V = vr.astype(complex)
-    pos = np.flatnonzero(wi > 0)  # the first column of each pair (LAPACK: positive imaginary part first)
-    if pos.size:
-        V[:, pos] += 1j * vr[:, pos + 1]
-        V[:, pos + 1] = V[:, pos].conj()
-    return wr + 1j * wi, V
+    wr, wi, _, X, info = lapack.dgeev(A, compute_vl=0)
+    if info == 0:
+        lu, piv, info = lapack.dgetrf(X)
+    if info == 0:
+        Xinv, info = lapack.dgetri(lu, piv)
+    if info == 0:
+        cond = np.abs(X).sum(axis=0).max() * np.abs(Xinv).sum(axis=0).max()
+        CX, WX = C @ X, Xinv @ B
+        CV, W = CX.astype(complex), WX.astype(complex)
+        pos = np.flatnonzero(wi > 0)  # the first column of each pair (LAPACK: positive imaginary part first)
+        if pos.size:
+            CV[:, pos] += 1j * CX[:, pos + 1]
+            CV[:, pos + 1] = CV[:, pos].conj()
+            W[pos] = 0.5 * (WX[pos] - 1j * WX[pos + 1])
+            W[pos + 1] = W[pos].conj()
+        residues = float(np.sqrt(_abs2(CV).sum(axis=0) * _abs2(W).sum(axis=1)).sum())
+        gains = float(np.sqrt(np.vdot(io_C, io_C) * np.vdot(io_B, io_B)))
+        growth = residues / gains if residues > 0 else 0.0
+        if cond <= COND_LIMIT and growth <= GROWTH_LIMIT:
+            return wr + 1j * wi, CV, W, []
+    empty = np.zeros(0, complex), np.zeros((C.shape[0], 0), complex), np.zeros((0, B.shape[1]), complex)
+    return (*empty, [np.arange(A.shape[0])])
 
 
 def _abs2(z: np.ndarray) -> np.ndarray:
