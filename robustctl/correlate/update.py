@@ -1059,7 +1059,11 @@ def update(
 
 
 def _verdict(residual: Residual, values: dict[str, float], alpha: float) -> NoiseTest | None:
-    """The chi-square verdict of the residual at ``values`` (compare's test, same cells)."""
+    """The chi-square verdict of the residual at ``values`` (compare's test, same cells).
+
+    It tests the log error itself, without the coherence weights' bias (``Residual.bias``):
+    that bias is in the weighted *mean* of the error a fit sees; ``|e / sigma|^2`` is a second
+    moment, which the offset would only raise."""
     if residual.noise is None:
         return None
     from ..lti import log_ratio
