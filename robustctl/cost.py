@@ -1,9 +1,11 @@
 """The one cost report of robustctl: the complex-log cost of MACE eq. 5 per channel and in total.
 
-``J = sum_channels sum_freq W |log(G_data / G_model)|^2``; the real part of the log is the
+``J = sum_channels sum_freq W |log(G_data / G_model) - c|^2``; the real part of the log is the
 log-magnitude error (reported in dB: ``20 log10 e`` times it), the imaginary part the phase
 error (rad, wrapped to (-pi, pi]); ``W`` are the data-point weights
-(:func:`robustctl.checks.point_weights`).
+(:func:`robustctl.checks.point_weights`) and ``c`` (real, 0 unless ``W`` are the data's own
+coherence weights with a known number of averages) what those weights add to the log
+magnitude on average (:func:`robustctl.checks.point_weight_bias`).
 """
 
 from __future__ import annotations
@@ -106,13 +108,17 @@ def cost_report(
     inputs: tuple[str, ...] = (),
     point_weights: np.ndarray | None = None,
     mask: np.ndarray | None = None,
+    bias: np.ndarray | None = None,
 ) -> LogCost:
     """The :class:`LogCost` of a complex log error ``e`` (shape (K, n_out, n_in)).
 
-    ``per_channel = sum_k W |e|^2`` over the points in ``mask`` (``W`` the point weights,
-    default 1); the RMS errors are unweighted over the same points.
+    ``per_channel = sum_k W |e - c|^2`` over the points in ``mask`` (``W`` the point weights,
+    default 1; ``c`` the real offset that coherence weights add to ``Re e``,
+    :func:`robustctl.checks.point_weight_bias`, default 0); the RMS errors are those of ``e``
+    itself, unweighted, over the same points.
     """
     e = np.asarray(error, dtype=complex)
+    scored = e if bias is None else e - np.asarray(bias, dtype=float)
     m = (
         np.ones(e.shape, dtype=bool)
         if mask is None
@@ -123,7 +129,7 @@ def cost_report(
     )
     w = np.ones(e.shape) if point_weights is None else np.broadcast_to(point_weights, e.shape)
     count = np.maximum(m.sum(axis=0), 1)
-    per = np.sum(np.where(m, w * np.abs(e) ** 2, 0.0), axis=0)
+    per = np.sum(np.where(m, w * np.abs(scored) ** 2, 0.0), axis=0)
     rms_db = DB_PER_NEPER * np.sqrt(np.sum(np.where(m, e.real**2, 0.0), axis=0) / count)
     rms_ph = np.degrees(np.sqrt(np.sum(np.where(m, e.imag**2, 0.0), axis=0) / count))
     n_out, n_in = per.shape

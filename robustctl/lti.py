@@ -28,7 +28,15 @@ from typing import Any
 
 import numpy as np
 
-from .checks import UNSET, as_frequency_data, band_mask, match_channels, renamed_keyword, user_stacklevel
+from .checks import (
+    UNSET,
+    as_frequency_data,
+    band_mask,
+    match_channels,
+    point_weight_bias,
+    renamed_keyword,
+    user_stacklevel,
+)
 from .checks import point_weights as point_weights_of
 from .errors import DataError, ModelError
 from .frd import FrequencyData, _as_frequencies
@@ -659,7 +667,11 @@ def log_cost(
     weights: Any = UNSET,
     estimator: Any = "auto",
 ) -> float:
-    """The weighted complex-log cost of MACE eq. 5: ``J = sum W |log(G_data / G_model)|^2``.
+    """The weighted complex-log cost of MACE eq. 5: ``J = sum W |log(G_data / G_model) - c|^2``.
+
+    ``c`` (real) is 0 except with coherence weights (``"auto"`` or ``"coherence"``) on data
+    whose number of averages is known: then what those weights add to the log magnitude on
+    average (:func:`robustctl.checks.coherence_weight_bias`).
 
     The same number as ``rc.compare(model, data, band, point_weights).cost`` (with
     ``min_channel_db=None``, which keeps every channel) and as a MeasurementModel's cost.
@@ -688,4 +700,7 @@ def log_cost(
     mask = band_mask(data.f_hz, band)
     w = point_weights_of(point_weights, data, mask)
     err = _log_error(model, data, mask, estimator)
+    bias = point_weight_bias(point_weights, data, mask)  # what own-coherence weights add to Re err
+    if bias is not None:
+        err = err - bias
     return float(np.sum(w * np.abs(err) ** 2))

@@ -822,8 +822,8 @@ def compare(
     g_model = res.model_response()
     d = res.data
     error = log_ratio(d.response, g_model)
-    weighted = res.weights * error
-    report = cost_report(error, d.outputs, d.inputs, point_weights=res.point_weights)
+    weighted = res.weights * res.error(g_model)  # the cost's error: coherence weights' bias removed
+    report = cost_report(error, d.outputs, d.inputs, point_weights=res.point_weights, bias=res.bias)
     f = d.f_hz
     span = (float(f[0]), float(f[-1]))
     model_modes = statespace_modes(model.statespace(), span, res._out_idx, res._in_idx, max_zeta=max_zeta)

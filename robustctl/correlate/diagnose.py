@@ -80,7 +80,9 @@ ALPHA = 0.01
 #: :data:`~robustctl.correlate.residual.NEGLIGIBLE_DB` (-80 dB), because a channel the model
 #: leaves nearly decoupled carries noise no effect explains and would blur the F-tests (the
 #: MACE bus has 13 such channels at -60 dB, 12 at -80 dB). Pass ``min_channel_db=`` to change it;
-#: ``rc.update(..., point_weights=diag.point_weights)`` reproduces diagnose's cost.
+#: ``rc.update(..., min_channel_db=-60.0)`` reproduces diagnose's cost (so does
+#: ``point_weights=diag.point_weights`` where no coherence-weight bias applies,
+#: :func:`robustctl.checks.point_weight_bias`: an array of weights is taken as given).
 DECOUPLED_DB = -60.0
 #: Smallest share of the null-fit residual an effect must explain to be proposed.
 MIN_GAIN = 0.25
@@ -199,8 +201,9 @@ class Diagnosis:
     ignored_channels : tuple of (output, input)
         Channels the model leaves decoupled, weighted 0 (see ``_residual``).
     point_weights : ndarray (n_freq, n_out, n_in)
-        The data-point weights used, zero on ignored channels (pass
-        ``rc.update(..., point_weights=diag.point_weights)`` for the same cost).
+        The data-point weights used, zero on ignored channels (``rc.update(...,
+        min_channel_db=)`` at diagnose's level gives the same cost; these weights handed on do
+        too unless the coherence weights' bias applied, which an array of weights does not get).
     band : (float, float) or None
     n_evals : int
         Model evaluations spent.
@@ -326,7 +329,7 @@ class Diagnosis:
             lines.append(
                 f"Ignored {len(self.ignored_channels)} channel(s) the model leaves decoupled "
                 f"(negligible against their row and column): {chans}{more}; pass "
-                "point_weights=diag.point_weights to rc.update for the same cost."
+                "the same min_channel_db to rc.update for the same cost."
             )
         return "\n".join(lines)
 
@@ -1035,7 +1038,7 @@ def diagnose(
         Channels the model or data leave decoupled (this many dB below their row and column)
         get weight 0, by the rule of :func:`compare` and :func:`update`; the default
         :data:`DECOUPLED_DB` (-60 dB) is stricter than theirs (-80 dB). With the same value
-        (or ``point_weights=diag.point_weights`` handed on) the costs agree.
+        the costs agree.
     n_fit : int
         Number of best-screened candidates given the local fit.
     max_iter, update_iter : int

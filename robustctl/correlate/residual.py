@@ -32,6 +32,7 @@ from ..checks import (
     check_band,
     finite_number,
     match_channels,
+    point_weight_bias,
     renamed_keyword,
 )
 from ..checks import point_weights as point_weights_of
@@ -159,7 +160,10 @@ class Residual:
         of the log estimate, g2 clipped at 0.999, normalised to mean 1) when the data carry
         coherence; else the inverse variance ``1 / sigma^2`` of a given noise model (data
         without coherence, noise from a measurement model's residual); else uniform. The
-        residual vector carries ``sqrt(W)``.
+        residual vector carries ``sqrt(W)``. With coherence weights and a known number of
+        averages the real part of each log error is first lowered by
+        :func:`robustctl.checks.coherence_weight_bias` (``bias``): what the bin's own
+        coherence in ``W`` adds to it on average.
     min_channel_db : float or None
         Channels whose RMS magnitude on the band, in the data or in the nominal model, lies
         more than this many dB below the geometric mean of the largest channel in their row
@@ -186,12 +190,16 @@ class Residual:
         ``sqrt(W)``: the factor on each complex log error in :meth:`complex`.
     point_weights : ndarray, shape (n_freq_band, n_out, n_in)
         ``W``, the weights on the squared error (zero on dropped channels).
+    bias : ndarray (n_freq_band, n_out, n_in) or None
+        The offset subtracted from ``Re log(G_data / G_model)`` before weighting
+        (:func:`robustctl.checks.point_weight_bias`), nepers; None with uniform or given weights
+        or without a known number of averages.
     dropped : list of (output, input, level_db)
         Channels given weight 0 as negligible, with their relative level in dB.
 
     Notes
     -----
-    ``vector()`` stacks ``Re`` then ``Im`` of ``w * log(G_data / G_model(theta))``, each
+    ``vector()`` stacks ``Re`` then ``Im`` of ``w * (log(G_data / G_model(theta)) - bias)``, each
     flattened in (frequency, output, input) C order, so ``cost() = vector() @ vector()``
     is MACE's J (eq. 5) and ``vector()`` its j (eq. 6).
     """
@@ -222,6 +230,8 @@ class Residual:
         self._out_idx = match_channels(sys0.output_labels, self.data.outputs, "outputs")
         self._in_idx = match_channels(sys0.input_labels, self.data.inputs, "inputs")
         self.weights = self._point_weights(point_weights, data, mask)
+        nd = self.noise.averages if self.noise is not None and self.noise.kind == "coherence" else None
+        self.bias = point_weight_bias(point_weights, data, mask, n_averages=nd)
         self.dropped = self._negligible(min_channel_db)
         for o, i, _level in self.dropped:
             self.weights[:, self.data.outputs.index(o), self.data.inputs.index(i)] = 0.0
@@ -309,9 +319,17 @@ class Residual:
             g = self.model.freqresp(self.data.f_hz, **overrides).response
         return g[:, self._out_idx][:, :, self._in_idx]
 
+    def error(self, g_model: np.ndarray | None = None, **overrides: float) -> np.ndarray:
+        """The log error the cost sees, ``log(G_data / G_model) - bias`` (unweighted), shape
+        (n_freq_band, n_out, n_in); ``g_model`` (on the band, data channel order) if known."""
+        g = self.model_response(**overrides) if g_model is None else g_model
+        e = log_ratio(self.data.response, g)
+        return e if self.bias is None else e - self.bias
+
     def complex(self, **overrides: float) -> np.ndarray:
-        """Weighted complex log error ``w * log(G_data / G_model)``, shape (n_freq_band, n_out, n_in)."""
-        return self.weights * log_ratio(self.data.response, self.model_response(**overrides))
+        """Weighted complex log error ``w * (log(G_data / G_model) - bias)``, shape (n_freq_band,
+        n_out, n_in)."""
+        return self.weights * self.error(**overrides)
 
     def vector(self, **overrides: float) -> np.ndarray:
         """Real residual vector j (MACE eq. 6): ``[Re(e).ravel(), Im(e).ravel()]``, length ``n``."""

@@ -4,10 +4,11 @@ The complex-log residual ``e = ln(G_data / G_model)`` divided by the noise model
 deviation (:class:`robustctl.noise.NoiseModel`) has unit variance in its real and imaginary
 parts when the model is right. Over a channel and a contiguous section of ``n`` points,
 ``S = sum |e / sigma|^2`` is then about ``c chi2_nu`` with ``nu = 2n / c`` and ``c`` the
-Satterthwaite factor of the window's bin-to-bin correlation
-(:func:`robustctl.noise.chi2_verdict`). A cell fails when its upper-tail probability is
-below ``alpha / n_tests`` (Bonferroni: the family of all channel-section cells holds the
-false-alarm rate at ``alpha``), so a true model passes everywhere with probability ``>= 1 - alpha``.
+Satterthwaite factor of the window's bin-to-bin correlation (``NoiseModel.chi2_factor``, the
+bound over output noise and leakage; :func:`robustctl.noise.chi2_verdict`). A cell fails when
+its upper-tail probability is below ``alpha / n_tests`` (Bonferroni: the family of all
+channel-section cells holds the false-alarm rate at ``alpha``), so a true model passes
+everywhere with probability ``>= 1 - alpha``.
 The same test serves compare's verdicts, update's warnings and diagnose's statements.
 """
 
@@ -175,7 +176,7 @@ def noise_test(
                 untested += int(ok.size - ok.sum())
                 if not ok.any():
                     continue
-                ratio, dof, p = chi2_verdict(z[sl, o, i][ok], noise.dof_factor)
+                ratio, dof, p = chi2_verdict(z[sl, o, i][ok], noise.chi2_factor)
                 raw.append((outputs[o], inputs[i], float(f[sl][0]), float(f[sl][-1]), int(ok.sum()),
                             ratio, dof, p))
     limit = alpha / max(len(raw), 1)
