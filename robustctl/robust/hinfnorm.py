@@ -179,30 +179,8 @@ def _sigma_max(G: np.ndarray) -> np.ndarray:
     elif gram.shape[1] == 3 and gram.shape[0] >= 32:  # its ~40 array operations beat LAPACK from ~30 on
         lam = _lambda_max_3(gram)
     else:
-        lam = _eigvalsh(gram)[:, -1]
+        lam = np.linalg.eigvalsh(gram)[:, -1]
     return np.sqrt(np.maximum(lam, 0.0))
-
-
-try:  # the gufunc behind np.linalg.eigvalsh, without the wrapper's ~5 us of type checks
-    from numpy.linalg import _umath_linalg
-
-    _EIGVALSH_GUFUNC = _umath_linalg.eigvalsh_lo
-except (ImportError, AttributeError):  # pragma: no cover - other numpy layouts
-    _EIGVALSH_GUFUNC = None
-
-
-def _eigvalsh(M: np.ndarray) -> np.ndarray:
-    """Ascending eigenvalues of a stack of Hermitian matrices (complex128), as ``np.linalg.eigvalsh``.
-
-    Calls numpy's LAPACK ``heevd`` gufunc directly when it is available (the result is
-    checked for NaN, which the gufunc returns where ``np.linalg.eigvalsh`` raises, and then
-    the public function is called to raise its error).
-    """
-    if _EIGVALSH_GUFUNC is not None:
-        lam = _EIGVALSH_GUFUNC(M, signature="D->d")
-        if not np.isnan(lam).any():
-            return lam
-    return np.linalg.eigvalsh(M)
 
 
 def _lambda_max_2(M: np.ndarray) -> np.ndarray:
@@ -237,7 +215,7 @@ def _lambda_max_3(M: np.ndarray) -> np.ndarray:
     lam = (q + 2.0 * p * np.cos(np.arccos(r) * (1.0 / 3.0)) * ~flat) / inv
     close = (r < 1e-4 - 1.0) & ~flat | (tr <= 1e-290) & (tr > 0)
     if close.any():
-        lam[close] = _eigvalsh(M[close])[:, -1]
+        lam[close] = np.linalg.eigvalsh(M[close])[:, -1]
     return lam
 
 
