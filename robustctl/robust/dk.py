@@ -280,9 +280,32 @@ def _scaled_bound(H: np.ndarray, blocks: BlockStructure, d: np.ndarray) -> np.nd
     return np.linalg.norm(dl[:, :, None] * H / dr[:, None, :], ord=2, axis=(1, 2))
 
 
+def _edge_response(cl: Any) -> np.ndarray:
+    """The closed loop ``M`` at ``w = 0`` and ``w = inf`` (its D matrix), shape (2, p, m).
+
+    The D-scale fits are judged on the mu grid, but a fitted scale keeps changing beyond it
+    when it has a root near a grid end: on the Caltech demo plant an order-2 scale with a zero
+    just below the grid fell 10x from the grid's first point to DC, so that the fitted bound
+    1.02 hid a scaled norm of 4.17 at DC and the next K step could not do better than 3.84
+    (mu 1.006 -> 1.08). Judging the fits also at the two ends closes that gap.
+    """
+    from ..lti import freqresp_array
+
+    dc = freqresp_array(cl, np.zeros(1))
+    return np.concatenate([dc, np.asarray(cl.D, dtype=complex)[None]], axis=0)
+
+
+def _edge_scales(fit: Any) -> np.ndarray:
+    """``|d(0)|`` and ``|d(inf)|`` of a fitted SISO scale."""
+    from ..lti import freqresp_array
+
+    dc = complex(freqresp_array(fit, np.zeros(1))[0, 0, 0])
+    return np.array([abs(dc), abs(float(np.asarray(fit.D)[0, 0]))])
+
+
 def _fit_d_scales(
     H: np.ndarray, m: Any, blocks: BlockStructure, order_d: int | Sequence[int] | None,
-    executor: Executor | None, previous: Sequence[int] = (),
+    executor: Executor | None, previous: Sequence[int] = (), H_edges: np.ndarray | None = None,
 ) -> tuple[list[Any], tuple[int, ...], float]:
     """Fit each block's ``|d_i|`` (last block = 1); choose the order by the scaled bound.
 
@@ -296,8 +319,10 @@ def _fit_d_scales(
     ``< i`` at their chosen fits and blocks ``> i`` at their optimal constant scales, keeps
     ``max_f sigma_max(D M D^-1)`` within ``ORDER_D_RTOL`` of the peak of mu; if none does,
     the order with the lowest such peak. With an executor, all orders of a block are fitted
-    in parallel. Returns the fits, their orders and the joint bound with all fitted scales
-    (an upper bound on the next K step's gamma).
+    in parallel. With ``H_edges`` (:func:`_edge_response`) the bound also covers ``w = 0``
+    and ``w = inf``, where the optimal scales are taken as those at the grid's ends. Returns
+    the fits, their orders and the joint bound with all fitted scales (an upper bound on the
+    next K step's gamma).
     """
     from ..lti import freqresp_array
 
@@ -316,6 +341,12 @@ def _fit_d_scales(
     peak = float(np.max(m.upper))
     chosen, chosen_orders = [], []
     joint = d.copy()
+    edges = d[[0, -1]].copy()  # the scales at w = 0 and inf: the grid ends' until fitted
+
+    def bound_of(scales: np.ndarray, edge_scales: np.ndarray) -> float:
+        b = float(np.max(_scaled_bound(H, blocks, scales)))
+        return b if H_edges is None else max(b, float(np.max(_scaled_bound(H_edges, blocks, edge_scales))))
+
     for i in range(nb):
         jobs = [(f, d[:, i], o) for o in orders[i]]
         fits = (parallel_map(_fit_one, jobs, executor, progress=False) if executor is not None
@@ -324,20 +355,21 @@ def _fit_d_scales(
         for o, fit in zip(orders[i], fits):
             if not _dynamics_in_band(fit, f):
                 continue
-            trial = joint.copy()
+            trial, trial_edges = joint.copy(), edges.copy()
             trial[:, i] = np.abs(freqresp_array(fit, f)[:, 0, 0])
-            bound = float(np.max(_scaled_bound(H, blocks, trial)))
+            trial_edges[:, i] = _edge_scales(fit)
+            bound = bound_of(trial, trial_edges)
             if best is None or bound < best[0]:
-                best = (bound, fit, o, trial[:, i])
+                best = (bound, fit, o, trial[:, i], trial_edges[:, i])
             if bound <= peak * (1 + ORDER_D_RTOL):
                 break
         if best is None:  # every candidate had out-of-band dynamics: constant scale
             const = float(np.exp(0.5 * (np.log(d[:, i]).max() + np.log(d[:, i]).min())))
-            best = (0.0, _constant(const), 0, np.full(f.size, const))
+            best = (0.0, _constant(const), 0, np.full(f.size, const), np.full(2, const))
         chosen.append(best[1])
         chosen_orders.append(best[2])
-        joint[:, i] = best[3]
-    return chosen, tuple(chosen_orders), float(np.max(_scaled_bound(H, blocks, joint)))
+        joint[:, i], edges[:, i] = best[3], best[4]
+    return chosen, tuple(chosen_orders), bound_of(joint, edges)
 
 
 @dataclass(frozen=True)
@@ -774,7 +806,8 @@ def dksyn(
             done = stale >= patience or index == max_iter
             bound = float("nan")
             if not done:
-                fits, orders, bound = _fit_d_scales(H, m, blocks, order_d, executor, cand.orders)
+                fits, orders, bound = _fit_d_scales(H, m, blocks, order_d, executor, cand.orders,
+                                                    _edge_response(cl))
                 candidates = [_DCandidate(tuple(fits), orders, 0.0, bound)]
                 if previous is not None and fits:
                     candidates += _extrapolated(m, previous, orders, D_STEPS, executor)
