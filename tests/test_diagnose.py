@@ -110,6 +110,22 @@ def test_executor_gives_the_same_ranking(chain, cands):
     np.testing.assert_allclose([r.gain for r in par.ranking], [r.gain for r in serial.ranking], rtol=1e-9)
 
 
+def test_worker_processes_give_the_serial_result(chain, cands):
+    """workers=2 (forked processes, the model and data sent once per worker) equals workers=1
+    to the last digit: same ranking, costs, fitted values, p-values and evaluation count."""
+    data = _data(chain, fx.AddedMass("dof 3", mass=0.05))
+    serial = rc.diagnose(chain, data, cands, noise=KNOWN, workers=1)
+    par = rc.diagnose(chain, data, cands, noise=KNOWN, workers=2)
+    assert [r.name for r in par.ranking] == [r.name for r in serial.ranking]
+    assert serial.ranking[0].name == "added mass at dof 3"
+    for a, b in zip(par.ranking, serial.ranking):
+        assert (a.cost, a.fraction, a.fitted, a.values) == (b.cost, b.fraction, b.fitted, b.values)
+        assert a.p_value == b.p_value or (np.isnan(a.p_value) and np.isnan(b.p_value))
+    assert par.n_evals == serial.n_evals and par.best.values == serial.best.values
+    with pytest.raises(rc.RobustctlError, match="workers must be"):
+        rc.diagnose(chain, data, cands, workers=0)
+
+
 def test_effective_points_of_white_and_correlated_residuals():
     rng = np.random.default_rng(1)
     white = rng.standard_normal((2000, 2, 2)) + 1j * rng.standard_normal((2000, 2, 2))

@@ -49,6 +49,7 @@ null-fit residual (Bartlett 1946); a systematic, unexplained model error gives `
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import math
 import time
@@ -65,7 +66,7 @@ from ..errors import FitError, ModelError, RobustctlError
 from ..estimator import estimator_settings
 from ..frd import FrequencyData
 from ..noise import NO_NOISE_SENTENCE, format_p, noise_model
-from ..parallel import check_executor, parallel_map
+from ..parallel import check_executor, parallel_map_shared, process_pool, resolve_workers
 from ..table import Table, result_html
 from ..threads import limit_blas
 from .optimize import _bounds, levenberg_marquardt, marquardt_step
@@ -84,6 +85,9 @@ ALPHA = 0.01
 DECOUPLED_DB = -60.0
 #: Smallest share of the null-fit residual an effect must explain to be proposed.
 MIN_GAIN = 0.25
+#: ``workers="auto"`` starts worker processes only for at least this many candidates: below it
+#: (a candidate's screening costs some 40 ms on the Caltech truss) forking workers does not pay.
+PARALLEL_MIN_CANDIDATES = 24
 _DB = 20.0 / math.log(10.0)
 
 
@@ -625,6 +629,12 @@ def _fit_one(
                 cut=cut)
 
 
+def _fit_task(shared: tuple, screen: dict[str, Any]) -> dict[str, Any]:
+    """One local fit (:func:`parallel_map_shared` task): ``shared = (res_u, null, max_iter, budget)``."""
+    res_u, null, max_iter, budget = shared
+    return _fit_one(res_u, null, screen, max_iter, budget)
+
+
 #: A local fit whose cost is within this factor of the best one's is a contender: it is polished
 #: by a full Levenberg-Marquardt fit before the ranking (:func:`_polish`).
 CONTENDER_RATIO = 2.0
@@ -654,26 +664,31 @@ def _polish(
     if len(todo) < 2:
         return fits, 0
 
-    def polish(i: int) -> dict:
-        s, fit = screens[top[i]], fits[i]
-        pname = s["effect"].param_names[0]
-        res_c = _residual_for(res_u, s["model"])
-        try:
-            lm = levenberg_marquardt(res_c, null.names + (pname,), x0={**fit["x"], pname: fit["value"]},
-                                     max_iter=POLISH_ITER, ftol=1e-4, time_budget_s=budget / len(todo))
-        except RobustctlError:
-            return dict(fit, evals=0)
-        if not lm.cost < fit["cost"]:
-            return dict(fit, evals=lm.n_evals)
-        x = dict(lm.x)
-        return dict(x={n: x[n] for n in null.names}, cost=float(lm.cost), vector=lm.vector, evals=lm.n_evals,
-                    value=float(x[pname]), cut="time budget" in lm.stop_reason)
-
-    done = parallel_map(polish, todo, executor, desc="polishing fits")
+    done = parallel_map_shared(_polish_task, (res_u, null.names, budget / len(todo)),
+                               [(screens[top[i]], fits[i]) for i in todo], executor, desc="polishing fits")
     out = list(fits)
     for i, new in zip(todo, done):
         out[i] = new
     return out, sum(f["evals"] for f in done)
+
+
+def _polish_task(shared: tuple, item: tuple) -> dict:
+    """One contender's full LM fit from its local fit (:func:`parallel_map_shared` task;
+    ``shared = (res_u, update names, budget)``, ``item = (screen, local fit)``)."""
+    res_u, names, budget = shared
+    s, fit = item
+    pname = s["effect"].param_names[0]
+    res_c = _residual_for(res_u, s["model"])
+    try:
+        lm = levenberg_marquardt(res_c, names + (pname,), x0={**fit["x"], pname: fit["value"]},
+                                 max_iter=POLISH_ITER, ftol=1e-4, time_budget_s=budget)
+    except RobustctlError:
+        return dict(fit, evals=0)
+    if not lm.cost < fit["cost"]:
+        return dict(fit, evals=lm.n_evals)
+    x = dict(lm.x)
+    return dict(x={n: x[n] for n in names}, cost=float(lm.cost), vector=lm.vector, evals=lm.n_evals,
+                value=float(x[pname]), cut="time budget" in lm.stop_reason)
 
 
 #: Multiples of an effect's typical size tried as starting values of its local fit.
@@ -804,18 +819,29 @@ def _screen_all(
     """Screen every candidate (step 2): the screens, indistinguishable twins, and the
     order of the others by the fraction they explain."""
     r_perp = _project(null.Q, null.j)
-
-    def screen(c: Any) -> dict:
-        _check_budget(deadline, budget, f"the screening of {len(cands)} candidates")
-        return _screen_one(res_u, model_u, null.j, null.Q, r_perp, c)
-
-    screens = parallel_map(screen, cands, executor, desc="screening")
+    shared = (res_u, model_u, null.j, null.Q, r_perp, _wall_deadline(deadline), budget, len(cands))
+    screens = parallel_map_shared(_screen_task, shared, cands, executor, desc="screening")
     twins = _equivalent(screens)
     order = sorted(
         (k for k in range(len(screens)) if k not in twins),
         key=lambda k: (-round(screens[k]["fraction"], 9), k),
     )
     return screens, twins, order
+
+
+def _wall_deadline(deadline: float) -> float:
+    """``deadline`` (a ``time.perf_counter`` instant) on the wall clock (``time.time``), which
+    other processes share."""
+    return time.time() + (deadline - time.perf_counter())
+
+
+def _screen_task(shared: tuple, effect: Any) -> dict:
+    """One candidate's screening (:func:`parallel_map_shared` task; ``shared`` from
+    :func:`_screen_all`)."""
+    res_u, model_u, j_u, Q, r_perp, wall_deadline, budget, n = shared
+    if time.time() > wall_deadline:
+        _check_budget(time.perf_counter() - 1.0, budget, f"the screening of {n} candidates")
+    return _screen_one(res_u, model_u, j_u, Q, r_perp, effect)
 
 
 def _null_fit(
@@ -1006,6 +1032,7 @@ def diagnose(
     estimator: Any = "auto",
     noise: Any = "auto",
     measurement_model: Any = None,
+    workers: Any = "auto",
 ) -> Diagnosis:
     """Rank physical effects by how much of the model-data residual each explains.
 
@@ -1020,7 +1047,7 @@ def diagnose(
         Band in Hz (default: all data).
     executor : concurrent.futures.Executor, optional
         Screens and fits candidates in parallel (a thread pool works with any model; a
-        process pool needs a picklable model).
+        process pool needs a picklable model). Overrides ``workers``.
     params : sequence of str, optional
         Parameters the update may change (default: the model's free parameters); what they
         can absorb is projected out before the effects are scored (as ``params=`` of
@@ -1055,6 +1082,13 @@ def diagnose(
         ``measurement_model`` supplies it for data without coherence). Without one, the
         ranking is still given but no significance claims are made (p-values NaN) and the best
         candidate is proposed only on its share of the residual.
+    workers : "auto", int or None
+        Worker processes for the screening, local fits and polishing when no ``executor`` is
+        given. ``"auto"`` (default): one per available core when there are at least
+        :data:`PARALLEL_MIN_CANDIDATES` candidates and the platform can fork, otherwise serial;
+        ``1`` or None: serial, in this process. The result equals the serial one (each candidate
+        is computed alone, the model and data travel to each worker once); the model must be
+        picklable (cloudpickle) for more than one worker.
 
     Returns
     -------
@@ -1076,6 +1110,7 @@ def diagnose(
     """
     t0 = time.perf_counter()
     check_executor(executor)
+    resolve_workers(workers, 0, 1)  # a bad value fails before any work
     time_budget_s = positive_number(time_budget_s, "time_budget_s", FitError, unit="s, the whole call")
     max_iter = integer(max_iter, "max_iter", FitError, lo=1)
     update_iter = integer(update_iter, "update_iter", FitError, lo=1)
@@ -1108,22 +1143,22 @@ def diagnose(
     res_u = _residual_for(res0, model_u)
     # 2. secant screening
     _check_budget(deadline, time_budget_s, "the null fit")
-    screens, twins, order = _screen_all(res_u, model_u, null, cands, executor, deadline, time_budget_s)
-    evals += sum(s["evals"] for s in screens)
-    top = [k for k in order[:n_fit] if screens[k]["fraction"] > 0]
-    # 3. local fits
-    remaining = _check_budget(deadline, time_budget_s, "the screening")
-    fits = parallel_map(
-        lambda k: _fit_one(res_u, null, screens[k], max_iter, remaining / max(len(top), 1)),
-        top,
-        executor,
-        desc="local fits",
-    )
-    evals += sum(f["evals"] for f in fits)
-    remaining = deadline - time.perf_counter()
-    if remaining > 0:  # a budget the local fits used up is reported by the warning below
-        fits, n_polish = _polish(res_u, null, screens, top, fits, executor, remaining)
-        evals += n_polish
+    pool = process_pool(workers, len(cands), PARALLEL_MIN_CANDIDATES) if executor is None else None
+    with pool or contextlib.nullcontext(executor) as ex:
+        screens, twins, order = _screen_all(res_u, model_u, null, cands, ex, deadline, time_budget_s)
+        evals += sum(s["evals"] for s in screens)
+        top = [k for k in order[:n_fit] if screens[k]["fraction"] > 0]
+        # 3. local fits
+        remaining = _check_budget(deadline, time_budget_s, "the screening")
+        fits = parallel_map_shared(
+            _fit_task, (res_u, null, max_iter, remaining / max(len(top), 1)), [screens[k] for k in top],
+            ex, desc="local fits",
+        )
+        evals += sum(f["evals"] for f in fits)
+        remaining = deadline - time.perf_counter()
+        if remaining > 0:  # a budget the local fits used up is reported by the warning below
+            fits, n_polish = _polish(res_u, null, screens, top, fits, ex, remaining)
+            evals += n_polish
     _warn_if_hurried(null.cut, sum(bool(f.get("cut")) for f in fits), time_budget_s)
     # 4. significance and words
     e_u = res0.unstack(j_u)
