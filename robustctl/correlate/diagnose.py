@@ -783,7 +783,7 @@ def _residual(model: Any, data: FrequencyData, band, weights, min_db, estimator=
 
 def _prepare(
     model, data, candidates, band, update_params, weights, min_db, deadline, budget,
-    estimator="auto", noise="auto",
+    estimator="auto", noise="auto", executor=None,
 ) -> tuple:
     """Validated residual (decoupled channels ignored), update parameters and candidates
     (the default candidates' calibration counts against the time budget)."""
@@ -794,7 +794,7 @@ def _prepare(
     if candidates is None:
         left = _check_budget(deadline, budget, "the residual set-up")
         try:
-            candidates = all_candidates(model, band=res0.band, time_budget_s=left)
+            candidates = all_candidates(model, band=res0.band, time_budget_s=left, executor=executor)
         except FitError as exc:
             raise FitError(str(exc).replace(f"time_budget_s={left:g}", f"time_budget_s={budget:g}")) from None
     cands = _check_candidates(model, list(candidates))
@@ -1120,9 +1120,35 @@ def diagnose(
     model = physical_model(model, "diagnose")
     if isinstance(noise, str) and noise == "auto":
         noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
+    with _pool(workers, executor, candidates, model) as ex:
+        return _diagnose(
+            t0, model, data, candidates, band, ex, params, point_weights, min_channel_db, n_fit, max_iter,
+            update_iter, alpha, min_gain, time_budget_s, deadline, estimator, noise,
+        )
+
+
+def _pool(workers: Any, executor: Any, candidates: Any, model: Any) -> contextlib.AbstractContextManager:
+    """The executor of a diagnosis: the caller's, or worker processes for ``workers`` (see
+    :func:`diagnose`; the default candidates are counted without calibrating them)."""
+    if executor is not None:
+        return contextlib.nullcontext(executor)
+    if candidates is None:
+        from ..physical.effects.candidates import candidates as all_candidates
+
+        n = len(all_candidates(model, calibrate=False)) if resolve_workers(workers, 10**6, 1) > 1 else 0
+    else:
+        n = len(candidates) if hasattr(candidates, "__len__") else PARALLEL_MIN_CANDIDATES
+    return process_pool(workers, n, PARALLEL_MIN_CANDIDATES)
+
+
+def _diagnose(
+    t0, model, data, candidates, band, executor, params, point_weights, min_channel_db, n_fit, max_iter,
+    update_iter, alpha, min_gain, time_budget_s, deadline, estimator, noise,
+) -> Diagnosis:
+    """:func:`diagnose` once the arguments are checked and the executor is chosen."""
     res0, ignored, upd, cands = _prepare(
         model, data, candidates, band, params, point_weights, min_channel_db, deadline, time_budget_s,
-        estimator, noise,
+        estimator, noise, executor,
     )
     alpha, min_gain = finite_number(alpha, "alpha", FitError), finite_number(min_gain, "min_gain", FitError)
     if not 0 < alpha < 1 or not 0 <= min_gain < 1:
@@ -1143,22 +1169,20 @@ def diagnose(
     res_u = _residual_for(res0, model_u)
     # 2. secant screening
     _check_budget(deadline, time_budget_s, "the null fit")
-    pool = process_pool(workers, len(cands), PARALLEL_MIN_CANDIDATES) if executor is None else None
-    with pool or contextlib.nullcontext(executor) as ex:
-        screens, twins, order = _screen_all(res_u, model_u, null, cands, ex, deadline, time_budget_s)
-        evals += sum(s["evals"] for s in screens)
-        top = [k for k in order[:n_fit] if screens[k]["fraction"] > 0]
-        # 3. local fits
-        remaining = _check_budget(deadline, time_budget_s, "the screening")
-        fits = parallel_map_shared(
-            _fit_task, (res_u, null, max_iter, remaining / max(len(top), 1)), [screens[k] for k in top],
-            ex, desc="local fits",
-        )
-        evals += sum(f["evals"] for f in fits)
-        remaining = deadline - time.perf_counter()
-        if remaining > 0:  # a budget the local fits used up is reported by the warning below
-            fits, n_polish = _polish(res_u, null, screens, top, fits, ex, remaining)
-            evals += n_polish
+    screens, twins, order = _screen_all(res_u, model_u, null, cands, executor, deadline, time_budget_s)
+    evals += sum(s["evals"] for s in screens)
+    top = [k for k in order[:n_fit] if screens[k]["fraction"] > 0]
+    # 3. local fits
+    remaining = _check_budget(deadline, time_budget_s, "the screening")
+    fits = parallel_map_shared(
+        _fit_task, (res_u, null, max_iter, remaining / max(len(top), 1)), [screens[k] for k in top],
+        executor, desc="local fits",
+    )
+    evals += sum(f["evals"] for f in fits)
+    remaining = deadline - time.perf_counter()
+    if remaining > 0:  # a budget the local fits used up is reported by the warning below
+        fits, n_polish = _polish(res_u, null, screens, top, fits, executor, remaining)
+        evals += n_polish
     _warn_if_hurried(null.cut, sum(bool(f.get("cut")) for f in fits), time_budget_s)
     # 4. significance and words
     e_u = res0.unstack(j_u)
