@@ -95,3 +95,19 @@ def test_a_dashpot_reuses_the_modes_and_gives_the_cold_response(truss, monkeypat
     np.testing.assert_array_equal(warm.C, cold.C)
     undamped = model.statespace()
     assert not np.allclose(warm.A, undamped.A)  # the dashpot is in the model, not a stale copy
+
+
+def test_a_frame_rebuilt_with_other_masses_shares_the_geometry_by_value(truss):
+    """Updating a point mass rebuilds the frame node by node (new objects): the geometry is
+    found by the values of the frozen parts, and the matrices equal a cold assembly's."""
+    base = truss.build_structure(m_offset=truss.param("m_offset").value * 1.1)
+    base.matrices()
+    heavier = truss.build_structure(m_offset=truss.param("m_offset").value * 1.3)
+    assert fem._geometry(heavier) is fem._geometry(base)
+    stiffer = truss.build_structure(E_aluminium=truss.param("E_aluminium").value * 1.05)
+    assert fem._geometry(stiffer) is not fem._geometry(base)  # E is in the elements: new geometry
+    mats = heavier.matrices()
+    ref = _cold(lambda: truss.build_structure(m_offset=truss.param("m_offset").value * 1.3)).matrices()
+    for a, b in ((mats.mass, ref.mass), (mats.stiffness, ref.stiffness)):
+        np.testing.assert_array_equal(_dense(a), _dense(b))
+    assert not np.array_equal(_dense(mats.mass), _dense(base.matrices().mass))
