@@ -16,6 +16,7 @@ import os
 import sys
 import threading
 import uuid
+import weakref
 from collections import OrderedDict
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
@@ -98,7 +99,7 @@ def _call_pickled(blob: bytes) -> bytes:
 
 # ============================================================================ shared payloads
 #: Chunks per worker of :func:`parallel_map_shared` (load balance against shipping the payload).
-CHUNKS_PER_WORKER = 4
+CHUNKS_PER_WORKER = 8
 #: Payloads a worker process keeps unpickled (most recent last), keyed by their token.
 _WORKER_SHARED: OrderedDict[str, Any] = OrderedDict()
 _WORKER_KEEP = 2
@@ -122,7 +123,8 @@ def parallel_map_shared(
     (``items[i::n]``, so expensive and cheap items mix), each with ``shared`` pickled once
     for the whole call, and a worker process unpickles a payload only the first time it sees
     its token: the chunks it runs afterwards reuse the same objects (and the caches keyed on
-    them).
+    them). ``shared`` is taken as immutable: while the same object lives, later calls with it
+    keep its token, so a worker reuses its copy across calls (a fit's successive Jacobians).
 
     Parameters
     ----------
@@ -155,7 +157,7 @@ def parallel_map_shared(
         return [f.result() for f in tqdm(futures, desc=desc, disable=not show, leave=False)]
     workers = int(getattr(executor, "_max_workers", 0) or available_cores())
     n_chunks = max(1, min(len(items), CHUNKS_PER_WORKER * workers))
-    token = uuid.uuid4().hex
+    token = _token(fn, shared)
     payload = cloudpickle.dumps((fn, shared))
     chunks = [list(range(i, len(items), n_chunks)) for i in range(n_chunks)]
     blobs = [cloudpickle.dumps([items[k] for k in idx]) for idx in chunks]
@@ -165,6 +167,35 @@ def parallel_map_shared(
         for k, r in zip(idx, cloudpickle.loads(f.result())):
             out[k] = r
     return out
+
+
+def _token(fn: Callable, shared: Any) -> str:
+    """A name for the payload ``(fn, shared)``: the same while ``shared`` is the same live object
+    (one that can be weakly referenced, e.g. a Residual: a Levenberg-Marquardt fit sends it for
+    every Jacobian, and the workers keep their unpickled copy with its warm caches), new
+    otherwise (tuples, dicts)."""
+    name = getattr(fn, "__qualname__", "") + "@" + getattr(fn, "__module__", "")
+    try:
+        ref = weakref.ref(shared)
+    except TypeError:
+        return uuid.uuid4().hex
+    with _TOKEN_LOCK:
+        entry = _TOKENS.get(id(shared))
+        if entry is None or entry[0]() is not shared:
+            entry = _TOKENS[id(shared)] = (ref, uuid.uuid4().hex)
+            weakref.finalize(shared, _forget, id(shared), entry[1])
+    return entry[1] + name
+
+
+def _forget(key: int, token: str) -> None:
+    with _TOKEN_LOCK:
+        if key in _TOKENS and _TOKENS[key][1] == token:
+            del _TOKENS[key]
+
+
+#: ``id(shared) -> (weak reference, token)`` of live payload objects (:func:`_token`).
+_TOKENS: dict[int, tuple] = {}
+_TOKEN_LOCK = threading.Lock()
 
 
 def _run_chunk(token: str, payload: bytes, chunk: bytes) -> bytes:

@@ -70,6 +70,31 @@ def test_parallel_map_shared_keeps_order_and_sends_the_payload_once_per_worker()
     assert [r[2] for r in parallel_map_shared(_pid_and_payload, shared, [3, 1], None)] == [103, 101]
 
 
+class _Payload:
+    offset = 7
+
+
+def _pid_and_object(shared, item):
+    import os
+
+    return os.getpid(), id(shared), shared.offset + item
+
+
+def test_the_same_payload_object_is_unpickled_once_per_worker_across_calls():
+    from concurrent.futures import ProcessPoolExecutor
+
+    from robustctl.parallel import parallel_map_shared
+
+    payload = _Payload()
+    with ProcessPoolExecutor(1) as ex:  # one worker: every chunk of both calls runs there
+        first = parallel_map_shared(_pid_and_object, payload, range(6), ex)
+        second = parallel_map_shared(_pid_and_object, payload, range(6), ex)
+        other = parallel_map_shared(_pid_and_object, _Payload(), range(3), ex)
+    assert [r[2] for r in second] == [7 + i for i in range(6)]
+    assert len({r[1] for r in first + second}) == 1  # the worker kept its copy
+    assert {r[1] for r in other}.isdisjoint({r[1] for r in first})  # another object: a new copy
+
+
 def test_workers_auto_stays_serial_on_one_core_or_few_tasks(monkeypatch):
     import importlib
 
