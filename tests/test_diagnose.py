@@ -126,6 +126,23 @@ def test_worker_processes_give_the_serial_result(chain, cands):
         rc.diagnose(chain, data, cands, workers=0)
 
 
+def test_workers_auto_starts_no_process_for_a_small_diagnosis(chain, cands, monkeypatch):
+    """22 candidates at about a millisecond each: forking would cost more than the screening."""
+    import importlib
+
+    parallel = importlib.import_module("robustctl.parallel")
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a process pool was started")
+
+    monkeypatch.setattr(parallel, "ProcessPoolExecutor", refuse)
+    monkeypatch.setattr(parallel, "available_cores", lambda: 4)
+    diag = rc.diagnose(chain, _data(chain, fx.AddedMass("dof 3", mass=0.05)), cands, noise=KNOWN)
+    assert diag.ranking[0].name == "added mass at dof 3"
+    with pytest.raises(AssertionError, match="pool was started"):  # asked for: started
+        rc.diagnose(chain, _data(chain), cands, noise=KNOWN, workers=2)
+
+
 def test_effective_points_of_white_and_correlated_residuals():
     rng = np.random.default_rng(1)
     white = rng.standard_normal((2000, 2, 2)) + 1j * rng.standard_normal((2000, 2, 2))

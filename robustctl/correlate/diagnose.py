@@ -85,9 +85,14 @@ ALPHA = 0.01
 DECOUPLED_DB = -60.0
 #: Smallest share of the null-fit residual an effect must explain to be proposed.
 MIN_GAIN = 0.25
-#: ``workers="auto"`` starts worker processes only for at least this many candidates: below it
-#: (a candidate's screening costs some 40 ms on the Caltech truss) forking workers does not pay.
-PARALLEL_MIN_CANDIDATES = 24
+#: ``workers="auto"`` starts worker processes only for at least this many candidates ...
+PARALLEL_MIN_CANDIDATES = 8
+#: ... and when their screening promises at least this much work (s): :data:`SCREEN_EVALS`
+#: evaluations per candidate at the cost of the nominal one (on the Caltech truss 286 candidates
+#: at 20 ms: about 11 s; on a 3-mass chain 22 at 1 ms: forking would cost more than it saves).
+PARALLEL_MIN_WORK_S = 2.0
+#: Model evaluations a candidate's screening costs on average (the secant and the size probes).
+SCREEN_EVALS = 2
 _DB = 20.0 / math.log(10.0)
 
 
@@ -781,26 +786,6 @@ def _residual(model: Any, data: FrequencyData, band, weights, min_db, estimator=
     return res, tuple((o, i) for o, i, _level in res.dropped)
 
 
-def _prepare(
-    model, data, candidates, band, update_params, weights, min_db, deadline, budget,
-    estimator="auto", noise="auto", executor=None,
-) -> tuple:
-    """Validated residual (decoupled channels ignored), update parameters and candidates
-    (the default candidates' calibration counts against the time budget)."""
-    from ..physical.effects import candidates as all_candidates
-
-    res0, ignored = _residual(model, data, band, weights, min_db, estimator, noise)
-    upd = _check_update(model, update_params)
-    if candidates is None:
-        left = _check_budget(deadline, budget, "the residual set-up")
-        try:
-            candidates = all_candidates(model, band=res0.band, time_budget_s=left, executor=executor)
-        except FitError as exc:
-            raise FitError(str(exc).replace(f"time_budget_s={left:g}", f"time_budget_s={budget:g}")) from None
-    cands = _check_candidates(model, list(candidates))
-    return res0, ignored, upd, cands
-
-
 def _check_budget(deadline: float, budget: float, stage: str) -> float:
     """Seconds left before ``deadline``; a FitError naming the stage when none are (the
     budget covers the whole call: a partial ranking would be a wrong answer without warning)."""
@@ -1084,8 +1069,10 @@ def diagnose(
         candidate is proposed only on its share of the residual.
     workers : "auto", int or None
         Worker processes for the screening, local fits and polishing when no ``executor`` is
-        given. ``"auto"`` (default): one per available core when there are at least
-        :data:`PARALLEL_MIN_CANDIDATES` candidates and the platform can fork, otherwise serial;
+        given. ``"auto"`` (default): one per available core when the screening promises at least
+        :data:`PARALLEL_MIN_WORK_S` of work (:data:`SCREEN_EVALS` evaluations per candidate, timed
+        on the nominal model) for :data:`PARALLEL_MIN_CANDIDATES` or more candidates and the
+        platform can fork, otherwise serial; an int: that many processes;
         ``1`` or None: serial, in this process. The result equals the serial one (each candidate
         is computed alone, the model and data travel to each worker once); the model must be
         picklable (cloudpickle) for more than one worker.
@@ -1120,36 +1107,10 @@ def diagnose(
     model = physical_model(model, "diagnose")
     if isinstance(noise, str) and noise == "auto":
         noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
-    with _pool(workers, executor, candidates, model) as ex:
-        return _diagnose(
-            t0, model, data, candidates, band, ex, params, point_weights, min_channel_db, n_fit, max_iter,
-            update_iter, alpha, min_gain, time_budget_s, deadline, estimator, noise,
-        )
-
-
-def _pool(workers: Any, executor: Any, candidates: Any, model: Any) -> contextlib.AbstractContextManager:
-    """The executor of a diagnosis: the caller's, or worker processes for ``workers`` (see
-    :func:`diagnose`; the default candidates are counted without calibrating them)."""
-    if executor is not None:
-        return contextlib.nullcontext(executor)
-    if candidates is None:
-        from ..physical.effects.candidates import candidates as all_candidates
-
-        n = len(all_candidates(model, calibrate=False)) if resolve_workers(workers, 10**6, 1) > 1 else 0
-    else:
-        n = len(candidates) if hasattr(candidates, "__len__") else PARALLEL_MIN_CANDIDATES
-    return process_pool(workers, n, PARALLEL_MIN_CANDIDATES)
-
-
-def _diagnose(
-    t0, model, data, candidates, band, executor, params, point_weights, min_channel_db, n_fit, max_iter,
-    update_iter, alpha, min_gain, time_budget_s, deadline, estimator, noise,
-) -> Diagnosis:
-    """:func:`diagnose` once the arguments are checked and the executor is chosen."""
-    res0, ignored, upd, cands = _prepare(
-        model, data, candidates, band, params, point_weights, min_channel_db, deadline, time_budget_s,
-        estimator, noise, executor,
-    )
+    res0, ignored = _residual(model, data, band, point_weights, min_channel_db, estimator, noise)
+    upd = _check_update(model, params)
+    if candidates is not None:
+        candidates = _check_candidates(model, list(candidates))
     alpha, min_gain = finite_number(alpha, "alpha", FitError), finite_number(min_gain, "min_gain", FitError)
     if not 0 < alpha < 1 or not 0 <= min_gain < 1:
         raise FitError(f"alpha must lie in (0, 1) and min_gain in [0, 1); got {alpha!r}, {min_gain!r}.")
@@ -1158,8 +1119,57 @@ def _diagnose(
             f"n_fit is the number of best-screened candidates given a local fit: a whole number >= 0; "
             f"got {n_fit!r}."
         )
-    evals = 1
+    t_eval = time.perf_counter()
     j_nominal = res0.vector()
+    t_eval = time.perf_counter() - t_eval
+    with _pool(workers, executor, candidates, model, t_eval) as ex:
+        if candidates is None:
+            candidates = _default_candidates(model, res0, deadline, time_budget_s, ex)
+        return _diagnose(
+            t0, res0, ignored, upd, candidates, j_nominal, ex, n_fit, max_iter, update_iter, alpha, min_gain,
+            time_budget_s, deadline,
+        )
+
+
+def _pool(workers: Any, executor: Any, candidates: list | None, model: Any, t_eval: float):
+    """The executor of a diagnosis: the caller's, or worker processes for ``workers`` (see
+    :func:`diagnose`). ``"auto"`` starts them only when the screening promises enough work:
+    :data:`SCREEN_EVALS` evaluations per candidate of ``t_eval`` s (the nominal model's) for at
+    least :data:`PARALLEL_MIN_WORK_S` (the default candidates are counted without calibration)."""
+    if executor is not None:
+        return contextlib.nullcontext(executor)
+    n = 0
+    if resolve_workers(workers, 10**6, 1) > 1:
+        if candidates is None:
+            from ..physical.effects.candidates import candidates as all_candidates
+
+            n = len(all_candidates(model, calibrate=False))
+        else:
+            n = len(candidates)
+        if workers == "auto" and SCREEN_EVALS * n * t_eval < PARALLEL_MIN_WORK_S:
+            n = 0
+    return process_pool(workers, n, PARALLEL_MIN_CANDIDATES)
+
+
+def _default_candidates(model: Any, res0: Residual, deadline: float, budget: float, executor: Any) -> list:
+    """``rc.effects.candidates`` of the model on the band, calibrated within the time budget."""
+    from ..physical.effects import candidates as all_candidates
+
+    left = _check_budget(deadline, budget, "the residual set-up")
+    try:
+        cands = all_candidates(model, band=res0.band, time_budget_s=left, executor=executor)
+    except FitError as exc:
+        raise FitError(str(exc).replace(f"time_budget_s={left:g}", f"time_budget_s={budget:g}")) from None
+    return _check_candidates(model, cands)
+
+
+def _diagnose(
+    t0, res0, ignored, upd, cands, j_nominal, executor, n_fit, max_iter, update_iter, alpha, min_gain,
+    time_budget_s, deadline,
+) -> Diagnosis:
+    """:func:`diagnose` once the arguments are checked, the candidates made and the executor chosen."""
+    model = res0.model
+    evals = 1
     cost_nominal = float(j_nominal @ j_nominal)
     # 1. null fit of the update parameters
     null, n_null = _null_fit(res0, upd, update_iter, executor, time_budget_s / 3, j_nominal)
