@@ -16,6 +16,7 @@ import os
 import sys
 import threading
 import uuid
+import warnings
 import weakref
 from collections import OrderedDict
 from collections.abc import Callable, Iterable, Iterator
@@ -150,7 +151,7 @@ def parallel_map_shared(
     check_executor(executor)
     items = list(items)
     show = bool(progress) and sys.stderr.isatty()
-    if executor is None:
+    if executor is None or getattr(executor, "_robustctl_unpicklable", False):
         return [fn(shared, it) for it in tqdm(items, desc=desc, disable=not show, leave=False)]
     if isinstance(executor, ThreadPoolExecutor):
         futures = [executor.submit(fn, shared, it) for it in items]
@@ -158,7 +159,19 @@ def parallel_map_shared(
     workers = int(getattr(executor, "_max_workers", 0) or available_cores())
     n_chunks = max(1, min(len(items), CHUNKS_PER_WORKER * workers))
     token = _token(fn, shared)
-    payload = cloudpickle.dumps((fn, shared))
+    try:
+        payload = cloudpickle.dumps((fn, shared))
+    except Exception as exc:  # pickle raises TypeError, AttributeError, PicklingError ...
+        if not getattr(executor, "_robustctl_own", False):
+            raise
+        warnings.warn(
+            f"{desc or 'parallel work'}: the model or data cannot be sent to worker processes "
+            f"({type(exc).__name__}: {exc}); computing in this process instead (workers=1 avoids the try).",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+        executor._robustctl_unpicklable = True  # the rest of the work too, without more warnings
+        return [fn(shared, it) for it in tqdm(items, desc=desc, disable=not show, leave=False)]
     chunks = [list(range(i, len(items), n_chunks)) for i in range(n_chunks)]
     blobs = [cloudpickle.dumps([items[k] for k in idx]) for idx in chunks]
     futures = [executor.submit(_run_chunk, token, payload, b) for b in blobs]
@@ -223,9 +236,12 @@ def process_pool(workers: Any, n_tasks: int, min_tasks: int) -> Iterator[Process
     """A process pool of ``workers`` for ``n_tasks`` independent tasks, or None for serial work.
 
     ``workers``: ``"auto"`` (the cores available, serial when that is one, when there are
-    fewer than ``min_tasks`` tasks, or when the platform cannot fork: starting a fresh
-    interpreter costs seconds of imports), a whole number (1 is serial), or None (serial).
-    Workers are forked, so they start with the caller's modules and warm caches.
+    fewer than ``min_tasks`` tasks, when this process is itself a worker, or when the platform
+    cannot fork: starting a fresh interpreter costs seconds of imports), a whole number (1 is
+    serial), or None (serial). Workers are forked, so they start with the caller's modules and
+    warm caches (a program running robustctl in several threads at once should pass 1: a fork
+    copies only the calling thread). When the payload of :func:`parallel_map_shared` cannot be
+    pickled, the work is done in this process with a RuntimeWarning.
 
     Raises
     ------
@@ -239,6 +255,7 @@ def process_pool(workers: Any, n_tasks: int, min_tasks: int) -> Iterator[Process
     methods = multiprocessing.get_all_start_methods()
     ctx = multiprocessing.get_context("fork" if "fork" in methods else None)
     with ProcessPoolExecutor(max_workers=n, mp_context=ctx) as pool:
+        pool._robustctl_own = True  # parallel_map_shared may fall back to serial work on it
         yield pool
 
 
@@ -247,7 +264,8 @@ def resolve_workers(workers: Any, n_tasks: int, min_tasks: int) -> int:
     if workers is None:
         return 1
     if isinstance(workers, str) and workers == "auto":
-        if n_tasks < min_tasks or "fork" not in multiprocessing.get_all_start_methods():
+        if (n_tasks < min_tasks or "fork" not in multiprocessing.get_all_start_methods()
+                or multiprocessing.parent_process() is not None):  # already a worker: no pool in a pool
             return 1
         return min(available_cores(), n_tasks)
     if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:

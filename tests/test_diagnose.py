@@ -126,6 +126,33 @@ def test_worker_processes_give_the_serial_result(chain, cands):
         rc.diagnose(chain, data, cands, workers=0)
 
 
+def test_a_model_that_cannot_be_pickled_is_diagnosed_in_this_process(chain, cands):
+    """Worker processes need the model pickled; one holding a lock is diagnosed serially, with
+    a RuntimeWarning saying why, and gives the serial answer."""
+    import threading
+
+    lock = threading.Lock()
+    k_par = chain.param("k_ground")
+
+    def stiffness(th):
+        with lock:  # an unpicklable object in the build closure
+            return KC + np.diag([th["k_ground"], 0.0, 0.0])
+
+    model = rc.structural_model(
+        M3, stiffness, inputs={"F1": "dof 1", "F3": "dof 3"},
+        outputs={"a2": ("dof 2", "acceleration"), "a3": ("dof 3", "acceleration")},
+        damping=0.02, params=[k_par], name="3-mass chain with a lock",
+    )
+    data = _data(chain, fx.AddedMass("dof 3", mass=0.05))
+    some = [c for c in cands if c.domain == "io" or c.kind == "added_mass"]
+    with pytest.warns(RuntimeWarning, match="cannot be sent to worker processes") as caught:
+        par = rc.diagnose(model, data, some, noise=KNOWN, workers=2)
+    assert sum("worker processes" in str(w.message) for w in caught) == 1  # said once, not per stage
+    serial = rc.diagnose(model, data, some, noise=KNOWN, workers=1)
+    assert par.ranking[0].name == serial.ranking[0].name == "added mass at dof 3"
+    assert [r.cost for r in par.ranking] == [r.cost for r in serial.ranking]
+
+
 def test_workers_auto_starts_no_process_for_a_small_diagnosis(chain, cands, monkeypatch):
     """22 candidates at about a millisecond each: forking would cost more than the screening."""
     import importlib
