@@ -215,8 +215,7 @@ def _zoh_impulse_modal(poles, residues, d, fs: float, n: int) -> np.ndarray:
     if n > 2:
         powers[1:] = np.cumprod(np.broadcast_to(zp, (n - 2, zp.size)), axis=0)
     seq = powers * gain[None, :]
-    # only the real part of seq @ flat: two real products, half the work of the complex one
-    h[1:] = (seq.real @ flat.real - seq.imag @ flat.imag).reshape((n - 1,) + np.shape(d))
+    h[1:] = np.real(seq @ flat).reshape((n - 1,) + np.shape(d))
     return h
 
 
