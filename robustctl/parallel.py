@@ -101,6 +101,9 @@ def _call_pickled(blob: bytes) -> bytes:
 # ============================================================================ shared payloads
 #: Chunks per worker of :func:`parallel_map_shared` (load balance against shipping the payload).
 CHUNKS_PER_WORKER = 8
+#: Most worker processes ``workers="auto"`` starts: the serial parts of a diagnosis (its null fit,
+#: the fits of a few contenders) leave little to gain beyond, and each chunk carries the payload.
+MAX_AUTO_WORKERS = 8
 #: Payloads a worker process keeps unpickled (most recent last), keyed by their token.
 _WORKER_SHARED: OrderedDict[str, Any] = OrderedDict()
 _WORKER_KEEP = 2
@@ -235,13 +238,14 @@ def available_cores() -> int:
 def process_pool(workers: Any, n_tasks: int, min_tasks: int) -> Iterator[ProcessPoolExecutor | None]:
     """A process pool of ``workers`` for ``n_tasks`` independent tasks, or None for serial work.
 
-    ``workers``: ``"auto"`` (the cores available, serial when that is one, when there are
-    fewer than ``min_tasks`` tasks, when this process is itself a worker, or when the platform
-    cannot fork: starting a fresh interpreter costs seconds of imports), a whole number (1 is
-    serial), or None (serial). Workers are forked, so they start with the caller's modules and
-    warm caches (a program running robustctl in several threads at once should pass 1: a fork
-    copies only the calling thread). When the payload of :func:`parallel_map_shared` cannot be
-    pickled, the work is done in this process with a RuntimeWarning.
+    ``workers``: ``"auto"`` (the cores available, at most :data:`MAX_AUTO_WORKERS`; serial when
+    that is one, when there are fewer than ``min_tasks`` tasks, when this process is itself a
+    worker, or when the platform cannot fork: starting a fresh interpreter costs seconds of
+    imports), a whole number (1 is serial), or None (serial). Workers are forked, so they start
+    with the caller's modules and warm caches (a program running robustctl in several threads at
+    once should pass 1: a fork copies only the calling thread). When the payload of
+    :func:`parallel_map_shared` cannot be pickled, the work is done in this process with a
+    RuntimeWarning.
 
     Raises
     ------
@@ -267,7 +271,7 @@ def resolve_workers(workers: Any, n_tasks: int, min_tasks: int) -> int:
         if (n_tasks < min_tasks or "fork" not in multiprocessing.get_all_start_methods()
                 or multiprocessing.parent_process() is not None):  # already a worker: no pool in a pool
             return 1
-        return min(available_cores(), n_tasks)
+        return min(available_cores(), n_tasks, MAX_AUTO_WORKERS)
     if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
         raise RobustctlError(
             f'workers must be "auto", None or a whole number >= 1 of worker processes (1: serial); '

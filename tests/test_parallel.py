@@ -105,6 +105,8 @@ def test_workers_auto_stays_serial_on_one_core_or_few_tasks(monkeypatch):
     monkeypatch.setattr(parallel, "available_cores", lambda: 4)
     assert parallel.resolve_workers("auto", 10, 24) == 1  # too few tasks to pay for the workers
     assert parallel.resolve_workers("auto", 500, 24) == 4
+    monkeypatch.setattr(parallel, "available_cores", lambda: 64)
+    assert parallel.resolve_workers("auto", 500, 24) == parallel.MAX_AUTO_WORKERS
     assert parallel.resolve_workers(3, 2, 24) == 2 and parallel.resolve_workers(None, 500, 24) == 1
     with parallel.process_pool("auto", 10, 24) as pool:
         assert pool is None
