@@ -10,16 +10,25 @@ one machine.
 
 from __future__ import annotations
 
+import contextlib
+import multiprocessing
+import os
 import sys
-from collections.abc import Callable, Iterable
-from concurrent.futures import ProcessPoolExecutor
+import threading
+import uuid
+import warnings
+import weakref
+from collections import OrderedDict
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from typing import Any
 
 import cloudpickle
+import numpy as np
 
 from .errors import RobustctlError
 
-__all__ = ["parallel_map", "check_executor"]
+__all__ = ["parallel_map", "parallel_map_shared", "check_executor", "available_cores", "process_pool"]
 
 
 def check_executor(executor: Any) -> Any:
@@ -87,3 +96,185 @@ def _call_pickled(blob: bytes) -> bytes:
     functions cross the process boundary (dask does the same by itself)."""
     fn, item = cloudpickle.loads(blob)
     return cloudpickle.dumps(fn(item))
+
+
+# ============================================================================ shared payloads
+#: Chunks per worker of :func:`parallel_map_shared` (load balance against shipping the payload).
+CHUNKS_PER_WORKER = 8
+#: Most worker processes ``workers="auto"`` starts: the serial parts of a diagnosis (its null fit,
+#: the fits of a few contenders) leave little to gain beyond, and each chunk carries the payload.
+MAX_AUTO_WORKERS = 8
+#: Payloads a worker process keeps unpickled (most recent last), keyed by their token.
+_WORKER_SHARED: OrderedDict[str, Any] = OrderedDict()
+_WORKER_KEEP = 2
+_WORKER_LOCK = threading.Lock()
+
+
+def parallel_map_shared(
+    fn: Callable[[Any, Any], Any],
+    shared: Any,
+    items: Iterable[Any],
+    executor: Any = None,
+    *,
+    desc: str = "",
+    progress: bool = True,
+) -> list[Any]:
+    """``[fn(shared, item) for item in items]``, with ``shared`` sent to each worker once.
+
+    :func:`parallel_map` ships its (closure) function with every task: a closure over a large
+    model, its data and a residual costs megabytes of pickling per item and a cold start of
+    every cache on the other side. Here the items travel in a few interleaved chunks
+    (``items[i::n]``, so expensive and cheap items mix), each with ``shared`` pickled once
+    for the whole call, and a worker process unpickles a payload only the first time it sees
+    its token: the chunks it runs afterwards reuse the same objects (and the caches keyed on
+    them). ``shared`` is taken as immutable: while the same object lives, later calls with it
+    keep its token, so a worker reuses its copy across calls (a fit's successive Jacobians).
+
+    Parameters
+    ----------
+    fn : callable ``(shared, item) -> result``
+        A module-level function (pickled by reference).
+    shared : object
+        What every item needs (picklable by cloudpickle).
+    items : iterable
+    executor : concurrent.futures.Executor, optional
+        None runs serially here; a ``ThreadPoolExecutor`` shares ``shared`` in memory; any other
+        executor (process pool, dask) gets the chunks.
+    desc, progress : str, bool
+        As :func:`parallel_map`.
+
+    Returns
+    -------
+    list
+        The results, in the order of ``items`` (each item is computed as in a serial loop, so
+        the results equal the serial ones).
+    """
+    from tqdm import tqdm
+
+    check_executor(executor)
+    items = list(items)
+    show = bool(progress) and sys.stderr.isatty()
+    if executor is None or getattr(executor, "_robustctl_unpicklable", False):
+        return [fn(shared, it) for it in tqdm(items, desc=desc, disable=not show, leave=False)]
+    if isinstance(executor, ThreadPoolExecutor):
+        futures = [executor.submit(fn, shared, it) for it in items]
+        return [f.result() for f in tqdm(futures, desc=desc, disable=not show, leave=False)]
+    workers = int(getattr(executor, "_max_workers", 0) or available_cores())
+    n_chunks = max(1, min(len(items), CHUNKS_PER_WORKER * workers))
+    token = _token(fn, shared)
+    try:
+        payload = cloudpickle.dumps((fn, shared))
+    except Exception as exc:  # pickle raises TypeError, AttributeError, PicklingError ...
+        if not getattr(executor, "_robustctl_own", False):
+            raise
+        warnings.warn(
+            f"{desc or 'parallel work'}: the model or data cannot be sent to worker processes "
+            f"({type(exc).__name__}: {exc}); computing in this process instead (workers=1 avoids the try).",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+        executor._robustctl_unpicklable = True  # the rest of the work too, without more warnings
+        return [fn(shared, it) for it in tqdm(items, desc=desc, disable=not show, leave=False)]
+    chunks = [list(range(i, len(items), n_chunks)) for i in range(n_chunks)]
+    blobs = [cloudpickle.dumps([items[k] for k in idx]) for idx in chunks]
+    futures = [executor.submit(_run_chunk, token, payload, b) for b in blobs]
+    out: list[Any] = [None] * len(items)
+    for idx, f in zip(chunks, tqdm(futures, desc=desc, disable=not show, leave=False)):
+        for k, r in zip(idx, cloudpickle.loads(f.result())):
+            out[k] = r
+    return out
+
+
+def _token(fn: Callable, shared: Any) -> str:
+    """A name for the payload ``(fn, shared)``: the same while ``shared`` is the same live object
+    (one that can be weakly referenced, e.g. a Residual: a Levenberg-Marquardt fit sends it for
+    every Jacobian, and the workers keep their unpickled copy with its warm caches), new
+    otherwise (tuples, dicts)."""
+    name = getattr(fn, "__qualname__", "") + "@" + getattr(fn, "__module__", "")
+    try:
+        ref = weakref.ref(shared)
+    except TypeError:
+        return uuid.uuid4().hex
+    with _TOKEN_LOCK:
+        entry = _TOKENS.get(id(shared))
+        if entry is None or entry[0]() is not shared:
+            entry = _TOKENS[id(shared)] = (ref, uuid.uuid4().hex)
+            weakref.finalize(shared, _forget, id(shared), entry[1])
+    return entry[1] + name
+
+
+def _forget(key: int, token: str) -> None:
+    with _TOKEN_LOCK:
+        if key in _TOKENS and _TOKENS[key][1] == token:
+            del _TOKENS[key]
+
+
+#: ``id(shared) -> (weak reference, token)`` of live payload objects (:func:`_token`).
+_TOKENS: dict[int, tuple] = {}
+_TOKEN_LOCK = threading.Lock()
+
+
+def _run_chunk(token: str, payload: bytes, chunk: bytes) -> bytes:
+    """Worker side of :func:`parallel_map_shared`: the payload is unpickled once per token."""
+    with _WORKER_LOCK:
+        found = _WORKER_SHARED.get(token)
+        if found is None:
+            found = _WORKER_SHARED[token] = cloudpickle.loads(payload)
+            while len(_WORKER_SHARED) > _WORKER_KEEP:
+                _WORKER_SHARED.popitem(last=False)
+    fn, shared = found
+    return cloudpickle.dumps([fn(shared, it) for it in cloudpickle.loads(chunk)])
+
+
+def available_cores() -> int:
+    """CPU cores this process may run on (its affinity mask where the OS has one)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+@contextlib.contextmanager
+def process_pool(workers: Any, n_tasks: int, min_tasks: int) -> Iterator[ProcessPoolExecutor | None]:
+    """A process pool of ``workers`` for ``n_tasks`` independent tasks, or None for serial work.
+
+    ``workers``: ``"auto"`` (the cores available, at most :data:`MAX_AUTO_WORKERS`; serial when
+    that is one, when there are fewer than ``min_tasks`` tasks, when this process is itself a
+    worker, or when the platform cannot fork: starting a fresh interpreter costs seconds of
+    imports), a whole number (1 is serial), or None (serial). Workers are forked, so they start
+    with the caller's modules and warm caches (a program running robustctl in several threads at
+    once should pass 1: a fork copies only the calling thread). When the payload of
+    :func:`parallel_map_shared` cannot be pickled, the work is done in this process with a
+    RuntimeWarning.
+
+    Raises
+    ------
+    RobustctlError
+        ``workers`` neither "auto", None nor a whole number >= 1.
+    """
+    n = resolve_workers(workers, n_tasks, min_tasks)
+    if n <= 1:
+        yield None
+        return
+    methods = multiprocessing.get_all_start_methods()
+    ctx = multiprocessing.get_context("fork" if "fork" in methods else None)
+    with ProcessPoolExecutor(max_workers=n, mp_context=ctx) as pool:
+        pool._robustctl_own = True  # parallel_map_shared may fall back to serial work on it
+        yield pool
+
+
+def resolve_workers(workers: Any, n_tasks: int, min_tasks: int) -> int:
+    """The number of worker processes :func:`process_pool` starts (1: none)."""
+    if workers is None:
+        return 1
+    if isinstance(workers, str) and workers == "auto":
+        if (n_tasks < min_tasks or "fork" not in multiprocessing.get_all_start_methods()
+                or multiprocessing.parent_process() is not None):  # already a worker: no pool in a pool
+            return 1
+        return min(available_cores(), n_tasks, MAX_AUTO_WORKERS)
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise RobustctlError(
+            f'workers must be "auto", None or a whole number >= 1 of worker processes (1: serial); '
+            f"got {workers!r}."
+        )
+    return min(int(workers), max(n_tasks, 1))

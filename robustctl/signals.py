@@ -47,18 +47,21 @@ def _abcd(sys: Any, what: str = "system"):
 
     if isinstance(sys, (int, float, np.integer, np.floating)):
         return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.array([[float(sys)]])
-    try:
-        ss = control.ss(sys)
-    except Exception as exc:  # python-control raises several types
-        raise ModelError(f"cannot use {type(sys).__name__} as a {what}: {exc}") from exc
+    if isinstance(sys, control.StateSpace):  # its arrays, copied (control.ss(sys) copies slowly)
+        ss = sys
+    else:
+        try:
+            ss = control.ss(sys)
+        except Exception as exc:  # python-control raises several types
+            raise ModelError(f"cannot use {type(sys).__name__} as a {what}: {exc}") from exc
     if ss.isdtime(strict=True):
         raise ModelError(f"the {what} is discrete-time (dt={ss.dt}); the I/O model is continuous-time.")
     return _arrays(ss)
 
 
 def _arrays(ss: Any):
-    """``(A, B, C, D)`` of a StateSpace as float arrays of consistent 2-D shapes."""
-    return tuple(np.asarray(m, dtype=float).reshape(s) for m, s in zip(
+    """``(A, B, C, D)`` of a StateSpace as float arrays (copies) of consistent 2-D shapes."""
+    return tuple(np.array(m, dtype=float).reshape(s) for m, s in zip(
         (ss.A, ss.B, ss.C, ss.D),
         ((ss.nstates, ss.nstates), (ss.nstates, ss.ninputs), (ss.noutputs, ss.nstates),
          (ss.noutputs, ss.ninputs)),

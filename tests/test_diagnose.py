@@ -110,6 +110,66 @@ def test_executor_gives_the_same_ranking(chain, cands):
     np.testing.assert_allclose([r.gain for r in par.ranking], [r.gain for r in serial.ranking], rtol=1e-9)
 
 
+def test_worker_processes_give_the_serial_result(chain, cands):
+    """workers=2 (forked processes, the model and data sent once per worker) equals workers=1
+    to the last digit: same ranking, costs, fitted values, p-values and evaluation count."""
+    data = _data(chain, fx.AddedMass("dof 3", mass=0.05))
+    serial = rc.diagnose(chain, data, cands, noise=KNOWN, workers=1)
+    par = rc.diagnose(chain, data, cands, noise=KNOWN, workers=2)
+    assert [r.name for r in par.ranking] == [r.name for r in serial.ranking]
+    assert serial.ranking[0].name == "added mass at dof 3"
+    for a, b in zip(par.ranking, serial.ranking):
+        assert (a.cost, a.fraction, a.fitted, a.values) == (b.cost, b.fraction, b.fitted, b.values)
+        assert a.p_value == b.p_value or (np.isnan(a.p_value) and np.isnan(b.p_value))
+    assert par.n_evals == serial.n_evals and par.best.values == serial.best.values
+    with pytest.raises(rc.RobustctlError, match="workers must be"):
+        rc.diagnose(chain, data, cands, workers=0)
+
+
+def test_a_model_that_cannot_be_pickled_is_diagnosed_in_this_process(chain, cands):
+    """Worker processes need the model pickled; one holding a lock is diagnosed serially, with
+    a RuntimeWarning saying why, and gives the serial answer."""
+    import threading
+
+    lock = threading.Lock()
+    k_par = chain.param("k_ground")
+
+    def stiffness(th):
+        with lock:  # an unpicklable object in the build closure
+            return KC + np.diag([th["k_ground"], 0.0, 0.0])
+
+    model = rc.structural_model(
+        M3, stiffness, inputs={"F1": "dof 1", "F3": "dof 3"},
+        outputs={"a2": ("dof 2", "acceleration"), "a3": ("dof 3", "acceleration")},
+        damping=0.02, params=[k_par], name="3-mass chain with a lock",
+    )
+    data = _data(chain, fx.AddedMass("dof 3", mass=0.05))
+    some = [c for c in cands if c.domain == "io" or c.kind == "added_mass"]
+    with pytest.warns(RuntimeWarning, match="cannot be sent to worker processes") as caught:
+        par = rc.diagnose(model, data, some, noise=KNOWN, workers=2)
+    assert sum("worker processes" in str(w.message) for w in caught) == 1  # said once, not per stage
+    serial = rc.diagnose(model, data, some, noise=KNOWN, workers=1)
+    assert par.ranking[0].name == serial.ranking[0].name == "added mass at dof 3"
+    assert [r.cost for r in par.ranking] == [r.cost for r in serial.ranking]
+
+
+def test_workers_auto_starts_no_process_for_a_small_diagnosis(chain, cands, monkeypatch):
+    """22 candidates at about a millisecond each: forking would cost more than the screening."""
+    import importlib
+
+    parallel = importlib.import_module("robustctl.parallel")
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a process pool was started")
+
+    monkeypatch.setattr(parallel, "ProcessPoolExecutor", refuse)
+    monkeypatch.setattr(parallel, "available_cores", lambda: 4)
+    diag = rc.diagnose(chain, _data(chain, fx.AddedMass("dof 3", mass=0.05)), cands, noise=KNOWN)
+    assert diag.ranking[0].name == "added mass at dof 3"
+    with pytest.raises(AssertionError, match="pool was started"):  # asked for: started
+        rc.diagnose(chain, _data(chain), cands, noise=KNOWN, workers=2)
+
+
 def test_effective_points_of_white_and_correlated_residuals():
     rng = np.random.default_rng(1)
     white = rng.standard_normal((2000, 2, 2)) + 1j * rng.standard_normal((2000, 2, 2))

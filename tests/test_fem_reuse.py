@@ -72,3 +72,42 @@ def test_geometry_and_preload_are_shared_where_nothing_they_read_changed(truss):
     assert not np.allclose(s.preload().axial_forces, base.preload().axial_forces, rtol=1e-9, atol=0)
     stiff = rc.effects.GroupStiffness("diagonals", change=0.2).apply(truss).build_structure()
     assert fem._geometry(stiff) is not fem._geometry(base)
+
+
+def test_a_dashpot_reuses_the_modes_and_gives_the_cold_response(truss, monkeypatch):
+    """A dashpot leaves M and K alone: the eigensolution is taken from the cache and only
+    ``Phi^T Cs Phi`` is recomputed; the state space equals one built with no cache at all."""
+    from robustctl.physical import modal
+
+    effect = rc.effects.Dashpot("platform_1", direction="y", damping=0.0)
+    model = effect.apply(truss)
+    model.statespace()  # the modes of the undamped frame are now cached
+    solves = []
+    real = modal.solve_modes
+    monkeypatch.setattr(modal, "solve_modes", lambda *a, **k: solves.append(1) or real(*a, **k))
+    warm = model.statespace(**{effect.param_names[0]: 30.0})
+    assert solves == []  # no eigensolution for another dashpot size
+    monkeypatch.setattr(modal._ModeCache, "get", lambda self, key, compute: compute())  # no mode cache
+    fresh = rc.effects.Dashpot("platform_1", direction="y", damping=30.0).apply(truss)
+    cold = fresh.statespace()  # a new model object: no dynamics cache either
+    assert solves == [1]
+    np.testing.assert_array_equal(warm.A, cold.A)
+    np.testing.assert_array_equal(warm.C, cold.C)
+    undamped = model.statespace()
+    assert not np.allclose(warm.A, undamped.A)  # the dashpot is in the model, not a stale copy
+
+
+def test_a_frame_rebuilt_with_other_masses_shares_the_geometry_by_value(truss):
+    """Updating a point mass rebuilds the frame node by node (new objects): the geometry is
+    found by the values of the frozen parts, and the matrices equal a cold assembly's."""
+    base = truss.build_structure(m_offset=truss.param("m_offset").value * 1.1)
+    base.matrices()
+    heavier = truss.build_structure(m_offset=truss.param("m_offset").value * 1.3)
+    assert fem._geometry(heavier) is fem._geometry(base)
+    stiffer = truss.build_structure(E_aluminium=truss.param("E_aluminium").value * 1.05)
+    assert fem._geometry(stiffer) is not fem._geometry(base)  # E is in the elements: new geometry
+    mats = heavier.matrices()
+    ref = _cold(lambda: truss.build_structure(m_offset=truss.param("m_offset").value * 1.3)).matrices()
+    for a, b in ((mats.mass, ref.mass), (mats.stiffness, ref.stiffness)):
+        np.testing.assert_array_equal(_dense(a), _dense(b))
+    assert not np.array_equal(_dense(mats.mass), _dense(base.matrices().mass))

@@ -230,3 +230,27 @@ def test_frame_large_hidden_effect_is_ranked_first_and_recovered(hidden):
     assert upd.cost_after <= 0.05 * nominal, (upd.cost_after, nominal)
     for name in ("E_steel", "m_floor", pname):
         assert upd.model.param(name).value == pytest.approx(truth.param(name).value, rel=0.02), name
+
+
+def test_only_candidates_whose_secant_points_beyond_its_step_are_probed(chain, monkeypatch):
+    """Probing at 10-1000 steps is for effects the data ask more of than the secant measured
+    (|c| > PROBE_MIN_COEF); the others are not walked out, and the large spring still wins."""
+    import importlib
+
+    diagnose_module = importlib.import_module("robustctl.correlate.diagnose")
+    model, cands = chain
+    seen = []
+    real = diagnose_module._probe_sizes
+
+    def spy(res_c, pname, span, step, coef, *args):
+        seen.append((pname, coef))
+        return real(res_c, pname, span, step, coef, *args)
+
+    monkeypatch.setattr(diagnose_module, "_probe_sizes", spy)
+    hidden, errors = CASES["grounded spring"]
+    truth = model.with_values(**{k: model.param(k).value * (1 + e) for k, e in errors.items()})
+    data = _data(model, truth.with_effect(hidden), seed=len("grounded spring"))
+    diag = rc.diagnose(model, data, cands, params=UPDATE, workers=1)
+    assert diag.ranking[0].name == hidden.name and diag.ranking[0].significant
+    assert seen and all(abs(c) > diagnose_module.PROBE_MIN_COEF for _, c in seen)
+    assert len(seen) < len(cands) - 1  # most candidates' secants already cover what the data ask

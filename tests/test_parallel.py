@@ -46,6 +46,75 @@ def test_parallel_map_keeps_order_and_refuses_a_non_executor():
         parallel_map(_square, [1], "threads")
 
 
+def _pid_and_payload(shared, item):
+    import os
+
+    return os.getpid(), id(shared), shared["offset"] + item
+
+
+def test_parallel_map_shared_keeps_order_and_sends_the_payload_once_per_worker():
+    from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+
+    from robustctl.parallel import parallel_map_shared
+
+    shared = {"offset": 100, "ballast": np.zeros(10_000)}
+    with ProcessPoolExecutor(2) as ex:
+        out = parallel_map_shared(_pid_and_payload, shared, range(37), ex)
+    assert [r[2] for r in out] == [100 + i for i in range(37)]
+    per_worker = {}
+    for pid, ident, _ in out:  # one unpickled payload per worker, whatever chunks it ran
+        per_worker.setdefault(pid, set()).add(ident)
+    assert all(len(ids) == 1 for ids in per_worker.values())
+    with ThreadPoolExecutor(2) as ex:  # threads share it in memory
+        assert {r[1] for r in parallel_map_shared(_pid_and_payload, shared, range(5), ex)} == {id(shared)}
+    assert [r[2] for r in parallel_map_shared(_pid_and_payload, shared, [3, 1], None)] == [103, 101]
+
+
+class _Payload:
+    offset = 7
+
+
+def _pid_and_object(shared, item):
+    import os
+
+    return os.getpid(), id(shared), shared.offset + item
+
+
+def test_the_same_payload_object_is_unpickled_once_per_worker_across_calls():
+    from concurrent.futures import ProcessPoolExecutor
+
+    from robustctl.parallel import parallel_map_shared
+
+    payload = _Payload()
+    with ProcessPoolExecutor(1) as ex:  # one worker: every chunk of both calls runs there
+        first = parallel_map_shared(_pid_and_object, payload, range(6), ex)
+        second = parallel_map_shared(_pid_and_object, payload, range(6), ex)
+        other = parallel_map_shared(_pid_and_object, _Payload(), range(3), ex)
+    assert [r[2] for r in second] == [7 + i for i in range(6)]
+    assert len({r[1] for r in first + second}) == 1  # the worker kept its copy
+    assert {r[1] for r in other}.isdisjoint({r[1] for r in first})  # another object: a new copy
+
+
+def test_workers_auto_stays_serial_on_one_core_or_few_tasks(monkeypatch):
+    import importlib
+
+    parallel = importlib.import_module("robustctl.parallel")
+
+    monkeypatch.setattr(parallel, "available_cores", lambda: 1)
+    assert parallel.resolve_workers("auto", 500, 24) == 1
+    monkeypatch.setattr(parallel, "available_cores", lambda: 4)
+    assert parallel.resolve_workers("auto", 10, 24) == 1  # too few tasks to pay for the workers
+    assert parallel.resolve_workers("auto", 500, 24) == 4
+    monkeypatch.setattr(parallel, "available_cores", lambda: 64)
+    assert parallel.resolve_workers("auto", 500, 24) == parallel.MAX_AUTO_WORKERS
+    assert parallel.resolve_workers(3, 2, 24) == 2 and parallel.resolve_workers(None, 500, 24) == 1
+    with parallel.process_pool("auto", 10, 24) as pool:
+        assert pool is None
+    for bad in (0, -2, 1.5, True, "two"):
+        with pytest.raises(rc.RobustctlError, match="workers must be"):
+            parallel.resolve_workers(bad, 10, 1)
+
+
 def test_diagnose_refuses_a_string_executor_before_any_work():
     model = _chain()
     data = model.freqresp(F_HZ)

@@ -16,9 +16,13 @@ parameters can already explain:
    angle between ``P j_u`` and ``P d`` (with the fitted coefficient clipped to the
    parameter bounds, so an added mass cannot be negative). A large effect (a spring that
    moves a mode by a factor of 4 changes its ``w^2`` 750 times more than the step) is far
-   outside the secant's linear range, so each candidate is also evaluated at 10, 100 and
-   1000 steps (walking outwards while the share explained grows, with the update
-   parameters re-fitted linearly) and scored by the best size (:func:`_probe_sizes`).
+   outside the secant's linear range, so a candidate whose linear estimate lies beyond its
+   secant step (``|c| >`` :data:`PROBE_MIN_COEF`: the data ask for more of it than the step
+   measured) is also evaluated at 10, 100 and 1000 steps (walking outwards while the share
+   explained grows, with the update parameters re-fitted linearly) and scored by the best
+   size (:func:`_probe_sizes`). One whose estimate lies inside the step is not walked out:
+   the data ask for less of it than the secant already covers (on the Caltech truss 265 of
+   285 candidates, whose probes never raised a share; a large effect's secant points far out).
 3. **Local fit.** The best few candidates are fitted together with the update parameters
    (bounded LM, few iterations) from the screening estimate; the cost reduction against
    the nominal model and the *gain* ``1 - J_c / J_u`` against the null fit are reported.
@@ -49,6 +53,7 @@ null-fit residual (Bartlett 1946); a systematic, unexplained model error gives `
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import math
 import time
@@ -65,7 +70,7 @@ from ..errors import FitError, ModelError, RobustctlError
 from ..estimator import estimator_settings
 from ..frd import FrequencyData
 from ..noise import NO_NOISE_SENTENCE, format_p, noise_model
-from ..parallel import check_executor, parallel_map
+from ..parallel import check_executor, parallel_map_shared, process_pool, resolve_workers
 from ..table import Table, result_html
 from ..threads import limit_blas
 from .optimize import _bounds, levenberg_marquardt, marquardt_step
@@ -86,6 +91,14 @@ ALPHA = 0.01
 DECOUPLED_DB = -60.0
 #: Smallest share of the null-fit residual an effect must explain to be proposed.
 MIN_GAIN = 0.25
+#: ``workers="auto"`` starts worker processes only for at least this many candidates ...
+PARALLEL_MIN_CANDIDATES = 8
+#: ... and when their screening promises at least this much work (s): :data:`SCREEN_EVALS`
+#: evaluations per candidate at the cost of the nominal one (on the Caltech truss 286 candidates
+#: at 20 ms: about 9 s; on a 3-mass chain 22 at 1 ms: forking would cost more than it saves).
+PARALLEL_MIN_WORK_S = 2.0
+#: Model evaluations a candidate's screening costs on average (the secant; the size probes of some).
+SCREEN_EVALS = 1.5
 _DB = 20.0 / math.log(10.0)
 
 
@@ -478,7 +491,7 @@ def _screen_one(
     fraction = max(0.0, 1.0 - float(left @ left) / rr)
     angle = math.degrees(math.acos(min(1.0, math.sqrt(cos2))))
     evals = sens.n_evals
-    if effect.kind != "gravity":  # a switch has no sizes to probe
+    if effect.kind != "gravity" and abs(coef) > PROBE_MIN_COEF:  # a switch has no sizes to probe
         probed, value_p, n_p = _probe_sizes(res_c, pname, (v0, lo, hi), trial - v0, coef, Q, rr, fraction)
         evals += n_p
         if probed > fraction:
@@ -490,6 +503,10 @@ def _screen_one(
 #: which each candidate is also evaluated in screening: an effect that moves a mode by a
 #: factor of 4 changes its ``w^2`` by 1500 %, far outside the secant's linear range.
 SCREEN_MULTIPLES = (10.0, 100.0, 1000.0)
+#: A candidate is probed at :data:`SCREEN_MULTIPLES` only when its secant's linear estimate
+#: ``|c|`` (in units of the secant step) exceeds this: the data then ask for more of the effect
+#: than the step measured, the sign of a large effect (the chain's large-error cases: 2 to 55).
+PROBE_MIN_COEF = 1.0
 
 
 def _probe_sizes(
@@ -628,6 +645,12 @@ def _fit_one(
                 cut=cut)
 
 
+def _fit_task(shared: tuple, screen: dict[str, Any]) -> dict[str, Any]:
+    """One local fit (:func:`parallel_map_shared` task): ``shared = (res_u, null, max_iter, budget)``."""
+    res_u, null, max_iter, budget = shared
+    return _fit_one(res_u, null, screen, max_iter, budget)
+
+
 #: A local fit whose cost is within this factor of the best one's is a contender: it is polished
 #: by a full Levenberg-Marquardt fit before the ranking (:func:`_polish`).
 CONTENDER_RATIO = 2.0
@@ -657,26 +680,31 @@ def _polish(
     if len(todo) < 2:
         return fits, 0
 
-    def polish(i: int) -> dict:
-        s, fit = screens[top[i]], fits[i]
-        pname = s["effect"].param_names[0]
-        res_c = _residual_for(res_u, s["model"])
-        try:
-            lm = levenberg_marquardt(res_c, null.names + (pname,), x0={**fit["x"], pname: fit["value"]},
-                                     max_iter=POLISH_ITER, ftol=1e-4, time_budget_s=budget / len(todo))
-        except RobustctlError:
-            return dict(fit, evals=0)
-        if not lm.cost < fit["cost"]:
-            return dict(fit, evals=lm.n_evals)
-        x = dict(lm.x)
-        return dict(x={n: x[n] for n in null.names}, cost=float(lm.cost), vector=lm.vector, evals=lm.n_evals,
-                    value=float(x[pname]), cut="time budget" in lm.stop_reason)
-
-    done = parallel_map(polish, todo, executor, desc="polishing fits")
+    done = parallel_map_shared(_polish_task, (res_u, null.names, budget / len(todo)),
+                               [(screens[top[i]], fits[i]) for i in todo], executor, desc="polishing fits")
     out = list(fits)
     for i, new in zip(todo, done):
         out[i] = new
     return out, sum(f["evals"] for f in done)
+
+
+def _polish_task(shared: tuple, item: tuple) -> dict:
+    """One contender's full LM fit from its local fit (:func:`parallel_map_shared` task;
+    ``shared = (res_u, update names, budget)``, ``item = (screen, local fit)``)."""
+    res_u, names, budget = shared
+    s, fit = item
+    pname = s["effect"].param_names[0]
+    res_c = _residual_for(res_u, s["model"])
+    try:
+        lm = levenberg_marquardt(res_c, names + (pname,), x0={**fit["x"], pname: fit["value"]},
+                                 max_iter=POLISH_ITER, ftol=1e-4, time_budget_s=budget)
+    except RobustctlError:
+        return dict(fit, evals=0)
+    if not lm.cost < fit["cost"]:
+        return dict(fit, evals=lm.n_evals)
+    x = dict(lm.x)
+    return dict(x={n: x[n] for n in names}, cost=float(lm.cost), vector=lm.vector, evals=lm.n_evals,
+                value=float(x[pname]), cut="time budget" in lm.stop_reason)
 
 
 #: Multiples of an effect's typical size tried as starting values of its local fit.
@@ -769,26 +797,6 @@ def _residual(model: Any, data: FrequencyData, band, weights, min_db, estimator=
     return res, tuple((o, i) for o, i, _level in res.dropped)
 
 
-def _prepare(
-    model, data, candidates, band, update_params, weights, min_db, deadline, budget,
-    estimator="auto", noise="auto",
-) -> tuple:
-    """Validated residual (decoupled channels ignored), update parameters and candidates
-    (the default candidates' calibration counts against the time budget)."""
-    from ..physical.effects import candidates as all_candidates
-
-    res0, ignored = _residual(model, data, band, weights, min_db, estimator, noise)
-    upd = _check_update(model, update_params)
-    if candidates is None:
-        left = _check_budget(deadline, budget, "the residual set-up")
-        try:
-            candidates = all_candidates(model, band=res0.band, time_budget_s=left)
-        except FitError as exc:
-            raise FitError(str(exc).replace(f"time_budget_s={left:g}", f"time_budget_s={budget:g}")) from None
-    cands = _check_candidates(model, list(candidates))
-    return res0, ignored, upd, cands
-
-
 def _check_budget(deadline: float, budget: float, stage: str) -> float:
     """Seconds left before ``deadline``; a FitError naming the stage when none are (the
     budget covers the whole call: a partial ranking would be a wrong answer without warning)."""
@@ -807,18 +815,29 @@ def _screen_all(
     """Screen every candidate (step 2): the screens, indistinguishable twins, and the
     order of the others by the fraction they explain."""
     r_perp = _project(null.Q, null.j)
-
-    def screen(c: Any) -> dict:
-        _check_budget(deadline, budget, f"the screening of {len(cands)} candidates")
-        return _screen_one(res_u, model_u, null.j, null.Q, r_perp, c)
-
-    screens = parallel_map(screen, cands, executor, desc="screening")
+    shared = (res_u, model_u, null.j, null.Q, r_perp, _wall_deadline(deadline), budget, len(cands))
+    screens = parallel_map_shared(_screen_task, shared, cands, executor, desc="screening")
     twins = _equivalent(screens)
     order = sorted(
         (k for k in range(len(screens)) if k not in twins),
         key=lambda k: (-round(screens[k]["fraction"], 9), k),
     )
     return screens, twins, order
+
+
+def _wall_deadline(deadline: float) -> float:
+    """``deadline`` (a ``time.perf_counter`` instant) on the wall clock (``time.time``), which
+    other processes share."""
+    return time.time() + (deadline - time.perf_counter())
+
+
+def _screen_task(shared: tuple, effect: Any) -> dict:
+    """One candidate's screening (:func:`parallel_map_shared` task; ``shared`` from
+    :func:`_screen_all`)."""
+    res_u, model_u, j_u, Q, r_perp, wall_deadline, budget, n = shared
+    if time.time() > wall_deadline:
+        _check_budget(time.perf_counter() - 1.0, budget, f"the screening of {n} candidates")
+    return _screen_one(res_u, model_u, j_u, Q, r_perp, effect)
 
 
 def _null_fit(
@@ -1009,6 +1028,7 @@ def diagnose(
     estimator: Any = "auto",
     noise: Any = "auto",
     measurement_model: Any = None,
+    workers: Any = "auto",
 ) -> Diagnosis:
     """Rank physical effects by how much of the model-data residual each explains.
 
@@ -1023,7 +1043,7 @@ def diagnose(
         Band in Hz (default: all data).
     executor : concurrent.futures.Executor, optional
         Screens and fits candidates in parallel (a thread pool works with any model; a
-        process pool needs a picklable model).
+        process pool needs a picklable model). Overrides ``workers``.
     params : sequence of str, optional
         Parameters the update may change (default: the model's free parameters); what they
         can absorb is projected out before the effects are scored (as ``params=`` of
@@ -1058,6 +1078,15 @@ def diagnose(
         ``measurement_model`` supplies it for data without coherence). Without one, the
         ranking is still given but no significance claims are made (p-values NaN) and the best
         candidate is proposed only on its share of the residual.
+    workers : "auto", int or None
+        Worker processes for the screening, local fits and polishing when no ``executor`` is
+        given. ``"auto"`` (default): one per available core when the screening promises at least
+        :data:`PARALLEL_MIN_WORK_S` of work (:data:`SCREEN_EVALS` evaluations per candidate, timed
+        on the nominal model) for :data:`PARALLEL_MIN_CANDIDATES` or more candidates and the
+        platform can fork, otherwise serial; an int: that many processes;
+        ``1`` or None: serial, in this process. The result equals the serial one (each candidate
+        is computed alone, the model and data travel to each worker once); the model must be
+        picklable (cloudpickle) for more than one worker.
 
     Returns
     -------
@@ -1079,6 +1108,7 @@ def diagnose(
     """
     t0 = time.perf_counter()
     check_executor(executor)
+    resolve_workers(workers, 0, 1)  # a bad value fails before any work
     time_budget_s = positive_number(time_budget_s, "time_budget_s", FitError, unit="s, the whole call")
     max_iter = integer(max_iter, "max_iter", FitError, lo=1)
     update_iter = integer(update_iter, "update_iter", FitError, lo=1)
@@ -1088,10 +1118,10 @@ def diagnose(
     model = physical_model(model, "diagnose")
     if isinstance(noise, str) and noise == "auto":
         noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
-    res0, ignored, upd, cands = _prepare(
-        model, data, candidates, band, params, point_weights, min_channel_db, deadline, time_budget_s,
-        estimator, noise,
-    )
+    res0, ignored = _residual(model, data, band, point_weights, min_channel_db, estimator, noise)
+    upd = _check_update(model, params)
+    if candidates is not None:
+        candidates = _check_candidates(model, list(candidates))
     alpha, min_gain = finite_number(alpha, "alpha", FitError), finite_number(min_gain, "min_gain", FitError)
     if not 0 < alpha < 1 or not 0 <= min_gain < 1:
         raise FitError(f"alpha must lie in (0, 1) and min_gain in [0, 1); got {alpha!r}, {min_gain!r}.")
@@ -1100,8 +1130,57 @@ def diagnose(
             f"n_fit is the number of best-screened candidates given a local fit: a whole number >= 0; "
             f"got {n_fit!r}."
         )
-    evals = 1
+    t_eval = time.perf_counter()
     j_nominal = res0.vector()
+    t_eval = time.perf_counter() - t_eval
+    with _pool(workers, executor, candidates, model, t_eval) as ex:
+        if candidates is None:
+            candidates = _default_candidates(model, res0, deadline, time_budget_s, ex)
+        return _diagnose(
+            t0, res0, ignored, upd, candidates, j_nominal, ex, n_fit, max_iter, update_iter, alpha, min_gain,
+            time_budget_s, deadline,
+        )
+
+
+def _pool(workers: Any, executor: Any, candidates: list | None, model: Any, t_eval: float):
+    """The executor of a diagnosis: the caller's, or worker processes for ``workers`` (see
+    :func:`diagnose`). ``"auto"`` starts them only when the screening promises enough work:
+    :data:`SCREEN_EVALS` evaluations per candidate of ``t_eval`` s (the nominal model's) for at
+    least :data:`PARALLEL_MIN_WORK_S` (the default candidates are counted without calibration)."""
+    if executor is not None:
+        return contextlib.nullcontext(executor)
+    n = 0
+    if resolve_workers(workers, 10**6, 1) > 1:
+        if candidates is None:
+            from ..physical.effects.candidates import candidates as all_candidates
+
+            n = len(all_candidates(model, calibrate=False))
+        else:
+            n = len(candidates)
+        if workers == "auto" and SCREEN_EVALS * n * t_eval < PARALLEL_MIN_WORK_S:
+            n = 0
+    return process_pool(workers, n, PARALLEL_MIN_CANDIDATES)
+
+
+def _default_candidates(model: Any, res0: Residual, deadline: float, budget: float, executor: Any) -> list:
+    """``rc.effects.candidates`` of the model on the band, calibrated within the time budget."""
+    from ..physical.effects import candidates as all_candidates
+
+    left = _check_budget(deadline, budget, "the residual set-up")
+    try:
+        cands = all_candidates(model, band=res0.band, time_budget_s=left, executor=executor)
+    except FitError as exc:
+        raise FitError(str(exc).replace(f"time_budget_s={left:g}", f"time_budget_s={budget:g}")) from None
+    return _check_candidates(model, cands)
+
+
+def _diagnose(
+    t0, res0, ignored, upd, cands, j_nominal, executor, n_fit, max_iter, update_iter, alpha, min_gain,
+    time_budget_s, deadline,
+) -> Diagnosis:
+    """:func:`diagnose` once the arguments are checked, the candidates made and the executor chosen."""
+    model = res0.model
+    evals = 1
     cost_nominal = float(j_nominal @ j_nominal)
     # 1. null fit of the update parameters
     null, n_null = _null_fit(res0, upd, update_iter, executor, time_budget_s / 3, j_nominal)
@@ -1116,11 +1195,9 @@ def diagnose(
     top = [k for k in order[:n_fit] if screens[k]["fraction"] > 0]
     # 3. local fits
     remaining = _check_budget(deadline, time_budget_s, "the screening")
-    fits = parallel_map(
-        lambda k: _fit_one(res_u, null, screens[k], max_iter, remaining / max(len(top), 1)),
-        top,
-        executor,
-        desc="local fits",
+    fits = parallel_map_shared(
+        _fit_task, (res_u, null, max_iter, remaining / max(len(top), 1)), [screens[k] for k in top],
+        executor, desc="local fits",
     )
     evals += sum(f["evals"] for f in fits)
     remaining = deadline - time.perf_counter()

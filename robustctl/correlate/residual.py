@@ -17,7 +17,6 @@ finite-difference derivatives with respect to named parameters (eqs. 7-8).
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Mapping, Sequence
 from concurrent.futures import Executor
 from typing import Any
@@ -41,7 +40,7 @@ from ..estimator import model_view, resolve_estimator, split_hold
 from ..frd import FrequencyData
 from ..lti import as_statespace, freqresp, log_ratio
 from ..noise import NoiseModel, noise_model
-from ..parallel import parallel_map
+from ..parallel import parallel_map_shared
 
 __all__ = [
     "Residual",
@@ -533,8 +532,8 @@ def sensitivities(
     if j0 is None:
         points = [base_point] + points
         n_evals += 1
-    vectors = parallel_map(
-        functools.partial(_evaluate, residual), points, executor, desc="sensitivities", progress=progress
+    vectors = parallel_map_shared(
+        _evaluate, residual, points, executor, desc="sensitivities", progress=progress
     )
     if j0 is None:
         j0, vectors = vectors[0], vectors[1:]

@@ -22,6 +22,7 @@ Neutral values make a piece vanish exactly (an identity with no states): delay 0
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
@@ -157,16 +158,24 @@ def _analog_lowpass(kind: str, order: int, cutoff_hz: float, norm: str | None):
     fc = _positive(cutoff_hz, f"the {kind} cutoff", "Hz", allow_inf=True)
     if math.isinf(fc):
         return identity()
+    if kind == "Bessel" and norm not in ("phase", "delay", "mag"):
+        raise ModelError(f"Bessel norm must be 'phase', 'delay' or 'mag'; got {norm!r}.")
+    A, B, C, D = _lowpass_abcd(kind, order, fc, norm)
+    return _ss(A.copy(), B.copy(), C.copy(), D.copy(), ["u"], ["y"])
+
+
+@functools.lru_cache(maxsize=64)
+def _lowpass_abcd(kind: str, order: int, fc: float, norm: str | None) -> tuple:
+    """The realisation of :func:`_analog_lowpass` (made once per design: a model build puts the
+    same sensor filters on at every evaluation). Callers copy the arrays."""
     wc = 2 * np.pi * fc
     if kind == "Bessel":
-        if norm not in ("phase", "delay", "mag"):
-            raise ModelError(f"Bessel norm must be 'phase', 'delay' or 'mag'; got {norm!r}.")
         _, p, k = signal.bessel(order, wc, analog=True, output="zpk", norm=norm)
     else:
         _, p, k = signal.butter(order, wc, analog=True, output="zpk")
     sys = _cascade(_pole_sections(np.asarray(p)))
     dc = float(np.real(k / np.prod(-np.asarray(p))))  # 1 for both families; kept for exactness
-    return _ss(sys.A, sys.B, dc * np.asarray(sys.C), sys.D, ["u"], ["y"])
+    return tuple(np.asarray(m, dtype=float) for m in (sys.A, sys.B, dc * np.asarray(sys.C), sys.D))
 
 
 def bessel_lowpass(order: int, cutoff_hz: float, norm: str = "phase"):

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import copy
 import hashlib
+import pickle
 import threading
 from collections import OrderedDict
 from collections.abc import Iterable, Sequence
@@ -1231,8 +1232,9 @@ class _LRU:
 
 
 #: Geometry parts of recent assemblies, keyed on the identities of the frozen components
-#: (the value keeps them alive, so an id cannot be reused while its entry exists).
-_GEOMETRY = _LRU(6)
+#: (the value keeps them alive, so an id cannot be reused while its entry exists) and on a
+#: digest of their values (:func:`_content_key`).
+_GEOMETRY = _LRU(12)
 #: Gravity preloads of recent assemblies, keyed on the geometry and a digest of the loads.
 _PRELOADS = _LRU(16)
 _GEOMETRY_LOCK = threading.Lock()
@@ -1250,12 +1252,25 @@ def _geometry_key(frame: Frame) -> tuple[tuple, tuple]:
     return parts, (ids, lengths, scale, tuple(frame._nodes), tuple(frame._inputs), tuple(frame._outputs))
 
 
+def _content_key(parts: tuple, key: tuple) -> tuple:
+    """A digest of the frozen components' values: frames rebuilt node by node with equal
+    geometry (an update of a point mass, which rebuilds the frame) share one geometry."""
+    h = hashlib.blake2b(digest_size=20)
+    h.update(pickle.dumps((parts, key[1:]), protocol=pickle.HIGHEST_PROTOCOL))
+    return ("content", h.digest())
+
+
 def _geometry(frame: Frame) -> _Geometry:
-    """The geometry part of the assembly, computed once per set of frozen components."""
+    """The geometry part of the assembly, computed once per set of frozen components (looked
+    up by their identities, then by their values)."""
     parts, key = _geometry_key(frame)
     found = _GEOMETRY.get(key)
     if found is not None:
         return found[1]
+    content = _content_key(parts, key)
+    found = _GEOMETRY.get(content)
+    if found is not None:
+        return _GEOMETRY.put(key, (parts, found[1]))[1]
     names = tuple(frame._nodes)
     index = {n: i for i, n in enumerate(names)}
     X = np.array([frame._nodes[n].xyz for n in names])
@@ -1273,6 +1288,7 @@ def _geometry(frame: Frame) -> _Geometry:
     B_full = _signal_matrix(frame, frame._inputs, index, st, n_full)
     C_full = _signal_matrix(frame, frame._outputs, index, st, n_full).T
     geo = _Geometry(names, index, X, st, links, elements, T, dof_of_col, B_full, C_full, {})
+    _GEOMETRY.put(content, (None, geo))
     return _GEOMETRY.put(key, (parts, geo))[1]
 
 

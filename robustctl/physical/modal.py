@@ -268,11 +268,6 @@ def modal_decomposition(
 def _undamped_modal_data(mats: StructuralMatrices, n_modes, band_hz, residual_flexibility: bool) -> ModalData:
     """Everything of MACE eqs. 2-4 that does not depend on the modal damping ratios."""
     omega, phi = solve_modes(mats.mass, mats.stiffness, n_modes=n_modes, band_hz=band_hz)
-    cs = mats.damping
-    if cs is None:
-        cs_modal = np.zeros((omega.size, omega.size))
-    else:  # sparse-safe: never densify a large Cs
-        cs_modal = phi.T @ np.asarray((cs if sp.issparse(cs) else np.asarray(cs, dtype=float)) @ phi)
     return ModalData(
         omega=omega,
         zeta=np.zeros(omega.size),
@@ -281,12 +276,33 @@ def _undamped_modal_data(mats: StructuralMatrices, n_modes, band_hz, residual_fl
         output_kinds=tuple(mats.output_kinds),
         inputs=tuple(mats.inputs),
         outputs=tuple(mats.outputs),
-        modal_concentrated_damping=cs_modal,
+        modal_concentrated_damping=_modal_damping_matrix(mats.damping, phi),
         residual=(
             _residual_flexibility(mats, omega, phi, band_hz is None) if residual_flexibility else None
         ),
         shapes=phi,
     )
+
+
+def _modal_damping_matrix(cs: Any, phi: np.ndarray) -> np.ndarray:
+    """``Phi^T Cs Phi``: the concentrated dashpots in modal coordinates (n_modes, n_modes)."""
+    if cs is None:
+        return np.zeros((phi.shape[1], phi.shape[1]))
+    # sparse-safe: never densify a large Cs
+    return phi.T @ np.asarray((cs if sp.issparse(cs) else np.asarray(cs, dtype=float)) @ phi)
+
+
+def _same_matrix(a: Any, b: Any) -> bool:
+    """Whether two (sparse or dense, or None) matrices hold the same values."""
+    if a is None or b is None:
+        return a is b
+    if a is b:
+        return True
+    if a.shape != b.shape:
+        return False
+    if sp.issparse(a) or sp.issparse(b):
+        return (sp.csr_matrix(a) != sp.csr_matrix(b)).nnz == 0
+    return bool(np.array_equal(np.asarray(a), np.asarray(b)))
 
 
 def _damped(data: ModalData, damping: Any, bands, rigid_body_damping: float) -> ModalData:
@@ -438,9 +454,10 @@ def _modal_data_from_arrays(freqs_hz, damping, b_shapes, c_shapes, inputs, outpu
 
 # ---------------------------------------------------------------------------- PhysicalModel hook
 def _digest(mats: StructuralMatrices, *extra: Any) -> bytes:
-    """A content hash of everything the undamped modal data depends on."""
+    """A content hash of everything the undamped modes and modal input/output matrices depend
+    on (not the dashpots ``Cs``: their modal matrix is recomputed from the cached shapes)."""
     h = hashlib.blake2b(digest_size=20)
-    for a in (mats.mass, mats.stiffness, mats.damping, mats.input_matrix, mats.output_matrix):
+    for a in (mats.mass, mats.stiffness, mats.input_matrix, mats.output_matrix):
         if a is None:
             h.update(b"none")
         elif sp.issparse(a):
@@ -456,7 +473,8 @@ def _digest(mats: StructuralMatrices, *extra: Any) -> bytes:
 
 
 class _ModeCache:
-    """A small LRU of undamped modal data keyed by matrix content (thread-safe).
+    """A small LRU of undamped modal data keyed by matrix content (thread-safe); entries
+    are ``(ModalData, Cs)``, the dashpot matrix its modal damping matrix was made from.
 
     PhysicalModel rebuilds the structure for every parameter set, and its own cache keys
     on every parameter the build read, damping included; this cache lets a change of the
@@ -465,7 +483,7 @@ class _ModeCache:
 
     def __init__(self, size: int = 4) -> None:
         self._size = size
-        self._store: OrderedDict[bytes, ModalData] = OrderedDict()
+        self._store: OrderedDict[bytes, tuple] = OrderedDict()
         self._lock = threading.Lock()
 
     def __getstate__(self) -> dict:
@@ -474,7 +492,7 @@ class _ModeCache:
     def __setstate__(self, state: dict) -> None:
         self.__init__(state["size"])
 
-    def get(self, key: bytes, compute: Callable[[], ModalData]) -> ModalData:
+    def get(self, key: bytes, compute: Callable[[], tuple]) -> tuple:
         with self._lock:
             if key in self._store:
                 self._store.move_to_end(key)
@@ -520,7 +538,12 @@ def modal_dynamics(
         mats = structure.matrices()
         _check_mats(mats)
         key = _digest(mats, n_modes, band_hz, residual_flexibility)
-        undamped = cache.get(key, lambda: _undamped_modal_data(mats, n_modes, band_hz, residual_flexibility))
+        undamped, cs = cache.get(
+            key, lambda: (_undamped_modal_data(mats, n_modes, band_hz, residual_flexibility), mats.damping)
+        )
+        if not _same_matrix(cs, mats.damping):  # other dashpots on the same modes: Phi^T Cs Phi only
+            undamped = replace(undamped, modal_concentrated_damping=_modal_damping_matrix(mats.damping,
+                                                                                          undamped.shapes))
         return _damped(undamped, zeta, mats.modal_damping_bands, rigid_body_damping).statespace()
 
     return dynamics

@@ -117,7 +117,16 @@ class Effect(ABC):
     # ---------------------------------------------------------------- parameters
     @property
     def parameters(self) -> tuple[Parameter, ...]:
-        """The effect's parameters, holding the current values (units in ``Parameter.unit``)."""
+        """The effect's parameters, holding the current values (units in ``Parameter.unit``).
+
+        Made once per (frozen) effect: a diagnosis asks each candidate for them many times."""
+        found = self.__dict__.get("_parameters")
+        if found is None:
+            found = self._make_parameters()
+            object.__setattr__(self, "_parameters", found)
+        return found
+
+    def _make_parameters(self) -> tuple[Parameter, ...]:
         out = []
         for k, (fname, spec) in enumerate(zip(self._value_fields, self._specs())):
             default = spec.default_scale

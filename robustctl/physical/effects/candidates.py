@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 import time
 from collections.abc import Iterable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -153,6 +154,7 @@ def candidates(
     locations: Iterable[str] | None = None,
     calibrate: bool = True,
     time_budget_s: float | None = None,
+    executor: Any = None,
 ) -> list[Effect]:
     """The effects applicable to ``model``, one per kind and location, at their neutral value.
 
@@ -184,6 +186,9 @@ def candidates(
     time_budget_s : float, optional
         Wall-clock budget (s) of the calibration (``rc.diagnose`` passes what is left of
         its own); a :class:`~robustctl.errors.FitError` when it runs out. Default: none.
+    executor : concurrent.futures.Executor, optional
+        Calibrates the candidates in parallel (the model travels to each worker once); the
+        steps equal the serial ones.
 
     Returns
     -------
@@ -210,7 +215,7 @@ def candidates(
         if kinds is not None:
             cands = [c for c in cands if c.kind in kinds]
         if calibrate:
-            omega, _, cands = _calibrate(model, cands, band, deadline)
+            omega, _, cands = _calibrate(model, cands, band, deadline, executor)
         else:
             omega = _modes(model, band)[0]
         cands += _modal_damping_candidates(omega / (2 * np.pi), band)
@@ -326,13 +331,18 @@ def _changes_preload(effect: Effect, model: PhysicalModel, struct) -> bool:
 
 
 def _calibrate(
-    model: PhysicalModel, cands: list[Effect], band, deadline: tuple[float, float] | None = None
+    model: PhysicalModel, cands: list[Effect], band, deadline: tuple[float, float] | None = None,
+    executor: Any = None,
 ) -> tuple[np.ndarray, np.ndarray, list]:
     """Give each structural candidate a secant step that moves the modes by about 2 %
     (:data:`SHIFT_TARGET` of ``w^2``; first-order perturbation ``phi^T (dK - w^2 dM) phi``,
     Rayleigh quotient, e.g. Geradin & Rixen, *Mechanical Vibrations*, sec. 2.9).
 
-    ``deadline`` is ``(time.perf_counter() limit, budget)``: checked before each candidate."""
+    ``deadline`` is ``(time.perf_counter() limit, budget)``: checked before each candidate.
+    ``executor`` calibrates the candidates in parallel (:func:`robustctl.parallel.parallel_map_shared`;
+    each is calibrated alone, so the steps equal the serial ones)."""
+    from ...parallel import parallel_map_shared
+
     omega, phi, (_, _, mats0) = _modes(model, band)  # with the preload
     if omega.size == 0:
         return omega, phi, cands
@@ -341,45 +351,50 @@ def _calibrate(
         fresh, mats_base = model.build_structure, mats0
     full = (_dense(mats0.mass), _dense(mats0.stiffness), mats0)
     light = (_dense(mats_base.mass), _dense(mats_base.stiffness), mats_base)
-    nominal = model.build_structure()
-    out = []
-    for k, c in enumerate(cands):
-        if deadline is not None and time.perf_counter() > deadline[0]:
-            raise FitError(
-                f"time_budget_s={deadline[1]:g} s ran out while calibrating candidate {k + 1} of "
-                f"{len(cands)}; raise time_budget_s, or pass fewer candidates (kinds=, locations=)."
-            )
-        if c.domain != "structure" or c.kind == "gravity":
-            out.append(c)
-            continue
-        unit = 1.0 if c.kind not in ("group_stiffness",) else 0.1
-        probe = c.with_values(**{c._value_fields[0]: unit})
-        heavy = _changes_preload(c, model, nominal)
-        M0, K0, mats_ref = full if heavy else light
-        struct = model.build_structure() if heavy else fresh()
-        mats = probe._stage_fn()({probe.param_names[0]: unit}, struct).matrices()
-        if mats.n_dof != M0.shape[0]:
-            out.append(c)
-            continue
-        dM = _dense(mats.mass) - M0
-        dK = _dense(mats.stiffness) - K0
-        if c.kind == "dashpot":
-            C = _dense(mats.damping) if mats.damping is not None else np.zeros_like(M0)
-            C0 = _dense(mats_ref.damping) if mats_ref.damping is not None else np.zeros_like(M0)
-            dz = np.abs(np.einsum("ij,ik,kj->j", phi, C - C0, phi)) / (2 * omega) / unit
-            size = DAMPING_TARGET / dz.max() if dz.max() > 0 else None
-        else:
-            dw2 = (
-                np.abs(
-                    np.einsum("ij,ik,kj->j", phi, dK, phi) - omega**2 * np.einsum("ij,ik,kj->j", phi, dM, phi)
-                )
-                / unit
-            )
-            rel = dw2 / omega**2
-            size = SHIFT_TARGET / rel.max() if rel.max() > 0 else None
-        if size is None or not np.isfinite(size):
-            continue  # the effect cannot change this model's modes (e.g. a spring on a clamped node)
-        lo, hi = c.parameters[0].bounds
-        size = min(size, 0.5 * (hi - lo) if np.isfinite(hi - lo) else size)
-        out.append(c.with_scale(size))
-    return omega, phi, out
+    wall = None if deadline is None else (time.time() + deadline[0] - time.perf_counter(), deadline[1])
+    shared = (model, model.build_structure(), omega, phi, fresh, full, light, wall, len(cands))
+    steps = parallel_map_shared(_calibrate_one, shared, list(enumerate(cands)), executor, desc="calibration")
+    return omega, phi, [c for c in steps if c is not None]
+
+
+def _modal_diagonal(phi: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """``diag(Phi^T D Phi)`` by one matrix product (an einsum over three indices is 10x slower)."""
+    return np.sum(phi * (d @ phi), axis=0)
+
+
+def _calibrate_one(shared: tuple, item: tuple[int, Effect]) -> Effect | None:
+    """One candidate of :func:`_calibrate` with its step (unchanged when it has none to set),
+    or None when it cannot change the modes (``shared`` from :func:`_calibrate`)."""
+    model, nominal, omega, phi, fresh, full, light, wall, n = shared
+    k, c = item
+    if wall is not None and time.time() > wall[0]:
+        raise FitError(
+            f"time_budget_s={wall[1]:g} s ran out while calibrating candidate {k + 1} of "
+            f"{n}; raise time_budget_s, or pass fewer candidates (kinds=, locations=)."
+        )
+    if c.domain != "structure" or c.kind == "gravity":
+        return c
+    unit = 1.0 if c.kind not in ("group_stiffness",) else 0.1
+    probe = c.with_values(**{c._value_fields[0]: unit})
+    heavy = _changes_preload(c, model, nominal)
+    M0, K0, mats_ref = full if heavy else light
+    struct = model.build_structure() if heavy else fresh()
+    mats = probe._stage_fn()({probe.param_names[0]: unit}, struct).matrices()
+    if mats.n_dof != M0.shape[0]:
+        return c
+    dM = _dense(mats.mass) - M0
+    dK = _dense(mats.stiffness) - K0
+    if c.kind == "dashpot":
+        C = _dense(mats.damping) if mats.damping is not None else np.zeros_like(M0)
+        C0 = _dense(mats_ref.damping) if mats_ref.damping is not None else np.zeros_like(M0)
+        dz = np.abs(_modal_diagonal(phi, C - C0)) / (2 * omega) / unit
+        size = DAMPING_TARGET / dz.max() if dz.max() > 0 else None
+    else:
+        dw2 = np.abs(_modal_diagonal(phi, dK) - omega**2 * _modal_diagonal(phi, dM)) / unit
+        rel = dw2 / omega**2
+        size = SHIFT_TARGET / rel.max() if rel.max() > 0 else None
+    if size is None or not np.isfinite(size):
+        return None  # the effect cannot change this model's modes (e.g. a spring on a clamped node)
+    lo, hi = c.parameters[0].bounds
+    size = min(size, 0.5 * (hi - lo) if np.isfinite(hi - lo) else size)
+    return c.with_scale(size)
