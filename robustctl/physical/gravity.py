@@ -305,7 +305,8 @@ def preload_iteration(
         change = float(np.abs(N_new - (0.0 if N is None else N)).max(initial=0.0))
         history.append(change)
         N = N_new
-        if change <= tol * max(float(np.abs(N).max(initial=0.0)), 1e-3 * weight):
+        scale = tol * max(float(np.abs(N).max(initial=0.0)), 1e-3 * weight)
+        if change <= scale or _stalled_at_rounding(history, scale):
             return _result(N, u, it, True, history, removed, f)
     if max_iter == 1:  # the one-step differential stiffness asked for: no convergence test
         return _result(N, u, 1, False, history, removed, f)
@@ -315,6 +316,25 @@ def preload_iteration(
         "or very flexible. Stiffen the compressed members, check the supports, or raise "
         "max_gravity_iterations."
     )
+
+
+#: A preload iteration whose force change stops falling within this factor of the tolerance
+#: has reached the rounding floor of its static solutions (:func:`_stalled_at_rounding`).
+STALL_FACTOR = 100.0
+
+
+def _stalled_at_rounding(history: list[float], scale: float) -> bool:
+    """True when the axial-force change has stopped falling (by 10 % or more a step) within
+    ``STALL_FACTOR`` of the tolerance ``scale`` (N).
+
+    The fixed point converges linearly until the changes reach the rounding level of the
+    static solutions (about ``cond(K) eps`` of the forces); there they flip between equal
+    values (the MACE bus: 9.9e-7, 9.9e-7, 4.9e-7 N against a tolerance of 1.0e-6 N, up to 50
+    iterations, or a "did not converge" error for a well-posed structure). A change that no
+    longer falls at that level is the attainable accuracy, not a sign of buckling, which
+    shows as changes that stay large or grow.
+    """
+    return len(history) >= 3 and history[-1] <= STALL_FACTOR * scale and history[-1] > 0.9 * history[-2]
 
 
 def _surviving_null_space(Kt, Z0, lam_ref) -> np.ndarray:
