@@ -240,9 +240,10 @@ def process_pool(workers: Any, n_tasks: int, min_tasks: int) -> Iterator[Process
 
     ``workers``: ``"auto"`` (the cores available, at most :data:`MAX_AUTO_WORKERS`; serial when
     that is one, when there are fewer than ``min_tasks`` tasks, when this process is itself a
-    worker, or when the platform cannot fork: starting a fresh interpreter costs seconds of
-    imports), a whole number (1 is serial), or None (serial). Workers are forked, so they start
-    with the caller's modules and warm caches (a program running robustctl in several threads at
+    worker, or off Linux (:func:`_fork_is_safe`): starting a fresh interpreter costs seconds of
+    imports), a whole number (1 is serial), or None (serial). On Linux workers are forked, so
+    they start with the caller's modules and warm caches (elsewhere the platform's default,
+    spawn, starts them) (a program running robustctl in several threads at
     once should pass 1: a fork copies only the calling thread). When the payload of
     :func:`parallel_map_shared` cannot be pickled, the work is done in this process with a
     RuntimeWarning.
@@ -256,11 +257,17 @@ def process_pool(workers: Any, n_tasks: int, min_tasks: int) -> Iterator[Process
     if n <= 1:
         yield None
         return
-    methods = multiprocessing.get_all_start_methods()
-    ctx = multiprocessing.get_context("fork" if "fork" in methods else None)
+    ctx = multiprocessing.get_context("fork" if _fork_is_safe() else None)  # else the platform's default
     with ProcessPoolExecutor(max_workers=n, mp_context=ctx) as pool:
         pool._robustctl_own = True  # parallel_map_shared may fall back to serial work on it
         yield pool
+
+
+def _fork_is_safe() -> bool:
+    """Forked workers for ``workers="auto"`` only on Linux: macOS offers fork, but its system
+    libraries (Accelerate, used by numpy there) are not fork-safe, which is why Python starts
+    processes by spawning there; Windows has no fork."""
+    return sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods()
 
 
 def resolve_workers(workers: Any, n_tasks: int, min_tasks: int) -> int:
@@ -268,7 +275,7 @@ def resolve_workers(workers: Any, n_tasks: int, min_tasks: int) -> int:
     if workers is None:
         return 1
     if isinstance(workers, str) and workers == "auto":
-        if (n_tasks < min_tasks or "fork" not in multiprocessing.get_all_start_methods()
+        if (n_tasks < min_tasks or not _fork_is_safe()
                 or multiprocessing.parent_process() is not None):  # already a worker: no pool in a pool
             return 1
         return min(available_cores(), n_tasks, MAX_AUTO_WORKERS)

@@ -227,3 +227,19 @@ def test_process_pool_carries_systems_with_lambdas():
     with ProcessPoolExecutor(2) as pool:
         out = parallel_map(dc_gain_times_scale, systems, pool, progress=False)
     assert [float(control.dcgain(s)) for s in out] == [3.0, 1.5, 0.75]
+
+
+def test_auto_workers_fork_only_on_linux(monkeypatch):
+    """macOS offers fork but its system libraries are not fork-safe: "auto" stays serial there
+    (and on Windows), and an explicit worker count uses the platform's default start method."""
+    import importlib
+
+    parallel = importlib.import_module("robustctl.parallel")
+    monkeypatch.setattr(parallel, "available_cores", lambda: 4)
+    monkeypatch.setattr(parallel.sys, "platform", "darwin")
+    assert parallel.resolve_workers("auto", 100, 10) == 1
+    assert parallel.resolve_workers(3, 100, 10) == 3
+    monkeypatch.setattr(parallel.sys, "platform", "linux")
+    expected = 4 if "fork" in parallel.multiprocessing.get_all_start_methods() else 1
+    assert parallel.resolve_workers("auto", 100, 10) == expected
+    assert parallel.resolve_workers("auto", 5, 10) == 1  # too few tasks
