@@ -257,7 +257,7 @@ def process_pool(workers: Any, n_tasks: int, min_tasks: int) -> Iterator[Process
     if n <= 1:
         yield None
         return
-    ctx = multiprocessing.get_context("fork" if _fork_is_safe() else None)  # else the platform's default
+    ctx = multiprocessing.get_context("fork" if _fork_is_safe() else "spawn")  # spawn: as on macOS, Windows
     with ProcessPoolExecutor(max_workers=n, mp_context=ctx) as pool:
         pool._robustctl_own = True  # parallel_map_shared may fall back to serial work on it
         yield pool
