@@ -221,48 +221,31 @@ def _lambda_max_3(M: np.ndarray) -> np.ndarray:
 
 # ---------------------------------------------------------------------------- lower bounds
 def _refine(
-    sigma: _SigmaMax,
-    lo: np.ndarray,
-    hi: np.ndarray,
-    n_grid: int = 33,
-    n_zoom: int = 3,
-    n_first: int = 17,
-    keep: int | None = None,
-    extra: np.ndarray | None = None,
+    sigma: _SigmaMax, lo: np.ndarray, hi: np.ndarray, n_grid: int = 33, n_zoom: int = 3, n_first: int = 17
 ) -> tuple[np.ndarray, np.ndarray]:
     """Local maxima of ``sigma_max`` in the bands ``[lo_k, hi_k]`` (rad/s), all bands at once.
 
-    A vectorised zoom search: ``n_first`` points per band, then (only for the ``keep`` bands
-    with the largest values, when given) the band shrinks to the two grid cells around its
-    best point and is sampled by ``n_grid`` points, ``n_zoom - 1`` times (by default a final
-    spacing of ``1/4096`` of the band), then one parabolic step through the best point and
-    its two neighbours (near a smooth peak the error of ``sigma_max`` is then about ``1e-14``
-    relative). Each round is one call of ``sigma``, whose cost at small orders is a fixed
-    overhead, hence few rounds of many points; the frequencies ``extra`` are evaluated with
-    the first round and count as one-point bands. Returns ``(sigma, w)``: the best value and
-    frequency per (kept) band.
+    A vectorised zoom search: ``n_first`` points per band, then the band shrinks to the two
+    grid cells around its best point and is sampled by ``n_grid`` points, ``n_zoom - 1``
+    times (by default a final spacing of ``1/4096`` of the band), then one parabolic step
+    through the best point and its two neighbours (near a smooth peak the error of
+    ``sigma_max`` is then about ``1e-14`` relative). Each round is one call of ``sigma``,
+    whose cost at small orders is a fixed overhead, hence few rounds of many points. Returns
+    ``(sigma, w)``: the best value and frequency per band.
     """
     lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
     best_s, best_w = np.full(lo.size, -np.inf), 0.5 * (lo + hi)
     rows = np.arange(lo.size)
     n_pts = n_first
-    for it in range(n_zoom):
+    for _ in range(n_zoom):
         w = lo[:, None] + (hi - lo)[:, None] * _unit_grid(n_pts)[None, :]
-        if it == 0 and extra is not None and extra.size:
-            s_all = sigma(np.concatenate([w.ravel(), extra]))
-            s, s_extra = s_all[: w.size].reshape(w.shape), s_all[w.size :]
-        else:
-            s = sigma(w.ravel()).reshape(w.shape)
+        s = sigma(w.ravel()).reshape(w.shape)
         k = np.argmax(s, axis=1)
         s_k = s[rows, k]
         better = s_k > best_s
         best_s[better], best_w[better] = s_k[better], w[rows[better], k[better]]
         step = (hi - lo) / (n_pts - 1)
         lo, hi = np.maximum(lo, best_w - step), np.minimum(hi, best_w + step)
-        if it == 0 and keep is not None and lo.size > keep and n_zoom > 1:
-            top = np.argpartition(best_s, lo.size - keep)[lo.size - keep :]
-            lo, hi, best_s, best_w = lo[top], hi[top], best_s[top], best_w[top]
-            rows = np.arange(keep)
         n_pts = n_grid
     inner = (k > 0) & (k < w.shape[1] - 1)
     if inner.any():  # parabola through the last grid's best point and its neighbours
@@ -276,8 +259,6 @@ def _refine(
         s_vertex = sigma(w_vertex)
         better = s_vertex > best_s[r]
         best_s[r[better]], best_w[r[better]] = s_vertex[better], w_vertex[better]
-    if extra is not None and extra.size:
-        best_s, best_w = np.concatenate([best_s, s_extra]), np.concatenate([best_w, extra])
     return best_s, best_w
 
 
