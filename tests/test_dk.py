@@ -177,6 +177,36 @@ def test_reduction_is_rechecked_by_mu():
         dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, reduce=0)
 
 
+def _mu_peak_of(P, K, blocks, f_hz):
+    """Peak of the mu upper bound of Fl(P, K) on ``f_hz``, computed afresh (inf: unstable loop)."""
+    from robustctl.robust.mu import mu
+
+    cl = closed_loop(P, K, 2, 2)
+    if np.max(np.linalg.eigvals(np.asarray(cl.A)).real) >= 0:
+        return np.inf
+    return mu(freqresp_array(cl, f_hz), as_block_structure(blocks), f_hz=f_hz).peak
+
+
+def test_automatic_reduction_finds_the_smallest_order_that_keeps_mu():
+    from robustctl.identify.balanced import balanced_truncation
+
+    P = distillation_plant()
+    dk = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=2, progress=False, reduce="auto")
+    r = dk.reduction
+    assert r is not None and r.accepted and r.order_after < r.order_before
+    assert dk.K.nstates == r.order_after
+    f = dk.mu.f_hz
+    # the kept controller's mu, recomputed independently, is what dksyn reports, within 2 % of the full one
+    assert _mu_peak_of(P, dk.K, BOOK_BLOCKS, f) == pytest.approx(dk.mu_peak, rel=1e-6)
+    assert dk.mu_peak <= r.mu_peak_before * 1.02
+    # and one state fewer breaks the 2 % rule (bisection ends next to a failing order)
+    full = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=2, progress=False)
+    smaller = balanced_truncation(full.K, r.order_after - 1).sys
+    assert _mu_peak_of(P, smaller, BOOK_BLOCKS, f) > r.mu_peak_before * 1.02
+    with pytest.raises(SynthesisError, match="auto"):
+        dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, reduce="smallest")
+
+
 # ---------------------------------------------------------------------------- Nyquist on data
 def _loop(L_sys):
     return lambda f: freqresp_array(L_sys, f)

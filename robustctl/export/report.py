@@ -85,13 +85,17 @@ class ExportReport:
             ("error evaluated at (Hz)", self.crossover_hz),
             ("relative discretisation error", self.discretization_error),
             ("coefficient dynamic range", self.dynamic_range),
-            (f"dynamic range after {self.balance or 'no'} balancing", self.dynamic_range_balanced),
+            (f"dynamic range {self._balance_phrase()}", self.dynamic_range_balanced),
             ("SOS channel (output <- input)", None if self.channel is None else " <- ".join(self.channel)),
             ("SOS max relative error", self.sos_error),
             ("gamma", self.gamma),
             ("mu peak", self.mu),
         ]
         return Table(("check", "value"), [r for r in rows if r[1] is not None], title="controller export")
+
+    def _balance_phrase(self) -> str:
+        return {"diagonal": "after diagonal balancing", "balanced": "in the balanced realisation"}.get(
+            self.balance or "", "without balancing")
 
     def summary(self) -> str:
         """One paragraph: what was written and whether it is safe to run."""
@@ -102,7 +106,7 @@ class ExportReport:
         )
         dr = f"; coefficient dynamic range {self.dynamic_range:.3g}"
         if self.dynamic_range_balanced is not None:
-            dr += f" -> {self.dynamic_range_balanced:.3g} after {self.balance} balancing"
+            dr += f" -> {self.dynamic_range_balanced:.3g} {self._balance_phrase()}"
         state = "stable" if self.stable else "UNSTABLE"
         return (
             f"{self.path.name}: {self.n_states}-state {self.n_outputs}x{self.n_inputs} controller at "

@@ -64,6 +64,12 @@ ORDER_D_DROP = 0
 #: Loose on purpose: on the distillation example 0.5 % (orders 4-8) stalled D-K at mu = 1.033,
 #: a fixed order 4 reproduced the book's 1.0189 and 5 % (orders 3-4) reached 1.010.
 ORDER_D_RTOL = 0.05
+#: A reduced controller is kept when the peak of mu rises by at most this fraction.
+REDUCE_MU_RTOL = 0.02
+#: ``reduce="auto"`` truncates at least the states whose Hankel singular value is below this
+#: fraction of the largest (numerically non-minimal: their truncation changes K by at most
+#: ``2 sum sigma_i``, below 1e-7 of its gain).
+HSV_RTOL = 1e-9
 #: Extrapolation steps ``beta`` of the D step's line search (module docstring); 0 is plain D-K.
 D_STEPS = (0.0, 0.5, 1.0)
 
@@ -700,7 +706,7 @@ def dksyn(
     f_hz: Any = None,
     executor: Executor | None = None,
     time_budget_s: float = 120.0,
-    reduce: int | None = None,
+    reduce: int | str | None = None,
     progress: bool | None = None,
     *,
     rtol: float = 1e-3,
@@ -732,9 +738,11 @@ def dksyn(
         Runs the D-scale fits (block x candidate order) in parallel.
     time_budget_s : float
         Wall-clock budget (s); the iteration stops (keeping the best controller) when spent.
-    reduce : int, optional
+    reduce : int or "auto", optional
         Reduce the final controller to this many states by balanced truncation and re-check
-        mu (kept only if it stabilises and raises the peak of mu by at most 2 %).
+        mu (kept only if it stabilises and raises the peak of mu by at most 2 %). ``"auto"``:
+        the smallest such order, by bisection (a few more mu analyses); what a real-time
+        implementation wants before :func:`~robustctl.export.export_controller`.
     progress : bool, optional
         tqdm bar over iterations (default: when stderr is a terminal).
     rtol : float
@@ -875,28 +883,83 @@ def _k_step(hinfsyn: Callable, scaled: Any, plant: _Plant, opts: dict, index: in
 
 
 def _reduce(plant: _Plant, blocks: BlockStructure, K: Any, cl: Any, m: Any, order: Any,
-            base: np.ndarray, refine: bool, mu_rtol: float = 0.02):
-    """Balanced truncation of the controller (Moore 1981; seed eq. 13), re-checked by mu."""
-    import control
+            base: np.ndarray, refine: bool, mu_rtol: float = REDUCE_MU_RTOL):
+    """Balanced truncation of the controller (Moore 1981; seed eq. 13), re-checked by mu.
 
+    ``order="auto"``: the smallest order whose truncation stabilises the loop and keeps the
+    peak of mu within ``mu_rtol`` of the full controller's, found by bisection over the
+    orders below the controller's numerically minimal order (Hankel singular values above
+    ``HSV_RTOL`` of the largest); at most ``ceil(log2 n) + 1`` mu analyses.
+    """
     from ..identify.balanced import balanced_truncation
 
-    if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or order < 1:
-        raise SynthesisError(f"reduce must be a positive number of controller states; got {order!r}.")
+    auto = isinstance(order, str) and order == "auto"
+    if not auto and (isinstance(order, bool) or not isinstance(order, (int, np.integer)) or order < 1):
+        raise SynthesisError(
+            f"reduce must be a positive number of controller states or 'auto'; got {order!r}."
+        )
     n = K.nstates
-    if order >= n:
+    if not auto and order >= n:
         return K, cl, m, Reduction(n, n, m.peak, m.peak, False, f"the controller has only {n} states")
     if not _is_stable(K):
-        return K, cl, m, Reduction(n, order, m.peak, np.inf, False,
+        return K, cl, m, Reduction(n, n if auto else order, m.peak, np.inf, False,
                                    "the controller is unstable (balanced truncation needs a stable one)")
-    bt = balanced_truncation(K, int(order))
-    Kr = control.ss(bt.sys.A, bt.sys.B, bt.sys.C, bt.sys.D, inputs=list(K.input_labels),
+    hsv = balanced_truncation(K, 1).hsv
+    tried: dict[int, tuple] = {}
+
+    def attempt(r: int) -> tuple:
+        if r not in tried:
+            tried[r] = _truncated_loop(plant, blocks, K, balanced_truncation(K, r).sys, m, base, refine,
+                                       mu_rtol)
+        return tried[r]
+
+    if not auto:
+        Kr, clr, mr, reason = attempt(int(order))
+        if reason:
+            return K, cl, m, Reduction(n, order, m.peak, mr.peak if mr is not None else np.inf, False, reason)
+        return Kr, clr, mr, Reduction(n, order, m.peak, mr.peak, True, "")
+    r = _auto_order(hsv, attempt)
+    if r is None:
+        return K, cl, m, Reduction(n, n, m.peak, m.peak, False, "no truncation kept mu within "
+                                   f"{100 * mu_rtol:g} % of the full controller's")
+    Kr, clr, mr, _ = attempt(r)
+    return Kr, clr, mr, Reduction(n, r, m.peak, mr.peak, True, "")
+
+
+def _auto_order(hsv: np.ndarray, attempt: Callable[[int], tuple]) -> int | None:
+    """Smallest order ``r`` with ``attempt(r)`` accepted, by bisection on ``[1, r_min]``, where
+    ``r_min`` counts the Hankel singular values above ``HSV_RTOL`` of the largest; orders that
+    would split (nearly) equal singular values move up by one. None when no order below the
+    controller's own passes."""
+    n = hsv.size
+    r_min = int(np.count_nonzero(hsv > HSV_RTOL * hsv[0]))
+    hi = n if r_min == n or attempt(r_min)[3] else r_min  # attempt(hi) succeeds (hi = n: K itself)
+    lo = 0  # attempt(lo) fails (lo = 0: no controller)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        while mid < hi and hsv[mid - 1] <= hsv[mid] * (1 + 1e-6):  # do not split a pair
+            mid += 1
+        if mid >= hi:
+            break
+        if attempt(mid)[3]:
+            lo = mid
+        else:
+            hi = mid
+    return hi if hi < n else None
+
+
+def _truncated_loop(plant: _Plant, blocks: BlockStructure, K: Any, reduced: Any, m: Any, base: np.ndarray,
+                    refine: bool, mu_rtol: float) -> tuple:
+    """``(Kr, closed loop, mu, reason)`` of a truncated controller; ``reason`` is empty when it
+    stabilises the plant and raises the peak of mu by at most ``mu_rtol``."""
+    import control
+
+    Kr = control.ss(reduced.A, reduced.B, reduced.C, reduced.D, inputs=list(K.input_labels),
                     outputs=list(K.output_labels))
     clr = closed_loop(plant.P, Kr, plant.nmeas, plant.ncon)
     if not _is_stable(clr):
-        return K, cl, m, Reduction(n, order, m.peak, np.inf, False, "the reduced loop is unstable")
+        return Kr, clr, None, "the reduced loop is unstable"
     mr, _ = _mu_of(clr, blocks, base, refine)
     if mr.peak > m.peak * (1 + mu_rtol):
-        return K, cl, m, Reduction(n, order, m.peak, mr.peak, False,
-                                   f"peak mu rose by more than {100 * mu_rtol:g} %")
-    return Kr, clr, mr, Reduction(n, order, m.peak, mr.peak, True, "")
+        return Kr, clr, mr, f"peak mu rose by more than {100 * mu_rtol:g} %"
+    return Kr, clr, mr, ""
