@@ -15,6 +15,7 @@ import numpy as np
 
 from .checks import check_seed, flag, integer, match_channels, positive_number
 from .errors import DataError, ModelError
+from .estimator import USER_WINDOW
 from .frd import FrequencyData
 from .threads import limit_blas
 
@@ -244,13 +245,15 @@ def estimate_frf(
         "fs_hz": fs,
         "nperseg": nperseg,
         "noverlap": noverlap,
-        "window": window if isinstance(window, (str, tuple)) else "user array",
+        "window": window if isinstance(window, (str, tuple)) else USER_WINDOW,
         "detrend": bool(detrend),
         "n_averages": n_avg,
         "n_inputs": n_in,
         "n_samples": int(u.shape[0]),
         "resolution_hz": fs / nperseg,
     }
+    if not isinstance(window, (str, tuple)):
+        meta["window_values"] = win.tolist()  # so the estimator's view of a model can be formed
     data = FrequencyData(f, H, inputs=names_in, outputs=outputs, coherence=coh, meta=meta)
     return data.replace(units=_check_units(units, data))
 

@@ -85,3 +85,48 @@ def test_mat_v4_and_v73_files_are_told_to_be_resaved(tmp_path):
     (tmp_path / "v73.mat").write_bytes(bytes(header) + b"\x89HDF\r\n\x1a\n" + bytes(600))
     with pytest.raises(DataError, match=r"not v7.3/HDF5.*save\(name, '-v7'\)"):
         rc.load_frd(tmp_path / "v73.mat")
+
+
+# ---------------------------------------------------------------------------- recorded estimator settings
+@pytest.fixture(scope="module")
+def welch():
+    import control
+
+    sys = control.ss([[0.0, 1.0], [-(2 * np.pi * 5) ** 2, -3.0]], [[0.0], [1.0]], [[1.0, 0.0]], [[0.0]])
+    u, y = rc.simulate_experiment(sys, n_samples=8192, seed=0)
+    return sys, u, y, rc.estimate_frf(u, y, fs=200.0, nperseg=512)
+
+
+@pytest.mark.parametrize(
+    "key, value, phrase",
+    [
+        ("nperseg", 10**9, r"data.meta\['nperseg'\] = 1000000000 .*\[2, 4194304\]"),  # was a hang
+        ("fs_hz", 0, r"data.meta\['fs_hz'\] = 0 .* positive, finite sampling"),  # ZeroDivisionError
+        ("fs_hz", float("nan"), r"data.meta\['fs_hz'\] = nan"),  # "every channel has zero weight"
+        ("noverlap", 10**6, r"data.meta\['noverlap'\] = 1000000 .* \[0, 511\]"),  # IndexError
+        ("noverlap", "a", r"data.meta\['noverlap'\] = 'a'"),  # ValueError from int()
+        ("nperseg", 512.7, r"data.meta\['nperseg'\] = 512.7"),  # silently truncated to 512
+        ("window", 5, r"data.meta\['window'\] = 5 .*get_window"),  # silently ignored the estimator
+        ("window", "bogus", r"data.meta\['window'\] = 'bogus'"),
+    ],
+)
+def test_damaged_estimator_settings_in_meta_are_refused_naming_the_key(welch, key, value, phrase):
+    sys, _, _, data = welch
+    bad = data.replace(meta={**data.meta, key: value})
+    with pytest.raises(DataError, match=phrase):
+        rc.compare(sys, bad)
+
+
+def test_estimate_with_a_window_array_is_seen_through_that_window(welch):
+    # the meta said window "user array" and compare() failed with "unknown window 'user array'"
+    sys, u, y, _ = welch
+    arr = rc.estimate_frf(u, y, fs=200.0, nperseg=512, window=np.hanning(512) + 0.0)
+    named = rc.estimate_frf(u, y, fs=200.0, nperseg=512, window=("general_hamming", 0.5))
+    assert arr.meta["window"] == "user array" and len(arr.meta["window_values"]) == 512
+    from robustctl.estimator import estimator_settings
+
+    assert estimator_settings(arr.meta).describe() == "512-pt user array at 200 Hz"
+    # np.hanning(512) is the symmetric Hann window, general_hamming(0.5) the periodic one: close, not equal
+    assert rc.compare(sys, arr).cost == pytest.approx(rc.compare(sys, named).cost, rel=1e-3)
+    assert rc.compare(sys, arr).cost != pytest.approx(rc.compare(sys, arr, estimator=False).cost, rel=1e-2)
+    assert np.isfinite(rc.noise_model(arr).sigma).all()
