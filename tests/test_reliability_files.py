@@ -130,3 +130,57 @@ def test_estimate_with_a_window_array_is_seen_through_that_window(welch):
     assert rc.compare(sys, arr).cost == pytest.approx(rc.compare(sys, named).cost, rel=1e-3)
     assert rc.compare(sys, arr).cost != pytest.approx(rc.compare(sys, arr, estimator=False).cost, rel=1e-2)
     assert np.isfinite(rc.noise_model(arr).sigma).all()
+
+
+# ---------------------------------------------------------------------------- CSV files
+_H = "f_hz,output,input,re,im\n"
+_ROWS = "1.0,y,u,0.5,-0.25\n2.0,y,u,1.5,0.75\n"
+
+
+@pytest.mark.parametrize(
+    "raw",
+    [
+        ("\ufeff" + _H + _ROWS).encode(),  # Excel's "CSV UTF-8": a byte-order mark (was a header error)
+        ("\ufeff" + _H + _ROWS).replace("\n", "\r\n").encode(),
+        (_H + _ROWS).replace("\n", "\r").encode(),  # classic Mac line ends (was "truncated")
+        ("F_Hz,Output,Input,Re,Im\n" + _ROWS).encode(),
+    ],
+    ids=["bom", "bom-crlf", "cr-only", "capitalised-header"],
+)
+def test_csv_from_spreadsheets_reads_exactly(tmp_path, raw):
+    (tmp_path / "x.csv").write_bytes(raw)
+    data = rc.load_frd(tmp_path / "x.csv")
+    np.testing.assert_array_equal(data.f_hz, [1.0, 2.0])
+    np.testing.assert_array_equal(data.response[:, 0, 0], [0.5 - 0.25j, 1.5 + 0.75j])
+
+
+def test_robustctl_csv_with_a_bom_keeps_its_completeness_check(tmp_path):
+    data = rc.FrequencyData([1.0, 2.5], [1 + 2j, 3 - 4j], coherence=[0.25, 1.0])
+    raw = data.save(tmp_path / "a.csv").read_bytes()
+    (tmp_path / "b.csv").write_bytes(b"\xef\xbb\xbf" + raw)
+    back = rc.load_frd(tmp_path / "b.csv")
+    np.testing.assert_array_equal(back.response, data.response)
+    (tmp_path / "c.csv").write_bytes(b"\xef\xbb\xbf" + raw[: raw.rindex(b"# end")])
+    with pytest.raises(DataError, match="truncated"):
+        rc.load_frd(tmp_path / "c.csv")
+
+
+@pytest.mark.parametrize(
+    "raw, phrase",
+    [
+        (b"f_hz;output;input;re;im\n1,0;y;u;1,5;0,2\n", "separated by semicolons"),
+        (b"f_hz\toutput\tinput\tre\tim\n1.0\ty\tu\t1\t0\n", "separated by tabs"),
+        (_H.encode() + b'"1,5",y,u,1,0\n', r"f_hz '1,5' is not a number. It has a decimal comma"),
+        (_H.encode() + b"1.0,y,u,1+2j,0\n", "It is a complex number; write its real and imaginary"),
+        (b"f_hz,output,input,response\n1.0,y,u,(1+2j)\n", "Complex values go in two columns, re and im"),
+        (_ROWS.encode(), "The first line holds data; add the column header line f_hz,output,input,re,im"),
+        ((_H + "1.0,y\u00e9,u,1,0\n").encode("latin-1"), r"not UTF-8 text \(byte 0xe9 .*save it with UTF-8"),
+        ((_H + _ROWS).encode("utf-16"), "UTF-16 text"),
+    ],
+    ids=["semicolons", "tabs", "decimal-comma", "complex-string", "complex-column", "no-header", "latin-1",
+         "utf-16"],
+)
+def test_csv_in_other_conventions_is_refused_with_the_fix(tmp_path, raw, phrase):
+    (tmp_path / "x.csv").write_bytes(raw)
+    with pytest.raises(DataError, match=phrase):
+        rc.load_frd(tmp_path / "x.csv")
