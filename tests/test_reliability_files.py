@@ -184,3 +184,52 @@ def test_csv_in_other_conventions_is_refused_with_the_fix(tmp_path, raw, phrase)
     (tmp_path / "x.csv").write_bytes(raw)
     with pytest.raises(DataError, match=phrase):
         rc.load_frd(tmp_path / "x.csv")
+
+
+# ---------------------------------------------------------------------------- UFF and npz files
+def _uff58(path, records):
+    import pyuff
+
+    sets = []
+    for out, inp, x, ord_unit, den_unit in records:
+        sets.append(pyuff.prepare_58(
+            binary=0, func_type=4, rsp_node=out, rsp_dir=3, ref_node=inp, ref_dir=3,
+            data=(1 + 1j) * np.ones(len(x)), x=x, abscissa_spacing=0, abscissa_spec_data_type=18,
+            abscissa_axis_units_lab="Hz", ordinate_spec_data_type=0, ordinate_axis_units_lab=ord_unit,
+            orddenom_spec_data_type=0, orddenom_axis_units_lab=den_unit, z_axis_spec_data_type=0,
+            id1="test", id2="frf", id3="NONE", id4="NONE", id5="NONE",
+        ))
+    pyuff.UFF(str(path)).write_sets(sets, mode="add")
+    return path
+
+
+def test_uff_with_one_signal_in_two_units_is_refused_not_mixed(tmp_path):
+    # output 1 in m/s^2 against input 2 but in g against input 3: the columns were loaded side by side
+    f = np.linspace(1.0, 10.0, 10)
+    path = _uff58(tmp_path / "m.uff", [(1, 2, f, "m/s^2", "N"), (1, 3, f, "g", "N")])
+    with pytest.raises(DataError, match=r"signal '1:3' is in 'm/s\^2' in one FRF record and in 'g'"):
+        rc.load_frd(path)
+    path = _uff58(tmp_path / "ok.uff", [(1, 2, f, "m/s^2", "N"), (4, 2, f, "m/s^2", "N")])
+    assert rc.load_frd(path).units == {"1:3": "m/s^2", "2:3": "N", "4:3": "m/s^2"}
+
+
+def test_uff_grids_of_equal_length_name_the_difference(tmp_path):
+    f = np.linspace(1.0, 10.0, 10)
+    path = _uff58(tmp_path / "g.uff", [(1, 2, f, "m", "N"), (1, 3, f * 1.0001, "m", "N")])
+    with pytest.raises(DataError, match=r"different frequency axis .*largest difference 0.001 Hz"):
+        rc.load_frd(path)
+
+
+def test_npz_of_a_newer_format_version_is_refused(tmp_path):
+    rc.FrequencyData(F3, G3).save(tmp_path / "a.npz")
+    arrays = dict(np.load(tmp_path / "a.npz"))
+    arrays["version"] = np.array(2)
+    np.savez(tmp_path / "b.npz", **arrays)
+    with pytest.raises(DataError, match="format version 2; this robustctl reads version 1"):
+        rc.load_frd(tmp_path / "b.npz")
+
+
+def test_npz_of_a_users_own_arrays_says_how_to_load_them(tmp_path):
+    np.savez(tmp_path / "mine.npz", f_hz=F3, response=G3)
+    with pytest.raises(DataError, match=r"build rc.FrequencyData\(f_hz, response"):
+        rc.load_frd(tmp_path / "mine.npz")
