@@ -233,3 +233,46 @@ def test_npz_of_a_users_own_arrays_says_how_to_load_them(tmp_path):
     np.savez(tmp_path / "mine.npz", f_hz=F3, response=G3)
     with pytest.raises(DataError, match=r"build rc.FrequencyData\(f_hz, response"):
         rc.load_frd(tmp_path / "mine.npz")
+
+
+# ---------------------------------------------------------------------------- time records
+@pytest.fixture(scope="module")
+def record():
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(4096)
+    return u, np.convolve(u, [1.0, 0.5, 0.2])[: u.size]
+
+
+@pytest.mark.parametrize("y_kind", ["zero", "constant"])
+def test_dead_output_is_refused_not_estimated_as_zero(record, y_kind):
+    # a disconnected sensor gave H = 0 and coherence 0 without a word
+    u, y = record
+    dead = np.zeros_like(y) if y_kind == "zero" else np.full_like(y, 3.0)
+    with pytest.raises(DataError, match="output 'acc2' carries no signal .*is the sensor connected"):
+        rc.estimate_frf(u, np.c_[y, dead], fs=100.0, nperseg=256, outputs=["acc1", "acc2"])
+
+
+def test_tiny_input_is_told_to_rescale_not_called_all_zero(record):
+    u, y = record
+    with pytest.raises(DataError, match=r"u channel 0 peaks at .* below 1e-100.*Rescale"):
+        rc.estimate_frf(u * 1e-200, y, fs=100.0, nperseg=256)
+
+
+@pytest.mark.parametrize(
+    "window, phrase",
+    [
+        (np.r_[np.nan, np.ones(255)], "the window array holds 1 NaN or inf values"),  # said "got 256"
+        (np.zeros(256), "the window array is all zero"),  # said "input 'u1' carries no signal"
+        ({"a": 1}, r"window must be a scipy.signal.get_window name .*got \{'a': 1\}"),
+        (np.ones(100), "must hold nperseg = 256 values; got 100"),
+    ],
+)
+def test_bad_window_array_is_named(record, window, phrase):
+    u, y = record
+    with pytest.raises(DataError, match=phrase):
+        rc.estimate_frf(u, y, fs=100.0, nperseg=256, window=window)
+
+
+def test_empty_record_is_called_empty(record):
+    with pytest.raises(DataError, match=r"u is empty \(no samples\)"):
+        rc.estimate_frf([], [], fs=100.0)
