@@ -276,3 +276,48 @@ def test_bad_window_array_is_named(record, window, phrase):
 def test_empty_record_is_called_empty(record):
     with pytest.raises(DataError, match=r"u is empty \(no samples\)"):
         rc.estimate_frf([], [], fs=100.0)
+
+
+# ---------------------------------------------------------------------------- export, command line, design
+def test_export_of_coefficients_beyond_the_float_range_is_refused(tmp_path):
+    import control
+
+    K = control.ss([[-1.0]], [[1e-310]], [[1.0]], [[0.0]])  # was ValueError from json: inf dynamic range
+    with pytest.raises(rc.ModelError, match="more than the float64 range; the smallest are numerical noise"):
+        rc.export_controller(K, tmp_path / "k.json", fs=100.0)
+    assert not (tmp_path / "k.json").exists()
+    small = control.ss([[-1.0]], [[1e-300]], [[1.0]], [[0.0]])
+    report = rc.export_controller(small, tmp_path / "ok.json", fs=100.0)
+    assert np.isfinite(report.dynamic_range) and report.dynamic_range > 1e299
+
+
+def test_cli_export_onto_its_own_source_is_refused_and_leaves_it(tmp_path, capsys):
+    import control
+
+    from robustctl.cli import main
+
+    rc.export_controller(control.ss([[-1.0]], [[1.0]], [[1.0]], [[0.5]]), tmp_path / "k.json", fs=100.0,
+                         provenance={"project": "truss"})
+    before = (tmp_path / "k.json").read_bytes()
+    for target in ("k.json", "./k.json"):
+        assert main(["export", str(tmp_path / "k.json"), str(tmp_path / target), "--overwrite"]) == 2
+        assert "is the SOURCE file" in capsys.readouterr().err
+    assert (tmp_path / "k.json").read_bytes() == before
+
+
+def test_report_folder_under_a_file_is_a_one_line_error(tmp_path):
+    from robustctl.errors import RobustctlError
+    from robustctl.report import Report
+
+    (tmp_path / "notes.txt").write_text("mine")
+    with pytest.raises(RobustctlError, match="cannot make the report folder .*Not a directory"):
+        Report(tmp_path / "notes.txt" / "sub")  # was NotADirectoryError from mkdir
+    assert (tmp_path / "notes.txt").read_text() == "mine"
+
+
+def test_mixed_sensitivity_refuses_a_discrete_plant_like_generalized_plant():
+    import control
+
+    Gd = control.c2d(control.ss([[0.0, 1.0], [-39.5, -0.5]], [[0.0], [1.0]], [[1.0, 0.0]], [[0.0]]), 0.01)
+    with pytest.raises(rc.ModelError, match=r"G is discrete-time \(dt=0.01\)"):
+        rc.mixed_sensitivity(Gd, 1.0)
