@@ -321,3 +321,20 @@ def test_mixed_sensitivity_refuses_a_discrete_plant_like_generalized_plant():
     Gd = control.c2d(control.ss([[0.0, 1.0], [-39.5, -0.5]], [[0.0], [1.0]], [[1.0, 0.0]], [[0.0]]), 0.01)
     with pytest.raises(rc.ModelError, match=r"G is discrete-time \(dt=0.01\)"):
         rc.mixed_sensitivity(Gd, 1.0)
+
+
+@pytest.mark.parametrize(
+    "ts, phrase",
+    [
+        (None, "the MAT file has no Ts; add Ts = 0 for a continuous controller"),  # was read as continuous
+        (-1.0, r"Ts = -1 \(MATLAB's unspecified sampling time\)"),
+        ("abc", "Ts must be a number"),  # was ValueError from numpy
+    ],
+)
+def test_users_controller_mat_file_needs_a_real_sampling_time(tmp_path, ts, phrase):
+    mdict = dict(A=[[0.5]], B=[[1.0]], C=[[1.0]], D=[[0.0]])
+    if ts is not None:
+        mdict["Ts"] = ts
+    savemat(tmp_path / "K.mat", mdict)
+    with pytest.raises(DataError, match=phrase):
+        rc.load_controller(tmp_path / "K.mat")
