@@ -193,8 +193,15 @@ def _run_identify(args: argparse.Namespace) -> Path:
 
 
 def _run_export(args: argparse.Namespace) -> Path:
+    from .cli_inputs import CommandLineError
     from .export import export_controller, load_controller
 
+    source, target = Path(args.source), Path(args.target)
+    if source.exists() and target.exists() and source.samefile(target):
+        raise CommandLineError(
+            f"TARGET {args.target!r} is the SOURCE file; writing it would replace the original (its design "
+            "figures and provenance). Write to another file name."
+        )
     report = export_controller(
         load_controller(args.source),
         args.target,

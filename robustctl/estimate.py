@@ -15,6 +15,7 @@ import numpy as np
 
 from .checks import check_seed, flag, integer, match_channels, positive_number
 from .errors import DataError, ModelError
+from .estimator import USER_WINDOW
 from .frd import FrequencyData
 from .threads import limit_blas
 
@@ -40,6 +41,8 @@ def advised_nperseg(n_samples: int, min_averages: int = MIN_AVERAGES, longest: i
 # ---------------------------------------------------------------------------- helpers
 #: Largest signal magnitude: squares summed over a window stay far below the float64 limit.
 _MAX_SIGNAL = 1e100
+#: Smallest peak of a non-zero signal: its squares stay far above the float64 underflow.
+_MIN_SIGNAL = 1e-100
 
 
 def _as_signals(x: Any, name: str) -> np.ndarray:
@@ -50,6 +53,8 @@ def _as_signals(x: Any, name: str) -> np.ndarray:
     if np.iscomplexobj(arr):
         raise DataError(f"{name} is complex; time signals must be real.")
     arr = arr.astype(float)
+    if arr.size == 0:
+        raise DataError(f"{name} is empty (no samples); pass the recorded time signal.")
     if arr.ndim == 1:
         arr = arr[:, None]
     if arr.ndim != 2:
@@ -68,6 +73,13 @@ def _as_signals(x: Any, name: str) -> np.ndarray:
             f"{name} reaches {peak:.3g}; its spectra (squares summed over a window) would overflow "
             f"beyond {_MAX_SIGNAL:g}. Rescale the record (other units) to magnitudes near 1."
         )
+    tiny = [k for k in range(arr.shape[1]) if 0 < np.max(np.abs(arr[:, k])) < _MIN_SIGNAL]
+    if tiny:
+        raise DataError(
+            f"{name} channel {tiny[0]} peaks at {np.max(np.abs(arr[:, tiny[0]])):.3g}, below "
+            f"{_MIN_SIGNAL:g}: its spectra would underflow to zero. Rescale the record (other units) to "
+            "magnitudes near 1."
+        )
     return arr
 
 
@@ -79,9 +91,19 @@ def _window(window: Any, nperseg: int) -> np.ndarray:
             return get_window(window, nperseg, fftbins=True)
         except ValueError as exc:
             raise DataError(f"unknown window {window!r}: {exc}. Use e.g. 'hamming' or 'hann'.") from exc
-    win = np.asarray(window, dtype=float).reshape(-1)
-    if win.size != nperseg or not np.all(np.isfinite(win)):
-        raise DataError(f"a window array must hold {nperseg} finite values (nperseg); got {win.size}.")
+    try:
+        win = np.asarray(window, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise DataError(
+            f"window must be a scipy.signal.get_window name (e.g. 'hamming'), a (name, parameter) tuple or "
+            f"an array of nperseg = {nperseg} weights; got {window!r}."
+        ) from None
+    if win.size != nperseg:
+        raise DataError(f"a window array must hold nperseg = {nperseg} values; got {win.size}.")
+    if not np.all(np.isfinite(win)):
+        raise DataError(f"the window array holds {int(np.sum(~np.isfinite(win)))} NaN or inf values.")
+    if not np.any(win):
+        raise DataError("the window array is all zero; it would hide every sample.")
     return win
 
 
@@ -131,7 +153,10 @@ def _check_input_power(guu: np.ndarray, f: np.ndarray, inputs: tuple[str, ...]) 
     scale = diag.max(axis=0)
     for k, name in enumerate(inputs):
         if scale[k] <= 0:
-            raise DataError(f"input {name!r} carries no signal (all zero); drop it or excite it.")
+            raise DataError(
+                f"input {name!r} carries no signal (all zero, or constant: each segment's mean is removed); "
+                "drop it or excite it."
+            )
     dn = 1.0 / np.sqrt(np.maximum(diag, 1e-300 * scale))
     corr = guu * dn[:, :, None] * dn[:, None, :]
     lam_min = np.linalg.eigvalsh(corr)[:, 0] if len(inputs) > 1 else np.real(corr[:, 0, 0])
@@ -232,6 +257,14 @@ def estimate_frf(
     gyy = np.einsum("kfo,kfo->fo", Y, Y.conj()).real / n_avg
     names_in = FrequencyData(f[:1], np.ones((1, 1, n_in)), inputs=inputs).inputs
     _check_input_power(guu, f, names_in)
+    silent = np.flatnonzero(gyy.max(axis=0) <= 0)
+    if silent.size:
+        names_out = FrequencyData(f[:1], np.ones((1, y.shape[1], 1)), outputs=outputs).outputs
+        raise DataError(
+            f"output {names_out[silent[0]]!r} carries no signal (all zero, or constant: each segment's mean "
+            "is removed), so its estimate would be 0 with coherence 0; is the sensor connected? Drop the "
+            "channel or check the recording."
+        )
     # H guu = gyu  <=>  guu^T H^T = gyu^T
     H = np.linalg.solve(np.transpose(guu, (0, 2, 1)), np.transpose(gyu, (0, 2, 1))).transpose(0, 2, 1)
     explained = np.einsum("foi,foi->fo", H, gyu.conj()).real
@@ -244,13 +277,15 @@ def estimate_frf(
         "fs_hz": fs,
         "nperseg": nperseg,
         "noverlap": noverlap,
-        "window": window if isinstance(window, (str, tuple)) else "user array",
+        "window": window if isinstance(window, (str, tuple)) else USER_WINDOW,
         "detrend": bool(detrend),
         "n_averages": n_avg,
         "n_inputs": n_in,
         "n_samples": int(u.shape[0]),
         "resolution_hz": fs / nperseg,
     }
+    if not isinstance(window, (str, tuple)):
+        meta["window_values"] = win.tolist()  # so the estimator's view of a model can be formed
     data = FrequencyData(f, H, inputs=names_in, outputs=outputs, coherence=coh, meta=meta)
     return data.replace(units=_check_units(units, data))
 

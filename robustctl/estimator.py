@@ -43,6 +43,8 @@ __all__ = [
     "resolve_estimator",
     "split_hold",
     "model_view",
+    "welch_window",
+    "MAX_NPERSEG",
 ]
 
 #: tag of the zero-order-hold stage (:func:`robustctl.physical.electronics.zero_order_hold_stage`)
@@ -76,6 +78,8 @@ class EstimatorSettings(tuple):
     def describe(self) -> str:
         """``"4096-pt hamming at 200 Hz"``."""
         win = self.window if isinstance(self.window, str) else str(self.window)
+        if isinstance(self.window, tuple) and self.window and self.window[0] == USER_WINDOW:
+            win = USER_WINDOW
         return f"{self.nperseg}-pt {win} at {self.fs_hz:g} Hz"
 
 
@@ -98,16 +102,80 @@ def estimator_settings(meta: Mapping[str, Any] | None) -> EstimatorSettings | No
             return None
         one = found.pop()
         return EstimatorSettings(tuple(one), one.noverlap, hold or one.hold_divided)
-    try:
-        fs, n, win = float(meta["fs_hz"]), int(meta["nperseg"]), meta["window"]
-    except (KeyError, TypeError, ValueError):
-        return None
+    if not all(key in meta for key in ("fs_hz", "nperseg", "window")):
+        return None  # not a Welch estimate's record (a user's file, an impact test ...)
+    fs = _recorded_fs(meta["fs_hz"])
+    window, n, nov = welch_window(meta)
+    return EstimatorSettings((fs, n, window), nov, hold)
+
+
+#: Longest Welch window accepted from recorded settings (samples): the estimator's view of a
+#: model costs a few FFTs of twice this length, so a damaged ``nperseg`` cannot exhaust memory.
+MAX_NPERSEG = 2**22
+#: ``meta["window"]`` of an estimate made with a window array; its values are in ``window_values``.
+USER_WINDOW = "user array"
+
+
+def _settings_error(key: str, value: Any, want: str) -> DataError:
+    return DataError(
+        f"data.meta[{key!r}] = {value!r} is not a usable H1 estimator setting ({want}); the record is "
+        "damaged. Repair or remove the key (data.replace(meta=...)): data without fs_hz, nperseg and "
+        "window are used without the estimator's view."
+    )
+
+
+def _recorded_int(value: Any, key: str, lo: int, hi: int) -> int:
+    ok = isinstance(value, (int, np.integer)) or (isinstance(value, float) and value.is_integer())
+    if not ok or isinstance(value, (bool, np.bool_)) or not lo <= value <= hi:
+        raise _settings_error(key, value, f"an integer in [{lo}, {hi}]")
+    return int(value)
+
+
+def _recorded_fs(value: Any) -> float:
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    if not ok or not (np.isfinite(value) and value > 0):
+        raise _settings_error("fs_hz", value, "a positive, finite sampling frequency in Hz")
+    return float(value)
+
+
+def welch_window(meta: Mapping[str, Any]) -> tuple[Any, int, int | None]:
+    """``(window, nperseg, noverlap or None)`` recorded in ``meta``, checked.
+
+    The window is a ``scipy.signal.get_window`` spec (a name or a tuple), or for an estimate
+    made with a window array ``("user array", w_0, ..., w_{N-1})`` from ``meta["window_values"]``.
+
+    Raises
+    ------
+    DataError
+        A value that no estimate could have recorded (a damaged or hand-edited record), naming
+        the key; or a window array whose values were not recorded.
+    """
+    n = _recorded_int(meta["nperseg"], "nperseg", 2, MAX_NPERSEG)
+    nov = meta.get("noverlap")
+    if nov is not None:
+        nov = _recorded_int(nov, "noverlap", 0, n - 1)
+    win = meta["window"]
     if isinstance(win, list):
         win = tuple(win)
-    if not isinstance(win, (str, tuple)):
-        return None
-    nov = meta.get("noverlap")
-    return EstimatorSettings((fs, n, win), None if nov is None else int(nov), hold)
+    if win == USER_WINDOW:
+        values = meta.get("window_values")
+        try:
+            arr = np.asarray(values, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            arr = np.zeros(0)
+        if values is None or arr.size != n or not np.all(np.isfinite(arr)):
+            raise _settings_error(
+                "window", win, f"a window array needs its {n} values in data.meta['window_values']"
+            )
+        return (USER_WINDOW, *arr.tolist()), n, nov
+    named = isinstance(win, str) or (isinstance(win, tuple) and bool(win) and isinstance(win[0], str))
+    if not named:
+        raise _settings_error("window", win, "a scipy.signal.get_window name or (name, parameter) tuple")
+    try:
+        _window(win, n)
+    except DataError as exc:
+        raise _settings_error("window", win, f"a scipy.signal.get_window spec; {exc}") from None
+    return win, n, nov
 
 
 def hold_response(f_hz: Any, fs: float) -> np.ndarray:
@@ -123,6 +191,11 @@ def hold_response(f_hz: Any, fs: float) -> np.ndarray:
 def _window(window: Any, n: int) -> np.ndarray:
     from scipy.signal import get_window
 
+    if isinstance(window, tuple) and window and window[0] == USER_WINDOW:
+        values = np.asarray(window[1:], dtype=float)
+        if values.size != n:
+            raise DataError(f"the recorded window array has {values.size} values, not nperseg = {n}.")
+        return values
     try:
         return get_window(window, n, fftbins=True)
     except (ValueError, TypeError) as exc:

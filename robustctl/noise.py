@@ -43,7 +43,7 @@ import numpy as np
 
 from .checks import as_frequency_data, neighbour_coherence
 from .errors import DataError
-from .estimator import bin_correlation, effective_averages, estimator_settings
+from .estimator import bin_correlation, effective_averages, estimator_settings, welch_window
 
 __all__ = [
     "NoiseModel", "noise_model", "averages_of", "neighbour_coherence", "NO_NOISE_SENTENCE", "chi2_verdict",
@@ -199,10 +199,9 @@ def averages_of(data: Any) -> np.ndarray | None:
         except (KeyError, TypeError, ValueError):
             return None
         nd = float(k)
-        welch = all(key in m for key in ("nperseg", "noverlap", "window"))
-        if welch and isinstance(m["window"], (str, list, tuple)):
-            win = tuple(m["window"]) if isinstance(m["window"], list) else m["window"]
-            nd = effective_averages(k, win, int(m["nperseg"]), int(m["noverlap"]))
+        if all(key in m for key in ("nperseg", "noverlap", "window")):
+            win, nperseg, noverlap = welch_window(m)  # checked: a damaged record is refused, named
+            nd = effective_averages(k, win, nperseg, noverlap)
         q = int(m.get("n_inputs", 1))
         out.append(max(nd - q + 1, 1.0))
     return np.asarray(out)

@@ -85,8 +85,14 @@ class Report:
                     f"{self.folder} already holds files that robustctl did not write; "
                     "choose an empty or new folder for the report."
                 )
-        self.folder.mkdir(parents=True, exist_ok=True)
-        (self.folder / _MARKER).write_text("written by robustctl; safe to delete\n")
+        try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            (self.folder / _MARKER).write_text("written by robustctl; safe to delete\n")
+        except OSError as exc:  # a file on the way, no permission, full disk
+            raise RobustctlError(
+                f"cannot make the report folder {str(self.folder)!r}: {exc.strerror or exc}; choose another "
+                "--out (a new folder in a writable place)."
+            ) from None
 
     def heading(self, text: str) -> None:
         self._parts.append(f"<h2>{html.escape(text)}</h2>")
@@ -128,6 +134,12 @@ class Report:
             "</body></html>\n"
         )
         path = self.folder / "report.html"
-        path.write_text(page, encoding="utf-8")
-        (self.folder / "summary.json").write_text(json.dumps(self._summary, indent=2, default=float))
+        try:
+            path.write_text(page, encoding="utf-8")
+            (self.folder / "summary.json").write_text(json.dumps(self._summary, indent=2, default=float))
+        except OSError as exc:
+            raise RobustctlError(
+                f"cannot write the report into {str(self.folder)!r}: {exc.strerror or exc}; free some space "
+                "or choose another --out."
+            ) from None
         return path

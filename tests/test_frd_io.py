@@ -250,7 +250,7 @@ def test_corrupt_or_mismatched_mat(tmp_path):
         rc.load_frd(tmp_path / "a.mat")
     savemat(tmp_path / "b.mat", {"Frequency": [1.0, 2.0], "FrequencyUnit": "Hz",
                                  "ResponseData": np.ones((1, 1, 3))})
-    with pytest.raises(DataError, match=r"ResponseData holds 3 values but .* need shape \(1, 1, 2\)"):
+    with pytest.raises(DataError, match=r"ResponseData has shape \(1, 1, 3\) but .* need \(1, 1, 2\)"):
         rc.load_frd(tmp_path / "b.mat")
     savemat(tmp_path / "c.mat", {"Frequency": [1.0, 2.0], "FrequencyUnit": "kHz", "ResponseData": np.ones(2)})
     with pytest.raises(DataError, match="FrequencyUnit 'khz' is not supported"):

@@ -176,6 +176,7 @@ def export_controller(
             RuntimeWarning,
             stacklevel=2,
         )
+    _finite_range(Kd, mats)
     checks = {
         "spectral_radius": rho,
         "stable": rho < MAX_SPECTRAL_RADIUS,
@@ -220,6 +221,19 @@ def export_controller(
         mu=design.get("mu"),
         controller=ctrl.statespace(),
     )
+
+
+def _finite_range(Kd: Any, mats: list[np.ndarray]) -> None:
+    """Refuse coefficients whose largest-to-smallest ratio overflows float64 (e.g. a 1e-310 entry):
+    no file could state their dynamic range, and no real-time computer could use the smallest."""
+    values = np.abs(np.concatenate([np.asarray(m, float).ravel() for m in (Kd.A, Kd.B, Kd.C, Kd.D, *mats)]))
+    values = values[values > 0]
+    if values.size and not np.isfinite(dynamic_range(values)):
+        raise ModelError(
+            f"the controller's coefficients span {values.min():.3g} to {values.max():.3g}, more than the "
+            "float64 range; the smallest are numerical noise: set them to zero (or rescale the signals) "
+            "before exporting."
+        )
 
 
 def _format_options(fmt: str, channel: Any, prefix: Any) -> None:

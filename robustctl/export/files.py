@@ -360,9 +360,22 @@ def read_mat(path: Path) -> ControllerData:
     mats = {
         k: _mat_matrix(mdict, k, s) for k, s in (("A", (n, n)), ("B", (n, m)), ("C", (p, n)), ("D", (p, m)))
     }
-    ts = np.asarray(mdict.get("Ts", 0.0), dtype=float).reshape(-1)
+    if "Ts" not in mdict:  # read as continuous before: a discrete design saved without Ts was re-discretised
+        raise DataError(
+            "the MAT file has no Ts; add Ts = 0 for a continuous controller or its sampling time in s "
+            "(save('K.mat', 'A', 'B', 'C', 'D', 'Ts'))."
+        )
+    try:
+        ts = np.asarray(mdict["Ts"], dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise DataError(f"Ts must be a number (s; 0 for continuous); got {mdict['Ts']!r}.") from None
     if ts.size != 1:
         raise DataError(f"Ts must be one number (s; 0 for continuous); got {ts.size} values.")
+    if ts[0] == -1:
+        raise DataError(
+            "Ts = -1 (MATLAB's unspecified sampling time) cannot be exported or simulated; set Ts to the "
+            "controller's sampling time in s."
+        )
     names = {
         k: _mat_names(mdict, v)
         for k, v in (("inputs", "InputName"), ("outputs", "OutputName"), ("states", "StateName"))

@@ -31,7 +31,10 @@ def dynamic_range(*mats: np.ndarray) -> float:
     """``max |coef| / min nonzero |coef|`` over all entries (1 when there is at most one value)."""
     values = np.abs(np.concatenate([np.asarray(m, dtype=float).reshape(-1) for m in mats]))
     values = values[values > 0]
-    return float(values.max() / values.min()) if values.size else 1.0
+    if not values.size:
+        return 1.0
+    with np.errstate(over="ignore"):
+        return float(values.max() / values.min())  # inf when the ratio overflows float64
 
 
 def balance_diagonal(A, B, C):

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..errors import DataError
 from ..frd import FrequencyData
-from ._common import build
+from ._common import MAX_FILE_BYTES, build, read_limited
 
 __all__ = ["read_csv", "write_csv"]
 
@@ -65,7 +65,59 @@ def _csv_float(text: str, line: int, column: str) -> float:
     try:
         return float(text)
     except ValueError:
-        raise DataError(f"line {line}: {column} {text!r} is not a number.") from None
+        pass
+    hint = ""
+    if "," in text and _parses(text.replace(",", ".")):
+        hint = " It has a decimal comma; write numbers with a decimal point ('1.5', not '1,5')."
+    elif _parses(text, complex):
+        hint = " It is a complex number; write its real and imaginary parts in the columns re and im."
+    raise DataError(f"line {line}: {column} {text!r} is not a number.{hint}")
+
+
+def _parses(text: str, kind: type = float) -> bool:
+    try:
+        kind(text.strip().replace(" ", ""))
+    except ValueError:
+        return False
+    return True
+
+
+def _decode(raw: bytes) -> str:
+    """The text of a CSV file: UTF-8 (an Excel byte-order mark is dropped), classic-Mac CR line ends
+    read as newlines; UTF-16 and other encodings are refused with the fix."""
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise DataError(
+            "the CSV file is UTF-16 text (Excel's 'Unicode Text'); save it as UTF-8 CSV "
+            "('CSV UTF-8 (comma delimited)')."
+        )
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise DataError(
+            f"the CSV file is not UTF-8 text (byte {raw[exc.start]:#04x} at position {exc.start}); save "
+            "it with UTF-8 encoding."
+        ) from None
+    if "\n" not in text and "\r" in text:  # old Mac line ends: CR only
+        text = text.replace("\r", "\n")
+    return text
+
+
+def _header_error(fields: list[str]) -> DataError:
+    hint = ""
+    first = fields[0] if fields else ""
+    if len(fields) == 1 and (";" in first or "\t" in first):
+        sep = "semicolons" if ";" in first else "tabs"
+        hint = (
+            f" The columns are separated by {sep}: write comma-separated values with decimal points "
+            "(a spreadsheet's 'CSV (comma delimited)' in an English locale)."
+        )
+    elif fields and _parses(first):
+        hint = f" The first line holds data; add the column header line {','.join(_CSV_HEADER)} above it."
+    elif len(fields) == 4:
+        hint = " Complex values go in two columns, re and im."
+    return DataError(
+        f"the CSV header is {fields}; expected {','.join(_CSV_HEADER)}[,coherence] (long format).{hint}"
+    )
 
 
 def _markers(text: str) -> tuple[tuple[int, ...] | None, int | None, str, int]:
@@ -96,11 +148,7 @@ def _markers(text: str) -> tuple[tuple[int, ...] | None, int | None, str, int]:
 
 
 def _csv_rows(path: Path) -> tuple[bool, list[list[str]], tuple[int, ...] | None, int | None, int]:
-    try:
-        with open(path, newline="", encoding="utf-8") as fh:
-            text = fh.read()
-    except UnicodeDecodeError as exc:
-        raise DataError(f"not a readable text CSV file ({exc}).") from None
+    text = _decode(read_limited(path, MAX_FILE_BYTES))
     if not text:
         raise DataError("the CSV file is empty.")
     if not text.endswith("\n"):
@@ -120,11 +168,9 @@ def _csv_rows(path: Path) -> tuple[bool, list[list[str]], tuple[int, ...] | None
                 "ends after it. Write the file again."
             )
         raise DataError("the CSV file has no column header line (f_hz,output,input,re,im[,coherence]).")
-    header = [h.strip() for h in rows[0]]
+    header = [h.strip().lower() for h in rows[0]]
     if header not in (_CSV_HEADER, _CSV_HEADER + ["coherence"]):
-        raise DataError(
-            f"the CSV header is {rows[0]}; expected {','.join(_CSV_HEADER)}[,coherence] (long format)."
-        )
+        raise _header_error(rows[0])
     return len(header) == 6, rows, announced, footer, first
 
 

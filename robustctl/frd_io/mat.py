@@ -67,14 +67,44 @@ def _mat_names(mdict: dict, key: str) -> list[str] | None:
     return [_mat_string(c) for c in cell.reshape(-1, order="F")]
 
 
+def _vector_like(arr: np.ndarray) -> bool:
+    """True when at most one dimension of ``arr`` exceeds 1 (a row, a column or a 1 x 1 x N array)."""
+    return sum(d > 1 for d in arr.shape) <= 1
+
+
 def _mat_array(mdict: dict, key: str, shape: tuple[int, ...]) -> np.ndarray:
+    """``mdict[key]`` as an array of ``shape`` (n_out, n_in, n_freq), MATLAB's ``frd`` order.
+
+    Accepted: exactly ``shape``; ``(n_out, n_in)`` for one frequency (MATLAB drops a trailing
+    singleton dimension); ``(n_out, n_freq)`` or ``(n_in, n_freq)`` when the other count is 1
+    (``squeeze``); any vector of n_freq values for a SISO response. Any other layout with the
+    right number of values would be read with outputs, inputs and frequencies mixed up, so it is
+    refused.
+    """
     arr = np.asarray(mdict[key])
     if arr.dtype.kind not in "fciu":
         raise DataError(f"{key} must be numeric; got an array of dtype {arr.dtype}.")
-    if arr.size != int(np.prod(shape)):
+    n_out, n_in, n_f = shape
+    layouts = {shape}
+    if n_f == 1:
+        layouts.add((n_out, n_in))
+    if n_in == 1:
+        layouts.add((n_out, n_f))
+    if n_out == 1:
+        layouts.add((n_in, n_f))
+    if n_out == n_in == 1:
+        layouts |= {(n_f,), (n_f, 1)}
+    if arr.shape not in layouts:
+        hint = ""
+        if arr.ndim == 3 and arr.shape[0] == n_f and arr.shape[2] != n_f:
+            hint = (
+                " It looks like (n_freq, n_out, n_in), the Python order; store it as MATLAB's frd does "
+                "(permute(ResponseData, [2 3 1]) in MATLAB, np.transpose(g, (1, 2, 0)) in Python)."
+            )
         raise DataError(
-            f"{key} holds {arr.size} values but the names and frequencies need shape {shape} "
-            "(n_out x n_in x n_freq)."
+            f"{key} has shape {arr.shape} but the names and frequencies need {shape} "
+            f"(n_out x n_in x n_freq, as MATLAB's frd stores it); check OutputName, InputName and "
+            f"Frequency against it.{hint}"
         )
     return arr.reshape(shape, order="F")
 
@@ -96,10 +126,19 @@ def read_mat(path: Path) -> FrequencyData:
             raise DataError(f"the MAT file lacks {missing}, listed in its {_CONTENTS}; it is truncated.")
     for key in ("Frequency", "ResponseData"):
         if key not in mdict:
-            raise DataError(f"the MAT file has no {key!r} variable (expected Frequency, ResponseData).")
+            found = sorted(k for k in mdict if not k.startswith("__"))
+            raise DataError(
+                f"the MAT file has no {key!r} variable; it holds {found}. Store the frequencies as "
+                "'Frequency' (with 'FrequencyUnit', 'Hz' or 'rad/s') and the responses as 'ResponseData' "
+                "(n_out x n_in x n_freq), as MATLAB's frd does (names are case-sensitive)."
+            )
     f = np.asarray(mdict["Frequency"])
     if f.dtype.kind not in "fiu":
         raise DataError(f"Frequency must be real numbers; got dtype {f.dtype}.")
+    if not _vector_like(f):
+        raise DataError(
+            f"Frequency must be a vector (1 x N or N x 1); got an array of shape {f.shape}."
+        )
     f = f.astype(float).reshape(-1)
     unit = _mat_string(mdict["FrequencyUnit"]).strip().lower() if "FrequencyUnit" in mdict else "rad/s"
     if unit in ("rad/s", "rad/sec", "rad/second"):
@@ -108,13 +147,18 @@ def read_mat(path: Path) -> FrequencyData:
         raise DataError(f"FrequencyUnit {unit!r} is not supported; use 'Hz' or 'rad/s'.")
     g = np.asarray(mdict["ResponseData"])
     outputs, inputs = _mat_names(mdict, "OutputName"), _mat_names(mdict, "InputName")
-    n_out = len(outputs) if outputs is not None else (g.shape[0] if g.ndim >= 2 else 1)
-    n_in = len(inputs) if inputs is not None else (g.shape[1] if g.ndim >= 3 else 1)
+    siso = g.size == f.size and _vector_like(g)  # a vector of one value per frequency
+    n_out = len(outputs) if outputs is not None else (1 if siso or g.ndim < 2 else g.shape[0])
+    n_in = len(inputs) if inputs is not None else (1 if siso or g.ndim < 3 else g.shape[1])
     shape = (n_out, n_in, f.size)
     resp = np.transpose(_mat_array(mdict, "ResponseData", shape), (2, 0, 1))
     coh = None
     if "Coherence" in mdict:
-        coh = np.transpose(_mat_array(mdict, "Coherence", shape), (2, 0, 1)).real
+        coh = np.transpose(_mat_array(mdict, "Coherence", shape), (2, 0, 1))
+        if np.iscomplexobj(coh):
+            if np.any(coh.imag != 0):
+                raise DataError("Coherence holds complex values; coherence is real, in [0, 1].")
+            coh = coh.real
     units = json_loads(_mat_string(mdict["robustctl_units"]), "units") if "robustctl_units" in mdict else {}
     meta = json_loads(_mat_string(mdict["robustctl_meta"]), "meta") if "robustctl_meta" in mdict else {}
     return build(

@@ -53,6 +53,13 @@ _NUMERIC_CLASSES = range(6, 16)  # mxDOUBLE ... mxUINT64
 _CELL, _STRUCT, _CHAR = 1, 2, 4
 
 
+#: What to do with a file that is not MAT-5 at all (MATLAB's v4 or v7.3 formats, or not MATLAB).
+_RESAVE = (
+    "; robustctl reads MAT-5 files (MATLAB save -v7 or -v6, scipy.io.savemat): re-save a v4 or "
+    "v7.3 file with save(name, '-v7')"
+)
+
+
 def _bad(what: str) -> DataError:
     return DataError(f"not a readable MAT file (corrupt MAT-5 structure: {what}).")
 
@@ -60,12 +67,12 @@ def _bad(what: str) -> DataError:
 def check_mat5(raw: bytes) -> None:
     """Walk the whole MAT-5 structure of ``raw``; raise :class:`DataError` on any inconsistency."""
     if len(raw) < 128:
-        raise _bad(f"{len(raw)} bytes, shorter than the 128-byte header")
+        raise _bad(f"{len(raw)} bytes, shorter than the 128-byte header{_RESAVE}")
     order = {b"IM": "<", b"MI": ">"}.get(raw[126:128])
     if order is None:
-        raise _bad(f"endian indicator {raw[126:128]!r} is neither b'IM' nor b'MI'")
+        raise _bad(f"endian indicator {raw[126:128]!r} is neither b'IM' nor b'MI'{_RESAVE}")
     if struct.unpack(order + "H", raw[124:126])[0] != 0x0100:
-        raise _bad("the header's version is not 0x0100 (only MAT-5, not v7.3/HDF5, is read)")
+        raise _bad(f"the header's version is not 0x0100 (only MAT-5, not v7.3/HDF5, is read){_RESAVE}")
     _Walker(order).top_level(memoryview(raw)[128:], depth=0)
 
 

@@ -19,10 +19,14 @@ _NPZ_KEYS = {
     "format", "version", "f_hz", "response", "inputs", "outputs", "units_json", "meta_json", "coherence",
 }
 
+#: Format version written and read.
+_VERSION = 1
+
+
 def write_npz(data: FrequencyData, path: Path) -> None:
     arrays = {
         "format": np.array(FORMAT),
-        "version": np.array(1),
+        "version": np.array(_VERSION),
         "f_hz": data.f_hz,
         "response": data.response,
         "inputs": np.array(data.inputs, dtype=str),
@@ -36,9 +40,17 @@ def write_npz(data: FrequencyData, path: Path) -> None:
         np.savez(fh, **arrays)
 
 
+_OWN_ARRAYS = (
+    " To load arrays of your own, build rc.FrequencyData(f_hz, response, inputs=..., outputs=...) from "
+    "them (np.load) and save that."
+)
+
+
 def _npz_array(npz: Any, key: str, kinds: str) -> np.ndarray:
     if key not in npz.files:
-        raise DataError(f"the npz file has no {key!r} array; it was not written by FrequencyData.save.")
+        raise DataError(
+            f"the npz file has no {key!r} array; it was not written by FrequencyData.save.{_OWN_ARRAYS}"
+        )
     try:
         arr = npz[key]
     except ValueError as exc:
@@ -70,12 +82,18 @@ def read_npz(path: Path) -> FrequencyData:
         if unexpected:
             raise DataError(
                 f"the npz archive holds unexpected arrays {unexpected}; it is corrupt or was not "
-                "written by FrequencyData.save."
+                f"written by FrequencyData.save.{_OWN_ARRAYS}"
             )
         try:
             fmt = str(_npz_array(npz, "format", "U"))
             if fmt != FORMAT:
                 raise DataError(f"the npz archive is a {fmt!r}, not a {FORMAT!r}.")
+            version = _npz_array(npz, "version", "iu") if "version" in npz.files else None
+            if version is not None and (version.shape != () or int(version) != _VERSION):
+                raise DataError(
+                    f"the npz archive has format version {version.tolist()!r}; this robustctl reads version "
+                    f"{_VERSION}. Load it with the robustctl that wrote it (a newer one?) and save it again."
+                )
             fields = dict(
                 f_hz=_npz_array(npz, "f_hz", "fiu"),
                 response=_npz_array(npz, "response", "fciu"),

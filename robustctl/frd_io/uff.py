@@ -174,8 +174,11 @@ def _uff_units(sets: list[dict]) -> dict[str, str]:
         out, inp = _uff_names(rec)
         for name, side in ((out, "ordinate"), (inp, "orddenom")):
             unit = _record_unit(rec, side)
-            if unit:
-                units.setdefault(name, unit)
+            if unit and units.setdefault(name, unit) != unit:
+                raise DataError(
+                    f"signal {name!r} is in {units[name]!r} in one FRF record and in {unit!r} in another "
+                    f"(record {out!r}/{inp!r}); convert the records to one unit per signal before loading."
+                )
     return units
 
 
@@ -192,9 +195,13 @@ def _uff_collect(sets: list[dict]):
         if f_ref is None:
             f_ref = x
         elif x.shape != f_ref.shape or not np.array_equal(x, f_ref):
+            how = (
+                f"{x.size} points against {f_ref.size}" if x.shape != f_ref.shape
+                else f"largest difference {np.max(np.abs(x - f_ref)):.6g} Hz"
+            )
             raise DataError(
-                f"record {out!r}/{inp!r} has a different frequency axis ({x.size} points) from the first "
-                f"({f_ref.size} points); all records must share one grid."
+                f"record {out!r}/{inp!r} has a different frequency axis from the first record ({how}); "
+                "all records must share one grid (export them with the same frequency lines)."
             )
         key = (int(rec["func_type"]), outs.setdefault(out, len(outs)), ins.setdefault(inp, len(ins)))
         if key in found:

@@ -703,6 +703,11 @@ def mixed_sensitivity(G: Any, W1: Any = None, W2: Any = None, W3: Any = None) ->
     from ..lti import as_statespace
 
     Gs = as_statespace(G, name="G")
+    if Gs.isdtime(strict=True):
+        raise ModelError(
+            f"G is discrete-time (dt={Gs.dt}); the mixed-sensitivity plant is continuous-time (hinfsyn "
+            "designs in continuous time): pass the continuous plant and discretise the controller afterwards."
+        )
     nu, ny = Gs.ninputs, Gs.noutputs
     u_names, y_names = list(Gs.input_labels), list(Gs.output_labels)
     W = [None if spec is None else _weight(spec, what, n_in=n)
