@@ -271,6 +271,30 @@ def test_nyquist_cannot_tell():
     assert nyquist_stability(f, _loop(L)(f), 0, model_loop=_loop(L)).stable is False
 
 
+@pytest.mark.parametrize("k", [-3.0, -0.5, 0.5, 3.0])
+def test_nyquist_follows_resonances_sharper_than_any_grid(k):
+    """A mode of damping 1e-6 at 5 Hz (behind a lag) and one of 1e-5 below the band: the
+    yardstick's grid, a log grid plus points spread over each lightly damped pole's phase
+    (its loop's and closed loop's poles), gives the closed-loop poles' verdict; a log grid of
+    20,000 points misses the 5 Hz resonance (it cannot tell, or is right by luck)."""
+    from robustctl.robust.yardstick import _pole_points
+
+    def mode(wn, zeta, dc):
+        return control.ss(control.tf([dc * wn**2], [1.0, 2 * zeta * wn, wn**2]))
+
+    L = k * (mode(2 * np.pi * 5.0, 1e-6, 1e-3) + mode(2 * np.pi * 0.02, 1e-5, 1e-6)) \
+        * control.ss(control.tf([1.0], [0.02, 1.0]))
+    closed = control.feedback(L, 1, sign=1)
+    truth = _stable(closed)
+    assert truth is (k > 0)
+    poles = np.concatenate([L.poles(), closed.poles()])
+    log = np.geomspace(0.1, 100.0, 20000)
+    if k != 0.5:
+        assert nyquist_stability(log, _loop(L)(log), 0, model_loop=_loop(L)).stable is None
+    f = np.union1d(log, _pole_points(poles, 0.1, 100.0))
+    assert nyquist_stability(f, _loop(L)(f), 0, model_loop=_loop(L), poles=poles).stable is truth
+
+
 def test_block_structure_of_the_book_example():
     bs = as_block_structure(BOOK_BLOCKS)
     assert (bs.n_in, bs.n_out) == (4, 4)

@@ -49,6 +49,10 @@ __all__ = ["NyquistVerdict", "Yardstick", "nyquist_stability", "yardstick"]
 
 #: The loop gain must be below this at the band edges (and the model's outside) to count encirclements.
 EDGE_LOOP_GAIN = 0.9
+#: Points added to the fine grid around each lightly damped pole (uniform in the pole's phase).
+POLE_POINTS = 48
+#: Poles up to this damping ratio get them (better damped ones are followed by the log grid).
+POLE_ZETA = 0.05
 
 
 # ---------------------------------------------------------------------------- Nyquist on data
@@ -100,20 +104,25 @@ def _coarse(phase: np.ndarray, f: np.ndarray, max_step: float) -> str:
 
 
 def _outside(model_loop: Callable[[np.ndarray], np.ndarray], f_edge: float, L_edge: np.ndarray,
-             side: str, max_step: float) -> tuple[float, str]:
+             side: str, max_step: float, poles: np.ndarray | None = None) -> tuple[float, str]:
     """Argument change of ``det(I - L)`` outside the data, from the model loop.
 
     ``side="low"``: from 0 to the first data point (including the step from the model's
     determinant to the data's there); ``"high"``: from the last one to infinity. Trusted
     when the model loop joins the data at the band edge (:func:`_junction`) and, out
     there, stays below unit gain (no crossover outside the data) or, below the band, is
-    quasi-static (its determinant turns by less than pi/4). Returns (change, "") or
+    quasi-static (its determinant turns by less than pi/4). The log grid gets
+    :func:`_pole_points` around the lightly damped ``poles``. Returns (change, "") or
     (NaN, reason).
     """
     if side == "low":
-        f = np.concatenate([[0.0], np.logspace(np.log10(f_edge) - 6, np.log10(f_edge), 600)])
+        lo, hi = f_edge * 1e-6, f_edge
+        f = np.concatenate([[0.0], np.logspace(np.log10(lo), np.log10(hi), 600)])
     else:
-        f = np.concatenate([np.logspace(np.log10(f_edge), np.log10(f_edge) + 6, 900), [1e12 * f_edge]])
+        lo, hi = f_edge, f_edge * 1e6
+        f = np.concatenate([np.logspace(np.log10(lo), np.log10(hi), 900), [1e12 * f_edge]])
+    if poles is not None and poles.size:
+        f = np.union1d(f, _pole_points(poles, lo, hi))
     L = np.asarray(model_loop(f), dtype=complex)
     L_model_edge = L[-1] if side == "low" else L[0]
     jump = _junction(L_model_edge, L_edge)
@@ -171,6 +180,7 @@ def nyquist_stability(
     model_loop: Callable[[np.ndarray], np.ndarray] | None = None,
     *,
     max_step_rad: float = 0.75 * np.pi,
+    poles: Any = None,
 ) -> NyquistVerdict:
     """Closed-loop stability of ``det(I - L)`` from ``L(j 2 pi f)`` measured on ``f_hz``.
 
@@ -190,6 +200,10 @@ def nyquist_stability(
         Largest phase step of ``det(I - L)`` between neighbouring points still followed
         (unwrapping is unambiguous below pi; with a model loop, :func:`_unresolved` also
         checks that the points miss no turn of the model's determinant).
+    poles : array_like, optional
+        Poles (rad/s) of the model loop, its controller and its closed loop: the model's
+        continuation outside the band is also sampled around the lightly damped ones
+        (:func:`_pole_points`), so that a sharp resonance there is followed, not missed.
 
     Returns
     -------
@@ -223,8 +237,9 @@ def nyquist_stability(
         why = _unresolved(model_loop, f)
         if why:
             return NyquistVerdict(None, np.nan, open_loop_unstable, why)
-        low, why_low = _outside(model_loop, f[0], L[0], "low", max_step_rad)
-        high, why_high = _outside(model_loop, f[-1], L[-1], "high", max_step_rad)
+        poles = None if poles is None else np.asarray(poles, dtype=complex).ravel()
+        low, why_low = _outside(model_loop, f[0], L[0], "low", max_step_rad, poles)
+        high, why_high = _outside(model_loop, f[-1], L[-1], "high", max_step_rad, poles)
         if why_low or why_high:
             return NyquistVerdict(None, np.nan, open_loop_unstable, why_low or why_high)
     n_ccw = (low + (phase[-1] - phase[0]) + high) / np.pi
@@ -279,19 +294,69 @@ def _measurement_sign(gp: Any, G: Any) -> float:
     return float(np.sign(corr))
 
 
+def _pole_points(poles: np.ndarray, f_lo: float, f_hi: float, n: int = POLE_POINTS,
+                 zeta_max: float = POLE_ZETA) -> np.ndarray:
+    """Frequencies (Hz) ``(w_d + sigma t) / (2 pi)`` around each lightly damped pole
+    ``p = -sigma + j w_d`` (damping ratio below ``zeta_max``, ``w_d`` in the band).
+
+    ``t = tan(theta)`` with ``theta`` uniform in ``(-pi/2, pi/2)`` (``n`` points): the mode's
+    term ``1 / (j w - p)`` turns its phase by ``pi / n`` from point to point however narrow
+    the resonance (a mode of 1e-6 damping at 17 Hz is 1e-4 rad/s wide, far below a log
+    grid's spacing); then ``n`` points a side in geometric steps out to ``|t| = |p| / sigma``,
+    where the term's magnitude falls by a constant factor per step and the log grid takes over.
+    """
+    p = np.asarray(poles, dtype=complex).ravel()
+    p = p[(p.imag > 0) & (p.real < 0)]
+    sigma, wd = -p.real, p.imag
+    keep = (sigma < zeta_max * np.abs(p)) & (wd >= 2 * np.pi * f_lo) & (wd <= 2 * np.pi * f_hi)
+    sigma, wd, wn = sigma[keep], wd[keep], np.abs(p[keep])
+    if not sigma.size:
+        return np.zeros(0)
+    t_core = np.tan(np.linspace(-np.pi / 2, np.pi / 2, n + 2)[1:-1])
+    t0 = t_core[-1]
+    reach = np.maximum(wn / sigma / t0, 1.0)  # tail from t0 to |p| / sigma
+    t_tail = t0 * reach[:, None] ** np.linspace(0.0, 1.0, n + 1)[None, 1:]
+    t = np.concatenate([np.broadcast_to(t_core, (sigma.size, n)), t_tail, -t_tail], axis=1)
+    f = (wd[:, None] + sigma[:, None] * t).ravel() / (2 * np.pi)
+    return f[(f >= f_lo) & (f <= f_hi)]
+
+
+def _loop_poles(systems: dict, designs: dict, signs: dict, reference: str) -> np.ndarray:
+    """Poles that shape ``det(I - s G K)`` on the axis: every model's and controller's, and
+    those of each controller's loop closed on its own model and on the reference model."""
+    import control
+
+    poles = [np.linalg.eigvals(np.asarray(sys1.A, dtype=float)) for sys1 in systems.values() if sys1.nstates]
+    for lab, design in designs.items():
+        K = design.K
+        k = control.ss(K.A, K.B, K.C, K.D)
+        if K.nstates:
+            poles.append(np.linalg.eigvals(np.asarray(K.A, dtype=float)))
+        for G in {lab: systems[lab], reference: systems[reference]}.values():
+            g = control.ss(G.A, G.B, signs[lab] * np.asarray(G.C), signs[lab] * np.asarray(G.D))
+            try:
+                poles.append(control.feedback(g, k, sign=+1).poles())
+            except (ValueError, np.linalg.LinAlgError):  # an ill-posed loop (I - D_G D_K singular)
+                continue
+    return np.concatenate(poles) if poles else np.zeros(0, complex)
+
+
 def _interpolated(data: FrequencyData, systems: dict, reference: str, f: np.ndarray,
-                  n_fine: int = 20000) -> tuple[np.ndarray, dict]:
+                  n_fine: int = 20000, poles: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
     """The measured plant between its points: the reference (measurement) model plus the
     linearly interpolated residual ``G_data - G_ref``.
 
     Lightly damped modes are narrower than a Welch estimate's resolution (1.5 % damping at
     1.1 Hz: half-power width 0.033 Hz, data spacing 0.049 Hz), so ``det(I - G K)`` can turn
     by more than pi between measured points; the measurement model fits the data to within
-    the noise and carries the resonance shape between them.
+    the noise and carries the resonance shape between them. The grid is a log grid of
+    ``n_fine`` points plus :func:`_pole_points` around the lightly damped ``poles``.
     """
     from ..lti import freqresp_array
 
     fine = np.union1d(f, np.geomspace(f[0], f[-1], n_fine))
+    if poles is not None and poles.size:
+        fine = np.union1d(fine, _pole_points(poles, f[0], f[-1]))
     ref = systems[reference]
     base = freqresp_array(ref, fine)
     out = {}
@@ -544,7 +609,8 @@ def yardstick(
     designs = dict(zip(labels, results))
     attenuation, stability, closed = {}, {}, {}
     G_ref = _aligned_response(data, systems[reference])
-    f_fine, G_fine = _interpolated(data, systems, reference, f_all)
+    poles = _loop_poles(systems, designs, signs, reference)
+    f_fine, G_fine = _interpolated(data, systems, reference, f_all, poles=poles)
     open_rms = _rms_frobenius(G_ref[in_band])
     for lab in labels:
         K, s = designs[lab].K, signs[lab]
@@ -556,7 +622,7 @@ def yardstick(
         closed[lab] = np.linalg.norm(T[in_band], ord=2, axis=(1, 2))
         n_ol = _n_unstable(systems[lab], f"model {lab!r}") + _n_unstable(K, f"controller for {lab!r}")
         L_fine = s * G_fine[lab] @ freqresp_array(K, f_fine)
-        stability[lab] = nyquist_stability(f_fine, L_fine, n_ol, _model_loop(systems[lab], K, s))
+        stability[lab] = nyquist_stability(f_fine, L_fine, n_ol, _model_loop(systems[lab], K, s), poles=poles)
     mu_cross = np.full((len(labels), len(labels)), np.inf)
     for i, lab_k in enumerate(labels):
         for j, lab_m in enumerate(labels):
