@@ -254,3 +254,48 @@ def test_only_candidates_whose_secant_points_beyond_its_step_are_probed(chain, m
     assert diag.ranking[0].name == hidden.name and diag.ranking[0].significant
     assert seen and all(abs(c) > diagnose_module.PROBE_MIN_COEF for _, c in seen)
     assert len(seen) < len(cands) - 1  # most candidates' secants already cover what the data ask
+
+
+# ---------------------------------------------------------------------------- H1 data, large errors
+def _chain4():
+    """A user's 4-mass chain whose masses, chain springs and suspension are all parameters."""
+    unit = np.zeros((4, 4))
+    for i in range(3):
+        unit[i : i + 2, i : i + 2] += [[1.0, -1.0], [-1.0, 1.0]]
+
+    def stiffness(th):
+        k = th["k_chain"] * unit
+        k[0, 0] += th["k_ground"]
+        return k
+
+    params = [rc.Parameter("k_chain", 2e3, "N/m", (2e2, 2e4), meaning="chain springs"),
+              rc.Parameter("k_ground", 300.0, "N/m", (30.0, 3e3), meaning="suspension of mass 1"),
+              rc.Parameter("m_mass", 0.5, "kg", (0.05, 5.0), meaning="the four masses")]
+    return rc.structural_model(lambda th: th["m_mass"] * np.eye(4), stiffness, inputs={"F1": "dof 1"},
+                               outputs={"a3": ("dof 3", "acceleration"), "a4": ("dof 4", "acceleration")},
+                               damping=0.02, params=params, name="4-mass chain")
+
+
+def test_a_sensor_filter_under_40_percent_errors_is_found_from_h1_data():
+    """Chain springs -40 %, suspension +50 %, masses +20 % (modes 30 % lower) and a 20 Hz
+    first-order sensor filter, measured by H1 estimates of a simulated white-noise test. From the
+    model's values the null fit stops in a local minimum 97 % above the global one, and the
+    parameter error left in the residual made a second-order filter rank first; diagnose starts
+    the null fit where update does (its coarse multi-start), so the true filter ranks first, and
+    the update recovers every parameter within 3 reported SEs."""
+    model = _chain4()
+    hidden = fx.SensorLowPass(order=1, time_constant=1 / (2 * np.pi * 20.0))
+    errors = {"k_chain": -0.4, "k_ground": 0.5, "m_mass": 0.2}
+    data, truth = rc.examples.make_experiment(model, hidden, errors, noise_rms=0.01, seed=1,
+                                              n_samples=40960, nperseg=2048)
+    band = (0.5, 40.0)
+    diag = rc.diagnose(model, data, band=band, workers=1)
+    top = diag.ranking[0]
+    assert (top.kind, top.effect.order) == ("sensor_lowpass", 1), diag.summary()
+    assert diag.best is not None and top.significant
+    assert diag.cost_update < 0.1 * diag.cost_nominal  # the null fit reached the global basin
+    upd = rc.update(model.with_effect(diag.best), data, band=band)
+    assert upd.cost_after < 1e-3 * upd.cost_before
+    for name in ("k_chain", "k_ground", "m_mass", hidden.param_names[0]):
+        value, se = upd.model.param(name).value, upd.std_errors[name]
+        assert abs(value - truth.param(name).value) < 3 * se, (name, value, truth.param(name).value, se)

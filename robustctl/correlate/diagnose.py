@@ -848,17 +848,29 @@ def _null_fit(
     budget: float,
     j0: np.ndarray,
 ) -> tuple[_Null, int]:
-    """Bounded LM fit of the update parameters alone (step 1), from the nominal residual ``j0``."""
+    """Bounded LM fit of the update parameters alone (step 1), from the nominal residual ``j0``.
+
+    It starts where :func:`~robustctl.correlate.update.update` would (its coarse multi-start,
+    ``_coarse_start``): with parameters 20-50 % off, modes have moved by several bandwidths and
+    LM from the model's values stops in a local minimum of the complex-log cost, which leaves
+    the parameter error in the residual for the candidates to mimic (a wrong effect ranks first).
+    """
+    from .update import _coarse_start
+
     lo, hi = _bounds(res0.model, upd, None)
     if not upd:
         return _Null((), {}, {}, lo, hi, np.zeros((res0.n, 0)), j0, float(j0 @ j0)), 0
     start = sensitivities(res0, upd, j0=j0, executor=executor)
-    lm = levenberg_marquardt(
-        res0, upd, max_iter=max_iter, executor=executor, time_budget_s=budget, start=start
-    )
-    null = _Null(upd, dict(lm.x), dict(lm.x0), lo, hi, lm.jacobian, lm.vector, lm.cost)
+    x0, n_coarse = _coarse_start(res0, upd, start, ())
+    kw = dict(max_iter=max_iter, executor=executor, time_budget_s=budget)
+    if x0:
+        lm = levenberg_marquardt(res0, upd, x0={**{n: res0.model.param(n).value for n in upd}, **x0}, **kw)
+    else:
+        lm = levenberg_marquardt(res0, upd, start=start, **kw)
+    x_model = {n: res0.model.param(n).value for n in upd}
+    null = _Null(upd, dict(lm.x), x_model, lo, hi, lm.jacobian, lm.vector, lm.cost)
     null.cut = "time budget" in lm.stop_reason
-    return null, start.n_evals + lm.n_evals
+    return null, start.n_evals + n_coarse + lm.n_evals
 
 
 def _where(res: Residual, delta: np.ndarray, unweight: bool = True, pairs: bool = False) -> str:
