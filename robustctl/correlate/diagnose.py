@@ -1231,7 +1231,9 @@ def _diagnose(
         min_gain=min_gain,
         upd=upd,
         row_noise=_row_noise(res0),
-        fs_hz=None if settings is None else settings.fs_hz,
+        # data whose hold was divided out (meta["hold_divided"]) have no half-sample delay left:
+        # a delay found there is not the hold
+        fs_hz=None if settings is None or settings.hold_divided else settings.fs_hz,
     )
     results, explained = _score(res0, screens, order, top, fits, twins, j_u, stats)
     best = _best(results, res0.noise is not None, min_gain)
