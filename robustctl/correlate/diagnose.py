@@ -608,6 +608,9 @@ def _fit_one(
         return dict(x=dict(null.x), cost=null.cost, vector=null.j, evals=counter[0], value=float(par.neutral))
     u, v, r = start
     cost, lam = float(r @ r), 1e-2
+    if discrete and names:
+        return _fit_switched(res_c.model.with_values(**{pname: v}), res_u, names, u, v, r, max_iter,
+                             budget - (time.perf_counter() - t0), counter[0])
     cut = False
     for _ in range(int(max_iter)):
         if time.perf_counter() - t0 > budget:
@@ -643,6 +646,32 @@ def _fit_one(
             break
     return dict(x=dict(zip(names, (float(x) for x in u))), cost=cost, vector=r, evals=counter[0], value=v,
                 cut=cut)
+
+
+def _fit_switched(model_on: Any, res_u: Residual, names: tuple[str, ...], u: np.ndarray, v: float,
+                  r: np.ndarray, max_iter: int, budget: float, evals: int) -> dict[str, Any]:
+    """The local fit of a discrete candidate (gravity switched on or off): a full LM fit of the
+    update parameters with the switch set (their sensitivities refreshed each iteration).
+
+    The null fit's Jacobian, which the secant fits of :func:`_fit_one` keep, belongs to the
+    other state: gravity changes the pendulum modes by factors, so a fit on the frozen Jacobian
+    stops at once and the true switch ranked below springs that mimic it (a hanging chain:
+    the switch explained 34 % of the residual, refitted 99.9 %)."""
+    cost = float(r @ r)
+    x = dict(zip(names, (float(a) for a in u)))
+    out = dict(x=x, cost=cost, vector=r, evals=evals, value=v, cut=False)
+    if budget <= 0:
+        return dict(out, cut=True)
+    try:
+        lm = levenberg_marquardt(_residual_for(res_u, model_on), names, x0=x, max_iter=max_iter,
+                                 time_budget_s=budget)
+    except RobustctlError:
+        return out
+    out["evals"] += lm.n_evals
+    if not lm.cost < cost:
+        return out
+    return dict(out, x={n: float(lm.x[n]) for n in names}, cost=float(lm.cost), vector=lm.vector,
+                cut="time budget" in lm.stop_reason)
 
 
 def _fit_task(shared: tuple, screen: dict[str, Any]) -> dict[str, Any]:
