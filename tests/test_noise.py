@@ -196,6 +196,26 @@ def test_modes_moved_by_a_parameter_error_are_no_units_slip():
     assert len(cmp.data_modes) == 4  # the data's modes were found: the check had material
 
 
+def test_a_dense_model_spectrum_above_the_band_is_no_units_slip():
+    """A frame's model has many modes above the band (searched up to 8 x its top): at 2 pi each
+    data mode finds one there by density alone. With every mode 22 % high the scale 1.22 pairs
+    as many data modes, so no units slip is claimed."""
+    fm = np.concatenate([[5.0, 8.5, 14.0, 20.0], np.geomspace(40.0, 400.0, 80)])
+    rng = np.random.default_rng(0)
+    shapes = rng.uniform(0.3, 1.0, (1, fm.size)) * np.where(np.arange(fm.size) < 4, 1.0, 0.2)
+
+    def modal(f):
+        return rc.modal_model(f, 0.02, shapes, shapes, inputs=["F"], outputs=["a"])
+
+    model, truth = modal(fm), modal(1.22 * fm)
+    f = np.linspace(1.0, 30.0, 3000)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        cmp = rc.compare(model, truth.freqresp(f))
+    assert not any("2 pi" in w for w in cmp.warnings)
+    assert len(cmp.data_modes) == 4
+
+
 # ---------------------------------------------------------------------------- helpers
 def _chain() -> rc.PhysicalModel:
     """Three masses on a grounded spring, forces at dofs 1 and 3, velocity sensors at 2 and 3."""
