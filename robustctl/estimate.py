@@ -190,9 +190,16 @@ def estimate_frf(
     *Random Data*, eq. 7.27), with ``G_uu`` (n_in x n_in) and ``G_yu`` (n_out x n_in) the
     averaged cross-spectral matrices of windowed, overlapping segments. With one input
     this is ``G_yu / G_uu`` and the coherence is the ordinary coherence
-    ``|G_yu|^2 / (G_uu G_yy)``; with several simultaneous inputs it is the multiple
-    coherence of each output, ``(H G_uu H^H)_oo / G_yy,oo`` (eq. 7.35), repeated along the
-    input axis.
+    ``|G_yu|^2 / (G_uu G_yy)``. With several simultaneous inputs the coherence of channel
+    ``(o, i)`` is the partial coherence of output ``o`` with input ``i`` given the other inputs,
+    ``1 / (1 + G_nn,o [G_uu^-1]_ii / |H_oi|^2)`` with ``G_nn,o = (1 - g2_o:u) G_yy,oo`` the
+    output's unexplained spectrum (``g2_o:u = (H G_uu H^H)_oo / G_yy,oo``, the multiple
+    coherence, eq. 7.35). It is what sets
+    the random error of that channel: the least-squares covariance of a row of ``H`` is
+    ``G_nn G_uu^-1 / n_d``, so ``var(H_oi) / |H_oi|^2 = (1 - g2) / (n_d g2)`` with this ``g2``,
+    the single-input formula (Bendat & Piersol sec. 9.3), which the noise model and the
+    coherence weights apply. The multiple coherence, the same for every input of an output,
+    overstated the accuracy of a weak cross channel (5 % log error at a coherence of 0.999).
 
     Parameters
     ----------
@@ -271,9 +278,11 @@ def estimate_frf(
     with np.errstate(divide="ignore", invalid="ignore"):
         coh = np.where(gyy > 0, explained / gyy, 0.0)
     coh = np.repeat(np.clip(coh, 0.0, 1.0)[:, :, None], n_in, axis=2)
+    if n_in > 1:
+        coh = _partial_coherence(H, guu, gyy, explained)
     meta = {
         "method": "H1 (Welch averaged cross-spectra)",
-        "coherence": "ordinary" if n_in == 1 else "multiple",
+        "coherence": "ordinary" if n_in == 1 else "partial",
         "fs_hz": fs,
         "nperseg": nperseg,
         "noverlap": noverlap,
@@ -288,6 +297,21 @@ def estimate_frf(
         meta["window_values"] = win.tolist()  # so the estimator's view of a model can be formed
     data = FrequencyData(f, H, inputs=names_in, outputs=outputs, coherence=coh, meta=meta)
     return data.replace(units=_check_units(units, data))
+
+
+def _partial_coherence(H: np.ndarray, guu: np.ndarray, gyy: np.ndarray, explained: np.ndarray) -> np.ndarray:
+    """Coherence of each channel of a multiple-input H1 estimate (see :func:`estimate_frf`).
+
+    ``g2_oi = 1 / (1 + G_nn,o [G_uu^-1]_ii / |H_oi|^2)``, ``G_nn,o = G_yy,oo - (H G_uu H^H)_oo``:
+    the partial coherence of output ``o`` with input ``i`` given the other inputs (Bendat &
+    Piersol sec. 7.3); with one input, the ordinary coherence. Shape (nf, n_out, n_in)."""
+    gnn = np.maximum(gyy - explained, 0.0)  # (nf, n_out)
+    inv_diag = np.real(np.diagonal(np.linalg.inv(guu), axis1=1, axis2=2))  # (nf, n_in)
+    noise = gnn[:, :, None] * np.maximum(inv_diag, 0.0)[:, None, :]
+    power = np.abs(H) ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        coh = np.where(power > 0, power / (power + noise), 0.0)
+    return np.clip(np.nan_to_num(coh), 0.0, 1.0)
 
 
 def _check_units(units: Mapping[str, str] | None, data: FrequencyData) -> dict[str, str]:

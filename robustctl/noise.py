@@ -10,7 +10,7 @@ scatter. :func:`noise_model` gives that scatter:
   sec. 9.2.3, Table 9.6), the standard deviation of ``Re ln H1`` (nepers) and of ``Im ln H1``
   (rad). ``n_d`` is the effective number of averages of the overlapped windows (Welch 1967;
   :func:`robustctl.estimator.effective_averages`); with ``q`` simultaneous inputs and the
-  multiple coherence, ``n_d - q + 1`` (Bendat & Piersol, sec. 9.3.3).
+  partial coherence of each channel, ``n_d - q + 1`` (Bendat & Piersol, sec. 9.3.3).
 * **from the residual of a measurement model** (data without coherence): a robust local
   scale (1.4826 x the running median absolute value of ``Re e`` and ``Im e`` over 33 points)
   of ``ln(G_data / G_mm)`` per channel.
@@ -186,7 +186,7 @@ def averages_of(data: Any) -> np.ndarray | None:
     Reads ``meta["n_averages"]`` (and ``nperseg``, ``noverlap``, ``window`` for Welch's
     overlap correction) as :func:`robustctl.estimate_frf` records them, or
     ``meta["experiments"][k]`` for data joined by :func:`robustctl.combine_experiments`;
-    ``q`` simultaneous inputs with multiple coherence leave ``n_d - q + 1``.
+    ``q`` simultaneous inputs (partial coherence per channel) leave ``n_d - q + 1``.
     """
     data = as_frequency_data(data)
     metas = _experiment_metas(dict(data.meta), data.n_in)

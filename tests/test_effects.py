@@ -234,3 +234,18 @@ def test_candidates_at_given_locations_only(chain):
         fx.candidates(chain, locations=["dof 5"])
     calibrated = fx.calibrate(chain, [fx.AddedMass("dof 1"), fx.OutputDelay()])
     assert calibrated[0].scale is not None and calibrated[1].scale is None
+
+
+def test_a_stiffness_group_without_geometric_stiffness_gets_no_tension_candidate():
+    """A user's matrices name a stiffness group but give no geometric stiffness: the group's
+    stiffness change is a candidate, its tension is not (it cannot be built), so the default
+    diagnose candidates build; adding the tension by hand says what is missing."""
+    model = rc.structural_model(M2, K2, inputs={"F": "dof 2"}, outputs={"x2": ("dof 2", "displacement")},
+                                stiffness_groups={"coupling": KG})
+    cands = fx.candidates(model)
+    assert [c.location for c in cands if c.kind == "group_stiffness"] == ["coupling"]
+    assert not [c for c in cands if c.kind == "group_tension"]
+    with pytest.raises(rc.ModelError, match="no geometric stiffness"):
+        model.with_effect(fx.GroupTension("coupling", tension=1.0))
+    # with geometric stiffness (the module's chain) the tension is a candidate
+    assert [c.location for c in fx.candidates(_chain()) if c.kind == "group_tension"] == ["coupling"]

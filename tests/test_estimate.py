@@ -104,9 +104,13 @@ def test_mimo_h1_is_least_squares_over_segments():
         Ht, *_ = np.linalg.lstsq(U[:, k, :], Y[:, k, :], rcond=None)
         np.testing.assert_allclose(data.response[k - 1], Ht.T, rtol=1e-9)
         resid = Y[:, k, :] - U[:, k, :] @ Ht
-        gamma2 = 1 - np.sum(np.abs(resid) ** 2, axis=0) / np.sum(np.abs(Y[:, k, :]) ** 2, axis=0)
-        np.testing.assert_allclose(data.coherence[k - 1, :, 0], gamma2, rtol=1e-9)
-    assert data.meta["coherence"] == "multiple"
+        # each channel's coherence sets its least-squares variance: var(H_oi) / |H_oi|^2 =
+        # (1 - g2) / (n g2) with sum|resid_o|^2 [(U^H U)^-1]_ii = var(H_oi) n (partial coherence)
+        inv = np.real(np.diag(np.linalg.inv(U[:, k, :].conj().T @ U[:, k, :])))
+        var = np.sum(np.abs(resid) ** 2, axis=0)[:, None] * inv[None, :]  # (n_out, n_in)
+        gamma2 = np.abs(Ht.T) ** 2 / (np.abs(Ht.T) ** 2 + var)
+        np.testing.assert_allclose(data.coherence[k - 1], gamma2, rtol=1e-9)
+    assert data.meta["coherence"] == "partial"
 
 
 def test_simultaneous_and_one_at_a_time_agree_with_truth():

@@ -177,6 +177,45 @@ def test_a_units_slip_of_two_pi_is_warned():
         rc.compare(model, model.freqresp(f))  # right units: no warning
 
 
+def test_modes_moved_by_a_parameter_error_are_no_units_slip():
+    """Every mode 19 % high (a stiffness 42 % off) and two of them pairing with the model's at
+    2 pi by chance: the scale 1.19 pairs all four, so no units slip is claimed."""
+    fm = np.array([1.0, 2.0, 5.3, 10.6])
+    shapes = np.array([[1.0, -0.8, 0.6, 0.5]])
+
+    def modal(f):
+        return rc.modal_model(f, 0.02, shapes, shapes, inputs=["F"], outputs=["a"])
+
+    model, truth = modal(fm), modal(1.19 * fm)
+    assert sum(np.any(np.abs(np.log(1.19 * fm / (2 * np.pi * x))) < 0.05) for x in fm) == 2
+    f = np.linspace(0.3, 30.0, 2000)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        cmp = rc.compare(model, truth.freqresp(f))
+    assert not any("2 pi" in w for w in cmp.warnings)
+    assert len(cmp.data_modes) == 4  # the data's modes were found: the check had material
+
+
+def test_a_dense_model_spectrum_above_the_band_is_no_units_slip():
+    """A frame's model has many modes above the band (searched up to 8 x its top): at 2 pi each
+    data mode finds one there by density alone. With every mode 22 % high the scale 1.22 pairs
+    as many data modes, so no units slip is claimed."""
+    fm = np.concatenate([[5.0, 8.5, 14.0, 20.0], np.geomspace(40.0, 400.0, 80)])
+    rng = np.random.default_rng(0)
+    shapes = rng.uniform(0.3, 1.0, (1, fm.size)) * np.where(np.arange(fm.size) < 4, 1.0, 0.2)
+
+    def modal(f):
+        return rc.modal_model(f, 0.02, shapes, shapes, inputs=["F"], outputs=["a"])
+
+    model, truth = modal(fm), modal(1.22 * fm)
+    f = np.linspace(1.0, 30.0, 3000)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        cmp = rc.compare(model, truth.freqresp(f))
+    assert not any("2 pi" in w for w in cmp.warnings)
+    assert len(cmp.data_modes) == 4
+
+
 # ---------------------------------------------------------------------------- helpers
 def _chain() -> rc.PhysicalModel:
     """Three masses on a grounded spring, forces at dofs 1 and 3, velocity sensors at 2 and 3."""
@@ -189,3 +228,27 @@ def _chain() -> rc.PhysicalModel:
         outputs={"v2": ("dof 2", "velocity"), "v3": ("dof 3", "velocity")},
         damping=0.02, params=[k_par], name="3-mass chain",
     )
+
+
+def test_the_noise_model_of_a_simultaneous_mimo_estimate_fits_each_channels_scatter():
+    """Two simultaneous inputs, one weak cross channel: its H1 error is set by the noise
+    relative to that input's own contribution (partial coherence), not by the output's
+    multiple coherence (0.999, which put its sigma 5 x too low). The normalised residual of
+    every channel scatters with RMS about 1."""
+    K = 1e3 * np.array([[3.0, -0.2], [-0.2, 1.0]])
+    model = rc.structural_model(np.diag([1.0, 0.5]), K, inputs={"F1": "dof 1", "F2": "dof 2"},
+                                outputs={"a1": ("dof 1", "acceleration"), "a2": ("dof 2", "acceleration")},
+                                damping=0.03)
+    data, truth = rc.examples.make_experiment(model, noise_rms=0.02, seed=4, n_samples=40960, nperseg=1024,
+                                              simultaneous=True, band=(1.0, 40.0))
+    assert data.meta["coherence"] == "partial"
+    noise = rc.noise_model(data)
+    from robustctl.estimator import estimator_settings, estimator_view
+
+    seen = estimator_view(truth.statespace(), data.f_hz, estimator_settings(data.meta))  # as compare does
+    e = np.log(data.response / seen)
+    z = np.concatenate([(e.real / noise.sigma)[..., None], (e.imag / noise.sigma)[..., None]], axis=-1)
+    rms = np.sqrt(np.mean(z**2, axis=(0, 3)))  # per channel (n_out, n_in)
+    np.testing.assert_allclose(rms, 1.0, atol=0.25)
+    # the cross channels are the weak ones: their coherence is visibly below the direct ones'
+    assert np.median(data.coherence[:, 0, 1]) < np.median(data.coherence[:, 0, 0])

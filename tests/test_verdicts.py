@@ -257,3 +257,20 @@ def test_notebook_04_update_is_within_the_noise_at_low_coherence():
     nb = neighbour_coherence(g2)
     assert nb[10, 0, 0] == pytest.approx(0.3) and nb[11, 0, 0] == pytest.approx(0.3)
     assert nb[8, 0, 0] == pytest.approx((0.3 * 3 + 0.9) / 4)
+
+
+def test_a_delay_in_data_whose_hold_was_divided_out_is_not_named_the_hold():
+    """make_experiment divides the estimate by the hold's response (meta["hold_divided"]): a
+    3 ms delay found in such data (within 30 % of half a sample at 200 Hz) is an unknown
+    delay, and the sentence must not send the user to add a hold stage."""
+    model = rc.structural_model(np.diag([1.0, 0.5]), 1e3 * np.array([[3.0, -1.0], [-1.0, 1.0]]),
+                                inputs={"F": "dof 1"}, outputs={"a2": ("dof 2", "acceleration")},
+                                damping=0.03)
+    data, _ = rc.examples.make_experiment(model, fx.OutputDelay(delay=3e-3), noise_rms=0.01, seed=2,
+                                          n_samples=20480, nperseg=1024)
+    assert data.meta["hold_divided"]
+    diag = rc.diagnose(model, data, [fx.OutputDelay(), fx.SensorGain("a2")], band=(0.5, 40.0))
+    delay = diag.ranking[0]
+    assert delay.kind == "output_delay" and delay.significant
+    assert next(iter(delay.effect.values.values())) == pytest.approx(3e-3, rel=0.1)
+    assert "zero-order hold" not in delay.sentence and "zero_order_hold_stage" not in delay.sentence

@@ -291,6 +291,10 @@ class MatrixStructure(Structure):
     def element_groups(self) -> tuple[str, ...]:
         return tuple(self._groups)
 
+    def tension_groups(self) -> tuple[str, ...]:
+        """The stiffness groups given a geometric stiffness (only they can carry a tension)."""
+        return tuple(g for g in self._groups if g in self._geometric)
+
     def tags(self) -> tuple[str, ...]:
         """Tags of the parts :meth:`without` can remove."""
         return tuple(self._tagged)

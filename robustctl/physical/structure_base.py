@@ -88,6 +88,11 @@ class Structure(ABC):
     def element_groups(self) -> tuple[str, ...]:
         """Names of element groups whose stiffness an effect may change."""
 
+    def tension_groups(self) -> tuple[str, ...]:
+        """Element groups that can carry a tension (:meth:`add_group_tension`): every group of
+        a frame FEM; a matrix structure only those it was given geometric stiffness for."""
+        return self.element_groups()
+
     @abstractmethod
     def add_mass(self, location: str, mass: float) -> Structure:
         """Add a point mass (kg) at ``location`` (translational DOFs only)."""

@@ -269,6 +269,7 @@ def _structure_info(model: PhysicalModel) -> dict[str, Any]:
         info.update(
             locations=tuple(struct.locations()),
             groups=tuple(struct.element_groups()),
+            tension_groups=tuple(struct.tension_groups()),
             gravity=type(struct).set_gravity is not _base_set_gravity(),
             gravity_on=getattr(struct, "gravity_enabled", None),
         )

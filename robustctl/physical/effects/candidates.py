@@ -118,7 +118,9 @@ def _structure_candidates(model: PhysicalModel, include_points: bool) -> list[Ef
             if info["gravity_on"] and {"x", "y"} <= set(dirs[loc]):  # a hanging rod needs gravity
                 cands.append(Pendulum(loc))
     for group in info["groups"]:
-        cands += [GroupStiffness(group), GroupTension(group)]
+        cands.append(GroupStiffness(group))
+        if group in info["tension_groups"]:  # a matrix group without geometric stiffness cannot
+            cands.append(GroupTension(group))
     if info["gravity"]:  # only the switch that changes the model's current state
         state = info["gravity_on"]
         cands += [GravityStiffening(enabled=on) for on in (True, False) if state is None or on != state]

@@ -345,7 +345,14 @@ class GroupTension(_StructEffect):
         )
 
     def _check_location(self, model):
-        _require(self.location, _structure_info(model)["groups"], "element group", self)
+        info = _structure_info(model)
+        _require(self.location, info["groups"], "element group", self)
+        if self.location not in info["tension_groups"]:
+            raise ModelError(
+                f"{self.kind}: group {self.location!r} has no geometric stiffness, so it cannot carry a "
+                "tension; give rc.structural_model geometric_stiffness={group: K_G_per_newton}, or use "
+                "GroupStiffness."
+            )
 
     def _specs(self):
         return [
