@@ -24,7 +24,7 @@ import numpy as np
 from ..frd import FrequencyData
 from ..lti import log_ratio
 from .grouping import group_modes
-from .leakage import TruncationSettings, corrected_response, leaks
+from .leakage import TruncationSettings, corrected_response, leaks, truncated_residues
 from .modal_refine import DENSE_MAX_ENTRIES, ZETA_MIN, refine_modes_auto
 from .poles import fit_residues
 from .rational import fit_rational
@@ -152,13 +152,25 @@ def _grouped(fit: RationalFit, run: FitSettings) -> tuple[RationalFit, int]:
 
 
 def modal_model(
-    fit: RationalFit, n_modes: int, run: FitSettings, prefer: np.ndarray | None = None
+    fit: RationalFit, n_modes: int, run: FitSettings, prefer: np.ndarray | None = None, truncation=None
 ) -> tuple[RationalFit, int]:
-    """Steps 2-3 on a rational fit: the modal structure, then the refinement (if asked and in time)."""
+    """Steps 2-3 on a rational fit: the modal structure, then the refinement (if asked and in time).
+    With ``truncation`` (an impact record that leaks) the refinement fits the truncated record's
+    response (eq. T1) to ``fit.data``, the raw data, starting from residues fitted the same way."""
     fit, n_mode_poles = _grouped(fit, run) if run.groups is not None else select_modes(fit, n_modes, prefer)
     if run.refine and not run.expired():
-        fit = refine_modes_auto(fit, deadline=run.deadline, progress=run.progress)
+        if truncation is not None:
+            fit = _truncated_start(fit, truncation)
+        fit = refine_modes_auto(fit, deadline=run.deadline, progress=run.progress, truncation=truncation)
     return fit, n_mode_poles
+
+
+def _truncated_start(fit: RationalFit, truncation) -> RationalFit:
+    """Residues of ``fit``'s poles fitted to the raw data with the leaked basis (eq. T1), modes
+    cut to their ranks (rank 1) by the alternating least squares' start: the refinement's start."""
+    s = 2j * np.pi * fit.data.f_hz
+    residues, d = truncated_residues(s, fit.data.response, _row_weights(fit, None), fit.poles, truncation)
+    return replace(fit, residues=residues, d=d)
 
 
 def _small(band: FrequencyData, n_modes: int) -> bool:
@@ -226,6 +238,8 @@ def fit_with_leakage(
     """
     st = run.settings
     fit = rational_fit(band, n_modes, run) if first is None else first
+    if isinstance(st, TruncationSettings) and run.refine:
+        return _fit_truncated(band, fit, n_modes, run, prefer)
     n_mode_poles = 0
     if st is None or run.refine:
         fit, n_mode_poles = modal_model(fit, n_modes, run, prefer)
@@ -249,6 +263,21 @@ def fit_with_leakage(
     if st is not None and not run.refine:
         fit, n_mode_poles = modal_model(fit, n_modes, run)
     return fit, n_mode_poles, data
+
+
+def _fit_truncated(band: FrequencyData, fit: RationalFit, n_modes: int, run: FitSettings, prefer):
+    """An impact record's modal model: the modes refined against the raw data with the record-end
+    truncation in the model (eq. T1 in the refinement, :func:`.modal_refine.refine_modes`), when
+    the record leaks; the data used are the raw data plus the fitted model's tail (the corrected
+    data, on which the model is scored and its modes judged)."""
+    fit = replace(fit, data=band)
+    leaky = leaks(select_modes(fit, n_modes, prefer)[0], band, run.settings)
+    fit, n_mode_poles = modal_model(fit, n_modes, run, prefer, truncation=run.settings if leaky else None)
+    if not leaky:
+        return fit, n_mode_poles, band
+    data = band.replace(response=corrected_response(fit, band, run.settings),
+                        meta={**band.meta, "leakage_corrected": True})
+    return replace(fit, data=data), n_mode_poles, data
 
 
 def _leakage_steps(fit: RationalFit, band: FrequencyData, st) -> int:
