@@ -53,6 +53,12 @@ LEAKAGE_STEPS = 4
 TRUNCATION_STEPS = 12
 #: rms relative change of the corrected data below which the truncation fixed point has converged
 TRUNCATION_TOL = 1e-4
+#: most swaps of the weakest mode for a second pole at a mode the data show to be a merged pair
+MAX_SWAPS = 2
+#: mean weighted residual energy over a mode's half-power band, in units of the band's median
+#: per-point energy, from which the residual there shows an unmodelled mode (a chi-square with
+#: 2 n_channels degrees of freedom per point rarely reaches 3 times its median over a few points)
+EXCESS_RESIDUAL = 3.0
 
 
 def spare_pairs(n_modes: int) -> int:
@@ -173,6 +179,71 @@ def _truncated_start(fit: RationalFit, truncation) -> RationalFit:
     return replace(fit, residues=residues, d=d)
 
 
+def _residual_excess(fit: RationalFit, n_mode_poles: int) -> np.ndarray:
+    """Per mode: the mean over the bins within its half-power band ``f (1 +- 3 zeta)`` (at least
+    the two nearest bins) of the weighted residual energy ``sum_channels |rw (G - g)|^2`` (MACE
+    eq. 5's relative error), over the median of that energy over the band: about 1 where the
+    model explains the data to the noise, large where a mode is missing (a close pair merged)."""
+    data = fit.data
+    e = np.sum(np.abs(_row_weights(fit, None) * (fit.response(data.f_hz) - data.response)) ** 2, axis=(1, 2))
+    floor = max(float(np.median(e)), np.finfo(float).tiny)
+    out = np.zeros(n_mode_poles)
+    f, zeta = fit.f_hz, fit.zeta
+    for j in range(n_mode_poles):
+        near = np.abs(data.f_hz - f[j]) <= 3 * zeta[j] * f[j]
+        near[np.argsort(np.abs(data.f_hz - f[j]))[:2]] = True
+        out[j] = float(np.mean(e[near])) / floor
+    return out
+
+
+def _swap_for_pair(fit: RationalFit, n_mode_poles: int, run: FitSettings) -> RationalFit:
+    """Resolve a close pair the rational fit merged, keeping ``n_mode_poles`` modes.
+
+    A vector fit started from spread poles can settle with one pole on two modes closer than
+    their bandwidth whose summed residue is nearly rank 1 (the residue-rank split of
+    :func:`select_modes` cannot see them) and spend the pole the second mode needs on noise; the
+    residual then stays well above the noise across that mode's half-power band
+    (:func:`_residual_excess`). The weakest mode (smallest contribution) is dropped, the
+    mode with the largest excess split into two poles ``p (1 -+ delta)``, residues and shapes
+    refitted and the model refined; the swap is kept when the weighted complex-log cost (MACE
+    eq. 5) falls, so the ``n`` modes are those that explain the data best. At most
+    ``MAX_SWAPS`` swaps, each a refinement, within the time budget."""
+    if n_mode_poles < 2 or fit.data is None:
+        return fit
+    data = fit.data
+    s = 2j * np.pi * data.f_hz
+    rw = _row_weights(fit, None)
+    cost = _log_cost(fit, data)
+    tried: list[float] = []
+    for _ in range(MAX_SWAPS):
+        if run.expired():
+            break
+        excess = _residual_excess(fit, n_mode_poles)
+        for f0 in tried:  # one try per place
+            excess[np.abs(fit.f_hz[:n_mode_poles] / f0 - 1) < 1e-3] = 0.0
+        j = int(np.argmax(excess))
+        if excess[j] < EXCESS_RESIDUAL:
+            break
+        tried.append(float(fit.f_hz[j]))
+        contrib = pole_contributions(s, data.response, rw, fit.poles, fit.residues)[:n_mode_poles]
+        contrib[j] = np.inf
+        weak = int(np.argmin(contrib))
+        p0 = fit.poles[j]
+        delta = max(0.25 * float(fit.zeta[j]), 1e-4)  # as split_pole: a quarter of the damping ratio
+        pair = p0.real + 1j * p0.imag * np.array([1 - delta, 1 + delta])
+        keep = np.setdiff1d(np.arange(fit.poles.size), [j, weak])
+        modes = np.concatenate([pair, fit.poles[keep[keep < n_mode_poles]]])
+        poles = np.concatenate([modes[np.argsort(np.abs(modes), kind="stable")], fit.poles[n_mode_poles:]])
+        residues, d = fit_residues(s, data.response, rw, poles)
+        trial = replace(fit, poles=poles, residues=residues, d=d)
+        trial = refine_residues(trial, sweeps=2)
+        trial = refine_modes_auto(trial, deadline=run.deadline, progress=run.progress)
+        trial_cost = _log_cost(trial, data)
+        if trial_cost < cost:
+            fit, cost = trial, trial_cost
+    return fit
+
+
 def _small(band: FrequencyData, n_modes: int) -> bool:
     """Whether the dense joint refinement of ``n_modes`` modes is affordable on ``band``."""
     n_out, n_in = band.response.shape[1:]
@@ -243,6 +314,8 @@ def fit_with_leakage(
     n_mode_poles = 0
     if st is None or run.refine:
         fit, n_mode_poles = modal_model(fit, n_modes, run, prefer)
+    if st is None and run.refine and run.groups is None:
+        fit = _swap_for_pair(fit, n_mode_poles, run)
     data = band
     for _ in range(_leakage_steps(fit, band, st)):
         if run.expired():
