@@ -23,9 +23,13 @@ summed over the poles ``p`` (and conjugates) with residues ``r_p`` of the sample
 invariant) response and averaged over the hits with their force energies (eq. T1). The tail is
 no rational function of ``jw`` (the factor ``exp(-jw (T - t_h))`` turns by a full circle every
 ``1/(T - t_h)`` Hz), so a rational fit of leaked data spends extra poles and biases the damping.
-Fitting ``data + tail(M)`` for the current model ``M`` undoes it in a few fixed-point steps
-(each step removes the ratio ``|exp(p (T - t_h))|`` of the remaining error: the decay left at
-the record end).
+With the modal refinement the tail is part of the model: the refinement fits ``H(jw) - tail``
+of the current poles and shapes to the raw data (:mod:`.tail`: eq. T1 with the force pulse's
+rms duration, and its pole derivative), so the truncation is undone exactly where the poles are
+decided. Without it, fitting ``data + tail(M)`` for the current model ``M`` undoes it in a few
+fixed-point steps (each step removes the ratio ``|exp(p (T - t_h))|`` of the remaining error:
+the decay left at the record end), which converges slowly for lightly damped low modes (0.03 %
+at 200 Hz keeps 70 % after 0.5 s) and, starting from a leaked fit, can settle on the wrong modes.
 """
 
 from __future__ import annotations

@@ -8,8 +8,11 @@
    ``c b^T`` (Caltech eq. 9) refitted by alternating least squares.
 3. Joint refinement of poles and shapes (:func:`.modal_refine.refine_modes_auto`: all at once
    on small problems, block by block on large ones), within the time budget.
+   Without estimator settings, a close pair the rational fit merged (the residual stays above
+   the noise across one mode's band) gets the weakest mode's pole (:func:`_swap_for_pair`).
 4. Optionally the H1 leakage correction (:mod:`.leakage`) in a few fixed-point steps; for impact
-   records the truncation at the record end (eq. T1), iterated until the corrected data settle.
+   records the truncation at the record end (eq. T1) is in the refinement's model, fitted to
+   the raw data (without refinement: a fixed point until the corrected data settle).
 """
 
 from __future__ import annotations
