@@ -161,7 +161,8 @@ def estimate_frf_impact(
         ``(n_freq, n_out, 1)`` at ``k fs / n_samples`` Hz (DC dropped), coherence over hits,
         ``meta`` with ``method``, ``fs_hz``, ``n_hits``, ``exp_window_tau_s``,
         ``force_window_s``, ``resolution_hz``, ``double_hits`` and ``overloads`` (hit indices),
-        ``hit_times_s`` (force-pulse centroids) and ``hit_weights`` (force-energy shares): with
+        ``hit_times_s`` (force-pulse centroids), ``hit_spreads_s`` (their rms durations) and
+        ``hit_weights`` (force-energy shares): with
         them :func:`robustctl.fit_measurement_model` undoes the truncation of a response that
         has not decayed by the record end (:mod:`robustctl.identify.leakage`, eq. T1).
 
@@ -205,6 +206,7 @@ def estimate_frf_impact(
             yw[k] *= win[:, None]
     energy = np.sum(fw**2, axis=1)
     centroid = np.sum(np.arange(n) * np.abs(fw), axis=1) / np.maximum(np.sum(np.abs(fw), axis=1), 1e-300)
+    spreads = [_spread(fk[start:end]) / fs for fk, (start, end, _) in zip(fw, pulses)]
     F = np.fft.rfft(fw, axis=1)[:, 1:]
     Y = np.fft.rfft(yw, axis=1)[:, 1:, :]
     sff = np.sum(np.abs(F) ** 2, axis=0)
@@ -225,6 +227,7 @@ def estimate_frf_impact(
         "double_hits": doubles,
         "overloads": overloads,
         "hit_times_s": [float(c / fs) for c in centroid],
+        "hit_spreads_s": [float(v) for v in spreads],
         "hit_weights": [float(e / energy.sum()) for e in energy],
     }
     return FrequencyData(
@@ -235,6 +238,16 @@ def estimate_frf_impact(
         coherence=np.clip(coh, 0.0, 1.0)[:, :, None],
         meta=meta,
     )
+
+
+def _spread(pulse: np.ndarray) -> float:
+    """RMS duration (samples) of a force pulse about its own centroid, ``|f|``-weighted."""
+    a = np.abs(pulse)
+    if a.size < 2 or not a.sum() > 0:
+        return 0.0
+    k = np.arange(a.size)
+    mean = float(k @ a / a.sum())
+    return float(np.sqrt(((k - mean) ** 2) @ a / a.sum()))
 
 
 def _range(value: Any) -> float | None:

@@ -61,10 +61,12 @@ def test_exponential_window_modes_and_damping_recovered(hits):
 def test_rectangular_window_truncation_corrected(hits):
     """No window: every response is cut at the record end (the 1086 Hz mode keeps 18 %, the 206 Hz
     mode 44 % of its amplitude), which leaks (eq. T1 of robustctl.identify.leakage). With the
-    truncation corrected, the automatic order gives exactly the 8 modes (no leakage poles
-    counted as modes), frequencies within 0.001 % and damping within 2 % (rectangular window:
-    the noise of the whole record stays in the estimate). Without the correction the same
-    8-mode fit is biased by more than 20 % in damping."""
+    truncation in the model, the automatic order gives exactly the 8 modes (no leakage poles
+    counted as modes), frequencies within 0.003 % and damping within 2 % (rectangular window:
+    the noise of the whole record stays in the estimate; the simulation samples without an
+    anti-aliasing filter, whose aliasing the continuous model does not have: about 1e-5 in
+    frequency). Without the correction the same 8-mode fit is biased by more than 20 % in
+    damping."""
     force, resp, truth = hits
     rect = rc.estimate_frf_impact(force, resp, fs=FS, exp_window=None)
     assert rect.meta["exp_window_tau_s"] is None
@@ -73,7 +75,7 @@ def test_rectangular_window_truncation_corrected(hits):
     assert mm.n_modes == 8 and len(mm.modes) == 8 and mm.leakage_corrected
     assert "truncation" in mm.summary()
     f, z = _matched(mm, truth)
-    np.testing.assert_allclose(f, truth.f_hz, rtol=1e-5)
+    np.testing.assert_allclose(f, truth.f_hz, rtol=3e-5)
     np.testing.assert_allclose(z, truth.zeta, rtol=0.02)
     raw = _fit(rect, n_modes=8, correct_window=False)
     assert not raw.leakage_corrected
@@ -167,3 +169,67 @@ def test_bad_impact_input_is_refused_with_the_fix(hits):
         rc.estimate_frf_impact(np.zeros_like(force), resp, fs=FS)
     with pytest.warns(rc.ImpactWarning, match="1 hit"):
         rc.estimate_frf_impact(force[0], resp[0], fs=FS)
+
+
+def test_truncation_tail_of_a_two_sample_pulse_and_its_pole_derivative():
+    """Eq. T1 with the pulse's rms duration: a hit of two equal samples (centroid half a sample
+    after the first, rms duration dt/2) truncated at the record end leaves at the DFT bins the
+    tail ``exp((q - s) L) cosh(q dt/2)/cosh(s dt/2)`` per term; the second-order cumulant of
+    :mod:`robustctl.identify.tail` matches the truncated DFT of an 1830 Hz mode sampled at
+    8192 Hz within 1.5e-4 of the tail over 1700-2000 Hz, where the centroid alone errs by more
+    than 3e-4 (7e-5 and 3.8e-4 measured), and d tail/dq (eq. T1') matches central differences."""
+    from robustctl.identify.leakage import TruncationSettings
+    from robustctl.identify.tail import tail_terms
+
+    fs, n, k0 = 8192.0, 4096, 200
+    p = complex(-6.0, 2 * np.pi * 1830.3)
+    r = 0.5 + 2j
+    m = np.arange(n + 20000)  # long enough for the uncut response to have decayed
+    h = 2 * np.real(r * np.exp(p * m / fs)) / fs  # sampled impulse response (times dt)
+    y = np.zeros(m.size)
+    y[k0:] += h[: m.size - k0]
+    y[k0 + 1 :] += h[: m.size - k0 - 1]
+    f = np.arange(850, 1000) * fs / n
+    s = 2j * np.pi * f
+    e = np.exp(-2j * np.pi * np.outer(f, m) / fs)
+    force = e[:, k0] + e[:, k0 + 1]
+    tail = (e[:, n:] @ y[n:]) / force  # what the record end cuts off, over the force spectrum
+    t_h = (k0 + 0.5) / fs
+    with_spread = TruncationSettings(fs, n / fs, (t_h,), (1.0,), (0.5 / fs,))
+    centroid_only = TruncationSettings(fs, n / fs, (t_h,), (1.0,))
+
+    def model(st):
+        t = tail_terms(s, np.array([p]), st)[:, 0]
+        return t[:, 0] * r + t[:, 1] * np.conj(r)
+
+    scale = np.abs(tail).max()
+    assert np.abs(model(with_spread) - tail).max() < 1.5e-4 * scale
+    assert np.abs(model(centroid_only) - tail).max() > 3e-4 * scale
+    # eq. T1': the pole derivative of both terms by central differences
+    poles = np.array([p, complex(-20.0, 2 * np.pi * 1750.0)])
+    _, d = tail_terms(s, poles, with_spread, derivative=True)
+    step = 1e-5
+    num = tail_terms(s, poles + step, with_spread)[..., 0] - tail_terms(s, poles - step, with_spread)[..., 0]
+    np.testing.assert_allclose(d[..., 0], num / (2 * step), rtol=1e-6)
+    conj_num = tail_terms(s, np.conj(np.conj(poles) + step), with_spread)[..., 1]
+    conj_num -= tail_terms(s, np.conj(np.conj(poles) - step), with_spread)[..., 1]
+    np.testing.assert_allclose(d[..., 1], conj_num / (2 * step), rtol=1e-6)
+
+
+@pytest.mark.parametrize("seed", [pytest.param(0, marks=pytest.mark.slow), 1])
+def test_twelve_lightly_damped_modes_rectangular_window(seed):
+    """12 modes at 200-2000 Hz, 0.03-0.2 % damping, 0.5 s records, no window: the 200-450 Hz
+    modes keep 50-90 % of their amplitude at the record end (bandwidths a tenth of the 2 Hz
+    bin). With eq. T1 in the refinement the automatic order gives exactly the 12 modes,
+    frequencies within 0.005 % and damping within 5 % (the fixed point on corrected data gave
+    15 modes with seed 0, 10 with seed 1)."""
+    force, resp, truth = rc.examples.impact_test_case(
+        n_modes=12, zeta_range=(0.0003, 0.002), duration_s=0.5, seed=seed
+    )
+    rect = rc.estimate_frf_impact(force, resp, fs=FS, exp_window=None)
+    assert rect.meta["hit_spreads_s"] == pytest.approx([0.5 / FS] * 5, rel=1e-6)
+    mm = _fit(rect)
+    assert mm.n_modes == 12 and mm.leakage_corrected
+    f, z = _matched(mm, truth)
+    np.testing.assert_allclose(f, truth.f_hz, rtol=5e-5)
+    np.testing.assert_allclose(z, truth.zeta, rtol=0.05)

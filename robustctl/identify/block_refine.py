@@ -17,16 +17,20 @@ finite-difference Jacobian (``scipy.optimize.least_squares(method="lm")``).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from scipy.optimize import least_squares
+
+from .tail import leaked_terms
 
 __all__ = ["refine_cluster"]
 
 
-def _basis(s: np.ndarray, poles: np.ndarray, bs: np.ndarray) -> np.ndarray:
-    """Columns (K, n_in, 2M + 2 n_in): per mode the Re c and Im c columns, then the complex constants."""
-    a = 1.0 / (s[:, None] - poles[None, :])  # (K, M)
-    ab = 1.0 / (s[:, None] - np.conj(poles)[None, :])
+def _basis(s: np.ndarray, poles: np.ndarray, bs: np.ndarray, truncation: Any = None) -> np.ndarray:
+    """Columns (K, n_in, 2M + 2 n_in): per mode the Re c and Im c columns, then the complex constants
+    (the truncated record's terms with ``truncation``, eq. T1)."""
+    a, ab, _, _ = leaked_terms(s, poles, truncation)  # (K, M)
     u = a[:, None, :] * bs.T[None] + ab[:, None, :] * np.conj(bs.T)[None]  # (K, n_in, M)
     v = 1j * (a[:, None, :] * bs.T[None] - ab[:, None, :] * np.conj(bs.T)[None])
     k, n_in = s.size, bs.shape[1]
@@ -71,6 +75,7 @@ def refine_cluster(
     cs: np.ndarray,
     bs: np.ndarray,
     max_nfev: int = 120,
+    truncation: Any = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
     """Refine a cluster's poles and shapes by variable projection.
 
@@ -90,6 +95,8 @@ def refine_cluster(
         Starting input shapes.
     max_nfev : int
         Cap of residual evaluations.
+    truncation : TruncationSettings, optional
+        Fit the truncated record's terms (eq. T1 of :mod:`.leakage`) to raw impact data.
 
     Returns
     -------
@@ -100,7 +107,7 @@ def refine_cluster(
 
     def resid(theta):
         p, b = _unpack(theta, m, n_in)
-        x = _basis(s, p, b)
+        x = _basis(s, p, b, truncation)
         coef = _solve(x, target, rw2)
         model = np.swapaxes(x @ coef.T, 1, 2)  # (K, n_out, n_in)
         r = rw * (model - target)
@@ -118,7 +125,7 @@ def refine_cluster(
     if not after < before:
         return poles, cs, bs, before, before
     p, b = _unpack(sol.x, m, n_in)
-    coef = _solve(_basis(s, p, b), target, rw2)
+    coef = _solve(_basis(s, p, b, truncation), target, rw2)
     c = coef[:, : 2 * m].reshape(-1, m, 2)
     c = (c[:, :, 0] + 1j * c[:, :, 1]).T  # (M, n_out)
     return p, c, b, before, after

@@ -23,9 +23,13 @@ summed over the poles ``p`` (and conjugates) with residues ``r_p`` of the sample
 invariant) response and averaged over the hits with their force energies (eq. T1). The tail is
 no rational function of ``jw`` (the factor ``exp(-jw (T - t_h))`` turns by a full circle every
 ``1/(T - t_h)`` Hz), so a rational fit of leaked data spends extra poles and biases the damping.
-Fitting ``data + tail(M)`` for the current model ``M`` undoes it in a few fixed-point steps
-(each step removes the ratio ``|exp(p (T - t_h))|`` of the remaining error: the decay left at
-the record end).
+With the modal refinement the tail is part of the model: the refinement fits ``H(jw) - tail``
+of the current poles and shapes to the raw data (:mod:`.tail`: eq. T1 with the force pulse's
+rms duration, and its pole derivative), so the truncation is undone exactly where the poles are
+decided. Without it, fitting ``data + tail(M)`` for the current model ``M`` undoes it in a few
+fixed-point steps (each step removes the ratio ``|exp(p (T - t_h))|`` of the remaining error:
+the decay left at the record end), which converges slowly for lightly damped low modes (0.03 %
+at 200 Hz keeps 70 % after 0.5 s) and, starting from a leaked fit, can settle on the wrong modes.
 """
 
 from __future__ import annotations
@@ -42,6 +46,7 @@ from ..threads import limit_blas
 from .modal_refine import ZETA_MIN
 from .poles import coefficients_to_residues, lstsq_normal, partial_fraction_basis
 from .rational_fit import RationalFit
+from .tail import tail_terms
 
 __all__ = [
     "EstimatorSettings",
@@ -120,12 +125,16 @@ class TruncationSettings:
         Force-pulse centroid ``t_h`` of every hit from the record start, s.
     hit_weights : tuple of float
         Share of every hit in the H1 average (its force energy; they sum to 1).
+    hit_spreads_s : tuple of float
+        RMS duration of every hit's force pulse about its centroid, s (the second-order term of
+        the pulse in eq. T1, :mod:`.tail`); empty: impulses.
     """
 
     fs_hz: float
     record_s: float
     hit_times_s: tuple[float, ...]
     hit_weights: tuple[float, ...]
+    hit_spreads_s: tuple[float, ...] = ()
 
 
 def truncation_settings(meta: Mapping[str, Any] | None) -> TruncationSettings | None:
@@ -141,19 +150,19 @@ def truncation_settings(meta: Mapping[str, Any] | None) -> TruncationSettings | 
         return None
     if len(times) != weights.size or weights.size == 0 or not weights.sum() > 0:
         return None
-    return TruncationSettings(fs, n / fs, times, tuple(weights / weights.sum()))
+    try:
+        spreads = tuple(float(v) for v in meta.get("hit_spreads_s") or ())
+    except (TypeError, ValueError):
+        spreads = ()
+    if len(spreads) != len(times) or not all(np.isfinite(spreads)):
+        spreads = ()
+    return TruncationSettings(fs, n / fs, times, tuple(weights / weights.sum()), spreads)
 
 
 def _tail_terms(s: np.ndarray, poles: np.ndarray, settings: TruncationSettings) -> np.ndarray:
     """``dt sum_h w_h exp((q - s)(T - t_h)) / (1 - exp((q - s) dt))`` for every pole ``q`` and its
-    conjugate: (K, n_p, 2), the tail of eq. T1 per unit residue."""
-    dt = 1.0 / settings.fs_hz
-    cut = settings.record_s - np.asarray(settings.hit_times_s)
-    weights = np.asarray(settings.hit_weights)
-    q = np.stack([poles, np.conj(poles)], axis=-1)  # (n_p, 2)
-    x = q[None, :, :] - s[:, None, None]  # (K, n_p, 2), 1/s
-    share = np.exp(x[..., None] * cut) @ weights
-    return dt * share / -np.expm1(x * dt)
+    conjugate: (K, n_p, 2), the tail of eq. T1 per unit residue (:func:`.tail.tail_terms`)."""
+    return tail_terms(s, poles, settings)
 
 
 def record_tail(model: RationalFit, f_hz: np.ndarray, settings: TruncationSettings) -> np.ndarray:

@@ -327,9 +327,9 @@ def _automatic(band: FrequencyData, run: FitSettings, max_modes: int, parsimony:
     final model does not need (below the contribution floor) are dropped by one refit.
 
     An impact record that leaks (truncated decays, eq. T1 of :mod:`.leakage`) makes the scan of
-    the raw data find extra stable poles that model the leakage; once the truncation fixed point
-    has corrected the data, they no longer carry data or sit at the damping bound, and are
-    dropped by a warm refit."""
+    the raw data find extra stable poles that model the leakage; once the refinement with the
+    truncation in its model (eq. T1) has corrected the data, they no longer carry data or sit at
+    the damping bound, and are dropped by a warm refit."""
     prob, diagram, last, n = _scan(band, run, max_modes, parsimony, weights, progress)
     welch = run.settings is not None and not isinstance(run.settings, TruncationSettings)
     if run.groups is not None or welch:
@@ -428,8 +428,8 @@ def fit_measurement_model(
         :func:`robustctl.estimate_frf_impact` with an exponential window), move every pole by
         ``+1/tau``: ``zeta_true = zeta_meas - 1/(tau w_n)`` (Ewins, sec. 3.11). For every
         impact record (rectangular or exponential window) whose responses have not decayed by
-        the record end, also undo the truncation (leakage) in a few fixed-point steps
-        (:mod:`robustctl.identify.leakage`, eq. T1).
+        the record end, also undo the truncation (leakage): the refinement fits the truncated
+        record's response to the raw data (:mod:`robustctl.identify.leakage`, eq. T1).
     time_budget_s : float or None
         Wall-time budget of the whole call, seconds; when it runs out the order scan, pole
         iterations and refinement stop with the best model so far (an :class:`IdentifyWarning`

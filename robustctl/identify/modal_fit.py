@@ -8,8 +8,11 @@
    ``c b^T`` (Caltech eq. 9) refitted by alternating least squares.
 3. Joint refinement of poles and shapes (:func:`.modal_refine.refine_modes_auto`: all at once
    on small problems, block by block on large ones), within the time budget.
+   Without estimator settings, a close pair the rational fit merged (the residual stays above
+   the noise across one mode's band) gets the weakest mode's pole (:func:`_swap_for_pair`).
 4. Optionally the H1 leakage correction (:mod:`.leakage`) in a few fixed-point steps; for impact
-   records the truncation at the record end (eq. T1), iterated until the corrected data settle.
+   records the truncation at the record end (eq. T1) is in the refinement's model, fitted to
+   the raw data (without refinement: a fixed point until the corrected data settle).
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ import numpy as np
 from ..frd import FrequencyData
 from ..lti import log_ratio
 from .grouping import group_modes
-from .leakage import TruncationSettings, corrected_response, leaks
+from .leakage import TruncationSettings, corrected_response, leaks, truncated_residues
 from .modal_refine import DENSE_MAX_ENTRIES, ZETA_MIN, refine_modes_auto
 from .poles import fit_residues
 from .rational import fit_rational
@@ -53,6 +56,12 @@ LEAKAGE_STEPS = 4
 TRUNCATION_STEPS = 12
 #: rms relative change of the corrected data below which the truncation fixed point has converged
 TRUNCATION_TOL = 1e-4
+#: most swaps of the weakest mode for a second pole at a mode the data show to be a merged pair
+MAX_SWAPS = 2
+#: mean weighted residual energy over a mode's half-power band, in units of the band's median
+#: per-point energy, from which the residual there shows an unmodelled mode (a chi-square with
+#: 2 n_channels degrees of freedom per point rarely reaches 3 times its median over a few points)
+EXCESS_RESIDUAL = 3.0
 
 
 def spare_pairs(n_modes: int) -> int:
@@ -152,13 +161,90 @@ def _grouped(fit: RationalFit, run: FitSettings) -> tuple[RationalFit, int]:
 
 
 def modal_model(
-    fit: RationalFit, n_modes: int, run: FitSettings, prefer: np.ndarray | None = None
+    fit: RationalFit, n_modes: int, run: FitSettings, prefer: np.ndarray | None = None, truncation=None
 ) -> tuple[RationalFit, int]:
-    """Steps 2-3 on a rational fit: the modal structure, then the refinement (if asked and in time)."""
+    """Steps 2-3 on a rational fit: the modal structure, then the refinement (if asked and in time).
+    With ``truncation`` (an impact record that leaks) the refinement fits the truncated record's
+    response (eq. T1) to ``fit.data``, the raw data, starting from residues fitted the same way."""
     fit, n_mode_poles = _grouped(fit, run) if run.groups is not None else select_modes(fit, n_modes, prefer)
     if run.refine and not run.expired():
-        fit = refine_modes_auto(fit, deadline=run.deadline, progress=run.progress)
+        if truncation is not None:
+            fit = _truncated_start(fit, truncation)
+        fit = refine_modes_auto(fit, deadline=run.deadline, progress=run.progress, truncation=truncation)
     return fit, n_mode_poles
+
+
+def _truncated_start(fit: RationalFit, truncation) -> RationalFit:
+    """Residues of ``fit``'s poles fitted to the raw data with the leaked basis (eq. T1), modes
+    cut to their ranks (rank 1) by the alternating least squares' start: the refinement's start."""
+    s = 2j * np.pi * fit.data.f_hz
+    residues, d = truncated_residues(s, fit.data.response, _row_weights(fit, None), fit.poles, truncation)
+    return replace(fit, residues=residues, d=d)
+
+
+def _residual_excess(fit: RationalFit, n_mode_poles: int) -> np.ndarray:
+    """Per mode: the mean over the bins within its half-power band ``f (1 +- 3 zeta)`` (at least
+    the two nearest bins) of the weighted residual energy ``sum_channels |rw (G - g)|^2`` (MACE
+    eq. 5's relative error), over the median of that energy over the band: about 1 where the
+    model explains the data to the noise, large where a mode is missing (a close pair merged)."""
+    data = fit.data
+    e = np.sum(np.abs(_row_weights(fit, None) * (fit.response(data.f_hz) - data.response)) ** 2, axis=(1, 2))
+    floor = max(float(np.median(e)), np.finfo(float).tiny)
+    out = np.zeros(n_mode_poles)
+    f, zeta = fit.f_hz, fit.zeta
+    for j in range(n_mode_poles):
+        near = np.abs(data.f_hz - f[j]) <= 3 * zeta[j] * f[j]
+        near[np.argsort(np.abs(data.f_hz - f[j]))[:2]] = True
+        out[j] = float(np.mean(e[near])) / floor
+    return out
+
+
+def _swap_for_pair(fit: RationalFit, n_mode_poles: int, run: FitSettings) -> RationalFit:
+    """Resolve a close pair the rational fit merged, keeping ``n_mode_poles`` modes.
+
+    A vector fit started from spread poles can settle with one pole on two modes closer than
+    their bandwidth whose summed residue is nearly rank 1 (the residue-rank split of
+    :func:`select_modes` cannot see them) and spend the pole the second mode needs on noise; the
+    residual then stays well above the noise across that mode's half-power band
+    (:func:`_residual_excess`). The weakest mode (smallest contribution) is dropped, the
+    mode with the largest excess split into two poles ``p (1 -+ delta)``, residues and shapes
+    refitted and the model refined; the swap is kept when the weighted complex-log cost (MACE
+    eq. 5) falls, so the ``n`` modes are those that explain the data best. At most
+    ``MAX_SWAPS`` swaps, each a refinement, within the time budget."""
+    if n_mode_poles < 2 or fit.data is None:
+        return fit
+    data = fit.data
+    s = 2j * np.pi * data.f_hz
+    rw = _row_weights(fit, None)
+    cost = _log_cost(fit, data)
+    tried: list[float] = []
+    for _ in range(MAX_SWAPS):
+        if run.expired():
+            break
+        excess = _residual_excess(fit, n_mode_poles)
+        for f0 in tried:  # one try per place
+            excess[np.abs(fit.f_hz[:n_mode_poles] / f0 - 1) < 1e-3] = 0.0
+        j = int(np.argmax(excess))
+        if excess[j] < EXCESS_RESIDUAL:
+            break
+        tried.append(float(fit.f_hz[j]))
+        contrib = pole_contributions(s, data.response, rw, fit.poles, fit.residues)[:n_mode_poles]
+        contrib[j] = np.inf
+        weak = int(np.argmin(contrib))
+        p0 = fit.poles[j]
+        delta = max(0.25 * float(fit.zeta[j]), 1e-4)  # as split_pole: a quarter of the damping ratio
+        pair = p0.real + 1j * p0.imag * np.array([1 - delta, 1 + delta])
+        keep = np.setdiff1d(np.arange(fit.poles.size), [j, weak])
+        modes = np.concatenate([pair, fit.poles[keep[keep < n_mode_poles]]])
+        poles = np.concatenate([modes[np.argsort(np.abs(modes), kind="stable")], fit.poles[n_mode_poles:]])
+        residues, d = fit_residues(s, data.response, rw, poles)
+        trial = replace(fit, poles=poles, residues=residues, d=d)
+        trial = refine_residues(trial, sweeps=2)
+        trial = refine_modes_auto(trial, deadline=run.deadline, progress=run.progress)
+        trial_cost = _log_cost(trial, data)
+        if trial_cost < cost:
+            fit, cost = trial, trial_cost
+    return fit
 
 
 def _small(band: FrequencyData, n_modes: int) -> bool:
@@ -226,9 +312,13 @@ def fit_with_leakage(
     """
     st = run.settings
     fit = rational_fit(band, n_modes, run) if first is None else first
+    if isinstance(st, TruncationSettings) and run.refine:
+        return _fit_truncated(band, fit, n_modes, run, prefer)
     n_mode_poles = 0
     if st is None or run.refine:
         fit, n_mode_poles = modal_model(fit, n_modes, run, prefer)
+    if st is None and run.refine and run.groups is None:
+        fit = _swap_for_pair(fit, n_mode_poles, run)
     data = band
     for _ in range(_leakage_steps(fit, band, st)):
         if run.expired():
@@ -249,6 +339,21 @@ def fit_with_leakage(
     if st is not None and not run.refine:
         fit, n_mode_poles = modal_model(fit, n_modes, run)
     return fit, n_mode_poles, data
+
+
+def _fit_truncated(band: FrequencyData, fit: RationalFit, n_modes: int, run: FitSettings, prefer):
+    """An impact record's modal model: the modes refined against the raw data with the record-end
+    truncation in the model (eq. T1 in the refinement, :func:`.modal_refine.refine_modes`), when
+    the record leaks; the data used are the raw data plus the fitted model's tail (the corrected
+    data, on which the model is scored and its modes judged)."""
+    fit = replace(fit, data=band)
+    leaky = leaks(select_modes(fit, n_modes, prefer)[0], band, run.settings)
+    fit, n_mode_poles = modal_model(fit, n_modes, run, prefer, truncation=run.settings if leaky else None)
+    if not leaky:
+        return fit, n_mode_poles, band
+    data = band.replace(response=corrected_response(fit, band, run.settings),
+                        meta={**band.meta, "leakage_corrected": True})
+    return replace(fit, data=data), n_mode_poles, data
 
 
 def _leakage_steps(fit: RationalFit, band: FrequencyData, st) -> int:

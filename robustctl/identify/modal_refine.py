@@ -25,6 +25,7 @@ channels and of modes. :func:`refine_modes_auto` chooses between the two by the 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -34,6 +35,7 @@ from .poles import evaluate
 from .rational_fit import RationalFit
 from .realization import residue_factors
 from .refine import _row_weights, refine_residues
+from .tail import complex_tails, leaked_terms
 
 __all__ = ["refine_modes", "refine_modes_local", "refine_modes_auto", "ZETA_MIN", "DENSE_MAX_ENTRIES"]
 
@@ -55,6 +57,7 @@ class _Layout:
     term_pole: np.ndarray
     n_out: int
     n_in: int
+    truncation: Any = None  # TruncationSettings: fit the truncated record's response (eq. T1)
 
     @property
     def n_terms(self) -> int:
@@ -80,20 +83,19 @@ def _pack(poles, cs, bs, d) -> np.ndarray:
 
 def _model(s, lay: _Layout, x):
     poles, cs, bs, d = lay.split(x)
-    a = 1.0 / (s[:, None] - poles[None, lay.term_pole])  # (K, T)
-    ab = 1.0 / (s[:, None] - np.conj(poles)[None, lay.term_pole])
+    a, ab, da, dab = (v[:, lay.term_pole] for v in leaked_terms(s, poles, lay.truncation))  # (K, T)
     outer = cs[:, :, None] * bs[:, None, :]  # (T, no, ni)
     g = d[None] + np.einsum("kt,toi->koi", a, outer) + np.einsum("kt,toi->koi", ab, np.conj(outer))
-    return g, poles, cs, bs, a, ab, outer
+    return g, poles, cs, bs, a, ab, outer, da, dab
 
 
 def _jacobian(s, lay: _Layout, x, rw):
     """d(rw G)/dx as a complex array (K, n_out, n_in, n_params)."""
-    _, poles, cs, bs, a, ab, outer = _model(s, lay, x)
+    _, poles, cs, bs, a, ab, outer, da, dab = _model(s, lay, x)
     k, no, ni, t = s.size, lay.n_out, lay.n_in, lay.n_terms
     jac = np.zeros((k, no, ni, x.size), dtype=complex)
-    a2 = np.einsum("kt,toi->ktoi", a**2, outer)
-    ab2 = np.einsum("kt,toi->ktoi", ab**2, np.conj(outer))
+    a2 = np.einsum("kt,toi->ktoi", da, outer)
+    ab2 = np.einsum("kt,toi->ktoi", dab, np.conj(outer))
     for term, pole in enumerate(lay.term_pole):
         dsig = a2[:, term] + ab2[:, term]
         jac[..., pole] += dsig * poles[pole].real  # d/d log(-Re p) = Re p * d/d Re p
@@ -125,7 +127,11 @@ def _stack(z: np.ndarray) -> np.ndarray:
 
 @limit_blas
 def refine_modes(
-    fit: RationalFit, weights: np.ndarray | None = None, max_nfev: int = 60, which: np.ndarray | None = None
+    fit: RationalFit,
+    weights: np.ndarray | None = None,
+    max_nfev: int = 60,
+    which: np.ndarray | None = None,
+    truncation: Any = None,
 ) -> RationalFit:
     """Refine poles and rank-``ranks`` mode shapes of ``fit`` against ``fit.data`` (see module doc).
 
@@ -140,6 +146,10 @@ def refine_modes(
     which : ndarray of int, optional
         Indices of the complex poles to refine (default: all with a non-zero rank); the other
         poles' terms are held fixed.
+    truncation : TruncationSettings, optional
+        Impact record settings: fit the response the truncated record sees, every complex
+        pole's term minus its record-end tail (eq. T1 of :mod:`.leakage`, derivative eq. T1'
+        of :mod:`.tail`), to the raw data; the returned model is the untruncated one.
 
     Returns
     -------
@@ -155,14 +165,15 @@ def refine_modes(
     s = 2j * np.pi * data.f_hz
     rw = _row_weights(fit, weights)
     fixed = np.setdiff1d(np.arange(fit.poles.size), cplx)
-    target = data.response - evaluate(s, fit.poles[fixed], fit.residues[fixed], np.zeros_like(fit.d))
+    held = evaluate(s, fit.poles[fixed], fit.residues[fixed], np.zeros_like(fit.d))
+    target = data.response - held + complex_tails(s, fit.poles[fixed], fit.residues[fixed], truncation)
     term_pole, cs, bs = [], [], []
     for j, g in enumerate(cplx):
         c, b = residue_factors(fit.residues[g], int(fit.ranks[g]))
         term_pole += [j] * c.shape[1]
         cs += list(c.T)
         bs += list(b)
-    lay = _Layout(cplx.size, np.array(term_pole), *fit.d.shape)
+    lay = _Layout(cplx.size, np.array(term_pole), *fit.d.shape, truncation)
     x0 = _pack(fit.poles[cplx], np.array(cs), np.array(bs), fit.d)
 
     def resid(x):
@@ -229,13 +240,15 @@ def refine_modes_local(
     sweeps: int = 1,
     deadline: float | None = None,
     progress: bool = False,
+    truncation: Any = None,
 ) -> RationalFit:
     """Block Gauss-Seidel refinement: each cluster of overlapping rank-1 modes refined by variable
     projection (:func:`.block_refine.refine_cluster`: poles and input shapes nonlinear, output
     shapes and a local constant eliminated per output) on the frequencies around it, every other
     term held fixed. Stops at ``deadline`` (a ``time.perf_counter()`` value). The residual is the
     relative one of MACE eq. 5 with the full data's weights; a block keeps its start when
-    refining does not lower its cost.
+    refining does not lower its cost. With ``truncation`` every complex term is the truncated
+    record's (eq. T1, as :func:`refine_modes`).
     """
     import time
 
@@ -259,11 +272,12 @@ def refine_modes_local(
             rows = _window(data.f_hz, fit.f_hz, fit.zeta, block)
             others = np.setdiff1d(np.arange(fit.poles.size), block)
             rest = evaluate(s[rows], fit.poles[others], fit.residues[others], fit.d)
+            rest -= complex_tails(s[rows], fit.poles[others], fit.residues[others], truncation)
             factors = [residue_factors(fit.residues[k], 1) for k in block]
             cs = np.array([f[0][:, 0] for f in factors])
             bs = np.array([f[1][0] for f in factors])
             p, c, b, before, after = refine_cluster(
-                s[rows], data.response[rows] - rest, rw[rows], fit.poles[block], cs, bs
+                s[rows], data.response[rows] - rest, rw[rows], fit.poles[block], cs, bs, truncation=truncation
             )
             if not after < before:
                 continue
@@ -275,12 +289,17 @@ def refine_modes_local(
 
 
 def refine_modes_auto(
-    fit: RationalFit, weights: np.ndarray | None = None, deadline: float | None = None, progress: bool = False
+    fit: RationalFit,
+    weights: np.ndarray | None = None,
+    deadline: float | None = None,
+    progress: bool = False,
+    truncation: Any = None,
 ) -> RationalFit:
     """:func:`refine_modes` (all modes together) when its Jacobian has at most
     ``DENSE_MAX_ENTRIES`` entries, else :func:`refine_modes_local` (block by block) followed by
-    one alternating least-squares pass over all shapes (:func:`refine_residues`)."""
+    one alternating least-squares pass over all shapes (:func:`refine_residues`; not with
+    ``truncation``, whose leaked terms that pass does not model)."""
     if _dense_entries(fit) <= DENSE_MAX_ENTRIES:
-        return refine_modes(fit, weights)
-    fit = refine_modes_local(fit, weights, deadline=deadline, progress=progress)
-    return refine_residues(fit, weights, sweeps=1)
+        return refine_modes(fit, weights, truncation=truncation)
+    fit = refine_modes_local(fit, weights, deadline=deadline, progress=progress, truncation=truncation)
+    return fit if truncation is not None else refine_residues(fit, weights, sweeps=1)
