@@ -148,14 +148,34 @@ def _damping_vector(damping: Any, n: int) -> np.ndarray:
 
 
 def _apply_bands(zeta: np.ndarray, f_hz: np.ndarray, bands) -> np.ndarray:
+    """``zeta`` with each band's factor applied: ``(lo_hz, hi_hz, factor)`` scales the modes
+    in ``[lo_hz, hi_hz]`` Hz, ``(first, last, factor, "mode")`` the elastic modes ``first`` to
+    ``last`` (1-based by ascending frequency, rigid-body modes not counted)."""
     zeta = zeta.copy()
-    for lo, hi, factor in bands:
-        inside = (f_hz >= lo) & (f_hz <= hi)
-        if not np.any(inside):
-            raise ModelError(
-                f"the modal damping band [{lo:g}, {hi:g}] Hz contains no kept mode (kept modes "
-                f"span {f_hz.min():.4g}-{f_hz.max():.4g} Hz); move the band onto a mode."
-            )
+    elastic = np.flatnonzero(f_hz > 0)
+    elastic = elastic[np.argsort(f_hz[elastic], kind="stable")]
+    for band in bands:
+        if len(band) == 4 and band[3] == "mode":
+            first, last, factor = int(band[0]), int(band[1]), band[2]
+            if not 1 <= first <= last:
+                raise ModelError(
+                    f"a modal damping mode group needs 1 <= first <= last; got ({first}, {last})."
+                )
+            if last > elastic.size:
+                raise ModelError(
+                    f"the modal damping group of modes {first}-{last} needs {last} elastic modes; "
+                    f"the dynamics keep {elastic.size}. Keep more modes or choose lower ones."
+                )
+            inside = np.zeros(zeta.size, dtype=bool)
+            inside[elastic[first - 1 : last]] = True
+        else:
+            lo, hi, factor = band[:3]
+            inside = (f_hz >= lo) & (f_hz <= hi)
+            if not np.any(inside):
+                raise ModelError(
+                    f"the modal damping band [{lo:g}, {hi:g}] Hz contains no kept mode (kept modes "
+                    f"span {f_hz.min():.4g}-{f_hz.max():.4g} Hz); move the band onto a mode."
+                )
         if factor < 0 or not np.isfinite(factor):
             raise ModelError(f"a modal damping factor must be finite and >= 0; got {factor}.")
         zeta[inside] *= factor

@@ -46,9 +46,11 @@ class StructuralMatrices:
         Signal names.
     dof_labels : tuple of str
         A label per free DOF (``"node 3 ux"``, ``"dof 6"``).
-    modal_damping_bands : tuple of (lo_hz, hi_hz, factor)
-        Multiply the modal damping ratio of modes in ``[lo_hz, hi_hz]`` by ``factor``
-        (set by the "modal damping change of a mode group" effect).
+    modal_damping_bands : tuple of (lo_hz, hi_hz, factor) or (first, last, factor, "mode")
+        Multiply the modal damping ratio of modes in ``[lo_hz, hi_hz]`` by ``factor``, or of
+        the elastic modes ``first`` to ``last`` (1-based, by ascending frequency among the
+        kept modes; rigid-body modes not counted) when the entry ends in ``"mode"`` (set by
+        the "modal damping change of a mode group" effect).
     """
 
     mass: object
@@ -60,7 +62,7 @@ class StructuralMatrices:
     inputs: tuple[str, ...]
     outputs: tuple[str, ...]
     dof_labels: tuple[str, ...]
-    modal_damping_bands: tuple[tuple[float, float, float], ...] = ()
+    modal_damping_bands: tuple[tuple, ...] = ()
 
     @property
     def n_dof(self) -> int:
@@ -125,8 +127,21 @@ class Structure(ABC):
         self._modal_damping_bands = tuple(bands)
         return self
 
-    def modal_damping_bands(self) -> tuple[tuple[float, float, float], ...]:
-        """The damping scalings set by :meth:`scale_modal_damping`."""
+    def scale_mode_damping(self, first: int, last: int, factor: float) -> Structure:
+        """Multiply the modal damping ratio of the elastic modes ``first`` to ``last`` by ``factor``.
+
+        Modes are counted from 1 by ascending natural frequency among the modes the
+        dynamics keep, rigid-body (0 Hz) modes left out, so the change follows its modes
+        wherever the parameters move them (a band in Hz, :meth:`scale_modal_damping`, loses
+        them once they leave it).
+        """
+        bands = list(getattr(self, "_modal_damping_bands", ()))
+        bands.append((int(first), int(last), float(factor), "mode"))
+        self._modal_damping_bands = tuple(bands)
+        return self
+
+    def modal_damping_bands(self) -> tuple[tuple, ...]:
+        """The damping scalings set by :meth:`scale_modal_damping` and :meth:`scale_mode_damping`."""
         return tuple(getattr(self, "_modal_damping_bands", ()))
 
     def set_gravity(self, enabled: bool) -> Structure:

@@ -127,23 +127,26 @@ def _structure_candidates(model: PhysicalModel, include_points: bool) -> list[Ef
     return cands
 
 
-def _modal_damping_candidates(f_modes: np.ndarray, band: tuple[float, float] | None) -> list[Effect]:
+def _modal_damping_candidates(f_modes: np.ndarray, number: np.ndarray) -> list[Effect]:
+    """A damping change per octave-wide group of the modes ``f_modes`` (Hz, ascending), each
+    group by its mode numbers ``number`` (1-based among the elastic modes), not by Hz, so it
+    follows its modes when parameter errors or the update move them (a band at the nominal
+    modes loses them beyond its margin: E -30 % moves every mode by 16 %)."""
     f = np.asarray(f_modes, dtype=float)
-    f = f[f > 0]
-    if band is not None:
-        f = f[(f >= band[0]) & (f <= band[1])]
+    keep = f > 0
+    f, number = f[keep], np.asarray(number)[keep]
     if f.size == 0:
         return []
     groups, start = [], f[0]
-    cur = [f[0]]
-    for fk in f[1:]:  # octave-wide groups
-        if fk <= 2.0 * start:
-            cur.append(fk)
+    cur = [0]
+    for k in range(1, f.size):  # octave-wide groups
+        if f[k] <= 2.0 * start:
+            cur.append(k)
         else:
             groups.append(cur)
-            cur, start = [fk], fk
+            cur, start = [k], f[k]
     groups.append(cur)
-    return [ModalDamping(lo_hz=0.97 * g[0], hi_hz=1.03 * g[-1]) for g in groups]
+    return [ModalDamping(modes=(int(number[g[0]]), int(number[g[-1]]))) for g in groups]
 
 
 @limit_blas
@@ -216,11 +219,13 @@ def candidates(
             cands = _at_locations(model, cands, locations)
         if kinds is not None:
             cands = [c for c in cands if c.kind in kinds]
+        modes = _modes(model, band)
         if calibrate:
-            omega, _, cands = _calibrate(model, cands, band, deadline, executor)
-        else:
-            omega = _modes(model, band)[0]
-        cands += _modal_damping_candidates(omega / (2 * np.pi), band)
+            cands = _calibrate(model, cands, band, deadline, executor, modes=modes)[2]
+        omega, number = modes[0], modes[3]
+        f_hz = omega / (2 * np.pi)
+        inside = np.ones(f_hz.size, dtype=bool) if band is None else (f_hz >= band[0]) & (f_hz <= band[1])
+        cands += _modal_damping_candidates(f_hz[inside], number[inside])
     taken = set(model.param_names)
     cands = [c for c in cands if not taken.intersection(c.param_names)]
     if kinds is not None:
@@ -260,7 +265,8 @@ def _modes(model: PhysicalModel, band):
         inside = keep & (f >= band[0]) & (f <= band[1])
         keep = inside if np.any(inside) else keep
     idx = np.flatnonzero(keep)[:_N_CAL_MODES] if band is None else np.flatnonzero(keep)
-    return omega[idx], phi[:, idx], (M, K, mats)
+    number = idx - np.count_nonzero(omega <= 0) + 1  # among the elastic modes, from 1
+    return omega[idx], phi[:, idx], (M, K, mats), number
 
 
 @limit_blas
@@ -334,7 +340,7 @@ def _changes_preload(effect: Effect, model: PhysicalModel, struct) -> bool:
 
 def _calibrate(
     model: PhysicalModel, cands: list[Effect], band, deadline: tuple[float, float] | None = None,
-    executor: Any = None,
+    executor: Any = None, modes: tuple | None = None,
 ) -> tuple[np.ndarray, np.ndarray, list]:
     """Give each structural candidate a secant step that moves the modes by about 2 %
     (:data:`SHIFT_TARGET` of ``w^2``; first-order perturbation ``phi^T (dK - w^2 dM) phi``,
@@ -342,10 +348,11 @@ def _calibrate(
 
     ``deadline`` is ``(time.perf_counter() limit, budget)``: checked before each candidate.
     ``executor`` calibrates the candidates in parallel (:func:`robustctl.parallel.parallel_map_shared`;
-    each is calibrated alone, so the steps equal the serial ones)."""
+    each is calibrated alone, so the steps equal the serial ones). ``modes`` is
+    ``_modes(model, band)`` when the caller has it."""
     from ...parallel import parallel_map_shared
 
-    omega, phi, (_, _, mats0) = _modes(model, band)  # with the preload
+    omega, phi, (_, _, mats0), _ = _modes(model, band) if modes is None else modes  # with the preload
     if omega.size == 0:
         return omega, phi, cands
     fresh, mats_base = _probe_copies(model)
