@@ -127,26 +127,40 @@ def _structure_candidates(model: PhysicalModel, include_points: bool) -> list[Ef
     return cands
 
 
+#: Consecutive modes closer than this frequency ratio form a cluster (a close pair of a
+#: symmetric structure, bending in x and y) that gets a damping candidate of its own.
+_CLUSTER_RATIO = 1.1
+
+
 def _modal_damping_candidates(f_modes: np.ndarray, number: np.ndarray) -> list[Effect]:
-    """A damping change per octave-wide group of the modes ``f_modes`` (Hz, ascending), each
-    group by its mode numbers ``number`` (1-based among the elastic modes), not by Hz, so it
-    follows its modes when parameter errors or the update move them (a band at the nominal
-    modes loses them beyond its margin: E -30 % moves every mode by 16 %)."""
+    """Damping changes of the modes ``f_modes`` (Hz, ascending) by their mode numbers
+    ``number`` (1-based among the elastic modes), not by Hz, so each follows its modes when
+    parameter errors or the update move them (a band at the nominal modes loses them beyond
+    its margin: E -30 % moves every mode by 16 %).
+
+    One candidate per octave-wide group of modes, and one per cluster of modes closer than
+    :data:`_CLUSTER_RATIO` (a lone mode is its own cluster) when it is not already a group:
+    a change on a close pair alone (joints of one bending plane pair) is then fitted exactly,
+    not spread over the octave."""
     f = np.asarray(f_modes, dtype=float)
     keep = f > 0
     f, number = f[keep], np.asarray(number)[keep]
     if f.size == 0:
         return []
-    groups, start = [], f[0]
-    cur = [0]
-    for k in range(1, f.size):  # octave-wide groups
-        if f[k] <= 2.0 * start:
-            cur.append(k)
-        else:
-            groups.append(cur)
-            cur, start = [k], f[k]
-    groups.append(cur)
-    return [ModalDamping(modes=(int(number[g[0]]), int(number[g[-1]]))) for g in groups]
+
+    def runs(joined) -> list[tuple[int, int]]:
+        out, first = [], 0
+        for k in range(1, f.size):
+            if not joined(first, k):
+                out.append((first, k - 1))
+                first = k
+        out.append((first, f.size - 1))
+        return out
+
+    octaves = runs(lambda first, k: f[k] <= 2.0 * f[first])
+    clusters = runs(lambda first, k: f[k] < _CLUSTER_RATIO * f[k - 1])
+    spans = list(dict.fromkeys(octaves + clusters))
+    return [ModalDamping(modes=(int(number[a]), int(number[b]))) for a, b in spans]
 
 
 @limit_blas
