@@ -444,7 +444,7 @@ def test_contenders_are_polished_to_convergence_before_the_vuong_test():
 def test_frame_damping_change_on_a_close_pair_under_a_30_percent_modulus_error():
     """The 2-storey frame with E -30 % (every mode 16 % lower: the 7.1 Hz bending pair at 6.0 Hz)
     and +150 % damping on that pair: diagnose said "nothing significant" when its damping
-    candidates were bands at the nominal modes (the top was a sensor misalignment). By mode
+    candidates were bands at the nominal modes (the top was a dashpot, not significant). By mode
     number the pair's own candidate (not the octave's modes 1-3) comes first, and the update
     recovers the change within twice its standard error and E within 1 %."""
     model = _portal()

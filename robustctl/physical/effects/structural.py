@@ -451,7 +451,11 @@ class ModalDamping(_StructEffect):
     wherever parameter changes move them, or a frequency band (``lo_hz``, ``hi_hz``), which
     holds whatever modes sit in it. The candidates of :func:`candidates` use mode numbers:
     a band placed at the nominal model's modes loses them when parameter errors shift the
-    modes by more than its margin (E -30 % moves them by 16 %).
+    modes by more than its margin (E -30 % moves them by 16 %). Mode numbers count the modes
+    the model's dynamics keep (:func:`~robustctl.physical.modal.modal_dynamics`), while the
+    candidates number the structure's modes from its lowest: the two agree unless the
+    dynamics truncate to a band above the lowest mode (``band_hz=(5.0, 60.0)``). Modes that
+    cross (a change moves one past another) swap numbers.
 
     Parameters
     ----------
