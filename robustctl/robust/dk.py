@@ -64,6 +64,9 @@ ORDER_D_DROP = 0
 #: Loose on purpose: on the distillation example 0.5 % (orders 4-8) stalled D-K at mu = 1.033,
 #: a fixed order 4 reproduced the book's 1.0189 and 5 % (orders 3-4) reached 1.010.
 ORDER_D_RTOL = 0.05
+#: A block's best bound this factor above what it can reach (times 1 + ORDER_D_RTOL) counts as a
+#: broken fit: the orders below the previous iteration's are tried too.
+ORDER_D_BROKEN = 1.25
 #: Extrapolation steps ``beta`` of the D step's line search (module docstring); 0 is plain D-K.
 D_STEPS = (0.0, 0.5, 1.0)
 #: A verified peak of mu this fraction above the iteration grid's draws a RuntimeWarning.
@@ -460,7 +463,7 @@ def _fit_d_scales(
         trial_edges[:, i] = _edge_scales(fit)
         return (bound_of(trial, trial_edges), fit, o, trial[:, i], trial_edges[:, i])
 
-    def scan(i: int, candidates: Sequence[int]) -> tuple | None:
+    def scan(i: int, candidates: Sequence[int], acceptable: float) -> tuple | None:
         """The first candidate order (in the given sequence) whose bound is within
         ORDER_D_RTOL of mu's peak, else the one with the lowest bound; None if every fit
         has dynamics outside the band. Serially, with three or more candidates, the highest
@@ -468,9 +471,6 @@ def _fit_d_scales(
         others (on a 28-state plant with five scaled blocks two blocks went through all nine
         orders, 37 fits and 39 s of a 51 s D-K run). Past ``deadline`` no further order is
         tried once one is in band."""
-        # what this block's fit can reach: the bound with its optimal scales (the earlier
-        # blocks' fits and the edges may keep it above mu's peak whatever block i does)
-        acceptable = max(peak, bound_of(joint, edges)) * (1 + ORDER_D_RTOL)
         if executor is not None:
             jobs = [(f, d[:, i], o, _fit_budget(deadline)) for o in candidates]
             fitted = dict(zip(candidates, parallel_map(_fit_one, jobs, executor, progress=False)))
@@ -495,13 +495,22 @@ def _fit_d_scales(
         return best
 
     for i in range(nb):
-        best = scan(i, orders[i])
-        if best is None:
-            # every allowed order had out-of-band dynamics: the lower orders, highest first
-            # (order 0, a constant, is always in band). Falling back straight to a constant
-            # raised mu from 1.20 to 1.39 on a random 28-state plant with five scaled blocks
-            # (an order-8 scale whose order could not drop).
-            best = scan(i, list(range(min(orders[i]) - 1, -1, -1)) or [0])
+        # what this block's fit can reach: the bound with its optimal scales (the earlier
+        # blocks' fits and the edges may keep it above mu's peak whatever block i does)
+        acceptable = max(peak, bound_of(joint, edges)) * (1 + ORDER_D_RTOL)
+        best = scan(i, orders[i], acceptable)
+        lower = list(range(min(orders[i]) - 1, -1, -1))
+        if lower and (best is None or best[0] > acceptable * ORDER_D_BROKEN):
+            # every allowed order had out-of-band dynamics, or a bound far above what the
+            # block can reach: the lower orders too, highest first (order 0, a constant, is
+            # always in band). Falling back straight to a constant raised mu from 1.20 to 1.39
+            # on a random 28-state plant with five scaled blocks (an order-8 scale whose order
+            # could not drop); on a random 12-state plant the only allowed order's fit rose 15x
+            # beyond the grid's top (bound 3.2 at w = inf against mu 0.48) and the next K
+            # step's gamma was 3.1.
+            low = scan(i, lower, acceptable)
+            if low is not None and (best is None or low[0] < best[0]):
+                best = low
         assert best is not None
         chosen.append(best[1])
         chosen_orders.append(best[2])
