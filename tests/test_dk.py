@@ -213,6 +213,29 @@ def test_d_orders_out_of_band_fall_back_to_lower_orders_not_a_constant(monkeypat
     assert bound_free < bound < bound_const
 
 
+def test_a_broken_fit_of_the_only_allowed_order_falls_back_to_lower_orders(monkeypatch):
+    """Orders never drop below the previous iteration's (ORDER_D_DROP = 0), but when the only
+    allowed order's fit bounds the loop far above what the block can reach, the lower ones
+    are tried: on a random 12-state plant the order-8 fit rose 15x beyond the grid's top,
+    its bound was 3.2 against mu 0.48, and the next K step's gamma 3.1. Here order 4's fits
+    and above are spoiled by a factor 3 (bound ~3x mu)."""
+    import robustctl.robust.dk as dkm
+    from robustctl.robust.hinfsyn import hinfsyn
+
+    plant = _as_plant((distillation_plant(), 2, 2, BOOK_BLOCKS))
+    blocks = dkm._complexified(plant.blocks)
+    cl = closed_loop(plant.P, hinfsyn(plant.P, 2, 2, backoff=1e-3).K, 2, 2)
+    m, H = dkm._mu_of(cl, blocks, dkm.default_grid(plant.P), refine=True)
+    edges = dkm._edge_response(cl)
+    fit_one = dkm._fit_one
+    monkeypatch.setattr(dkm, "_fit_one", lambda args: 3.0 * fit_one(args) if args[2] >= 4 else fit_one(args))
+    fits, orders, bound = dkm._fit_d_scales(H, m, blocks, None, None, (4, 4), edges)
+    assert all(o < 4 for o in orders) and bound < 1.25 * m.peak
+    monkeypatch.setattr(dkm, "ORDER_D_BROKEN", np.inf)  # without the fallback: the spoiled fits
+    _, orders, spoiled = dkm._fit_d_scales(H, m, blocks, None, None, (4, 4), edges)
+    assert all(o >= 4 for o in orders) and spoiled > 2 * m.peak
+
+
 def test_fit_roots_above_the_band_are_moved_to_its_edge():
     from robustctl.robust.dk import _dynamics_in_band, _into_band
     from robustctl.robust.magfit import zpk_statespace
