@@ -140,14 +140,45 @@ class _Basis:
         return lam[np.isfinite(lam) & (np.abs(lam) < 1e8 * self.x_max)]
 
 
-def _basis(w: np.ndarray, order: int) -> tuple[_Basis, np.ndarray]:
+def _basis(w: np.ndarray, order: int, mag: np.ndarray | None = None) -> tuple[_Basis, np.ndarray]:
+    """The start basis: poles log-spaced over the grid, or (given ``mag``) over the part of it
+    where the curve changes (:func:`_active_range`)."""
     w0 = float(np.sqrt(w[0] * w[-1]))
     x = (w / w0) ** 2
-    lo, hi = x[0], x[-1]
-    if hi / lo < 1e2:  # a narrow grid: spread the poles anyway
-        lo, hi = lo / 10, hi * 10
-    p = np.geomspace(lo, hi, order) if order > 1 else np.array([1.0])
+    lo, hi = (x[0], x[-1]) if mag is None else _active_range(x, mag)
+    if hi / lo < 1e2:  # a narrow range: spread the poles anyway
+        c = np.sqrt(lo * hi)
+        lo, hi = min(lo, c / 10), max(hi, c * 10)
+    p = np.geomspace(lo, hi, order) if order > 1 else np.array([np.sqrt(lo * hi)])
     return _Basis(w0, p, float(x[-1])), x
+
+
+#: A curve's end counts as flat while it stays within this fraction of its log range of the
+#: end value (:func:`_active_range`).
+FLAT_FRACTION = 0.02
+
+
+def _active_range(x: np.ndarray, mag: np.ndarray) -> tuple[float, float]:
+    """The ``x`` range between the curve's flat ends (points within ``FLAT_FRACTION`` of its
+    log range of the end value; NaN points are ignored).
+
+    Basis poles in a flat end are wasted, and worse: on a grid of many decades (a D-scale of
+    the distillation example with the weight pole at 1e-5 rad/s, over 1e-6 .. 60 rad/s and
+    flat below 1e-3 rad/s) poles log-spaced over the whole grid lay so far from the fit's own
+    that ``A / D`` spanned ten decades on the grid, beyond the LP's accuracy: order 3 stopped
+    at 3.5 dB where 0.96 dB exists (1.59 dB now), order 5 at 1.60 dB (0.52 dB now).
+    """
+    ok = np.flatnonzero(np.isfinite(mag) & (mag > 0))
+    if ok.size < 2:
+        return float(x[0]), float(x[-1])
+    lm = np.log(mag[ok])
+    band = FLAT_FRACTION * float(np.ptp(lm))
+    moving_lo = np.flatnonzero(np.abs(lm - lm[0]) > band)
+    moving_hi = np.flatnonzero(np.abs(lm - lm[-1]) > band)
+    if band <= 0 or moving_lo.size == 0 or moving_hi.size == 0:
+        return float(x[0]), float(x[-1])
+    k0, k1 = ok[max(int(moving_lo[0]) - 1, 0)], ok[min(int(moving_hi[-1]) + 1, ok.size - 1)]
+    return (float(x[k0]), float(x[k1])) if k1 > k0 else (float(x[0]), float(x[-1]))
 
 
 def _midpoints(basis: _Basis, x: np.ndarray, y: np.ndarray, wt: np.ndarray) -> dict[str, np.ndarray]:
@@ -848,7 +879,7 @@ def fit_magnitude_details(
         zeros = poles = np.zeros(0, dtype=complex)
         n_lp = 0
     else:
-        basis, x = _basis(w, order)
+        basis, x = _basis(w, order, np.where(use, m, np.nan))
         y = (m[use] / scale) ** 2
         prob = _Problem(
             phi=basis.matrix(x[use]),
