@@ -441,21 +441,45 @@ def _pair_terms(lp: np.ndarray, rp: np.ndarray, w: np.ndarray, chunk: int = 256)
     return g_re, g_im
 
 
-def _schur_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """``C (sI - A)^{-1} B`` via the complex Schur form and a frequency-vectorised back-substitution."""
+def _schur_factors(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> tuple:
+    """What :func:`_schur_eval` needs of ``(A, B, C)``: the complex Schur form ``A = Z T Z^H``
+    with ``Z^H B`` and ``C Z``, computed once (on the transposed system when ``C`` has fewer
+    rows than ``B`` has columns, so that the back-substitution carries fewer columns)."""
     from scipy.linalg import schur
 
-    if C.shape[0] < B.shape[1]:  # solve on the side with fewer columns
-        return np.transpose(_schur_response(A.T, C.T, B.T, s), (0, 2, 1))
+    transposed = C.shape[0] < B.shape[1]
+    if transposed:
+        A, B, C = A.T, C.T, B.T
     T, Z = schur(A.astype(complex), output="complex")
-    Bz = Z.conj().T @ B
-    n = A.shape[0]
-    X = np.empty((s.size, n, B.shape[1]), dtype=complex)
-    diag = s[:, None] - np.diag(T)[None, :]
-    for i in range(n - 1, -1, -1):  # (sI - T) X = Bz, upper triangular
-        rhs = Bz[i][None, :] + np.einsum("j,fjm->fm", T[i, i + 1 :], X[:, i + 1 :, :])
-        X[:, i, :] = rhs / diag[:, i : i + 1]
-    return np.einsum("pj,fjm->fpm", C @ Z, X)
+    return T, Z.conj().T @ B, C @ Z, transposed
+
+
+def _schur_eval(factors: tuple, s: np.ndarray) -> np.ndarray:
+    """``C (sI - A)^{-1} B`` at the points ``s`` from :func:`_schur_factors`, by a
+    frequency-vectorised back-substitution in the triangular ``T``; shape (n_s, p, m)."""
+    T, Bz, CZ, transposed = factors
+    n = T.shape[0]
+    X = np.empty((s.size, n, Bz.shape[1]), dtype=complex)
+    if s.size < n:  # few points, a large block: one LAPACK triangular solve per point
+        from scipy.linalg.lapack import ztrtrs
+
+        M = np.asfortranarray(-T)
+        d = np.diag(T)
+        for k, sk in enumerate(s):
+            M[np.diag_indices(n)] = sk - d
+            X[k], _ = ztrtrs(M, Bz)
+    else:  # many points: a back-substitution vectorised over them, one row at a time
+        diag = s[:, None] - np.diag(T)[None, :]
+        for i in range(n - 1, -1, -1):  # (sI - T) X = Bz, upper triangular
+            rhs = Bz[i][None, :] + np.einsum("j,fjm->fm", T[i, i + 1 :], X[:, i + 1 :, :])
+            X[:, i, :] = rhs / diag[:, i : i + 1]
+    out = np.einsum("pj,fjm->fpm", CZ, X)
+    return np.transpose(out, (0, 2, 1)) if transposed else out
+
+
+def _schur_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """``C (sI - A)^{-1} B`` via the complex Schur form and a frequency-vectorised back-substitution."""
+    return _schur_eval(_schur_factors(A, B, C), s)
 
 
 @limit_blas

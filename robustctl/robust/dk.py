@@ -75,6 +75,12 @@ REDUCE_MU_RTOL = 0.02
 #: fraction of the largest (numerically non-minimal: their truncation changes K by at most
 #: ``2 sum sigma_i``, below 1e-7 of its gain).
 HSV_RTOL = 1e-9
+#: Serially, a block with at least this many candidate D orders fits the highest first and
+#: keeps it without fitting the others when even it misses ORDER_D_RTOL. Not for fewer: on
+#: the Caltech design plant (3 x 3 blocks, orders 0-4) taking the highest order so reached
+#: mu 0.760 but with a 93-state controller in 18 s of CPU; scanning upwards reaches 0.837
+#: with 69 states in 8 s (the issue's budget is 10 s).
+SHORTCUT_MIN_ORDERS = 6
 #: A block's best bound this factor above what it can reach (times 1 + ORDER_D_RTOL) counts as a
 #: broken fit: the orders below the previous iteration's are tried too.
 ORDER_D_BROKEN = 1.25
@@ -430,21 +436,21 @@ def _fit_d_scales(
     Blocks are fitted in turn (greedy, uniform log-Chebyshev fits: weighting the fit towards
     the peak of mu left the scaled bound higher off the peak, and destabilised the K step, in
     trials on the distillation example; so did fits that reproduce mu within 1 % at every
-    frequency: the next K step reached 1.045 against 1.028 from the 4 %-loss fit): block
-    ``i`` takes the lowest order (from ORDER_D_DROP below the previous iteration's order up
-    to MAX_AUTO_ORDER_D when ``order_d`` is None) whose fit, with blocks ``< i`` at their
-    chosen fits and blocks ``> i`` at their optimal constant scales, keeps
-    ``max_f sigma_max(D M D^-1)`` within ``ORDER_D_RTOL`` of what block ``i`` can reach (the
-    larger of mu's peak and that bound with block ``i`` at its optimal scales); if none
-    does, the highest allowed order (fitted first, so that the others need no fit when it
-    misses too; with an executor all orders are fitted in parallel and the lowest bound
-    wins). When every allowed order's fit has dynamics outside the band, or the best bound
-    is ``ORDER_D_BROKEN`` times above the reachable one, the lower orders are tried too
-    (highest first; order 0 is always in band). With ``H_edges`` (:func:`_edge_response`)
+    frequency: the next K step reached 1.045 against 1.028 from the 4 %-loss fit): block ``i``
+    takes the lowest order (from ORDER_D_DROP below the previous iteration's order up to
+    MAX_AUTO_ORDER_D when ``order_d`` is None) whose fit, with blocks ``< i`` at their chosen
+    fits and blocks ``> i`` at their optimal constant scales, keeps ``max_f sigma_max(D M
+    D^-1)`` within ``ORDER_D_RTOL`` of what block ``i`` can reach (the larger of mu's peak and
+    that bound with block ``i`` at its optimal scales); if none does, the one with the lowest
+    bound (with ``SHORTCUT_MIN_ORDERS`` or more candidates, serially, the highest, fitted
+    first so that the others need no fit when it misses too; with an executor all orders are
+    fitted in parallel). When every allowed order's fit has dynamics outside the band, or the
+    best bound is ``ORDER_D_BROKEN`` times above the reachable one, the lower orders are tried
+    too (highest first; order 0 is always in band). With ``H_edges`` (:func:`_edge_response`)
     the bound also covers ``w = 0`` and ``w = inf``, where the optimal scales are taken as
     those at the grid's ends. Past ``deadline`` no further order is fitted once one is in
-    band. Returns the fits, their orders and the joint bound with all fitted scales (an
-    upper bound on the next K step's gamma).
+    band. Returns the fits, their orders and the joint bound with all fitted scales (an upper
+    bound on the next K step's gamma).
     """
     from ..lti import freqresp_array
 
@@ -481,17 +487,17 @@ def _fit_d_scales(
     def scan(i: int, candidates: Sequence[int], acceptable: float) -> tuple | None:
         """The first candidate order (in the given sequence) whose bound is within
         ORDER_D_RTOL of mu's peak, else the one with the lowest bound; None if every fit
-        has dynamics outside the band. Serially, with three or more candidates, the highest
-        is tried first: when even it misses the tolerance, it is taken without fitting the
-        others (on a 28-state plant with five scaled blocks two blocks went through all nine
-        orders, 37 fits and 39 s of a 51 s D-K run). Past ``deadline`` no further order is
-        tried once one is in band."""
+        has dynamics outside the band. Serially, with ``SHORTCUT_MIN_ORDERS`` or more
+        candidates, the highest is tried first: when even it misses the tolerance, it is
+        taken without fitting the others (on a 28-state plant with five scaled blocks two
+        blocks went through all nine orders, 37 fits and 39 s of a 51 s D-K run). Past
+        ``deadline`` no further order is tried once one is in band."""
         if executor is not None:
             jobs = [(f, d[:, i], o, _fit_budget(deadline)) for o in candidates]
             fitted = dict(zip(candidates, parallel_map(_fit_one, jobs, executor, progress=False)))
         else:
             fitted = {}
-        if executor is None and len(candidates) >= 3:
+        if executor is None and len(candidates) >= SHORTCUT_MIN_ORDERS:
             top = max(candidates)
             fitted[top] = _fit_one((f, d[:, i], top, _fit_budget(deadline)))
             first = judge(i, top, fitted[top])
@@ -896,7 +902,7 @@ def dksyn(
     order_d : int, sequence of int or None
         Order of each D-scale fit (one per block but the last); None chooses per block the
         lowest order in 0..8 that keeps the scaled bound within 5 % of what the block can
-        reach, else the highest (never below the previous iteration's order unless those
+        reach, else the one with the lowest bound (never below the previous iteration's order unless those
         fits are broken or out of band; at most 24 added states per block, e.g. order 4 for
         a 3 x 3 block). From the third iteration the K step tries the fits of the
         extrapolated scales too (:data:`D_STEPS`, module docstring).

@@ -55,7 +55,8 @@ from ..lti import (
     _abs2,
     _blocks,
     _modal_terms,
-    _schur_response,
+    _schur_eval,
+    _schur_factors,
     _small_block_scaling,
     as_statespace,
 )
@@ -101,7 +102,7 @@ class _SigmaMax:
         self.poles = np.zeros(0, complex)
         self.lam = np.zeros(0, complex)
         self.R = np.zeros((0, D.size), complex)
-        self.bad: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self.bad: list[tuple] = []  # Schur factors of the blocks not diagonalised
         if n == 0 or D.size == 0:
             return
         blocks = _blocks(A)
@@ -119,7 +120,7 @@ class _SigmaMax:
         poles = [self.lam]
         for idx in bad:
             sub = np.ix_(idx, idx)
-            self.bad.append((A[sub], B[idx], C[:, idx]))
+            self.bad.append(_schur_factors(A[sub], B[idx], C[:, idx]))
             poles.append(np.linalg.eigvals(A[sub]))
         self.poles = np.concatenate(poles) if self.bad else self.lam
 
@@ -148,8 +149,8 @@ class _SigmaMax:
             out = np.broadcast_to(self.D.astype(complex), (s.size, *self.shape)).copy()
         if self.bad:
             with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-                for Ak, Bk, Ck in self.bad:
-                    out += _schur_response(Ak, Bk, Ck, s)
+                for factors in self.bad:
+                    out += _schur_eval(factors, s)
         return out
 
     def __call__(self, w: Any) -> np.ndarray:
