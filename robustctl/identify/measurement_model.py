@@ -52,7 +52,7 @@ from .stabilisation import (
     stabilisation_scan,
 )
 
-__all__ = ["Mode", "MeasurementModel", "fit_measurement_model", "StabilisationDiagram"]
+__all__ = ["Mode", "MeasurementModel", "fit_measurement_model", "StabilisationDiagram", "pinned_modes"]
 
 #: default time budget of one fit_measurement_model call, seconds
 TIME_BUDGET_S = 600.0
@@ -483,6 +483,10 @@ def fit_measurement_model(
     if tau is not None:
         fit = shift_poles(fit, 1.0 / tau)
     modes, fillers = _modes(fit, n_mode_poles)
+    pinned = pinned_modes(modes)
+    if pinned:
+        warnings.warn(pinned_message(pinned, bool(used.meta.get("leakage_corrected"))), IdentifyWarning,
+                      stacklevel=3)
     if fillers:
         warnings.warn(
             f"{len(fillers)} filler pole(s) (outside the band, heavily damped or real) are kept in the "
@@ -494,6 +498,32 @@ def fit_measurement_model(
     return MeasurementModel(
         fit.statespace(), modes, cost, fit, used, band_fd, bool(used.meta.get("leakage_corrected")), scan,
         fillers, diagram, tau,
+    )
+
+
+def pinned_modes(modes: tuple[Mode, ...]) -> tuple[Mode, ...]:
+    """Modes whose damping the refinement left at its lower bound (``zeta < BOUND_ZETA``).
+
+    Such a pole has no interior optimum: the data do not determine its decay (a peak narrower
+    than the frequency resolution, a leakage correction driven by dynamics the model lacks, or a
+    pole fitting noise); its damping is no measurement.
+    """
+    return tuple(m for m in modes if m.zeta < BOUND_ZETA)
+
+
+def pinned_message(pinned: tuple[Mode, ...], leakage_corrected: bool) -> str:
+    """The warning for modes at the damping bound (see :func:`pinned_modes`)."""
+    where = ", ".join(f"{m.f_hz:.4g} Hz" for m in pinned)
+    hint = (
+        " The data were leakage-corrected: the correction (robustctl.identify.leakage) needs in the model every "
+        "lightly damped mode whose leakage reaches the band (e.g. suspension modes just below it); "
+        "try correct_leakage=False or a band that holds them."
+        if leakage_corrected
+        else " Its damping is below what the frequency resolution resolves, or the pole fits noise."
+    )
+    return (
+        f"{len(pinned)} mode(s) at {where} sit at the lower damping bound (zeta < {BOUND_ZETA:.2g}): "
+        f"the data do not determine their damping.{hint}"
     )
 
 
