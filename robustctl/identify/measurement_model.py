@@ -37,6 +37,7 @@ from .leakage import (
     EstimatorSettings,
     TruncationSettings,
     estimator_settings,
+    expected_h1,
     truncation_settings,
 )
 from .modal_fit import FitSettings, fit_best, fit_with_leakage, shift_poles, spare_pairs
@@ -52,10 +53,14 @@ from .stabilisation import (
     stabilisation_scan,
 )
 
-__all__ = ["Mode", "MeasurementModel", "fit_measurement_model", "StabilisationDiagram"]
+__all__ = ["Mode", "MeasurementModel", "fit_measurement_model", "StabilisationDiagram", "pinned_modes",
+           "leakage_consistency"]
 
 #: default time budget of one fit_measurement_model call, seconds
 TIME_BUDGET_S = 600.0
+#: a leakage-corrected model is flagged when its expected H1 misses the raw data by more than
+#: INCONSISTENT_RATIO times its miss of the corrected data plus INCONSISTENT_DB (weighted rms, dB)
+INCONSISTENT_RATIO, INCONSISTENT_DB = 1.25, 0.25
 
 
 @dataclass(frozen=True, eq=False)
@@ -405,7 +410,13 @@ def fit_measurement_model(
         assumes white (flat-spectrum) ZOH excitation, as in the Caltech random-noise tests, and
         the estimator settings in ``data.meta``; "auto" applies it when those settings are
         there. Off by default: with coloured or swept inputs (e.g. the DaISy records) the
-        white-noise leakage model is wrong and makes the fit worse.
+        white-noise leakage model is wrong and makes the fit worse. The correction is a
+        deconvolution driven by the model: lightly damped modes outside the band whose leakage
+        reaches it (a test article's suspension modes just below), weak cross channels and
+        antiresonances let it follow the model instead of the data; an :class:`IdentifyWarning`
+        says so when the model's expected H1 misses the raw data by clearly more than the model
+        misses the corrected data (:func:`leakage_consistency`), and another names the modes left
+        at the lower damping bound (:func:`pinned_modes`).
     rank_tol : float
         With ``groups``: relative singular-value threshold of automatic mode counts in
         :func:`group_modes`. Without: unused (every mode has a rank-1 residue ``c b^T``).
@@ -480,9 +491,25 @@ def fit_measurement_model(
             IdentifyWarning,
             stacklevel=3,
         )
+    if isinstance(st, EstimatorSettings) and used.meta.get("leakage_corrected"):
+        miss_raw, miss_used = leakage_consistency(fit, band_fd, used, st, point_weights)
+        if miss_raw > INCONSISTENT_RATIO * miss_used + INCONSISTENT_DB:
+            warnings.warn(
+                f"the leakage correction is not self-consistent: the model's expected H1 estimate misses "
+                f"the raw data by {miss_raw:.3g} dB (weighted rms complex-log error) while the model "
+                f"fits the corrected data to {miss_used:.3g} dB. The correction follows the model where "
+                "the data do not pin it (weak channels, antiresonances, lightly damped modes outside the "
+                "band or at the damping bound); compare with correct_leakage=False.",
+                IdentifyWarning,
+                stacklevel=3,
+            )
     if tau is not None:
         fit = shift_poles(fit, 1.0 / tau)
     modes, fillers = _modes(fit, n_mode_poles)
+    pinned = pinned_modes(modes)
+    if pinned:
+        warnings.warn(pinned_message(pinned, bool(used.meta.get("leakage_corrected"))), IdentifyWarning,
+                      stacklevel=3)
     if fillers:
         warnings.warn(
             f"{len(fillers)} filler pole(s) (outside the band, heavily damped or real) are kept in the "
@@ -494,6 +521,58 @@ def fit_measurement_model(
     return MeasurementModel(
         fit.statespace(), modes, cost, fit, used, band_fd, bool(used.meta.get("leakage_corrected")), scan,
         fillers, diagram, tau,
+    )
+
+
+def leakage_consistency(
+    fit: RationalFit, raw: FrequencyData, used: FrequencyData, settings: EstimatorSettings, point_weights: Any
+) -> tuple[float, float]:
+    """Weighted rms complex-log misses ``|ln(model / data)|`` (MACE eq. 5, magnitude and phase, in
+    dB): the model's expected H1 estimate against the raw data, and the model against the
+    leakage-corrected data it was fitted to.
+
+    A correction that undoes the estimator's leakage leaves the two equal (the fixed point
+    ``E[H1 of M] = data`` of :mod:`.leakage`); a first much larger than the second says the
+    corrected data moved where the raw data do not follow (the correction is a deconvolution,
+    unstable where the data do not determine the model).
+    """
+    from ..checks import point_weights as weights_of
+
+    w = weights_of(point_weights, raw)
+    tiny = np.finfo(float).tiny
+
+    def miss(model: np.ndarray, data: np.ndarray) -> float:
+        d = np.abs(np.log(np.where(model == 0, tiny, model) / np.where(data == 0, tiny, data)))
+        return float(20 / np.log(10) * np.sqrt(np.sum(w * d**2) / max(np.sum(w), tiny)))
+
+    expected = expected_h1(fit, raw.f_hz, settings)
+    return miss(expected, raw.response), miss(fit.response(used.f_hz), used.response)
+
+
+def pinned_modes(modes: tuple[Mode, ...]) -> tuple[Mode, ...]:
+    """Modes whose damping the refinement left at its lower bound (``zeta < BOUND_ZETA``).
+
+    Such a pole has no interior optimum: the data do not determine its decay (a peak narrower
+    than the frequency resolution, a leakage correction driven by dynamics the model lacks, or a
+    pole fitting noise); its damping is no measurement.
+    """
+    return tuple(m for m in modes if m.zeta < BOUND_ZETA)
+
+
+def pinned_message(pinned: tuple[Mode, ...], leakage_corrected: bool) -> str:
+    """The warning for modes at the damping bound (see :func:`pinned_modes`)."""
+    where = ", ".join(f"{m.f_hz:.4g} Hz" for m in pinned)
+    hint = (
+        " The data were leakage-corrected: the correction (robustctl.identify.leakage) needs in the "
+        "model every lightly damped mode whose leakage reaches the band (e.g. suspension modes just "
+        "below it); "
+        "try correct_leakage=False or a band that holds them."
+        if leakage_corrected
+        else " Its damping is below what the frequency resolution resolves, or the pole fits noise."
+    )
+    return (
+        f"{len(pinned)} mode(s) at {where} sit at the lower damping bound (zeta < {BOUND_ZETA:.2g}): "
+        f"the data do not determine their damping.{hint}"
     )
 
 
