@@ -283,6 +283,9 @@ def test_fit_magnitude_bad_input():
         rc.fit_magnitude(F, mag, 2, objective="mean")
     with pytest.raises(rc.FitError, match=r"improper"):
         zpk_statespace([-1.0, -2.0], [-3.0], 1.0)
+    with pytest.raises(rc.FitError, match=r"spans 600 decades"):  # (was a ValueError from linprog)
+        rc.fit_magnitude(F, np.logspace(-300, 300, F.size), 2)
+    assert rc.fit_magnitude(F, np.logspace(-40, 40, F.size), 2).nstates == 2  # 80 decades still fit
 
 
 # ---------------------------------------------------------------------------- makeweight

@@ -70,6 +70,11 @@ def _check_order(order: Any) -> int:
     return int(order)
 
 
+#: Widest magnitude range a fit accepts (decades of max / min): its squared, normalised curve
+#: must stay within floating point (the LP failed from about 150 decades on).
+MAX_DECADES = 100.0
+
+
 def _check_curve(f_hz: Any, mag: Any) -> tuple[np.ndarray, np.ndarray]:
     f = real_array(f_hz, "f_hz", FitError).reshape(-1)
     m = real_array(mag, "mag", FitError).reshape(-1)
@@ -90,6 +95,13 @@ def _check_curve(f_hz: Any, mag: Any) -> tuple[np.ndarray, np.ndarray]:
         raise FitError(
             f"mag must be finite and positive (a log fit); mag[{k}] = {m[k]!r} at {f[k]:g} Hz. Floor a "
             "zero envelope at a small positive value, or drop the point."
+        )
+    decades = float(np.log10(m.max()) - np.log10(m.min()))
+    if decades > MAX_DECADES:
+        raise FitError(
+            f"mag spans {decades:.3g} decades ({m.min():.3g} to {m.max():.3g}); a magnitude fit handles at "
+            f"most {MAX_DECADES:g} ({20 * MAX_DECADES:g} dB), beyond which its squared curve overflows. "
+            "Check the units of the curve, or floor it where it does not matter."
         )
     return f, m
 
