@@ -895,12 +895,12 @@ def _null_fit(
         return _Null((), {}, {}, lo, hi, np.zeros((res0.n, 0)), j0, float(j0 @ j0)), 0
     start = sensitivities(res0, upd, j0=j0, executor=executor)
     x0, n_coarse = _coarse_start(res0, upd, start, ())
+    x_model = {n: res0.model.param(n).value for n in upd}
     kw = dict(max_iter=max_iter, executor=executor, time_budget_s=budget)
     if x0:
-        lm = levenberg_marquardt(res0, upd, x0={**{n: res0.model.param(n).value for n in upd}, **x0}, **kw)
+        lm = levenberg_marquardt(res0, upd, x0={**x_model, **x0}, **kw)
     else:
         lm = levenberg_marquardt(res0, upd, start=start, **kw)
-    x_model = {n: res0.model.param(n).value for n in upd}
     null = _Null(upd, dict(lm.x), x_model, lo, hi, lm.jacobian, lm.vector, lm.cost)
     null.cut = "time budget" in lm.stop_reason
     return null, start.n_evals + n_coarse + lm.n_evals

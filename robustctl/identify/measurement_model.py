@@ -537,13 +537,14 @@ def leakage_consistency(
     unstable where the data do not determine the model).
     """
     from ..checks import point_weights as weights_of
+    from ..lti import DB_PER_NEPER, log_ratio
 
     w = weights_of(point_weights, raw)
     tiny = np.finfo(float).tiny
 
     def miss(model: np.ndarray, data: np.ndarray) -> float:
-        d = np.abs(np.log(np.where(model == 0, tiny, model) / np.where(data == 0, tiny, data)))
-        return float(20 / np.log(10) * np.sqrt(np.sum(w * d**2) / max(np.sum(w), tiny)))
+        d = np.abs(log_ratio(data, model))
+        return float(DB_PER_NEPER * np.sqrt(np.sum(w * d**2) / max(np.sum(w), tiny)))
 
     expected = expected_h1(fit, raw.f_hz, settings)
     return miss(expected, raw.response), miss(fit.response(used.f_hz), used.response)

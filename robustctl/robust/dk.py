@@ -347,8 +347,7 @@ def _fit_one(args: tuple) -> Any:
     """One D-scale fit (module level so a process executor can pickle it)."""
     from .magfit import fit_magnitude
 
-    f_hz, mag, order = args[:3]
-    budget = args[3] if len(args) > 3 else 10.0
+    f_hz, mag, order, budget = args
     return _into_band(fit_magnitude(f_hz, mag, order, tol_db=FIT_TOL_DB, time_budget_s=budget), f_hz)
 
 
@@ -1116,7 +1115,6 @@ def _reduce(plant: _Plant, blocks: BlockStructure, K: Any, cl: Any, m: Any, orde
     if not _is_stable(K):
         return K, cl, m, Reduction(n, n if auto else order, m.peak, np.inf, False,
                                    "the controller is unstable (balanced truncation needs a stable one)")
-    hsv = balanced_truncation(K, 1).hsv
     tried: dict[int, tuple] = {}
 
     def attempt(r: int) -> tuple:
@@ -1130,7 +1128,7 @@ def _reduce(plant: _Plant, blocks: BlockStructure, K: Any, cl: Any, m: Any, orde
         if reason:
             return K, cl, m, Reduction(n, order, m.peak, mr.peak if mr is not None else np.inf, False, reason)
         return Kr, clr, mr, Reduction(n, order, m.peak, mr.peak, True, "")
-    r = _auto_order(hsv, attempt)
+    r = _auto_order(balanced_truncation(K, 1).hsv, attempt)
     if r is None:
         return K, cl, m, Reduction(n, n, m.peak, m.peak, False, "no truncation kept mu within "
                                    f"{100 * mu_rtol:g} % of the full controller's")
