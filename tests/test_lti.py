@@ -230,3 +230,21 @@ def test_physical_ordering_modal_form_splits_into_blocks():
     sizes = sorted(b.shape[1] for b in lti._blocks(A) for _ in range(b.shape[0]))
     assert sizes == [1] + [2] * n
     assert_rel(rc.freqresp(sys, F).response, control_response(sys, F), 1e-9)
+
+
+@pytest.mark.parametrize("n_points", [3, 200])  # fewer points than states: LAPACK ztrtrs per point
+@pytest.mark.parametrize("shape", [(3, 2), (2, 3)])  # (outputs, inputs): the transposed side too
+def test_schur_factors_evaluate_the_transfer_function(n_points, shape):
+    """The Schur path of blocks kept undiagonalised, both of its solvers, against dense solves."""
+    p, m = shape
+    rng = np.random.default_rng(4)
+    n = 30
+    A = rng.standard_normal((n, n)) - 3.0 * np.eye(n)
+    B, C = rng.standard_normal((n, m)), rng.standard_normal((p, n))
+    s = 1j * np.linspace(0.1, 10.0, n_points)
+    ref = np.stack([C @ np.linalg.solve(sk * np.eye(n) - A, B) for sk in s])
+    factors = lti._schur_factors(A, B, C)
+    out = lti._schur_eval(factors, s)
+    assert out.shape == (n_points, p, m)
+    assert np.max(np.abs(out - ref)) <= 1e-11 * np.max(np.abs(ref))
+    assert np.array_equal(lti._schur_eval(factors, s), out)  # the factors are reusable
