@@ -4,7 +4,7 @@
 """
 
 # shared ground: one checks module, one system coercion, one cost report, one Mode
-from . import checks, estimator, examples
+from . import checks, examples
 from .correlate import (
     Comparison,
     Diagnosis,
@@ -18,12 +18,6 @@ from .correlate import (
 )
 from .cost import LogCost
 from .errors import DataError, FitError, ModelError, RobustctlError, SynthesisError
-from .estimate import (
-    advised_nperseg,
-    combine_experiments,
-    estimate_frf,
-    simulate_experiment,
-)
 from .export import ExportReport, discretize, export_controller, load_controller
 from .figures import fit_percent, mac_matrix, plot_compare, plot_mac, plot_mode_shapes, plot_singular_values
 from .frd import FrequencyData, load_frd
@@ -36,11 +30,18 @@ from .identify import (
     fit_rational,
     group_modes,
 )
-from .impact import ImpactWarning, estimate_frf_impact
 from .interconnect import PartitionedPlant, block_diagonal, feedback, lft, parallel, series, star, upper_lft
 from .lti import as_statespace, freqresp, log_cost, log_error
+from .measure import estimator
+from .measure.estimate import (
+    advised_nperseg,
+    combine_experiments,
+    estimate_frf,
+    simulate_experiment,
+)
+from .measure.impact import ImpactWarning, estimate_frf_impact
+from .measure.noise import NoiseModel, noise_model
 from .modes import Mode
-from .noise import NoiseModel, noise_model
 from .physical import (
     Frame,
     MatrixStructure,
@@ -83,7 +84,7 @@ from .robust import (
 )
 from .robust.dk import DKResult, dksyn
 from .robust.sweep import DesignSweep, design_sweep
-from .robust.yardstick import Yardstick, yardstick
+from .robust.yardsticks import Yardstick, yardstick
 from .signals import (
     combine_inputs,
     combine_outputs,

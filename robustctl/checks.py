@@ -69,7 +69,7 @@ COHERENCE_CAP = 0.999
 
 #: bins next to each bin left out of its neighbour coherence (:func:`neighbour_coherence`):
 #: the H1 errors of bins one apart are correlated (0.39 for a Hamming window), two apart hardly
-#: (0.018; :func:`robustctl.estimator.bin_correlation`)
+#: (0.018; :func:`robustctl.measure.estimator.bin_correlation`)
 NEIGHBOUR_SKIP = 1
 #: bins averaged on each side beyond them (so bins 2 and 3 away: local next to a resonance)
 NEIGHBOUR_HALF = 2
@@ -304,8 +304,8 @@ def neighbour_coherence(
     or weighted on a bin's own coherence therefore favours the bins whose ``ln |H1|`` came out
     high. The neighbours' coherence carries the same information about the true coherence (a
     smooth function of frequency) without that correlation (Hamming windows: bin correlation
-    0.39 at one bin, 0.018 at two, :func:`robustctl.estimator.bin_correlation`). Used by the
-    noise model's choice of the bins to test (:func:`robustctl.noise.noise_model`).
+    0.39 at one bin, 0.018 at two, :func:`robustctl.measure.estimator.bin_correlation`). Used by the
+    noise model's choice of the bins to test (:func:`robustctl.measure.noise.noise_model`).
 
     Parameters
     ----------
@@ -389,13 +389,13 @@ def coherence_weight_bias(coherence: np.ndarray, n_averages: Any) -> np.ndarray:
     at every bin, whatever its coherence (``E[1 / chi2_nu] = 1 / (nu - 2)``); the imaginary part
     (phase) is unbiased. Subtracting ``c = 1 / ((n_d - 2) W) = 2 s^2 n_d / (n_d - 2)`` from
     ``Re e``, ``s^2 = (1 - g2) / (2 n_d g2)`` the B&P variance of each part of ``ln H1``
-    (:mod:`robustctl.noise`), makes ``sum W (e - c)`` unbiased: ``W c = 1 / (n_d - 2)`` exactly.
+    (:mod:`robustctl.measure.noise`), makes ``sum W (e - c)`` unbiased: ``W c = 1 / (n_d - 2)`` exactly.
     To leading order ``c`` equals the weighted mean ``E[W e] / E[W] = 2 s^2 / (1 + 2 s^2)`` of a
     bin's log error, but that formula evaluated on the own coherence leaves 5-40 % of the bias
     at ``g2 <= 0.6`` (Monte Carlo, ``tests/test_cohbias.py``), eq. (1) none.
 
     ``g2`` is clipped as for the weights (at :data:`COHERENCE_CAP`) and, below, where ``s``
-    exceeds :data:`robustctl.noise.SIGMA_TESTABLE` (0.5): there ``|eps|`` often exceeds 1, the
+    exceeds :data:`robustctl.measure.noise.SIGMA_TESTABLE` (0.5): there ``|eps|`` often exceeds 1, the
     series behind eq. (1) diverges and the point is noise (``W`` is small; ``c`` stays
     bounded, at most ``0.5 n_d / (n_d - 2)``). ``n_d <= 3`` (no finite ``E[1 / G_nn_hat]``)
     uses ``n_d - 2 = 1``.
@@ -405,14 +405,14 @@ def coherence_weight_bias(coherence: np.ndarray, n_averages: Any) -> np.ndarray:
     coherence : ndarray (nf, n_out, n_in)
         Ordinary (or multiple) coherence, dimensionless.
     n_averages : float or ndarray (n_in,)
-        Effective number of averages per input column (:func:`robustctl.noise.averages_of`).
+        Effective number of averages per input column (:func:`robustctl.measure.noise.averages_of`).
 
     Returns
     -------
     ndarray, shape of ``coherence``
         ``c >= 0`` (nepers), to subtract from ``Re ln(G_data / G_model)``.
     """
-    from .noise import SIGMA_TESTABLE
+    from .measure.noise import SIGMA_TESTABLE
 
     g2 = np.asarray(coherence, dtype=float)
     nd = np.asarray(n_averages, dtype=float)
@@ -430,13 +430,13 @@ def point_weight_bias(
 
     It applies only where the weights are the data's own coherence weights (``"auto"`` on data
     with coherence, or ``"coherence"``) and the number of averages is known (``n_averages``,
-    else the data's ``meta``: :func:`robustctl.noise.averages_of`). Uniform weights and arrays
+    else the data's ``meta``: :func:`robustctl.measure.noise.averages_of`). Uniform weights and arrays
     of weights (whatever they were made from) are taken as they are: None.
     """
     if not isinstance(spec, str) or spec not in ("auto", "coherence") or data.coherence is None:
         return None
     if n_averages is None:
-        from .noise import averages_of
+        from .measure.noise import averages_of
 
         n_averages = averages_of(data)
         if n_averages is None:

@@ -241,7 +241,7 @@ def mac_matrix(a: Any, b: Any = None) -> np.ndarray:
     ----------
     a, b : sequence of Mode, ndarray (n_dof, n_modes), or a result with ``.modes``
     """
-    from .correlate.compare import mac
+    from .correlate.comparison import mac
 
     sa, _ = _shapes(a)
     sb, _ = _shapes(a if b is None else b)
@@ -373,7 +373,7 @@ def _modes_and_sensors(model: Any, band: Sequence[float] | None) -> tuple[list[M
         return list(model.modes), names
     if isinstance(model, Sequence) and all(isinstance(m, Mode) for m in model):
         return list(model), None
-    from .correlate.compare import statespace_modes
+    from .correlate.comparison import statespace_modes
     from .lti import as_statespace
 
     sys = as_statespace(model)

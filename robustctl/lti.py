@@ -603,7 +603,7 @@ def _model_response(data: FrequencyData, model: Any, estimator: Any = False) -> 
                 f"({data.f_hz[0]:g}-{data.f_hz[-1]:g} Hz); evaluate the model on data.f_hz."
             )
         return model
-    from .estimator import model_view, resolve_estimator, split_hold
+    from .measure.estimator import model_view, resolve_estimator, split_hold
 
     settings = resolve_estimator(estimator, data.meta, model)
     if settings is None:
@@ -649,7 +649,7 @@ def log_error(
         Restrict to this frequency band (Hz), inclusive (:func:`robustctl.checks.check_band`).
     estimator : "auto", True, False or EstimatorSettings
         See a system "as the H1 estimator sees it" when the data carry their estimator settings
-        (:func:`robustctl.estimator.resolve_estimator`; the rule of ``rc.compare``).
+        (:func:`robustctl.measure.estimator.resolve_estimator`; the rule of ``rc.compare``).
 
     Returns
     -------

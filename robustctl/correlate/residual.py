@@ -36,11 +36,11 @@ from ..checks import (
 )
 from ..checks import point_weights as point_weights_of
 from ..errors import DataError, FitError, ModelError, RobustctlError
-from ..estimator import model_view, resolve_estimator, split_hold
+from ..executors import parallel_map_shared
 from ..frd import FrequencyData
 from ..lti import as_statespace, freqresp, log_ratio
-from ..noise import NoiseModel, noise_model
-from ..parallel import parallel_map_shared
+from ..measure.estimator import model_view, resolve_estimator, split_hold
+from ..measure.noise import NoiseModel, noise_model
 
 __all__ = [
     "Residual",
@@ -171,12 +171,12 @@ class Residual:
         physical parameter can explain, and it would swamp the cost. ``None`` keeps every
         channel and refuses identically zero ones.
     estimator : "auto", True, False or EstimatorSettings
-        See the model "as the H1 estimator sees it" (:func:`robustctl.estimator.estimator_view`:
+        See the model "as the H1 estimator sees it" (:func:`robustctl.measure.estimator.estimator_view`:
         window leakage of a white-noise Welch estimate) when the data carry their estimator
         settings (``"auto"``, default) -- the model's response is then the expected H1
         estimate, not ``G(jw)``. ``False``: compare ``G(jw)`` itself.
     noise : "auto", NoiseModel or None
-        The noise model of the data (:func:`robustctl.noise.noise_model`); ``"auto"``: from
+        The noise model of the data (:func:`robustctl.measure.noise.noise_model`); ``"auto"``: from
         coherence and the recorded number of averages when possible, else None.
 
     Attributes
@@ -309,7 +309,7 @@ class Residual:
         """Model response (n_freq_band, n_out, n_in) on the band, in data channel order.
 
         With estimator settings this is the expected H1 estimate of the model without the
-        hold (:func:`robustctl.estimator.estimator_view`), else ``G(j 2 pi f)``.
+        hold (:func:`robustctl.measure.estimator.estimator_view`), else ``G(j 2 pi f)``.
         """
         if self.estimator is not None:
             bare, hold = self._without_hold()

@@ -184,8 +184,8 @@ class ModelCoverRecipe:
     def _fit_cover(self, nominal: Any):
         from ..checks import as_frequency_data
         from ..errors import DataError, FitError
-        from ..estimator import estimator_settings, estimator_view
         from ..lti import freqresp_array
+        from ..measure.estimator import estimator_settings, estimator_view
         from ..robust.cover import cover_additive
 
         data = as_frequency_data(self.data)

@@ -15,7 +15,6 @@ from ..frd import _jsonable, write_atomically
 from . import files, formats
 from .arguments import choice, flag, is_discrete, positive, unwrap
 from .c_header import c_prefix
-from .discretize import METHODS, discretization_error, discretize, peak_gain_hz
 from .realization import (
     balance_diagonal,
     balance_gramian,
@@ -25,6 +24,7 @@ from .realization import (
     spectral_radius,
 )
 from .report import ExportReport
+from .sampling import METHODS, discretization_error, discretize, peak_gain_hz
 
 __all__ = ["export_controller", "load_controller"]
 

@@ -9,7 +9,7 @@ scatter. :func:`noise_model` gives that scatter:
   both ``sqrt(1 - g2) / (|g| sqrt(2 n_d))`` (Bendat & Piersol, *Random Data*, 4th ed.,
   sec. 9.2.3, Table 9.6), the standard deviation of ``Re ln H1`` (nepers) and of ``Im ln H1``
   (rad). ``n_d`` is the effective number of averages of the overlapped windows (Welch 1967;
-  :func:`robustctl.estimator.effective_averages`); with ``q`` simultaneous inputs and the
+  :func:`robustctl.measure.estimator.effective_averages`); with ``q`` simultaneous inputs and the
   partial coherence of each channel, ``n_d - q + 1`` (Bendat & Piersol, sec. 9.3.3).
 * **from the residual of a measurement model** (data without coherence): a robust local
   scale (1.4826 x the running median absolute value of ``Re e`` and ``Im e`` over 33 points)
@@ -19,7 +19,7 @@ scatter. :func:`noise_model` gives that scatter:
 Neighbouring frequency bins of a windowed estimate are correlated. The H1 error has two
 sources with different correlations: output noise (independent of the input), whose errors at
 bins ``m`` apart have the complex correlation ``r_m = |rho_m|^2`` of
-:func:`robustctl.estimator.bin_correlation` (``rho_m`` that of the window's DFT of white
+:func:`robustctl.measure.estimator.bin_correlation` (``rho_m`` that of the window's DFT of white
 noise; Hamming: ``r_1 = 0.39``), and the leakage of a lightly damped response (the output in
 a window not explained by that window's input: the decay of what came before and the
 response cut off at its end), a smooth function of frequency times ``conj(U)``, whose errors
@@ -41,8 +41,8 @@ from typing import Any
 
 import numpy as np
 
-from .checks import as_frequency_data, neighbour_coherence
-from .errors import DataError
+from ..checks import as_frequency_data, neighbour_coherence
+from ..errors import DataError
 from .estimator import bin_correlation, effective_averages, estimator_settings, welch_window
 
 __all__ = [
@@ -88,7 +88,7 @@ class NoiseModel:
     averages : ndarray (n_in,) or None
         Effective number of averages per input column (coherence-based models).
     dof_factor : float
-        ``1 + 2 sum_m r_m^2`` (``r_m``: :func:`robustctl.estimator.bin_correlation`), the
+        ``1 + 2 sum_m r_m^2`` (``r_m``: :func:`robustctl.measure.estimator.bin_correlation`), the
         Satterthwaite factor of output noise alone (1: independent points); the sandwich
         covariances of update and diagnose scale their rows' noise variance by it.
     chi2_factor : float or None
@@ -219,7 +219,7 @@ def _dof_factor(meta: dict) -> float:
 def _chi2_factor(meta: dict) -> float:
     """``1 + 2 sum_m r_m``: the Satterthwaite factor of sums of squares over contiguous bins
     whatever the mix of output noise and leakage (module notes; ``r_m`` the H1 error correlation
-    of output noise, :func:`robustctl.estimator.bin_correlation`, whose square root bounds that
+    of output noise, :func:`robustctl.measure.estimator.bin_correlation`, whose square root bounds that
     of leakage errors)."""
     st = estimator_settings(meta)
     if st is None:
@@ -264,8 +264,8 @@ def _running_scale(x: np.ndarray, half: int) -> np.ndarray:
 
 
 def _from_residual(data: Any, measurement_model: Any) -> NoiseModel:
-    from .checks import match_channels
-    from .lti import as_statespace, freqresp, log_ratio
+    from ..checks import match_channels
+    from ..lti import as_statespace, freqresp, log_ratio
 
     sys = as_statespace(measurement_model)
     out_idx = match_channels(sys.output_labels, data.outputs, "outputs")

@@ -15,10 +15,10 @@ The complex log error ``e = log(G_data / G_model)`` (MACE eq. 5) is broken down
   actuator-side (columns ``b``) and structural (the non-separable rest ``r``, and a common
   part ``mu`` that is not a pure gain or delay) errors apart;
 * against the noise: per channel and frequency section, a chi-square test of the residual
-  normalised by the data's noise model (:mod:`robustctl.noise`,
+  normalised by the data's noise model (:mod:`robustctl.measure.noise`,
   :mod:`robustctl.correlate.verdict`) says whether the misfit is within the noise; only what
   is not is flagged as failing. Data that carry their H1 estimator settings are compared with
-  the model as the estimator sees it (window leakage, :mod:`robustctl.estimator`).
+  the model as the estimator sees it (window leakage, :mod:`robustctl.measure.estimator`).
 """
 
 from __future__ import annotations
@@ -35,8 +35,8 @@ from ..checks import UNSET, integer, match_channels, positive_number, renamed_ke
 from ..cost import LogCost, cost_report
 from ..frd import FrequencyData
 from ..lti import DB_PER_NEPER, as_statespace, pole_frequency_damping
+from ..measure.noise import NoiseModel, noise_model
 from ..modes import Mode
-from ..noise import NoiseModel, noise_model
 from ..table import Table, result_html
 from .residual import NEGLIGIBLE_DB, Residual, as_model, log_ratio
 from .verdict import ALPHA, NoiseTest, no_noise_sentence, noise_test
@@ -785,7 +785,7 @@ def compare(
         cost, the bands and the structure split; they stay in the dB/phase maps.
     estimator : "auto", True, False or EstimatorSettings
         Compare the model "as the H1 estimator sees it" (window leakage,
-        :func:`robustctl.estimator.estimator_view`) when the data carry their estimator
+        :func:`robustctl.measure.estimator.estimator_view`) when the data carry their estimator
         settings (``"auto"``); stated in the summary.
     noise : "auto", NoiseModel or None
         The data's noise model. ``"auto"``: :func:`robustctl.noise_model` (coherence and

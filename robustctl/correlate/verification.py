@@ -22,7 +22,7 @@ from ..checks import UNSET, renamed_keyword
 from ..errors import DataError, ModelError
 from ..frd import FrequencyData
 from ..table import Table, result_html
-from .compare import Comparison, compare, pair_modes, statespace_modes
+from .comparison import Comparison, compare, pair_modes, statespace_modes
 
 __all__ = ["Verification", "verify", "apply_perturbation"]
 

@@ -24,8 +24,8 @@ import numpy as np
 
 from ..checks import as_frequency_data, flag, integer, positive_number
 from ..errors import RobustctlError, SynthesisError
+from ..executors import check_executor, parallel_map
 from ..frd import FrequencyData
-from ..parallel import check_executor, parallel_map
 from ..threads import limit_blas
 from .blocks import BlockStructure, as_block_structure
 from .mu_layout import Layout, layout_of
