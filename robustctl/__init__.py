@@ -5,6 +5,7 @@
 
 # shared ground: one checks module, one system coercion, one cost report, one Mode
 from . import checks, examples
+from ._version import __version__ as __version__
 from .correlate import (
     Comparison,
     Diagnosis,
@@ -16,11 +17,12 @@ from .correlate import (
     update,
     verify,
 )
-from .cost import LogCost
+from .cost import LogCost, log_cost, log_error
 from .errors import DataError, FitError, ModelError, RobustctlError, SynthesisError
 from .export import ExportReport, discretize, export_controller, load_controller
 from .figures import fit_percent, mac_matrix, plot_compare, plot_mac, plot_mode_shapes, plot_singular_values
-from .frd import FrequencyData, load_frd
+from .frd import FrequencyData
+from .frd_io import load_frd
 from .identify import (
     MeasurementModel,
     StabilisationDiagram,
@@ -31,7 +33,7 @@ from .identify import (
     group_modes,
 )
 from .interconnect import PartitionedPlant, block_diagonal, feedback, lft, parallel, series, star, upper_lft
-from .lti import as_statespace, freqresp, log_cost, log_error
+from .lti import as_statespace, freqresp
 from .measure import estimator
 from .measure.estimate import (
     advised_nperseg,
@@ -94,8 +96,6 @@ from .signals import (
     select_signals,
 )
 from .threads import blas_threads, set_blas_threads
-
-__version__ = "0.1.0"
 
 __all__ = [
     # figures (the modal engineer's)

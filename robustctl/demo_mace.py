@@ -26,8 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from .demo import DemoExample
-from .demo_design import DesignSpec
+from .demo_design import DemoExample, DesignSpec
 from .report import Report
 from .table import Table
 

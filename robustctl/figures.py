@@ -14,9 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from .checks import as_frequency_data
 from .errors import DataError
-from .frd import FrequencyData
+from .frd import FrequencyData, as_frequency_data, register_method
 from .modes import Mode
 from .plots import bode_grid, colorbar, log_frequency_axis, new_figure
 
@@ -174,7 +173,7 @@ def plot_compare(
         The legend of each channel gives each model's :func:`fit_percent` there;
         ``fig.fit_percent`` holds ``{name: ndarray (n_out, n_in)}``.
     """
-    from .lti import _model_response
+    from .cost import _model_response
 
     data = as_frequency_data(data)
     if band is not None:
@@ -379,3 +378,11 @@ def _modes_and_sensors(model: Any, band: Sequence[float] | None) -> tuple[list[M
     sys = as_statespace(model)
     lo, hi = (0.0, np.inf) if band is None else band
     return statespace_modes(sys, (lo, hi)), list(sys.output_labels)
+
+
+def _plot_data_sv(data: FrequencyData):
+    return plot_singular_values(data, labels=["data"])
+
+
+register_method("plot", plot_frf)
+register_method("plot_sv", _plot_data_sv)

@@ -814,7 +814,7 @@ def compare(
     alpha = positive_number(alpha, "alpha")
     n_sections = integer(n_sections, "n_sections", lo=1)
     if isinstance(noise, str) and noise == "auto":
-        from ..checks import as_frequency_data
+        from ..frd import as_frequency_data
 
         noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
     res = Residual(model, data, band=band, point_weights=point_weights, min_channel_db=min_channel_db,

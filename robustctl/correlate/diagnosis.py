@@ -65,10 +65,10 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import UNSET, as_frequency_data, finite_number, integer, positive_number, renamed_keyword
+from ..checks import UNSET, finite_number, integer, positive_number, renamed_keyword
 from ..errors import FitError, ModelError, RobustctlError
 from ..executors import check_executor, parallel_map_shared, process_pool, resolve_workers
-from ..frd import FrequencyData
+from ..frd import FrequencyData, as_frequency_data
 from ..measure.estimator import estimator_settings
 from ..measure.noise import NO_NOISE_SENTENCE, format_p, noise_model
 from ..table import Table, result_html
@@ -87,7 +87,7 @@ ALPHA = 0.01
 #: MACE bus has 13 such channels at -60 dB, 12 at -80 dB). Pass ``min_channel_db=`` to change it;
 #: ``rc.update(..., min_channel_db=-60.0)`` reproduces diagnose's cost (so does
 #: ``point_weights=diag.point_weights`` where no coherence-weight bias applies,
-#: :func:`robustctl.checks.point_weight_bias`: an array of weights is taken as given).
+#: :func:`robustctl.measure.noise.point_weight_bias`: an array of weights is taken as given).
 DECOUPLED_DB = -60.0
 #: Smallest share of the null-fit residual an effect must explain to be proposed.
 MIN_GAIN = 0.25

@@ -23,24 +23,14 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import (
-    UNSET,
-    as_frequency_data,
-    band_data,
-    band_mask,
-    check_band,
-    finite_number,
-    match_channels,
-    point_weight_bias,
-    renamed_keyword,
-)
+from ..checks import UNSET, band_data, band_mask, check_band, finite_number, match_channels, renamed_keyword
 from ..checks import point_weights as point_weights_of
 from ..errors import DataError, FitError, ModelError, RobustctlError
 from ..executors import parallel_map_shared
-from ..frd import FrequencyData
+from ..frd import FrequencyData, as_frequency_data
 from ..lti import as_statespace, freqresp, log_ratio
 from ..measure.estimator import model_view, resolve_estimator, split_hold
-from ..measure.noise import NoiseModel, noise_model
+from ..measure.noise import NoiseModel, noise_model, point_weight_bias
 
 __all__ = [
     "Residual",
@@ -161,7 +151,7 @@ class Residual:
         without coherence, noise from a measurement model's residual); else uniform. The
         residual vector carries ``sqrt(W)``. With coherence weights and a known number of
         averages the real part of each log error is first lowered by
-        :func:`robustctl.checks.coherence_weight_bias` (``bias``): what the bin's own
+        :func:`robustctl.measure.noise.coherence_weight_bias` (``bias``): what the bin's own
         coherence in ``W`` adds to it on average.
     min_channel_db : float or None
         Channels whose RMS magnitude on the band, in the data or in the nominal model, lies
@@ -191,7 +181,7 @@ class Residual:
         ``W``, the weights on the squared error (zero on dropped channels).
     bias : ndarray (n_freq_band, n_out, n_in) or None
         The offset subtracted from ``Re log(G_data / G_model)`` before weighting
-        (:func:`robustctl.checks.point_weight_bias`), nepers; None with uniform or given weights
+        (:func:`robustctl.measure.noise.point_weight_bias`), nepers; None with uniform or given weights
         or without a known number of averages.
     dropped : list of (output, input, level_db)
         Channels given weight 0 as negligible, with their relative level in dB.

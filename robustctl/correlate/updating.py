@@ -1028,7 +1028,7 @@ def update(
     point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     model = physical_model(model, "update")
     if isinstance(noise, str) and noise == "auto":
-        from ..checks import as_frequency_data
+        from ..frd import as_frequency_data
 
         noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
     residual = Residual(model, data, band=band, point_weights=point_weights, min_channel_db=min_channel_db,

@@ -182,8 +182,8 @@ class ModelCoverRecipe:
         return self._covers[id(nominal)][1]
 
     def _fit_cover(self, nominal: Any):
-        from ..checks import as_frequency_data
         from ..errors import DataError, FitError
+        from ..frd import as_frequency_data
         from ..lti import freqresp_array
         from ..measure.estimator import estimator_settings, estimator_view
         from ..robust.cover import cover_additive

@@ -11,7 +11,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import DataError, ModelError
-from ..frd import _jsonable, write_atomically
+from ..frd_io._common import jsonable as _jsonable
+from ..frd_io._common import write_atomically
 from . import files, formats
 from .arguments import choice, flag, is_discrete, positive, unwrap
 from .c_header import c_prefix
@@ -51,7 +52,7 @@ def _format(path: Path, format: str | None) -> str:
 
 
 def _provenance(user: Any) -> dict:
-    from .. import __version__
+    from .._version import __version__
 
     if user is not None and not isinstance(user, dict):
         raise DataError(f"provenance must be a dict of JSON-able values; got {type(user).__name__}.")

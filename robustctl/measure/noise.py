@@ -41,11 +41,14 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import as_frequency_data, neighbour_coherence
+from ..checks import COHERENCE_CAP, neighbour_coherence
 from ..errors import DataError
+from ..frd import as_frequency_data
 from .estimator import bin_correlation, effective_averages, estimator_settings, welch_window
 
 __all__ = [
+    "coherence_weight_bias",
+    "point_weight_bias",
     "NoiseModel", "noise_model", "averages_of", "neighbour_coherence", "NO_NOISE_SENTENCE", "chi2_verdict",
     "format_p",
 ]
@@ -353,3 +356,74 @@ def format_p(p: float) -> str:
     if p < 1e-3:
         return f"p = {p:.1e}"
     return f"p = {p:.2g}"
+
+
+def coherence_weight_bias(coherence: np.ndarray, n_averages: Any) -> np.ndarray:
+    """What coherence weights add to ``Re ln H1``: ``c = (1 - g2) / ((n_d - 2) g2)``, nepers.
+
+    With ``W = g2 / (1 - g2)`` (:func:`robustctl.checks.coherence_weights`) computed from each bin's own
+    estimate, a weighted least-squares fit of ``ln G_model`` to ``ln H1`` solves
+    ``sum W Re(conj(dE) e) = 0`` with ``e = ln(H1 / G)``, and ``W e`` has a non-zero mean at the
+    true model. Write ``H1 = G (1 + eps)``: given the input spectrum, ``eps`` is circular complex
+    Gaussian with ``E|eps|^2 = G_nn / (n_d |G|^2 G_uu)`` (averaged spectra), independent of the
+    residual spectrum ``G_nn_hat ~ G_nn chi2_{2(n_d-1)} / (2 n_d)``, and
+    ``W = |G|^2 |1 + eps|^2 G_uu / G_nn_hat``. Since ``ln(1 + eps)`` holds only powers
+    ``eps^k`` (``E[eps^k] = E[|eps|^2 eps^k] = 0``, ``E[conj(eps) eps^k] = delta_k1 E|eps|^2``),
+
+    ``E[|1 + eps|^2 ln(1 + eps)] = E|eps|^2``, so
+    ``E[W e] = |G|^2 G_uu E[1 / G_nn_hat] E|eps|^2 = 1 / (n_d - 2)``                  (1)
+
+    at every bin, whatever its coherence (``E[1 / chi2_nu] = 1 / (nu - 2)``); the imaginary part
+    (phase) is unbiased. Subtracting ``c = 1 / ((n_d - 2) W) = 2 s^2 n_d / (n_d - 2)`` from
+    ``Re e``, ``s^2 = (1 - g2) / (2 n_d g2)`` the B&P variance of each part of ``ln H1``
+    (:mod:`robustctl.measure.noise`), makes ``sum W (e - c)`` unbiased: ``W c = 1 / (n_d - 2)`` exactly.
+    To leading order ``c`` equals the weighted mean ``E[W e] / E[W] = 2 s^2 / (1 + 2 s^2)`` of a
+    bin's log error, but that formula evaluated on the own coherence leaves 5-40 % of the bias
+    at ``g2 <= 0.6`` (Monte Carlo, ``tests/test_cohbias.py``), eq. (1) none.
+
+    ``g2`` is clipped as for the weights (at :data:`robustctl.checks.COHERENCE_CAP`) and, below, where ``s``
+    exceeds :data:`robustctl.measure.noise.SIGMA_TESTABLE` (0.5): there ``|eps|`` often exceeds 1, the
+    series behind eq. (1) diverges and the point is noise (``W`` is small; ``c`` stays
+    bounded, at most ``0.5 n_d / (n_d - 2)``). ``n_d <= 3`` (no finite ``E[1 / G_nn_hat]``)
+    uses ``n_d - 2 = 1``.
+
+    Parameters
+    ----------
+    coherence : ndarray (nf, n_out, n_in)
+        Ordinary (or multiple) coherence, dimensionless.
+    n_averages : float or ndarray (n_in,)
+        Effective number of averages per input column (:func:`robustctl.measure.noise.averages_of`).
+
+    Returns
+    -------
+    ndarray, shape of ``coherence``
+        ``c >= 0`` (nepers), to subtract from ``Re ln(G_data / G_model)``.
+    """
+    g2 = np.asarray(coherence, dtype=float)
+    nd = np.asarray(n_averages, dtype=float)
+    nd = nd.reshape((1,) * (g2.ndim - 1) + (-1,)) if nd.ndim else nd
+    floor = 1.0 / (1.0 + 2.0 * nd * SIGMA_TESTABLE**2)  # g2 where s = SIGMA_TESTABLE
+    g2 = np.clip(g2, floor, COHERENCE_CAP)
+    return (1.0 - g2) / (np.maximum(nd - 2.0, 1.0) * g2)
+
+
+def point_weight_bias(
+    spec: Any, data: Any, mask: np.ndarray | None = None, n_averages: Any = None
+) -> np.ndarray | None:
+    """The offset :func:`coherence_weight_bias` of ``Re ln(G_data / G_model)`` that point weights
+    ``spec`` (as in :func:`robustctl.checks.point_weights`) see, on the banded points; None when
+    there is none.
+
+    It applies only where the weights are the data's own coherence weights (``"auto"`` on data
+    with coherence, or ``"coherence"``) and the number of averages is known (``n_averages``,
+    else the data's ``meta``: :func:`averages_of`). Uniform weights and arrays
+    of weights (whatever they were made from) are taken as they are: None.
+    """
+    if not isinstance(spec, str) or spec not in ("auto", "coherence") or data.coherence is None:
+        return None
+    if n_averages is None:
+        n_averages = averages_of(data)
+        if n_averages is None:
+            return None
+    mask = np.ones(data.n_freq, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
+    return coherence_weight_bias(data.coherence[mask], n_averages)

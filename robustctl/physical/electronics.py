@@ -31,8 +31,7 @@ import numpy as np
 import scipy.signal as signal
 
 from ..errors import ModelError
-from ..interconnect import _series_arrays
-from ..signals import _abcd, _index, _names, _ss, rename_signals, scale_inputs, scale_outputs
+from ..signals import _abcd, _index, _names, _series_arrays, _ss, rename_signals, scale_inputs, scale_outputs
 from .model import Stage
 
 __all__ = [

@@ -37,6 +37,7 @@ Examples
 
 from __future__ import annotations
 
+from ..model import register_effects
 from .base import (
     DAMPING_TARGET,
     EFFECT_TAG,
@@ -90,3 +91,5 @@ __all__ = [
     "SHIFT_TARGET",
     "DAMPING_TARGET",
 ]
+
+register_effects(Effect, candidates)
