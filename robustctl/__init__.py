@@ -1,6 +1,33 @@
 """robustctl: a workbench for robust control of flexible structures.
 
 ``import robustctl as rc`` gives the whole public API, flat.
+
+Architecture: floors that only look down
+-----------------------------------------
+A module imports only from its own floor (without a circle) and the floors below it,
+function-level imports included; ``tests/test_architecture.py`` reads every import with
+``ast`` and fails on an edge that points up or on a circle. Lowest first:
+
+0. ``errors``, ``_version``, ``threads``, ``table``, ``executors`` -- the base
+1. ``checks`` -- argument checks (imports only ``errors``)
+2. ``frd``, ``frd_io``, ``plots`` -- FrequencyData, its file formats, plotting primitives
+3. ``lti``, ``signals``, ``modes``, ``balanced`` -- systems and fast responses, named
+   signals, ``Mode`` with MAC and pairing, balanced truncation
+4. ``measure/`` (estimate, estimator, impact, noise), ``cost`` (MACE eq. 5)
+5. ``physical/``
+6. ``interconnect``
+7. ``correlate/``
+8. ``identify/``
+9. ``robust/``
+10. ``export/``
+11. the surface: ``figures``, ``report``, ``examples/``, ``demo*``, ``cli*``, this module
+
+A method of a low-floor type whose work belongs higher up is registered by the higher
+module when ``robustctl`` is imported (which always runs before any submodule):
+``FrequencyData.save`` by ``frd_io`` and ``FrequencyData.plot``/``plot_sv`` by ``figures``
+(:func:`robustctl.frd.register_method`); ``PhysicalModel.with_effect``'s ``Effect`` and
+``candidates`` by ``physical.effects`` (:func:`robustctl.physical.model.register_effects`).
+No submodule shares its name with a function or class that its package exports.
 """
 
 # shared ground: one checks module, one system coercion, one cost report, one Mode

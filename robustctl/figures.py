@@ -240,7 +240,7 @@ def mac_matrix(a: Any, b: Any = None) -> np.ndarray:
     ----------
     a, b : sequence of Mode, ndarray (n_dof, n_modes), or a result with ``.modes``
     """
-    from .correlate.comparison import mac
+    from .modes import mac
 
     sa, _ = _shapes(a)
     sb, _ = _shapes(a if b is None else b)

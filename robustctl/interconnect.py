@@ -26,7 +26,8 @@ import numpy as np
 
 from .checks import flag, integer, is_default_names
 from .errors import ModelError
-from .signals import _arrays, _series_arrays, select_signals
+from .lti import _series_arrays
+from .signals import _arrays, select_signals
 
 __all__ = ["PartitionedPlant", "lft", "upper_lft", "star", "series", "parallel", "feedback", "block_diagonal"]
 

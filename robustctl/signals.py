@@ -68,15 +68,6 @@ def _arrays(ss: Any):
     ))
 
 
-def _series_arrays(p1, p2):
-    """Cascade ``p2 * p1`` of ``(A, B, C, D)`` tuples (``p1`` acts first; states ``[x1; x2]``)."""
-    A1, B1, C1, D1 = p1
-    A2, B2, C2, D2 = p2
-    n1, n2 = A1.shape[0], A2.shape[0]
-    A = np.block([[A1, np.zeros((n1, n2))], [B2 @ C1, A2]])
-    return A, np.vstack([B1, B2 @ D1]), np.hstack([D2 @ C1, C2]), D2 @ D1
-
-
 def _names(names: str | Sequence[str]) -> tuple[str, ...]:
     return (names,) if isinstance(names, str) else tuple(names)
 

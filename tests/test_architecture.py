@@ -28,7 +28,7 @@ FLOORS: tuple[tuple[str, ...], ...] = (
     ("errors", "_version", "threads", "table", "executors"),  # the base: no robustctl imports but errors
     ("checks",),  # argument checks: imports only errors
     ("frd", "frd_io", "plots"),  # FrequencyData, its files, the plotting primitives
-    ("lti", "signals", "modes"),  # state-space coercion, fast responses; named signals; Mode
+    ("lti", "signals", "modes", "balanced"),  # systems, fast responses; named signals; Mode; reduction
     ("measure", "cost"),  # how data are made (H1, impact, estimator view, noise); the MACE eq. 5 cost
     ("physical",),
     ("interconnect",),
@@ -89,9 +89,9 @@ def floor_of(module: str) -> int:
     best, best_len = None, -1
     for level, entries in enumerate(FLOORS):
         for entry in entries:
-            if rel == entry or (entry and rel.startswith(entry + ".")):
-                if len(entry) > best_len:
-                    best, best_len = level, len(entry)
+            matches = rel == entry or (entry and rel.startswith(entry + "."))
+            if matches and len(entry) > best_len:
+                best, best_len = level, len(entry)
     if best is None:
         raise AssertionError(f"{module} has no floor: add it to FLOORS in tests/test_architecture.py")
     return best

@@ -237,8 +237,8 @@ def test_a_broken_fit_of_the_only_allowed_order_falls_back_to_lower_orders(monke
 
 
 def test_fit_roots_above_the_band_are_moved_to_its_edge():
+    from robustctl.lti import zpk_statespace
     from robustctl.robust.dk import _dynamics_in_band, _into_band
-    from robustctl.robust.magfit import zpk_statespace
 
     f = np.logspace(-3, 1, 50)           # band up to 10 Hz; margin 10 -> 628 rad/s
     d = zpk_statespace([-3e4, -0.5], [-2.0, -40.0], 1e-3)
@@ -285,7 +285,7 @@ def _mu_peak_of(P, K, blocks, f_hz):
 
 
 def test_automatic_reduction_finds_the_smallest_order_that_keeps_mu():
-    from robustctl.identify.balanced import balanced_truncation
+    from robustctl.balanced import balanced_truncation
 
     P = distillation_plant()
     dk = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=2, progress=False, reduce="auto")

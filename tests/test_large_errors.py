@@ -178,7 +178,7 @@ def _mode(f_hz, shape):
 
 
 def test_pairing_follows_the_shapes_through_large_shifts_and_crossings():
-    from robustctl.correlate.comparison import pair_modes
+    from robustctl.modes import pair_modes
 
     e = np.eye(4)
     model = [_mode(1.0, e[0]), _mode(2.5, e[1]), _mode(6.0, e[2])]

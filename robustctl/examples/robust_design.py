@@ -59,7 +59,7 @@ def six_modes(model: Any):
     """The six global modes (12 states) of a truss model by balanced truncation (seed eq. 11-13)."""
     import control
 
-    from ..identify.balanced import balanced_truncation
+    from ..balanced import balanced_truncation
     from ..lti import as_statespace
 
     G = as_statespace(model)

@@ -1,5 +1,6 @@
 """robustctl.robust (see DESIGN.md)."""
 
+from ..lti import zpk_statespace
 from .blocks import Block, BlockStructure, as_block_structure
 
 # weights (uncertainty and performance weights, magnitude fits, covers)
@@ -11,7 +12,7 @@ from .dk import DKIteration, DKResult, Reduction, dksyn
 # H-infinity norm and synthesis (hinf helper)
 from .hinf_norm import hinfnorm
 from .hinf_synthesis import HinfResult, hinfsyn
-from .magfit import MagnitudeFit, fit_magnitude, fit_magnitude_details, zpk_statespace
+from .magfit import MagnitudeFit, fit_magnitude, fit_magnitude_details
 from .mu_analysis import WorstCaseGain, robust_performance, robust_stability, worst_case_gain
 
 # --- mu analysis (mu helper) ---

@@ -372,7 +372,7 @@ def _into_band(fit: Any, f_hz: np.ndarray, margin: float = 10.0) -> Any:
     a zero at the origin into the band changed the Caltech plant's scaled norm from 1.08 to
     3.3). Fits without such roots are returned unchanged.
     """
-    from .magfit import zpk_statespace
+    from ..lti import zpk_statespace
 
     if fit.nstates == 0 or abs(float(np.asarray(fit.D)[0, 0])) < 1e-12:
         return fit
@@ -1102,7 +1102,7 @@ def _reduce(plant: _Plant, blocks: BlockStructure, K: Any, cl: Any, m: Any, orde
     orders below the controller's numerically minimal order (Hankel singular values above
     ``HSV_RTOL`` of the largest); at most ``ceil(log2 n) + 1`` mu analyses.
     """
-    from ..identify.balanced import balanced_truncation
+    from ..balanced import balanced_truncation
 
     auto = isinstance(order, str) and order == "auto"
     if not auto and (isinstance(order, bool) or not isinstance(order, (int, np.integer)) or order < 1):
