@@ -43,6 +43,8 @@ __all__ = [
     "DB_PER_NEPER",
     "pole_frequency_damping",
     "zpk_statespace",
+    "is_stable",
+    "spectral_abscissa",
 ]
 
 #: dB per neper, ``20 / ln 10``: the real part of :func:`log_ratio` (nepers) times this is
@@ -572,6 +574,51 @@ def _align(data: FrequencyData, model: FrequencyData) -> FrequencyData:
     in_idx = match_channels(model.inputs, data.inputs, "inputs")
     g = model.response[:, out_idx][:, :, in_idx]
     return model.replace(response=g, outputs=data.outputs, inputs=data.inputs, coherence=None)
+
+
+# ---------------------------------------------------------------------------- stability
+def spectral_abscissa(sys: Any) -> float:
+    """The largest real part of the poles of a continuous system, rad/s; ``-inf`` without states.
+
+    Parameters
+    ----------
+    sys : system with an ``A`` matrix, or a square array_like ``A``
+        A continuous-time state space (``control.StateSpace`` or anything with ``A``) or its
+        state matrix. Not coerced: inner code passes what it built.
+
+    Returns
+    -------
+    float
+        ``max Re eig(A)``; NaN when ``A`` holds NaN or inf (no eigenvalues to speak of).
+    """
+    A = np.asarray(getattr(sys, "A", sys))
+    if A.size == 0:
+        return -np.inf
+    if not np.all(np.isfinite(A)):
+        return np.nan
+    return float(np.max(np.linalg.eigvals(A).real))
+
+
+def is_stable(sys: Any, margin: float = 0.0) -> bool:
+    """True when every pole of the continuous system lies left of ``Re s = -margin``.
+
+    The one stability test of robustctl: ``max Re eig(A) < -margin`` (strict), a system
+    without states is stable. Each caller passes its tolerance explicitly.
+
+    Parameters
+    ----------
+    sys : system with an ``A`` matrix, or a square array_like ``A``
+        See :func:`spectral_abscissa`.
+    margin : float
+        Required distance of the poles from the imaginary axis, rad/s (0: open left half
+        plane). A negative margin accepts poles up to ``-margin`` right of the axis.
+
+    Returns
+    -------
+    bool
+        False also when ``A`` holds NaN or inf.
+    """
+    return bool(spectral_abscissa(sys) < -margin)
 
 
 # ---------------------------------------------------------------------------- construction

@@ -47,6 +47,7 @@ import numpy as np
 from ..checks import flag, integer, positive_number
 from ..errors import SynthesisError
 from ..executors import check_executor, parallel_map
+from ..lti import is_stable
 from ..table import Table
 from .blocks import Block, BlockStructure, as_block_structure
 
@@ -216,10 +217,6 @@ def closed_loop(P: Any, K: Any, nmeas: int, ncon: int):
     from ..interconnect import lft
 
     return lft(P, K, nmeas, ncon)
-
-
-def _is_stable(sys1: Any) -> bool:
-    return sys1.nstates == 0 or bool(np.all(np.linalg.eigvals(np.asarray(sys1.A)).real < 0))
 
 
 # ---------------------------------------------------------------------------- grid
@@ -1085,7 +1082,7 @@ def _k_step_search(hinfsyn: Callable, plant: _Plant, candidates: Sequence[_DCand
 def _k_step(hinfsyn: Callable, scaled: Any, plant: _Plant, opts: dict, index: int) -> Any:
     """One H-infinity synthesis on the scaled plant; refuses a controller that does not stabilise P."""
     hres = hinfsyn(scaled, **opts)
-    if not _is_stable(closed_loop(plant.P, hres.K, plant.nmeas, plant.ncon)):
+    if not is_stable(closed_loop(plant.P, hres.K, plant.nmeas, plant.ncon), margin=0.0):
         raise SynthesisError(
             f"the K step of iteration {index} returned a controller that does not stabilise the plant; "
             "check that (A, B2) is stabilisable and (C2, A) detectable."
@@ -1112,7 +1109,7 @@ def _reduce(plant: _Plant, blocks: BlockStructure, K: Any, cl: Any, m: Any, orde
     n = K.nstates
     if not auto and order >= n:
         return K, cl, m, Reduction(n, n, m.peak, m.peak, False, f"the controller has only {n} states")
-    if not _is_stable(K):
+    if not is_stable(K, margin=0.0):
         return K, cl, m, Reduction(n, n if auto else order, m.peak, np.inf, False,
                                    "the controller is unstable (balanced truncation needs a stable one)")
     tried: dict[int, tuple] = {}
@@ -1167,7 +1164,7 @@ def _truncated_loop(plant: _Plant, blocks: BlockStructure, K: Any, reduced: Any,
     Kr = control.ss(reduced.A, reduced.B, reduced.C, reduced.D, inputs=list(K.input_labels),
                     outputs=list(K.output_labels))
     clr = closed_loop(plant.P, Kr, plant.nmeas, plant.ncon)
-    if not _is_stable(clr):
+    if not is_stable(clr, margin=0.0):
         return Kr, clr, None, "the reduced loop is unstable"
     mr, _ = _mu_of(clr, blocks, base, refine)
     if mr.peak > m.peak * (1 + mu_rtol):

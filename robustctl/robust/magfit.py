@@ -40,7 +40,7 @@ import numpy as np
 
 from ..checks import flag, optional_text, positive_number, real_array
 from ..errors import FitError
-from ..lti import _pair, _zpk_response, zpk_statespace
+from ..lti import _pair, _zpk_response, is_stable, zpk_statespace
 
 __all__ = ["fit_magnitude", "MagnitudeFit", "fit_magnitude_details", "zpk_statespace"]
 
@@ -706,7 +706,7 @@ def _check_realisation(
     if sys.nstates == 0:
         return np.full(f_hz.size, abs(float(sys.D[0, 0])))
     with np.errstate(all="ignore"):
-        stable = bool(np.all(np.isfinite(sys.A)) and np.all(np.linalg.eigvals(sys.A).real < 0))
+        stable = bool(np.all(np.isfinite(sys.A)) and is_stable(sys, margin=0.0))
         mag = np.abs(freqresp_array(sys, f_hz)[:, 0, 0]) if stable else np.full(f_hz.size, np.nan)
         dev = float(np.max(np.abs(np.log(mag / fitted)))) if np.all(np.isfinite(mag) & (mag > 0)) else np.inf
     if not (dev <= 1e-3 or (stable and not strict and np.isfinite(dev))):  # 0.01 dB
