@@ -17,7 +17,7 @@ import numpy as np
 from .errors import DataError
 from .frd import FrequencyData, as_frequency_data, register_method
 from .modes import Mode
-from .plots import bode_grid, colorbar, log_frequency_axis, new_figure
+from .plots import annotated_matrix, bode_grid, colorbar, log_frequency_axis, new_figure
 
 __all__ = [
     "fit_percent",
@@ -271,21 +271,7 @@ def plot_mac(a: Any, b: Any = None, labels: tuple[str, str] = ("model", "data"))
     n, m = values.shape
     fig = new_figure(max(4.0, 0.45 * m + 2.5), max(3.5, 0.4 * n + 1.5))
     ax = fig.subplots()
-    im = ax.imshow(values, vmin=0.0, vmax=1.0, cmap="viridis")
-    ax.set_xticks(range(m), cols, rotation=60, ha="right", fontsize=7)
-    ax.set_yticks(range(n), rows, fontsize=7)
-    if n * m <= 400:
-        for i in range(n):
-            for k in range(m):
-                ax.text(
-                    k,
-                    i,
-                    f"{values[i, k]:.2f}",
-                    ha="center",
-                    va="center",
-                    fontsize=6,
-                    color="w" if values[i, k] < 0.6 else "k",
-                )
+    im = annotated_matrix(ax, values, rows, cols, fmt=".2f", max_cells=400)
     second = labels[0] if b is None else labels[1]
     ax.set_xlabel(f"{second} mode")
     ax.set_ylabel(f"{labels[0]} mode")

@@ -44,6 +44,7 @@ __all__ = [
     "pole_frequency_damping",
     "zpk_statespace",
     "is_stable",
+    "zoh",
     "spectral_abscissa",
 ]
 
@@ -574,6 +575,39 @@ def _align(data: FrequencyData, model: FrequencyData) -> FrequencyData:
     in_idx = match_channels(model.inputs, data.inputs, "inputs")
     g = model.response[:, out_idx][:, :, in_idx]
     return model.replace(response=g, outputs=data.outputs, inputs=data.inputs, coherence=None)
+
+
+# ---------------------------------------------------------------------------- sampling
+def zoh(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact zero-order-hold discretisation of ``x' = A x + B u`` with sample time ``dt``.
+
+    ``expm([[A, B], [0, 0]] dt) = [[Ad, Bd], [0, I]]`` (Franklin, Powell & Workman, *Digital
+    Control of Dynamic Systems*, 3rd ed., sec. 4.3.3; Van Loan 1978): ``x[k+1] = Ad x[k] + Bd u[k]``
+    for an input held constant over each sample. The one ZOH of robustctl (simulated
+    experiments, the estimator's sampled impulse response, controller export).
+
+    Parameters
+    ----------
+    A : ndarray (n, n)
+        State matrix, rad/s.
+    B : ndarray (n, m)
+        Input matrix.
+    dt : float
+        Sample time, s.
+
+    Returns
+    -------
+    Ad : ndarray (n, n)
+    Bd : ndarray (n, m)
+    """
+    from scipy.linalg import expm
+
+    n, m = B.shape
+    M = np.zeros((n + m, n + m))
+    M[:n, :n] = A * dt
+    M[:n, n:] = B * dt
+    E = expm(M)
+    return E[:n, :n], E[:n, n:]
 
 
 # ---------------------------------------------------------------------------- stability
