@@ -325,7 +325,26 @@ def _zoh_impulse_loop(sys: Any, fs: float, n: int) -> np.ndarray:
     return h
 
 
-def _spectrum(h: np.ndarray, f_hz: np.ndarray, settings: EstimatorSettings) -> np.ndarray:
+def windowed_spectrum(h: np.ndarray, f_hz: np.ndarray, settings: EstimatorSettings) -> np.ndarray:
+    """The expected H1 of a sampled impulse response: ``sum_k h[k] r_w[k]/r_w[0] e^{-j theta k}``.
+
+    The one kernel behind every expected H1 (module docstring of
+    :mod:`robustctl.identify.leakage`): the lag window (:func:`lag_window`) on ``h``, then the
+    DFT at the bins (``f_hz`` on the ``fs / N`` grid) or the direct DTFT off the grid.
+
+    Parameters
+    ----------
+    h : ndarray (N, n_out, n_in)
+        Sampled (ZOH) impulse response, ``N = settings.nperseg``.
+    f_hz : ndarray (K,)
+        Frequencies, Hz, not above Nyquist.
+    settings : EstimatorSettings
+        Sampling rate, segment length and window of the estimate.
+
+    Returns
+    -------
+    ndarray (K, n_out, n_in), complex
+    """
     fs, n, window = settings
     f = np.asarray(f_hz, dtype=float)
     if np.any(f > fs / 2 * (1 + 1e-12)):
@@ -346,7 +365,7 @@ def expected_h1_modal(poles, residues, d, f_hz: Any, settings: EstimatorSettings
     ``poles`` must be closed under conjugation (every complex pole with its conjugate).
     """
     h = _zoh_impulse_modal(poles, residues, np.asarray(d, dtype=float), settings.fs_hz, settings.nperseg)
-    return _spectrum(h, f_hz, settings)
+    return windowed_spectrum(h, f_hz, settings)
 
 
 @limit_blas
@@ -366,7 +385,7 @@ def expected_h1(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np.ndarray:
     modal = _modal(ss)
     if modal is not None:
         return expected_h1_modal(*modal, f_hz, settings)
-    return _spectrum(_zoh_impulse_loop(ss, settings.fs_hz, settings.nperseg), f_hz, settings)
+    return windowed_spectrum(_zoh_impulse_loop(ss, settings.fs_hz, settings.nperseg), f_hz, settings)
 
 
 def estimator_view(sys: Any, f_hz: Any, settings: EstimatorSettings, *, hold: bool = False) -> np.ndarray:
