@@ -608,9 +608,7 @@ def _orders(order_d: Any, nb: int) -> list[list[int]]:
 
 
 def _check_order(o: Any) -> int:
-    if isinstance(o, bool) or not isinstance(o, (int, np.integer)) or not 0 <= o <= 20:
-        raise SynthesisError(f"order_d must be an integer in 0..20 (or None for automatic); got {o!r}.")
-    return int(o)
+    return integer(o, "order_d", SynthesisError, lo=0, hi=20, alternative="None for automatic")
 
 
 # ---------------------------------------------------------------------------- results
@@ -805,8 +803,7 @@ def _mu_of(cl: Any, blocks: BlockStructure, f_hz: np.ndarray, refine: bool) -> t
 
 
 def _check_args(max_iter: Any, time_budget_s: Any, f_hz: Any) -> np.ndarray | None:
-    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or not 1 <= max_iter <= 100:
-        raise SynthesisError(f"max_iter must be an integer in 1..100; got {max_iter!r}.")
+    integer(max_iter, "max_iter", SynthesisError, lo=1, hi=100)
     positive_number(time_budget_s, "time_budget_s", SynthesisError, unit="s")
     if f_hz is None:
         return None
@@ -1102,10 +1099,8 @@ def _reduce(plant: _Plant, blocks: BlockStructure, K: Any, cl: Any, m: Any, orde
     from ..balanced import balanced_truncation
 
     auto = isinstance(order, str) and order == "auto"
-    if not auto and (isinstance(order, bool) or not isinstance(order, (int, np.integer)) or order < 1):
-        raise SynthesisError(
-            f"reduce must be a positive number of controller states or 'auto'; got {order!r}."
-        )
+    if not auto:
+        integer(order, "reduce (the number of controller states)", SynthesisError, lo=1, alternative="'auto'")
     n = K.nstates
     if not auto and order >= n:
         return K, cl, m, Reduction(n, n, m.peak, m.peak, False, f"the controller has only {n} states")

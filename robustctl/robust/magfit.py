@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import flag, optional_text, positive_number, real_array
+from ..checks import flag, integer, optional_text, positive_number, real_array
 from ..errors import FitError
 from ..lti import _pair, _zpk_response, is_stable, zpk_statespace
 
@@ -66,9 +66,7 @@ ROOT_SPAN = 1e3
 
 # ---------------------------------------------------------------------------- checks
 def _check_order(order: Any) -> int:
-    if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not 0 <= order <= MAX_ORDER:
-        raise FitError(f"order must be an integer from 0 to {MAX_ORDER} (number of poles); got {order!r}.")
-    return int(order)
+    return integer(order, "order", FitError, lo=0, hi=MAX_ORDER)
 
 
 #: Widest magnitude range a fit accepts (decades of max / min): its squared, normalised curve
