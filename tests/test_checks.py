@@ -1,4 +1,4 @@
-"""The shared ground (issue 8): one band rule, one meaning of point weights, one channel-name
+"""The shared ground: one band rule, one meaning of point weights, one channel-name
 policy, one system coercion, one cost, one result convention -- the same at every entry point."""
 
 from __future__ import annotations

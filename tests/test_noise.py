@@ -1,4 +1,4 @@
-"""The noise model of an FRF estimate, the estimator's view of a model, units sanity (issue 12)."""
+"""The noise model of an FRF estimate, the estimator's view of a model, units sanity."""
 
 from __future__ import annotations
 

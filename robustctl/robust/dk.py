@@ -59,16 +59,13 @@ MAX_AUTO_ORDER_D = 8
 HINF_BACKOFF = 1e-3
 #: Most states one block's D-scale may add to the scaled plant (order x (rows + cols)).
 MAX_D_STATES_PER_BLOCK = 24
-#: Target accuracy of each D fit (dB), passed to fit_magnitude (on the distillation example
-#: 0.2 dB reached 0.9956 in 6 iterations, 0.1 dB 0.9897, 0.05 dB 0.9911).
+#: Target accuracy of each D fit (dB), passed to fit_magnitude.
 FIT_TOL_DB = 0.1
 #: Orders the automatic choice may drop below the previous iteration's (0: an order once
-#: needed is kept; dropping from 4 to 3 on the distillation example slowed D-K to 1.0022 at
-#: iteration 6 against 0.9911 at iteration 5 with order 4 kept, both with 0.05 dB fits).
+#: needed is kept).
 ORDER_D_DROP = 0
-#: Accept the lowest D order whose scaled bound peak is within this fraction of mu's peak.
-#: Loose on purpose: on the distillation example 0.5 % (orders 4-8) stalled D-K at mu = 1.033,
-#: a fixed order 4 reproduced the book's 1.0189 and 5 % (orders 3-4) reached 1.010.
+#: Accept the lowest D order whose scaled bound peak is within this fraction of mu's peak
+#: (loose on purpose: a tight tolerance picks high orders that stall D-K).
 ORDER_D_RTOL = 0.05
 #: A reduced controller is kept when the peak of mu rises by at most this fraction.
 REDUCE_MU_RTOL = 0.02
@@ -77,10 +74,8 @@ REDUCE_MU_RTOL = 0.02
 #: ``2 sum sigma_i``, below 1e-7 of its gain).
 HSV_RTOL = 1e-9
 #: Serially, a block with at least this many candidate D orders fits the highest first and
-#: keeps it without fitting the others when even it misses ORDER_D_RTOL. Not for fewer: on
-#: the Caltech design plant (3 x 3 blocks, orders 0-4) taking the highest order so reached
-#: mu 0.760 but with a 93-state controller in 18 s of CPU; scanning upwards reaches 0.837
-#: with 69 states in 8 s (the issue's budget is 10 s).
+#: keeps it without fitting the others when even it misses ORDER_D_RTOL; fewer candidates are
+#: scanned upwards (smaller controllers, less time).
 SHORTCUT_MIN_ORDERS = 6
 #: A block's best bound this factor above what it can reach (times 1 + ORDER_D_RTOL) counts as a
 #: broken fit: the orders below the previous iteration's are tried too.
