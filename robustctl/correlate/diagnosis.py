@@ -1160,7 +1160,7 @@ def diagnose(
     deadline = t0 + time_budget_s
     params = renamed_keyword(params, update_params, "params", "update_params")
     point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
-    model = physical_model(model, "diagnose")
+    model = _evaluated(physical_model(model, "diagnose"), data, band)
     if isinstance(noise, str) and noise == "auto":
         noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
     res0, ignored = _residual(model, data, band, point_weights, min_channel_db, estimator, noise)
@@ -1185,6 +1185,14 @@ def diagnose(
             t0, res0, ignored, upd, candidates, j_nominal, ex, n_fit, max_iter, update_iter, alpha, min_gain,
             time_budget_s, deadline,
         )
+
+
+def _evaluated(model: Any, data: Any, band: Any) -> Any:
+    """The model as diagnose evaluates it: in reduced coordinates up to the band for a large
+    structure (:func:`robustctl.physical.reduction.for_data`), else as given."""
+    from ..physical.reduction import for_data
+
+    return for_data(model, data, band)
 
 
 def _pool(workers: Any, executor: Any, candidates: list | None, model: Any, t_eval: float):

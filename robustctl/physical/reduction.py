@@ -99,6 +99,9 @@ class _Basis:
     lam_cut: float  # largest exact eigenvalue w_cut^2
     resid_in: np.ndarray  # (m,) residual flexibility b_i^T R b_i (m/N)
     resid_out: np.ndarray  # (p,) c_o R c_o^T
+    Vb: np.ndarray = None  # (r, m) V^T b
+    cV: np.ndarray = None  # (p, r) c V
+    VCV: np.ndarray | None = None  # (r, r) V^T Cs V, None without dashpots
 
 
 def _csc(a: Any) -> sp.csc_matrix:
@@ -117,6 +120,22 @@ def _m_orthonormal(X: np.ndarray, M: Any, V: np.ndarray, tol: float = 1e-10) -> 
     return X @ (U[:, keep] / np.sqrt(d[keep]))
 
 
+def _count_below(K: Any, M: Any, lam: float) -> int | None:
+    """How many eigenvalues of ``K phi = w^2 M phi`` lie below ``lam``: the negative pivots of
+    the symmetric factorisation of ``K - lam M`` (Sylvester's law of inertia; Golub & Van
+    Loan, *Matrix Computations*, 4th ed., Thm. 8.1.17), so that one Lanczos run asks for the
+    right number of modes. None when the unpivoted factorisation breaks down."""
+    try:
+        lu = spla.splu((K - lam * M).tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                       options={"SymmetricMode": True})
+    except RuntimeError:
+        return None
+    d = lu.U.diagonal()
+    if not np.all(np.isfinite(d)):
+        return None
+    return int(np.count_nonzero(d < 0))
+
+
 def _reduce(mats: Any, f_cut_hz: float) -> _Basis:
     """The Ritz basis of one structure: exact modes below ``f_cut_hz`` plus two attachment
     (Krylov) blocks of the inputs (module docstring)."""
@@ -132,10 +151,13 @@ def _reduce(mats: Any, f_cut_hz: float) -> _Basis:
     try:
         lu = spla.splu((K - sigma * M).tocsc())
     except RuntimeError as exc:
-        raise ModelError(f"the shifted stiffness K - sigma M is singular ({exc}); check the matrices.") from None
+        raise ModelError(
+            f"the shifted stiffness K - sigma M is singular ({exc}); check the matrices."
+        ) from None
     op = spla.LinearOperator((n, n), matvec=lu.solve, dtype=float)
     lam_cut = (2 * np.pi * f_cut_hz) ** 2
-    k = min(max(12, n // 50), n - 2)
+    below = _count_below(K, M, lam_cut)
+    k = min(max(12, n // 50) if below is None else below + 4, n - 2)
     while True:
         lam, phi = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", OPinv=op)
         order = np.argsort(lam)
@@ -159,67 +181,112 @@ def _reduce(mats: Any, f_cut_hz: float) -> _Basis:
     static_b = np.einsum("ij,ij->j", b, A1) - np.sum((phi.T @ b) ** 2 * shifted[:, None], axis=0)
     Ac = lu.solve(c.T)
     static_c = np.einsum("ij,ij->j", c.T, Ac) - np.sum((c @ phi) ** 2 * shifted[None, :], axis=1)
-    return _Basis(M, K, mats.damping, b, c, lu, sigma, V, lam_all, int(lam.size), float(lam[-1]),
-                  np.maximum(static_b, 0.0), np.maximum(static_c, 0.0))
+    Cs = None if mats.damping is None else _csc(mats.damping)
+    return _Basis(M, K, Cs, b, c, lu, sigma, V, lam_all, int(lam.size), float(lam[-1]),
+                  np.maximum(static_b, 0.0), np.maximum(static_c, 0.0), V.T @ b, c @ V,
+                  None if Cs is None else V.T @ np.asarray(Cs @ V))
 
 
-def _changed_dofs(base: _Basis, mats: Any) -> np.ndarray | None:
-    """The DOFs where ``mats`` differ from the base's matrices (inputs and outputs equal),
-    or None when they differ elsewhere too (or at more than :data:`LOW_RANK_MAX_DOFS`)."""
+def _changed_dofs(base: _Basis, mats: Any) -> tuple[np.ndarray, list] | None:
+    """The DOFs ``J`` where ``mats`` differ from the base's matrices and the changes ``(dM, dK,
+    dC)`` there (dense ``|J| x |J|`` blocks), or None when they differ elsewhere too (inputs,
+    outputs, more than :data:`LOW_RANK_MAX_DOFS` DOFs)."""
     if mats.mass.shape != base.mass.shape:
         return None
     if not (np.array_equal(np.asarray(mats.input_matrix, dtype=float), base.input_matrix)
             and np.array_equal(np.asarray(mats.output_matrix, dtype=float), base.output_matrix)):
         return None
+    n = base.mass.shape[0]
+    diffs = []
     rows: set[int] = set()
     for new, old in ((mats.mass, base.mass), (mats.stiffness, base.stiffness), (mats.damping, base.damping)):
         if new is None and old is None:
+            diffs.append(None)
             continue
-        n = base.mass.shape[0]
-        d = _csc(new if new is not None else sp.csc_matrix((n, n))) - (
-            old if old is not None else sp.csc_matrix((n, n)))
-        d = sp.coo_matrix(d)
+        d = sp.coo_matrix(_csc(new if new is not None else sp.csc_matrix((n, n)))
+                          - (old if old is not None else sp.csc_matrix((n, n))))
         nz = d.data != 0
-        rows.update(np.unique(d.row[nz]).tolist())
-        rows.update(np.unique(d.col[nz]).tolist())
+        d = (d.row[nz], d.col[nz], d.data[nz])
+        rows.update(d[0].tolist())
+        rows.update(d[1].tolist())
         if len(rows) > LOW_RANK_MAX_DOFS:
             return None
-    return np.array(sorted(rows), dtype=int)
+        diffs.append(d)
+    dofs = np.array(sorted(rows), dtype=int)
+    where = {int(k): i for i, k in enumerate(dofs)}
+    blocks = []
+    for d in diffs:
+        block = np.zeros((dofs.size, dofs.size))
+        if d is not None:
+            for r, c, v in zip(*d):
+                block[where[int(r)], where[int(c)]] += v
+        blocks.append(block)
+    return dofs, blocks
 
 
-def _ritz_modal(base: _Basis, mats: Any, dofs: np.ndarray):
-    """Undamped modal data of ``mats`` in the base's Ritz basis, augmented by the attachment
-    vectors of ``dofs`` (a low-rank change; none: the base structure itself)."""
-    from .modal import ModalData, _modal_damping_matrix
+def _ritz_modal(base: _Basis, mats: Any, change: tuple[np.ndarray, list]):
+    """Undamped modal data of ``mats`` in the base's Ritz basis ``V``, augmented by the
+    attachment vectors ``X`` of the changed DOFs ``J`` (none: the base structure itself).
 
-    M, K = _csc(mats.mass), _csc(mats.stiffness)
+    With ``W = [V, X]`` M0-orthonormal (``V^T K0 V = diag(lam)``), the projected matrices are
+    ``W^T M W = I + W_J^T dM W_J`` and ``W^T K W = [[diag(lam), V^T K0 X], [., X^T K0 X]] +
+    W_J^T dK W_J``: ``O(n_dof r |J|)`` to form, ``O((r + |J|)^3)`` to solve; the modal input
+    and output matrices follow from ``V^T b``, ``c V`` kept with the base (the ``n_dof x r``
+    mode shapes are never formed)."""
+    from .eigen import _clean_eigenvalues
+    from .modal import ModalData
+
+    dofs, (dM, dK, dC) = change
     V = base.V
+    Vb, cV = base.Vb, base.cV
     if dofs.size:
         E = np.zeros((V.shape[0], dofs.size))
         E[dofs, np.arange(dofs.size)] = 1.0
         X = _m_orthonormal(base.lu.solve(E), base.mass, V)
-        W = np.hstack([V, X])
-        MW, KW = M @ W, K @ W
-        Mr, Kr = W.T @ MW, W.T @ KW
+        KX = np.asarray(base.stiffness @ X)
+        WJ = np.hstack([V[dofs], X[dofs]])
+        r, q = V.shape[1], X.shape[1]
+        Kr = np.zeros((r + q, r + q))
+        Kr[np.diag_indices(r)] = base.lam
+        Kr[:r, r:] = V.T @ KX
+        Kr[r:, :r] = Kr[:r, r:].T
+        Kr[r:, r:] = X.T @ KX
+        Kr += WJ.T @ dK @ WJ
+        Mr = np.eye(r + q) + WJ.T @ dM @ WJ
         lam, psi = sla.eigh(0.5 * (Kr + Kr.T), 0.5 * (Mr + Mr.T))
+        Wb = np.vstack([Vb, X.T @ base.input_matrix])
+        cW = np.hstack([cV, base.output_matrix @ X])
+        WCW = None
+        if base.damping is not None or np.any(dC):
+            CsX = np.asarray(base.damping @ X) if base.damping is not None else np.zeros_like(X)
+            WCW = np.zeros((r + q, r + q))
+            WCW[:r, :r] = base.VCV
+            WCW[:r, r:] = V.T @ CsX
+            WCW[r:, :r] = WCW[:r, r:].T
+            WCW[r:, r:] = X.T @ CsX
+            WCW += WJ.T @ dC @ WJ
     else:
-        W, lam, psi = V, base.lam, np.eye(V.shape[1])
-    k_scale = float(abs(K).max() / max(abs(M).max(), 1e-300))
-    from .eigen import _clean_eigenvalues
-
+        lam, psi, Wb, cW, WCW = base.lam, None, Vb, cV, base.VCV
+    k_scale = float(abs(base.stiffness).max() / max(abs(base.mass).max(), 1e-300))
     lam = _clean_eigenvalues(lam, k_scale)
-    shapes = W @ psi  # (n, r) mass-normalised modes of the reduced problem
     order = np.argsort(lam, kind="stable")
-    lam, shapes = lam[order], shapes[:, order]
+    lam = lam[order]
+    if psi is None:
+        input_shapes, output_shapes = Wb[order], cW[:, order]
+        cs = None if WCW is None else WCW[np.ix_(order, order)]
+    else:
+        psi = psi[:, order]
+        input_shapes, output_shapes = psi.T @ Wb, cW @ psi
+        cs = None if WCW is None else psi.T @ WCW @ psi
     return ModalData(
         omega=np.sqrt(lam),
         zeta=np.zeros(lam.size),
-        input_shapes=shapes.T @ mats.input_matrix,
-        output_shapes=mats.output_matrix @ shapes,
+        input_shapes=input_shapes,
+        output_shapes=output_shapes,
         output_kinds=tuple(mats.output_kinds),
         inputs=tuple(mats.inputs),
         outputs=tuple(mats.outputs),
-        modal_concentrated_damping=_modal_damping_matrix(mats.damping, shapes),
+        modal_concentrated_damping=cs,
     )
 
 
@@ -238,27 +305,27 @@ class _Reducer:
     def __setstate__(self, state: dict) -> None:
         self.__init__(state["f_cut_hz"])
 
-    def basis_and_dofs(self, mats: Any) -> tuple[_Basis, np.ndarray]:
+    def basis_and_dofs(self, mats: Any) -> tuple[_Basis, tuple]:
         with self._lock:
             entries = list(reversed(self._bases.items()))
         for key, base in entries:
-            dofs = _changed_dofs(base, mats)
-            if dofs is not None:
+            change = _changed_dofs(base, mats)
+            if change is not None:
                 with self._lock:
                     if key in self._bases:
                         self._bases.move_to_end(key)
-                return base, dofs
+                return base, change
         base = _reduce(mats, self.f_cut_hz)
         with self._lock:
             self._count += 1
             self._bases[self._count] = base
             while len(self._bases) > _KEEP:
                 self._bases.popitem(last=False)
-        return base, np.zeros(0, dtype=int)
+        return base, (np.zeros(0, dtype=int), [np.zeros((0, 0))] * 3)
 
     def modal_data(self, mats: Any):
-        base, dofs = self.basis_and_dofs(mats)
-        return _ritz_modal(base, mats, dofs)
+        base, change = self.basis_and_dofs(mats)
+        return _ritz_modal(base, mats, change)
 
 
 def _reduced_dynamics(full: Any, f_cut_hz: float, min_dof: int):
@@ -276,7 +343,8 @@ def _reduced_dynamics(full: Any, f_cut_hz: float, min_dof: int):
             return full(theta, structure)
         _check_mats(mats)
         undamped = reducer.modal_data(mats)
-        return _damped(undamped, full.damping(theta), mats.modal_damping_bands, full.rigid_body_damping).statespace()
+        damped = _damped(undamped, full.damping(theta), mats.modal_damping_bands, full.rigid_body_damping)
+        return damped.statespace()
 
     dynamics.reducer = reducer  # type: ignore[attr-defined]
     dynamics.full = full  # type: ignore[attr-defined]
@@ -345,3 +413,18 @@ def reduction_error(model: Any, f_hz: Any, **overrides: float) -> np.ndarray | N
     power = np.array([{"displacement": 0, "velocity": 1}.get(k, 2) for k in mats.output_kinds])
     scale = np.sqrt(base.resid_out[:, None] * base.resid_in[None, :])
     return (e[:, None, None] * w[:, None, None] ** power[None, :, None]) * scale[None]
+
+
+def for_data(model: Any, data: Any, band: Any = None) -> Any:
+    """:func:`band_limited` to the top of ``band`` (Hz), or of the data's frequencies: the model
+    ``rc.diagnose`` and ``rc.update`` evaluate (unchanged below :data:`REDUCE_MIN_DOF` DOFs)."""
+    if band is not None:
+        top = float(band[1])
+    else:
+        f = getattr(data, "f_hz", None)
+        if f is None:
+            return model
+        top = float(np.max(f))
+    if not np.isfinite(top) or top <= 0:
+        return model
+    return band_limited(model, top)
