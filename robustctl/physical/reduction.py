@@ -352,7 +352,7 @@ def _reduced_dynamics(full: Any, f_cut_hz: float, min_dof: int):
     return dynamics
 
 
-def band_limited(model: Any, f_max_hz: float, *, margin: float = CUT_MARGIN, min_dof: int = REDUCE_MIN_DOF):
+def band_limited(model: Any, f_max_hz: float, *, margin: float | None = None, min_dof: int | None = None):
     """``model`` evaluated in reduced coordinates valid up to ``f_max_hz`` (module docstring).
 
     Parameters
@@ -363,11 +363,12 @@ def band_limited(model: Any, f_max_hz: float, *, margin: float = CUT_MARGIN, min
         one already band-limited.
     f_max_hz : float
         Highest frequency of interest (Hz), e.g. the top of the data's band.
-    margin : float
-        Exact modes are kept up to ``margin * f_max_hz``; the estimate of
-        :func:`reduction_error` scales as ``e(1 / margin)``.
-    min_dof : int
-        Structures with fewer DOFs keep the full dense path (same results as before).
+    margin : float, optional
+        Exact modes are kept up to ``margin * f_max_hz`` (default :data:`CUT_MARGIN`); the
+        estimate of :func:`reduction_error` scales as ``e(1 / margin)``.
+    min_dof : int, optional
+        Structures with fewer DOFs keep the full dense path, with the same results as before
+        (default :data:`REDUCE_MIN_DOF`).
 
     Returns
     -------
@@ -376,7 +377,8 @@ def band_limited(model: Any, f_max_hz: float, *, margin: float = CUT_MARGIN, min
         :func:`reduction_error` below ``f_max_hz``.
     """
     f_max_hz = positive_number(f_max_hz, "f_max_hz", ModelError, unit="Hz")
-    margin = positive_number(margin, "margin", ModelError)
+    margin = positive_number(CUT_MARGIN if margin is None else margin, "margin", ModelError)
+    min_dof = REDUCE_MIN_DOF if min_dof is None else min_dof
     if margin <= 1.0:
         raise ModelError(f"margin must exceed 1 (modes are kept up to margin * f_max_hz); got {margin!r}.")
     dyn = model.dynamics
