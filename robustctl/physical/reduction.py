@@ -74,7 +74,7 @@ __all__ = ["band_limited", "reduction_error", "REDUCE_MIN_DOF", "CUT_MARGIN"]
 REDUCE_MIN_DOF = 300
 #: Modes are computed up to ``CUT_MARGIN`` times the highest frequency of interest; the
 #: residual modes stand for the rest (error estimate ``e(1 / CUT_MARGIN)``, see the module).
-CUT_MARGIN = 2.0
+CUT_MARGIN = 3.0
 #: A structure differing from a reduced one at no more than this many DOFs is treated as a
 #: low-rank modification of it (structural dynamic modification) rather than reduced anew.
 LOW_RANK_MAX_DOFS = 6
@@ -182,8 +182,11 @@ def _reduce(mats: Any, f_cut_hz: float) -> _Basis:
     Ac = lu.solve(c.T)
     static_c = np.einsum("ij,ij->j", c.T, Ac) - np.sum((c @ phi) ** 2 * shifted[None, :], axis=1)
     Cs = None if mats.damping is None else _csc(mats.damping)
+    # rounding of the difference: a floor of 1e-12 of the static flexibility itself
+    floor_b = 1e-12 * np.abs(np.einsum("ij,ij->j", b, A1))
+    floor_c = 1e-12 * np.abs(np.einsum("ij,ij->j", c.T, Ac))
     return _Basis(M, K, Cs, b, c, lu, sigma, V, lam_all, int(lam.size), float(lam[-1]),
-                  np.maximum(static_b, 0.0), np.maximum(static_c, 0.0), V.T @ b, c @ V,
+                  np.maximum(static_b, floor_b), np.maximum(static_c, floor_c), V.T @ b, c @ V,
                   None if Cs is None else V.T @ np.asarray(Cs @ V))
 
 
@@ -260,7 +263,8 @@ def _ritz_modal(base: _Basis, mats: Any, change: tuple[np.ndarray, list]):
         if base.damping is not None or np.any(dC):
             CsX = np.asarray(base.damping @ X) if base.damping is not None else np.zeros_like(X)
             WCW = np.zeros((r + q, r + q))
-            WCW[:r, :r] = base.VCV
+            if base.VCV is not None:
+                WCW[:r, :r] = base.VCV
             WCW[:r, r:] = V.T @ CsX
             WCW[r:, :r] = WCW[:r, r:].T
             WCW[r:, r:] = X.T @ CsX
