@@ -190,4 +190,6 @@ def test_diagnose_ranks_the_same_with_the_reduced_and_the_full_path(monkeypatch)
     reduced = rc.diagnose(model, data, cands, noise=noise, workers=1)
     assert [r.name for r in reduced.ranking] == [r.name for r in full.ranking]
     assert reduced.ranking[0].name == "added mass at dof 58"
-    assert reduced.ranking[0].values["added_mass__dof_58"] == pytest.approx(0.03, rel=0.1)
+    value = reduced.ranking[0].values["added_mass__dof_58"]
+    assert value == pytest.approx(0.03, rel=0.15)
+    assert reduced.ranking[0].gain == pytest.approx(full.ranking[0].gain, abs=0.05)
