@@ -80,6 +80,10 @@ IMAG_RTOL = 1e-6
 IMAG_ATOL = 1e-10
 #: Largest order computed without touching the BLAS thread pools (see hinfnorm_matrices).
 SMALL_N = 32
+#: A discrete pole with ``|z| >= 1 - UNIT_CIRCLE_ULPS eps max(1, ||A||_1)`` is on the unit circle
+#: to round-off (eigenvalues are backward stable: their error is about ``eps ||A||``), so the
+#: norm is infinite rather than the 1e14 that the bilinear map of such a pole would report.
+UNIT_CIRCLE_ULPS = 64.0
 #: Frequencies per batch of the modal response (keeps the (batch x n) work array cache-sized).
 CHUNK = 256
 
@@ -531,7 +535,8 @@ def hinfnorm(sys: Any, tol: float = 1e-6) -> tuple[float, float]:
     -------
     norm : float
         The H-infinity norm (``inf`` when the system is unstable: a pole with
-        ``Re p >= 0``, or ``|z| >= 1`` in discrete time; uncontrollable or unobservable
+        ``Re p >= 0``, or ``|z| >= 1`` in discrete time, to round-off: ``|z| >= 1 - 64 eps
+        max(1, ||A||_1)``, as for a sampled undamped mode; uncontrollable or unobservable
         unstable modes count too).
     f_peak_hz : float
         Frequency (Hz) where ``sigma_max`` peaks (``inf`` when the peak is at infinite
@@ -562,7 +567,9 @@ def hinfnorm(sys: Any, tol: float = 1e-6) -> tuple[float, float]:
         raise ModelError("hinfnorm: the discrete system has no sampling time (dt=True); set dt in s.")
     dt = float(dt)
     poles = np.linalg.eigvals(A) if A.size else np.zeros(0)
-    if poles.size and np.max(np.abs(poles)) >= 1.0:
+    scale = max(1.0, float(np.linalg.norm(A, 1)) if A.size else 1.0)
+    edge = 1.0 - UNIT_CIRCLE_ULPS * np.finfo(float).eps * scale
+    if poles.size and np.max(np.abs(poles)) >= edge:
         k = int(np.argmax(np.abs(poles)))
         return np.inf, abs(float(np.angle(poles[k]))) / (2.0 * np.pi * dt)
     gamma, w = hinfnorm_matrices(*_discrete_to_continuous(A, B, C, D), tol)
