@@ -38,7 +38,7 @@ from .identify import (
 )
 from .impact import ImpactWarning, estimate_frf_impact
 from .interconnect import PartitionedPlant, block_diagonal, feedback, lft, parallel, series, star, upper_lft
-from .lti import as_statespace, freqresp, log_cost, log_error
+from .lti import as_statespace, freqresp, is_stable, log_cost, log_error
 from .modes import Mode
 from .noise import NoiseModel, noise_model
 from .physical import (
@@ -82,6 +82,7 @@ from .robust import (
     worst_case_gain,
 )
 from .robust.dk import DKResult, dksyn
+from .robust.h2 import H2Result, h2norm, h2syn
 from .robust.sweep import DesignSweep, design_sweep
 from .robust.yardstick import Yardstick, yardstick
 from .signals import (
@@ -212,4 +213,9 @@ __all__ = [
     "DKResult",
     "yardstick",
     "Yardstick",
+    # H2/LQG, discrete synthesis, loop shaping, margins, controller reduction
+    "is_stable",
+    "h2norm",
+    "h2syn",
+    "H2Result",
 ]

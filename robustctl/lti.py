@@ -54,6 +54,7 @@ __all__ = [
     "log_cost",
     "DB_PER_NEPER",
     "pole_frequency_damping",
+    "is_stable",
     # named interconnection (robustctl.interconnect), re-exported: lti holds the LFTs
     "PartitionedPlant",
     "lft",
@@ -125,6 +126,47 @@ DENSE_INV_MAX = 64
 
 
 # ---------------------------------------------------------------------------- conversions
+#: A pole within ``STABILITY_ULPS eps max(1, ||A||_1)`` of the stability boundary (the imaginary
+#: axis, or the unit circle in discrete time) is on it to round-off: eigenvalues are backward
+#: stable, accurate to about ``eps ||A||`` (Golub & Van Loan 2013, sec. 7.2.2).
+STABILITY_ULPS = 64.0
+
+
+def is_stable_matrix(A: np.ndarray, dt: Any = 0) -> bool:
+    """Are all eigenvalues of ``A`` strictly inside the stability region, beyond round-off?
+
+    Continuous time (``dt`` 0 or None): ``Re p < -delta``; discrete time: ``|z| < 1 - delta``,
+    with ``delta = STABILITY_ULPS eps max(1, ||A||_1)``. An empty ``A`` is stable.
+    """
+    A = np.asarray(A, dtype=float)
+    if A.size == 0:
+        return True
+    delta = STABILITY_ULPS * np.finfo(float).eps * max(1.0, float(np.linalg.norm(A, 1)))
+    ev = np.linalg.eigvals(A)
+    if dt in (0, None):
+        return bool(np.all(ev.real < -delta))
+    return bool(np.all(np.abs(ev) < 1.0 - delta))
+
+
+def is_stable(sys: Any) -> bool:
+    """Is the system internally stable (every pole, controllable or not, inside the stability region)?
+
+    Parameters
+    ----------
+    sys : system
+        Anything :func:`as_statespace` accepts, continuous or discrete.
+
+    Returns
+    -------
+    bool
+        ``True`` when every eigenvalue of ``A`` has ``Re p < 0`` (continuous) or ``|z| < 1``
+        (discrete) by more than the eigensolver's round-off ``64 eps max(1, ||A||_1)``; a pole
+        on the boundary to round-off (a sampled undamped mode) is not stable.
+    """
+    ss = as_statespace(sys, name="sys")
+    return is_stable_matrix(np.asarray(ss.A, dtype=float), ss.dt)
+
+
 def _as_statespace(sys: Any, name: str = "sys"):
     import control
 

@@ -8,6 +8,9 @@ from .cover import UncertaintyCover, cover_additive, cover_multiplicative, error
 # D-K iteration and the measurement-model yardstick (dk.py, yardstick.py)
 from .dk import DKIteration, DKResult, Reduction, dksyn
 
+# H2/LQG, discrete synthesis, loop shaping, margins, controller reduction (toolbox)
+from .h2 import H2Result, h2norm, h2syn
+
 # H-infinity norm and synthesis (hinf helper)
 from .hinfnorm import hinfnorm
 from .hinfsyn import HinfResult, hinfsyn
@@ -64,4 +67,8 @@ __all__ = [
     "nyquist_stability",
     "design_sweep",
     "DesignSweep",
+    # H2/LQG, discrete synthesis, loop shaping, margins, controller reduction
+    "h2norm",
+    "h2syn",
+    "H2Result",
 ]

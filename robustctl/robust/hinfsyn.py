@@ -169,12 +169,15 @@ class HinfResult:
 
 
 # ---------------------------------------------------------------------------- input checks
-def _as_partitioned(P: Any, nmeas: Any, ncon: Any) -> PartitionedPlant:
+def _as_partitioned(
+    P: Any, nmeas: Any, ncon: Any, who: str = "hinfsyn", allow_discrete: bool = False
+) -> PartitionedPlant:
+    """The plant as a PartitionedPlant, with nmeas/ncon checked (shared by hinfsyn, h2syn, lqg)."""
     if not isinstance(P, PartitionedPlant) and all(hasattr(P, k) for k in ("P", "nmeas", "ncon")):
         try:  # a duck-typed generalized plant (any object with .P, .nmeas, .ncon)
             P = PartitionedPlant(as_statespace(P.P, name="P"), P.nmeas, P.ncon)
         except ModelError as exc:
-            raise SynthesisError(f"hinfsyn: {exc}") from exc
+            raise SynthesisError(f"{who}: {exc}") from exc
     if isinstance(P, PartitionedPlant):
         for name, given, have in (("nmeas", nmeas, P.nmeas), ("ncon", ncon, P.ncon)):
             if given is not None and integer(given, name, SynthesisError, lo=0) != have:
@@ -185,14 +188,14 @@ def _as_partitioned(P: Any, nmeas: Any, ncon: Any) -> PartitionedPlant:
     else:
         if nmeas is None or ncon is None:
             raise SynthesisError(
-                "hinfsyn(P, nmeas, ncon): give the number of measurements nmeas and of control inputs "
+                f"{who}(P, nmeas, ncon): give the number of measurements nmeas and of control inputs "
                 "ncon, or pass a PartitionedPlant / generalized plant (which carries them)."
             )
         try:
             plant = PartitionedPlant(as_statespace(P, name="P"), nmeas, ncon)
         except ModelError as exc:
-            raise SynthesisError(f"hinfsyn: {exc}") from exc
-    if plant.P.dt not in (0, None):
+            raise SynthesisError(f"{who}: {exc}") from exc
+    if plant.P.dt not in (0, None) and not allow_discrete:
         raise SynthesisError(
             f"hinfsyn designs continuous-time controllers; the plant is discrete (dt = {plant.P.dt}). "
             "Design on a continuous-time plant and discretise the controller afterwards."
@@ -205,7 +208,7 @@ def _as_partitioned(P: Any, nmeas: Any, ncon: Any) -> PartitionedPlant:
     ):
         if count < 1:
             raise SynthesisError(
-                f"hinfsyn needs at least one of each signal group; {what} = {count} for a plant with "
+                f"{who} needs at least one of each signal group; {what} = {count} for a plant with "
                 f"{plant.P.ninputs} inputs and {plant.P.noutputs} outputs "
                 f"(nmeas={plant.nmeas}, ncon={plant.ncon})."
             )
