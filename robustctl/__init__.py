@@ -83,6 +83,7 @@ from .robust import (
 )
 from .robust.dk import DKResult, dksyn
 from .robust.h2 import H2Result, h2norm, h2syn
+from .robust.lqg_design import LQGResult, lqg
 from .robust.sweep import DesignSweep, design_sweep
 from .robust.yardstick import Yardstick, yardstick
 from .signals import (
@@ -218,4 +219,6 @@ __all__ = [
     "h2norm",
     "h2syn",
     "H2Result",
+    "lqg",
+    "LQGResult",
 ]

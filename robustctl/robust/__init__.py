@@ -14,6 +14,7 @@ from .h2 import H2Result, h2norm, h2syn
 # H-infinity norm and synthesis (hinf helper)
 from .hinfnorm import hinfnorm
 from .hinfsyn import HinfResult, hinfsyn
+from .lqg_design import LQGResult, lqg
 from .magfit import MagnitudeFit, fit_magnitude, fit_magnitude_details, zpk_statespace
 
 # --- mu analysis (mu helper) ---
@@ -71,4 +72,6 @@ __all__ = [
     "h2norm",
     "h2syn",
     "H2Result",
+    "lqg",
+    "LQGResult",
 ]
