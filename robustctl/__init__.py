@@ -84,6 +84,7 @@ from .robust import (
 from .robust.dk import DKResult, dksyn
 from .robust.h2 import H2Result, h2norm, h2syn
 from .robust.lqg_design import LQGResult, lqg
+from .robust.sampled import sampled_plant
 from .robust.sweep import DesignSweep, design_sweep
 from .robust.yardstick import Yardstick, yardstick
 from .signals import (
@@ -221,4 +222,5 @@ __all__ = [
     "H2Result",
     "lqg",
     "LQGResult",
+    "sampled_plant",
 ]

@@ -94,5 +94,5 @@ def hinf_discrete_lmi(P, nmeas: int, ncon: int, eps: float = 1e-9) -> float:
     ])
     prob = cp.Problem(cp.Minimize(g2), [_sym(big) >> eps * np.eye(big.shape[0])])
     prob.solve(solver=cp.CLARABEL)
-    assert prob.status == cp.OPTIMAL, prob.status
+    assert prob.status in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE), prob.status
     return float(np.sqrt(g2.value))

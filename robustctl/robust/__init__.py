@@ -21,6 +21,7 @@ from .magfit import MagnitudeFit, fit_magnitude, fit_magnitude_details, zpk_stat
 from .mu import MuResult, mu
 from .mu_analysis import WorstCaseGain, robust_performance, robust_stability, worst_case_gain
 from .plant import GeneralizedPlant, PlantWeight, generalized_plant, mixed_sensitivity
+from .sampled import sampled_plant
 from .sweep import DesignSweep, design_sweep
 from .weights import CALTECH_MULTIPLICATIVE, caltech_additive_weight, makeweight
 from .yardstick import NyquistVerdict, Yardstick, nyquist_stability, yardstick
@@ -74,4 +75,5 @@ __all__ = [
     "H2Result",
     "lqg",
     "LQGResult",
+    "sampled_plant",
 ]

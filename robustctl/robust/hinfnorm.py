@@ -507,6 +507,23 @@ def _discrete_to_continuous(A, B, C, D) -> tuple[np.ndarray, ...]:
     return Ac, np.sqrt(2.0) * Bs, np.sqrt(2.0) * CIinv, D - C @ Bs
 
 
+def continuous_to_discrete(Ac, Bc, Cc, Dc) -> tuple[np.ndarray, ...]:
+    """Inverse of the bilinear map ``z = (1 + s) / (1 - s)``: ``s = (z - 1) / (z + 1)``.
+
+    ``A = (I - Ac)^-1 (I + Ac)``, ``B = sqrt(2) (I - Ac)^-1 Bc``, ``C = sqrt(2) Cc (I - Ac)^-1``,
+    ``D = Dc + Cc (I - Ac)^-1 Bc`` (Tustin's map with T = 2; the realisation inverse of
+    :func:`_discrete_to_continuous`). Raises ``np.linalg.LinAlgError`` for a pole at ``s = 1``.
+    """
+    n = Ac.shape[0]
+    Im = np.eye(n) - Ac
+    if n and np.linalg.cond(Im) > 1e12:
+        raise np.linalg.LinAlgError("a pole at s = 1 maps to z = infinity")
+    Bs = np.linalg.solve(Im, Bc)
+    CIinv = np.linalg.solve(Im.T, Cc.T).T
+    A = np.linalg.solve(Im, np.eye(n) + Ac)
+    return A, np.sqrt(2.0) * Bs, np.sqrt(2.0) * CIinv, Dc + Cc @ Bs
+
+
 def _check_tol(tol: Any) -> float:
     tol = positive_number(tol, "tol", RobustctlError)
     if tol > 0.1:
