@@ -84,6 +84,7 @@ from .robust import (
 from .robust.dk import DKResult, dksyn
 from .robust.h2 import H2Result, h2norm, h2syn
 from .robust.lqg_design import LQGResult, lqg
+from .robust.margins import DiskMargin, DiskMarginResult, disk_gain_phase, diskmargin, nugap
 from .robust.sampled import sampled_plant
 from .robust.sweep import DesignSweep, design_sweep
 from .robust.yardstick import Yardstick, yardstick
@@ -223,4 +224,9 @@ __all__ = [
     "lqg",
     "LQGResult",
     "sampled_plant",
+    "diskmargin",
+    "disk_gain_phase",
+    "DiskMargin",
+    "DiskMarginResult",
+    "nugap",
 ]

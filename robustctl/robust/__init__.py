@@ -16,6 +16,7 @@ from .hinfnorm import hinfnorm
 from .hinfsyn import HinfResult, hinfsyn
 from .lqg_design import LQGResult, lqg
 from .magfit import MagnitudeFit, fit_magnitude, fit_magnitude_details, zpk_statespace
+from .margins import DiskMargin, DiskMarginResult, disk_gain_phase, diskmargin, nugap
 
 # --- mu analysis (mu helper) ---
 from .mu import MuResult, mu
@@ -76,4 +77,9 @@ __all__ = [
     "lqg",
     "LQGResult",
     "sampled_plant",
+    "diskmargin",
+    "disk_gain_phase",
+    "DiskMargin",
+    "DiskMarginResult",
+    "nugap",
 ]
