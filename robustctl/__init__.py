@@ -83,6 +83,7 @@ from .robust import (
 )
 from .robust.dk import DKResult, dksyn
 from .robust.h2 import H2Result, h2norm, h2syn
+from .robust.loop_shaping import LoopShapingResult, ncfsyn, stability_margin
 from .robust.lqg_design import LQGResult, lqg
 from .robust.margins import DiskMargin, DiskMarginResult, disk_gain_phase, diskmargin, nugap
 from .robust.sampled import sampled_plant
@@ -229,4 +230,7 @@ __all__ = [
     "DiskMargin",
     "DiskMarginResult",
     "nugap",
+    "ncfsyn",
+    "LoopShapingResult",
+    "stability_margin",
 ]

@@ -36,7 +36,7 @@ def test_lqg_equals_separate_lqr_and_kalman_continuous():
     Kref = control.ss(A - Bu @ Kr - Lk @ Cy, Lk, -Kr, 0)
     f = np.array([0.01, 0.3, 0.45, 2.0])
     np.testing.assert_allclose(rc.lti.freqresp_array(res.K, f), rc.lti.freqresp_array(Kref, f), rtol=1e-8)
-    # cost = trace(Q Cp Y Cp') + trace(X Lk V Lk') (ZDG sec. 14.6)
+    # cost = trace(Q Cp Y Cp') + trace(X Lk V Lk') (the two-Riccati LQG cost)
     J = float(np.trace(Q * Cp @ Y @ Cp.T) + np.trace(X @ Lk @ V @ Lk.T))
     assert res.cost == pytest.approx(J, rel=1e-8)
     assert rc.h2norm(res.closed_loop) ** 2 == pytest.approx(res.cost, rel=1e-8)

@@ -14,6 +14,7 @@ from .h2 import H2Result, h2norm, h2syn
 # H-infinity norm and synthesis (hinf helper)
 from .hinfnorm import hinfnorm
 from .hinfsyn import HinfResult, hinfsyn
+from .loop_shaping import LoopShapingResult, ncfsyn, stability_margin
 from .lqg_design import LQGResult, lqg
 from .magfit import MagnitudeFit, fit_magnitude, fit_magnitude_details, zpk_statespace
 from .margins import DiskMargin, DiskMarginResult, disk_gain_phase, diskmargin, nugap
@@ -82,4 +83,7 @@ __all__ = [
     "DiskMargin",
     "DiskMarginResult",
     "nugap",
+    "ncfsyn",
+    "LoopShapingResult",
+    "stability_margin",
 ]

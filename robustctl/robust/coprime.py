@@ -1,9 +1,9 @@
 """Normalized coprime factorizations: the kernel of loop shaping, the nu-gap and coprime-factor reduction.
 
 For ``G = (A, B, C, D)`` with ``(A, B)`` stabilisable and ``(C, A)`` detectable, with
-``R = I + D^T D`` and ``Rt = I + D D^T`` (Zhou, Doyle & Glover 1996, Theorem 13.37 and
-Corollary 13.36; McFarlane & Glover 1990, "Robust Controller Design Using Normalized Coprime
-Factor Plant Descriptions", ch. 2):
+``R = I + D^T D`` and ``Rt = I + D D^T`` (Zhou, Doyle & Glover 1996, ch. 13, normalized
+coprime factorizations; McFarlane & Glover 1990, "Robust Controller Design Using Normalized
+Coprime Factor Plant Descriptions"):
 
 * right factors ``G = N M^-1``, ``M~ M + N~ N = I``::
 
@@ -17,7 +17,7 @@ Factor Plant Descriptions", ch. 2):
       H = -(Z C^T + B D^T) Rt^-1
       [Nt, Mt] = (A + H C, [B + H D, H], Rt^-1/2 C, [Rt^-1/2 D, Rt^-1/2])
 
-(the cross-term forms of ZDG eqs. (13.33)-(13.35), solved by
+(the cross-term forms of ZDG's Riccati equations of the normalized factors, solved by
 ``scipy.linalg.solve_continuous_are``).
 """
 
@@ -40,8 +40,7 @@ def ncf_riccati(A, B, C, D) -> tuple[np.ndarray, np.ndarray]:
     """``(X, Z)``: the control and filter Riccati solutions of the normalized coprime factorizations.
 
     ``X`` solves the equation of the right factors and ``Z`` that of the left factors (see the
-    module docstring; these are also the two Riccati equations of Glover-McFarlane loop shaping,
-    McFarlane & Glover 1990 eqs. (3.8)-(3.9)).
+    module docstring; these are also the two Riccati equations of Glover-McFarlane loop shaping).
     """
     p, m = D.shape
     R = np.eye(m) + D.T @ D

@@ -1,13 +1,13 @@
 """The H2 norm and H2-optimal output feedback: ``rc.h2norm(sys)``, ``rc.h2syn(P, nmeas, ncon)``.
 
 * :func:`h2norm` from the controllability Gramian (Zhou, Doyle & Glover 1996, "Robust and
-  Optimal Control", Lemma 4.4): ``||G||_2^2 = trace(C Lc C^T)`` with
+  Optimal Control", sec. 4.4 "H2 norm"): ``||G||_2^2 = trace(C Lc C^T)`` with
   ``A Lc + Lc A^T + B B^T = 0`` in continuous time (infinite for a nonzero ``D``), and
   ``||G||_2^2 = trace(C Lc C^T + D D^T)`` with ``A Lc A^T - Lc + B B^T = 0`` in discrete time
   (the sum of the squared Markov parameters). The smaller of the two Gramians (by the number
   of inputs or outputs) is used.
-* :func:`h2syn` by two Riccati equations: continuous time by ZDG Theorem 14.7 (eq. 14.7-14.9,
-  with general ``D12^T D12 = R1`` and ``D21 D21^T = R2`` and their cross terms with ``C1``
+* :func:`h2syn` by two Riccati equations: continuous time by ZDG ch. 14 (the output-feedback
+  H2 theorem, with general ``D12^T D12 = R1`` and ``D21 D21^T = R2`` and their cross terms with ``C1``
   and ``B1``; Doyle, Glover, Khargonekar & Francis 1989, sec. III), discrete time by the
   certainty-equivalence controller ``u = F x(k|k) + F0 w(k|k)`` with the filtered state and
   disturbance estimates of the Kalman filter (Chen & Francis 1995, "Optimal Sampled-Data
@@ -85,7 +85,7 @@ def h2norm(sys: Any) -> float:
     -------
     float
         ``||G||_2 = sqrt(trace(C Lc C^T))`` (continuous; ``Lc`` the controllability Gramian,
-        ZDG Lemma 4.4), the root-mean-square output for unit-intensity white noise on every
+        ZDG sec. 4.4), the root-mean-square output for unit-intensity white noise on every
         input, in the output's units per ``sqrt(input PSD)``; discrete:
         ``sqrt(trace(C Lc C^T + D D^T))``, the RMS output for unit-variance white
         sequences. ``inf`` for a continuous system with a nonzero feedthrough ``D`` and for
@@ -131,7 +131,7 @@ class H2Result:
         Stabilising solutions of the control and filter Riccati equations.
     F, L : ndarray
         State-feedback gain (``u = F x``) and filter gain (continuous: ``L`` in
-        ``dx = A x + B2 u - L (y - C2 x)``... as ZDG eq. 14.9, ``L = -(Y C2^T + B1 D21^T) R2^-1``;
+        the observer ``dx = (A + L C2) x - L y + B2 u``, ``L = -(Y C2^T + B1 D21^T) R2^-1``;
         discrete: the filtered-state gain ``Lx`` of the current estimator).
     info : dict
         ``norm_riccati`` (the optimum from X and Y), ``full_information_norm``,
@@ -263,17 +263,17 @@ def _check_discrete_assumptions(m: dict[str, np.ndarray]) -> None:
 
 
 def _continuous_design(m: dict[str, np.ndarray]) -> tuple:
-    """ZDG Theorem 14.7 with general ``R1 = D12^T D12``, ``R2 = D21 D21^T`` (and D22 = 0)."""
+    """ZDG ch. 14 output-feedback H2 controller, general ``R1 = D12^T D12``, ``R2 = D21 D21^T`` (D22 = 0)."""
     A, B1, B2, C1, C2, D12, D21 = (m[k] for k in ("A", "B1", "B2", "C1", "C2", "D12", "D21"))
     R1, R2 = D12.T @ D12, D21 @ D21.T
     X = _care(A, B2, C1.T @ C1, R1, C1.T @ D12, "control (X)")
     Y = _care(A.T, C2.T, B1 @ B1.T, R2, B1 @ D21.T, "filter (Y)")
-    F = -np.linalg.solve(R1, B2.T @ X + D12.T @ C1)  # ZDG eq. (14.8): F2
-    L = -np.linalg.solve(R2, C2 @ Y + D21 @ B1.T).T  # ZDG eq. (14.8): L2
+    F = -np.linalg.solve(R1, B2.T @ X + D12.T @ C1)  # state-feedback gain F2
+    L = -np.linalg.solve(R2, C2 @ Y + D21 @ B1.T).T  # filter gain L2
     Ak = A + B2 @ F + L @ C2
-    K = (Ak, -L, F, np.zeros((F.shape[0], L.shape[1])))  # ZDG eq. (14.9)
+    K = (Ak, -L, F, np.zeros((F.shape[0], L.shape[1])))  # the observer-based optimal controller
     fi2 = float(np.trace(B1.T @ X @ B1))
-    opt2 = fi2 + float(np.trace(R1 @ F @ Y @ F.T))  # ZDG Theorem 14.7 (min ||T_zw||_2^2)
+    opt2 = fi2 + float(np.trace(R1 @ F @ Y @ F.T))  # min ||T_zw||_2^2 = ||Gc B1||^2 + ||R1^1/2 F Gf||^2
     return K, X, Y, F, L, fi2, opt2
 
 
@@ -338,7 +338,7 @@ def h2syn(P: Any, nmeas: int | None = None, ncon: int | None = None) -> H2Result
     SynthesisError
         A violated assumption, named: (A1) ``(A, B2)`` stabilisable and ``(C2, A)``
         detectable, (A2) ``D12`` full column rank and ``D21`` full row rank, (A3)/(A4) no
-        invariant zero of ``P12``/``P21`` on the imaginary axis (continuous; ZDG sec. 14.2),
+        invariant zero of ``P12``/``P21`` on the imaginary axis (continuous; ZDG ch. 14),
         and, in continuous time, ``D11 = 0`` (otherwise every closed loop has an infinite H2
         norm); a Riccati equation without stabilising solution; a closed loop that fails
         its check.
@@ -349,7 +349,7 @@ def h2syn(P: Any, nmeas: int | None = None, ncon: int | None = None) -> H2Result
 
     References
     ----------
-    Zhou, Doyle & Glover (1996), Robust and Optimal Control, Theorem 14.7, eqs. (14.7)-(14.9).
+    Zhou, Doyle & Glover (1996), Robust and Optimal Control, ch. 14 (H2 optimal control).
     Doyle, Glover, Khargonekar & Francis (1989), State-space solutions to standard H2 and
     H-infinity control problems, IEEE TAC 34(8), sec. III.
     Chen & Francis (1995), Optimal Sampled-Data Control Systems, sec. 6.4.

@@ -7,8 +7,8 @@ noise of intensity ``W`` enters), its outputs into measurements ``y`` (with sens
 intensity ``V``) and performance outputs ``p`` (weighted by ``Q``); the controller
 minimises ``E[p^T Q p + u^T R u]`` in steady state.
 
-The design is the H2 problem on the partitioned plant (Zhou, Doyle & Glover 1996, sec. 14.6
-"LQG as an H2 problem")::
+The design is the H2 problem on the partitioned plant (Zhou, Doyle & Glover 1996, ch. 14:
+LQG as a special H2 problem)::
 
     w = [W^(1/2) d-noise; V^(1/2) sensor noise],  z = [Q^(1/2) p; R^(1/2) u],
     P = [[A, B_d W^(1/2), 0, B_u], [Q^(1/2) C_p, Q^(1/2) D_pd W^(1/2), 0, Q^(1/2) D_pu],
@@ -212,7 +212,7 @@ def lqg(
 
     References
     ----------
-    Zhou, Doyle & Glover (1996), Robust and Optimal Control, sec. 14.6 (LQG as H2), Thm 14.7.
+    Zhou, Doyle & Glover (1996), Robust and Optimal Control, ch. 14 (LQG as an H2 problem).
     Glaese & Miller, "Derivation of 0-g structural control models from analysis and 1-g
     experimentation" (the MACE LQG designs).
     """
