@@ -81,6 +81,7 @@ from .robust import (
     robust_stability,
     worst_case_gain,
 )
+from .robust.controller_reduction import ControllerReduction, reduce_controller
 from .robust.dk import DKResult, dksyn
 from .robust.h2 import H2Result, h2norm, h2syn
 from .robust.loop_shaping import LoopShapingResult, ncfsyn, stability_margin
@@ -233,4 +234,6 @@ __all__ = [
     "ncfsyn",
     "LoopShapingResult",
     "stability_margin",
+    "reduce_controller",
+    "ControllerReduction",
 ]

@@ -1,6 +1,12 @@
 """robustctl.robust (see DESIGN.md)."""
 
 from .blocks import Block, BlockStructure, as_block_structure
+from .controller_reduction import (
+    ControllerReduction,
+    coprime_reduction,
+    reduce_controller,
+    weighted_balanced_truncation,
+)
 
 # weights (uncertainty and performance weights, magnitude fits, covers)
 from .cover import UncertaintyCover, cover_additive, cover_multiplicative, error_envelope
@@ -86,4 +92,8 @@ __all__ = [
     "ncfsyn",
     "LoopShapingResult",
     "stability_margin",
+    "reduce_controller",
+    "weighted_balanced_truncation",
+    "coprime_reduction",
+    "ControllerReduction",
 ]

@@ -879,7 +879,7 @@ def dksyn(
     f_hz: Any = None,
     executor: Executor | None = None,
     time_budget_s: float = 120.0,
-    reduce: int | str | None = None,
+    reduce: int | str | tuple | None = None,
     progress: bool | None = None,
     *,
     rtol: float = 1e-3,
@@ -917,7 +917,10 @@ def dksyn(
         Reduce the final controller to this many states by balanced truncation and re-check
         mu (kept only if it stabilises and raises the peak of mu by at most 2 %). ``"auto"``:
         the smallest such order, by bisection (a few more mu analyses); what a real-time
-        implementation wants before :func:`~robustctl.export.export_controller`.
+        implementation wants before :func:`~robustctl.export.export_controller`. A pair
+        ``("weighted", order)`` truncates with the closed-loop weight (Enns), ``("coprime",
+        order)`` the normalized coprime factors (unstable controllers too); see
+        :mod:`robustctl.robust.controller_reduction`.
     progress : bool, optional
         tqdm bar over iterations (default: when stderr is a terminal).
     rtol : float
@@ -1104,23 +1107,40 @@ def _reduce(plant: _Plant, blocks: BlockStructure, K: Any, cl: Any, m: Any, orde
     """
     from ..identify.balanced import balanced_truncation
 
+    method = "balanced"
+    if isinstance(order, tuple) and len(order) == 2 and order[0] in ("weighted", "coprime"):
+        method, order = order  # controller_reduction.py: closed-loop weighted or coprime-factor truncation
     auto = isinstance(order, str) and order == "auto"
     if not auto and (isinstance(order, bool) or not isinstance(order, (int, np.integer)) or order < 1):
         raise SynthesisError(
-            f"reduce must be a positive number of controller states or 'auto'; got {order!r}."
+            f"reduce must be a positive number of controller states or 'auto', or a pair ('weighted' or "
+            f"'coprime', that); got {order!r}."
         )
     n = K.nstates
     if not auto and order >= n:
         return K, cl, m, Reduction(n, n, m.peak, m.peak, False, f"the controller has only {n} states")
-    if not _is_stable(K):
+    if method != "coprime" and not _is_stable(K):
         return K, cl, m, Reduction(n, n if auto else order, m.peak, np.inf, False,
-                                   "the controller is unstable (balanced truncation needs a stable one)")
+                                   "the controller is unstable (balanced truncation needs a stable one; "
+                                   "use reduce=('coprime', order))")
+    if method == "balanced":
+        hsv, truncate = None, lambda r: balanced_truncation(K, r).sys
+    else:
+        from ..interconnect import PartitionedPlant
+        from .controller_reduction import reducer
+
+        try:
+            hsv, truncate = reducer(K, PartitionedPlant(plant.P, plant.nmeas, plant.ncon), method)
+        except SynthesisError as exc:
+            return K, cl, m, Reduction(n, n if auto else order, m.peak, np.inf, False, str(exc))
     tried: dict[int, tuple] = {}
 
     def attempt(r: int) -> tuple:
         if r not in tried:
-            tried[r] = _truncated_loop(plant, blocks, K, balanced_truncation(K, r).sys, m, base, refine,
-                                       mu_rtol)
+            try:
+                tried[r] = _truncated_loop(plant, blocks, K, truncate(r), m, base, refine, mu_rtol)
+            except SynthesisError as exc:
+                tried[r] = (K, None, None, str(exc))
         return tried[r]
 
     if not auto:
@@ -1128,7 +1148,7 @@ def _reduce(plant: _Plant, blocks: BlockStructure, K: Any, cl: Any, m: Any, orde
         if reason:
             return K, cl, m, Reduction(n, order, m.peak, mr.peak if mr is not None else np.inf, False, reason)
         return Kr, clr, mr, Reduction(n, order, m.peak, mr.peak, True, "")
-    r = _auto_order(balanced_truncation(K, 1).hsv, attempt)
+    r = _auto_order(balanced_truncation(K, 1).hsv if hsv is None else hsv, attempt)
     if r is None:
         return K, cl, m, Reduction(n, n, m.peak, m.peak, False, "no truncation kept mu within "
                                    f"{100 * mu_rtol:g} % of the full controller's")
