@@ -1,5 +1,6 @@
 """robustctl.robust (see DESIGN.md)."""
 
+from ..lti import zpk_statespace
 from .blocks import Block, BlockStructure, as_block_structure
 from .controller_reduction import (
     ControllerReduction,
@@ -18,21 +19,21 @@ from .dk import DKIteration, DKResult, Reduction, dksyn
 from .h2 import H2Result, h2norm, h2syn
 
 # H-infinity norm and synthesis (hinf helper)
-from .hinfnorm import hinfnorm
-from .hinfsyn import HinfResult, hinfsyn
+from .hinf_norm import hinfnorm
+from .hinf_synthesis import HinfResult, hinfsyn
 from .loop_shaping import LoopShapingResult, ncfsyn, stability_margin
 from .lqg_design import LQGResult, lqg
-from .magfit import MagnitudeFit, fit_magnitude, fit_magnitude_details, zpk_statespace
+from .magfit import MagnitudeFit, fit_magnitude, fit_magnitude_details
 from .margins import DiskMargin, DiskMarginResult, disk_gain_phase, diskmargin, nugap
+from .mu_analysis import WorstCaseGain, robust_performance, robust_stability, worst_case_gain
 
 # --- mu analysis (mu helper) ---
-from .mu import MuResult, mu
-from .mu_analysis import WorstCaseGain, robust_performance, robust_stability, worst_case_gain
+from .mu_bounds import MuResult, mu
 from .plant import GeneralizedPlant, PlantWeight, generalized_plant, mixed_sensitivity
 from .sampled import sampled_plant
 from .sweep import DesignSweep, design_sweep
 from .weights import CALTECH_MULTIPLICATIVE, caltech_additive_weight, makeweight
-from .yardstick import NyquistVerdict, Yardstick, nyquist_stability, yardstick
+from .yardsticks import NyquistVerdict, Yardstick, nyquist_stability, yardstick
 
 __all__ = [
     "Block",

@@ -37,7 +37,7 @@ from ..interconnect import PartitionedPlant
 from ..lti import as_statespace, is_stable_matrix
 from ..table import Table, result_html
 from .coprime import left_ncf
-from .hinfnorm import hinfnorm_matrices
+from .hinf_norm import hinfnorm_matrices
 
 __all__ = [
     "ControllerReduction",

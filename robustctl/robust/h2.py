@@ -32,7 +32,7 @@ from ..interconnect import PartitionedPlant, lft
 from ..lti import as_statespace, is_stable_matrix
 from ..table import Table, result_html
 from .hinf_assumptions import _check_ranks, _pbh_loses_rank, check_assumptions
-from .hinfsyn import _as_partitioned, _loop_shift, lower_lft_matrices
+from .hinf_synthesis import _as_partitioned, _loop_shift, lower_lft_matrices
 
 __all__ = ["h2norm", "h2norm_matrices", "H2Result", "h2syn"]
 
@@ -200,7 +200,7 @@ def _default_grid(sys: Any) -> np.ndarray:
 def _plot_closed_loop(cl: Any, f_hz: Any, fig: Any, title: str) -> Any:
     from ..lti import freqresp_array
     from ..plots import new_figure
-    from .mu import _frequencies
+    from .mu_bounds import _frequencies
 
     f_hz = _default_grid(cl) if f_hz is None else _frequencies(f_hz)
     sv = np.linalg.svd(freqresp_array(cl, f_hz), compute_uv=False)

@@ -38,8 +38,8 @@ from ..errors import SynthesisError
 from ..lti import as_statespace, is_stable_matrix
 from ..table import Table, result_html
 from .coprime import ncf_riccati
-from .hinfnorm import hinfnorm_matrices
-from .hinfsyn import lower_lft_matrices
+from .hinf_norm import hinfnorm_matrices
+from .hinf_synthesis import lower_lft_matrices
 
 __all__ = ["LoopShapingResult", "ncfsyn", "stability_margin"]
 
@@ -103,7 +103,7 @@ class LoopShapingResult:
         from ..lti import freqresp_array
         from ..plots import new_figure
         from .h2 import _default_grid
-        from .mu import _frequencies
+        from .mu_bounds import _frequencies
 
         f = _default_grid(self.shaped) if f_hz is None else _frequencies(f_hz)
         G = self.info["plant"]

@@ -39,13 +39,13 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import as_frequency_data, choice, finite_number
+from ..checks import choice, finite_number
 from ..errors import SynthesisError
-from ..frd import FrequencyData
+from ..frd import FrequencyData, as_frequency_data
 from ..lti import as_statespace, freqresp_array, is_stable_matrix
 from ..table import Table, result_html
 from .coprime import left_ncf, right_ncf
-from .hinfnorm import _discrete_to_continuous, hinfnorm, hinfnorm_matrices
+from .hinf_norm import _discrete_to_continuous, hinfnorm, hinfnorm_matrices
 
 __all__ = ["DiskMargin", "DiskMarginResult", "diskmargin", "disk_gain_phase", "nugap"]
 
@@ -225,7 +225,7 @@ def _simultaneous(Mf: np.ndarray, f: np.ndarray) -> np.ndarray:
     n = Mf.shape[1]
     if n == 1:
         return 1.0 / np.maximum(np.abs(Mf[:, 0, 0]), 1e-300)
-    from .mu import mu
+    from .mu_bounds import mu
 
     r = mu(Mf, [[1, 0]] * n, lower=False)
     return 1.0 / np.maximum(r.upper, 1e-300)
@@ -291,7 +291,7 @@ def diskmargin(L: Any, K: Any = None, *, f_hz: Any = None, skew: float = 0.0, si
         if f_hz is None:
             f = _default_grid(Lss)
         else:
-            from .mu import _frequencies
+            from .mu_bounds import _frequencies
 
             f = _frequencies(f_hz)
         Lf = freqresp_array(Lss, f)

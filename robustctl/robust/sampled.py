@@ -23,9 +23,9 @@ import numpy as np
 
 from ..checks import flag, positive_number
 from ..errors import SynthesisError
-from ..estimate import _zoh
 from ..interconnect import PartitionedPlant
-from .hinfsyn import _as_partitioned
+from ..measure.estimate import _zoh
+from .hinf_synthesis import _as_partitioned
 
 __all__ = ["sampled_plant"]
 
