@@ -106,3 +106,11 @@ def test_discrete_hinfsyn_refuses_pole_at_nyquist():
         rc.hinfsyn(P, 1, 1)
     with pytest.raises(SynthesisError, match="already discrete"):
         rc.sampled_plant(rc.PartitionedPlant(P, 1, 1), 0.1)
+
+
+def test_discrete_lmi_route_agrees_with_riccati_route():
+    P = random_plant(4, 2, 1, 2, 1, 0.1, seed=3, d11=True)
+    a, b = rc.hinfsyn(P, 1, 1), rc.hinfsyn(P, 1, 1, method="lmi")
+    assert b.gamma_opt == pytest.approx(a.gamma_opt, rel=2e-3)  # bisection tolerance 1e-3 + LMI accuracy
+    assert b.K.dt == P.dt and b.info["closed_loop_spectral_radius"] < 1
+    assert rc.hinfnorm(b.closed_loop)[0] <= b.info["gamma_design"] * (1 + 1e-6)

@@ -214,26 +214,17 @@ def _plot_closed_loop(cl: Any, f_hz: Any, fig: Any, title: str) -> Any:
 
 
 # ---------------------------------------------------------------------------- Riccati kernels
-def _care(A, B, Q, R, S, what: str) -> np.ndarray:
+def _are(A, B, Q, R, S, what: str, discrete: bool) -> np.ndarray:
+    """Stabilising solution of the continuous or discrete Riccati equation with cross term ``S``."""
+    solve = scipy.linalg.solve_discrete_are if discrete else scipy.linalg.solve_continuous_are
     try:
-        X = scipy.linalg.solve_continuous_are(A, B, Q, R, s=S)
+        X = solve(A, B, Q, R, s=S)
     except (np.linalg.LinAlgError, ValueError) as exc:
+        boundary = "unit circle" if discrete else "imaginary axis"
         raise SynthesisError(
             f"the {what} Riccati equation has no stabilising solution ({exc}); an assumption holds only "
-            "marginally (a nearly uncontrollable/unobservable mode on or near the imaginary axis, or an "
-            "invariant zero of P12/P21 near it). Fix: damp the weights' poles and zeros slightly."
-        ) from exc
-    return (X + X.T) / 2
-
-
-def _dare(A, B, Q, R, S, what: str) -> np.ndarray:
-    try:
-        X = scipy.linalg.solve_discrete_are(A, B, Q, R, s=S)
-    except (np.linalg.LinAlgError, ValueError) as exc:
-        raise SynthesisError(
-            f"the {what} discrete Riccati equation has no stabilising solution ({exc}); an assumption "
-            "holds only marginally (a nearly uncontrollable/unobservable mode on or near the unit circle, "
-            "or an invariant zero of P12/P21 on it). Fix: damp the weights' poles and zeros slightly."
+            f"marginally (a nearly uncontrollable/unobservable mode on or near the {boundary}, or an "
+            f"invariant zero of P12/P21 near it). Fix: damp the weights' poles and zeros slightly."
         ) from exc
     return (X + X.T) / 2
 
@@ -266,8 +257,8 @@ def _continuous_design(m: dict[str, np.ndarray]) -> tuple:
     """ZDG ch. 14 output-feedback H2 controller, general ``R1 = D12^T D12``, ``R2 = D21 D21^T`` (D22 = 0)."""
     A, B1, B2, C1, C2, D12, D21 = (m[k] for k in ("A", "B1", "B2", "C1", "C2", "D12", "D21"))
     R1, R2 = D12.T @ D12, D21 @ D21.T
-    X = _care(A, B2, C1.T @ C1, R1, C1.T @ D12, "control (X)")
-    Y = _care(A.T, C2.T, B1 @ B1.T, R2, B1 @ D21.T, "filter (Y)")
+    X = _are(A, B2, C1.T @ C1, R1, C1.T @ D12, "control (X)", False)
+    Y = _are(A.T, C2.T, B1 @ B1.T, R2, B1 @ D21.T, "filter (Y)", False)
     F = -np.linalg.solve(R1, B2.T @ X + D12.T @ C1)  # state-feedback gain F2
     L = -np.linalg.solve(R2, C2 @ Y + D21 @ B1.T).T  # filter gain L2
     Ak = A + B2 @ F + L @ C2
@@ -280,8 +271,8 @@ def _continuous_design(m: dict[str, np.ndarray]) -> tuple:
 def _discrete_design(m: dict[str, np.ndarray]) -> tuple:
     """Certainty equivalence with the current estimator: ``u = F x(k|k) + F0 w(k|k)`` (D22 = 0)."""
     A, B1, B2, C1, C2, D11, D12, D21 = (m[k] for k in ("A", "B1", "B2", "C1", "C2", "D11", "D12", "D21"))
-    X = _dare(A, B2, C1.T @ C1, D12.T @ D12, C1.T @ D12, "control (X)")
-    Y = _dare(A.T, C2.T, B1 @ B1.T, D21 @ D21.T, B1 @ D21.T, "filter (Y)")
+    X = _are(A, B2, C1.T @ C1, D12.T @ D12, C1.T @ D12, "control (X)", True)
+    Y = _are(A.T, C2.T, B1 @ B1.T, D21 @ D21.T, B1 @ D21.T, "filter (Y)", True)
     H = B2.T @ X @ B2 + D12.T @ D12
     F = -np.linalg.solve(H, B2.T @ X @ A + D12.T @ C1)  # LQR gain with cross term
     F0 = -np.linalg.solve(H, B2.T @ X @ B1 + D12.T @ D11)  # full-information feedthrough of w(k)
