@@ -153,3 +153,17 @@ def test_nugap_refuses_mismatched_models():
         rc.nugap(1 / (s + 1), control.tf([[[1.0], [1.0]]], [[[1.0, 1.0], [1.0, 2.0]]]))
     with pytest.raises(SynthesisError, match="time base"):
         rc.nugap(1 / (s + 1), control.c2d(1 / (s + 1), 0.1))
+
+
+def test_discrete_loop_margins_match_the_unit_circle():
+    dt = 0.01
+    L = control.c2d(3 / (s * (s + 1) * (s + 2)), dt)
+    dm = rc.diskmargin(L)
+    z = np.exp(1j * np.linspace(1e-6, np.pi, 200001))
+    S = 1 / (1 + L(z))
+    assert dm.closed_loop_stable is True
+    grid = 1 / np.max(np.abs(S - 0.5))
+    assert dm.simultaneous.alpha <= grid * (1 + 1e-12)  # the exact peak is at least the grid's
+    assert dm.simultaneous.alpha == pytest.approx(grid, rel=1e-5)
+    f_grid = np.angle(z[np.argmax(np.abs(S - 0.5))]) / (2 * np.pi * dt)
+    assert dm.loops[0].f_critical_hz == pytest.approx(f_grid, rel=1e-3)
