@@ -43,17 +43,19 @@ def test_h2norm_discrete_first_order_with_feedthrough_closed_form():
     assert g == pytest.approx(np.sqrt(d**2 + b**2 / (1 - a**2)), rel=1e-12)
 
 
+@pytest.mark.parametrize("shape", [(3, 2), (2, 4)])  # (outputs, inputs): either Gramian outside
 @pytest.mark.parametrize("dt", [0, 0.05])
 @pytest.mark.parametrize("n", [3, 12, 30])
-def test_h2norm_matches_slycot_ab13bd_and_python_control(n, dt):
+def test_h2norm_matches_slycot_ab13bd_and_python_control(n, dt, shape):
     from slycot import ab13bd
 
+    p, m = shape
     np.random.seed(n)
-    G = control.drss(n, 3, 2) if dt else control.rss(n, 3, 2)
+    G = control.drss(n, p, m) if dt else control.rss(n, p, m)
     if not dt:
-        G = control.ss(G.A, G.B, G.C, np.zeros((3, 2)))
+        G = control.ss(G.A, G.B, G.C, np.zeros((p, m)))
     ours = rc.h2norm(G)
-    ref = ab13bd("D" if dt else "C", "H", n, 2, 3, G.A, G.B, G.C, G.D)
+    ref = ab13bd("D" if dt else "C", "H", n, m, p, G.A, G.B, G.C, G.D)
     assert ours == pytest.approx(ref, rel=1e-8)
     assert ours == pytest.approx(control.norm(G, 2), rel=1e-8)
 

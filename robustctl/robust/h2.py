@@ -61,16 +61,37 @@ def h2norm_matrices(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, 
         return float(np.sqrt(dd))
     if not is_stable_matrix(A, dt):
         return np.inf
-    lyap = scipy.linalg.solve_discrete_lyapunov if discrete else scipy.linalg.solve_continuous_lyapunov
-    if B.shape[1] <= C.shape[0]:  # observability Gramian: trace(B^T Lo B)
-        Q = C.T @ C
-        L = lyap(A.T, Q) if discrete else lyap(A.T, -Q)
-        val = float(np.trace(B.T @ L @ B))
-    else:
-        Q = B @ B.T
-        L = lyap(A, Q) if discrete else lyap(A, -Q)
+    if not discrete:
+        return float(np.sqrt(max(_continuous_h2_squared(A, B, C), 0.0)))
+    lyap = scipy.linalg.solve_discrete_lyapunov
+    if B.shape[1] <= C.shape[0]:
+        L = lyap(A, B @ B.T)  # controllability: A L A^T - L + B B^T = 0
         val = float(np.trace(C @ L @ C.T))
+    else:
+        L = lyap(A.T, C.T @ C)  # observability: A^T L A - L + C^T C = 0
+        val = float(np.trace(B.T @ L @ B))
     return float(np.sqrt(max(val, 0.0) + dd))
+
+
+def _continuous_h2_squared(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> float:
+    """``trace(C Lc C^T)`` (or ``trace(B^T Lo B)``) with one real Schur form ``A = U T U^T``.
+
+    The Lyapunov equation ``T Y + Y T^T = -U^T B B^T U`` is solved by LAPACK ``dtrsyl`` on the
+    quasi-triangular ``T`` (Bartels & Stewart 1972), so ``A`` is factored once (scipy's
+    ``solve_continuous_lyapunov`` factors ``A`` and ``A^T``); the Gramian with the fewer
+    columns on the outside is used.
+    """
+    T, U = scipy.linalg.schur(A, output="real")
+    Bt, Ct = U.T @ B, C @ U
+    if B.shape[1] <= C.shape[0]:
+        Y, scale, info = scipy.linalg.lapack.dtrsyl(T, T, -(Bt @ Bt.T), trana="N", tranb="T")
+        outer = Ct
+    else:
+        Y, scale, info = scipy.linalg.lapack.dtrsyl(T, T, -(Ct.T @ Ct), trana="T", tranb="N")
+        outer = Bt.T
+    if info < 0:  # pragma: no cover - an argument error would be a bug here
+        raise ModelError(f"h2norm: LAPACK dtrsyl failed (info = {info}).")
+    return float(np.trace(outer @ (Y / scale) @ outer.T))
 
 
 def h2norm(sys: Any) -> float:
