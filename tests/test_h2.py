@@ -144,3 +144,16 @@ def test_h2_result_reports():
     assert "H2-optimal" in res.summary()
     fig = res.plot()
     assert fig.axes
+
+
+def test_toolbox_results_pickle():
+    import pickle
+
+    P = random_plant(4, 2, 1, 2, 1, 0, seed=1)
+    for res in (rc.h2syn(P, 1, 1), rc.ncfsyn(control.tf([1.0], [1.0, 1.0])),
+                rc.lqg(control.ss([[-1.0]], [[1.0, 1.0]], [[1.0], [1.0]], [[0.0, 0.0], [0.0, 0.0]],
+                                  inputs=["d", "u"], outputs=["p", "y"]),
+                       1.0, 1.0, 1.0, 1.0, disturbances=["d"], performance=["p"])):
+        back = pickle.loads(pickle.dumps(res))
+        np.testing.assert_array_equal(np.asarray(back.K.A), np.asarray(res.K.A))
+        assert list(back.K.input_labels) == list(res.K.input_labels)

@@ -33,7 +33,7 @@ import scipy.linalg
 
 from ..checks import integer
 from ..errors import SynthesisError
-from ..interconnect import PartitionedPlant
+from ..interconnect import PartitionedPlant, PicklesStateSpaces
 from ..lti import as_statespace, is_stable_matrix
 from ..table import Table, result_html
 from .coprime import left_ncf
@@ -51,7 +51,7 @@ HSV_RTOL = 1e-12
 
 
 @dataclass(frozen=True)
-class ControllerReduction:
+class ControllerReduction(PicklesStateSpaces):
     """A reduced controller and its error figures.
 
     Attributes

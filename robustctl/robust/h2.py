@@ -28,7 +28,7 @@ import numpy as np
 import scipy.linalg
 
 from ..errors import ModelError, SynthesisError
-from ..interconnect import PartitionedPlant, lft
+from ..interconnect import PartitionedPlant, PicklesStateSpaces, lft
 from ..lti import as_statespace, is_stable_matrix
 from ..table import Table, result_html
 from .hinf_assumptions import _check_ranks, _pbh_loses_rank, check_assumptions
@@ -135,7 +135,7 @@ def h2norm(sys: Any) -> float:
 
 # ---------------------------------------------------------------------------- result
 @dataclass(frozen=True)
-class H2Result:
+class H2Result(PicklesStateSpaces):
     """An H2-optimal design.
 
     Attributes

@@ -35,6 +35,7 @@ import numpy as np
 
 from ..checks import positive_number
 from ..errors import SynthesisError
+from ..interconnect import PicklesStateSpaces
 from ..lti import as_statespace, is_stable_matrix
 from ..table import Table, result_html
 from .coprime import ncf_riccati
@@ -45,7 +46,7 @@ __all__ = ["LoopShapingResult", "ncfsyn", "stability_margin"]
 
 
 @dataclass(frozen=True)
-class LoopShapingResult:
+class LoopShapingResult(PicklesStateSpaces):
     """A Glover-McFarlane loop-shaping design.
 
     Attributes
@@ -63,6 +64,8 @@ class LoopShapingResult:
         ``b(Gs, Ks)`` computed on the closed loop (between ``1 / gamma`` and ``b_opt``).
     gamma : float
         The gamma designed at (``factor gamma_min``).
+    plant : control.StateSpace
+        The plant ``G`` as given.
     info : dict
         ``gamma_min``, ``factor``, ``hankel_norm`` (``||[Nt, Mt]||_H``), ``closed_loop_max_real_pole``.
     """
@@ -73,6 +76,7 @@ class LoopShapingResult:
     b_opt: float
     b_achieved: float
     gamma: float
+    plant: Any = None
     info: dict = field(default_factory=dict)
 
     def table(self) -> Table:
@@ -106,7 +110,7 @@ class LoopShapingResult:
         from .mu_bounds import _frequencies
 
         f = _default_grid(self.shaped) if f_hz is None else _frequencies(f_hz)
-        G = self.info["plant"]
+        G = self.plant
         fig = fig or new_figure(7.0, 4.0)
         ax = fig.add_subplot(1, 1, 1)
         ax.loglog(f, np.linalg.svd(freqresp_array(self.shaped, f), compute_uv=False), "C0", lw=1)
@@ -274,7 +278,6 @@ def ncfsyn(G: Any, W1: Any = None, W2: Any = None, *, factor: float = 1.1) -> Lo
         "factor": factor,
         "hankel_norm": float(np.sqrt(max(lam, 0.0) / (1.0 + max(lam, 0.0)))),
         "closed_loop_max_real_pole": max_re,
-        "plant": Gss,
     }
     return LoopShapingResult(K=K, Ks=Ks, shaped=Gs, b_opt=1.0 / gamma_min, b_achieved=b, gamma=gamma,
-                             info=info)
+                             plant=Gss, info=info)

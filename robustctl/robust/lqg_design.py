@@ -32,7 +32,7 @@ import numpy as np
 
 from ..checks import real_array
 from ..errors import SynthesisError
-from ..interconnect import PartitionedPlant
+from ..interconnect import PartitionedPlant, PicklesStateSpaces
 from ..lti import as_statespace
 from ..table import Table, result_html
 from .h2 import H2Result, _plot_closed_loop, h2syn
@@ -41,7 +41,7 @@ __all__ = ["LQGResult", "lqg"]
 
 
 @dataclass(frozen=True)
-class LQGResult:
+class LQGResult(PicklesStateSpaces):
     """An LQG controller and its verified closed loop.
 
     Attributes
