@@ -109,7 +109,10 @@ def test_dksyn_weighted_and_coprime_reduction_options():
         dk = rc.dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, reduce=(method, 4))
         r = dk.reduction
         assert r is not None and r.order_before == 6 and r.order_after == 4
+        assert r.method == method and np.isfinite(r.error) and r.error > 0
         if r.accepted:
             assert dk.K.nstates == 4 and r.mu_peak_after <= r.mu_peak_before * 1.02
         else:
             assert dk.K.nstates == 6 and r.reason
+    # the plain truncation's figure is the a-priori bound 2 sum of the discarded Hankel singular values
+    assert plain.method == "balanced" and plain.error > 0

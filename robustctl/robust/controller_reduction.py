@@ -409,9 +409,9 @@ def reduce_controller(K: Any, order: int, plant: Any = None, *, method: str = "a
 
 
 def reducer(K: Any, G: Any, method: str) -> tuple[np.ndarray, Any]:
-    """``(hsv, truncate)`` for :func:`robustctl.robust.dk.dksyn`'s order search: ``truncate(r)``
-    returns the reduced controller (named like ``K``) by ``method`` ("weighted": closed-loop
-    weight with the plant ``G``; "coprime")."""
+    """``(hsv, reduce_to)`` for :func:`robustctl.robust.dk.dksyn`'s order search: ``reduce_to(r)``
+    is the :class:`ControllerReduction` of ``K`` to ``r`` states by ``method`` ("weighted":
+    closed-loop weight with the plant ``G``; "coprime")."""
     full = reduce_controller(K, 1, G, method=method) if K.nstates > 1 else None
     hsv = full.hsv if full is not None else np.ones(1)
-    return hsv, lambda r: reduce_controller(K, r, G, method=method).K
+    return hsv, lambda r: reduce_controller(K, r, G, method=method)

@@ -673,7 +673,11 @@ class Reduction:
     """A final balanced-truncation reduction of the controller, re-checked by mu.
 
     ``accepted`` is False (and the full controller kept) when the reduced controller does
-    not stabilise the plant or raises mu by more than ``mu_rtol``.
+    not stabilise the plant or raises mu by more than ``mu_rtol``. ``method`` is "balanced",
+    "weighted" or "coprime" and ``error`` the truncation's error figure at ``order_after``
+    (:mod:`robustctl.robust.controller_reduction`): the a-priori bound ``2 sum sigma_tail`` on
+    ``||K - Kr||_inf`` (balanced), the achieved ``||(K - Kr)(I - G K)^-1 G||_inf`` (weighted;
+    below 1 certifies stability), or the achieved coprime-factor error (coprime).
     """
 
     order_before: int
@@ -682,6 +686,8 @@ class Reduction:
     mu_peak_after: float
     accepted: bool
     reason: str
+    method: str = "balanced"
+    error: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -1123,16 +1129,23 @@ def _reduce(plant: _Plant, blocks: BlockStructure, K: Any, cl: Any, m: Any, orde
         return K, cl, m, Reduction(n, n if auto else order, m.peak, np.inf, False,
                                    "the controller is unstable (balanced truncation needs a stable one; "
                                    "use reduce=('coprime', order))")
+    errors: dict[int, float] = {}
     if method == "balanced":
-        hsv, truncate = None, lambda r: balanced_truncation(K, r).sys
+        hsv, reduce_to = None, balanced_truncation
     else:
         from ..interconnect import PartitionedPlant
         from .controller_reduction import reducer
 
         try:
-            hsv, truncate = reducer(K, PartitionedPlant(plant.P, plant.nmeas, plant.ncon), method)
+            hsv, reduce_to = reducer(K, PartitionedPlant(plant.P, plant.nmeas, plant.ncon), method)
         except SynthesisError as exc:
-            return K, cl, m, Reduction(n, n if auto else order, m.peak, np.inf, False, str(exc))
+            return K, cl, m, Reduction(n, n if auto else order, m.peak, np.inf, False, str(exc), method)
+
+    def truncate(r: int) -> Any:
+        red = reduce_to(K, r) if method == "balanced" else reduce_to(r)
+        errors[r] = float(red.bound if method == "balanced" else red.error)
+        return red.sys if method == "balanced" else red.K
+
     tried: dict[int, tuple] = {}
 
     def attempt(r: int) -> tuple:
@@ -1145,15 +1158,17 @@ def _reduce(plant: _Plant, blocks: BlockStructure, K: Any, cl: Any, m: Any, orde
 
     if not auto:
         Kr, clr, mr, reason = attempt(int(order))
+        err = errors.get(int(order), float("nan"))
         if reason:
-            return K, cl, m, Reduction(n, order, m.peak, mr.peak if mr is not None else np.inf, False, reason)
-        return Kr, clr, mr, Reduction(n, order, m.peak, mr.peak, True, "")
+            return K, cl, m, Reduction(n, order, m.peak, mr.peak if mr is not None else np.inf, False, reason,
+                                       method, err)
+        return Kr, clr, mr, Reduction(n, order, m.peak, mr.peak, True, "", method, err)
     r = _auto_order(balanced_truncation(K, 1).hsv if hsv is None else hsv, attempt)
     if r is None:
         return K, cl, m, Reduction(n, n, m.peak, m.peak, False, "no truncation kept mu within "
-                                   f"{100 * mu_rtol:g} % of the full controller's")
+                                   f"{100 * mu_rtol:g} % of the full controller's", method)
     Kr, clr, mr, _ = attempt(r)
-    return Kr, clr, mr, Reduction(n, r, m.peak, mr.peak, True, "")
+    return Kr, clr, mr, Reduction(n, r, m.peak, mr.peak, True, "", method, errors.get(r, float("nan")))
 
 
 def _auto_order(hsv: np.ndarray, attempt: Callable[[int], tuple]) -> int | None:
