@@ -83,3 +83,11 @@ def test_lqg_refuses_bad_weights_and_names():
         rc.lqg(G, 1.0, 1.0, 1.0, np.eye(2), controls=["thrust"], measurements=["y1", "y2"])
     with pytest.raises(SynthesisError, match="semidefinite"):
         rc.lqg(G, -1.0, 1.0, 1.0, np.eye(2), **kw)
+
+
+def test_lqg_names_an_unstabilisable_plant():
+    # an unstable mode the control cannot move
+    G = control.ss([[1.0, 0.0], [0.0, -1.0]], [[1.0, 0.0], [0.0, 1.0]], [[1.0, 1.0], [1.0, 1.0]], np.zeros((2, 2)),
+                   inputs=["d", "u"], outputs=["p", "y"])
+    with pytest.raises(SynthesisError, match="stabilisable"):
+        rc.lqg(G, 1.0, 1.0, 1.0, 1.0, disturbances=["d"], performance=["p"])

@@ -386,7 +386,10 @@ def h2syn(P: Any, nmeas: int | None = None, ncon: int | None = None) -> H2Result
                 "exogenous inputs or the regulated outputs (a strictly proper weight), or design in "
                 "discrete time."
             )
-        check_assumptions(m)
+        try:
+            check_assumptions(m)
+        except SynthesisError as exc:  # the H-infinity checks offer an LMI route that h2syn lacks
+            raise SynthesisError(f"h2syn: {str(exc).replace(', or use method=' + repr('lmi'), '')}") from exc
     else:
         _check_discrete_assumptions(m)
     m0 = dict(m, D22=np.zeros_like(m["D22"]))

@@ -279,7 +279,13 @@ def lqg(
             "disturbances to performance is nonzero), so the continuous-time cost is infinite. Fix: "
             "weight outputs without direct feedthrough, or design in discrete time."
         )
-    res = h2syn(plant)
+    try:
+        res = h2syn(plant)
+    except SynthesisError as exc:
+        raise SynthesisError(
+            f"lqg: {exc} (In LQG terms: every unstable or undamped mode must be moved by the controls "
+            "and seen by the measurements, and excited by the process noise or weighted by Q.)"
+        ) from exc
     info = {
         "controls": ctrl, "measurements": meas, "disturbances": dist, "performance": perf,
         "discrete": discrete,
