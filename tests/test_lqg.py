@@ -87,7 +87,7 @@ def test_lqg_refuses_bad_weights_and_names():
 
 def test_lqg_names_an_unstabilisable_plant():
     # an unstable mode the control cannot move
-    G = control.ss([[1.0, 0.0], [0.0, -1.0]], [[1.0, 0.0], [0.0, 1.0]], [[1.0, 1.0], [1.0, 1.0]], np.zeros((2, 2)),
-                   inputs=["d", "u"], outputs=["p", "y"])
+    A, B, C = [[1.0, 0.0], [0.0, -1.0]], [[1.0, 0.0], [0.0, 1.0]], [[1.0, 1.0], [1.0, 1.0]]
+    G = control.ss(A, B, C, np.zeros((2, 2)), inputs=["d", "u"], outputs=["p", "y"])
     with pytest.raises(SynthesisError, match="stabilisable"):
         rc.lqg(G, 1.0, 1.0, 1.0, 1.0, disturbances=["d"], performance=["p"])
