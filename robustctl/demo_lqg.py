@@ -125,6 +125,8 @@ class LQGBesideMu:
         all-loops-at-once disk margin (phase, deg) on the nominal model.
     lqg : LQGResult
     yardstick : Yardstick
+    measurement_model : MeasurementModel
+        The yardstick's reference (fitted to the data's design channels).
     info : dict
         ``band_hz``, ``rho``, ``sensor_noise``, ``seed``.
     """
@@ -132,6 +134,7 @@ class LQGBesideMu:
     rows: dict
     lqg: Any
     yardstick: Any
+    measurement_model: Any = None
     info: dict = field(default_factory=dict)
 
     def table(self) -> Table:
@@ -231,7 +234,7 @@ def lqg_beside_mu(seed: int = 0, *, rho: float = 1.0, sensor_noise: float = 1.0,
         rows[label] = {"order": K.nstates, "attenuation_db": score.attenuation_db,
                        "stable": score.verdict.label, "score": score,
                        "mu_peak": float(mu_peak), "disk_phase_deg": dm.simultaneous.phase_margin_deg}
-    return LQGBesideMu(rows=rows, lqg=res, yardstick=yard,
+    return LQGBesideMu(rows=rows, lqg=res, yardstick=yard, measurement_model=mm,
                        info={"band_hz": band, "rho": rho, "sensor_noise": sensor_noise, "seed": seed})
 
 

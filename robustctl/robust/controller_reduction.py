@@ -111,9 +111,11 @@ class ControllerReduction(PicklesStateSpaces):
         what = {"weighted": "frequency-weighted balanced truncation (closed-loop weight)",
                 "coprime": "balanced truncation of the normalized coprime factors"}[self.method]
         stab = {True: "stable", False: "UNSTABLE", None: "not checked (no plant)"}[self.closed_loop_stable]
+        bound = (f"a-priori bound {self.bound:.4g}" if np.isfinite(self.bound)
+                 else "Enns' method has no a-priori bound")
         return (
             f"Controller reduced from {self.order_before} to {self.order_after} states by {what}.\n"
-            f"Achieved error {self.error:.4g} (a-priori bound {self.bound:.4g}); stability radius "
+            f"Achieved error {self.error:.4g} ({bound}); stability radius "
             f"{self.stability_radius:.4g}; the reduced loop is {stab}."
         )
 
