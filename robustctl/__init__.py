@@ -56,6 +56,18 @@ from .physical import (
     structural_model,
 )
 
+# the user's FE model and test geometry: Nastran files, UFF geometry and mode shapes
+from .frd_io.geometry import Geometry, ModeShapes
+from .frd_io.uff_geometry import load_uff_geometry, load_uff_modes, write_uff_geometry
+from .physical.nastran_import import (
+    fe_modal_model,
+    load_bdf_geometry,
+    load_nastran_matrices,
+    load_nastran_modes,
+    read_nastran_matrices,
+    read_nastran_modes,
+)
+
 # robust design: weights
 from .robust import (
     Block,
@@ -147,6 +159,18 @@ __all__ = [
     "modal_model",
     "modal_statespace",
     "MatrixStructure",
+    # the user's FE model and test geometry (Nastran, UFF)
+    "Geometry",
+    "ModeShapes",
+    "load_uff_geometry",
+    "load_uff_modes",
+    "write_uff_geometry",
+    "fe_modal_model",
+    "load_bdf_geometry",
+    "load_nastran_matrices",
+    "load_nastran_modes",
+    "read_nastran_matrices",
+    "read_nastran_modes",
     # named interconnection (interconnect.py, signals.py) and the generalized plant (robust/plant.py)
     "PartitionedPlant",
     "lft",
