@@ -319,7 +319,7 @@ def write_uff_geometry(
         for a, b in geometry.lines.tolist():
             seq += [a, b, 0]
         records.append(pyuff.prepare_82(trace_num=1, n_nodes=len(seq) - 1, color=30, id="trace lines",
-                                        nodes=np.array(seq[:-1], dtype=float)))
+                                        nodes=np.array(seq[:-1], dtype=int)))
     if modes is not None:
         rot = bool(modes.present[:, 3:].any())
         for k in range(modes.n_modes):
