@@ -471,6 +471,8 @@ def _pairs(first: _NodeShapes, second: _NodeShapes) -> tuple[list[int], list[flo
 
 
 def _plot_shapes_3d(model, geometry, band, max_modes, pair_with, labels, scale):
+    from matplotlib.ticker import MaxNLocator
+
     first = _node_shapes(model, geometry, band)
     total = first.f_hz.size
     shown = min(total, max_modes)
@@ -496,12 +498,14 @@ def _plot_shapes_3d(model, geometry, band, max_modes, pair_with, labels, scale):
         d = shapes.disp[k]
         peak = float(np.max(np.linalg.norm(d, axis=1)))
         deformed = geometry.xyz + (scale * size / peak if peak > 0 else 0.0) * d
-        _wireframe(ax, geometry, geometry.xyz, color="0.65", lw=0.7, ls="--", gid="undeformed")
+        _wireframe(ax, geometry, geometry.xyz, color="0.5", lw=0.8, ls="--", gid="undeformed")
         _wireframe(ax, geometry, deformed, color="C0" if shapes is first else "C1", lw=1.4, ls="-", gid="deformed")
         ax.scatter(*deformed.T, s=4, color="k", depthshade=False)
         ax.set_title(title, fontsize=8)
         _equal_box(ax, np.vstack([geometry.xyz, deformed]))
         ax.tick_params(labelsize=6, pad=0)
+        for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+            axis.set_major_locator(MaxNLocator(3))
         unit = geometry.unit
         ax.set_xlabel(f"x ({unit})", fontsize=7, labelpad=-4)
         ax.set_ylabel(f"y ({unit})", fontsize=7, labelpad=-4)

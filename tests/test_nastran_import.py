@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from struct import Struct
-
 import numpy as np
 import pytest
 import scipy.linalg as sla
@@ -13,7 +11,7 @@ from robustctl.errors import DataError
 
 pytest.importorskip("pyNastran")
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
-from robustctl.physical.nastran_import import _pynastran  # noqa: E402
+from robustctl.physical.nastran_import import _pynastran, write_nastran_matrices, write_nastran_modes  # noqa: E402
 
 OP2, OP4, BDF = _pynastran()
 
@@ -55,54 +53,14 @@ def frame_matrices(**kw):
 
 
 # ---------------------------------------------------------------------------- file writers (pyNastran)
-class _Trash:
-    def write(self, *a):
-        pass
-
-    def close(self):
-        pass
-
-
 def write_modes_op2(path, f_hz_32, shapes_32, node_ids, genmass_32):
-    """OP2 with a LAMA table and an OUGV1 eigenvector table, written by pyNastran's table writers
-    (its ``OP2.write_op2`` skips LAMA, so the two tables are framed here the way it frames them)."""
-    from pyNastran.op2.tables.lama_eigenvalues.lama_objects import RealEigenvalues
-    from pyNastran.op2.tables.oug.oug_eigenvectors import RealEigenvectorArray
-    from pyNastran.op2.writer.op2_writer import write_op2_header
-
-    n_modes = f_hz_32.size
-    modes = np.arange(1, n_modes + 1)
-    eigs = (2 * np.pi * f_hz_32.astype(float)) ** 2
-    model = OP2(debug=None)
-    model.set_mode("msc")
-    model.date = (1, 1, 2024)
-    grid = np.column_stack([node_ids, np.ones(node_ids.size, int)])
-    vec = RealEigenvectorArray.add_modal_case("OUGV1", grid, shapes_32, 1, modes, eigs, f_hz_32, is_sort1=True)
-    vec.table_code = 7
-    vec.data_code["table_code"] = 7
-    lama = RealEigenvalues("modes", "LAMA", n_modes)
-    lama.mode[:] = modes
-    lama.extraction_order[:] = modes
-    lama.eigenvalues[:] = eigs
-    lama.radians[:] = np.sqrt(eigs)
-    lama.cycles[:] = f_hz_32
-    lama.generalized_mass[:] = genmass_32
-    lama.generalized_stiffness[:] = genmass_32 * eigs
-    s3, s9 = Struct(b"<3i"), Struct(b"<9i")
-    with open(path, "wb") as fh:
-        write_op2_header(model, fh, _Trash(), s3, post=-1, endian=b"<")
-        for table in (lama, vec):
-            itable = table.write_op2(fh, _Trash(), -1, True, model.date, endian=b"<")
-            fh.write(s9.pack(4, itable, 4, 4, 1, 4, 4, 0, 4))
-            fh.write(s3.pack(4, 0, 4))
-        fh.write(s3.pack(4, 0, 4))
+    modes = rc.ModeShapes(f_hz=f_hz_32.astype(float), node_ids=node_ids, shapes=shapes_32.astype(float),
+                          generalized_mass=genmass_32.astype(float))
+    write_nastran_modes(path, modes)
 
 
 def write_op4(path, matrices):
-    from pyNastran.op2.result_objects.matrix import Matrix
-
-    OP4().write_op4(str(path), {k: Matrix(k, 6, v) for k, v in matrices.items()}, precision="double",
-                    is_binary=False)
+    write_nastran_matrices(path, matrices)
 
 
 def frame_mode_file(tmp_path):

@@ -44,6 +44,8 @@ __all__ = [
     "load_nastran_matrices",
     "load_bdf_geometry",
     "fe_modal_model",
+    "write_nastran_modes",
+    "write_nastran_matrices",
 ]
 
 #: Consistent unit systems: (metres per length unit, kilograms per mass unit).
@@ -648,3 +650,75 @@ def load_bdf_geometry(bdf: str | os.PathLike, *, units: str = "m-kg-s", sensors:
                    unit="m", name=name or path.stem)
     return geo.with_sensors(sensors) if sensors else geo
 
+
+
+# ---------------------------------------------------------------------------- writers (round trips)
+class _Trash:
+    def write(self, *a): ...
+    def close(self): ...
+
+
+def write_nastran_modes(path: str | os.PathLike, modes: ModeShapes) -> None:
+    """Write mode shapes as an OP2 file (LAMA eigenvalue table and OUGV1 eigenvectors, single
+    precision as Nastran writes them) with pyNastran's table writers.
+
+    pyNastran's ``OP2.write_op2`` leaves the LAMA table out, so the two tables are framed here
+    the way it frames every table (header, table, ``[4, itable, 4, 4, 1, 4, 4, 0, 4]``, ``[4, 0, 4]``).
+
+    Parameters
+    ----------
+    path : path
+    modes : ModeShapes
+        Real shapes in SI (m, rad); generalised masses in kg.
+    """
+    from struct import Struct
+
+    OP2, _, _ = _pynastran()
+    from pyNastran.op2.tables.lama_eigenvalues.lama_objects import RealEigenvalues
+    from pyNastran.op2.tables.oug.oug_eigenvectors import RealEigenvectorArray
+    from pyNastran.op2.writer.op2_writer import write_op2_header
+
+    if np.iscomplexobj(modes.shapes):
+        raise DataError("OP2 eigenvector tables hold real modes; these shapes are complex.")
+    n = modes.n_modes
+    numbers = np.arange(1, n + 1)
+    eigs = (2 * np.pi * modes.f_hz) ** 2
+    model = OP2(log=_Quiet(), debug=None)
+    model.set_mode("msc")
+    model.date = (1, 1, 2024)
+    grid = np.column_stack([modes.node_ids, np.ones(modes.node_ids.size, int)])
+    vec = RealEigenvectorArray.add_modal_case("OUGV1", grid, modes.shapes.astype(np.float32), 1, numbers, eigs,
+                                              modes.f_hz, is_sort1=True)
+    vec.table_code = 7  # an eigenvector, not a displacement
+    vec.data_code["table_code"] = 7
+    lama = RealEigenvalues("modes", "LAMA", n)
+    lama.mode[:] = numbers
+    lama.extraction_order[:] = numbers
+    lama.eigenvalues[:] = eigs
+    lama.radians[:] = np.sqrt(eigs)
+    lama.cycles[:] = modes.f_hz
+    lama.generalized_mass[:] = modes.generalized_mass
+    lama.generalized_stiffness[:] = modes.generalized_mass * eigs
+    s3, s9 = Struct(b"<3i"), Struct(b"<9i")
+    with open(path, "wb") as fh:
+        write_op2_header(model, fh, _Trash(), s3, post=-1, endian=b"<")
+        for table in (lama, vec):
+            itable = table.write_op2(fh, _Trash(), -1, True, model.date, endian=b"<")
+            fh.write(s9.pack(4, itable, 4, 4, 1, 4, 4, 0, 4))
+            fh.write(s3.pack(4, 0, 4))
+        fh.write(s3.pack(4, 0, 4))
+
+
+def write_nastran_matrices(path: str | os.PathLike, matrices: Mapping[str, Any]) -> None:
+    """Write symmetric real matrices (dense or sparse) to an ASCII OP4 file with pyNastran.
+
+    ASCII because pyNastran 1.4.1 writes no sparse binary OP4; its reader reads both.
+    """
+    _, OP4, _ = _pynastran()
+    from pyNastran.op2.result_objects.matrix import Matrix
+
+    mats = {}
+    for name, a in matrices.items():
+        a = sp.coo_matrix(a) if sp.issparse(a) else np.asarray(a, dtype=float)
+        mats[str(name)] = Matrix(str(name), 6, a)
+    OP4(log=_Quiet()).write_op4(str(path), mats, precision="double", is_binary=False)
