@@ -79,14 +79,21 @@ def run() -> dict:
 
     (mats, _), t_read_op4, mem_read_op4 = _measure(lambda: rc.read_nastran_matrices(op4))
     groups = {f"g{g:02d}": f"KG{g:02d}" for g in range(N_GROUPS)}
-    model, t_build, mem_build = _measure(lambda: rc.load_nastran_matrices(
-        op4, inputs=["1:T1"], outputs=["1000:T1"], groups=groups, dof_labels=labels, n_modes=20))
+    model, t_build, mem_build = _measure(
+        lambda: rc.load_nastran_matrices(
+            op4, inputs=["1:T1"], outputs=["1000:T1"], groups=groups, dof_labels=labels, n_modes=20
+        )
+    )
     agree = float(abs(mats["KAA"] - K).max() / abs(K).max())
 
     n_grid = -(-N_DOF // 6)
     rng = np.random.default_rng(1)
-    modes = rc.ModeShapes(f_hz=np.sort(rng.uniform(1.0, 500.0, N_MODES)), node_ids=np.arange(1, n_grid + 1),
-                          shapes=rng.standard_normal((N_MODES, n_grid, 6)), generalized_mass=np.ones(N_MODES))
+    modes = rc.ModeShapes(
+        f_hz=np.sort(rng.uniform(1.0, 500.0, N_MODES)),
+        node_ids=np.arange(1, n_grid + 1),
+        shapes=rng.standard_normal((N_MODES, n_grid, 6)),
+        generalized_mass=np.ones(N_MODES),
+    )
     op2 = tmp / "modes.op2"
     t0 = time.perf_counter()
     write_nastran_modes(op2, modes)
@@ -128,7 +135,7 @@ def run() -> dict:
     return {
         "name": "fe_import",
         "description": "Nastran import: 10,000-DOF OP4 stiffness with 20 group partitions (read, build with "
-                       "20 superparameters and 20 modes) and a 200-mode OP2 (read, modal model, 2,000-point FRF)",
+        "20 superparameters and 20 modes) and a 200-mode OP2 (read, modal model, 2,000-point FRF)",
         "metrics": metrics,
         "targets": {"op4_read_back_rel_error": "< 1e-12", "op2_shape_read_back_max_error": "== 0"},
         "passed": bool(agree < 1e-12 and shape_err == 0.0),

@@ -27,6 +27,10 @@ from .estimate import (
 from .export import ExportReport, discretize, export_controller, load_controller
 from .figures import fit_percent, mac_matrix, plot_compare, plot_mac, plot_mode_shapes, plot_singular_values
 from .frd import FrequencyData, load_frd
+
+# the user's FE model and test geometry: Nastran files, UFF geometry and mode shapes
+from .frd_io.geometry import Geometry, ModeShapes
+from .frd_io.uff_geometry import load_uff_geometry, load_uff_modes, write_uff_geometry
 from .identify import (
     MeasurementModel,
     StabilisationDiagram,
@@ -55,10 +59,6 @@ from .physical import (
     modal_statespace,
     structural_model,
 )
-
-# the user's FE model and test geometry: Nastran files, UFF geometry and mode shapes
-from .frd_io.geometry import Geometry, ModeShapes
-from .frd_io.uff_geometry import load_uff_geometry, load_uff_modes, write_uff_geometry
 from .physical.nastran_import import (
     fe_modal_model,
     load_bdf_geometry,

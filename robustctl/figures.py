@@ -354,7 +354,9 @@ def plot_mode_shapes(
     if geometry is not None:
         return _plot_shapes_3d(model, geometry, band, max_modes, pair_with, labels, scale)
     if pair_with is not None:
-        raise DataError("pair_with= draws test and FE shapes side by side on a structure; give geometry= too.")
+        raise DataError(
+            "pair_with= draws test and FE shapes side by side on a structure; give geometry= too."
+        )
     modes, names = _modes_and_sensors(model, band)
     modes = sorted(modes, key=lambda m: m.f_hz)
     if not modes:
@@ -425,7 +427,8 @@ def _node_shapes(source: Any, geometry: Any, band) -> _NodeShapes:
         for j, r in enumerate(rows):
             if r is not None:
                 disp[:, j] = np.real([_real_rotate(source.shapes[k]) for k in keep])[:, r, :3]
-        sens = source.select(keep).at(channels, geometry=geometry, mass_normalized=False) if channels else None
+        sel = source.select(keep)
+        sens = sel.at(channels, geometry=geometry, mass_normalized=False) if channels else None
         return _NodeShapes(source.f_hz[keep], source.zeta[keep], disp, sens, channels)
     modes, names = _modes_and_sensors(source, band)
     modes = sorted(modes, key=lambda m: m.f_hz)
@@ -487,7 +490,8 @@ def _plot_shapes_3d(model, geometry, band, max_modes, pair_with, labels, scale):
         best, macs = _pairs(first, second)
         for k in range(shown):
             panels.append((first, k, _shape_title(first, k, labels[0])))
-            panels.append((second, best[k], _shape_title(second, best[k], labels[1]) + f"\nMAC {macs[k]:.2f}"))
+            title = _shape_title(second, best[k], labels[1]) + f"\nMAC {macs[k]:.2f}"
+            panels.append((second, best[k], title))
     ncols = 4 if pair_with is not None else min(3, len(panels))
     nrows = int(np.ceil(len(panels) / ncols))
     fig = new_figure(3.2 * ncols, 3.0 * nrows + 0.5)
@@ -499,7 +503,8 @@ def _plot_shapes_3d(model, geometry, band, max_modes, pair_with, labels, scale):
         peak = float(np.max(np.linalg.norm(d, axis=1)))
         deformed = geometry.xyz + (scale * size / peak if peak > 0 else 0.0) * d
         _wireframe(ax, geometry, geometry.xyz, color="0.5", lw=0.8, ls="--", gid="undeformed")
-        _wireframe(ax, geometry, deformed, color="C0" if shapes is first else "C1", lw=1.4, ls="-", gid="deformed")
+        colour = "C0" if shapes is first else "C1"
+        _wireframe(ax, geometry, deformed, color=colour, lw=1.4, ls="-", gid="deformed")
         ax.scatter(*deformed.T, s=4, color="k", depthshade=False)
         ax.set_title(title, fontsize=8)
         _equal_box(ax, np.vstack([geometry.xyz, deformed]))

@@ -54,8 +54,12 @@ def frame_matrices(**kw):
 
 # ---------------------------------------------------------------------------- file writers (pyNastran)
 def write_modes_op2(path, f_hz_32, shapes_32, node_ids, genmass_32):
-    modes = rc.ModeShapes(f_hz=f_hz_32.astype(float), node_ids=node_ids, shapes=shapes_32.astype(float),
-                          generalized_mass=genmass_32.astype(float))
+    modes = rc.ModeShapes(
+        f_hz=f_hz_32.astype(float),
+        node_ids=node_ids,
+        shapes=shapes_32.astype(float),
+        generalized_mass=genmass_32.astype(float),
+    )
     write_nastran_modes(path, modes)
 
 
@@ -100,8 +104,15 @@ def test_op2_modal_model_equals_the_builtin_modal_model(tmp_path):
         node, comp = dof.split(":")
         return phi[:, nodes.index(int(node)), ["T1", "T2", "T3", "R1", "R2", "R3"].index(comp)]
 
-    ref = rc.modal_model(f_ref, 0.02, np.array([at(d) for d in ins]), np.array([at(d) for d in outs]),
-                         inputs=ins, outputs=outs, output_kind="displacement")
+    ref = rc.modal_model(
+        f_ref,
+        0.02,
+        np.array([at(d) for d in ins]),
+        np.array([at(d) for d in outs]),
+        inputs=ins,
+        outputs=outs,
+        output_kind="displacement",
+    )
     f_hz = np.geomspace(1.0, 1.5 * f_ref.max(), 400)
     got, want = model.freqresp(f_hz).response, ref.freqresp(f_hz).response
     assert np.max(np.abs(got - want) / np.max(np.abs(want))) < 1e-10
@@ -126,7 +137,9 @@ def test_op2_read_gives_frequencies_generalised_masses_and_shapes(tmp_path):
     np.testing.assert_array_equal(modes.generalized_mass, gm_32.astype(float))
     np.testing.assert_array_equal(modes.shapes, shapes_32.astype(float))
     mm = rc.read_nastran_modes(path, units="mm-t-s")  # mm and tonnes: phi_SI = 1e-3 / sqrt(1e3) phi
-    np.testing.assert_allclose(mm.mass_normalized()[..., :3], 1e-3 / np.sqrt(1e3) * modes.mass_normalized()[..., :3])
+    np.testing.assert_allclose(
+        mm.mass_normalized()[..., :3], 1e-3 / np.sqrt(1e3) * modes.mass_normalized()[..., :3]
+    )
 
 
 def test_op2_missing_grid_or_direction_names_the_channel_and_the_fix(tmp_path):
@@ -142,7 +155,9 @@ def test_op2_missing_grid_or_direction_names_the_channel_and_the_fix(tmp_path):
     ref = rc.load_nastran_modes(path, inputs=["2001:T1"], outputs=["2003:T2", "2003:T3"])
     f = np.array([3.0, 7.0, 20.0])
     both = ref.freqresp(f).response[:, :, 0]
-    np.testing.assert_allclose(model.freqresp(f).response[:, 0, 0], 0.6 * both[:, 0] + 0.8 * both[:, 1], rtol=1e-12)
+    np.testing.assert_allclose(
+        model.freqresp(f).response[:, 0, 0], 0.6 * both[:, 0] + 0.8 * both[:, 1], rtol=1e-12
+    )
 
 
 # ---------------------------------------------------------------------------- OP4 matrices
@@ -166,8 +181,13 @@ def op4_file(tmp_path_factory):
 def _imported(op4_file, **kw):
     path, labels = op4_file
     return rc.load_nastran_matrices(
-        path, inputs={"F": "2001:T1"}, outputs={"a": "2003:T2"}, groups={"columns": "KCOL", "beams": "KBEAM"},
-        dof_labels=labels, damping=0.01, **kw,
+        path,
+        inputs={"F": "2001:T1"},
+        outputs={"a": "2003:T2"},
+        groups={"columns": "KCOL", "beams": "KBEAM"},
+        dof_labels=labels,
+        damping=0.01,
+        **kw,
     )
 
 
@@ -177,8 +197,14 @@ def test_op4_group_partitions_reproduce_the_frame_for_several_superparameters(op
     f_hz = np.geomspace(2.0, 400.0, 300)
     for kc, kb in [(1.0, 1.0), (1.3, 1.0), (0.7, 1.6), (1.1, 0.5)]:
         M, K, labels = frame_matrices(k_columns=kc, k_beams=kb)
-        ref = rc.structural_model(M, K, inputs={"F": "2001:T1"},
-                                  outputs={"a": ("2003:T2", "acceleration")}, dof_labels=labels, damping=0.01)
+        ref = rc.structural_model(
+            M,
+            K,
+            inputs={"F": "2001:T1"},
+            outputs={"a": ("2003:T2", "acceleration")},
+            dof_labels=labels,
+            damping=0.01,
+        )
         got = model.freqresp(f_hz, k_columns=kc, k_beams=kb).response
         want = ref.freqresp(f_hz).response
         assert np.max(np.abs(got - want) / np.max(np.abs(want))) < 1e-9, (kc, kb)
@@ -186,11 +212,17 @@ def test_op4_group_partitions_reproduce_the_frame_for_several_superparameters(op
 
 def test_op4_lumped_mass_parameter_adds_kilograms_at_the_grid(op4_file):
     path, labels = op4_file
-    model = rc.load_nastran_matrices(path, inputs=["2001:T1"], outputs=["2003:T2"], dof_labels=labels,
-                                     lumped_masses={"tip": 2003})
+    model = rc.load_nastran_matrices(
+        path, inputs=["2001:T1"], outputs=["2003:T2"], dof_labels=labels, lumped_masses={"tip": 2003}
+    )
     M, K, _ = frame_matrices(tip_mass=0.5)
-    ref = rc.structural_model(M, K, inputs={"2001:T1": "2001:T1"}, outputs={"2003:T2": ("2003:T2", "acceleration")},
-                              dof_labels=labels)
+    ref = rc.structural_model(
+        M,
+        K,
+        inputs={"2001:T1": "2001:T1"},
+        outputs={"2003:T2": ("2003:T2", "acceleration")},
+        dof_labels=labels,
+    )
     f_hz = np.geomspace(2.0, 400.0, 200)
     got, want = model.freqresp(f_hz, m_tip=0.5).response, ref.freqresp(f_hz).response
     assert np.max(np.abs(got - want) / np.max(np.abs(want))) < 1e-9
@@ -203,8 +235,9 @@ def test_op4_errors_name_the_dof_and_the_fix(op4_file):
     with pytest.raises(DataError, match=r"output '1001:T3'.*grid 1001 is not in the matrices"):
         rc.load_nastran_matrices(path, inputs=["2001:T1"], outputs=["1001:T3"], dof_labels=labels)
     with pytest.raises(DataError, match=r"no matrix 'KXX'"):
-        rc.load_nastran_matrices(path, inputs=["2001:T1"], outputs=["2003:T2"], dof_labels=labels,
-                                 groups={"x": "KXX"})
+        rc.load_nastran_matrices(
+            path, inputs=["2001:T1"], outputs=["2003:T2"], dof_labels=labels, groups={"x": "KXX"}
+        )
     with pytest.raises(DataError, match=r"12 names but the matrices have 24"):
         rc.load_nastran_matrices(path, inputs=["2001:T1"], outputs=["2003:T2"], dof_labels=labels[:12])
 
@@ -222,8 +255,16 @@ def test_update_on_the_imported_model_recovers_a_hidden_column_stiffness_change(
     noisy = h * (1 + 0.01 * (rng.standard_normal(h.size) + 1j * rng.standard_normal(h.size)) / np.sqrt(2))
     data = rc.FrequencyData(f_hz, noisy[:, None, None], inputs=("F",), outputs=("a",))
     model = _imported(op4_file)
-    upd = rc.update(model, data, params=["k_columns"], band=(f_hz[0], f_hz[-1]), select=False, drift_bands=0,
-                    point_weights=None, progress=False)
+    upd = rc.update(
+        model,
+        data,
+        params=["k_columns"],
+        band=(f_hz[0], f_hz[-1]),
+        select=False,
+        drift_bands=0,
+        point_weights=None,
+        progress=False,
+    )
     est = upd.model.values["k_columns"]
     se = upd.std_errors["k_columns"]
     assert 0 < se < 0.01
@@ -263,10 +304,16 @@ def test_dmig_matrices_in_a_bdf_carry_their_dof_names(tmp_path):
     assert sorted(found) == sorted(labels)
     perm = [found.index(lb) for lb in labels]
     np.testing.assert_allclose(mats["KAA"].toarray()[np.ix_(perm, perm)], K, rtol=1e-14)
-    imported = rc.load_nastran_matrices(path, inputs={"F": "2001:T1"}, outputs={"a": "2003:T2"},
-                                        groups={"columns": "KCOL", "beams": "KBEAM"})
-    ref = rc.structural_model(M, K + 0.4 * parts["beams"], inputs={"F": "2001:T1"}, outputs={"a": ("2003:T2", "acceleration")},
-                              dof_labels=labels)
+    imported = rc.load_nastran_matrices(
+        path, inputs={"F": "2001:T1"}, outputs={"a": "2003:T2"}, groups={"columns": "KCOL", "beams": "KBEAM"}
+    )
+    ref = rc.structural_model(
+        M,
+        K + 0.4 * parts["beams"],
+        inputs={"F": "2001:T1"},
+        outputs={"a": ("2003:T2", "acceleration")},
+        dof_labels=labels,
+    )
     f_hz = np.geomspace(2.0, 300.0, 200)
     got, want = imported.freqresp(f_hz, k_beams=1.4).response, ref.freqresp(f_hz).response
     assert np.max(np.abs(got - want) / np.max(np.abs(want))) < 1e-9

@@ -49,9 +49,14 @@ def truss_modes(geo: rc.Geometry, n_modes: int = 4) -> rc.ModeShapes:
     rng = np.random.default_rng(3)
     shapes = rng.standard_normal((n_modes, geo.n_nodes, 6))
     shapes[:, :3, :] = 0.0  # the ceiling is clamped
-    return rc.ModeShapes(f_hz=[1.17, 1.19, 2.26, 2.66][:n_modes], node_ids=geo.node_ids, shapes=shapes,
-                         zeta=[0.018, 0.018, 0.010, 0.016][:n_modes], generalized_mass=[2.0, 3.0, 4.0, 5.0][:n_modes],
-                         name="truss FE")
+    return rc.ModeShapes(
+        f_hz=[1.17, 1.19, 2.26, 2.66][:n_modes],
+        node_ids=geo.node_ids,
+        shapes=shapes,
+        zeta=[0.018, 0.018, 0.010, 0.016][:n_modes],
+        generalized_mass=[2.0, 3.0, 4.0, 5.0][:n_modes],
+        name="truss FE",
+    )
 
 
 def test_caltech_geometry_sensors_and_frfs_round_trip_through_pyuff(tmp_path):
@@ -60,8 +65,13 @@ def test_caltech_geometry_sensors_and_frfs_round_trip_through_pyuff(tmp_path):
     f = np.linspace(0.5, 5.5, 11)
     rng = np.random.default_rng(0)
     resp = rng.standard_normal((f.size, 3, 2)) + 1j * rng.standard_normal((f.size, 3, 2))
-    data = rc.FrequencyData(f, resp, inputs=("A1", "A2"), outputs=("S1", "S2", "S3"),
-                            units={"S1": "m/s^2", "S2": "m/s^2", "S3": "m/s^2", "A1": "N", "A2": "N"})
+    data = rc.FrequencyData(
+        f,
+        resp,
+        inputs=("A1", "A2"),
+        outputs=("S1", "S2", "S3"),
+        units={"S1": "m/s^2", "S2": "m/s^2", "S3": "m/s^2", "A1": "N", "A2": "N"},
+    )
     path = tmp_path / "caltech.uff"
     rc.write_uff_geometry(path, geo, modes=modes, data=data)
 
@@ -84,7 +94,9 @@ def test_caltech_geometry_sensors_and_frfs_round_trip_through_pyuff(tmp_path):
     # shapes at the sensors: the tangential S3 reads cos 45 of x plus sin 45 of y at node 33
     at = shapes.at(["S3"], geometry=back, mass_normalized=False)[0]
     k33 = list(geo.node_ids).index(33)
-    np.testing.assert_allclose(at, (modes.shapes[:, k33, 0] + modes.shapes[:, k33, 1]) / np.sqrt(2), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(
+        at, (modes.shapes[:, k33, 0] + modes.shapes[:, k33, 1]) / np.sqrt(2), rtol=1e-5, atol=1e-6
+    )
 
 
 def test_millimetre_files_become_metres(tmp_path):
@@ -101,8 +113,12 @@ def test_a_channel_without_a_node_is_named_with_the_fix():
     with pytest.raises(DataError, match=r"channel 'S9' has no node.*with_sensors"):
         geo.channel_map(["S1", "S9"])
     modes = truss_modes(geo)
-    missing = rc.ModeShapes(f_hz=[1.0], node_ids=[31], shapes=np.ones((1, 1, 6)),
-                            present=[[True, True, True, False, False, False]])
+    missing = rc.ModeShapes(
+        f_hz=[1.0],
+        node_ids=[31],
+        shapes=np.ones((1, 1, 6)),
+        present=[[True, True, True, False, False, False]],
+    )
     with pytest.raises(DataError, match=r"output '31:R1'.*lacks"):
         missing.at(["31:R1"], what="output")
     with pytest.raises(DataError, match=r"node 99 has no mode shape"):
@@ -137,13 +153,14 @@ def test_test_and_fe_shapes_side_by_side_paired_by_mac():
     # "test" modes: the FE shapes at the sensors, in another order, as Modes with output shapes
     at = fe.at(["S1", "S2", "S3"], geometry=geo, mass_normalized=False)
     order = [2, 0, 3, 1]
-    test = [rc.Mode(f_hz=fe.f_hz[k] * 1.05, zeta=0.02, residue=at[:, [k]], output_shape=at[:, [k]])
-            for k in order]
+    test = [
+        rc.Mode(f_hz=fe.f_hz[k] * 1.05, zeta=0.02, residue=at[:, [k]], output_shape=at[:, [k]]) for k in order
+    ]
 
     class Identified:  # what fit_measurement_model returns: .modes and .sys with output names
         modes = test
 
-        class sys:
+        class sys:  # noqa: N801
             output_labels = ["S1", "S2", "S3"]
 
     fig = rc.plot_mode_shapes(Identified(), geo, pair_with=fe, labels=("test", "FE"))

@@ -30,10 +30,27 @@ __all__ = ["Geometry", "ModeShapes", "COMPONENTS", "parse_dof", "dof_label"]
 #: Component names of the six DOFs of a node, in Nastran order.
 COMPONENTS = ("T1", "T2", "T3", "R1", "R2", "R3")
 _TOKENS = {
-    "T1": 0, "T2": 1, "T3": 2, "R1": 3, "R2": 4, "R3": 5,
-    "X": 0, "Y": 1, "Z": 2, "RX": 3, "RY": 4, "RZ": 5,
-    "UX": 0, "UY": 1, "UZ": 2,
-    "1": 0, "2": 1, "3": 2, "4": 3, "5": 4, "6": 5,
+    "T1": 0,
+    "T2": 1,
+    "T3": 2,
+    "R1": 3,
+    "R2": 4,
+    "R3": 5,
+    "X": 0,
+    "Y": 1,
+    "Z": 2,
+    "RX": 3,
+    "RY": 4,
+    "RZ": 5,
+    "UX": 0,
+    "UY": 1,
+    "UZ": 2,
+    "1": 0,
+    "2": 1,
+    "3": 2,
+    "4": 3,
+    "5": 4,
+    "6": 5,
 }
 _DOF_RE = re.compile(r"^\s*(-?\d+)\s*[:\s]\s*([+-]?)\s*([A-Za-z0-9]+)\s*$")
 
@@ -79,7 +96,9 @@ def _direction(spec: Any, what: str) -> np.ndarray:
     if isinstance(spec, str):
         _, vec = parse_dof(f"0:{spec}")
         if np.any(vec[3:]):
-            raise DataError(f"{what}: direction {spec!r} is a rotation; sensors measure translations (X, Y, Z).")
+            raise DataError(
+                f"{what}: direction {spec!r} is a rotation; sensors measure translations (X, Y, Z)."
+            )
         return vec[:3]
     v = np.asarray(spec, dtype=float).reshape(-1)
     if v.size != 3 or not np.all(np.isfinite(v)) or np.linalg.norm(v) == 0:
@@ -120,16 +139,24 @@ class Geometry:
             ids = ids.astype(np.int64)
         xyz = np.asarray(self.xyz, dtype=float).reshape(-1, 3) if np.size(self.xyz) else np.zeros((0, 3))
         if xyz.shape[0] != ids.size:
-            raise DataError(f"{ids.size} node ids but {xyz.shape[0]} coordinate rows; give one (x, y, z) per node.")
+            raise DataError(
+                f"{ids.size} node ids but {xyz.shape[0]} coordinate rows; give one (x, y, z) per node."
+            )
         if not np.all(np.isfinite(xyz)):
             raise DataError("node coordinates contain NaN or inf.")
         uniq, count = np.unique(ids, return_counts=True)
         if np.any(count > 1):
             raise DataError(f"node {int(uniq[count > 1][0])} is defined twice; node ids must be unique.")
-        lines = np.asarray(self.lines, dtype=np.int64).reshape(-1, 2) if np.size(self.lines) else np.zeros((0, 2), int)
+        lines = (
+            np.asarray(self.lines, dtype=np.int64).reshape(-1, 2)
+            if np.size(self.lines)
+            else np.zeros((0, 2), int)
+        )
         missing = sorted(set(lines.ravel().tolist()) - set(ids.tolist()))
         if missing:
-            raise DataError(f"trace lines use node(s) {missing[:5]} that have no coordinates; add them to the nodes.")
+            raise DataError(
+                f"trace lines use node(s) {missing[:5]} that have no coordinates; add them to the nodes."
+            )
         sensors = {}
         for ch, spec in dict(self.sensors).items():
             node, direction = spec
@@ -146,8 +173,10 @@ class Geometry:
         return int(self.node_ids.size)
 
     def __repr__(self) -> str:
-        return (f"Geometry({self.name or 'unnamed'}: {self.n_nodes} nodes, {len(self.lines)} lines, "
-                f"{len(self.sensors)} sensors, {self.unit})")
+        return (
+            f"Geometry({self.name or 'unnamed'}: {self.n_nodes} nodes, {len(self.lines)} lines, "
+            f"{len(self.sensors)} sensors, {self.unit})"
+        )
 
     def index(self, nodes: Sequence[int]) -> np.ndarray:
         """Row of each node id in :attr:`xyz` (DataError naming a missing node)."""
@@ -155,7 +184,9 @@ class Geometry:
         out = []
         for n in nodes:
             if int(n) not in where:
-                raise DataError(f"node {n} is not in the geometry ({self.n_nodes} nodes); check the node ids.")
+                raise DataError(
+                    f"node {n} is not in the geometry ({self.n_nodes} nodes); check the node ids."
+                )
             out.append(where[int(n)])
         return np.asarray(out, dtype=int)
 
@@ -250,8 +281,14 @@ class ModeShapes:
             raise DataError("present must be (n_nodes, 6); zeta and generalized_mass one value per mode.")
         if np.any(~np.isfinite(gm)) or np.any(gm <= 0):
             raise DataError(f"generalised masses must be finite and > 0; got {gm}.")
-        for name, value in (("f_hz", f), ("node_ids", ids), ("shapes", shapes), ("present", present),
-                            ("zeta", zeta), ("generalized_mass", gm)):
+        for name, value in (
+            ("f_hz", f),
+            ("node_ids", ids),
+            ("shapes", shapes),
+            ("present", present),
+            ("zeta", zeta),
+            ("generalized_mass", gm),
+        ):
             object.__setattr__(self, name, value)
 
     @property
@@ -265,8 +302,14 @@ class ModeShapes:
         """Shapes scaled to unit generalised mass, ``phi_k / sqrt(m_k)`` (n_modes, n_nodes, 6)."""
         return self.shapes / np.sqrt(self.generalized_mass)[:, None, None]
 
-    def at(self, dofs: Sequence[Any], *, geometry: Geometry | None = None, what: str = "channel",
-           mass_normalized: bool = True) -> np.ndarray:
+    def at(
+        self,
+        dofs: Sequence[Any],
+        *,
+        geometry: Geometry | None = None,
+        what: str = "channel",
+        mass_normalized: bool = True,
+    ) -> np.ndarray:
         """Shapes along DOFs or sensors, (n_dofs, n_modes).
 
         Parameters
@@ -299,7 +342,8 @@ class ModeShapes:
                 except DataError:
                     raise DataError(
                         f"{what} {name!r} is neither 'node:direction' (e.g. '1001:T3') nor a sensor of the "
-                        "geometry; name it after its grid point or pass geometry= with sensors mapping it to a node."
+                        "geometry; name it after its grid point or pass geometry= with sensors mapping it "
+                        "to a node."
                     ) from None
             if node not in where:
                 raise DataError(
@@ -321,5 +365,10 @@ class ModeShapes:
     def select(self, modes: Sequence[int]) -> ModeShapes:
         """A subset of the modes (0-based indices)."""
         idx = np.asarray(modes, dtype=int)
-        return replace(self, f_hz=self.f_hz[idx], shapes=self.shapes[idx], zeta=self.zeta[idx],
-                       generalized_mass=self.generalized_mass[idx])
+        return replace(
+            self,
+            f_hz=self.f_hz[idx],
+            shapes=self.shapes[idx],
+            zeta=self.zeta[idx],
+            generalized_mass=self.generalized_mass[idx],
+        )

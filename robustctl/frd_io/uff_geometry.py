@@ -78,7 +78,9 @@ def _nodes(sets: list[dict]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         if int(s["type"]) in (15, 2411):
             ids.extend(np.asarray(s["node_nums"], dtype=np.int64).ravel().tolist())
             xyz.append(np.column_stack([s["x"], s["y"], s["z"]]))
-            disp.extend(np.asarray(s.get("disp_cs", np.zeros(len(s["node_nums"]))), dtype=np.int64).ravel().tolist())
+            disp.extend(
+                np.asarray(s.get("disp_cs", np.zeros(len(s["node_nums"]))), dtype=np.int64).ravel().tolist()
+            )
     if not ids:
         return np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, np.int64)
     return np.asarray(ids), np.vstack(xyz).astype(float), np.asarray(disp)
@@ -94,7 +96,7 @@ def _lines(sets: list[dict]) -> list[tuple[int, int]]:
                 if a and b and a != b:
                     lines.add((min(a, b), max(a, b)))
         elif t == 2412:
-            for key, val in s.items():
+            for val in s.values():
                 if isinstance(val, dict) and "nodes_nums" in val:
                     for conn in val["nodes_nums"]:
                         c = [int(n) for n in np.asarray(conn).ravel()]
@@ -157,14 +159,21 @@ def load_uff_geometry(path: str | os.PathLike, *, unit: str = "m", name: str | N
         cs_label = int(disp_of[node])
         if cs_label not in (0, 1) and cs_label not in systems:
             raise DataError(
-                f"node {node} (channel {channel!r}) uses displacement system {cs_label}, which the file does not "
+                f"node {node} (channel {channel!r}) uses displacement system {cs_label}, which the file "
+                "does not "
                 "define; add dataset 2420 or export directions in the global system."
             )
         vec = _axis(code, systems.get(cs_label))
         if vec is not None:
             sensors.setdefault(channel, (node, vec))
-    return Geometry(ids, xyz * scale, np.array(_lines(sets), dtype=np.int64).reshape(-1, 2), sensors,
-                    unit="m", name=name or Path(path).stem)
+    return Geometry(
+        ids,
+        xyz * scale,
+        np.array(_lines(sets), dtype=np.int64).reshape(-1, 2),
+        sensors,
+        unit="m",
+        name=name or Path(path).stem,
+    )
 
 
 def load_uff_modes(path: str | os.PathLike, *, unit: str = "m", name: str | None = None) -> ModeShapes:
@@ -196,7 +205,8 @@ def load_uff_modes(path: str | os.PathLike, *, unit: str = "m", name: str | None
     kinds = {int(r.get("analysis_type", 2)) for r in recs}
     if not kinds <= {2, 3} or len(kinds) != 1:
         raise DataError(
-            f"dataset 55 records have analysis types {sorted(kinds)}; only normal (2) or complex (3) modes of "
+            f"dataset 55 records have analysis types {sorted(kinds)}; only normal (2) or complex (3) "
+            "modes of "
             "one kind are read."
         )
     nodes = np.asarray(recs[0]["node_nums"], dtype=np.int64).ravel()
@@ -229,9 +239,16 @@ def load_uff_modes(path: str | os.PathLike, *, unit: str = "m", name: str | None
     order = np.argsort(f, kind="stable")
     present = np.zeros((nodes.size, 6), bool)
     present[:, :ncomp] = True
-    return ModeShapes(f_hz=np.asarray(f)[order], node_ids=nodes, shapes=np.asarray(shapes)[order], present=present,
-                      zeta=np.asarray(zeta)[order], generalized_mass=np.asarray(gm)[order], unit="m",
-                      name=name or Path(path).stem)
+    return ModeShapes(
+        f_hz=np.asarray(f)[order],
+        node_ids=nodes,
+        shapes=np.asarray(shapes)[order],
+        present=present,
+        zeta=np.asarray(zeta)[order],
+        generalized_mass=np.asarray(gm)[order],
+        unit="m",
+        name=name or Path(path).stem,
+    )
 
 
 def _axis_code(direction: np.ndarray) -> tuple[int, int]:
@@ -304,22 +321,41 @@ def write_uff_geometry(
     ids = geometry.node_ids
     records = []
     if systems:
-        records.append(pyuff.prepare_2420(
-            Part_UID=1, Part_Name="robustctl sensors", CS_sys_labels=[s[0] for s in systems],
-            CS_types=[0] * len(systems), CS_colors=[8] * len(systems), CS_names=[f"sensor cs {s[0]}" for s in systems],
-            CS_matrices=[np.vstack([s[1], np.zeros(3)]) for s in systems],
-        ))
-    records.append(pyuff.prepare_2411(
-        node_nums=ids, def_cs=np.ones(ids.size, int), disp_cs=np.array([disp[int(n)] or 1 for n in ids]),
-        color=np.full(ids.size, 8), x=geometry.xyz[:, 0] / scale, y=geometry.xyz[:, 1] / scale,
-        z=geometry.xyz[:, 2] / scale,
-    ))
+        records.append(
+            pyuff.prepare_2420(
+                Part_UID=1,
+                Part_Name="robustctl sensors",
+                CS_sys_labels=[s[0] for s in systems],
+                CS_types=[0] * len(systems),
+                CS_colors=[8] * len(systems),
+                CS_names=[f"sensor cs {s[0]}" for s in systems],
+                CS_matrices=[np.vstack([s[1], np.zeros(3)]) for s in systems],
+            )
+        )
+    records.append(
+        pyuff.prepare_2411(
+            node_nums=ids,
+            def_cs=np.ones(ids.size, int),
+            disp_cs=np.array([disp[int(n)] or 1 for n in ids]),
+            color=np.full(ids.size, 8),
+            x=geometry.xyz[:, 0] / scale,
+            y=geometry.xyz[:, 1] / scale,
+            z=geometry.xyz[:, 2] / scale,
+        )
+    )
     if len(geometry.lines):
         seq: list[int] = []
         for a, b in geometry.lines.tolist():
             seq += [a, b, 0]
-        records.append(pyuff.prepare_82(trace_num=1, n_nodes=len(seq) - 1, color=30, id="trace lines",
-                                        nodes=np.array(seq[:-1], dtype=int)))
+        records.append(
+            pyuff.prepare_82(
+                trace_num=1,
+                n_nodes=len(seq) - 1,
+                color=30,
+                id="trace lines",
+                nodes=np.array(seq[:-1], dtype=int),
+            )
+        )
     if modes is not None:
         rot = bool(modes.present[:, 3:].any())
         for k in range(modes.n_modes):
@@ -327,13 +363,29 @@ def write_uff_geometry(
             sh[:, :3] /= scale
             comps = {f"r{c + 1}": sh[:, c] for c in range(6 if rot else 3)}
             zeta = float(modes.zeta[k]) if np.isfinite(modes.zeta[k]) else 0.0
-            records.append(pyuff.prepare_55(
-                id1="robustctl mode shapes", id2=modes.name or "NONE", id3="NONE", id4="NONE", id5="NONE",
-                model_type=1, analysis_type=2, data_ch=2, spec_data_type=8, data_type=2,
-                n_data_per_node=6 if rot else 3, load_case=1, mode_n=k + 1, freq=float(modes.f_hz[k]),
-                modal_m=float(modes.generalized_mass[k]) / scale**2, modal_damp_vis=zeta, modal_damp_his=0.0,
-                node_nums=modes.node_ids, **comps,
-            ))
+            records.append(
+                pyuff.prepare_55(
+                    id1="robustctl mode shapes",
+                    id2=modes.name or "NONE",
+                    id3="NONE",
+                    id4="NONE",
+                    id5="NONE",
+                    model_type=1,
+                    analysis_type=2,
+                    data_ch=2,
+                    spec_data_type=8,
+                    data_type=2,
+                    n_data_per_node=6 if rot else 3,
+                    load_case=1,
+                    mode_n=k + 1,
+                    freq=float(modes.f_hz[k]),
+                    modal_m=float(modes.generalized_mass[k]) / scale**2,
+                    modal_damp_vis=zeta,
+                    modal_damp_his=0.0,
+                    node_nums=modes.node_ids,
+                    **comps,
+                )
+            )
     if data is not None:
         from .uff import _signal_units, _uff_record, _uff_shape_id
 
@@ -345,8 +397,9 @@ def write_uff_geometry(
                     f"{{{out!r}: 'node:+Z'}}) before writing."
                 )
             for i, inp in enumerate(data.inputs):
-                rec = _uff_record(data.f_hz, data.response[:, o, i], 4, o, i, (out, inp),
-                                  (units[out], units[inp]), id3)
+                rec = _uff_record(
+                    data.f_hz, data.response[:, o, i], 4, o, i, (out, inp), (units[out], units[inp]), id3
+                )
                 rec["rsp_node"], rec["rsp_dir"] = codes[out]
                 records.append(rec)
     if path.exists():

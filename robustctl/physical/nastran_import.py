@@ -61,6 +61,7 @@ _LENGTH_NAMES = {"m-kg-s": "m", "mm-t-s": "mm", "mm-kg-s": "mm", "in-lbf-s": "in
 def _pynastran():
     """Import pyNastran (with the ``numpy.in1d`` alias numpy >= 2.4 lacks) or say how to get it."""
     if not hasattr(np, "in1d"):
+
         def in1d(ar1, ar2, assume_unique=False, invert=False, **kwargs):
             return np.isin(np.asarray(ar1).ravel(), ar2, assume_unique=assume_unique, invert=invert, **kwargs)
 
@@ -109,8 +110,9 @@ class _Quiet:
 
 
 # ---------------------------------------------------------------------------- OP2 modes
-def read_nastran_modes(op2: str | os.PathLike, *, subcase: int | None = None, units: str = "m-kg-s",
-                       name: str | None = None) -> ModeShapes:
+def read_nastran_modes(
+    op2: str | os.PathLike, *, subcase: int | None = None, units: str = "m-kg-s", name: str | None = None
+) -> ModeShapes:
     """Real eigenvectors of an OP2 file (SOL 103) as mode shapes over grid points, in SI.
 
     Parameters
@@ -149,7 +151,9 @@ def read_nastran_modes(op2: str | os.PathLike, *, subcase: int | None = None, un
     try:
         model.read_op2(str(path), build_dataframe=False)
     except Exception as exc:  # pyNastran raises many kinds on corrupt input
-        raise DataError(f"pyNastran could not read {path.name} as an OP2 file ({type(exc).__name__}: {exc}).") from None
+        raise DataError(
+            f"pyNastran could not read {path.name} as an OP2 file ({type(exc).__name__}: {exc})."
+        ) from None
     vectors = dict(model.eigenvectors)
     if not vectors:
         raise DataError(
@@ -187,8 +191,13 @@ def read_nastran_modes(op2: str | os.PathLike, *, subcase: int | None = None, un
     # SI: translations x length, generalised mass x mass (so phi / sqrt(gm) is per sqrt(kg))
     scale = np.array([length] * 3 + [1.0] * 3)
     return ModeShapes(
-        f_hz=f_hz, node_ids=grid[:, 0], shapes=data * scale, present=present,
-        generalized_mass=gm * mass, unit="m", name=name or path.stem,
+        f_hz=f_hz,
+        node_ids=grid[:, 0],
+        shapes=data * scale,
+        present=present,
+        generalized_mass=gm * mass,
+        unit="m",
+        name=name or path.stem,
     )
 
 
@@ -235,7 +244,9 @@ def fe_modal_model(
     if n_modes is not None:
         keep = keep[: int(n_modes)]
     if keep.size == 0:
-        raise DataError(f"no mode of {modes.name or 'the model'} is kept (band_hz={band_hz}, n_modes={n_modes}).")
+        raise DataError(
+            f"no mode of {modes.name or 'the model'} is kept (band_hz={band_hz}, n_modes={n_modes})."
+        )
     sel = modes.select(keep)
     in_names, in_dofs = _signals(inputs, "input")
     out_names, out_dofs = _signals(outputs, "output")
@@ -245,8 +256,16 @@ def fe_modal_model(
         damping = np.asarray(damping, dtype=float).reshape(-1)
         if damping.size == modes.n_modes and keep.size != modes.n_modes:
             damping = damping[keep]
-    return modal_model(sel.f_hz, damping, b, c, inputs=in_names, outputs=out_names, output_kind=output_kind,
-                       name=name or modes.name or "FE modal model")
+    return modal_model(
+        sel.f_hz,
+        damping,
+        b,
+        c,
+        inputs=in_names,
+        outputs=out_names,
+        output_kind=output_kind,
+        name=name or modes.name or "FE modal model",
+    )
 
 
 def _signals(spec: Any, what: str) -> tuple[list[str], list[str]]:
@@ -258,7 +277,9 @@ def _signals(spec: Any, what: str) -> tuple[list[str], list[str]]:
         try:
             names = [str(s) for s in spec]
         except TypeError:
-            raise DataError(f"{what}s must be DOF names ['1001:T3', ...] or {{name: '1001:T3'}}; got {spec!r}.") from None
+            raise DataError(
+                f"{what}s must be DOF names ['1001:T3', ...] or {{name: '1001:T3'}}; got {spec!r}."
+            ) from None
         dofs = list(names)
     if not names:
         raise DataError(f"give at least one {what}, e.g. {what}s=['1001:T3'].")
@@ -290,8 +311,17 @@ def load_nastran_modes(
     ...                               outputs=["1004:T3", "1005:T1"], damping=0.005)
     """
     modes = read_nastran_modes(op2, subcase=subcase, units=units)
-    return fe_modal_model(modes, inputs, outputs, damping=damping, output_kind=output_kind,
-                          geometry=geometry, n_modes=n_modes, band_hz=band_hz, name=name)
+    return fe_modal_model(
+        modes,
+        inputs,
+        outputs,
+        damping=damping,
+        output_kind=output_kind,
+        geometry=geometry,
+        n_modes=n_modes,
+        band_hz=band_hz,
+        name=name,
+    )
 
 
 # ---------------------------------------------------------------------------- OP4 / DMIG matrices
@@ -304,7 +334,9 @@ def _dmig_matrices(path: Path, names: Sequence[str] | None):
     except Exception as exc:
         raise DataError(f"pyNastran could not read {path.name} ({type(exc).__name__}: {exc}).") from None
     if not model.dmig:
-        raise DataError(f"{path.name} has no DMIG cards; export the matrices (e.g. EXTSEOUT or OUTPUT4) or give an OP4.")
+        raise DataError(
+            f"{path.name} has no DMIG cards; export the matrices (e.g. EXTSEOUT or OUTPUT4) or give an OP4."
+        )
     wanted = list(model.dmig) if names is None else list(names)
     keys: set[tuple[int, int]] = set()
     parts = {}
@@ -347,10 +379,13 @@ def _is_punch(path: Path) -> bool:
 def _op4_matrices(path: Path, names: Sequence[str] | None):
     _, OP4, _ = _pynastran()
     try:
-        mats = OP4(log=_Quiet()).read_op4(str(path), matrix_names=None if names is None else list(names),
-                                          precision="double")
+        mats = OP4(log=_Quiet()).read_op4(
+            str(path), matrix_names=None if names is None else list(names), precision="double"
+        )
     except Exception as exc:
-        raise DataError(f"pyNastran could not read {path.name} as an OP4 file ({type(exc).__name__}: {exc}).") from None
+        raise DataError(
+            f"pyNastran could not read {path.name} as an OP4 file ({type(exc).__name__}: {exc})."
+        ) from None
     out = {}
     for nm, m in mats.items():
         data = m.data
@@ -392,7 +427,8 @@ def _si_transform(labels: Sequence[str] | None, n: int, units: str) -> tuple[flo
         return 1.0, np.ones(n)
     if labels is None:
         raise DataError(
-            f"units={units!r} needs to know which DOFs rotate; give dof_labels ('1001:T1' ...) for the OP4 rows."
+            f"units={units!r} needs to know which DOFs rotate; give dof_labels ('1001:T1' ...) "
+            "for the OP4 rows."
         )
     t = np.array([1.0 / length if parse_dof(lb)[1][:3].any() else 1.0 for lb in labels])
     return mass * length**2, t
@@ -479,7 +515,9 @@ def load_nastran_matrices(
     n = mats[mass].shape[0]
     for nm in names:
         if mats[nm].shape != (n, n):
-            raise DataError(f"matrix {nm!r} is {mats[nm].shape[0]}x{mats[nm].shape[1]}; the mass matrix is {n}x{n}.")
+            raise DataError(
+                f"matrix {nm!r} is {mats[nm].shape[0]}x{mats[nm].shape[1]}; the mass matrix is {n}x{n}."
+            )
     labels = _nastran_labels(dof_labels, n, found)
     e, t = _si_transform(labels, n, units)
     tt = sp.diags(t)
@@ -516,8 +554,11 @@ def load_nastran_matrices(
         key = dof_label(node, int(comps[0]))
         if key not in label_list:
             have = sorted({lb for lb in label_list if lb.startswith(f"{node}:")})
-            fix = (f"grid {node} has {have}; use one of them" if have
-                   else f"grid {node} is not in the matrices; check the grid id or the exported DOF set")
+            fix = (
+                f"grid {node} has {have}; use one of them"
+                if have
+                else f"grid {node} is not in the matrices; check the grid id or the exported DOF set"
+            )
             raise DataError(f"{what} {spec!r}: the model has no DOF {key}; {fix}.")
         if vec[comps[0]] < 0:
             v = np.zeros(n)
@@ -530,12 +571,21 @@ def load_nastran_matrices(
     b = {str(k): dof(v, f"input {k!r}") for k, v in in_map.items()}
     c = {}
     for k, v in out_map.items():
-        spec, kind = (v if isinstance(v, tuple) else (v, output_kind))
+        spec, kind = v if isinstance(v, tuple) else (v, output_kind)
         c[str(k)] = (dof(spec, f"output {k!r}"), kind)
 
-    params = [Parameter(f"k_{g}", 1.0, "", bounds=(0.05, 20.0), rel_step=1e-3,
-                        meaning=f"stiffness factor of property group {g!r} (1 = as modelled)",
-                        tags=("stiffness",)) for g in groups]
+    params = [
+        Parameter(
+            f"k_{g}",
+            1.0,
+            "",
+            bounds=(0.05, 20.0),
+            rel_step=1e-3,
+            meaning=f"stiffness factor of property group {g!r} (1 = as modelled)",
+            tags=("stiffness",),
+        )
+        for g in groups
+    ]
     masses = {}
     for mname, where in (lumped_masses or {}).items():
         if labels is None:
@@ -547,8 +597,18 @@ def load_nastran_matrices(
         else:
             dofs = [dof(str(s), f"lumped mass {mname!r}") for s in where]
         masses[mname] = [label_list.index(d) for d in dofs]
-        params.append(Parameter(f"m_{mname}", 0.0, "kg", bounds=(-1e6, 1e6), abs_step=1e-3,
-                                meaning=f"lumped mass added at {', '.join(dofs)}", tags=("mass",), neutral=0.0))
+        params.append(
+            Parameter(
+                f"m_{mname}",
+                0.0,
+                "kg",
+                bounds=(-1e6, 1e6),
+                abs_step=1e-3,
+                meaning=f"lumped mass added at {', '.join(dofs)}",
+                tags=("mass",),
+                neutral=0.0,
+            )
+        )
 
     def k_of(theta):
         k = K
@@ -571,15 +631,28 @@ def load_nastran_matrices(
         return {g: float(theta.get(f"k_{g}", 1.0)) * kg for g, kg in K_groups.items()}
 
     return structural_model(
-        m_of, k_of, inputs=b, outputs=c, damping=damping, params=params, n_modes=n_modes, band_hz=band_hz,
-        dof_labels=label_list, stiffness_groups=groups_of if K_groups else None,
+        m_of,
+        k_of,
+        inputs=b,
+        outputs=c,
+        damping=damping,
+        params=params,
+        n_modes=n_modes,
+        band_hz=band_hz,
+        dof_labels=label_list,
+        stiffness_groups=groups_of if K_groups else None,
         name=name or Path(path).stem,
     )
 
 
 # ---------------------------------------------------------------------------- BDF geometry
-def load_bdf_geometry(bdf: str | os.PathLike, *, units: str = "m-kg-s", sensors: Mapping[str, Any] | None = None,
-                      name: str | None = None) -> Geometry:
+def load_bdf_geometry(
+    bdf: str | os.PathLike,
+    *,
+    units: str = "m-kg-s",
+    sensors: Mapping[str, Any] | None = None,
+    name: str | None = None,
+) -> Geometry:
     """GRID coordinates (basic system, in m) and element edges of a Nastran bulk-data file.
 
     Parameters
@@ -617,7 +690,9 @@ def load_bdf_geometry(bdf: str | os.PathLike, *, units: str = "m-kg-s", sensors:
         except Exception as exc:
             raise DataError(f"pyNastran could not read {path.name} ({type(exc).__name__}: {exc}).") from None
     if not model.nodes:
-        raise DataError(f"{path.name} has no GRID cards; give the bulk data file that defines the grid points.")
+        raise DataError(
+            f"{path.name} has no GRID cards; give the bulk data file that defines the grid points."
+        )
     ids = np.array(sorted(model.nodes), dtype=np.int64)
     xyz = []
     for nid in ids:
@@ -632,7 +707,9 @@ def load_bdf_geometry(bdf: str | os.PathLike, *, units: str = "m-kg-s", sensors:
             pos = node.get_position()
         except Exception:
             if int(getattr(node, "cp", 0) or 0) != 0:
-                raise DataError(f"grid {nid} is defined in frame CP={node.cp} that the file does not define.") from None
+                raise DataError(
+                    f"grid {nid} is defined in frame CP={node.cp} that the file does not define."
+                ) from None
             pos = node.xyz
         xyz.append(np.asarray(pos, dtype=float) * length)
     lines = set()
@@ -640,16 +717,24 @@ def load_bdf_geometry(bdf: str | os.PathLike, *, units: str = "m-kg-s", sensors:
         nids = [int(x) for x in (elem.node_ids or []) if x is not None]
         if len(nids) < 2:
             continue
-        edges = zip(nids, nids[1:] + nids[:1]) if len(nids) > 2 and elem.type.startswith(("CQUAD", "CTRIA")) else zip(nids, nids[1:])
+        edges = (
+            zip(nids, nids[1:] + nids[:1])
+            if len(nids) > 2 and elem.type.startswith(("CQUAD", "CTRIA"))
+            else zip(nids, nids[1:])
+        )
         for a, b in edges:
             if a != b:
                 lines.add((min(a, b), max(a, b)))
     ids_set = set(ids.tolist())
     lines = sorted(ln for ln in lines if ln[0] in ids_set and ln[1] in ids_set)
-    geo = Geometry(ids, np.array(xyz).reshape(-1, 3), np.array(lines, dtype=np.int64).reshape(-1, 2),
-                   unit="m", name=name or path.stem)
+    geo = Geometry(
+        ids,
+        np.array(xyz).reshape(-1, 3),
+        np.array(lines, dtype=np.int64).reshape(-1, 2),
+        unit="m",
+        name=name or path.stem,
+    )
     return geo.with_sensors(sensors) if sensors else geo
-
 
 
 # ---------------------------------------------------------------------------- writers (round trips)
@@ -687,8 +772,9 @@ def write_nastran_modes(path: str | os.PathLike, modes: ModeShapes) -> None:
     model.set_mode("msc")
     model.date = (1, 1, 2024)
     grid = np.column_stack([modes.node_ids, np.ones(modes.node_ids.size, int)])
-    vec = RealEigenvectorArray.add_modal_case("OUGV1", grid, modes.shapes.astype(np.float32), 1, numbers, eigs,
-                                              modes.f_hz, is_sort1=True)
+    vec = RealEigenvectorArray.add_modal_case(
+        "OUGV1", grid, modes.shapes.astype(np.float32), 1, numbers, eigs, modes.f_hz, is_sort1=True
+    )
     vec.table_code = 7  # an eigenvector, not a displacement
     vec.data_code["table_code"] = 7
     lama = RealEigenvalues("modes", "LAMA", n)
