@@ -59,13 +59,15 @@ from .physical import (
     modal_statespace,
     structural_model,
 )
+from .physical.fe_model import fe_modal_model, fe_structural_model
 from .physical.nastran_import import (
-    fe_modal_model,
     load_bdf_geometry,
     load_nastran_matrices,
     load_nastran_modes,
     read_nastran_matrices,
     read_nastran_modes,
+    write_nastran_matrices,
+    write_nastran_modes,
 )
 
 # robust design: weights
@@ -166,11 +168,14 @@ __all__ = [
     "load_uff_modes",
     "write_uff_geometry",
     "fe_modal_model",
+    "fe_structural_model",
     "load_bdf_geometry",
     "load_nastran_matrices",
     "load_nastran_modes",
     "read_nastran_matrices",
     "read_nastran_modes",
+    "write_nastran_matrices",
+    "write_nastran_modes",
     # named interconnection (interconnect.py, signals.py) and the generalized plant (robust/plant.py)
     "PartitionedPlant",
     "lft",
