@@ -59,6 +59,13 @@ from .physical import (
     modal_statespace,
     structural_model,
 )
+from .physical.ansys_import import (
+    load_ansys_geometry,
+    load_ansys_matrices,
+    load_ansys_modes,
+    read_ansys_matrices,
+    read_ansys_modes,
+)
 from .physical.fe_model import fe_modal_model, fe_structural_model
 from .physical.nastran_import import (
     load_bdf_geometry,
@@ -169,6 +176,11 @@ __all__ = [
     "write_uff_geometry",
     "fe_modal_model",
     "fe_structural_model",
+    "load_ansys_geometry",
+    "load_ansys_matrices",
+    "load_ansys_modes",
+    "read_ansys_matrices",
+    "read_ansys_modes",
     "load_bdf_geometry",
     "load_nastran_matrices",
     "load_nastran_modes",
