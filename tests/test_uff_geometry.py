@@ -190,3 +190,30 @@ def test_bars_for_28_sensors_do_not_overlap_and_say_what_is_left_out():
         assert all(a.x1 <= b.x0 + 0.5 for a, b in zip(boxes, boxes[1:]))  # no label overlaps the next
     every = rc.plot_mode_shapes(modes, outputs=outs, max_modes=14)
     assert len(every.axes) == 14 and every._suptitle is None
+
+
+def test_a_file_from_other_modal_software_maps_node_direction_channels(tmp_path):
+    """Dataset 15 nodes, a dataset 82 trace line and dataset 58 FRFs named only by node and
+    direction code (as test software writes them), written with pyuff directly."""
+    import pyuff
+
+    f = np.linspace(1.0, 10.0, 8)
+    recs = [
+        pyuff.prepare_15(node_nums=[1, 2, 3], def_cs=[0, 0, 0], disp_cs=[0, 0, 0], color=[1, 1, 1],
+                         x=[0.0, 1.0, 2.0], y=[0.0, 0.0, 0.0], z=[0.0, 0.0, 0.5]),
+        pyuff.prepare_82(trace_num=1, n_nodes=3, color=2, id="beam", nodes=np.array([1, 2, 3])),
+    ]
+    for node, direction in [(2, 3), (3, -1)]:
+        recs.append(pyuff.prepare_58(
+            binary=0, id1="frf", func_type=4, rsp_node=node, rsp_dir=direction, ref_node=1, ref_dir=3,
+            data=(1.0 + node) * np.exp(1j * f), x=f, abscissa_spacing=0, abscissa_spec_data_type=18,
+            ordinate_spec_data_type=12, orddenom_spec_data_type=13,
+        ))
+    path = tmp_path / "other.unv"
+    pyuff.UFF(str(path)).write_sets(recs, mode="add")
+    geo = rc.load_uff_geometry(path)
+    assert list(geo.node_ids) == [1, 2, 3] and {tuple(x) for x in geo.lines.tolist()} == {(1, 2), (2, 3)}
+    data = rc.load_frd(path)
+    rows, dirs = geo.channel_map(data.outputs)
+    assert list(geo.node_ids[rows]) == [2, 3]
+    np.testing.assert_allclose(dirs, [[0, 0, 1], [-1, 0, 0]])
