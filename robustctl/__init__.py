@@ -25,7 +25,16 @@ from .estimate import (
     simulate_experiment,
 )
 from .export import ExportReport, discretize, export_controller, load_controller
-from .figures import fit_percent, mac_matrix, plot_compare, plot_mac, plot_mode_shapes, plot_singular_values
+from .figures import (
+    ModeAnimation,
+    animate_mode_shape,
+    fit_percent,
+    mac_matrix,
+    plot_compare,
+    plot_mac,
+    plot_mode_shapes,
+    plot_singular_values,
+)
 from .frd import FrequencyData, load_frd
 
 # the user's FE model and test geometry: Nastran files, UFF geometry and mode shapes
@@ -176,6 +185,8 @@ __all__ = [
     "write_uff_geometry",
     "fe_modal_model",
     "fe_structural_model",
+    "animate_mode_shape",
+    "ModeAnimation",
     "load_ansys_geometry",
     "load_ansys_matrices",
     "load_ansys_modes",

@@ -28,6 +28,8 @@ __all__ = [
     "plot_mac",
     "plot_mode_shapes",
     "plot_singular_values",
+    "animate_mode_shape",
+    "ModeAnimation",
 ]
 
 
@@ -517,6 +519,158 @@ def _plot_shapes_3d(model, geometry, band, max_modes, pair_with, labels, scale):
         ax.set_zlabel(f"z ({unit})", fontsize=7, labelpad=-4)
     _say_left_out(fig, total, shown, max_modes)
     return fig
+
+
+class ModeAnimation:
+    """Frames of one mode shape swinging through a cycle, shown as an animated GIF in Jupyter.
+
+    Attributes
+    ----------
+    frames : list of ndarray (height, width, 3), uint8
+    f_hz : float
+        Frequency of the mode, Hz.
+    backend : str
+        ``"pyvista"`` or ``"matplotlib"`` (what drew the frames).
+    """
+
+    def __init__(self, frames: list, f_hz: float, backend: str, duration_ms: int) -> None:
+        self.frames, self.f_hz, self.backend = frames, float(f_hz), backend
+        self.duration_ms = int(duration_ms)
+
+    def __repr__(self) -> str:
+        return f"ModeAnimation({self.f_hz:.4g} Hz, {len(self.frames)} frames, {self.backend})"
+
+    def gif(self) -> bytes:
+        """The animation as GIF bytes (Pillow)."""
+        import io
+
+        from PIL import Image
+
+        images = [Image.fromarray(np.asarray(f, dtype=np.uint8)) for f in self.frames]
+        buf = io.BytesIO()
+        images[0].save(buf, format="GIF", save_all=True, append_images=images[1:], duration=self.duration_ms,
+                       loop=0)
+        return buf.getvalue()
+
+    def save(self, path) -> None:
+        """Write the animation as a GIF file."""
+        from pathlib import Path
+
+        Path(path).write_bytes(self.gif())
+
+    def _repr_html_(self) -> str:
+        import base64
+
+        data = base64.b64encode(self.gif()).decode("ascii")
+        return f'<img src="data:image/gif;base64,{data}" alt="mode at {self.f_hz:.4g} Hz"/>'
+
+
+def animate_mode_shape(
+    model: Any,
+    geometry: Any,
+    mode: int = 1,
+    *,
+    band: Sequence[float] | None = None,
+    frames: int = 16,
+    scale: float = 0.15,
+    size: tuple[int, int] = (360, 300),
+    backend: str = "auto",
+) -> ModeAnimation:
+    """One mode swinging on the structure: ``x(t) = x0 + a phi cos(2 pi t / T)`` over one cycle.
+
+    Parameters
+    ----------
+    model, geometry, band, scale :
+        As for :func:`plot_mode_shapes`.
+    mode : int
+        Which mode, 1-based in ascending frequency.
+    frames : int
+        Frames per cycle.
+    size : (int, int)
+        Width and height in pixels.
+    backend : {"auto", "pyvista", "matplotlib"}
+        pyvista (off-screen VTK rendering, the ``ansys`` extra installs it) when available, else
+        matplotlib's 3-D axes.
+
+    Returns
+    -------
+    ModeAnimation
+        ``.save("mode.gif")``; displays as an animated GIF in Jupyter.
+    """
+    import importlib.util
+
+    shapes = _node_shapes(model, geometry, band)
+    n = shapes.f_hz.size
+    if not isinstance(mode, (int, np.integer)) or not 1 <= mode <= n:
+        raise DataError(f"mode must be an integer from 1 to {n} (the modes in band={band}); got {mode!r}.")
+    if not isinstance(frames, (int, np.integer)) or frames < 2:
+        raise DataError(f"frames must be an integer >= 2; got {frames!r}.")
+    if backend not in ("auto", "pyvista", "matplotlib"):
+        raise DataError(f"backend must be 'auto', 'pyvista' or 'matplotlib'; got {backend!r}.")
+    if backend == "auto":
+        backend = "pyvista" if importlib.util.find_spec("pyvista") else "matplotlib"
+    d = shapes.disp[mode - 1]
+    peak = float(np.max(np.linalg.norm(d, axis=1)))
+    extent = float(np.max(np.ptp(geometry.xyz, axis=0))) if geometry.n_nodes > 1 else 1.0
+    amp = scale * (extent or 1.0) / peak if peak > 0 else 0.0
+    phases = np.cos(2 * np.pi * np.arange(frames) / frames)
+    draw = _frames_pyvista if backend == "pyvista" else _frames_matplotlib
+    images = draw(geometry, [geometry.xyz + amp * c * d for c in phases], size,
+                  f"mode {mode}: {shapes.f_hz[mode - 1]:.4g} Hz")
+    return ModeAnimation(images, shapes.f_hz[mode - 1], backend, duration_ms=max(20, 1000 // frames))
+
+
+def _frames_pyvista(geometry, positions, size, title):
+    try:
+        import pyvista as pv
+    except ImportError:
+        raise DataError(
+            "backend='pyvista' needs pyvista; pip install pyvista or use backend='matplotlib'."
+        ) from None
+    idx = {int(n): k for k, n in enumerate(geometry.node_ids)}
+    cells = np.array([[2, idx[a], idx[b]] for a, b in geometry.lines.tolist()], dtype=np.int64).ravel()
+    out = []
+    plotter = pv.Plotter(off_screen=True, window_size=size)
+    try:
+        plotter.set_background("white")
+        def poly(xyz):
+            return pv.PolyData(xyz.copy(), lines=cells) if cells.size else pv.PolyData(xyz.copy())
+
+        base = poly(geometry.xyz)
+        plotter.add_mesh(base, color="gray", line_width=1, opacity=0.5)
+        moving = poly(positions[0])
+        plotter.add_mesh(moving, color="tab:blue", line_width=3, render_points_as_spheres=True, point_size=4)
+        plotter.add_text(title, font_size=9, color="black")
+        plotter.view_isometric()
+        plotter.reset_camera(bounds=np.ravel([np.min(positions, axis=(0, 1)), np.max(positions, axis=(0, 1))],
+                                             order="F"))
+        for xyz in positions:
+            moving.points = xyz
+            plotter.render()
+            out.append(np.asarray(plotter.screenshot(return_img=True))[..., :3])
+    finally:
+        plotter.close()
+    return out
+
+
+def _frames_matplotlib(geometry, positions, size, title):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    fig = new_figure(size[0] / 100, size[1] / 100)
+    canvas = FigureCanvasAgg(fig)
+    ax = fig.add_subplot(projection="3d")
+    lo, hi = np.min(positions, axis=(0, 1)), np.max(positions, axis=(0, 1))
+    out = []
+    for xyz in positions:
+        ax.clear()
+        _wireframe(ax, geometry, geometry.xyz, color="0.5", lw=0.8, ls="--", gid="undeformed")
+        _wireframe(ax, geometry, xyz, color="C0", lw=1.4, ls="-", gid="deformed")
+        _equal_box(ax, np.vstack([lo, hi]))
+        ax.set_title(title, fontsize=8)
+        ax.set_axis_off()
+        canvas.draw()
+        out.append(np.asarray(canvas.buffer_rgba())[..., :3].copy())
+    return out
 
 
 def _shape_title(shapes: _NodeShapes, k: int, label: str) -> str:

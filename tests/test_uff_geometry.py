@@ -199,16 +199,35 @@ def test_a_file_from_other_modal_software_maps_node_direction_channels(tmp_path)
 
     f = np.linspace(1.0, 10.0, 8)
     recs = [
-        pyuff.prepare_15(node_nums=[1, 2, 3], def_cs=[0, 0, 0], disp_cs=[0, 0, 0], color=[1, 1, 1],
-                         x=[0.0, 1.0, 2.0], y=[0.0, 0.0, 0.0], z=[0.0, 0.0, 0.5]),
+        pyuff.prepare_15(
+            node_nums=[1, 2, 3],
+            def_cs=[0, 0, 0],
+            disp_cs=[0, 0, 0],
+            color=[1, 1, 1],
+            x=[0.0, 1.0, 2.0],
+            y=[0.0, 0.0, 0.0],
+            z=[0.0, 0.0, 0.5],
+        ),
         pyuff.prepare_82(trace_num=1, n_nodes=3, color=2, id="beam", nodes=np.array([1, 2, 3])),
     ]
     for node, direction in [(2, 3), (3, -1)]:
-        recs.append(pyuff.prepare_58(
-            binary=0, id1="frf", func_type=4, rsp_node=node, rsp_dir=direction, ref_node=1, ref_dir=3,
-            data=(1.0 + node) * np.exp(1j * f), x=f, abscissa_spacing=0, abscissa_spec_data_type=18,
-            ordinate_spec_data_type=12, orddenom_spec_data_type=13,
-        ))
+        recs.append(
+            pyuff.prepare_58(
+                binary=0,
+                id1="frf",
+                func_type=4,
+                rsp_node=node,
+                rsp_dir=direction,
+                ref_node=1,
+                ref_dir=3,
+                data=(1.0 + node) * np.exp(1j * f),
+                x=f,
+                abscissa_spacing=0,
+                abscissa_spec_data_type=18,
+                ordinate_spec_data_type=12,
+                orddenom_spec_data_type=13,
+            )
+        )
     path = tmp_path / "other.unv"
     pyuff.UFF(str(path)).write_sets(recs, mode="add")
     geo = rc.load_uff_geometry(path)
@@ -217,3 +236,23 @@ def test_a_file_from_other_modal_software_maps_node_direction_channels(tmp_path)
     rows, dirs = geo.channel_map(data.outputs)
     assert list(geo.node_ids[rows]) == [2, 3]
     np.testing.assert_allclose(dirs, [[0, 0, 1], [-1, 0, 0]])
+
+
+@pytest.mark.parametrize("backend", ["matplotlib", "pyvista"])
+def test_animated_mode_swings_through_one_cycle(backend, tmp_path):
+    if backend == "pyvista":
+        pytest.importorskip("pyvista")
+    geo = caltech_geometry()
+    anim = rc.animate_mode_shape(truss_modes(geo), geo, mode=2, frames=8, size=(200, 160), backend=backend)
+    assert (
+        len(anim.frames) == 8 and anim.frames[0].shape == (160, 200, 3) and anim.f_hz == pytest.approx(1.19)
+    )
+    frames = np.asarray(anim.frames, dtype=float)
+    # the quarter-cycle frames (cos = 0) show the undeformed structure: identical pictures
+    assert np.array_equal(frames[2], frames[6])
+    assert np.abs(frames[0] - frames[4]).mean() > 0.05  # the two extremes differ
+    anim.save(tmp_path / "mode.gif")
+    assert (tmp_path / "mode.gif").read_bytes()[:6] == b"GIF89a"
+    assert anim._repr_html_().startswith('<img src="data:image/gif;base64,')
+    with pytest.raises(DataError, match="mode must be an integer from 1 to 4"):
+        rc.animate_mode_shape(truss_modes(geo), geo, mode=5)
