@@ -7,7 +7,7 @@ import pytest
 
 import robustctl as rc
 from robustctl.errors import DataError
-from robustctl.examples.caltech_truss import (
+from robustctl.examples.caltech_truss_model import (
     CORNER_DEG,
     H_STORY_1,
     H_STORY_2,
