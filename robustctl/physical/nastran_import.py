@@ -240,12 +240,7 @@ def load_nastran_modes(
 # ---------------------------------------------------------------------------- OP4 / DMIG matrices
 def _dmig_matrices(path: Path, names: Sequence[str] | None):
     """DMIG cards of a BDF/punch file as CSR matrices over one common (grid, component) order."""
-    _, _, BDF = _pynastran()
-    model = BDF(log=_Quiet(), debug=None)
-    try:
-        model.read_bdf(str(path), xref=False, validate=False, punch=_is_punch(path))
-    except Exception as exc:
-        raise DataError(f"pyNastran could not read {path.name} ({type(exc).__name__}: {exc}).") from None
+    model = _bdf(path, xref=False)
     if not model.dmig:
         raise DataError(
             f"{path.name} has no DMIG cards; export the matrices (e.g. EXTSEOUT or OUTPUT4) or give an OP4."
@@ -282,11 +277,25 @@ def _dmig_matrices(path: Path, names: Sequence[str] | None):
     return out, labels
 
 
-def _is_punch(path: Path) -> bool:
-    """A punch file (or a bulk-data-only file) has no executive/case control deck."""
+def _bdf(path: Path, xref: bool):
+    """A pyNastran BDF of a full deck, or of bulk data alone (punch files, ``BEGIN BULK`` without
+    executive and case control: read as a punch deck without that line)."""
+    import io
+
+    _, _, BDF = _pynastran()
     with open(path, errors="replace") as fh:
-        head = fh.read(20000).upper()
-    return "BEGIN BULK" not in head
+        text = fh.read()
+    source: Any = str(path)
+    punch = "CEND" not in text.upper()
+    if punch:
+        lines = [ln for ln in text.splitlines(keepends=True) if ln.strip().upper() != "BEGIN BULK"]
+        source = io.StringIO("".join(lines))
+    model = BDF(log=_Quiet(), debug=None)
+    try:
+        model.read_bdf(source, xref=xref, validate=False, punch=punch)
+    except Exception as exc:  # pyNastran raises many kinds on foreign decks
+        raise DataError(f"pyNastran could not read {path.name} ({type(exc).__name__}: {exc}).") from None
+    return model
 
 
 def _op4_matrices(path: Path, names: Sequence[str] | None):
@@ -494,18 +503,12 @@ def load_bdf_geometry(
         Missing file, no GRID cards, a grid whose displacement frame (CD) is not basic (its
         mode-shape components would be read in the wrong axes).
     """
-    _, _, BDF = _pynastran()
     path = _existing(bdf, "the BDF file")
     length, _ = _units(units)
-    model = BDF(log=_Quiet(), debug=None)
     try:
-        model.read_bdf(str(path), xref=True, validate=False, punch=_is_punch(path))
-    except Exception:
-        model = BDF(log=_Quiet(), debug=None)
-        try:
-            model.read_bdf(str(path), xref=False, validate=False, punch=_is_punch(path))
-        except Exception as exc:
-            raise DataError(f"pyNastran could not read {path.name} ({type(exc).__name__}: {exc}).") from None
+        model = _bdf(path, xref=True)
+    except DataError:  # cards that do not cross-reference (a missing property): geometry only
+        model = _bdf(path, xref=False)
     if not model.nodes:
         raise DataError(
             f"{path.name} has no GRID cards; give the bulk data file that defines the grid points."
