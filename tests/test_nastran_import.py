@@ -324,3 +324,28 @@ def test_dmig_matrices_in_a_bdf_carry_their_dof_names(tmp_path):
     assert geo.sensor("S1")[0] == 2003 and np.allclose(geo.sensor("S1")[1], [0, 1, 0])
     mm = rc.load_bdf_geometry(path, units="mm-t-s")
     np.testing.assert_allclose(mm.xyz, 1e-3 * geo.xyz)
+
+
+def test_op2_from_pynastrans_own_writer_without_lama_is_taken_as_mass_normalised(tmp_path):
+    from pyNastran.op2.tables.oug.oug_eigenvectors import RealEigenvectorArray
+
+    fr = portal_frame()
+    f, phi = fr.modes()
+    labels = nastran_labels(fr.matrices().dof_labels)
+    nodes = sorted(TOP)
+    data = np.zeros((f.size, len(nodes), 6), np.float32)
+    for row, lb in enumerate(labels):
+        grid, comp = lb.split(":")
+        data[:, nodes.index(int(grid)), ["T1", "T2", "T3", "R1", "R2", "R3"].index(comp)] = phi[row]
+    op2 = OP2(debug=None)
+    op2.set_mode("msc")
+    grid = np.column_stack([nodes, np.ones(len(nodes), int)])
+    eigs = (2 * np.pi * f) ** 2
+    op2.eigenvectors[1] = RealEigenvectorArray.add_modal_case(
+        "OUGV1", grid, data, 1, np.arange(1, f.size + 1), eigs, f, is_sort1=True
+    )
+    op2.write_op2(str(tmp_path / "plain.op2"), post=-1, endian=b"<")
+    modes = rc.read_nastran_modes(tmp_path / "plain.op2")
+    np.testing.assert_array_equal(modes.generalized_mass, 1.0)
+    np.testing.assert_allclose(modes.f_hz, f, rtol=1e-7)  # eigenvalues stored in single precision
+    np.testing.assert_array_equal(modes.shapes, data.astype(float))

@@ -153,6 +153,8 @@ def read_nastran_modes(
             f"pyNastran could not read {path.name} as an OP2 file ({type(exc).__name__}: {exc})."
         ) from None
     vectors = dict(model.eigenvectors)
+    if not vectors:  # modal displacements (pyNastran's own OP2 writer stores eigenvectors so)
+        vectors = {k: v for k, v in model.displacements.items() if getattr(v, "analysis_code", 0) == 2}
     if not vectors:
         raise DataError(
             f"{path.name} has no real eigenvector table; write the modal solution (SOL 103) with "
@@ -167,6 +169,11 @@ def read_nastran_modes(
     else:
         raise DataError(f"{path.name} has no subcase {subcase}; it holds {sorted(vectors)}.")
     vec = vectors[key]
+    if np.iscomplexobj(vec.data):
+        raise DataError(
+            f"{path.name} holds complex eigenvectors (SOL 107/110); export the real modes of SOL 103 and "
+            "give the damping with damping=."
+        )
     data = np.asarray(vec.data, dtype=float)  # (n_modes, n_nodes, 6)
     grid = np.asarray(vec.node_gridtype)
     eig = np.asarray(getattr(vec, "eigns", [np.nan] * data.shape[0]), dtype=float)
