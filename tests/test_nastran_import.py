@@ -349,3 +349,48 @@ def test_op2_from_pynastrans_own_writer_without_lama_is_taken_as_mass_normalised
     np.testing.assert_array_equal(modes.generalized_mass, 1.0)
     np.testing.assert_allclose(modes.f_hz, f, rtol=1e-7)  # eigenvalues stored in single precision
     np.testing.assert_array_equal(modes.shapes, data.astype(float))
+
+
+def test_a_model_built_in_millimetres_and_tonnes_imports_in_si(tmp_path):
+    """The same frame assembled in mm-t-s (N/mm^2, t/mm^3, mm^4) and read with units="mm-t-s"."""
+    mm = dict(E=7.0e4, G=2.6e4, rho=2.7e-9, A=200.0, Iy=3.0e3, Iz=5.0e3, J=6.0e3)
+    fr = rc.Frame()
+    for nid, xyz in {**BASE, **TOP}.items():
+        fr.add_node(str(nid), tuple(1e3 * np.asarray(xyz, float)))
+    for b, t in zip(BASE, TOP):
+        fr.add_beam("columns", str(b), str(t), **mm)
+        fr.fix(str(b))
+    tops = list(TOP)
+    for a, b in zip(tops, tops[1:] + tops[:1]):
+        fr.add_beam("beams", str(a), str(b), **mm)
+    fr.add_mass("2003", 0.8e-3)
+    m = fr.matrices(sparse=False)
+    labels = nastran_labels(m.dof_labels)
+    write_op4(tmp_path / "mm.op4", {"MAA": np.asarray(m.mass), "KAA": np.asarray(m.stiffness)})
+    model = rc.load_nastran_matrices(
+        tmp_path / "mm.op4",
+        inputs=["2001:T1"],
+        outputs=["2003:T2", "2002:R1"],
+        dof_labels=labels,
+        units="mm-t-s",
+        output_kind="displacement",
+    )
+    M, K, _ = frame_matrices()
+    ref = rc.structural_model(
+        M,
+        K,
+        inputs={"2001:T1": "2001:T1"},
+        dof_labels=labels,
+        outputs={"2003:T2": ("2003:T2", "displacement"), "2002:R1": ("2002:R1", "displacement")},
+    )
+    f_hz = np.geomspace(2.0, 300.0, 200)
+    got, want = model.freqresp(f_hz).response, ref.freqresp(f_hz).response
+    assert np.max(np.abs(got - want) / np.max(np.abs(want), axis=0)) < 1e-8  # m/N and rad/N
+
+
+def test_bdf_grid_with_a_local_displacement_frame_is_refused_with_the_fix(tmp_path):
+    (tmp_path / "cd.bdf").write_text(
+        "BEGIN BULK\nGRID,1,,0.,0.,0.,5\nGRID,2,,1.,0.,0.\nCORD2R,5,,0.,0.,0.,0.,0.,1.\n,1.,0.,0.\nENDDATA\n"
+    )
+    with pytest.raises(DataError, match=r"grid 1 uses displacement frame CD=5.*OUGCORD"):
+        rc.load_bdf_geometry(tmp_path / "cd.bdf")

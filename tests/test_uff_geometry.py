@@ -256,3 +256,36 @@ def test_animated_mode_swings_through_one_cycle(backend, tmp_path):
     assert anim._repr_html_().startswith('<img src="data:image/gif;base64,')
     with pytest.raises(DataError, match="mode must be an integer from 1 to 4"):
         rc.animate_mode_shape(truss_modes(geo), geo, mode=5)
+
+
+def test_uff_mode_shapes_make_a_modal_model_at_the_test_channels(tmp_path):
+    geo = caltech_geometry()
+    modes = truss_modes(geo)
+    path = tmp_path / "shapes.uff"
+    rc.write_uff_geometry(path, geo, modes=modes)
+    back, shapes = rc.load_uff_geometry(path), rc.load_uff_modes(path)
+    placed = back.with_sensors(geo.sensors)  # sensors travel in dataset 58 records; none here
+    model = rc.fe_modal_model(
+        shapes,
+        inputs=["21:T3"],
+        outputs=["S1", "S3"],
+        geometry=placed,
+        damping="file",
+        output_kind="displacement",
+    )
+    k21, k31, k33 = (list(geo.node_ids).index(n) for n in (21, 31, 33))
+    phi = modes.shapes / np.sqrt(modes.generalized_mass)[:, None, None]
+    b = phi[:, k21, 2][None, :]
+    c = np.vstack(
+        [phi[:, k31, 0], (phi[:, k33, 0] + phi[:, k33, 1]) / np.sqrt(2)]
+    )  # S1 along x, S3 at 45 deg
+    ref = rc.modal_model(
+        modes.f_hz, modes.zeta, b, c, inputs=["21:T3"], outputs=["S1", "S3"], output_kind="displacement"
+    )
+    f = np.linspace(0.5, 4.0, 50)
+    got, want = model.freqresp(f).response, ref.freqresp(f).response
+    assert np.max(np.abs(got - want)) < 1e-4 * np.max(np.abs(want))  # UFF's 13-character numbers
+    with pytest.raises(DataError, match="damping="):
+        rc.fe_modal_model(
+            rc.ModeShapes([1.0], [21], np.ones((1, 1, 6))), ["21:T3"], ["21:T3"], damping="file"
+        )

@@ -47,8 +47,9 @@ def fe_modal_model(
     inputs, outputs : sequence of DOF names or mapping signal name -> DOF name
         ``["1001:T3", "1002:T1"]`` (signals named by grid point and direction), or
         ``{"A1": "1001:T3"}``; channel names placed by ``geometry.sensors`` are also accepted.
-    damping : float or array
-        Modal damping ratio (one, or one per kept mode).
+    damping : float, array or "file"
+        Modal damping ratio (one, or one per kept mode); ``"file"`` takes each mode's ratio from
+        ``modes.zeta`` (UFF dataset 55 carries it).
     output_kind : str or sequence of str
         ``"displacement"`` (m), ``"velocity"`` or ``"acceleration"`` (m/s^2).
     geometry : Geometry, optional
@@ -77,7 +78,16 @@ def fe_modal_model(
     out_names, out_dofs = _signals(outputs, "output")
     b = sel.at(in_dofs, geometry=geometry, what="input")
     c = sel.at(out_dofs, geometry=geometry, what="output")
-    if np.ndim(damping) > 0:
+    if isinstance(damping, str):
+        if damping != "file":
+            raise DataError(f"damping must be a ratio, one ratio per mode, or 'file'; got {damping!r}.")
+        if not np.all(np.isfinite(sel.zeta)):
+            raise DataError(
+                f"{modes.name or 'the mode shapes'} carry no damping ratio for some modes; give damping= "
+                "(0.01 is 1 %)."
+            )
+        damping = sel.zeta
+    elif np.ndim(damping) > 0:
         damping = np.asarray(damping, dtype=float).reshape(-1)
         if damping.size == modes.n_modes and keep.size != modes.n_modes:
             damping = damping[keep]
