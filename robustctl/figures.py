@@ -351,6 +351,15 @@ def plot_mode_shapes(
     Returns
     -------
     matplotlib.figure.Figure
+
+    See Also
+    --------
+    animate_mode_shape, plot_mac, robustctl.load_uff_geometry, robustctl.load_bdf_geometry
+
+    References
+    ----------
+    Allemang, R. J. & Brown, D. L. (1982), "A correlation coefficient for modal vector
+    analysis", Proc. 1st IMAC (the MAC pairing test and FE shapes).
     """
     if geometry is not None:
         return _plot_shapes_3d(model, geometry, band, max_modes, pair_with, labels, scale)

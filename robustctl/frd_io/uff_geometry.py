@@ -136,6 +136,14 @@ def load_uff_geometry(path: str | os.PathLike, *, unit: str = "m", name: str | N
     DataError
         No node dataset, lines or records at undefined nodes, a displacement system that is
         not defined or not Cartesian.
+
+    See Also
+    --------
+    load_uff_modes, write_uff_geometry, robustctl.load_frd
+
+    References
+    ----------
+    SDRC I-DEAS Universal File Format, datasets 15, 82, 2411, 2412, 2420 and 58.
     """
     from .uff import _uff_names
 

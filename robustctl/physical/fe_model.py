@@ -61,6 +61,16 @@ def fe_modal_model(
     Returns
     -------
     PhysicalModel
+
+    See Also
+    --------
+    robustctl.modal_model, robustctl.load_nastran_modes, robustctl.load_ansys_modes,
+    robustctl.load_uff_modes
+
+    References
+    ----------
+    Glaese & Miller (MACE 0-g models), eqs. 2-4: ``B = Phi^T b`` and ``C = c Phi`` from
+    mass-normalised shapes ``phi / sqrt(m_gen)``.
     """
     keep = np.arange(modes.n_modes)
     if band_hz is not None:
@@ -158,6 +168,14 @@ def fe_structural_model(
     Returns
     -------
     PhysicalModel
+
+    See Also
+    --------
+    robustctl.structural_model, robustctl.load_nastran_matrices, robustctl.load_ansys_matrices
+
+    References
+    ----------
+    Glaese & Miller (MACE 0-g models), eq. 1 with ``K(theta) = K + sum_g (k_g - 1) K_g``.
     """
     M, K = mass, stiffness
     K_groups = dict(groups or {})

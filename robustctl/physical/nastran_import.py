@@ -141,6 +141,16 @@ def read_nastran_modes(
     DataError
         Missing file, no eigenvector table, several subcases without ``subcase=``, an
         eigenvector/eigenvalue count mismatch, unknown ``units``.
+
+    See Also
+    --------
+    load_nastran_modes, robustctl.physical.fe_model.fe_modal_model
+
+    References
+    ----------
+    MSC Nastran DMAP Programmer's Guide, OUGV1 and LAMA data blocks (OP2 output, PARAM,POST,-1).
+    Glaese, R. M. & Miller, D. W., "Derivation of 0-g structural control models from analysis
+    and 1-g experimentation", the modal model of eqs. 2-4 built from these shapes.
     """
     OP2, _, _ = _pynastran()
     path = _existing(op2, "the OP2 file")
@@ -434,6 +444,16 @@ def load_nastran_matrices(
     DataError
         Missing matrix or file, size mismatch, a group larger than the model, a DOF the
         matrices do not have (named, with the fix).
+
+    See Also
+    --------
+    read_nastran_matrices, robustctl.physical.fe_model.fe_structural_model, robustctl.update
+
+    References
+    ----------
+    MSC Nastran DMAP Programmer's Guide, OUTPUT4 (OP4) format and the DMIG bulk data entry.
+    Glaese & Miller (MACE 0-g models), eq. 1 (second-order model) and eq. 7 (finite-difference
+    sensitivities of the superparameters that ``rc.update`` uses).
     """
     groups = dict(groups or {})
     names = [mass] + ([stiffness] if stiffness else []) + list(groups.values())
