@@ -412,9 +412,9 @@ class _NodeShapes:
     """Mode frequencies, damping and real node displacements (n_modes, n_nodes, 3) over a geometry,
     plus the shapes at the sensor channels (for the MAC)."""
 
-    def __init__(self, f_hz, zeta, disp, at_sensors, channels):
+    def __init__(self, f_hz, zeta, disp, at_sensors, channels, full_field=False):
         self.f_hz, self.zeta, self.disp = np.asarray(f_hz), np.asarray(zeta), disp
-        self.at_sensors, self.channels = at_sensors, channels
+        self.at_sensors, self.channels, self.full_field = at_sensors, channels, full_field
 
 
 def _node_shapes(source: Any, geometry: Any, band) -> _NodeShapes:
@@ -439,7 +439,7 @@ def _node_shapes(source: Any, geometry: Any, band) -> _NodeShapes:
                 disp[:, j] = np.real([_real_rotate(source.shapes[k]) for k in keep])[:, r, :3]
         sel = source.select(keep)
         sens = sel.at(channels, geometry=geometry, mass_normalized=False) if channels else None
-        return _NodeShapes(source.f_hz[keep], source.zeta[keep], disp, sens, channels)
+        return _NodeShapes(source.f_hz[keep], source.zeta[keep], disp, sens, channels, full_field=True)
     modes, names = _modes_and_sensors(source, band)
     modes = sorted(modes, key=lambda m: m.f_hz)
     if not modes:
@@ -464,17 +464,24 @@ def _real_rotate(shape: np.ndarray) -> np.ndarray:
 
 
 def _pairs(first: _NodeShapes, second: _NodeShapes) -> tuple[list[int], list[float]]:
-    """Index of the mode of ``second`` with the largest MAC against each mode of ``first``."""
+    """Index of the mode of ``second`` with the largest MAC against each mode of ``first``: over
+    the sensor channels both have, else (two node-shape sets, no sensors) over every node's
+    translation."""
     from .modes import mac
 
     common = [c for c in first.channels if c in second.channels]
-    if not common:
+    if common and first.at_sensors is not None and second.at_sensors is not None:
+        a = first.at_sensors[[first.channels.index(c) for c in common]]
+        b = second.at_sensors[[second.channels.index(c) for c in common]]
+    elif first.full_field and second.full_field:
+        a = first.disp.reshape(first.disp.shape[0], -1).T
+        b = second.disp.reshape(second.disp.shape[0], -1).T
+    else:
         raise DataError(
             f"the two mode sets share no sensor channel (first {first.channels[:4]}, second "
-            f"{second.channels[:4]}); pairing by MAC needs shapes at the same sensors."
+            f"{second.channels[:4]}); pairing by MAC needs shapes at the same sensors: place them "
+            "with geometry.with_sensors({...})."
         )
-    a = first.at_sensors[[first.channels.index(c) for c in common]]
-    b = second.at_sensors[[second.channels.index(c) for c in common]]
     best, values = [], []
     for k in range(a.shape[1]):
         m = [mac(a[:, k], b[:, j]) for j in range(b.shape[1])]

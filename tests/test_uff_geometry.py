@@ -289,3 +289,25 @@ def test_uff_mode_shapes_make_a_modal_model_at_the_test_channels(tmp_path):
         rc.fe_modal_model(
             rc.ModeShapes([1.0], [21], np.ones((1, 1, 6))), ["21:T3"], ["21:T3"], damping="file"
         )
+
+
+def test_two_fe_mode_sets_pair_over_every_node_without_sensors():
+    geo = caltech_geometry()
+    bare = rc.Geometry(geo.node_ids, geo.xyz, geo.lines)  # no sensors
+    fe = truss_modes(geo)
+    swapped = rc.ModeShapes(fe.f_hz, fe.node_ids, fe.shapes[[1, 0, 3, 2]])  # shapes 1-2 and 3-4 swapped
+    fig = rc.plot_mode_shapes(fe, bare, pair_with=swapped, labels=("A", "B"))
+    titles = [ax.get_title() for ax in fig.axes]
+    assert titles[1].startswith("B mode 2:") and titles[3].startswith("B mode 1:")
+    assert all("MAC 1.00" in t for t in titles[1::2])
+
+
+def test_bad_geometry_is_refused_with_the_reason():
+    with pytest.raises(DataError, match="node 1 is defined twice"):
+        rc.Geometry([1, 1], [(0, 0, 0), (1, 0, 0)])
+    with pytest.raises(DataError, match=r"trace lines use node\(s\) \[7\]"):
+        rc.Geometry([1, 2], [(0, 0, 0), (1, 0, 0)], [(1, 7)])
+    with pytest.raises(DataError, match="sensor 'S1': direction 'RX' is a rotation"):
+        rc.Geometry([1], [(0, 0, 0)], sensors={"S1": (1, "RX")})
+    with pytest.raises(DataError, match="'12-Z' is not a DOF name"):
+        rc.Geometry([1], [(0, 0, 0)]).with_sensors({"S1": "12-Z"})

@@ -246,6 +246,7 @@ def fe_structural_model(
             if not dofs:
                 raise DataError(f"lumped mass {mname!r}: grid {where} has no translation in the matrices.")
         else:
+            where = [where] if isinstance(where, str) else where
             dofs = [dof(str(s), f"lumped mass {mname!r}") for s in where]
         masses[mname] = [label_list.index(d) for d in dofs]
         params.append(
