@@ -311,3 +311,41 @@ def test_bad_geometry_is_refused_with_the_reason():
         rc.Geometry([1], [(0, 0, 0)], sensors={"S1": (1, "RX")})
     with pytest.raises(DataError, match="'12-Z' is not a DOF name"):
         rc.Geometry([1], [(0, 0, 0)]).with_sensors({"S1": "12-Z"})
+
+
+def test_dataset_2412_elements_become_their_edges(tmp_path):
+    import pyuff
+
+    def element(num, descriptor, nodes, **rod):
+        return dict(
+            element_nums=num,
+            fe_descriptor=descriptor,
+            phys_table=1,
+            mat_table=1,
+            color=2,
+            num_nodes=len(nodes),
+            nodes_nums=nodes,
+            **rod,
+        )
+
+    recs = [
+        pyuff.prepare_2411(
+            node_nums=np.array([1, 2, 3, 4, 5]),
+            def_cs=np.ones(5, int),
+            disp_cs=np.ones(5, int),
+            color=np.ones(5, int),
+            x=np.array([0, 1, 1, 0, 2.0]),
+            y=np.array([0, 0, 1, 1, 0.0]),
+            z=np.zeros(5),
+        ),
+        {
+            "type": 2412,
+            94: [element(1, 94, [1, 2, 3, 4])],
+            11: [element(2, 11, [2, 5], beam_orientation=0, beam_foreend_cross=1, beam_aftend_cross=1)],
+        },
+    ]
+    path = tmp_path / "elements.unv"
+    pyuff.UFF(str(path)).write_sets(recs, mode="add")
+    geo = rc.load_uff_geometry(path, unit="mm")
+    assert {tuple(x) for x in geo.lines.tolist()} == {(1, 2), (2, 3), (3, 4), (1, 4), (2, 5)}
+    np.testing.assert_allclose(geo.xyz[-1], [2e-3, 0, 0])

@@ -95,13 +95,14 @@ def _lines(sets: list[dict]) -> list[tuple[int, int]]:
             for a, b in zip(nodes, nodes[1:]):
                 if a and b and a != b:
                     lines.add((min(a, b), max(a, b)))
-        elif t == 2412:
-            for val in s.values():
-                if isinstance(val, dict) and "nodes_nums" in val:
-                    for conn in val["nodes_nums"]:
-                        c = [int(n) for n in np.asarray(conn).ravel()]
-                        pairs = zip(c, c[1:] + c[:1]) if len(c) > 2 else zip(c, c[1:])
-                        lines.update((min(a, b), max(a, b)) for a, b in pairs if a != b)
+        elif t == 2412:  # pyuff: descriptor -> list of elements (plus legacy duplicates by name)
+            for key, val in s.items():
+                if not isinstance(key, (int, np.integer)) or not isinstance(val, list):
+                    continue
+                for elem in val:
+                    c = [int(n) for n in np.asarray(elem["nodes_nums"]).ravel()]
+                    pairs = zip(c, c[1:] + c[:1]) if len(c) > 2 else zip(c, c[1:])
+                    lines.update((min(a, b), max(a, b)) for a, b in pairs if a != b)
     return sorted(lines)
 
 
