@@ -363,6 +363,13 @@ def plot_mode_shapes(
     """
     if geometry is not None:
         return _plot_shapes_3d(model, geometry, band, max_modes, pair_with, labels, scale)
+    from .frd_io.geometry import ModeShapes
+
+    if isinstance(model, ModeShapes):
+        raise DataError(
+            "mode shapes over nodes are drawn on the structure: pass geometry= (rc.load_uff_geometry, "
+            "rc.load_bdf_geometry or rc.load_ansys_geometry)."
+        )
     if pair_with is not None:
         raise DataError(
             "pair_with= draws test and FE shapes side by side on a structure; give geometry= too."

@@ -303,6 +303,8 @@ def test_two_fe_mode_sets_pair_over_every_node_without_sensors():
 
 
 def test_bad_geometry_is_refused_with_the_reason():
+    with pytest.raises(DataError, match="pass geometry="):
+        rc.plot_mode_shapes(truss_modes(caltech_geometry()))
     with pytest.raises(DataError, match="node 1 is defined twice"):
         rc.Geometry([1, 1], [(0, 0, 0), (1, 0, 0)])
     with pytest.raises(DataError, match=r"trace lines use node\(s\) \[7\]"):
