@@ -189,6 +189,19 @@ def read_nastran_modes(
     eig = np.asarray(getattr(vec, "eigns", [np.nan] * data.shape[0]), dtype=float)
     gm = np.ones(data.shape[0])
     lama = list(model.eigenvalues.values())
+    if len(lama) > 1:  # one LAMA per subcase: the one whose eigenvalues the eigenvector table carries
+        same = [
+            t
+            for t in lama
+            if len(t.eigenvalues) == data.shape[0]
+            and np.allclose(np.asarray(t.eigenvalues, float), eig, rtol=1e-5)
+        ]
+        if len(same) != 1:
+            raise DataError(
+                f"{path.name} holds {len(lama)} eigenvalue (LAMA) tables and {len(same)} match subcase "
+                f"{key}; write one modal subcase per OP2."
+            )
+        lama = same
     if lama:
         table = lama[0]
         if len(table.eigenvalues) != data.shape[0]:
