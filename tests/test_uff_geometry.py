@@ -351,3 +351,22 @@ def test_dataset_2412_elements_become_their_edges(tmp_path):
     geo = rc.load_uff_geometry(path, unit="mm")
     assert {tuple(x) for x in geo.lines.tolist()} == {(1, 2), (2, 3), (3, 4), (1, 4), (2, 5)}
     np.testing.assert_allclose(geo.xyz[-1], [2e-3, 0, 0])
+
+
+def test_complex_modes_round_trip_with_their_eigenvalues(tmp_path):
+    geo = caltech_geometry()
+    rng = np.random.default_rng(5)
+    shapes = np.zeros((2, geo.n_nodes, 6), complex)
+    shapes[:, :, :3] = rng.standard_normal((2, geo.n_nodes, 3)) + 1j * rng.standard_normal(
+        (2, geo.n_nodes, 3)
+    )
+    modes = rc.ModeShapes([1.2, 2.7], geo.node_ids, shapes, zeta=[0.02, 0.05], name="test modes")
+    path = tmp_path / "complex.uff"
+    rc.write_uff_geometry(path, geo, modes=modes)
+    back = rc.load_uff_modes(path)
+    assert np.iscomplexobj(back.shapes)
+    np.testing.assert_allclose(back.f_hz, [1.2, 2.7], rtol=1e-5)  # |lambda| / 2 pi
+    np.testing.assert_allclose(back.zeta, [0.02, 0.05], rtol=1e-4)  # -Re lambda / |lambda|
+    np.testing.assert_allclose(back.shapes, shapes, atol=1e-5)
+    fig = rc.plot_mode_shapes(back, geo)  # drawn at the phase of each mode's largest entry
+    assert len(fig.axes) == 2

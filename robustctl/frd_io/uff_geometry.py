@@ -277,6 +277,57 @@ def _frame_along(direction: np.ndarray) -> np.ndarray:
     return np.vstack([x, y, np.cross(x, y)])
 
 
+def _mode_records(modes: ModeShapes, scale: float) -> list[dict]:
+    """Dataset 55 records: normal modes (analysis type 2, frequency, modal mass, viscous damping
+    ratio) or, for complex shapes, complex modes (type 3, eigenvalue ``-zeta w + j w sqrt(1 - zeta^2)``,
+    translations only)."""
+    import pyuff
+
+    complex_modes = np.iscomplexobj(modes.shapes)
+    if complex_modes and modes.present[:, 3:].any() and np.any(modes.shapes[:, :, 3:]):
+        raise DataError("complex mode shapes in UFF dataset 55 hold translations only; drop the rotations.")
+    ncomp = 3 if complex_modes or not modes.present[:, 3:].any() else 6
+    out = []
+    for k in range(modes.n_modes):
+        sh = modes.shapes[k].copy()
+        sh[:, :3] /= scale
+        zeta = float(modes.zeta[k]) if np.isfinite(modes.zeta[k]) else 0.0
+        common = dict(
+            id1="robustctl mode shapes",
+            id2=modes.name or "NONE",
+            id3="NONE",
+            id4="NONE",
+            id5="NONE",
+            model_type=1,
+            data_ch=2,
+            spec_data_type=8,
+            n_data_per_node=ncomp,
+            load_case=1,
+            mode_n=k + 1,
+            node_nums=modes.node_ids,
+            **{f"r{c + 1}": sh[:, c] for c in range(ncomp)},
+        )
+        if complex_modes:
+            w = 2 * np.pi * float(modes.f_hz[k])
+            eig = complex(-zeta * w, w * np.sqrt(max(1.0 - zeta**2, 0.0)))
+            out.append(
+                pyuff.prepare_55(analysis_type=3, data_type=5, eig=eig, modal_a=0j, modal_b=0j, **common)
+            )
+        else:
+            out.append(
+                pyuff.prepare_55(
+                    analysis_type=2,
+                    data_type=2,
+                    freq=float(modes.f_hz[k]),
+                    modal_m=float(modes.generalized_mass[k]) / scale**2,
+                    modal_damp_vis=zeta,
+                    modal_damp_his=0.0,
+                    **common,
+                )
+            )
+    return out
+
+
 def write_uff_geometry(
     path: str | os.PathLike,
     geometry: Geometry,
@@ -296,7 +347,8 @@ def write_uff_geometry(
         written as that direction code; any other direction as +X of a displacement system
         (dataset 2420) of its own, so :func:`load_uff_geometry` gives the direction back.
     modes : ModeShapes, optional
-        Written as dataset 55 (normal modes, 6 values per node when rotations are present).
+        Written as dataset 55: normal modes (6 values per node when rotations are present), or
+        complex modes for complex shapes (translations, eigenvalue from frequency and damping).
     data : FrequencyData, optional
         Written as dataset 58 FRF records whose response node/direction are the output's sensor
         (every output must be a sensor of ``geometry``).
@@ -366,35 +418,7 @@ def write_uff_geometry(
             )
         )
     if modes is not None:
-        rot = bool(modes.present[:, 3:].any())
-        for k in range(modes.n_modes):
-            sh = np.real(modes.shapes[k]).copy()
-            sh[:, :3] /= scale
-            comps = {f"r{c + 1}": sh[:, c] for c in range(6 if rot else 3)}
-            zeta = float(modes.zeta[k]) if np.isfinite(modes.zeta[k]) else 0.0
-            records.append(
-                pyuff.prepare_55(
-                    id1="robustctl mode shapes",
-                    id2=modes.name or "NONE",
-                    id3="NONE",
-                    id4="NONE",
-                    id5="NONE",
-                    model_type=1,
-                    analysis_type=2,
-                    data_ch=2,
-                    spec_data_type=8,
-                    data_type=2,
-                    n_data_per_node=6 if rot else 3,
-                    load_case=1,
-                    mode_n=k + 1,
-                    freq=float(modes.f_hz[k]),
-                    modal_m=float(modes.generalized_mass[k]) / scale**2,
-                    modal_damp_vis=zeta,
-                    modal_damp_his=0.0,
-                    node_nums=modes.node_ids,
-                    **comps,
-                )
-            )
+        records += _mode_records(modes, scale)
     if data is not None:
         from .uff import _signal_units, _uff_record, _uff_shape_id
 
