@@ -184,7 +184,7 @@ def _imported(op4_file, **kw):
         path,
         inputs={"F": "2001:T1"},
         outputs={"a": "2003:T2"},
-        groups={"columns": "KCOL", "beams": "KBEAM"},
+        groups={"columns": "kcol", "beams": "KBEAM"},
         dof_labels=labels,
         damping=0.01,
         **kw,

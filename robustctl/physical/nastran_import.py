@@ -470,10 +470,13 @@ def load_nastran_matrices(
     """
     groups = dict(groups or {})
     names = [mass] + ([stiffness] if stiffness else []) + list(groups.values())
-    mats, found = read_nastran_matrices(path, names)
+    stored, found = read_nastran_matrices(path)
+    by_upper = {k.upper(): v for k, v in stored.items()}  # Nastran names are case-blind
+    mats = {}
     for nm in names:
-        if nm not in mats:
-            raise DataError(f"{Path(path).name} has no matrix {nm!r}; it has {sorted(mats)}.")
+        if str(nm).upper() not in by_upper:
+            raise DataError(f"{Path(path).name} has no matrix {nm!r}; it has {sorted(stored)}.")
+        mats[nm] = by_upper[str(nm).upper()]
     n = mats[mass].shape[0]
     for nm in names:
         if mats[nm].shape != (n, n):
