@@ -134,7 +134,10 @@ def read_nastran_modes(
     Notes
     -----
     Without a LAMA table the shapes are taken as mass-normalised (Nastran's default ``EIGRL``
-    normalisation); a file written with ``NORM=MAX`` needs its LAMA table.
+    normalisation); a file written with ``NORM=MAX`` needs its LAMA table. Components are in
+    each grid's displacement frame (CD); for grids with ``CD != 0`` write the OP2 with
+    ``PARAM,OUGCORD,BASIC`` so that ``"1001:T1"`` means basic X everywhere
+    (:func:`load_bdf_geometry` refuses such grids for the same reason).
 
     Raises
     ------
