@@ -394,3 +394,16 @@ def test_bdf_grid_with_a_local_displacement_frame_is_refused_with_the_fix(tmp_pa
     )
     with pytest.raises(DataError, match=r"grid 1 uses displacement frame CD=5.*OUGCORD"):
         rc.load_bdf_geometry(tmp_path / "cd.bdf")
+
+
+def test_dmig_writer_round_trip_keeps_the_matrices_to_field_precision(tmp_path):
+    M, K, parts, labels = group_partitions()
+    path = tmp_path / "portal.pch"
+    write_nastran_matrices(path, {"MAA": M, "KAA": K, "KCOL": parts["columns"]}, dof_labels=labels)
+    mats, found = rc.read_nastran_matrices(path)
+    perm = [found.index(lb) for lb in labels]
+    for name, want in (("MAA", M), ("KAA", K), ("KCOL", parts["columns"])):
+        got = mats[name].toarray()[np.ix_(perm, perm)]
+        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12 * np.abs(want).max())  # 10 digits
+    with pytest.raises(DataError, match="dof_labels"):
+        write_nastran_matrices(tmp_path / "x.bdf", {"KAA": K})

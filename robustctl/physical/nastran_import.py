@@ -661,16 +661,56 @@ def write_nastran_modes(path: str | os.PathLike, modes: ModeShapes) -> None:
         fh.write(s3.pack(4, 0, 4))
 
 
-def write_nastran_matrices(path: str | os.PathLike, matrices: Mapping[str, Any]) -> None:
-    """Write symmetric real matrices (dense or sparse) to an ASCII OP4 file with pyNastran.
+def write_nastran_matrices(
+    path: str | os.PathLike, matrices: Mapping[str, Any], *, dof_labels: Sequence[str] | None = None
+) -> None:
+    """Write symmetric real matrices (dense or sparse) as an ASCII OP4 file or as DMIG cards.
 
-    ASCII because pyNastran 1.4.1 writes no sparse binary OP4; its reader reads both.
+    Parameters
+    ----------
+    path : path
+        ``.op4``: ASCII OP4 (pyNastran 1.4.1 writes no sparse binary OP4; its reader reads
+        both). ``.bdf``/``.pch``/``.dat``/``.nas``: bulk data with one symmetric (``IFO=6``),
+        double-precision ``DMIG`` per matrix (lower triangle, 16-character fields).
+    matrices : mapping name -> (n, n) matrix
+    dof_labels : sequence of str, optional
+        ``"grid:component"`` per row; required for DMIG, which names its rows.
     """
-    _, OP4, _ = _pynastran()
-    from pyNastran.op2.result_objects.matrix import Matrix
+    _, OP4, BDF = _pynastran()
+    p = Path(path)
+    if p.suffix.lower() == ".op4":
+        from pyNastran.op2.result_objects.matrix import Matrix
 
-    mats = {}
+        mats = {}
+        for name, a in matrices.items():
+            a = sp.coo_matrix(a) if sp.issparse(a) else np.asarray(a, dtype=float)
+            mats[str(name)] = Matrix(str(name), 6, a)
+        OP4(log=_Quiet()).write_op4(str(p), mats, precision="double", is_binary=False)
+        return
+    if dof_labels is None:
+        raise DataError("DMIG cards name their rows: give dof_labels=['1001:T1', ...] (one per row).")
+    keys = []
+    for lb in dof_labels:
+        node, vec = parse_dof(lb)
+        keys.append((node, int(np.flatnonzero(vec)[0]) + 1))
+    model = BDF(log=_Quiet(), debug=None)
     for name, a in matrices.items():
-        a = sp.coo_matrix(a) if sp.issparse(a) else np.asarray(a, dtype=float)
-        mats[str(name)] = Matrix(str(name), 6, a)
-    OP4(log=_Quiet()).write_op4(str(path), mats, precision="double", is_binary=False)
+        low = sp.tril(sp.coo_matrix(a)).tocoo()
+        if low.shape != (len(keys), len(keys)):
+            raise DataError(
+                f"matrix {name!r} is {low.shape[0]}x{low.shape[1]}; dof_labels name {len(keys)} rows."
+            )
+        order = np.lexsort((low.row, low.col))
+        rows, cols, vals = low.row[order], low.col[order], low.data[order]
+        model.add_dmig(
+            str(name),
+            6,
+            2,
+            2,
+            0,
+            0,
+            [keys[c] for c in cols],
+            [keys[r] for r in rows],
+            [float(v) for v in vals],
+        )
+    model.write_bdf(str(p), size=16, is_double=True, enddata=True)
