@@ -362,7 +362,7 @@ def plot_mode_shapes(
     analysis", Proc. 1st IMAC (the MAC pairing test and FE shapes).
     """
     if geometry is not None:
-        return _plot_shapes_3d(model, geometry, band, max_modes, pair_with, labels, scale)
+        return _plot_shapes_3d(model, geometry, band, max_modes, pair_with, labels, scale, outputs)
     from .frd_io.geometry import ModeShapes
 
     if isinstance(model, ModeShapes):
@@ -424,7 +424,7 @@ class _NodeShapes:
         self.at_sensors, self.channels, self.full_field = at_sensors, channels, full_field
 
 
-def _node_shapes(source: Any, geometry: Any, band) -> _NodeShapes:
+def _node_shapes(source: Any, geometry: Any, band, outputs=None) -> _NodeShapes:
     """Shapes of ``source`` (ModeShapes or anything with modes at channels) on ``geometry``'s nodes."""
     from .frd_io.geometry import ModeShapes
 
@@ -452,6 +452,10 @@ def _node_shapes(source: Any, geometry: Any, band) -> _NodeShapes:
     if not modes:
         raise DataError("no modes to plot; widen band= or check the model.")
     cols = np.array([m.output_shape[:, 0] if m.output_shape is not None else _column(m) for m in modes]).T
+    if outputs is not None:
+        if len(outputs) != cols.shape[0]:
+            raise DataError(f"outputs has {len(outputs)} names but the modes have {cols.shape[0]} sensors.")
+        names = [str(o) for o in outputs]
     names = names or [f"y{k + 1}" for k in range(cols.shape[0])]
     rows, dirs = geometry.channel_map(names)
     disp = np.zeros((len(modes), geometry.n_nodes, 3))
@@ -497,10 +501,10 @@ def _pairs(first: _NodeShapes, second: _NodeShapes) -> tuple[list[int], list[flo
     return best, values
 
 
-def _plot_shapes_3d(model, geometry, band, max_modes, pair_with, labels, scale):
+def _plot_shapes_3d(model, geometry, band, max_modes, pair_with, labels, scale, outputs=None):
     from matplotlib.ticker import MaxNLocator
 
-    first = _node_shapes(model, geometry, band)
+    first = _node_shapes(model, geometry, band, outputs)
     total = first.f_hz.size
     shown = min(total, max_modes)
     panels = []  # (shapes, mode index, title)

@@ -164,6 +164,8 @@ def test_test_and_fe_shapes_side_by_side_paired_by_mac():
             output_labels = ["S1", "S2", "S3"]
 
     fig = rc.plot_mode_shapes(Identified(), geo, pair_with=fe, labels=("test", "FE"))
+    named = rc.plot_mode_shapes(test, geo, outputs=["S1", "S2", "S3"], max_modes=2)  # Modes carry no names
+    assert len(_deformed(named)) == 2
     assert len(fig.axes) == 8 and len(_deformed(fig)) == 8
     titles = [ax.get_title() for ax in fig.axes]
     for p, k in enumerate(sorted(order, key=lambda j: fe.f_hz[j] * 1.05)):
