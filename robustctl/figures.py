@@ -533,7 +533,8 @@ def _plot_shapes_3d(model, geometry, band, max_modes, pair_with, labels, scale, 
         _wireframe(ax, geometry, geometry.xyz, color="0.5", lw=0.8, ls="--", gid="undeformed")
         colour = "C0" if shapes is first else "C1"
         _wireframe(ax, geometry, deformed, color=colour, lw=1.4, ls="-", gid="deformed")
-        ax.scatter(*deformed.T, s=4, color="k", depthshade=False)
+        dot = float(np.clip(400.0 / max(geometry.n_nodes, 1), 0.3, 4.0))  # many nodes: small dots
+        ax.scatter(*deformed.T, s=dot, color="k", depthshade=False)
         ax.set_title(title, fontsize=8)
         _equal_box(ax, np.vstack([geometry.xyz, deformed]))
         ax.tick_params(labelsize=6, pad=0)
