@@ -42,8 +42,11 @@ __all__ = [
     "log_ratio",
     "DB_PER_NEPER",
     "pole_frequency_damping",
-    "is_stable",
     "zpk_statespace",
+    "is_stable",
+    "zoh",
+    "spectral_abscissa",
+    "roundoff_margin",
 ]
 
 #: dB per neper, ``20 / ln 10``: the real part of :func:`log_ratio` (nepers) times this is
@@ -107,47 +110,6 @@ DENSE_INV_MAX = 64
 
 
 # ---------------------------------------------------------------------------- conversions
-#: A pole within ``STABILITY_ULPS eps max(1, ||A||_1)`` of the stability boundary (the imaginary
-#: axis, or the unit circle in discrete time) is on it to round-off: eigenvalues are backward
-#: stable, accurate to about ``eps ||A||`` (Golub & Van Loan 2013, sec. 7.2.2).
-STABILITY_ULPS = 64.0
-
-
-def is_stable_matrix(A: np.ndarray, dt: Any = 0) -> bool:
-    """Are all eigenvalues of ``A`` strictly inside the stability region, beyond round-off?
-
-    Continuous time (``dt`` 0 or None): ``Re p < -delta``; discrete time: ``|z| < 1 - delta``,
-    with ``delta = STABILITY_ULPS eps max(1, ||A||_1)``. An empty ``A`` is stable.
-    """
-    A = np.asarray(A, dtype=float)
-    if A.size == 0:
-        return True
-    delta = STABILITY_ULPS * np.finfo(float).eps * max(1.0, float(np.linalg.norm(A, 1)))
-    ev = np.linalg.eigvals(A)
-    if dt in (0, None):
-        return bool(np.all(ev.real < -delta))
-    return bool(np.all(np.abs(ev) < 1.0 - delta))
-
-
-def is_stable(sys: Any) -> bool:
-    """Is the system internally stable (every pole, controllable or not, inside the stability region)?
-
-    Parameters
-    ----------
-    sys : system
-        Anything :func:`as_statespace` accepts, continuous or discrete.
-
-    Returns
-    -------
-    bool
-        ``True`` when every eigenvalue of ``A`` has ``Re p < 0`` (continuous) or ``|z| < 1``
-        (discrete) by more than the eigensolver's round-off ``64 eps max(1, ||A||_1)``; a pole
-        on the boundary to round-off (a sampled undamped mode) is not stable.
-    """
-    ss = as_statespace(sys, name="sys")
-    return is_stable_matrix(np.asarray(ss.A, dtype=float), ss.dt)
-
-
 def _as_statespace(sys: Any, name: str = "sys"):
     import control
 
@@ -614,6 +576,110 @@ def _align(data: FrequencyData, model: FrequencyData) -> FrequencyData:
     in_idx = match_channels(model.inputs, data.inputs, "inputs")
     g = model.response[:, out_idx][:, :, in_idx]
     return model.replace(response=g, outputs=data.outputs, inputs=data.inputs, coherence=None)
+
+
+# ---------------------------------------------------------------------------- sampling
+def zoh(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact zero-order-hold discretisation of ``x' = A x + B u`` with sample time ``dt``.
+
+    ``expm([[A, B], [0, 0]] dt) = [[Ad, Bd], [0, I]]`` (Franklin, Powell & Workman, *Digital
+    Control of Dynamic Systems*, 3rd ed., sec. 4.3.3; Van Loan 1978): ``x[k+1] = Ad x[k] + Bd u[k]``
+    for an input held constant over each sample. The one ZOH of robustctl (simulated
+    experiments, the estimator's sampled impulse response, controller export).
+
+    Parameters
+    ----------
+    A : ndarray (n, n)
+        State matrix, rad/s.
+    B : ndarray (n, m)
+        Input matrix.
+    dt : float
+        Sample time, s.
+
+    Returns
+    -------
+    Ad : ndarray (n, n)
+    Bd : ndarray (n, m)
+    """
+    from scipy.linalg import expm
+
+    n, m = B.shape
+    M = np.zeros((n + m, n + m))
+    M[:n, :n] = A * dt
+    M[:n, n:] = B * dt
+    E = expm(M)
+    return E[:n, :n], E[:n, n:]
+
+
+# ---------------------------------------------------------------------------- stability
+def spectral_abscissa(sys: Any) -> float:
+    """The largest real part of the poles of a continuous system, rad/s; ``-inf`` without states.
+
+    Parameters
+    ----------
+    sys : system with an ``A`` matrix, or a square array_like ``A``
+        A continuous-time state space (``control.StateSpace`` or anything with ``A``) or its
+        state matrix. Not coerced: inner code passes what it built.
+
+    Returns
+    -------
+    float
+        ``max Re eig(A)``; NaN when ``A`` holds NaN or inf (no eigenvalues to speak of).
+    """
+    A = np.asarray(getattr(sys, "A", sys))
+    if A.size == 0:
+        return -np.inf
+    if not np.all(np.isfinite(A)):
+        return np.nan
+    return float(np.max(np.linalg.eigvals(A).real))
+
+
+def is_stable(sys: Any, margin: float = 0.0, *, dt: Any = None) -> bool:
+    """True when every pole lies inside the stability region by ``margin``.
+
+    The one stability test of robustctl: continuous time ``max Re eig(A) < -margin``;
+    discrete time (a system with ``dt`` set, or an array ``A`` with ``dt`` given)
+    ``max |eig(A)| < 1 - margin``. Strict; a system without states is stable. Each caller
+    passes its tolerance explicitly (:func:`roundoff_margin` for "beyond round-off").
+
+    Parameters
+    ----------
+    sys : system with an ``A`` matrix, or a square array_like ``A``
+        See :func:`spectral_abscissa`.
+    margin : float
+        Required distance of the poles from the imaginary axis, rad/s (0: open left half
+        plane), or, in discrete time, from the unit circle (dimensionless). A negative margin
+        accepts poles up to ``-margin`` beyond the boundary.
+    dt : float or True, optional
+        Sampling time for an array ``A`` (default: the system's ``dt``; 0/None: continuous).
+
+    Returns
+    -------
+    bool
+        False also when ``A`` holds NaN or inf.
+    """
+    if dt is None:
+        dt = getattr(sys, "dt", 0)
+    if dt in (0, None):
+        return bool(spectral_abscissa(sys) < -margin)
+    A = np.asarray(getattr(sys, "A", sys))
+    if A.size == 0:
+        return True
+    if not np.all(np.isfinite(A)):
+        return False
+    return bool(np.max(np.abs(np.linalg.eigvals(A))) < 1.0 - margin)
+
+
+def roundoff_margin(A: Any) -> float:
+    """``64 eps max(1, ||A||_1)``: a pole this close to the stability boundary is on it to round-off.
+
+    Eigenvalues are backward stable, accurate to about ``eps ||A||`` (Golub & Van Loan 2013,
+    sec. 7.2.2); a sampled undamped mode sits at ``|z| = 1 - 3e-16``. The margin for
+    :func:`is_stable` where "stable" must mean "stable beyond round-off" (norms that would
+    otherwise be 1e14 instead of infinite).
+    """
+    A = np.asarray(getattr(A, "A", A), dtype=float)
+    return 64.0 * np.finfo(float).eps * max(1.0, float(np.linalg.norm(A, 1)) if A.size else 1.0)
 
 
 # ---------------------------------------------------------------------------- construction

@@ -34,7 +34,7 @@ import scipy.linalg
 from ..checks import integer
 from ..errors import SynthesisError
 from ..interconnect import PartitionedPlant, PicklesStateSpaces
-from ..lti import as_statespace, is_stable_matrix
+from ..lti import as_statespace, is_stable, roundoff_margin
 from ..table import Table, result_html
 from .coprime import left_ncf
 from .hinf_norm import hinfnorm_matrices
@@ -234,7 +234,7 @@ def _closed_loop_weight(G: Any, K: Any):
     import control
 
     M = control.feedback(control.ss(G.A, G.B, G.C, G.D), control.ss(K.A, K.B, K.C, K.D), sign=+1)
-    if not is_stable_matrix(np.asarray(M.A, dtype=float)):
+    if not is_stable(M, roundoff_margin(M)):
         raise SynthesisError("the full controller does not stabilise the plant: there is no loop to keep.")
     return M
 
@@ -243,7 +243,7 @@ def _loop_stable(G: Any, Kr: Any) -> bool:
     import control
 
     cl = control.feedback(control.ss(G.A, G.B, G.C, G.D), control.ss(Kr.A, Kr.B, Kr.C, Kr.D), sign=+1)
-    return is_stable_matrix(np.asarray(cl.A, dtype=float))
+    return is_stable(cl, roundoff_margin(cl))
 
 
 # ---------------------------------------------------------------------------- surface
@@ -280,7 +280,7 @@ def weighted_balanced_truncation(K: Any, order: int, *, Wi: Any = None, Wo: Any 
     """
     Kss, order = _check_controller(K, order)
     A, B, C, D = _mats(Kss)
-    if not is_stable_matrix(A):
+    if not is_stable(A, roundoff_margin(A)):
         raise SynthesisError(
             "frequency-weighted balanced truncation needs a stable controller; use coprime_reduction "
             "(method='coprime') for an unstable one."
@@ -292,7 +292,7 @@ def weighted_balanced_truncation(K: Any, order: int, *, Wi: Any = None, Wo: Any 
     wi = None if Wi is None else _mats(as_statespace(Wi, name="Wi"))
     wo = None if Wo is None else _mats(as_statespace(Wo, name="Wo"))
     for w, what in ((wi, "Wi"), (wo, "Wo")):
-        if w is not None and not is_stable_matrix(w[0]):
+        if w is not None and not is_stable(w[0], roundoff_margin(w[0])):
             raise SynthesisError(f"the weight {what} must be stable.")
     P, Q = _weighted_gramians((A, B, C, D), wi, wo)
     svd = _square_root(A, B, C, D, P, Q)
@@ -404,7 +404,7 @@ def reduce_controller(K: Any, order: int, plant: Any = None, *, method: str = "a
         raise SynthesisError(f"method must be 'auto', 'weighted' or 'coprime'; got {method!r}.")
     if method == "auto":
         Kss = as_statespace(K, name="K")
-        method = "weighted" if is_stable_matrix(np.asarray(Kss.A, dtype=float)) else "coprime"
+        method = "weighted" if is_stable(Kss, roundoff_margin(Kss)) else "coprime"
     if method == "weighted":
         return weighted_balanced_truncation(K, order, plant=plant)
     return coprime_reduction(K, order, plant=plant)

@@ -15,7 +15,7 @@
   ``E |z|^2`` of a unit white ``w``), which uses the current measurement (``Dk != 0``).
 
 Every controller is verified: the closed loop ``Fl(P, K)`` is formed with the plant's names,
-checked stable by :func:`robustctl.lti.is_stable_matrix`, and its H2 norm computed by
+checked stable beyond round-off by :func:`robustctl.lti.is_stable`, and its H2 norm computed by
 :func:`h2norm` is the one reported.
 """
 
@@ -29,7 +29,7 @@ import scipy.linalg
 
 from ..errors import ModelError, SynthesisError
 from ..interconnect import PartitionedPlant, PicklesStateSpaces, lft
-from ..lti import as_statespace, is_stable_matrix
+from ..lti import as_statespace, is_stable, roundoff_margin
 from ..table import Table, result_html
 from .hinf_assumptions import _check_ranks, _pbh_loses_rank, check_assumptions
 from .hinf_synthesis import _as_partitioned, _loop_shift, lower_lft_matrices
@@ -59,7 +59,7 @@ def h2norm_matrices(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, 
     dd = float(np.sum(D * D)) if discrete else 0.0
     if A.shape[0] == 0:
         return float(np.sqrt(dd))
-    if not is_stable_matrix(A, dt):
+    if not is_stable(A, roundoff_margin(A), dt=dt):
         return np.inf
     if not discrete:
         return float(np.sqrt(max(_continuous_h2_squared(A, B, C), 0.0)))
@@ -399,7 +399,7 @@ def h2syn(P: Any, nmeas: int | None = None, ncon: int | None = None) -> H2Result
         A_cl, B_cl, C_cl, D_cl = lower_lft_matrices(m, *K)
     except np.linalg.LinAlgError as exc:
         raise SynthesisError(f"h2syn: a singular matrix in the controller formulas ({exc}).") from exc
-    if not is_stable_matrix(A_cl, dt):
+    if not is_stable(A_cl, roundoff_margin(A_cl), dt=dt):
         raise SynthesisError(
             "h2syn: the closed loop Fl(P, K) is not stable (the Riccati solutions are not stabilising to "
             "working accuracy); rescale the plant or damp marginal weights."

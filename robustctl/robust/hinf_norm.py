@@ -59,6 +59,7 @@ from ..lti import (
     _schur_factors,
     _small_block_scaling,
     as_statespace,
+    roundoff_margin,
 )
 from ..threads import limit_blas
 
@@ -80,10 +81,6 @@ IMAG_RTOL = 1e-6
 IMAG_ATOL = 1e-10
 #: Largest order computed without touching the BLAS thread pools (see hinfnorm_matrices).
 SMALL_N = 32
-#: A discrete pole with ``|z| >= 1 - UNIT_CIRCLE_ULPS eps max(1, ||A||_1)`` is on the unit circle
-#: to round-off (eigenvalues are backward stable: their error is about ``eps ||A||``), so the
-#: norm is infinite rather than the 1e14 that the bilinear map of such a pole would report.
-UNIT_CIRCLE_ULPS = 64.0
 #: Frequencies per batch of the modal response (keeps the (batch x n) work array cache-sized).
 CHUNK = 256
 
@@ -584,9 +581,9 @@ def hinfnorm(sys: Any, tol: float = 1e-6) -> tuple[float, float]:
         raise ModelError("hinfnorm: the discrete system has no sampling time (dt=True); set dt in s.")
     dt = float(dt)
     poles = np.linalg.eigvals(A) if A.size else np.zeros(0)
-    scale = max(1.0, float(np.linalg.norm(A, 1)) if A.size else 1.0)
-    edge = 1.0 - UNIT_CIRCLE_ULPS * np.finfo(float).eps * scale
-    if poles.size and np.max(np.abs(poles)) >= edge:
+    # a pole on the unit circle to round-off (a sampled undamped mode, |z| = 1 - 3e-16) is
+    # on it: the norm is infinite, not the 1e14 of the bilinear map
+    if poles.size and np.max(np.abs(poles)) >= 1.0 - roundoff_margin(A):
         k = int(np.argmax(np.abs(poles)))
         return np.inf, abs(float(np.angle(poles[k]))) / (2.0 * np.pi * dt)
     gamma, w = hinfnorm_matrices(*_discrete_to_continuous(A, B, C, D), tol)

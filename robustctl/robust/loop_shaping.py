@@ -36,7 +36,7 @@ import numpy as np
 from ..checks import positive_number
 from ..errors import SynthesisError
 from ..interconnect import PicklesStateSpaces
-from ..lti import as_statespace, is_stable_matrix
+from ..lti import as_statespace, is_stable, roundoff_margin
 from ..table import Table, result_html
 from .coprime import ncf_riccati
 from .hinf_norm import hinfnorm_matrices
@@ -141,7 +141,7 @@ def _four_block(A, B, C, D, Ak, Bk, Ck, Dk) -> tuple[float, float]:
     }
     Acl, Bcl, Ccl, Dcl = lower_lft_matrices(m_, Ak, Bk, Ck, Dk)
     max_re = float(np.max(np.linalg.eigvals(Acl).real)) if Acl.size else -np.inf
-    if not is_stable_matrix(Acl, 0):
+    if not is_stable(Acl, roundoff_margin(Acl)):
         return 0.0, max_re
     g, _ = hinfnorm_matrices(Acl, Bcl, Ccl, Dcl, 1e-9)
     return 1.0 / g, max_re

@@ -42,7 +42,7 @@ import numpy as np
 from ..checks import choice, finite_number
 from ..errors import SynthesisError
 from ..frd import FrequencyData, as_frequency_data
-from ..lti import as_statespace, freqresp_array, is_stable_matrix
+from ..lti import as_statespace, freqresp_array, is_stable, roundoff_margin
 from ..table import Table, result_html
 from .coprime import left_ncf, right_ncf
 from .hinf_norm import _discrete_to_continuous, hinfnorm, hinfnorm_matrices
@@ -307,7 +307,7 @@ def diskmargin(L: Any, K: Any = None, *, f_hz: Any = None, skew: float = 0.0, si
         import control
 
         S = control.feedback(control.ss([], [], [], np.eye(n), Lss.dt), Lss)
-        stable = is_stable_matrix(np.asarray(S.A, dtype=float), S.dt)
+        stable = is_stable(S, roundoff_margin(S))
         for i in range(n):
             if not stable:
                 loops.append(_margin(names[i], 0.0, skew, np.nan))

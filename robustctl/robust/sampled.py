@@ -24,7 +24,7 @@ import numpy as np
 from ..checks import flag, positive_number
 from ..errors import SynthesisError
 from ..interconnect import PartitionedPlant
-from ..measure.estimate import _zoh
+from ..lti import zoh
 from .hinf_synthesis import _as_partitioned
 
 __all__ = ["sampled_plant"]
@@ -74,7 +74,7 @@ def sampled_plant(P: Any, dt: float, *, delay: bool = False, nmeas: int | None =
             f"(dt = {plant.P.dt})."
         )
     A, B, C, D = (np.asarray(m, dtype=float) for m in (plant.P.A, plant.P.B, plant.P.C, plant.P.D))
-    Ad, Bd = _zoh(A, B, dt)
+    Ad, Bd = zoh(A, B, dt)
     states = list(plant.P.state_labels)
     if delay:
         nw, nu, n = plant.nw, plant.ncon, A.shape[0]
