@@ -114,3 +114,12 @@ def test_discrete_lmi_route_agrees_with_riccati_route():
     assert b.gamma_opt == pytest.approx(a.gamma_opt, rel=2e-3)  # bisection tolerance 1e-3 + LMI accuracy
     assert b.K.dt == P.dt and b.info["closed_loop_spectral_radius"] < 1
     assert rc.hinfnorm(b.closed_loop)[0] <= b.info["gamma_design"] * (1 + 1e-6)
+
+
+def test_discrete_result_reports_spectral_radius_and_plots_to_nyquist():
+    P = random_plant(4, 2, 1, 2, 1, 0.01, seed=3, d11=True)
+    res = rc.hinfsyn(P, 1, 1)
+    text = str(res.table())
+    assert "spectral radius" in text and "slowest closed-loop pole" not in text
+    ax = res.plot().axes[0]
+    assert ax.get_xlim()[1] >= 50.0 * 0.99  # fs / 2 = 50 Hz

@@ -92,6 +92,7 @@ class HinfResult:
             ("gamma design (backed off)", i.get("gamma_design", float("nan"))),
             ("closed-loop peak frequency (Hz)", i.get("f_peak_hz", float("nan"))),
             ("controller order", self.K.nstates),
+            ("closed-loop spectral radius", i["closed_loop_spectral_radius"]) if i.get("discrete") else
             ("slowest closed-loop pole Re (rad/s)", i.get("closed_loop_max_real_pole", float("nan"))),
             ("gamma tests", i.get("n_gamma_tests", 0)),
             ("time (s)", i.get("time_s", float("nan"))),
@@ -135,6 +136,10 @@ class HinfResult:
             from .mu_bounds import _frequencies
 
             f_hz = _frequencies(f_hz)  # finite numbers >= 0 Hz, at least one
+        dt = self.closed_loop.dt
+        if f_hz is None and dt not in (0, None):  # up to the Nyquist frequency, four decades below
+            nyquist = 0.5 / (1.0 if dt is True else float(dt))
+            f_hz = np.geomspace(nyquist * 1e-4, nyquist, 800)
         if f_hz is None:
             A = np.asarray(self.closed_loop.A)
             poles = np.abs(np.linalg.eigvals(A)) / (2 * np.pi) if A.size else np.zeros(0)
