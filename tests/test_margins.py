@@ -88,7 +88,8 @@ def test_multiloop_diagonal_and_coupled():
     inside = [1 + 0.999 * (g - 1) for g in (lo, hi)]  # just inside the disk's real diameter
     for f1 in inside:
         for f2 in inside:
-            cl = control.feedback(G * K * control.ss([], [], [], np.diag([f1, f2])), np.eye(2))
+            F = control.ss([], [], [], np.diag([f1, f2]))  # the gains at the plant inputs (at="input")
+            cl = control.feedback(G * F * K, np.eye(2))
             assert rc.is_stable(cl)
 
 
