@@ -168,3 +168,23 @@ def test_discrete_loop_margins_match_the_unit_circle():
     assert dm.simultaneous.alpha == pytest.approx(grid, rel=1e-5)
     f_grid = np.angle(z[np.argmax(np.abs(S - 0.5))]) / (2 * np.pi * dt)
     assert dm.loops[0].f_critical_hz == pytest.approx(f_grid, rel=1e-3)
+
+
+def test_simultaneous_disk_margin_holds_for_complex_gain_and_phase_changes():
+    # independent, complex gains f_i in the disk D(0.99 alpha, sigma) at every loop-breaking point
+    # leave the loop stable: A_cl = A - B (I + F D)^-1 F C for the negative-feedback loop L
+    num = [[[1.0, 2.0], [0.8]], [[-0.6], [1.0, 0.5]]]
+    den = [[[1.0, 1.0, 4.0], [1.0, 2.0]], [[1.0, 3.0], [1.0, 0.2, 1.0]]]
+    L = control.ss(control.tf(num, den)) * 2.0
+    rng = np.random.default_rng(0)
+    for skew in (0.0, 0.5):
+        dm = rc.diskmargin(L, skew=skew)
+        assert dm.closed_loop_stable
+        a = dm.simultaneous.alpha
+        A, B, C, D = (np.asarray(m) for m in (L.A, L.B, L.C, L.D))
+        for _ in range(200):
+            delta = 0.99 * a * rng.uniform(0, 1, 2) ** 0.5 * np.exp(2j * np.pi * rng.uniform(0, 1, 2))
+            f = (1 + (1 - skew) / 2 * delta) / (1 - (1 + skew) / 2 * delta)
+            F = np.diag(f)
+            Acl = A - B @ np.linalg.solve(np.eye(2) + F @ D, F @ C)
+            assert np.max(np.linalg.eigvals(Acl).real) < 0
