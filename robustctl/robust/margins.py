@@ -56,6 +56,20 @@ def disk_gain_phase(alpha: float, skew: float = 0.0) -> tuple[float, float, floa
 
     Seiler, Packard & Gahinet (2020) eqs. (9)-(11). ``high`` is ``inf`` once the disk
     contains the half-plane to the right of ``low`` (``alpha (1 + skew)/2 >= 1``).
+
+    Parameters
+    ----------
+    alpha : float
+        Disk size (the disk margin), >= 0.
+    skew : float
+        Disk skew ``sigma`` (0: balanced, gain margins ``g`` and ``1/g``).
+
+    Returns
+    -------
+    low, high : float
+        Gain factors tolerated with the phase unchanged.
+    phase_deg : float
+        Phase change tolerated (deg) with the gain unchanged.
     """
     a, s = float(alpha), float(skew)
     lo = max((1 - a * (1 - s) / 2) / (1 + a * (1 + s) / 2), 0.0)
@@ -121,6 +135,8 @@ class DiskMarginResult:
         ``"model"`` (exact loop-at-a-time minima by the H-infinity norm) or ``"data"``.
     closed_loop_stable : bool or None
         Nominal stability of ``(I + L)^-1`` (``None``: data, not checked).
+    info : dict
+        ``at`` (where the loops were broken) and ``sign`` (the controller's feedback sign).
     """
 
     loops: tuple
