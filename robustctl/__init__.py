@@ -19,6 +19,7 @@ from .correlate import (
 from .cost import LogCost
 from .errors import DataError, FitError, ModelError, RobustctlError, SynthesisError
 from .estimate import (
+    HeldCommand,
     advised_nperseg,
     combine_experiments,
     estimate_frf,
@@ -26,7 +27,7 @@ from .estimate import (
 )
 from .export import ExportReport, discretize, export_controller, load_controller
 from .figures import fit_percent, mac_matrix, plot_compare, plot_mac, plot_mode_shapes, plot_singular_values
-from .frd import FrequencyData, load_frd
+from .frd import Experiment, FrequencyData, load_frd
 from .identify import (
     MeasurementModel,
     StabilisationDiagram,
@@ -122,6 +123,9 @@ __all__ = [
     "SynthesisError",
     "FrequencyData",
     "load_frd",
+    # how the data were made
+    "Experiment",
+    "HeldCommand",
     "fit_rational",
     "combine_simo",
     "group_modes",

@@ -605,7 +605,7 @@ def _model_response(data: FrequencyData, model: Any, estimator: Any = False) -> 
         return model
     from .estimator import model_view, resolve_estimator, split_hold
 
-    settings = resolve_estimator(estimator, data.meta, model)
+    settings = resolve_estimator(estimator, data, model)
     if settings is None:
         return _align(data, freqresp(model, data.f_hz))
     bare, hold = split_hold(model)

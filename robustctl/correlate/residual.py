@@ -36,7 +36,7 @@ from ..checks import (
 )
 from ..checks import point_weights as point_weights_of
 from ..errors import DataError, FitError, ModelError, RobustctlError
-from ..estimator import model_view, resolve_estimator, split_hold
+from ..estimator import model_view, resolve_estimator, resolve_view, split_hold
 from ..frd import FrequencyData
 from ..lti import as_statespace, freqresp, log_ratio
 from ..noise import NoiseModel, noise_model
@@ -171,10 +171,12 @@ class Residual:
         physical parameter can explain, and it would swamp the cost. ``None`` keeps every
         channel and refuses identically zero ones.
     estimator : "auto", True, False or EstimatorSettings
-        See the model "as the H1 estimator sees it" (:func:`robustctl.estimator.estimator_view`:
-        window leakage of a white-noise Welch estimate) when the data carry their estimator
-        settings (``"auto"``, default) -- the model's response is then the expected H1
-        estimate, not ``G(jw)``. ``False``: compare ``G(jw)`` itself.
+        See the model "as the H1 estimator sees it" (:func:`robustctl.estimator.estimator_view`)
+        as far as the data's experiment description (``data.experiment``) establishes it
+        (``"auto"``, default; :func:`robustctl.estimator.experiment_view`): window leakage for
+        random excitation with known settings, the sampled zero-order hold for held inputs,
+        nothing for undescribed data (the plain FRF, said so in every result). ``False``:
+        compare ``G(jw)`` itself.
     noise : "auto", NoiseModel or None
         The noise model of the data (:func:`robustctl.noise.noise_model`); ``"auto"``: from
         coherence and the recorded number of averages when possible, else None.
@@ -223,7 +225,7 @@ class Residual:
         self.band = check_band(band)
         mask = band_mask(data.f_hz, self.band)
         self.data = band_data(data, self.band)
-        self.estimator = resolve_estimator(estimator, data.meta, model)
+        self.estimator, self._view_note = resolve_view(estimator, data, model)
         self.noise = self._noise(noise, data, mask)
         sys0 = model.statespace()
         self._out_idx = match_channels(sys0.output_labels, self.data.outputs, "outputs")
@@ -276,10 +278,10 @@ class Residual:
         return point_weights_of(spec, data, mask, amplitude=True)
 
     def describe_estimator(self) -> str:
-        """``"model seen through the H1 estimator: 4096-pt hamming at 200 Hz"`` or ``""``."""
-        if self.estimator is None:
-            return ""
-        return f"model seen through the H1 estimator: {self.estimator.describe()}"
+        """How the model was seen: ``"model seen through the H1 estimator: 4096-pt hamming at 200 Hz"``,
+        or why as the plain FRF (``"compared as the plain FRF: the data do not say how they were
+        estimated"``, :func:`robustctl.estimator.experiment_view`)."""
+        return self._view_note
 
     @property
     def point_weights(self) -> np.ndarray:
