@@ -676,7 +676,12 @@ def split_hold(model: Any) -> tuple[Any, bool]:
 
 def model_view(bare: Any, has_hold: bool, f_hz: Any, settings: EstimatorSettings, **overrides: float):
     """The response of a (split) model as the estimator sees it, shape (K, n_out, n_in), in the
-    model's channel order: :func:`estimator_view` of ``bare.statespace(**overrides)``."""
+    model's channel order: :func:`estimator_view` of ``bare.statespace(**overrides)``.
+
+    A held input's hold is part of the experiment the data describe: it is applied whether or
+    not the model carries a hold stage (unless the data were divided by the hold,
+    ``hold_divided``); a measured input has none, so only a hold stage the user added is.
+    """
     if overrides and hasattr(bare, "param_names"):
         overrides = {k: v for k, v in overrides.items() if k in bare.param_names}
     if hasattr(bare, "param_names") and hasattr(bare, "statespace"):
@@ -685,5 +690,6 @@ def model_view(bare: Any, has_hold: bool, f_hz: Any, settings: EstimatorSettings
         from .lti import as_statespace
 
         sys = as_statespace(bare)
-    held = settings.input_kind == "held"
-    return estimator_view(sys, f_hz, settings, hold=has_hold and not (held and settings.hold_divided))
+    if settings.input_kind == "held":  # the experiment had the hold: keep it, unless it was divided out
+        return estimator_view(sys, f_hz, settings, hold=not settings.hold_divided)
+    return estimator_view(sys, f_hz, settings, hold=has_hold)
