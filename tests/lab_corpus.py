@@ -177,7 +177,8 @@ def frame_3d() -> Structure:
         J = m * (4.0**2 + 3.0**2) / 12.0
         Mf = np.zeros((n, n))
         idx = [3 * j, 3 * j + 1, 3 * j + 2]
-        Mf[np.ix_(idx, idx)] = [[m, 0.0, -m * ey], [0.0, m, m * ex], [-m * ey, m * ex, J + m * (ex**2 + ey**2)]]
+        Mf[np.ix_(idx, idx)] = [[m, 0.0, -m * ey], [0.0, m, m * ex],
+                                [-m * ey, m * ex, J + m * (ex**2 + ey**2)]]
         return Mf
 
     return Structure(
@@ -419,7 +420,8 @@ def impact_test(
     a = np.pi / pulse_s  # half-sine sin(a t), 0 <= t <= pulse_s: its Fourier transform
     spectrum = a * (1.0 + np.exp(-1j * w * pulse_s)) / (a**2 - w**2 + 0j)
     forces, responses = [], []
-    for k in range(n_hits):
+    level = None  # instrument noise: the same level in every hit (set by the first, nominal hit)
+    for _ in range(n_hits):
         amp = 100.0 * (1.0 + 0.2 * rng.standard_normal())
         start = 8 + int(rng.integers(0, 4))
         U = np.zeros(f.size, complex)
@@ -428,8 +430,10 @@ def impact_test(
         Y[lines] = G[:, :, col] * U[lines, None]
         u = np.fft.irfft(U, n_samples)
         y = np.fft.irfft(Y, n_samples, axis=0)
-        u = u + noise * np.max(np.abs(u)) * 0.01 * rng.standard_normal(u.shape)
-        y = y + noise * np.std(y, axis=0) * rng.standard_normal(y.shape)
+        if level is None:
+            level = (noise * 0.01 * np.max(np.abs(u)), noise * np.std(y, axis=0))
+        u = u + level[0] * rng.standard_normal(u.shape)
+        y = y + level[1] * rng.standard_normal(y.shape)
         forces.append(u)
         responses.append(y)
     return rc.estimate_frf_impact(np.array(forces), np.array(responses), fs, exp_window=None,
