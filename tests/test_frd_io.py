@@ -45,8 +45,20 @@ def frequency_data(draw, uff: bool = False):
         coh = np.array(draw(st.lists(st.floats(0, 1), min_size=g.size, max_size=g.size)))
         coh = coh.reshape(n_f, n_o, n_i)
     units = {outs[0]: "m/s^2"} if draw(st.booleans()) else None
+    experiment = None
+    if draw(st.booleans()):
+        experiment = rc.Experiment(
+            input_kind=draw(st.sampled_from([None, "measured", "held"])),
+            excitation=draw(st.sampled_from([None, "random", "periodic", "burst", "impact", "stepped_sine"])),
+            fs_hz=draw(st.one_of(st.none(), st.floats(1e-3, 1e6))),
+            window=draw(st.sampled_from([None, "hamming", ("tukey", 0.25)])),
+            nperseg=draw(st.one_of(st.none(), st.integers(2, 2**20))),
+            n_averages=draw(st.one_of(st.none(), st.integers(1, 1000))),
+            hold_divided=draw(st.booleans()),
+        )
     return rc.FrequencyData(f, g.reshape(n_f, n_o, n_i), inputs=ins, outputs=outs, coherence=coh,
-                            units=units, meta={"source": "hypothesis", "n": n_f, "x": [1.5, None]})
+                            units=units, meta={"source": "hypothesis", "n": n_f, "x": [1.5, None]},
+                            experiment=experiment)
 
 
 def _round_trip(data: rc.FrequencyData, suffix: str) -> rc.FrequencyData:
@@ -54,7 +66,8 @@ def _round_trip(data: rc.FrequencyData, suffix: str) -> rc.FrequencyData:
         path = Path(tmp) / f"data{suffix}"
         assert data.save(path) == path
         loaded = rc.load_frd(path)
-        assert sorted(os.listdir(tmp)) == [path.name]  # no temporary files left behind
+        sidecar = [path.name + ".json"] if suffix in (".uff", ".unv") else []  # experiment and meta
+        assert sorted(os.listdir(tmp)) == [path.name] + sidecar  # no temporary files left behind
     return loaded
 
 
@@ -71,6 +84,7 @@ def _check(loaded, data, exact: bool, keeps_meta: bool):
         np.testing.assert_allclose(loaded.coherence, data.coherence, rtol=1e-12, atol=0)
     if keeps_meta:
         assert loaded.units == data.units and loaded.meta == data.meta
+    assert loaded.experiment == data.experiment  # every format keeps how the data were made
 
 
 @settings(max_examples=12, deadline=None)
@@ -88,14 +102,14 @@ def test_mat_round_trip_exact(data):
 @settings(max_examples=12, deadline=None)
 @given(data=frequency_data())
 def test_csv_round_trip(data):
-    _check(_round_trip(data, ".csv"), data, exact=False, keeps_meta=False)
+    _check(_round_trip(data, ".csv"), data, exact=False, keeps_meta=True)
 
 
 @settings(max_examples=8, deadline=None)
 @given(data=frequency_data(uff=True), suffix=st.sampled_from([".uff", ".unv"]))
 def test_uff_round_trip(data, suffix):
     loaded = _round_trip(data, suffix)
-    _check(loaded, data, exact=False, keeps_meta=False)
+    _check(loaded, data, exact=False, keeps_meta=True)
     assert loaded.units == data.units  # ordinate (output) and denominator (input) unit labels
 
 
@@ -174,7 +188,7 @@ def test_never_overwrites_unless_asked(small, tmp_path, suffix):
     assert path.read_bytes() == b"the user's own file"
     small.save(path, overwrite=True)
     np.testing.assert_array_equal(rc.load_frd(path).response, small.response)
-    assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]  # no sidecar: nothing to keep
 
 
 class _Marker:

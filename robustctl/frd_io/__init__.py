@@ -13,7 +13,7 @@ from typing import Any
 
 from ..checks import flag
 from ..errors import DataError
-from ..frd import FrequencyData
+from ..frd import Experiment, FrequencyData
 from ._common import write_atomically
 from .csv_format import read_csv, write_csv
 from .mat import read_mat, write_mat
@@ -87,8 +87,12 @@ def save_frd(data: FrequencyData, path: Any, overwrite: bool = False) -> Path:
     path = _check_path(path)
     writer = _WRITERS[path.suffix.lower()]
     written = write_atomically(path, lambda tmp: writer(data, tmp), overwrite)
-    if writer is write_uff:  # the sidecar belongs to the file just written: replace any old one
-        write_atomically(sidecar_path(path), lambda tmp: write_sidecar(data, tmp), True)
+    side = sidecar_path(path)
+    if writer is write_uff and (data.experiment != Experiment() or data.meta):
+        # the sidecar belongs to the file just written: replace any old one
+        write_atomically(side, lambda tmp: write_sidecar(data, tmp), True)
+    elif writer is write_uff and side.is_file():
+        side.unlink()  # an old file's description must not be read with this one
     return written
 
 

@@ -11,8 +11,9 @@ Layout written by :func:`write_csv` (``N = n_freq * n_out * n_in`` data rows)::
     ...                                   one frequency, then the next frequency
     # end, 64 rows
 
-The ``# experiment``, ``# units`` and ``# meta`` lines (one JSON object each, optional on
-reading; a file without ``# experiment`` loads as not described) keep how the data were made
+The ``# experiment``, ``# units`` and ``# meta`` lines (one JSON object each, written when
+there is something to keep, optional on reading; a file without ``# experiment`` loads as not
+described) keep how the data were made
 (:class:`~robustctl.frd.Experiment`), the signal units and the provenance.
 The first and last lines are the completeness markers. A file cut anywhere -- even exactly
 between two frequency blocks, where every row left is whole -- lacks the ``# end`` line (or
@@ -34,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError
-from ..frd import FrequencyData
+from ..frd import Experiment, FrequencyData
 from ._common import MAX_FILE_BYTES, build, json_dumps, json_loads, read_limited
 
 __all__ = ["read_csv", "write_csv"]
@@ -55,9 +56,12 @@ def write_csv(data: FrequencyData, path: Path) -> None:
     n_rows = data.n_freq * data.n_out * data.n_in
     with open(path, "w", newline="", encoding="utf-8") as fh:
         fh.write(_PREAMBLE.format(data.n_freq, data.n_out, data.n_in, n_rows) + "\n")
-        fh.write(f"# experiment: {json_dumps(data.experiment.to_dict())}\n")
-        fh.write(f"# units: {json_dumps(data.units)}\n")
-        fh.write(f"# meta: {json_dumps(data.meta)}\n")
+        if data.experiment != Experiment():  # the layout of undescribed data is unchanged
+            fh.write(f"# experiment: {json_dumps(data.experiment.to_dict())}\n")
+        if data.units:
+            fh.write(f"# units: {json_dumps(data.units)}\n")
+        if data.meta:
+            fh.write(f"# meta: {json_dumps(data.meta)}\n")
         writer = csv.writer(fh, lineterminator="\n")
         writer.writerow(_CSV_HEADER + (["coherence"] if has_coh else []))
         for k, f in enumerate(data.f_hz.tolist()):
