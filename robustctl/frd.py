@@ -373,7 +373,15 @@ class FrequencyData:
         object.__setattr__(self, "coherence", coh)
         object.__setattr__(self, "units", _mapping(self.units, "units", "{'u1': 'V'}"))
         object.__setattr__(self, "meta", _mapping(self.meta, "meta", "{'source': 'test 3'}"))
-        object.__setattr__(self, "experiment", Experiment.from_dict(self.experiment))
+        experiment = Experiment.from_dict(self.experiment)
+        if experiment.fs_hz is not None and f[-1] > experiment.fs_hz / 2 * (1 + 1e-9):
+            fs = experiment.fs_hz
+            raise DataError(
+                f"the data reach {f[-1]:g} Hz, beyond the Nyquist frequency {fs / 2:g} Hz of the stated "
+                f"sampling frequency {fs:g} Hz: are the frequencies in rad/s? f_hz must be in Hz (divide "
+                f"rad/s by 2 pi: {f[-1] / (2 * np.pi):.4g} Hz), or correct fs_hz."
+            )
+        object.__setattr__(self, "experiment", experiment)
 
     # ------------------------------------------------------------------ basic views
     @property

@@ -74,7 +74,7 @@ from ..parallel import check_executor, parallel_map_shared, process_pool, resolv
 from ..table import Table, result_html
 from ..threads import limit_blas
 from .optimize import _bounds, levenberg_marquardt, marquardt_step
-from .residual import Residual, physical_model, sensitivities
+from .residual import Residual, check_determined, physical_model, sensitivities
 
 __all__ = ["diagnose", "Diagnosis", "CandidateResult", "Indistinguishable", "effective_points"]
 
@@ -1165,6 +1165,7 @@ def diagnose(
         noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
     res0, ignored = _residual(model, data, band, point_weights, min_channel_db, estimator, noise)
     upd = _check_update(model, params)
+    check_determined(res0, len(upd) + 1, "diagnose (the free parameters and one candidate's)")
     if candidates is not None:
         candidates = _check_candidates(model, list(candidates))
     alpha, min_gain = finite_number(alpha, "alpha", FitError), finite_number(min_gain, "min_gain", FitError)

@@ -41,6 +41,7 @@ from .residual import (
     Sensitivities,
     _check_names,
     alignment,
+    check_determined,
     normalized,
     orthogonality,
     physical_model,
@@ -1040,6 +1041,7 @@ def update(
                 "the model has no free parameters; name the parameters to update with params=[...]."
             )
     names = _check_names(model, params)
+    check_determined(residual, len(names), "update")
     sens = sensitivities(residual, names, executor=executor, progress=progress)
     j0, dJ = sens
     effect_params = tuple(n for n in names if "effect" in model.param(n).tags)
