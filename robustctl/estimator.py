@@ -408,19 +408,8 @@ def _lagged_spectrum(two_sided: np.ndarray, f_hz: np.ndarray, settings: Estimato
     return np.einsum("fk,koi->foi", phase, h)
 
 
-def _cot_lower(w: np.ndarray) -> np.ndarray:
-    """``cot(w)`` for complex ``w``, without overflow for large ``|Im w|``."""
-    out = np.empty_like(w)
-    lower = w.imag <= 0
-    e = np.exp(-2j * w[lower])  # |e| <= 1
-    out[lower] = 1j * (1.0 + e) / (1.0 - e)
-    e = np.exp(2j * w[~lower])
-    out[~lower] = -1j * (1.0 + e) / (1.0 - e)
-    return out
-
-
 #: Oversampling of the Nyquist interval for the smooth part of the measured-input view.
-_GRID_FACTOR = 8
+_GRID_FACTOR = 4
 
 
 @limit_blas
@@ -469,13 +458,19 @@ def expected_h1_measured(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np
         poles, res, _ = modal
         below = np.abs(poles.imag) < np.pi * fs
         flat = res.reshape(len(poles), -1)
+        grid = np.zeros((theta.size, flat.shape[1]), complex)
         with np.errstate(divide="ignore", invalid="ignore"):
-            x = 1j * theta[:, None] * fs - poles[None, :]
-            direct = np.where(below[None, :], 0.0, 1.0 / x)
-            beta = -1j * poles / fs
-            cot = _cot_lower((theta[:, None] - beta[None, :]) / 2.0) / (2j * fs)
-            alias = np.where(below[None, :], cot - 1.0 / x, 0.0)
-        grid = (direct - alias) @ flat  # (big/2 + 1, n_out * n_in)
+            if np.any(~below):
+                grid += (1.0 / (1j * theta[:, None] * fs - poles[None, ~below])) @ flat[~below]
+            if np.any(below):
+                pb = poles[below]
+                # cot((theta - beta) / 2) = j (1 + e) / (1 - e), e = e^{-j theta} e^{j beta} (= e^{p / fs}):
+                # (|e| <= 1 for a stable pole)
+                e = np.exp(-1j * theta)[:, None] * np.exp(pb / fs)[None, :]
+                cot = 1j * (1.0 + e) / (1.0 - e)
+                alias = cot / (2j * fs) - 1.0 / (1j * theta[:, None] * fs - pb[None, :])
+                grid -= alias @ flat[below]
+        # (big/2 + 1, n_out * n_in)
         grid[-1] = grid[-1].real  # theta = pi: the mean of the two sides of the jump
         c = np.fft.irfft(grid, big, axis=0).reshape((big,) + D.shape)
         if np.any(below):
