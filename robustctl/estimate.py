@@ -590,14 +590,13 @@ def simulate_experiment(
 
     The zero-order hold is part of the simulated experiment, as of a real one driven by a
     DAC: an H1 estimate of ``u -> y`` (:func:`estimate_frf`) carries the hold's half-sample
-    delay (2.5 ms at 200 Hz) and sinc droop, ``(1 - e^{-sT}) / (sT)``. A continuous model
-    compared with such data needs the hold as a known stage, added deliberately:
-    ``model.add_io_stage(rc.electronics.zero_order_hold_stage(model.inputs, fs))`` (or divide
-    the estimate by ``rc.estimator.hold_response(f_hz, fs)``, as
-    ``rc.examples.make_experiment`` does, recording ``meta["hold_divided"]``). Otherwise
-    ``rc.diagnose`` finds the hold and names it as such (a delay of about half a sample).
-    An anti-alias filter in the measurement chain is added the same way
-    (``rc.electronics.anti_alias_stage``).
+    delay (2.5 ms at 200 Hz) and sinc droop, ``(1 - e^{-sT}) / (sT)``. The excitation is
+    returned as a :class:`HeldCommand`, so :func:`estimate_frf` records
+    ``experiment.input_kind = "held"`` and ``rc.compare``, ``rc.diagnose`` and ``rc.update``
+    see a continuous model through the exact sampled hold (aliasing included). Dividing the
+    estimate by ``rc.estimator.hold_response(f_hz, fs)``, as ``rc.examples.make_experiment``
+    does, is recorded as ``experiment.hold_divided``. An anti-alias filter in the measurement
+    chain is added as a known stage (``rc.electronics.anti_alias_stage``).
 
     Parameters
     ----------

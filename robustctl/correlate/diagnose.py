@@ -225,7 +225,8 @@ class Diagnosis:
         Where the noise estimate behind the p-values came from; ``""``: none (no significance
         claims are made, p-values are NaN).
     estimator_note : str
-        How the model was seen (through the H1 estimator, or ``""``).
+        How the model was seen: through the H1 estimator, or as the plain FRF and why
+        (:func:`robustctl.estimator.experiment_view`).
     indistinguishable : Indistinguishable or None
         The fitted candidates the data in this band cannot tell from the top one (equal cost
         within the noise, nearly collinear fitted changes), with where their fitted models

@@ -388,7 +388,8 @@ class UpdateResult:
         Chi-square verdicts of the misfit against the data's noise before and after the update
         (None without a noise model: no significance claims).
     estimator_note : str
-        How the model was seen (through the H1 estimator, or ``""``).
+        How the model was seen: through the H1 estimator, or as the plain FRF and why
+        (:func:`robustctl.estimator.experiment_view`).
     noise_covariance : ndarray (n_selected, n_selected) or None
         Covariance of the updated values from the noise model (parameter units, order of
         ``selected``); None without a noise model. Behind :attr:`moves_se` and
