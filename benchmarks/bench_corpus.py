@@ -15,10 +15,11 @@ Run: ``python -m benchmarks corpus`` (writes ``benchmarks/results/corpus.json``)
 from __future__ import annotations
 
 import sys
-import time
 from pathlib import Path
 
 import robustctl as rc
+
+from .bench_noise import _cpu
 
 TARGET_S = 1.0
 
@@ -30,15 +31,6 @@ def _corpus():
     import lab_corpus
 
     return lab_corpus
-
-
-def _cpu(fn, repeat: int = 3) -> float:
-    best = float("inf")
-    for _ in range(repeat):
-        t = time.process_time()
-        fn()
-        best = min(best, time.process_time() - t)
-    return best
 
 
 def run() -> dict:
