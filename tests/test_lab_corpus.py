@@ -253,3 +253,15 @@ def test_the_experiment_description_is_checked_and_recorded_by_every_estimator()
     assert data.experiment.input_kind == "held" and data.experiment.hold_divided
     hits = lc.impact_test(lc.plate_grid(), n_hits=4)
     assert hits.experiment.excitation == "impact" and hits.experiment.n_averages == 4
+
+
+def test_the_noise_model_is_calibrated_on_few_averages(cases):
+    """Eight hammer hits: with the plug-in coherence the squared normalised error of the exact
+    truth has mean n / (n - 2) = 1.33 unless the two degrees of freedom are paid; paid, about 1."""
+    truth, data, desc = cases["grid_impact"]
+    band = data.band(*desc["band"])
+    nm = rc.noise_model(band)
+    assert nm.averages.tolist() == [8.0]
+    z = rc.log_error(truth, band) / nm.sigma
+    ratio = np.mean(np.abs(z) ** 2) / 2
+    assert 0.85 < ratio < 1.15
