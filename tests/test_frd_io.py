@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import json
 import os
 import pickle
 import tempfile
 import zipfile
 from pathlib import Path
 
+import control
 import numpy as np
 import pytest
 import pyuff
@@ -381,3 +383,28 @@ def test_corrupt_or_mismatched_uff(tmp_path, small):
     with pytest.raises(DataError, match="at least 2 frequencies"):
         small.band(1.0, 1.5).save(tmp_path / "one.uff")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.uff", "missing_pair.uff", "two_grids.uff"]
+
+
+def test_files_written_before_the_experiment_description_load_as_not_described(tmp_path):
+    """An npz archive and a MAT file without the experiment fields (as robustctl wrote them before)
+    load with every field unknown, their meta kept; a described file keeps its description."""
+    from scipy.io import savemat
+
+    f = np.array([1.0, 2.0, 3.0])
+    g = np.array([1.0 + 1j, 0.5 - 1j, 0.2 + 0.1j])[:, None, None]
+    meta = {"fs_hz": 200.0, "nperseg": 1024, "window": "hamming"}  # settings alone do not describe
+    np.savez(tmp_path / "old.npz", format=np.array("robustctl.FrequencyData"), version=np.array(1), f_hz=f,
+             response=g, inputs=np.array(["u1"]), outputs=np.array(["y1"]), units_json=np.array("{}"),
+             meta_json=np.array(json.dumps(meta)))
+    savemat(tmp_path / "old.mat", {"Frequency": f[:, None], "FrequencyUnit": "Hz",
+                                   "ResponseData": np.transpose(g, (1, 2, 0)),
+                                   "robustctl_meta": json.dumps(meta)})
+    for name in ("old.npz", "old.mat"):
+        old = rc.load_frd(tmp_path / name)
+        assert old.experiment == rc.Experiment() and old.meta == meta
+        one_pole = control.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]])
+        assert rc.compare(one_pole, old).estimator_note == rc.frd.PLAIN_NOTE
+    described = rc.FrequencyData(f, g, experiment=rc.Experiment(input_kind="measured", excitation="impact",
+                                                                 fs_hz=256.0, n_averages=5))
+    for ext in ("npz", "mat", "csv", "uff"):
+        assert rc.load_frd(described.save(tmp_path / f"new.{ext}")).experiment == described.experiment
