@@ -35,7 +35,7 @@ def _corpus():
 
 def run() -> dict:
     """Every case: truth verdicts with and without the view, CPU time per compare."""
-    from robustctl.estimator import EstimatorSettings, expected_h1, expected_h1_measured
+    from robustctl.measure.estimator import EstimatorSettings, expected_h1, expected_h1_measured
 
     lc = _corpus()
     metrics: dict = {}

@@ -3,7 +3,7 @@
 Every truth is built here in numpy: mass, stiffness and (classical, modal) damping matrices of
 five structures -- a 3-D two-storey frame, a 12-DOF plate-like grid, a hub with two arms, a
 10-mass mast and a two-span beam -- with force vectors and sensor rows. Their responses are
-computed exactly, without ``rc.simulate_experiment`` and without ``robustctl.estimator``:
+computed exactly, without ``rc.simulate_experiment`` and without ``robustctl.measure.estimator``:
 
 * a measured (continuous) force: a band-limited force that repeats over the whole record, so
   the sampled response is its exact steady state, ``Y_k = G(j w_k) U_k`` (``np.fft``);

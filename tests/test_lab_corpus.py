@@ -101,7 +101,7 @@ def test_the_measured_view_is_the_band_limited_response_through_the_lag_window(k
     """Independent computation: the two-sided impulse response from the response itself on a
     2^20-point grid, through the Hamming lag window; the view's exact poles and alias sum agree,
     a direct feedthrough stays D and a mode above Nyquist is not aliased."""
-    from robustctl.estimator import EstimatorSettings, expected_h1_measured, lag_window
+    from robustctl.measure.estimator import EstimatorSettings, expected_h1_measured, lag_window
 
     M, K = np.diag([1.0, 0.5]), np.array([[3e4 + k_top, -k_top], [-k_top, k_top]])
     model = rc.structural_model(M, K, inputs={"F": "dof 1"},

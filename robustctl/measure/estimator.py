@@ -26,8 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from .errors import DataError
-from .threads import limit_blas
+from ..errors import DataError
+from ..threads import limit_blas
 
 __all__ = [
     "EstimatorSettings",
@@ -380,7 +380,7 @@ def expected_h1(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np.ndarray:
     -------
     ndarray, complex, shape (K, n_out, n_in)
     """
-    from .lti import as_statespace
+    from ..lti import as_statespace
 
     ss = as_statespace(sys)
     modal = _modal(ss)
@@ -682,7 +682,7 @@ def model_view(bare: Any, has_hold: bool, f_hz: Any, settings: EstimatorSettings
     if hasattr(bare, "param_names") and hasattr(bare, "statespace"):
         sys = bare.statespace(**overrides)
     else:
-        from .lti import as_statespace
+        from ..lti import as_statespace
 
         sys = as_statespace(bare)
     if settings.input_kind == "held":  # the experiment had the hold: keep it, unless it was divided out
