@@ -436,7 +436,7 @@ def expected_h1_measured(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np
     -------
     ndarray, complex, shape (K, n_out, n_in)
     """
-    from .lti import as_statespace
+    from ..lti import as_statespace
 
     ss = as_statespace(sys)
     fs, n, _ = settings
@@ -448,7 +448,7 @@ def expected_h1_measured(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np
     two = np.zeros((2 * n,) + D.shape)
     two[0] = D
     if modal is None:  # defective modes: transform the response itself on the fine grid
-        from .lti import freqresp
+        from ..lti import freqresp
 
         g = freqresp(ss, theta[1:] * fs / (2 * np.pi)).response - D
         g = np.concatenate([g[:1].real, g], axis=0)  # theta = 0: the first point's real part
@@ -494,7 +494,7 @@ def sampled_hold_response(sys: Any, f_hz: Any, fs: float) -> np.ndarray:
     """
     import control
 
-    from .lti import as_statespace, freqresp
+    from ..lti import as_statespace, freqresp
 
     ss = as_statespace(sys)
     d = control.c2d(ss, 1.0 / float(fs), method="zoh")
@@ -504,7 +504,7 @@ def sampled_hold_response(sys: Any, f_hz: Any, fs: float) -> np.ndarray:
 def discrete_view(sys: Any, f_hz: Any, settings: EstimatorSettings | None) -> np.ndarray:
     """A sampled system (``dt > 0``) as the estimate sees it: ``G(e^{j 2 pi f dt})``, through the
     lag window when the estimate has leakage (``h[0] = D``, ``h[m] = C A^{m-1} B``)."""
-    from .lti import as_statespace, freqresp
+    from ..lti import as_statespace, freqresp
 
     ss = as_statespace(sys)
     f = np.asarray(f_hz, dtype=float)
@@ -568,14 +568,15 @@ def experiment_view(
 
     * window leakage: random excitation with known ``fs_hz``, ``nperseg`` and ``window``;
     * the exact sampled zero-order hold (aliasing, half-sample delay): a held input with known
-      ``fs_hz`` (divided out again when the model has no hold stage, see :func:`estimator_view`);
+      ``fs_hz``, applied to the model unless the data were divided by the hold
+      (``hold_divided``; :func:`model_view`);
     * nothing else: a measured input has no hold and no aliasing; periodic excitation with
       whole periods per segment, bursts, impacts and stepped sines have no window leakage.
 
     ``note`` says in words what is applied (``"model seen through ..."``) or why nothing is
     (:data:`robustctl.frd.PLAIN_NOTE` when the data do not describe their experiment).
     """
-    from .frd import PLAIN_NOTE, Experiment
+    from ..frd import PLAIN_NOTE, Experiment
 
     e = experiment if isinstance(experiment, Experiment) else Experiment.from_dict(experiment)
     if e.input_kind is None and e.excitation is None:
