@@ -596,6 +596,9 @@ def experiment_view(
             why = f"{e.excitation.replace('_', ' ')} excitation has no window leakage"
             if e.excitation == "periodic":
                 why = "periodic excitation with whole periods per segment has no window leakage"
+                if e.window not in (None, "boxcar", "rectangular", "rect", "ones"):
+                    why += (f" (but a {e.window} window mixes neighbouring lines of a periodic excitation; "
+                            "estimate with window='boxcar')")
         kind = "the input kind is not stated"
         if e.input_kind == "measured":
             kind = "a measured input has no hold"
@@ -614,6 +617,7 @@ def experiment_view(
     )
     note = f"model seen through the H1 estimator: {st.describe()}"
     if not held and e.input_kind is None:
+        note = note.replace(", measured input (no hold)", "")
         note += "; the input kind is not stated, so no zero-order hold is applied"
     return st, note
 
