@@ -265,3 +265,30 @@ def test_the_noise_model_is_calibrated_on_few_averages(cases):
     z = rc.log_error(truth, band) / nm.sigma
     ratio = np.mean(np.abs(z) ** 2) / 2
     assert 0.85 < ratio < 1.15
+
+
+@pytest.mark.parametrize(
+    "experiment, applied, words",
+    [
+        (rc.Experiment(), None, "the data do not say how they were estimated"),
+        (rc.Experiment("measured", "random", 200.0, "hann", 512), ("measured", True),
+         "measured input (no hold)"),
+        (rc.Experiment("held", "random", 200.0, "hann", 512), ("held", True), "512-pt hann at 200 Hz"),
+        (rc.Experiment("held", "periodic", 200.0, "boxcar", 512, whole_periods=True), ("held", False),
+         "sampled zero-order-hold response"),
+        (rc.Experiment("measured", "periodic", 200.0, "boxcar", 512, whole_periods=True), None,
+         "whole periods per segment has no window leakage; a measured input has no hold"),
+        (rc.Experiment("measured", "periodic", 200.0, "boxcar", 512), None, "without whole periods"),
+        (rc.Experiment("measured", "random", 200.0), None, "settings (fs, nperseg, window) are not stated"),
+        (rc.Experiment(None, "random", 200.0, "hann", 512), ("measured", True), "input kind is not stated"),
+        (rc.Experiment("measured", "impact", 256.0), None, "impact excitation has no window leakage"),
+        (rc.Experiment("held", "stepped_sine", 100.0), ("held", False), "no window leakage"),
+    ],
+)
+def test_the_view_applies_exactly_what_the_description_establishes(experiment, applied, words):
+    settings, note = rc.estimator.experiment_view(experiment)
+    if applied is None:
+        assert settings is None and note.startswith("compared as the plain FRF")
+    else:
+        assert (settings.input_kind, settings.leakage) == applied and note.startswith("model seen through")
+    assert words in note
