@@ -463,8 +463,10 @@ def expected_h1_measured(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np
     transform of the smooth alias sum ``sum_{q != 0} r / (j (theta + 2 pi q) fs - p) =
     r [cot((theta - beta) / 2) / (2 j fs) - 1 / (j theta fs - p)]``, ``beta = -j p / fs``, taken
     by an FFT over ``8 N`` points; a pole above the Nyquist frequency is transformed by the FFT
-    directly (Oppenheim & Schafer, *Discrete-Time Signal Processing*, 3rd ed., eqs. 4.20 and
-    7.14; Bendat & Piersol, *Random Data*, eq. 9.62 for the window's smoothing).
+    directly. The alias sum is Poisson's summation of the sampled impulse response
+    (Oppenheim & Schafer, *Discrete-Time Signal Processing*, 3rd ed., sec. 4.2); the lag window
+    is that of the module notes (the expectation of the windowed cross-spectrum of a white
+    input).
 
     Returns
     -------
@@ -522,7 +524,7 @@ def sampled_hold_response(sys: Any, f_hz: Any, fs: float) -> np.ndarray:
     """The exact sampled response of a continuous system behind a zero-order hold at ``f_hz``.
 
     ``G_zoh(z) = C (z I - A_d)^{-1} B_d + D`` with ``[[A_d, B_d], [0, I]] = expm([[A, B], [0, 0]] T)``
-    at ``z = e^{j 2 pi f / fs}`` (Franklin, Powell & Workman, *Digital Control*, eq. 4.58):
+    at ``z = e^{j 2 pi f / fs}`` (Franklin, Powell & Workman, *Digital Control*, sec. 4.3):
     the H1 estimate of a held input without leakage (periodic excitation with whole periods,
     stepped sine), aliasing and the hold's half-sample delay included.
     """
