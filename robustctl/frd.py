@@ -193,7 +193,7 @@ def _opt_window(value: Any) -> str | tuple | None:
     return value
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Experiment:
     """How frequency-response data were made; ``None`` in any field means "not known".
 
@@ -211,7 +211,8 @@ class Experiment:
     excitation : {"random", "periodic", "burst", "impact", "stepped_sine"} or None
         The excitation signal.
     fs_hz : float or None
-        Sampling frequency in Hz.
+        Sampling frequency in Hz (also accepted as ``fs``, the name :func:`robustctl.estimate_frf`
+        uses; the attribute ``fs`` reads it too).
     window : str, tuple or None
         The ``scipy.signal.get_window`` spec of the Welch segments (``"user array"`` for a
         window given as values, which ``meta["window_values"]`` holds).
@@ -233,6 +234,36 @@ class Experiment:
     n_averages: int | None = None
     whole_periods: bool | None = None
     hold_divided: bool = False
+
+    def __init__(
+        self,
+        input_kind: str | None = None,
+        excitation: str | None = None,
+        fs_hz: float | None = None,
+        window: Any = None,
+        nperseg: int | None = None,
+        noverlap: int | None = None,
+        n_averages: int | None = None,
+        whole_periods: bool | None = None,
+        hold_divided: bool = False,
+        *,
+        fs: float | None = None,
+    ) -> None:
+        if fs is not None:
+            if fs_hz is not None and fs_hz != fs:
+                raise DataError(f"give the sampling frequency once: fs={fs!r} and fs_hz={fs_hz!r} differ.")
+            fs_hz = fs
+        values = dict(input_kind=input_kind, excitation=excitation, fs_hz=fs_hz, window=window,
+                      nperseg=nperseg, noverlap=noverlap, n_averages=n_averages,
+                      whole_periods=whole_periods, hold_divided=hold_divided)
+        for name, value in values.items():
+            object.__setattr__(self, name, value)
+        self.__post_init__()
+
+    @property
+    def fs(self) -> float | None:
+        """The sampling frequency in Hz (``fs_hz``)."""
+        return self.fs_hz
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "input_kind", _opt_choice(self.input_kind, "input_kind", INPUT_KINDS))
@@ -301,7 +332,7 @@ class Experiment:
             return value
         if not isinstance(value, Mapping):
             raise DataError(f"an experiment description must be a mapping or an Experiment; got {value!r}.")
-        names = {f.name for f in _dc_fields(cls)}
+        names = {f.name for f in _dc_fields(cls)} | {"fs"}
         unknown = sorted(set(value) - names)
         if unknown:
             raise DataError(f"unknown experiment fields {unknown}; the fields are {sorted(names)}.")
