@@ -577,6 +577,10 @@ class FrequencyData:
             see :mod:`robustctl.frd_io.csv_format`) or
             ``.uff``/``.unv`` (universal file dataset 58, one binary double-precision record
             per output/input pair, names in ID lines 4 and 5, coherence as function type 6).
+            Every format keeps ``experiment`` (how the data were made): npz and MAT as JSON
+            (MAT also as plain variables ``InputKind``, ``SampleRate`` ...), CSV as a
+            ``# experiment: {...}`` header line, UFF in ID line 2 and a ``<file>.uff.json``
+            sidecar (with ``meta``).
         overwrite : bool
             Replace an existing file. By default an existing file is never touched.
 
