@@ -211,8 +211,7 @@ class Experiment:
     excitation : {"random", "periodic", "burst", "impact", "stepped_sine"} or None
         The excitation signal.
     fs_hz : float or None
-        Sampling frequency in Hz (also accepted as ``fs``, the name :func:`robustctl.estimate_frf`
-        uses; the attribute ``fs`` reads it too).
+        Sampling frequency in Hz.
     window : str, tuple or None
         The ``scipy.signal.get_window`` spec of the Welch segments (``"user array"`` for a
         window given as values, which ``meta["window_values"]`` holds).
@@ -223,6 +222,9 @@ class Experiment:
     hold_divided : bool
         The estimate was divided by the zero-order hold's response ``(1 - e^{-sT}) / (sT)``
         (:func:`robustctl.examples.make_experiment` does so for held inputs).
+    fs : float or None
+        The sampling frequency in Hz under the name :func:`robustctl.estimate_frf` uses (keyword
+        only; stored as ``fs_hz``, which the attribute ``fs`` also reads).
     """
 
     input_kind: str | None = None
