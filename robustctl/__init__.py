@@ -57,7 +57,7 @@ from .figures import (
     plot_mode_shapes,
     plot_singular_values,
 )
-from .frd import FrequencyData
+from .frd import Experiment, FrequencyData
 from .frd_io import load_frd
 
 # the user's FE model and test geometry: Nastran files, UFF geometry and mode shapes
@@ -76,6 +76,7 @@ from .interconnect import PartitionedPlant, block_diagonal, feedback, lft, paral
 from .lti import as_statespace, freqresp, is_stable
 from .measure import estimator
 from .measure.estimate import (
+    HeldCommand,
     advised_nperseg,
     combine_experiments,
     estimate_frf,
@@ -186,6 +187,9 @@ __all__ = [
     "SynthesisError",
     "FrequencyData",
     "load_frd",
+    # how the data were made
+    "Experiment",
+    "HeldCommand",
     "fit_rational",
     "combine_simo",
     "group_modes",
