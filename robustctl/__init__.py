@@ -47,9 +47,22 @@ from .correlate import (
 from .cost import LogCost, log_cost, log_error
 from .errors import DataError, FitError, ModelError, RobustctlError, SynthesisError
 from .export import ExportReport, discretize, export_controller, load_controller
-from .figures import fit_percent, mac_matrix, plot_compare, plot_mac, plot_mode_shapes, plot_singular_values
-from .frd import FrequencyData
+from .figures import (
+    ModeAnimation,
+    animate_mode_shape,
+    fit_percent,
+    mac_matrix,
+    plot_compare,
+    plot_mac,
+    plot_mode_shapes,
+    plot_singular_values,
+)
+from .frd import Experiment, FrequencyData
 from .frd_io import load_frd
+
+# the user's FE model and test geometry: Nastran files, UFF geometry and mode shapes
+from .frd_io.geometry import Geometry, ModeShapes
+from .frd_io.uff_geometry import load_uff_geometry, load_uff_modes, write_uff_geometry
 from .identify import (
     MeasurementModel,
     StabilisationDiagram,
@@ -60,9 +73,10 @@ from .identify import (
     group_modes,
 )
 from .interconnect import PartitionedPlant, block_diagonal, feedback, lft, parallel, series, star, upper_lft
-from .lti import as_statespace, freqresp
+from .lti import as_statespace, freqresp, is_stable
 from .measure import estimator
 from .measure.estimate import (
+    HeldCommand,
     advised_nperseg,
     combine_experiments,
     estimate_frf,
@@ -84,6 +98,23 @@ from .physical import (
     modal_model,
     modal_statespace,
     structural_model,
+)
+from .physical.ansys_import import (
+    load_ansys_geometry,
+    load_ansys_matrices,
+    load_ansys_modes,
+    read_ansys_matrices,
+    read_ansys_modes,
+)
+from .physical.fe_model import fe_modal_model, fe_structural_model
+from .physical.nastran_import import (
+    load_bdf_geometry,
+    load_nastran_matrices,
+    load_nastran_modes,
+    read_nastran_matrices,
+    read_nastran_modes,
+    write_nastran_matrices,
+    write_nastran_modes,
 )
 
 # robust design: weights
@@ -111,7 +142,13 @@ from .robust import (
     robust_stability,
     worst_case_gain,
 )
+from .robust.controller_reduction import ControllerReduction, reduce_controller
 from .robust.dk import DKResult, dksyn
+from .robust.h2 import H2Result, h2norm, h2syn
+from .robust.loop_shaping import LoopShapingResult, ncfsyn, stability_margin
+from .robust.lqg_design import LQGResult, lqg
+from .robust.margins import DiskMargin, DiskMarginResult, disk_gain_phase, diskmargin, nugap
+from .robust.sampled import sampled_plant
 from .robust.sweep import DesignSweep, design_sweep
 from .robust.yardsticks import Yardstick, yardstick
 from .signals import (
@@ -150,6 +187,9 @@ __all__ = [
     "SynthesisError",
     "FrequencyData",
     "load_frd",
+    # how the data were made
+    "Experiment",
+    "HeldCommand",
     "fit_rational",
     "combine_simo",
     "group_modes",
@@ -175,6 +215,28 @@ __all__ = [
     "modal_model",
     "modal_statespace",
     "MatrixStructure",
+    # the user's FE model and test geometry (Nastran, UFF)
+    "Geometry",
+    "ModeShapes",
+    "load_uff_geometry",
+    "load_uff_modes",
+    "write_uff_geometry",
+    "fe_modal_model",
+    "fe_structural_model",
+    "animate_mode_shape",
+    "ModeAnimation",
+    "load_ansys_geometry",
+    "load_ansys_matrices",
+    "load_ansys_modes",
+    "read_ansys_matrices",
+    "read_ansys_modes",
+    "load_bdf_geometry",
+    "load_nastran_matrices",
+    "load_nastran_modes",
+    "read_nastran_matrices",
+    "read_nastran_modes",
+    "write_nastran_matrices",
+    "write_nastran_modes",
     # named interconnection (interconnect.py, signals.py) and the generalized plant (robust/plant.py)
     "PartitionedPlant",
     "lft",
@@ -240,4 +302,22 @@ __all__ = [
     "DKResult",
     "yardstick",
     "Yardstick",
+    # H2/LQG, discrete synthesis, loop shaping, margins, controller reduction
+    "is_stable",
+    "h2norm",
+    "h2syn",
+    "H2Result",
+    "lqg",
+    "LQGResult",
+    "sampled_plant",
+    "diskmargin",
+    "disk_gain_phase",
+    "DiskMargin",
+    "DiskMarginResult",
+    "nugap",
+    "ncfsyn",
+    "LoopShapingResult",
+    "stability_margin",
+    "reduce_controller",
+    "ControllerReduction",
 ]
