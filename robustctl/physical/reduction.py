@@ -100,7 +100,7 @@ class _Basis:
     resid_in: np.ndarray  # (m,) residual flexibility b_i^T R b_i (m/N)
     resid_out: np.ndarray  # (p,) c_o R c_o^T
     Vb: np.ndarray = None  # (r, m) V^T b
-    cV: np.ndarray = None  # (p, r) c V
+    c_v: np.ndarray = None  # (p, r) c V
     VCV: np.ndarray | None = None  # (r, r) V^T Cs V, None without dashpots
 
 
@@ -241,7 +241,7 @@ def _ritz_modal(base: _Basis, mats: Any, change: tuple[np.ndarray, list]):
 
     dofs, (dM, dK, dC) = change
     V = base.V
-    Vb, cV = base.Vb, base.cV
+    Vb, cV = base.Vb, base.c_v
     if dofs.size:
         E = np.zeros((V.shape[0], dofs.size))
         E[dofs, np.arange(dofs.size)] = 1.0
