@@ -394,13 +394,29 @@ def band_limited(model: Any, f_max_hz: float, *, margin: float | None = None, mi
 
 
 def reduction_error(model: Any, f_hz: Any, **overrides: float) -> np.ndarray | None:
-    """Error estimate ``|G_reduced - G_full|`` (n_freq, n_out, n_in) of a band-limited model at
-    ``f_hz`` (Hz), in the output's units per input unit; None for a model on the full path.
+    """Error estimate ``|G_reduced - G_full|`` of a band-limited model's structural response.
 
     ``e(w / w_cut) sqrt(R^out_oo R^in_ii)`` times ``w^k`` (``k`` = 0, 1, 2 for displacement,
-    velocity, acceleration outputs), ``w_cut`` the highest exact mode kept and ``R`` the
-    residual flexibility of the truncated modes (module docstring; Craig & Kurdila 2006, sec.
-    11.4). Below ``w_cut / sqrt(2)`` only.
+    velocity, acceleration outputs), with ``e(rho) = |1 / (1 - rho^2 + 2 j zeta rho) - 1|``,
+    ``w_cut`` the highest exact mode kept and ``R`` the residual flexibility of the truncated
+    modes at the sensor and actuator DOFs (module docstring; Craig & Kurdila 2006, sec. 11.4,
+    the static-correction error; the inertia term the attachment vectors add makes the actual
+    error smaller). Infinite at and above ``w_cut / sqrt(2)``.
+
+    Parameters
+    ----------
+    model : PhysicalModel
+        A model from :func:`band_limited`.
+    f_hz : array_like
+        Frequencies (Hz).
+    **overrides : float
+        Parameter values, as for ``model.freqresp``.
+
+    Returns
+    -------
+    ndarray, shape (n_freq, n_out, n_in), or None
+        In the output's units per input unit (before the model's I/O stages); None for a
+        model on the full path (not band-limited, or below its DOF threshold).
     """
     dyn = model.dynamics
     reducer = getattr(dyn, "reducer", None)
