@@ -270,8 +270,8 @@ def portal_frame(E=2.1e11, joint=None, added=None, n_el=2):
 
 def frame_model():
     """The portal frame as a PhysicalModel whose parameter ``E`` (Pa) updating may change."""
-    from robustctl.physical.model import PhysicalModel
     from robustctl.physical.modal import modal_dynamics
+    from robustctl.physical.model import PhysicalModel
 
     par = rc.Parameter("E", 2.1e11, "Pa", (1e11, 4e11), meaning="Young's modulus of every member")
     zeta = rc.Parameter("zeta_modal", ZETA, "", (0.0, 0.2), rel_step=1e-2, abs_step=1e-5,

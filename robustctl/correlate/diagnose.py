@@ -170,8 +170,8 @@ class CandidateResult:
         likely wrong, and the candidate is never proposed.
     z_vs_best, p_vs_best : float
         Vuong's (1989) statistic of the best candidate against this one and its one-sided
-        p-value ("the best explains the data no better"), with each point's variance the larger
-        of the noise and the misfit this candidate leaves (:func:`_rival_test`); NaN for the best.
+        p-value ("the best explains the data no better"), the variance of the pointwise
+        differences estimated from the data (:func:`_rival_test`); NaN for the best.
     """
 
     effect: Any
@@ -1063,6 +1063,12 @@ def _phrase(effect: Any) -> str:
     size = effect.describe_value()
     if effect.kind == "gravity":
         return effect.name
+    if effect.kind in ("sensor_units", "actuator_units"):
+        return f"a units slip {size} on {effect.side} {effect.location}"
+    if getattr(effect, "switch", False):
+        return f"{effect.name} ({effect.description})"
+    if effect.kind == "joint_spring":
+        return f"a {effect.name} ({size})"
     if effect.kind in ("sensor_lowpass", "actuator_lowpass"):
         return f"a {effect.name} at {size}"
     if effect.kind == "added_mass":
@@ -1083,7 +1089,7 @@ def _sentence(r: CandidateResult) -> str:
         vs = ""
         if np.isfinite(r.p_vs_best):
             vs = f"; the best explains the data better by z = {r.z_vs_best:.3g} ({format_p(r.p_vs_best)})"
-        against = "; tested against the misfit it leaves: model error" if r.scale == "misfit" else ""
+        against = "; tested against the misfit it leaves" if r.scale == "misfit" else ""
         if r.at_bound:
             verdict = (
                 f"at its bound ({r.effect.describe_value()}): the model form is likely wrong, so it is "
@@ -1529,7 +1535,10 @@ def _misfit_along(left: np.ndarray, delta: np.ndarray, res: Residual) -> tuple[f
     the largest eigenvalue of ``R``."""
     local, kappa = _misfit_variance(left, res)
     nf = res.data.shape[0]
-    cols = lambda x: np.concatenate([x[: x.size // 2].reshape(nf, -1), x[x.size // 2:].reshape(nf, -1)], axis=1)  # noqa: E731
+
+    def cols(x: np.ndarray) -> np.ndarray:  # (nf, 2 n_channels): real parts, then imaginary parts
+        return np.concatenate([x[: x.size // 2].reshape(nf, -1), x[x.size // 2:].reshape(nf, -1)], axis=1)
+
     sd = np.sqrt(cols(local))
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.where(sd > 0, cols(left) / sd, 0.0)
@@ -1582,19 +1591,26 @@ def _candidate_test(
 
 def _rival_test(best_vec: np.ndarray, vec: np.ndarray, row_noise: np.ndarray | None, res: Residual):
     """Vuong's (1989) test of the best candidate against a rival: ``(z, p)``, ``p`` one-sided
-    ("the best is no better"). ``z = (J_rival - J_best) / (2 sqrt(sum d_i^2 v_i))``, ``d`` the
-    difference of their residuals; ``v_i`` the larger of the noise and the local variance of the
-    misfit the rival leaves, times its AR(1) inflation (a rival that leaves a systematic misfit is
-    measured against that misfit, not against the noise alone). NaNs without a noise model."""
+    ("the best explains the data no better").
+
+    ``m_i = r_rival,i^2 - r_best,i^2`` is the pointwise difference of the two fits' squared
+    residuals (log-likelihood ratio terms); ``z = sum m_i / sqrt(kappa n s_m^2)`` with ``s_m^2`` their
+    sample variance (Vuong's eq. 5.6: the variance is estimated from the data, so a rival that
+    loses only on a few points is not separated by them) and ``kappa`` the AR(1) inflation of
+    ``m`` along frequency. NaNs without a noise model."""
     if row_noise is None:
         return math.nan, math.nan
     from scipy.stats import norm
 
-    local, kappa = _misfit_variance(vec, res)
-    v = np.maximum(row_noise, kappa * local)
-    d = vec - best_vec
-    den = 2.0 * math.sqrt(max(float((d * d) @ v), 1e-300))
-    z = (float(vec @ vec) - float(best_vec @ best_vec)) / den
+    m = vec**2 - best_vec**2
+    n = m.size
+    x = m.reshape(2, res.data.shape[0], -1).transpose(1, 0, 2).reshape(res.data.shape[0], -1)
+    xc = x - x.mean(axis=0)
+    den = float(np.sum(xc * xc))
+    rho = min(max(float(np.sum(xc[1:] * xc[:-1]) / den), 0.0), 0.995) if den > 0 else 0.0
+    kappa = (1.0 + rho) / (1.0 - rho)
+    var = float(np.var(m)) * n * kappa
+    z = float(m.sum()) / math.sqrt(max(var, 1e-300))
     return z, float(norm.sf(z))
 
 
