@@ -205,9 +205,9 @@ def hub_matrices(k_scale=1.0, added=None, spring=None):
     for d, v in (added or {}).items():  # absolute point mass at a node: d in 2..5 (z index)
         e = T[d - 1]
         M = M + v * np.outer(e, e)
-    for d, v in (spring or {}).items():
-        e = T[d - 1]
-        K = K + v * np.outer(e, e)
+    for d, v in (spring or {}).items():  # a spring on the model's own DOF d (in the library)
+        K = K.copy()
+        K[d - 1, d - 1] += v
     return M, K, T
 
 
