@@ -159,7 +159,8 @@ def test_without_coherence_diagnose_finds_the_effect_against_a_measurement_model
 def _held(data):
     """The data marked as made with a held (DAC) input, as the experiment description says."""
     return rc.FrequencyData(data.f_hz, data.response, inputs=data.inputs, outputs=data.outputs,
-                            coherence=data.coherence, units=data.units, meta={**data.meta, "input_kind": "held"})
+                            coherence=data.coherence, units=data.units,
+                            meta={**data.meta, "input_kind": "held"})
 
 
 def test_a_half_sample_delay_is_named_the_dac_zero_order_hold_when_the_input_was_held(chain):

@@ -1552,9 +1552,10 @@ def _misfit_along(left: np.ndarray, delta: np.ndarray, res: Residual) -> tuple[f
     def cols(x: np.ndarray) -> np.ndarray:  # (nf, 2 n_channels): real parts, then imaginary parts
         return np.concatenate([x[: x.size // 2].reshape(nf, -1), x[x.size // 2:].reshape(nf, -1)], axis=1)
 
-    sd = np.sqrt(cols(local))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z = np.where(sd > 0, cols(left) / sd, 0.0)
+    sd = np.sqrt(np.maximum(cols(local), 0.0))
+    sd = np.where(sd > 1e-9 * max(float(sd.max()), 1e-300), sd, 0.0)  # round-off of the running mean
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        z = np.where(sd > 0, cols(left) / np.where(sd > 0, sd, 1.0), 0.0)
     g = z.T @ z / nf
     dg = np.sqrt(np.maximum(np.diag(g), 1e-300))
     R = g / np.outer(dg, dg)
