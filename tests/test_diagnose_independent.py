@@ -155,7 +155,9 @@ def test_an_exact_truth_proposes_nothing(chain, hub, which):
     diag = _diagnose(model, data, cands)
     assert diag.best is None, diag.summary()
     assert not diag.model_error and diag.channel_verdict == ""
-    assert all(r.p_value > 1e-300 for r in diag.ranking if r.fitted)
+    # no candidate, the best or a runner-up, is claimed beyond the noise: their adjusted p-values
+    # are uniform or conservative under the null (these fixed seeds: 0.08 and 1 at the smallest)
+    assert all(r.p_value > 1e-3 for r in diag.ranking if r.fitted)
 
 
 def test_a_half_sample_delay_is_not_called_the_hold_in_data_that_do_not_say_they_were_held(chain):

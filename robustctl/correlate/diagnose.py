@@ -928,6 +928,26 @@ def _residual(model: Any, data: FrequencyData, band, weights, min_db, estimator=
     return res, tuple((o, i) for o, i, _level in res.dropped)
 
 
+#: Candidates screened within this factor of the best screening share are fitted too, beyond
+#: ``n_fit`` (up to :data:`TIE_MAX_FACTOR` x ``n_fit``): screening shares of near-ties say little
+#: about the fits (on a portal frame with a semi-rigid joint, four grounded springs along the
+#: columns screened at 82 % and fitted 8-16 %, the true joint screened at 81 % and was not fitted).
+TIE_SHARE = 0.95
+#: Cap of the fits with near-tied screening shares, as a multiple of ``n_fit``.
+TIE_MAX_FACTOR = 2
+
+
+def _to_fit(screens: list[dict], order: list[int], n_fit: int) -> list[int]:
+    """The candidates given a local fit: the ``n_fit`` best screened, and those tied with the best
+    screening share within :data:`TIE_SHARE` (at most ``TIE_MAX_FACTOR * n_fit`` in all)."""
+    top = [k for k in order[:n_fit] if screens[k]["fraction"] > 0]
+    if not top:
+        return top
+    level = TIE_SHARE * screens[order[0]]["fraction"]
+    more = [k for k in order[n_fit:TIE_MAX_FACTOR * n_fit] if screens[k]["fraction"] >= level]
+    return top + more
+
+
 def _check_budget(deadline: float, budget: float, stage: str) -> float:
     """Seconds left before ``deadline``; a FitError naming the stage when none are (the
     budget covers the whole call: a partial ranking would be a wrong answer without warning)."""
@@ -1219,7 +1239,8 @@ def diagnose(
         :data:`DECOUPLED_DB` (-60 dB) is stricter than theirs (-80 dB). With the same value
         the costs agree.
     n_fit : int
-        Number of best-screened candidates given the local fit.
+        Number of best-screened candidates given the local fit (and up to as many more whose
+        screening share ties with the best's within :data:`TIE_SHARE`).
     max_iter, update_iter : int
         LM iteration caps of the local fits and of the null fit.
     alpha : float
@@ -1351,7 +1372,7 @@ def _diagnose(
     _check_budget(deadline, time_budget_s, "the null fit")
     screens, twins, order = _screen_all(res_u, model_u, null, cands, executor, deadline, time_budget_s)
     evals += sum(s["evals"] for s in screens)
-    top = [k for k in order[:n_fit] if screens[k]["fraction"] > 0]
+    top = _to_fit(screens, order, n_fit)
     # 3. local fits
     remaining = _check_budget(deadline, time_budget_s, "the screening")
     fits = parallel_map_shared(

@@ -301,8 +301,7 @@ class SensorMoved(_SetupEffect):
         return f"__{_slug(self.location)}_to_{_slug(self.to)}{d}"
 
     def _check_location(self, model: PhysicalModel) -> None:
-        _require(self.location, _signals(model, self.side), self.side, self)
-        _structure_info(model)  # a structural model is needed
+        _require(self.location, _structure_signals(model, self.side), f"structural {self.side}", self)
 
     def _specs(self):
         return [ParamSpec(base=f"{self._channel}_moved", unit="", bounds=(0.0, 1.0), neutral=0.0,
@@ -328,21 +327,45 @@ class ActuatorMoved(SensorMoved):
     side: ClassVar[str] = "input"
 
 
+#: Up to this many channels on a side, every pair is a swap candidate; beyond, only channels next
+#: to each other in the data's order (neighbouring connectors), so the count grows linearly.
+ALL_PAIRS_MAX = 8
+
+
+def _swap_pairs(names: tuple[str, ...]) -> list[tuple[str, str]]:
+    if len(names) <= ALL_PAIRS_MAX:
+        return [(a, b) for i, a in enumerate(names) for b in names[i + 1:]]
+    return list(zip(names[:-1], names[1:]))
+
+
+def _structure_signals(model: PhysicalModel, side: str) -> tuple[str, ...]:
+    """The sensor (``side="output"``) or force names of the model's structure (before any I/O stage
+    renames them: an electronics stage may call an output "S1 (V)")."""
+    _structure_info(model)  # a structural model is needed
+    info = _structure_info(model)
+    key = "structure_" + side
+    if key not in info:
+        mats = model.build_structure().matrices()
+        info["structure_output"], info["structure_input"] = tuple(mats.outputs), tuple(mats.inputs)
+    return info[key]
+
+
 def setup_candidates(model: PhysicalModel) -> list[Effect]:
-    """The test-setup errors of ``model``'s channels: swapped pairs, sign flips and units slips of
+    """The test-setup errors of ``model``'s channels: swapped pairs (every pair up to
+    :data:`ALL_PAIRS_MAX` channels on a side, else neighbours in order), sign flips and units slips of
     every output and input, and (structural models) each sensor and actuator moved to a
     neighbouring node or DOF or turned to another axis
     (:meth:`~robustctl.physical.structure_base.Structure.signal_moves`)."""
     outs, ins = _signals(model, "output"), _signals(model, "input")
     cands: list[Effect] = []
-    cands += [SwappedOutputs(a, partner=b) for i, a in enumerate(outs) for b in outs[i + 1:]]
-    cands += [SwappedInputs(a, partner=b) for i, a in enumerate(ins) for b in ins[i + 1:]]
+    cands += [SwappedOutputs(a, partner=b) for a, b in _swap_pairs(outs)]
+    cands += [SwappedInputs(a, partner=b) for a, b in _swap_pairs(ins)]
     cands += [SensorSignFlip(o) for o in outs] + [ActuatorSignFlip(i) for i in ins]
     cands += [SensorUnits(o) for o in outs] + [ActuatorUnits(i) for i in ins]
     if model.structure is not None:
         struct = model.build_structure()
-        for side, names, cls in (("output", outs, SensorMoved), ("input", ins, ActuatorMoved)):
-            for name in names:
+        for side, cls in (("output", SensorMoved), ("input", ActuatorMoved)):
+            for name in _structure_signals(model, side):
                 for to, direction in struct.signal_moves(side, name):
                     cands.append(cls(name, to=to, direction=direction))
     return cands
