@@ -199,3 +199,56 @@ def test_the_best_candidates_p_value_is_conservative_over_200_noise_seeds(chain)
         allowed = binom.ppf(0.999, n, level)
         assert np.sum(p_best < level) <= allowed, (level, np.sum(p_best < level))
     assert proposals <= binom.ppf(0.999, n, 0.01)
+
+
+def test_a_sign_flipped_force_channel_on_the_hub_is_named(hub):
+    g, _ = _hub_data(hub)
+    data = vc.periodic_h1(g * np.array([1.0, -1.0])[None, None, :], n_avg=32, noise=0.05, seed=7,
+                          inputs=hub.inputs, outputs=hub.outputs, f_hz=F_HUB)
+    diag = _diagnose(hub, data, fx.candidates(hub))
+    assert diag.best is not None and diag.best.name == "sign flip of input Fa2", diag.summary()
+
+
+def test_a_random_excitation_estimate_of_the_exact_truth_proposes_nothing(chain):
+    """A continuous random force (scipy lsim), Hann-windowed Welch H1 compared as the plain FRF:
+    its leakage is a small model error (dispersion about 1.5), against which no candidate stands out."""
+    M, K, B, C, kinds = vc.chain_matrices(s_k=1.03)
+    data = vc.random_h1(M, K, B, C, kinds, seed=3, inputs=chain.inputs, outputs=chain.outputs,
+                        n_samples=2**15, band=(2.0, 40.0))
+    diag = _diagnose(chain, data, fx.candidates(chain))
+    assert diag.best is None, diag.summary()
+
+
+# ---------------------------------------------------------------------------- the library
+def test_the_default_library_holds_test_setup_and_joint_candidates_with_their_physics(chain, frame):
+    names = {c.name: c for c in fx.candidates(chain)}
+    for name in ("outputs a2 and a3 swapped", "sign flip of output a4", "units slip on output a3",
+                 "sign flip of input F4", "output a3 at dof 2", "output a3 at dof 4", "input F4 at dof 3"):
+        assert name in names and names[name].description
+    on_frame = {c.name for c in fx.candidates(frame)}
+    assert {"semi-rigid joint of beam at node t1", "semi-rigid joint of beam at node t2"} <= on_frame
+    assert {"output S1 at mid", "output S1 at t1 along z", "input A2 at t1"} <= on_frame
+
+
+def test_a_joint_of_zero_compliance_is_the_rigid_frame_and_a_soft_one_lowers_the_modes():
+    rigid = vc.portal_frame()
+    f0, _ = rigid.modes(n_modes=4)
+    same = vc.portal_frame().add_joint_flexibility("t1", "beam", 0.0)
+    assert np.allclose(same.modes(n_modes=4)[0], f0, rtol=1e-12)
+    stiff = vc.portal_frame().add_joint_flexibility("t1", "beam", 1e-9)
+    assert np.allclose(stiff.modes(n_modes=4)[0], f0, rtol=1e-4)  # the translational tie
+    soft = vc.portal_frame().add_joint_flexibility("t1", "beam", 1e-4)
+    f_soft = soft.modes(n_modes=4)[0]
+    assert np.all(f_soft <= f0 * (1 + 1e-9)) and f_soft[1] < 0.99 * f0[1]
+    with pytest.raises(rc.ModelError, match="joints"):
+        vc.portal_frame().add_joint_flexibility("mid", "beam", 1e-5)
+
+
+def test_a_moved_sensor_reads_the_other_node():
+    fr = vc.portal_frame()
+    a = fr.matrices()
+    moved = vc.portal_frame().move_signal("output", "S1", "t2", None, 1.0).matrices()
+    k1, k2 = a.outputs.index("S1"), a.outputs.index("S2")
+    assert np.allclose(moved.output_matrix[k1], a.output_matrix[k2])
+    half = vc.portal_frame().move_signal("output", "S1", "t2", None, 0.5).matrices()
+    assert np.allclose(half.output_matrix[k1], 0.5 * (a.output_matrix[k1] + a.output_matrix[k2]))

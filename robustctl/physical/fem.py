@@ -889,7 +889,11 @@ class Frame(Structure):
         c = _finite("joint compliance (rad/(N m))", compliance, nonneg=True)
         if c == 0.0:
             return self
-        self.joint_stiffness(node, group)  # checks the pair
+        if (node, group) not in self.joints():
+            raise ModelError(
+                f"node {node!r} is not a joint of group {group!r} with other beams; the joints are "
+                f"{self.joints()}."
+            )
         twin = f"{node}~{group}"
         if twin in self._nodes:
             raise ModelError(f"the joint of {group!r} at {node!r} is already flexible.")
