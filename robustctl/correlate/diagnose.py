@@ -578,7 +578,7 @@ def _screen_switch(
     v0 = float(effect.parameters[0].neutral)
     rr = float(r_perp @ r_perp)
     best = dict(effect=effect, model=m_c, fraction=0.0, angle=90.0, value=v0, d=np.zeros_like(j_u), evals=0)
-    for v in effect.states:
+    for v in _likely_states(res_c, j_u, effect):
         best["evals"] += 1
         try:
             j = res_c.vector(**{pname: float(v)})
@@ -595,6 +595,29 @@ def _screen_switch(
             angle = math.degrees(math.acos(min(1.0, cos)))
             best.update(fraction=share, value=float(v), d=d, angle=angle)
     return best
+
+
+def _likely_states(res: Residual, j_u: np.ndarray, effect: Any) -> tuple[float, ...]:
+    """The states of a switched effect worth evaluating: for a units slip the one factor nearest
+    the channel's mean log-magnitude offset (``exp`` of the weighted mean of ``Re ln(G_data / G)``
+    over its row or column: a slip ``f`` makes it ``ln f``); every state otherwise."""
+    states = tuple(effect.states)
+    if effect.kind not in ("sensor_units", "actuator_units") or len(states) < 2:
+        return states
+    names = res.data.outputs if effect.side == "output" else res.data.inputs
+    if effect.location not in names:
+        return states
+    k = names.index(effect.location)
+    w2 = res.point_weights
+    e_w = res.unstack(j_u)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        e = np.where(res.weights > 0, e_w / np.where(res.weights > 0, res.weights, 1.0), 0.0)
+    sel = (slice(None), k, slice(None)) if effect.side == "output" else (slice(None), slice(None), k)
+    total = float(np.sum(w2[sel]))
+    if total <= 0:
+        return states
+    offset = float(np.sum(w2[sel] * e[sel].real)) / total
+    return (min(states, key=lambda f: abs(math.log(f) - offset)),)
 
 
 #: Multiples of the calibrated step (a 2 % change of the most affected modal ``w^2``) at
