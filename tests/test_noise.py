@@ -1,4 +1,4 @@
-"""The noise model of an FRF estimate, the estimator's view of a model, units sanity (issue 12)."""
+"""The noise model of an FRF estimate, the estimator's view of a model, units sanity."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import robustctl as rc
-from robustctl.estimator import (
+from robustctl.measure.estimator import (
     EstimatorSettings,
     bin_correlation,
     effective_averages,
@@ -18,7 +18,7 @@ from robustctl.estimator import (
     expected_h1,
     hold_response,
 )
-from robustctl.noise import averages_of, chi2_verdict, format_p
+from robustctl.measure.noise import averages_of, chi2_verdict, format_p
 
 FS = 200.0
 
@@ -112,9 +112,10 @@ def test_p_values_are_bounds_never_zero():
 
 # ---------------------------------------------------------------------------- estimator view
 def test_expected_h1_of_a_state_space_matches_the_step_by_step_sampling_and_the_rational_fit():
-    from robustctl.estimator import _spectrum, _zoh_impulse_loop
     from robustctl.identify import expected_h1 as fit_expected_h1
     from robustctl.identify import fit_rational
+    from robustctl.measure.estimator import _zoh_impulse_loop
+    from robustctl.measure.estimator import windowed_spectrum as _spectrum
 
     sys = _oscillator(7.0, 0.01)
     st = EstimatorSettings((FS, 1024, "hamming"), 512)
@@ -145,10 +146,17 @@ def test_the_view_removes_the_hold_and_a_deliberate_hold_stage_is_sampled_exactl
     g = rc.freqresp(rc.electronics.zero_order_hold(FS, 4), f).response[:, 0, 0]
     assert np.max(np.abs(np.log(g / hold_response(f, FS)))) < 1e-4
     held = model.add_io_stage(rc.electronics.zero_order_hold_stage(model.inputs, FS))
+    described = rc.Experiment(input_kind="held", excitation="random", fs_hz=FS, nperseg=1024,
+                              window="hamming")
     res = rc.Residual(held, rc.FrequencyData(f, bare, inputs=model.inputs, outputs=model.outputs,
-                                             meta={"fs_hz": FS, "nperseg": 1024, "window": "hamming"}))
+                                             experiment=described))
     np.testing.assert_allclose(res.model_response(), bare, rtol=1e-10)
     assert res.describe_estimator() == "model seen through the H1 estimator: 1024-pt hamming at 200 Hz"
+    # the same settings without the description: the plain FRF, and the result says so
+    plain = rc.Residual(held, rc.FrequencyData(f, bare, inputs=model.inputs, outputs=model.outputs,
+                                               meta={"fs_hz": FS, "nperseg": 1024, "window": "hamming"}))
+    np.testing.assert_allclose(plain.model_response(), held.freqresp(f).response, rtol=1e-12)
+    assert plain.describe_estimator() == rc.frd.PLAIN_NOTE
 
 
 # ---------------------------------------------------------------------------- units sanity
@@ -243,7 +251,7 @@ def test_the_noise_model_of_a_simultaneous_mimo_estimate_fits_each_channels_scat
                                               simultaneous=True, band=(1.0, 40.0))
     assert data.meta["coherence"] == "partial"
     noise = rc.noise_model(data)
-    from robustctl.estimator import estimator_settings, estimator_view
+    from robustctl.measure.estimator import estimator_settings, estimator_view
 
     seen = estimator_view(truth.statespace(), data.f_hz, estimator_settings(data.meta))  # as compare does
     e = np.log(data.response / seen)

@@ -1,6 +1,6 @@
 """Bad input at the robust half's public entry points: refused cleanly, naming the argument.
 
-The robust-control half of the property suite of issue 14 (the modelling half is
+The robust-control half of the bad-input property suite (the modelling half is
 ``tests/test_reliability.py``, whose value strategies and outcome classifier this module
 reuses). Each case calls one entry point -- mu and its block-structure parsing (MATLAB
 ``mussv`` spelling included), hinfnorm, hinfsyn, dksyn, the weights and covers, the
@@ -529,7 +529,7 @@ def test_bad_argument_is_refused_naming_it(env, record_property, label, call, va
 
 
 # ---------------------------------------------------------------------------- regressions
-# The leaks and silent acceptances the property cases found (issue 14, robust half), each with
+# The leaks and silent acceptances the property cases found (robust half), each with
 # its exact call, the error class and a word of the message.
 REGRESSIONS = [
     ("dksyn hinf_options='abc' (TypeError)", lambda e: _dk(e, hinf_options="abc"), rc.SynthesisError,
@@ -618,7 +618,7 @@ def test_leak_found_by_the_property_cases_is_refused(env, label, call, error, wo
 
 def test_yardstick_refuses_an_empty_band_before_any_design(env, monkeypatch):
     """The band used to be checked after every D-K design had run."""
-    ys = sys.modules["robustctl.robust.yardstick"]
+    ys = sys.modules["robustctl.robust.yardsticks"]
     monkeypatch.setattr(ys, "parallel_map", lambda *a, **k: pytest.fail("designed before checking the band"))
     with pytest.raises(rc.DataError, match=r"band \(500, 900\) Hz holds fewer than 2 data points"):
         _yard(env, band=(500.0, 900.0))

@@ -36,6 +36,7 @@ def write_mat(data: FrequencyData, path: Path) -> None:
         "robustctl_format": FORMAT,
         "robustctl_units": json_dumps(data.units),
         "robustctl_meta": json_dumps(data.meta),
+        "robustctl_experiment": json_dumps(data.experiment.to_dict()),
     }
     if data.coherence is not None:
         mdict["Coherence"] = np.transpose(data.coherence, (1, 2, 0))
@@ -161,6 +162,10 @@ def read_mat(path: Path) -> FrequencyData:
             coh = coh.real
     units = json_loads(_mat_string(mdict["robustctl_units"]), "units") if "robustctl_units" in mdict else {}
     meta = json_loads(_mat_string(mdict["robustctl_meta"]), "meta") if "robustctl_meta" in mdict else {}
+    experiment = None
+    if "robustctl_experiment" in mdict:
+        experiment = json_loads(_mat_string(mdict["robustctl_experiment"]), "experiment")
     return build(
-        "MAT", f_hz=f, response=resp, inputs=inputs, outputs=outputs, coherence=coh, units=units, meta=meta
+        "MAT", f_hz=f, response=resp, inputs=inputs, outputs=outputs, coherence=coh, units=units, meta=meta,
+        experiment=experiment,
     )

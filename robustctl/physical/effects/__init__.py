@@ -26,7 +26,7 @@ candidate's typical size moves the affected modes by about one percent (used by
 Layout: :mod:`.base` (the ``Effect`` base class and its typed :class:`ParamSpec`),
 :mod:`.io_effects`, :mod:`.structural` (with semi-rigid frame joints), :mod:`.setup` (test-setup
 errors: swapped cables, sign flips, units slips, a sensor or actuator elsewhere),
-:mod:`.candidates` (candidates and calibration).
+:mod:`.catalogue` (candidates and calibration).
 
 Examples
 --------
@@ -39,6 +39,7 @@ Examples
 
 from __future__ import annotations
 
+from ..model import register_effects
 from .base import (
     DAMPING_TARGET,
     EFFECT_TAG,
@@ -46,7 +47,7 @@ from .base import (
     Effect,
     ParamSpec,
 )
-from .candidates import EFFECT_KINDS, calibrate, candidates
+from .catalogue import EFFECT_KINDS, calibrate, candidates
 from .io_effects import (
     ActuatorGain,
     ActuatorLowPass,
@@ -116,3 +117,5 @@ __all__ = [
     "SHIFT_TARGET",
     "DAMPING_TARGET",
 ]
+
+register_effects(Effect, candidates)

@@ -17,7 +17,7 @@ Two routes, both verified on the closed loop:
 The controller is designed at ``gamma_opt (1 + backoff)``, because the Riccati solutions
 blow up at the optimum (ZDG sec. 16.9), then ``Fl(P, K)`` is formed, and the result is
 accepted only when the closed loop is stable and ``||Fl(P, K)||_inf <= gamma_design (1 + 1e-6)``
-(by :func:`robustctl.robust.hinfnorm.hinfnorm`); otherwise gamma is raised and the design
+(by :func:`robustctl.robust.hinf_norm.hinfnorm`); otherwise gamma is raised and the design
 repeated (at most ``MAX_RETRIES`` times). Every loop is capped and the whole call obeys
 ``time_budget_s``.
 """
@@ -34,12 +34,12 @@ import scipy.linalg
 from ..checks import integer, positive_number
 from ..errors import ModelError, SynthesisError
 from ..interconnect import PartitionedPlant, lft
-from ..lti import as_statespace
+from ..lti import as_statespace, is_stable, spectral_abscissa
 from ..table import Table, result_html
 from ..threads import limit_blas
 from . import dgkf
 from .hinf_assumptions import check_assumptions
-from .hinfnorm import hinfnorm_matrices
+from .hinf_norm import hinfnorm_matrices
 
 __all__ = ["HinfResult", "hinfsyn"]
 
@@ -132,7 +132,7 @@ class HinfResult:
 
         f_peak = self.info.get("f_peak_hz", np.nan)
         if f_hz is not None:
-            from .mu import _frequencies
+            from .mu_bounds import _frequencies
 
             f_hz = _frequencies(f_hz)  # finite numbers >= 0 Hz, at least one
         if f_hz is None:
@@ -304,7 +304,7 @@ def _upper_start(m: dict[str, np.ndarray], lower: float) -> tuple[float, bool]:
     ``||P11||_inf`` (achieved by K = 0) when P is stable (True), else a guess (False).
     """
     A = m["A"]
-    stable = A.shape[0] == 0 or np.max(np.linalg.eigvals(A).real) < 0
+    stable = is_stable(A, margin=0.0)
     if stable:
         g, _ = hinfnorm_matrices(A, m["B1"], m["C1"], m["D11"], 1e-3)
         if np.isfinite(g) and g > lower:
@@ -379,7 +379,7 @@ def _verify(m, K, gamma_design: float) -> tuple[bool, float, float, float]:
     A, B, C, D = _closed_loop(m, K)
     if not np.all(np.isfinite(A)) or not np.all(np.isfinite(B)):
         return False, np.inf, np.nan, np.inf
-    max_re = float(np.max(np.linalg.eigvals(A).real)) if A.size else -np.inf
+    max_re = spectral_abscissa(A)
     norm, w = hinfnorm_matrices(A, B, C, D, 1e-7)
     return bool(max_re < 0 and norm <= gamma_design * (1 + VERIFY_TOL)), norm, w, max_re
 

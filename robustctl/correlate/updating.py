@@ -30,9 +30,9 @@ import numpy as np
 
 from ..checks import UNSET, check_seed, flag, integer, positive_number, probability, renamed_keyword
 from ..errors import FitError, RobustctlError
+from ..executors import check_executor
 from ..frd import FrequencyData
-from ..noise import NO_NOISE_SENTENCE, format_p, noise_model
-from ..parallel import check_executor
+from ..measure.noise import NO_NOISE_SENTENCE, format_p, noise_model
 from ..table import Table, result_html
 from .optimize import LMResult, levenberg_marquardt
 from .residual import (
@@ -41,6 +41,7 @@ from .residual import (
     Sensitivities,
     _check_names,
     alignment,
+    check_determined,
     normalized,
     orthogonality,
     physical_model,
@@ -206,7 +207,7 @@ def _noise_covariance(residual: Residual, fit: LMResult) -> np.ndarray | None:
     the noise-only factor ``dof_factor``. At lightly damped resonances, where the information
     is, the H1 error is mostly leakage, whose errors at neighbouring bins correlate negatively
     (about -0.35 at one bin on the Caltech truss, against +0.30 for output noise; see
-    :mod:`robustctl.noise`) and across the outputs of one input; the variance of ``J^T r`` over
+    :mod:`robustctl.measure.noise`) and across the outputs of one input; the variance of ``J^T r`` over
     40 seeds was 0.12-0.84 of this meat's, and the standard errors are 1.25-2.4 x the scatter
     of the estimates over seeds (Caltech truss and the user chain of the tests). A meat from
     the residuals themselves (Newey-West over the two lags at which a Hamming window's bins
@@ -387,7 +388,8 @@ class UpdateResult:
         Chi-square verdicts of the misfit against the data's noise before and after the update
         (None without a noise model: no significance claims).
     estimator_note : str
-        How the model was seen (through the H1 estimator, or ``""``).
+        How the model was seen: through the H1 estimator, or as the plain FRF and why
+        (:func:`robustctl.measure.estimator.experiment_view`).
     noise_covariance : ndarray (n_selected, n_selected) or None
         Covariance of the updated values from the noise model (parameter units, order of
         ``selected``); None without a noise model. Behind :attr:`moves_se` and
@@ -637,7 +639,7 @@ class UpdateResult:
 
     def plot(self, fig: Any = None) -> Any:
         """Cost per iteration, alignment bar chart (Fig. 3) and orthogonality matrix (Fig. 4)."""
-        from ..plots import colorbar, new_figure
+        from ..plots import annotated_matrix, colorbar, new_figure
 
         fig = fig or new_figure(13.0, 4.0)
         ax1, ax2, ax3 = fig.subplots(1, 3)
@@ -653,24 +655,8 @@ class UpdateResult:
         ax2.set_ylabel("alignment (relative, -)")
         ax2.set_title("alignment |j0^T dJ| (MACE eq. 8)")
         _alignment_legend(ax2, [n in self.selected for n in self.candidates])
-        im = ax3.imshow(self.orthogonality, vmin=0, vmax=1, cmap="viridis")
-        n = len(self.candidates)
-        ax3.set_xticks(range(n))
-        ax3.set_yticks(range(n))
-        ax3.set_xticklabels(self.candidates, rotation=60, ha="right", fontsize=7)
-        ax3.set_yticklabels(self.candidates, fontsize=7)
-        if n <= 15:
-            for i in range(n):
-                for k in range(n):
-                    ax3.text(
-                        k,
-                        i,
-                        f"{self.orthogonality[i, k]:.1f}",
-                        ha="center",
-                        va="center",
-                        fontsize=6,
-                        color="w" if self.orthogonality[i, k] < 0.6 else "k",
-                    )
+        names = self.candidates
+        im = annotated_matrix(ax3, self.orthogonality, names, names, fmt=".1f", max_cells=15 * 15)  # n <= 15
         ax3.set_title("orthogonality |dJn^T dJn|")
         colorbar(fig, im, ax3, "orthogonality (-)")
         return fig
@@ -1028,7 +1014,7 @@ def update(
     point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     model = physical_model(model, "update")
     if isinstance(noise, str) and noise == "auto":
-        from ..checks import as_frequency_data
+        from ..frd import as_frequency_data
 
         noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
     residual = Residual(model, data, band=band, point_weights=point_weights, min_channel_db=min_channel_db,
@@ -1040,6 +1026,7 @@ def update(
                 "the model has no free parameters; name the parameters to update with params=[...]."
             )
     names = _check_names(model, params)
+    check_determined(residual, len(names), "update")
     sens = sensitivities(residual, names, executor=executor, progress=progress)
     j0, dJ = sens
     effect_params = tuple(n for n in names if "effect" in model.param(n).tags)

@@ -34,7 +34,7 @@ parameters can already explain:
 4. **Significance.** Under "the effect is absent" the cost drop of a candidate's fit is the
    residual projected on one direction, ``Delta J ~ v chi2_1`` (a likelihood-ratio test with one
    degree of freedom), ``v`` the variance along the fitted change: the data's noise model's
-   (:mod:`robustctl.noise`, the bins' correlation included) or, when larger, that of the misfit
+   (:mod:`robustctl.measure.noise`, the bins' correlation included) or, when larger, that of the misfit
    the candidate leaves (model error: the parameters-only fit beyond the noise; then an
    ``F(1, nu)`` reference, :func:`_candidate_test`). The p-values are adjusted over the ``m``
    screened candidates by Holm's step-down (the best one's by Bonferroni's ``m p``), so the
@@ -73,16 +73,16 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import UNSET, as_frequency_data, finite_number, integer, positive_number, renamed_keyword
+from ..checks import UNSET, finite_number, integer, positive_number, renamed_keyword
 from ..errors import FitError, ModelError, RobustctlError
-from ..estimator import estimator_settings
-from ..frd import FrequencyData
-from ..noise import NO_NOISE_SENTENCE, format_p, noise_model
-from ..parallel import check_executor, parallel_map_shared, process_pool, resolve_workers
+from ..executors import check_executor, parallel_map_shared, process_pool, resolve_workers
+from ..frd import FrequencyData, as_frequency_data
+from ..measure.estimator import estimator_settings
+from ..measure.noise import NO_NOISE_SENTENCE, format_p, noise_model
 from ..table import Table, result_html
 from ..threads import limit_blas
 from .optimize import _bounds, levenberg_marquardt, marquardt_step
-from .residual import Residual, physical_model, sensitivities
+from .residual import Residual, check_determined, physical_model, sensitivities
 
 __all__ = ["diagnose", "Diagnosis", "CandidateResult", "Indistinguishable", "effective_points"]
 
@@ -91,19 +91,19 @@ ALPHA = 0.01
 #: A channel this far (dB) below its row's and column's largest model response is ignored.
 #: Default negligible-channel level of diagnose (dB): stricter than compare's and update's
 #: :data:`~robustctl.correlate.residual.NEGLIGIBLE_DB` (-80 dB), because a channel the model
-#: leaves nearly decoupled carries noise no effect explains and would blur the F-tests (the
-#: MACE bus has 13 such channels at -60 dB, 12 at -80 dB). Pass ``min_channel_db=`` to change it;
+#: leaves nearly decoupled carries noise no effect explains and would blur the F-tests. Pass
+#: ``min_channel_db=`` to change it;
 #: ``rc.update(..., min_channel_db=-60.0)`` reproduces diagnose's cost (so does
 #: ``point_weights=diag.point_weights`` where no coherence-weight bias applies,
-#: :func:`robustctl.checks.point_weight_bias`: an array of weights is taken as given).
+#: :func:`robustctl.measure.noise.point_weight_bias`: an array of weights is taken as given).
 DECOUPLED_DB = -60.0
 #: Smallest share of the null-fit residual an effect must explain to be proposed.
 MIN_GAIN = 0.25
 #: ``workers="auto"`` starts worker processes only for at least this many candidates ...
 PARALLEL_MIN_CANDIDATES = 8
 #: ... and when their screening promises at least this much work (s): :data:`SCREEN_EVALS`
-#: evaluations per candidate at the cost of the nominal one (on the Caltech truss 286 candidates
-#: at 20 ms: about 9 s; on a 3-mass chain 22 at 1 ms: forking would cost more than it saves).
+#: evaluations per candidate at the cost of the nominal one (below it, starting processes
+#: costs more than it saves).
 PARALLEL_MIN_WORK_S = 2.0
 #: Model evaluations a candidate's screening costs on average (the secant; the size probes of some).
 SCREEN_EVALS = 1.5
@@ -255,7 +255,8 @@ class Diagnosis:
         Where the noise estimate behind the p-values came from; ``""``: none (no significance
         claims are made, p-values are NaN).
     estimator_note : str
-        How the model was seen (through the H1 estimator, or ``""``).
+        How the model was seen: through the H1 estimator, or as the plain FRF and why
+        (:func:`robustctl.measure.estimator.experiment_view`).
     indistinguishable : Indistinguishable or None
         The fitted candidates the data in this band cannot tell from the top one (equal cost
         within the noise, nearly collinear fitted changes), with where their fitted models
@@ -1039,12 +1040,12 @@ def _null_fit(
 ) -> tuple[_Null, int]:
     """Bounded LM fit of the update parameters alone (step 1), from the nominal residual ``j0``.
 
-    It starts where :func:`~robustctl.correlate.update.update` would (its coarse multi-start,
+    It starts where :func:`~robustctl.correlate.updating.update` would (its coarse multi-start,
     ``_coarse_start``): with parameters 20-50 % off, modes have moved by several bandwidths and
     LM from the model's values stops in a local minimum of the complex-log cost, which leaves
     the parameter error in the residual for the candidates to mimic (a wrong effect ranks first).
     """
-    from .update import _coarse_start
+    from .updating import _coarse_start
 
     lo, hi = _bounds(res0.model, upd, None)
     if not upd:
@@ -1338,6 +1339,7 @@ def diagnose(
         noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
     res0, ignored = _residual(model, data, band, point_weights, min_channel_db, estimator, noise)
     upd = _check_update(model, params)
+    check_determined(res0, len(upd) + 1, "diagnose (the free parameters and one candidate's)")
     if candidates is not None:
         candidates = _check_candidates(model, list(candidates))
     alpha, min_gain = finite_number(alpha, "alpha", FitError), finite_number(min_gain, "min_gain", FitError)
@@ -1370,7 +1372,7 @@ def _pool(workers: Any, executor: Any, candidates: list | None, model: Any, t_ev
     n = 0
     if resolve_workers(workers, 10**6, 1) > 1:
         if candidates is None:
-            from ..physical.effects.candidates import candidates as all_candidates
+            from ..physical.effects.catalogue import candidates as all_candidates
 
             n = len(all_candidates(model, calibrate=False))
         else:
@@ -1443,7 +1445,7 @@ def _diagnose(
         # a delay of half a sample is the DAC's hold only in data whose input was held and whose
         # hold was not divided out (meta["hold_divided"])
         fs_hz=(_sample_rate(res0.data, settings)
-               if held and not (settings and settings.hold_divided) else None),
+               if held and not _hold_divided(res0.data, settings) else None),
     )
     results, explained = _score(res0, screens, order, top, fits, twins, j_u, stats)
     best = _best(results, res0.noise is not None, min_gain)
@@ -1503,6 +1505,12 @@ def _input_held(data: FrequencyData) -> bool:
     return kind == "held"
 
 
+def _hold_divided(data: FrequencyData, settings: Any) -> bool:
+    """Whether the estimate was divided by the hold's response (no half-sample delay is left)."""
+    exp = getattr(data, "experiment", None)
+    return bool((settings is not None and settings.hold_divided) or getattr(exp, "hold_divided", False))
+
+
 def _sample_rate(data: FrequencyData, settings: Any) -> float | None:
     """The data's sample rate (Hz): the estimator settings', else the experiment description's."""
     if settings is not None:
@@ -1556,7 +1564,7 @@ def _row_noise(res: Residual) -> np.ndarray | None:
 
     The variance of a projection of the residual on a smooth direction is that of its rows times
     the Satterthwaite factor of contiguous bins, ``1 + 2 sum_m r_m`` (the noise model's
-    ``chi2_factor``: output noise and leakage alike, :mod:`robustctl.noise`), not the smaller
+    ``chi2_factor``: output noise and leakage alike, :mod:`robustctl.measure.noise`), not the smaller
     factor of output noise alone (``dof_factor``), which underrated the variance along a fitted
     change and made p-values anti-conservative."""
     if res.noise is None:
@@ -1723,7 +1731,7 @@ def _is_switch(effect: Any) -> bool:
 def _null_test(res: Residual, j_u: np.ndarray) -> tuple[float, float]:
     """``(dispersion, p)``: is the parameters-only fit within the noise? The normalised residual
     on the testable points against a chi-square with the noise model's Satterthwaite factor
-    (:func:`robustctl.noise.chi2_verdict`); NaNs without a noise model."""
+    (:func:`robustctl.measure.noise.chi2_verdict`); NaNs without a noise model."""
     if res.noise is None:
         return math.nan, math.nan
     from scipy.stats import chi2
