@@ -598,10 +598,17 @@ def _screen_switch(
     return best
 
 
+#: Units-slip factors evaluated per channel (nearest the channel's offset first): on a mast with a
+#: x 9.81 slip the null fit's mass and stiffness scales absorbed part of it, and the nearest factor
+#: to what was left was 2 pi.
+UNITS_NEAREST = 2
+
+
 def _likely_states(res: Residual, j_u: np.ndarray, effect: Any) -> tuple[float, ...]:
-    """The states of a switched effect worth evaluating: for a units slip the one factor nearest
-    the channel's mean log-magnitude offset (``exp`` of the weighted mean of ``Re ln(G_data / G)``
-    over its row or column: a slip ``f`` makes it ``ln f``); every state otherwise."""
+    """The states of a switched effect worth evaluating: for a units slip the :data:`UNITS_NEAREST`
+    factors nearest the channel's mean log-magnitude offset (``exp`` of the weighted mean of
+    ``Re ln(G_data / G)`` over its row or column: a slip ``f`` makes it ``ln f``, less what the
+    null fit's parameters absorbed); every state otherwise."""
     states = tuple(effect.states)
     if effect.kind not in ("sensor_units", "actuator_units") or len(states) < 2:
         return states
@@ -618,7 +625,7 @@ def _likely_states(res: Residual, j_u: np.ndarray, effect: Any) -> tuple[float, 
     if total <= 0:
         return states
     offset = float(np.sum(w2[sel] * e[sel].real)) / total
-    return (min(states, key=lambda f: abs(math.log(f) - offset)),)
+    return tuple(sorted(states, key=lambda f: abs(math.log(f) - offset))[:UNITS_NEAREST])
 
 
 #: Multiples of the calibrated step (a 2 % change of the most affected modal ``w^2``) at
