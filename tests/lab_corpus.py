@@ -17,7 +17,7 @@ White sensor noise is added, and the H1 estimate is made by ``rc.estimate_frf`` 
 "measurement" tool; ``rc.estimate_frf_impact`` for the hits) told how the data were made.
 
 Each case returns a :class:`LabCase` ``(truth, data, description)``: the truth as a
-``rc.structural_model`` reproducing the exact FRF (to 1e-9), the FrequencyData, and a dict
+``rc.structural_model`` reproducing the exact FRF (to 1e-7), the FrequencyData, and a dict
 describing the case. :func:`measure` takes ``scales`` (the truth's parameter values, e.g. a
 stiffness group off by 10 %), ``modify`` (a callable ``(M, K) -> (M, K)`` for a hidden change
 of the matrices) and ``transform`` (a callable ``(f_hz, G) -> G`` applied to the exact response

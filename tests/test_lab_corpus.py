@@ -292,3 +292,23 @@ def test_the_view_applies_exactly_what_the_description_establishes(experiment, a
     else:
         assert (settings.input_kind, settings.leakage) == applied and note.startswith("model seen through")
     assert words in note
+
+
+def test_diagnose_names_an_added_mass_in_data_made_with_a_measured_force():
+    """The mast with 6 kg added at its sixth mass, measured with a continuous random force: seen
+    through the measured view, diagnose proposes that mass and its size."""
+    st = lc.mast()
+
+    def add_mass(M, K):
+        M = M.copy()
+        M[5, 5] += 6.0
+        return M, K
+
+    data = lc.measure(st, input_kind="measured", excitation="random", fs=100.0, nperseg=1024, modify=add_mass,
+                      seed=1)
+    diag = rc.diagnose(st.model(), data, band=(1.0, 40.0), time_budget_s=120)
+    assert "measured input (no hold)" in diag.summary()
+    best = diag.best_result
+    assert best is not None and best.kind == "added_mass" and best.effect.location == "dof 6"
+    assert best.significant
+    assert next(iter(best.effect.values.values())) == pytest.approx(6.0, rel=0.03)
