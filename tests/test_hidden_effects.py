@@ -75,9 +75,8 @@ def test_caltech_hidden_effect_is_found_fixed_and_recovered(truss, which):
     top = diag.ranking[0]
     assert _key(top.effect) == _key(hidden), diag.summary()
     assert diag.best is not None and _key(diag.best) == _key(hidden)
-    # family-wise p-value (Holm over the ~290 default candidates), measured against the misfit the
-    # local fit leaves when that exceeds the noise (the added mass leaves 8 % of a misfit 77 x the
-    # noise: p = 7.7e-6, raw 5.9e-8)
+    # a family-wise p-value (Holm over the ~340 default candidates), measured against the misfit the
+    # fit leaves where that exceeds the noise
     assert top.significant and top.p_value < 1e-4, diag.summary()
 
     fixed = model.with_effect(diag.best)

@@ -86,7 +86,7 @@ from .residual import Residual, check_determined, physical_model, sensitivities
 
 __all__ = ["diagnose", "Diagnosis", "CandidateResult", "Indistinguishable", "effective_points"]
 
-#: Significance level of the partial F-test before the Bonferroni correction.
+#: Family-wise significance level of the candidates' tests (Holm-adjusted p-values are compared with it).
 ALPHA = 0.01
 #: A channel this far (dB) below its row's and column's largest model response is ignored.
 #: Default negligible-channel level of diagnose (dB): stricter than compare's and update's
@@ -598,9 +598,8 @@ def _screen_switch(
     return best
 
 
-#: Units-slip factors evaluated per channel (nearest the channel's offset first): on a mast with a
-#: x 9.81 slip the null fit's mass and stiffness scales absorbed part of it, and the nearest factor
-#: to what was left was 2 pi.
+#: Units-slip factors evaluated per channel, nearest the channel's offset first (the null fit's
+#: parameters may absorb part of a slip, so the nearest factor to what is left can be the wrong one).
 UNITS_NEAREST = 2
 
 
@@ -841,8 +840,8 @@ def _polish(
     refreshed sensitivities (:func:`levenberg_marquardt`, up to :data:`POLISH_ITER` iterations) from
     their local fit. A clear winner is polished alone when its local fit leaves more than
     :data:`MODEL_ERROR_DISPERSION` x the noise's cost (``noise_cost``): its test is against the
-    misfit it leaves, so a fit stopped short (a spring that moves the lowest mode by 2.8 x, fitted
-    at 446 of 600 N/m) would understate it. Returns the fits and the evaluations.
+    misfit it leaves, so a fit stopped short (a large effect's local fit on the frozen sensitivities)
+    would understate it. Returns the fits and the evaluations.
     """
     costs = [f["cost"] for f in fits]
     if not fits or not null.names:
@@ -976,8 +975,7 @@ def _residual(model: Any, data: FrequencyData, band, weights, min_db, estimator=
 
 #: Candidates screened within this factor of the best screening share are fitted too, beyond
 #: ``n_fit`` (up to :data:`TIE_MAX_FACTOR` x ``n_fit``): screening shares of near-ties say little
-#: about the fits (on a portal frame with a semi-rigid joint, four grounded springs along the
-#: columns screened at 82 % and fitted 8-16 %, the true joint screened at 81 % and was not fitted).
+#: about the fits (a first-order share overrates a candidate far outside its linear range).
 TIE_SHARE = 0.95
 #: Cap of the fits with near-tied screening shares, as a multiple of ``n_fit``.
 TIE_MAX_FACTOR = 2
@@ -1290,8 +1288,8 @@ def diagnose(
     max_iter, update_iter : int
         LM iteration caps of the local fits and of the null fit.
     alpha : float
-        Level of the test against the noise before the Bonferroni correction over the screened
-        candidates.
+        Family-wise level: the candidates' p-values are Holm-adjusted over the screened candidates
+        and compared with it.
     min_gain : float
         Smallest share (0..1) of the null-fit residual an effect must remove to be proposed.
     time_budget_s : float
@@ -1558,8 +1556,7 @@ def _testable_rows(res: Residual) -> np.ndarray:
     """Rows of the residual vector where the noise model holds (``NoiseModel.testable``: coherence
     significantly above zero, ``sigma`` small enough for ``ln H1`` to be near Gaussian); all rows
     without a noise model. Elsewhere the log error is heavy-tailed, and a candidate that moves a
-    weak cross channel (a tiny misalignment) fits its outliers: on an exact hub-with-arms truth
-    such a fit scored p = 1.5e-17 before these rows were left out of the tests."""
+    weak cross channel (a tiny misalignment) would fit its outliers."""
     if res.noise is None:
         return np.ones(res.n, dtype=bool)
     ok = np.broadcast_to(res.noise.testable, res.data.shape).ravel()
@@ -1755,9 +1752,9 @@ def _null_test(res: Residual, j_u: np.ndarray) -> tuple[float, float]:
 
 
 #: Smallest dispersion (residual over its noise expectation) of the parameters-only fit called model
-#: error: the coherence-based noise model of an exact truth's H1 estimate gives 1.0-1.15 (its
-#: sigma is estimated from the coherence, biased low at low coherence), which a chi-square over
-#: thousands of points calls significant.
+#: error, besides a significant chi-square: a coherence-based noise model's sigma is estimated from
+#: the coherence (biased low where it is low), so an exact truth's dispersion exceeds 1 a little,
+#: which a chi-square over thousands of points calls significant.
 MODEL_ERROR_DISPERSION = 1.5
 
 #: Share of the null fit's excess misfit one output row (input column) must hold to be named.
