@@ -74,13 +74,10 @@ def random_h1(M, K, B, C, kinds, fs=200.0, n_samples=2**16, nperseg=1024, noise=
               inputs=None, outputs=None, band=(1.0, 60.0), zeta=ZETA):
     """H1 of a random measured force (SIMO per input): continuous truth, Hann-windowed Welch."""
     n = M.shape[0]
-    w2, phi = sla.eigh(K, M)
-    Cm = phi.T @ (M @ phi)  # identity for eigh's normalisation
+    w2, phi = sla.eigh(K, M)  # mass-normalised modes
     wn = np.sqrt(w2)
-    Cd = np.linalg.inv(phi.T) @ np.diag(2 * zeta * wn) @ np.linalg.inv(phi) @ np.linalg.inv(Cm)
     Minv = np.linalg.inv(M)
-    A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ K, -Minv @ (M @ Cd @ M) / 1.0]])
-    # damping matrix that gives modal damping zeta: C = M phi diag(2 zeta wn) phi^T M
+    # the damping matrix of modal damping zeta: C = M phi diag(2 zeta wn) phi^T M
     Cmat = M @ phi @ np.diag(2 * zeta * wn) @ phi.T @ M
     A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv @ K, -Minv @ Cmat]])
     Bs = np.vstack([np.zeros((n, B.shape[1])), Minv @ B])
