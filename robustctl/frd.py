@@ -193,7 +193,7 @@ def _opt_window(value: Any) -> str | tuple | None:
     return value
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Experiment:
     """How frequency-response data were made; ``None`` in any field means "not known".
 
@@ -222,6 +222,9 @@ class Experiment:
     hold_divided : bool
         The estimate was divided by the zero-order hold's response ``(1 - e^{-sT}) / (sT)``
         (:func:`robustctl.examples.make_experiment` does so for held inputs).
+    fs : float or None
+        The sampling frequency in Hz under the name :func:`robustctl.estimate_frf` uses (keyword
+        only; stored as ``fs_hz``, which the attribute ``fs`` also reads).
     """
 
     input_kind: str | None = None
@@ -233,6 +236,36 @@ class Experiment:
     n_averages: int | None = None
     whole_periods: bool | None = None
     hold_divided: bool = False
+
+    def __init__(
+        self,
+        input_kind: str | None = None,
+        excitation: str | None = None,
+        fs_hz: float | None = None,
+        window: Any = None,
+        nperseg: int | None = None,
+        noverlap: int | None = None,
+        n_averages: int | None = None,
+        whole_periods: bool | None = None,
+        hold_divided: bool = False,
+        *,
+        fs: float | None = None,
+    ) -> None:
+        if fs is not None:
+            if fs_hz is not None and fs_hz != fs:
+                raise DataError(f"give the sampling frequency once: fs={fs!r} and fs_hz={fs_hz!r} differ.")
+            fs_hz = fs
+        values = dict(input_kind=input_kind, excitation=excitation, fs_hz=fs_hz, window=window,
+                      nperseg=nperseg, noverlap=noverlap, n_averages=n_averages,
+                      whole_periods=whole_periods, hold_divided=hold_divided)
+        for name, value in values.items():
+            object.__setattr__(self, name, value)
+        self.__post_init__()
+
+    @property
+    def fs(self) -> float | None:
+        """The sampling frequency in Hz (``fs_hz``)."""
+        return self.fs_hz
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "input_kind", _opt_choice(self.input_kind, "input_kind", INPUT_KINDS))
@@ -301,7 +334,7 @@ class Experiment:
             return value
         if not isinstance(value, Mapping):
             raise DataError(f"an experiment description must be a mapping or an Experiment; got {value!r}.")
-        names = {f.name for f in _dc_fields(cls)}
+        names = {f.name for f in _dc_fields(cls)} | {"fs"}
         unknown = sorted(set(value) - names)
         if unknown:
             raise DataError(f"unknown experiment fields {unknown}; the fields are {sorted(names)}.")
@@ -546,6 +579,10 @@ class FrequencyData:
             see :mod:`robustctl.frd_io.csv_format`) or
             ``.uff``/``.unv`` (universal file dataset 58, one binary double-precision record
             per output/input pair, names in ID lines 4 and 5, coherence as function type 6).
+            Every format keeps ``experiment`` (how the data were made): npz and MAT as JSON
+            (MAT also as plain variables ``InputKind``, ``SampleRate`` ...), CSV as a
+            ``# experiment: {...}`` header line, UFF in ID line 2 and a ``<file>.uff.json``
+            sidecar (with ``meta``).
         overwrite : bool
             Replace an existing file. By default an existing file is never touched.
 

@@ -408,3 +408,22 @@ def test_files_written_before_the_experiment_description_load_as_not_described(t
                                                                  fs_hz=256.0, n_averages=5))
     for ext in ("npz", "mat", "csv", "uff"):
         assert rc.load_frd(described.save(tmp_path / f"new.{ext}")).experiment == described.experiment
+
+
+def test_a_matlab_file_describes_its_experiment_in_plain_variables(tmp_path):
+    """A MATLAB user writes InputKind, Excitation, SampleRate, Window, NPerSeg beside frd's
+    Frequency and ResponseData; robustctl writes them too, beside its complete JSON record."""
+    from scipy.io import loadmat, savemat
+
+    f = np.array([1.0, 2.0, 3.0])
+    g = np.array([1.0 + 1j, 0.5 - 1j, 0.2 + 0.1j])[:, None, None]
+    savemat(tmp_path / "user.mat", {"Frequency": f[:, None], "FrequencyUnit": "Hz",
+                                    "ResponseData": np.transpose(g, (1, 2, 0)), "InputKind": "measured",
+                                    "Excitation": "random", "SampleRate": 200.0, "Window": "hamming",
+                                    "NPerSeg": 512.0})
+    assert rc.load_frd(tmp_path / "user.mat").experiment == rc.Experiment(
+        "measured", "random", fs=200.0, window="hamming", nperseg=512)
+    described = rc.Experiment("held", "periodic", fs=100.0, whole_periods=True)
+    plain = loadmat(rc.FrequencyData(f, g, experiment=described).save(tmp_path / "ours.mat"))
+    assert plain["InputKind"][0] == "held" and plain["SampleRate"][0, 0] == 100.0
+    assert plain["WholePeriods"][0, 0] == 1

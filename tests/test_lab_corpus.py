@@ -312,3 +312,11 @@ def test_diagnose_names_an_added_mass_in_data_made_with_a_measured_force():
     assert best is not None and best.kind == "added_mass" and best.effect.location == "dof 6"
     assert best.significant
     assert next(iter(best.effect.values.values())) == pytest.approx(6.0, rel=0.03)
+
+
+def test_the_sampling_frequency_is_fs_or_fs_hz():
+    e = rc.Experiment(input_kind="measured", excitation="random", fs=200.0, window="hamming", nperseg=2048)
+    assert e == rc.Experiment("measured", "random", 200.0, "hamming", 2048) and e.fs == e.fs_hz == 200.0
+    assert rc.Experiment.from_dict({"fs": 50.0}).fs_hz == 50.0
+    with pytest.raises(rc.DataError, match="give the sampling frequency once"):
+        rc.Experiment(fs=100.0, fs_hz=200.0)

@@ -710,6 +710,8 @@ def compare(
     point_weights : "auto", None, "coherence" or array_like
         Data-point weights ``W`` on the squared log error (:func:`robustctl.checks.point_weights`);
         the dB/phase errors are unweighted. ``weights=`` is its deprecated name.
+    weights
+        Deprecated name of ``point_weights``.
     measurement_model : system, optional
         An ``rc.fit_measurement_model`` result (its identified ``.modes``) or any other system
         (the eigenstructure of its state space) gives the measured modes. Default: peak

@@ -247,6 +247,13 @@ class Diagnosis:
         The data-point weights used, zero on ignored channels (``rc.update(...,
         min_channel_db=)`` at diagnose's level gives the same cost; these weights handed on do
         too unless the coherence weights' bias applied, which an array of weights does not get).
+    residual_update : ndarray (n_freq, n_out, n_in), complex
+        The weighted residual left after fitting the update parameters alone (the null fit).
+    f_hz : ndarray (n_freq,)
+        Frequencies of the residuals, Hz.
+    explained : dict of str to ndarray
+        For the two top candidates, the part of ``residual_update`` each one's fit explains
+        (same shape), plotted by :meth:`plot`.
     band : (float, float) or None
     n_evals : int
         Model evaluations spent.
@@ -1271,12 +1278,18 @@ def diagnose(
         Parameters the update may change (default: the model's free parameters); what they
         can absorb is projected out before the effects are scored (as ``params=`` of
         :func:`update`; ``update_params=`` is the deprecated name).
+    update_params
+        Deprecated name of ``params``.
     point_weights : "auto", None, "coherence" or array
         Data-point weights on the squared log error (:func:`robustctl.checks.point_weights`;
         ``weights=`` is the deprecated name). ``"auto"`` (default) uses the coherence when
         the data carry it: ``W = g2 / (1 - g2)`` is the inverse variance of the log estimate,
         so noisy bins (low coherence, at anti-resonances and far from the excited modes) do
         not drown the systematic error.
+    weights
+        Deprecated name of ``point_weights``.
+    measurement_model : system, optional
+        Supplies the noise model of data without coherence, as for :func:`robustctl.update`.
     min_channel_db : float or None
         Channels the model or data leave decoupled (this many dB below their row and column)
         get weight 0, by the rule of :func:`compare` and :func:`update`; the default

@@ -950,6 +950,12 @@ def update(
     point_weights : "auto", None, "coherence" or array
         Data-point weights on the squared log error (:func:`robustctl.checks.point_weights`);
         ``weights=`` is the deprecated name.
+    weights
+        Deprecated name of ``point_weights``.
+    measurement_model : system, optional
+        A measurement model fitted to the data (``rc.fit_measurement_model``), whose residual
+        gives the noise model when the data carry no coherence
+        (:func:`robustctl.measure.noise.noise_model`).
     select : bool
         Apply the alignment and orthogonality tests (eqs. 8-9); ``False`` updates every
         candidate.

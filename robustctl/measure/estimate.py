@@ -31,7 +31,22 @@ MIN_AVERAGES = 8
 def advised_nperseg(n_samples: int, min_averages: int = MIN_AVERAGES, longest: int = 4096) -> int:
     """Segment length for a record of ``n_samples``: the Caltech 4096 (``longest``) when it gives at
     least ``min_averages`` averages with 50 % overlap, else the largest power of two that does
-    (at least 16). ``n_avg = 1 + (n - L) // (L / 2) >= m`` holds for ``L <= 2 n / (m + 1)``."""
+    (at least 16). ``n_avg = 1 + (n - L) // (L / 2) >= m`` holds for ``L <= 2 n / (m + 1)``.
+
+    Parameters
+    ----------
+    n_samples : int
+        Record length, samples.
+    min_averages : int
+        Fewest Welch averages wanted (the H1 random error falls as ``1 / sqrt(averages)``).
+    longest : int
+        Longest segment, samples (Caltech's 4096).
+
+    Returns
+    -------
+    int
+        The segment length ``nperseg``, a power of two.
+    """
     limit = 2 * int(n_samples) / (min_averages + 1)
     length = 16
     while length * 2 <= min(limit, longest):
