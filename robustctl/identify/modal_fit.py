@@ -143,10 +143,9 @@ def select_modes(fit: RationalFit, n_modes: int, prefer: np.ndarray | None = Non
     order = np.r_[np.argsort(np.abs(poles[:n]), kind="stable"), n : poles.size]
     poles = poles[order]
     residues, d = fit_residues(s, data.response, rw, poles)
-    # a filler stands for one out-of-band mode (rank 1) unless its residue vanishes
-    filler_ranks = [
-        min(1, residue_rank(r.real if p.imag == 0 else r, 1e-8)) for p, r in zip(poles[n:], residues[n:])
-    ]
+    # a filler keeps the numerical rank of its residue: it stands for out-of-band dynamics and
+    # residual flexibility, not for one mode, and its realisation must reproduce its term exactly
+    filler_ranks = [residue_rank(r.real if p.imag == 0 else r, 1e-8) for p, r in zip(poles[n:], residues[n:])]
     ranks = np.array([1] * n + filler_ranks, dtype=int)
     new = replace(fit, poles=poles, residues=residues, d=d, ranks=ranks)
     return refine_residues(new, sweeps=2), n
