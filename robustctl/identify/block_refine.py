@@ -127,7 +127,8 @@ def refine_cluster(
 
     floor = ZETA_MIN * np.abs(poles.imag)
     sigma = np.maximum(-poles.real - floor, floor)
-    theta0 = np.concatenate([np.log(np.maximum(sigma, np.finfo(float).tiny)), poles.imag, np.stack([bs.real, bs.imag], axis=1).ravel()])
+    log_sigma = np.log(np.maximum(sigma, np.finfo(float).tiny))
+    theta0 = np.concatenate([log_sigma, poles.imag, np.stack([bs.real, bs.imag], axis=1).ravel()])
     r0 = resid(theta0)
     n_res = r0.size
     if n_res <= theta0.size:

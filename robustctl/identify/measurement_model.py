@@ -41,9 +41,10 @@ from .leakage import (
     truncation_settings,
 )
 from .modal_fit import FitSettings, fit_best, fit_with_leakage, shift_poles, spare_pairs
+from .modal_refine import ZETA_MIN
 from .rational_fit import IdentifyWarning, RationalFit
 from .realization import residue_factors
-from .refine import _row_weights
+from .refine import _row_weights, refine_residues
 from .selection import ZETA_FILLER, pole_contributions
 from .stabilisation import (
     MIN_CONTRIBUTION,
@@ -56,8 +57,9 @@ from .stabilisation import (
 __all__ = ["Mode", "MeasurementModel", "fit_measurement_model", "StabilisationDiagram", "pinned_modes",
            "leakage_consistency"]
 
-#: default time budget of one fit_measurement_model call, seconds
-TIME_BUDGET_S = 600.0
+#: default time budget of one fit_measurement_model call: none (iteration caps bound the work, so
+#: the result depends only on the input and the options, never on the clock or the load)
+TIME_BUDGET_S = None
 #: a leakage-corrected model is flagged when its expected H1 misses the raw data by more than
 #: INCONSISTENT_RATIO times its miss of the corrected data plus INCONSISTENT_DB (weighted rms, dB)
 INCONSISTENT_RATIO, INCONSISTENT_DB = 1.25, 0.25
@@ -95,6 +97,11 @@ class MeasurementModel:
         Time constant of the exponential window undone in ``sys``, ``modes`` and ``fit``
         (poles moved by ``+1/tau``); ``cost`` and :meth:`plot` compare the windowed model
         with the (windowed) data.
+    stopped_by_budget : bool
+        Whether the opt-in ``time_budget_s`` ended the fit early (the model is then the best
+        found so far and depends on the machine's speed and load).
+    corrections : tuple of str
+        The corrections applied to the data or the model, in words (empty: a plain fit).
     """
 
     sys: Any
@@ -108,6 +115,8 @@ class MeasurementModel:
     fillers: tuple[Mode, ...] = ()
     stabilisation: Any = None
     window_tau_s: float | None = None
+    stopped_by_budget: bool = False
+    corrections: tuple[str, ...] = ()
 
     def statespace(self):
         """The real modal ``control.StateSpace`` (the state-space protocol, :func:`rc.as_statespace`)."""
@@ -147,6 +156,18 @@ class MeasurementModel:
                 f"The exponential window's damping (tau = {self.window_tau_s:.4g} s) was removed from "
                 "the modes."
             )
+        lines.append("Corrections applied: " + ("; ".join(self.corrections) if self.corrections else "none")
+                     + ".")
+        zeta, re_max = self.stability_margin
+        lines.append(
+            f"Asymptotically stable: smallest pole damping ratio {zeta:.3g} (margin {STABILITY_ZETA:g}), "
+            f"largest real part {re_max:.4g} 1/s."
+        )
+        if self.stopped_by_budget:
+            lines.append(
+                "STOPPED BY THE TIME BUDGET: the model is the best found before time_budget_s ran out and "
+                "depends on this machine's speed and load."
+            )
         if self.stabilisation is not None:
             lines.append(
                 f"Order chosen by the stabilisation diagram over {self.stabilisation.orders.size} orders "
@@ -159,6 +180,15 @@ class MeasurementModel:
         state = {f.name: getattr(self, f.name) for f in fields(self)}
         state["sys"] = statespace_state(self.sys)
         return (_rebuild_measurement_model, (state,))
+
+    @property
+    def stability_margin(self) -> tuple[float, float]:
+        """``(smallest damping ratio, largest real part in 1/s)`` over the poles of ``sys``."""
+        p = np.linalg.eigvals(np.asarray(self.sys.A)) if self.sys.nstates else np.zeros(0)
+        if p.size == 0:
+            return 1.0, -np.inf
+        zeta = -p.real / np.maximum(np.abs(p), np.finfo(float).tiny)
+        return float(zeta.min()), float(p.real.max())
 
     @property
     def n_modes(self) -> int:
@@ -442,9 +472,11 @@ def fit_measurement_model(
         the record end, also undo the truncation (leakage): the refinement fits the truncated
         record's response to the raw data (:mod:`robustctl.identify.leakage`, eq. T1).
     time_budget_s : float or None
-        Wall-time budget of the whole call, seconds; when it runs out the order scan, pole
-        iterations and refinement stop with the best model so far (an :class:`IdentifyWarning`
-        says so). ``None``: no budget.
+        Opt-in wall-time budget of the whole call, seconds. ``None`` (default): the work is
+        bounded by iteration caps only, so the result depends on the input and options alone.
+        With a budget, when it runs out the order scan, pole iterations and refinement stop with
+        the best model so far: the result says so (``stopped_by_budget``, its summary) and an
+        :class:`IdentifyWarning` is issued; such a model depends on the machine's speed and load.
     progress : bool, optional
         tqdm bars over the order scan and the block refinement (default: when stderr is a
         terminal).
@@ -452,6 +484,16 @@ def fit_measurement_model(
     Returns
     -------
     MeasurementModel
+        Its ``sys`` (:meth:`~MeasurementModel.statespace`), ``fit``, :meth:`~MeasurementModel.freqresp`,
+        ``cost`` and plots are one model: the realisation's factors are the fit's residues. Every
+        pole has a damping ratio of at least ``STABILITY_ZETA`` (1e-6): the model is
+        asymptotically stable with that margin.
+
+    Raises
+    ------
+    FitError
+        Bad options, a missed ``target_db``, or a fit that fails numerically (the message names
+        the order, the step and what to change).
     """
     import sys
     import time
@@ -469,14 +511,25 @@ def fit_measurement_model(
     kw = dict(method=method, point_weights=point_weights, max_iter=max_iter)
     run = FitSettings(groups, st, kw, rank_tol, refine, deadline, progress=show)
     diagram = None
-    with warnings.catch_warnings():
+    order = "automatic order" if n_modes is None else f"n_modes={_check_modes(n_modes)}"
+    with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         warnings.simplefilter("ignore", IdentifyWarning)
-        if n_modes is None:
-            fit, n_mode_poles, used, diagram = _automatic(
-                band_fd, run, max_modes, parsimony, point_weights, show
-            )
-        else:
-            fit, n_mode_poles, used = fit_best(band_fd, _check_modes(n_modes), run)
+        try:
+            if n_modes is None:
+                fit, n_mode_poles, used, diagram = _automatic(
+                    band_fd, run, max_modes, parsimony, point_weights, show
+                )
+            else:
+                fit, n_mode_poles, used = fit_best(band_fd, _check_modes(n_modes), run)
+            fit = _stable(_realised(fit), run)
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError, ZeroDivisionError) as exc:
+            raise FitError(
+                f"the modal fit ({order}, {'leakage-corrected' if st is not None else 'plain'}) failed "
+                f"numerically in its pole identification or refinement ({type(exc).__name__}: {exc}). "
+                "Lower n_modes or max_modes, narrow the band, or pass refine=False or correct_leakage=False."
+            ) from exc
+    _check_finite(fit, used, order)
+    stopped = run.expired()
     cost = _score(fit, used)
     scan = () if diagram is None else tuple((int(n), float(c)) for n, c in zip(diagram.orders, diagram.cost))
     if target_db is not None and cost.rms_db_total > target_db:
@@ -484,10 +537,11 @@ def fit_measurement_model(
             f"the measurement model reaches {cost.rms_db_total:.3g} dB rms log-magnitude error, above the "
             f"target {target_db:g} dB; raise n_modes (or leave it None), narrow the band or relax target_db."
         )
-    if run.expired():
+    if stopped:
         warnings.warn(
-            f"the time budget of {budget:g} s ran out; the model is the best found so far. Raise "
-            "time_budget_s, narrow the band or give n_modes.",
+            f"the time budget of {budget:g} s ran out; the model is the best found so far and depends on "
+            "this machine's speed and load (stopped_by_budget=True). Raise time_budget_s or leave it None "
+            "(iteration caps only), narrow the band or give n_modes.",
             IdentifyWarning,
             stacklevel=3,
         )
@@ -518,10 +572,69 @@ def fit_measurement_model(
             IdentifyWarning,
             stacklevel=3,
         )
+    leaked = bool(used.meta.get("leakage_corrected"))
     return MeasurementModel(
-        fit.statespace(), modes, cost, fit, used, band_fd, bool(used.meta.get("leakage_corrected")), scan,
-        fillers, diagram, tau,
+        fit.statespace(), modes, cost, fit, used, band_fd, leaked, scan, fillers, diagram, tau, stopped,
+        _corrections(st, leaked, tau),
     )
+
+
+def _corrections(st: Any, leaked: bool, tau: float | None) -> tuple[str, ...]:
+    """The corrections applied, in words (for the summary and ``MeasurementModel.corrections``)."""
+    out = []
+    if leaked and isinstance(st, TruncationSettings):
+        out.append("record truncation (impact responses cut at the record end, eq. T1)")
+    elif leaked:
+        out.append("H1 estimator window leakage (white ZOH excitation)")
+    if tau is not None:
+        out.append(f"exponential window damping (tau = {tau:.4g} s)")
+    return tuple(out)
+
+
+def _realised(fit: RationalFit) -> RationalFit:
+    """``fit`` with every residue replaced by the product of the factors its realisation keeps
+    (rank ``ranks[k]``, Caltech eqs. 9-10; a rank-0 pole's term vanishes, a real pole's residue is
+    real): then :meth:`RationalFit.response`, :meth:`RationalFit.statespace` and the cost describe
+    one and the same model, to round-off."""
+    residues = np.array(fit.residues, dtype=complex)
+    for k, (p, r, rank) in enumerate(zip(fit.poles, fit.residues, fit.ranks)):
+        c, b = residue_factors(r.real if p.imag == 0 else r, int(rank))
+        residues[k] = c @ b if int(rank) > 0 else 0.0
+    return replace(fit, residues=residues, d=np.real(fit.d).astype(float))
+
+
+#: smallest damping ratio of a returned pole (the refinement's bound ``ZETA_MIN``): the stated
+#: stability margin of every measurement model
+STABILITY_ZETA = ZETA_MIN
+
+
+def _stable(fit: RationalFit, run: FitSettings) -> RationalFit:
+    """Every pole with damping ratio at least ``STABILITY_ZETA`` (asymptotically stable with that
+    margin). A pole below it (a marginal or unstable pole of a fit that was not refined) is moved
+    onto the margin and the shapes refitted to the data; a pole at the origin is refused."""
+    mag = np.abs(fit.poles)
+    if np.any(mag == 0):
+        raise FitError(
+            "the fit has a pole at s = 0 (an integrator), which no measurement model of a structure may "
+            "have; raise the band's lower edge or use refine=True."
+        )
+    low = -fit.poles.real < STABILITY_ZETA * mag * (1 - 1e-12)
+    if not np.any(low):
+        return fit
+    poles = np.where(low, -STABILITY_ZETA * mag + 1j * fit.poles.imag, fit.poles)
+    moved = replace(fit, poles=poles.astype(complex))
+    return _realised(refine_residues(moved, sweeps=2)) if fit.data is not None else moved
+
+
+def _check_finite(fit: RationalFit, used: FrequencyData, order: str) -> None:
+    """A :class:`FitError` (not NaN matrices) when the fit's numbers are not finite."""
+    parts = (fit.poles, fit.residues, fit.d, used.response)
+    if not all(np.all(np.isfinite(x)) for x in parts):
+        raise FitError(
+            f"the modal fit ({order}) produced non-finite poles, shapes or corrected data (an internal "
+            "exponential or division left the floating-point range). Lower n_modes, narrow the band, or "
+            "pass correct_leakage=False / refine=False."
+        )
 
 
 def leakage_consistency(
