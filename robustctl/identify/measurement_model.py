@@ -273,14 +273,20 @@ def _mode(p: complex, r: np.ndarray, k: int) -> Mode:
     return Mode(float(f[0]), float(z[0]), r, complex(p), int(k), output_shape=c, input_shape=b)
 
 
+def _is_mode(m: Mode, band_hz: tuple[float, float]) -> bool:
+    """A physical mode: a complex pole inside the band, damping below ``ZETA_FILLER``, rank 1."""
+    return m.pole.imag != 0 and band_hz[0] <= m.f_hz <= band_hz[1] and m.zeta < ZETA_FILLER
+
+
 def _modes(fit: RationalFit, n_mode_poles: int) -> tuple[tuple[Mode, ...], tuple[Mode, ...]]:
-    """Modes (the first ``n_mode_poles`` poles, sorted by frequency) and fillers."""
+    """Modes (of the first ``n_mode_poles`` poles, those that are still in-band, complex and
+    lightly damped after the refinement, sorted by frequency) and fillers (every other kept pole)."""
     items = [_mode(p, r, k) for p, r, k in zip(fit.poles, fit.residues, fit.ranks) if k > 0]
     ranked = [k > 0 for k in fit.ranks]
     first = sum(ranked[:n_mode_poles])
-    modes = sorted(items[:first], key=lambda m: m.f_hz)
-    fillers = sorted(items[first:], key=lambda m: m.f_hz)
-    return tuple(modes), tuple(fillers)
+    modes = [m for m in items[:first] if _is_mode(m, fit.band_hz)]
+    fillers = [m for m in items[:first] if not _is_mode(m, fit.band_hz)] + items[first:]
+    return tuple(sorted(modes, key=lambda m: m.f_hz)), tuple(sorted(fillers, key=lambda m: m.f_hz))
 
 
 def _scan(band: FrequencyData, run: FitSettings, max_modes: int, parsimony: float, weights, progress):
@@ -560,6 +566,14 @@ def fit_measurement_model(
     if tau is not None:
         fit = shift_poles(fit, 1.0 / tau)
     modes, fillers = _modes(fit, n_mode_poles)
+    if n_modes is not None and groups is None and sum(m.rank for m in modes) < n_modes:
+        warnings.warn(
+            f"n_modes={n_modes} was asked but the data support {sum(m.rank for m in modes)} physical "
+            f"mode(s) in {band_fd.f_hz[0]:.4g}-{band_fd.f_hz[-1]:.4g} Hz (complex, in band, damping below "
+            f"{ZETA_FILLER:g}); the other poles are fillers (.fillers). Lower n_modes or widen the band.",
+            IdentifyWarning,
+            stacklevel=3,
+        )
     pinned = pinned_modes(modes)
     if pinned:
         warnings.warn(pinned_message(pinned, bool(used.meta.get("leakage_corrected"))), IdentifyWarning,
