@@ -156,7 +156,7 @@ class MeasurementModel:
                 f"The exponential window's damping (tau = {self.window_tau_s:.4g} s) was removed from "
                 "the modes."
             )
-        lines.append("Corrections applied: " + ("; ".join(self.corrections) if self.corrections else "none")
+        lines.append("Corrections: " + ("; ".join(self.corrections) if self.corrections else "none applied")
                      + ".")
         zeta, re_max = self.stability_margin
         lines.append(
@@ -518,22 +518,18 @@ def fit_measurement_model(
     run = FitSettings(groups, st, kw, rank_tol, refine, deadline, progress=show)
     diagram = None
     order = "automatic order" if n_modes is None else f"n_modes={_check_modes(n_modes)}"
-    with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        warnings.simplefilter("ignore", IdentifyWarning)
-        try:
-            if n_modes is None:
-                fit, n_mode_poles, used, diagram = _automatic(
-                    band_fd, run, max_modes, parsimony, point_weights, show
-                )
-            else:
-                fit, n_mode_poles, used = fit_best(band_fd, _check_modes(n_modes), run)
-            fit = _stable(_realised(fit), run)
-        except (np.linalg.LinAlgError, ValueError, FloatingPointError, ZeroDivisionError) as exc:
-            raise FitError(
-                f"the modal fit ({order}, {'leakage-corrected' if st is not None else 'plain'}) failed "
-                f"numerically in its pole identification or refinement ({type(exc).__name__}: {exc}). "
-                "Lower n_modes or max_modes, narrow the band, or pass refine=False or correct_leakage=False."
-            ) from exc
+    fit, n_mode_poles, used, diagram = _fit_core(band_fd, run, n_modes, max_modes, parsimony, point_weights,
+                                                 show, order)
+    declined = None
+    chosen = isinstance(st, TruncationSettings) and correct_leakage is not True
+    if chosen and used.meta.get("leakage_corrected"):
+        # the truncation correction is chosen only where it lowers the error against the H1 data
+        plain = _fit_core(band_fd, replace(run, settings=None), n_modes, max_modes, parsimony, point_weights,
+                          show, order)
+        with_t, without = _raw_miss_db(fit, band_fd), _raw_miss_db(plain[0], band_fd)
+        if not with_t < without:
+            fit, n_mode_poles, used, diagram = plain
+            declined = (with_t, without)
     _check_finite(fit, used, order)
     stopped = run.expired()
     cost = _score(fit, used)
@@ -589,13 +585,47 @@ def fit_measurement_model(
     leaked = bool(used.meta.get("leakage_corrected"))
     return MeasurementModel(
         fit.statespace(), modes, cost, fit, used, band_fd, leaked, scan, fillers, diagram, tau, stopped,
-        _corrections(st, leaked, tau),
+        _corrections(st, leaked, tau, declined),
     )
 
 
-def _corrections(st: Any, leaked: bool, tau: float | None) -> tuple[str, ...]:
+def _fit_core(band_fd, run, n_modes, max_modes, parsimony, point_weights, show, order):
+    """The fit of :func:`fit_measurement_model` for one setting of the corrections, realised and
+    stable; numerical failures become a :class:`FitError` naming the order, the step and the fix."""
+    diagram = None
+    with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        warnings.simplefilter("ignore", IdentifyWarning)
+        try:
+            if n_modes is None:
+                fit, n_mode_poles, used, diagram = _automatic(
+                    band_fd, run, max_modes, parsimony, point_weights, show
+                )
+            else:
+                fit, n_mode_poles, used = fit_best(band_fd, _check_modes(n_modes), run)
+            fit = _stable(_realised(fit), run)
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError, ZeroDivisionError) as exc:
+            kind = "plain" if run.settings is None else "leakage-corrected"
+            raise FitError(
+                f"the modal fit ({order}, {kind}) failed numerically in its pole identification or "
+                f"refinement ({type(exc).__name__}: {exc}). Lower n_modes or max_modes, narrow the band, "
+                "or pass refine=False or correct_leakage=False."
+            ) from exc
+    return fit, n_mode_poles, used, diagram
+
+
+def _raw_miss_db(fit: RationalFit, raw: FrequencyData) -> float:
+    """Unweighted rms log-magnitude error (dB) of ``fit`` against the measured band data."""
+    return float(_score(fit, raw).rms_db_total)
+
+
+def _corrections(st: Any, leaked: bool, tau: float | None, declined=None) -> tuple[str, ...]:
     """The corrections applied, in words (for the summary and ``MeasurementModel.corrections``)."""
     out = []
+    if declined is not None:
+        out.append(
+            f"record truncation tried and not applied (it gave {declined[0]:.3g} dB rms against the H1 data, "
+            f"the plain fit {declined[1]:.3g} dB)"
+        )
     if leaked and isinstance(st, TruncationSettings):
         out.append("record truncation (impact responses cut at the record end, eq. T1)")
     elif leaked:
