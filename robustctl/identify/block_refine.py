@@ -22,9 +22,11 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
-from .modal_refine import ZETA_MIN
 from .tail import leaked_terms
 
+#: smallest damping ratio a refined mode may take (keeps the model strictly stable; not a
+#: judgement on the mode: very lightly damped modes are real in bolted and welded structures)
+ZETA_MIN = 1e-6
 #: largest ``theta`` of the decay rate ``exp(theta)``, 1/s (keeps ``exp`` finite for any step)
 LOG_DECAY_MAX = 700.0
 

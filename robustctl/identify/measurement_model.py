@@ -526,7 +526,7 @@ def fit_measurement_model(
         # the truncation correction is chosen only where it lowers the error against the H1 data
         plain = _fit_core(band_fd, replace(run, settings=None), n_modes, max_modes, parsimony, point_weights,
                           show, order)
-        with_t, without = _raw_miss_db(fit, band_fd), _raw_miss_db(plain[0], band_fd)
+        with_t, without = _raw_miss_db(fit, used), _raw_miss_db(plain[0], plain[2])
         if not with_t < without:
             fit, n_mode_poles, used, diagram = plain
             declined = (with_t, without)
@@ -613,9 +613,12 @@ def _fit_core(band_fd, run, n_modes, max_modes, parsimony, point_weights, show, 
     return fit, n_mode_poles, used, diagram
 
 
-def _raw_miss_db(fit: RationalFit, raw: FrequencyData) -> float:
-    """Unweighted rms log-magnitude error (dB) of ``fit`` against the measured band data."""
-    return float(_score(fit, raw).rms_db_total)
+def _raw_miss_db(fit: RationalFit, used: FrequencyData) -> float:
+    """Unweighted rms log-magnitude error (dB) of ``fit`` as the H1 estimate sees it against the
+    measured data: against the data it was fitted to, which for the truncation-corrected route are
+    the raw H1 data plus the model's own record-end tail (eq. T1), so that both routes are scored
+    on what the estimator would have produced from them."""
+    return float(_score(fit, used).rms_db_total)
 
 
 def _corrections(st: Any, leaked: bool, tau: float | None, declined=None) -> tuple[str, ...]:
@@ -623,8 +626,8 @@ def _corrections(st: Any, leaked: bool, tau: float | None, declined=None) -> tup
     out = []
     if declined is not None:
         out.append(
-            f"record truncation tried and not applied (it gave {declined[0]:.3g} dB rms against the H1 data, "
-            f"the plain fit {declined[1]:.3g} dB)"
+            f"record truncation tried and not applied (its expected H1 missed the data by "
+            f"{declined[0]:.3g} dB rms, the plain fit by {declined[1]:.3g} dB)"
         )
     if leaked and isinstance(st, TruncationSettings):
         out.append("record truncation (impact responses cut at the record end, eq. T1)")
