@@ -113,7 +113,7 @@ from .robust import (
 )
 from .robust.dk import DKResult, dksyn
 from .robust.sweep import DesignSweep, design_sweep
-from .robust.yardsticks import Yardstick, yardstick
+from .robust.yardsticks import Yardstick, YardstickWarning, yardstick
 from .signals import (
     combine_inputs,
     combine_outputs,
@@ -239,5 +239,6 @@ __all__ = [
     "dksyn",
     "DKResult",
     "yardstick",
+    "YardstickWarning",
     "Yardstick",
 ]

@@ -20,7 +20,7 @@ from .mu_bounds import MuResult, mu
 from .plant import GeneralizedPlant, PlantWeight, generalized_plant, mixed_sensitivity
 from .sweep import DesignSweep, design_sweep
 from .weights import CALTECH_MULTIPLICATIVE, caltech_additive_weight, makeweight
-from .yardsticks import NyquistVerdict, Yardstick, nyquist_stability, yardstick
+from .yardsticks import NyquistVerdict, Yardstick, YardstickWarning, nyquist_stability, yardstick
 
 __all__ = [
     "Block",
@@ -62,6 +62,7 @@ __all__ = [
     "yardstick",
     "Yardstick",
     "NyquistVerdict",
+    "YardstickWarning",
     "nyquist_stability",
     "design_sweep",
     "DesignSweep",
