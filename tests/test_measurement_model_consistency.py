@@ -248,3 +248,34 @@ def test_leakage_corrected_fit_is_bit_identical_in_fresh_processes(frame_welch, 
         assert out.returncode == 0, out.stderr[-2000:]
         digests.append(out.stdout.strip().splitlines()[-1])
     assert len(set(digests)) == 1, digests
+
+
+def _model_or_fit_error(data, n_modes):
+    """A stable model (every pole at least STABILITY_ZETA damped, no RuntimeWarning from numpy) or a
+    FitError; never a raw numpy error."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            mm = rc.fit_measurement_model(data, n_modes=n_modes, progress=False)
+        except rc.FitError as exc:
+            assert "n_modes" in str(exc) or "order" in str(exc)
+            return None
+    assert not [w for w in caught if issubclass(w.category, RuntimeWarning)]
+    poles = np.linalg.eigvals(np.asarray(mm.statespace().A))
+    assert np.all(-poles.real >= STABILITY_ZETA * np.abs(poles) * (1 - 1e-9))
+    if mm.n_modes < n_modes:  # fewer physical modes than asked: said with the number
+        assert any(f"support {mm.n_modes} physical" in str(w.message) for w in caught)
+    return mm
+
+
+@pytest.mark.parametrize("n_modes", [30, 60])
+def test_high_orders_on_a_close_pair_case_give_a_stable_model_or_a_fit_error(n_modes):
+    data, _ = rc.examples.modal_test_case(n_in=2, n_out=4, n_modes=12, n_freq=300, n_pairs=3, seed=4)
+    _model_or_fit_error(data, n_modes)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("n_modes", [40, 60])
+def test_high_orders_on_the_28_channel_case_give_a_stable_model_or_a_fit_error(n_modes):
+    data, _ = rc.examples.modal_test_case(seed=0)  # 2 x 28 channels, 25 modes, 3 close pairs
+    _model_or_fit_error(data, n_modes)
