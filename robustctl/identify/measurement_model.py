@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from ..checks import UNSET, band_data, renamed_keyword
-from ..errors import FitError
+from ..errors import FitError, RobustctlError
 from ..frd import FrequencyData, as_frequency_data
 from ..lti import pole_frequency_damping, rebuild_statespace, statespace_state
 from ..modes import Mode
@@ -603,6 +603,8 @@ def _fit_core(band_fd, run, n_modes, max_modes, parsimony, point_weights, show, 
             else:
                 fit, n_mode_poles, used = fit_best(band_fd, _check_modes(n_modes), run)
             fit = _stable(_realised(fit), run)
+        except RobustctlError:  # already says what is wrong and how to fix it
+            raise
         except (np.linalg.LinAlgError, ValueError, FloatingPointError, ZeroDivisionError) as exc:
             kind = "plain" if run.settings is None else "leakage-corrected"
             raise FitError(
