@@ -11,8 +11,10 @@ variable projection on large ones); (4) optionally, for white-noise tests estima
 :func:`robustctl.estimate_frf`, a few fixed-point steps that undo the estimator's window
 leakage (see :mod:`.leakage`); (5) for impact data with an exponential window, the window's
 damping removed; (6) the complex-log cost of MACE eq. 5. With ``n_modes=None`` the order
-comes from a one-pass stabilisation diagram (:mod:`.stabilisation`). Every step honours the
-call's time budget.
+comes from a one-pass stabilisation diagram (:mod:`.stabilisation`). Iteration caps bound the
+work; an opt-in time budget ends it early and the result says so (``stopped_by_budget``). The
+returned model is one system: its residues are its realisation's factors, every pole is damped
+by at least ``STABILITY_ZETA``, and the cost is that system's.
 """
 
 from __future__ import annotations
@@ -74,7 +76,9 @@ class MeasurementModel:
     sys : control.StateSpace
         Real modal realisation with the data's signal names.
     modes : tuple of Mode
-        Exactly ``n_modes`` modes (complex poles), sorted by frequency; fillers are apart.
+        The physical modes, sorted by frequency: complex poles inside the band with damping
+        below ``ZETA_FILLER`` (0.2). With ``n_modes=N`` there are N of them, or fewer with an
+        :class:`IdentifyWarning` giving the number the data support; fillers are apart.
     cost : LogCost
         MACE eq. 5 of ``sys`` against ``data`` (per channel and total).
     fit : RationalFit
@@ -475,8 +479,11 @@ def fit_measurement_model(
         :func:`robustctl.estimate_frf_impact` with an exponential window), move every pole by
         ``+1/tau``: ``zeta_true = zeta_meas - 1/(tau w_n)`` (Ewins, sec. 3.11). For every
         impact record (rectangular or exponential window) whose responses have not decayed by
-        the record end, also undo the truncation (leakage): the refinement fits the truncated
-        record's response to the raw data (:mod:`robustctl.identify.leakage`, eq. T1).
+        the record end, also try undoing the truncation (leakage): the refinement fits the
+        truncated record's response to the raw data (:mod:`robustctl.identify.leakage`, eq. T1).
+        The corrected model is kept only when its expected H1 (the model with its record-end
+        tail) misses the data by less than the plain fit does; ``corrections`` and the summary
+        say which was kept (``correct_leakage=True`` forces the correction).
     time_budget_s : float or None
         Opt-in wall-time budget of the whole call, seconds. ``None`` (default): the work is
         bounded by iteration caps only, so the result depends on the input and options alone.
