@@ -401,7 +401,13 @@ def band_limited(model: Any, f_max_hz: float, *, margin: float | None = None, mi
         return model
     if model.structure is None:
         return model
-    return model._copy(dynamics=_reduced_dynamics(dyn, margin * f_max_hz, int(min_dof)))
+    from .model import _DynamicsCache
+
+    # no per-model cache of state spaces: the reducer keeps the bases, a re-evaluation costs a
+    # small eigen-solve, and diagnose holds thousands of candidate models (3 MB per state space
+    # of 300 modes each)
+    return model._copy(dynamics=_reduced_dynamics(dyn, margin * f_max_hz, int(min_dof)),
+                       _cache=_DynamicsCache(0))
 
 
 def reduction_error(model: Any, f_hz: Any, **overrides: float) -> np.ndarray | None:
