@@ -163,10 +163,13 @@ def _reduce(mats: Any, f_cut_hz: float) -> _Basis:
         ) from None
     op = spla.LinearOperator((n, n), matvec=lu.solve, dtype=float)
     lam_cut = (2 * np.pi * f_cut_hz) ** 2
+    # a fixed start vector (ARPACK's default is random): the same structure gives the same
+    # basis in every process, so worker processes reproduce the serial result
+    v0 = np.linspace(1.0, 2.0, n)
     below = _count_below(K, M, lam_cut)
     k = min(max(12, n // 50) if below is None else below + 4, n - 2)
     while True:
-        lam, phi = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", OPinv=op)
+        lam, phi = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", OPinv=op, v0=v0)
         order = np.argsort(lam)
         lam, phi = lam[order], phi[:, order]
         if lam[-1] > lam_cut or k >= n - 2:
