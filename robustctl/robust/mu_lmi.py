@@ -82,6 +82,8 @@ def _feasible(prob, t, s, value: float) -> bool:
             prob.solve(solver=cp.CLARABEL)
     except cp.error.SolverError:
         return False
+    if prob.status in (cp.UNBOUNDED, cp.UNBOUNDED_INACCURATE):
+        return True  # s unbounded below: strictly feasible (e.g. mu = 0 with real blocks only)
     if s.value is None:
         return False
     return float(s.value) <= 0.0
