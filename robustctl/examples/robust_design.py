@@ -55,6 +55,68 @@ def distillation_plant(eps: float = 1e-6):
                       outputs=["zi1", "zi2", "zp1", "zp2", "y1", "y2"])
 
 
+#: Block structure of :func:`two_mass_spring_plant`: the spring as a real scalar, then the
+#: 2 x 2 performance block.
+TWO_MASS_BLOCKS = [[-1, 0], [2, 2]]
+
+
+def two_mass_spring_plant(k: float | None = None, *, k_range: tuple[float, float] = (0.5, 2.0),
+                          wp: float = 1.2, w_low: float = 0.3, w_high: float = 3.0, dc: float = 0.002,
+                          wu: float = 0.01, wn: float = 0.001):
+    """Wie & Bernstein's two-mass-spring benchmark as a generalized plant (Wie & Bernstein 1992,
+    "Benchmark problems for robust control design", J. Guidance 15(5), problem 1).
+
+    Masses ``m1 = m2 = 1`` joined by a spring ``k`` in ``k_range``; the control force ``u``
+    acts on mass 1, the disturbance force ``w_d`` on mass 2, and the measurement is the
+    position of mass 2 (noncollocated): ``x1'' = -k (x1 - x2) + u``, ``x2'' = k (x1 - x2) +
+    w_d``, ``y = x2 + wn n``. With ``k = None`` the spring is ``k0 + kd delta`` (``k0, kd``
+    the range's centre and half-width) and ``delta`` a real scalar in [-1, 1] pulled out as
+    the channel pair ``z_k = x1 - x2``, ``w_k`` (force ``-kd w_k`` on mass 1, ``+kd w_k`` on
+    mass 2). Performance: ``z_p = Wp x2`` with the band-pass ``Wp = wp (s/w_low + dc) /
+    ((1 + s/w_low)(1 + s/w_high))`` (the rigid-body drift below ``w_low`` is not penalised
+    but for a small floor ``dc``), ``z_u = wu u``.
+
+    Parameters
+    ----------
+    k : float, optional
+        A fixed spring stiffness (N/m): the plant without the uncertainty channels.
+    k_range : (float, float)
+        The spring's range (N/m).
+    wp, w_low, w_high, dc, wu, wn : float
+        The weights above (``w_low``, ``w_high`` in rad/s).
+
+    Returns
+    -------
+    control.StateSpace
+        Inputs ``[w_k, w_d, n, u]`` and outputs ``[z_k, z_p, z_u, y]`` (``k = None``; use
+        with :data:`TWO_MASS_BLOCKS`, ``nmeas = ncon = 1``), else inputs ``[w_d, n, u]`` and
+        outputs ``[z_p, z_u, y]``. States: ``x1, x2, v1, v2`` and the weight's two.
+    """
+    import control
+
+    k0 = 0.5 * (k_range[0] + k_range[1])
+    kd = 0.5 * (k_range[1] - k_range[0])
+    kk = k0 if k is None else float(k)
+    A = np.array([[0, 0, 1, 0], [0, 0, 0, 1], [-kk, kk, 0, 0], [kk, -kk, 0, 0]], float)
+    Wp = control.ss(control.tf([wp / w_low, wp * dc], [1 / w_low, 1]) * control.tf([1.0], [1 / w_high, 1]))
+    aw, bw, cw, dw = (np.asarray(x, dtype=float) for x in (Wp.A, Wp.B, Wp.C, Wp.D))
+    n = 4 + aw.shape[0]
+    Aa = np.zeros((n, n))
+    Aa[:4, :4], Aa[4:, 4:], Aa[4:, 1:2] = A, aw, bw
+    B = np.zeros((n, 4))
+    B[2, 0], B[3, 0], B[3, 1], B[2, 3] = -kd, kd, 1.0, 1.0
+    C = np.zeros((4, n))
+    C[0, 0], C[0, 1] = 1.0, -1.0
+    C[1, 4:], C[1, 1] = cw[0], dw[0, 0]
+    C[3, 1] = 1.0
+    D = np.zeros((4, 4))
+    D[2, 3], D[3, 2] = wu, wn
+    names_in, names_out = ["w_k", "w_d", "n", "u"], ["z_k", "z_p", "z_u", "y"]
+    if k is not None:
+        return control.ss(Aa, B[:, 1:], C[1:], D[1:, 1:], inputs=names_in[1:], outputs=names_out[1:])
+    return control.ss(Aa, B, C, D, inputs=names_in, outputs=names_out)
+
+
 def six_modes(model: Any):
     """The six global modes (12 states) of a truss model by balanced truncation (seed eq. 11-13)."""
     import control
