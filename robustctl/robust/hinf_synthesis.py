@@ -17,7 +17,7 @@ Two routes, both verified on the closed loop:
 The controller is designed at ``gamma_opt (1 + backoff)``, because the Riccati solutions
 blow up at the optimum (ZDG sec. 16.9), then ``Fl(P, K)`` is formed, and the result is
 accepted only when the closed loop is stable and ``||Fl(P, K)||_inf <= gamma_design (1 + 1e-6)``
-(by :func:`robustctl.robust.hinfnorm.hinfnorm`); otherwise gamma is raised and the design
+(by :func:`robustctl.robust.hinf_norm.hinfnorm`); otherwise gamma is raised and the design
 repeated (at most ``MAX_RETRIES`` times). Every loop is capped and the whole call obeys
 ``time_budget_s``.
 """
@@ -39,7 +39,7 @@ from ..table import Table, result_html
 from ..threads import limit_blas
 from . import dgkf
 from .hinf_assumptions import check_assumptions
-from .hinfnorm import hinfnorm_matrices
+from .hinf_norm import hinfnorm_matrices
 
 __all__ = ["HinfResult", "hinfsyn"]
 
@@ -132,7 +132,7 @@ class HinfResult:
 
         f_peak = self.info.get("f_peak_hz", np.nan)
         if f_hz is not None:
-            from .mu import _frequencies
+            from .mu_bounds import _frequencies
 
             f_hz = _frequencies(f_hz)  # finite numbers >= 0 Hz, at least one
         if f_hz is None:

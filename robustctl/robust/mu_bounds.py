@@ -22,10 +22,10 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import as_frequency_data, flag, integer, positive_number
+from ..checks import flag, integer, positive_number
 from ..errors import RobustctlError, SynthesisError
-from ..frd import FrequencyData
-from ..parallel import check_executor, parallel_map
+from ..executors import check_executor, parallel_map
+from ..frd import FrequencyData, as_frequency_data
 from ..threads import limit_blas
 from .blocks import BlockStructure, as_block_structure
 from .mu_layout import Layout, layout_of
