@@ -1105,7 +1105,7 @@ def _g_step(m: Any, H: np.ndarray, H_edges: np.ndarray,
     """
     from ..lti import freqresp_array
     from .dgk import blended_scales, fit_g_filter, scaled_d_targets, transformed_norm
-    from .mu import mu
+    from .mu_bounds import mu
 
     level = float(m.peak)
     f = np.asarray(m.f_hz, dtype=float)
