@@ -85,6 +85,7 @@ from .physical import (
     modal_statespace,
     structural_model,
 )
+from .physical.uncertain import UncertainModel, parametric_lft
 
 # robust design: weights
 from .robust import (
@@ -240,4 +241,7 @@ __all__ = [
     "DKResult",
     "yardstick",
     "Yardstick",
+    # uncertain models from the update (parametric LFT) for mixed-mu D-G-K
+    "UncertainModel",
+    "parametric_lft",
 ]
