@@ -33,8 +33,9 @@ the scales offered to the K step are the complex analysis' wherever they keep th
 bound and the mixed ones elsewhere, the G-scales become stable filters absorbed by a loop
 transformation (:mod:`robustctl.robust.dgk`), and the K step searches the level it can
 certify. On Wie & Bernstein's two-mass-spring benchmark (spring in [0.5, 2] as a real block,
-:func:`robustctl.examples.two_mass_spring_plant`) D-G-K reaches mixed mu 0.867 where complex
-D-K stops at 0.983.
+:func:`robustctl.examples.two_mass_spring_plant`), started from the user's scaling
+(``autoscale=False``), D-G-K reaches mixed mu 0.867 where complex D-K stops at 0.983; with
+the automatic scaling's three starts complex D-K reaches 0.869 and D-G-K 0.867.
 
 The returned controller is the best of the iterations, and its mu is verified on a denser
 and wider grid with a search of its highest maxima (:func:`verification_grid`): the
