@@ -18,6 +18,7 @@ $(CORE_STAMP): pyproject.toml | $(VENV)/bin/python
 
 $(STAMP): pyproject.toml | $(VENV)/bin/python
 	$(PY) -m pip install --quiet -e ".[dev]"
+	$(PY) -m pip install --quiet --no-deps "pyNastran>=1.4,<1.5"
 	touch $(STAMP) $(CORE_STAMP)
 
 demo: $(CORE_STAMP)
