@@ -96,6 +96,8 @@ D_STEPS = (0.0, 0.5, 1.0)
 AUTOSCALE_EVALS = 60
 #: Starts of the automatically scaled D-K (ln of a factor on all block scales but the last).
 AUTOSCALE_STARTS = (0.0, -1.5, 1.5)
+#: A start whose verified mu is below this ends the multi-start (robust performance certified).
+AUTOSCALE_CERTIFIED = 1.0
 #: Most scaled blocks (all but the last) for which that search runs (else the covariant start).
 AUTOSCALE_MAX_BLOCKS = 6
 #: H-infinity syntheses of one D-G-K K step's search for its level (:func:`_mixed_k_step`).
@@ -1222,8 +1224,9 @@ def dksyn(
 
 def _autoscaled_dksyn(plant: _Plant, blocks: BlockStructure, options: dict, reduce: Any) -> DKResult:
     """D-K on the automatically scaled plant (:func:`_autoscaled`) from :data:`AUTOSCALE_STARTS`
-    (factors ``e^s`` on all block scales but the last): the run with the lowest verified peak
-    of mu is kept (then reduced, when asked), and its controller, closed loop, mu and
+    (factors ``e^s`` on all block scales but the last; a further start only while the best
+    verified peak of mu is not below :data:`AUTOSCALE_CERTIFIED`): the run with the lowest
+    verified peak is kept (then reduced, when asked), and its controller, closed loop, mu and
     D-scales are returned for the user's plant.
 
     D-K is a local method: on the distillation column the final mu depends on the constant
@@ -1241,7 +1244,7 @@ def _autoscaled_dksyn(plant: _Plant, blocks: BlockStructure, options: dict, redu
     best = None
     for k, s in enumerate(AUTOSCALE_STARTS):
         left = budget - (time.perf_counter() - t0)
-        if best is not None and left < 1.0:
+        if best is not None and (left < 1.0 or best[0].mu_peak < AUTOSCALE_CERTIFIED):
             break
         factor = np.exp(np.append(np.full(len(sc.d) - 1, s), 0.0))
         sc_k = _Scaling(sc.su, sc.sy, sc.d * factor)
