@@ -478,3 +478,18 @@ def test_dk_result_does_not_depend_on_the_plant_units():
         out.append(dk.mu_peak)
     assert out[0] <= 0.98 and out[1] <= 0.98
     assert out[1] == pytest.approx(out[0], rel=0.01)
+
+
+def test_fixed_design_level_sets_the_k_step_gamma():
+    # the optimum of the first K step is 1.18; at a fixed level 1.5 the central controller
+    # is designed there: its verified norm lies between the optimum and the level
+    P = distillation_plant()
+    free = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, autoscale=False)
+    fixed = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, autoscale=False, gamma=1.5)
+    assert free.history[0].gamma == pytest.approx(1.1818, abs=0.005)
+    assert free.history[0].gamma * 1.01 < fixed.history[0].gamma <= 1.5 * (1 + 1e-6)
+    # a level below the optimum leaves the optimum's design
+    low = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, autoscale=False, gamma=0.5)
+    assert low.history[0].gamma == pytest.approx(free.history[0].gamma, rel=1e-9)
+    with pytest.raises(SynthesisError, match="gamma"):
+        dksyn((P, 2, 2, BOOK_BLOCKS), gamma=-1.0)
