@@ -113,3 +113,13 @@ def test_generalized_plant_takes_the_uncertain_model(update_result):
     ny = 2
     G = receptance(th, f)  # perf_y = y_true = G u: the rows after z_delta, the u columns (last two)
     np.testing.assert_allclose(Hd[:, :ny, -2:], G, rtol=1e-7)
+
+
+def test_axes_do_not_depend_on_the_parameters_units():
+    # a stiffness in N/m and a mass in kg: both are uncertain whatever their numbers, and
+    # the box is the same with the stiffness in kN/m
+    cov = np.diag([50.0**2, 0.02**2])
+    um = parametric_lft(chain(), ["k1", "m1"], [1000.0, 1.0], cov, n_sigma=2.0)
+    assert len(um.names) == 2
+    np.testing.assert_allclose(um.axes @ np.linalg.solve(cov, um.axes.T), 4.0 * np.eye(2), atol=1e-9)
+    np.testing.assert_allclose(np.abs(um.axes).max(axis=0), [100.0, 0.04], rtol=1e-9)

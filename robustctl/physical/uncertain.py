@@ -1,10 +1,11 @@
 """A physical model with real uncertain parameters as a linear fractional transformation.
 
 The parameters ``theta`` of a :class:`~robustctl.physical.model.PhysicalModel` known to
-``theta_0 +- `` a covariance ``Sigma`` (e.g. an update's fit) are written along the principal
-axes of ``Sigma``: ``theta = theta_0 + sum_k delta_k a_k`` with ``a_k = n_sigma sqrt(l_k)
-v_k`` (``Sigma = sum_k l_k v_k v_k^T``) and real ``delta_k`` in [-1, 1], so that the box
-``|delta_k| <= 1`` holds the ``n_sigma`` ellipsoid of the fit (correlations included). The
+``theta_0 +- `` a covariance ``Sigma = S R S`` (standard deviations ``S``, correlations ``R``;
+e.g. an update's fit) are written along the principal axes of ``R`` (unit-free):
+``theta = theta_0 + sum_k delta_k a_k`` with ``a_k = n_sigma sqrt(l_k) S v_k`` (``R = sum_k
+l_k v_k v_k^T``) and real ``delta_k`` in [-1, 1], so that the box ``|delta_k| <= 1`` holds the
+``n_sigma`` ellipsoid of the fit (correlations included; ``a Sigma^-1 a^T = n_sigma^2 I``). The
 state-space matrices ``S(delta) = [[A, B], [C, D]]`` then give an LFT (Zhou, Doyle & Glover
 1996, sec. 10.2; Packard & Doyle 1993, sec. 2 for the repeated real scalar blocks)
 
@@ -173,12 +174,19 @@ def parametric_lft(model: Any, parameters: Any, center: Any, covariance: Any, *,
                          f"got {c.size} and {cov.shape}.")
     if not np.isfinite(n_sigma) or n_sigma <= 0:
         raise ModelError(f"n_sigma must be a positive number of standard deviations; got {n_sigma!r}.")
-    lam, vec = np.linalg.eigh(0.5 * (cov + cov.T))
-    keep = lam > 1e-12 * max(lam.max(), 0.0) if lam.size and lam.max() > 0 else np.zeros(lam.size, bool)
-    if not keep.any():
+    cov = 0.5 * (cov + cov.T)
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    if not np.any(sd > 0):
         raise ModelError("the covariance is zero: there is no parametric uncertainty to model.")
+    # principal axes of the correlation matrix (unit-free: parameters in different units
+    # are not ranked by their numbers), mapped back with the standard deviations
+    live = sd > 0
+    corr = cov[np.ix_(live, live)] / np.outer(sd[live], sd[live])
+    lam, vec = np.linalg.eigh(corr)
+    keep = lam > 1e-10 * lam.max()
     order = np.argsort(-lam[keep])
-    axes = (n_sigma * np.sqrt(lam[keep]) * vec[:, keep]).T[order]  # (n_axes, n_par)
+    axes = np.zeros((int(keep.sum()), len(names)))
+    axes[:, live] = (n_sigma * np.sqrt(lam[keep]) * (sd[live][:, None] * vec[:, keep])).T[order]
 
     def at(delta: np.ndarray):
         return _matrices(model, dict(zip(names, map(float, c + delta @ axes))))
