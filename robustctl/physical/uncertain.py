@@ -66,6 +66,11 @@ class UncertainModel:
         Frequencies (Hz) of that check.
     nominal : control.StateSpace
         ``G(0)``.
+    form : {"state space", "modal"}
+        The coordinates of the LFT: the model's own state-space matrices, or (when that is
+        not exact and this is closer to the sampled models) the nominal's real modal
+        coordinates with each mode's eigenvalue (frequency and damping) moving to first order
+        and its shape held.
     """
 
     M: Any
@@ -78,6 +83,7 @@ class UncertainModel:
     max_error: float
     check_f_hz: np.ndarray = field(repr=False)
     nominal: Any = field(repr=False)
+    form: str = "state space"
 
     @property
     def n_delta(self) -> int:
@@ -115,7 +121,7 @@ class UncertainModel:
         return dict(zip(self.parameters, map(float, self.center + d @ self.axes)))
 
     def summary(self) -> str:
-        kind = "exact (affine in the parameters)" if self.exact else "first-order"
+        kind = "exact (affine in the parameters)" if self.exact else f"first-order ({self.form})"
         return (f"UncertainModel: {len(self.names)} real blocks {list(self.multiplicity)} over "
                 f"{list(self.parameters)}; {kind} LFT, error {100 * self.max_error:.3g} % of the peak "
                 f"response on {len(self.check_f_hz)} frequencies.")
@@ -162,7 +168,6 @@ def parametric_lft(model: Any, parameters: Any, center: Any, covariance: Any, *,
         Mismatched sizes, a non-positive ``n_sigma``, or state dimensions that change with the
         parameters.
     """
-    import control
 
     from ..lti import freqresp_array
 
@@ -209,6 +214,45 @@ def parametric_lft(model: Any, parameters: Any, center: Any, covariance: Any, *,
         e = np.ones(len(axes))
         Sc, _, _ = at(e)
         exact = np.abs(Sc - S0 - sum(Sk)).max() <= AFFINE_RTOL * scale * len(axes)
+    A0 = S0[:n, :n]
+    if f_hz is None:
+        wn = np.abs(np.linalg.eigvals(A0)) if n else np.array([1.0])
+        wn = wn[wn > 0] if np.any(wn > 0) else np.array([1.0])
+        f = np.logspace(np.log10(wn.min() / 10 / (2 * np.pi)), np.log10(wn.max() * 10 / (2 * np.pi)), 200)
+    else:
+        f = np.asarray(f_hz, dtype=float).reshape(-1)
+    rng = np.random.default_rng(seed)
+    pts = [s * np.eye(len(axes))[k] for k in range(len(axes)) for s in (-1.0, 1.0)]
+    pts += list(rng.uniform(-1.0, 1.0, (n_check, len(axes))))
+    H0 = freqresp_array(G0, f)
+    peak = max(np.abs(H0).max(), 1e-300)
+    truth = [freqresp_array(at(p)[2], f) for p in pts]
+
+    def build(S0x: np.ndarray, Skx: list[np.ndarray], form: str) -> UncertainModel:
+        M, bnames, mult, kept = _lft(S0x, Skx, n, names, axes, G0, scale)
+        um = UncertainModel(M, bnames, mult, names, c, axes[kept], bool(exact), 0.0, f, G0, form)
+        err = 0.0
+        for p, Hs in zip(pts, truth):
+            err = max(err, float(np.abs(Hs - freqresp_array(um.statespace(p[kept]), f)).max()) / peak)
+        return UncertainModel(M, bnames, mult, names, c, axes[kept], bool(exact), err, f, G0, form)
+
+    um = build(S0, Sk, "state space")
+    if not exact and n:
+        unit = np.eye(len(axes))
+        modal = _modal_form(S0, n, [at(e)[0] for e in unit], [at(-e)[0] for e in unit])
+        if modal is not None:
+            alt = build(*modal, "modal")
+            if alt.max_error < um.max_error:
+                um = alt
+    return um
+
+
+def _lft(S0: np.ndarray, Sk: list[np.ndarray], n: int, names: tuple[str, ...], axes: np.ndarray, G0: Any,
+         scale: float) -> tuple[Any, tuple[str, ...], tuple[int, ...], list[int]]:
+    """``M`` of ``S0 + sum_k delta_k S_k`` (``S_k = L_k R_k`` by SVD), its block names, multiplicities
+    and the axes kept (those that change ``S``)."""
+    import control
+
     Ls, Rs, mult, block_names, kept = [], [], [], [], []
     for k, S in enumerate(Sk):
         U, sv, Vt = np.linalg.svd(S)
@@ -222,7 +266,6 @@ def parametric_lft(model: Any, parameters: Any, center: Any, covariance: Any, *,
         block_names.append(names[int(np.argmax(np.abs(axes[k])))] if len(names) == 1 else f"axis{k + 1}")
     if not mult:
         raise ModelError("the model does not change with these parameters over their spread.")
-    axes = axes[kept]
     L, R = np.hstack(Ls), np.vstack(Rs)
     nd = L.shape[1]
     A0, B0, C0, D0 = S0[:n, :n], S0[:n, n:], S0[n:, :n], S0[n:, n:]
@@ -233,22 +276,69 @@ def parametric_lft(model: Any, parameters: Any, center: Any, covariance: Any, *,
     z_names = [f"{nm}:z[{j}]" for nm, r in zip(block_names, mult) for j in range(r)]
     M = control.ss(A0, Bm, Cm, Dm, inputs=w_names + list(G0.input_labels),
                    outputs=z_names + list(G0.output_labels))
-    # the error against the model itself at the axis ends and sampled points of the box
-    if f_hz is None:
-        wn = np.abs(np.linalg.eigvals(A0)) if n else np.array([1.0])
-        wn = wn[wn > 0] if np.any(wn > 0) else np.array([1.0])
-        f = np.logspace(np.log10(wn.min() / 10 / (2 * np.pi)), np.log10(wn.max() * 10 / (2 * np.pi)), 200)
-    else:
-        f = np.asarray(f_hz, dtype=float).reshape(-1)
-    rng = np.random.default_rng(seed)
-    pts = [s * np.eye(len(axes))[k] for k in range(len(axes)) for s in (-1.0, 1.0)]
-    pts += list(rng.uniform(-1.0, 1.0, (n_check, len(axes))))
-    um = UncertainModel(M, tuple(block_names), tuple(mult), names, c, axes, bool(exact), 0.0, f, G0)
-    H0 = freqresp_array(G0, f)
-    peak = max(np.abs(H0).max(), 1e-300)
-    err = 0.0
-    for p in pts:
-        Hs = freqresp_array(at(p)[2], f)
-        Hl = freqresp_array(um.statespace(p), f)
-        err = max(err, float(np.abs(Hs - Hl).max()) / peak)
-    return UncertainModel(M, tuple(block_names), tuple(mult), names, c, axes, bool(exact), err, f, G0)
+    return M, tuple(block_names), tuple(mult), kept
+
+
+def _real_modal_basis(A: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """``T`` with ``T^-1 A T`` block diagonal (``[[s, w], [-w, s]]`` per complex pair ``s +- j w``,
+    ``[l]`` per real eigenvalue) and the eigenvalues in that order (upper ones of each pair)."""
+    lam, V = np.linalg.eig(A)
+    cols, order, used = [], [], np.zeros(lam.size, bool)
+    for i in np.argsort(np.abs(lam), kind="stable"):
+        if used[i]:
+            continue
+        if abs(lam[i].imag) > 1e-12 * max(abs(lam[i]), 1e-300):
+            taken = used | (np.arange(lam.size) == i)
+            j = int(np.argmin(np.where(taken, np.inf, np.abs(lam - lam[i].conjugate()))))
+            v = V[:, i] if lam[i].imag > 0 else V[:, j]
+            cols += [v.real, v.imag]
+            order.append(lam[i] if lam[i].imag > 0 else lam[j])
+            used[i] = used[j] = True
+        else:
+            cols.append(V[:, i].real)
+            order.append(complex(lam[i].real, 0.0))
+            used[i] = True
+    T = np.array(cols).T
+    if np.linalg.cond(T) > 1e12:
+        return None
+    return T, np.array(order)
+
+
+def _modal_form(S0: np.ndarray, n: int, plus: list[np.ndarray], minus: list[np.ndarray]):
+    """The LFT data in the nominal's real modal coordinates with the eigenvalues' first-order
+    changes only (each mode's frequency and damping; its shape held at the nominal): ``S0`` in
+    modal coordinates and one ``S_k`` per axis, or None when the modes cannot be matched."""
+    from scipy.optimize import linear_sum_assignment
+
+    A0 = S0[:n, :n]
+    basis = _real_modal_basis(A0)
+    if basis is None:
+        return None
+    T, lam0 = basis
+    Ti = np.linalg.inv(T)
+    S0m = np.block([[Ti @ A0 @ T, Ti @ S0[:n, n:]], [S0[n:, :n] @ T, S0[n:, n:]]])
+    Skm = []
+    for Sp, Sm in zip(plus, minus):
+        moved = []
+        for S in (Sp, Sm):
+            lam = np.linalg.eigvals(S[:n, :n])
+            lam = lam[lam.imag >= -1e-12 * np.maximum(np.abs(lam), 1e-300)]
+            if lam.size != lam0.size:
+                return None
+            cost = np.abs(lam0[:, None] - lam[None, :])
+            r, cidx = linear_sum_assignment(cost)
+            moved.append(lam[cidx[np.argsort(r)]])
+        dl = 0.5 * (moved[0] - moved[1])
+        dA = np.zeros((n, n))
+        pos = 0
+        for d, l0 in zip(dl, lam0):
+            if abs(l0.imag) > 0:
+                dA[pos:pos + 2, pos:pos + 2] = [[d.real, d.imag], [-d.imag, d.real]]
+                pos += 2
+            else:
+                dA[pos, pos] = d.real
+                pos += 1
+        S = np.zeros_like(S0m)
+        S[:n, :n] = dA
+        Skm.append(S)
+    return S0m, Skm
