@@ -493,3 +493,4 @@ def test_fixed_design_level_sets_the_k_step_gamma():
     assert low.history[0].gamma == pytest.approx(free.history[0].gamma, rel=1e-9)
     with pytest.raises(SynthesisError, match="gamma"):
         dksyn((P, 2, 2, BOOK_BLOCKS), gamma=-1.0)
+
