@@ -98,6 +98,8 @@ AUTOSCALE_EVALS = 60
 AUTOSCALE_STARTS = (0.0, -1.5, 1.5)
 #: A start whose verified mu is below this ends the multi-start (robust performance certified).
 AUTOSCALE_CERTIFIED = 1.0
+#: ln of the common block-scale factors the search scans before its Nelder-Mead refinement.
+AUTOSCALE_SCAN = (-6.0, -4.5, -3.0, -1.5, 0.0, 1.5, 3.0, 4.5, 6.0)
 #: Most scaled blocks (all but the last) for which that search runs (else the covariant start).
 AUTOSCALE_MAX_BLOCKS = 6
 #: H-infinity syntheses of one D-G-K K step's search for its level (:func:`_mixed_k_step`).
@@ -252,9 +254,10 @@ def _autoscaled(plant: _Plant, hinf_options: Mapping | None = None) -> tuple[_Pl
 
     That start is only covariant, not good (the distillation column's first K step reached
     gamma 97 there, against 1.18 with the book's units), so the block scales are then moved by
-    a Nelder-Mead search in ``ln d`` (:data:`AUTOSCALE_EVALS` H-infinity syntheses at most, an
-    initial simplex of ``e^3`` steps) for the lowest gamma of the first K step: a constant-D
-    mu-synthesis step. Started from a covariant point and driven by an invariant objective,
+    a search in ``ln d`` for the lowest gamma of the first K step (a constant-D mu-synthesis
+    step): a coarse scan of a common factor over :data:`AUTOSCALE_SCAN`, then Nelder-Mead
+    from its best point (:data:`AUTOSCALE_EVALS` H-infinity syntheses at most, an initial
+    simplex of ``e^2`` steps). Started from a covariant point and driven by an invariant objective,
     the search finds the same scales for any units (1.121 on both the scaled and the
     ``G0 / 100`` column).
     """
@@ -300,11 +303,16 @@ def _autoscaled(plant: _Plant, hinf_options: Mapping | None = None) -> tuple[_Pl
 
     x = np.zeros(nb)
     if 0 < nb <= AUTOSCALE_MAX_BLOCKS:
-        simplex = np.vstack([np.zeros(nb), -3.0 * np.eye(nb)])
+        # a coarse scan along the common direction (all blocks but the last together), then
+        # Nelder-Mead from its best point
+        scan = [(gamma_of(np.full(nb, t)), t) for t in AUTOSCALE_SCAN]
+        g0, t0 = min(scan)
+        x = np.full(nb, t0)
+        simplex = np.vstack([x, x + 2.0 * np.eye(nb)])
         res = minimize(gamma_of, x, method="Nelder-Mead",
                        options={"initial_simplex": simplex, "xatol": 0.05, "fatol": 1e-3,
                                 "maxfev": AUTOSCALE_EVALS})
-        if res.fun < gamma_of(x):
+        if res.fun < g0:
             x = res.x
     d = d0 * np.exp(np.append(x, 0.0))
     Ps = _constant_scaled(plant, su, sy, d)
