@@ -494,3 +494,43 @@ def test_fixed_design_level_sets_the_k_step_gamma():
     with pytest.raises(SynthesisError, match="gamma"):
         dksyn((P, 2, 2, BOOK_BLOCKS), gamma=-1.0)
 
+
+
+def test_himat_plant_is_the_mu_tools_interconnection():
+    # the block-matrix construction against python-control's interconnect of the same pieces
+    import control
+
+    from robustctl.examples import himat_plant
+
+    s = control.tf("s")
+    for noise in (False, True):
+        P, blocks = himat_plant(noise)
+        G = control.ss(*(np.asarray(m) for m in (P.A[:4, :4], P.B[:4, -2:], P.C[-2:, :4], np.zeros((2, 2)))))
+        wd = (50 * s + 5000) / (s + 1e4)
+        wp = (0.5 * s + 0.9) / (s + 0.018) if noise else (0.5 * s + 1.5) / (s + 0.03)
+        wn = (2 * s + 2.56) / (s + 320)
+        f = np.array([0.01, 0.3, 3.0, 30.0])
+        H = freqresp_array(P, f)
+        Hg = freqresp_array(G, f)
+        I2 = np.eye(2)
+        for k, fk in enumerate(f):
+            sk = 2j * np.pi * fk
+            d, p, n = (complex(control.evalfr(w, sk)) for w in (wd, wp, wn))
+            np.testing.assert_allclose(H[k, 0:2, -2:], d * I2, rtol=1e-9)  # z_del <- u
+            np.testing.assert_allclose(H[k, 2:4, 0:2], p * Hg[k], rtol=1e-7)  # z_p <- pert
+            np.testing.assert_allclose(H[k, 2:4, 2:4], p * I2, rtol=1e-9)  # z_p <- dist
+            np.testing.assert_allclose(H[k, 4:6, -2:], Hg[k], rtol=1e-7)  # y <- u
+            if noise:
+                np.testing.assert_allclose(H[k, 4:6, 4:6], n * I2, rtol=1e-9)  # y <- noise input
+        assert blocks == ([[2, 2], [4, 2]] if noise else [[2, 2], [2, 2]])
+
+
+def test_himat_on_the_60_point_grid_completes_below_one():
+    # mu-tools' himat_dk settings: logspace(-3, 3, 60) rad/s; the K step once failed there at
+    # iteration 2 ("no feasible gamma up to 1e+14")
+    from robustctl.examples import himat_plant
+
+    P, blocks = himat_plant()
+    dk = dksyn((P, 2, 2, blocks), f_hz=np.logspace(-3, 3, 60) / (2 * np.pi), progress=False)
+    assert "failed" not in dk.stop_reason
+    assert dk.mu_peak < 1.0

@@ -28,6 +28,7 @@ from .robust_design import (
     ModelCoverRecipe,
     caltech_design_plant,
     distillation_plant,
+    himat_plant,
     six_modes,
     two_mass_spring_plant,
 )
@@ -38,4 +39,4 @@ __all__ += ["modal_test_case", "impact_test_case", "ModalTruth"]
 __all__ += ["caltech_additive_weight", "caltech_truss_weights", "CaltechWeights"]
 __all__ += ["distillation_plant", "DISTILLATION_BLOCKS", "caltech_design_plant", "six_modes"]
 __all__ += ["ModelCoverRecipe"]
-__all__ += ["two_mass_spring_plant", "TWO_MASS_BLOCKS"]
+__all__ += ["two_mass_spring_plant", "TWO_MASS_BLOCKS", "himat_plant"]

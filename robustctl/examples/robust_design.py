@@ -117,6 +117,61 @@ def two_mass_spring_plant(k: float | None = None, *, k_range: tuple[float, float
     return control.ss(Aa, B, C, D, inputs=names_in, outputs=names_out)
 
 
+def himat_plant(noise: bool = False):
+    """The HIMAT aircraft's D-K example of the mu-tools toolbox (Balas, Doyle, Glover, Packard &
+    Smith, mu-Analysis and Synthesis Toolbox, 1991: ``mkhic`` and, with ``noise=True``,
+    ``mkhicn``) as a generalized plant.
+
+    The 4-state longitudinal model ``G`` (inputs: elevon and canard, outputs: angle of attack
+    and pitch angle) with input multiplicative uncertainty ``w_del = (50 s + 5000)/(s + 10000)``
+    on each control, performance ``w_p (G (u + pert) + d)`` with ``w_p = (0.5 s + 1.5)/(s +
+    0.03)`` (``noise=True``: ``(0.5 s + 0.9)/(s + 0.018)``) and, with ``noise=True``, sensor
+    noise ``w_n = (2 s + 2.56)/(s + 320)`` on two further disturbance inputs.
+
+    Returns
+    -------
+    P : control.StateSpace
+        Inputs ``[pert(2), dist(2 or 4), control(2)]``, outputs ``[z_del(2), z_p(2), y(2)]``.
+    blocks : list
+        mussv rows: ``[[2, 2], [2, 2]]`` (``[[2, 2], [4, 2]]`` with noise); ``nmeas = ncon = 2``.
+    """
+    import control
+
+    A = np.array([[-0.0226, -36.6, -18.9, -32.1], [0, -1.9, 0.983, 0], [0.0123, -11.7, -2.63, 0],
+                  [0, 0, 1, 0]])
+    B = np.array([[0, 0], [-0.414, 0], [-77.8, 22.4], [0, 0]])
+    C = np.array([[0, 57.3, 0, 0], [0, 0, 0, 57.3]])
+
+    def first_order(b1, b0, a0):
+        """``(b1 s + b0) / (s + a0)`` on two channels: (A, B, C, D)."""
+        return -a0 * np.eye(2), np.eye(2), (b0 - b1 * a0) * np.eye(2), b1 * np.eye(2)
+
+    Ad, Bd, Cd, Dd = first_order(50.0, 5000.0, 1e4)
+    Ap, Bp, Cp, Dp = first_order(0.5, 0.9, 0.018) if noise else first_order(0.5, 1.5, 0.03)
+    An, Bn, Cn, Dn = first_order(2.0, 2.56, 320.0)
+    nd = 4 if noise else 2
+    Z = np.zeros
+    # states [x_G (4), x_del (2), x_p (2), (x_n (2))]; inputs [pert, dist, u]
+    blocks_A = [[A, Z((4, 2)), Z((4, 2))], [Z((2, 4)), Ad, Z((2, 2))], [Bp @ C, Z((2, 2)), Ap]]
+    Bm = [np.hstack([B, Z((4, nd)), B]), np.hstack([Z((2, 2)), Z((2, nd)), Bd]),
+          np.hstack([Z((2, 2)), Bp, Z((2, nd - 2)), Z((2, 2))])]
+    Cz = [np.hstack([Z((2, 4)), Cd, Z((2, 2))]), np.hstack([Dp @ C, Z((2, 2)), Cp]),
+          np.hstack([C, Z((2, 4))])]
+    D = np.vstack([np.hstack([Z((2, 2)), Z((2, nd)), Dd]),
+                   np.hstack([Z((2, 2)), Dp, Z((2, nd - 2)), Z((2, 2))]),
+                   np.hstack([Z((2, 2)), np.eye(2), Z((2, nd - 2)), Z((2, 2))])])
+    Am, Bmat, Cmat = np.block(blocks_A), np.vstack(Bm), np.vstack(Cz)
+    if noise:  # the noise filter's states feed the measurements
+        Am = np.block([[Am, Z((8, 2))], [Z((2, 8)), An]])
+        Bmat = np.vstack([Bmat, np.hstack([Z((2, 4)), Bn, Z((2, 2))])])
+        Cmat = np.hstack([Cmat, np.vstack([Z((4, 2)), Cn])])
+        D[4:6, 4:6] = Dn
+    ins = ["pert1", "pert2"] + [f"dist{i + 1}" for i in range(nd)] + ["u1", "u2"]
+    outs = ["zdel1", "zdel2", "zp1", "zp2", "y1", "y2"]
+    blocks = [[2, 2], [nd, 2]]
+    return control.ss(Am, Bmat, Cmat, D, inputs=ins, outputs=outs), blocks
+
+
 def six_modes(model: Any):
     """The six global modes (12 states) of a truss model by balanced truncation (seed eq. 11-13)."""
     import control
