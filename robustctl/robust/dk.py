@@ -606,7 +606,8 @@ def _fit_d_scales(
         orders = [[o for o in cand if o * (b.rows + b.cols) <= MAX_D_STATES_PER_BLOCK] or [0]
                   for cand, b in zip(orders, blocks)]
     if order_d is None and len(previous) == nb:
-        orders = [[o for o in cand if o >= p - ORDER_D_DROP] for cand, p in zip(orders, previous)]
+        orders = [[o for o in cand if o >= p - ORDER_D_DROP] or [max(cand)]
+                  for cand, p in zip(orders, previous)]
     peak = float(np.max(m.upper))
     chosen, chosen_orders = [], []
     joint = d.copy()
