@@ -74,8 +74,6 @@ FIT_TOL_DB = 0.1
 #: Orders the automatic choice may drop below the previous iteration's (0: an order once
 #: needed is kept).
 ORDER_D_DROP = 0
-#: When the automatic orders stall, one more D step from the best loop with every order raised by this.
-ORDER_D_ESCALATE = 2
 #: Accept the lowest D order whose scaled bound peak is within this fraction of mu's peak
 #: (loose on purpose: a tight tolerance picks high orders that stall D-K).
 ORDER_D_RTOL = 0.05
@@ -1059,10 +1057,7 @@ def dksyn(
         reach, else the one with the lowest bound (never below the previous iteration's order unless those
         fits are broken or out of band; at most 24 added states per block, e.g. order 4 for
         a 3 x 3 block). From the third iteration the K step tries the fits of the
-        extrapolated scales too (:data:`D_STEPS`, module docstring). When the automatic
-        orders stall (no improvement for ``patience`` iterations), one more D step starts
-        from the best loop with every order raised by :data:`ORDER_D_ESCALATE` (HIMAT
-        ``mkhic``: 0.975 -> 0.965, the best fixed order 0.957).
+        extrapolated scales too (:data:`D_STEPS`, module docstring).
     f_hz : array_like, optional
         Analysis grid (Hz). Default: :func:`default_grid` of ``P``, refined at the lightly
         damped closed-loop poles each iteration.
@@ -1157,7 +1152,6 @@ def dksyn(
     candidates = [_DCandidate((), ())]
     previous: tuple[np.ndarray, np.ndarray] | None = None
     stop, stale = f"max_iter={max_iter} reached", 0
-    escalated = False
     bar = tqdm(total=max_iter, desc="D-K", disable=not show, leave=False)
     try:
         for index in range(1, max_iter + 1):
@@ -1187,19 +1181,12 @@ def dksyn(
                     f"peak mu {entry.mu_peak:.4f} rose above iteration {prev.index}'s {prev.mu_peak:.4f}"
                     + (f" ({why})" if why else ""))})
             if best is None or entry.mu_peak < best["it"].mu_peak:
-                best = {"it": entry, "K": K, "cl": cl, "d": cand.fits, "H": H, "cand": cand}
+                best = {"it": entry, "K": K, "cl": cl, "d": cand.fits}
             if hres.info.get("stopped_by_budget"):
                 extra = "the K step's gamma bisection was stopped by the time budget"
                 entry = DKIteration(**{**entry.__dict__,
                                        "note": f"{entry.note}; {extra}" if entry.note else extra})
             stale = 0 if improved else stale + 1
-            escalate = False
-            if stale >= patience and order_d is None and not escalated and cand.orders:
-                # the automatic orders stalled: one more try from the best loop's scales with
-                # each order raised by ORDER_D_ESCALATE (the best controller is kept anyway)
-                escalated = escalate = True
-                stale = patience - 1
-                m, H, cl, cand = best["it"].mu, best["H"], best["cl"], best["cand"]
             # the next iteration needs at least this one's K step and mu analysis: a K step
             # started with too little time left stops its gamma bisection early (gamma 7.3
             # where 1.2 was reachable, on a 28-state plant with five scaled blocks)
@@ -1213,11 +1200,10 @@ def dksyn(
                 H_edges = _edge_response(cl)
                 if mixed:
                     g_fits, level, md, zb = _g_step(m, H, H_edges, blocks)
-                prev_orders = tuple(o + ORDER_D_ESCALATE for o in cand.orders) if escalate else cand.orders
-                fits, orders, bound = _fit_d_scales(H, md, blocks, order_d, executor, prev_orders,
+                fits, orders, bound = _fit_d_scales(H, md, blocks, order_d, executor, cand.orders,
                                                     H_edges, deadline, zb)
                 candidates = [_DCandidate(tuple(fits), orders, 0.0, bound, g_fits, level)]
-                if previous is not None and fits and not escalate:
+                if previous is not None and fits:
                     candidates += [replace(c, g_fits=g_fits, level=level) for c in
                                    _extrapolated(md, previous, orders, D_STEPS, executor, deadline)]
                 previous = _log_scales(md)
