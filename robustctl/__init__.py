@@ -116,6 +116,7 @@ from .physical.nastran_import import (
     write_nastran_matrices,
     write_nastran_modes,
 )
+from .physical.uncertain import UncertainModel, parametric_lft
 
 # large structures in reduced coordinates (physical/reduction.py)
 from .physical.reduction import band_limited, reduction_error
@@ -309,6 +310,9 @@ __all__ = [
     "yardstick",
     "YardstickWarning",
     "Yardstick",
+    # uncertain models from the update (parametric LFT) for mixed-mu D-G-K
+    "UncertainModel",
+    "parametric_lft",
     # H2/LQG, discrete synthesis, loop shaping, margins, controller reduction
     "is_stable",
     "h2norm",
