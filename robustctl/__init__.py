@@ -116,10 +116,10 @@ from .physical.nastran_import import (
     write_nastran_matrices,
     write_nastran_modes,
 )
-from .physical.uncertain import UncertainModel, parametric_lft
 
 # large structures in reduced coordinates (physical/reduction.py)
 from .physical.reduction import band_limited, reduction_error
+from .physical.uncertain import UncertainModel, parametric_lft
 
 # robust design: weights
 from .robust import (
