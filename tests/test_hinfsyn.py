@@ -28,8 +28,11 @@ def augw(G, **weights):
 def assert_verified(res, P=None, nmeas=None, ncon=None):
     """Closed loop stable, norm res.gamma <= the design gamma, equal to an independent frequency-wise LFT."""
     assert np.max(np.linalg.eigvals(res.closed_loop.A).real) < 0
-    norm, _ = rc.hinfnorm(res.closed_loop)
-    assert norm == pytest.approx(res.gamma, rel=1e-6)
+    # hinfnorm brackets the norm: g <= ||Fl|| <= g (1 + 2 tol); res.gamma is hinfsyn's upper end
+    # of such a bracket (its own tol, info["norm_tol"]), so the two brackets must overlap
+    tol = 1e-6
+    norm, _ = rc.hinfnorm(res.closed_loop, tol=tol)
+    assert norm <= res.gamma <= norm * (1 + 2 * tol) * (1 + 2 * res.info["norm_tol"])
     assert res.gamma <= res.info["gamma_design"] * (1 + 1e-6)
     assert res.gamma_opt <= res.info["gamma_design"]
     if P is not None:  # frequency-domain LFT of python-control's responses: the same loop, independently
@@ -46,6 +49,11 @@ def assert_verified(res, P=None, nmeas=None, ncon=None):
             allowed = 1e-8 * (norm2[0] + norm2[1] * norm2[2] * norm2[3]) + 1e-12
             assert np.linalg.norm(F - Fcl, 2) <= allowed
             assert np.linalg.norm(F, 2) <= res.gamma * (1 + 1e-9) + allowed
+
+
+#: Relative accuracy of an LMI optimum: Clarabel's reduced gap tolerance (reduced_tol_gap_rel), which
+#: even an "optimal_inaccurate" solution (accepted by the LMI route) meets; a solved one meets 1e-8.
+CLARABEL_REL_ACC = 5e-5
 
 
 def random_plant(seed, n=5, m1=3, m2=2, p1=3, p2=2, stable=True, d_scale=0.5):
@@ -146,10 +154,16 @@ def test_lightly_damped_noncollocated_order_22_matches_lmi():
     """Order 22, zeta = 1e-4: Riccati 0.6607, LMI 0.6602 (SB10AD reports 0.550; its controller gives 2.65)."""
     P = mixed_sensitivity(10, seed=10, zeta=1e-4, flip=0.3)
     ric = rc.hinfsyn(P, 1, 1)
-    lmi = rc.hinfsyn(P, 1, 1, method="lmi", time_budget_s=300)
-    assert ric.gamma_opt == pytest.approx(lmi.gamma_opt, rel=0.01)
+    lmi = rc.hinfsyn(P, 1, 1, method="lmi")
+    # the optimum lies in the Riccati bisection's bracket [gamma_lower, gamma_opt] (width gamma_tol);
+    # the LMI optimum sits there within Clarabel's accuracy (CLARABEL_REL_ACC)
+    assert ric.gamma_opt <= ric.info["gamma_lower"] * (1 + ric.info["gamma_tol"])
+    assert ric.info["gamma_lower"] * (1 - CLARABEL_REL_ACC) <= lmi.gamma_opt
+    assert lmi.gamma_opt <= ric.gamma_opt * (1 + CLARABEL_REL_ACC)
     assert_verified(ric, P, 1, 1)
     assert_verified(lmi, P, 1, 1)
+    for res in (ric, lmi):  # the reported gamma bounds the closed loop's norm from above
+        assert rc.hinfnorm(res.closed_loop, tol=1e-10)[0] <= res.gamma
 
 
 @pytest.mark.parametrize("w2", [1e-4, 1e-6])

@@ -16,9 +16,12 @@ Two routes, both verified on the closed loop:
 
 The controller is designed at ``gamma_opt (1 + backoff)``, because the Riccati solutions
 blow up at the optimum (ZDG sec. 16.9), then ``Fl(P, K)`` is formed, and the result is
-accepted only when the closed loop is stable and ``||Fl(P, K)||_inf <= gamma_design (1 + 1e-6)``
-(by :func:`robustctl.robust.hinfnorm.hinfnorm`); otherwise gamma is raised and the design
-repeated (at most ``MAX_RETRIES`` times). Every loop is capped and the whole call obeys
+accepted only when the closed loop is stable and an upper bound of ``||Fl(P, K)||_inf`` is at
+most ``gamma_design (1 + 1e-6)``; otherwise gamma is raised and the design repeated (at most
+``MAX_RETRIES`` times). The bound is :func:`robustctl.robust.hinfnorm.hinfnorm`'s value ``g``
+at ``NORM_TOL`` raised to ``g (1 + 2 NORM_TOL)``: the Bruinsma-Steinbuch iteration guarantees
+``g <= ||G||_inf <= g (1 + 2 tol)``, so the reported ``gamma`` is never below the closed
+loop's norm, and at most ``2 NORM_TOL`` (relative) above it. Every loop is capped and the whole call obeys
 ``time_budget_s``.
 """
 
@@ -50,6 +53,9 @@ MAX_BRACKET_STEPS = 16
 MAX_BISECTION_STEPS = 60
 #: Relative slack of the closed-loop check ``||Fl(P, K)||_inf <= gamma_design (1 + VERIFY_TOL)``.
 VERIFY_TOL = 1e-6
+#: Relative accuracy of the closed-loop norm (hinfnorm's ``tol``): the reported gamma is an
+#: upper bound of ``||Fl(P, K)||_inf``, at most ``2 NORM_TOL`` (relative) above it.
+NORM_TOL = 1e-7
 
 
 # ---------------------------------------------------------------------------- result
@@ -63,7 +69,9 @@ class HinfResult:
         The controller ``u = K y``: inputs named like the plant's measurements, outputs like
         its control inputs.
     gamma : float
-        Verified closed-loop H-infinity norm ``||Fl(P, K)||_inf`` (by :func:`hinfnorm`).
+        Verified upper bound of the closed-loop H-infinity norm ``||Fl(P, K)||_inf`` of
+        ``closed_loop``: ``||Fl|| <= gamma <= ||Fl|| (1 + 2 info["norm_tol"])``
+        (:func:`hinfnorm`'s bracket, Bruinsma & Steinbuch 1990); exact for a static loop.
     gamma_opt : float
         Best achievable gamma found (the bisection's smallest feasible gamma, or the LMI optimum).
     closed_loop : control.StateSpace
@@ -72,7 +80,8 @@ class HinfResult:
         ``method``, ``gamma_design``, ``backoff``, ``gamma_lower`` (largest gamma shown
         infeasible, or the Parrott bound), ``n_gamma_tests``, ``history`` (list of
         ``(gamma, feasible, reason)``), ``retries``, ``closed_loop_max_real_pole`` (rad/s),
-        ``f_peak_hz``, ``time_s``, ``stopped_by_budget``.
+        ``f_peak_hz``, ``time_s``, ``norm_tol`` (relative accuracy of ``gamma``),
+        ``stopped_by_budget``, ``time_budget_s``.
     """
 
     K: Any
@@ -374,13 +383,23 @@ def _riccati_design(m: dict[str, np.ndarray], gamma: float) -> tuple[np.ndarray,
     return _loop_shift(K0, m["D22"])
 
 
+def _norm_bound(A, B, C, D) -> tuple[float, float]:
+    """Upper bound of ``||(A, B, C, D)||_inf`` within ``2 NORM_TOL`` (relative) and the peak (rad/s).
+
+    :func:`hinfnorm_matrices` returns ``g`` with ``g <= ||G|| <= g (1 + 2 tol)`` (Bruinsma &
+    Steinbuch 1990); without states the norm ``sigma_max(D)`` is exact.
+    """
+    norm, w = hinfnorm_matrices(A, B, C, D, NORM_TOL)
+    return (norm * (1.0 + 2.0 * NORM_TOL) if A.shape[0] else norm), w
+
+
 def _verify(m, K, gamma_design: float) -> tuple[bool, float, float, float]:
-    """Stable and ``||Fl(P,K)|| <= gamma_design (1+VERIFY_TOL)``? Returns (ok, norm, w_peak, max Re(pole))."""
+    """Stable and ``||Fl(P,K)|| <= gamma_design (1+VERIFY_TOL)``? Returns (ok, norm bound, w_peak, max Re)."""
     A, B, C, D = _closed_loop(m, K)
     if not np.all(np.isfinite(A)) or not np.all(np.isfinite(B)):
         return False, np.inf, np.nan, np.inf
     max_re = float(np.max(np.linalg.eigvals(A).real)) if A.size else -np.inf
-    norm, w = hinfnorm_matrices(A, B, C, D, 1e-7)
+    norm, w = _norm_bound(A, B, C, D)
     return bool(max_re < 0 and norm <= gamma_design * (1 + VERIFY_TOL)), norm, w, max_re
 
 
@@ -552,4 +571,7 @@ def _result(plant: PartitionedPlant, m, K, norm: float, gamma_opt: float, info: 
         name="K",
     )
     cl = lft(plant, Kss)  # the shared named interconnection: w -> z with the plant's names
+    # the bound of the realisation returned (the design loop's array LFT differs by rounding)
+    norm, _ = _norm_bound(*(np.asarray(x, dtype=float) for x in (cl.A, cl.B, cl.C, cl.D)))
+    info["norm_tol"] = NORM_TOL
     return HinfResult(K=Kss, gamma=float(norm), gamma_opt=float(gamma_opt), closed_loop=cl, info=info)
