@@ -5,6 +5,9 @@
 
 # shared ground: one checks module, one system coercion, one cost report, one Mode
 from . import checks, estimator, examples
+
+# reproducibility: one time-budget policy (budget.py)
+from .budget import BudgetWarning, Deadline
 from .correlate import (
     Comparison,
     Diagnosis,
@@ -17,7 +20,7 @@ from .correlate import (
     verify,
 )
 from .cost import LogCost
-from .errors import DataError, FitError, ModelError, RobustctlError, SynthesisError
+from .errors import DataError, FitError, ModelError, RobustctlError, RobustctlWarning, SynthesisError
 from .estimate import (
     advised_nperseg,
     combine_experiments,
@@ -212,4 +215,8 @@ __all__ = [
     "DKResult",
     "yardstick",
     "Yardstick",
+    # reproducibility: the time-budget policy and robustctl's warning base
+    "Deadline",
+    "BudgetWarning",
+    "RobustctlWarning",
 ]

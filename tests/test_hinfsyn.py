@@ -364,7 +364,7 @@ def test_wrong_types_and_improper_plants():
         {"gamma_tol": 2.0},
         {"backoff": -0.1},
         {"backoff": "1%"},
-        {"time_budget_s": 0},
+        {"time_budget_s": -1.0},
         {"time_budget_s": np.inf},
     ],
 )
@@ -374,10 +374,16 @@ def test_bad_options(kw):
 
 
 def test_time_budget_bounds_the_bisection():
+    """A used-up budget (0 s) stops the bisection at its first check: the verified controller of the
+    bracket's feasible end, flagged in info, the summary and a BudgetWarning."""
     P = mixed_sensitivity(5)
-    res = rc.hinfsyn(P, 1, 1, gamma_tol=1e-9, time_budget_s=1e-6)
-    assert res.info["stopped_by_budget"]
+    with pytest.warns(rc.BudgetWarning, match="stopped by time_budget_s=0 s"):
+        res = rc.hinfsyn(P, 1, 1, gamma_tol=1e-9, time_budget_s=0)
+    assert res.info["stopped_by_budget"] and res.info["n_gamma_tests"] == 1
+    assert "time budget" in res.summary()
     assert_verified(res)
+    free = rc.hinfsyn(P, 1, 1, gamma_tol=1e-9)  # no clock: the bisection runs to its tolerance
+    assert not free.info["stopped_by_budget"] and free.gamma_opt < res.gamma_opt
 
 
 def test_slow_stable_mode_is_not_read_as_on_the_axis_next_to_a_fast_one():

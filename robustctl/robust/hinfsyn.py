@@ -21,8 +21,8 @@ most ``gamma_design (1 + 1e-6)``; otherwise gamma is raised and the design repea
 ``MAX_RETRIES`` times). The bound is :func:`robustctl.robust.hinfnorm.hinfnorm`'s value ``g``
 at ``NORM_TOL`` raised to ``g (1 + 2 NORM_TOL)``: the Bruinsma-Steinbuch iteration guarantees
 ``g <= ||G||_inf <= g (1 + 2 tol)``, so the reported ``gamma`` is never below the closed
-loop's norm, and at most ``2 NORM_TOL`` (relative) above it. Every loop is capped and the whole call obeys
-``time_budget_s``.
+loop's norm, and at most ``2 NORM_TOL`` (relative) above it. Every loop is capped in number; an
+optional ``time_budget_s`` follows :mod:`robustctl.budget`'s policy.
 """
 
 from __future__ import annotations
@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg
 
+from ..budget import Deadline, as_deadline
 from ..checks import integer, positive_number
 from ..errors import ModelError, SynthesisError
 from ..interconnect import PartitionedPlant, lft
@@ -270,17 +271,6 @@ def _loop_shift(K: tuple[np.ndarray, ...], D22: np.ndarray) -> tuple[np.ndarray,
 
 
 # ---------------------------------------------------------------------------- Riccati route
-class _Clock:
-    def __init__(self, budget: float) -> None:
-        self.t0, self.budget = time.monotonic(), budget
-
-    def elapsed(self) -> float:
-        return time.monotonic() - self.t0
-
-    def left(self) -> float:
-        return self.budget - self.elapsed()
-
-
 def _balance(m: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """A diagonal state similarity balancing ``[[A, B], [C, 0]]`` (LAPACK gebal, like MATLAB's ssbal).
 
@@ -322,7 +312,7 @@ def _upper_start(m: dict[str, np.ndarray], lower: float) -> tuple[float, bool]:
 
 
 def _bisect(
-    p: dgkf.Normalised, m, clock: _Clock, gamma_tol: float, history: list
+    p: dgkf.Normalised, m, clock: Deadline, gamma_tol: float, history: list
 ) -> tuple[float, float, bool]:
     """Bracket and bisect gamma; returns ``(gamma_opt, gamma_lower, stopped_by_budget)``."""
 
@@ -338,9 +328,10 @@ def _bisect(
     for _ in range(MAX_BRACKET_STEPS):
         if test(hi):
             break
-        if clock.left() <= 0:
+        if clock.expired():
             raise SynthesisError(
-                f"time budget exhausted before any feasible gamma was found (tested up to {hi:.3g})."
+                f"time_budget_s={clock.budget_s:g} s ran out before any feasible gamma was found (tested up "
+                f"to {hi:.3g}); raise time_budget_s or leave it None (the gamma tests are capped in number)."
             )
         if achievable:
             # K = 0 achieves ||P11||, and feasibility is monotone in gamma: this failure is
@@ -364,7 +355,7 @@ def _bisect(
     for _ in range(MAX_BISECTION_STEPS):
         if hi <= lo * (1.0 + gamma_tol):
             break
-        if clock.left() <= 0:
+        if clock.expired():
             stopped = True
             break
         mid = float(np.sqrt(lo * hi))
@@ -403,7 +394,7 @@ def _verify(m, K, gamma_design: float) -> tuple[bool, float, float, float]:
     return bool(max_re < 0 and norm <= gamma_design * (1 + VERIFY_TOL)), norm, w, max_re
 
 
-def _design_and_verify(m, design, gamma0: float, backoff: float, clock: _Clock, info: dict):
+def _design_and_verify(m, design, gamma0: float, backoff: float, clock: Deadline, info: dict):
     """Design at ``gamma0 (1 + backoff)``, raise gamma until the closed-loop check passes (bounded)."""
     gamma_d = gamma0 * (1.0 + backoff)
     step = max(backoff, 0.01)
@@ -423,7 +414,7 @@ def _design_and_verify(m, design, gamma0: float, backoff: float, clock: _Clock, 
                 f_peak_hz=w / (2 * np.pi),
             )
             return K, norm
-        if clock.left() <= 0:
+        if clock.expired():
             break
         gamma_d *= 1.0 + step
         step *= 2.0
@@ -462,7 +453,7 @@ def _lmi(m, backoff, clock, info):
     check_assumptions(m, ranks=False)
     m0 = dict(m, D22=np.zeros_like(m["D22"]))  # (no balancing: it can inflate the Lyapunov matrices)
     scale = max(1.0, float(np.abs(m["D11"]).max()) if m["D11"].size else 1.0)
-    gamma_opt, R0, S0 = lmi_gamma(m0, 1e-8 * scale, clock.left())
+    gamma_opt, R0, S0 = lmi_gamma(m0, 1e-8 * scale, clock.remaining())
     rho = (
         10.0 * max(1.0, float(np.linalg.eigvalsh(R0)[-1]), float(np.linalg.eigvalsh(S0)[-1]))
         if R0.size
@@ -476,7 +467,7 @@ def _lmi(m, backoff, clock, info):
     )
 
     def design(g):
-        return _loop_shift(lmi_controller(m0, g, rho, max(clock.left(), 1.0)), m["D22"])
+        return _loop_shift(lmi_controller(m0, g, rho, clock.remaining()), m["D22"])
 
     K, norm = _design_and_verify(m, design, gamma_opt, backoff, clock, info)
     return K, norm, gamma_opt
@@ -492,7 +483,7 @@ def hinfsyn(
     method: str = "riccati",
     gamma_tol: float = 1e-3,
     backoff: float = 0.01,
-    time_budget_s: float = 60.0,
+    time_budget_s: float | None = None,
 ) -> HinfResult:
     """H-infinity controller ``K`` minimising ``||Fl(P, K)||_inf`` (continuous time).
 
@@ -512,9 +503,12 @@ def hinfsyn(
     backoff : float
         The controller is designed at ``gamma_opt (1 + backoff)`` (relative, default 1%),
         which keeps the Riccati solutions well conditioned.
-    time_budget_s : float
-        Wall-clock budget (s) of the whole call; the bisection stops early (reported in
-        ``info["stopped_by_budget"]``) and nothing runs unbounded.
+    time_budget_s : float or None
+        Optional wall-clock budget (s) of the whole call, by :mod:`robustctl.budget`'s policy.
+        None (default): the gamma tests (``MAX_BRACKET_STEPS``, ``MAX_BISECTION_STEPS``) and
+        design retries (``MAX_RETRIES``) are capped in number, and the result depends only on
+        the inputs. A number: the bisection may stop early (``info["stopped_by_budget"]``, the
+        summary and a BudgetWarning say so); the LMI solver gets what is left as its limit.
 
     Returns
     -------
@@ -541,18 +535,22 @@ def hinfsyn(
         raise SynthesisError(f"method must be 'riccati' or 'lmi'; got {method!r}.")
     gamma_tol = _bounded(gamma_tol, "gamma_tol", 0.5)
     backoff = _bounded(backoff, "backoff", 10.0, allow_zero=True)
-    time_budget_s = positive_number(time_budget_s, "time_budget_s", SynthesisError, unit="s")
+    own_clock = not isinstance(time_budget_s, Deadline)  # a caller's (dksyn's) Deadline: it reports
+    clock = as_deadline(time_budget_s, SynthesisError)
     plant = _as_partitioned(P, nmeas, ncon)
     m = plant.matrices()
     if not all(np.all(np.isfinite(v)) for v in m.values()):
         raise SynthesisError("the plant's state-space matrices contain NaN or inf.")
-    clock = _Clock(time_budget_s)
-    info: dict = {"method": method, "backoff": backoff, "gamma_tol": gamma_tol}
+    t0 = time.perf_counter()
+    info: dict = {"method": method, "backoff": backoff, "gamma_tol": gamma_tol,
+                  "time_budget_s": clock.budget_s}
     if method == "riccati":
         K, norm, gamma_opt = _riccati(m, gamma_tol, backoff, clock, info)
     else:
         K, norm, gamma_opt = _lmi(m, backoff, clock, info)
-    info["time_s"] = clock.elapsed()
+    info["time_s"] = time.perf_counter() - t0
+    if own_clock and info.get("stopped_by_budget"):
+        clock.warn("hinfsyn's gamma bisection")
     return _result(plant, m, K, norm, gamma_opt, info)
 
 

@@ -28,11 +28,12 @@ blocks. With ``A = D_L M D_R^{-1}`` and ``G^ = D_R^{-H} G D_L^{-1}`` this reads
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
+from ..budget import as_deadline
 from .mu_layout import Layout
 from .mu_smooth import derivatives as _derivatives
 from .mu_smooth import herm as _herm
@@ -216,7 +217,7 @@ class _State:
                 if getattr(self, k) is not None}
 
 
-def upper_bound(M: np.ndarray, lay: Layout, *, time_budget_s: float = 60.0,
+def upper_bound(M: np.ndarray, lay: Layout, *, time_budget_s: Any = None,
                 max_newton: int = MAX_NEWTON) -> UpperBound:
     """D-(G-)scaled upper bound of mu at every frequency of ``M`` (nf, n_out, n_in).
 
@@ -224,8 +225,9 @@ def upper_bound(M: np.ndarray, lay: Layout, *, time_budget_s: float = 60.0,
     ----------
     M : ndarray, complex, (nf, n_out, n_in)
     lay : Layout
-    time_budget_s : float
-        Wall-clock limit of the Newton stage (the bound stays valid when it stops early).
+    time_budget_s : float, Deadline or None
+        Optional wall-clock limit of the Newton stage (:mod:`robustctl.budget`; the bound stays
+        valid when it stops early); None: ``max_newton`` alone bounds it.
     max_newton : int
         Iteration cap of the Newton stage.
     """
@@ -246,8 +248,8 @@ def upper_bound(M: np.ndarray, lay: Layout, *, time_budget_s: float = 60.0,
     best_G = None if G is None else G.copy()
     radius = np.full(nf, MAX_STEP)  # trust region on the step (inf-norm, log units)
     active = (sig0 > 0) & (best > 0) & (lay.n_d + lay.n_g > 0)
-    t0, it = time.perf_counter(), 0
-    while active.any() and it < max_newton and time.perf_counter() - t0 < time_budget_s:
+    deadline, it = as_deadline(time_budget_s), 0
+    while active.any() and it < max_newton and not deadline.expired():
         it += 1
         idx = np.flatnonzero(active)
         cur = st.take(idx)
