@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 
 import robustctl as rc
-from robustctl.correlate.diagnose import PARALLEL_MIN_CANDIDATES
-from robustctl.parallel import resolve_workers
+from robustctl.correlate.diagnosis import PARALLEL_MIN_CANDIDATES
+from robustctl.executors import resolve_workers
 
 TARGET_S = 10.0
 N_FREQ = 600

@@ -136,7 +136,7 @@ def _distillation() -> dict:
 
 
 def _caltech() -> dict:
-    from robustctl.robust.mu import mu
+    from robustctl.robust.mu_bounds import mu
 
     gp = caltech_design_plant(caltech_truss(), level=0.3)
     t, c = time.perf_counter(), time.process_time()
@@ -161,7 +161,7 @@ def _dense_mu(cl, blocks, f_grid) -> float:
     zeta < 0.3 (independent of dksyn's own verification grid)."""
     from robustctl.lti import pole_frequency_damping
     from robustctl.robust.dk import _complexified
-    from robustctl.robust.mu import mu
+    from robustctl.robust.mu_bounds import mu
 
     fpos = np.asarray(f_grid)[np.asarray(f_grid) > 0]
     parts = [np.zeros(1), np.logspace(np.log10(fpos[0]) - 2, np.log10(fpos[-1]) + 1, 4000)]

@@ -25,7 +25,7 @@ import control
 import numpy as np
 
 import robustctl as rc
-from robustctl.estimator import EstimatorSettings, estimator_view
+from robustctl.measure.estimator import EstimatorSettings, estimator_view
 
 N_SEEDS = 200
 TARGETS = {

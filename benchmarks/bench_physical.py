@@ -64,7 +64,7 @@ def _caltech_figures(model) -> dict:
 
 
 def _mace_figures() -> dict:
-    from robustctl.examples.mace_beam import classify_mace_modes
+    from robustctl.examples.mace_beam_model import classify_mace_modes
 
     one = rc.examples.mace_beam()
     zero = one.without("suspension", "gravity")

@@ -1,10 +1,39 @@
 """robustctl: a workbench for robust control of flexible structures.
 
 ``import robustctl as rc`` gives the whole public API, flat.
+
+Architecture: floors that only look down
+-----------------------------------------
+A module imports only from its own floor (without a circle) and the floors below it,
+function-level imports included; ``tests/test_architecture.py`` reads every import with
+``ast`` and fails on an edge that points up or on a circle. Lowest first:
+
+0. ``errors``, ``_version``, ``threads``, ``table``, ``executors`` -- the base
+1. ``checks`` -- argument checks (imports only ``errors``); ``budget`` -- the time-budget
+   policy and its ``Deadline`` (imports only ``errors`` and ``checks``)
+2. ``frd``, ``frd_io``, ``plots`` -- FrequencyData, its file formats, plotting primitives
+3. ``lti``, ``signals``, ``modes``, ``balanced`` -- systems and fast responses, named
+   signals, ``Mode`` with MAC and pairing, balanced truncation
+4. ``measure/`` (estimate, estimator, impact, noise), ``cost`` (MACE eq. 5)
+5. ``physical/``
+6. ``interconnect``
+7. ``correlate/``
+8. ``identify/``
+9. ``robust/``
+10. ``export/``
+11. the surface: ``figures``, ``report``, ``examples/``, ``demo*``, ``cli*``, this module
+
+A method of a low-floor type whose work belongs higher up is registered by the higher
+module when ``robustctl`` is imported (which always runs before any submodule):
+``FrequencyData.save`` by ``frd_io`` and ``FrequencyData.plot``/``plot_sv`` by ``figures``
+(:func:`robustctl.frd.register_method`); ``PhysicalModel.with_effect``'s ``Effect`` and
+``candidates`` by ``physical.effects`` (:func:`robustctl.physical.model.register_effects`).
+No submodule shares its name with a function or class that its package exports.
 """
 
 # shared ground: one checks module, one system coercion, one cost report, one Mode
-from . import checks, estimator, examples
+from . import checks, examples
+from ._version import __version__ as __version__
 
 # reproducibility: one time-budget policy (budget.py)
 from .budget import BudgetWarning, Deadline
@@ -19,17 +48,12 @@ from .correlate import (
     update,
     verify,
 )
-from .cost import LogCost
+from .cost import LogCost, log_cost, log_error
 from .errors import DataError, FitError, ModelError, RobustctlError, RobustctlWarning, SynthesisError
-from .estimate import (
-    advised_nperseg,
-    combine_experiments,
-    estimate_frf,
-    simulate_experiment,
-)
 from .export import ExportReport, discretize, export_controller, load_controller
 from .figures import fit_percent, mac_matrix, plot_compare, plot_mac, plot_mode_shapes, plot_singular_values
-from .frd import FrequencyData, load_frd
+from .frd import FrequencyData
+from .frd_io import load_frd
 from .identify import (
     MeasurementModel,
     StabilisationDiagram,
@@ -39,11 +63,18 @@ from .identify import (
     fit_rational,
     group_modes,
 )
-from .impact import ImpactWarning, estimate_frf_impact
 from .interconnect import PartitionedPlant, block_diagonal, feedback, lft, parallel, series, star, upper_lft
-from .lti import as_statespace, freqresp, log_cost, log_error
+from .lti import as_statespace, freqresp
+from .measure import estimator
+from .measure.estimate import (
+    advised_nperseg,
+    combine_experiments,
+    estimate_frf,
+    simulate_experiment,
+)
+from .measure.impact import ImpactWarning, estimate_frf_impact
+from .measure.noise import NoiseModel, noise_model
 from .modes import Mode
-from .noise import NoiseModel, noise_model
 from .physical import (
     Frame,
     MatrixStructure,
@@ -86,7 +117,7 @@ from .robust import (
 )
 from .robust.dk import DKResult, dksyn
 from .robust.sweep import DesignSweep, design_sweep
-from .robust.yardstick import Yardstick, yardstick
+from .robust.yardsticks import Yardstick, yardstick
 from .signals import (
     combine_inputs,
     combine_outputs,
@@ -96,8 +127,6 @@ from .signals import (
     select_signals,
 )
 from .threads import blas_threads, set_blas_threads
-
-__version__ = "0.1.0"
 
 __all__ = [
     # figures (the modal engineer's)

@@ -22,7 +22,7 @@ process boundaries by what is left of it.
 
 See Also
 --------
-robustctl.robust.dksyn, robustctl.robust.hinfsyn, robustctl.correlate.diagnose
+robustctl.dksyn, robustctl.hinfsyn, robustctl.diagnose, robustctl.update, robustctl.mu
 """
 
 from __future__ import annotations

@@ -1,7 +1,10 @@
 """Argument checks shared by every public entry point: one rule, one error class, one wording.
 
 Like python-control's ``_process_indices``/``_process_labels``, each check is written once
-here and imported by ``frd``, ``estimate``, ``lti``, ``correlate`` and ``identify``:
+here and imported by ``frd``, ``estimate``, ``lti``, ``correlate`` and ``identify``. It
+imports only :mod:`robustctl.errors` (the coercion to FrequencyData is
+:func:`robustctl.frd.as_frequency_data`; the coherence-weight bias, which needs the noise
+model, is :func:`robustctl.measure.noise.coherence_weight_bias`):
 
 * :func:`check_band`, :func:`band_mask`, :func:`band_data` -- a frequency band
   ``(f_lo_hz, f_hi_hz)``: a pair of finite numbers in Hz with ``f_lo < f_hi`` that holds at
@@ -14,8 +17,6 @@ here and imported by ``frd``, ``estimate``, ``lti``, ``correlate`` and ``identif
   robust half's uncertainty/performance weights, which are LTI systems; hence the name.
 * :func:`match_channels` -- model signal names against data signal names (see there for the
   one policy). Always a ``DataError``.
-* :func:`as_frequency_data` -- FrequencyData, ``(f_hz, response)`` pairs and
-  ``control.FrequencyResponseData`` to FrequencyData. Always a ``DataError``.
 * generic validators (:func:`finite_number`, :func:`positive_number`, :func:`integer`,
   :func:`flag`, :func:`probability`, :func:`real_array`, :func:`optional_text`): the wording is
   fixed here; the error class follows the stage that owns the argument (``DataError`` for data
@@ -42,13 +43,10 @@ __all__ = [
     "band_mask",
     "band_data",
     "coherence_weights",
-    "coherence_weight_bias",
-    "point_weight_bias",
     "neighbour_coherence",
     "point_weights",
     "match_channels",
     "is_default_names",
-    "as_frequency_data",
     "finite_number",
     "positive_number",
     "integer",
@@ -69,7 +67,7 @@ COHERENCE_CAP = 0.999
 
 #: bins next to each bin left out of its neighbour coherence (:func:`neighbour_coherence`):
 #: the H1 errors of bins one apart are correlated (0.39 for a Hamming window), two apart hardly
-#: (0.018; :func:`robustctl.estimator.bin_correlation`)
+#: (0.018; :func:`robustctl.measure.estimator.bin_correlation`)
 NEIGHBOUR_SKIP = 1
 #: bins averaged on each side beyond them (so bins 2 and 3 away: local next to a resonance)
 NEIGHBOUR_HALF = 2
@@ -304,8 +302,8 @@ def neighbour_coherence(
     or weighted on a bin's own coherence therefore favours the bins whose ``ln |H1|`` came out
     high. The neighbours' coherence carries the same information about the true coherence (a
     smooth function of frequency) without that correlation (Hamming windows: bin correlation
-    0.39 at one bin, 0.018 at two, :func:`robustctl.estimator.bin_correlation`). Used by the
-    noise model's choice of the bins to test (:func:`robustctl.noise.noise_model`).
+    0.39 at one bin, 0.018 at two, :func:`robustctl.measure.estimator.bin_correlation`). Used by the
+    noise model's choice of the bins to test (:func:`robustctl.measure.noise.noise_model`).
 
     Parameters
     ----------
@@ -369,80 +367,6 @@ def coherence_weights(coherence: np.ndarray, amplitude: bool = False) -> np.ndar
         )
     s = s / np.sqrt(ms)
     return s if amplitude else s**2
-
-
-def coherence_weight_bias(coherence: np.ndarray, n_averages: Any) -> np.ndarray:
-    """What coherence weights add to ``Re ln H1``: ``c = (1 - g2) / ((n_d - 2) g2)``, nepers.
-
-    With ``W = g2 / (1 - g2)`` (:func:`coherence_weights`) computed from each bin's own
-    estimate, a weighted least-squares fit of ``ln G_model`` to ``ln H1`` solves
-    ``sum W Re(conj(dE) e) = 0`` with ``e = ln(H1 / G)``, and ``W e`` has a non-zero mean at the
-    true model. Write ``H1 = G (1 + eps)``: given the input spectrum, ``eps`` is circular complex
-    Gaussian with ``E|eps|^2 = G_nn / (n_d |G|^2 G_uu)`` (averaged spectra), independent of the
-    residual spectrum ``G_nn_hat ~ G_nn chi2_{2(n_d-1)} / (2 n_d)``, and
-    ``W = |G|^2 |1 + eps|^2 G_uu / G_nn_hat``. Since ``ln(1 + eps)`` holds only powers
-    ``eps^k`` (``E[eps^k] = E[|eps|^2 eps^k] = 0``, ``E[conj(eps) eps^k] = delta_k1 E|eps|^2``),
-
-    ``E[|1 + eps|^2 ln(1 + eps)] = E|eps|^2``, so
-    ``E[W e] = |G|^2 G_uu E[1 / G_nn_hat] E|eps|^2 = 1 / (n_d - 2)``                  (1)
-
-    at every bin, whatever its coherence (``E[1 / chi2_nu] = 1 / (nu - 2)``); the imaginary part
-    (phase) is unbiased. Subtracting ``c = 1 / ((n_d - 2) W) = 2 s^2 n_d / (n_d - 2)`` from
-    ``Re e``, ``s^2 = (1 - g2) / (2 n_d g2)`` the B&P variance of each part of ``ln H1``
-    (:mod:`robustctl.noise`), makes ``sum W (e - c)`` unbiased: ``W c = 1 / (n_d - 2)`` exactly.
-    To leading order ``c`` equals the weighted mean ``E[W e] / E[W] = 2 s^2 / (1 + 2 s^2)`` of a
-    bin's log error, but that formula evaluated on the own coherence leaves 5-40 % of the bias
-    at ``g2 <= 0.6`` (Monte Carlo, ``tests/test_cohbias.py``), eq. (1) none.
-
-    ``g2`` is clipped as for the weights (at :data:`COHERENCE_CAP`) and, below, where ``s``
-    exceeds :data:`robustctl.noise.SIGMA_TESTABLE` (0.5): there ``|eps|`` often exceeds 1, the
-    series behind eq. (1) diverges and the point is noise (``W`` is small; ``c`` stays
-    bounded, at most ``0.5 n_d / (n_d - 2)``). ``n_d <= 3`` (no finite ``E[1 / G_nn_hat]``)
-    uses ``n_d - 2 = 1``.
-
-    Parameters
-    ----------
-    coherence : ndarray (nf, n_out, n_in)
-        Ordinary (or multiple) coherence, dimensionless.
-    n_averages : float or ndarray (n_in,)
-        Effective number of averages per input column (:func:`robustctl.noise.averages_of`).
-
-    Returns
-    -------
-    ndarray, shape of ``coherence``
-        ``c >= 0`` (nepers), to subtract from ``Re ln(G_data / G_model)``.
-    """
-    from .noise import SIGMA_TESTABLE
-
-    g2 = np.asarray(coherence, dtype=float)
-    nd = np.asarray(n_averages, dtype=float)
-    nd = nd.reshape((1,) * (g2.ndim - 1) + (-1,)) if nd.ndim else nd
-    floor = 1.0 / (1.0 + 2.0 * nd * SIGMA_TESTABLE**2)  # g2 where s = SIGMA_TESTABLE
-    g2 = np.clip(g2, floor, COHERENCE_CAP)
-    return (1.0 - g2) / (np.maximum(nd - 2.0, 1.0) * g2)
-
-
-def point_weight_bias(
-    spec: Any, data: Any, mask: np.ndarray | None = None, n_averages: Any = None
-) -> np.ndarray | None:
-    """The offset :func:`coherence_weight_bias` of ``Re ln(G_data / G_model)`` that point weights
-    ``spec`` (as in :func:`point_weights`) see, on the banded points; None when there is none.
-
-    It applies only where the weights are the data's own coherence weights (``"auto"`` on data
-    with coherence, or ``"coherence"``) and the number of averages is known (``n_averages``,
-    else the data's ``meta``: :func:`robustctl.noise.averages_of`). Uniform weights and arrays
-    of weights (whatever they were made from) are taken as they are: None.
-    """
-    if not isinstance(spec, str) or spec not in ("auto", "coherence") or data.coherence is None:
-        return None
-    if n_averages is None:
-        from .noise import averages_of
-
-        n_averages = averages_of(data)
-        if n_averages is None:
-            return None
-    mask = np.ones(data.n_freq, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
-    return coherence_weight_bias(data.coherence[mask], n_averages)
 
 
 def point_weights(
@@ -566,22 +490,4 @@ def match_channels(
     raise DataError(
         f"the {a}'s {what} {model_names} do not match the {b}'s {data_names}; rename the model's "
         f"signals (rc.as_statespace(sys, {what}=[...])) or the data's (data.replace({what}=[...]))."
-    )
-
-
-# ---------------------------------------------------------------------------- FrequencyData
-def as_frequency_data(data: Any, name: str = "data"):
-    """``data`` as a FrequencyData: a FrequencyData, a ``(f_hz, response)`` pair or a
-    ``control.FrequencyResponseData`` (omega in rad/s)."""
-    from .frd import FrequencyData
-
-    if isinstance(data, FrequencyData):
-        return data
-    if isinstance(data, tuple) and len(data) == 2:
-        return FrequencyData(*data)
-    if hasattr(data, "omega") and (hasattr(data, "frdata") or hasattr(data, "fresp")):
-        return FrequencyData.from_control(data)
-    raise DataError(
-        f"{name} must be a FrequencyData, a control.FrequencyResponseData or a pair (f_hz, response); "
-        f"got {type(data).__name__}."
     )

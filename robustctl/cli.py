@@ -143,7 +143,7 @@ def _run_demo(args: argparse.Namespace) -> Path:
 def _run_compare(args: argparse.Namespace) -> Path:
     from .cli_inputs import load_model_spec
     from .correlate import compare
-    from .frd import load_frd
+    from .frd_io import load_frd
     from .identify import fit_measurement_model
 
     model, data = load_model_spec(args.model), load_frd(args.data)
@@ -164,7 +164,7 @@ def _run_compare(args: argparse.Namespace) -> Path:
 def _run_diagnose(args: argparse.Namespace) -> Path:
     from .cli_inputs import load_model_spec
     from .correlate import diagnose
-    from .frd import load_frd
+    from .frd_io import load_frd
 
     model, data = load_model_spec(args.model), load_frd(args.data)
     diag = diagnose(model, data, band=_band(args), time_budget_s=args.time_budget)
@@ -179,7 +179,7 @@ def _run_diagnose(args: argparse.Namespace) -> Path:
 
 
 def _run_identify(args: argparse.Namespace) -> Path:
-    from .frd import load_frd
+    from .frd_io import load_frd
     from .identify import fit_measurement_model
 
     data = load_frd(args.data)

@@ -21,12 +21,12 @@ the truth until the reveal:
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from .demo_design import DemoExample
 from .report import Report
 from .table import Table
 
@@ -35,54 +35,6 @@ __all__ = ["run_demo", "DEMO_BAND_HZ", "DemoExample", "EXAMPLES", "caltech_examp
 #: The Caltech design band (0.5-5.5 Hz) widened to hold the local longeron and diagonal modes
 #: (32-43 Hz): below 30 Hz taut wires on the longerons and stiffer diagonals look alike.
 DEMO_BAND_HZ = (0.5, 50.0)
-
-
-@dataclass(frozen=True)
-class DemoExample:
-    """What the shared pipeline needs to know about one embedded example.
-
-    Attributes
-    ----------
-    name : str
-        ``robustctl demo --example NAME``.
-    title : str
-        The report's title.
-    experiment : callable
-        ``seed -> (data, truth)``: the simulated test (the truth is revealed in section 7).
-    model : callable
-        ``() -> PhysicalModel``: the nominal model.
-    band_hz : (float, float)
-        Band of compare, diagnose and update (Hz).
-    sensors, actuators : str
-        Plain words for the measurement section ("accelerometers", "voice-coil actuators").
-    fit_measurement_model : callable
-        ``data -> MeasurementModel`` (section 2).
-    mm_caption : str
-        Caption of the measurement-model figure.
-    diagnose_options : callable
-        ``model -> dict`` of keyword arguments of :func:`robustctl.diagnose` besides the band.
-    update_options : callable
-        ``(model, effect or None) -> dict`` of keyword arguments of :func:`robustctl.update`.
-    design : object
-        The design half's recipe (:class:`robustctl.demo_design.DesignSpec`); None: Caltech's.
-    extra_sections : tuple of callables
-        ``(report, data, truth, model, upd) -> None``, run after the design half
-        (MACE: the 0-g prediction).
-    """
-
-    name: str
-    title: str
-    experiment: Callable[[int], tuple[Any, Any]]
-    model: Callable[[], Any]
-    band_hz: tuple[float, float]
-    sensors: str
-    actuators: str
-    fit_measurement_model: Callable[[Any], Any]
-    mm_caption: str
-    diagnose_options: Callable[[Any], dict] = field(default=lambda model: {})
-    update_options: Callable[[Any, Any], dict] = field(default=lambda model, effect: {})
-    design: Any = None
-    extra_sections: tuple[Callable[..., None], ...] = ()
 
 
 def _caltech_measurement_model(data: Any) -> Any:

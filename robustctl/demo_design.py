@@ -13,7 +13,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -22,7 +22,7 @@ import numpy as np
 from .report import Report
 from .table import Table
 
-__all__ = ["design_sections", "DESIGN_FS_HZ", "DesignSpec"]
+__all__ = ["design_sections", "DESIGN_FS_HZ", "DesignSpec", "DemoExample"]
 
 #: Sampling rate of the exported controller (the Caltech experiment's rate), Hz.
 DESIGN_FS_HZ = 200.0
@@ -30,6 +30,54 @@ DESIGN_FS_HZ = 200.0
 COVER_BAND_HZ = (0.3, 60.0)
 #: D-K iterations per yardstick design (three designs; the demo's budget).
 YARDSTICK_ITER = 4
+
+
+@dataclass(frozen=True)
+class DemoExample:
+    """What the shared pipeline needs to know about one embedded example.
+
+    Attributes
+    ----------
+    name : str
+        ``robustctl demo --example NAME``.
+    title : str
+        The report's title.
+    experiment : callable
+        ``seed -> (data, truth)``: the simulated test (the truth is revealed in section 7).
+    model : callable
+        ``() -> PhysicalModel``: the nominal model.
+    band_hz : (float, float)
+        Band of compare, diagnose and update (Hz).
+    sensors, actuators : str
+        Plain words for the measurement section ("accelerometers", "voice-coil actuators").
+    fit_measurement_model : callable
+        ``data -> MeasurementModel`` (section 2).
+    mm_caption : str
+        Caption of the measurement-model figure.
+    diagnose_options : callable
+        ``model -> dict`` of keyword arguments of :func:`robustctl.diagnose` besides the band.
+    update_options : callable
+        ``(model, effect or None) -> dict`` of keyword arguments of :func:`robustctl.update`.
+    design : object
+        The design half's recipe (:class:`robustctl.demo_design.DesignSpec`); None: Caltech's.
+    extra_sections : tuple of callables
+        ``(report, data, truth, model, upd) -> None``, run after the design half
+        (MACE: the 0-g prediction).
+    """
+
+    name: str
+    title: str
+    experiment: Callable[[int], tuple[Any, Any]]
+    model: Callable[[], Any]
+    band_hz: tuple[float, float]
+    sensors: str
+    actuators: str
+    fit_measurement_model: Callable[[Any], Any]
+    mm_caption: str
+    diagnose_options: Callable[[Any], dict] = field(default=lambda model: {})
+    update_options: Callable[[Any, Any], dict] = field(default=lambda model, effect: {})
+    design: Any = None
+    extra_sections: tuple[Callable[..., None], ...] = ()
 
 
 @dataclass(frozen=True)

@@ -26,8 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from .demo import DemoExample
-from .demo_design import DesignSpec
+from .demo_design import DemoExample, DesignSpec
 from .report import Report
 from .table import Table
 
@@ -116,7 +115,7 @@ def _update_options(model: Any, effect: Any) -> dict:
 
 def _flexible_modes(model: Any) -> tuple[np.ndarray, list[str], int]:
     """0-g structural modes of ``model`` in ZERO_G_BAND_HZ (Hz), their types, the rigid-body mode count."""
-    from .examples.mace_beam import classify_mace_modes
+    from .examples.mace_beam_model import classify_mace_modes
 
     info = classify_mace_modes(model.without("suspension", "gravity"), 24)
     rigid = sum(r["type"] == "rigid body" for r in info)

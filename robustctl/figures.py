@@ -14,9 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from .checks import as_frequency_data
 from .errors import DataError
-from .frd import FrequencyData
+from .frd import FrequencyData, as_frequency_data, register_method
 from .modes import Mode
 from .plots import bode_grid, colorbar, log_frequency_axis, new_figure
 
@@ -174,7 +173,7 @@ def plot_compare(
         The legend of each channel gives each model's :func:`fit_percent` there;
         ``fig.fit_percent`` holds ``{name: ndarray (n_out, n_in)}``.
     """
-    from .lti import _model_response
+    from .cost import _model_response
 
     data = as_frequency_data(data)
     if band is not None:
@@ -241,7 +240,7 @@ def mac_matrix(a: Any, b: Any = None) -> np.ndarray:
     ----------
     a, b : sequence of Mode, ndarray (n_dof, n_modes), or a result with ``.modes``
     """
-    from .correlate.compare import mac
+    from .modes import mac
 
     sa, _ = _shapes(a)
     sb, _ = _shapes(a if b is None else b)
@@ -373,9 +372,17 @@ def _modes_and_sensors(model: Any, band: Sequence[float] | None) -> tuple[list[M
         return list(model.modes), names
     if isinstance(model, Sequence) and all(isinstance(m, Mode) for m in model):
         return list(model), None
-    from .correlate.compare import statespace_modes
+    from .correlate.comparison import statespace_modes
     from .lti import as_statespace
 
     sys = as_statespace(model)
     lo, hi = (0.0, np.inf) if band is None else band
     return statespace_modes(sys, (lo, hi)), list(sys.output_labels)
+
+
+def _plot_data_sv(data: FrequencyData):
+    return plot_singular_values(data, labels=["data"])
+
+
+register_method("plot", plot_frf)
+register_method("plot_sv", _plot_data_sv)

@@ -2,7 +2,8 @@
 
 Every FRF array in robustctl has the shape ``(n_freq, n_out, n_in)``; frequencies at the
 surface are in Hz. The file formats (npz, csv, mat, UFF dataset 58) live in
-:mod:`robustctl.frd_io`; :func:`load_frd` is re-exported here.
+:mod:`robustctl.frd_io` (:func:`robustctl.frd_io.load_frd`), which registers
+:meth:`FrequencyData.save`; the figures register :meth:`FrequencyData.plot` (:data:`_METHODS`).
 """
 
 from __future__ import annotations
@@ -17,7 +18,36 @@ import numpy as np
 
 from .errors import DataError
 
-__all__ = ["FrequencyData", "load_frd", "SUPPORTED_FORMATS"]
+__all__ = ["FrequencyData", "as_frequency_data", "register_method"]
+
+#: Implementations of FrequencyData methods whose work belongs to a higher floor: ``"save"``
+#: (the file formats, :mod:`robustctl.frd_io`), ``"plot"`` and ``"plot_sv"`` (the figures,
+#: :mod:`robustctl.figures`). Those modules register them when they are imported, and
+#: ``import robustctl`` (which runs before any submodule) imports both, so this module
+#: imports nothing above it while ``data.save(...)`` and ``data.plot()`` keep working.
+_METHODS: dict[str, Any] = {}
+
+
+def register_method(name: str, implementation: Any) -> None:
+    """Register the implementation of the FrequencyData method ``name`` (see :data:`_METHODS`).
+
+    Parameters
+    ----------
+    name : {"save", "plot", "plot_sv"}
+        The method.
+    implementation : callable
+        Called with the FrequencyData first, then the method's arguments.
+    """
+    _METHODS[name] = implementation
+
+
+def _method(name: str) -> Any:
+    try:
+        return _METHODS[name]
+    except KeyError:
+        raise RuntimeError(
+            f"FrequencyData.{name} is implemented by a module that has not been imported; import robustctl."
+        ) from None
 
 
 def _default_names(prefix: str, count: int) -> tuple[str, ...]:
@@ -322,9 +352,7 @@ class FrequencyData:
         pathlib.Path
             The path written.
         """
-        from .frd_io import save_frd
-
-        return save_frd(self, path, overwrite)
+        return _method("save")(self, path, overwrite)
 
     # ------------------------------------------------------------------ views
     def plot(self, *, phase: bool = True, coherence: bool | None = None, max_channels: int = 9):
@@ -332,15 +360,11 @@ class FrequencyData:
 
         See :func:`robustctl.figures.plot_frf`; returns a matplotlib Figure.
         """
-        from .figures import plot_frf
-
-        return plot_frf(self, phase=phase, coherence=coherence, max_channels=max_channels)
+        return _method("plot")(self, phase=phase, coherence=coherence, max_channels=max_channels)
 
     def plot_sv(self):
         """Singular values over frequency (:func:`robustctl.figures.plot_singular_values`)."""
-        from .figures import plot_singular_values
-
-        return plot_singular_values(self, labels=["data"])
+        return _method("plot_sv")(self)
 
     def _repr_html_(self) -> str:
         import html
@@ -364,8 +388,17 @@ class FrequencyData:
         )
 
 
-# re-exports (frd_io needs FrequencyData, so it is imported last); robustctl.export uses the helpers
-from .frd_io import SUPPORTED_FORMATS, load_frd  # noqa: E402
-from .frd_io._common import jsonable as _jsonable  # noqa: E402, F401
-from .frd_io._common import write_atomically  # noqa: E402, F401
-from .frd_io.mat import _cell, _mat_names, _mat_string  # noqa: E402, F401
+# ---------------------------------------------------------------------------- FrequencyData
+def as_frequency_data(data: Any, name: str = "data"):
+    """``data`` as a FrequencyData: a FrequencyData, a ``(f_hz, response)`` pair or a
+    ``control.FrequencyResponseData`` (omega in rad/s)."""
+    if isinstance(data, FrequencyData):
+        return data
+    if isinstance(data, tuple) and len(data) == 2:
+        return FrequencyData(*data)
+    if hasattr(data, "omega") and (hasattr(data, "frdata") or hasattr(data, "fresp")):
+        return FrequencyData.from_control(data)
+    raise DataError(
+        f"{name} must be a FrequencyData, a control.FrequencyResponseData or a pair (f_hz, response); "
+        f"got {type(data).__name__}."
+    )

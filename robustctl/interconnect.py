@@ -26,6 +26,7 @@ import numpy as np
 
 from .checks import flag, integer, is_default_names
 from .errors import ModelError
+from .lti import _series_arrays
 from .signals import _arrays, select_signals
 
 __all__ = ["PartitionedPlant", "lft", "upper_lft", "star", "series", "parallel", "feedback", "block_diagonal"]
@@ -552,15 +553,6 @@ _BY_POSITION = "Pass by_name=False to connect by position."
 def _default_names(sys: Any) -> bool:
     """True when ``sys`` carries python-control's default names ``u[i]`` / ``y[i]``, which say nothing."""
     return is_default_names(sys.input_labels, "u") and is_default_names(sys.output_labels, "y")
-
-
-def _series_arrays(p1, p2):
-    """Cascade ``p2 * p1`` of ``(A, B, C, D)`` tuples (``p1`` acts first; states ``[x1; x2]``)."""
-    A1, B1, C1, D1 = p1
-    A2, B2, C2, D2 = p2
-    n1, n2 = A1.shape[0], A2.shape[0]
-    A = np.block([[A1, np.zeros((n1, n2))], [B2 @ C1, A2]])
-    return A, np.vstack([B1, B2 @ D1]), np.hstack([D2 @ C1, C2]), D2 @ D1
 
 
 def _series_pair(s1: Any, s2: Any, by_name: bool):

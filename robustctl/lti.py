@@ -1,4 +1,4 @@
-"""Fast frequency responses, conversions to python-control, complex-log errors.
+"""Fast frequency responses, conversions to python-control, the complex-log kernel.
 
 All FRF arrays have the shape (n_freq, n_out, n_in); surface frequencies are in Hz,
 s-domain math in rad/s.
@@ -28,19 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from .checks import (
-    UNSET,
-    as_frequency_data,
-    band_mask,
-    match_channels,
-    point_weight_bias,
-    renamed_keyword,
-    user_stacklevel,
-)
-from .checks import point_weights as point_weights_of
-from .errors import DataError, ModelError
+from .checks import match_channels
+from .errors import DataError, FitError, ModelError
 from .frd import FrequencyData, _as_frequencies
-from .interconnect import PartitionedPlant, feedback, lft, parallel, series, star, upper_lft
 from .threads import limit_blas
 
 __all__ = [
@@ -50,18 +40,9 @@ __all__ = [
     "statespace_state",
     "rebuild_statespace",
     "log_ratio",
-    "log_error",
-    "log_cost",
     "DB_PER_NEPER",
     "pole_frequency_damping",
-    # named interconnection (robustctl.interconnect), re-exported: lti holds the LFTs
-    "PartitionedPlant",
-    "lft",
-    "upper_lft",
-    "star",
-    "series",
-    "parallel",
-    "feedback",
+    "zpk_statespace",
 ]
 
 #: dB per neper, ``20 / ln 10``: the real part of :func:`log_ratio` (nepers) times this is
@@ -76,7 +57,7 @@ def log_ratio(g_data: np.ndarray, g_model: np.ndarray) -> np.ndarray:
     """Complex log error ``log(G_data / G_model)`` (MACE eq. 5), elementwise on arrays.
 
     The one kernel behind every complex-log error in robustctl (correlate's residual,
-    identify's scores, :func:`log_error`).
+    identify's scores, :func:`robustctl.cost.log_error`).
 
     Parameters
     ----------
@@ -593,138 +574,140 @@ def _align(data: FrequencyData, model: FrequencyData) -> FrequencyData:
     return model.replace(response=g, outputs=data.outputs, inputs=data.inputs, coherence=None)
 
 
-def _model_response(data: FrequencyData, model: Any, estimator: Any = False) -> FrequencyData:
-    if isinstance(model, FrequencyData):
-        model = _align(data, model)
-        if model.n_freq != data.n_freq or not np.allclose(model.f_hz, data.f_hz, rtol=1e-9, atol=0):
-            raise DataError(
-                f"the model FrequencyData has {model.n_freq} points "
-                f"({model.f_hz[0]:g}-{model.f_hz[-1]:g} Hz) but the data has {data.n_freq} "
-                f"({data.f_hz[0]:g}-{data.f_hz[-1]:g} Hz); evaluate the model on data.f_hz."
-            )
-        return model
-    from .estimator import model_view, resolve_estimator, split_hold
-
-    settings = resolve_estimator(estimator, data.meta, model)
-    if settings is None:
-        return _align(data, freqresp(model, data.f_hz))
-    bare, hold = split_hold(model)
-    sys = as_statespace(bare)
-    g = model_view(sys, hold, data.f_hz, settings)
-    return _align(data, FrequencyData(data.f_hz, g, inputs=list(sys.input_labels),
-                                      outputs=list(sys.output_labels)))
+# ---------------------------------------------------------------------------- construction
+def _series_arrays(p1, p2):
+    """Cascade ``p2 * p1`` of ``(A, B, C, D)`` tuples (``p1`` acts first; states ``[x1; x2]``)."""
+    A1, B1, C1, D1 = p1
+    A2, B2, C2, D2 = p2
+    n1, n2 = A1.shape[0], A2.shape[0]
+    A = np.block([[A1, np.zeros((n1, n2))], [B2 @ C1, A2]])
+    return A, np.vstack([B1, B2 @ D1]), np.hstack([D2 @ C1, C2]), D2 @ D1
 
 
-def _model_and_data(model: Any, data: Any, func: str) -> tuple[Any, FrequencyData]:
-    """The ``(model, data)`` order; an old ``(data, system)`` call is recognised and warned about."""
-    old_order = isinstance(model, FrequencyData) and not isinstance(data, (FrequencyData, tuple))
-    if old_order and data is not None and not hasattr(data, "omega"):
-        warnings.warn(
-            f"{func}(data, model) is deprecated; the order is {func}(model, data) as in rc.compare.",
-            DeprecationWarning,
-            stacklevel=user_stacklevel(),
-        )
-        model, data = data, model
-    return model, as_frequency_data(data)
+def _pair(r: np.ndarray) -> list[np.ndarray]:
+    """Real roots singly, complex roots as conjugate pairs (upper half-plane member kept)."""
+    r = np.asarray(r, dtype=complex)
+    tol = 1e-8 * (1.0 + np.abs(r))
+    real = np.sort(r[np.abs(r.imag) <= tol].real)
+    cplx = r[r.imag > tol]
+    return [np.array([v]) for v in real] + [np.array([v, np.conj(v)]) for v in cplx]
 
 
-def log_error(
-    model: Any, data: Any, band: tuple[float, float] | None = None, *, estimator: Any = "auto"
-) -> np.ndarray:
-    """The complex-log error ``log(G_data / G_model)`` (MACE eq. 5), shape (n_freq, n_out, n_in).
-
-    Its real part is the log-magnitude error in nepers (x ``DB_PER_NEPER`` = 20/ln 10 for
-    dB), its imaginary part the phase error in rad (principal value in (-pi, pi]).
-
-    Parameters
-    ----------
-    model : system, or FrequencyData on the data's grid
-        Anything :func:`as_statespace` accepts (evaluated at ``data.f_hz``), or a computed
-        response. Channels are matched by :func:`robustctl.checks.match_channels`: by name
-        (reordered if needed), or by position when one side carries default names.
-    data : FrequencyData, (f_hz, response) pair or control.FrequencyResponseData
-        The measured response. The old order ``log_error(data, system)`` still works (with a
-        DeprecationWarning) when it is unambiguous; two FrequencyData are read as (model, data).
-    band : (f_lo_hz, f_hi_hz), optional
-        Restrict to this frequency band (Hz), inclusive (:func:`robustctl.checks.check_band`).
-    estimator : "auto", True, False or EstimatorSettings
-        See a system "as the H1 estimator sees it" when the data carry their estimator settings
-        (:func:`robustctl.estimator.resolve_estimator`; the rule of ``rc.compare``).
-
-    Returns
-    -------
-    ndarray, complex
-    """
-    model, data = _model_and_data(model, data, "log_error")
-    return _log_error(model, data, band_mask(data.f_hz, band), estimator)
+def _poly(group: list[np.ndarray]) -> np.ndarray:
+    roots = np.concatenate(group) if group else np.zeros(0)
+    return np.real(np.poly(roots)) if roots.size else np.array([1.0])
 
 
-def _log_error(model: Any, data: FrequencyData, mask: np.ndarray, estimator: Any = "auto") -> np.ndarray:
-    if not np.all(mask):
-        if isinstance(model, FrequencyData) and model.n_freq == mask.size:
-            model = model.replace(f_hz=model.f_hz[mask], response=model.response[mask], coherence=None)
-        data = data.replace(
-            f_hz=data.f_hz[mask],
-            response=data.response[mask],
-            coherence=None if data.coherence is None else data.coherence[mask],
-        )
-    gm = _model_response(data, model, estimator).response
-    gd = data.response
-    for name, g in (("data", gd), ("model", gm)):
-        zero = np.argwhere(g == 0)
-        if zero.size:
-            k, o, i = zero[0]
-            raise DataError(
-                f"the {name} response is exactly zero at {data.f_hz[k]:g} Hz "
-                f"(output {data.outputs[o]!r}, input {data.inputs[i]!r}); the log error is undefined "
-                "there. Drop that channel or band."
-            )
-    return log_ratio(gd, gm)
+def _section(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, ...]:
+    """State space of ``num / den`` (den monic, degree 1 or 2, deg num <= deg den), scaled."""
+    n = den.size - 1
+    num = np.concatenate([np.zeros(n + 1 - num.size), num])
+    d = num[0]
+    if n == 1:
+        a0 = den[1]
+        return np.array([[-a0]]), np.array([[1.0]]), np.array([[num[1] - d * a0]]), np.array([[d]])
+    a1, a0 = den[1], den[2]
+    wn = np.sqrt(abs(a0)) or 1.0
+    A = np.array([[0.0, wn], [-a0 / wn, -a1]])
+    c2 = num[1] - d * a1
+    c1 = (num[2] - d * a0) / wn
+    return A, np.array([[0.0], [1.0]]), np.array([[c1, c2]]), np.array([[d]])
 
 
-def log_cost(
-    model: Any,
-    data: Any,
-    band: tuple[float, float] | None = None,
-    point_weights: Any = "auto",
-    *,
-    weights: Any = UNSET,
-    estimator: Any = "auto",
-) -> float:
-    """The weighted complex-log cost of MACE eq. 5: ``J = sum W |log(G_data / G_model) - c|^2``.
-
-    ``c`` (real) is 0 except with coherence weights (``"auto"`` or ``"coherence"``) on data
-    whose number of averages is known: then what those weights add to the log magnitude on
-    average (:func:`robustctl.checks.coherence_weight_bias`).
-
-    The same number as ``rc.compare(model, data, band, point_weights).cost`` (with
-    ``min_channel_db=None``, which keeps every channel) and as a MeasurementModel's cost.
+def zpk_statespace(zeros: Any, poles: Any, gain: float, *, name: str | None = None):
+    """A real SISO ``control.StateSpace`` of ``gain prod(s - z) / prod(s - p)`` as a cascade.
 
     Parameters
     ----------
-    model, data, band
-        As for :func:`log_error` (same order as :func:`robustctl.compare`).
-    point_weights : None, "auto", "coherence" or array_like
-        Data-point weights ``W`` on the squared error (:func:`robustctl.checks.point_weights`):
-        ``"auto"`` (default) coherence weights when the data carry coherence, else uniform;
-        ``None`` uniform; an array of shape (n_freq,) or broadcastable to (n_freq, n_out,
-        n_in), on the band's points or on the full data grid.
-    weights
-        Deprecated name of ``point_weights``.
-    estimator : "auto", True, False or EstimatorSettings
-        As for :func:`log_error` (and ``rc.compare``): one cost for the same inputs.
+    zeros, poles : array_like, complex
+        Roots in rad/s, closed under conjugation; at most as many zeros as poles (proper).
+    gain : float
+        The factor ``k`` of the zero-pole-gain form.
+    name : str, optional
+        Name of the system.
 
     Returns
     -------
-    float
-        The weighted sum over channels and frequencies (dimensionless).
+    control.StateSpace
+        First- and second-order sections in series (no polynomial coefficients formed).
     """
-    point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
-    model, data = _model_and_data(model, data, "log_cost")
-    mask = band_mask(data.f_hz, band)
-    w = point_weights_of(point_weights, data, mask)
-    err = _log_error(model, data, mask, estimator)
-    bias = point_weight_bias(point_weights, data, mask)  # what own-coherence weights add to Re err
-    if bias is not None:
-        err = err - bias
-    return float(np.sum(w * np.abs(err) ** 2))
+    import control
+
+    zg, pg = _pair(np.asarray(zeros)), _pair(np.asarray(poles))
+    if sum(g.size for g in zg) > sum(g.size for g in pg):
+        raise FitError("more zeros than poles: the weight would be improper.")
+    if not pg:
+        return control.ss([], [], [], [[float(gain)]], name=name)
+    dens, nums = _assign(zg, pg)
+    sections = []
+    for den, num in zip(dens, nums):
+        A, B, C, D = _section(_poly(num), _poly(den))
+        # unit gain at the section's pole magnitude keeps the cascade's internal gains balanced
+        wp = float(np.abs(np.concatenate(den)).max()) or 1.0
+        zeros_k = np.concatenate(num) if num else np.zeros(0)
+        h = _zpk_response(zeros_k, np.concatenate(den), np.array([1j * wp]))
+        g = 1.0 / max(abs(complex(h[0])), 1e-300)
+        sections.append((A, B, C * g, D * g, g))
+    scale = float(gain) / float(np.prod([sec[4] for sec in sections]))
+    per = abs(scale) ** (1.0 / len(sections))
+    sys = None
+    for i, (A, B, C, D, _) in enumerate(sections):
+        f = per * (np.sign(scale) if i == 0 and scale != 0 else 1.0)
+        sec = (A, B, C * f, D * f)
+        sys = sec if sys is None else _series_arrays(sys, sec)
+    A, B, C, D = sys
+    return control.ss(A, B, C, D, name=name)
+
+
+def _assign(
+    zg: list[np.ndarray], pg: list[np.ndarray]
+) -> tuple[list[list[np.ndarray]], list[list[np.ndarray]]]:
+    """Sections of at most two poles, each with the zeros nearest to its poles in magnitude.
+
+    Complex pole pairs make second-order sections, real poles first-order ones; a complex
+    zero pair takes the nearest complex pole pair without zeros, or else merges the two
+    real poles nearest to it into one section. Real zeros then go, nearest first, to
+    sections with room (a zero count not above the pole count keeps each section proper).
+    """
+    dens = [[g] for g in pg]
+    nums: list[list[np.ndarray]] = [[] for _ in dens]
+
+    def size(k: int) -> int:
+        return sum(x.size for x in dens[k])
+
+    def room(k: int) -> int:
+        return size(k) - sum(x.size for x in nums[k])
+
+    def dist(z: np.ndarray, k: int) -> float:
+        return abs(np.log(np.abs(z[0]) + 1e-300) - np.log(np.abs(np.concatenate(dens[k])).max() + 1e-300))
+
+    for z in [g for g in zg if g.size == 2]:
+        free = [k for k in range(len(dens)) if size(k) == 2 and room(k) == 2]
+        if not free:
+            reals = sorted(
+                (k for k in range(len(dens)) if size(k) == 1 and room(k) == 1), key=lambda k: dist(z, k)
+            )
+            if len(reals) < 2:  # not expected while zeros <= poles
+                raise FitError("cannot place a complex zero pair: the weight would be improper.")
+            a, b = reals[:2]
+            dens[a] = dens[a] + dens[b]
+            nums[a] = nums[a] + nums[b]
+            del dens[b], nums[b]
+            free = [a if a < b else a - 1]
+        k = min(free, key=lambda k: dist(z, k))
+        nums[k].append(z)
+    for z in sorted([g for g in zg if g.size == 1], key=lambda g: -abs(g[0])):
+        open_ = [k for k in range(len(dens)) if room(k) >= 1]
+        k = min(open_, key=lambda k: dist(z, k))
+        nums[k].append(z)
+    return dens, nums
+
+
+# ---------------------------------------------------------------------------- public
+def _zpk_response(zeros: np.ndarray, poles: np.ndarray, s: np.ndarray) -> np.ndarray:
+    out = np.ones(s.shape, dtype=complex)
+    for z in zeros:
+        out *= s - z
+    for p in poles:
+        out /= s - p
+    return out

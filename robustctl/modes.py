@@ -1,7 +1,8 @@
 """The one ``Mode`` type: a structural mode seen by a model or in measured data.
 
 Used by ``rc.compare`` (model, measured and peak-picked modes), ``rc.fit_measurement_model``
-(identified modes) and everything that pairs or tabulates modes.
+(identified modes) and everything that pairs or tabulates modes; :func:`mac` and
+:func:`pair_modes` pair them.
 """
 
 from __future__ import annotations
@@ -9,8 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.optimize
 
-__all__ = ["Mode"]
+__all__ = ["Mode", "mac", "pair_modes"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,3 +59,64 @@ class Mode:
     def __repr__(self) -> str:
         rank = f", rank {self.rank}" if self.rank != 1 else ""
         return f"Mode({self.f_hz:.5g} Hz, zeta {self.zeta:.3g}{rank})"
+
+
+# ---------------------------------------------------------------------------- pairing
+def mac(a: np.ndarray | None, b: np.ndarray | None) -> float:
+    """Complex modal assurance criterion in [0, 1]; NaN when a shape is missing."""
+    if a is None or b is None:
+        return float("nan")
+    a = np.asarray(a, dtype=complex).ravel()
+    b = np.asarray(b, dtype=complex).ravel()
+    den = np.vdot(a, a).real * np.vdot(b, b).real
+    if den <= 0:
+        return float("nan")
+    return float(abs(np.vdot(a, b)) ** 2 / den)
+
+
+def pair_modes(
+    model: list[Mode], measured: list[Mode], tol: float = 0.2, *, max_ratio: float = 4.0, min_mac: float = 0.8
+) -> list[tuple[int | None, int | None]]:
+    """Pair model and measured modes (Hungarian assignment on frequency distance and MAC).
+
+    Cost of a pair within ``tol`` (relative frequency distance): ``10 |ln(f_model / f_data)|
+    + (1 - MAC)``. A pair further apart -- a mode moved by a large model error, up to a
+    factor ``max_ratio`` -- is allowed when its shapes agree (``MAC >= min_mac``, MAC-first
+    pairing as in FE model updating practice, e.g. Friswell & Mottershead, *Finite Element
+    Model Updating in Structural Dynamics*, sec. 4.2), at a cost above every within-``tol``
+    pair: ``10 ln(1 + tol) + (1 - MAC) + |ln(f_model / f_data)|``. Returns
+    ``(i_model, i_measured)`` index pairs sorted by frequency, with ``None`` on the side of
+    an unpaired mode.
+    """
+    nm, nd = len(model), len(measured)
+    pairs: list[tuple[int | None, int | None]] = []
+    used_m, used_d = set(), set()
+    if nm and nd:
+        big = 1e6
+        cost = np.full((nm, nd), big)
+        near, far = np.log1p(tol), np.log(max(float(max_ratio), 1.0 + tol))
+        for i, a in enumerate(model):
+            for j, b in enumerate(measured):
+                rel = abs(np.log(a.f_hz / b.f_hz))
+                if rel > far:
+                    continue
+                m = mac(a.shape, b.shape)
+                m = 0.0 if np.isnan(m) else m
+                if rel <= near:
+                    cost[i, j] = 10 * rel + (1 - m)
+                elif m >= min_mac:
+                    cost[i, j] = 10 * near + (1 - m) + rel
+        rows, cols = scipy.optimize.linear_sum_assignment(cost)
+        for i, j in zip(rows, cols):
+            if cost[i, j] < big:
+                pairs.append((int(i), int(j)))
+                used_m.add(int(i))
+                used_d.add(int(j))
+    pairs += [(i, None) for i in range(nm) if i not in used_m]
+    pairs += [(None, j) for j in range(nd) if j not in used_d]
+
+    def key(p):
+        i, j = p
+        return model[i].f_hz if i is not None else measured[j].f_hz
+
+    return sorted(pairs, key=key)

@@ -81,7 +81,7 @@ def small_yardstick() -> dict:
     """The demo's yardstick recipe on two models (nominal and measurement model), two D-K iterations."""
     from robustctl.examples import caltech_design_plant
     from robustctl.identify import fit_measurement_model
-    from robustctl.robust.yardstick import yardstick
+    from robustctl.robust.yardsticks import yardstick
 
     data, model = _truss()
     mm = fit_measurement_model(data, n_modes=6, band=(0.5, 5.5), time_budget_s=None)

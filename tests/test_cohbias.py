@@ -1,6 +1,6 @@
 """Coherence weights' own-error bias (issue 12): ``W = g2 / (1 - g2)`` from each bin's own
 coherence carries ``|1 + eps|^2`` of the bin's own error, so a weighted log fit sees ``Re ln H1``
-raised; :func:`robustctl.checks.coherence_weight_bias` is what to subtract."""
+raised; :func:`robustctl.measure.noise.coherence_weight_bias` is what to subtract."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import robustctl as rc
-from robustctl.checks import coherence_weight_bias, point_weight_bias
+from robustctl.measure.noise import coherence_weight_bias, point_weight_bias
 
 
 def _h1(rng, g2_true: float, n_d: int, n_bins: int) -> tuple[np.ndarray, np.ndarray]:

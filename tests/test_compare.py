@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 import robustctl as rc
-from robustctl.correlate.compare import compare, error_structure, mac, peak_pick_modes
+from robustctl.correlate.comparison import compare, error_structure, peak_pick_modes
+from robustctl.modes import mac
 
 matplotlib.use("Agg")
 

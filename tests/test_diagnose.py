@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import robustctl as rc
-from robustctl.correlate.diagnose import effective_points
+from robustctl.correlate.diagnosis import effective_points
 from robustctl.physical import effects as fx
 
 F_HZ = np.linspace(0.5, 40.0, 400)
@@ -118,7 +118,7 @@ def test_worker_processes_give_the_serial_result(chain, cands, start, monkeypatc
     import importlib
 
     if start == "spawn":  # what macOS and Windows do
-        monkeypatch.setattr(importlib.import_module("robustctl.parallel"), "_fork_is_safe", lambda: False)
+        monkeypatch.setattr(importlib.import_module("robustctl.executors"), "_fork_is_safe", lambda: False)
     data = _data(chain, fx.AddedMass("dof 3", mass=0.05))
     serial = rc.diagnose(chain, data, cands, noise=KNOWN, workers=1)
     par = rc.diagnose(chain, data, cands, noise=KNOWN, workers=2)
@@ -163,7 +163,7 @@ def test_workers_auto_starts_no_process_for_a_small_diagnosis(chain, cands, monk
     """22 candidates at about a millisecond each: forking would cost more than the screening."""
     import importlib
 
-    parallel = importlib.import_module("robustctl.parallel")
+    parallel = importlib.import_module("robustctl.executors")
 
     def refuse(*args, **kwargs):
         raise AssertionError("a process pool was started")

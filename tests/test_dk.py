@@ -11,7 +11,7 @@ from robustctl.examples import DISTILLATION_BLOCKS, distillation_plant
 from robustctl.lti import freqresp_array
 from robustctl.robust.blocks import as_block_structure
 from robustctl.robust.dk import _as_plant, _scale_plant, closed_loop, dksyn
-from robustctl.robust.yardstick import nyquist_stability
+from robustctl.robust.yardsticks import nyquist_stability
 
 BOOK_BLOCKS = DISTILLATION_BLOCKS
 
@@ -127,7 +127,7 @@ def test_distillation_dk_with_automatic_scales():
     for k, h in enumerate(dk.history[1:], start=1):
         assert ("rose above" in h.note) == (h.mu_peak > min(g.mu_peak for g in dk.history[:k]))
     # certified on a grid 1e-7 .. 100 Hz too (mu is flat down to DC on this problem)
-    from robustctl.robust.mu import mu
+    from robustctl.robust.mu_bounds import mu
 
     fw = np.logspace(-7, 2, 400)
     wide = mu(freqresp_array(dk.closed_loop, fw), dk.blocks, f_hz=fw)
@@ -141,7 +141,7 @@ def test_distillation_with_the_weight_pole_at_1e5_reaches_mu_below_one():
     later the D fits, started with basis poles spread over all 7.8 decades, lost about one
     order each and D-K stalled at 1.019 (1.181 1.037 1.021 1.019 1.026). Now it follows
     eps = 1e-6 below 1, descending, and the returned mu holds on a grid down to DC."""
-    from robustctl.robust.mu import mu
+    from robustctl.robust.mu_bounds import mu
 
     dk = dksyn((distillation_plant(eps=1e-5), 2, 2, BOOK_BLOCKS), max_iter=6, progress=False)
     peaks = [h.mu_peak for h in dk.history]
@@ -171,7 +171,7 @@ def test_returned_mu_is_verified_between_and_beyond_the_grid():
     returned controller on a denser grid, the closed-loop resonances and a search of its
     highest maxima: its mu_peak is the one an independent fine grid finds, it warns, and
     grid_mu_peak keeps the grid's."""
-    from robustctl.robust.mu import mu
+    from robustctl.robust.mu_bounds import mu
     from robustctl.robust.plant import generalized_plant
     from robustctl.robust.weights import makeweight
 
@@ -195,7 +195,7 @@ def test_d_orders_out_of_band_fall_back_to_lower_orders_not_a_constant(monkeypat
     tried (highest first) before a constant: a constant scale raised mu from 1.20 to 1.39
     on a random 28-state plant. Here fits of order >= 2 are declared out of band."""
     import robustctl.robust.dk as dkm
-    from robustctl.robust.hinfsyn import hinfsyn
+    from robustctl.robust.hinf_synthesis import hinfsyn
 
     plant = _as_plant((distillation_plant(), 2, 2, BOOK_BLOCKS))
     blocks = dkm._complexified(plant.blocks)
@@ -220,7 +220,7 @@ def test_a_broken_fit_of_the_only_allowed_order_falls_back_to_lower_orders(monke
     its bound was 3.2 against mu 0.48, and the next K step's gamma 3.1. Here order 4's fits
     and above are spoiled by a factor 3 (bound ~3x mu)."""
     import robustctl.robust.dk as dkm
-    from robustctl.robust.hinfsyn import hinfsyn
+    from robustctl.robust.hinf_synthesis import hinfsyn
 
     plant = _as_plant((distillation_plant(), 2, 2, BOOK_BLOCKS))
     blocks = dkm._complexified(plant.blocks)
@@ -237,8 +237,8 @@ def test_a_broken_fit_of_the_only_allowed_order_falls_back_to_lower_orders(monke
 
 
 def test_fit_roots_above_the_band_are_moved_to_its_edge():
+    from robustctl.lti import zpk_statespace
     from robustctl.robust.dk import _dynamics_in_band, _into_band
-    from robustctl.robust.magfit import zpk_statespace
 
     f = np.logspace(-3, 1, 50)           # band up to 10 Hz; margin 10 -> 628 rad/s
     d = zpk_statespace([-3e4, -0.5], [-2.0, -40.0], 1e-3)
@@ -276,7 +276,7 @@ def test_reduction_is_rechecked_by_mu():
 
 def _mu_peak_of(P, K, blocks, f_hz):
     """Peak of the mu upper bound of Fl(P, K) on ``f_hz``, computed afresh (inf: unstable loop)."""
-    from robustctl.robust.mu import mu
+    from robustctl.robust.mu_bounds import mu
 
     cl = closed_loop(P, K, 2, 2)
     if np.max(np.linalg.eigvals(np.asarray(cl.A)).real) >= 0:
@@ -285,7 +285,7 @@ def _mu_peak_of(P, K, blocks, f_hz):
 
 
 def test_automatic_reduction_finds_the_smallest_order_that_keeps_mu():
-    from robustctl.identify.balanced import balanced_truncation
+    from robustctl.balanced import balanced_truncation
 
     P = distillation_plant()
     dk = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=2, progress=False, reduce="auto")
@@ -374,7 +374,7 @@ def test_nyquist_follows_resonances_sharper_than_any_grid(k):
     yardstick's grid, a log grid plus points spread over each lightly damped pole's phase
     (its loop's and closed loop's poles), gives the closed-loop poles' verdict; a log grid of
     20,000 points misses the 5 Hz resonance (it cannot tell, or is right by luck)."""
-    from robustctl.robust.yardstick import _pole_points
+    from robustctl.robust.yardsticks import _pole_points
 
     def mode(wn, zeta, dc):
         return control.ss(control.tf([dc * wn**2], [1.0, 2 * zeta * wn, wn**2]))
@@ -422,7 +422,7 @@ def test_fitted_bound_is_the_scaled_loops_norm_including_dc(level):
     from robustctl.examples import caltech_design_plant, caltech_truss
     from robustctl.robust import hinfnorm
     from robustctl.robust.dk import _complexified, _edge_response, _fit_d_scales, _mu_of, default_grid
-    from robustctl.robust.hinfsyn import hinfsyn
+    from robustctl.robust.hinf_synthesis import hinfsyn
 
     plant = _as_plant(caltech_design_plant(caltech_truss(), level=level))
     blocks = _complexified(plant.blocks)

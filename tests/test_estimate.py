@@ -11,7 +11,7 @@ from scipy import signal
 
 import robustctl as rc
 from robustctl.errors import DataError, ModelError
-from robustctl.estimate import _simulate_loop, _simulate_modal, _zoh
+from robustctl.measure.estimate import _simulate_loop, _simulate_modal, _zoh
 
 FS = 200.0
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import robustctl as rc
-from robustctl.examples.caltech_truss import CALTECH_MODE_TYPES, R_LONGERON
-from robustctl.examples.mace_beam import classify_mace_modes
+from robustctl.examples.caltech_truss_model import CALTECH_MODE_TYPES, R_LONGERON
+from robustctl.examples.mace_beam_model import classify_mace_modes
 from robustctl.physical.model import Stage
 
 

@@ -9,7 +9,7 @@ import pytest
 from test_identify_support import random_modal_system
 
 import robustctl as rc
-from robustctl.identify.balanced import _factor_scipy, gramian_factor
+from robustctl.balanced import _factor_scipy, gramian_factor
 
 
 @pytest.fixture(scope="module")
@@ -67,7 +67,7 @@ def test_hammarling_factor_uses_slicot_and_matches_the_gramians():
     pytest.importorskip("slycot", reason="slycot comes with the dev extra")
     import scipy.linalg as sla
 
-    from robustctl.identify.balanced import hammarling_factor
+    from robustctl.balanced import hammarling_factor
 
     rng = np.random.default_rng(4)
     A = rng.standard_normal((8, 8)) - 6 * np.eye(8)

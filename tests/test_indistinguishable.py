@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import robustctl as rc
-from robustctl.correlate.update import move_test
+from robustctl.correlate.updating import move_test
 from robustctl.physical import effects as fx
 
 FS = 200.0

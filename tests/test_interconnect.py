@@ -56,7 +56,7 @@ def test_named_lft_agrees_with_python_control_and_keeps_names(seed, n, nk, nw, n
     # the same through a PartitionedPlant, with nmeas/ncon taken from it
     pp = rc.PartitionedPlant(P, nmeas=ny, ncon=nu)
     assert _max_rel_diff(rc.lft(pp, K), theirs) < 1e-12
-    assert _max_rel_diff(rc.lti.lft(P, K, ny, nu), P.lft(K, nu=nu, ny=ny)) < 1e-12
+    assert _max_rel_diff(rc.interconnect.lft(P, K, ny, nu), P.lft(K, nu=nu, ny=ny)) < 1e-12
 
 
 def test_lft_with_static_gain_and_by_name_reordering():
@@ -179,10 +179,12 @@ def test_parallel_by_name_unions_the_signals():
         assert np.allclose(_resp(both, s), expected, rtol=1e-12)
 
 
-# ------------------------------------------------------------------ lti re-export, PD servo option
-def test_lti_holds_the_lfts():
-    assert rc.lti.lft is rc.lft and rc.lti.star is rc.star and rc.lti.feedback is rc.feedback
-    assert rc.lti.PartitionedPlant is rc.PartitionedPlant
+# ----------------------------------------------- interconnect holds the LFTs, PD servo option
+def test_interconnect_holds_the_lfts_and_lti_does_not_reexport_them():
+    assert rc.interconnect.lft is rc.lft and rc.interconnect.star is rc.star
+    assert rc.interconnect.feedback is rc.feedback
+    assert rc.interconnect.PartitionedPlant is rc.PartitionedPlant
+    assert not hasattr(rc.lti, "lft") and not hasattr(rc.lti, "PartitionedPlant")
 
 
 def test_servo_stage_pd_option_equals_the_pd_controller_loop():

@@ -15,7 +15,7 @@ import pytest
 import scipy.linalg as sla
 
 import robustctl as rc
-from robustctl.correlate.diagnose import SCREEN_MULTIPLES, _probe_sizes
+from robustctl.correlate.diagnosis import SCREEN_MULTIPLES, _probe_sizes
 from robustctl.correlate.residual import Residual
 from robustctl.physical import effects as fx
 from robustctl.physical.fem import Frame
@@ -178,7 +178,7 @@ def _mode(f_hz, shape):
 
 
 def test_pairing_follows_the_shapes_through_large_shifts_and_crossings():
-    from robustctl.correlate.compare import pair_modes
+    from robustctl.modes import pair_modes
 
     e = np.eye(4)
     model = [_mode(1.0, e[0]), _mode(2.5, e[1]), _mode(6.0, e[2])]
@@ -197,7 +197,7 @@ def test_pairing_follows_the_shapes_through_large_shifts_and_crossings():
 def test_diagnose_says_when_the_time_budget_cuts_its_fits(chain):
     """A budget that runs out is an error (no partial ranking); one that cuts fits short warns
     that the ranking depends on the machine's load (the budget is a safety cap)."""
-    from robustctl.correlate.diagnose import _warn_if_hurried
+    from robustctl.correlate.diagnosis import _warn_if_hurried
 
     model, cands = chain
     data = _data(model, model.with_effect(fx.AddedMass("dof 3", mass=0.05)), seed=7)
@@ -269,7 +269,7 @@ def test_only_candidates_whose_secant_points_beyond_its_step_are_probed(chain, m
     (|c| > PROBE_MIN_COEF); the others are not walked out, and the large spring still wins."""
     import importlib
 
-    diagnose_module = importlib.import_module("robustctl.correlate.diagnose")
+    diagnose_module = importlib.import_module("robustctl.correlate.diagnosis")
     model, cands = chain
     seen = []
     real = diagnose_module._probe_sizes

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import robustctl as rc
-from robustctl.examples.mace_beam import classify_mace_modes, mace_beam
+from robustctl.examples.mace_beam_model import classify_mace_modes, mace_beam
 
 #: "Truth" = the nominal model with a few % error in three physical parameters.
 ERRORS = dict(E_polycarbonate=1.04, m_payload_primary=0.97, E_active_strut=0.96)

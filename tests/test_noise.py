@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import robustctl as rc
-from robustctl.estimator import (
+from robustctl.measure.estimator import (
     EstimatorSettings,
     bin_correlation,
     effective_averages,
@@ -18,7 +18,7 @@ from robustctl.estimator import (
     expected_h1,
     hold_response,
 )
-from robustctl.noise import averages_of, chi2_verdict, format_p
+from robustctl.measure.noise import averages_of, chi2_verdict, format_p
 
 FS = 200.0
 
@@ -112,9 +112,9 @@ def test_p_values_are_bounds_never_zero():
 
 # ---------------------------------------------------------------------------- estimator view
 def test_expected_h1_of_a_state_space_matches_the_step_by_step_sampling_and_the_rational_fit():
-    from robustctl.estimator import _spectrum, _zoh_impulse_loop
     from robustctl.identify import expected_h1 as fit_expected_h1
     from robustctl.identify import fit_rational
+    from robustctl.measure.estimator import _spectrum, _zoh_impulse_loop
 
     sys = _oscillator(7.0, 0.01)
     st = EstimatorSettings((FS, 1024, "hamming"), 512)
@@ -243,7 +243,7 @@ def test_the_noise_model_of_a_simultaneous_mimo_estimate_fits_each_channels_scat
                                               simultaneous=True, band=(1.0, 40.0))
     assert data.meta["coherence"] == "partial"
     noise = rc.noise_model(data)
-    from robustctl.estimator import estimator_settings, estimator_view
+    from robustctl.measure.estimator import estimator_settings, estimator_view
 
     seen = estimator_view(truth.statespace(), data.f_hz, estimator_settings(data.meta))  # as compare does
     e = np.log(data.response / seen)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import robustctl as rc
-from robustctl.parallel import parallel_map
+from robustctl.executors import parallel_map
 
 F_HZ = np.linspace(0.5, 40.0, 300)
 
@@ -55,7 +55,7 @@ def _pid_and_payload(shared, item):
 def test_parallel_map_shared_keeps_order_and_sends_the_payload_once_per_worker():
     from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 
-    from robustctl.parallel import parallel_map_shared
+    from robustctl.executors import parallel_map_shared
 
     shared = {"offset": 100, "ballast": np.zeros(10_000)}
     with ProcessPoolExecutor(2) as ex:
@@ -83,7 +83,7 @@ def _pid_and_object(shared, item):
 def test_the_same_payload_object_is_unpickled_once_per_worker_across_calls():
     from concurrent.futures import ProcessPoolExecutor
 
-    from robustctl.parallel import parallel_map_shared
+    from robustctl.executors import parallel_map_shared
 
     payload = _Payload()
     with ProcessPoolExecutor(1) as ex:  # one worker: every chunk of both calls runs there
@@ -98,7 +98,7 @@ def test_the_same_payload_object_is_unpickled_once_per_worker_across_calls():
 def test_workers_auto_stays_serial_on_one_core_or_few_tasks(monkeypatch):
     import importlib
 
-    parallel = importlib.import_module("robustctl.parallel")
+    parallel = importlib.import_module("robustctl.executors")
 
     monkeypatch.setattr(parallel, "available_cores", lambda: 1)
     assert parallel.resolve_workers("auto", 500, 24) == 1
@@ -216,7 +216,7 @@ def test_process_pool_carries_systems_with_lambdas():
 
     import control
 
-    from robustctl.parallel import parallel_map
+    from robustctl.executors import parallel_map
 
     systems = [control.ss([[-k]], [[1.0]], [[1.0]], [[0.0]]) for k in (1.0, 2.0, 4.0)]
     scale = 3.0
@@ -234,7 +234,7 @@ def test_auto_workers_fork_only_on_linux(monkeypatch):
     (and on Windows), and an explicit worker count uses the platform's default start method."""
     import importlib
 
-    parallel = importlib.import_module("robustctl.parallel")
+    parallel = importlib.import_module("robustctl.executors")
     monkeypatch.setattr(parallel, "available_cores", lambda: 4)
     monkeypatch.setattr(parallel.sys, "platform", "darwin")
     assert parallel.resolve_workers("auto", 100, 10) == 1

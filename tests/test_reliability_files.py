@@ -123,7 +123,7 @@ def test_estimate_with_a_window_array_is_seen_through_that_window(welch):
     arr = rc.estimate_frf(u, y, fs=200.0, nperseg=512, window=np.hanning(512) + 0.0)
     named = rc.estimate_frf(u, y, fs=200.0, nperseg=512, window=("general_hamming", 0.5))
     assert arr.meta["window"] == "user array" and len(arr.meta["window_values"]) == 512
-    from robustctl.estimator import estimator_settings
+    from robustctl.measure.estimator import estimator_settings
 
     assert estimator_settings(arr.meta).describe() == "512-pt user array at 200 Hz"
     # np.hanning(512) is the symmetric Hann window, general_hamming(0.5) the periodic one: close, not equal

@@ -619,7 +619,7 @@ def test_leak_found_by_the_property_cases_is_refused(env, label, call, error, wo
 
 def test_yardstick_refuses_an_empty_band_before_any_design(env, monkeypatch):
     """The band used to be checked after every D-K design had run."""
-    ys = sys.modules["robustctl.robust.yardstick"]
+    ys = sys.modules["robustctl.robust.yardsticks"]
     monkeypatch.setattr(ys, "parallel_map", lambda *a, **k: pytest.fail("designed before checking the band"))
     with pytest.raises(rc.DataError, match=r"band \(500, 900\) Hz holds fewer than 2 data points"):
         _yard(env, band=(500.0, 900.0))

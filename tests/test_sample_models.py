@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import robustctl as rc
-from robustctl.correlate.update import update
+from robustctl.correlate.updating import update
 
 matplotlib.use("Agg")
 

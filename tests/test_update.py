@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import robustctl as rc
-from robustctl.correlate.update import select_parameters, superparameter, update
+from robustctl.correlate.updating import select_parameters, superparameter, update
 
 matplotlib.use("Agg")
 

@@ -11,7 +11,7 @@ import pytest
 from test_noise import _chain  # the same user-matrix chain as the noise tests
 
 import robustctl as rc
-from robustctl.noise import NO_NOISE_SENTENCE, format_p
+from robustctl.measure.noise import NO_NOISE_SENTENCE, format_p
 from robustctl.physical import effects as fx
 
 CALTECH_BAND = (0.5, 29.8)
@@ -59,7 +59,7 @@ def _assert_moved_nothing(upd, truth):
     the noise covariance, plus no single move beyond 3 SE. Measured with the coherence weights'
     bias removed (40 Caltech seeds, 20 of the chain): mean moves 0.00-0.11 SE in E and the masses
     (-0.36 in zeta_modal), 2-18 % beyond 1 SE, none beyond 2.5 SE; the reported SEs are 1.25-2.4
-    x the scatter over seeds (conservative; see ``robustctl.correlate.update._noise_covariance``)."""
+    x the scatter over seeds (conservative; see ``robustctl.correlate.updating._noise_covariance``)."""
     moves = upd.moves_se
     assert set(moves) == set(upd.selected)
     for name, z in moves.items():
@@ -235,7 +235,7 @@ def test_notebook_04_update_is_within_the_noise_at_low_coherence():
     there (the bins whose noise added in phase with the response had the larger coherence and
     were the ones tested); the hold stage was not the cause (the estimator view samples through
     an exact hold). Chosen by the neighbours' coherence, the update is within the noise."""
-    from robustctl.noise import neighbour_coherence
+    from robustctl.measure.noise import neighbour_coherence
 
     chain = _chain()
     truth = chain.with_values(k_ground=4.2e3).with_effect(fx.AddedMass("dof 3", mass=0.15))

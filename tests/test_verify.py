@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import robustctl as rc
-from robustctl.correlate.verify import apply_perturbation, verify
+from robustctl.correlate.verification import apply_perturbation, verify
 
 F = np.linspace(0.5, 15.0, 500)
 NOM = dict(k1=1000.0, k2=1000.0, k3=1000.0, m1=1.0, m2=1.0, m3=1.0, c=0.4)

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import robustctl as rc
-from robustctl.correlate.compare import statespace_modes
-from robustctl.correlate.diagnose import CandidateResult, Diagnosis
+from robustctl.correlate.comparison import statespace_modes
+from robustctl.correlate.diagnosis import CandidateResult, Diagnosis
 from robustctl.errors import DataError, ModelError
 from robustctl.physical.effects import candidates
 
@@ -180,7 +180,7 @@ def test_cost_table_and_chart_use_the_one_channel_label_style():
 
 
 def test_alignment_legend_names_only_the_colours_drawn():
-    from robustctl.correlate.update import _alignment_legend
+    from robustctl.correlate.updating import _alignment_legend
     from robustctl.plots import new_figure
 
     ax = new_figure().subplots()

@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 _CHILD = textwrap.dedent(
     """
     import os, sys, time
-    from robustctl.parallel import parallel_map_shared, process_pool
+    from robustctl.executors import parallel_map_shared, process_pool
 
     def task(shared, item):  # a candidate's fit that never ends
         while True:

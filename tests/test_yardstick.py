@@ -1,4 +1,4 @@
-"""D-K on the Caltech truss and the measurement-model yardstick (robustctl.robust.yardstick)."""
+"""D-K on the Caltech truss and the measurement-model yardstick (robustctl.robust.yardsticks)."""
 
 from __future__ import annotations
 
@@ -34,7 +34,7 @@ def caltech():
 @pytest.mark.slow
 def test_dk_on_the_caltech_truss_certifies_robust_stability_and_stabilises_the_truth(caltech):
     from robustctl.robust.dk import dksyn
-    from robustctl.robust.mu import mu
+    from robustctl.robust.mu_bounds import mu
 
     data, truth, model = caltech
     gp = caltech_recipe(model, level=0.3)   # robust performance reachable (mu ~ 0.8)
@@ -49,7 +49,7 @@ def test_dk_on_the_caltech_truss_certifies_robust_stability_and_stabilises_the_t
 
 
 def test_yardstick_refuses_bad_input(caltech):
-    from robustctl.robust.yardstick import yardstick
+    from robustctl.robust.yardsticks import yardstick
 
     data, _, model = caltech
     with pytest.raises(SynthesisError, match="at least two"):
@@ -67,7 +67,7 @@ def test_yardstick_scores_each_controller_on_the_data(caltech):
     from robustctl.correlate import update
     from robustctl.identify import fit_measurement_model
     from robustctl.physical.effects import GroupTension
-    from robustctl.robust.yardstick import yardstick
+    from robustctl.robust.yardsticks import yardstick
 
     data, truth, model = caltech
     mm = fit_measurement_model(data, n_modes=6, band=(0.5, 5.5), correct_leakage=True)
@@ -132,7 +132,7 @@ def test_yardstick_gap_closes_as_the_model_improves(seed, tension):
     would see no gap; one that scored each controller on its model instead of the data fails
     the loop closed by hand on the measured FRF."""
     from robustctl.examples import ModelCoverRecipe
-    from robustctl.robust.yardstick import yardstick
+    from robustctl.robust.yardsticks import yardstick
 
     data, truth, models = _hidden_effect_case(seed, tension)
     yard = yardstick(data, models, ModelCoverRecipe(data), max_iter=YARD_ITER, progress=False)

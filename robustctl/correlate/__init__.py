@@ -3,12 +3,12 @@
 One import line per module, so each stage can be added independently.
 """
 
-from .compare import Comparison, compare
-from .diagnose import CandidateResult, Diagnosis, diagnose
+from .comparison import Comparison, compare
+from .diagnosis import CandidateResult, Diagnosis, diagnose
 from .optimize import LMResult, levenberg_marquardt
 from .residual import Residual, Sensitivities, alignment, log_ratio, orthogonality, sensitivities
-from .update import UpdateResult, update
-from .verify import Verification, verify
+from .updating import UpdateResult, update
+from .verification import Verification, verify
 
 __all__ = [
     "Residual",

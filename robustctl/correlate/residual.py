@@ -23,24 +23,14 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import (
-    UNSET,
-    as_frequency_data,
-    band_data,
-    band_mask,
-    check_band,
-    finite_number,
-    match_channels,
-    point_weight_bias,
-    renamed_keyword,
-)
+from ..checks import UNSET, band_data, band_mask, check_band, finite_number, match_channels, renamed_keyword
 from ..checks import point_weights as point_weights_of
 from ..errors import DataError, FitError, ModelError, RobustctlError
-from ..estimator import model_view, resolve_estimator, split_hold
-from ..frd import FrequencyData
+from ..executors import parallel_map_shared
+from ..frd import FrequencyData, as_frequency_data
 from ..lti import as_statespace, freqresp, log_ratio
-from ..noise import NoiseModel, noise_model
-from ..parallel import parallel_map_shared
+from ..measure.estimator import model_view, resolve_estimator, split_hold
+from ..measure.noise import NoiseModel, noise_model, point_weight_bias
 
 __all__ = [
     "Residual",
@@ -161,7 +151,7 @@ class Residual:
         without coherence, noise from a measurement model's residual); else uniform. The
         residual vector carries ``sqrt(W)``. With coherence weights and a known number of
         averages the real part of each log error is first lowered by
-        :func:`robustctl.checks.coherence_weight_bias` (``bias``): what the bin's own
+        :func:`robustctl.measure.noise.coherence_weight_bias` (``bias``): what the bin's own
         coherence in ``W`` adds to it on average.
     min_channel_db : float or None
         Channels whose RMS magnitude on the band, in the data or in the nominal model, lies
@@ -171,12 +161,12 @@ class Residual:
         physical parameter can explain, and it would swamp the cost. ``None`` keeps every
         channel and refuses identically zero ones.
     estimator : "auto", True, False or EstimatorSettings
-        See the model "as the H1 estimator sees it" (:func:`robustctl.estimator.estimator_view`:
+        See the model "as the H1 estimator sees it" (:func:`robustctl.measure.estimator.estimator_view`:
         window leakage of a white-noise Welch estimate) when the data carry their estimator
         settings (``"auto"``, default) -- the model's response is then the expected H1
         estimate, not ``G(jw)``. ``False``: compare ``G(jw)`` itself.
     noise : "auto", NoiseModel or None
-        The noise model of the data (:func:`robustctl.noise.noise_model`); ``"auto"``: from
+        The noise model of the data (:func:`robustctl.measure.noise.noise_model`); ``"auto"``: from
         coherence and the recorded number of averages when possible, else None.
 
     Attributes
@@ -191,7 +181,7 @@ class Residual:
         ``W``, the weights on the squared error (zero on dropped channels).
     bias : ndarray (n_freq_band, n_out, n_in) or None
         The offset subtracted from ``Re log(G_data / G_model)`` before weighting
-        (:func:`robustctl.checks.point_weight_bias`), nepers; None with uniform or given weights
+        (:func:`robustctl.measure.noise.point_weight_bias`), nepers; None with uniform or given weights
         or without a known number of averages.
     dropped : list of (output, input, level_db)
         Channels given weight 0 as negligible, with their relative level in dB.
@@ -309,7 +299,7 @@ class Residual:
         """Model response (n_freq_band, n_out, n_in) on the band, in data channel order.
 
         With estimator settings this is the expected H1 estimate of the model without the
-        hold (:func:`robustctl.estimator.estimator_view`), else ``G(j 2 pi f)``.
+        hold (:func:`robustctl.measure.estimator.estimator_view`), else ``G(j 2 pi f)``.
         """
         if self.estimator is not None:
             bare, hold = self._without_hold()

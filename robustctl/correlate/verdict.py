@@ -1,11 +1,11 @@
 """Is a misfit within the noise? One chi-square test per channel and frequency section.
 
 The complex-log residual ``e = ln(G_data / G_model)`` divided by the noise model's standard
-deviation (:class:`robustctl.noise.NoiseModel`) has unit variance in its real and imaginary
+deviation (:class:`robustctl.measure.noise.NoiseModel`) has unit variance in its real and imaginary
 parts when the model is right. Over a channel and a contiguous section of ``n`` points,
 ``S = sum |e / sigma|^2`` is then about ``c chi2_nu`` with ``nu = 2n / c`` and ``c`` the
 Satterthwaite factor of the window's bin-to-bin correlation (``NoiseModel.chi2_factor``, the
-bound over output noise and leakage; :func:`robustctl.noise.chi2_verdict`). A cell fails when
+bound over output noise and leakage; :func:`robustctl.measure.noise.chi2_verdict`). A cell fails when
 its upper-tail probability is below ``alpha / n_tests`` (Bonferroni: the family of all
 channel-section cells holds the false-alarm rate at ``alpha``), so a true model passes
 everywhere with probability ``>= 1 - alpha``.
@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ..noise import NO_NOISE_SENTENCE, NoiseModel, chi2_verdict, format_p
+from ..measure.noise import NO_NOISE_SENTENCE, NoiseModel, chi2_verdict, format_p
 from ..table import Table
 
 __all__ = ["Cell", "NoiseTest", "noise_test", "sections"]
@@ -155,7 +155,7 @@ def noise_test(
     """Chi-square test of ``error`` (n_freq, n_out, n_in) against ``noise``; None without noise.
 
     ``keep`` (n_out, n_in) bool leaves channels out (e.g. negligible ones). Points whose
-    sigma exceeds :data:`robustctl.noise.SIGMA_TESTABLE` are noise-dominated and left out
+    sigma exceeds :data:`robustctl.measure.noise.SIGMA_TESTABLE` are noise-dominated and left out
     (counted in ``n_untested``).
     """
     if noise is None:

@@ -16,10 +16,10 @@
   :class:`ModelCoverRecipe` -- the yardstick's recipe in which each model pays for its error.
 """
 
-from .caltech_truss import caltech_truss, truss_modes
+from .caltech_truss_model import caltech_truss, truss_modes
 from .caltech_weights import CaltechWeights, caltech_additive_weight, caltech_truss_weights
 from .experiments import caltech_truss_experiment, mace_beam_experiment, make_experiment
-from .mace_beam import mace_beam, mace_modes
+from .mace_beam_model import mace_beam, mace_modes
 from .modal_test import ModalTruth, impact_test_case, modal_test_case
 from .robust_design import (
     DISTILLATION_BLOCKS,

@@ -121,7 +121,7 @@ def caltech_truss_weights(
     from ..correlate import update
     from ..lti import freqresp
     from ..robust.cover import cover_additive
-    from .caltech_truss import caltech_truss
+    from .caltech_truss_model import caltech_truss
     from .experiments import caltech_truss_experiment
 
     if data is None:

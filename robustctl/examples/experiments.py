@@ -25,9 +25,9 @@ import numpy as np
 from ..checks import flag, integer, positive_number
 from ..correlate.residual import physical_model
 from ..errors import ModelError
-from ..estimate import combine_experiments, estimate_frf, simulate_experiment
-from ..estimator import hold_response
 from ..frd import FrequencyData
+from ..measure.estimate import combine_experiments, estimate_frf, simulate_experiment
+from ..measure.estimator import hold_response
 from ..threads import limit_blas
 
 __all__ = ["make_experiment", "caltech_truss_experiment", "mace_beam_experiment", "hold_response"]
@@ -186,7 +186,7 @@ def caltech_truss_experiment(seed: int = 0, **kwargs: Any) -> tuple[FrequencyDat
     truth : PhysicalModel
     """
     from ..physical.effects import GroupTension
-    from .caltech_truss import caltech_truss
+    from .caltech_truss_model import caltech_truss
 
     _, group, values = CALTECH_TRUTH["hidden"]
     hidden = GroupTension(group, **values)
@@ -231,7 +231,7 @@ def mace_beam_experiment(seed: int = 0, **kwargs: Any) -> tuple[FrequencyData, A
     truth : PhysicalModel
     """
     from ..physical.effects import GroupTension
-    from .mace_beam import mace_beam
+    from .mace_beam_model import mace_beam
 
     _, group, values = MACE_TRUTH["hidden"]
     kw = dict(

@@ -59,7 +59,7 @@ def six_modes(model: Any):
     """The six global modes (12 states) of a truss model by balanced truncation (seed eq. 11-13)."""
     import control
 
-    from ..identify.balanced import balanced_truncation
+    from ..balanced import balanced_truncation
     from ..lti import as_statespace
 
     G = as_statespace(model)
@@ -182,10 +182,10 @@ class ModelCoverRecipe:
         return self._covers[id(nominal)][1]
 
     def _fit_cover(self, nominal: Any):
-        from ..checks import as_frequency_data
         from ..errors import DataError, FitError
-        from ..estimator import estimator_settings, estimator_view
+        from ..frd import as_frequency_data
         from ..lti import freqresp_array
+        from ..measure.estimator import estimator_settings, estimator_view
         from ..robust.cover import cover_additive
 
         data = as_frequency_data(self.data)

@@ -12,9 +12,9 @@ range, balancing, second-order sections), ``files`` (the file layouts), ``report
 """
 
 from .controller import export_controller, load_controller
-from .discretize import discretization_error, discretize
 from .realization import dynamic_range
 from .report import ExportReport
+from .sampling import discretization_error, discretize
 
 __all__ = [
     "discretize",

@@ -11,11 +11,11 @@ from typing import Any
 import numpy as np
 
 from ..errors import DataError, ModelError
-from ..frd import _jsonable, write_atomically
+from ..frd_io._common import jsonable as _jsonable
+from ..frd_io._common import write_atomically
 from . import files, formats
 from .arguments import choice, flag, is_discrete, positive, unwrap
 from .c_header import c_prefix
-from .discretize import METHODS, discretization_error, discretize, peak_gain_hz
 from .realization import (
     balance_diagonal,
     balance_gramian,
@@ -25,6 +25,7 @@ from .realization import (
     spectral_radius,
 )
 from .report import ExportReport
+from .sampling import METHODS, discretization_error, discretize, peak_gain_hz
 
 __all__ = ["export_controller", "load_controller"]
 
@@ -51,7 +52,7 @@ def _format(path: Path, format: str | None) -> str:
 
 
 def _provenance(user: Any) -> dict:
-    from .. import __version__
+    from .._version import __version__
 
     if user is not None and not isinstance(user, dict):
         raise DataError(f"provenance must be a dict of JSON-able values; got {type(user).__name__}.")

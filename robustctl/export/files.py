@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DataError
-from ..frd import _cell, _mat_names, _mat_string
+from ..frd_io.mat import _cell, _mat_names, _mat_string
 
 __all__ = [
     "ControllerData",

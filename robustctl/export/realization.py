@@ -9,8 +9,8 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
+from ..balanced import hammarling_factor
 from ..errors import DataError, ModelError
-from ..identify.balanced import hammarling_factor
 from ..lti import freqresp_array
 
 __all__ = [

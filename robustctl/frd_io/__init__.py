@@ -13,7 +13,7 @@ from typing import Any
 
 from ..checks import flag
 from ..errors import DataError
-from ..frd import FrequencyData
+from ..frd import FrequencyData, register_method
 from ._common import write_atomically
 from .csv_format import read_csv, write_csv
 from .mat import read_mat, write_mat
@@ -91,3 +91,5 @@ def save_frd(data: FrequencyData, path: Any, overwrite: bool = False) -> Path:
 
 _WRITERS = {".npz": write_npz, ".mat": write_mat, ".csv": write_csv, ".uff": write_uff, ".unv": write_uff}
 _READERS = {".npz": read_npz, ".mat": read_mat, ".csv": read_csv, ".uff": read_uff, ".unv": read_uff}
+
+register_method("save", save_frd)

@@ -9,8 +9,8 @@ complex-log cost (MACE eq. 5): spare-pole fits with mode selection by contributi
 channels and modes, and the automatic order from a one-pass stabilisation diagram.
 """
 
+from ..balanced import BalancedTruncation, balanced_truncation
 from ..modes import Mode
-from .balanced import BalancedTruncation, balanced_truncation
 from .cost import LogCost, channel_cost
 from .grouping import cluster_modes, combine_simo, group_modes
 from .leakage import estimator_settings, expected_h1, leakage_factor

@@ -12,9 +12,9 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import as_frequency_data, band_mask, coherence_weights, point_weights
+from ..checks import band_mask, coherence_weights, point_weights
 from ..errors import DataError, FitError
-from ..frd import FrequencyData
+from ..frd import FrequencyData, as_frequency_data
 
 __all__ = ["FitProblem", "as_frequency_data", "prepare_problem", "coherence_weights"]
 

@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import FitError
-from ..estimator import EstimatorSettings, estimator_settings, lag_window
+from ..measure.estimator import EstimatorSettings, estimator_settings, lag_window
 from ..threads import limit_blas
 from .modal_refine import ZETA_MIN
 from .poles import coefficients_to_residues, lstsq_normal, partial_fraction_basis

@@ -23,9 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import UNSET, as_frequency_data, band_data, renamed_keyword
+from ..checks import UNSET, band_data, renamed_keyword
 from ..errors import FitError
-from ..frd import FrequencyData
+from ..frd import FrequencyData, as_frequency_data
 from ..lti import pole_frequency_damping, rebuild_statespace, statespace_state
 from ..modes import Mode
 from ..table import Table, result_html

@@ -31,7 +31,7 @@ import numpy as np
 import scipy.signal as signal
 
 from ..errors import ModelError
-from ..interconnect import _series_arrays
+from ..lti import _series_arrays
 from ..signals import _abcd, _index, _names, _ss, rename_signals, scale_inputs, scale_outputs
 from .model import Stage
 

@@ -244,6 +244,27 @@ def _model_from_bytes(payload: bytes) -> PhysicalModel:
     return PhysicalModel(**pickle.loads(payload))
 
 
+#: The physical effects stand on the model (:mod:`robustctl.physical.effects` builds on
+#: PhysicalModel), so the model does not import them: the effects package registers here what
+#: :meth:`PhysicalModel.with_effect` needs, the ``Effect`` class and ``candidates``, when it is
+#: imported (``import robustctl`` imports it before any model exists).
+_EFFECTS: dict[str, Any] = {}
+
+
+def register_effects(effect_class: type, candidates: Any) -> None:
+    """Register the ``Effect`` base class and the ``candidates`` function (see :data:`_EFFECTS`).
+
+    Parameters
+    ----------
+    effect_class : type
+        :class:`robustctl.physical.effects.Effect`.
+    candidates : callable
+        :func:`robustctl.physical.effects.candidates`.
+    """
+    _EFFECTS["Effect"] = effect_class
+    _EFFECTS["candidates"] = candidates
+
+
 @dataclass(frozen=True, eq=False)
 class PhysicalModel:
     """A physical model: parameters and a staged build into a ``control.StateSpace``.
@@ -371,8 +392,7 @@ class PhysicalModel:
             that candidate at its neutral value for :func:`robustctl.update` to fit; or a row of
             ``diag.ranking``.
         """
-        from .effects import Effect
-
+        Effect = _EFFECTS["Effect"]
         if effect is None:
             raise ModelError("with_effect got None: the diagnosis found no significant effect.")
         if isinstance(effect, type):
@@ -395,8 +415,7 @@ class PhysicalModel:
         """The candidate effect of :func:`robustctl.effects.candidates` called ``name``."""
         import difflib
 
-        from .effects import candidates
-
+        candidates = _EFFECTS["candidates"]
         found = {" ".join(c.name.lower().split()): c for c in candidates(self, calibrate=False)}
         key = " ".join(name.lower().split())
         if key in found:

@@ -1,5 +1,6 @@
 """robustctl.robust (see DESIGN.md)."""
 
+from ..lti import zpk_statespace
 from .blocks import Block, BlockStructure, as_block_structure
 
 # weights (uncertainty and performance weights, magnitude fits, covers)
@@ -9,17 +10,17 @@ from .cover import UncertaintyCover, cover_additive, cover_multiplicative, error
 from .dk import DKIteration, DKResult, Reduction, dksyn
 
 # H-infinity norm and synthesis (hinf helper)
-from .hinfnorm import hinfnorm
-from .hinfsyn import HinfResult, hinfsyn
-from .magfit import MagnitudeFit, fit_magnitude, fit_magnitude_details, zpk_statespace
+from .hinf_norm import hinfnorm
+from .hinf_synthesis import HinfResult, hinfsyn
+from .magfit import MagnitudeFit, fit_magnitude, fit_magnitude_details
+from .mu_analysis import WorstCaseGain, robust_performance, robust_stability, worst_case_gain
 
 # --- mu analysis (mu helper) ---
-from .mu import MuResult, mu
-from .mu_analysis import WorstCaseGain, robust_performance, robust_stability, worst_case_gain
+from .mu_bounds import MuResult, mu
 from .plant import GeneralizedPlant, PlantWeight, generalized_plant, mixed_sensitivity
 from .sweep import DesignSweep, design_sweep
 from .weights import CALTECH_MULTIPLICATIVE, caltech_additive_weight, makeweight
-from .yardstick import NyquistVerdict, Yardstick, nyquist_stability, yardstick
+from .yardsticks import NyquistVerdict, Yardstick, nyquist_stability, yardstick
 
 __all__ = [
     "Block",

@@ -33,7 +33,7 @@ from ..budget import Deadline
 from ..checks import check_band, positive_number
 from ..errors import DataError, FitError
 from ..frd import FrequencyData
-from ..noise import noise_model
+from ..measure.noise import noise_model
 from ..table import Table, result_html
 from .magfit import DB_PER_NEPER, fit_magnitude_details
 
@@ -278,7 +278,7 @@ def _on_grid_values(data: FrequencyData, values: np.ndarray, f: np.ndarray, labe
 def _random_error(data: FrequencyData) -> np.ndarray | None:
     """``||G o sigma||_F`` per frequency: the H1 estimate's random error, ``sigma`` the noise
     model's normalised error ``sqrt(1 - g^2) / (|g| sqrt(2 n_d))`` (Bendat-Piersol, *Random
-    Data*, Table 9.6; :func:`robustctl.noise.noise_model`: Welch's effective number of
+    Data*, Table 9.6; :func:`robustctl.measure.noise.noise_model`: Welch's effective number of
     averages, one per input column). It bounds the max singular value of the estimate's
     error. None without coherence or a known number of averages."""
     model = noise_model(data)  # from coherence and averages, or None (no measurement model given)

@@ -47,7 +47,7 @@ import numpy as np
 from ..budget import Deadline
 from ..checks import flag, integer, positive_number
 from ..errors import SynthesisError
-from ..parallel import check_executor, parallel_map
+from ..executors import check_executor, parallel_map
 from ..table import Table
 from .blocks import Block, BlockStructure, as_block_structure
 
@@ -286,7 +286,7 @@ def _verified_mu(cl: Any, blocks: BlockStructure, f_hz: np.ndarray, n_peaks: int
     can sit 3 % below its peak (a two-mode plant: 1.0829 on the grid, 1.0862 at the peak).
     """
     from ..lti import freqresp_array
-    from .mu import mu
+    from .mu_bounds import mu
 
     f = verification_grid(cl, f_hz)
     m = mu(freqresp_array(cl, f), blocks, f_hz=f)
@@ -366,7 +366,7 @@ def _into_band(fit: Any, f_hz: np.ndarray, margin: float = 10.0) -> Any:
     a zero at the origin into the band changed the Caltech plant's scaled norm from 1.08 to
     3.3). Fits without such roots are returned unchanged.
     """
-    from .magfit import zpk_statespace
+    from ..lti import zpk_statespace
 
     if fit.nstates == 0 or abs(float(np.asarray(fit.D)[0, 0])) < 1e-12:
         return fit
@@ -802,7 +802,7 @@ class DKResult:
 # ---------------------------------------------------------------------------- the loop
 def _mu_of(cl: Any, blocks: BlockStructure, f_hz: np.ndarray, refine: bool) -> tuple[Any, np.ndarray]:
     from ..lti import freqresp_array
-    from .mu import mu
+    from .mu_bounds import mu
 
     f = _resonance_points(cl, f_hz) if refine else f_hz
     H = freqresp_array(cl, f)
@@ -935,7 +935,7 @@ def dksyn(
         "repeat while the peak mu falls": on the Caltech design plant a second try after a
         worse iteration (mu 0.79 -> 0.95 -> 0.80) cost 40 % more time and never won.
     hinf_options : dict, optional
-        Extra keyword arguments for :func:`~robustctl.robust.hinfsyn.hinfsyn` (default
+        Extra keyword arguments for :func:`~robustctl.robust.hinf_synthesis.hinfsyn` (default
         ``backoff=HINF_BACKOFF``, ``time_budget_s``: this call's budget, shared).
     callback : callable, optional
         Called with each :class:`DKIteration`.
@@ -956,7 +956,7 @@ def dksyn(
     """
     from tqdm import tqdm
 
-    from .hinfsyn import hinfsyn
+    from .hinf_synthesis import hinfsyn
 
     grid = _check_args(max_iter, time_budget_s, f_hz)
     hinf_options = _check_options(progress, rtol, patience, hinf_options, callback)
@@ -1113,7 +1113,7 @@ def _reduce(plant: _Plant, blocks: BlockStructure, K: Any, cl: Any, m: Any, orde
     orders below the controller's numerically minimal order (Hankel singular values above
     ``HSV_RTOL`` of the largest); at most ``ceil(log2 n) + 1`` mu analyses.
     """
-    from ..identify.balanced import balanced_truncation
+    from ..balanced import balanced_truncation
 
     auto = isinstance(order, str) and order == "auto"
     if not auto and (isinstance(order, bool) or not isinstance(order, (int, np.integer)) or order < 1):

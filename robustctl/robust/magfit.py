@@ -41,6 +41,7 @@ import numpy as np
 from ..budget import Deadline, as_deadline
 from ..checks import flag, optional_text, positive_number, real_array
 from ..errors import FitError
+from ..lti import _pair, _zpk_response, zpk_statespace
 
 __all__ = ["fit_magnitude", "MagnitudeFit", "fit_magnitude_details", "zpk_statespace"]
 
@@ -561,133 +562,6 @@ def _proper(zeros: np.ndarray, n_poles: int) -> np.ndarray:
     return kept
 
 
-def _pair(r: np.ndarray) -> list[np.ndarray]:
-    """Real roots singly, complex roots as conjugate pairs (upper half-plane member kept)."""
-    r = np.asarray(r, dtype=complex)
-    tol = 1e-8 * (1.0 + np.abs(r))
-    real = np.sort(r[np.abs(r.imag) <= tol].real)
-    cplx = r[r.imag > tol]
-    return [np.array([v]) for v in real] + [np.array([v, np.conj(v)]) for v in cplx]
-
-
-def _poly(group: list[np.ndarray]) -> np.ndarray:
-    roots = np.concatenate(group) if group else np.zeros(0)
-    return np.real(np.poly(roots)) if roots.size else np.array([1.0])
-
-
-def _section(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, ...]:
-    """State space of ``num / den`` (den monic, degree 1 or 2, deg num <= deg den), scaled."""
-    n = den.size - 1
-    num = np.concatenate([np.zeros(n + 1 - num.size), num])
-    d = num[0]
-    if n == 1:
-        a0 = den[1]
-        return np.array([[-a0]]), np.array([[1.0]]), np.array([[num[1] - d * a0]]), np.array([[d]])
-    a1, a0 = den[1], den[2]
-    wn = np.sqrt(abs(a0)) or 1.0
-    A = np.array([[0.0, wn], [-a0 / wn, -a1]])
-    c2 = num[1] - d * a1
-    c1 = (num[2] - d * a0) / wn
-    return A, np.array([[0.0], [1.0]]), np.array([[c1, c2]]), np.array([[d]])
-
-
-def _series(s1: tuple, s2: tuple) -> tuple[np.ndarray, ...]:
-    A1, B1, C1, D1 = s1
-    A2, B2, C2, D2 = s2
-    n1, n2 = A1.shape[0], A2.shape[0]
-    A = np.block([[A1, np.zeros((n1, n2))], [B2 @ C1, A2]])
-    return A, np.vstack([B1, B2 @ D1]), np.hstack([D2 @ C1, C2]), D2 @ D1
-
-
-def zpk_statespace(zeros: Any, poles: Any, gain: float, *, name: str | None = None):
-    """A real SISO ``control.StateSpace`` of ``gain prod(s - z) / prod(s - p)`` as a cascade.
-
-    Parameters
-    ----------
-    zeros, poles : array_like, complex
-        Roots in rad/s, closed under conjugation; at most as many zeros as poles (proper).
-    gain : float
-        The factor ``k`` of the zero-pole-gain form.
-    name : str, optional
-        Name of the system.
-
-    Returns
-    -------
-    control.StateSpace
-        First- and second-order sections in series (no polynomial coefficients formed).
-    """
-    import control
-
-    zg, pg = _pair(np.asarray(zeros)), _pair(np.asarray(poles))
-    if sum(g.size for g in zg) > sum(g.size for g in pg):
-        raise FitError("more zeros than poles: the weight would be improper.")
-    if not pg:
-        return control.ss([], [], [], [[float(gain)]], name=name)
-    dens, nums = _assign(zg, pg)
-    sections = []
-    for den, num in zip(dens, nums):
-        A, B, C, D = _section(_poly(num), _poly(den))
-        # unit gain at the section's pole magnitude keeps the cascade's internal gains balanced
-        wp = float(np.abs(np.concatenate(den)).max()) or 1.0
-        h = _response(np.concatenate(num) if num else np.zeros(0), np.concatenate(den), np.array([1j * wp]))
-        g = 1.0 / max(abs(complex(h[0])), 1e-300)
-        sections.append((A, B, C * g, D * g, g))
-    scale = float(gain) / float(np.prod([sec[4] for sec in sections]))
-    per = abs(scale) ** (1.0 / len(sections))
-    sys = None
-    for i, (A, B, C, D, _) in enumerate(sections):
-        f = per * (np.sign(scale) if i == 0 and scale != 0 else 1.0)
-        sec = (A, B, C * f, D * f)
-        sys = sec if sys is None else _series(sys, sec)
-    A, B, C, D = sys
-    return control.ss(A, B, C, D, name=name)
-
-
-def _assign(
-    zg: list[np.ndarray], pg: list[np.ndarray]
-) -> tuple[list[list[np.ndarray]], list[list[np.ndarray]]]:
-    """Sections of at most two poles, each with the zeros nearest to its poles in magnitude.
-
-    Complex pole pairs make second-order sections, real poles first-order ones; a complex
-    zero pair takes the nearest complex pole pair without zeros, or else merges the two
-    real poles nearest to it into one section. Real zeros then go, nearest first, to
-    sections with room (a zero count not above the pole count keeps each section proper).
-    """
-    dens = [[g] for g in pg]
-    nums: list[list[np.ndarray]] = [[] for _ in dens]
-
-    def size(k: int) -> int:
-        return sum(x.size for x in dens[k])
-
-    def room(k: int) -> int:
-        return size(k) - sum(x.size for x in nums[k])
-
-    def dist(z: np.ndarray, k: int) -> float:
-        return abs(np.log(np.abs(z[0]) + 1e-300) - np.log(np.abs(np.concatenate(dens[k])).max() + 1e-300))
-
-    for z in [g for g in zg if g.size == 2]:
-        free = [k for k in range(len(dens)) if size(k) == 2 and room(k) == 2]
-        if not free:
-            reals = sorted(
-                (k for k in range(len(dens)) if size(k) == 1 and room(k) == 1), key=lambda k: dist(z, k)
-            )
-            if len(reals) < 2:  # not expected while zeros <= poles
-                raise FitError("cannot place a complex zero pair: the weight would be improper.")
-            a, b = reals[:2]
-            dens[a] = dens[a] + dens[b]
-            nums[a] = nums[a] + nums[b]
-            del dens[b], nums[b]
-            free = [a if a < b else a - 1]
-        k = min(free, key=lambda k: dist(z, k))
-        nums[k].append(z)
-    for z in sorted([g for g in zg if g.size == 1], key=lambda g: -abs(g[0])):
-        open_ = [k for k in range(len(dens)) if room(k) >= 1]
-        k = min(open_, key=lambda k: dist(z, k))
-        nums[k].append(z)
-    return dens, nums
-
-
-# ---------------------------------------------------------------------------- public
 @dataclass(frozen=True)
 class MagnitudeFit:
     """Outcome of :func:`fit_magnitude_details`.
@@ -720,15 +594,6 @@ class MagnitudeFit:
     n_lp: int
     time_s: float
     stopped_by_budget: bool = False
-
-
-def _response(zeros: np.ndarray, poles: np.ndarray, s: np.ndarray) -> np.ndarray:
-    out = np.ones(s.shape, dtype=complex)
-    for z in zeros:
-        out *= s - z
-    for p in poles:
-        out /= s - p
-    return out
 
 
 def _pack(zeros: np.ndarray, poles: np.ndarray) -> tuple[np.ndarray, list[tuple[str, int]]]:
@@ -785,7 +650,7 @@ def _polish(zeros: np.ndarray, poles: np.ndarray, w: np.ndarray, target: np.ndar
 
     def resid(theta):
         z, p = _unpack(theta, layout)
-        r = np.log(np.abs(_response(z, p, 1j * w))) - target
+        r = np.log(np.abs(_zpk_response(z, p, 1j * w))) - target
         return wt * (r - np.average(r, weights=wt))
 
     sol = least_squares(resid, theta0, bounds=(lo, hi), max_nfev=10 * theta0.size, x_scale="jac")
@@ -807,13 +672,13 @@ def _realise(
     zeros = _proper(zeros, poles.size)
     Phi = basis.matrix((w / basis.w0) ** 2)
     target = 0.5 * np.log(np.maximum(Phi @ a, 1e-300) / np.maximum(Phi @ b, 1e-300))
-    shape = np.log(np.abs(_response(zeros, poles, 1j * w)))
+    shape = np.log(np.abs(_zpk_response(zeros, poles, 1j * w)))
     if np.ptp(shape - target) > 1e-2:  # the roots do not reproduce the LP's curve: polish them
         zp = _polish(zeros, poles, w, target, np.maximum(wt, 1e-3))
-        shape_p = np.log(np.abs(_response(*zp, 1j * w)))
+        shape_p = np.log(np.abs(_zpk_response(*zp, 1j * w)))
         if np.ptp(shape_p - target) < np.ptp(shape - target):
             zeros, poles = _damping_floor(zp[0], w), _damping_floor(zp[1], w)
-    r = np.log(m / np.abs(_response(zeros, poles, 1j * w)))
+    r = np.log(m / np.abs(_zpk_response(zeros, poles, 1j * w)))
     if upper_bound:  # the smallest gain that covers every point (with a rounding margin)
         c = float(r.max()) + 1e-9
     else:  # the weighted Chebyshev centre of the log ratios
@@ -835,7 +700,7 @@ def _peak_ratio(cand: tuple, w: np.ndarray, m: np.ndarray) -> float:
     over the curve's largest value."""
     zeros, poles, k, _ = cand
     wd = np.sqrt(_dense_points(w**2, per=16))
-    return float(k * np.abs(_response(zeros, poles, 1j * np.concatenate([w, wd]))).max() / m.max())
+    return float(k * np.abs(_zpk_response(zeros, poles, 1j * np.concatenate([w, wd]))).max() / m.max())
 
 
 def _check_realisation(
@@ -947,7 +812,7 @@ def fit_magnitude_details(
         zeros, poles, k, _ = best
     sys = zpk_statespace(zeros, poles, k, name=name)
     # the reported |W| (and error) is the state space's own
-    fitted = _check_realisation(sys, f, k * np.abs(_response(zeros, poles, 1j * w)), order, upper_bound)
+    fitted = _check_realisation(sys, f, k * np.abs(_zpk_response(zeros, poles, 1j * w)), order, upper_bound)
     short = float(np.max(m[use] / fitted[use]))
     if upper_bound and short > 1.0:  # the realisation's rounding (~1e-9) must not uncover a point
         k, fitted = k * short * (1 + 1e-9), fitted * (short * (1 + 1e-9))

@@ -26,7 +26,7 @@ from ..checks import integer, positive_number
 from ..errors import SynthesisError
 from ..table import Table
 from .blocks import Block, BlockStructure, as_block_structure
-from .mu import MuResult, as_frequency_array, mu, validate_mu_input
+from .mu_bounds import MuResult, as_frequency_array, mu, validate_mu_input
 
 __all__ = ["robust_stability", "robust_performance", "worst_case_gain", "WorstCaseGain"]
 
@@ -79,7 +79,7 @@ def robust_stability(closed_loop: Any, blocks: Any, f_hz: Any = None, **mu_optio
     f_hz : array_like, optional
         Frequencies (Hz); required for a system.
     **mu_options
-        Passed to :func:`robustctl.robust.mu.mu` (``lower``, ``method``, ``executor`` ...).
+        Passed to :func:`robustctl.robust.mu_bounds.mu` (``lower``, ``method``, ``executor`` ...).
     """
     _check_mu_options(mu_options)
     N, f, bs = _split(closed_loop, blocks, f_hz)

@@ -3,7 +3,7 @@
 A designer rarely trusts one set of weights: the performance level, the multiplicative
 uncertainty or the cover order is varied and the mu-controllers compared. Each design is an
 independent :func:`~robustctl.robust.dk.dksyn` run, so the sweep goes through
-:func:`robustctl.parallel.parallel_map` — a ``ProcessPoolExecutor`` or a dask.distributed
+:func:`robustctl.executors.parallel_map` — a ``ProcessPoolExecutor`` or a dask.distributed
 ``Client.get_executor()`` runs the designs side by side.
 """
 
@@ -16,7 +16,7 @@ from typing import Any
 
 from ..checks import flag
 from ..errors import SynthesisError
-from ..parallel import check_executor, parallel_map
+from ..executors import check_executor, parallel_map
 from ..table import Table
 from .dk import DKResult, check_dk_options, dksyn
 

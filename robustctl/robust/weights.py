@@ -15,7 +15,7 @@ import numpy as np
 
 from ..checks import optional_text, positive_number
 from ..errors import FitError
-from .magfit import zpk_statespace
+from ..lti import zpk_statespace
 
 __all__ = ["makeweight", "caltech_additive_weight", "CALTECH_MULTIPLICATIVE"]
 

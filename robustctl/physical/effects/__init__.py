@@ -24,7 +24,7 @@ candidate's typical size moves the affected modes by about one percent (used by
 :func:`robustctl.diagnose`).
 
 Layout: :mod:`.base` (the ``Effect`` base class and its typed :class:`ParamSpec`),
-:mod:`.io_effects`, :mod:`.structural`, :mod:`.candidates` (candidates and calibration).
+:mod:`.io_effects`, :mod:`.structural`, :mod:`.catalogue` (candidates and calibration).
 
 Examples
 --------
@@ -37,6 +37,7 @@ Examples
 
 from __future__ import annotations
 
+from ..model import register_effects
 from .base import (
     DAMPING_TARGET,
     EFFECT_TAG,
@@ -44,7 +45,7 @@ from .base import (
     Effect,
     ParamSpec,
 )
-from .candidates import EFFECT_KINDS, calibrate, candidates
+from .catalogue import EFFECT_KINDS, calibrate, candidates
 from .io_effects import (
     ActuatorGain,
     ActuatorLowPass,
@@ -90,3 +91,5 @@ __all__ = [
     "SHIFT_TARGET",
     "DAMPING_TARGET",
 ]
+
+register_effects(Effect, candidates)

@@ -18,10 +18,10 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
-from ..errors import FitError, ModelError
-from ..lti import as_statespace, rebuild_statespace, statespace_state
-from ..table import Table
-from ..threads import limit_blas
+from .errors import FitError, ModelError
+from .lti import as_statespace, rebuild_statespace, statespace_state
+from .table import Table
+from .threads import limit_blas
 
 __all__ = ["BalancedTruncation", "balanced_truncation", "gramian_factor"]
 
@@ -72,7 +72,7 @@ class BalancedTruncation:
 
     def plot(self, fig: Any = None) -> Any:
         """The Hankel singular values, kept ones filled (matplotlib Figure)."""
-        from ..plots import new_figure
+        from .plots import new_figure
 
         fig = fig or new_figure(6, 3.5)
         ax = fig.add_subplot(1, 1, 1)

@@ -21,8 +21,9 @@ import numpy as np
 from ..checks import UNSET, renamed_keyword
 from ..errors import DataError, ModelError
 from ..frd import FrequencyData
+from ..modes import pair_modes
 from ..table import Table, result_html
-from .compare import Comparison, compare, pair_modes, statespace_modes
+from .comparison import Comparison, compare, statespace_modes
 
 __all__ = ["Verification", "verify", "apply_perturbation"]
 

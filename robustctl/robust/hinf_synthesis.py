@@ -18,7 +18,7 @@ The controller is designed at ``gamma_opt (1 + backoff)``, because the Riccati s
 blow up at the optimum (ZDG sec. 16.9), then ``Fl(P, K)`` is formed, and the result is
 accepted only when the closed loop is stable and an upper bound of ``||Fl(P, K)||_inf`` is at
 most ``gamma_design (1 + 1e-6)``; otherwise gamma is raised and the design repeated (at most
-``MAX_RETRIES`` times). The bound is :func:`robustctl.robust.hinfnorm.hinfnorm`'s value ``g``
+``MAX_RETRIES`` times). The bound is :func:`robustctl.robust.hinf_norm.hinfnorm`'s value ``g``
 at ``NORM_TOL`` raised to ``g (1 + 2 NORM_TOL)``: the Bruinsma-Steinbuch iteration guarantees
 ``g <= ||G||_inf <= g (1 + 2 tol)``, so the reported ``gamma`` is never below the closed
 loop's norm, and at most ``2 NORM_TOL`` (relative) above it. Every loop is capped in number; an
@@ -43,7 +43,7 @@ from ..table import Table, result_html
 from ..threads import limit_blas
 from . import dgkf
 from .hinf_assumptions import check_assumptions
-from .hinfnorm import hinfnorm_matrices
+from .hinf_norm import hinfnorm_matrices
 
 __all__ = ["HinfResult", "hinfsyn"]
 
@@ -142,7 +142,7 @@ class HinfResult:
 
         f_peak = self.info.get("f_peak_hz", np.nan)
         if f_hz is not None:
-            from .mu import _frequencies
+            from .mu_bounds import _frequencies
 
             f_hz = _frequencies(f_hz)  # finite numbers >= 0 Hz, at least one
         if f_hz is None:

@@ -31,9 +31,9 @@ import numpy as np
 from ..budget import Deadline, as_deadline
 from ..checks import UNSET, check_seed, flag, integer, positive_number, probability, renamed_keyword
 from ..errors import FitError, RobustctlError
+from ..executors import check_executor
 from ..frd import FrequencyData
-from ..noise import NO_NOISE_SENTENCE, format_p, noise_model
-from ..parallel import check_executor
+from ..measure.noise import NO_NOISE_SENTENCE, format_p, noise_model
 from ..table import Table, result_html
 from .optimize import LMResult, levenberg_marquardt
 from .residual import (
@@ -207,7 +207,7 @@ def _noise_covariance(residual: Residual, fit: LMResult) -> np.ndarray | None:
     the noise-only factor ``dof_factor``. At lightly damped resonances, where the information
     is, the H1 error is mostly leakage, whose errors at neighbouring bins correlate negatively
     (about -0.35 at one bin on the Caltech truss, against +0.30 for output noise; see
-    :mod:`robustctl.noise`) and across the outputs of one input; the variance of ``J^T r`` over
+    :mod:`robustctl.measure.noise`) and across the outputs of one input; the variance of ``J^T r`` over
     40 seeds was 0.12-0.84 of this meat's, and the standard errors are 1.25-2.4 x the scatter
     of the estimates over seeds (Caltech truss and the user chain of the tests). A meat from
     the residuals themselves (Newey-West over the two lags at which a Hamming window's bins
@@ -1035,7 +1035,7 @@ def update(
     point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     model = physical_model(model, "update")
     if isinstance(noise, str) and noise == "auto":
-        from ..checks import as_frequency_data
+        from ..frd import as_frequency_data
 
         noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
     residual = Residual(model, data, band=band, point_weights=point_weights, min_channel_db=min_channel_db,

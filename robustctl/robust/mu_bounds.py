@@ -23,10 +23,10 @@ from typing import Any
 import numpy as np
 
 from ..budget import Deadline, as_deadline
-from ..checks import as_frequency_data, flag, integer
+from ..checks import flag, integer
 from ..errors import RobustctlError, SynthesisError
-from ..frd import FrequencyData
-from ..parallel import check_executor, parallel_map
+from ..executors import check_executor, parallel_map
+from ..frd import FrequencyData, as_frequency_data
 from ..threads import limit_blas
 from .blocks import BlockStructure, as_block_structure
 from .mu_layout import Layout, layout_of

@@ -40,8 +40,8 @@ import numpy as np
 
 from ..checks import check_band, flag, match_channels
 from ..errors import DataError, SynthesisError
+from ..executors import check_executor, parallel_map
 from ..frd import FrequencyData
-from ..parallel import check_executor, parallel_map
 from ..table import Table
 from .dk import DKResult, _as_plant, _mu_of, check_dk_options, closed_loop, default_grid, dksyn
 

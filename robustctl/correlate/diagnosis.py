@@ -31,7 +31,7 @@ parameters can already explain:
    freeze the update parameters' sensitivities at the null fit and can stop short (on the
    Caltech truss below 30 Hz the true taut wires stopped at half their tension, behind
    stiffer diagonals).
-4. **Significance.** Against the data's noise model (:mod:`robustctl.noise`, the same one
+4. **Significance.** Against the data's noise model (:mod:`robustctl.measure.noise`, the same one
    compare's verdicts use): under "the effect is absent" the cost drop of the local fit is
    noise projected on one direction, ``Delta J ~ v chi2_1`` with ``v`` the noise variance
    along the fitted change (window bin correlation included); a Bonferroni level
@@ -66,12 +66,12 @@ from typing import Any
 import numpy as np
 
 from ..budget import BudgetWarning, Deadline
-from ..checks import UNSET, as_frequency_data, finite_number, integer, renamed_keyword
+from ..checks import UNSET, finite_number, integer, renamed_keyword
 from ..errors import FitError, ModelError, RobustctlError
-from ..estimator import estimator_settings
-from ..frd import FrequencyData
-from ..noise import NO_NOISE_SENTENCE, format_p, noise_model
-from ..parallel import check_executor, parallel_map_shared, process_pool, resolve_workers
+from ..executors import check_executor, parallel_map_shared, process_pool, resolve_workers
+from ..frd import FrequencyData, as_frequency_data
+from ..measure.estimator import estimator_settings
+from ..measure.noise import NO_NOISE_SENTENCE, format_p, noise_model
 from ..table import Table, result_html
 from ..threads import limit_blas
 from .optimize import _bounds, levenberg_marquardt, marquardt_step
@@ -88,7 +88,7 @@ ALPHA = 0.01
 #: MACE bus has 13 such channels at -60 dB, 12 at -80 dB). Pass ``min_channel_db=`` to change it;
 #: ``rc.update(..., min_channel_db=-60.0)`` reproduces diagnose's cost (so does
 #: ``point_weights=diag.point_weights`` where no coherence-weight bias applies,
-#: :func:`robustctl.checks.point_weight_bias`: an array of weights is taken as given).
+#: :func:`robustctl.measure.noise.point_weight_bias`: an array of weights is taken as given).
 DECOUPLED_DB = -60.0
 #: Smallest share of the null-fit residual an effect must explain to be proposed.
 MIN_GAIN = 0.25
@@ -884,12 +884,12 @@ def _null_fit(
 ) -> tuple[_Null, int]:
     """Bounded LM fit of the update parameters alone (step 1), from the nominal residual ``j0``.
 
-    It starts where :func:`~robustctl.correlate.update.update` would (its coarse multi-start,
+    It starts where :func:`~robustctl.correlate.updating.update` would (its coarse multi-start,
     ``_coarse_start``): with parameters 20-50 % off, modes have moved by several bandwidths and
     LM from the model's values stops in a local minimum of the complex-log cost, which leaves
     the parameter error in the residual for the candidates to mimic (a wrong effect ranks first).
     """
-    from .update import _coarse_start
+    from .updating import _coarse_start
 
     lo, hi = _bounds(res0.model, upd, None)
     if not upd:
@@ -1202,7 +1202,7 @@ def _pool(workers: Any, executor: Any, candidates: list | None, model: Any, t_ev
     n = 0
     if resolve_workers(workers, 10**6, 1) > 1:
         if candidates is None:
-            from ..physical.effects.candidates import candidates as all_candidates
+            from ..physical.effects.catalogue import candidates as all_candidates
 
             n = len(all_candidates(model, calibrate=False))
         else:
@@ -1425,7 +1425,7 @@ def _noise_test(drop: float, delta: np.ndarray, row_noise: np.ndarray | None) ->
     Under "the effect is absent" the fitted change ``delta`` of the weighted residual is noise
     projected on one direction: ``Delta J ~ v_delta chi2_1`` with ``v_delta = sum delta_i^2 v_i /
     sum delta_i^2`` the noise variance along it (``v_i`` from the noise model, with the window's
-    bin correlation; :mod:`robustctl.noise`).
+    bin correlation; :mod:`robustctl.measure.noise`).
     """
     if row_noise is None:
         return math.nan, math.nan

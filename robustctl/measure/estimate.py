@@ -13,11 +13,11 @@ from typing import Any
 
 import numpy as np
 
-from .checks import check_seed, flag, integer, match_channels, positive_number
-from .errors import DataError, ModelError
+from ..checks import check_seed, flag, integer, match_channels, positive_number
+from ..errors import DataError, ModelError
+from ..frd import FrequencyData
+from ..threads import limit_blas
 from .estimator import USER_WINDOW
-from .frd import FrequencyData
-from .threads import limit_blas
 
 __all__ = ["estimate_frf", "combine_experiments", "simulate_experiment", "advised_nperseg"]
 
@@ -541,7 +541,7 @@ def simulate_experiment(
     y : ndarray, shape (n_samples, n_out)
         The outputs, noise included.
     """
-    from .lti import as_statespace
+    from ..lti import as_statespace
 
     ss = as_statespace(sys)
     if ss.dt not in (0, None):

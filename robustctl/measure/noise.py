@@ -9,7 +9,7 @@ scatter. :func:`noise_model` gives that scatter:
   both ``sqrt(1 - g2) / (|g| sqrt(2 n_d))`` (Bendat & Piersol, *Random Data*, 4th ed.,
   sec. 9.2.3, Table 9.6), the standard deviation of ``Re ln H1`` (nepers) and of ``Im ln H1``
   (rad). ``n_d`` is the effective number of averages of the overlapped windows (Welch 1967;
-  :func:`robustctl.estimator.effective_averages`); with ``q`` simultaneous inputs and the
+  :func:`robustctl.measure.estimator.effective_averages`); with ``q`` simultaneous inputs and the
   partial coherence of each channel, ``n_d - q + 1`` (Bendat & Piersol, sec. 9.3.3).
 * **from the residual of a measurement model** (data without coherence): a robust local
   scale (1.4826 x the running median absolute value of ``Re e`` and ``Im e`` over 33 points)
@@ -19,7 +19,7 @@ scatter. :func:`noise_model` gives that scatter:
 Neighbouring frequency bins of a windowed estimate are correlated. The H1 error has two
 sources with different correlations: output noise (independent of the input), whose errors at
 bins ``m`` apart have the complex correlation ``r_m = |rho_m|^2`` of
-:func:`robustctl.estimator.bin_correlation` (``rho_m`` that of the window's DFT of white
+:func:`robustctl.measure.estimator.bin_correlation` (``rho_m`` that of the window's DFT of white
 noise; Hamming: ``r_1 = 0.39``), and the leakage of a lightly damped response (the output in
 a window not explained by that window's input: the decay of what came before and the
 response cut off at its end), a smooth function of frequency times ``conj(U)``, whose errors
@@ -41,11 +41,14 @@ from typing import Any
 
 import numpy as np
 
-from .checks import as_frequency_data, neighbour_coherence
-from .errors import DataError
+from ..checks import COHERENCE_CAP, neighbour_coherence
+from ..errors import DataError
+from ..frd import as_frequency_data
 from .estimator import bin_correlation, effective_averages, estimator_settings, welch_window
 
 __all__ = [
+    "coherence_weight_bias",
+    "point_weight_bias",
     "NoiseModel", "noise_model", "averages_of", "neighbour_coherence", "NO_NOISE_SENTENCE", "chi2_verdict",
     "format_p",
 ]
@@ -88,7 +91,7 @@ class NoiseModel:
     averages : ndarray (n_in,) or None
         Effective number of averages per input column (coherence-based models).
     dof_factor : float
-        ``1 + 2 sum_m r_m^2`` (``r_m``: :func:`robustctl.estimator.bin_correlation`), the
+        ``1 + 2 sum_m r_m^2`` (``r_m``: :func:`robustctl.measure.estimator.bin_correlation`), the
         Satterthwaite factor of output noise alone (1: independent points); the sandwich
         covariances of update and diagnose scale their rows' noise variance by it.
     chi2_factor : float or None
@@ -219,7 +222,7 @@ def _dof_factor(meta: dict) -> float:
 def _chi2_factor(meta: dict) -> float:
     """``1 + 2 sum_m r_m``: the Satterthwaite factor of sums of squares over contiguous bins
     whatever the mix of output noise and leakage (module notes; ``r_m`` the H1 error correlation
-    of output noise, :func:`robustctl.estimator.bin_correlation`, whose square root bounds that
+    of output noise, :func:`robustctl.measure.estimator.bin_correlation`, whose square root bounds that
     of leakage errors)."""
     st = estimator_settings(meta)
     if st is None:
@@ -264,8 +267,8 @@ def _running_scale(x: np.ndarray, half: int) -> np.ndarray:
 
 
 def _from_residual(data: Any, measurement_model: Any) -> NoiseModel:
-    from .checks import match_channels
-    from .lti import as_statespace, freqresp, log_ratio
+    from ..checks import match_channels
+    from ..lti import as_statespace, freqresp, log_ratio
 
     sys = as_statespace(measurement_model)
     out_idx = match_channels(sys.output_labels, data.outputs, "outputs")
@@ -353,3 +356,74 @@ def format_p(p: float) -> str:
     if p < 1e-3:
         return f"p = {p:.1e}"
     return f"p = {p:.2g}"
+
+
+def coherence_weight_bias(coherence: np.ndarray, n_averages: Any) -> np.ndarray:
+    """What coherence weights add to ``Re ln H1``: ``c = (1 - g2) / ((n_d - 2) g2)``, nepers.
+
+    With ``W = g2 / (1 - g2)`` (:func:`robustctl.checks.coherence_weights`) computed from each bin's own
+    estimate, a weighted least-squares fit of ``ln G_model`` to ``ln H1`` solves
+    ``sum W Re(conj(dE) e) = 0`` with ``e = ln(H1 / G)``, and ``W e`` has a non-zero mean at the
+    true model. Write ``H1 = G (1 + eps)``: given the input spectrum, ``eps`` is circular complex
+    Gaussian with ``E|eps|^2 = G_nn / (n_d |G|^2 G_uu)`` (averaged spectra), independent of the
+    residual spectrum ``G_nn_hat ~ G_nn chi2_{2(n_d-1)} / (2 n_d)``, and
+    ``W = |G|^2 |1 + eps|^2 G_uu / G_nn_hat``. Since ``ln(1 + eps)`` holds only powers
+    ``eps^k`` (``E[eps^k] = E[|eps|^2 eps^k] = 0``, ``E[conj(eps) eps^k] = delta_k1 E|eps|^2``),
+
+    ``E[|1 + eps|^2 ln(1 + eps)] = E|eps|^2``, so
+    ``E[W e] = |G|^2 G_uu E[1 / G_nn_hat] E|eps|^2 = 1 / (n_d - 2)``                  (1)
+
+    at every bin, whatever its coherence (``E[1 / chi2_nu] = 1 / (nu - 2)``); the imaginary part
+    (phase) is unbiased. Subtracting ``c = 1 / ((n_d - 2) W) = 2 s^2 n_d / (n_d - 2)`` from
+    ``Re e``, ``s^2 = (1 - g2) / (2 n_d g2)`` the B&P variance of each part of ``ln H1``
+    (:mod:`robustctl.measure.noise`), makes ``sum W (e - c)`` unbiased: ``W c = 1 / (n_d - 2)`` exactly.
+    To leading order ``c`` equals the weighted mean ``E[W e] / E[W] = 2 s^2 / (1 + 2 s^2)`` of a
+    bin's log error, but that formula evaluated on the own coherence leaves 5-40 % of the bias
+    at ``g2 <= 0.6`` (Monte Carlo, ``tests/test_cohbias.py``), eq. (1) none.
+
+    ``g2`` is clipped as for the weights (at :data:`robustctl.checks.COHERENCE_CAP`) and, below, where ``s``
+    exceeds :data:`robustctl.measure.noise.SIGMA_TESTABLE` (0.5): there ``|eps|`` often exceeds 1, the
+    series behind eq. (1) diverges and the point is noise (``W`` is small; ``c`` stays
+    bounded, at most ``0.5 n_d / (n_d - 2)``). ``n_d <= 3`` (no finite ``E[1 / G_nn_hat]``)
+    uses ``n_d - 2 = 1``.
+
+    Parameters
+    ----------
+    coherence : ndarray (nf, n_out, n_in)
+        Ordinary (or multiple) coherence, dimensionless.
+    n_averages : float or ndarray (n_in,)
+        Effective number of averages per input column (:func:`robustctl.measure.noise.averages_of`).
+
+    Returns
+    -------
+    ndarray, shape of ``coherence``
+        ``c >= 0`` (nepers), to subtract from ``Re ln(G_data / G_model)``.
+    """
+    g2 = np.asarray(coherence, dtype=float)
+    nd = np.asarray(n_averages, dtype=float)
+    nd = nd.reshape((1,) * (g2.ndim - 1) + (-1,)) if nd.ndim else nd
+    floor = 1.0 / (1.0 + 2.0 * nd * SIGMA_TESTABLE**2)  # g2 where s = SIGMA_TESTABLE
+    g2 = np.clip(g2, floor, COHERENCE_CAP)
+    return (1.0 - g2) / (np.maximum(nd - 2.0, 1.0) * g2)
+
+
+def point_weight_bias(
+    spec: Any, data: Any, mask: np.ndarray | None = None, n_averages: Any = None
+) -> np.ndarray | None:
+    """The offset :func:`coherence_weight_bias` of ``Re ln(G_data / G_model)`` that point weights
+    ``spec`` (as in :func:`robustctl.checks.point_weights`) see, on the banded points; None when
+    there is none.
+
+    It applies only where the weights are the data's own coherence weights (``"auto"`` on data
+    with coherence, or ``"coherence"``) and the number of averages is known (``n_averages``,
+    else the data's ``meta``: :func:`averages_of`). Uniform weights and arrays
+    of weights (whatever they were made from) are taken as they are: None.
+    """
+    if not isinstance(spec, str) or spec not in ("auto", "coherence") or data.coherence is None:
+        return None
+    if n_averages is None:
+        n_averages = averages_of(data)
+        if n_averages is None:
+            return None
+    mask = np.ones(data.n_freq, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
+    return coherence_weight_bias(data.coherence[mask], n_averages)

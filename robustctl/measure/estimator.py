@@ -26,8 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from .errors import DataError
-from .threads import limit_blas
+from ..errors import DataError
+from ..threads import limit_blas
 
 __all__ = [
     "EstimatorSettings",
@@ -345,7 +345,7 @@ def expected_h1(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np.ndarray:
     -------
     ndarray, complex, shape (K, n_out, n_in)
     """
-    from .lti import as_statespace
+    from ..lti import as_statespace
 
     ss = as_statespace(sys)
     modal = _modal(ss)
@@ -425,7 +425,7 @@ def model_view(bare: Any, has_hold: bool, f_hz: Any, settings: EstimatorSettings
     if hasattr(bare, "param_names") and hasattr(bare, "statespace"):
         sys = bare.statespace(**overrides)
     else:
-        from .lti import as_statespace
+        from ..lti import as_statespace
 
         sys = as_statespace(bare)
     return estimator_view(sys, f_hz, settings, hold=has_hold and not settings.hold_divided)

@@ -359,10 +359,10 @@ def _calibrate(
     Rayleigh quotient, e.g. Geradin & Rixen, *Mechanical Vibrations*, sec. 2.9).
 
     ``deadline`` (a :class:`~robustctl.budget.Deadline`) is checked before each candidate.
-    ``executor`` calibrates the candidates in parallel (:func:`robustctl.parallel.parallel_map_shared`;
+    ``executor`` calibrates the candidates in parallel (:func:`robustctl.executors.parallel_map_shared`;
     each is calibrated alone, so the steps equal the serial ones). ``modes`` is
     ``_modes(model, band)`` when the caller has it."""
-    from ...parallel import parallel_map_shared
+    from ...executors import parallel_map_shared
 
     omega, phi, (_, _, mats0), _ = _modes(model, band) if modes is None else modes  # with the preload
     if omega.size == 0:

@@ -15,10 +15,10 @@ The complex log error ``e = log(G_data / G_model)`` (MACE eq. 5) is broken down
   actuator-side (columns ``b``) and structural (the non-separable rest ``r``, and a common
   part ``mu`` that is not a pure gain or delay) errors apart;
 * against the noise: per channel and frequency section, a chi-square test of the residual
-  normalised by the data's noise model (:mod:`robustctl.noise`,
+  normalised by the data's noise model (:mod:`robustctl.measure.noise`,
   :mod:`robustctl.correlate.verdict`) says whether the misfit is within the noise; only what
   is not is flagged as failing. Data that carry their H1 estimator settings are compared with
-  the model as the estimator sees it (window leakage, :mod:`robustctl.estimator`).
+  the model as the estimator sees it (window leakage, :mod:`robustctl.measure.estimator`).
 """
 
 from __future__ import annotations
@@ -35,8 +35,8 @@ from ..checks import UNSET, integer, match_channels, positive_number, renamed_ke
 from ..cost import LogCost, cost_report
 from ..frd import FrequencyData
 from ..lti import DB_PER_NEPER, as_statespace, pole_frequency_damping
-from ..modes import Mode
-from ..noise import NoiseModel, noise_model
+from ..measure.noise import NoiseModel, noise_model
+from ..modes import Mode, mac, pair_modes
 from ..table import Table, result_html
 from .residual import NEGLIGIBLE_DB, Residual, as_model, log_ratio
 from .verdict import ALPHA, NoiseTest, no_noise_sentence, noise_test
@@ -55,18 +55,6 @@ __all__ = [
 ]
 
 # ---------------------------------------------------------------------------- modes
-
-
-def mac(a: np.ndarray | None, b: np.ndarray | None) -> float:
-    """Complex modal assurance criterion in [0, 1]; NaN when a shape is missing."""
-    if a is None or b is None:
-        return float("nan")
-    a = np.asarray(a, dtype=complex).ravel()
-    b = np.asarray(b, dtype=complex).ravel()
-    den = np.vdot(a, a).real * np.vdot(b, b).real
-    if den <= 0:
-        return float("nan")
-    return float(abs(np.vdot(a, b)) ** 2 / den)
 
 
 def statespace_modes(
@@ -183,54 +171,6 @@ def peak_pick_modes(
         zeta = _half_power(f, s, k, bounds[j], bounds[j + 1])
         modes.append(Mode(float(fk), float(zeta), residue=g[k].copy()))
     return modes
-
-
-def pair_modes(
-    model: list[Mode], measured: list[Mode], tol: float = 0.2, *, max_ratio: float = 4.0, min_mac: float = 0.8
-) -> list[tuple[int | None, int | None]]:
-    """Pair model and measured modes (Hungarian assignment on frequency distance and MAC).
-
-    Cost of a pair within ``tol`` (relative frequency distance): ``10 |ln(f_model / f_data)|
-    + (1 - MAC)``. A pair further apart -- a mode moved by a large model error, up to a
-    factor ``max_ratio`` -- is allowed when its shapes agree (``MAC >= min_mac``, MAC-first
-    pairing as in FE model updating practice, e.g. Friswell & Mottershead, *Finite Element
-    Model Updating in Structural Dynamics*, sec. 4.2), at a cost above every within-``tol``
-    pair: ``10 ln(1 + tol) + (1 - MAC) + |ln(f_model / f_data)|``. Returns
-    ``(i_model, i_measured)`` index pairs sorted by frequency, with ``None`` on the side of
-    an unpaired mode.
-    """
-    nm, nd = len(model), len(measured)
-    pairs: list[tuple[int | None, int | None]] = []
-    used_m, used_d = set(), set()
-    if nm and nd:
-        big = 1e6
-        cost = np.full((nm, nd), big)
-        near, far = np.log1p(tol), np.log(max(float(max_ratio), 1.0 + tol))
-        for i, a in enumerate(model):
-            for j, b in enumerate(measured):
-                rel = abs(np.log(a.f_hz / b.f_hz))
-                if rel > far:
-                    continue
-                m = mac(a.shape, b.shape)
-                m = 0.0 if np.isnan(m) else m
-                if rel <= near:
-                    cost[i, j] = 10 * rel + (1 - m)
-                elif m >= min_mac:
-                    cost[i, j] = 10 * near + (1 - m) + rel
-        rows, cols = scipy.optimize.linear_sum_assignment(cost)
-        for i, j in zip(rows, cols):
-            if cost[i, j] < big:
-                pairs.append((int(i), int(j)))
-                used_m.add(int(i))
-                used_d.add(int(j))
-    pairs += [(i, None) for i in range(nm) if i not in used_m]
-    pairs += [(None, j) for j in range(nd) if j not in used_d]
-
-    def key(p):
-        i, j = p
-        return model[i].f_hz if i is not None else measured[j].f_hz
-
-    return sorted(pairs, key=key)
 
 
 # ---------------------------------------------------------------------------- structure
@@ -785,7 +725,7 @@ def compare(
         cost, the bands and the structure split; they stay in the dB/phase maps.
     estimator : "auto", True, False or EstimatorSettings
         Compare the model "as the H1 estimator sees it" (window leakage,
-        :func:`robustctl.estimator.estimator_view`) when the data carry their estimator
+        :func:`robustctl.measure.estimator.estimator_view`) when the data carry their estimator
         settings (``"auto"``); stated in the summary.
     noise : "auto", NoiseModel or None
         The data's noise model. ``"auto"``: :func:`robustctl.noise_model` (coherence and
@@ -814,7 +754,7 @@ def compare(
     alpha = positive_number(alpha, "alpha")
     n_sections = integer(n_sections, "n_sections", lo=1)
     if isinstance(noise, str) and noise == "auto":
-        from ..checks import as_frequency_data
+        from ..frd import as_frequency_data
 
         noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
     res = Residual(model, data, band=band, point_weights=point_weights, min_channel_db=min_channel_db,

@@ -26,9 +26,9 @@ from typing import Any
 
 import numpy as np
 
-from .checks import positive_number
-from .errors import DataError
-from .frd import FrequencyData
+from ..checks import positive_number
+from ..errors import DataError
+from ..frd import FrequencyData
 
 __all__ = ["estimate_frf_impact", "ImpactWarning"]
 

@@ -1,0 +1,203 @@
+"""The package's layout: floors that only look down, no import circles, submodules that are modules.
+
+The import graph is read from the source with :mod:`ast`, so imports inside functions count
+as much as those at the top of a module (a function-level import that dodges a circle is
+still a circle). Relative imports are resolved against the importing module's package.
+"""
+
+from __future__ import annotations
+
+import ast
+import importlib
+import pkgutil
+import types
+from pathlib import Path
+
+import pytest
+
+import robustctl
+
+PACKAGE = "robustctl"
+ROOT = Path(robustctl.__file__).resolve().parent
+
+#: The floors, lowest first. A module may import from its own floor (without a circle) and
+#: the floors below it, never from a floor above. Entries name a module or a package (a package
+#: entry covers every module below it). The same table is in the module docstring of
+#: robustctl/__init__.py.
+FLOORS: tuple[tuple[str, ...], ...] = (
+    ("errors", "_version", "threads", "table", "executors"),  # the base: no robustctl imports but errors
+    ("checks", "budget"),  # argument checks: imports only errors; the time-budget policy (Deadline)
+    ("frd", "frd_io", "plots"),  # FrequencyData, its files, the plotting primitives
+    ("lti", "signals", "modes", "balanced"),  # systems, fast responses; named signals; Mode; reduction
+    ("measure", "cost"),  # how data are made (H1, impact, estimator view, noise); the MACE eq. 5 cost
+    ("physical",),
+    ("interconnect",),
+    ("correlate",),
+    ("identify",),
+    ("robust",),
+    ("export",),
+    # the surface: figures, report, embedded examples, demo, command line, the flat public API ("")
+    ("figures", "report", "examples", "demo", "demo_design", "demo_mace", "cli", "cli_inputs", "__main__",
+     ""),
+)
+
+#: Modules of the lowest floors that may import only the listed modules of robustctl.
+ONLY_IMPORTS = {"checks": {"errors"}, "errors": set(), "budget": {"errors", "checks"}}
+
+
+def _modules() -> dict[str, tuple[Path, bool]]:
+    found = {}
+    for path in sorted(ROOT.rglob("*.py")):
+        parts = list(path.relative_to(ROOT).with_suffix("").parts)
+        is_package = parts[-1] == "__init__"
+        if is_package:
+            parts = parts[:-1]
+        found[".".join([PACKAGE, *parts])] = (path, is_package)
+    return found
+
+
+def _targets(module: str, is_package: bool, node: ast.AST, modules) -> list[str]:
+    if isinstance(node, ast.Import):
+        return [alias.name for alias in node.names if alias.name.split(".")[0] == PACKAGE]
+    assert isinstance(node, ast.ImportFrom)
+    if node.level:
+        base = module.split(".") if is_package else module.split(".")[:-1]
+        base = base[: len(base) - (node.level - 1)]
+        target = ".".join(base + ([node.module] if node.module else []))
+    else:
+        target = node.module or ""
+    if target.split(".")[0] != PACKAGE:
+        return []
+    # ``from pkg import sub`` imports the submodule ``pkg.sub``; ``from pkg import name`` the package
+    return [f"{target}.{a.name}" if f"{target}.{a.name}" in modules else target for a in node.names]
+
+
+def import_graph() -> dict[str, set[str]]:
+    """Edges ``module -> imported module`` of robustctl, function-level imports included."""
+    modules = _modules()
+    graph: dict[str, set[str]] = {name: set() for name in modules}
+    for name, (path, is_package) in modules.items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
+            if isinstance(node, (ast.Import, ast.ImportFrom)):
+                graph[name].update(t for t in _targets(name, is_package, node, modules) if t != name)
+    return graph
+
+
+def floor_of(module: str) -> int:
+    """The floor of a module: the longest matching entry of :data:`FLOORS`."""
+    rel = module[len(PACKAGE) + 1 :] if module != PACKAGE else ""
+    best, best_len = None, -1
+    for level, entries in enumerate(FLOORS):
+        for entry in entries:
+            matches = rel == entry or (entry and rel.startswith(entry + "."))
+            if matches and len(entry) > best_len:
+                best, best_len = level, len(entry)
+    if best is None:
+        raise AssertionError(f"{module} has no floor: add it to FLOORS in tests/test_architecture.py")
+    return best
+
+
+def upward_edges(graph) -> list[str]:
+    return sorted(
+        f"{a} (floor {floor_of(a)}) -> {b} (floor {floor_of(b)})"
+        for a, targets in graph.items()
+        for b in targets
+        if floor_of(b) > floor_of(a)
+    )
+
+
+def import_cycles(graph) -> list[list[str]]:
+    """Strongly connected components of more than one module (Tarjan's algorithm)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    components: list[list[str]] = []
+    counter = [0]
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in graph:
+                continue
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                components.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return components
+
+
+def test_every_module_has_a_floor():
+    for module in _modules():
+        floor_of(module)
+
+
+def test_no_import_points_to_a_higher_floor():
+    edges = upward_edges(import_graph())
+    assert not edges, "imports that look up the pipeline:\n" + "\n".join(edges)
+
+
+def test_no_import_cycles():
+    graph = import_graph()
+    report = []
+    for component in import_cycles(graph):
+        inside = set(component)
+        report.append("; ".join(f"{a} -> {b}" for a in component for b in sorted(graph[a] & inside)))
+    assert not report, "import circles (edges inside each):\n" + "\n".join(report)
+
+
+@pytest.mark.parametrize("module, allowed", sorted(ONLY_IMPORTS.items()))
+def test_base_modules_import_only_the_base(module, allowed):
+    name = f"{PACKAGE}.{module}"
+    imported = {t[len(PACKAGE) + 1 :] for t in import_graph()[name]}
+    assert imported <= allowed, f"{name} imports {sorted(imported - allowed)}; it may import only {allowed}"
+
+
+def test_the_graph_sees_function_level_and_relative_imports():
+    graph = import_graph()
+    # function-level, relative, two dots: robustctl.measure.estimator imports lti inside functions
+    assert f"{PACKAGE}.errors" in graph[f"{PACKAGE}.checks"]
+    assert f"{PACKAGE}.measure.estimator" in graph[f"{PACKAGE}.measure.estimate"]
+    assert f"{PACKAGE}.lti" in graph[f"{PACKAGE}.measure.estimate"]
+    toy = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}
+    assert import_cycles(toy) == [["a", "b", "c"]]
+    assert import_cycles({"a": {"b"}, "b": set()}) == []
+
+
+def _public_submodules():
+    names = []
+    for info in pkgutil.walk_packages(robustctl.__path__, PACKAGE + "."):
+        if info.name.endswith("__main__"):  # running it is the command line
+            continue
+        names.append(info.name)
+    return names
+
+
+@pytest.mark.parametrize("name", _public_submodules())
+def test_submodule_is_reachable_as_a_module(name):
+    module = importlib.import_module(name)
+    assert isinstance(module, types.ModuleType)
+    parent_name, last = name.rsplit(".", 1)
+    attribute = getattr(importlib.import_module(parent_name), last)
+    assert attribute is module, (
+        f"{parent_name}.{last} is {type(attribute).__name__} {attribute!r}, not the module {name}: "
+        "a name exported by the package hides the submodule; rename the module."
+    )
