@@ -8,6 +8,7 @@ results must depend on the inputs alone.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import sys
@@ -33,6 +34,7 @@ def _ss(sys_) -> tuple:
     return tuple(np.asarray(m, dtype=float) for m in (s.A, s.B, s.C, s.D))
 
 
+@functools.cache
 def _truss():
     from robustctl.examples import caltech_truss, caltech_truss_experiment
 
@@ -40,14 +42,20 @@ def _truss():
     return data, caltech_truss()
 
 
-def measurement_models() -> dict:
-    """The demo's six-mode yardstick model, without and with the leakage correction."""
+@functools.cache
+def _measurement_model(leak: bool):
     from robustctl.identify import fit_measurement_model
 
     data, _ = _truss()
+    return fit_measurement_model(data, n_modes=6, band=(0.5, 5.5), correct_leakage=leak, time_budget_s=None)
+
+
+def measurement_models() -> dict:
+    """The demo's six-mode yardstick model, without and with the leakage correction."""
+    data, _ = _truss()
     out = {}
     for leak in (False, True):
-        mm = fit_measurement_model(data, n_modes=6, band=(0.5, 5.5), correct_leakage=leak, time_budget_s=None)
+        mm = _measurement_model(leak)
         out[f"measurement_model_leakage_{leak}"] = _digest(*_ss(mm), mm.freqresp(data.f_hz[:400]).response)
     return out
 
@@ -80,11 +88,10 @@ def dk_distillation() -> dict:
 def small_yardstick() -> dict:
     """The demo's yardstick recipe on two models (nominal and measurement model), two D-K iterations."""
     from robustctl.examples import caltech_design_plant
-    from robustctl.identify import fit_measurement_model
     from robustctl.robust.yardsticks import yardstick
 
     data, model = _truss()
-    mm = fit_measurement_model(data, n_modes=6, band=(0.5, 5.5), time_budget_s=None)
+    mm = _measurement_model(False)
     yard = yardstick(data, {"nominal": model, "measurement": mm}, caltech_design_plant, band=(0.5, 5.5),
                      max_iter=2, progress=False)
     labels = yard.labels
