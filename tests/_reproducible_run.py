@@ -1,9 +1,10 @@
 """A representative set of robustctl results, hashed: ``python tests/_reproducible_run.py [names]``.
 
 Prints one JSON object ``{case: sha256 of the case's arrays}`` (and, with ``--times``, the
-seconds each case took on stderr). ``test_reproducible.py`` runs it in fresh processes, one of
-them beside a CPU load, and compares the hashes bit for bit. No case passes a time budget: the
-results must depend on the inputs alone.
+seconds each case took on stderr); ``--workers=N`` runs diagnose in N worker processes.
+``test_reproducible.py`` runs it in fresh processes, one of them beside a CPU load, and
+compares the hashes bit for bit. No case passes a time budget: the results must depend on the
+inputs alone.
 """
 
 from __future__ import annotations
@@ -60,15 +61,15 @@ def measurement_models() -> dict:
     return out
 
 
-def diagnosis() -> dict:
-    """diagnose on the Caltech truss (the hidden taut wires) over stiffness and tension candidates
-    (enough of them for worker processes under ``workers="auto"``)."""
+def diagnosis(workers: int = 1) -> dict:
+    """diagnose on the Caltech truss (the hidden taut wires) over stiffness and tension candidates,
+    serially (``workers=1``) or in worker processes."""
     from robustctl.correlate import diagnose
     from robustctl.physical import effects
 
     data, model = _truss()
     cands = effects.candidates(model, band=(0.5, 20), kinds=["group_stiffness", "group_tension"])
-    diag = diagnose(model, data, cands, band=(0.5, 20))
+    diag = diagnose(model, data, cands, band=(0.5, 20), workers=workers)
     costs = [(r.cost if np.isfinite(r.cost) else -1.0) for r in diag.ranking]
     names = "|".join(r.effect.name for r in diag.ranking).encode()
     return {"diagnose_truss": _digest(np.frombuffer(names, np.uint8), costs, diag.residual_update,
@@ -104,13 +105,14 @@ CASES = {f.__name__: f for f in (measurement_models, diagnosis, dk_distillation,
 
 def main(argv: list[str]) -> None:
     times = "--times" in argv
+    workers = int(next((a.split("=")[1] for a in argv if a.startswith("--workers=")), 1))
     names = [a for a in argv if not a.startswith("--")] or list(CASES)
     out = {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         for name in names:
             t0 = time.perf_counter()
-            out.update(CASES[name]())
+            out.update(CASES[name](workers) if name == "diagnosis" else CASES[name]())
             if times:
                 print(f"{name}: {time.perf_counter() - t0:.1f} s", file=sys.stderr)
     print(json.dumps(out, sort_keys=True))
