@@ -10,6 +10,8 @@ CONSTRAINTS := constraints/test.txt
 LATEST := .venv-latest
 PINS_VENV := .venv-pins
 PYTEST_ARGS := -n 2 --dist loadfile -q --durations=15 tests --nbmake notebooks
+# pyNastran pins numpy<2: installed without its dependencies (see pyproject's nastran extra)
+NASTRAN := "pyNastran>=1.4,<1.5"
 
 .PHONY: demo test test-latest pins lint bench clean
 
@@ -24,6 +26,7 @@ $(CORE_STAMP): pyproject.toml $(CONSTRAINTS) | $(VENV)/bin/python
 
 $(STAMP): pyproject.toml $(CONSTRAINTS) | $(VENV)/bin/python
 	$(PY) -m pip install --quiet -c $(CONSTRAINTS) -e ".[dev]"
+	$(PY) -m pip install --quiet --no-deps -c $(CONSTRAINTS) $(NASTRAN)
 	touch $(STAMP) $(CORE_STAMP)
 
 demo: $(CORE_STAMP)
@@ -36,6 +39,7 @@ test: $(STAMP)
 test-latest:
 	test -x $(LATEST)/bin/python || $(PYTHON) -m venv $(LATEST)
 	$(LATEST)/bin/python -m pip install --quiet --upgrade --upgrade-strategy eager -e ".[dev]"
+	$(LATEST)/bin/python -m pip install --quiet --upgrade --no-deps $(NASTRAN)
 	$(LATEST)/bin/python -m pip freeze --exclude-editable
 	$(LATEST)/bin/python -m pytest $(PYTEST_ARGS)
 
@@ -45,6 +49,7 @@ pins:
 	rm -rf $(PINS_VENV)
 	$(PYTHON) -m venv $(PINS_VENV)
 	$(PINS_VENV)/bin/python -m pip install --quiet -e ".[dev]"
+	$(PINS_VENV)/bin/python -m pip install --quiet --no-deps $(NASTRAN)
 	$(PINS_VENV)/bin/python -c 'import platform, sys, datetime; \
 	print("# Exact releases `make test` installs (pip install -c). Refresh: make pins"); \
 	print("# Resolved", datetime.date.today(), "on Python", platform.python_version(), sys.platform)' > $(CONSTRAINTS).new

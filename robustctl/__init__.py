@@ -51,9 +51,22 @@ from .correlate import (
 from .cost import LogCost, log_cost, log_error
 from .errors import DataError, FitError, ModelError, RobustctlError, RobustctlWarning, SynthesisError
 from .export import ExportReport, discretize, export_controller, load_controller
-from .figures import fit_percent, mac_matrix, plot_compare, plot_mac, plot_mode_shapes, plot_singular_values
+from .figures import (
+    ModeAnimation,
+    animate_mode_shape,
+    fit_percent,
+    mac_matrix,
+    plot_compare,
+    plot_mac,
+    plot_mode_shapes,
+    plot_singular_values,
+)
 from .frd import FrequencyData
 from .frd_io import load_frd
+
+# the user's FE model and test geometry: Nastran files, UFF geometry and mode shapes
+from .frd_io.geometry import Geometry, ModeShapes
+from .frd_io.uff_geometry import load_uff_geometry, load_uff_modes, write_uff_geometry
 from .identify import (
     MeasurementModel,
     StabilisationDiagram,
@@ -88,6 +101,23 @@ from .physical import (
     modal_model,
     modal_statespace,
     structural_model,
+)
+from .physical.ansys_import import (
+    load_ansys_geometry,
+    load_ansys_matrices,
+    load_ansys_modes,
+    read_ansys_matrices,
+    read_ansys_modes,
+)
+from .physical.fe_model import fe_modal_model, fe_structural_model
+from .physical.nastran_import import (
+    load_bdf_geometry,
+    load_nastran_matrices,
+    load_nastran_modes,
+    read_nastran_matrices,
+    read_nastran_modes,
+    write_nastran_matrices,
+    write_nastran_modes,
 )
 
 # robust design: weights
@@ -179,6 +209,28 @@ __all__ = [
     "modal_model",
     "modal_statespace",
     "MatrixStructure",
+    # the user's FE model and test geometry (Nastran, UFF)
+    "Geometry",
+    "ModeShapes",
+    "load_uff_geometry",
+    "load_uff_modes",
+    "write_uff_geometry",
+    "fe_modal_model",
+    "fe_structural_model",
+    "animate_mode_shape",
+    "ModeAnimation",
+    "load_ansys_geometry",
+    "load_ansys_matrices",
+    "load_ansys_modes",
+    "read_ansys_matrices",
+    "read_ansys_modes",
+    "load_bdf_geometry",
+    "load_nastran_matrices",
+    "load_nastran_modes",
+    "read_nastran_matrices",
+    "read_nastran_modes",
+    "write_nastran_matrices",
+    "write_nastran_modes",
     # named interconnection (interconnect.py, signals.py) and the generalized plant (robust/plant.py)
     "PartitionedPlant",
     "lft",

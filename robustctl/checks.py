@@ -47,6 +47,7 @@ __all__ = [
     "point_weights",
     "match_channels",
     "is_default_names",
+    "is_real_number",
     "finite_number",
     "positive_number",
     "integer",
@@ -74,7 +75,8 @@ NEIGHBOUR_HALF = 2
 
 
 # ---------------------------------------------------------------------------- numbers
-def _is_real_number(value: Any) -> bool:
+def is_real_number(value: Any) -> bool:
+    """True for a real number (Python or numpy int/float), False for bools, strings and arrays."""
     return isinstance(value, (numbers.Real, np.floating, np.integer)) and not isinstance(
         value, (bool, np.bool_)
     )
@@ -82,7 +84,7 @@ def _is_real_number(value: Any) -> bool:
 
 def finite_number(value: Any, name: str, error: type[RobustctlError] = DataError) -> float:
     """``value`` as a float; refuses non-numbers, booleans, NaN and inf."""
-    if not _is_real_number(value) or not np.isfinite(float(value)):
+    if not is_real_number(value) or not np.isfinite(float(value)):
         raise error(f"{name} must be a finite real number; got {value!r}.")
     return float(value)
 
@@ -98,7 +100,7 @@ def positive_number(
     """``value`` as a float ``> 0`` (``>= 0`` with ``allow_zero``), finite."""
     what = "non-negative" if allow_zero else "positive"
     unit = f" ({unit})" if unit else ""
-    if not _is_real_number(value) or not np.isfinite(float(value)):
+    if not is_real_number(value) or not np.isfinite(float(value)):
         raise error(f"{name} must be {what} and finite{unit}; got {value!r}.")
     v = float(value)
     if v < 0 or (v == 0 and not allow_zero):
@@ -113,8 +115,13 @@ def integer(
     *,
     lo: int | None = None,
     hi: int | None = None,
+    alternative: str = "",
 ) -> int:
-    """``value`` as an int in ``[lo, hi]`` (either end open when None); refuses bools and floats."""
+    """``value`` as an int in ``[lo, hi]`` (either end open when None); refuses bools and floats.
+
+    ``alternative`` names what else the argument accepts (e.g. ``"None for automatic"``); the
+    error then says ``(or ...)`` after the range.
+    """
     ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
     if ok and (lo is None or value >= lo) and (hi is None or value <= hi):
         return int(value)
@@ -126,7 +133,8 @@ def integer(
         rng = f"<= {hi}"
     else:
         rng = "(any)"
-    raise error(f"{name} must be an integer {rng}; got {value!r}.")
+    alt = f" (or {alternative})" if alternative else ""
+    raise error(f"{name} must be an integer {rng}{alt}; got {value!r}.")
 
 
 def flag(value: Any, name: str, error: type[RobustctlError] = DataError) -> bool:
@@ -146,7 +154,7 @@ def choice(value: Any, name: str, options: tuple[str, ...], error: type[Robustct
 
 def probability(value: Any, name: str, error: type[RobustctlError] = DataError) -> float:
     """A finite number in [0, 1]."""
-    if not _is_real_number(value) or not 0.0 <= float(value) <= 1.0:
+    if not is_real_number(value) or not 0.0 <= float(value) <= 1.0:
         raise error(f"{name} must be a number in [0, 1]; got {value!r}.")
     return float(value)
 
@@ -247,7 +255,7 @@ def check_band(band: Any, name: str = "band") -> tuple[float, float] | None:
         items = list(band)
     except TypeError:
         items = []
-    if isinstance(band, (str, bytes)) or len(items) != 2 or not all(_is_real_number(b) for b in items):
+    if isinstance(band, (str, bytes)) or len(items) != 2 or not all(is_real_number(b) for b in items):
         raise DataError(
             f"{name} must be a pair (f_lo_hz, f_hi_hz) of finite frequencies in Hz; got {band!r}."
         )

@@ -43,6 +43,9 @@ __all__ = [
     "DB_PER_NEPER",
     "pole_frequency_damping",
     "zpk_statespace",
+    "is_stable",
+    "zoh",
+    "spectral_abscissa",
 ]
 
 #: dB per neper, ``20 / ln 10``: the real part of :func:`log_ratio` (nepers) times this is
@@ -572,6 +575,84 @@ def _align(data: FrequencyData, model: FrequencyData) -> FrequencyData:
     in_idx = match_channels(model.inputs, data.inputs, "inputs")
     g = model.response[:, out_idx][:, :, in_idx]
     return model.replace(response=g, outputs=data.outputs, inputs=data.inputs, coherence=None)
+
+
+# ---------------------------------------------------------------------------- sampling
+def zoh(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact zero-order-hold discretisation of ``x' = A x + B u`` with sample time ``dt``.
+
+    ``expm([[A, B], [0, 0]] dt) = [[Ad, Bd], [0, I]]`` (Franklin, Powell & Workman, *Digital
+    Control of Dynamic Systems*, 3rd ed., sec. 4.3.3; Van Loan 1978): ``x[k+1] = Ad x[k] + Bd u[k]``
+    for an input held constant over each sample. The one ZOH of robustctl (simulated
+    experiments, the estimator's sampled impulse response, controller export).
+
+    Parameters
+    ----------
+    A : ndarray (n, n)
+        State matrix, rad/s.
+    B : ndarray (n, m)
+        Input matrix.
+    dt : float
+        Sample time, s.
+
+    Returns
+    -------
+    Ad : ndarray (n, n)
+    Bd : ndarray (n, m)
+    """
+    from scipy.linalg import expm
+
+    n, m = B.shape
+    M = np.zeros((n + m, n + m))
+    M[:n, :n] = A * dt
+    M[:n, n:] = B * dt
+    E = expm(M)
+    return E[:n, :n], E[:n, n:]
+
+
+# ---------------------------------------------------------------------------- stability
+def spectral_abscissa(sys: Any) -> float:
+    """The largest real part of the poles of a continuous system, rad/s; ``-inf`` without states.
+
+    Parameters
+    ----------
+    sys : system with an ``A`` matrix, or a square array_like ``A``
+        A continuous-time state space (``control.StateSpace`` or anything with ``A``) or its
+        state matrix. Not coerced: inner code passes what it built.
+
+    Returns
+    -------
+    float
+        ``max Re eig(A)``; NaN when ``A`` holds NaN or inf (no eigenvalues to speak of).
+    """
+    A = np.asarray(getattr(sys, "A", sys))
+    if A.size == 0:
+        return -np.inf
+    if not np.all(np.isfinite(A)):
+        return np.nan
+    return float(np.max(np.linalg.eigvals(A).real))
+
+
+def is_stable(sys: Any, margin: float = 0.0) -> bool:
+    """True when every pole of the continuous system lies left of ``Re s = -margin``.
+
+    The one stability test of robustctl: ``max Re eig(A) < -margin`` (strict), a system
+    without states is stable. Each caller passes its tolerance explicitly.
+
+    Parameters
+    ----------
+    sys : system with an ``A`` matrix, or a square array_like ``A``
+        See :func:`spectral_abscissa`.
+    margin : float
+        Required distance of the poles from the imaginary axis, rad/s (0: open left half
+        plane). A negative margin accepts poles up to ``-margin`` right of the axis.
+
+    Returns
+    -------
+    bool
+        False also when ``A`` holds NaN or inf.
+    """
+    return bool(spectral_abscissa(sys) < -margin)
 
 
 # ---------------------------------------------------------------------------- construction

@@ -21,6 +21,7 @@ __all__ = [
     "bode_grid",
     "channel_label",
     "colorbar",
+    "annotated_matrix",
     "grid_columns",
     "log_frequency_axis",
     "magnitude_label",
@@ -244,3 +245,50 @@ def colorbar(fig: Any, mappable: Any, ax: Any, label: str) -> Any:
     bar.set_label(label, fontsize=8)
     bar.ax.tick_params(labelsize=7)
     return bar
+
+
+def annotated_matrix(
+    ax: Any,
+    values: np.ndarray,
+    row_labels: Sequence[str],
+    col_labels: Sequence[str],
+    *,
+    fmt: str = ".2f",
+    max_cells: int = 400,
+    dark_below: float = 0.6,
+) -> Any:
+    """A matrix of values in [0, 1] as a coloured grid (viridis), each cell's value written in.
+
+    The one heat map of robustctl (MAC matrices, the orthogonality of update parameters).
+
+    Parameters
+    ----------
+    ax : matplotlib Axes
+        Where to draw.
+    values : ndarray (n, m)
+        The matrix; the colour scale is fixed to [0, 1].
+    row_labels, col_labels : sequence of str
+        Tick labels of the ``n`` rows and ``m`` columns (columns rotated 60 degrees).
+    fmt : str
+        Format of the written values (e.g. ``".2f"``).
+    max_cells : int
+        Write the values only when ``n m <= max_cells`` (larger grids stay legible uncluttered).
+    dark_below : float
+        Values below it are written in white (on the dark end of the map), the others in black.
+
+    Returns
+    -------
+    matplotlib.image.AxesImage
+        The image, for :func:`colorbar`.
+    """
+    values = np.asarray(values)
+    n, m = values.shape
+    im = ax.imshow(values, vmin=0.0, vmax=1.0, cmap="viridis")
+    ax.set_xticks(range(m), col_labels, rotation=60, ha="right", fontsize=7)
+    ax.set_yticks(range(n), row_labels, fontsize=7)
+    if n * m <= max_cells:
+        for i in range(n):
+            for k in range(m):
+                ax.text(k, i, format(values[i, k], fmt), ha="center", va="center", fontsize=6,
+                        color="w" if values[i, k] < dark_below else "k")
+    return im

@@ -1,4 +1,4 @@
-"""Session totals of the issue-14 property suites, summed over pytest-xdist workers.
+"""Session totals of the bad-input property suites, summed over pytest-xdist workers.
 
 A property test records ``record_property("reliability_outcomes", {outcome: count})``; the
 reports of every worker reach the controlling process, which prints the totals per module at

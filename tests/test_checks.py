@@ -1,4 +1,4 @@
-"""The shared ground (issue 8): one band rule, one meaning of point weights, one channel-name
+"""The shared ground: one band rule, one meaning of point weights, one channel-name
 policy, one system coercion, one cost, one result convention -- the same at every entry point."""
 
 from __future__ import annotations
@@ -325,3 +325,36 @@ def test_a_shared_structure_is_refused_not_counted_twice(chain):
     # a callable that returns a fresh object every time (the builders' template.copy()) builds freely
     for k in (4e3, 5e3, 6e3):
         assert fresh.with_values(k_ground=k).statespace().nstates == chain.statespace().nstates
+
+
+def _frame_with_node():
+    frame = rc.Frame()
+    frame.add_node("a", (0.0, 0.0, 0.0))
+    return frame
+
+
+@pytest.mark.parametrize(
+    "call, error",
+    [
+        (lambda: rc.makeweight("10", 1.0, 0.1), rc.RobustctlError),
+        (lambda: rc.electronics.lowpass1("10"), rc.ModelError),
+        (lambda: rc.electronics.lowpass1(True), rc.ModelError),
+        (lambda: rc.electronics.notch(10.0, "0.1", 1.0), rc.ModelError),
+        (lambda: rc.electronics.pade_delay("1e-3", 2), rc.ModelError),
+        (lambda: rc.electronics.sensor_gain_error(control.ss([], [], [], [[1.0]]), "y[0]", True),
+         rc.ModelError),
+        (lambda: _frame_with_node().add_mass("a", True), rc.ModelError),
+        (lambda: _frame_with_node().add_mass("a", "2.0"), rc.ModelError),
+        (lambda: rc.fit_magnitude([1.0, 10.0], [1.0, 2.0], order=True), rc.FitError),
+        (lambda: rc.fit_magnitude([1.0, 10.0], [1.0, 2.0], order=2.0), rc.FitError),
+    ],
+)
+def test_scalar_arguments_refuse_strings_and_booleans_alike(call, error):
+    with pytest.raises(error, match="number|integer|positive and finite"):
+        call()
+
+
+def test_scalar_checks_still_take_numpy_numbers():
+    assert rc.electronics.lowpass1(np.float64(10.0)).nstates == 1
+    frame = _frame_with_node().add_mass("a", np.float32(2.0))
+    assert frame is not None

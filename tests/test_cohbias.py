@@ -1,4 +1,4 @@
-"""Coherence weights' own-error bias (issue 12): ``W = g2 / (1 - g2)`` from each bin's own
+"""Coherence weights' own-error bias: ``W = g2 / (1 - g2)`` from each bin's own
 coherence carries ``|1 + eps|^2`` of the bin's own error, so a weighted log fit sees ``Re ln H1``
 raised; :func:`robustctl.measure.noise.coherence_weight_bias` is what to subtract."""
 

@@ -109,7 +109,7 @@ def test_distillation_reproduces_the_book_with_fourth_order_scales():
 
 @pytest.mark.slow
 def test_distillation_dk_with_automatic_scales():
-    """The issue's target: peak mu <= 1.00 within 6 iterations (MATLAB's 2008 dksyn: 0.9975;
+    """The target: peak mu <= 1.00 within 6 iterations (MATLAB's 2008 dksyn: 0.9975;
     mu-optimal 0.974). Plain D-K creeps (1.0145 at iteration 5); the D step's line search
     along the change of the scales gets there (0.9897 at iteration 5)."""
     dk = dksyn((distillation_plant(), 2, 2, BOOK_BLOCKS), max_iter=6, progress=False)

@@ -11,7 +11,8 @@ from scipy import signal
 
 import robustctl as rc
 from robustctl.errors import DataError, ModelError
-from robustctl.measure.estimate import _simulate_loop, _simulate_modal, _zoh
+from robustctl.lti import zoh as _zoh
+from robustctl.measure.estimate import _simulate_loop, _simulate_modal
 
 FS = 200.0
 

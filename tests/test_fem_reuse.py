@@ -1,4 +1,4 @@
-"""The assembly's reuse of geometry and gravity preloads across frames (issue 12) gives the
+"""The assembly's reuse of geometry and gravity preloads across frames gives the
 same matrices and preload as a cold rebuild, and is really taken where it should be."""
 
 from __future__ import annotations

@@ -287,7 +287,7 @@ def _small_csv(tmp_path):
 
 
 def test_csv_cut_at_every_line_boundary_is_refused_as_truncated(tmp_path):
-    """Issue 14: a CSV cut exactly between two frequency blocks loaded as fewer frequencies."""
+    """A CSV cut exactly between two frequency blocks loaded as fewer frequencies."""
     data, lines = _small_csv(tmp_path)
     assert len(lines) == 3 * 4 + 3  # preamble, column header, 12 rows, end marker
     loaded = rc.load_frd(tmp_path / "d.csv")

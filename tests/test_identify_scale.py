@@ -1,4 +1,4 @@
-"""Identification at the size of real modal tests (issue 15): many channels and modes, close
+"""Identification at the size of real modal tests: many channels and modes, close
 pairs, automatic order by stabilisation diagram, exact mode counts, fillers apart, time budget.
 
 The scale case is :func:`robustctl.examples.modal_test_case`: 2 shakers x 28 accelerometers,

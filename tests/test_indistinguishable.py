@@ -1,4 +1,4 @@
-"""diagnose says when the band cannot tell candidates apart (issue 12): candidates whose best
+"""diagnose says when the band cannot tell candidates apart: candidates whose best
 fits are equal within the noise (Vuong's test) and change the residual the same way are one
 group, with where their fitted models differ -- computed from their own predictions."""
 

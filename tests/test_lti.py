@@ -248,3 +248,19 @@ def test_schur_factors_evaluate_the_transfer_function(n_points, shape):
     assert out.shape == (n_points, p, m)
     assert np.max(np.abs(out - ref)) <= 1e-11 * np.max(np.abs(ref))
     assert np.array_equal(lti._schur_eval(factors, s), out)  # the factors are reusable
+
+
+def test_is_stable_is_a_strict_open_left_half_plane_test_with_an_explicit_margin():
+    import control
+
+    damped = control.ss([[0.0, 1.0], [-4.0, -0.4]], [[0.0], [1.0]], [[1.0, 0.0]], [[0.0]])  # Re p = -0.2
+    assert rc.lti.spectral_abscissa(damped) == pytest.approx(-0.2, rel=1e-12)
+    assert rc.lti.is_stable(damped, margin=0.0) and rc.lti.is_stable(damped, margin=0.19)
+    assert not rc.lti.is_stable(damped, margin=0.21)
+    integrator = control.ss([[0.0]], [[1.0]], [[1.0]], [[0.0]])
+    assert not rc.lti.is_stable(integrator, margin=0.0)  # on the axis: not stable
+    assert rc.lti.is_stable(integrator, margin=-1e-3)  # a negative margin tolerates it
+    assert rc.lti.is_stable(control.ss([], [], [], [[2.0]]), margin=0.0)  # no states
+    assert rc.lti.spectral_abscissa(np.zeros((0, 0))) == -np.inf
+    assert not rc.lti.is_stable(np.array([[1.0, 0.0], [0.0, -3.0]]))  # a state matrix
+    assert not rc.lti.is_stable(np.array([[np.nan]]))

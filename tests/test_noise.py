@@ -1,4 +1,4 @@
-"""The noise model of an FRF estimate, the estimator's view of a model, units sanity (issue 12)."""
+"""The noise model of an FRF estimate, the estimator's view of a model, units sanity."""
 
 from __future__ import annotations
 
@@ -114,7 +114,8 @@ def test_p_values_are_bounds_never_zero():
 def test_expected_h1_of_a_state_space_matches_the_step_by_step_sampling_and_the_rational_fit():
     from robustctl.identify import expected_h1 as fit_expected_h1
     from robustctl.identify import fit_rational
-    from robustctl.measure.estimator import _spectrum, _zoh_impulse_loop
+    from robustctl.measure.estimator import _zoh_impulse_loop
+    from robustctl.measure.estimator import windowed_spectrum as _spectrum
 
     sys = _oscillator(7.0, 0.01)
     st = EstimatorSettings((FS, 1024, "hamming"), 512)

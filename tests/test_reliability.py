@@ -1,13 +1,13 @@
 """Bad input at every public entry point: refused cleanly, never leaked, silent, hung or destructive.
 
-Three parts (issue 14):
+Three parts:
 
 1. A hypothesis property suite. Each case calls one entry point with one argument replaced
    by a generated bad value (the others valid) and classifies the outcome: *refused* (a
    :class:`robustctl.RobustctlError` naming the argument), *leaked* (any other exception),
    *silently accepted* (a normal return), *hang* (over the per-case limit) or *data loss*
    (a refused save that still changed the file). Only *refused* passes.
-2. A regression test for every item of the issue, with its exact call.
+2. A regression test for every reported leak, with its exact call.
 3. Mutated files of all four formats (bit flips, truncations, inserted bytes, zero fills)
    loaded in one subprocess per format; a crash of the interpreter (SIGSEGV inside
    ``scipy.io.loadmat`` before the MAT-5 check) shows as the child's exit status.
@@ -816,7 +816,7 @@ REGRESSIONS = [
 
 
 @pytest.mark.parametrize("label, call, error", REGRESSIONS, ids=[r[0] for r in REGRESSIONS])
-def test_issue_item_is_refused(env, label, call, error):
+def test_reported_call_is_refused(env, label, call, error):
     outcome, detail = classify(lambda: call(env))
     assert outcome == "refused", f"{label}: {outcome} {detail}"
     with pytest.raises(error):
@@ -824,7 +824,7 @@ def test_issue_item_is_refused(env, label, call, error):
 
 
 def test_fit_rational_on_a_constant_response_is_a_fit_error_or_warned():
-    """Issue 14: a constant response leaked LinAlgError("Singular matrix"); now either a
+    """A constant response leaked LinAlgError("Singular matrix"); now either a
     FitError naming the cause or a fit whose out-of-band poles are warned about."""
     import warnings
 

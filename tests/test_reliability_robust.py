@@ -1,6 +1,6 @@
 """Bad input at the robust half's public entry points: refused cleanly, naming the argument.
 
-The robust-control half of the property suite of issue 14 (the modelling half is
+The robust-control half of the bad-input property suite (the modelling half is
 ``tests/test_reliability.py``, whose value strategies and outcome classifier this module
 reuses). Each case calls one entry point -- mu and its block-structure parsing (MATLAB
 ``mussv`` spelling included), hinfnorm, hinfsyn, dksyn, the weights and covers, the
@@ -530,7 +530,7 @@ def test_bad_argument_is_refused_naming_it(env, record_property, label, call, va
 
 
 # ---------------------------------------------------------------------------- regressions
-# The leaks and silent acceptances the property cases found (issue 14, robust half), each with
+# The leaks and silent acceptances the property cases found (robust half), each with
 # its exact call, the error class and a word of the message.
 REGRESSIONS = [
     ("dksyn hinf_options='abc' (TypeError)", lambda e: _dk(e, hinf_options="abc"), rc.SynthesisError,

@@ -115,7 +115,7 @@ def test_sample_models_bad_input(noisy_update):
 
 @pytest.mark.slow
 def test_caltech_cover_of_residual_and_spread_bounds_the_truth():
-    """Issue 9: weights from the updated model's measured residual and parameter spread
+    """Weights from the updated model's measured residual and parameter spread
     cover the true plant's error at every grid frequency (beside the seed's eq. 14)."""
     res = rc.examples.caltech_truss_weights(seed=0, n_models=10, order=4, measurement_model=False)
     cov = res.updated

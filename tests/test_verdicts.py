@@ -1,4 +1,4 @@
-"""Verdicts against the noise (issue 12): a true model is within the noise everywhere, update
+"""Verdicts against the noise: a true model is within the noise everywhere, update
 on it moves nothing and warns of nothing, the hold is a known stage, numbers agree."""
 
 from __future__ import annotations

@@ -351,3 +351,18 @@ def test_diagnosis_repr_is_a_few_lines(experiment):
     assert f"{len(ranking)} candidates" in text and ranking[0].effect.name in text
     legend = diag.plot().axes[0].get_legend()
     assert [t.get_text() for t in legend.get_texts()] == ["screening only"]  # every bar drawn is grey
+
+
+def test_annotated_matrix_writes_each_value_in_a_contrasting_colour_up_to_its_cell_limit():
+    from robustctl.plots import annotated_matrix, new_figure
+
+    values = np.array([[1.0, 0.25, 0.0], [0.25, 1.0, 0.61]])
+    ax = new_figure().subplots()
+    im = annotated_matrix(ax, values, ["a", "b"], ["x", "y", "z"], fmt=".2f", max_cells=6)
+    assert np.array_equal(im.get_array(), values) and im.get_clim() == (0.0, 1.0)
+    texts = {(t.get_position(), t.get_text()): t.get_color() for t in ax.texts}
+    assert texts[((1, 0), "0.25")] == "w" and texts[((2, 1), "0.61")] == "k" and len(texts) == 6
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["x", "y", "z"]
+    ax2 = new_figure().subplots()
+    annotated_matrix(ax2, values, ["a", "b"], ["x", "y", "z"], max_cells=5)
+    assert not ax2.texts  # too many cells: colours only

@@ -109,7 +109,7 @@ def assert_sane_cover(fit, f, mag, factor=10.0):
 
 @pytest.mark.parametrize("order, objective", [(5, "max"), (6, "mean")])
 def test_cover_fit_of_a_plateau_curve_stays_sane(order, objective):
-    """Regression (issue 9 area): on this plateau curve the root polish drifted a pole to its
+    """Regression: on this plateau curve the root polish drifted a pole to its
     clip, exp(60) = 1e26 rad/s, and the cascade realisation returned |W| ~ 1e11 (order 6,
     "mean"; numpy's "invalid value encountered in cast" from the balancing)."""
     f = np.array(WIRE_K) / 20.48
@@ -149,7 +149,7 @@ def test_cover_fit_property_random_curves_every_order(seed):
 
 
 def test_fit_magnitude_recovers_caltech_eq14():
-    """Issue 9: the seed's additive weight, eq. 14, recovered from its own magnitude curve."""
+    """The seed's additive weight, eq. 14, recovered from its own magnitude curve."""
     W14 = caltech_additive_weight()
     mag = mag_of(W14)
     np.testing.assert_allclose(mag, eq14(), rtol=1e-10)  # the cascade realises eq. 14

@@ -122,7 +122,7 @@ def _on(G: np.ndarray, K, f_hz: float) -> np.ndarray:
 @pytest.mark.slow
 @pytest.mark.parametrize("seed, tension", [(0, 15.0), (4, 20.0)])
 def test_yardstick_gap_closes_as_the_model_improves(seed, tension):
-    """Issue 10: on hidden-effect data the nominal-model controller scores clearly below the
+    """On hidden-effect data the nominal-model controller scores clearly below the
     measurement-model one, and the updated-model controller closes (most of) the gap.
 
     Each model is covered by its own error (ModelCoverRecipe), so the nominal design, whose

@@ -84,8 +84,8 @@ ALPHA = 0.01
 #: A channel this far (dB) below its row's and column's largest model response is ignored.
 #: Default negligible-channel level of diagnose (dB): stricter than compare's and update's
 #: :data:`~robustctl.correlate.residual.NEGLIGIBLE_DB` (-80 dB), because a channel the model
-#: leaves nearly decoupled carries noise no effect explains and would blur the F-tests (the
-#: MACE bus has 13 such channels at -60 dB, 12 at -80 dB). Pass ``min_channel_db=`` to change it;
+#: leaves nearly decoupled carries noise no effect explains and would blur the F-tests. Pass
+#: ``min_channel_db=`` to change it;
 #: ``rc.update(..., min_channel_db=-60.0)`` reproduces diagnose's cost (so does
 #: ``point_weights=diag.point_weights`` where no coherence-weight bias applies,
 #: :func:`robustctl.measure.noise.point_weight_bias`: an array of weights is taken as given).
@@ -95,8 +95,8 @@ MIN_GAIN = 0.25
 #: ``workers="auto"`` starts worker processes only for at least this many candidates ...
 PARALLEL_MIN_CANDIDATES = 8
 #: ... and when their screening promises at least this much work (s): :data:`SCREEN_EVALS`
-#: evaluations per candidate at the cost of the nominal one (on the Caltech truss 286 candidates
-#: at 20 ms: about 9 s; on a 3-mass chain 22 at 1 ms: forking would cost more than it saves).
+#: evaluations per candidate at the cost of the nominal one (below it, starting processes
+#: costs more than it saves).
 PARALLEL_MIN_WORK_S = 2.0
 #: Model evaluations a candidate's screening costs on average (the secant; the size probes of some).
 SCREEN_EVALS = 1.5

@@ -642,7 +642,7 @@ class UpdateResult:
 
     def plot(self, fig: Any = None) -> Any:
         """Cost per iteration, alignment bar chart (Fig. 3) and orthogonality matrix (Fig. 4)."""
-        from ..plots import colorbar, new_figure
+        from ..plots import annotated_matrix, colorbar, new_figure
 
         fig = fig or new_figure(13.0, 4.0)
         ax1, ax2, ax3 = fig.subplots(1, 3)
@@ -658,24 +658,8 @@ class UpdateResult:
         ax2.set_ylabel("alignment (relative, -)")
         ax2.set_title("alignment |j0^T dJ| (MACE eq. 8)")
         _alignment_legend(ax2, [n in self.selected for n in self.candidates])
-        im = ax3.imshow(self.orthogonality, vmin=0, vmax=1, cmap="viridis")
-        n = len(self.candidates)
-        ax3.set_xticks(range(n))
-        ax3.set_yticks(range(n))
-        ax3.set_xticklabels(self.candidates, rotation=60, ha="right", fontsize=7)
-        ax3.set_yticklabels(self.candidates, fontsize=7)
-        if n <= 15:
-            for i in range(n):
-                for k in range(n):
-                    ax3.text(
-                        k,
-                        i,
-                        f"{self.orthogonality[i, k]:.1f}",
-                        ha="center",
-                        va="center",
-                        fontsize=6,
-                        color="w" if self.orthogonality[i, k] < 0.6 else "k",
-                    )
+        names = self.candidates
+        im = annotated_matrix(ax3, self.orthogonality, names, names, fmt=".1f", max_cells=15 * 15)  # n <= 15
         ax3.set_title("orthogonality |dJn^T dJn|")
         colorbar(fig, im, ax3, "orthogonality (-)")
         return fig

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import check_band, flag
+from ..checks import check_band, flag, integer
 from ..errors import DataError, ModelError
 from ..physical.electronics import pd_controller
 from ..physical.parameters import Parameter
@@ -69,9 +69,7 @@ def get_param(theta: Mapping[str, float], name: str, default: float) -> float:
 
 def check_int(value: Any, name: str, lo: int, hi: int) -> int:
     """An integer option in ``[lo, hi]`` or a ModelError saying so."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
-        raise ModelError(f"{name} must be an integer in {lo}..{hi}; got {value!r}.")
-    return int(value)
+    return integer(value, name, ModelError, lo=lo, hi=hi)
 
 
 def check_band_hz(band_hz: Any) -> tuple[float, float] | None:

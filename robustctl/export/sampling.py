@@ -14,10 +14,9 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import scipy.linalg as sla
 
 from ..errors import DataError, ModelError
-from ..lti import freqresp_array
+from ..lti import freqresp_array, zoh
 from .arguments import choice, is_discrete, positive, unwrap
 
 __all__ = ["discretize", "discretization_error", "peak_gain_hz"]
@@ -49,11 +48,8 @@ def _tustin(A, B, C, D, T: float, c: float):
 
 def _zoh(A, B, C, D, T: float):
     """Zero-order hold: ``expm([[A, B], [0, 0]] T) = [[Phi, Gamma], [0, I]]`` (FPW ch. 4; Van Loan 1978)."""
-    n, m = B.shape
-    big = np.zeros((n + m, n + m))
-    big[:n, :n], big[:n, n:] = A * T, B * T
-    E = sla.expm(big)
-    return E[:n, :n], E[:n, n:], C.copy(), D.copy()
+    Ad, Bd = zoh(A, B, T)
+    return Ad, Bd, C.copy(), D.copy()
 
 
 def discretize(K: Any, fs: float | None, method: str = "tustin", prewarp_hz: float | None = None):

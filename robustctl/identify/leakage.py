@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import FitError
-from ..measure.estimator import EstimatorSettings, estimator_settings, lag_window
+from ..measure.estimator import EstimatorSettings, estimator_settings, windowed_spectrum
 from ..threads import limit_blas
 from .modal_refine import ZETA_MIN
 from .poles import coefficients_to_residues, lstsq_normal, partial_fraction_basis
@@ -88,19 +88,18 @@ def _zoh_impulse(model: RationalFit, fs: float, n: int) -> np.ndarray:
 
 @limit_blas
 def expected_h1(model: RationalFit, f_hz: np.ndarray, settings: EstimatorSettings) -> np.ndarray:
-    """Expected H1 estimate of ``model`` at ``f_hz`` (Hz) for white ZOH excitation; (K, n_out, n_in)."""
-    fs, n, window = settings
+    """Expected H1 estimate of ``model`` at ``f_hz`` (Hz) for white ZOH excitation; (K, n_out, n_in).
+
+    The fit's ZOH impulse response through the estimator's lag window
+    (:func:`robustctl.measure.estimator.windowed_spectrum`, as
+    :func:`robustctl.measure.estimator.expected_h1_modal`); frequencies at or above Nyquist
+    are refused with a FitError.
+    """
+    fs, n, _ = settings
     f = np.asarray(f_hz, dtype=float)
     if np.any(f >= fs / 2):
         raise FitError(f"frequencies must lie below the Nyquist frequency {fs / 2:g} Hz (leakage model).")
-    h = _zoh_impulse(model, fs, n) * lag_window(window, n)[:, None, None]
-    spec = np.fft.rfft(h, n, axis=0)
-    bins = f * n / fs
-    idx = np.rint(bins).astype(int)
-    if np.allclose(bins, idx, atol=1e-6):
-        return spec[idx]
-    phase = np.exp(-2j * np.pi * np.outer(f / fs, np.arange(n)))  # off-grid: direct DTFT
-    return np.einsum("fk,koi->foi", phase, h)
+    return windowed_spectrum(_zoh_impulse(model, fs, n), f, settings)
 
 
 def leakage_factor(model: RationalFit, f_hz: np.ndarray, settings: EstimatorSettings) -> np.ndarray:

@@ -16,8 +16,9 @@ import numpy as np
 from ..checks import check_seed, flag, integer, match_channels, positive_number
 from ..errors import DataError, ModelError
 from ..frd import FrequencyData
+from ..lti import zoh
 from ..threads import limit_blas
-from .estimator import USER_WINDOW
+from .estimator import USER_WINDOW, window_values
 
 __all__ = ["estimate_frf", "combine_experiments", "simulate_experiment", "advised_nperseg"]
 
@@ -84,13 +85,8 @@ def _as_signals(x: Any, name: str) -> np.ndarray:
 
 
 def _window(window: Any, nperseg: int) -> np.ndarray:
-    from scipy.signal import get_window
-
     if isinstance(window, (str, tuple)):
-        try:
-            return get_window(window, nperseg, fftbins=True)
-        except ValueError as exc:
-            raise DataError(f"unknown window {window!r}: {exc}. Use e.g. 'hamming' or 'hann'.") from exc
+        return window_values(window, nperseg)
     try:
         win = np.asarray(window, dtype=float).reshape(-1)
     except (TypeError, ValueError):
@@ -388,18 +384,6 @@ def combine_experiments(experiments: Sequence[FrequencyData]) -> FrequencyData:
 
 
 # ---------------------------------------------------------------------------- simulation
-def _zoh(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Exact zero-order-hold discretisation: ``expm([[A, B], [0, 0]] dt)`` (Franklin & Powell)."""
-    from scipy.linalg import expm
-
-    n, m = B.shape
-    M = np.zeros((n + m, n + m))
-    M[:n, :n] = A * dt
-    M[:n, n:] = B * dt
-    E = expm(M)
-    return E[:n, :n], E[:n, n:]
-
-
 def _pick_inputs(inputs: Any, names: Sequence[str]) -> list[int]:
     if inputs is None:
         return list(range(len(names)))
@@ -567,7 +551,7 @@ def simulate_experiment(
     if n == 0:
         y = u @ D.T
     else:
-        Ad, Bd = _zoh(A, B, 1.0 / float(fs))
+        Ad, Bd = zoh(A, B, 1.0 / float(fs))
         rho = np.max(np.abs(np.linalg.eigvals(Ad)))
         if rho > 1.0 + 1e-9:
             raise ModelError(

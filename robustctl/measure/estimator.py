@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DataError
+from ..lti import zoh
 from ..threads import limit_blas
 
 __all__ = [
@@ -172,7 +173,7 @@ def welch_window(meta: Mapping[str, Any]) -> tuple[Any, int, int | None]:
     if not named:
         raise _settings_error("window", win, "a scipy.signal.get_window name or (name, parameter) tuple")
     try:
-        _window(win, n)
+        window_values(win, n, " in the estimator settings")
     except DataError as exc:
         raise _settings_error("window", win, f"a scipy.signal.get_window spec; {exc}") from None
     return win, n, nov
@@ -188,7 +189,28 @@ def hold_response(f_hz: Any, fs: float) -> np.ndarray:
     return (1.0 - np.exp(-x)) / x
 
 
-def _window(window: Any, n: int) -> np.ndarray:
+def window_values(window: Any, n: int, where: str = "") -> np.ndarray:
+    """The ``n`` values of a Welch window: the one window lookup of robustctl.
+
+    Parameters
+    ----------
+    window : str, tuple
+        A ``scipy.signal.get_window`` spec (a name or ``(name, parameter)``; the periodic
+        window, as Welch averaging uses), or a recorded user array ``(USER_WINDOW, w0, w1, ...)``.
+    n : int
+        Segment length ``nperseg``, samples.
+    where : str
+        Where the spec came from, for the error (e.g. ``" in the estimator settings"``).
+
+    Returns
+    -------
+    ndarray (n,)
+
+    Raises
+    ------
+    DataError
+        An unknown window, or a recorded array of another length.
+    """
     from scipy.signal import get_window
 
     if isinstance(window, tuple) and window and window[0] == USER_WINDOW:
@@ -199,7 +221,7 @@ def _window(window: Any, n: int) -> np.ndarray:
     try:
         return get_window(window, n, fftbins=True)
     except (ValueError, TypeError) as exc:
-        raise DataError(f"unknown window {window!r} in the estimator settings: {exc}.") from exc
+        raise DataError(f"unknown window {window!r}{where}: {exc}. Use e.g. 'hamming' or 'hann'.") from exc
 
 
 def lag_window(window: Any, n: int) -> np.ndarray:
@@ -209,7 +231,7 @@ def lag_window(window: Any, n: int) -> np.ndarray:
 
 @lru_cache(maxsize=16)
 def _lag_window_cached(window: Any, n: int) -> np.ndarray:
-    w = _window(window, n)
+    w = window_values(window, n, " in the estimator settings")
     spec = np.fft.rfft(w, 2 * n)
     r = np.fft.irfft(np.abs(spec) ** 2, 2 * n)[:n]
     return r / r[0]
@@ -242,7 +264,7 @@ def bin_correlation(window: Any, nperseg: int, max_lag: int = 4) -> np.ndarray:
     of the noise and input spectra (``N U* / |U|^2``), so its correlation is ``|rho_m|^2``
     (1 at lag 0). Hamming, 4096 points: 0.39 at one bin, 0.018 at two.
     """
-    w2 = _window(window, int(nperseg)) ** 2
+    w2 = window_values(window, int(nperseg), " in the estimator settings") ** 2
     spec = np.fft.fft(w2)
     rho = np.abs(spec[: max_lag + 1]) / abs(spec[0])
     return rho**2
@@ -293,15 +315,8 @@ def _zoh_impulse_modal(poles, residues, d, fs: float, n: int) -> np.ndarray:
 
 
 def _zoh_impulse_loop(sys: Any, fs: float, n: int) -> np.ndarray:
-    from scipy.linalg import expm
-
     A, B, C, D = (np.asarray(m, dtype=float) for m in (sys.A, sys.B, sys.C, sys.D))
-    ns, m = B.shape
-    M = np.zeros((ns + m, ns + m))
-    M[:ns, :ns] = A / fs
-    M[:ns, ns:] = B / fs
-    E = expm(M)
-    Ad, X = E[:ns, :ns], E[:ns, ns:]
+    Ad, X = zoh(A, B, 1.0 / fs)
     h = np.zeros((n,) + D.shape)
     h[0] = D
     for k in range(1, n):
@@ -310,7 +325,26 @@ def _zoh_impulse_loop(sys: Any, fs: float, n: int) -> np.ndarray:
     return h
 
 
-def _spectrum(h: np.ndarray, f_hz: np.ndarray, settings: EstimatorSettings) -> np.ndarray:
+def windowed_spectrum(h: np.ndarray, f_hz: np.ndarray, settings: EstimatorSettings) -> np.ndarray:
+    """The expected H1 of a sampled impulse response: ``sum_k h[k] r_w[k]/r_w[0] e^{-j theta k}``.
+
+    The one kernel behind every expected H1 (module docstring of
+    :mod:`robustctl.identify.leakage`): the lag window (:func:`lag_window`) on ``h``, then the
+    DFT at the bins (``f_hz`` on the ``fs / N`` grid) or the direct DTFT off the grid.
+
+    Parameters
+    ----------
+    h : ndarray (N, n_out, n_in)
+        Sampled (ZOH) impulse response, ``N = settings.nperseg``.
+    f_hz : ndarray (K,)
+        Frequencies, Hz, not above Nyquist.
+    settings : EstimatorSettings
+        Sampling rate, segment length and window of the estimate.
+
+    Returns
+    -------
+    ndarray (K, n_out, n_in), complex
+    """
     fs, n, window = settings
     f = np.asarray(f_hz, dtype=float)
     if np.any(f > fs / 2 * (1 + 1e-12)):
@@ -331,7 +365,7 @@ def expected_h1_modal(poles, residues, d, f_hz: Any, settings: EstimatorSettings
     ``poles`` must be closed under conjugation (every complex pole with its conjugate).
     """
     h = _zoh_impulse_modal(poles, residues, np.asarray(d, dtype=float), settings.fs_hz, settings.nperseg)
-    return _spectrum(h, f_hz, settings)
+    return windowed_spectrum(h, f_hz, settings)
 
 
 @limit_blas
@@ -351,7 +385,7 @@ def expected_h1(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np.ndarray:
     modal = _modal(ss)
     if modal is not None:
         return expected_h1_modal(*modal, f_hz, settings)
-    return _spectrum(_zoh_impulse_loop(ss, settings.fs_hz, settings.nperseg), f_hz, settings)
+    return windowed_spectrum(_zoh_impulse_loop(ss, settings.fs_hz, settings.nperseg), f_hz, settings)
 
 
 def estimator_view(sys: Any, f_hz: Any, settings: EstimatorSettings, *, hold: bool = False) -> np.ndarray:

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 import scipy.signal as signal
 
+from ..checks import is_real_number
 from ..errors import ModelError
 from ..lti import _series_arrays
 from ..signals import _abcd, _index, _names, _ss, rename_signals, scale_inputs, scale_outputs
@@ -99,7 +100,18 @@ def _siso(filt: Any, what: str = "filter"):
     return A, B, C, D
 
 
+def _number(value: Any, what: str) -> float:
+    """``value`` as a float when it is a real number (:func:`robustctl.checks.is_real_number`:
+    no strings, no booleans), else a ModelError."""
+    if not is_real_number(value):
+        raise ModelError(f"{what} must be a number; got {value!r}.")
+    return float(value)
+
+
 def _positive(value: float, what: str, unit: str, allow_inf: bool = False) -> float:
+    if not is_real_number(value):
+        hint = " (inf switches the filter off)" if allow_inf else ""
+        raise ModelError(f"{what} must be a positive number in {unit}{hint}; got {value!r}.")
     value = float(value)
     if math.isnan(value) or value <= 0 or (math.isinf(value) and not allow_inf):
         hint = " (inf switches the filter off)" if allow_inf else ""
@@ -256,7 +268,7 @@ def notch(centre_hz: float, depth: float, width_hz: float):
     """
     f0 = _positive(centre_hz, "the notch centre", "Hz")
     width = _positive(width_hz, "the notch width", "Hz")
-    depth = float(depth)
+    depth = _number(depth, "the notch depth")
     if not math.isfinite(depth) or depth < 0:
         raise ModelError(f"the notch depth is a linear gain >= 0 at the centre; got {depth!r}.")
     if depth == 1.0:
@@ -296,7 +308,7 @@ def pade_delay(delay_s: float, order: int = 2):
         Realised as first-order ``(a - s)/(s + a)`` and second-order
         ``1 - 4 zeta w_n s / (s^2 + 2 zeta w_n s + w_n^2)`` all-pass sections.
     """
-    tau = float(delay_s)
+    tau = _number(delay_s, "a time delay (s)")
     if not math.isfinite(tau) or tau < 0:
         raise ModelError(f"a time delay must be a finite number of seconds >= 0; got {delay_s!r}.")
     coef = pade_coefficients(order)
@@ -338,7 +350,7 @@ def zero_order_hold(fs_hz: float, order: int = 4):
     """
     import control
 
-    fs = float(fs_hz)
+    fs = _number(fs_hz, "fs_hz (the DAC's sampling rate, Hz)")
     if not math.isfinite(fs) or fs <= 0:
         raise ModelError(f"fs_hz (the DAC's sampling rate, Hz) must be a positive number; got {fs_hz!r}.")
     c = pade_coefficients(order)
@@ -354,8 +366,8 @@ def zero_order_hold(fs_hz: float, order: int = 4):
 
 def pi_controller(gain: float, integral_hz: float | None = None):
     """``gain * (1 + w_i / s)``, ``w_i = 2 pi integral_hz`` (the PI corner in Hz); P only when None."""
-    gain = float(gain)
-    if integral_hz is None or float(integral_hz) == 0:
+    gain = _number(gain, "the PI gain")
+    if integral_hz is None or _number(integral_hz, "the PI corner (Hz)") == 0:
         return _ss(*_identity_abcd()[:3], [[gain]], ["u"], ["y"])
     wi = 2 * np.pi * _positive(integral_hz, "the PI corner", "Hz")
     return _ss([[0.0]], [[wi]], [[gain]], [[gain]], ["u"], ["y"])
@@ -413,8 +425,8 @@ def pd_controller(
     control.StateSpace
         SISO, input ``u`` (error), output ``y`` (actuator command).
     """
-    wd = 2 * math.pi * float(lead_hz)
-    wc = 2 * math.pi * float(lowpass_hz)
+    wd = 2 * math.pi * _number(lead_hz, "the PD lead corner (Hz)")
+    wc = 2 * math.pi * _number(lowpass_hz, "the PD roll-off (Hz)")
     if not (math.isfinite(wd) and wd > 0):
         raise ModelError(f"the PD lead corner must be a finite frequency > 0 Hz; got {lead_hz!r}.")
     if not (math.isfinite(wc) and wc > wd):
@@ -423,7 +435,7 @@ def pd_controller(
         )
     if rolloff_order not in (1, 2):
         raise ModelError(f"rolloff_order must be 1 or 2; got {rolloff_order!r}.")
-    g = float(gain)
+    g = _number(gain, "the PD gain")
     if rolloff_order == 1:
         # gain (1 + s/wd) wc/(s + wc) = gain wc/wd + gain wc (1 - wc/wd)/(s + wc)
         pd = _ss([[-wc]], [[wc]], [[g * (1 - wc / wd)]], [[g * wc / wd]], ["u"], ["y"])
@@ -627,7 +639,7 @@ def misalign_outputs(sys: Any, pair: Sequence[str], angle_rad: float):
     """
     A, B, C, D = _abcd(sys)
     idx = _pair(sys.output_labels, pair, "output")
-    R = _rotation(float(angle_rad))
+    R = _rotation(_number(angle_rad, "the misalignment angle (rad)"))
     C, D = C.copy(), D.copy()
     C[idx], D[idx] = R @ C[idx], R @ D[idx]
     return _ss(A, B, C, D, sys.input_labels, sys.output_labels)
@@ -640,7 +652,7 @@ def misalign_inputs(sys: Any, pair: Sequence[str], angle_rad: float):
     """
     A, B, C, D = _abcd(sys)
     idx = _pair(sys.input_labels, pair, "input")
-    R = _rotation(float(angle_rad))
+    R = _rotation(_number(angle_rad, "the misalignment angle (rad)"))
     B, D = B.copy(), D.copy()
     B[:, idx], D[:, idx] = B[:, idx] @ R.T, D[:, idx] @ R.T
     return _ss(A, B, C, D, sys.input_labels, sys.output_labels)
@@ -648,7 +660,7 @@ def misalign_inputs(sys: Any, pair: Sequence[str], angle_rad: float):
 
 def sensor_gain_error(sys: Any, names: str | Sequence[str], error: float):
     """Relative sensor gain error: ``y <- (1 + error) y`` on each named output (0: identity)."""
-    return scale_outputs(sys, {name: 1.0 + float(error) for name in _names(names)})
+    return scale_outputs(sys, {name: 1.0 + _number(error, "the sensor gain error") for name in _names(names)})
 
 
 # ============================================================================ stages

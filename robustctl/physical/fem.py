@@ -37,6 +37,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from ..checks import is_real_number
 from ..errors import ModelError
 from ..threads import limit_blas
 from . import elements as el
@@ -137,10 +138,9 @@ class _Assembly:
 
 # ---------------------------------------------------------------------- validation helpers
 def _finite(name: str, value, *, positive: bool = False, nonneg: bool = False) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ModelError(f"{name} must be a number; got {value!r}.") from None
+    if not is_real_number(value):  # no strings, no booleans
+        raise ModelError(f"{name} must be a number; got {value!r}.")
+    v = float(value)
     if not np.isfinite(v):
         raise ModelError(f"{name} must be finite; got {v!r}.")
     if positive and v <= 0:

@@ -48,6 +48,7 @@ from ..budget import Deadline
 from ..checks import flag, integer, positive_number
 from ..errors import SynthesisError
 from ..executors import check_executor, parallel_map
+from ..lti import is_stable
 from ..table import Table
 from .blocks import Block, BlockStructure, as_block_structure
 
@@ -59,16 +60,13 @@ MAX_AUTO_ORDER_D = 8
 HINF_BACKOFF = 1e-3
 #: Most states one block's D-scale may add to the scaled plant (order x (rows + cols)).
 MAX_D_STATES_PER_BLOCK = 24
-#: Target accuracy of each D fit (dB), passed to fit_magnitude (on the distillation example
-#: 0.2 dB reached 0.9956 in 6 iterations, 0.1 dB 0.9897, 0.05 dB 0.9911).
+#: Target accuracy of each D fit (dB), passed to fit_magnitude.
 FIT_TOL_DB = 0.1
 #: Orders the automatic choice may drop below the previous iteration's (0: an order once
-#: needed is kept; dropping from 4 to 3 on the distillation example slowed D-K to 1.0022 at
-#: iteration 6 against 0.9911 at iteration 5 with order 4 kept, both with 0.05 dB fits).
+#: needed is kept).
 ORDER_D_DROP = 0
-#: Accept the lowest D order whose scaled bound peak is within this fraction of mu's peak.
-#: Loose on purpose: on the distillation example 0.5 % (orders 4-8) stalled D-K at mu = 1.033,
-#: a fixed order 4 reproduced the book's 1.0189 and 5 % (orders 3-4) reached 1.010.
+#: Accept the lowest D order whose scaled bound peak is within this fraction of mu's peak
+#: (loose on purpose: a tight tolerance picks high orders that stall D-K).
 ORDER_D_RTOL = 0.05
 #: A reduced controller is kept when the peak of mu rises by at most this fraction.
 REDUCE_MU_RTOL = 0.02
@@ -77,10 +75,8 @@ REDUCE_MU_RTOL = 0.02
 #: ``2 sum sigma_i``, below 1e-7 of its gain).
 HSV_RTOL = 1e-9
 #: Serially, a block with at least this many candidate D orders fits the highest first and
-#: keeps it without fitting the others when even it misses ORDER_D_RTOL. Not for fewer: on
-#: the Caltech design plant (3 x 3 blocks, orders 0-4) taking the highest order so reached
-#: mu 0.760 but with a 93-state controller in 18 s of CPU; scanning upwards reaches 0.837
-#: with 69 states in 8 s (the issue's budget is 10 s).
+#: keeps it without fitting the others when even it misses ORDER_D_RTOL; fewer candidates are
+#: scanned upwards (smaller controllers, less time).
 SHORTCUT_MIN_ORDERS = 6
 #: A block's best bound this factor above what it can reach (times 1 + ORDER_D_RTOL) counts as a
 #: broken fit: the orders below the previous iteration's are tried too.
@@ -217,10 +213,6 @@ def closed_loop(P: Any, K: Any, nmeas: int, ncon: int):
     from ..interconnect import lft
 
     return lft(P, K, nmeas, ncon)
-
-
-def _is_stable(sys1: Any) -> bool:
-    return sys1.nstates == 0 or bool(np.all(np.linalg.eigvals(np.asarray(sys1.A)).real < 0))
 
 
 # ---------------------------------------------------------------------------- grid
@@ -606,9 +598,7 @@ def _orders(order_d: Any, nb: int) -> list[list[int]]:
 
 
 def _check_order(o: Any) -> int:
-    if isinstance(o, bool) or not isinstance(o, (int, np.integer)) or not 0 <= o <= 20:
-        raise SynthesisError(f"order_d must be an integer in 0..20 (or None for automatic); got {o!r}.")
-    return int(o)
+    return integer(o, "order_d", SynthesisError, lo=0, hi=20, alternative="None for automatic")
 
 
 # ---------------------------------------------------------------------------- results
@@ -810,8 +800,7 @@ def _mu_of(cl: Any, blocks: BlockStructure, f_hz: np.ndarray, refine: bool) -> t
 
 
 def _check_args(max_iter: Any, time_budget_s: Any, f_hz: Any) -> np.ndarray | None:
-    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or not 1 <= max_iter <= 100:
-        raise SynthesisError(f"max_iter must be an integer in 1..100; got {max_iter!r}.")
+    integer(max_iter, "max_iter", SynthesisError, lo=1, hi=100)
     Deadline(time_budget_s, error=SynthesisError)  # None or seconds >= 0
     if f_hz is None:
         return None
@@ -1096,7 +1085,7 @@ def _k_step_search(hinfsyn: Callable, plant: _Plant, candidates: Sequence[_DCand
 def _k_step(hinfsyn: Callable, scaled: Any, plant: _Plant, opts: dict, index: int) -> Any:
     """One H-infinity synthesis on the scaled plant; refuses a controller that does not stabilise P."""
     hres = hinfsyn(scaled, **opts)
-    if not _is_stable(closed_loop(plant.P, hres.K, plant.nmeas, plant.ncon)):
+    if not is_stable(closed_loop(plant.P, hres.K, plant.nmeas, plant.ncon), margin=0.0):
         raise SynthesisError(
             f"the K step of iteration {index} returned a controller that does not stabilise the plant; "
             "check that (A, B2) is stabilisable and (C2, A) detectable."
@@ -1116,14 +1105,12 @@ def _reduce(plant: _Plant, blocks: BlockStructure, K: Any, cl: Any, m: Any, orde
     from ..balanced import balanced_truncation
 
     auto = isinstance(order, str) and order == "auto"
-    if not auto and (isinstance(order, bool) or not isinstance(order, (int, np.integer)) or order < 1):
-        raise SynthesisError(
-            f"reduce must be a positive number of controller states or 'auto'; got {order!r}."
-        )
+    if not auto:
+        integer(order, "reduce (the number of controller states)", SynthesisError, lo=1, alternative="'auto'")
     n = K.nstates
     if not auto and order >= n:
         return K, cl, m, Reduction(n, n, m.peak, m.peak, False, f"the controller has only {n} states")
-    if not _is_stable(K):
+    if not is_stable(K, margin=0.0):
         return K, cl, m, Reduction(n, n if auto else order, m.peak, np.inf, False,
                                    "the controller is unstable (balanced truncation needs a stable one)")
     tried: dict[int, tuple] = {}
@@ -1178,7 +1165,7 @@ def _truncated_loop(plant: _Plant, blocks: BlockStructure, K: Any, reduced: Any,
     Kr = control.ss(reduced.A, reduced.B, reduced.C, reduced.D, inputs=list(K.input_labels),
                     outputs=list(K.output_labels))
     clr = closed_loop(plant.P, Kr, plant.nmeas, plant.ncon)
-    if not _is_stable(clr):
+    if not is_stable(clr, margin=0.0):
         return Kr, clr, None, "the reduced loop is unstable"
     mr, _ = _mu_of(clr, blocks, base, refine)
     if mr.peak > m.peak * (1 + mu_rtol):

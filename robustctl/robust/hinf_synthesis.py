@@ -38,7 +38,7 @@ from ..budget import Deadline, as_deadline
 from ..checks import integer, positive_number
 from ..errors import ModelError, SynthesisError
 from ..interconnect import PartitionedPlant, lft
-from ..lti import as_statespace
+from ..lti import as_statespace, is_stable, spectral_abscissa
 from ..table import Table, result_html
 from ..threads import limit_blas
 from . import dgkf
@@ -303,7 +303,7 @@ def _upper_start(m: dict[str, np.ndarray], lower: float) -> tuple[float, bool]:
     ``||P11||_inf`` (achieved by K = 0) when P is stable (True), else a guess (False).
     """
     A = m["A"]
-    stable = A.shape[0] == 0 or np.max(np.linalg.eigvals(A).real) < 0
+    stable = is_stable(A, margin=0.0)
     if stable:
         g, _ = hinfnorm_matrices(A, m["B1"], m["C1"], m["D11"], 1e-3)
         if np.isfinite(g) and g > lower:
@@ -389,7 +389,7 @@ def _verify(m, K, gamma_design: float) -> tuple[bool, float, float, float]:
     A, B, C, D = _closed_loop(m, K)
     if not np.all(np.isfinite(A)) or not np.all(np.isfinite(B)):
         return False, np.inf, np.nan, np.inf
-    max_re = float(np.max(np.linalg.eigvals(A).real)) if A.size else -np.inf
+    max_re = spectral_abscissa(A)
     norm, w = _norm_bound(A, B, C, D)
     return bool(max_re < 0 and norm <= gamma_design * (1 + VERIFY_TOL)), norm, w, max_re
 

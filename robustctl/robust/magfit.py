@@ -39,9 +39,9 @@ from typing import Any
 import numpy as np
 
 from ..budget import Deadline, as_deadline
-from ..checks import flag, optional_text, positive_number, real_array
+from ..checks import flag, integer, optional_text, positive_number, real_array
 from ..errors import FitError
-from ..lti import _pair, _zpk_response, zpk_statespace
+from ..lti import _pair, _zpk_response, is_stable, zpk_statespace
 
 __all__ = ["fit_magnitude", "MagnitudeFit", "fit_magnitude_details", "zpk_statespace"]
 
@@ -67,9 +67,7 @@ ROOT_SPAN = 1e3
 
 # ---------------------------------------------------------------------------- checks
 def _check_order(order: Any) -> int:
-    if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not 0 <= order <= MAX_ORDER:
-        raise FitError(f"order must be an integer from 0 to {MAX_ORDER} (number of poles); got {order!r}.")
-    return int(order)
+    return integer(order, "order", FitError, lo=0, hi=MAX_ORDER)
 
 
 #: Widest magnitude range a fit accepts (decades of max / min): its squared, normalised curve
@@ -713,7 +711,7 @@ def _check_realisation(
     if sys.nstates == 0:
         return np.full(f_hz.size, abs(float(sys.D[0, 0])))
     with np.errstate(all="ignore"):
-        stable = bool(np.all(np.isfinite(sys.A)) and np.all(np.linalg.eigvals(sys.A).real < 0))
+        stable = bool(np.all(np.isfinite(sys.A)) and is_stable(sys, margin=0.0))
         mag = np.abs(freqresp_array(sys, f_hz)[:, 0, 0]) if stable else np.full(f_hz.size, np.nan)
         dev = float(np.max(np.abs(np.log(mag / fitted)))) if np.all(np.isfinite(mag) & (mag > 0)) else np.inf
     if not (dev <= 1e-3 or (stable and not strict and np.isfinite(dev))):  # 0.01 dB

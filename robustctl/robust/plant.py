@@ -43,6 +43,7 @@ import numpy as np
 from ..checks import flag, is_default_names
 from ..errors import ModelError
 from ..interconnect import PartitionedPlant, PicklesStateSpaces, block_diagonal, upper_lft
+from ..lti import is_stable
 from ..table import Table
 from .blocks import Block, BlockStructure
 
@@ -263,8 +264,8 @@ def _weight(spec: Any, what: str, *, n_in: int | None = None, n_out: int | None 
     W = as_statespace(spec, name=what)
     if W.isdtime(strict=True):
         raise ModelError(f"{what} is discrete-time (dt={W.dt}); weights are continuous-time.")
-    poles = np.linalg.eigvals(np.asarray(W.A, float)) if W.nstates else np.zeros(0)
-    if poles.size and np.max(poles.real) >= 0:
+    if not is_stable(W, margin=0.0):
+        poles = np.linalg.eigvals(np.asarray(W.A, float))
         bad = poles[poles.real >= 0]
         raise ModelError(
             f"{what} must be stable; it has poles {np.round(bad, 6).tolist()} rad/s in the closed right "

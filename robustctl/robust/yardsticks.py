@@ -42,6 +42,7 @@ from ..checks import check_band, flag, match_channels
 from ..errors import DataError, SynthesisError
 from ..executors import check_executor, parallel_map
 from ..frd import FrequencyData
+from ..lti import is_stable
 from ..table import Table
 from .dk import DKResult, _as_plant, _mu_of, check_dk_options, closed_loop, default_grid, dksyn
 
@@ -628,7 +629,7 @@ def yardstick(
         for j, lab_m in enumerate(labels):
             gp = plants[lab_m]
             cl = closed_loop(gp.P, designs[lab_k].K, gp.nmeas, gp.ncon)
-            if cl.nstates and np.all(np.linalg.eigvals(np.asarray(cl.A)).real < 0):
+            if cl.nstates and is_stable(cl, margin=0.0):
                 mu_cross[i, j] = _mu_of(cl, designs[lab_m].blocks, default_grid(gp.P), refine=True)[0].peak
     return Yardstick(labels=labels, reference=reference, designs=designs, attenuation_db=attenuation,
                      stability=stability, mu_cross=mu_cross, band_hz=(lo, hi), f_hz=f_all[in_band],
