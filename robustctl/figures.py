@@ -544,6 +544,8 @@ class ModeAnimation:
         Frequency of the mode, Hz.
     backend : str
         ``"pyvista"`` or ``"matplotlib"`` (what drew the frames).
+    duration_ms : int
+        Time each frame is shown in the GIF, ms.
     """
 
     def __init__(self, frames: list, f_hz: float, backend: str, duration_ms: int) -> None:

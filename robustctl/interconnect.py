@@ -488,6 +488,12 @@ def star(P1: Any, P2: Any, n_forward: int | None = None, n_back: int | None = No
 def block_diagonal(*systems: Any):
     """Systems side by side, ``diag(G1, G2, ...)`` (MATLAB ``append``), keeping all names.
 
+    Parameters
+    ----------
+    *systems : systems
+        One or more systems (anything :func:`robustctl.as_statespace` accepts), with a common
+        time base.
+
     Returns
     -------
     control.StateSpace
@@ -585,6 +591,13 @@ def series(*systems: Any, by_name: bool = True):
     all inputs by position, as ``control.series``. A number or array after the first
     system is a static gain on its outputs (names kept).
 
+    Parameters
+    ----------
+    *systems : systems, numbers or arrays
+        The cascade, first acting first; at least one system.
+    by_name : bool
+        Connect by signal name (default) or, False, all outputs to all inputs by position.
+
     Returns
     -------
     control.StateSpace
@@ -643,6 +656,18 @@ def parallel(*systems: Any, by_name: bool = True):
     ``by_name=False`` all systems must have one size and are summed by position, as
     ``control.parallel``. A number (times identity) or array is a static gain with the
     first system's names.
+
+    Parameters
+    ----------
+    *systems : systems, numbers or arrays
+        The branches; at least one system.
+    by_name : bool
+        Share inputs and sum outputs by signal name (default) or, False, by position.
+
+    Returns
+    -------
+    control.StateSpace
+        The union of the names; states first system first.
     """
     by_name = flag(by_name, "by_name", ModelError)
     if not systems:
@@ -671,6 +696,8 @@ def feedback(sys1: Any, sys2: Any = 1.0, sign: float = -1, *, by_name: bool = Tr
         Feedback path. A number means ``sys2 * I`` (square ``sys1``).
     sign : {-1, +1}
         Negative (default) or positive feedback.
+    by_name : bool
+        Connect by signal name (default) or, False, all outputs to all inputs by position.
 
     Returns
     -------

@@ -116,6 +116,17 @@ def scale_outputs(sys: Any, gains: Mapping[str, float]):
     """Multiply named outputs by gains (e.g. V per rad/s of a rate gyro's electronics).
 
     ``y_name <- gains[name] * y_name``; other outputs and all names are unchanged.
+
+    Parameters
+    ----------
+    sys, gains
+        The system and ``{output name: finite gain}`` (new output units per old), as for
+        :func:`scale_inputs`.
+
+    Returns
+    -------
+    control.StateSpace
+        Rows of ``C`` and ``D`` scaled.
     """
     sys = _system(sys)
     A, B, C, D = _abcd(sys)
@@ -129,7 +140,20 @@ def scale_outputs(sys: Any, gains: Mapping[str, float]):
 
 
 def scale_inputs(sys: Any, gains: Mapping[str, float]):
-    """Multiply named inputs by gains: ``u_phys = gains[name] * u_name`` (e.g. N m per V)."""
+    """Multiply named inputs by gains: ``u_phys = gains[name] * u_name`` (e.g. N m per V).
+
+    Parameters
+    ----------
+    sys : control.StateSpace, TransferFunction or anything :func:`robustctl.as_statespace` accepts
+        The system; its signal names are those matched.
+    gains : mapping of str to float
+        Input name -> finite gain (units of the physical input per unit of the new one).
+
+    Returns
+    -------
+    control.StateSpace
+        Columns of ``B`` and ``D`` scaled; names unchanged.
+    """
     sys = _system(sys)
     A, B, C, D = _abcd(sys)
     B, D = B.copy(), D.copy()
@@ -144,7 +168,20 @@ def scale_inputs(sys: Any, gains: Mapping[str, float]):
 def rename_signals(
     sys: Any, inputs: Mapping[str, str] | None = None, outputs: Mapping[str, str] | None = None
 ):
-    """A copy with signals renamed (``{"gyro x": "gyro x (V)"}``)."""
+    """A copy with signals renamed (``{"gyro x": "gyro x (V)"}``).
+
+    Parameters
+    ----------
+    sys : control.StateSpace, TransferFunction or anything :func:`robustctl.as_statespace` accepts
+        The system; its signal names are those matched.
+    inputs, outputs : mapping of str to str, optional
+        Old name -> new name; names not listed keep theirs. The new names must stay unique.
+
+    Returns
+    -------
+    control.StateSpace
+        The same matrices with the new names.
+    """
     sys = _system(sys)
     ins, outs = list(sys.input_labels), list(sys.output_labels)
     for arg, value, labels, what in (("inputs", inputs, ins, "input"), ("outputs", outputs, outs, "output")):
@@ -199,6 +236,19 @@ def combine_inputs(sys: Any, combos: Mapping[str, Mapping[str, float]]):
     ``combine_inputs(sys, {"gimbal x": {"torque on payload": 1, "torque on bus": -1}})``
     makes one motor torque acting equal and opposite on payload and bus. Inputs not used
     by any combination keep their names; a combination takes the place of its first input.
+
+    Parameters
+    ----------
+    sys : control.StateSpace, TransferFunction or anything :func:`robustctl.as_statespace` accepts
+        The system; its signal names are those matched.
+    combos : mapping of str to mapping of str to float
+        New input name -> {old input name: coefficient}; every old input appears in at most
+        one combination.
+
+    Returns
+    -------
+    control.StateSpace
+        ``B T`` and ``D T`` with ``u_old = T u_new``.
     """
     sys = _system(sys)
     T, names = _combination(sys.input_labels, combos, "input")
@@ -211,6 +261,19 @@ def combine_outputs(sys: Any, combos: Mapping[str, Mapping[str, float]]):
 
     ``combine_outputs(sys, {"encoder x": {"payload rx": 1, "bus rx": -1}})`` is the
     relative rotation an encoder reads between a gimbal payload and the bus.
+
+    Parameters
+    ----------
+    sys : control.StateSpace, TransferFunction or anything :func:`robustctl.as_statespace` accepts
+        The system; its signal names are those matched.
+    combos : mapping of str to mapping of str to float
+        New output name -> {old output name: coefficient}; every old output appears in at
+        most one combination.
+
+    Returns
+    -------
+    control.StateSpace
+        ``T^T C`` and ``T^T D`` with ``y_new = T^T y_old``.
     """
     sys = _system(sys)
     T, names = _combination(sys.output_labels, combos, "output")
@@ -219,7 +282,20 @@ def combine_outputs(sys: Any, combos: Mapping[str, Mapping[str, float]]):
 
 
 def select_signals(sys: Any, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None):
-    """Keep the named inputs and outputs (in the given order); ``None`` keeps all."""
+    """Keep the named inputs and outputs (in the given order); ``None`` keeps all.
+
+    Parameters
+    ----------
+    sys : control.StateSpace, TransferFunction or anything :func:`robustctl.as_statespace` accepts
+        The system; its signal names are those matched.
+    inputs, outputs : sequence of str, optional
+        Names to keep, in the order wanted; None keeps every input (output).
+
+    Returns
+    -------
+    control.StateSpace
+        Same states; the selected columns of ``B``, ``D`` and rows of ``C``, ``D``.
+    """
     sys = _system(sys)
     ins = list(sys.input_labels) if inputs is None else _name_list(inputs, "inputs")
     outs = list(sys.output_labels) if outputs is None else _name_list(outputs, "outputs")

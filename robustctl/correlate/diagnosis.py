@@ -75,7 +75,7 @@ from ..measure.noise import NO_NOISE_SENTENCE, format_p, noise_model
 from ..table import Table, result_html
 from ..threads import limit_blas
 from .optimize import _bounds, levenberg_marquardt, marquardt_step
-from .residual import Residual, physical_model, sensitivities
+from .residual import Residual, check_determined, physical_model, sensitivities
 
 __all__ = ["diagnose", "Diagnosis", "CandidateResult", "Indistinguishable", "effective_points"]
 
@@ -218,6 +218,13 @@ class Diagnosis:
         The data-point weights used, zero on ignored channels (``rc.update(...,
         min_channel_db=)`` at diagnose's level gives the same cost; these weights handed on do
         too unless the coherence weights' bias applied, which an array of weights does not get).
+    residual_update : ndarray (n_freq, n_out, n_in), complex
+        The weighted residual left after fitting the update parameters alone (the null fit).
+    f_hz : ndarray (n_freq,)
+        Frequencies of the residuals, Hz.
+    explained : dict of str to ndarray
+        For the two top candidates, the part of ``residual_update`` each one's fit explains
+        (same shape), plotted by :meth:`plot`.
     band : (float, float) or None
     n_evals : int
         Model evaluations spent.
@@ -226,7 +233,8 @@ class Diagnosis:
         Where the noise estimate behind the p-values came from; ``""``: none (no significance
         claims are made, p-values are NaN).
     estimator_note : str
-        How the model was seen (through the H1 estimator, or ``""``).
+        How the model was seen: through the H1 estimator, or as the plain FRF and why
+        (:func:`robustctl.measure.estimator.experiment_view`).
     indistinguishable : Indistinguishable or None
         The fitted candidates the data in this band cannot tell from the top one (equal cost
         within the noise, nearly collinear fitted changes), with where their fitted models
@@ -1094,12 +1102,18 @@ def diagnose(
         Parameters the update may change (default: the model's free parameters); what they
         can absorb is projected out before the effects are scored (as ``params=`` of
         :func:`update`; ``update_params=`` is the deprecated name).
+    update_params
+        Deprecated name of ``params``.
     point_weights : "auto", None, "coherence" or array
         Data-point weights on the squared log error (:func:`robustctl.checks.point_weights`;
         ``weights=`` is the deprecated name). ``"auto"`` (default) uses the coherence when
         the data carry it: ``W = g2 / (1 - g2)`` is the inverse variance of the log estimate,
         so noisy bins (low coherence, at anti-resonances and far from the excited modes) do
         not drown the systematic error.
+    weights
+        Deprecated name of ``point_weights``.
+    measurement_model : system, optional
+        Supplies the noise model of data without coherence, as for :func:`robustctl.update`.
     min_channel_db : float or None
         Channels the model or data leave decoupled (this many dB below their row and column)
         get weight 0, by the rule of :func:`compare` and :func:`update`; the default
@@ -1170,6 +1184,7 @@ def diagnose(
         noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
     res0, ignored = _residual(model, data, band, point_weights, min_channel_db, estimator, noise)
     upd = _check_update(model, params)
+    check_determined(res0, len(upd) + 1, "diagnose (the free parameters and one candidate's)")
     if candidates is not None:
         candidates = _check_candidates(model, list(candidates))
     alpha, min_gain = finite_number(alpha, "alpha", FitError), finite_number(min_gain, "min_gain", FitError)

@@ -240,6 +240,8 @@ def verify(
     point_weights : "auto", None, "coherence" or array
         Data-point weights on the squared log error (:func:`robustctl.checks.point_weights`);
         ``weights=`` is the deprecated name.
+    weights
+        Deprecated name of ``point_weights``.
     cost_ratio_tol : float
         The accuracy holds if the cost per point on the perturbed data is at most this
         multiple of the nominal one (or below ``cost_floor``).

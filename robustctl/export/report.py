@@ -29,7 +29,9 @@ class ExportReport:
     n_states, n_inputs, n_outputs : int
         Sizes of the exported realisation.
     spectral_radius : float
-        Largest ``|z|`` of the discrete poles; ``stable`` is ``spectral_radius < 1``.
+        Largest ``|z|`` of the discrete poles.
+    stable : bool
+        ``spectral_radius < 1``.
     crossover_hz : float or None
         Frequency where the discretisation error was evaluated (the given crossover or the
         frequency of the largest controller gain).

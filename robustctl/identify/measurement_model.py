@@ -405,6 +405,8 @@ def fit_measurement_model(
         Data-point weights of the fits on the squared log error
         (:func:`robustctl.checks.point_weights`; default coherence weights when the data carry
         coherence). ``weights=`` is the deprecated name. The reported ``cost`` is unweighted.
+    weights
+        Deprecated name of ``point_weights``.
     correct_leakage : False, True or "auto"
         Undo the H1 estimator's window leakage (see :mod:`robustctl.identify.leakage`). It
         assumes white (flat-spectrum) ZOH excitation, as in the Caltech random-noise tests, and

@@ -164,6 +164,8 @@ def fit_rational(
         n_in). Each row is further normalised by ``|g|`` (and by ``|d|`` in the SK loop) so
         the fit has constant relative accuracy in log magnitude and phase. ``weights=`` is the
         deprecated name.
+    weights
+        Deprecated name of ``point_weights``.
     common_denominator : bool
         ``True``: one denominator for all channels. ``False``: one per input column (SIMO
         fits, the Caltech procedure), joined by :func:`combine_simo`.

@@ -143,7 +143,18 @@ def load_ansys_modes(
 ):
     """A modal model from an ANSYS modal result (MACE eqs. 2-4); signals ``"node:T3"``.
 
-    :func:`read_ansys_modes` then :func:`~robustctl.physical.fe_model.fe_modal_model`; see both.
+    :func:`read_ansys_modes` then :func:`~robustctl.physical.fe_model.fe_modal_model`.
+
+    Parameters
+    ----------
+    rst, units
+        The ``.rst`` of an ``ANTYPE,MODAL`` analysis and the model's consistent unit system, as
+        for :func:`read_ansys_modes`.
+    inputs, outputs, damping, output_kind, geometry, n_modes, band_hz, name
+        As for :func:`~robustctl.physical.fe_model.fe_modal_model`: force inputs and sensor
+        outputs (DOF names ``"node:T3"`` or a mapping signal name -> DOF name), the modal
+        damping ratio (or ``"file"``), the sensor kind, the geometry for figures, the modal
+        truncation (count or band in Hz) and the model's name.
     """
     modes = read_ansys_modes(rst, units=units)
     return fe_modal_model(

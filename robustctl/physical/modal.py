@@ -372,7 +372,14 @@ def modal_statespace(
 ):
     """Modal state space ``x = [eta, eta_dot]`` of a structure (MACE eqs. 1-4).
 
-    Parameters are those of :func:`modal_decomposition`.
+    ``modal_decomposition(mats, ...).statespace()``.
+
+    Parameters
+    ----------
+    mats, n_modes, band_hz, damping, rigid_body_damping, residual_flexibility
+        The structure (kg, N/m, N s/m), the modal truncation (count or band in Hz), the modal
+        damping ratio, the rigid-body damping rate (1/s) and the static correction, as for
+        :func:`modal_decomposition`.
 
     Returns
     -------

@@ -45,6 +45,15 @@ class Stage:
 
     ``fn(theta, x) -> x``: for a structure stage ``x`` is a :class:`Structure`, for an I/O
     stage it is a ``control.StateSpace``. ``tags`` let ``PhysicalModel.without`` drop it.
+
+    Parameters
+    ----------
+    name : str
+        Shown in the model's build list.
+    fn : callable ``(theta, x) -> x``
+        The step; ``theta`` maps parameter names to values.
+    tags : tuple of str
+        Labels that :meth:`PhysicalModel.without` removes (e.g. ``"suspension"``).
     """
 
     name: str
@@ -286,6 +295,9 @@ class PhysicalModel:
         Tags removed by :meth:`without`.
     name : str
         A short description used in tables and plots.
+    meta : mapping
+        Free-form facts about the model (e.g. an example's source, reference frequencies and
+        sample rate), carried through copies.
     """
 
     params: tuple[Parameter, ...]

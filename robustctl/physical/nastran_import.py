@@ -248,8 +248,19 @@ def load_nastran_modes(
 ):
     """A modal model from a Nastran OP2 eigenvector result (MACE eqs. 2-4).
 
-    ``modes = read_nastran_modes(op2, ...)`` then :func:`fe_modal_model`; see both for the
-    parameters. Inputs are forces in N, outputs in m, m/s or m/s^2 (SI whatever ``units``).
+    ``modes = read_nastran_modes(op2, ...)`` then :func:`fe_modal_model`. Inputs are forces
+    in N, outputs in m, m/s or m/s^2 (SI whatever ``units``).
+
+    Parameters
+    ----------
+    op2, subcase, units
+        The OP2 file (SOL 103, ``PARAM,POST,-1``), its subcase id and the model's consistent
+        unit system, as for :func:`read_nastran_modes`.
+    inputs, outputs, damping, output_kind, geometry, n_modes, band_hz, name
+        As for :func:`~robustctl.physical.fe_model.fe_modal_model`: force inputs and sensor
+        outputs (DOF names ``"node:T3"`` or a mapping signal name -> DOF name), the modal
+        damping ratio (or ``"file"``), the sensor kind, the geometry for figures, the modal
+        truncation (count or band in Hz) and the model's name.
 
     Examples
     --------

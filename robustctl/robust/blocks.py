@@ -91,6 +91,11 @@ class BlockStructure:
     ``M`` (the matrix whose mu is sought) must be ``n_out x n_in`` with
     ``n_out = sum(cols)`` and ``n_in = sum(rows)``: ``Delta`` maps the ``n_out`` outputs of
     ``M`` back to its ``n_in`` inputs.
+
+    Parameters
+    ----------
+    blocks : tuple of Block
+        The blocks in order along the diagonal of ``Delta``; at least one.
     """
 
     blocks: tuple[Block, ...]
@@ -191,7 +196,20 @@ def _slices(sizes: Iterable[int]) -> list[slice]:
 def as_block_structure(blocks: Any) -> BlockStructure:
     """Coerce ``blocks`` to a :class:`BlockStructure`.
 
-    Accepts a BlockStructure, a sequence of :class:`Block`, or MATLAB ``mussv`` rows.
+    Parameters
+    ----------
+    blocks : BlockStructure, Block, sequence of Block or array_like (n, 2)
+        A structure, one block, blocks, or MATLAB ``mussv`` rows (``[-r, 0]`` a repeated real
+        scalar, ``[r, 0]`` a repeated complex scalar, ``[r, c]`` a full complex block).
+
+    Returns
+    -------
+    BlockStructure
+
+    Raises
+    ------
+    SynthesisError
+        Anything else, or malformed rows.
     """
     if isinstance(blocks, BlockStructure):
         return blocks

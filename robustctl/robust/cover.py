@@ -579,8 +579,33 @@ def cover_multiplicative(
     ``side="input"``: ``G = G0 (I + W Delta)``, covering ``sigma_max(G0^+ (G - G0))``;
     ``side="output"``: ``G = (I + W Delta) G0``, covering ``sigma_max((G - G0) G0^+)``
     (seed eq. 3 in the SISO case, ``W_m = W_a / G0``). ``G0^+`` is the pseudo-inverse of the
-    nominal response, exact for a square, invertible ``G0``. Other arguments as for
-    :func:`cover_additive`.
+    nominal response, exact for a square, invertible ``G0``.
+
+    Parameters
+    ----------
+    nominal : system
+        The nominal model ``G0`` (anything :func:`robustctl.lti.as_statespace` accepts).
+    data_or_models : FrequencyData, system, or a list mixing both
+        Measured responses and/or models, as for :func:`cover_additive`.
+    order : int
+        States of the weight (0: a constant).
+    side : {"input", "output"}
+        Where the relative error acts.
+    f_hz : array_like, optional
+        Grid (Hz), as for :func:`cover_additive`.
+    band : (lo_hz, hi_hz), optional
+        Restrict the grid (Hz).
+    smooth_octaves : float
+        Width of the running maximum applied to the envelope before fitting (octaves).
+    floor : float
+        The envelope is floored at this fraction of its peak.
+    objective : {"mean", "max"}
+        Mean or worst-case log overbound, as for :func:`cover_additive`.
+    data_sigmas : float
+        Measured residuals are raised by this many standard deviations of the H1 estimate's
+        random error (Bendat-Piersol eq. 9.90); 0 covers the estimate as measured.
+    time_budget_s : float
+        Cap on the magnitude fit (s).
 
     Returns
     -------

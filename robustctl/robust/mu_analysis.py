@@ -113,6 +113,24 @@ def robust_performance(closed_loop: Any, blocks: Any, f_hz: Any = None, **mu_opt
     ``.blocks``); a full ``"performance"`` block from the remaining outputs to the remaining
     inputs is added (if ``blocks`` already cover all channels, its last block is taken as the
     performance block).
+
+    Parameters
+    ----------
+    closed_loop : system or ndarray (nf, n_out, n_in)
+        The closed loop ``N`` (uncertainty and performance channels), or its response on
+        ``f_hz``.
+    blocks : BlockStructure, sequence of Block, mussv rows or GeneralizedPlant
+        The uncertainty blocks (:func:`robustctl.robust.blocks.as_block_structure`).
+    f_hz : array_like, optional
+        Frequencies (Hz) at which a system is evaluated, or those of a response array (as for
+        :func:`robustctl.robust.mu_bounds.mu`).
+    **mu_options
+        Passed to :func:`robustctl.robust.mu_bounds.mu` (``lower``, ``method``, ``executor`` ...).
+
+    Returns
+    -------
+    MuResult
+        Bounds of mu over the augmented structure; robust performance iff ``peak < 1``.
     """
     _check_mu_options(mu_options)
     N, f, bs = _split(closed_loop, blocks, f_hz)

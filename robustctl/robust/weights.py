@@ -99,6 +99,11 @@ def caltech_additive_weight(*, name: str = "W_additive"):
     0.144 at dc (the low-frequency variation below 0.5 Hz), rising through the design band
     0.5-5.5 Hz to cover the unmodelled local modes above it, 8 at high frequency.
 
+    Parameters
+    ----------
+    name : str
+        Name of the returned system.
+
     Returns
     -------
     control.StateSpace
