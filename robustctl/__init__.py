@@ -154,7 +154,7 @@ from .robust.lqg_design import LQGResult, lqg
 from .robust.margins import DiskMargin, DiskMarginResult, disk_gain_phase, diskmargin, nugap
 from .robust.sampled import sampled_plant
 from .robust.sweep import DesignSweep, design_sweep
-from .robust.yardsticks import Yardstick, yardstick
+from .robust.yardsticks import Yardstick, YardstickWarning, yardstick
 from .signals import (
     combine_inputs,
     combine_outputs,
@@ -305,6 +305,7 @@ __all__ = [
     "dksyn",
     "DKResult",
     "yardstick",
+    "YardstickWarning",
     "Yardstick",
     # H2/LQG, discrete synthesis, loop shaping, margins, controller reduction
     "is_stable",
