@@ -16,9 +16,9 @@ import robustctl as rc
 from robustctl.budget import Deadline, as_deadline
 from robustctl.examples import DISTILLATION_BLOCKS, distillation_plant
 
-# the routines that take a time budget (identification's fit_measurement_model has its own)
+# the routines that take a time budget
 BUDGETED = [rc.dksyn, rc.hinfsyn, rc.diagnose, rc.update, rc.mu, rc.fit_magnitude, rc.cover_additive,
-            rc.cover_multiplicative]
+            rc.cover_multiplicative, rc.fit_measurement_model]
 
 
 @pytest.mark.parametrize("fn", BUDGETED, ids=lambda f: f.__name__)
