@@ -101,3 +101,22 @@ def check_report_in_chromium(demo_out: Path) -> None:
     # self-contained: every image is embedded, nothing is fetched
     assert run.stdout.count("<img") == run.stdout.count('<img src="data:image/png;base64,') > 5
     assert not re.search(r"""(src|href)=["'](?!data:|#)""", run.stdout)
+
+
+def demo_tests(example: str):
+    """The module fixture and the two tests of one example's demo (a test module assigns them)."""
+
+    @pytest.fixture(scope="module")
+    def demo_out(tmp_path_factory):
+        return run_demo(example, tmp_path_factory)
+
+    @pytest.mark.slow
+    def test_demo_report_holds_every_section_with_numbers(demo_out):
+        check_report_sections(demo_out)
+
+    @pytest.mark.slow
+    def test_demo_report_opens_in_headless_chromium_without_console_errors(demo_out):
+        check_report_in_chromium(demo_out)
+
+    return (demo_out, test_demo_report_holds_every_section_with_numbers,
+            test_demo_report_opens_in_headless_chromium_without_console_errors)
