@@ -120,6 +120,7 @@ from .physical.nastran_import import (
     write_nastran_matrices,
     write_nastran_modes,
 )
+from .physical.uncertain import UncertainModel, parametric_lft
 
 # robust design: weights
 from .robust import (
@@ -307,6 +308,9 @@ __all__ = [
     "yardstick",
     "YardstickWarning",
     "Yardstick",
+    # uncertain models from the update (parametric LFT) for mixed-mu D-G-K
+    "UncertainModel",
+    "parametric_lft",
     # H2/LQG, discrete synthesis, loop shaping, margins, controller reduction
     "is_stable",
     "h2norm",
