@@ -1230,7 +1230,7 @@ def dksyn(
                 break
             if (out_of_time or deadline.expired() or deadline.remaining() < k_time) and index < max_iter:
                 deadline.hit = True
-                stop = (f"time budget {time_budget_s:g} s: too little left for another iteration "
+                stop = (f"time budget {deadline.budget_s:g} s: too little left for another iteration "
                         f"(this one's K step and mu analysis took {k_time:.1f} s)")
                 break
     finally:
