@@ -57,7 +57,7 @@ from .figures import (
     plot_mode_shapes,
     plot_singular_values,
 )
-from .frd import FrequencyData
+from .frd import Experiment, FrequencyData
 from .frd_io import load_frd
 
 # the user's FE model and test geometry: Nastran files, UFF geometry and mode shapes
@@ -73,9 +73,10 @@ from .identify import (
     group_modes,
 )
 from .interconnect import PartitionedPlant, block_diagonal, feedback, lft, parallel, series, star, upper_lft
-from .lti import as_statespace, freqresp
+from .lti import as_statespace, freqresp, is_stable
 from .measure import estimator
 from .measure.estimate import (
+    HeldCommand,
     advised_nperseg,
     combine_experiments,
     estimate_frf,
@@ -141,7 +142,13 @@ from .robust import (
     robust_stability,
     worst_case_gain,
 )
+from .robust.controller_reduction import ControllerReduction, reduce_controller
 from .robust.dk import DKResult, dksyn
+from .robust.h2 import H2Result, h2norm, h2syn
+from .robust.loop_shaping import LoopShapingResult, ncfsyn, stability_margin
+from .robust.lqg_design import LQGResult, lqg
+from .robust.margins import DiskMargin, DiskMarginResult, disk_gain_phase, diskmargin, nugap
+from .robust.sampled import sampled_plant
 from .robust.sweep import DesignSweep, design_sweep
 from .robust.yardsticks import Yardstick, yardstick
 from .signals import (
@@ -180,6 +187,9 @@ __all__ = [
     "SynthesisError",
     "FrequencyData",
     "load_frd",
+    # how the data were made
+    "Experiment",
+    "HeldCommand",
     "fit_rational",
     "combine_simo",
     "group_modes",
@@ -292,4 +302,22 @@ __all__ = [
     "DKResult",
     "yardstick",
     "Yardstick",
+    # H2/LQG, discrete synthesis, loop shaping, margins, controller reduction
+    "is_stable",
+    "h2norm",
+    "h2syn",
+    "H2Result",
+    "lqg",
+    "LQGResult",
+    "sampled_plant",
+    "diskmargin",
+    "disk_gain_phase",
+    "DiskMargin",
+    "DiskMarginResult",
+    "nugap",
+    "ncfsyn",
+    "LoopShapingResult",
+    "stability_margin",
+    "reduce_controller",
+    "ControllerReduction",
 ]

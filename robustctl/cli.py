@@ -34,6 +34,58 @@ _DATA_HELP = "measured frequency responses: .npz, .csv, .mat or .uff/.unv (robus
 def _add_common(p: argparse.ArgumentParser, default_out: str) -> None:
     p.add_argument("--band", nargs=2, type=float, metavar=("LO_HZ", "HI_HZ"), help="frequency band in Hz")
     p.add_argument("--out", default=default_out, help=f"report folder (default: {default_out})")
+    _add_experiment(p)
+
+
+def _add_experiment(p: argparse.ArgumentParser) -> None:
+    """How DATA were made, for files that do not say (a stated value must agree)."""
+    g = p.add_argument_group(
+        "experiment", "how DATA were made, for files that do not say so (robustctl.Experiment); without a "
+        "description the model is compared as the plain FRF",
+    )
+    g.add_argument("--input-kind", choices=("measured", "held"), default=None,
+                   help="measured: a measured force or voltage; held: a DAC command (zero-order hold)")
+    g.add_argument("--excitation", choices=("random", "periodic", "burst", "impact", "stepped_sine"),
+                   default=None, help="the excitation signal")
+    g.add_argument("--fs", type=float, default=None, help="sampling frequency of the estimate, Hz")
+    g.add_argument("--window", default=None, help="Welch window (a scipy.signal.get_window name)")
+    g.add_argument("--nperseg", type=int, default=None, help="Welch segment length, samples")
+    g.add_argument("--noverlap", type=int, default=None, help="Welch overlap, samples")
+    g.add_argument("--n-averages", type=int, default=None, help="number of averaged segments")
+    g.add_argument("--whole-periods", action="store_true", default=None,
+                   help="periodic excitation with whole periods per segment")
+    g.add_argument("--hold-divided", action="store_true", default=False,
+                   help="the estimate was divided by the zero-order hold's response")
+
+
+def _described(data: Any, args: argparse.Namespace) -> Any:
+    """``data`` with the experiment options filling what its file does not state."""
+    from .cli_inputs import CommandLineError
+    from .errors import DataError
+    from .frd import Experiment
+
+    given = {
+        "input_kind": args.input_kind, "excitation": args.excitation, "fs_hz": args.fs,
+        "window": args.window, "nperseg": args.nperseg, "noverlap": args.noverlap,
+        "n_averages": args.n_averages, "whole_periods": args.whole_periods,
+    }
+    given = {k: v for k, v in given.items() if v is not None}
+    if args.hold_divided:
+        given["hold_divided"] = True
+    if not given:
+        return data
+    stated = data.experiment.to_dict()
+    for key, value in given.items():
+        mine = stated[key]
+        if mine not in (None, False) and mine != value:
+            raise CommandLineError(
+                f"--{key.replace('_hz', '').replace('_', '-')} {value} contradicts the file, which states "
+                f"{key} = {mine!r}; drop the option (the file's description is used)."
+            )
+    try:
+        return data.replace(experiment=data.experiment.fill(Experiment(**given)))
+    except DataError as exc:
+        raise CommandLineError(f"the experiment options cannot describe DATA: {exc}") from None
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -145,7 +197,7 @@ def _run_compare(args: argparse.Namespace) -> Path:
     from .frd_io import load_frd
     from .identify import fit_measurement_model
 
-    model, data = load_model_spec(args.model), load_frd(args.data)
+    model, data = load_model_spec(args.model), _described(load_frd(args.data), args)
     band = _band(args)
     mm = None if args.modes is None else fit_measurement_model(data, n_modes=args.modes, band=band)
     cmp = compare(model, data, band=band, measurement_model=mm)
@@ -156,6 +208,9 @@ def _run_compare(args: argparse.Namespace) -> Path:
     report.table(cmp.mode_table())
     report.figure(cmp.plot(), "compare", "Data against model; failing bands shaded.")
     report.record("cost", float(cmp.cost))
+    report.record("within_noise", cmp.within_noise)
+    report.record("view", cmp.estimator_note)
+    report.record("experiment", data.experiment.to_dict())
     report.record("failing_bands_hz", [(float(b.lo_hz), float(b.hi_hz)) for b in cmp.bands])
     return report.write()
 
@@ -165,7 +220,7 @@ def _run_diagnose(args: argparse.Namespace) -> Path:
     from .correlate import diagnose
     from .frd_io import load_frd
 
-    model, data = load_model_spec(args.model), load_frd(args.data)
+    model, data = load_model_spec(args.model), _described(load_frd(args.data), args)
     diag = diagnose(model, data, band=_band(args), time_budget_s=args.time_budget)
     report = _report(args, f"robustctl diagnose: {args.model} against {Path(args.data).name}")
     report.heading("Which physical effect is missing?")
@@ -181,7 +236,7 @@ def _run_identify(args: argparse.Namespace) -> Path:
     from .frd_io import load_frd
     from .identify import fit_measurement_model
 
-    data = load_frd(args.data)
+    data = _described(load_frd(args.data), args)
     mm = fit_measurement_model(data, n_modes=args.modes, band=_band(args))
     report = _report(args, f"robustctl identify: {Path(args.data).name}")
     report.heading("Measurement model")

@@ -171,7 +171,7 @@ def _model_response(data: FrequencyData, model: Any, estimator: Any = False) -> 
                 f"({data.f_hz[0]:g}-{data.f_hz[-1]:g} Hz); evaluate the model on data.f_hz."
             )
         return model
-    settings = resolve_estimator(estimator, data.meta, model)
+    settings = resolve_estimator(estimator, data, model)
     if settings is None:
         return _align(data, freqresp(model, data.f_hz))
     bare, hold = split_hold(model)

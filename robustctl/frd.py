@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from dataclasses import fields as _dc_fields
 from os import PathLike
 from pathlib import Path
 from typing import Any
@@ -19,7 +20,8 @@ import numpy as np
 from .checks import band_data
 from .errors import DataError
 
-__all__ = ["FrequencyData", "as_frequency_data", "register_method"]
+__all__ = ["FrequencyData", "as_frequency_data", "register_method", "Experiment", "combined_experiment",
+           "INPUT_KINDS", "EXCITATIONS", "PLAIN_NOTE"]
 
 #: Implementations of FrequencyData methods whose work belongs to a higher floor: ``"save"``
 #: (the file formats, :mod:`robustctl.frd_io`), ``"plot"`` and ``"plot_sv"`` (the figures,
@@ -151,6 +153,225 @@ def _select_experiments(meta: Mapping[str, Any], n_in: int, columns: list[int]) 
     return meta
 
 
+#: How the input reached the structure: a measured force or voltage, or a DAC command through a
+#: zero-order hold.
+INPUT_KINDS = ("measured", "held")
+#: The excitation signals an experiment description knows.
+EXCITATIONS = ("random", "periodic", "burst", "impact", "stepped_sine")
+#: The message every result carries when the data do not describe their experiment.
+PLAIN_NOTE = "compared as the plain FRF: the data do not say how they were estimated"
+
+
+def _opt_choice(value: Any, name: str, choices: tuple[str, ...]) -> str | None:
+    if value is None:
+        return None
+    if not isinstance(value, str) or value not in choices:
+        raise DataError(f"{name} must be one of {list(choices)} or None (unknown); got {value!r}.")
+    return value
+
+
+def _opt_int(value: Any, name: str, lo: int) -> int | None:
+    if value is None:
+        return None
+    ok = isinstance(value, (int, np.integer)) or (isinstance(value, float) and float(value).is_integer())
+    if not ok or isinstance(value, (bool, np.bool_)) or value < lo:
+        raise DataError(f"{name} must be an integer >= {lo} or None (unknown); got {value!r}.")
+    return int(value)
+
+
+def _opt_window(value: Any) -> str | tuple | None:
+    if value is None:
+        return None
+    if isinstance(value, list):
+        value = tuple(value)
+    named = isinstance(value, str) or (isinstance(value, tuple) and bool(value) and isinstance(value[0], str))
+    items = value if isinstance(value, tuple) else ()
+    if not named or not all(isinstance(v, (str, int, float)) for v in items):
+        raise DataError(
+            f"window must be a scipy.signal.get_window name ('hamming'), a (name, parameter) tuple or None; "
+            f"got {value!r}."
+        )
+    return value
+
+
+@dataclass(frozen=True, init=False)
+class Experiment:
+    """How frequency-response data were made; ``None`` in any field means "not known".
+
+    The verdicts of ``compare``, ``diagnose`` and ``update`` see a model "as the estimator saw
+    the structure" only as far as this description establishes (window leakage for random
+    excitation with known settings, the zero-order hold for held inputs); a missing
+    description leaves the plain FRF.
+
+    Parameters
+    ----------
+    input_kind : {"measured", "held"} or None
+        ``"measured"``: the input channel is a measured continuous signal (a load-cell force, a
+        measured voltage), the usual modal test; ``"held"``: a DAC command held over each sample
+        (zero-order hold), as :func:`robustctl.simulate_experiment` makes.
+    excitation : {"random", "periodic", "burst", "impact", "stepped_sine"} or None
+        The excitation signal.
+    fs_hz : float or None
+        Sampling frequency in Hz.
+    window : str, tuple or None
+        The ``scipy.signal.get_window`` spec of the Welch segments (``"user array"`` for a
+        window given as values, which ``meta["window_values"]`` holds).
+    nperseg, noverlap, n_averages : int or None
+        Welch segment length and overlap (samples) and the number of averaged segments.
+    whole_periods : bool or None
+        Periodic excitation: each segment holds a whole number of periods (no leakage).
+    hold_divided : bool
+        The estimate was divided by the zero-order hold's response ``(1 - e^{-sT}) / (sT)``
+        (:func:`robustctl.examples.make_experiment` does so for held inputs).
+    fs : float or None
+        The sampling frequency in Hz under the name :func:`robustctl.estimate_frf` uses (keyword
+        only; stored as ``fs_hz``, which the attribute ``fs`` also reads).
+    """
+
+    input_kind: str | None = None
+    excitation: str | None = None
+    fs_hz: float | None = None
+    window: Any = None
+    nperseg: int | None = None
+    noverlap: int | None = None
+    n_averages: int | None = None
+    whole_periods: bool | None = None
+    hold_divided: bool = False
+
+    def __init__(
+        self,
+        input_kind: str | None = None,
+        excitation: str | None = None,
+        fs_hz: float | None = None,
+        window: Any = None,
+        nperseg: int | None = None,
+        noverlap: int | None = None,
+        n_averages: int | None = None,
+        whole_periods: bool | None = None,
+        hold_divided: bool = False,
+        *,
+        fs: float | None = None,
+    ) -> None:
+        if fs is not None:
+            if fs_hz is not None and fs_hz != fs:
+                raise DataError(f"give the sampling frequency once: fs={fs!r} and fs_hz={fs_hz!r} differ.")
+            fs_hz = fs
+        values = dict(input_kind=input_kind, excitation=excitation, fs_hz=fs_hz, window=window,
+                      nperseg=nperseg, noverlap=noverlap, n_averages=n_averages,
+                      whole_periods=whole_periods, hold_divided=hold_divided)
+        for name, value in values.items():
+            object.__setattr__(self, name, value)
+        self.__post_init__()
+
+    @property
+    def fs(self) -> float | None:
+        """The sampling frequency in Hz (``fs_hz``)."""
+        return self.fs_hz
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "input_kind", _opt_choice(self.input_kind, "input_kind", INPUT_KINDS))
+        object.__setattr__(self, "excitation", _opt_choice(self.excitation, "excitation", EXCITATIONS))
+        fs = self.fs_hz
+        if fs is not None:
+            ok = isinstance(fs, (int, float, np.integer, np.floating))
+            if not ok or isinstance(fs, (bool, np.bool_)) or not (np.isfinite(fs) and fs > 0):
+                raise DataError(
+                    f"fs_hz must be a positive, finite sampling frequency in Hz or None; got {fs!r}."
+                )
+            fs = float(fs)
+        object.__setattr__(self, "fs_hz", fs)
+        object.__setattr__(self, "window", _opt_window(self.window))
+        n = _opt_int(self.nperseg, "nperseg", 2)
+        nov = _opt_int(self.noverlap, "noverlap", 0)
+        if n is not None and nov is not None and nov >= n:
+            raise DataError(f"noverlap ({nov}) must be smaller than nperseg ({n}).")
+        object.__setattr__(self, "nperseg", n)
+        object.__setattr__(self, "noverlap", nov)
+        object.__setattr__(self, "n_averages", _opt_int(self.n_averages, "n_averages", 1))
+        for name in ("whole_periods", "hold_divided"):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, (bool, np.bool_)):
+                raise DataError(f"{name} must be True, False{' or None' if name == 'whole_periods' else ''}; "
+                                f"got {value!r}.")
+        whole = None if self.whole_periods is None else bool(self.whole_periods)
+        object.__setattr__(self, "whole_periods", whole)
+        object.__setattr__(self, "hold_divided", bool(self.hold_divided))
+
+    @property
+    def described(self) -> bool:
+        """True when both the input kind and the excitation are known."""
+        return self.input_kind is not None and self.excitation is not None
+
+    @property
+    def welch_known(self) -> bool:
+        """True when the Welch settings (fs_hz, nperseg, window) are known."""
+        return self.fs_hz is not None and self.nperseg is not None and self.window is not None
+
+    def replace(self, **changes: Any) -> Experiment:
+        """A copy with some fields changed (validated again)."""
+        return Experiment(**{**self.to_dict(), **changes})
+
+    def fill(self, other: Experiment) -> Experiment:
+        """This description with its unknown (None) fields taken from ``other``."""
+        mine = self.to_dict()
+        theirs = other.to_dict()
+        merged = {k: (theirs[k] if mine[k] is None else mine[k]) for k in mine}
+        merged["hold_divided"] = self.hold_divided or other.hold_divided
+        return Experiment(**merged)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The fields as a JSON-friendly dict (a window tuple as a list)."""
+        out = {f.name: getattr(self, f.name) for f in _dc_fields(self)}
+        if isinstance(out["window"], tuple):
+            out["window"] = list(out["window"])
+        return out
+
+    @classmethod
+    def from_dict(cls, value: Mapping[str, Any] | None) -> Experiment:
+        """The description stored by :meth:`to_dict` (unknown keys are refused)."""
+        if value is None:
+            return cls()
+        if isinstance(value, Experiment):
+            return value
+        if not isinstance(value, Mapping):
+            raise DataError(f"an experiment description must be a mapping or an Experiment; got {value!r}.")
+        names = {f.name for f in _dc_fields(cls)} | {"fs"}
+        unknown = sorted(set(value) - names)
+        if unknown:
+            raise DataError(f"unknown experiment fields {unknown}; the fields are {sorted(names)}.")
+        return cls(**dict(value))
+
+    def describe(self) -> str:
+        """One line, e.g. ``"measured input, random excitation, 2048-pt hamming at 200 Hz, 19 averages"``."""
+        if self == Experiment():
+            return "not described"
+        excitation = (self.excitation or "unknown").replace("_", " ")
+        parts = [f"{self.input_kind or 'unknown'} input", f"{excitation} excitation"]
+        if self.whole_periods is not None and self.excitation == "periodic":
+            parts.append(("" if self.whole_periods else "not ") + "whole periods per segment")
+        if self.welch_known:
+            win = self.window if isinstance(self.window, str) else str(self.window)
+            parts.append(f"{self.nperseg}-pt {win} at {self.fs_hz:g} Hz")
+        elif self.fs_hz is not None:
+            parts.append(f"sampled at {self.fs_hz:g} Hz")
+        if self.n_averages is not None:
+            parts.append(f"{self.n_averages} averages")
+        if self.hold_divided:
+            parts.append("divided by the hold")
+        return ", ".join(parts)
+
+
+def combined_experiment(experiments: Sequence[Experiment]) -> Experiment:
+    """One description of joined experiments: the fields on which they all agree (else None)."""
+    exps = list(experiments)
+    if not exps:
+        return Experiment()
+    dicts = [e.to_dict() for e in exps]
+    merged = {k: (dicts[0][k] if all(d[k] == dicts[0][k] for d in dicts) else None) for k in dicts[0]}
+    merged["hold_divided"] = all(e.hold_divided for e in exps)
+    return Experiment(**merged)
+
+
 @dataclass(frozen=True, eq=False)
 class FrequencyData:
     """Frequency-response data of a multi-input, multi-output system.
@@ -169,6 +390,9 @@ class FrequencyData:
         Units of the signals, e.g. ``{"u1": "V", "y1": "m/s^2"}``.
     meta : mapping, optional
         Free-form provenance (estimation settings, source file ...).
+    experiment : Experiment or mapping, optional
+        How the data were made (:class:`Experiment`); default: not described (every field
+        unknown), so verdicts compare the plain FRF.
     """
 
     f_hz: np.ndarray
@@ -178,6 +402,7 @@ class FrequencyData:
     coherence: np.ndarray | None = None
     units: Mapping[str, str] | None = field(default=None)
     meta: Mapping[str, Any] | None = field(default=None)
+    experiment: Experiment | None = field(default=None)
 
     def __post_init__(self) -> None:
         f = _as_frequencies(self.f_hz)
@@ -212,6 +437,15 @@ class FrequencyData:
         object.__setattr__(self, "coherence", coh)
         object.__setattr__(self, "units", _mapping(self.units, "units", "{'u1': 'V'}"))
         object.__setattr__(self, "meta", _mapping(self.meta, "meta", "{'source': 'test 3'}"))
+        experiment = Experiment.from_dict(self.experiment)
+        if experiment.fs_hz is not None and f[-1] > experiment.fs_hz / 2 * (1 + 1e-9):
+            fs = experiment.fs_hz
+            raise DataError(
+                f"the data reach {f[-1]:g} Hz, beyond the Nyquist frequency {fs / 2:g} Hz of the stated "
+                f"sampling frequency {fs:g} Hz: are the frequencies in rad/s? f_hz must be in Hz (divide "
+                f"rad/s by 2 pi: {f[-1] / (2 * np.pi):.4g} Hz), or correct fs_hz."
+            )
+        object.__setattr__(self, "experiment", experiment)
 
     # ------------------------------------------------------------------ basic views
     @property
@@ -246,6 +480,7 @@ class FrequencyData:
             coherence=self.coherence,
             units=self.units,
             meta=self.meta,
+            experiment=self.experiment,
         )
         fields.update(changes)
         return FrequencyData(**fields)
@@ -343,6 +578,10 @@ class FrequencyData:
             see :mod:`robustctl.frd_io.csv_format`) or
             ``.uff``/``.unv`` (universal file dataset 58, one binary double-precision record
             per output/input pair, names in ID lines 4 and 5, coherence as function type 6).
+            Every format keeps ``experiment`` (how the data were made): npz and MAT as JSON
+            (MAT also as plain variables ``InputKind``, ``SampleRate`` ...), CSV as a
+            ``# experiment: {...}`` header line, UFF in ID line 2 and a ``<file>.uff.json``
+            sidecar (with ``meta``).
         overwrite : bool
             Replace an existing file. By default an existing file is never touched.
 
@@ -375,6 +614,7 @@ class FrequencyData:
             ("inputs", ", ".join(self.inputs)),
             ("coherence", "yes" if self.coherence is not None else "no"),
             ("units", units),
+            ("experiment", self.experiment.describe()),
         ]
         body = "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in rows)
         return f"<table><caption>FrequencyData</caption>{body}</table>"

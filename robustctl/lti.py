@@ -46,6 +46,7 @@ __all__ = [
     "is_stable",
     "zoh",
     "spectral_abscissa",
+    "roundoff_margin",
 ]
 
 #: dB per neper, ``20 / ln 10``: the real part of :func:`log_ratio` (nepers) times this is
@@ -633,11 +634,13 @@ def spectral_abscissa(sys: Any) -> float:
     return float(np.max(np.linalg.eigvals(A).real))
 
 
-def is_stable(sys: Any, margin: float = 0.0) -> bool:
-    """True when every pole of the continuous system lies left of ``Re s = -margin``.
+def is_stable(sys: Any, margin: float = 0.0, *, dt: Any = None) -> bool:
+    """True when every pole lies inside the stability region by ``margin``.
 
-    The one stability test of robustctl: ``max Re eig(A) < -margin`` (strict), a system
-    without states is stable. Each caller passes its tolerance explicitly.
+    The one stability test of robustctl: continuous time ``max Re eig(A) < -margin``;
+    discrete time (a system with ``dt`` set, or an array ``A`` with ``dt`` given)
+    ``max |eig(A)| < 1 - margin``. Strict; a system without states is stable. Each caller
+    passes its tolerance explicitly (:func:`roundoff_margin` for "beyond round-off").
 
     Parameters
     ----------
@@ -645,14 +648,38 @@ def is_stable(sys: Any, margin: float = 0.0) -> bool:
         See :func:`spectral_abscissa`.
     margin : float
         Required distance of the poles from the imaginary axis, rad/s (0: open left half
-        plane). A negative margin accepts poles up to ``-margin`` right of the axis.
+        plane), or, in discrete time, from the unit circle (dimensionless). A negative margin
+        accepts poles up to ``-margin`` beyond the boundary.
+    dt : float or True, optional
+        Sampling time for an array ``A`` (default: the system's ``dt``; 0/None: continuous).
 
     Returns
     -------
     bool
         False also when ``A`` holds NaN or inf.
     """
-    return bool(spectral_abscissa(sys) < -margin)
+    if dt is None:
+        dt = getattr(sys, "dt", 0)
+    if dt in (0, None):
+        return bool(spectral_abscissa(sys) < -margin)
+    A = np.asarray(getattr(sys, "A", sys))
+    if A.size == 0:
+        return True
+    if not np.all(np.isfinite(A)):
+        return False
+    return bool(np.max(np.abs(np.linalg.eigvals(A))) < 1.0 - margin)
+
+
+def roundoff_margin(A: Any) -> float:
+    """``64 eps max(1, ||A||_1)``: a pole this close to the stability boundary is on it to round-off.
+
+    Eigenvalues are backward stable, accurate to about ``eps ||A||`` (Golub & Van Loan 2013,
+    sec. 7.2.2); a sampled undamped mode sits at ``|z| = 1 - 3e-16``. The margin for
+    :func:`is_stable` where "stable" must mean "stable beyond round-off" (norms that would
+    otherwise be 1e14 instead of infinite).
+    """
+    A = np.asarray(getattr(A, "A", A), dtype=float)
+    return 64.0 * np.finfo(float).eps * max(1.0, float(np.linalg.norm(A, 1)) if A.size else 1.0)
 
 
 # ---------------------------------------------------------------------------- construction

@@ -37,8 +37,8 @@ FLOORS: tuple[tuple[str, ...], ...] = (
     ("robust",),
     ("export",),
     # the surface: figures, report, embedded examples, demo, command line, the flat public API ("")
-    ("figures", "report", "examples", "demo", "demo_design", "demo_mace", "cli", "cli_inputs", "__main__",
-     ""),
+    ("figures", "report", "examples", "demo", "demo_design", "demo_mace", "demo_lqg", "cli", "cli_inputs",
+     "__main__", ""),
 )
 
 #: Modules of the lowest floors that may import only the listed modules of robustctl.

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import json
 import os
 import pickle
 import tempfile
 import zipfile
 from pathlib import Path
 
+import control
 import numpy as np
 import pytest
 import pyuff
@@ -45,8 +47,20 @@ def frequency_data(draw, uff: bool = False):
         coh = np.array(draw(st.lists(st.floats(0, 1), min_size=g.size, max_size=g.size)))
         coh = coh.reshape(n_f, n_o, n_i)
     units = {outs[0]: "m/s^2"} if draw(st.booleans()) else None
+    experiment = None
+    if draw(st.booleans()):
+        experiment = rc.Experiment(
+            input_kind=draw(st.sampled_from([None, "measured", "held"])),
+            excitation=draw(st.sampled_from([None, "random", "periodic", "burst", "impact", "stepped_sine"])),
+            fs_hz=draw(st.one_of(st.none(), st.floats(2.0 * float(f[-1]), 4.0e6))),  # Nyquist above the data
+            window=draw(st.sampled_from([None, "hamming", ("tukey", 0.25)])),
+            nperseg=draw(st.one_of(st.none(), st.integers(2, 2**20))),
+            n_averages=draw(st.one_of(st.none(), st.integers(1, 1000))),
+            hold_divided=draw(st.booleans()),
+        )
     return rc.FrequencyData(f, g.reshape(n_f, n_o, n_i), inputs=ins, outputs=outs, coherence=coh,
-                            units=units, meta={"source": "hypothesis", "n": n_f, "x": [1.5, None]})
+                            units=units, meta={"source": "hypothesis", "n": n_f, "x": [1.5, None]},
+                            experiment=experiment)
 
 
 def _round_trip(data: rc.FrequencyData, suffix: str) -> rc.FrequencyData:
@@ -54,7 +68,8 @@ def _round_trip(data: rc.FrequencyData, suffix: str) -> rc.FrequencyData:
         path = Path(tmp) / f"data{suffix}"
         assert data.save(path) == path
         loaded = rc.load_frd(path)
-        assert sorted(os.listdir(tmp)) == [path.name]  # no temporary files left behind
+        sidecar = [path.name + ".json"] if suffix in (".uff", ".unv") else []  # experiment and meta
+        assert sorted(os.listdir(tmp)) == [path.name] + sidecar  # no temporary files left behind
     return loaded
 
 
@@ -71,6 +86,7 @@ def _check(loaded, data, exact: bool, keeps_meta: bool):
         np.testing.assert_allclose(loaded.coherence, data.coherence, rtol=1e-12, atol=0)
     if keeps_meta:
         assert loaded.units == data.units and loaded.meta == data.meta
+    assert loaded.experiment == data.experiment  # every format keeps how the data were made
 
 
 @settings(max_examples=12, deadline=None)
@@ -88,14 +104,14 @@ def test_mat_round_trip_exact(data):
 @settings(max_examples=12, deadline=None)
 @given(data=frequency_data())
 def test_csv_round_trip(data):
-    _check(_round_trip(data, ".csv"), data, exact=False, keeps_meta=False)
+    _check(_round_trip(data, ".csv"), data, exact=False, keeps_meta=True)
 
 
 @settings(max_examples=8, deadline=None)
 @given(data=frequency_data(uff=True), suffix=st.sampled_from([".uff", ".unv"]))
 def test_uff_round_trip(data, suffix):
     loaded = _round_trip(data, suffix)
-    _check(loaded, data, exact=False, keeps_meta=False)
+    _check(loaded, data, exact=False, keeps_meta=True)
     assert loaded.units == data.units  # ordinate (output) and denominator (input) unit labels
 
 
@@ -174,7 +190,7 @@ def test_never_overwrites_unless_asked(small, tmp_path, suffix):
     assert path.read_bytes() == b"the user's own file"
     small.save(path, overwrite=True)
     np.testing.assert_array_equal(rc.load_frd(path).response, small.response)
-    assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]  # no sidecar: nothing to keep
 
 
 class _Marker:
@@ -367,3 +383,47 @@ def test_corrupt_or_mismatched_uff(tmp_path, small):
     with pytest.raises(DataError, match="at least 2 frequencies"):
         small.band(1.0, 1.5).save(tmp_path / "one.uff")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.uff", "missing_pair.uff", "two_grids.uff"]
+
+
+def test_files_written_before_the_experiment_description_load_as_not_described(tmp_path):
+    """An npz archive and a MAT file without the experiment fields (as robustctl wrote them before)
+    load with every field unknown, their meta kept; a described file keeps its description."""
+    from scipy.io import savemat
+
+    f = np.array([1.0, 2.0, 3.0])
+    g = np.array([1.0 + 1j, 0.5 - 1j, 0.2 + 0.1j])[:, None, None]
+    meta = {"fs_hz": 200.0, "nperseg": 1024, "window": "hamming"}  # settings alone do not describe
+    np.savez(tmp_path / "old.npz", format=np.array("robustctl.FrequencyData"), version=np.array(1), f_hz=f,
+             response=g, inputs=np.array(["u1"]), outputs=np.array(["y1"]), units_json=np.array("{}"),
+             meta_json=np.array(json.dumps(meta)))
+    savemat(tmp_path / "old.mat", {"Frequency": f[:, None], "FrequencyUnit": "Hz",
+                                   "ResponseData": np.transpose(g, (1, 2, 0)),
+                                   "robustctl_meta": json.dumps(meta)})
+    for name in ("old.npz", "old.mat"):
+        old = rc.load_frd(tmp_path / name)
+        assert old.experiment == rc.Experiment() and old.meta == meta
+        one_pole = control.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]])
+        assert rc.compare(one_pole, old).estimator_note == rc.frd.PLAIN_NOTE
+    described = rc.FrequencyData(f, g, experiment=rc.Experiment(input_kind="measured", excitation="impact",
+                                                                 fs_hz=256.0, n_averages=5))
+    for ext in ("npz", "mat", "csv", "uff"):
+        assert rc.load_frd(described.save(tmp_path / f"new.{ext}")).experiment == described.experiment
+
+
+def test_a_matlab_file_describes_its_experiment_in_plain_variables(tmp_path):
+    """A MATLAB user writes InputKind, Excitation, SampleRate, Window, NPerSeg beside frd's
+    Frequency and ResponseData; robustctl writes them too, beside its complete JSON record."""
+    from scipy.io import loadmat, savemat
+
+    f = np.array([1.0, 2.0, 3.0])
+    g = np.array([1.0 + 1j, 0.5 - 1j, 0.2 + 0.1j])[:, None, None]
+    savemat(tmp_path / "user.mat", {"Frequency": f[:, None], "FrequencyUnit": "Hz",
+                                    "ResponseData": np.transpose(g, (1, 2, 0)), "InputKind": "measured",
+                                    "Excitation": "random", "SampleRate": 200.0, "Window": "hamming",
+                                    "NPerSeg": 512.0})
+    assert rc.load_frd(tmp_path / "user.mat").experiment == rc.Experiment(
+        "measured", "random", fs=200.0, window="hamming", nperseg=512)
+    described = rc.Experiment("held", "periodic", fs=100.0, whole_periods=True)
+    plain = loadmat(rc.FrequencyData(f, g, experiment=described).save(tmp_path / "ours.mat"))
+    assert plain["InputKind"][0] == "held" and plain["SampleRate"][0, 0] == 100.0
+    assert plain["WholePeriods"][0, 0] == 1

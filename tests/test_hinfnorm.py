@@ -213,3 +213,16 @@ def test_level_set_iteration_from_a_poor_lower_bound(start):
     assert g == pytest.approx(g_ref, rel=2e-6) and g <= g_ref * (1 + 1e-12)
     assert sigma_direct(sys, [w])[0] == pytest.approx(g, rel=1e-9)  # attained where reported
     assert sigma_direct(sys, np.linspace(0, 150, 30001)).max() <= g * (1 + 2e-6)
+
+
+def test_discrete_poles_on_unit_circle_to_round_off_give_infinite_norm():
+    s = control.tf("s")
+    sysd = control.ss(control.sample_system(1 / (s**2 + 1), 0.1))
+    assert np.max(np.abs(np.linalg.eigvals(sysd.A))) < 1.0  # |z| = 1 - 3e-16: inside by round-off only
+    g, f = rc.hinfnorm(sysd)
+    assert g == np.inf
+    assert f == pytest.approx(1 / (2 * np.pi), rel=1e-9)  # the undamped mode at 1 rad/s
+    # a lightly damped sampled mode (1 - |z| = 1e-7) keeps its finite norm 1 / (2 zeta) at the mode
+    zeta = 1e-6
+    g2, _ = rc.hinfnorm(control.c2d(control.tf([1.0], [1.0, 2 * zeta, 1.0]), 0.1))
+    assert np.isfinite(g2) and g2 > 1e5

@@ -146,10 +146,17 @@ def test_the_view_removes_the_hold_and_a_deliberate_hold_stage_is_sampled_exactl
     g = rc.freqresp(rc.electronics.zero_order_hold(FS, 4), f).response[:, 0, 0]
     assert np.max(np.abs(np.log(g / hold_response(f, FS)))) < 1e-4
     held = model.add_io_stage(rc.electronics.zero_order_hold_stage(model.inputs, FS))
+    described = rc.Experiment(input_kind="held", excitation="random", fs_hz=FS, nperseg=1024,
+                              window="hamming")
     res = rc.Residual(held, rc.FrequencyData(f, bare, inputs=model.inputs, outputs=model.outputs,
-                                             meta={"fs_hz": FS, "nperseg": 1024, "window": "hamming"}))
+                                             experiment=described))
     np.testing.assert_allclose(res.model_response(), bare, rtol=1e-10)
     assert res.describe_estimator() == "model seen through the H1 estimator: 1024-pt hamming at 200 Hz"
+    # the same settings without the description: the plain FRF, and the result says so
+    plain = rc.Residual(held, rc.FrequencyData(f, bare, inputs=model.inputs, outputs=model.outputs,
+                                               meta={"fs_hz": FS, "nperseg": 1024, "window": "hamming"}))
+    np.testing.assert_allclose(plain.model_response(), held.freqresp(f).response, rtol=1e-12)
+    assert plain.describe_estimator() == rc.frd.PLAIN_NOTE
 
 
 # ---------------------------------------------------------------------------- units sanity

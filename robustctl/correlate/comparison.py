@@ -431,8 +431,9 @@ class Comparison:
     noise_test : NoiseTest or None
         Chi-square verdicts per channel and section (:mod:`robustctl.correlate.verdict`).
     estimator_note : str
-        ``"model seen through the H1 estimator: 4096-pt hamming at 200 Hz"`` when the model was
-        compared as the estimator sees it, else ``""``.
+        How the model was seen: ``"model seen through the H1 estimator: 4096-pt hamming at 200
+        Hz"``, or as the plain FRF and why (``"compared as the plain FRF: the data do not say how
+        they were estimated"``; :func:`robustctl.measure.estimator.experiment_view`).
     warnings : tuple of str
         Warnings raised while comparing (e.g. units).
     model_modes, data_modes : tuple of Mode
@@ -726,9 +727,10 @@ def compare(
         Negligible channels (see :class:`Residual`) get weight 0 and are left out of the
         cost, the bands and the structure split; they stay in the dB/phase maps.
     estimator : "auto", True, False or EstimatorSettings
-        Compare the model "as the H1 estimator sees it" (window leakage,
-        :func:`robustctl.measure.estimator.estimator_view`) when the data carry their estimator
-        settings (``"auto"``); stated in the summary.
+        Compare the model "as the H1 estimator sees it" (:func:`robustctl.measure.estimator.estimator_view`)
+        as far as the data's experiment description (``data.experiment``) establishes it
+        (``"auto"``): window leakage for random excitation with known settings, the sampled
+        zero-order hold for held inputs, the plain FRF for undescribed data; stated in the summary.
     noise : "auto", NoiseModel or None
         The data's noise model. ``"auto"``: :func:`robustctl.noise_model` (coherence and
         averages; else the measurement model's residual; else none, and no significance claims).

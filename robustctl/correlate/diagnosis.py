@@ -74,7 +74,7 @@ from ..measure.noise import NO_NOISE_SENTENCE, format_p, noise_model
 from ..table import Table, result_html
 from ..threads import limit_blas
 from .optimize import _bounds, levenberg_marquardt, marquardt_step
-from .residual import Residual, physical_model, sensitivities
+from .residual import Residual, check_determined, physical_model, sensitivities
 
 __all__ = ["diagnose", "Diagnosis", "CandidateResult", "Indistinguishable", "effective_points"]
 
@@ -232,7 +232,8 @@ class Diagnosis:
         Where the noise estimate behind the p-values came from; ``""``: none (no significance
         claims are made, p-values are NaN).
     estimator_note : str
-        How the model was seen (through the H1 estimator, or ``""``).
+        How the model was seen: through the H1 estimator, or as the plain FRF and why
+        (:func:`robustctl.measure.estimator.experiment_view`).
     indistinguishable : Indistinguishable or None
         The fitted candidates the data in this band cannot tell from the top one (equal cost
         within the noise, nearly collinear fitted changes), with where their fitted models
@@ -1178,6 +1179,7 @@ def diagnose(
         noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
     res0, ignored = _residual(model, data, band, point_weights, min_channel_db, estimator, noise)
     upd = _check_update(model, params)
+    check_determined(res0, len(upd) + 1, "diagnose (the free parameters and one candidate's)")
     if candidates is not None:
         candidates = _check_candidates(model, list(candidates))
     alpha, min_gain = finite_number(alpha, "alpha", FitError), finite_number(min_gain, "min_gain", FitError)

@@ -29,7 +29,7 @@ from ..errors import DataError, FitError, ModelError, RobustctlError
 from ..executors import parallel_map_shared
 from ..frd import FrequencyData, as_frequency_data
 from ..lti import as_statespace, freqresp, log_ratio
-from ..measure.estimator import model_view, resolve_estimator, split_hold
+from ..measure.estimator import model_view, resolve_estimator, resolve_view, split_hold
 from ..measure.noise import NoiseModel, noise_model, point_weight_bias
 
 __all__ = [
@@ -45,7 +45,14 @@ __all__ = [
     "physical_model",
     "check_complex_response",
     "resolve_estimator",
+    "check_determined",
+    "check_sampled_model",
+    "UnitWarning",
 ]
+
+
+class UnitWarning(UserWarning):
+    """A band or frequency that looks like rad/s where Hz is meant."""
 
 #: Default level (dB) below which a channel counts as negligible (decoupled) and gets weight 0
 #: in compare, update and diagnose (one rule, so they report one cost).
@@ -161,10 +168,12 @@ class Residual:
         physical parameter can explain, and it would swamp the cost. ``None`` keeps every
         channel and refuses identically zero ones.
     estimator : "auto", True, False or EstimatorSettings
-        See the model "as the H1 estimator sees it" (:func:`robustctl.measure.estimator.estimator_view`:
-        window leakage of a white-noise Welch estimate) when the data carry their estimator
-        settings (``"auto"``, default) -- the model's response is then the expected H1
-        estimate, not ``G(jw)``. ``False``: compare ``G(jw)`` itself.
+        See the model "as the H1 estimator sees it" (:func:`robustctl.measure.estimator.estimator_view`)
+        as far as the data's experiment description (``data.experiment``) establishes it
+        (``"auto"``, default; :func:`robustctl.measure.estimator.experiment_view`): window leakage for
+        random excitation with known settings, the sampled zero-order hold for held inputs,
+        nothing for undescribed data (the plain FRF, said so in every result). ``False``:
+        compare ``G(jw)`` itself.
     noise : "auto", NoiseModel or None
         The noise model of the data (:func:`robustctl.measure.noise.noise_model`); ``"auto"``: from
         coherence and the recorded number of averages when possible, else None.
@@ -211,11 +220,13 @@ class Residual:
         model = as_model(model)
         self.model = model
         self.band = check_band(band)
+        _warn_band_units(self.band, data)
         mask = band_mask(data.f_hz, self.band)
         self.data = band_data(data, self.band)
-        self.estimator = resolve_estimator(estimator, data.meta, model)
+        self.estimator, self._view_note = resolve_view(estimator, data, model)
         self.noise = self._noise(noise, data, mask)
         sys0 = model.statespace()
+        check_sampled_model(sys0, data)
         self._out_idx = match_channels(sys0.output_labels, self.data.outputs, "outputs")
         self._in_idx = match_channels(sys0.input_labels, self.data.inputs, "inputs")
         self.weights = self._point_weights(point_weights, data, mask)
@@ -266,10 +277,10 @@ class Residual:
         return point_weights_of(spec, data, mask, amplitude=True)
 
     def describe_estimator(self) -> str:
-        """``"model seen through the H1 estimator: 4096-pt hamming at 200 Hz"`` or ``""``."""
-        if self.estimator is None:
-            return ""
-        return f"model seen through the H1 estimator: {self.estimator.describe()}"
+        """How the model was seen: ``"model seen through the H1 estimator: 4096-pt hamming at 200 Hz"``,
+        or why as the plain FRF (``"compared as the plain FRF: the data do not say how they were
+        estimated"``, :func:`robustctl.measure.estimator.experiment_view`)."""
+        return self._view_note
 
     @property
     def point_weights(self) -> np.ndarray:
@@ -288,6 +299,10 @@ class Residual:
         for o, i, lvl in model_level:
             found[(o, i)] = min(lvl, found.get((o, i), lvl))
         return [(o, i, lvl) for (o, i), lvl in found.items()]
+
+    def informative_frequencies(self) -> int:
+        """The number of band frequencies at which some channel carries weight."""
+        return int(np.count_nonzero(np.any(self.weights > 0, axis=(1, 2))))
 
     # ------------------------------------------------------------------ evaluation
     @property
@@ -596,3 +611,77 @@ def orthogonality(dJ: np.ndarray) -> np.ndarray:
     n = normalized(dJ)
     out = np.abs(n.T @ n)
     return np.clip(out, 0.0, 1.0)
+
+
+# ---------------------------------------------------------------------- sanity of the set-up
+def _warn_band_units(band: tuple[float, float] | None, data: FrequencyData) -> None:
+    """Warn when a band reaches far beyond the data (Hz): it was probably given in rad/s."""
+    if band is None:
+        return
+    import warnings
+
+    from ..checks import user_stacklevel
+
+    top = float(data.f_hz[-1])
+    if band[1] > 1.5 * top:
+        warnings.warn(
+            f"band ({band[0]:g}, {band[1]:g}) reaches {band[1] / top:.3g} x beyond the data's highest "
+            f"frequency ({top:g} Hz): bands are in Hz, not rad/s (in rad/s this band would be "
+            f"{band[0] / (2 * np.pi):.4g}-{band[1] / (2 * np.pi):.4g} Hz).",
+            UnitWarning,
+            stacklevel=user_stacklevel(),
+        )
+
+
+def check_sampled_model(sys: Any, data: FrequencyData) -> None:
+    """Refuse a sampled model (``dt > 0``) that cannot describe the data.
+
+    A sampled model is evaluated at ``z = exp(j 2 pi f dt)`` (:func:`robustctl.freqresp`); its
+    frequencies end at ``1 / (2 dt)``, and its sampling time must be the data's when the data
+    state their sampling frequency (``data.experiment.fs_hz``).
+    """
+    dt = getattr(sys, "dt", None)
+    if dt in (None, 0) or dt is False:
+        return
+    if dt is True:
+        raise ModelError(
+            "the model is discrete with an unspecified sampling time (dt=True); give its sampling time "
+            "in s (control.ss(A, B, C, D, dt)) or pass the continuous model."
+        )
+    nyquist = 0.5 / float(dt)
+    if data.f_hz[-1] > nyquist * (1 + 1e-9):
+        raise ModelError(
+            f"the model is sampled (dt = {dt:g} s, Nyquist {nyquist:g} Hz) but the data reach "
+            f"{data.f_hz[-1]:g} Hz; restrict the band below {nyquist:g} Hz, or are the data's frequencies "
+            "in rad/s (f_hz must be in Hz)?"
+        )
+    fs = getattr(getattr(data, "experiment", None), "fs_hz", None)
+    if fs is not None and abs(fs * float(dt) - 1.0) > 1e-6:
+        raise ModelError(
+            f"the model is sampled at {1 / float(dt):g} Hz (dt = {dt:g} s) but the data were sampled at "
+            f"{fs:g} Hz; discretise the model at the data's rate (control.c2d(sys, {1 / fs:g})) or pass the "
+            "continuous model."
+        )
+
+
+def check_determined(residual: Residual, n_params: int, func: str) -> None:
+    """Refuse a fit of more parameters than the band has informative frequencies.
+
+    Every parameter needs at least one frequency of its own (a band holding one point fits any
+    one-mode change exactly, and reports a 100 % cost reduction that means nothing).
+
+    Raises
+    ------
+    DataError
+        Naming the counts and the fix.
+    """
+    n_f = residual.informative_frequencies()
+    if n_f < n_params:
+        band = "the data"
+        if residual.band is not None:
+            band = f"the band {residual.band[0]:g}-{residual.band[1]:g} Hz"
+        raise DataError(
+            f"{func} fits {n_params} free parameters but {band} holds {n_f} informative frequencies (with "
+            f"weight in some channel); the fit would be undetermined. Widen the band or fix parameters "
+            f"(params=[...] naming at most {max(n_f, 1)})."
+        )

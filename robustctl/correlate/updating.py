@@ -41,6 +41,7 @@ from .residual import (
     Sensitivities,
     _check_names,
     alignment,
+    check_determined,
     normalized,
     orthogonality,
     physical_model,
@@ -387,7 +388,8 @@ class UpdateResult:
         Chi-square verdicts of the misfit against the data's noise before and after the update
         (None without a noise model: no significance claims).
     estimator_note : str
-        How the model was seen (through the H1 estimator, or ``""``).
+        How the model was seen: through the H1 estimator, or as the plain FRF and why
+        (:func:`robustctl.measure.estimator.experiment_view`).
     noise_covariance : ndarray (n_selected, n_selected) or None
         Covariance of the updated values from the noise model (parameter units, order of
         ``selected``); None without a noise model. Behind :attr:`moves_se` and
@@ -1030,6 +1032,7 @@ def update(
                 "the model has no free parameters; name the parameters to update with params=[...]."
             )
     names = _check_names(model, params)
+    check_determined(residual, len(names), "update")
     sens = sensitivities(residual, names, executor=executor, progress=progress)
     j0, dJ = sens
     effect_params = tuple(n for n in names if "effect" in model.param(n).tags)

@@ -130,6 +130,7 @@ def make_experiment(
         data = data.replace(
             response=data.response / hold_response(data.f_hz, fs)[:, None, None],
             meta={**data.meta, "hold_divided": True},
+            experiment=data.experiment.replace(hold_divided=True),
         )
     if band is not None:
         data = data.band(*band)

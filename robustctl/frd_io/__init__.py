@@ -13,12 +13,12 @@ from typing import Any
 
 from ..checks import flag
 from ..errors import DataError
-from ..frd import FrequencyData, register_method
+from ..frd import Experiment, FrequencyData, register_method
 from ._common import write_atomically
 from .csv_format import read_csv, write_csv
 from .mat import read_mat, write_mat
 from .npz import read_npz, write_npz
-from .uff import read_uff, write_uff
+from .uff import read_uff, sidecar_path, write_sidecar, write_uff
 
 __all__ = ["load_frd", "save_frd", "SUPPORTED_FORMATS"]
 
@@ -86,7 +86,14 @@ def save_frd(data: FrequencyData, path: Any, overwrite: bool = False) -> Path:
     overwrite = flag(overwrite, "overwrite")
     path = _check_path(path)
     writer = _WRITERS[path.suffix.lower()]
-    return write_atomically(path, lambda tmp: writer(data, tmp), overwrite)
+    written = write_atomically(path, lambda tmp: writer(data, tmp), overwrite)
+    side = sidecar_path(path)
+    if writer is write_uff and (data.experiment != Experiment() or data.meta):
+        # the sidecar belongs to the file just written: replace any old one
+        write_atomically(side, lambda tmp: write_sidecar(data, tmp), True)
+    elif writer is write_uff and side.is_file():
+        side.unlink()  # an old file's description must not be read with this one
+    return written
 
 
 _WRITERS = {".npz": write_npz, ".mat": write_mat, ".csv": write_csv, ".uff": write_uff, ".unv": write_uff}

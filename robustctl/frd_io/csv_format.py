@@ -3,11 +3,18 @@
 Layout written by :func:`write_csv` (``N = n_freq * n_out * n_in`` data rows)::
 
     # robustctl.FrequencyData csv: 16 frequencies x 2 outputs x 2 inputs = 64 rows
+    # experiment: {"input_kind": "measured", "excitation": "random", "fs_hz": 200.0, ...}
+    # units: {"F": "N", "a1": "m/s^2"}
+    # meta: {"method": "H1 (Welch averaged cross-spectra)", ...}
     f_hz,output,input,re,im,coherence
     1.0,y1,u1,0.25,-0.5,0.9            <- frequency-major: every (output, input) pair of
     ...                                   one frequency, then the next frequency
     # end, 64 rows
 
+The ``# experiment``, ``# units`` and ``# meta`` lines (one JSON object each, written when
+there is something to keep, optional on reading; a file without ``# experiment`` loads as not
+described) keep how the data were made
+(:class:`~robustctl.frd.Experiment`), the signal units and the provenance.
 The first and last lines are the completeness markers. A file cut anywhere -- even exactly
 between two frequency blocks, where every row left is whole -- lacks the ``# end`` line (or
 holds fewer rows than it announces) and :func:`read_csv` refuses it with a
@@ -28,8 +35,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError
-from ..frd import FrequencyData
-from ._common import MAX_FILE_BYTES, build, read_limited
+from ..frd import Experiment, FrequencyData
+from ._common import MAX_FILE_BYTES, build, json_dumps, json_loads, read_limited
 
 __all__ = ["read_csv", "write_csv"]
 
@@ -38,6 +45,7 @@ _PREAMBLE = "# robustctl.FrequencyData csv: {} frequencies x {} outputs x {} inp
 _PREAMBLE_RE = re.compile(
     r"# robustctl\.FrequencyData csv: (\d+) frequencies x (\d+) outputs x (\d+) inputs = (\d+) rows\s*"
 )
+_FIELD_RE = re.compile(r"# (experiment|units|meta): (.*)")
 _END = "# end, {} rows"
 _END_RE = re.compile(r"# end, (\d+) rows\s*")
 
@@ -48,6 +56,12 @@ def write_csv(data: FrequencyData, path: Path) -> None:
     n_rows = data.n_freq * data.n_out * data.n_in
     with open(path, "w", newline="", encoding="utf-8") as fh:
         fh.write(_PREAMBLE.format(data.n_freq, data.n_out, data.n_in, n_rows) + "\n")
+        if data.experiment != Experiment():  # the layout of undescribed data is unchanged
+            fh.write(f"# experiment: {json_dumps(data.experiment.to_dict())}\n")
+        if data.units:
+            fh.write(f"# units: {json_dumps(data.units)}\n")
+        if data.meta:
+            fh.write(f"# meta: {json_dumps(data.meta)}\n")
         writer = csv.writer(fh, lineterminator="\n")
         writer.writerow(_CSV_HEADER + (["coherence"] if has_coh else []))
         for k, f in enumerate(data.f_hz.tolist()):
@@ -120,14 +134,30 @@ def _header_error(fields: list[str]) -> DataError:
     )
 
 
+def _header_fields(text: str, first: int) -> tuple[dict[str, dict], str, int]:
+    """The ``# experiment|units|meta: {json}`` lines at the start of ``text``, the rest, its first line."""
+    found: dict[str, dict] = {}
+    while text.startswith("# "):
+        line, _, rest = text.partition("\n")
+        match = _FIELD_RE.fullmatch(line.rstrip("\r"))
+        if match is None:
+            break
+        if match.group(1) in found:
+            raise DataError(f"line {first}: a second '# {match.group(1)}:' line; the file is damaged.")
+        found[match.group(1)] = json_loads(match.group(2).strip(), f"CSV '# {match.group(1)}' line {first}")
+        text, first = rest, first + 1
+    return found, text, first
+
+
 def _markers(text: str) -> tuple[tuple[int, ...] | None, int | None, str, int]:
     """``(announced (n_freq, n_out, n_in, n_rows) or None, footer rows or None, body, body's first line)``.
 
-    The preamble is the first line when it starts with ``#``; the footer the last line when it
-    starts with ``# end``. A preamble that is not robustctl's is refused (a damaged marker).
+    The preamble is the first line when it starts with ``#`` (and is not a field line); the
+    footer the last line when it starts with ``# end``. A preamble that is not robustctl's is
+    refused (a damaged marker).
     """
     announced, first = None, 1
-    if text.startswith("#"):
+    if text.startswith("#") and _FIELD_RE.fullmatch(text.partition("\n")[0].rstrip("\r")) is None:
         line, _, text = text.partition("\n")
         match = _PREAMBLE_RE.fullmatch(line)
         if match is None:
@@ -147,7 +177,9 @@ def _markers(text: str) -> tuple[tuple[int, ...] | None, int | None, str, int]:
     return announced, footer, text, first
 
 
-def _csv_rows(path: Path) -> tuple[bool, list[list[str]], tuple[int, ...] | None, int | None, int]:
+def _csv_rows(
+    path: Path,
+) -> tuple[bool, list[list[str]], tuple[int, ...] | None, int | None, int, dict[str, dict]]:
     text = _decode(read_limited(path, MAX_FILE_BYTES))
     if not text:
         raise DataError("the CSV file is empty.")
@@ -157,6 +189,7 @@ def _csv_rows(path: Path) -> tuple[bool, list[list[str]], tuple[int, ...] | None
             "short); write it again or add the missing end."
         )
     announced, footer, body, first = _markers(text)
+    extra, body, first = _header_fields(body, first)
     try:
         rows = list(csv.reader(io.StringIO(body)))
     except csv.Error as exc:
@@ -171,7 +204,7 @@ def _csv_rows(path: Path) -> tuple[bool, list[list[str]], tuple[int, ...] | None
     header = [h.strip().lower() for h in rows[0]]
     if header not in (_CSV_HEADER, _CSV_HEADER + ["coherence"]):
         raise _header_error(rows[0])
-    return len(header) == 6, rows, announced, footer, first
+    return len(header) == 6, rows, announced, footer, first, extra
 
 
 def _check_complete(announced: tuple[int, ...] | None, footer: int | None, n_rows: int) -> None:
@@ -193,7 +226,7 @@ def _check_complete(announced: tuple[int, ...] | None, footer: int | None, n_row
 
 def read_csv(path: Path) -> FrequencyData:
     """Read a long-format CSV file, checking its completeness markers when it has them."""
-    has_coh, rows, announced, footer, first = _csv_rows(path)
+    has_coh, rows, announced, footer, first, extra = _csv_rows(path)
     freqs: dict[float, int] = {}
     outs: dict[str, int] = {}
     ins: dict[str, int] = {}
@@ -235,4 +268,5 @@ def read_csv(path: Path) -> FrequencyData:
         resp[k, o, i] = g
         if coh is not None:
             coh[k, o, i] = c
-    return build("CSV", f_hz=list(freqs), response=resp, outputs=list(outs), inputs=list(ins), coherence=coh)
+    return build("CSV", f_hz=list(freqs), response=resp, outputs=list(outs), inputs=list(ins), coherence=coh,
+                 units=extra.get("units"), meta=extra.get("meta"), experiment=extra.get("experiment"))

@@ -16,6 +16,13 @@ from .mat5_check import check_mat5
 __all__ = ["read_mat", "write_mat"]
 
 _CONTENTS = "robustctl_contents"
+#: Plain MAT variables of the experiment description (:class:`~robustctl.frd.Experiment`), written
+#: beside the complete JSON record and read when a file (e.g. MATLAB's) has only them.
+_MAT_EXPERIMENT = {
+    "InputKind": "input_kind", "Excitation": "excitation", "SampleRate": "fs_hz", "Window": "window",
+    "NPerSeg": "nperseg", "NOverlap": "noverlap", "NAverages": "n_averages", "WholePeriods": "whole_periods",
+    "HoldDivided": "hold_divided",
+}
 
 def _cell(names: Sequence[str]) -> np.ndarray:
     cell = np.empty((len(names), 1), dtype=object)
@@ -36,7 +43,12 @@ def write_mat(data: FrequencyData, path: Path) -> None:
         "robustctl_format": FORMAT,
         "robustctl_units": json_dumps(data.units),
         "robustctl_meta": json_dumps(data.meta),
+        "robustctl_experiment": json_dumps(data.experiment.to_dict()),
     }
+    for key, name in _MAT_EXPERIMENT.items():  # plain fields a MATLAB user reads (and may write)
+        value = getattr(data.experiment, name)
+        if value is not None and not (name == "hold_divided" and not value) and not isinstance(value, tuple):
+            mdict[key] = float(value) if isinstance(value, (bool, int, float)) else str(value)
     if data.coherence is not None:
         mdict["Coherence"] = np.transpose(data.coherence, (1, 2, 0))
     # written first: the list of every variable, so a file cut at a variable boundary is refused
@@ -161,6 +173,35 @@ def read_mat(path: Path) -> FrequencyData:
             coh = coh.real
     units = json_loads(_mat_string(mdict["robustctl_units"]), "units") if "robustctl_units" in mdict else {}
     meta = json_loads(_mat_string(mdict["robustctl_meta"]), "meta") if "robustctl_meta" in mdict else {}
+    experiment = None
+    if "robustctl_experiment" in mdict:
+        experiment = json_loads(_mat_string(mdict["robustctl_experiment"]), "experiment")
+    elif any(key in mdict for key in _MAT_EXPERIMENT):
+        experiment = _plain_experiment(mdict)
     return build(
-        "MAT", f_hz=f, response=resp, inputs=inputs, outputs=outputs, coherence=coh, units=units, meta=meta
+        "MAT", f_hz=f, response=resp, inputs=inputs, outputs=outputs, coherence=coh, units=units, meta=meta,
+        experiment=experiment,
     )
+
+
+def _plain_experiment(mdict: dict) -> dict:
+    """The experiment description from the plain variables (``InputKind``, ``SampleRate`` ...)."""
+    found: dict[str, Any] = {}
+    for key, name in _MAT_EXPERIMENT.items():
+        if key not in mdict:
+            continue
+        raw = np.asarray(mdict[key])
+        if raw.dtype.kind in "US" or raw.dtype == object:
+            found[name] = _mat_string(raw).strip()
+            continue
+        if raw.size != 1 or raw.dtype.kind not in "fiub":
+            raise DataError(f"{key} must be one number or text; got an array of shape {raw.shape}.")
+        value = raw.reshape(-1)[0].item()
+        if name in ("whole_periods", "hold_divided"):
+            value = bool(value)
+        elif name in ("nperseg", "noverlap", "n_averages"):
+            if float(value) != int(value):
+                raise DataError(f"{key} must be a whole number; got {value!r}.")
+            value = int(value)
+        found[name] = value
+    return found

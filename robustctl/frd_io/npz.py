@@ -17,6 +17,7 @@ __all__ = ["read_npz", "write_npz"]
 
 _NPZ_KEYS = {
     "format", "version", "f_hz", "response", "inputs", "outputs", "units_json", "meta_json", "coherence",
+    "experiment_json",
 }
 
 #: Format version written and read.
@@ -33,6 +34,7 @@ def write_npz(data: FrequencyData, path: Path) -> None:
         "outputs": np.array(data.outputs, dtype=str),
         "units_json": np.array(json_dumps(data.units)),
         "meta_json": np.array(json_dumps(data.meta)),
+        "experiment_json": np.array(json_dumps(data.experiment.to_dict())),
     }
     if data.coherence is not None:
         arrays["coherence"] = data.coherence
@@ -102,6 +104,8 @@ def read_npz(path: Path) -> FrequencyData:
                 coherence=_npz_array(npz, "coherence", "fiu") if "coherence" in npz.files else None,
                 units=json_loads(str(_npz_array(npz, "units_json", "U")), "units"),
                 meta=json_loads(str(_npz_array(npz, "meta_json", "U")), "meta"),
+                experiment=json_loads(str(_npz_array(npz, "experiment_json", "U")), "experiment")
+                if "experiment_json" in npz.files else None,
             )
         except (zipfile.BadZipFile, OSError, EOFError) as exc:
             raise DataError(f"the npz archive is corrupt ({exc}).") from None

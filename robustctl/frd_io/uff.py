@@ -1,4 +1,11 @@
-"""FrequencyData in universal files, dataset 58 (``.uff``/``.unv``, via pyuff)."""
+"""FrequencyData in universal files, dataset 58 (``.uff``/``.unv``, via pyuff).
+
+How the data were made (:class:`~robustctl.frd.Experiment`) is kept twice: compactly in ID
+line 2 of every record (``frf input=measured exc=random fs=200 nperseg=2048
+window=hamming nov=1024 navg=19``, read back from robustctl's own files), and completely,
+with ``meta``, in a sidecar ``<file>.uff.json`` that :func:`read_uff` reads when it is present
+and matches the file's channels. A file without either loads as not described.
+"""
 
 from __future__ import annotations
 
@@ -7,10 +14,17 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError
-from ..frd import FrequencyData
-from ._common import MAX_FILE_BYTES, build, read_limited
+from ..frd import Experiment, FrequencyData
+from ._common import MAX_FILE_BYTES, build, json_dumps, json_loads, read_limited
 
-__all__ = ["read_uff", "write_uff"]
+__all__ = ["read_uff", "write_uff", "sidecar_path", "write_sidecar"]
+
+_SIDECAR = "robustctl.FrequencyData uff sidecar"
+#: ID-line-2 keys of the compact experiment description and the Experiment fields they hold.
+_ID2_KEYS = {
+    "input": "input_kind", "exc": "excitation", "fs": "fs_hz", "nperseg": "nperseg", "window": "window",
+    "whole": "whole_periods", "hold": "hold_divided", "nov": "noverlap", "navg": "n_averages",
+}
 
 _UFF_ID = "robustctl FrequencyData"
 _SHAPE_TAG = "robustctl shape"
@@ -32,7 +46,7 @@ def _uff_shape_id(data: FrequencyData) -> str:
 
 def _uff_record(
     f: np.ndarray, values: np.ndarray, func_type: int, o: int, i: int, names: tuple[str, str],
-    units: tuple[str, str] = ("", ""), id3: str = "NONE",
+    units: tuple[str, str] = ("", ""), id3: str = "NONE", experiment: Experiment | None = None,
 ):
     """One dataset-58 record; ``units`` (output, input) go to the ordinate numerator and
     denominator labels and data types (an FRF is output units per input unit); ``id3`` is
@@ -41,7 +55,7 @@ def _uff_record(
 
     out_u, in_u = units if func_type == 4 else ("", "")
     return pyuff.prepare_58(
-        binary=1, id1=_UFF_ID, id2="coherence" if func_type == 6 else "frf", id3=id3,
+        binary=1, id1=_UFF_ID, id2=id2_text("coherence" if func_type == 6 else "frf", experiment), id3=id3,
         id4=names[0], id5=names[1], func_type=func_type, rsp_node=o + 1, rsp_dir=0, ref_node=i + 1,
         ref_dir=0, data=values, x=f, abscissa_spacing=0, abscissa_spec_data_type=18,
         abscissa_axis_units_lab="Hz", ordinate_spec_data_type=_DATA_TYPES.get(out_u, 0),
@@ -78,12 +92,14 @@ def write_uff(data: FrequencyData, path: Path) -> None:
         for i, inp in enumerate(data.inputs):
             records.append(
                 _uff_record(
-                    data.f_hz, data.response[:, o, i], 4, o, i, (out, inp), (units[out], units[inp]), id3
+                    data.f_hz, data.response[:, o, i], 4, o, i, (out, inp), (units[out], units[inp]), id3,
+                    data.experiment,
                 )
             )
             if data.coherence is not None:
                 coh = data.coherence[:, o, i].astype(float)
-                records.append(_uff_record(data.f_hz, coh, 6, o, i, (out, inp), id3))
+                records.append(_uff_record(data.f_hz, coh, 6, o, i, (out, inp), id3=id3,
+                                           experiment=data.experiment))
     path.unlink()  # pyuff opens the file itself; "add" mode (its binary "overwrite" truncates the header)
     try:
         pyuff.UFF(str(path)).write_sets(records, mode="add")
@@ -227,4 +243,102 @@ def read_uff(path: Path) -> FrequencyData:
                 raise DataError(f"coherence is given for some pairs but not for {outs[o]!r}/{ins[i]!r}.")
             coh[:, o, i] = np.real(found[(6, o, i)])
     units = _uff_units(sets)
-    return build("UFF", f_hz=f, response=resp, outputs=outs, inputs=ins, coherence=coh, units=units)
+    experiment, meta = _id2_experiment(sets), {}
+    side = _read_sidecar(path, outs, ins, f.size)
+    if side is not None:
+        experiment, meta = side
+    return build("UFF", f_hz=f, response=resp, outputs=outs, inputs=ins, coherence=coh, units=units,
+                 meta=meta, experiment=experiment)
+
+
+# ---------------------------------------------------------------------------- experiment
+def id2_text(kind: str, experiment: Experiment | None) -> str:
+    """ID line 2: ``kind`` and the compact experiment description (at most 80 characters)."""
+    text = kind
+    if experiment is None:
+        return text
+    values = experiment.to_dict()
+    for key, name in _ID2_KEYS.items():
+        value = values[name]
+        if value is None or (name == "hold_divided" and not value):
+            continue
+        if isinstance(value, bool):
+            value = int(value)
+        if isinstance(value, float):
+            value = f"{value:.17g}"
+        value = str(value)
+        if name == "window" and (not isinstance(values[name], str) or " " in value):
+            continue  # a tuple or user window: the sidecar keeps it
+        token = f" {key}={value}"
+        if len(text) + len(token) <= 80:
+            text += token
+    return text
+
+
+def _id2_experiment(sets: list[dict]) -> Experiment | None:
+    """The experiment described in ID line 2 of robustctl's records (the first FRF record's)."""
+    for rec in sets:
+        if str(rec.get("id1", "")).strip() != _UFF_ID or int(rec["func_type"]) != 4:
+            continue
+        tokens = str(rec.get("id2", "")).split()[1:]
+        found: dict[str, object] = {}
+        for token in tokens:
+            key, sep, value = token.partition("=")
+            if not sep or key not in _ID2_KEYS:
+                continue
+            name = _ID2_KEYS[key]
+            try:
+                if name == "fs_hz":
+                    found[name] = float(value)
+                elif name in ("nperseg", "noverlap", "n_averages"):
+                    found[name] = int(value)
+                elif name in ("whole_periods", "hold_divided"):
+                    found[name] = bool(int(value))
+                else:
+                    found[name] = value
+            except ValueError:
+                raise DataError(
+                    f"ID line 2 {rec.get('id2')!r} holds an unreadable {key}={value!r}."
+                ) from None
+        return Experiment.from_dict(found)
+    return None
+
+
+def sidecar_path(path: Path) -> Path:
+    """``<file>.uff.json`` next to a universal file."""
+    return path.with_name(path.name + ".json")
+
+
+def write_sidecar(data: FrequencyData, path: Path) -> None:
+    """Write the sidecar of ``data`` (experiment, meta and the channels it belongs to) to ``path``."""
+    doc = {
+        "format": _SIDECAR, "outputs": list(data.outputs), "inputs": list(data.inputs),
+        "n_freq": data.n_freq, "experiment": data.experiment.to_dict(), "meta": data.meta,
+    }
+    path.write_text(json_dumps(doc) + "\n", encoding="utf-8")
+
+
+def _read_sidecar(path: Path, outs: list[str], ins: list[str], n_freq: int):
+    """``(experiment, meta)`` from the sidecar of ``path``, or None when there is none.
+
+    A sidecar written for other channels (a file renamed over another) is refused."""
+    side = sidecar_path(path)
+    if not side.is_file():
+        return None
+    try:
+        doc = json_loads(read_limited(side, MAX_FILE_BYTES).decode("utf-8"), f"sidecar {side.name}")
+    except UnicodeDecodeError:
+        raise DataError(f"the sidecar {side.name} is not UTF-8 JSON; remove or repair it.") from None
+    if doc.get("format") != _SIDECAR:
+        raise DataError(f"{side.name} is not a robustctl UFF sidecar; remove it or rename it.")
+    mine = (sorted(doc.get("outputs", [])), sorted(doc.get("inputs", [])), doc.get("n_freq"))
+    if mine != (sorted(outs), sorted(ins), n_freq):
+        raise DataError(
+            f"the sidecar {side.name} describes outputs {doc.get('outputs')} x inputs {doc.get('inputs')} at "
+            f"{doc.get('n_freq')} frequencies, not this file's {outs} x {ins} at {n_freq}; it belongs to "
+            "another file. Remove it (the data then load as not described) or restore the right one."
+        )
+    meta = doc.get("meta") or {}
+    if not isinstance(meta, dict):
+        raise DataError(f"the sidecar {side.name} holds a meta that is not a JSON object.")
+    return Experiment.from_dict(doc.get("experiment")), meta

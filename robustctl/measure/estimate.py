@@ -15,12 +15,12 @@ import numpy as np
 
 from ..checks import check_seed, flag, integer, match_channels, positive_number
 from ..errors import DataError, ModelError
-from ..frd import FrequencyData
+from ..frd import EXCITATIONS, INPUT_KINDS, Experiment, FrequencyData, combined_experiment
 from ..lti import zoh
 from ..threads import limit_blas
 from .estimator import USER_WINDOW, window_values
 
-__all__ = ["estimate_frf", "combine_experiments", "simulate_experiment", "advised_nperseg"]
+__all__ = ["estimate_frf", "combine_experiments", "simulate_experiment", "advised_nperseg", "HeldCommand"]
 
 #: the largest record simulate_experiment will produce (samples), a memory guard
 MAX_SAMPLES = 50_000_000
@@ -55,6 +55,64 @@ def advised_nperseg(n_samples: int, min_averages: int = MIN_AVERAGES, longest: i
 
 
 # ---------------------------------------------------------------------------- helpers
+class HeldCommand(np.ndarray):
+    """A sampled command that a DAC held over each sample (zero-order hold).
+
+    :func:`simulate_experiment` returns its excitation as a ``HeldCommand`` so that
+    :func:`estimate_frf` records ``input_kind="held"`` without being told; any array
+    operation keeps the mark (``np.asarray(u)`` drops it). ``fs_hz`` is the hold's rate.
+    """
+
+    fs_hz: float | None = None
+
+    def __new__(cls, values: Any, fs_hz: float | None = None) -> HeldCommand:
+        obj = np.asarray(values).view(cls)
+        obj.fs_hz = fs_hz
+        return obj
+
+    def __array_finalize__(self, obj: Any) -> None:
+        self.fs_hz = getattr(obj, "fs_hz", None)
+
+    def __array_wrap__(self, arr: Any, context: Any = None, return_scalar: bool = False) -> Any:
+        if np.ndim(arr) == 0:  # reductions give plain numbers, not 0-d marked arrays
+            return np.asarray(arr)[()]
+        return super().__array_wrap__(arr, context, return_scalar)
+
+    def __reduce__(self):
+        return (HeldCommand, (np.asarray(self), self.fs_hz))
+
+
+def _input_kind(value: Any, u: Any) -> str:
+    """``"held"`` for a :class:`HeldCommand` unless told otherwise, else ``"measured"``."""
+    if value is None or (isinstance(value, str) and value == "auto"):
+        return "held" if isinstance(u, HeldCommand) else "measured"
+    if not isinstance(value, str) or value not in INPUT_KINDS:
+        raise DataError(
+            f"input_kind must be 'measured' (a measured force or voltage), 'held' (a DAC command through a "
+            f"zero-order hold) or 'auto'; got {value!r}."
+        )
+    return value
+
+
+def _excitation(value: Any, whole_periods: Any, period: Any, nperseg: int) -> tuple[str, bool | None]:
+    if not isinstance(value, str) or value not in EXCITATIONS:
+        raise DataError(f"excitation must be one of {list(EXCITATIONS)}; got {value!r}.")
+    if period is not None:
+        period = integer(period, "period (samples per period of the excitation)", DataError, lo=1)
+        whole = nperseg % period == 0
+        if whole_periods is not None and bool(whole_periods) != whole:
+            raise DataError(
+                f"whole_periods={whole_periods!r} contradicts period={period} with nperseg={nperseg} "
+                f"(nperseg % period = {nperseg % period}); give one of them."
+            )
+        whole_periods = whole
+    if whole_periods is not None:
+        whole_periods = flag(whole_periods, "whole_periods")
+        if value != "periodic":
+            raise DataError(f"whole_periods/period describe periodic excitation; excitation is {value!r}.")
+    return value, whole_periods
+
+
 #: Largest signal magnitude: squares summed over a window stay far below the float64 limit.
 _MAX_SIGNAL = 1e100
 #: Smallest peak of a non-zero signal: its squares stay far above the float64 underflow.
@@ -194,6 +252,10 @@ def estimate_frf(
     *,
     detrend: bool = True,
     units: Mapping[str, str] | None = None,
+    input_kind: str | None = "auto",
+    excitation: str = "random",
+    whole_periods: bool | None = None,
+    period: int | None = None,
 ) -> FrequencyData:
     """H1 frequency-response estimate from averaged cross-spectra (Welch's method).
 
@@ -236,12 +298,26 @@ def estimate_frf(
     units : mapping, optional
         Units of the signals by name, e.g. ``{"A1": "V", "S1": "m/s^2"}``; carried into
         ``FrequencyData.units`` (axis labels, UFF ordinate types). Unknown names are refused.
+    input_kind : {"auto", "measured", "held"}
+        How the input reached the structure: ``"measured"`` (a measured continuous force or
+        voltage, the laboratory default), ``"held"`` (a DAC command held over each sample).
+        ``"auto"``: ``"held"`` for the excitation :func:`simulate_experiment` returns (a
+        :class:`HeldCommand`), else ``"measured"``.
+    excitation : {"random", "periodic", "burst", "impact", "stepped_sine"}
+        The excitation signal (default ``"random"``): what the estimator's view of a model
+        applies (window leakage for random excitation, none for periodic excitation with whole
+        periods per segment).
+    whole_periods : bool, optional
+        Periodic excitation: each segment holds a whole number of periods.
+    period : int, optional
+        Periodic excitation: samples per period; sets ``whole_periods = nperseg % period == 0``.
 
     Returns
     -------
     FrequencyData
         The estimate at ``k fs / nperseg`` Hz, k = 1 .. nperseg // 2 (DC dropped), with
-        coherence; ``meta`` records the settings and the number of averages.
+        coherence; ``meta`` records the settings and the number of averages, ``experiment``
+        (:class:`~robustctl.frd.Experiment`) how the data were made.
 
     Examples
     --------
@@ -250,6 +326,7 @@ def estimate_frf(
     >>> u, y = rc.simulate_experiment(sys, n_samples=8192)
     >>> data = rc.estimate_frf(u, y, fs=200.0, nperseg=1024)
     """
+    kind = _input_kind(input_kind, u)
     u = _as_signals(u, "u")
     y = _as_signals(y, "y")
     if u.shape[0] != y.shape[0]:
@@ -260,6 +337,7 @@ def estimate_frf(
     fs = positive_number(fs, "fs", unit="sampling frequency, Hz")
     detrend = flag(detrend, "detrend")
     nperseg, noverlap, n_avg = _segment_settings(u.shape[0], nperseg, noverlap)
+    excitation, whole_periods = _excitation(excitation, whole_periods, period, nperseg)
     n_in = u.shape[1]
     if n_avg < n_in:
         raise DataError(
@@ -306,7 +384,12 @@ def estimate_frf(
     }
     if not isinstance(window, (str, tuple)):
         meta["window_values"] = win.tolist()  # so the estimator's view of a model can be formed
-    data = FrequencyData(f, H, inputs=names_in, outputs=outputs, coherence=coh, meta=meta)
+    experiment = Experiment(
+        input_kind=kind, excitation=excitation, fs_hz=fs, window=meta["window"], nperseg=nperseg,
+        noverlap=noverlap, n_averages=n_avg, whole_periods=whole_periods,
+    )
+    data = FrequencyData(f, H, inputs=names_in, outputs=outputs, coherence=coh, meta=meta,
+                         experiment=experiment)
     return data.replace(units=_check_units(units, data))
 
 
@@ -395,7 +478,7 @@ def combine_experiments(experiments: Sequence[FrequencyData]) -> FrequencyData:
         "experiment_of_input": [k for k, e in enumerate(exps) for _ in range(e.n_in)],
     }
     return FrequencyData(ref.f_hz, response, inputs=inputs, outputs=ref.outputs, coherence=coh,
-                         units=units, meta=meta)
+                         units=units, meta=meta, experiment=combined_experiment([e.experiment for e in exps]))
 
 
 # ---------------------------------------------------------------------------- simulation
@@ -506,14 +589,13 @@ def simulate_experiment(
 
     The zero-order hold is part of the simulated experiment, as of a real one driven by a
     DAC: an H1 estimate of ``u -> y`` (:func:`estimate_frf`) carries the hold's half-sample
-    delay (2.5 ms at 200 Hz) and sinc droop, ``(1 - e^{-sT}) / (sT)``. A continuous model
-    compared with such data needs the hold as a known stage, added deliberately:
-    ``model.add_io_stage(rc.electronics.zero_order_hold_stage(model.inputs, fs))`` (or divide
-    the estimate by ``rc.estimator.hold_response(f_hz, fs)``, as
-    ``rc.examples.make_experiment`` does, recording ``meta["hold_divided"]``). Otherwise
-    ``rc.diagnose`` finds the hold and names it as such (a delay of about half a sample).
-    An anti-alias filter in the measurement chain is added the same way
-    (``rc.electronics.anti_alias_stage``).
+    delay (2.5 ms at 200 Hz) and sinc droop, ``(1 - e^{-sT}) / (sT)``. The excitation is
+    returned as a :class:`HeldCommand`, so :func:`estimate_frf` records
+    ``experiment.input_kind = "held"`` and ``rc.compare``, ``rc.diagnose`` and ``rc.update``
+    see a continuous model through the exact sampled hold (aliasing included). Dividing the
+    estimate by ``rc.estimator.hold_response(f_hz, fs)``, as ``rc.examples.make_experiment``
+    does, is recorded as ``experiment.hold_divided``. An anti-alias filter in the measurement
+    chain is added as a known stage (``rc.electronics.anti_alias_stage``).
 
     Parameters
     ----------
@@ -535,8 +617,9 @@ def simulate_experiment(
 
     Returns
     -------
-    u : ndarray, shape (n_samples, n_excited)
-        The excitation of the chosen inputs, in the order given.
+    u : HeldCommand, shape (n_samples, n_excited)
+        The excitation of the chosen inputs, in the order given: an ndarray marked as held
+        (:class:`HeldCommand`), so that :func:`estimate_frf` records ``input_kind="held"``.
     y : ndarray, shape (n_samples, n_out)
         The outputs, noise included.
     """
@@ -579,4 +662,4 @@ def simulate_experiment(
             y = _simulate_loop(Ad, Bd, C, D, u, x0)
     if np.any(rms_y > 0):
         y = y + rng.standard_normal(y.shape) * rms_y
-    return u, y
+    return HeldCommand(u, float(fs)), y

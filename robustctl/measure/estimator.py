@@ -42,10 +42,15 @@ __all__ = [
     "bin_correlation",
     "HOLD_TAG",
     "resolve_estimator",
+    "resolve_view",
     "split_hold",
     "model_view",
     "welch_window",
     "MAX_NPERSEG",
+    "expected_h1_measured",
+    "sampled_hold_response",
+    "discrete_view",
+    "experiment_view",
 ]
 
 #: tag of the zero-order-hold stage (:func:`robustctl.physical.electronics.zero_order_hold_stage`)
@@ -53,16 +58,40 @@ HOLD_TAG = "zero_order_hold"
 
 
 class EstimatorSettings(tuple):
-    """``(fs_hz, nperseg, window)`` of a Welch H1 estimate, plus optional ``noverlap``."""
+    """``(fs_hz, nperseg, window)`` of a Welch H1 estimate, plus optional ``noverlap``.
 
-    def __new__(cls, values: tuple, noverlap: int | None = None, hold_divided: bool = False):
+    ``input_kind`` says how the input reached the structure: ``"held"`` (a DAC command through
+    a zero-order hold: the sampled experiment is exact, aliasing included) or ``"measured"`` (a
+    measured continuous force or voltage: the band-limited response, no hold, no aliasing).
+    ``leakage`` (random excitation with known Welch settings) applies the window's lag window;
+    without it a held input is seen through the exact sampled response alone (periodic
+    excitation with whole periods, stepped sine). The defaults are the held, random view.
+    """
+
+    def __new__(cls, values: tuple, noverlap: int | None = None, hold_divided: bool = False,
+                input_kind: str = "held", leakage: bool = True):
         obj = super().__new__(cls, values)
         obj.noverlap = noverlap
         obj.hold_divided = hold_divided
+        if input_kind not in ("held", "measured"):
+            raise DataError(f"input_kind must be 'held' or 'measured'; got {input_kind!r}.")
+        obj.input_kind = input_kind
+        obj.leakage = bool(leakage)
         return obj
 
     def __reduce__(self):
-        return (EstimatorSettings, (tuple(self), self.noverlap, self.hold_divided))
+        return (EstimatorSettings, (tuple(self), self.noverlap, self.hold_divided, self.input_kind,
+                                    self.leakage))
+
+    def __eq__(self, other: Any) -> bool:
+        same = tuple.__eq__(self, other)
+        if same is not True or not isinstance(other, EstimatorSettings):
+            return same
+        return (self.input_kind, self.leakage, self.hold_divided) == (
+            other.input_kind, other.leakage, other.hold_divided)
+
+    def __hash__(self) -> int:
+        return tuple.__hash__(self)
 
     @property
     def fs_hz(self) -> float:
@@ -77,11 +106,17 @@ class EstimatorSettings(tuple):
         return self[2]
 
     def describe(self) -> str:
-        """``"4096-pt hamming at 200 Hz"``."""
+        """``"4096-pt hamming at 200 Hz"`` (held, random: the legacy wording), else with what is applied:
+        ``"window leakage of 2048-pt hamming at 200 Hz, measured input (no hold)"``."""
+        if not self.leakage:
+            return f"the sampled zero-order-hold response at {self.fs_hz:g} Hz (no window leakage)"
         win = self.window if isinstance(self.window, str) else str(self.window)
         if isinstance(self.window, tuple) and self.window and self.window[0] == USER_WINDOW:
             win = USER_WINDOW
-        return f"{self.nperseg}-pt {win} at {self.fs_hz:g} Hz"
+        text = f"{self.nperseg}-pt {win} at {self.fs_hz:g} Hz"
+        if self.input_kind == "measured":
+            return f"window leakage of {text}, measured input (no hold)"
+        return text
 
 
 def estimator_settings(meta: Mapping[str, Any] | None) -> EstimatorSettings | None:
@@ -388,6 +423,140 @@ def expected_h1(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np.ndarray:
     return windowed_spectrum(_zoh_impulse_loop(ss, settings.fs_hz, settings.nperseg), f_hz, settings)
 
 
+def _lagged_spectrum(two_sided: np.ndarray, f_hz: np.ndarray, settings: EstimatorSettings) -> np.ndarray:
+    """``sum_{|m| < N} h[m] r_w[|m|] / r_w[0] e^{-j theta m}`` at ``f_hz``; ``two_sided`` has length 2N,
+    lag m >= 0 at index m and lag -m at index 2N - m."""
+    fs, n, window = settings
+    f = np.asarray(f_hz, dtype=float)
+    if np.any(f > fs / 2 * (1 + 1e-12)):
+        raise DataError(f"frequencies must not exceed the Nyquist frequency {fs / 2:g} Hz of the estimate.")
+    lag = lag_window(window, n)
+    w2 = np.concatenate([lag, [0.0], lag[:0:-1]])
+    h = two_sided * w2[:, None, None]
+    bins = f * n / fs
+    idx = np.rint(bins).astype(int)
+    if np.allclose(bins, idx, atol=1e-6):
+        return np.fft.fft(h, 2 * n, axis=0)[2 * idx]
+    m = np.concatenate([np.arange(n), np.arange(-n, 0)])
+    phase = np.exp(-2j * np.pi * np.outer(f / fs, m))
+    return np.einsum("fk,koi->foi", phase, h)
+
+
+#: Oversampling of the Nyquist interval for the smooth part of the measured-input view.
+_GRID_FACTOR = 4
+
+
+@limit_blas
+def expected_h1_measured(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np.ndarray:
+    """Expected H1 of a continuous system driven by a measured, band-limited white input.
+
+    The sampled input and output of a structure driven by a measured continuous force (no
+    hold) are related, below the Nyquist frequency, by ``G(j 2 pi f)`` itself: the discrete
+    impulse response is the two-sided inverse transform ``h[m] = (1/2 pi) int_{-pi}^{pi}
+    G(j theta fs) e^{j theta m} d theta``, no aliasing, no hold, a feedthrough stays ``D``. The
+    Welch estimate sees it through the lag window (module notes), two-sided:
+
+        E[H1](theta) = sum_{|m| < N} h[m] r_w[|m|] / r_w[0] e^{-j theta m}.
+
+    Per pole ``p`` below the Nyquist frequency, ``h = h_ii - a`` with ``h_ii[m] = T r e^{p T m}``
+    (``m >= 0``, halved at ``m = 0``: Poisson's sum at the jump) exact and ``a`` the inverse
+    transform of the smooth alias sum ``sum_{q != 0} r / (j (theta + 2 pi q) fs - p) =
+    r [cot((theta - beta) / 2) / (2 j fs) - 1 / (j theta fs - p)]``, ``beta = -j p / fs``, taken
+    by an FFT over ``8 N`` points; a pole above the Nyquist frequency is transformed by the FFT
+    directly. The alias sum is Poisson's summation of the sampled impulse response
+    (Oppenheim & Schafer, *Discrete-Time Signal Processing*, 3rd ed., sec. 4.2); the lag window
+    is that of the module notes (the expectation of the windowed cross-spectrum of a white
+    input).
+
+    Returns
+    -------
+    ndarray, complex, shape (K, n_out, n_in)
+    """
+    from ..lti import as_statespace
+
+    ss = as_statespace(sys)
+    fs, n, _ = settings
+    T = 1.0 / fs
+    big = _GRID_FACTOR * 2 * n
+    theta = 2.0 * np.pi * np.arange(big // 2 + 1) / big
+    modal = _modal(ss)
+    D = np.asarray(ss.D, dtype=float)
+    two = np.zeros((2 * n,) + D.shape)
+    two[0] = D
+    if modal is None:  # defective modes: transform the response itself on the fine grid
+        from ..lti import freqresp
+
+        g = freqresp(ss, theta[1:] * fs / (2 * np.pi)).response - D
+        g = np.concatenate([g[:1].real, g], axis=0)  # theta = 0: the first point's real part
+        g[-1] = g[-1].real
+        c = np.fft.irfft(g, big, axis=0)
+    else:
+        poles, res, _ = modal
+        below = np.abs(poles.imag) < np.pi * fs
+        flat = res.reshape(len(poles), -1)
+        grid = np.zeros((theta.size, flat.shape[1]), complex)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            if np.any(~below):
+                grid += (1.0 / (1j * theta[:, None] * fs - poles[None, ~below])) @ flat[~below]
+            if np.any(below):
+                pb = poles[below]
+                # cot((theta - beta) / 2) = j (1 + e) / (1 - e), e = e^{-j theta} e^{j beta} (= e^{p / fs}):
+                # (|e| <= 1 for a stable pole)
+                e = np.exp(-1j * theta)[:, None] * np.exp(pb / fs)[None, :]
+                cot = 1j * (1.0 + e) / (1.0 - e)
+                alias = cot / (2j * fs) - 1.0 / (1j * theta[:, None] * fs - pb[None, :])
+                grid -= alias @ flat[below]
+        # (big/2 + 1, n_out * n_in)
+        grid[-1] = grid[-1].real  # theta = pi: the mean of the two sides of the jump
+        c = np.fft.irfft(grid, big, axis=0).reshape((big,) + D.shape)
+        if np.any(below):
+            m = np.arange(n)
+            pb = poles[below]
+            seq = np.exp(np.outer(m, pb * T)) * T
+            seq[0] *= 0.5
+            two[:n] += np.real(seq @ flat[below]).reshape((n,) + D.shape)
+    two[:n] += c[:n]
+    two[n + 1:] += c[big - n + 1:]
+    return _lagged_spectrum(two, np.asarray(f_hz, dtype=float), settings)
+
+
+def sampled_hold_response(sys: Any, f_hz: Any, fs: float) -> np.ndarray:
+    """The exact sampled response of a continuous system behind a zero-order hold at ``f_hz``.
+
+    ``G_zoh(z) = C (z I - A_d)^{-1} B_d + D`` with ``[[A_d, B_d], [0, I]] = expm([[A, B], [0, 0]] T)``
+    at ``z = e^{j 2 pi f / fs}`` (Franklin, Powell & Workman, *Digital Control*, sec. 4.3):
+    the H1 estimate of a held input without leakage (periodic excitation with whole periods,
+    stepped sine), aliasing and the hold's half-sample delay included.
+    """
+    import control
+
+    from ..lti import as_statespace, freqresp
+
+    ss = as_statespace(sys)
+    d = control.c2d(ss, 1.0 / float(fs), method="zoh")
+    return freqresp(d, f_hz).response
+
+
+def discrete_view(sys: Any, f_hz: Any, settings: EstimatorSettings | None) -> np.ndarray:
+    """A sampled system (``dt > 0``) as the estimate sees it: ``G(e^{j 2 pi f dt})``, through the
+    lag window when the estimate has leakage (``h[0] = D``, ``h[m] = C A^{m-1} B``)."""
+    from ..lti import as_statespace, freqresp
+
+    ss = as_statespace(sys)
+    f = np.asarray(f_hz, dtype=float)
+    if settings is None or not settings.leakage:
+        return freqresp(ss, f).response
+    n = settings.nperseg
+    A, B, C, D = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
+    two = np.zeros((2 * n,) + D.shape)
+    two[0] = D
+    X = B.copy()
+    for k in range(1, n):
+        two[k] = C @ X
+        X = A @ X
+    return _lagged_spectrum(two, f, settings)
+
+
 def estimator_view(sys: Any, f_hz: Any, settings: EstimatorSettings, *, hold: bool = False) -> np.ndarray:
     """A continuous system "as the H1 estimator sees it".
 
@@ -398,12 +567,26 @@ def estimator_view(sys: Any, f_hz: Any, settings: EstimatorSettings, *, hold: bo
     the hold deliberately (:func:`robustctl.physical.electronics.zero_order_hold_stage`) and
     ``sys`` is the model without that stage. Data divided by the hold
     (``meta["hold_divided"]``) are compared with ``hold=False``.
+
+    A measured input (``settings.input_kind == "measured"``) has no hold and no aliasing:
+    :func:`expected_h1_measured`, window leakage alone. A sampled model (``dt > 0``) is
+    evaluated at ``z = e^{j 2 pi f dt}`` (:func:`discrete_view`).
     """
     f = np.asarray(f_hz, dtype=float)
-    g = expected_h1(sys, f, settings)
+    if _is_discrete(sys):
+        return discrete_view(sys, f, settings)
+    if settings.input_kind == "measured":  # a hold stage the user added stays in the model, exactly
+        g = expected_h1_measured(sys, f, settings)
+        return g * hold_response(f, settings.fs_hz)[:, None, None] if hold else g
+    g = expected_h1(sys, f, settings) if settings.leakage else sampled_hold_response(sys, f, settings.fs_hz)
     if hold:
         return g
     return g / hold_response(f, settings.fs_hz)[:, None, None]
+
+
+def _is_discrete(sys: Any) -> bool:
+    dt = getattr(sys, "dt", None)
+    return dt not in (None, 0) and dt is not False
 
 
 # ---------------------------------------------------------------------------- models seen
@@ -414,28 +597,104 @@ def _sees_estimator(model: Any) -> bool:
     return bool(getattr(src, "leakage_corrected", True))
 
 
-def resolve_estimator(spec: Any, meta: Mapping[str, Any] | None, model: Any) -> EstimatorSettings | None:
+def experiment_view(
+    experiment: Any, meta: Mapping[str, Any] | None = None
+) -> tuple[EstimatorSettings | None, str]:
+    """What the experiment description establishes about the estimate: ``(settings or None, note)``.
+
+    * window leakage: random excitation with known ``fs_hz``, ``nperseg`` and ``window``;
+    * the exact sampled zero-order hold (aliasing, half-sample delay): a held input with known
+      ``fs_hz``, applied to the model unless the data were divided by the hold
+      (``hold_divided``; :func:`model_view`);
+    * nothing else: a measured input has no hold and no aliasing; periodic excitation with
+      whole periods per segment, bursts, impacts and stepped sines have no window leakage.
+
+    ``note`` says in words what is applied (``"model seen through ..."``) or why nothing is
+    (:data:`robustctl.frd.PLAIN_NOTE` when the data do not describe their experiment).
+    """
+    from ..frd import PLAIN_NOTE, Experiment
+
+    e = experiment if isinstance(experiment, Experiment) else Experiment.from_dict(experiment)
+    if e.input_kind is None and e.excitation is None:
+        return None, PLAIN_NOTE
+    if isinstance(meta, Mapping) and meta.get("leakage_corrected"):
+        return None, "compared as the plain FRF: the data were corrected for the estimator's leakage"
+    leakage = e.excitation == "random" and e.welch_known
+    held = e.input_kind == "held" and e.fs_hz is not None
+    if not leakage and not held:
+        if e.excitation == "random":
+            why = "the random-excitation estimate's settings (fs, nperseg, window) are not stated"
+        elif e.excitation == "periodic" and not e.whole_periods:
+            why = "periodic excitation without whole periods per segment stated"
+        elif e.excitation is None:
+            why = "the excitation is not stated"
+        else:
+            why = f"{e.excitation.replace('_', ' ')} excitation has no window leakage"
+            if e.excitation == "periodic":
+                why = "periodic excitation with whole periods per segment has no window leakage"
+                if e.window not in (None, "boxcar", "rectangular", "rect", "ones"):
+                    why += (f" (but a {e.window} window mixes neighbouring lines of a periodic excitation; "
+                            "estimate with window='boxcar')")
+        kind = "the input kind is not stated"
+        if e.input_kind == "measured":
+            kind = "a measured input has no hold"
+        return None, f"compared as the plain FRF: {why}; {kind}"
+    window, n = e.window, e.nperseg
+    if leakage and window == USER_WINDOW:
+        values = (meta or {}).get("window_values") if isinstance(meta, Mapping) else None
+        if values is None:
+            leakage = False
+            if not held:
+                return None, "compared as the plain FRF: the estimate's window array is not recorded"
+        else:
+            window, n, _ = welch_window({"window": window, "nperseg": n, "window_values": values})
+    st = EstimatorSettings(
+        (e.fs_hz, n, window), e.noverlap, e.hold_divided, "held" if held else "measured", leakage
+    )
+    note = f"model seen through the H1 estimator: {st.describe()}"
+    if not held and e.input_kind is None:
+        note = note.replace(", measured input (no hold)", "")
+        note += "; the input kind is not stated, so no zero-order hold is applied"
+    return st, note
+
+
+def resolve_estimator(spec: Any, data: Any, model: Any) -> EstimatorSettings | None:
     """The H1 estimator settings to see ``model`` through, or None (the one rule of compare,
     update, diagnose, verify and ``rc.log_cost``).
 
-    ``"auto"``: the data's recorded settings (``meta``: fs_hz, nperseg, window), unless the
-    model is itself a fit to the estimates; ``True``: required; ``False``/``None``: off; an
-    :class:`EstimatorSettings`: those.
+    ``"auto"``: what the data's experiment description establishes (:func:`experiment_view`),
+    unless the model is itself a fit to the estimates; ``True``: required; ``False``/``None``:
+    off; an :class:`EstimatorSettings`: those. ``data`` is the FrequencyData (a bare ``meta``
+    mapping, as before the experiment description, is read as a held, random-excitation record).
     """
+    return resolve_view(spec, data, model)[0]
+
+
+def resolve_view(spec: Any, data: Any, model: Any) -> tuple[EstimatorSettings | None, str]:
+    """:func:`resolve_estimator` with the note saying what was applied (or why nothing was)."""
     if isinstance(spec, EstimatorSettings):
-        return spec
+        return spec, f"model seen through the H1 estimator: {spec.describe()}"
     if spec is None or spec is False:
-        return None
-    if isinstance(spec, str) and spec == "auto":
-        return estimator_settings(meta) if _sees_estimator(model) else None
-    if spec is True:
+        return None, "compared as the plain FRF (estimator=False)"
+    experiment = getattr(data, "experiment", None)
+    meta = getattr(data, "meta", data)
+    if experiment is None:  # a meta mapping alone: the settings it records, held
         st = estimator_settings(meta)
-        if st is None:
+        found = (st, "" if st is None else f"model seen through the H1 estimator: {st.describe()}")
+    else:
+        found = experiment_view(experiment, meta)
+    if isinstance(spec, str) and spec == "auto":
+        if not _sees_estimator(model):
+            return None, "compared as the plain FRF: the model is a fit to the estimates themselves"
+        return found
+    if spec is True:
+        if found[0] is None:
             raise DataError(
-                "estimator=True needs the H1 estimator settings (fs_hz, nperseg, window) in data.meta, as "
-                "rc.estimate_frf records them; pass estimator=False for other data."
+                "estimator=True needs an experiment description that establishes the estimator's effects "
+                f"({found[1]}); describe the data (data.replace(experiment=rc.Experiment(input_kind=..., "
+                "excitation=..., fs_hz=..., nperseg=..., window=...))) or pass estimator=False."
             )
-        return st
+        return found
     raise DataError(f"estimator must be 'auto', True, False or EstimatorSettings; got {spec!r}.")
 
 
@@ -453,7 +712,12 @@ def split_hold(model: Any) -> tuple[Any, bool]:
 
 def model_view(bare: Any, has_hold: bool, f_hz: Any, settings: EstimatorSettings, **overrides: float):
     """The response of a (split) model as the estimator sees it, shape (K, n_out, n_in), in the
-    model's channel order: :func:`estimator_view` of ``bare.statespace(**overrides)``."""
+    model's channel order: :func:`estimator_view` of ``bare.statespace(**overrides)``.
+
+    A held input's hold is part of the experiment the data describe: it is applied whether or
+    not the model carries a hold stage (unless the data were divided by the hold,
+    ``hold_divided``); a measured input has none, so only a hold stage the user added is.
+    """
     if overrides and hasattr(bare, "param_names"):
         overrides = {k: v for k, v in overrides.items() if k in bare.param_names}
     if hasattr(bare, "param_names") and hasattr(bare, "statespace"):
@@ -462,4 +726,6 @@ def model_view(bare: Any, has_hold: bool, f_hz: Any, settings: EstimatorSettings
         from ..lti import as_statespace
 
         sys = as_statespace(bare)
-    return estimator_view(sys, f_hz, settings, hold=has_hold and not settings.hold_divided)
+    if settings.input_kind == "held":  # the experiment had the hold: keep it, unless it was divided out
+        return estimator_view(sys, f_hz, settings, hold=not settings.hold_divided)
+    return estimator_view(sys, f_hz, settings, hold=has_hold)

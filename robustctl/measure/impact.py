@@ -28,7 +28,7 @@ import numpy as np
 
 from ..checks import positive_number
 from ..errors import DataError
-from ..frd import FrequencyData
+from ..frd import Experiment, FrequencyData
 
 __all__ = ["estimate_frf_impact", "ImpactWarning"]
 
@@ -237,6 +237,7 @@ def estimate_frf_impact(
         outputs=outputs,
         coherence=np.clip(coh, 0.0, 1.0)[:, :, None],
         meta=meta,
+        experiment=Experiment(input_kind="measured", excitation="impact", fs_hz=fs, n_averages=n_hits),
     )
 
 

@@ -44,7 +44,7 @@ import numpy as np
 from ..checks import COHERENCE_CAP, neighbour_coherence
 from ..errors import DataError
 from ..frd import as_frequency_data
-from .estimator import bin_correlation, effective_averages, estimator_settings, welch_window
+from .estimator import USER_WINDOW, bin_correlation, effective_averages, estimator_settings, welch_window
 
 __all__ = [
     "coherence_weight_bias",
@@ -183,6 +183,27 @@ def _experiment_metas(meta: dict, n_in: int) -> list[dict] | None:
     return None
 
 
+def _described_metas(data: Any) -> list[dict] | None:
+    """The averages an experiment description states (``data.experiment``), for data whose
+    ``meta`` does not record them (an impact test, a file described on the command line)."""
+    e = getattr(data, "experiment", None)
+    if e is None or e.n_averages is None:
+        return None
+    m: dict = {"n_averages": e.n_averages}
+    if e.welch_known and e.noverlap is not None and e.window != USER_WINDOW:
+        m.update(nperseg=e.nperseg, noverlap=e.noverlap, window=e.window)
+    return [m] * data.n_in
+
+
+def _settings_meta(data: Any) -> dict:
+    """``data.meta``, with the Welch settings of ``data.experiment`` when ``meta`` lacks them."""
+    meta = dict(data.meta)
+    e = getattr(data, "experiment", None)
+    if e is not None and e.welch_known and e.window != USER_WINDOW and "fs_hz" not in meta:
+        meta.update(fs_hz=e.fs_hz, nperseg=e.nperseg, window=e.window)
+    return meta
+
+
 def averages_of(data: Any) -> np.ndarray | None:
     """Effective number of independent averages per input column, or None when unknown.
 
@@ -193,6 +214,8 @@ def averages_of(data: Any) -> np.ndarray | None:
     """
     data = as_frequency_data(data)
     metas = _experiment_metas(dict(data.meta), data.n_in)
+    if metas is None:
+        metas = _described_metas(data)
     if metas is None:
         return None
     out = []
@@ -237,9 +260,22 @@ def _sigma_of(g2: np.ndarray, nd: np.ndarray) -> np.ndarray:
     return np.sqrt((1.0 - g2) / (2.0 * nd[None, None, :] * g2))
 
 
+#: Degrees of freedom the plug-in coherence costs (see :func:`_from_coherence`).
+PLUG_IN_DOF = 2.0
+
+
 def _from_coherence(data: Any, nd: np.ndarray) -> NoiseModel:
+    """The noise model from each bin's own estimated coherence.
+
+    With ``n`` averages the H1 error of a bin, given the input, is complex normal with variance
+    ``s^2 / S_uu`` and independent of the residual power ``R = (1 - g2) S_yy``, which is
+    ``s^2`` times a Gamma(``n - 1``) variable; the plug-in ``(1 - g2) / (n g2)`` therefore
+    gives ``|e|^2 / sigma^2 = n Exp(1) / Gamma(n - 1)``, of mean ``n / (n - 2)`` (1.33 at 8
+    averages; the normal-theory ratio of Bendat & Piersol sec. 9.2.3 assumes the true
+    coherence). ``n_d - 2`` in place of ``n_d`` makes ``E |e|^2 / sigma^2 = 1``.
+    """
     g2 = np.clip(np.asarray(data.coherence, dtype=float), 1e-12, 1.0)
-    sigma = np.maximum(_sigma_of(g2, nd), SIGMA_FLOOR)
+    sigma = np.maximum(_sigma_of(g2, np.maximum(nd - PLUG_IN_DOF, 1.0)), SIGMA_FLOOR)
     nb = np.clip(neighbour_coherence(g2), 1e-12, 1.0)  # which points to test: independent of their error
     null_level = 1.0 - COHERENCE_NULL_P ** (1.0 / np.maximum(nd - 1.0, 1.0))
     testable = (nb > null_level[None, None, :]) & (_sigma_of(nb, nd) <= SIGMA_TESTABLE)
@@ -248,7 +284,7 @@ def _from_coherence(data: Any, nd: np.ndarray) -> NoiseModel:
         f"the H1 random error from coherence and {nd_txt} effective averages (Bendat & Piersol "
         "Table 9.6)"
     )
-    meta = dict(data.meta)
+    meta = _settings_meta(data)
     return NoiseModel(data.f_hz, sigma, source, nd, _dof_factor(meta), "coherence", testable,
                       _chi2_factor(meta))
 
@@ -281,7 +317,7 @@ def _from_residual(data: Any, measurement_model: Any) -> NoiseModel:
     modes = getattr(measurement_model, "n_modes", None)
     article = "an" if modes and str(modes)[0] in "8" or modes in (11, 18) else "a"
     what = f"{article} {modes}-mode measurement model" if modes else "a measurement model"
-    meta = dict(data.meta)
+    meta = _settings_meta(data)
     return NoiseModel(data.f_hz, sigma, f"noise estimated from the residual of {what}", None,
                       _dof_factor(meta), "residual", None, _chi2_factor(meta))
 

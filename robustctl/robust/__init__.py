@@ -2,6 +2,12 @@
 
 from ..lti import zpk_statespace
 from .blocks import Block, BlockStructure, as_block_structure
+from .controller_reduction import (
+    ControllerReduction,
+    coprime_reduction,
+    reduce_controller,
+    weighted_balanced_truncation,
+)
 
 # weights (uncertainty and performance weights, magnitude fits, covers)
 from .cover import UncertaintyCover, cover_additive, cover_multiplicative, error_envelope
@@ -9,15 +15,22 @@ from .cover import UncertaintyCover, cover_additive, cover_multiplicative, error
 # D-K iteration and the measurement-model yardstick (dk.py, yardstick.py)
 from .dk import DKIteration, DKResult, Reduction, dksyn
 
+# H2/LQG, discrete synthesis, loop shaping, margins, controller reduction (toolbox)
+from .h2 import H2Result, h2norm, h2syn
+
 # H-infinity norm and synthesis (hinf helper)
 from .hinf_norm import hinfnorm
 from .hinf_synthesis import HinfResult, hinfsyn
+from .loop_shaping import LoopShapingResult, ncfsyn, stability_margin
+from .lqg_design import LQGResult, lqg
 from .magfit import MagnitudeFit, fit_magnitude, fit_magnitude_details
+from .margins import DiskMargin, DiskMarginResult, disk_gain_phase, diskmargin, nugap
 from .mu_analysis import WorstCaseGain, robust_performance, robust_stability, worst_case_gain
 
 # --- mu analysis (mu helper) ---
 from .mu_bounds import MuResult, mu
 from .plant import GeneralizedPlant, PlantWeight, generalized_plant, mixed_sensitivity
+from .sampled import sampled_plant
 from .sweep import DesignSweep, design_sweep
 from .weights import CALTECH_MULTIPLICATIVE, caltech_additive_weight, makeweight
 from .yardsticks import NyquistVerdict, Yardstick, nyquist_stability, yardstick
@@ -65,4 +78,23 @@ __all__ = [
     "nyquist_stability",
     "design_sweep",
     "DesignSweep",
+    # H2/LQG, discrete synthesis, loop shaping, margins, controller reduction
+    "h2norm",
+    "h2syn",
+    "H2Result",
+    "lqg",
+    "LQGResult",
+    "sampled_plant",
+    "diskmargin",
+    "disk_gain_phase",
+    "DiskMargin",
+    "DiskMarginResult",
+    "nugap",
+    "ncfsyn",
+    "LoopShapingResult",
+    "stability_margin",
+    "reduce_controller",
+    "weighted_balanced_truncation",
+    "coprime_reduction",
+    "ControllerReduction",
 ]

@@ -663,7 +663,11 @@ class Reduction:
     """A final balanced-truncation reduction of the controller, re-checked by mu.
 
     ``accepted`` is False (and the full controller kept) when the reduced controller does
-    not stabilise the plant or raises mu by more than ``mu_rtol``.
+    not stabilise the plant or raises mu by more than ``mu_rtol``. ``method`` is "balanced",
+    "weighted" or "coprime" and ``error`` the truncation's error figure at ``order_after``
+    (:mod:`robustctl.robust.controller_reduction`): the a-priori bound ``2 sum sigma_tail`` on
+    ``||K - Kr||_inf`` (balanced), the achieved ``||(K - Kr)(I - G K)^-1 G||_inf`` (weighted;
+    below 1 certifies stability), or the achieved coprime-factor error (coprime).
     """
 
     order_before: int
@@ -672,6 +676,8 @@ class Reduction:
     mu_peak_after: float
     accepted: bool
     reason: str
+    method: str = "balanced"
+    error: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -868,7 +874,7 @@ def dksyn(
     f_hz: Any = None,
     executor: Executor | None = None,
     time_budget_s: float = 120.0,
-    reduce: int | str | None = None,
+    reduce: int | str | tuple | None = None,
     progress: bool | None = None,
     *,
     rtol: float = 1e-3,
@@ -906,7 +912,10 @@ def dksyn(
         Reduce the final controller to this many states by balanced truncation and re-check
         mu (kept only if it stabilises and raises the peak of mu by at most 2 %). ``"auto"``:
         the smallest such order, by bisection (a few more mu analyses); what a real-time
-        implementation wants before :func:`~robustctl.export.export_controller`.
+        implementation wants before :func:`~robustctl.export.export_controller`. A pair
+        ``("weighted", order)`` truncates with the closed-loop weight (Enns), ``("coprime",
+        order)`` the normalized coprime factors (unstable controllers too); see
+        :mod:`robustctl.robust.controller_reduction`.
     progress : bool, optional
         tqdm bar over iterations (default: when stderr is a terminal).
     rtol : float
@@ -1093,34 +1102,60 @@ def _reduce(plant: _Plant, blocks: BlockStructure, K: Any, cl: Any, m: Any, orde
     """
     from ..balanced import balanced_truncation
 
+    method = "balanced"
+    if isinstance(order, tuple) and len(order) == 2 and order[0] in ("weighted", "coprime"):
+        method, order = order  # controller_reduction.py: closed-loop weighted or coprime-factor truncation
     auto = isinstance(order, str) and order == "auto"
     if not auto:
-        integer(order, "reduce (the number of controller states)", SynthesisError, lo=1, alternative="'auto'")
+        integer(order, "reduce (the number of controller states)", SynthesisError, lo=1,
+                alternative="'auto', or a pair ('weighted' or 'coprime', that)")
     n = K.nstates
     if not auto and order >= n:
         return K, cl, m, Reduction(n, n, m.peak, m.peak, False, f"the controller has only {n} states")
-    if not is_stable(K, margin=0.0):
+    if method != "coprime" and not is_stable(K, margin=0.0):
         return K, cl, m, Reduction(n, n if auto else order, m.peak, np.inf, False,
-                                   "the controller is unstable (balanced truncation needs a stable one)")
+                                   "the controller is unstable (balanced truncation needs a stable one; "
+                                   "use reduce=('coprime', order))")
+    errors: dict[int, float] = {}
+    if method == "balanced":
+        hsv, reduce_to = None, balanced_truncation
+    else:
+        from ..interconnect import PartitionedPlant
+        from .controller_reduction import reducer
+
+        try:
+            hsv, reduce_to = reducer(K, PartitionedPlant(plant.P, plant.nmeas, plant.ncon), method)
+        except SynthesisError as exc:
+            return K, cl, m, Reduction(n, n if auto else order, m.peak, np.inf, False, str(exc), method)
+
+    def truncate(r: int) -> Any:
+        red = reduce_to(K, r) if method == "balanced" else reduce_to(r)
+        errors[r] = float(red.bound if method == "balanced" else red.error)
+        return red.sys if method == "balanced" else red.K
+
     tried: dict[int, tuple] = {}
 
     def attempt(r: int) -> tuple:
         if r not in tried:
-            tried[r] = _truncated_loop(plant, blocks, K, balanced_truncation(K, r).sys, m, base, refine,
-                                       mu_rtol)
+            try:
+                tried[r] = _truncated_loop(plant, blocks, K, truncate(r), m, base, refine, mu_rtol)
+            except SynthesisError as exc:
+                tried[r] = (K, None, None, str(exc))
         return tried[r]
 
     if not auto:
         Kr, clr, mr, reason = attempt(int(order))
+        err = errors.get(int(order), float("nan"))
         if reason:
-            return K, cl, m, Reduction(n, order, m.peak, mr.peak if mr is not None else np.inf, False, reason)
-        return Kr, clr, mr, Reduction(n, order, m.peak, mr.peak, True, "")
-    r = _auto_order(balanced_truncation(K, 1).hsv, attempt)
+            return K, cl, m, Reduction(n, order, m.peak, mr.peak if mr is not None else np.inf, False, reason,
+                                       method, err)
+        return Kr, clr, mr, Reduction(n, order, m.peak, mr.peak, True, "", method, err)
+    r = _auto_order(balanced_truncation(K, 1).hsv if hsv is None else hsv, attempt)
     if r is None:
         return K, cl, m, Reduction(n, n, m.peak, m.peak, False, "no truncation kept mu within "
-                                   f"{100 * mu_rtol:g} % of the full controller's")
+                                   f"{100 * mu_rtol:g} % of the full controller's", method)
     Kr, clr, mr, _ = attempt(r)
-    return Kr, clr, mr, Reduction(n, r, m.peak, mr.peak, True, "")
+    return Kr, clr, mr, Reduction(n, r, m.peak, mr.peak, True, "", method, errors.get(r, float("nan")))
 
 
 def _auto_order(hsv: np.ndarray, attempt: Callable[[int], tuple]) -> int | None:

@@ -59,6 +59,7 @@ from ..lti import (
     _schur_factors,
     _small_block_scaling,
     as_statespace,
+    roundoff_margin,
 )
 from ..threads import limit_blas
 
@@ -503,6 +504,23 @@ def _discrete_to_continuous(A, B, C, D) -> tuple[np.ndarray, ...]:
     return Ac, np.sqrt(2.0) * Bs, np.sqrt(2.0) * CIinv, D - C @ Bs
 
 
+def continuous_to_discrete(Ac, Bc, Cc, Dc) -> tuple[np.ndarray, ...]:
+    """Inverse of the bilinear map ``z = (1 + s) / (1 - s)``: ``s = (z - 1) / (z + 1)``.
+
+    ``A = (I - Ac)^-1 (I + Ac)``, ``B = sqrt(2) (I - Ac)^-1 Bc``, ``C = sqrt(2) Cc (I - Ac)^-1``,
+    ``D = Dc + Cc (I - Ac)^-1 Bc`` (Tustin's map with T = 2; the realisation inverse of
+    :func:`_discrete_to_continuous`). Raises ``np.linalg.LinAlgError`` for a pole at ``s = 1``.
+    """
+    n = Ac.shape[0]
+    Im = np.eye(n) - Ac
+    if n and np.linalg.cond(Im) > 1e12:
+        raise np.linalg.LinAlgError("a pole at s = 1 maps to z = infinity")
+    Bs = np.linalg.solve(Im, Bc)
+    CIinv = np.linalg.solve(Im.T, Cc.T).T
+    A = np.linalg.solve(Im, np.eye(n) + Ac)
+    return A, np.sqrt(2.0) * Bs, np.sqrt(2.0) * CIinv, Dc + Cc @ Bs
+
+
 def _check_tol(tol: Any) -> float:
     tol = positive_number(tol, "tol", RobustctlError)
     if tol > 0.1:
@@ -531,7 +549,8 @@ def hinfnorm(sys: Any, tol: float = 1e-6) -> tuple[float, float]:
     -------
     norm : float
         The H-infinity norm (``inf`` when the system is unstable: a pole with
-        ``Re p >= 0``, or ``|z| >= 1`` in discrete time; uncontrollable or unobservable
+        ``Re p >= 0``, or ``|z| >= 1`` in discrete time, to round-off: ``|z| >= 1 - 64 eps
+        max(1, ||A||_1)``, as for a sampled undamped mode; uncontrollable or unobservable
         unstable modes count too).
     f_peak_hz : float
         Frequency (Hz) where ``sigma_max`` peaks (``inf`` when the peak is at infinite
@@ -562,7 +581,9 @@ def hinfnorm(sys: Any, tol: float = 1e-6) -> tuple[float, float]:
         raise ModelError("hinfnorm: the discrete system has no sampling time (dt=True); set dt in s.")
     dt = float(dt)
     poles = np.linalg.eigvals(A) if A.size else np.zeros(0)
-    if poles.size and np.max(np.abs(poles)) >= 1.0:
+    # a pole on the unit circle to round-off (a sampled undamped mode, |z| = 1 - 3e-16) is
+    # on it: the norm is infinite, not the 1e14 of the bilinear map
+    if poles.size and np.max(np.abs(poles)) >= 1.0 - roundoff_margin(A):
         k = int(np.argmax(np.abs(poles)))
         return np.inf, abs(float(np.angle(poles[k]))) / (2.0 * np.pi * dt)
     gamma, w = hinfnorm_matrices(*_discrete_to_continuous(A, B, C, D), tol)

@@ -39,7 +39,7 @@ from ..table import Table, result_html
 from ..threads import limit_blas
 from . import dgkf
 from .hinf_assumptions import check_assumptions
-from .hinf_norm import hinfnorm_matrices
+from .hinf_norm import _discrete_to_continuous, continuous_to_discrete, hinfnorm_matrices
 
 __all__ = ["HinfResult", "hinfsyn"]
 
@@ -92,6 +92,7 @@ class HinfResult:
             ("gamma design (backed off)", i.get("gamma_design", float("nan"))),
             ("closed-loop peak frequency (Hz)", i.get("f_peak_hz", float("nan"))),
             ("controller order", self.K.nstates),
+            ("closed-loop spectral radius", i["closed_loop_spectral_radius"]) if i.get("discrete") else
             ("slowest closed-loop pole Re (rad/s)", i.get("closed_loop_max_real_pole", float("nan"))),
             ("gamma tests", i.get("n_gamma_tests", 0)),
             ("time (s)", i.get("time_s", float("nan"))),
@@ -135,6 +136,10 @@ class HinfResult:
             from .mu_bounds import _frequencies
 
             f_hz = _frequencies(f_hz)  # finite numbers >= 0 Hz, at least one
+        dt = self.closed_loop.dt
+        if f_hz is None and dt not in (0, None):  # up to the Nyquist frequency, four decades below
+            nyquist = 0.5 / (1.0 if dt is True else float(dt))
+            f_hz = np.geomspace(nyquist * 1e-4, nyquist, 800)
         if f_hz is None:
             A = np.asarray(self.closed_loop.A)
             poles = np.abs(np.linalg.eigvals(A)) / (2 * np.pi) if A.size else np.zeros(0)
@@ -169,12 +174,15 @@ class HinfResult:
 
 
 # ---------------------------------------------------------------------------- input checks
-def _as_partitioned(P: Any, nmeas: Any, ncon: Any) -> PartitionedPlant:
+def _as_partitioned(
+    P: Any, nmeas: Any, ncon: Any, who: str = "hinfsyn", allow_discrete: bool = False
+) -> PartitionedPlant:
+    """The plant as a PartitionedPlant, with nmeas/ncon checked (shared by hinfsyn, h2syn, lqg)."""
     if not isinstance(P, PartitionedPlant) and all(hasattr(P, k) for k in ("P", "nmeas", "ncon")):
         try:  # a duck-typed generalized plant (any object with .P, .nmeas, .ncon)
             P = PartitionedPlant(as_statespace(P.P, name="P"), P.nmeas, P.ncon)
         except ModelError as exc:
-            raise SynthesisError(f"hinfsyn: {exc}") from exc
+            raise SynthesisError(f"{who}: {exc}") from exc
     if isinstance(P, PartitionedPlant):
         for name, given, have in (("nmeas", nmeas, P.nmeas), ("ncon", ncon, P.ncon)):
             if given is not None and integer(given, name, SynthesisError, lo=0) != have:
@@ -185,14 +193,14 @@ def _as_partitioned(P: Any, nmeas: Any, ncon: Any) -> PartitionedPlant:
     else:
         if nmeas is None or ncon is None:
             raise SynthesisError(
-                "hinfsyn(P, nmeas, ncon): give the number of measurements nmeas and of control inputs "
+                f"{who}(P, nmeas, ncon): give the number of measurements nmeas and of control inputs "
                 "ncon, or pass a PartitionedPlant / generalized plant (which carries them)."
             )
         try:
             plant = PartitionedPlant(as_statespace(P, name="P"), nmeas, ncon)
         except ModelError as exc:
-            raise SynthesisError(f"hinfsyn: {exc}") from exc
-    if plant.P.dt not in (0, None):
+            raise SynthesisError(f"{who}: {exc}") from exc
+    if plant.P.dt not in (0, None) and not allow_discrete:
         raise SynthesisError(
             f"hinfsyn designs continuous-time controllers; the plant is discrete (dt = {plant.P.dt}). "
             "Design on a continuous-time plant and discretise the controller afterwards."
@@ -205,7 +213,7 @@ def _as_partitioned(P: Any, nmeas: Any, ncon: Any) -> PartitionedPlant:
     ):
         if count < 1:
             raise SynthesisError(
-                f"hinfsyn needs at least one of each signal group; {what} = {count} for a plant with "
+                f"{who} needs at least one of each signal group; {what} = {count} for a plant with "
                 f"{plant.P.ninputs} inputs and {plant.P.noutputs} outputs "
                 f"(nmeas={plant.nmeas}, ncon={plant.ncon})."
             )
@@ -475,7 +483,14 @@ def hinfsyn(
     backoff: float = 0.01,
     time_budget_s: float = 60.0,
 ) -> HinfResult:
-    """H-infinity controller ``K`` minimising ``||Fl(P, K)||_inf`` (continuous time).
+    """H-infinity controller ``K`` minimising ``||Fl(P, K)||_inf`` (continuous or discrete time).
+
+    A discrete plant (``dt`` set, e.g. from :func:`sampled_plant` with the hold and a
+    computation delay) is mapped to continuous time by the bilinear map
+    ``z = (1 + s) / (1 - s)``, which keeps every H-infinity norm (``w = tan(theta / 2)``),
+    designed there, and the controller mapped back by ``s = (z - 1) / (z + 1)``; the discrete
+    closed loop is then verified (spectral radius < 1, ``||Fl(P, K)||_inf <= gamma_design``
+    over the unit circle). The controller has the plant's ``dt``.
 
     Parameters
     ----------
@@ -506,7 +521,8 @@ def hinfsyn(
     Raises
     ------
     SynthesisError
-        A violated assumption (named, with a fix), bad ``nmeas``/``ncon``, a discrete plant,
+        A violated assumption (named, with a fix), bad ``nmeas``/``ncon``, a discrete plant with a
+        pole at ``z = -1``,
         or no verified controller within the retries or the time budget.
 
     Examples
@@ -523,18 +539,80 @@ def hinfsyn(
     gamma_tol = _bounded(gamma_tol, "gamma_tol", 0.5)
     backoff = _bounded(backoff, "backoff", 10.0, allow_zero=True)
     time_budget_s = positive_number(time_budget_s, "time_budget_s", SynthesisError, unit="s")
-    plant = _as_partitioned(P, nmeas, ncon)
+    plant = _as_partitioned(P, nmeas, ncon, allow_discrete=True)
     m = plant.matrices()
     if not all(np.all(np.isfinite(v)) for v in m.values()):
         raise SynthesisError("the plant's state-space matrices contain NaN or inf.")
     clock = _Clock(time_budget_s)
     info: dict = {"method": method, "backoff": backoff, "gamma_tol": gamma_tol}
+    dt = plant.P.dt
+    discrete = dt not in (0, None)
+    mc = _bilinear_plant(m) if discrete else m
     if method == "riccati":
-        K, norm, gamma_opt = _riccati(m, gamma_tol, backoff, clock, info)
+        K, norm, gamma_opt = _riccati(mc, gamma_tol, backoff, clock, info)
     else:
-        K, norm, gamma_opt = _lmi(m, backoff, clock, info)
+        K, norm, gamma_opt = _lmi(mc, backoff, clock, info)
+    if discrete:
+        K, norm = _discrete_controller(m, K, dt, info)
+    info["discrete"] = discrete
     info["time_s"] = clock.elapsed()
     return _result(plant, m, K, norm, gamma_opt, info)
+
+
+def _bilinear_plant(m: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The discrete plant mapped by ``z = (1 + s) / (1 - s)``, partitioned like ``m``.
+
+    The map sends the unit circle onto the imaginary axis (``w = tan(theta / 2)``) and commutes
+    with the LFT, so ``||Fl(P, K)||_inf`` over ``|z| = 1`` equals that of the mapped loop over
+    ``s = jw``: the discrete H-infinity problem and its optimal gamma are exactly those of
+    the mapped continuous problem: ``s -> z`` is a Moebius map, so every transfer function of
+    the loop is the same function of the new variable and the mapped realisations close the
+    same loop. The assumptions (A1)-(A4) on the unit circle (SLICOT SB10DD's) become those of
+    :mod:`~robustctl.robust.hinf_assumptions` on the imaginary axis.
+    """
+    n = m["A"].shape[0]
+    if n and np.linalg.cond(np.eye(n) + m["A"]) > 1e12:
+        raise SynthesisError(
+            "the discrete plant has a pole at z = -1 (the Nyquist frequency), which the bilinear map "
+            "sends to infinity. Fix: damp or remove the mode at fs/2 (e.g. a slightly smaller hold gain)."
+        )
+    nw, nu = m["B1"].shape[1], m["B2"].shape[1]
+    nz = m["C1"].shape[0]
+    B = np.hstack([m["B1"], m["B2"]])
+    C = np.vstack([m["C1"], m["C2"]])
+    D = np.block([[m["D11"], m["D12"]], [m["D21"], m["D22"]]])
+    Ac, Bc, Cc, Dc = _discrete_to_continuous(m["A"], B, C, D)
+    return {
+        "A": Ac, "B1": Bc[:, :nw], "B2": Bc[:, nw:], "C1": Cc[:nz], "C2": Cc[nz:],
+        "D11": Dc[:nz, :nw], "D12": Dc[:nz, nw:], "D21": Dc[nz:, :nw], "D22": Dc[nz:, nw:nw + nu],
+    }
+
+
+def _discrete_controller(m: dict[str, np.ndarray], K: tuple, dt: Any, info: dict) -> tuple[tuple, float]:
+    """The continuous design mapped back by ``s = (z - 1) / (z + 1)``, its discrete closed loop verified."""
+    try:
+        Kd = continuous_to_discrete(*K)
+    except np.linalg.LinAlgError as exc:
+        raise SynthesisError(
+            "the continuous design has a controller pole at s = 1, which maps to z = infinity; change "
+            "backoff slightly."
+        ) from exc
+    A, B, C, D = _closed_loop(m, Kd)
+    rho = float(np.max(np.abs(np.linalg.eigvals(A)))) if A.size else 0.0
+    gamma_d = info["gamma_design"]
+    norm, w = np.inf, np.nan
+    if rho < 1.0:
+        norm, w = hinfnorm_matrices(*_discrete_to_continuous(A, B, C, D), 1e-7)
+    if not (rho < 1.0 and norm <= gamma_d * (1 + VERIFY_TOL)):
+        raise SynthesisError(
+            f"the discrete controller failed its closed-loop check (spectral radius {rho:.12g}, "
+            f"||Fl(P, K)||_inf = {norm:.6g} for gamma = {gamma_d:.6g}); rescale the plant or raise backoff."
+        )
+    theta = 2.0 * np.arctan(w) if np.isfinite(w) else np.pi
+    info["closed_loop_spectral_radius"] = rho
+    info["f_peak_hz"] = theta / (2.0 * np.pi * float(dt)) if dt is not True else np.nan
+    info["f_peak_rad_per_sample"] = float(theta)
+    return Kd, norm
 
 
 def _result(plant: PartitionedPlant, m, K, norm: float, gamma_opt: float, info: dict) -> HinfResult:
@@ -546,6 +624,7 @@ def _result(plant: PartitionedPlant, m, K, norm: float, gamma_opt: float, info: 
         Bk,
         Ck,
         Dk,
+        plant.P.dt,
         inputs=plant.y_names,
         outputs=plant.u_names,
         states=[f"xK{i + 1}" for i in range(Ak.shape[0])],
