@@ -14,6 +14,15 @@ is recorded (other jobs on the cores slow the workers). Side
 by side: what a user would otherwise do, a full LM fit of every candidate with the update
 parameters (8 iterations each), as a time ratio.
 
+Also timed (``corpus_*``): diagnose with the default candidates (now with the test-setup
+candidates: swapped cables, sign flips, units slips, sensors and actuators at neighbouring nodes,
+and semi-rigid joints on frames) on independently generated data (``tests/verdict_corpus.py``:
+numpy modal FRFs, H1 of a periodic measured force), one case per structure with the hidden
+effect's rank: a 4-mass chain (added mass), a hub with two arms (grounded spring), a portal frame
+(semi-rigid joint) and the chain with two sensor cables swapped. The figures of the library
+before the test-setup candidates (292 default candidates on the Caltech truss, 7.9 s on 0.5-50 Hz
+and 8.6 s on 0.5-29.8 Hz with workers) are kept in ``before_*`` for comparison.
+
 Run: ``python -m benchmarks.bench_diagnose`` (writes ``benchmarks/results/diagnose.json``).
 """
 
@@ -99,6 +108,57 @@ def _rank(diag, name: str) -> int | None:
     return None
 
 
+#: The Caltech figures of the default candidates before the test-setup candidates were added
+#: (benchmarks/results/diagnose.json of that library, 2 cores).
+BEFORE = {"before_default_candidates_n": 292, "before_default_candidates_0.5_50Hz_time_s": 7.895,
+          "before_default_candidates_0.5_29.8Hz_time_s": 8.56}
+
+
+def _corpus() -> dict:
+    """Diagnose with the default candidates on the independent corpus: time, candidates, rank."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    import verdict_corpus as vc
+
+    fx = rc.effects
+    out = {}
+    f_chain, f_hub = np.arange(2.0, 40.0, 0.125), np.arange(1.0, 40.0, 0.125)
+    f_frame = np.arange(5.0, 80.0, 0.25)
+    chain = vc.chain_model()
+    hub = vc.hub_model()[0]
+    frame = vc.frame_model()
+
+    def chain_case(**truth):
+        M, K, B, C, kinds = vc.chain_matrices(s_k=1.03, **truth)
+        return vc.modal_frf(M, K, B, C, kinds, f_chain)
+
+    M, K, T = vc.hub_matrices(k_scale=0.97, spring={5: 600.0})
+    B, C, kinds = vc.hub_pointing(T)
+    g_hub = vc.modal_frf(M, K, B, C, kinds, f_hub)
+    struct = frame.with_effect(fx.JointSpring("t1", group="beam", compliance=2e-5)).build_structure()
+    g_frame = vc.modal_frf(*vc.structure_matrices(struct), f_frame)
+    cases = {
+        "chain_added_mass": (chain, chain_case(added={3: 0.1}), f_chain, "added mass at dof 3"),
+        "chain_swapped_cables": (chain, chain_case()[:, [1, 0, 2]], f_chain, "outputs a2 and a3 swapped"),
+        "hub_grounded_spring": (hub, g_hub, f_hub, "suspension spring at dof 5"),
+        "frame_semi_rigid_joint": (frame, g_frame, f_frame, "semi-rigid joint of beam at node t1"),
+    }
+    for key, (model, g, f, truth) in cases.items():
+        data = vc.periodic_h1(g, n_avg=32, noise=0.05, seed=1, inputs=model.inputs, outputs=model.outputs,
+                              f_hz=f)
+        t0 = time.perf_counter()
+        diag = rc.diagnose(model, data, workers=1)
+        out[f"corpus_{key}_time_s"] = round(time.perf_counter() - t0, 3)
+        out[f"corpus_{key}_n_candidates"] = len(diag.ranking) + sum(len(r.equivalent) for r in diag.ranking)
+        out[f"corpus_{key}_proposed"] = None if diag.best is None else diag.best.name
+        rank = _rank(diag, truth)
+        if rank is not None and rank > 1 and diag.indistinguishable and truth in diag.indistinguishable.names:
+            rank = 1
+        out[f"corpus_{key}_rank_of_truth"] = rank
+    return out
+
+
 def run() -> dict:
     """Time diagnose serially and with 2 threads; check that the hidden effect ranks first."""
     with rc.blas_threads(1):
@@ -175,6 +235,9 @@ def run() -> dict:
         "default_candidates_0.5_29.8Hz_rank_of_true_effect": _rank(low, true_name),
         "default_candidates_0.5_50Hz_rank_of_true_effect": _rank(full, true_name),
         "cpu_count": os.cpu_count(),
+        "default_candidates_test_setup_n": sum(1 for c in default_cands if getattr(c, "switch", False)),
+        **BEFORE,
+        **_corpus(),
     }
     # Below 30 Hz the local fits (update sensitivities frozen at the null fit) left the true
     # taut wires at half their tension, behind stiffer diagonals; diagnose now polishes the

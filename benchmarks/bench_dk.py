@@ -8,6 +8,15 @@ Cases:
   D orders (6 iterations; wall and CPU time, the line search's D step per iteration), with
   the book's 4th-order fits (3 iterations), and the variant with the performance weight's
   pole at 1e-5 rad/s (6 iterations; it used to stop at iteration 1);
+* the same column in the book's unscaled units (``G0 / 100``) next to the scaled one, with
+  and without ``autoscale`` (the issue's target: within 1 % of each other, both <= 0.98);
+* Wie & Bernstein's two-mass-spring benchmark with the spring in [0.5, 2] as a real block:
+  D-G-K (``real="mixed"``) next to complex D-K, from the user's scaling and with
+  ``autoscale``: mu, mixed mu of each design, controller order, CPU time, and the largest
+  closed-loop pole real part over 1001 springs for the D-G-K designs;
+* mu-tools' HIMAT examples (``mkhic``, ``mkhicn``; :func:`robustctl.examples.himat_plant`):
+  the automatic D order against fixed orders 0-6 (the issue's target: within 2 % of the best),
+  with and without ``autoscale``, and mu-tools' 60-point grid;
 * the Caltech seed's design plant (six-mode nominal by balanced truncation, eq. 14's
   additive weight, 4 % input/output multiplicative uncertainty, band-pass performance on
   the sensors, level 0.3) with dksyn's defaults (max_iter 10, patience 1: it stops at
@@ -56,6 +65,8 @@ TARGETS = {
     "caltech_cpu_s": "< 10",
     "caltech_rs_mu": "< 1",
     "robustness_dense_check_ok": "== True",
+    "distillation_units_gap_pct": "< 1",
+    "two_mass_mixed_plain_mu": "< 1",
 }
 DKPY_TIMEOUT_S = 300
 
@@ -109,7 +120,8 @@ def _distillation() -> dict:
     auto = dksyn((P, 2, 2, DISTILLATION_BLOCKS), max_iter=6, progress=False)
     t_auto, c_auto = time.perf_counter() - t, time.process_time() - c
     t = time.perf_counter()
-    book = dksyn((P, 2, 2, DISTILLATION_BLOCKS), max_iter=3, order_d=4, patience=10, progress=False)
+    book = dksyn((P, 2, 2, DISTILLATION_BLOCKS), max_iter=3, order_d=4, patience=10, progress=False,
+                 autoscale=False)
     t_book = time.perf_counter() - t
     c = time.process_time()
     eps5 = dksyn((distillation_plant(eps=1e-5), 2, 2, DISTILLATION_BLOCKS), max_iter=6, progress=False)
@@ -133,6 +145,83 @@ def _distillation() -> dict:
         "distillation_book_order4_mu_per_iteration": [round(h.mu_peak, 4) for h in book.history],
         "distillation_book_order4_time_s": round(t_book, 2),
     }
+
+
+def _unscaled_distillation_plant():
+    """The column in the book's unscaled units: ``G0 / 100``."""
+    import control
+
+    P = distillation_plant()
+    B = np.array(P.B, dtype=float)
+    B[0:2] *= 0.01
+    return control.ss(P.A, B, P.C, P.D, inputs=list(P.input_labels), outputs=list(P.output_labels))
+
+
+def _units() -> dict:
+    """D-K on the scaled and the unscaled (G0 / 100) column, with and without autoscale (10 iterations)."""
+    out = {}
+    for name, P in (("scaled", distillation_plant()), ("unscaled", _unscaled_distillation_plant())):
+        for auto in (True, False):
+            c = time.process_time()
+            dk = dksyn((P, 2, 2, DISTILLATION_BLOCKS), progress=False, autoscale=auto)
+            key = f"distillation_{name}_{'autoscale' if auto else 'plain'}"
+            out[key + "_mu"] = round(dk.mu_peak, 4)
+            out[key + "_cpu_s"] = round(time.process_time() - c, 2)
+    out["distillation_units_gap_pct"] = round(
+        100 * abs(out["distillation_unscaled_autoscale_mu"] / out["distillation_scaled_autoscale_mu"] - 1), 3)
+    return out
+
+
+def _mixed() -> dict:
+    """D-G-K against complex D-K on Wie & Bernstein's two-mass-spring benchmark (k in [0.5, 2] real)."""
+    from robustctl.examples import TWO_MASS_BLOCKS, two_mass_spring_plant
+    from robustctl.interconnect import lft
+    from robustctl.robust.mu_bounds import mu
+
+    gp = (two_mass_spring_plant(), 1, 1, TWO_MASS_BLOCKS)
+    out = {}
+    for auto in (False, True):
+        for real in ("complex", "mixed"):
+            c = time.process_time()
+            dk = dksyn(gp, progress=False, real=real, autoscale=auto)
+            key = f"two_mass_{real}_{'autoscale' if auto else 'plain'}"
+            out[key + "_cpu_s"] = round(time.process_time() - c, 2)
+            out[key + "_mu"] = round(dk.mu_peak, 4)
+            mm = mu(dk.closed_loop, TWO_MASS_BLOCKS, f_hz=dk.mu.f_hz)
+            out[key + "_mixed_mu"] = round(float(mm.peak), 4)
+            out[key + "_K_order"] = dk.K.nstates
+            if real == "mixed":
+                ks = np.linspace(0.5, 2.0, 1001)
+                loops = [lft(two_mass_spring_plant(k), dk.K, 1, 1) for k in ks]
+                worst = max(float(np.max(np.linalg.eigvals(np.asarray(cl.A)).real)) for cl in loops)
+                out[key + "_max_pole_real_over_k"] = worst
+    return out
+
+
+def _himat() -> dict:
+    """mu-tools' HIMAT (mkhic, mkhicn): automatic D order against fixed orders 0-6, and the 60-point grid."""
+    from robustctl.examples import himat_plant
+
+    out = {}
+    for noise in (False, True):
+        P, blocks = himat_plant(noise)
+        name = "himat_n" if noise else "himat"
+        fixed = {}
+        for order in range(7):
+            fixed[order] = dksyn((P, 2, 2, blocks), order_d=order, progress=False).mu_peak
+        c = time.process_time()
+        auto = dksyn((P, 2, 2, blocks), progress=False).mu_peak
+        out[f"{name}_auto_cpu_s"] = round(time.process_time() - c, 2)
+        plain = dksyn((P, 2, 2, blocks), progress=False, autoscale=False).mu_peak
+        best = min(fixed.values())
+        out[f"{name}_fixed_order_mu"] = {k: round(v, 4) for k, v in fixed.items()}
+        out[f"{name}_auto_mu"] = round(auto, 4)
+        out[f"{name}_auto_no_autoscale_mu"] = round(plain, 4)
+        out[f"{name}_auto_over_best_fixed_pct"] = round(100 * (auto / best - 1), 2)
+    P, blocks = himat_plant()
+    grid = dksyn((P, 2, 2, blocks), f_hz=np.logspace(-3, 3, 60) / (2 * np.pi), progress=False)
+    out["himat_60pt_mu"] = round(grid.mu_peak, 4)
+    return out
 
 
 def _caltech() -> dict:
@@ -234,7 +323,7 @@ def _robustness() -> dict:
 
 def run() -> dict:
     """D-K on both plants, the robustness cases, and dkpy on the distillation plant when available."""
-    metrics = {**_distillation(), **_caltech(), **_robustness()}
+    metrics = {**_distillation(), **_units(), **_mixed(), **_himat(), **_caltech(), **_robustness()}
     dkpy = _dkpy()
     metrics["dkpy_status"] = dkpy["status"]
     if dkpy["status"] == "ok":

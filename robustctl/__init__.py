@@ -116,6 +116,7 @@ from .physical.nastran_import import (
     write_nastran_matrices,
     write_nastran_modes,
 )
+from .physical.uncertain import UncertainModel, parametric_lft
 
 # robust design: weights
 from .robust import (
@@ -150,7 +151,7 @@ from .robust.lqg_design import LQGResult, lqg
 from .robust.margins import DiskMargin, DiskMarginResult, disk_gain_phase, diskmargin, nugap
 from .robust.sampled import sampled_plant
 from .robust.sweep import DesignSweep, design_sweep
-from .robust.yardsticks import Yardstick, yardstick
+from .robust.yardsticks import Yardstick, YardstickWarning, yardstick
 from .signals import (
     combine_inputs,
     combine_outputs,
@@ -301,7 +302,11 @@ __all__ = [
     "dksyn",
     "DKResult",
     "yardstick",
+    "YardstickWarning",
     "Yardstick",
+    # uncertain models from the update (parametric LFT) for mixed-mu D-G-K
+    "UncertainModel",
+    "parametric_lft",
     # H2/LQG, discrete synthesis, loop shaping, margins, controller reduction
     "is_stable",
     "h2norm",

@@ -84,7 +84,7 @@ def test_bad_plants_and_arguments_are_refused():
 def test_one_iteration_is_the_hinf_controller_and_its_mu():
     """Iteration 1 (no scaling): S&P Table 8.2 gives peak mu 1.1818 for the H-infinity controller."""
     P = distillation_plant()
-    dk = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False)
+    dk = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, autoscale=False)
     assert len(dk.history) == 1 and dk.best_iteration == 1
     assert dk.mu_peak == pytest.approx(1.1818, abs=0.005)
     assert dk.history[0].gamma == pytest.approx(1.1818, abs=0.005)
@@ -99,7 +99,7 @@ def test_one_iteration_is_the_hinf_controller_and_its_mu():
 def test_distillation_reproduces_the_book_with_fourth_order_scales():
     """S&P Table 8.2 (4th-order D fits): 1.1818, 1.0238, 1.0189."""
     dk = dksyn((distillation_plant(), 2, 2, BOOK_BLOCKS), max_iter=3, order_d=4, progress=False,
-               patience=10)
+               patience=10, autoscale=False)
     peaks = [h.mu_peak for h in dk.history]
     assert peaks[0] == pytest.approx(1.1818, abs=0.005)
     assert peaks[1] == pytest.approx(1.0238, abs=0.01)
@@ -112,7 +112,7 @@ def test_distillation_dk_with_automatic_scales():
     """The target: peak mu <= 1.00 within 6 iterations (MATLAB's 2008 dksyn: 0.9975;
     mu-optimal 0.974). Plain D-K creeps (1.0145 at iteration 5); the D step's line search
     along the change of the scales gets there (0.9897 at iteration 5)."""
-    dk = dksyn((distillation_plant(), 2, 2, BOOK_BLOCKS), max_iter=6, progress=False)
+    dk = dksyn((distillation_plant(), 2, 2, BOOK_BLOCKS), max_iter=6, progress=False, autoscale=False)
     assert len(dk.history) <= 6
     assert dk.mu_peak <= 1.00
     assert dk.history[0].mu_peak == pytest.approx(1.1818, abs=0.005)
@@ -143,7 +143,7 @@ def test_distillation_with_the_weight_pole_at_1e5_reaches_mu_below_one():
     eps = 1e-6 below 1, descending, and the returned mu holds on a grid down to DC."""
     from robustctl.robust.mu_bounds import mu
 
-    dk = dksyn((distillation_plant(eps=1e-5), 2, 2, BOOK_BLOCKS), max_iter=6, progress=False)
+    dk = dksyn((distillation_plant(eps=1e-5), 2, 2, BOOK_BLOCKS), max_iter=6, progress=False, autoscale=False)
     peaks = [h.mu_peak for h in dk.history]
     assert peaks[0] == pytest.approx(1.181, abs=0.005)
     assert peaks[1] < 1.035 and dk.mu_peak < 1.0
@@ -437,3 +437,100 @@ def test_fitted_bound_is_the_scaled_loops_norm_including_dc(level):
         assert bound <= 1.25 * m.peak  # the fits stay close to the optimal scales
         K = hinfsyn(scaled, plant.nmeas, plant.ncon, backoff=1e-3).K
         assert np.all(np.linalg.eigvals(closed_loop(plant.P, K, plant.nmeas, plant.ncon).A).real < 0)
+
+
+def _unscaled_distillation():
+    """The column in the book's unscaled units, ``G0 / 100`` (Skogestad & Postlethwaite sec. 8.12.4)."""
+    import control
+
+    P = distillation_plant()
+    B = np.array(P.B, dtype=float)
+    B[0:2] *= 0.01  # the plant's first-order lag feeds G0 x: G0 / 100
+    return control.ss(P.A, B, P.C, P.D, inputs=list(P.input_labels), outputs=list(P.output_labels))
+
+
+def test_autoscaling_undoes_the_plant_units():
+    # the scaled plant is the same whatever units the column is written in: the controls and
+    # measurements at unit peak gain and the block scales from a covariant start
+    from robustctl.robust.dk import _as_plant, _autoscaled
+
+    a, sa = _autoscaled(_as_plant((distillation_plant(), 2, 2, BOOK_BLOCKS)))
+    b, sb = _autoscaled(_as_plant((_unscaled_distillation(), 2, 2, BOOK_BLOCKS)))
+    f = np.logspace(-4, 1, 30)
+    Ha, Hb = freqresp_array(a.P, f), freqresp_array(b.P, f)
+    np.testing.assert_allclose(Ha, Hb, rtol=1e-6, atol=1e-9 * np.abs(Ha).max())
+    np.testing.assert_allclose(sb.su, 100 * sa.su, rtol=1e-9)
+    np.testing.assert_allclose(sb.d[:2], sa.d[:2] / 100, rtol=1e-3)
+
+
+@pytest.mark.slow
+def test_dk_result_does_not_depend_on_the_plant_units():
+    # the book's unscaled column (G0 / 100) stopped at mu 1.09 (10 iterations) against 0.99
+    # for the scaled one; automatically scaled, both reach the same mu, below 0.98
+    from robustctl.robust.mu_bounds import mu
+
+    out = []
+    for P in (distillation_plant(), _unscaled_distillation()):
+        dk = dksyn((P, 2, 2, BOOK_BLOCKS), progress=False)
+        fw = np.logspace(-6, 2, 600)
+        dense = mu(freqresp_array(dk.closed_loop, fw), dk.blocks, f_hz=fw, lower=False).peak
+        assert dense <= dk.mu_peak * 1.002  # the returned loop is the user's plant's, verified
+        out.append(dk.mu_peak)
+    assert out[0] <= 0.98 and out[1] <= 0.98
+    assert out[1] == pytest.approx(out[0], rel=0.01)
+
+
+def test_fixed_design_level_sets_the_k_step_gamma():
+    # the optimum of the first K step is 1.18; at a fixed level 1.5 the central controller
+    # is designed there: its verified norm lies between the optimum and the level
+    P = distillation_plant()
+    free = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, autoscale=False)
+    fixed = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, autoscale=False, gamma=1.5)
+    assert free.history[0].gamma == pytest.approx(1.1818, abs=0.005)
+    assert free.history[0].gamma * 1.01 < fixed.history[0].gamma <= 1.5 * (1 + 1e-6)
+    # a level below the optimum leaves the optimum's design
+    low = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, autoscale=False, gamma=0.5)
+    assert low.history[0].gamma == pytest.approx(free.history[0].gamma, rel=1e-9)
+    with pytest.raises(SynthesisError, match="gamma"):
+        dksyn((P, 2, 2, BOOK_BLOCKS), gamma=-1.0)
+
+
+
+def test_himat_plant_is_the_mu_tools_interconnection():
+    # the block-matrix construction against python-control's interconnect of the same pieces
+    import control
+
+    from robustctl.examples import himat_plant
+
+    s = control.tf("s")
+    for noise in (False, True):
+        P, blocks = himat_plant(noise)
+        G = control.ss(*(np.asarray(m) for m in (P.A[:4, :4], P.B[:4, -2:], P.C[-2:, :4], np.zeros((2, 2)))))
+        wd = (50 * s + 5000) / (s + 1e4)
+        wp = (0.5 * s + 0.9) / (s + 0.018) if noise else (0.5 * s + 1.5) / (s + 0.03)
+        wn = (2 * s + 2.56) / (s + 320)
+        f = np.array([0.01, 0.3, 3.0, 30.0])
+        H = freqresp_array(P, f)
+        Hg = freqresp_array(G, f)
+        I2 = np.eye(2)
+        for k, fk in enumerate(f):
+            sk = 2j * np.pi * fk
+            d, p, n = (complex(control.evalfr(w, sk)) for w in (wd, wp, wn))
+            np.testing.assert_allclose(H[k, 0:2, -2:], d * I2, rtol=1e-9)  # z_del <- u
+            np.testing.assert_allclose(H[k, 2:4, 0:2], p * Hg[k], rtol=1e-7)  # z_p <- pert
+            np.testing.assert_allclose(H[k, 2:4, 2:4], p * I2, rtol=1e-9)  # z_p <- dist
+            np.testing.assert_allclose(H[k, 4:6, -2:], Hg[k], rtol=1e-7)  # y <- u
+            if noise:
+                np.testing.assert_allclose(H[k, 4:6, 4:6], n * I2, rtol=1e-9)  # y <- noise input
+        assert blocks == ([[2, 2], [4, 2]] if noise else [[2, 2], [2, 2]])
+
+
+def test_himat_on_the_60_point_grid_completes_below_one():
+    # mu-tools' himat_dk settings: logspace(-3, 3, 60) rad/s; the K step once failed there at
+    # iteration 2 ("no feasible gamma up to 1e+14")
+    from robustctl.examples import himat_plant
+
+    P, blocks = himat_plant()
+    dk = dksyn((P, 2, 2, blocks), f_hz=np.logspace(-3, 3, 60) / (2 * np.pi), progress=False)
+    assert "failed" not in dk.stop_reason
+    assert dk.mu_peak < 1.0

@@ -75,7 +75,9 @@ def test_caltech_hidden_effect_is_found_fixed_and_recovered(truss, which):
     top = diag.ranking[0]
     assert _key(top.effect) == _key(hidden), diag.summary()
     assert diag.best is not None and _key(diag.best) == _key(hidden)
-    assert top.significant and top.p_value < 1e-6
+    # a family-wise p-value (Holm over the ~340 default candidates), measured against the misfit the
+    # fit leaves where that exceeds the noise
+    assert top.significant and top.p_value < 1e-4, diag.summary()
 
     fixed = model.with_effect(diag.best)
     (pname,) = hidden.param_names

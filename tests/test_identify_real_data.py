@@ -77,11 +77,17 @@ def test_cd_player_arm_measurement_model(cd_player):
     assert ours.rms_db_total < 2.0
     theirs = channel_cost(cd_player.response, _skrf_model(cd_player, 6), mask=high)
     assert ours.rms_db_total < theirs.rms_db_total
-    mm = rc.fit_measurement_model(cd_player, n_modes=6)
-    # exactly the six modes asked for (it used to be five plus two real poles), fillers apart
-    assert mm.n_modes == 6 and len(mm.modes) == 6
-    filler_states = sum(2 if m.pole.imag else 1 for m in mm.fillers)
-    assert mm.sys.nstates == 12 + filler_states and mm.sys.ninputs == 2 and mm.sys.noutputs == 2
+    with pytest.warns(rc.identify.IdentifyWarning) as caught:
+        mm = rc.fit_measurement_model(cd_player, n_modes=6)
+    # honest mode list: only in-band, lightly damped poles are modes (a 72 %-damped pole at
+    # 0.32 cycles/sample, outside the band, used to be listed to make up the six); a shortfall
+    # is said with the number the data support
+    assert all(0.005 <= m.f_hz <= 0.3 and m.zeta < 0.2 for m in mm.modes)
+    assert mm.n_modes >= 5
+    if mm.n_modes < 6:
+        assert any(f"the data support {mm.n_modes} physical" in str(w.message) for w in caught)
+    states = sum((2 if m.pole.imag else 1) * m.rank for m in mm.modes + mm.fillers)
+    assert mm.sys.nstates == states and mm.sys.ninputs == 2 and mm.sys.noutputs == 2
     assert np.all(np.linalg.eigvals(mm.sys.A).real < 0)
     # the measurement model's accuracy where the data are trustworthy: no regression below the
     # 1.66 dB of the five-modes-plus-real-poles model (1.88 then 2.10 dB with six modes and fillers

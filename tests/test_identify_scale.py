@@ -153,11 +153,22 @@ def test_block_refinement_agrees_with_dense_refinement():
         np.testing.assert_allclose(f, truth.f_hz, rtol=5e-4)
 
 
-def test_time_budget_stops_with_a_warning_and_a_model(scale_case):
+def test_time_budget_stops_with_a_warning_and_a_model(scale_case, monkeypatch):
+    """An opt-in budget that runs out (a clock that advances one second per reading, so the test
+    does not depend on this machine's speed) ends the fit with a model that says so."""
+    import itertools
+    import time
+
     data, _ = scale_case
+    clock = itertools.count()
+    monkeypatch.setattr(time, "perf_counter", lambda: float(next(clock)))
     with pytest.warns(IdentifyWarning, match="time budget"):
-        mm = rc.fit_measurement_model(data, band=(50, 150), time_budget_s=0.05, progress=False)
+        mm = rc.fit_measurement_model(data, band=(50, 150), time_budget_s=5.0, progress=False)
+    monkeypatch.undo()
     assert mm.n_modes >= 1
+    assert mm.stopped_by_budget and "STOPPED BY THE TIME BUDGET" in mm.summary()
+    plain = rc.fit_measurement_model(data, band=(50, 150), n_modes=2, progress=False)
+    assert not plain.stopped_by_budget  # no budget by default: iteration caps only
     with pytest.raises(rc.FitError, match="time_budget_s must be a positive"):
         rc.fit_measurement_model(data, n_modes=2, time_budget_s=-1)
 

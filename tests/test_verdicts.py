@@ -161,7 +161,7 @@ def test_without_coherence_diagnose_finds_the_effect_against_a_measurement_model
     assert "Noise model: noise estimated from the residual of a 3-mode measurement model." in diag.summary()
 
 
-def test_a_half_sample_delay_is_named_the_dac_zero_order_hold(chain):
+def test_a_half_sample_delay_is_named_the_dac_zero_order_hold_when_the_input_was_held(chain):
     data = _experiment(chain, seed=7)
     # the leakage view with the hold divided out of the model (the view before the experiment
     # description): the data's hold is left as a half-sample delay for diagnose to name
@@ -169,10 +169,20 @@ def test_a_half_sample_delay_is_named_the_dac_zero_order_hold(chain):
     diag = rc.diagnose(chain, data, [fx.OutputDelay(), fx.SensorGain("v3")], band=(0.5, 40.0),
                        estimator=leakage_only)
     delay = next(r for r in diag.ranking if r.kind == "output_delay")
-    assert delay.significant
+    assert delay.significant and diag.input_held
     assert next(iter(delay.effect.values.values())) == pytest.approx(0.5 / FS, rel=0.2)
     assert "the DAC zero-order hold, not an unknown delay" in delay.sentence
     assert "zero_order_hold_stage" in delay.sentence
+
+
+def test_a_half_sample_delay_in_data_that_do_not_say_they_were_held_is_not_named_the_hold(chain):
+    held = _experiment(chain, seed=7)
+    data = held.replace(experiment=None, meta={"n_averages": held.meta["experiments"][0]["n_averages"]})
+    diag = rc.diagnose(chain, data, [fx.OutputDelay(), fx.SensorGain("v3")], band=(0.5, 40.0))
+    delay = next(r for r in diag.ranking if r.kind == "output_delay")
+    assert delay.significant and not diag.input_held
+    assert next(iter(delay.effect.values.values())) == pytest.approx(0.5 / FS, rel=0.2)
+    assert "zero-order hold" not in delay.sentence and "zero_order_hold_stage" not in delay.sentence
 
 
 # ---------------------------------------------------------------------------- no noise estimate

@@ -435,7 +435,8 @@ def test_cover_bad_input():
 
 def test_cover_adds_the_estimate_random_error():
     """With coherence and an averaging count, measured residuals grow by data_sigmas times
-    the H1 random error (Bendat-Piersol eq. 9.90); without them nothing is added."""
+    the H1 random error (Bendat-Piersol eq. 9.90 with the plug-in coherence's n_d - 2 degrees
+    of freedom: E|e|^2 / sigma^2 = 1 for an estimated coherence); without them nothing is added."""
     G0 = plant()
     g = freqresp_array(plant(1.05), FC)
     coh = np.full(g.shape, 0.9)
@@ -444,5 +445,5 @@ def test_cover_adds_the_estimate_random_error():
 
     _, _, e0 = error_envelope(G0, data, data_sigmas=0.0)
     _, _, e2 = error_envelope(G0, data, data_sigmas=2.0)
-    expected = 2.0 * np.abs(g[:, 0, 0]) * np.sqrt(0.1 / (2 * 10 * 0.9))
+    expected = 2.0 * np.abs(g[:, 0, 0]) * np.sqrt(0.1 / (2 * (10 - 2) * 0.9))
     np.testing.assert_allclose(e2[0] - e0[0], expected, rtol=1e-9)

@@ -154,3 +154,50 @@ def test_yardstick_gap_closes_as_the_model_improves(seed, tension):
         assert yard.closed_loop[lab][i] == pytest.approx(np.linalg.norm(T, 2), rel=1e-9)
     # the nominal design pays for its error: its own cover is the largest at the resonances
     assert yard.mu_cross[0, 0] > yard.mu_cross[2, 2]
+
+
+def _verdict(stable, reason="verdict"):
+    from robustctl.robust.yardsticks import NyquistVerdict
+
+    return NyquistVerdict(stable, 0.0 if stable is not None else np.nan, 0, reason)
+
+
+def test_yardstick_does_not_rank_a_controller_whose_stability_on_the_data_is_not_established():
+    """The issue's frame: 2.2 / 9.9 / 7.5 dB (nominal / updated / measurement) with the measurement
+    model's controller "cannot tell" on the data: it is flagged in the summary and the table, the
+    reason is named, and only the stable ones are ranked."""
+    from types import SimpleNamespace
+
+    from robustctl.robust.yardsticks import Yardstick
+
+    labels = ("nominal", "updated", "measurement")
+    designs = {lab: SimpleNamespace(K=SimpleNamespace(nstates=4), mu_peak=0.9) for lab in labels}
+    why = ("the loop gain reaches 3.1 above the measured band; "
+           "largest loop gain sigma_max(GK) = 2.4 at 12.5 Hz")
+    stability = {"nominal": _verdict(True), "updated": _verdict(True), "measurement": _verdict(None, why)}
+    f = np.linspace(1.0, 60.0, 5)
+    yard = Yardstick(labels=labels, reference="measurement", designs=designs,
+                     attenuation_db={"nominal": 2.2, "updated": 9.9, "measurement": 7.5}, stability=stability,
+                     mu_cross=np.ones((3, 3)), band_hz=(1.0, 60.0), f_hz=f, open_loop=np.ones(5),
+                     closed_loop={lab: np.ones(5) for lab in labels})
+    assert yard.ranked == ("updated", "nominal") and yard.unverified == ("measurement",)
+    text = yard.summary()
+    assert "NOT RANKED" in text and "cannot tell" in text and "12.5 Hz" in text
+    assert "controller attenuates the disturbance by 7.5" not in text
+    assert text.index("updated") < text.rindex("nominal")  # the ranking: updated first
+    table = str(yard.table())
+    assert "not ranked (cannot tell)" in table and "rank" in table
+
+
+def test_loop_detail_names_the_largest_loop_gain_its_frequency_and_the_coherence_there():
+    from robustctl.robust.yardsticks import _loop_detail
+
+    f = np.linspace(1.0, 50.0, 50)
+    gain = 3.0 / np.sqrt(1 + ((f - 20.0) / 2.0) ** 2)  # peak 3.0 at 20 Hz
+    L = np.zeros((f.size, 2, 2), dtype=complex)
+    L[:, 0, 0], L[:, 1, 1] = gain, 0.5 * gain
+    coh = np.full((f.size, 2, 2), 0.95)
+    coh[np.argmin(np.abs(f - 20.0)), 1, 0] = 0.41
+    text = _loop_detail(f, L, coh)
+    assert "= 3 at 20 Hz" in text and "coherence is 0.41" in text
+    assert "no coherence" in _loop_detail(f, L, None)

@@ -31,14 +31,22 @@ parameters can already explain:
    freeze the update parameters' sensitivities at the null fit and can stop short (on the
    Caltech truss below 30 Hz the true taut wires stopped at half their tension, behind
    stiffer diagonals).
-4. **Significance.** Against the data's noise model (:mod:`robustctl.measure.noise`, the same one
-   compare's verdicts use): under "the effect is absent" the cost drop of the local fit is
-   noise projected on one direction, ``Delta J ~ v chi2_1`` with ``v`` the noise variance
-   along the fitted change (window bin correlation included); a Bonferroni level
-   ``alpha / m`` over the ``m`` screened candidates, plus a practical threshold
-   (``min_gain``): an effect must explain a real share of what updating leaves. Without a
-   noise model no significance claims are made (p-values NaN; the best candidate is
-   proposed on its share alone, and the result says so).
+4. **Significance.** Under "the effect is absent" the cost drop of a candidate's fit is the
+   residual projected on one direction, ``Delta J ~ v chi2_1`` (a likelihood-ratio test with one
+   degree of freedom), ``v`` the variance along the fitted change: the data's noise model's
+   (:mod:`robustctl.measure.noise`, the bins' correlation included) or, when larger, that of the misfit
+   the candidate leaves (model error: the parameters-only fit beyond the noise; then an
+   ``F(1, nu)`` reference, :func:`_candidate_test`). The p-values are adjusted over the ``m``
+   screened candidates by Holm's step-down (the best one's by Bonferroni's ``m p``), so the
+   best candidate's p-value is uniform or conservative when nothing is missing and the
+   family-wise false-proposal rate is at most ``alpha``; a practical threshold (``min_gain``)
+   asks an effect to explain a real share of what updating leaves, and a fit ending at a bound
+   of its parameter is never proposed ("the model form is likely wrong"). Each rival is
+   compared with the best by Vuong's test against the misfit it leaves (:func:`_rival_test`).
+   Without a noise model no significance claims are made (p-values NaN; the best candidate is
+   proposed on its share alone, and the result says so). When nothing is proposed and the
+   misfit is beyond the noise, the output row or input column holding most of it is named
+   (:func:`_channel_verdict`): a cable, sign or location to check.
 
 5. **Indistinguishable candidates.** Fitted candidates whose best-fit costs differ by no more
    than the noise explains (Vuong's 1989 test for non-nested models at ``alpha``) and whose
@@ -78,7 +86,7 @@ from .residual import Residual, check_determined, physical_model, sensitivities
 
 __all__ = ["diagnose", "Diagnosis", "CandidateResult", "Indistinguishable", "effective_points"]
 
-#: Significance level of the partial F-test before the Bonferroni correction.
+#: Family-wise significance level of the candidates' tests (Holm-adjusted p-values are compared with it).
 ALPHA = 0.01
 #: A channel this far (dB) below its row's and column's largest model response is ignored.
 #: Default negligible-channel level of diagnose (dB): stricter than compare's and update's
@@ -128,10 +136,13 @@ class CandidateResult:
         ``1 - J / J_update``: share of the residual left by updating alone that the effect
         removes (0..1).
     f_stat, p_value : float
-        The test statistic (``Delta J`` over the noise variance along the fitted change; a
-        chi-square with one degree of freedom under "absent") and its p-value (NaN when not
-        fitted or without a noise model).
+        The test statistic (``Delta J`` over the variance along the fitted change: of the noise,
+        or of the misfit left when that is larger, :func:`_candidate_test`) and its family-wise
+        p-value (Holm's step-down adjustment over every screened candidate, so the best
+        candidate's p-value is uniform or conservative when no effect is missing); NaN when not
+        fitted or without a noise model.
     significant : bool
+        ``p_value < level``, ``gain >= min_gain`` and not at a bound.
     update_values : dict
         Update-parameter values of the local fit.
     where : str
@@ -142,12 +153,25 @@ class CandidateResult:
         Names of candidates whose secant is identical (e.g. a delay on every output and one
         on every input): the data cannot tell them apart; they are not ranked separately.
     level : float
-        The per-candidate p-value threshold (Bonferroni); NaN without a noise model.
+        The family-wise level ``alpha`` the adjusted ``p_value`` is compared with; NaN without a
+        noise model.
     min_gain : float
         The practical threshold on ``gain``.
     note : str
-        What the effect is physically when it can be named (a delay of half a sample: the
-        DAC zero-order hold).
+        What the effect is physically when it can be named (a delay of half a sample in data
+        whose input was held: the DAC zero-order hold).
+    p_raw : float
+        The unadjusted p-value of the candidate's own test.
+    scale : str
+        What the test measured the cost drop against: ``"noise"`` (the data's noise model) or
+        ``"misfit"`` (the misfit the candidate leaves, larger than the noise: model error).
+    at_bound : bool
+        The fit ended at a bound of the effect's parameter (far from neutral): the model form is
+        likely wrong, and the candidate is never proposed.
+    z_vs_best, p_vs_best : float
+        Vuong's (1989) statistic of the best candidate against this one and its one-sided
+        p-value ("the best explains the data no better"), the variance of the pointwise
+        differences estimated from the data (:func:`_rival_test`); NaN for the best.
     """
 
     effect: Any
@@ -167,6 +191,11 @@ class CandidateResult:
     level: float = math.nan
     min_gain: float = MIN_GAIN
     note: str = ""
+    p_raw: float = math.nan
+    scale: str = ""
+    at_bound: bool = False
+    z_vs_best: float = math.nan
+    p_vs_best: float = math.nan
 
     @property
     def name(self) -> str:
@@ -208,7 +237,8 @@ class Diagnosis:
     rho : float
         Lag-one autocorrelation of the null-fit residual along frequency.
     alpha : float
-        Per-candidate level after the Bonferroni correction.
+        The per-candidate level of the best candidate's raw p-value, ``family_alpha / m`` over the
+        ``m`` screened candidates (Bonferroni; Holm's step-down for the others).
     unexplained : str
         Where the null-fit residual sits (band, channels, magnitude or phase).
     ignored_channels : tuple of (output, input)
@@ -238,6 +268,20 @@ class Diagnosis:
         The fitted candidates the data in this band cannot tell from the top one (equal cost
         within the noise, nearly collinear fitted changes), with where their fitted models
         differ; None when the top candidate is clearly the best explanation.
+    family_alpha : float
+        The family-wise level the adjusted p-values are compared with (``alpha`` of the call).
+    dispersion : float
+        The null fit's residual over its noise expectation (mean squared normalised residual on
+        the testable points; 1 within the noise, NaN without a noise model).
+    p_null : float
+        Chi-square p-value of "the parameters-only fit is within the noise" (:func:`_null_test`);
+        below ``family_alpha`` the candidates were tested against the misfit left (model error).
+    channel_verdict : str
+        When no candidate is proposed and the misfit is beyond the noise: the output row (or input
+        column) that holds most of it, with what to check; ``""`` otherwise.
+    input_held : bool
+        Whether the data say their input was a held (DAC) command: only then is a half-sample
+        delay named the zero-order hold.
     """
 
     ranking: tuple[CandidateResult, ...]
@@ -262,11 +306,23 @@ class Diagnosis:
     noise_source: str = ""
     estimator_note: str = ""
     indistinguishable: Any = None
+    family_alpha: float = ALPHA
+    dispersion: float = math.nan
+    p_null: float = math.nan
+    channel_verdict: str = ""
+    input_held: bool = False
 
     @property
     def weights(self) -> np.ndarray:
         """Deprecated name of :attr:`point_weights` (weights on the squared error)."""
         return self.point_weights
+
+    @property
+    def model_error(self) -> bool:
+        """Whether the parameters-only fit is beyond the noise: ``p_null < family_alpha`` and a
+        dispersion above :data:`MODEL_ERROR_DISPERSION`."""
+        return bool(np.isfinite(self.p_null) and self.p_null < self.family_alpha
+                    and self.dispersion > MODEL_ERROR_DISPERSION)
 
     @property
     def best_result(self) -> CandidateResult | None:
@@ -288,6 +344,7 @@ class Diagnosis:
                     100 * r.reduction if r.fitted else None,
                     100 * r.gain if r.fitted else None,
                     format_p(r.p_value) if r.fitted and np.isfinite(r.p_value) else None,
+                    format_p(r.p_vs_best) if r.fitted and np.isfinite(r.p_vs_best) else None,
                     r.significant,
                 )
             )
@@ -300,6 +357,7 @@ class Diagnosis:
                 "cost reduction (%)",
                 "explains (%)",
                 "p-value",
+                "best better (p)",
                 "significant",
             ),
             rows,
@@ -323,6 +381,12 @@ class Diagnosis:
             lines.append(f"Noise model: {self.noise_source}.")
         else:
             lines.append(NO_NOISE_SENTENCE[:1].upper() + NO_NOISE_SENTENCE[1:] + ".")
+        if self.model_error:
+            lines.append(
+                f"The parameters-only fit leaves {self.dispersion:.3g} x the noise variance "
+                f"({format_p(self.p_null)}): model error; each candidate is tested against the misfit "
+                "it leaves where that exceeds the noise."
+            )
         best = self.best_result
         if best is not None:
             lines.append("Proposed: " + best.sentence)
@@ -331,7 +395,7 @@ class Diagnosis:
                 lines.append("Next: " + r.sentence)
         else:
             test = (
-                f"chi-square against the noise at {self.alpha:.2g} per candidate"
+                f"Holm-adjusted tests at {self.family_alpha:.2g} family-wise"
                 if self.noise_source
                 else "no noise estimate"
             )
@@ -342,6 +406,8 @@ class Diagnosis:
             if self.ranking:
                 lines.append("Closest: " + self.ranking[0].sentence)
             lines.append("The unexplained residual sits in " + self.unexplained + ".")
+            if self.channel_verdict:
+                lines.append(self.channel_verdict)
         if self.indistinguishable is not None:
             lines.append(self.indistinguishable.sentence())
         if self.ignored_channels:
@@ -465,6 +531,8 @@ def _screen_one(
     neutral = effect.with_values(**effect.neutral_values)
     m_c = neutral.apply(model_u)
     res_c = _residual_for(res_u, m_c)
+    if _is_switch(effect) and effect.kind != "gravity":
+        return _screen_switch(res_c, m_c, j_u, Q, r_perp, effect)
     pname = effect.param_names[0]
     lo, hi = effect.parameters[0].bounds
     step = effect.typical_size
@@ -505,6 +573,65 @@ def _screen_one(
         if probed > fraction:
             fraction, clipped = probed, value_p
     return dict(effect=effect, model=m_c, fraction=fraction, angle=angle, value=clipped, d=d, evals=evals)
+
+
+def _screen_switch(
+    res_c: Residual, m_c: Any, j_u: np.ndarray, Q: np.ndarray, r_perp: np.ndarray, effect: Any
+) -> dict[str, Any]:
+    """Screen a switched effect (a test-setup error: swapped cables, a sign flip, a units slip, a
+    sensor on another node) at each of its states (``effect.states``): the share of the residual
+    left by updating that the state removes once the update parameters are re-fitted linearly,
+    ``1 - |P j(state)|^2 / |P j_u|^2``; the best state is kept. ``d`` is its change ``j - j_u``."""
+    pname = effect.param_names[0]
+    v0 = float(effect.parameters[0].neutral)
+    rr = float(r_perp @ r_perp)
+    best = dict(effect=effect, model=m_c, fraction=0.0, angle=90.0, value=v0, d=np.zeros_like(j_u), evals=0)
+    for v in _likely_states(res_c, j_u, effect):
+        best["evals"] += 1
+        try:
+            j = res_c.vector(**{pname: float(v)})
+        except RobustctlError:
+            continue
+        if not np.all(np.isfinite(j)) or rr <= 0:
+            continue
+        share = 1.0 - float(np.sum(_project(Q, j) ** 2)) / rr
+        if share > best["fraction"]:
+            d = j - j_u
+            dp = _project(Q, d)
+            nd = float(np.linalg.norm(dp))
+            cos = abs(float(dp @ r_perp)) / (nd * math.sqrt(rr)) if nd > 0 else 0.0
+            angle = math.degrees(math.acos(min(1.0, cos)))
+            best.update(fraction=share, value=float(v), d=d, angle=angle)
+    return best
+
+
+#: Units-slip factors evaluated per channel, nearest the channel's offset first (the null fit's
+#: parameters may absorb part of a slip, so the nearest factor to what is left can be the wrong one).
+UNITS_NEAREST = 2
+
+
+def _likely_states(res: Residual, j_u: np.ndarray, effect: Any) -> tuple[float, ...]:
+    """The states of a switched effect worth evaluating: for a units slip the :data:`UNITS_NEAREST`
+    factors nearest the channel's mean log-magnitude offset (``exp`` of the weighted mean of
+    ``Re ln(G_data / G)`` over its row or column: a slip ``f`` makes it ``ln f``, less what the
+    null fit's parameters absorbed); every state otherwise."""
+    states = tuple(effect.states)
+    if effect.kind not in ("sensor_units", "actuator_units") or len(states) < 2:
+        return states
+    names = res.data.outputs if effect.side == "output" else res.data.inputs
+    if effect.location not in names:
+        return states
+    k = names.index(effect.location)
+    w2 = res.point_weights
+    e_w = res.unstack(j_u)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        e = np.where(res.weights > 0, e_w / np.where(res.weights > 0, res.weights, 1.0), 0.0)
+    sel = (slice(None), k, slice(None)) if effect.side == "output" else (slice(None), slice(None), k)
+    total = float(np.sum(w2[sel]))
+    if total <= 0:
+        return states
+    offset = float(np.sum(w2[sel] * e[sel].real)) / total
+    return tuple(sorted(states, key=lambda f: abs(math.log(f) - offset))[:UNITS_NEAREST])
 
 
 #: Multiples of the calibrated step (a 2 % change of the most affected modal ``w^2``) at
@@ -594,7 +721,7 @@ def _fit_one(
     t0 = time.perf_counter()
     effect = screen["effect"]
     pname, par = effect.param_names[0], effect.parameters[0]
-    discrete = effect.kind == "gravity"
+    discrete = _is_switch(effect)
     res_c = _residual_for(res_u, screen["model"])
     names = null.names
     lo_v, hi_v = (screen["value"], screen["value"]) if discrete else par.bounds
@@ -700,9 +827,17 @@ CONTENDER_RATIO = 2.0
 POLISH_ITER = 8
 
 
+def _noise_cost(res: Residual) -> float | None:
+    """The cost the noise alone gives, ``E[J] = sum W sigma^2`` over both parts (None without a
+    noise model)."""
+    if res.noise is None:
+        return None
+    return float(2.0 * np.sum(res.point_weights * res.noise.sigma**2))
+
+
 def _polish(
     res_u: Residual, null: _Null, screens: list[dict], top: list[int], fits: list[dict], executor: Any,
-    budget: float,
+    budget: float, noise_cost: float | None = None,
 ) -> tuple[list[dict], int]:
     """Full LM fits of the contenders (step 3b): the local fits freeze the update parameters'
     sensitivities at the null fit, which may have bent them to mimic the missing effect, so
@@ -710,16 +845,23 @@ def _polish(
     below 30 Hz the true taut wires stopped at half their tension, behind stiffer diagonals).
     Contenders -- fits within :data:`CONTENDER_RATIO` of the best cost -- are refitted with
     refreshed sensitivities (:func:`levenberg_marquardt`, up to :data:`POLISH_ITER` iterations) from
-    their local fit; a clear winner costs nothing more. Returns the fits and the evaluations.
+    their local fit. A clear winner is polished alone when its local fit leaves more than
+    :data:`MODEL_ERROR_DISPERSION` x the noise's cost (``noise_cost``): its test is against the
+    misfit it leaves, so a fit stopped short (a large effect's local fit on the frozen sensitivities)
+    would understate it. Returns the fits and the evaluations.
     """
     costs = [f["cost"] for f in fits]
-    if len(fits) < 2 or not null.names:
+    if not fits or not null.names:
         return fits, 0
     best = min(costs)
     todo = [i for i, c in enumerate(costs) if c <= CONTENDER_RATIO * best
-            and screens[top[i]]["effect"].kind != "gravity"]
+            and not _is_switch(screens[top[i]]["effect"])]
     if len(todo) < 2:
-        return fits, 0
+        lead = int(np.argmin(costs))
+        short = noise_cost is not None and best > MODEL_ERROR_DISPERSION * noise_cost
+        if not (short and lead in todo):
+            return fits, 0
+        todo = [lead]
 
     done = parallel_map_shared(_polish_task, (res_u, null.names, budget / len(todo)),
                                [(screens[top[i]], fits[i]) for i in todo], executor, desc="polishing fits")
@@ -836,6 +978,25 @@ def _residual(model: Any, data: FrequencyData, band, weights, min_db, estimator=
     res = Residual(model, data, band=band, point_weights=weights, min_channel_db=min_db,
                    estimator=estimator, noise=noise)
     return res, tuple((o, i) for o, i, _level in res.dropped)
+
+
+#: Candidates screened within this factor of the best screening share are fitted too, beyond
+#: ``n_fit`` (up to :data:`TIE_MAX_FACTOR` x ``n_fit``): screening shares of near-ties say little
+#: about the fits (a first-order share overrates a candidate far outside its linear range).
+TIE_SHARE = 0.95
+#: Cap of the fits with near-tied screening shares, as a multiple of ``n_fit``.
+TIE_MAX_FACTOR = 2
+
+
+def _to_fit(screens: list[dict], order: list[int], n_fit: int) -> list[int]:
+    """The candidates given a local fit: the ``n_fit`` best screened, and those tied with the best
+    screening share within :data:`TIE_SHARE` (at most ``TIE_MAX_FACTOR * n_fit`` in all)."""
+    top = [k for k in order[:n_fit] if screens[k]["fraction"] > 0]
+    if not top:
+        return top
+    level = TIE_SHARE * screens[order[0]]["fraction"]
+    more = [k for k in order[n_fit:TIE_MAX_FACTOR * n_fit] if screens[k]["fraction"] >= level]
+    return top + more
 
 
 def _check_budget(deadline: float, budget: float, stage: str) -> float:
@@ -973,6 +1134,12 @@ def _phrase(effect: Any) -> str:
     size = effect.describe_value()
     if effect.kind == "gravity":
         return effect.name
+    if effect.kind in ("sensor_units", "actuator_units"):
+        return f"a units slip {size} on {effect.side} {effect.location}"
+    if getattr(effect, "switch", False):
+        return f"{effect.name} ({effect.description})"
+    if effect.kind == "joint_spring":
+        return f"a {effect.name} ({size})"
     if effect.kind in ("sensor_lowpass", "actuator_lowpass"):
         return f"a {effect.name} at {size}"
     if effect.kind == "added_mass":
@@ -990,20 +1157,29 @@ def _sentence(r: CandidateResult) -> str:
     if r.note:
         head += f" ({r.note})"
     if r.fitted:
-        if not np.isfinite(r.p_value):
+        vs = ""
+        if np.isfinite(r.p_vs_best):
+            vs = f"; the best explains the data better by z = {r.z_vs_best:.3g} ({format_p(r.p_vs_best)})"
+        against = "; tested against the misfit it leaves" if r.scale == "misfit" else ""
+        if r.at_bound:
+            verdict = (
+                f"at its bound ({r.effect.describe_value()}): the model form is likely wrong, so it is "
+                "not proposed"
+            )
+        elif not np.isfinite(r.p_value):
             verdict = NO_NOISE_SENTENCE
         elif r.significant:
-            verdict = f"significant ({format_p(r.p_value)} < {r.level:.2g})"
+            verdict = f"significant ({format_p(r.p_value)} < {r.level:.2g}{against})"
         elif r.p_value < r.level:
             verdict = (
-                f"beyond the noise ({format_p(r.p_value)}) but below the {100 * r.min_gain:.0f}% needed "
-                "to propose it"
+                f"beyond the noise ({format_p(r.p_value)}{against}) but below the {100 * r.min_gain:.0f}% "
+                "needed to propose it"
             )
         else:
-            verdict = f"not significant ({format_p(r.p_value)} >= {r.level:.2g})"
+            verdict = f"not significant ({format_p(r.p_value)} >= {r.level:.2g}{against})"
         return (
             f"{head} explains {100 * r.gain:.3g}% of the residual left by updating ({r.where}); "
-            f"cost {100 * r.reduction:.3g}% below the nominal model; {verdict}."
+            f"cost {100 * r.reduction:.3g}% below the nominal model; {verdict}{vs}."
         )
     return (
         f"{head} would explain about {100 * r.fraction:.3g}% of the residual left by updating to first "
@@ -1012,7 +1188,8 @@ def _sentence(r: CandidateResult) -> str:
 
 
 def _hold_note(effect: Any, fs_hz: float | None) -> str:
-    """Name a delay of about half a sample (data sampled at ``fs_hz``) as the DAC's hold."""
+    """Name a delay of about half a sample (data sampled at ``fs_hz``) as the DAC's hold;
+    ``fs_hz`` is None unless the data say their input was held (:func:`_input_held`)."""
     if fs_hz is None or effect.kind not in ("output_delay", "input_delay"):
         return ""
     delay = float(next(iter(effect.values.values()), 0.0))
@@ -1119,12 +1296,13 @@ def diagnose(
         :data:`DECOUPLED_DB` (-60 dB) is stricter than theirs (-80 dB). With the same value
         the costs agree.
     n_fit : int
-        Number of best-screened candidates given the local fit.
+        Number of best-screened candidates given the local fit (and up to as many more whose
+        screening share ties with the best's within :data:`TIE_SHARE`).
     max_iter, update_iter : int
         LM iteration caps of the local fits and of the null fit.
     alpha : float
-        Level of the test against the noise before the Bonferroni correction over the screened
-        candidates.
+        Family-wise level: the candidates' p-values are Holm-adjusted over the screened candidates
+        and compared with it.
     min_gain : float
         Smallest share (0..1) of the null-fit residual an effect must remove to be proposed.
     time_budget_s : float
@@ -1252,7 +1430,7 @@ def _diagnose(
     _check_budget(deadline, time_budget_s, "the null fit")
     screens, twins, order = _screen_all(res_u, model_u, null, cands, executor, deadline, time_budget_s)
     evals += sum(s["evals"] for s in screens)
-    top = [k for k in order[:n_fit] if screens[k]["fraction"] > 0]
+    top = _to_fit(screens, order, n_fit)
     # 3. local fits
     remaining = _check_budget(deadline, time_budget_s, "the screening")
     fits = parallel_map_shared(
@@ -1262,31 +1440,38 @@ def _diagnose(
     evals += sum(f["evals"] for f in fits)
     remaining = deadline - time.perf_counter()
     if remaining > 0:  # a budget the local fits used up is reported by the warning below
-        fits, n_polish = _polish(res_u, null, screens, top, fits, executor, remaining)
+        fits, n_polish = _polish(res_u, null, screens, top, fits, executor, remaining, _noise_cost(res0))
         evals += n_polish
     _warn_if_hurried(null.cut, sum(bool(f.get("cut")) for f in fits), time_budget_s)
     # 4. significance and words
     e_u = res0.unstack(j_u)
     n_eff, rho = effective_points(e_u)
-    level = alpha / len(cands)
+    m = len(cands)
     settings = estimator_settings(res0.data.meta)
+    held = _input_held(res0.data)
     stats = dict(
         cost_u=cost_u,
         cost_nominal=cost_nominal,
         n_eff=n_eff,
         p=len(upd),
-        level=level,
+        alpha=alpha,
+        m=m,
         min_gain=min_gain,
         upd=upd,
         row_noise=_row_noise(res0),
-        # data whose hold was divided out (meta["hold_divided"]) have no half-sample delay left:
-        # a delay found there is not the hold
-        fs_hz=None if settings is None or settings.hold_divided else settings.fs_hz,
+        testable=_testable_rows(res0),
+        # a delay of half a sample is the DAC's hold only in data whose input was held and whose
+        # hold was not divided out (meta["hold_divided"])
+        fs_hz=(_sample_rate(res0.data, settings)
+               if held and not _hold_divided(res0.data, settings) else None),
     )
     results, explained = _score(res0, screens, order, top, fits, twins, j_u, stats)
     best = _best(results, res0.noise is not None, min_gain)
     fitted = _fitted_models(screens, top, fits)
     group = _indistinguishable(res0, results, fitted, j_u, stats["row_noise"], alpha)
+    dispersion, p_null = _null_test(res0, j_u)
+    beyond = bool(np.isfinite(p_null) and p_null < alpha and dispersion > MODEL_ERROR_DISPERSION)
+    verdict = _channel_verdict(res0, j_u) if best is None and beyond else ""
     return Diagnosis(
         ranking=tuple(results),
         best=best,
@@ -1297,7 +1482,7 @@ def _diagnose(
         n=res0.n,
         n_eff=n_eff,
         rho=rho,
-        alpha=level,
+        alpha=alpha / m,
         unexplained=_where(res0, j_u, unweight=False, pairs=True),
         band=res0.band,
         n_evals=evals,
@@ -1310,7 +1495,54 @@ def _diagnose(
         noise_source="" if res0.noise is None else res0.noise.source,
         estimator_note=res0.describe_estimator(),
         indistinguishable=group,
+        family_alpha=alpha,
+        dispersion=dispersion,
+        p_null=p_null,
+        channel_verdict=verdict,
+        input_held=held,
     )
+
+
+def _input_held(data: FrequencyData) -> bool:
+    """Whether the data say their input was a held (DAC) command: the experiment description's
+    input kind (``data.experiment.input_kind``, or ``meta["input_kind"]`` /
+    ``meta["experiment"]["input_kind"]``) is ``"held"``. Data that do not say are not held: a
+    measured force or voltage is how most modal tests are run."""
+    exp = getattr(data, "experiment", None)
+    kind = getattr(exp, "input_kind", None) if exp is not None else None
+    if kind is None:
+        meta = dict(data.meta)
+        kind = meta.get("input_kind")
+        sub = meta.get("experiment")
+        if kind is None and isinstance(sub, dict):
+            kind = sub.get("input_kind")
+        subs = meta.get("experiments")
+        if kind is None and isinstance(subs, (list, tuple)) and subs:
+            kinds = {m.get("input_kind") for m in subs if isinstance(m, dict)}
+            kind = kinds.pop() if len(kinds) == 1 else None
+    return kind == "held"
+
+
+def _hold_divided(data: FrequencyData, settings: Any) -> bool:
+    """Whether the estimate was divided by the hold's response (no half-sample delay is left)."""
+    exp = getattr(data, "experiment", None)
+    return bool((settings is not None and settings.hold_divided) or getattr(exp, "hold_divided", False))
+
+
+def _sample_rate(data: FrequencyData, settings: Any) -> float | None:
+    """The data's sample rate (Hz): the estimator settings', else the experiment description's."""
+    if settings is not None:
+        return settings.fs_hz
+    exp = getattr(data, "experiment", None)
+    for src in (exp, getattr(exp, "estimator", None)):
+        fs = getattr(src, "fs_hz", None)
+        if fs:
+            return float(fs)
+    fs = dict(data.meta).get("fs_hz")
+    try:
+        return float(fs) if fs else None
+    except (TypeError, ValueError):
+        return None
 
 
 def _fitted_models(screens: list[dict], top: list[int], fits: list[dict]) -> dict[str, dict]:
@@ -1326,18 +1558,248 @@ def _fitted_models(screens: list[dict], top: list[int], fits: list[dict]) -> dic
 
 def _best(results: list, have_noise: bool, min_gain: float) -> Any:
     """The top significant candidate; without a noise model, the top fitted one that explains at
-    least ``min_gain`` of the residual (proposed without a significance claim)."""
+    least ``min_gain`` of the residual (proposed without a significance claim). A candidate at its
+    bound is never the answer."""
     if have_noise:
         return next((r.effect for r in results if r.significant), None)
-    return next((r.effect for r in results if r.fitted and r.gain >= min_gain), None)
+    return next((r.effect for r in results if r.fitted and r.gain >= min_gain and not r.at_bound), None)
+
+
+def _testable_rows(res: Residual) -> np.ndarray:
+    """Rows of the residual vector where the noise model holds (``NoiseModel.testable``: coherence
+    significantly above zero, ``sigma`` small enough for ``ln H1`` to be near Gaussian); all rows
+    without a noise model. Elsewhere the log error is heavy-tailed, and a candidate that moves a
+    weak cross channel (a tiny misalignment) would fit its outliers."""
+    if res.noise is None:
+        return np.ones(res.n, dtype=bool)
+    ok = np.broadcast_to(res.noise.testable, res.data.shape).ravel()
+    return np.concatenate([ok, ok])
 
 
 def _row_noise(res: Residual) -> np.ndarray | None:
-    """Noise variance of each row of the weighted residual vector (see update), or None."""
+    """Noise variance of each row of the weighted residual vector, or None.
+
+    The variance of a projection of the residual on a smooth direction is that of its rows times
+    the Satterthwaite factor of contiguous bins, ``1 + 2 sum_m r_m`` (the noise model's
+    ``chi2_factor``: output noise and leakage alike, :mod:`robustctl.measure.noise`), not the smaller
+    factor of output noise alone (``dof_factor``), which underrated the variance along a fitted
+    change and made p-values anti-conservative."""
     if res.noise is None:
         return None
-    v = (res.point_weights * res.noise.sigma**2 * res.noise.dof_factor).ravel()
+    v = (res.point_weights * res.noise.sigma**2 * res.noise.chi2_factor).ravel()
     return np.concatenate([v, v])
+
+
+#: Half-width (points along frequency) of the running mean that estimates the local variance of a
+#: misfit (:func:`_local_variance`).
+MISFIT_HALF_WIDTH = 8
+
+
+def _local_variance(vec: np.ndarray, shape: tuple) -> np.ndarray:
+    """Local variance of each row of a residual vector: the running mean over
+    ``2 MISFIT_HALF_WIDTH + 1`` frequencies of its squares, real and imaginary parts pooled
+    (a heteroscedasticity-consistent scale, White 1980, smoothed along frequency)."""
+    from scipy.ndimage import uniform_filter1d
+
+    half = vec.size // 2
+    nf = shape[0]
+    sq = vec[:half].reshape(nf, -1) ** 2 + vec[half:].reshape(nf, -1) ** 2
+    loc = 0.5 * uniform_filter1d(sq, 2 * MISFIT_HALF_WIDTH + 1, axis=0, mode="nearest")
+    v = loc.ravel()
+    return np.concatenate([v, v])
+
+
+def _misfit_variance(left: np.ndarray, res: Residual) -> tuple[np.ndarray, float]:
+    """Per-row variance of the misfit ``left`` and its AR(1) inflation ``kappa = (1 + rho) / (1 - rho)``
+    (``rho`` the lag-one autocorrelation along frequency, :func:`effective_points`): the variance
+    of a projection of an AR(1) sequence on a smooth direction is ``kappa`` times that of its
+    rows (Bartlett 1946)."""
+    _, rho = effective_points(res.unstack(left))
+    return _local_variance(left, res.data.shape), (1.0 + rho) / (1.0 - rho)
+
+
+def _misfit_along(left: np.ndarray, delta: np.ndarray, res: Residual) -> tuple[float, float]:
+    """Variance of the misfit ``left`` projected on the unit direction ``delta / |delta|``, and the
+    effective number of points behind it: ``(v, nu)``.
+
+    The misfit is modelled as a random field whose rows have the local variance ``s^2``
+    (:func:`_local_variance`), correlated along frequency like an AR(1) sequence (inflation
+    ``kappa``, :func:`_misfit_variance`) and across channels and real/imaginary parts by the
+    correlation matrix ``R`` of the normalised misfit (a model error at one resonance shows in
+    every channel that sees the mode): ``v = kappa sum_f a_f^T R a_f / |delta|^2`` with
+    ``a_f = delta_f s_f`` (a sandwich estimate of the projection's variance, White 1980, with the
+    separable correlation). ``nu``: the participation number of ``delta^2`` over ``kappa`` and
+    the largest eigenvalue of ``R``."""
+    local, kappa = _misfit_variance(left, res)
+    nf = res.data.shape[0]
+
+    def cols(x: np.ndarray) -> np.ndarray:  # (nf, 2 n_channels): real parts, then imaginary parts
+        return np.concatenate([x[: x.size // 2].reshape(nf, -1), x[x.size // 2:].reshape(nf, -1)], axis=1)
+
+    sd = np.sqrt(np.maximum(cols(local), 0.0))
+    sd = np.where(sd > 1e-9 * max(float(sd.max()), 1e-300), sd, 0.0)  # round-off of the running mean
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        z = np.where(sd > 0, cols(left) / np.where(sd > 0, sd, 1.0), 0.0)
+    g = z.T @ z / nf
+    dg = np.sqrt(np.maximum(np.diag(g), 1e-300))
+    R = g / np.outer(dg, dg)
+    R[np.diag(g) <= 0] = 0.0
+    R[:, np.diag(g) <= 0] = 0.0
+    a = cols(delta) * sd
+    d2 = np.asarray(delta, dtype=float) ** 2
+    total = float(d2.sum())
+    v = kappa * float(np.einsum("fi,ij,fj->", a, R, a)) / total
+    lam = max(1.0, float(np.linalg.eigvalsh(R)[-1])) if R.size else 1.0
+    nu = max(1.0, total**2 / float(d2 @ d2) / (kappa * lam))
+    return v, nu
+
+
+def _candidate_test(
+    drop: float, delta: np.ndarray, left: np.ndarray, row_noise: np.ndarray | None, res: Residual
+) -> tuple[float, float, str]:
+    """Test of one fitted candidate: ``(T, p, scale)``.
+
+    Under "the effect is absent" the cost drop ``Delta J`` of a one-parameter fit is the residual
+    projected on the fitted change ``delta``: ``Delta J ~ v chi2_1`` with ``v = sum delta_i^2 v_i /
+    sum delta_i^2`` the variance along it (a likelihood-ratio test with one degree of freedom;
+    a parameter held at a bound makes it a conservative chi-bar-square). Two variances are at
+    hand: the noise model's (``row_noise``, with the bins' correlation) and the misfit the
+    candidate leaves (``left``, correlated along frequency and across channels,
+    :func:`_misfit_along`). The larger is used: within the noise the two agree; with model
+    error (the parameters-only fit beyond the noise) the misfit is the scale against which a
+    candidate must stand out, and its estimate carries ``nu`` effective points, so ``T`` is then
+    referred to ``F(1, nu)``. NaNs without a noise model.
+    """
+    if row_noise is None:
+        return math.nan, math.nan, ""
+    from scipy.stats import chi2, f
+
+    d2 = np.asarray(delta, dtype=float) ** 2
+    total = float(d2.sum())
+    if total <= 0 or drop <= 0:
+        return 0.0, 1.0, "noise"
+    v_noise = float(d2 @ row_noise) / total
+    v_mis, nu = _misfit_along(left, delta, res)
+    if v_mis <= v_noise:
+        t = drop / max(v_noise, 1e-300)
+        return t, float(chi2.sf(t, 1)), "noise"
+    t = drop / v_mis
+    return t, float(f.sf(t, 1, nu)), "misfit"
+
+
+def _rival_test(best_vec: np.ndarray, vec: np.ndarray, row_noise: np.ndarray | None, res: Residual):
+    """Vuong's (1989) test of the best candidate against a rival: ``(z, p)``, ``p`` one-sided
+    ("the best explains the data no better").
+
+    ``m_i = r_rival,i^2 - r_best,i^2`` is the pointwise difference of the two fits' squared
+    residuals (log-likelihood ratio terms); ``z = sum m_i / sqrt(kappa n s_m^2)`` with ``s_m^2`` their
+    sample variance (Vuong's eq. 5.6: the variance is estimated from the data, so a rival that
+    loses only on a few points is not separated by them) and ``kappa`` the AR(1) inflation of
+    ``m`` along frequency. NaNs without a noise model."""
+    if row_noise is None:
+        return math.nan, math.nan
+    from scipy.stats import norm
+
+    m = vec**2 - best_vec**2
+    n = m.size
+    x = m.reshape(2, res.data.shape[0], -1).transpose(1, 0, 2).reshape(res.data.shape[0], -1)
+    xc = x - x.mean(axis=0)
+    den = float(np.sum(xc * xc))
+    rho = min(max(float(np.sum(xc[1:] * xc[:-1]) / den), 0.0), 0.995) if den > 0 else 0.0
+    kappa = (1.0 + rho) / (1.0 - rho)
+    var = float(np.var(m)) * n * kappa
+    z = float(m.sum()) / math.sqrt(max(var, 1e-300))
+    return z, float(norm.sf(z))
+
+
+def _holm(p_raw: list[float], m: int) -> list[float]:
+    """Holm's (1979) step-down adjustment of ``p_raw`` within a family of ``m >= len(p_raw)``
+    tests (the others count as not rejected): ``p_(k) = max_{j <= k} min(1, (m - j + 1) p_(j))``.
+    Controls the family-wise error rate, so the smallest adjusted p-value (the best candidate's,
+    Bonferroni's ``m p``) is conservative under "no effect is missing"."""
+    out = [math.nan] * len(p_raw)
+    finite = sorted((p, i) for i, p in enumerate(p_raw) if np.isfinite(p))
+    run = 0.0
+    for j, (p, i) in enumerate(finite):
+        run = max(run, min(1.0, (m - j) * p))
+        out[i] = run
+    return out
+
+
+def _at_bound(effect: Any, value: float) -> bool:
+    """Whether a fitted value sits at a bound of the effect's parameter away from neutral (a
+    +200 % gain error at the gain's upper bound: the data ask for more than the effect allows)."""
+    if _is_switch(effect):
+        return False
+    par = effect.parameters[0]
+    lo, hi = par.bounds
+    for b in (lo, hi):
+        if np.isfinite(b) and b != par.neutral and abs(value - b) <= 1e-6 * max(abs(b - par.neutral), 1e-300):
+            return True
+    return False
+
+
+def _is_switch(effect: Any) -> bool:
+    """An effect with discrete states (gravity on/off, swapped cables, a sign flip, a units slip,
+    a sensor on another node): screened at its states, fitted with the state fixed."""
+    return effect.kind == "gravity" or bool(getattr(effect, "switch", False))
+
+
+def _null_test(res: Residual, j_u: np.ndarray) -> tuple[float, float]:
+    """``(dispersion, p)``: is the parameters-only fit within the noise? The normalised residual
+    on the testable points against a chi-square with the noise model's Satterthwaite factor
+    (:func:`robustctl.measure.noise.chi2_verdict`); NaNs without a noise model."""
+    if res.noise is None:
+        return math.nan, math.nan
+    from scipy.stats import chi2
+
+    base = (res.point_weights * res.noise.sigma**2).ravel()
+    ok = ((res.point_weights > 0) & res.noise.testable).ravel()
+    ok = np.concatenate([ok, ok]) & (np.concatenate([base, base]) > 0)
+    if not ok.any():
+        return math.nan, math.nan
+    z2 = j_u[ok] ** 2 / np.concatenate([base, base])[ok]
+    c = max(float(res.noise.chi2_factor), 1.0)
+    s, n = float(z2.sum()), int(ok.sum())
+    return s / n, float(chi2.sf(s / c, n / c))
+
+
+#: Smallest dispersion (residual over its noise expectation) of the parameters-only fit called model
+#: error, besides a significant chi-square: a coherence-based noise model's sigma is estimated from
+#: the coherence (biased low where it is low), so an exact truth's dispersion exceeds 1 a little,
+#: which a chi-square over thousands of points calls significant.
+MODEL_ERROR_DISPERSION = 1.5
+
+#: Share of the null fit's excess misfit one output row (input column) must hold to be named.
+CHANNEL_SHARE = 0.5
+
+
+def _channel_verdict(res: Residual, j_u: np.ndarray) -> str:
+    """Name the output row (or input column) that holds most of an unexplained misfit."""
+    e = res.unstack(j_u)
+    per = np.abs(e) ** 2
+    if res.noise is not None:  # the excess over the noise expectation
+        per = np.maximum(per - 2 * res.point_weights * res.noise.sigma**2, 0.0)
+    rows, cols = per.sum(axis=(0, 2)), per.sum(axis=(0, 1))
+    total = float(per.sum())
+    if total <= 0:
+        return ""
+    d = res.data
+    if d.n_out > 1 and rows.max() / total > CHANNEL_SHARE and rows.max() / total > 1.5 / d.n_out:
+        k = int(np.argmax(rows))
+        return (
+            f"The misfit sits in output {d.outputs[k]}'s row ({100 * rows[k] / total:.0f}% of it); no "
+            "candidate explains it: check its cable, sign and location (node and direction), and its "
+            "calibration."
+        )
+    if d.n_in > 1 and cols.max() / total > CHANNEL_SHARE and cols.max() / total > 1.5 / d.n_in:
+        k = int(np.argmax(cols))
+        return (
+            f"The misfit sits in input {d.inputs[k]}'s column ({100 * cols[k] / total:.0f}% of it); no "
+            "candidate explains it: check its cable, sign and location (node and direction), and the "
+            "force measurement's calibration."
+        )
+    return ""
 
 
 def _warn_if_hurried(null_cut: bool, n_cut: int, budget: float) -> None:
@@ -1365,18 +1827,30 @@ def _score(
     j_u: np.ndarray,
     st: dict[str, Any],
 ) -> tuple[list, dict]:
-    """CandidateResults: fitted ones by gain (F-test, sentence), then the rest by fraction."""
+    """CandidateResults: fitted ones by gain (tests, sentence), then the rest by fraction.
+
+    Each fitted candidate is tested alone (:func:`_candidate_test`); the p-values are then
+    adjusted over the ``m`` screened candidates (:func:`_holm`), and each rival is compared with the
+    best (:func:`_rival_test`)."""
+    from dataclasses import replace
+
     results, explained = [], {}
+    row_noise = st["row_noise"]
 
     def twins_of(k: int) -> tuple[str, ...]:
         return tuple(screens[t]["effect"].name for t, i in twins.items() if i == k)
 
+    raw = []
     for k, fit in zip(top, fits):
         s = screens[k]
         effect = s["effect"].with_values(**{s["effect"].param_names[0]: fit["value"]})
         gain = _reduction(fit["cost"], st["cost_u"])
         delta = j_u - fit["vector"]
-        f_stat, p_val = _noise_test(st["cost_u"] - fit["cost"], delta, st["row_noise"])
+        ok = st["testable"]  # the test counts the points where ln H1 is near Gaussian (noise module)
+        left = fit["vector"] * ok
+        f_stat, p_val, scale = _candidate_test(float(j_u[ok] @ j_u[ok] - left @ left), delta * ok, left,
+                                               row_noise, res0)
+        raw.append(p_val)
         results.append(
             CandidateResult(
                 effect=effect,
@@ -1388,22 +1862,43 @@ def _score(
                 gain=gain,
                 f_stat=f_stat,
                 p_value=p_val,
-                significant=bool(
-                    p_val < st["level"]
-                    and gain >= st["min_gain"]
-                    and st["cost_u"] - fit["cost"] > 1e-10 * st["cost_nominal"]
-                ),
                 update_values={n: v for n, v in fit["x"].items() if n in st["upd"]},
                 where=_where(res0, delta),
                 equivalent=twins_of(k),
-                level=st["level"] if st["row_noise"] is not None else math.nan,
+                level=st["alpha"] if row_noise is not None else math.nan,
                 min_gain=st["min_gain"],
                 note=_hold_note(effect, st["fs_hz"]),
+                p_raw=p_val,
+                scale=scale,
+                at_bound=_at_bound(effect, float(fit["value"])),
             )
         )
         explained[effect.name] = res0.unstack(delta)
-    order_fit = sorted(range(len(results)), key=lambda i: (-round(results[i].gain, 9), i))
+    adjusted = _holm(raw, st["m"])
+    vectors = {results[i].name: fits[i]["vector"] for i in range(len(results))}
+    results = [
+        replace(
+            r,
+            p_value=p,
+            significant=bool(
+                np.isfinite(p)
+                and p < st["alpha"]
+                and r.gain >= st["min_gain"]
+                and not r.at_bound
+                and st["cost_u"] - r.cost > 1e-10 * st["cost_nominal"]
+            ),
+        )
+        for r, p in zip(results, adjusted)
+    ]
+    order_fit = sorted(range(len(results)),
+                       key=lambda i: (results[i].at_bound, -round(results[i].gain, 9), i))
     results = [results[i] for i in order_fit]
+    if results:
+        lead = next((r for r in results if not r.at_bound), results[0])
+        for i, r in enumerate(results):
+            if r is not lead:
+                z, p = _rival_test(vectors[lead.name], vectors[r.name], row_noise, res0)
+                results[i] = replace(r, z_vs_best=z, p_vs_best=p)
     explained = {r.name: explained[r.name] for r in results[:2]}
     for k in order:
         if k in top:
@@ -1426,27 +1921,6 @@ def _score(
             )
         )
     return [_with_sentence(r) for r in results], explained
-
-
-def _noise_test(drop: float, delta: np.ndarray, row_noise: np.ndarray | None) -> tuple[float, float]:
-    """``T = Delta J / v_delta`` and its chi-square(1) p-value; NaNs without a noise model.
-
-    Under "the effect is absent" the fitted change ``delta`` of the weighted residual is noise
-    projected on one direction: ``Delta J ~ v_delta chi2_1`` with ``v_delta = sum delta_i^2 v_i /
-    sum delta_i^2`` the noise variance along it (``v_i`` from the noise model, with the window's
-    bin correlation; :mod:`robustctl.measure.noise`).
-    """
-    if row_noise is None:
-        return math.nan, math.nan
-    from scipy.stats import chi2
-
-    d2 = np.asarray(delta, dtype=float) ** 2
-    total = float(d2.sum())
-    if total <= 0 or drop <= 0:
-        return 0.0, 1.0
-    v = float(d2 @ row_noise) / total
-    t = drop / max(v, 1e-300)
-    return t, float(chi2.sf(t, 1))
 
 
 def _with_sentence(r: CandidateResult) -> CandidateResult:

@@ -529,6 +529,54 @@ class UpdateResult:
             )
         return out
 
+    def uncertain(self, n_sigma: float = 2.0, params: Any = None, *, f_hz: Any = None):
+        """The updated model with its parameters as real uncertain scalars (an LFT).
+
+        The selected parameters (or ``params``, a subset; the others stay at their updated
+        values) vary over the ``n_sigma`` box of the fit's covariance along its principal
+        axes (correlations included): ``theta = theta_hat + sum_k delta_k a_k``, ``delta_k``
+        real in [-1, 1], one repeated real scalar block per axis
+        (:func:`robustctl.physical.uncertain.parametric_lft`: exact where the state-space
+        matrices are affine in the parameters, else first order, with its error against
+        models sampled in the box stated). ``rc.generalized_plant(upd.uncertain(), ...)``
+        puts the blocks first in ``.blocks``; ``rc.dksyn`` then runs D-G-K on them.
+
+        Parameters
+        ----------
+        n_sigma : float
+            Half-width of the box in standard deviations.
+        params : sequence of str, optional
+            The parameters to make uncertain (default: all updated ones).
+        f_hz : array_like, optional
+            Frequencies (Hz) of the LFT's error check.
+
+        Returns
+        -------
+        UncertainModel
+
+        Raises
+        ------
+        FitError
+            No updated parameter, or a name in ``params`` that was not updated.
+        """
+        from ..errors import ModelError
+        from ..physical.uncertain import parametric_lft
+
+        names = tuple(self.fit.names)
+        if not names:
+            raise FitError("the update changed no parameter: there is no uncertainty to model.")
+        chosen = names if params is None else tuple(params)
+        unknown = [p for p in chosen if p not in names]
+        if unknown or not chosen:
+            raise FitError(f"params must be among the updated parameters {list(names)}; got {list(chosen)}.")
+        idx = [names.index(p) for p in chosen]
+        cov = np.asarray(self.fit.covariance, dtype=float)[np.ix_(idx, idx)]
+        center = np.asarray(self.fit.x_array, dtype=float)[idx]
+        try:
+            return parametric_lft(self.model, chosen, center, cov, n_sigma=float(n_sigma), f_hz=f_hz)
+        except ModelError as exc:
+            raise FitError(f"cannot build the uncertain model: {exc}") from exc
+
     def sample_models(self, n: int, seed: Any = None, *, max_draws: int = 100) -> tuple[Any, ...]:
         """Models with parameters drawn from the fitted covariance (see :meth:`sample_parameters`).
 

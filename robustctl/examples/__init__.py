@@ -13,6 +13,7 @@
   :func:`caltech_truss_weights` -- weights computed from the truss's residuals beside it.
 * :func:`distillation_plant`, :func:`caltech_design_plant` -- mu-synthesis examples
   (Skogestad & Postlethwaite's D-K example; the Caltech seed's design plant);
+  :func:`two_mass_spring_plant` -- Wie & Bernstein's benchmark with the spring as a real block;
   :class:`ModelCoverRecipe` -- the yardstick's recipe in which each model pays for its error.
 """
 
@@ -23,10 +24,13 @@ from .mace_beam_model import mace_beam, mace_modes
 from .modal_test import ModalTruth, impact_test_case, modal_test_case
 from .robust_design import (
     DISTILLATION_BLOCKS,
+    TWO_MASS_BLOCKS,
     ModelCoverRecipe,
     caltech_design_plant,
     distillation_plant,
+    himat_plant,
     six_modes,
+    two_mass_spring_plant,
 )
 
 __all__ = ["caltech_truss", "truss_modes", "mace_beam", "mace_modes"]
@@ -35,3 +39,4 @@ __all__ += ["modal_test_case", "impact_test_case", "ModalTruth"]
 __all__ += ["caltech_additive_weight", "caltech_truss_weights", "CaltechWeights"]
 __all__ += ["distillation_plant", "DISTILLATION_BLOCKS", "caltech_design_plant", "six_modes"]
 __all__ += ["ModelCoverRecipe"]
+__all__ += ["two_mass_spring_plant", "TWO_MASS_BLOCKS", "himat_plant"]

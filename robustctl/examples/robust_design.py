@@ -55,6 +55,123 @@ def distillation_plant(eps: float = 1e-6):
                       outputs=["zi1", "zi2", "zp1", "zp2", "y1", "y2"])
 
 
+#: Block structure of :func:`two_mass_spring_plant`: the spring as a real scalar, then the
+#: 2 x 2 performance block.
+TWO_MASS_BLOCKS = [[-1, 0], [2, 2]]
+
+
+def two_mass_spring_plant(k: float | None = None, *, k_range: tuple[float, float] = (0.5, 2.0),
+                          wp: float = 1.2, w_low: float = 0.3, w_high: float = 3.0, dc: float = 0.002,
+                          wu: float = 0.01, wn: float = 0.001):
+    """Wie & Bernstein's two-mass-spring benchmark as a generalized plant (Wie & Bernstein 1992,
+    "Benchmark problems for robust control design", J. Guidance 15(5), problem 1).
+
+    Masses ``m1 = m2 = 1`` joined by a spring ``k`` in ``k_range``; the control force ``u``
+    acts on mass 1, the disturbance force ``w_d`` on mass 2, and the measurement is the
+    position of mass 2 (noncollocated): ``x1'' = -k (x1 - x2) + u``, ``x2'' = k (x1 - x2) +
+    w_d``, ``y = x2 + wn n``. With ``k = None`` the spring is ``k0 + kd delta`` (``k0, kd``
+    the range's centre and half-width) and ``delta`` a real scalar in [-1, 1] pulled out as
+    the channel pair ``z_k = x1 - x2``, ``w_k`` (force ``-kd w_k`` on mass 1, ``+kd w_k`` on
+    mass 2). Performance: ``z_p = Wp x2`` with the band-pass ``Wp = wp (s/w_low + dc) /
+    ((1 + s/w_low)(1 + s/w_high))`` (the rigid-body drift below ``w_low`` is not penalised
+    but for a small floor ``dc``), ``z_u = wu u``.
+
+    Parameters
+    ----------
+    k : float, optional
+        A fixed spring stiffness (N/m): the plant without the uncertainty channels.
+    k_range : (float, float)
+        The spring's range (N/m).
+    wp, w_low, w_high, dc, wu, wn : float
+        The weights above (``w_low``, ``w_high`` in rad/s).
+
+    Returns
+    -------
+    control.StateSpace
+        Inputs ``[w_k, w_d, n, u]`` and outputs ``[z_k, z_p, z_u, y]`` (``k = None``; use
+        with :data:`TWO_MASS_BLOCKS`, ``nmeas = ncon = 1``), else inputs ``[w_d, n, u]`` and
+        outputs ``[z_p, z_u, y]``. States: ``x1, x2, v1, v2`` and the weight's two.
+    """
+    import control
+
+    k0 = 0.5 * (k_range[0] + k_range[1])
+    kd = 0.5 * (k_range[1] - k_range[0])
+    kk = k0 if k is None else float(k)
+    A = np.array([[0, 0, 1, 0], [0, 0, 0, 1], [-kk, kk, 0, 0], [kk, -kk, 0, 0]], float)
+    Wp = control.ss(control.tf([wp / w_low, wp * dc], [1 / w_low, 1]) * control.tf([1.0], [1 / w_high, 1]))
+    aw, bw, cw, dw = (np.asarray(x, dtype=float) for x in (Wp.A, Wp.B, Wp.C, Wp.D))
+    n = 4 + aw.shape[0]
+    Aa = np.zeros((n, n))
+    Aa[:4, :4], Aa[4:, 4:], Aa[4:, 1:2] = A, aw, bw
+    B = np.zeros((n, 4))
+    B[2, 0], B[3, 0], B[3, 1], B[2, 3] = -kd, kd, 1.0, 1.0
+    C = np.zeros((4, n))
+    C[0, 0], C[0, 1] = 1.0, -1.0
+    C[1, 4:], C[1, 1] = cw[0], dw[0, 0]
+    C[3, 1] = 1.0
+    D = np.zeros((4, 4))
+    D[2, 3], D[3, 2] = wu, wn
+    names_in, names_out = ["w_k", "w_d", "n", "u"], ["z_k", "z_p", "z_u", "y"]
+    if k is not None:
+        return control.ss(Aa, B[:, 1:], C[1:], D[1:, 1:], inputs=names_in[1:], outputs=names_out[1:])
+    return control.ss(Aa, B, C, D, inputs=names_in, outputs=names_out)
+
+
+def himat_plant(noise: bool = False):
+    """The HIMAT aircraft's D-K example of the mu-tools toolbox (Balas, Doyle, Glover, Packard &
+    Smith, mu-Analysis and Synthesis Toolbox, 1991: ``mkhic`` and, with ``noise=True``,
+    ``mkhicn``) as a generalized plant.
+
+    The 4-state longitudinal model ``G`` (inputs: elevon and canard, outputs: angle of attack
+    and pitch angle) with input multiplicative uncertainty ``w_del = (50 s + 5000)/(s + 10000)``
+    on each control, performance ``w_p (G (u + pert) + d)`` with ``w_p = (0.5 s + 1.5)/(s +
+    0.03)`` (``noise=True``: ``(0.5 s + 0.9)/(s + 0.018)``) and, with ``noise=True``, sensor
+    noise ``w_n = (2 s + 2.56)/(s + 320)`` on two further disturbance inputs.
+
+    Returns
+    -------
+    P : control.StateSpace
+        Inputs ``[pert(2), dist(2 or 4), control(2)]``, outputs ``[z_del(2), z_p(2), y(2)]``.
+    blocks : list
+        mussv rows: ``[[2, 2], [2, 2]]`` (``[[2, 2], [4, 2]]`` with noise); ``nmeas = ncon = 2``.
+    """
+    import control
+
+    A = np.array([[-0.0226, -36.6, -18.9, -32.1], [0, -1.9, 0.983, 0], [0.0123, -11.7, -2.63, 0],
+                  [0, 0, 1, 0]])
+    B = np.array([[0, 0], [-0.414, 0], [-77.8, 22.4], [0, 0]])
+    C = np.array([[0, 57.3, 0, 0], [0, 0, 0, 57.3]])
+
+    def first_order(b1, b0, a0):
+        """``(b1 s + b0) / (s + a0)`` on two channels: (A, B, C, D)."""
+        return -a0 * np.eye(2), np.eye(2), (b0 - b1 * a0) * np.eye(2), b1 * np.eye(2)
+
+    Ad, Bd, Cd, Dd = first_order(50.0, 5000.0, 1e4)
+    Ap, Bp, Cp, Dp = first_order(0.5, 0.9, 0.018) if noise else first_order(0.5, 1.5, 0.03)
+    An, Bn, Cn, Dn = first_order(2.0, 2.56, 320.0)
+    nd = 4 if noise else 2
+    Z = np.zeros
+    # states [x_G (4), x_del (2), x_p (2), (x_n (2))]; inputs [pert, dist, u]
+    blocks_A = [[A, Z((4, 2)), Z((4, 2))], [Z((2, 4)), Ad, Z((2, 2))], [Bp @ C, Z((2, 2)), Ap]]
+    Bm = [np.hstack([B, Z((4, nd)), B]), np.hstack([Z((2, 2)), Z((2, nd)), Bd]),
+          np.hstack([Z((2, 2)), Bp, Z((2, nd - 2)), Z((2, 2))])]
+    Cz = [np.hstack([Z((2, 4)), Cd, Z((2, 2))]), np.hstack([Dp @ C, Z((2, 2)), Cp]),
+          np.hstack([C, Z((2, 4))])]
+    D = np.vstack([np.hstack([Z((2, 2)), Z((2, nd)), Dd]),
+                   np.hstack([Z((2, 2)), Dp, Z((2, nd - 2)), Z((2, 2))]),
+                   np.hstack([Z((2, 2)), np.eye(2), Z((2, nd - 2)), Z((2, 2))])])
+    Am, Bmat, Cmat = np.block(blocks_A), np.vstack(Bm), np.vstack(Cz)
+    if noise:  # the noise filter's states feed the measurements
+        Am = np.block([[Am, Z((8, 2))], [Z((2, 8)), An]])
+        Bmat = np.vstack([Bmat, np.hstack([Z((2, 4)), Bn, Z((2, 2))])])
+        Cmat = np.hstack([Cmat, np.vstack([Z((4, 2)), Cn])])
+        D[4:6, 4:6] = Dn
+    ins = ["pert1", "pert2"] + [f"dist{i + 1}" for i in range(nd)] + ["u1", "u2"]
+    outs = ["zdel1", "zdel2", "zp1", "zp2", "y1", "y2"]
+    blocks = [[2, 2], [nd, 2]]
+    return control.ss(Am, Bmat, Cmat, D, inputs=ins, outputs=outs), blocks
+
+
 def six_modes(model: Any):
     """The six global modes (12 states) of a truss model by balanced truncation (seed eq. 11-13)."""
     import control

@@ -24,6 +24,12 @@ from scipy.optimize import least_squares
 
 from .tail import leaked_terms
 
+#: smallest damping ratio a refined mode may take (keeps the model strictly stable; not a
+#: judgement on the mode: very lightly damped modes are real in bolted and welded structures)
+ZETA_MIN = 1e-6
+#: largest ``theta`` of the decay rate ``exp(theta)``, 1/s (keeps ``exp`` finite for any step)
+LOG_DECAY_MAX = 700.0
+
 __all__ = ["refine_cluster"]
 
 
@@ -61,8 +67,16 @@ def _noise_ftol(n_res: int, n_theta: int, n_lin: int) -> float:
     return float(np.clip(0.1 * n_theta / dof, 1e-7, 1e-3))
 
 
+def _decay(theta: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """``-Re p = ZETA_MIN |Im p| + exp(theta)``: the damping ratio stays above ``ZETA_MIN`` (the
+    dense refinement's bound) for every ``theta``, so a step can never leave a marginal pole
+    (``exp`` of a large negative ``theta`` underflows to 0 and gave ``Re p = 0``)."""
+    return ZETA_MIN * np.abs(omega) + np.exp(np.minimum(theta, LOG_DECAY_MAX))
+
+
 def _unpack(theta: np.ndarray, m: int, n_in: int):
-    poles = -np.exp(theta[:m]) + 1j * theta[m : 2 * m]
+    omega = theta[m : 2 * m]
+    poles = -_decay(theta[:m], omega) + 1j * omega
     b = theta[2 * m :].reshape(m, 2, n_in)
     return poles, b[:, 0] + 1j * b[:, 1]
 
@@ -113,8 +127,10 @@ def refine_cluster(
         r = rw * (model - target)
         return np.concatenate([r.real.ravel(), r.imag.ravel()])
 
-    sigma = np.maximum(-poles.real, 1e-9 * np.abs(poles))
-    theta0 = np.concatenate([np.log(sigma), poles.imag, np.stack([bs.real, bs.imag], axis=1).ravel()])
+    floor = ZETA_MIN * np.abs(poles.imag)
+    sigma = np.maximum(-poles.real - floor, floor)
+    log_sigma = np.log(np.maximum(sigma, np.finfo(float).tiny))
+    theta0 = np.concatenate([log_sigma, poles.imag, np.stack([bs.real, bs.imag], axis=1).ravel()])
     r0 = resid(theta0)
     n_res = r0.size
     if n_res <= theta0.size:

@@ -11,8 +11,10 @@ variable projection on large ones); (4) optionally, for white-noise tests estima
 :func:`robustctl.estimate_frf`, a few fixed-point steps that undo the estimator's window
 leakage (see :mod:`.leakage`); (5) for impact data with an exponential window, the window's
 damping removed; (6) the complex-log cost of MACE eq. 5. With ``n_modes=None`` the order
-comes from a one-pass stabilisation diagram (:mod:`.stabilisation`). Every step honours the
-call's time budget.
+comes from a one-pass stabilisation diagram (:mod:`.stabilisation`). Iteration caps bound the
+work; an opt-in time budget ends it early and the result says so (``stopped_by_budget``). The
+returned model is one system: its residues are its realisation's factors, every pole is damped
+by at least ``STABILITY_ZETA``, and the cost is that system's.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..checks import UNSET, band_data, renamed_keyword
-from ..errors import FitError
+from ..errors import FitError, RobustctlError
 from ..frd import FrequencyData, as_frequency_data
 from ..lti import pole_frequency_damping, rebuild_statespace, statespace_state
 from ..modes import Mode
@@ -41,9 +43,10 @@ from .leakage import (
     truncation_settings,
 )
 from .modal_fit import FitSettings, fit_best, fit_with_leakage, shift_poles, spare_pairs
+from .modal_refine import ZETA_MIN
 from .rational_fit import IdentifyWarning, RationalFit
 from .realization import residue_factors
-from .refine import _row_weights
+from .refine import _row_weights, refine_residues
 from .selection import ZETA_FILLER, pole_contributions
 from .stabilisation import (
     MIN_CONTRIBUTION,
@@ -56,8 +59,9 @@ from .stabilisation import (
 __all__ = ["Mode", "MeasurementModel", "fit_measurement_model", "StabilisationDiagram", "pinned_modes",
            "leakage_consistency"]
 
-#: default time budget of one fit_measurement_model call, seconds
-TIME_BUDGET_S = 600.0
+#: default time budget of one fit_measurement_model call: none (iteration caps bound the work, so
+#: the result depends only on the input and the options, never on the clock or the load)
+TIME_BUDGET_S = None
 #: a leakage-corrected model is flagged when its expected H1 misses the raw data by more than
 #: INCONSISTENT_RATIO times its miss of the corrected data plus INCONSISTENT_DB (weighted rms, dB)
 INCONSISTENT_RATIO, INCONSISTENT_DB = 1.25, 0.25
@@ -72,7 +76,9 @@ class MeasurementModel:
     sys : control.StateSpace
         Real modal realisation with the data's signal names.
     modes : tuple of Mode
-        Exactly ``n_modes`` modes (complex poles), sorted by frequency; fillers are apart.
+        The physical modes, sorted by frequency: complex poles inside the band with damping
+        below ``ZETA_FILLER`` (0.2). With ``n_modes=N`` there are N of them, or fewer with an
+        :class:`IdentifyWarning` giving the number the data support; fillers are apart.
     cost : LogCost
         MACE eq. 5 of ``sys`` against ``data`` (per channel and total).
     fit : RationalFit
@@ -95,6 +101,11 @@ class MeasurementModel:
         Time constant of the exponential window undone in ``sys``, ``modes`` and ``fit``
         (poles moved by ``+1/tau``); ``cost`` and :meth:`plot` compare the windowed model
         with the (windowed) data.
+    stopped_by_budget : bool
+        Whether the opt-in ``time_budget_s`` ended the fit early (the model is then the best
+        found so far and depends on the machine's speed and load).
+    corrections : tuple of str
+        The corrections applied to the data or the model, in words (empty: a plain fit).
     """
 
     sys: Any
@@ -108,6 +119,8 @@ class MeasurementModel:
     fillers: tuple[Mode, ...] = ()
     stabilisation: Any = None
     window_tau_s: float | None = None
+    stopped_by_budget: bool = False
+    corrections: tuple[str, ...] = ()
 
     def statespace(self):
         """The real modal ``control.StateSpace`` (the state-space protocol, :func:`rc.as_statespace`)."""
@@ -147,6 +160,18 @@ class MeasurementModel:
                 f"The exponential window's damping (tau = {self.window_tau_s:.4g} s) was removed from "
                 "the modes."
             )
+        lines.append("Corrections: " + ("; ".join(self.corrections) if self.corrections else "none applied")
+                     + ".")
+        zeta, re_max = self.stability_margin
+        lines.append(
+            f"Asymptotically stable: smallest pole damping ratio {zeta:.3g} (margin {STABILITY_ZETA:g}), "
+            f"largest real part {re_max:.4g} 1/s."
+        )
+        if self.stopped_by_budget:
+            lines.append(
+                "STOPPED BY THE TIME BUDGET: the model is the best found before time_budget_s ran out and "
+                "depends on this machine's speed and load."
+            )
         if self.stabilisation is not None:
             lines.append(
                 f"Order chosen by the stabilisation diagram over {self.stabilisation.orders.size} orders "
@@ -159,6 +184,15 @@ class MeasurementModel:
         state = {f.name: getattr(self, f.name) for f in fields(self)}
         state["sys"] = statespace_state(self.sys)
         return (_rebuild_measurement_model, (state,))
+
+    @property
+    def stability_margin(self) -> tuple[float, float]:
+        """``(smallest damping ratio, largest real part in 1/s)`` over the poles of ``sys``."""
+        p = np.linalg.eigvals(np.asarray(self.sys.A)) if self.sys.nstates else np.zeros(0)
+        if p.size == 0:
+            return 1.0, -np.inf
+        zeta = -p.real / np.maximum(np.abs(p), np.finfo(float).tiny)
+        return float(zeta.min()), float(p.real.max())
 
     @property
     def n_modes(self) -> int:
@@ -243,14 +277,20 @@ def _mode(p: complex, r: np.ndarray, k: int) -> Mode:
     return Mode(float(f[0]), float(z[0]), r, complex(p), int(k), output_shape=c, input_shape=b)
 
 
+def _is_mode(m: Mode, band_hz: tuple[float, float]) -> bool:
+    """A physical mode: a complex pole inside the band, damping below ``ZETA_FILLER``, rank 1."""
+    return m.pole.imag != 0 and band_hz[0] <= m.f_hz <= band_hz[1] and m.zeta < ZETA_FILLER
+
+
 def _modes(fit: RationalFit, n_mode_poles: int) -> tuple[tuple[Mode, ...], tuple[Mode, ...]]:
-    """Modes (the first ``n_mode_poles`` poles, sorted by frequency) and fillers."""
+    """Modes (of the first ``n_mode_poles`` poles, those that are still in-band, complex and
+    lightly damped after the refinement, sorted by frequency) and fillers (every other kept pole)."""
     items = [_mode(p, r, k) for p, r, k in zip(fit.poles, fit.residues, fit.ranks) if k > 0]
     ranked = [k > 0 for k in fit.ranks]
     first = sum(ranked[:n_mode_poles])
-    modes = sorted(items[:first], key=lambda m: m.f_hz)
-    fillers = sorted(items[first:], key=lambda m: m.f_hz)
-    return tuple(modes), tuple(fillers)
+    modes = [m for m in items[:first] if _is_mode(m, fit.band_hz)]
+    fillers = [m for m in items[:first] if not _is_mode(m, fit.band_hz)] + items[first:]
+    return tuple(sorted(modes, key=lambda m: m.f_hz)), tuple(sorted(fillers, key=lambda m: m.f_hz))
 
 
 def _scan(band: FrequencyData, run: FitSettings, max_modes: int, parsimony: float, weights, progress):
@@ -441,12 +481,17 @@ def fit_measurement_model(
         :func:`robustctl.estimate_frf_impact` with an exponential window), move every pole by
         ``+1/tau``: ``zeta_true = zeta_meas - 1/(tau w_n)`` (Ewins, sec. 3.11). For every
         impact record (rectangular or exponential window) whose responses have not decayed by
-        the record end, also undo the truncation (leakage): the refinement fits the truncated
-        record's response to the raw data (:mod:`robustctl.identify.leakage`, eq. T1).
+        the record end, also try undoing the truncation (leakage): the refinement fits the
+        truncated record's response to the raw data (:mod:`robustctl.identify.leakage`, eq. T1).
+        The corrected model is kept only when its expected H1 (the model with its record-end
+        tail) misses the data by less than the plain fit does; ``corrections`` and the summary
+        say which was kept (``correct_leakage=True`` forces the correction).
     time_budget_s : float or None
-        Wall-time budget of the whole call, seconds; when it runs out the order scan, pole
-        iterations and refinement stop with the best model so far (an :class:`IdentifyWarning`
-        says so). ``None``: no budget.
+        Opt-in wall-time budget of the whole call, seconds. ``None`` (default): the work is
+        bounded by iteration caps only, so the result depends on the input and options alone.
+        With a budget, when it runs out the order scan, pole iterations and refinement stop with
+        the best model so far: the result says so (``stopped_by_budget``, its summary) and an
+        :class:`IdentifyWarning` is issued; such a model depends on the machine's speed and load.
     progress : bool, optional
         tqdm bars over the order scan and the block refinement (default: when stderr is a
         terminal).
@@ -454,6 +499,16 @@ def fit_measurement_model(
     Returns
     -------
     MeasurementModel
+        Its ``sys`` (:meth:`~MeasurementModel.statespace`), ``fit``, :meth:`~MeasurementModel.freqresp`,
+        ``cost`` and plots are one model: the realisation's factors are the fit's residues. Every
+        pole has a damping ratio of at least ``STABILITY_ZETA`` (1e-6): the model is
+        asymptotically stable with that margin.
+
+    Raises
+    ------
+    FitError
+        Bad options, a missed ``target_db``, or a fit that fails numerically (the message names
+        the order, the step and what to change).
     """
     import sys
     import time
@@ -471,14 +526,21 @@ def fit_measurement_model(
     kw = dict(method=method, point_weights=point_weights, max_iter=max_iter)
     run = FitSettings(groups, st, kw, rank_tol, refine, deadline, progress=show)
     diagram = None
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", IdentifyWarning)
-        if n_modes is None:
-            fit, n_mode_poles, used, diagram = _automatic(
-                band_fd, run, max_modes, parsimony, point_weights, show
-            )
-        else:
-            fit, n_mode_poles, used = fit_best(band_fd, _check_modes(n_modes), run)
+    order = "automatic order" if n_modes is None else f"n_modes={_check_modes(n_modes)}"
+    fit, n_mode_poles, used, diagram = _fit_core(band_fd, run, n_modes, max_modes, parsimony, point_weights,
+                                                 show, order)
+    declined = None
+    chosen = isinstance(st, TruncationSettings) and correct_leakage is not True
+    if chosen and used.meta.get("leakage_corrected"):
+        # the truncation correction is chosen only where it lowers the error against the H1 data
+        plain = _fit_core(band_fd, replace(run, settings=None), n_modes, max_modes, parsimony, point_weights,
+                          show, order)
+        with_t, without = _raw_miss_db(fit, used), _raw_miss_db(plain[0], plain[2])
+        if not with_t < without:
+            fit, n_mode_poles, used, diagram = plain
+            declined = (with_t, without)
+    _check_finite(fit, used, order)
+    stopped = run.expired()
     cost = _score(fit, used)
     scan = () if diagram is None else tuple((int(n), float(c)) for n, c in zip(diagram.orders, diagram.cost))
     if target_db is not None and cost.rms_db_total > target_db:
@@ -486,10 +548,11 @@ def fit_measurement_model(
             f"the measurement model reaches {cost.rms_db_total:.3g} dB rms log-magnitude error, above the "
             f"target {target_db:g} dB; raise n_modes (or leave it None), narrow the band or relax target_db."
         )
-    if run.expired():
+    if stopped:
         warnings.warn(
-            f"the time budget of {budget:g} s ran out; the model is the best found so far. Raise "
-            "time_budget_s, narrow the band or give n_modes.",
+            f"the time budget of {budget:g} s ran out; the model is the best found so far and depends on "
+            "this machine's speed and load (stopped_by_budget=True). Raise time_budget_s or leave it None "
+            "(iteration caps only), narrow the band or give n_modes.",
             IdentifyWarning,
             stacklevel=3,
         )
@@ -508,6 +571,14 @@ def fit_measurement_model(
     if tau is not None:
         fit = shift_poles(fit, 1.0 / tau)
     modes, fillers = _modes(fit, n_mode_poles)
+    if n_modes is not None and groups is None and sum(m.rank for m in modes) < n_modes:
+        warnings.warn(
+            f"n_modes={n_modes} was asked but the data support {sum(m.rank for m in modes)} physical "
+            f"mode(s) in {band_fd.f_hz[0]:.4g}-{band_fd.f_hz[-1]:.4g} Hz (complex, in band, damping below "
+            f"{ZETA_FILLER:g}); the other poles are fillers (.fillers). Lower n_modes or widen the band.",
+            IdentifyWarning,
+            stacklevel=3,
+        )
     pinned = pinned_modes(modes)
     if pinned:
         warnings.warn(pinned_message(pinned, bool(used.meta.get("leakage_corrected"))), IdentifyWarning,
@@ -520,10 +591,108 @@ def fit_measurement_model(
             IdentifyWarning,
             stacklevel=3,
         )
+    leaked = bool(used.meta.get("leakage_corrected"))
     return MeasurementModel(
-        fit.statespace(), modes, cost, fit, used, band_fd, bool(used.meta.get("leakage_corrected")), scan,
-        fillers, diagram, tau,
+        fit.statespace(), modes, cost, fit, used, band_fd, leaked, scan, fillers, diagram, tau, stopped,
+        _corrections(st, leaked, tau, declined),
     )
+
+
+def _fit_core(band_fd, run, n_modes, max_modes, parsimony, point_weights, show, order):
+    """The fit of :func:`fit_measurement_model` for one setting of the corrections, realised and
+    stable; numerical failures become a :class:`FitError` naming the order, the step and the fix."""
+    diagram = None
+    with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        warnings.simplefilter("ignore", IdentifyWarning)
+        try:
+            if n_modes is None:
+                fit, n_mode_poles, used, diagram = _automatic(
+                    band_fd, run, max_modes, parsimony, point_weights, show
+                )
+            else:
+                fit, n_mode_poles, used = fit_best(band_fd, _check_modes(n_modes), run)
+            fit = _stable(_realised(fit), run)
+        except RobustctlError:  # already says what is wrong and how to fix it
+            raise
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError, ZeroDivisionError) as exc:
+            kind = "plain" if run.settings is None else "leakage-corrected"
+            raise FitError(
+                f"the modal fit ({order}, {kind}) failed numerically in its pole identification or "
+                f"refinement ({type(exc).__name__}: {exc}). Lower n_modes or max_modes, narrow the band, "
+                "or pass refine=False or correct_leakage=False."
+            ) from exc
+    return fit, n_mode_poles, used, diagram
+
+
+def _raw_miss_db(fit: RationalFit, used: FrequencyData) -> float:
+    """Unweighted rms log-magnitude error (dB) of ``fit`` as the H1 estimate sees it against the
+    measured data: against the data it was fitted to, which for the truncation-corrected route are
+    the raw H1 data plus the model's own record-end tail (eq. T1), so that both routes are scored
+    on what the estimator would have produced from them."""
+    return float(_score(fit, used).rms_db_total)
+
+
+def _corrections(st: Any, leaked: bool, tau: float | None, declined=None) -> tuple[str, ...]:
+    """The corrections applied, in words (for the summary and ``MeasurementModel.corrections``)."""
+    out = []
+    if declined is not None:
+        out.append(
+            f"record truncation tried and not applied (its expected H1 missed the data by "
+            f"{declined[0]:.3g} dB rms, the plain fit by {declined[1]:.3g} dB)"
+        )
+    if leaked and isinstance(st, TruncationSettings):
+        out.append("record truncation (impact responses cut at the record end, eq. T1)")
+    elif leaked:
+        out.append("H1 estimator window leakage (white ZOH excitation)")
+    if tau is not None:
+        out.append(f"exponential window damping (tau = {tau:.4g} s)")
+    return tuple(out)
+
+
+def _realised(fit: RationalFit) -> RationalFit:
+    """``fit`` with every residue replaced by the product of the factors its realisation keeps
+    (rank ``ranks[k]``, Caltech eqs. 9-10; a rank-0 pole's term vanishes, a real pole's residue is
+    real): then :meth:`RationalFit.response`, :meth:`RationalFit.statespace` and the cost describe
+    one and the same model, to round-off."""
+    residues = np.array(fit.residues, dtype=complex)
+    for k, (p, r, rank) in enumerate(zip(fit.poles, fit.residues, fit.ranks)):
+        c, b = residue_factors(r.real if p.imag == 0 else r, int(rank))
+        residues[k] = c @ b if int(rank) > 0 else 0.0
+    return replace(fit, residues=residues, d=np.real(fit.d).astype(float))
+
+
+#: smallest damping ratio of a returned pole (the refinement's bound ``ZETA_MIN``): the stated
+#: stability margin of every measurement model
+STABILITY_ZETA = ZETA_MIN
+
+
+def _stable(fit: RationalFit, run: FitSettings) -> RationalFit:
+    """Every pole with damping ratio at least ``STABILITY_ZETA`` (asymptotically stable with that
+    margin). A pole below it (a marginal or unstable pole of a fit that was not refined) is moved
+    onto the margin and the shapes refitted to the data; a pole at the origin is refused."""
+    mag = np.abs(fit.poles)
+    if np.any(mag == 0):
+        raise FitError(
+            "the fit has a pole at s = 0 (an integrator), which no measurement model of a structure may "
+            "have; raise the band's lower edge or use refine=True."
+        )
+    low = -fit.poles.real < STABILITY_ZETA * mag * (1 - 1e-12)
+    if not np.any(low):
+        return fit
+    poles = np.where(low, -STABILITY_ZETA * mag + 1j * fit.poles.imag, fit.poles)
+    moved = replace(fit, poles=poles.astype(complex))
+    return _realised(refine_residues(moved, sweeps=2)) if fit.data is not None else moved
+
+
+def _check_finite(fit: RationalFit, used: FrequencyData, order: str) -> None:
+    """A :class:`FitError` (not NaN matrices) when the fit's numbers are not finite."""
+    parts = (fit.poles, fit.residues, fit.d, used.response)
+    if not all(np.all(np.isfinite(x)) for x in parts):
+        raise FitError(
+            f"the modal fit ({order}) produced non-finite poles, shapes or corrected data (an internal "
+            "exponential or division left the floating-point range). Lower n_modes, narrow the band, or "
+            "pass correct_leakage=False / refine=False."
+        )
 
 
 def leakage_consistency(

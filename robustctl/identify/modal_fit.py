@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import FitError
 from ..frd import FrequencyData
 from ..lti import log_ratio
 from .grouping import group_modes
@@ -143,10 +144,9 @@ def select_modes(fit: RationalFit, n_modes: int, prefer: np.ndarray | None = Non
     order = np.r_[np.argsort(np.abs(poles[:n]), kind="stable"), n : poles.size]
     poles = poles[order]
     residues, d = fit_residues(s, data.response, rw, poles)
-    # a filler stands for one out-of-band mode (rank 1) unless its residue vanishes
-    filler_ranks = [
-        min(1, residue_rank(r.real if p.imag == 0 else r, 1e-8)) for p, r in zip(poles[n:], residues[n:])
-    ]
+    # a filler keeps the numerical rank of its residue: it stands for out-of-band dynamics and
+    # residual flexibility, not for one mode, and its realisation must reproduce its term exactly
+    filler_ranks = [residue_rank(r.real if p.imag == 0 else r, 1e-8) for p, r in zip(poles[n:], residues[n:])]
     ranks = np.array([1] * n + filler_ranks, dtype=int)
     new = replace(fit, poles=poles, residues=residues, d=d, ranks=ranks)
     return refine_residues(new, sweeps=2), n
@@ -324,8 +324,10 @@ def fit_with_leakage(
         if run.expired():
             break
         previous = data.response
-        data = band.replace(response=corrected_response(fit, band, st, _row_weights(fit, None)),
-                            meta={**band.meta, "leakage_corrected": True})
+        corrected = corrected_response(fit, band, st, _row_weights(fit, None))
+        if not np.all(np.isfinite(corrected)):  # the model's correction overflowed: keep the last step
+            break
+        data = band.replace(response=corrected, meta={**band.meta, "leakage_corrected": True})
         if _converged(previous, data.response, st):
             break
         if run.refine:
@@ -351,8 +353,13 @@ def _fit_truncated(band: FrequencyData, fit: RationalFit, n_modes: int, run: Fit
     fit, n_mode_poles = modal_model(fit, n_modes, run, prefer, truncation=run.settings if leaky else None)
     if not leaky:
         return fit, n_mode_poles, band
-    data = band.replace(response=corrected_response(fit, band, run.settings),
-                        meta={**band.meta, "leakage_corrected": True})
+    corrected = corrected_response(fit, band, run.settings)
+    if not np.all(np.isfinite(corrected)):
+        raise FitError(
+            f"the record-truncation correction of the {n_modes}-mode model is not finite (a tail term "
+            "left the floating-point range); pass correct_window=False, lower n_modes or narrow the band."
+        )
+    data = band.replace(response=corrected, meta={**band.meta, "leakage_corrected": True})
     return replace(fit, data=data), n_mode_poles, data
 
 

@@ -31,6 +31,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..threads import limit_blas
+from .block_refine import ZETA_MIN
 from .poles import evaluate
 from .rational_fit import RationalFit
 from .realization import residue_factors
@@ -39,9 +40,6 @@ from .tail import complex_tails, leaked_terms
 
 __all__ = ["refine_modes", "refine_modes_local", "refine_modes_auto", "ZETA_MIN", "DENSE_MAX_ENTRIES"]
 
-#: smallest damping ratio a refined mode may take (keeps the model strictly stable; not a
-#: judgement on the mode: very lightly damped modes are real in bolted and welded structures)
-ZETA_MIN = 1e-6
 #: largest dense Jacobian (complex entries) refined in one problem; larger ones go block by block.
 #: The trust-region solver takes an SVD of the whole Jacobian at every step: at 1.1 M entries
 #: (5 modes, 2 x 8 channels, 400 points) that is 7 s against 1 s block by block, for the same

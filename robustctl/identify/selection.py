@@ -122,6 +122,7 @@ def classify_poles(
     min_contribution: float = 0.0,
     counts: np.ndarray | None = None,
     exclude: np.ndarray | None = None,
+    promote: bool = True,
 ) -> PoleClasses:
     """Sort poles into modes, fillers and dropped poles (see module doc).
 
@@ -146,6 +147,9 @@ def classify_poles(
         ``n_modes`` (the caller splits it with :func:`split_pole`), or 1 when only one is left.
     exclude : ndarray of bool, optional
         Poles that are no candidates (duplicates of a mode); they are dropped.
+    promote : bool
+        With ``n_modes``: make up a shortfall of candidates with excluded poles and complex
+        fillers. ``False``: never (fewer than ``n_modes`` modes when the data hold fewer).
     """
     f, zeta = pole_frequency_damping(poles)
     cplx = poles.imag != 0
@@ -162,7 +166,7 @@ def classify_poles(
         if modes.size < idx.size and int(cnt[modes].sum()) < n_modes:
             modes = idx[: modes.size + 1]  # the next one, counted once
         n_found = int(np.minimum(cnt[modes], n_modes).sum())
-        if n_found < n_modes:  # promote excluded candidates first, then complex fillers
+        if promote and n_found < n_modes:  # promote excluded candidates first, then complex fillers
             extra = []
             for pool in (np.flatnonzero(cand & skip), np.flatnonzero(cplx & ~cand)):
                 extra += list(pool[np.argsort(-contribution[pool], kind="stable")])

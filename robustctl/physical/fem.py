@@ -30,7 +30,7 @@ import pickle
 import threading
 from collections import OrderedDict
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -796,6 +796,124 @@ class Frame(Structure):
         if self._g > 0:
             found.add("gravity")
         return tuple(sorted(found))
+
+    # ------------------------------------------------------------------ test-setup and joints
+    def _signal(self, side: str, name: str) -> _Signal:
+        table = self._outputs if side == "output" else self._inputs
+        if name not in table:
+            raise ModelError(f"unknown {side} {name!r}; the frame has {side}s {list(table)}.")
+        return table[name]
+
+    def _neighbours(self, node: str) -> list[str]:
+        """Nodes sharing an element or a rigid link with ``node``, in order of creation; a node
+        fixed in every translation is left out (a sensor there reads nothing)."""
+        near = [e.n2 if e.n1 == node else e.n1 for e in self._elements.values() if node in (e.n1, e.n2)]
+        near += [lk.slave if lk.master == node else lk.master for lk in self._links
+                 if node in (lk.master, lk.slave)]
+        held = {f.node for f in self._fixes if {0, 1, 2} <= set(f.dofs)}
+        return [n for n in dict.fromkeys(near) if n != node and n not in held]
+
+    def signal_moves(self, side: str, name: str) -> list[tuple[str, str | None]]:
+        """Where a point sensor or force could really be: the same direction at each neighbouring
+        node (:meth:`_neighbours`), and the global axes ``x``, ``y``, ``z`` at its own node that are
+        not (nearly) its direction. Signals on several nodes, strain gauges and torques: none."""
+        sig = self._signal(side, name)
+        if sig.strain is not None or len(sig.terms) != 1 or sig.kind == "torque":
+            return []
+        node, vec = sig.terms[0]
+        if np.linalg.norm(vec[3:]) > 0:
+            return []
+        moves: list[tuple[str, str | None]] = [(n, None) for n in self._neighbours(node)]
+        d = vec[:3] / np.linalg.norm(vec[:3])
+        moves += [(node, ax) for k, ax in enumerate("xyz") if abs(d[k]) < 0.9]
+        return moves
+
+    def move_signal(self, side: str, name: str, location: str, direction: str | None, weight: float) -> Frame:
+        """Point sensor or force ``name`` at node ``location`` along ``direction`` (None: its own):
+        the pointing becomes ``(1 - weight) old + weight new``."""
+        sig = self._signal(side, name)
+        self._node(location)
+        if len(sig.terms) != 1:
+            raise ModelError(f"{side} {name!r} acts on {len(sig.terms)} nodes; only a point signal can move.")
+        node, vec = sig.terms[0]
+        new_vec = vec if direction is None else direction_vector(direction)
+        w = _finite("weight", weight)
+        terms = [(node, (1.0 - w) * vec), (location, w * new_vec)] if w < 1.0 else [(location, new_vec)]
+        table = dict(self._outputs if side == "output" else self._inputs)
+        table[name] = _Signal(name, terms, sig.kind, sig.strain, sig.tags)
+        if side == "output":
+            self._outputs = table
+        else:
+            self._inputs = table
+        self._cache = None
+        return self
+
+    def joints(self) -> list[tuple[str, str]]:
+        """Beam joints as ``(node, group)``: each node where beams of two or more element groups meet,
+        with every group there but the first (by creation): the member whose connection to the
+        others may be semi-rigid (:meth:`add_joint_flexibility`)."""
+        at: dict[str, list[str]] = {}
+        for e in self._elements.values():
+            if e.kind != "beam":
+                continue
+            for n in (e.n1, e.n2):
+                groups = at.setdefault(n, [])
+                if e.group not in groups:
+                    groups.append(e.group)
+        return [(n, g) for n, groups in at.items() if len(groups) > 1 for g in groups[1:]]
+
+    def joint_stiffness(self, node: str, group: str) -> float:
+        """``4 E I / L`` (N m/rad) of the stiffest beam of ``group`` at ``node``: the rotational
+        stiffness of the member's end (``I`` the larger second moment), the scale a joint's spring is
+        compared with."""
+        k = 0.0
+        for e in self._elements.values():
+            if e.group == group and e.kind == "beam" and node in (e.n1, e.n2):
+                L = float(np.linalg.norm(self._nodes[e.n2].xyz - self._nodes[e.n1].xyz))
+                k = max(k, 4.0 * e.E * self._group_scale.get(group, 1.0) * max(e.Iy, e.Iz) / L)
+        if k == 0.0:
+            raise ModelError(f"no beam of group {group!r} ends at node {node!r}; joints: {self.joints()}.")
+        return k
+
+    def add_joint_flexibility(self, node: str, group: str, compliance: float) -> Frame:
+        """Make the connection of ``group``'s beams at ``node`` semi-rigid: a rotational spring of
+        ``1 / compliance`` (N m/rad) about each axis between them and the rest of the joint.
+
+        The group's beam ends at ``node`` move to a new node at the same place (``"node~group"``),
+        tied to ``node`` in translation by springs far stiffer than the members (10^5 x the largest
+        axial stiffness ``E A / L`` at the joint) and in rotation by the joint's springs. Compliance
+        0 leaves the frame unchanged (a rigid joint); a large one approaches a pin (the
+        semi-rigid connections of steel frames, e.g. Chen & Lui, *Stability Design of Steel
+        Frames*, ch. 5).
+        """
+        c = _finite("joint compliance (rad/(N m))", compliance, nonneg=True)
+        if c == 0.0:
+            return self
+        if (node, group) not in self.joints():
+            raise ModelError(
+                f"node {node!r} is not a joint of group {group!r} with other beams; the joints are "
+                f"{self.joints()}."
+            )
+        twin = f"{node}~{group}"
+        if twin in self._nodes:
+            raise ModelError(f"the joint of {group!r} at {node!r} is already flexible.")
+        nodes = dict(self._nodes)
+        nodes[twin] = _Node(twin, self._nodes[node].xyz, self._nodes[node].tags)
+        k_axial = 0.0
+        elements = {}
+        for name, e in self._elements.items():
+            if node in (e.n1, e.n2):
+                L = float(np.linalg.norm(self._nodes[e.n2].xyz - self._nodes[e.n1].xyz))
+                k_axial = max(k_axial, e.E * e.A / L)
+            if e.group == group and e.kind == "beam" and node in (e.n1, e.n2):
+                e = replace(e, n1=twin if e.n1 == node else e.n1, n2=twin if e.n2 == node else e.n2)
+            elements[name] = e
+        self._nodes, self._elements, self._springs = nodes, elements, list(self._springs)
+        for ax in ("x", "y", "z"):
+            self._add_spring("spring", node, 1e5 * k_axial, ax, twin, ("joint",))
+        for ax in ("rx", "ry", "rz"):
+            self._add_spring("spring", node, 1.0 / c, ax, twin, ("joint",))
+        return self
 
     # ------------------------------------------------------------------ assembly
     def matrices(self, *, sparse: bool | None = None) -> StructuralMatrices:

@@ -299,6 +299,41 @@ class MatrixStructure(Structure):
         """Tags of the parts :meth:`without` can remove."""
         return tuple(self._tagged)
 
+    def _pointing(self, side: str, name: str) -> np.ndarray:
+        names = self._outputs if side == "output" else self._inputs
+        if name not in names:
+            raise ModelError(f"unknown {side} {name!r}; the structure has {side}s {list(names)}.")
+        k = names.index(name)
+        return self._c[k] if side == "output" else self._b[:, k]
+
+    def signal_moves(self, side: str, name: str) -> list[tuple[str, str | None]]:
+        """The DOFs next (by index) to the one a sensor row or force column points at most: the
+        neighbouring DOFs of the output/input map (a user's matrices carry no geometry)."""
+        v = np.abs(self._pointing(side, name))
+        if not np.any(v > 0):
+            return []
+        k = int(np.argmax(v))
+        if np.count_nonzero(v > 1e-12 * v[k]) > 1:  # a distributed pointing: no single DOF to move
+            return []
+        return [(self._labels[j], None) for j in (k - 1, k + 1) if 0 <= j < self.n_dof]
+
+    def move_signal(self, side: str, name: str, location: str, direction: str | None, weight: float):
+        """Point ``name`` at DOF ``location``: ``(1 - weight) old + weight e_k`` (scaled like the old
+        pointing's largest entry)."""
+        old = self._pointing(side, name)
+        e = np.zeros(self.n_dof)
+        k_old = int(np.argmax(np.abs(old)))
+        e[self._dof(location)] = old[k_old]
+        new = (1.0 - float(weight)) * old + float(weight) * e
+        k = (self._outputs if side == "output" else self._inputs).index(name)
+        if side == "output":
+            self._c = self._c.copy()
+            self._c[k] = new
+        else:
+            self._b = self._b.copy()
+            self._b[:, k] = new
+        return self
+
     def _add_diagonal(self, which: str, location: str, value: float, direction: str | None, what: str):
         if direction is not None:
             raise ModelError(

@@ -147,3 +147,19 @@ class Structure(ABC):
     def set_gravity(self, enabled: bool) -> Structure:
         """Switch gravity preloading on or off (structures without gravity ignore this)."""
         return self
+
+    # ------------------------------------------------------------------ where signals are
+    def signal_moves(self, side: str, name: str) -> list[tuple[str, str | None]]:
+        """Where a sensor (``side="output"``) or actuator (``"input"``) could really be, as
+        ``(location, direction)`` pairs for :meth:`move_signal`: its neighbouring nodes or DOFs
+        and (where directions exist) its other axes. Default: none."""
+        return []
+
+    def move_signal(
+        self, side: str, name: str, location: str, direction: str | None, weight: float
+    ) -> Structure:
+        """Point signal ``name`` at ``location`` (along ``direction``; None: as it was) with
+        ``weight`` in [0, 1]: its pointing becomes ``(1 - weight) old + weight new``."""
+        from ..errors import ModelError
+
+        raise ModelError(f"{type(self).__name__} cannot move its {side} {name!r}.")

@@ -33,7 +33,7 @@ from .plant import GeneralizedPlant, PlantWeight, generalized_plant, mixed_sensi
 from .sampled import sampled_plant
 from .sweep import DesignSweep, design_sweep
 from .weights import CALTECH_MULTIPLICATIVE, caltech_additive_weight, makeweight
-from .yardsticks import NyquistVerdict, Yardstick, nyquist_stability, yardstick
+from .yardsticks import NyquistVerdict, Yardstick, YardstickWarning, nyquist_stability, yardstick
 
 __all__ = [
     "Block",
@@ -75,6 +75,7 @@ __all__ = [
     "yardstick",
     "Yardstick",
     "NyquistVerdict",
+    "YardstickWarning",
     "nyquist_stability",
     "design_sweep",
     "DesignSweep",

@@ -211,7 +211,7 @@ def mu(M: Any, blocks: Any, f_hz: Any = None, *, lower: bool = True, method: str
         Also compute the power-iteration lower bound and the worst-case perturbation.
     method : {"auto", "lmi"}
         ``"auto"``: the batched D-(G-)scaling bound (balancing start + Newton refinement, to
-        within about 0.2 % of the LMI optimum); ``"lmi"``: solve the LMI with cvxpy + Clarabel
+        within 0.2 % of the LMI optimum, with real blocks too); ``"lmi"``: solve the LMI with cvxpy + Clarabel
         at every frequency (slow, tenths of a second per frequency; the reference).
     executor : concurrent.futures.Executor, optional
         Split the frequency grid into chunks and compute them on this executor (anything with

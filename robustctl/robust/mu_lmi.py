@@ -76,12 +76,18 @@ def _feasible(prob, t, s, value: float) -> bool:
     import cvxpy as cp
 
     t.value = value
-    try:
-        with warnings.catch_warnings():  # "solution may be inaccurate" near the optimum: s decides
-            warnings.simplefilter("ignore", UserWarning)
-            prob.solve(solver=cp.CLARABEL)
-    except cp.error.SolverError:
+    for solver, kw in ((cp.CLARABEL, {}), (cp.SCS, {"eps": 1e-9, "max_iters": 100_000})):
+        try:
+            with warnings.catch_warnings():  # "solution may be inaccurate" near the optimum: s decides
+                warnings.simplefilter("ignore", UserWarning)
+                prob.solve(solver=solver, **kw)
+        except cp.error.SolverError:
+            continue  # Clarabel failed: the same SDP by SCS
+        break
+    else:
         return False
+    if prob.status in (cp.UNBOUNDED, cp.UNBOUNDED_INACCURATE):
+        return True  # s unbounded below: strictly feasible (e.g. mu = 0 with real blocks only)
     if s.value is None:
         return False
     return float(s.value) <= 0.0

@@ -426,10 +426,13 @@ def generalized_plant(
 
     Parameters
     ----------
-    nominal : system
+    nominal : system or UncertainModel
         Anything ``rc.as_statespace`` takes (PhysicalModel, MeasurementModel, StateSpace,
         transfer function): ``nu`` inputs (actuators, the control ``u``) and ``ny`` outputs
-        (sensors, the measurement ``y``). Its names name ``u`` and ``y``.
+        (sensors, the measurement ``y``). Its names name ``u`` and ``y``. An
+        :class:`~robustctl.physical.uncertain.UncertainModel` (``upd.uncertain()``) brings its
+        real parameters: their channels come first in ``w`` and ``z`` and their repeated real
+        scalar blocks first in ``.blocks`` (then the weights' blocks, as below).
     additive : weight, optional
         Additive uncertainty ``G + W_a Delta``: a SISO weight (``W_a I``), an ``nu x nu``
         system (on the plant inputs), an ``ny x ny`` system (on the outputs), or a cover
@@ -479,21 +482,30 @@ def generalized_plant(
     from ..lti import as_statespace
 
     check_rank = flag(check_rank, "check_rank", ModelError)
-    G = as_statespace(nominal, name="nominal")
+    unc = nominal if _is_uncertain_model(nominal) else None
+    G = unc.nominal if unc is not None else as_statespace(nominal, name="nominal")
     if G.isdtime(strict=True):
         raise ModelError(
             f"the nominal model is discrete-time (dt={G.dt}); the generalized plant is continuous-time."
         )
     _mult_blocks(mult_structure, ["check"], "")  # refuse a bad structure before any work
-    W = _plant_weights(G, additive, input_mult, output_mult, performance, control_weight, disturbances, noise)
-    gp = _PlantBuilder(G, W, mult_structure).build()
+    W = _plant_weights(G, additive, input_mult, output_mult, performance, control_weight, disturbances, noise,
+                       parametric=unc is not None)
+    gp = _PlantBuilder(G, W, mult_structure, unc).build()
     if check_rank:
         _check_regular(gp)
     return gp
 
 
+def _is_uncertain_model(x: Any) -> bool:
+    """An :class:`~robustctl.physical.uncertain.UncertainModel` (a parametric LFT)."""
+    from ..physical.uncertain import UncertainModel
+
+    return isinstance(x, UncertainModel)
+
+
 def _plant_weights(G, additive, input_mult, output_mult, performance, control_weight, disturbances,
-                   noise) -> dict[str, Any]:
+                   noise, parametric: bool = False) -> dict[str, Any]:
     """Every weight sized and checked (None where not given); refuse unpaired performance channels."""
     nu, ny = G.ninputs, G.noutputs
     dist = _disturbance_specs(disturbances)
@@ -518,7 +530,7 @@ def _plant_weights(G, additive, input_mult, output_mult, performance, control_we
     n_perf_w = sum(W[k].ninputs for k in ("Wdi", "Wdo", "Wn") if W[k] is not None)
     n_perf_z = sum(W[k].noutputs for k in ("Wp", "Wu") if W[k] is not None)
     _check_performance_pairs(n_perf_w, n_perf_z)
-    if n_perf_w == 0 and all(W[k] is None for k in ("Wa", "Wi", "Wo")):
+    if n_perf_w == 0 and all(W[k] is None for k in ("Wa", "Wi", "Wo")) and not parametric:
         raise ModelError(
             "nothing to build: give at least one uncertainty weight (additive, input_mult, output_mult) "
             "or performance channels (performance/control_weight with disturbances/noise)."
@@ -529,8 +541,8 @@ def _plant_weights(G, additive, input_mult, output_mult, performance, control_we
 class _PlantBuilder:
     """The signal flow of the module docstring, one step per uncertainty / performance piece."""
 
-    def __init__(self, G: Any, W: dict[str, Any], mult_structure: str) -> None:
-        self.G, self.W, self.structure = G, W, mult_structure
+    def __init__(self, G: Any, W: dict[str, Any], mult_structure: str, unc: Any = None) -> None:
+        self.G, self.W, self.structure, self.unc = G, W, mult_structure, unc
         self.u_names, self.y_names = list(G.input_labels), list(G.output_labels)
         self.net = _Wiring()
         self.u = _signals(self.u_names)
@@ -572,7 +584,17 @@ class _PlantBuilder:
 
     def _additive(self, uG):
         """``y_add = G u_G + W_a Delta_add (...)``; the weight on the z side (inputs) or w side (outputs)."""
-        gout = self.net.component("G", self.G, uG)
+        if self.unc is None:
+            gout = self.net.component("G", self.G, uG)
+        else:  # the parametric LFT's channels first: one repeated real scalar block per axis
+            unc = self.unc
+            nd = unc.n_delta
+            w_par = list(unc.M.input_labels[:nd])
+            outs = self.net.component("G", unc.M, _signals(w_par) + uG)
+            self.w_names += w_par
+            self.z_eqs += list(zip(list(unc.M.output_labels[:nd]), outs[:nd]))
+            self.blocks += [Block("real", r, r, name) for name, r in zip(unc.names, unc.multiplicity)]
+            gout = outs[nd:]
         if not self._record("Wa", "additive uncertainty"):
             return gout
         ny, nu = len(self.y_names), len(self.u_names)

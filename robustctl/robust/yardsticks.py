@@ -31,9 +31,10 @@ on the *measured* frequency responses:
 from __future__ import annotations
 
 import functools
+import warnings
 from collections.abc import Callable, Mapping
 from concurrent.futures import Executor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -46,7 +47,7 @@ from ..lti import is_stable
 from ..table import Table
 from .dk import DKResult, _as_plant, _mu_of, check_dk_options, closed_loop, default_grid, dksyn
 
-__all__ = ["NyquistVerdict", "Yardstick", "nyquist_stability", "yardstick"]
+__all__ = ["NyquistVerdict", "Yardstick", "YardstickWarning", "nyquist_stability", "yardstick"]
 
 #: The loop gain must be below this at the band edges (and the model's outside) to count encirclements.
 EDGE_LOOP_GAIN = 0.9
@@ -403,9 +404,10 @@ def _system_of(model: Any) -> Any:
     return model
 
 
-def _aligned_response(data: FrequencyData, G: Any) -> np.ndarray:
-    """The data's response with channels in the model's order (:func:`robustctl.checks.match_channels`:
-    by name, by position only when one side has python-control's default names)."""
+def _aligned_response(data: FrequencyData, G: Any, values: np.ndarray | None = None) -> np.ndarray:
+    """The data's response (or ``values`` of the data's shape, e.g. its coherence) with channels in
+    the model's order (:func:`robustctl.checks.match_channels`: by name, by position only when one
+    side has python-control's default names)."""
     if data.shape[1:] != (G.noutputs, G.ninputs):
         raise DataError(
             f"the data have {data.n_out} outputs x {data.n_in} inputs but the models have "
@@ -413,7 +415,25 @@ def _aligned_response(data: FrequencyData, G: Any) -> np.ndarray:
         )
     out_idx = match_channels(data.outputs, G.output_labels, "outputs", ("data", "model"))
     in_idx = match_channels(data.inputs, G.input_labels, "inputs", ("data", "model"))
-    return np.asarray(data.response, dtype=complex)[:, out_idx][:, :, in_idx]
+    arr = np.asarray(data.response, dtype=complex) if values is None else np.asarray(values)
+    return arr[:, out_idx][:, :, in_idx]
+
+
+def _loop_detail(f_hz: np.ndarray, L: np.ndarray, coherence: np.ndarray | None) -> str:
+    """Where the loop on the data is most at risk: the largest loop gain ``sigma_max(s G K)`` over
+    the measured points, its frequency, and the data's coherence there (lowest channel)."""
+    gain = np.linalg.norm(L, ord=2, axis=(1, 2))
+    k = int(np.argmax(gain))
+    text = f"largest loop gain sigma_max(GK) = {gain[k]:.3g} at {f_hz[k]:.4g} Hz"
+    if coherence is not None:
+        text += f", where the data's coherence is {float(np.min(coherence[k])):.2f} (lowest channel)"
+    else:
+        text += " (the data carry no coherence)"
+    return text
+
+
+class YardstickWarning(UserWarning):
+    """A yardstick controller whose stability on the data is not established (not ranked)."""
 
 
 def _rms_frobenius(X: np.ndarray) -> float:
@@ -470,6 +490,19 @@ class Yardstick:
     open_loop: np.ndarray = field(repr=False)
     closed_loop: dict[str, np.ndarray] = field(repr=False)
 
+    @property
+    def ranked(self) -> tuple[str, ...]:
+        """Labels whose loop on the data is stable, best attenuation first: only these are ranked.
+        A controller whose stability on the data is unstable or cannot be told is not ranked on
+        its attenuation (that number assumes a stable loop)."""
+        ok = [lab for lab in self.labels if self.stability[lab].stable is True]
+        return tuple(sorted(ok, key=lambda lab: -self.attenuation_db[lab]))
+
+    @property
+    def unverified(self) -> tuple[str, ...]:
+        """Labels whose stability on the data is not established ("unstable" or "cannot tell")."""
+        return tuple(lab for lab in self.labels if self.stability[lab].stable is not True)
+
     def gap_db(self, label: str) -> float:
         """How many dB less than the reference controller ``label``'s controller attenuates."""
         return float(self.attenuation_db[self.reference] - self.attenuation_db[label])
@@ -482,15 +515,18 @@ class Yardstick:
     def table(self) -> Table:
         """One row per model: design mu, attenuation on the data, gap to the yardstick, stability."""
         rows = []
+        ranked = self.ranked
         for i, lab in enumerate(self.labels):
             dk = self.designs[lab]
+            verdict = self.stability[lab].label
+            rank = str(ranked.index(lab) + 1) if lab in ranked else f"not ranked ({verdict})"
             rows.append((
                 lab + (" (yardstick)" if lab == self.reference else ""),
                 dk.K.nstates, dk.mu_peak, float(np.max(self.mu_cross[i])),
-                self.attenuation_db[lab], self.gap_db(lab), self.ratio(lab), self.stability[lab].label,
+                self.attenuation_db[lab], self.gap_db(lab), self.ratio(lab), self.stability[lab].label, rank,
             ))
         cols = ("controller designed on", "K order", "mu (own set)", "mu (worst set)",
-                "attenuation (dB)", "gap (dB)", "ratio", "on the data")
+                "attenuation (dB)", "gap (dB)", "ratio", "on the data", "rank")
         return Table(cols, rows, title=f"Yardstick on the data, {self.band_hz[0]:g}-{self.band_hz[1]:g} Hz")
 
     def mu_table(self) -> Table:
@@ -501,14 +537,27 @@ class Yardstick:
     def summary(self) -> str:
         """MACE's convergence test in one paragraph."""
         ref = self.reference
-        parts = [f"The {ref}-model controller attenuates the disturbance by "
-                 f"{self.attenuation_db[ref]:.1f} dB on the data "
-                 f"({self.band_hz[0]:g}-{self.band_hz[1]:g} Hz)."]
+        band = f"{self.band_hz[0]:g}-{self.band_hz[1]:g} Hz"
+        if self.stability[ref].stable is True:
+            parts = [f"The {ref}-model controller attenuates the disturbance by "
+                     f"{self.attenuation_db[ref]:.1f} dB on the data ({band}), stable on the data."]
+        else:
+            parts = [f"NOT RANKED: the {ref}-model controller's stability on the data is "
+                     f"{self.stability[ref].label} ({self.stability[ref].reason}); its "
+                     f"{self.attenuation_db[ref]:.1f} dB attenuation ({band}) assumes a stable loop, so "
+                     "the gaps below are measured from an unverified reference."]
         for lab in self.labels:
             if lab == ref:
                 continue
-            parts.append(f"{lab}: {self.attenuation_db[lab]:.1f} dB (gap {self.gap_db(lab):.1f} dB, "
-                         f"ratio {self.ratio(lab):.2f}; {self.stability[lab].label} on the data).")
+            verdict = self.stability[lab]
+            if verdict.stable is True:
+                parts.append(f"{lab}: {self.attenuation_db[lab]:.1f} dB (gap {self.gap_db(lab):.1f} dB, "
+                             f"ratio {self.ratio(lab):.2f}; stable on the data).")
+            else:
+                parts.append(f"{lab}: NOT RANKED, {verdict.label} on the data ({verdict.reason}); its "
+                             f"{self.attenuation_db[lab]:.1f} dB would hold only for a stable loop.")
+        if self.ranked:
+            parts.append("Ranking of the controllers stable on the data: " + ", ".join(self.ranked) + ".")
         return " ".join(parts)
 
     def plot(self):
@@ -623,7 +672,17 @@ def yardstick(
         closed[lab] = np.linalg.norm(T[in_band], ord=2, axis=(1, 2))
         n_ol = _n_unstable(systems[lab], f"model {lab!r}") + _n_unstable(K, f"controller for {lab!r}")
         L_fine = s * G_fine[lab] @ freqresp_array(K, f_fine)
-        stability[lab] = nyquist_stability(f_fine, L_fine, n_ol, _model_loop(systems[lab], K, s), poles=poles)
+        verdict = nyquist_stability(f_fine, L_fine, n_ol, _model_loop(systems[lab], K, s), poles=poles)
+        if verdict.stable is not True:
+            coh = None if data.coherence is None else _aligned_response(data, systems[lab], data.coherence)
+            verdict = replace(verdict, reason=f"{verdict.reason}; {_loop_detail(f_all, L, coh)}")
+            warnings.warn(
+                f"the controller designed on {lab!r} is {verdict.label} on the data: {verdict.reason}. "
+                "It is not ranked on its attenuation (Yardstick.ranked).",
+                YardstickWarning,
+                stacklevel=2,
+            )
+        stability[lab] = verdict
     mu_cross = np.full((len(labels), len(labels)), np.inf)
     for i, lab_k in enumerate(labels):
         for j, lab_m in enumerate(labels):

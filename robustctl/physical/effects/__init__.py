@@ -24,7 +24,9 @@ candidate's typical size moves the affected modes by about one percent (used by
 :func:`robustctl.diagnose`).
 
 Layout: :mod:`.base` (the ``Effect`` base class and its typed :class:`ParamSpec`),
-:mod:`.io_effects`, :mod:`.structural`, :mod:`.catalogue` (candidates and calibration).
+:mod:`.io_effects`, :mod:`.structural` (with semi-rigid frame joints), :mod:`.setup` (test-setup
+errors: swapped cables, sign flips, units slips, a sensor or actuator elsewhere),
+:mod:`.catalogue` (candidates and calibration).
 
 Examples
 --------
@@ -55,12 +57,25 @@ from .io_effects import (
     SensorLowPass,
     SensorMisalignment,
 )
+from .setup import (
+    UNIT_SLIPS,
+    ActuatorMoved,
+    ActuatorSignFlip,
+    ActuatorUnits,
+    SensorMoved,
+    SensorSignFlip,
+    SensorUnits,
+    SwappedInputs,
+    SwappedOutputs,
+    setup_candidates,
+)
 from .structural import (
     AddedMass,
     Dashpot,
     GravityStiffening,
     GroupStiffness,
     GroupTension,
+    JointSpring,
     ModalDamping,
     Pendulum,
     SuspensionSpring,
@@ -84,6 +99,17 @@ __all__ = [
     "GroupTension",
     "GravityStiffening",
     "ModalDamping",
+    "JointSpring",
+    "SwappedOutputs",
+    "SwappedInputs",
+    "SensorSignFlip",
+    "ActuatorSignFlip",
+    "SensorUnits",
+    "ActuatorUnits",
+    "SensorMoved",
+    "ActuatorMoved",
+    "UNIT_SLIPS",
+    "setup_candidates",
     "candidates",
     "calibrate",
     "EFFECT_KINDS",

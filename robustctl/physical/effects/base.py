@@ -90,8 +90,15 @@ class Effect(ABC):
 
     kind: ClassVar[str] = "effect"
     domain: ClassVar[str] = "io"
+    #: A switched effect has discrete states (:attr:`states`) rather than a size: a test-setup error.
+    switch: ClassVar[bool] = False
     _value_fields: ClassVar[tuple[str, ...]] = ()
     _extra_tags: ClassVar[tuple[str, ...]] = ()
+
+    @property
+    def states(self) -> tuple[float, ...]:
+        """The values of a switched effect's parameter that are the effect itself (empty: a size)."""
+        return ()
 
     def __post_init__(self) -> None:
         self.parameters  # noqa: B018 - check the values against their bounds now

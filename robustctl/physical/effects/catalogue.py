@@ -31,12 +31,24 @@ from .io_effects import (
     SensorLowPass,
     SensorMisalignment,
 )
+from .setup import (
+    ActuatorMoved,
+    ActuatorSignFlip,
+    ActuatorUnits,
+    SensorMoved,
+    SensorSignFlip,
+    SensorUnits,
+    SwappedInputs,
+    SwappedOutputs,
+    setup_candidates,
+)
 from .structural import (
     AddedMass,
     Dashpot,
     GravityStiffening,
     GroupStiffness,
     GroupTension,
+    JointSpring,
     ModalDamping,
     Pendulum,
     SuspensionSpring,
@@ -60,6 +72,15 @@ EFFECT_KINDS: dict[str, type[Effect]] = {
         GroupTension,
         GravityStiffening,
         ModalDamping,
+        JointSpring,
+        SwappedOutputs,
+        SwappedInputs,
+        SensorSignFlip,
+        ActuatorSignFlip,
+        SensorUnits,
+        ActuatorUnits,
+        SensorMoved,
+        ActuatorMoved,
     )
 }
 
@@ -117,6 +138,10 @@ def _structure_candidates(model: PhysicalModel, include_points: bool) -> list[Ef
                 cands.append(Dashpot(loc, direction=d))
             if info["gravity_on"] and {"x", "y"} <= set(dirs[loc]):  # a hanging rod needs gravity
                 cands.append(Pendulum(loc))
+    joints = getattr(struct, "joints", None)
+    for node, group in joints() if joints is not None else ():
+        # typical size: a spring 20 x stiffer than the member's end (4 E I / L): a few % on the modes
+        cands.append(JointSpring(node, group=group).with_scale(0.05 / struct.joint_stiffness(node, group)))
     for group in info["groups"]:
         cands.append(GroupStiffness(group))
         if group in info["tension_groups"]:  # a matrix group without geometric stiffness cannot
@@ -178,7 +203,11 @@ def candidates(
     """The effects applicable to ``model``, one per kind and location, at their neutral value.
 
     I/O effects (delays, first- and second-order sensor and actuator low-passes on all
-    channels, a gain error per sensor, a misalignment per sensor pair) apply to any model.
+    channels, a gain error per sensor, a misalignment per sensor pair) apply to any model, and
+    so do the test-setup errors of :mod:`.setup` (a swapped pair of outputs or inputs, a sign
+    flip and a units slip of each channel; on a structural model also each sensor and actuator
+    at a neighbouring node or DOF or along another axis). Frame FEM models get a semi-rigid
+    joint candidate (:class:`JointSpring`) per beam joint.
     Structural effects need a structural model: an added mass, a suspension spring and a
     dashpot per location and direction (nodes of the frame FEM, each DOF of a user's
     matrices), a suspension pendulum (horizontal x-y stiffness) per node of a structure
@@ -226,7 +255,7 @@ def candidates(
         unknown = sorted(kinds - set(EFFECT_KINDS))
         if unknown:
             raise ModelError(f"unknown effect kinds {unknown}; known kinds: {sorted(EFFECT_KINDS)}.")
-    cands = _io_candidates(model)
+    cands = _io_candidates(model) + setup_candidates(model)
     if model.structure is not None:
         cands += _structure_candidates(model, points)
         if locations is not None:
@@ -395,8 +424,8 @@ def _calibrate_one(shared: tuple, item: tuple[int, Effect]) -> Effect | None:
             f"time_budget_s={wall[1]:g} s ran out while calibrating candidate {k + 1} of "
             f"{n}; raise time_budget_s, or pass fewer candidates (kinds=, locations=)."
         )
-    if c.domain != "structure" or c.kind == "gravity":
-        return c
+    if c.domain != "structure" or c.kind in ("gravity", "joint_spring") or c.switch:
+        return c  # nothing to calibrate (a switch), or its probe changes the DOFs (a joint)
     unit = 1.0 if c.kind not in ("group_stiffness",) else 0.1
     probe = c.with_values(**{c._value_fields[0]: unit})
     heavy = _changes_preload(c, model, nominal)

@@ -546,4 +546,86 @@ class ModalDamping(_StructEffect):
         return fn
 
 
+
+@dataclass(frozen=True)
+class JointSpring(_StructEffect):
+    """A semi-rigid beam joint: a rotational spring between a member and the rest of a frame joint.
+
+    Frame FE models take every beam-to-beam connection as rigid; bolted, welded or clamped joints
+    are often softer, which lowers the modes that bend the members through the joint (one of the
+    commonest FE errors). The parameter is the joint's rotational *compliance* ``c`` (rad/(N m)),
+    neutral 0 (rigid); the spring ``1 / c`` acts about each axis
+    (:meth:`robustctl.physical.fem.Frame.add_joint_flexibility`). Frame FEM only.
+
+    Parameters
+    ----------
+    location : str
+        The joint's node.
+    group : str
+        The element group whose beams connect to the joint through the spring.
+    compliance : float
+        ``c`` in rad/(N m) (neutral 0).
+    """
+
+    group: str | None = None
+    compliance: float = 0.0
+
+    kind: ClassVar[str] = "joint_spring"
+    _value_fields: ClassVar[tuple[str, ...]] = ("compliance",)
+
+    @property
+    def name(self) -> str:
+        return f"semi-rigid joint of {self.group} at {self._at()}"
+
+    @property
+    def description(self) -> str:
+        return (
+            f"The connection of {self.group} at {self._at()} is not rigid: a rotational spring (a bolted, "
+            "welded or clamped joint softer than modelled) lowers the modes that bend the members through it."
+        )
+
+    def _suffix(self) -> str:
+        return f"__{_slug(self.location)}_{_slug(self.group)}"
+
+    def _check_location(self, model):
+        struct = model.build_structure()
+        joints = getattr(struct, "joints", None)
+        if joints is None:
+            raise ModelError(
+                f"{self.kind} needs a frame FEM (rc.Frame) with beam joints; {type(struct).__name__} "
+                "has none."
+            )
+        found = joints()
+        if (self.location, self.group) not in found:
+            raise ModelError(
+                f"no joint of group {self.group!r} at node {self.location!r}; the joints are {found}."
+            )
+
+    def _specs(self):
+        return [
+            ParamSpec(
+                base="joint_compliance",
+                unit="rad/(N m)",
+                bounds=(0.0, 1.0),
+                neutral=0.0,
+                default_scale=1e-6,
+                meaning=f"rotational compliance of the joint of {self.group} at {self.location}",
+            )
+        ]
+
+    def _stage_fn(self):
+        pname, node, group = self.param_names[0], self.location, self.group
+
+        def fn(theta, struct):
+            c = float(theta[pname])
+            return struct if c == 0.0 else struct.add_joint_flexibility(node, group, c)
+
+        return fn
+
+    def describe_value(self, values=None) -> str:
+        vals = self.values if values is None else values
+        c = float(vals.get(self.param_names[0], self.compliance))
+        return "rigid" if c <= 0 else f"{1.0 / c:.3g} N m/rad"
+
+
 #: Every effect class by kind.
