@@ -20,6 +20,7 @@ import scipy.linalg as sla
 
 from .errors import FitError, ModelError
 from .lti import as_statespace, rebuild_statespace, statespace_state
+from .plots import new_figure
 from .table import Table
 from .threads import limit_blas
 
@@ -72,8 +73,6 @@ class BalancedTruncation:
 
     def plot(self, fig: Any = None) -> Any:
         """The Hankel singular values, kept ones filled (matplotlib Figure)."""
-        from .plots import new_figure
-
         fig = fig or new_figure(6, 3.5)
         ax = fig.add_subplot(1, 1, 1)
         k = np.arange(1, self.hsv.size + 1)

@@ -24,6 +24,7 @@ from .frd import FrequencyData, as_frequency_data
 from .lti import DB_PER_NEPER, _align, as_statespace, freqresp, log_ratio
 from .measure.estimator import model_view, resolve_estimator, split_hold
 from .measure.noise import point_weight_bias
+from .plots import channel_label, new_figure
 from .table import Table
 
 __all__ = ["LogCost", "cost_report", "channel_cost", "log_error", "log_cost"]
@@ -93,8 +94,6 @@ class LogCost:
 
     def plot(self, fig: Any = None) -> Any:
         """Cost per channel as a bar chart (matplotlib Figure)."""
-        from .plots import channel_label, new_figure
-
         fig = fig or new_figure(max(4.0, 0.5 * self.per_channel.size + 2), 3.5)
         ax = fig.add_subplot(1, 1, 1)
         labels = [channel_label(o, i) for o in self.outputs for i in self.inputs]

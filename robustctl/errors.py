@@ -22,7 +22,7 @@ The one rule for arguments (enforced through :mod:`robustctl.checks`):
 
 from __future__ import annotations
 
-__all__ = ["RobustctlError", "DataError", "ModelError", "FitError", "SynthesisError"]
+__all__ = ["RobustctlError", "DataError", "ModelError", "FitError", "SynthesisError", "RobustctlWarning"]
 
 
 class RobustctlError(ValueError):
@@ -43,3 +43,7 @@ class FitError(RobustctlError):
 
 class SynthesisError(RobustctlError):
     """A controller synthesis or robustness analysis cannot be carried out."""
+
+
+class RobustctlWarning(UserWarning):
+    """Base class of robustctl's warnings: a result that holds with a caveat the user must see."""

@@ -14,9 +14,13 @@ from typing import Any
 
 import numpy as np
 
+from .correlate.comparison import statespace_modes
+from .cost import _model_response
 from .errors import DataError
 from .frd import FrequencyData, as_frequency_data, register_method
-from .modes import Mode
+from .frd_io.geometry import ModeShapes
+from .lti import as_statespace, freqresp
+from .modes import Mode, mac
 from .plots import annotated_matrix, bode_grid, colorbar, log_frequency_axis, new_figure
 
 __all__ = [
@@ -66,8 +70,6 @@ def _as_response(system: Any, f_hz: Any = None) -> FrequencyData:
         return system
     if isinstance(system, tuple) or hasattr(system, "omega"):
         return as_frequency_data(system, "system")
-    from .lti import freqresp
-
     if f_hz is None:
         raise DataError("a system needs f_hz (Hz) for its singular values; pass f_hz=np.logspace(...).")
     return freqresp(system, f_hz)
@@ -175,8 +177,6 @@ def plot_compare(
         The legend of each channel gives each model's :func:`fit_percent` there;
         ``fig.fit_percent`` holds ``{name: ndarray (n_out, n_in)}``.
     """
-    from .cost import _model_response
-
     data = as_frequency_data(data)
     if band is not None:
         data = data.band(*band)
@@ -204,8 +204,6 @@ def plot_compare(
 def _cut_to_data(data: FrequencyData, model: Any) -> Any:
     """The model's response on the data's grid, restricted to the data's channels when the model
     has more (a single-shaker test against a multi-input model); other models unchanged."""
-    from .lti import freqresp
-
     response = model if isinstance(model, FrequencyData) else freqresp(model, data.f_hz)
     if set(data.outputs) <= set(response.outputs) and set(data.inputs) <= set(response.inputs):
         return response.select(outputs=list(data.outputs), inputs=list(data.inputs))
@@ -242,8 +240,6 @@ def mac_matrix(a: Any, b: Any = None) -> np.ndarray:
     ----------
     a, b : sequence of Mode, ndarray (n_dof, n_modes), or a result with ``.modes``
     """
-    from .modes import mac
-
     sa, _ = _shapes(a)
     sb, _ = _shapes(a if b is None else b)
     if len({s.size for s in sa + sb}) != 1:
@@ -349,8 +345,6 @@ def plot_mode_shapes(
     """
     if geometry is not None:
         return _plot_shapes_3d(model, geometry, band, max_modes, pair_with, labels, scale, outputs)
-    from .frd_io.geometry import ModeShapes
-
     if isinstance(model, ModeShapes):
         raise DataError(
             "mode shapes over nodes are drawn on the structure: pass geometry= (rc.load_uff_geometry, "
@@ -412,8 +406,6 @@ class _NodeShapes:
 
 def _node_shapes(source: Any, geometry: Any, band, outputs=None) -> _NodeShapes:
     """Shapes of ``source`` (ModeShapes or anything with modes at channels) on ``geometry``'s nodes."""
-    from .frd_io.geometry import ModeShapes
-
     lo, hi = (0.0, np.inf) if band is None else band
     channels = list(geometry.sensors)
     if isinstance(source, ModeShapes):
@@ -464,8 +456,6 @@ def _pairs(first: _NodeShapes, second: _NodeShapes) -> tuple[list[int], list[flo
     """Index of the mode of ``second`` with the largest MAC against each mode of ``first``: over
     the sensor channels both have, else (two node-shape sets, no sensors) over every node's
     translation."""
-    from .modes import mac
-
     common = [c for c in first.channels if c in second.channels]
     if common and first.at_sensors is not None and second.at_sensors is not None:
         a = first.at_sensors[[first.channels.index(c) for c in common]]
@@ -728,9 +718,6 @@ def _modes_and_sensors(model: Any, band: Sequence[float] | None) -> tuple[list[M
         return list(model.modes), names
     if isinstance(model, Sequence) and all(isinstance(m, Mode) for m in model):
         return list(model), None
-    from .correlate.comparison import statespace_modes
-    from .lti import as_statespace
-
     sys = as_statespace(model)
     lo, hi = (0.0, np.inf) if band is None else band
     return statespace_modes(sys, (lo, hi)), list(sys.output_labels)

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from .checks import band_data
 from .errors import DataError
 
 __all__ = ["FrequencyData", "as_frequency_data", "register_method", "Experiment", "combined_experiment",
@@ -490,8 +491,6 @@ class FrequencyData:
         The band rule is :func:`robustctl.checks.check_band` (finite, ``lo_hz < hi_hz``, at
         least one data point), shared by every entry point that takes ``band=``.
         """
-        from .checks import band_data
-
         lo = float(self.f_hz[0]) if lo_hz is None else lo_hz
         hi = float(self.f_hz[-1]) if hi_hz is None else hi_hz
         if lo_hz is None and hi_hz is None:

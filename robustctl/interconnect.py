@@ -26,8 +26,9 @@ import numpy as np
 
 from .checks import flag, integer, is_default_names
 from .errors import ModelError
-from .lti import _series_arrays
+from .lti import _series_arrays, as_statespace
 from .signals import _arrays, select_signals
+from .table import Table
 
 __all__ = ["PartitionedPlant", "lft", "upper_lft", "star", "series", "parallel", "feedback", "block_diagonal"]
 
@@ -199,8 +200,6 @@ class PartitionedPlant(PicklesStateSpaces):
     # ------------------------------------------------------------------ reports
     def table(self):
         """One row per signal group: role, count and names."""
-        from .table import Table
-
         rows = [
             ("w", "exogenous inputs", self.nw, ", ".join(self.w_names)),
             ("u", "control inputs", self.nu, ", ".join(self.u_names)),
@@ -244,8 +243,6 @@ def _system(sys: Any, what: str):
             raise ModelError(f"{what} as a static gain must be a finite number or 2-D array; got {sys!r}.")
         p, m = D.shape
         return control.ss(np.zeros((0, 0)), np.zeros((0, m)), np.zeros((p, 0)), D)
-    from .lti import as_statespace
-
     return as_statespace(sys, name=what)
 
 

@@ -19,6 +19,7 @@ import numpy as np
 
 from .checks import finite_number
 from .errors import ModelError
+from .lti import as_statespace
 
 __all__ = [
     "rename_signals",
@@ -73,8 +74,6 @@ def _names(names: str | Sequence[str]) -> tuple[str, ...]:
 
 
 def _system(sys: Any):
-    from .lti import as_statespace
-
     return as_statespace(sys, name="sys")
 
 
