@@ -460,13 +460,10 @@ def reduction_error(model: Any, f_hz: Any, **overrides: float) -> np.ndarray | N
 def for_data(model: Any, data: Any, band: Any = None) -> Any:
     """:func:`band_limited` to the top of ``band`` (Hz), or of the data's frequencies: the model
     ``rc.diagnose`` and ``rc.update`` evaluate (unchanged below :data:`REDUCE_MIN_DOF` DOFs)."""
-    if band is not None:
-        top = float(band[1])
-    else:
-        f = getattr(data, "f_hz", None)
-        if f is None:
-            return model
-        top = float(np.max(f))
+    try:  # a malformed band or data is refused by the caller's own checks, in its words
+        top = float(band[1]) if band is not None else float(np.max(data.f_hz))
+    except (TypeError, ValueError, IndexError, AttributeError, KeyError):
+        return model
     if not np.isfinite(top) or top <= 0:
         return model
     return band_limited(model, top)
