@@ -69,7 +69,7 @@ def test_every_plant_form_gives_the_same_partition():
 
 def test_refusals_are_one_error_naming_what_was_passed_and_the_fix():
     P = distillation_plant()
-    with pytest.raises(rc.PlantError, match=r"ndarray without nmeas and ncon.*PartitionedPlant"):
+    with pytest.raises(rc.PlantError, match=r"number of measurements.*ndarray passed.*PartitionedPlant"):
         rc.as_partitioned(np.eye(2))
     with pytest.raises(rc.PlantError, match="nmeas=1 contradicts"):
         rc.as_partitioned(rc.PartitionedPlant(P, 2, 2), nmeas=1)

@@ -86,8 +86,9 @@ def as_partitioned(P: Any, nmeas: Any = None, ncon: Any = None, blocks: Any = No
     else:
         if nmeas is None or ncon is None:
             raise PlantError(
-                f"{who}(P, nmeas, ncon): got a {type(P).__name__} without nmeas and ncon. Pass "
-                f"{_FORMS}, or dksyn's tuple (P, nmeas, ncon, blocks)."
+                f"{who}(P, nmeas, ncon): give the number of measurements nmeas and of control inputs "
+                f"ncon with the {type(P).__name__} passed (got nmeas={nmeas!r}, ncon={ncon!r}), or pass "
+                f"a plant that carries them: {_FORMS}."
             )
         base = P
     try:
