@@ -1,31 +1,63 @@
 # The README's two commands: `make demo` and `make test`. Both create .venv when missing.
+# Both install from constraints/test.txt: the exact releases the suite is known to pass on
+# (`make pins` refreshes them; `make test-latest` runs the suite on the newest releases).
 PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-dev
 CORE_STAMP := $(VENV)/.installed
+CONSTRAINTS := constraints/test.txt
+LATEST := .venv-latest
+PINS_VENV := .venv-pins
+PYTEST_ARGS := -n 2 --dist loadfile -q --durations=15 tests --nbmake notebooks
+# pyNastran pins numpy<2: installed without its dependencies (see pyproject's nastran extra)
+NASTRAN := "pyNastran>=1.4,<1.5"
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test test-latest pins lint bench clean
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
 
 # The demo needs only the core dependencies (a cold install of the dev extras
 # roughly doubles the download); the tests need the dev extra.
-$(CORE_STAMP): pyproject.toml | $(VENV)/bin/python
-	$(PY) -m pip install --quiet -e .
+$(CORE_STAMP): pyproject.toml $(CONSTRAINTS) | $(VENV)/bin/python
+	$(PY) -m pip install --quiet -c $(CONSTRAINTS) -e .
 	touch $(CORE_STAMP)
 
-$(STAMP): pyproject.toml | $(VENV)/bin/python
-	$(PY) -m pip install --quiet -e ".[dev]"
-	$(PY) -m pip install --quiet --no-deps "pyNastran>=1.4,<1.5"
+$(STAMP): pyproject.toml $(CONSTRAINTS) | $(VENV)/bin/python
+	$(PY) -m pip install --quiet -c $(CONSTRAINTS) -e ".[dev]"
+	$(PY) -m pip install --quiet --no-deps -c $(CONSTRAINTS) $(NASTRAN)
 	touch $(STAMP) $(CORE_STAMP)
 
 demo: $(CORE_STAMP)
 	$(PY) -m robustctl demo --out out
 
 test: $(STAMP)
-	$(PY) -m pytest -n 2 --dist loadfile -q --durations=15 tests --nbmake notebooks
+	$(PY) -m pytest $(PYTEST_ARGS)
+
+# The newest releases the pyproject ranges allow, in a venv of their own; allowed to differ.
+test-latest:
+	test -x $(LATEST)/bin/python || $(PYTHON) -m venv $(LATEST)
+	$(LATEST)/bin/python -m pip install --quiet --upgrade --upgrade-strategy eager -e ".[dev]"
+	$(LATEST)/bin/python -m pip install --quiet --upgrade --no-deps $(NASTRAN)
+	$(LATEST)/bin/python -m pip freeze --exclude-editable
+	$(LATEST)/bin/python -m pytest $(PYTEST_ARGS)
+
+# Re-resolve the dev install from scratch (no constraints) and write its exact releases to
+# $(CONSTRAINTS), marked for this interpreter's Python and newer (older ones resolve freely).
+pins:
+	rm -rf $(PINS_VENV)
+	$(PYTHON) -m venv $(PINS_VENV)
+	$(PINS_VENV)/bin/python -m pip install --quiet -e ".[dev]"
+	$(PINS_VENV)/bin/python -m pip install --quiet --no-deps $(NASTRAN)
+	$(PINS_VENV)/bin/python -c 'import platform, sys, datetime; \
+	print("# Exact releases `make test` installs (pip install -c). Refresh: make pins"); \
+	print("# Resolved", datetime.date.today(), "on Python", platform.python_version(), sys.platform)' > $(CONSTRAINTS).new
+	$(PINS_VENV)/bin/python -m pip freeze --exclude-editable | grep -v -i '^robustctl\|^#\|^-e' \
+	  | sed "s/\$$/ ; python_version >= \"$$($(PINS_VENV)/bin/python -c 'import sys; print(f"{sys.version_info[0]}.{sys.version_info[1]}")')\"/" \
+	  >> $(CONSTRAINTS).new
+	mv $(CONSTRAINTS).new $(CONSTRAINTS)
+	rm -rf $(PINS_VENV)
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check robustctl tests benchmarks
@@ -34,4 +66,4 @@ bench: $(STAMP)
 	$(PY) -m benchmarks
 
 clean:
-	rm -rf $(VENV) out .pytest_cache
+	rm -rf $(VENV) $(LATEST) $(PINS_VENV) out .pytest_cache

@@ -9,7 +9,8 @@ function-level imports included; ``tests/test_architecture.py`` reads every impo
 ``ast`` and fails on an edge that points up or on a circle. Lowest first:
 
 0. ``errors``, ``_version``, ``threads``, ``table``, ``executors`` -- the base
-1. ``checks`` -- argument checks (imports only ``errors``)
+1. ``checks`` -- argument checks (imports only ``errors``); ``budget`` -- the time-budget
+   policy and its ``Deadline`` (imports only ``errors`` and ``checks``)
 2. ``frd``, ``frd_io``, ``plots`` -- FrequencyData, its file formats, plotting primitives
 3. ``lti``, ``signals``, ``modes``, ``balanced`` -- systems and fast responses, named
    signals, ``Mode`` with MAC and pairing, balanced truncation
@@ -33,6 +34,9 @@ No submodule shares its name with a function or class that its package exports.
 # shared ground: one checks module, one system coercion, one cost report, one Mode
 from . import checks, examples
 from ._version import __version__ as __version__
+
+# reproducibility: one time-budget policy (budget.py)
+from .budget import BudgetWarning, Deadline
 from .correlate import (
     Comparison,
     Diagnosis,
@@ -45,7 +49,15 @@ from .correlate import (
     verify,
 )
 from .cost import LogCost, log_cost, log_error
-from .errors import DataError, FitError, ModelError, PlantError, RobustctlError, SynthesisError
+from .errors import (
+    DataError,
+    FitError,
+    ModelError,
+    PlantError,
+    RobustctlError,
+    RobustctlWarning,
+    SynthesisError,
+)
 from .export import ExportReport, discretize, export_controller, load_controller
 from .figures import (
     ModeAnimation,
@@ -327,6 +339,10 @@ __all__ = [
     "stability_margin",
     "reduce_controller",
     "ControllerReduction",
+    # reproducibility: the time-budget policy and robustctl's warning base
+    "Deadline",
+    "BudgetWarning",
+    "RobustctlWarning",
     # one partitioned plant: the coercion shared by hinfsyn, h2syn, dksyn and the yardstick
     "as_partitioned",
 ]

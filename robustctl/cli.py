@@ -120,7 +120,8 @@ def _parser() -> argparse.ArgumentParser:
     )
     diag.add_argument("model", help=_MODEL_HELP)
     diag.add_argument("data", help=_DATA_HELP)
-    diag.add_argument("--time-budget", type=float, default=120.0, help="seconds (default 120)")
+    diag.add_argument("--time-budget", type=float, default=None,
+                      help="optional wall-clock cap in s (default: none; iteration caps bound the work)")
     _add_common(diag, "out-diagnose")
 
     ident = sub.add_parser(

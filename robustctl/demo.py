@@ -58,9 +58,7 @@ def caltech_example() -> DemoExample:
         actuators="voice-coil actuators",
         fit_measurement_model=_caltech_measurement_model,
         mm_caption="Six-mode measurement model against the data.",
-        # the local fits share a wall-clock budget: on a loaded machine the default (120 s) can
-        # cut them short and rank a look-alike first; the budget is a cap, an idle machine needs ~1 min
-        diagnose_options=lambda model: {"time_budget_s": 900.0},
+        diagnose_options=lambda model: {},
     )
 
 

@@ -172,7 +172,7 @@ def _dk(report: Report, gp: Any) -> Any:
 
     report.heading("9. Generalized plant and D-K iteration")
     report.text(gp.summary())
-    dk = dksyn(gp, max_iter=4, time_budget_s=120.0, reduce="auto")
+    dk = dksyn(gp, max_iter=4, reduce="auto")
     report.text(dk.summary())
     report.table(dk.table())
     report.figure(dk.plot(), "dk", "mu upper bound per D-K iteration, and the iteration history.")

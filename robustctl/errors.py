@@ -22,7 +22,10 @@ The one rule for arguments (enforced through :mod:`robustctl.checks`):
 
 from __future__ import annotations
 
-__all__ = ["RobustctlError", "DataError", "ModelError", "FitError", "SynthesisError", "PlantError"]
+__all__ = [
+    "RobustctlError", "DataError", "ModelError", "FitError", "SynthesisError", "PlantError",
+    "RobustctlWarning",
+]
 
 
 class RobustctlError(ValueError):
@@ -51,3 +54,7 @@ class PlantError(ModelError, SynthesisError):
     Both a model error (the partitioned plant is ill-posed) and a synthesis error (the
     argument of ``hinfsyn``, ``h2syn`` or ``dksyn`` is refused), so either is caught.
     """
+
+
+class RobustctlWarning(UserWarning):
+    """Base class of robustctl's warnings: a result that holds with a caveat the user must see."""

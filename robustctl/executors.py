@@ -15,6 +15,7 @@ import multiprocessing
 import os
 import sys
 import threading
+import time
 import uuid
 import warnings
 import weakref
@@ -246,7 +247,9 @@ def process_pool(workers: Any, n_tasks: int, min_tasks: int) -> Iterator[Process
     spawn, starts them) (a program running robustctl in several threads at
     once should pass 1: a fork copies only the calling thread). When the payload of
     :func:`parallel_map_shared` cannot be pickled, the work is done in this process with a
-    RuntimeWarning.
+    RuntimeWarning. The workers end with the pool on every exit path: normally after their
+    tasks, at once (terminated) on an exception or KeyboardInterrupt, and by themselves when
+    the calling process is killed (:func:`_worker_start`).
 
     Raises
     ------
@@ -258,9 +261,67 @@ def process_pool(workers: Any, n_tasks: int, min_tasks: int) -> Iterator[Process
         yield None
         return
     ctx = multiprocessing.get_context("fork" if _fork_is_safe() else "spawn")  # spawn: as on macOS, Windows
-    with ProcessPoolExecutor(max_workers=n, mp_context=ctx) as pool:
-        pool._robustctl_own = True  # parallel_map_shared may fall back to serial work on it
+    pool = ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_worker_start,
+                               initargs=(os.getpid(),))
+    pool._robustctl_own = True  # parallel_map_shared may fall back to serial work on it
+    try:
         yield pool
+    except BaseException:  # an error, KeyboardInterrupt, a closed generator: stop the work now
+        _stop_workers(pool)
+        raise
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+#: Seconds between a worker's checks that the process which started it still runs.
+PARENT_POLL_S = 0.5
+
+
+def _worker_start(parent_pid: int) -> None:
+    """Initializer of :func:`process_pool`'s workers: they end with their parent.
+
+    A killed parent (SIGKILL, an out-of-memory kill) runs no clean-up, and a pool's worker
+    blocked on its task queue would outlive it. Each worker therefore asks the kernel for
+    SIGKILL when its parent ends (Linux ``prctl(PR_SET_PDEATHSIG)``) and, everywhere, polls
+    its parent id from a daemon thread (an orphan is re-parented). Workers ignore SIGINT: a
+    Ctrl-C reaches the whole process group, and the parent, not each worker, decides (it
+    stops them, see :func:`_stop_workers`).
+    """
+    import signal
+
+    with contextlib.suppress(ValueError, OSError):  # not the main thread of a worker: keep the default
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(Exception):  # no libc by that name: the poll below still works
+            import ctypes
+
+            pr_set_pdeathsig = 1
+            ctypes.CDLL("libc.so.6", use_errno=True).prctl(pr_set_pdeathsig, int(signal.SIGKILL), 0, 0, 0)
+    if os.getppid() != parent_pid:  # the parent ended before the request took effect
+        os._exit(1)
+
+    def watch() -> None:
+        while True:
+            time.sleep(PARENT_POLL_S)
+            if os.getppid() != parent_pid:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="robustctl-parent-watch", daemon=True).start()
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """End a pool's workers at once (queued tasks cancelled, running ones terminated)."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        with contextlib.suppress(Exception):
+            p.terminate()
+    for p in procs:
+        with contextlib.suppress(Exception):
+            p.join(5.0)
+            if p.is_alive():
+                p.kill()
+                p.join()
 
 
 def _fork_is_safe() -> bool:

@@ -26,7 +26,7 @@ ROOT = Path(robustctl.__file__).resolve().parent
 #: robustctl/__init__.py.
 FLOORS: tuple[tuple[str, ...], ...] = (
     ("errors", "_version", "threads", "table", "executors"),  # the base: no robustctl imports but errors
-    ("checks",),  # argument checks: imports only errors
+    ("checks", "budget"),  # argument checks: imports only errors; the time-budget policy (Deadline)
     ("frd", "frd_io", "plots"),  # FrequencyData, its files, the plotting primitives
     ("lti", "signals", "modes", "balanced"),  # systems, fast responses; named signals; Mode; reduction
     ("measure", "cost"),  # how data are made (H1, impact, estimator view, noise); the MACE eq. 5 cost
@@ -42,7 +42,7 @@ FLOORS: tuple[tuple[str, ...], ...] = (
 )
 
 #: Modules of the lowest floors that may import only the listed modules of robustctl.
-ONLY_IMPORTS = {"checks": {"errors"}, "errors": set()}
+ONLY_IMPORTS = {"checks": {"errors"}, "errors": set(), "budget": {"errors", "checks"}}
 
 
 def _modules() -> dict[str, tuple[Path, bool]]:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 import warnings
 
 import control
@@ -28,8 +27,11 @@ def augw(G, **weights):
 def assert_verified(res, P=None, nmeas=None, ncon=None):
     """Closed loop stable, norm res.gamma <= the design gamma, equal to an independent frequency-wise LFT."""
     assert np.max(np.linalg.eigvals(res.closed_loop.A).real) < 0
-    norm, _ = rc.hinfnorm(res.closed_loop)
-    assert norm == pytest.approx(res.gamma, rel=1e-6)
+    # hinfnorm brackets the norm: g <= ||Fl|| <= g (1 + 2 tol); res.gamma is hinfsyn's upper end
+    # of such a bracket (its own tol, info["norm_tol"]), so the two brackets must overlap
+    tol = 1e-6
+    norm, _ = rc.hinfnorm(res.closed_loop, tol=tol)
+    assert norm <= res.gamma <= norm * (1 + 2 * tol) * (1 + 2 * res.info["norm_tol"])
     assert res.gamma <= res.info["gamma_design"] * (1 + 1e-6)
     assert res.gamma_opt <= res.info["gamma_design"]
     if P is not None:  # frequency-domain LFT of python-control's responses: the same loop, independently
@@ -46,6 +48,11 @@ def assert_verified(res, P=None, nmeas=None, ncon=None):
             allowed = 1e-8 * (norm2[0] + norm2[1] * norm2[2] * norm2[3]) + 1e-12
             assert np.linalg.norm(F - Fcl, 2) <= allowed
             assert np.linalg.norm(F, 2) <= res.gamma * (1 + 1e-9) + allowed
+
+
+#: Relative accuracy of an LMI optimum: Clarabel's reduced gap tolerance (reduced_tol_gap_rel), which
+#: even an "optimal_inaccurate" solution (accepted by the LMI route) meets; a solved one meets 1e-8.
+CLARABEL_REL_ACC = 5e-5
 
 
 def random_plant(seed, n=5, m1=3, m2=2, p1=3, p2=2, stable=True, d_scale=0.5):
@@ -146,10 +153,16 @@ def test_lightly_damped_noncollocated_order_22_matches_lmi():
     """Order 22, zeta = 1e-4: Riccati 0.6607, LMI 0.6602 (SB10AD reports 0.550; its controller gives 2.65)."""
     P = mixed_sensitivity(10, seed=10, zeta=1e-4, flip=0.3)
     ric = rc.hinfsyn(P, 1, 1)
-    lmi = rc.hinfsyn(P, 1, 1, method="lmi", time_budget_s=300)
-    assert ric.gamma_opt == pytest.approx(lmi.gamma_opt, rel=0.01)
+    lmi = rc.hinfsyn(P, 1, 1, method="lmi")
+    # the optimum lies in the Riccati bisection's bracket [gamma_lower, gamma_opt] (width gamma_tol);
+    # the LMI optimum sits there within Clarabel's accuracy (CLARABEL_REL_ACC)
+    assert ric.gamma_opt <= ric.info["gamma_lower"] * (1 + ric.info["gamma_tol"])
+    assert ric.info["gamma_lower"] * (1 - CLARABEL_REL_ACC) <= lmi.gamma_opt
+    assert lmi.gamma_opt <= ric.gamma_opt * (1 + CLARABEL_REL_ACC)
     assert_verified(ric, P, 1, 1)
     assert_verified(lmi, P, 1, 1)
+    for res in (ric, lmi):  # the reported gamma bounds the closed loop's norm from above
+        assert rc.hinfnorm(res.closed_loop, tol=1e-10)[0] <= res.gamma
 
 
 @pytest.mark.parametrize("w2", [1e-4, 1e-6])
@@ -269,16 +282,15 @@ def test_result_is_frozen():
 
 
 # ---------------------------------------------------------------------------- regressions: never hang
-def test_no_control_weight_answers_within_seconds():
-    """augw(G, w1=W1, w3=0.1): D12 = 0. python-control+slycot spins for 10+ minutes (issues 152, 973)."""
+def test_no_control_weight_is_refused_by_the_assumption_check():
+    """augw(G, w1=W1, w3=0.1): D12 = 0. python-control+slycot spins for 10+ minutes; the rank
+    assumption is checked before any gamma test, so the refusal needs no clock."""
     G = control.tf([1.0], [1.0, 0.02, 1.0])
     W1 = control.tf([0.5, 1.0], [1.0, 0.01])
     P = augw(G, w1=W1, w3=0.1)
-    t0 = time.monotonic()
     with pytest.raises(SynthesisError, match=r"\(A2\).*D12.*add a small weight on u"):
         rc.hinfsyn(P, 1, 1)
-    assert time.monotonic() - t0 < 30
-    res = rc.hinfsyn(P, 1, 1, method="lmi", time_budget_s=60)  # the singular problem is solvable by LMIs
+    res = rc.hinfsyn(P, 1, 1, method="lmi")  # the singular problem is solvable by LMIs
     assert_verified(res, P, 1, 1)
 
 
@@ -349,7 +361,7 @@ def test_wrong_types_and_improper_plants():
         {"gamma_tol": 2.0},
         {"backoff": -0.1},
         {"backoff": "1%"},
-        {"time_budget_s": 0},
+        {"time_budget_s": -1.0},
         {"time_budget_s": np.inf},
     ],
 )
@@ -359,10 +371,16 @@ def test_bad_options(kw):
 
 
 def test_time_budget_bounds_the_bisection():
+    """A used-up budget (0 s) stops the bisection at its first check: the verified controller of the
+    bracket's feasible end, flagged in info, the summary and a BudgetWarning."""
     P = mixed_sensitivity(5)
-    res = rc.hinfsyn(P, 1, 1, gamma_tol=1e-9, time_budget_s=1e-6)
-    assert res.info["stopped_by_budget"]
+    with pytest.warns(rc.BudgetWarning, match="stopped by time_budget_s=0 s"):
+        res = rc.hinfsyn(P, 1, 1, gamma_tol=1e-9, time_budget_s=0)
+    assert res.info["stopped_by_budget"] and res.info["n_gamma_tests"] == 1
+    assert "time budget" in res.summary()
     assert_verified(res)
+    free = rc.hinfsyn(P, 1, 1, gamma_tol=1e-9)  # no clock: the bisection runs to its tolerance
+    assert not free.info["stopped_by_budget"] and free.gamma_opt < res.gamma_opt
 
 
 def test_slow_stable_mode_is_not_read_as_on_the_axis_next_to_a_fast_one():

@@ -45,7 +45,9 @@ def test_discrete_hinfsyn_gamma_matches_lmi_and_sb10dd(seed):
     assert cl.dt == P.dt and res.K.dt == P.dt
     assert np.max(np.abs(np.linalg.eigvals(cl.A))) < 1
     assert rc.hinfnorm(cl)[0] <= res.info["gamma_design"] * (1 + 1e-6)
-    assert res.gamma == pytest.approx(rc.hinfnorm(cl)[0], rel=1e-9)
+    # res.gamma is the upper end of a hinfnorm bracket (info["norm_tol"]); hinfnorm's g at tol 1e-6 the lower
+    norm = rc.hinfnorm(cl, tol=1e-6)[0]
+    assert norm <= res.gamma <= norm * (1 + 2e-6) * (1 + 2 * res.info["norm_tol"])
 
 
 def test_discrete_hinfsyn_closed_loop_on_unit_circle_grid():

@@ -415,7 +415,7 @@ def test_scalar_and_python_control_frd_inputs():
     np.testing.assert_allclose(res.upper, np.abs(g.response[:, 0, 0]), rtol=1e-10)
     np.testing.assert_allclose(res.f_hz, f)
     with pytest.raises(rc.SynthesisError, match="time_budget_s"):
-        rc.mu(np.eye(2), [[1, 0], [1, 0]], time_budget_s=0)
+        rc.mu(np.eye(2), [[1, 0], [1, 0]], time_budget_s=-1.0)
 
 
 def test_repeated_scalar_blocks_get_hermitian_d_matrices():

@@ -182,7 +182,7 @@ def test_lm_caps_iterations_and_time(model, truth_data):
     fit = levenberg_marquardt(res, ["k1", "k2", "m2"], max_iter=1)
     assert fit.n_iter == 1 and not fit.success and "cap" in fit.stop_reason
     fit = levenberg_marquardt(res, ["k1", "k2", "m2"], time_budget_s=0.0)
-    assert "time budget" in fit.stop_reason and fit.n_iter == 0
+    assert "time budget" in fit.stop_reason and fit.n_iter == 0 and fit.stopped_by_budget
 
 
 def test_lm_reuses_start_sensitivities_without_changing_the_fit(model, truth_data):

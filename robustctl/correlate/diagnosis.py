@@ -73,7 +73,8 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import UNSET, finite_number, integer, positive_number, renamed_keyword
+from ..budget import BudgetWarning, Deadline
+from ..checks import UNSET, finite_number, integer, renamed_keyword
 from ..errors import FitError, ModelError, RobustctlError
 from ..executors import check_executor, parallel_map_shared, process_pool, resolve_workers
 from ..frd import FrequencyData, as_frequency_data
@@ -268,6 +269,9 @@ class Diagnosis:
         The fitted candidates the data in this band cannot tell from the top one (equal cost
         within the noise, nearly collinear fitted changes), with where their fitted models
         differ; None when the top candidate is clearly the best explanation.
+    stopped_by_budget : bool
+        A ``time_budget_s`` stopped the null fit, a local fit or the polishing before
+        convergence: the ranking depends on the machine's speed (:mod:`robustctl.budget`).
     family_alpha : float
         The family-wise level the adjusted p-values are compared with (``alpha`` of the call).
     dispersion : float
@@ -306,6 +310,7 @@ class Diagnosis:
     noise_source: str = ""
     estimator_note: str = ""
     indistinguishable: Any = None
+    stopped_by_budget: bool = False
     family_alpha: float = ALPHA
     dispersion: float = math.nan
     p_null: float = math.nan
@@ -377,6 +382,9 @@ class Diagnosis:
         ]
         if self.estimator_note:
             lines.append(self.estimator_note[:1].upper() + self.estimator_note[1:] + ".")
+        if self.stopped_by_budget:
+            lines.append("The time budget stopped some fits before convergence: the ranking may differ "
+                         "from an unhurried run (time_budget_s=None).")
         if self.noise_source:
             lines.append(f"Noise model: {self.noise_source}.")
         else:
@@ -709,7 +717,7 @@ class _Null:
 
 
 def _fit_one(
-    res_u: Residual, null: _Null, screen: dict[str, Any], max_iter: int, budget: float
+    res_u: Residual, null: _Null, screen: dict[str, Any], max_iter: int, budget: Deadline
 ) -> dict[str, Any]:
     """Short bounded local fit of one candidate with the update parameters (step 3).
 
@@ -718,7 +726,6 @@ def _fit_one(
     (two evaluations per iteration instead of ``p + 1``). A point where the model cannot
     be evaluated (e.g. the gravity preload does not converge) counts as a failed step.
     """
-    t0 = time.perf_counter()
     effect = screen["effect"]
     pname, par = effect.param_names[0], effect.parameters[0]
     discrete = _is_switch(effect)
@@ -745,10 +752,10 @@ def _fit_one(
     cost, lam = float(r @ r), 1e-2
     if discrete and names:
         return _fit_switched(res_c.model.with_values(**{pname: v}), res_u, names, u, v, r, max_iter,
-                             budget - (time.perf_counter() - t0), counter[0])
+                             budget, counter[0])
     cut = False
     for _ in range(int(max_iter)):
-        if time.perf_counter() - t0 > budget:
+        if budget.expired():
             cut = True
             break
         cols = [null.jac]
@@ -784,7 +791,7 @@ def _fit_one(
 
 
 def _fit_switched(model_on: Any, res_u: Residual, names: tuple[str, ...], u: np.ndarray, v: float,
-                  r: np.ndarray, max_iter: int, budget: float, evals: int) -> dict[str, Any]:
+                  r: np.ndarray, max_iter: int, budget: Deadline, evals: int) -> dict[str, Any]:
     """The local fit of a discrete candidate (gravity switched on or off): a full LM fit of the
     update parameters with the switch set (their sensitivities refreshed each iteration).
 
@@ -795,7 +802,7 @@ def _fit_switched(model_on: Any, res_u: Residual, names: tuple[str, ...], u: np.
     cost = float(r @ r)
     x = dict(zip(names, (float(a) for a in u)))
     out = dict(x=x, cost=cost, vector=r, evals=evals, value=v, cut=False)
-    if budget <= 0:
+    if budget.expired():
         return dict(out, cut=True)
     try:
         lm = levenberg_marquardt(_residual_for(res_u, model_on), names, x0=x, max_iter=max_iter,
@@ -806,7 +813,7 @@ def _fit_switched(model_on: Any, res_u: Residual, names: tuple[str, ...], u: np.
     if not lm.cost < cost:
         return out
     return dict(out, x={n: float(lm.x[n]) for n in names}, cost=float(lm.cost), vector=lm.vector,
-                cut="time budget" in lm.stop_reason)
+                cut=lm.stopped_by_budget)
 
 
 def _fit_task(shared: tuple, screen: dict[str, Any]) -> dict[str, Any]:
@@ -837,7 +844,7 @@ def _noise_cost(res: Residual) -> float | None:
 
 def _polish(
     res_u: Residual, null: _Null, screens: list[dict], top: list[int], fits: list[dict], executor: Any,
-    budget: float, noise_cost: float | None = None,
+    budget: Deadline, noise_cost: float | None = None,
 ) -> tuple[list[dict], int]:
     """Full LM fits of the contenders (step 3b): the local fits freeze the update parameters'
     sensitivities at the null fit, which may have bent them to mimic the missing effect, so
@@ -863,7 +870,7 @@ def _polish(
             return fits, 0
         todo = [lead]
 
-    done = parallel_map_shared(_polish_task, (res_u, null.names, budget / len(todo)),
+    done = parallel_map_shared(_polish_task, (res_u, null.names, budget),
                                [(screens[top[i]], fits[i]) for i in todo], executor, desc="polishing fits")
     out = list(fits)
     for i, new in zip(todo, done):
@@ -887,7 +894,7 @@ def _polish_task(shared: tuple, item: tuple) -> dict:
         return dict(fit, evals=lm.n_evals)
     x = dict(lm.x)
     return dict(x={n: x[n] for n in names}, cost=float(lm.cost), vector=lm.vector, evals=lm.n_evals,
-                value=float(x[pname]), cut="time budget" in lm.stop_reason)
+                value=float(x[pname]), cut=lm.stopped_by_budget)
 
 
 #: Multiples of an effect's typical size tried as starting values of its local fit.
@@ -999,25 +1006,26 @@ def _to_fit(screens: list[dict], order: list[int], n_fit: int) -> list[int]:
     return top + more
 
 
-def _check_budget(deadline: float, budget: float, stage: str) -> float:
-    """Seconds left before ``deadline``; a FitError naming the stage when none are (the
-    budget covers the whole call: a partial ranking would be a wrong answer without warning)."""
-    left = deadline - time.perf_counter()
-    if left <= 0:
+def _check_budget(deadline: Deadline, stage: str) -> None:
+    """A FitError naming the stage when the budget is used up before every candidate is screened.
+
+    Why an error and not a flagged result: a ranking of the candidates screened so far could
+    propose a wrong effect first (the true one not yet screened), and no flag repairs that.
+    After the screening a budget only cuts fits short, and the result says so."""
+    if deadline.expired():
         raise FitError(
-            f"time_budget_s={budget:g} s ran out during {stage}; raise time_budget_s, pass fewer "
-            "candidates= or a narrower band=."
+            f"time_budget_s={deadline.budget_s:g} s ran out during {stage}; raise time_budget_s, leave it "
+            "None (the fits are capped in iterations), pass fewer candidates= or a narrower band=."
         )
-    return left
 
 
 def _screen_all(
-    res_u: Residual, model_u: Any, null: _Null, cands: list, executor, deadline: float, budget: float
+    res_u: Residual, model_u: Any, null: _Null, cands: list, executor, deadline: Deadline
 ) -> tuple:
     """Screen every candidate (step 2): the screens, indistinguishable twins, and the
     order of the others by the fraction they explain."""
     r_perp = _project(null.Q, null.j)
-    shared = (res_u, model_u, null.j, null.Q, r_perp, _wall_deadline(deadline), budget, len(cands))
+    shared = (res_u, model_u, null.j, null.Q, r_perp, deadline, len(cands))
     screens = parallel_map_shared(_screen_task, shared, cands, executor, desc="screening")
     twins = _equivalent(screens)
     order = sorted(
@@ -1027,18 +1035,11 @@ def _screen_all(
     return screens, twins, order
 
 
-def _wall_deadline(deadline: float) -> float:
-    """``deadline`` (a ``time.perf_counter`` instant) on the wall clock (``time.time``), which
-    other processes share."""
-    return time.time() + (deadline - time.perf_counter())
-
-
 def _screen_task(shared: tuple, effect: Any) -> dict:
     """One candidate's screening (:func:`parallel_map_shared` task; ``shared`` from
     :func:`_screen_all`)."""
-    res_u, model_u, j_u, Q, r_perp, wall_deadline, budget, n = shared
-    if time.time() > wall_deadline:
-        _check_budget(time.perf_counter() - 1.0, budget, f"the screening of {n} candidates")
+    res_u, model_u, j_u, Q, r_perp, deadline, n = shared
+    _check_budget(deadline, f"the screening of {n} candidates")
     return _screen_one(res_u, model_u, j_u, Q, r_perp, effect)
 
 
@@ -1047,7 +1048,7 @@ def _null_fit(
     upd: tuple[str, ...],
     max_iter: int,
     executor: Executor | None,
-    budget: float,
+    budget: Deadline,
     j0: np.ndarray,
 ) -> tuple[_Null, int]:
     """Bounded LM fit of the update parameters alone (step 1), from the nominal residual ``j0``.
@@ -1071,7 +1072,7 @@ def _null_fit(
     else:
         lm = levenberg_marquardt(res0, upd, start=start, **kw)
     null = _Null(upd, dict(lm.x), x_model, lo, hi, lm.jacobian, lm.vector, lm.cost)
-    null.cut = "time budget" in lm.stop_reason
+    null.cut = lm.stopped_by_budget
     return null, start.n_evals + n_coarse + lm.n_evals
 
 
@@ -1252,7 +1253,7 @@ def diagnose(
     update_iter: int = 10,
     alpha: float = ALPHA,
     min_gain: float = MIN_GAIN,
-    time_budget_s: float = 600.0,
+    time_budget_s: float | None = None,
     update_params: Any = UNSET,
     weights: Any = UNSET,
     estimator: Any = "auto",
@@ -1305,9 +1306,14 @@ def diagnose(
         and compared with it.
     min_gain : float
         Smallest share (0..1) of the null-fit residual an effect must remove to be proposed.
-    time_budget_s : float
-        Wall-clock budget (s) for the fits: a safety cap, not a stopping rule (a RuntimeWarning
-        says when it stopped a fit, since the ranking then depends on the machine's load).
+    time_budget_s : float or None
+        Optional wall-clock budget (s) of the whole call, by :mod:`robustctl.budget`'s policy.
+        None (default): the iteration caps (``max_iter``, ``update_iter``, the polishing's
+        ``POLISH_ITER``) bound the work and the ranking depends only on the inputs. A number:
+        when it ends the null fit, a local fit or the polishing early, the fits keep what they
+        reached, the result has ``stopped_by_budget=True``, its summary says so and a
+        BudgetWarning is issued; when it ends before every candidate is calibrated and
+        screened, a FitError is raised (a ranking of some candidates could name a wrong effect).
     estimator : "auto", True, False or EstimatorSettings
         See the model through the H1 estimator (as :func:`robustctl.compare`).
     noise : "auto", NoiseModel or None
@@ -1346,10 +1352,9 @@ def diagnose(
     t0 = time.perf_counter()
     check_executor(executor)
     resolve_workers(workers, 0, 1)  # a bad value fails before any work
-    time_budget_s = positive_number(time_budget_s, "time_budget_s", FitError, unit="s, the whole call")
+    deadline = Deadline(time_budget_s, error=FitError)
     max_iter = integer(max_iter, "max_iter", FitError, lo=1)
     update_iter = integer(update_iter, "update_iter", FitError, lo=1)
-    deadline = t0 + time_budget_s
     params = renamed_keyword(params, update_params, "params", "update_params")
     point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     model = physical_model(model, "diagnose")
@@ -1373,10 +1378,10 @@ def diagnose(
     t_eval = time.perf_counter() - t_eval
     with _pool(workers, executor, candidates, model, t_eval) as ex:
         if candidates is None:
-            candidates = _default_candidates(model, res0, deadline, time_budget_s, ex)
+            candidates = _default_candidates(model, res0, deadline, ex)
         return _diagnose(
             t0, res0, ignored, upd, candidates, j_nominal, ex, n_fit, max_iter, update_iter, alpha, min_gain,
-            time_budget_s, deadline,
+            deadline,
         )
 
 
@@ -1400,49 +1405,46 @@ def _pool(workers: Any, executor: Any, candidates: list | None, model: Any, t_ev
     return process_pool(workers, n, PARALLEL_MIN_CANDIDATES)
 
 
-def _default_candidates(model: Any, res0: Residual, deadline: float, budget: float, executor: Any) -> list:
+def _default_candidates(model: Any, res0: Residual, deadline: Deadline, executor: Any) -> list:
     """``rc.effects.candidates`` of the model on the band, calibrated within the time budget."""
     from ..physical.effects import candidates as all_candidates
 
-    left = _check_budget(deadline, budget, "the residual set-up")
-    try:
-        cands = all_candidates(model, band=res0.band, time_budget_s=left, executor=executor)
-    except FitError as exc:
-        raise FitError(str(exc).replace(f"time_budget_s={left:g}", f"time_budget_s={budget:g}")) from None
+    cands = all_candidates(model, band=res0.band, time_budget_s=deadline, executor=executor)
     return _check_candidates(model, cands)
 
 
 def _diagnose(
     t0, res0, ignored, upd, cands, j_nominal, executor, n_fit, max_iter, update_iter, alpha, min_gain,
-    time_budget_s, deadline,
+    deadline: Deadline,
 ) -> Diagnosis:
     """:func:`diagnose` once the arguments are checked, the candidates made and the executor chosen."""
     model = res0.model
     evals = 1
     cost_nominal = float(j_nominal @ j_nominal)
     # 1. null fit of the update parameters
-    null, n_null = _null_fit(res0, upd, update_iter, executor, time_budget_s / 3, j_nominal)
+    null, n_null = _null_fit(res0, upd, update_iter, executor, deadline, j_nominal)
     evals += n_null
     x_u, j_u, cost_u = null.x, null.j, null.cost
     model_u = model.with_values(**x_u) if x_u else model
     res_u = _residual_for(res0, model_u)
     # 2. secant screening
-    _check_budget(deadline, time_budget_s, "the null fit")
-    screens, twins, order = _screen_all(res_u, model_u, null, cands, executor, deadline, time_budget_s)
+    _check_budget(deadline, "the null fit")
+    screens, twins, order = _screen_all(res_u, model_u, null, cands, executor, deadline)
     evals += sum(s["evals"] for s in screens)
     top = _to_fit(screens, order, n_fit)
     # 3. local fits
-    remaining = _check_budget(deadline, time_budget_s, "the screening")
     fits = parallel_map_shared(
-        _fit_task, (res_u, null, max_iter, remaining / max(len(top), 1)), [screens[k] for k in top],
-        executor, desc="local fits",
+        _fit_task, (res_u, null, max_iter, deadline), [screens[k] for k in top], executor, desc="local fits",
     )
     evals += sum(f["evals"] for f in fits)
-    remaining = deadline - time.perf_counter()
-    if remaining > 0:  # a budget the local fits used up is reported by the warning below
-        fits, n_polish = _polish(res_u, null, screens, top, fits, executor, remaining, _noise_cost(res0))
+    polished = not deadline.expired()
+    if polished:  # a budget the local fits used up is reported by the warning below
+        fits, n_polish = _polish(res_u, null, screens, top, fits, executor, deadline, _noise_cost(res0))
         evals += n_polish
-    _warn_if_hurried(null.cut, sum(bool(f.get("cut")) for f in fits), time_budget_s)
+    n_cut = sum(bool(f.get("cut")) for f in fits)
+    stopped = bool(null.cut or n_cut or not polished)
+    if stopped:
+        _warn_if_hurried(null.cut, n_cut, deadline.budget_s, polished)
     # 4. significance and words
     e_u = res0.unstack(j_u)
     n_eff, rho = effective_points(e_u)
@@ -1495,6 +1497,7 @@ def _diagnose(
         noise_source="" if res0.noise is None else res0.noise.source,
         estimator_note=res0.describe_estimator(),
         indistinguishable=group,
+        stopped_by_budget=stopped,
         family_alpha=alpha,
         dispersion=dispersion,
         p_null=p_null,
@@ -1802,17 +1805,20 @@ def _channel_verdict(res: Residual, j_u: np.ndarray) -> str:
     return ""
 
 
-def _warn_if_hurried(null_cut: bool, n_cut: int, budget: float) -> None:
+def _warn_if_hurried(null_cut: bool, n_cut: int, budget: float, polished: bool = True) -> None:
     """Say so when the wall-clock budget, not convergence, stopped a fit: the ranking then
-    depends on the machine's speed and load (a fit cut short understates its candidate)."""
-    if not null_cut and not n_cut:
-        return
+    depends on the machine's speed and load (a fit cut short understates its candidate).
+    A :class:`~robustctl.budget.BudgetWarning` (also a RuntimeWarning)."""
     what = ["the null fit"] if null_cut else []
     what += [f"{n_cut} local fit{'s' if n_cut > 1 else ''}"] if n_cut else []
+    what += [] if polished else ["the polishing of the contenders"]
+    if not what:
+        return
     warnings.warn(
         f"diagnose: the time budget ({budget:g} s) stopped {' and '.join(what)} before convergence; "
-        "the ranking may differ from an unhurried run. Raise time_budget_s (or pass fewer candidates).",
-        RuntimeWarning,
+        "the ranking may differ from an unhurried run (stopped_by_budget=True). Raise time_budget_s or "
+        "leave it None (the fits are capped in iterations).",
+        BudgetWarning,
         stacklevel=3,
     )
 

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from ..budget import Deadline, as_deadline
 from ..errors import FitError, ModelError, RobustctlError
 from .residual import Residual, Sensitivities, _check_names, sensitivities
 
@@ -53,6 +54,8 @@ class LMResult:
         Why the loop stopped, in words.
     success : bool
         True unless the iteration cap or the time budget stopped it.
+    stopped_by_budget : bool
+        A ``time_budget_s`` stopped it (:mod:`robustctl.budget`; the caller reports it).
     time_s : float
         Wall-clock time spent (s).
     vector : ndarray (n,)
@@ -78,6 +81,7 @@ class LMResult:
     time_s: float
     vector: np.ndarray = field(repr=False)
     active: tuple[str, ...] = ()
+    stopped_by_budget: bool = False
 
     @property
     def x_array(self) -> np.ndarray:
@@ -225,7 +229,7 @@ def _search_step(
     bounds: tuple[np.ndarray, np.ndarray],
     xtol: float,
     max_inner: int,
-    deadline: float,
+    deadline: Deadline,
 ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray] | None:
     """Raise the damping until a projected step lowers the cost: ``(x, r, cost, dz)`` or None.
 
@@ -234,7 +238,7 @@ def _search_step(
     lo, hi = bounds
     z = st.x / scale
     for _ in range(int(max_inner)):
-        if time.perf_counter() > deadline:
+        if deadline.expired():
             return None
         dz = _projected_step(Jz, st.r, st.lam, z, lo / scale, hi / scale)
         if np.linalg.norm(dz) <= xtol * (np.linalg.norm(z) + xtol):
@@ -259,7 +263,7 @@ def levenberg_marquardt(
     x0: Mapping[str, float] | Sequence[float] | None = None,
     bounds: Mapping[str, tuple[float, float]] | Any = None,
     max_iter: int = 20,
-    time_budget_s: float = 120.0,
+    time_budget_s: float | Deadline | None = None,
     *,
     ftol: float = 1e-10,
     xtol: float = 1e-10,
@@ -290,8 +294,10 @@ def levenberg_marquardt(
         Default: each Parameter's bounds. Must contain ``x0``.
     max_iter : int
         Iteration cap (each costs ``p`` to ``p + max_inner`` residual evaluations).
-    time_budget_s : float
-        Wall-clock budget in s; checked before each evaluation batch.
+    time_budget_s : float, Deadline or None
+        Optional wall-clock budget in s (or a caller's shared Deadline), checked before each
+        evaluation batch (:mod:`robustctl.budget`); None: ``max_iter`` and ``max_inner`` alone
+        bound the work. A stop by the budget sets ``stopped_by_budget``.
     ftol, xtol, gtol : float
         Stop when the relative cost decrease, the relative step, or the scaled
         gradient ``max |J^T r| / J`` falls below these.
@@ -351,13 +357,13 @@ def levenberg_marquardt(
         st.n_evals += sens.n_evals
         return sens.jacobian()
 
-    deadline = t_start + time_budget_s
+    deadline = as_deadline(time_budget_s, FitError)
     show = bool(progress) and sys.stderr.isatty()
     bar = tqdm(total=max_iter, desc="Levenberg-Marquardt", disable=not show, leave=False)
     try:
         for it in range(int(max_iter)):
-            if time.perf_counter() - t_start > time_budget_s:
-                reason = f"time budget of {time_budget_s:g} s used up"
+            if deadline.expired():
+                reason = f"time budget of {deadline.budget_s:g} s used up"
                 break
             if st.cost <= 1e-28 * residual.n:
                 reason, success = "converged: the residual vanished (exact fit)", True
@@ -377,8 +383,8 @@ def levenberg_marquardt(
             n_iter = it + 1
             bar.update(1)
             if not accepted:
-                if time.perf_counter() - t_start > time_budget_s:
-                    reason = f"time budget of {time_budget_s:g} s used up"
+                if deadline.hit:
+                    reason = f"time budget of {deadline.budget_s:g} s used up"
                 else:
                     reason, success = "converged: no step reduces the cost further", True
                 history.append(st.cost)
@@ -424,4 +430,5 @@ def levenberg_marquardt(
         time_s=time.perf_counter() - t_start,
         vector=st.r,
         active=active,
+        stopped_by_budget=deadline.hit,
     )

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from ..budget import Deadline, as_deadline
 from ..checks import UNSET, check_seed, flag, integer, positive_number, probability, renamed_keyword
 from ..errors import FitError, RobustctlError
 from ..executors import check_executor
@@ -394,6 +395,9 @@ class UpdateResult:
         Covariance of the updated values from the noise model (parameter units, order of
         ``selected``); None without a noise model. Behind :attr:`moves_se` and
         :attr:`move_test`.
+    stopped_by_budget : bool
+        A ``time_budget_s`` stopped the optimisation early (:mod:`robustctl.budget`; also in
+        ``warnings``).
     """
 
     model: Any
@@ -418,6 +422,7 @@ class UpdateResult:
     noise_after: NoiseTest | None = None
     estimator_note: str = ""
     noise_covariance: np.ndarray | None = field(default=None, repr=False)
+    stopped_by_budget: bool = False
 
     @property
     def moves_se(self) -> dict[str, float]:
@@ -475,7 +480,7 @@ class UpdateResult:
         """Updated values of the selected parameters."""
         return dict(self.fit.x)
 
-    def sample_parameters(self, n: int, seed: Any = None, *, max_draws: int = 100) -> np.ndarray:
+    def sample_parameters(self, n: int, seed: Any = 0, *, max_draws: int = 100) -> np.ndarray:
         """Parameter sets drawn from the fit's normal approximation, within the bounds.
 
         The updated values are Gauss-Newton estimates with covariance ``s^2 (J^T J)^+``
@@ -489,7 +494,7 @@ class UpdateResult:
         n : int
             Number of parameter sets (>= 1).
         seed : int, numpy Generator or None
-            Random seed.
+            Random seed (default 0: the same draws on every call; None draws fresh entropy).
         max_draws : int
             Rejection cap, in multiples of ``n``.
 
@@ -577,7 +582,7 @@ class UpdateResult:
         except ModelError as exc:
             raise FitError(f"cannot build the uncertain model: {exc}") from exc
 
-    def sample_models(self, n: int, seed: Any = None, *, max_draws: int = 100) -> tuple[Any, ...]:
+    def sample_models(self, n: int, seed: Any = 0, *, max_draws: int = 100) -> tuple[Any, ...]:
         """Models with parameters drawn from the fitted covariance (see :meth:`sample_parameters`).
 
         Their spread about ``model`` is the parameter uncertainty the data leave; a cover of
@@ -810,7 +815,7 @@ def _passes(
     selected: tuple[str, ...],
     passes: int,
     max_iter: int,
-    budget: float,
+    budget: Deadline,
     ftol: float,
     max_orth: float,
     min_align: float,
@@ -832,7 +837,6 @@ def _passes(
     selected ones re-fitted) and the selection stays of full rank (:func:`_well_conditioned`, the
     rank test of :func:`select_parameters`: exact superparameters stay out); its standard error
     then says how well the data separate it."""
-    t0 = time.perf_counter()
     kw = dict(max_iter=max_iter, ftol=ftol, executor=executor, progress=progress)
     if x0:
         fit = levenberg_marquardt(residual, selected, x0=x0, time_budget_s=budget, **kw)
@@ -842,8 +846,7 @@ def _passes(
         history = list(fit.history)
     notes, n_evals = [], fit.n_evals
     for k in range(2, int(passes) + 1):
-        left = budget - (time.perf_counter() - t0)
-        if left <= 0 or len(selected) == len(names) or fit.cost <= 0:
+        if budget.expired() or len(selected) == len(names) or fit.cost <= 0:
             break
         dJ = _sens_at(residual, list(names), fit, executor, progress)
         n_evals += len(names) - len(fit.names)
@@ -883,7 +886,7 @@ def _passes(
             )
         added = added + readmitted
         selected = tuple(selected) + tuple(added)
-        fit = levenberg_marquardt(residual, selected, x0={**fit.x}, time_budget_s=left, **kw)
+        fit = levenberg_marquardt(residual, selected, x0={**fit.x}, time_budget_s=budget, **kw)
         history += list(fit.history[1:])
         n_evals += fit.n_evals
     return fit, tuple(history), notes, n_evals
@@ -895,7 +898,7 @@ def _check_update_settings(
     """The iteration cap, tolerance, budget and selection thresholds of :func:`update`."""
     integer(max_iter, "max_iter", FitError, lo=1)
     positive_number(ftol, "ftol", FitError)
-    positive_number(time_budget_s, "time_budget_s", FitError, unit="s")
+    Deadline(time_budget_s, error=FitError)  # None or seconds >= 0
     probability(min_alignment, "min_alignment", FitError)
     probability(max_orthogonality, "max_orthogonality", FitError)
 
@@ -969,7 +972,7 @@ def update(
     drift_bands: int = 3,
     drift_sigma: float | None = None,
     drift_floor: float = 0.01,
-    time_budget_s: float = 600.0,
+    time_budget_s: float | None = None,
     ftol: float = 1e-5,
     progress: bool | None = None,
     min_channel_db: float | None = NEGLIGIBLE_DB,
@@ -1022,8 +1025,10 @@ def update(
         combined standard errors and by more than ``drift_floor`` (relative). ``drift_sigma``
         None (default): with a noise model, the standard errors come from the noise and the
         threshold is the Bonferroni normal quantile at family-wise ``alpha``; without one, 3.
-    time_budget_s : float
-        Wall-clock budget of the optimisation (s).
+    time_budget_s : float or None
+        Optional wall-clock budget of the optimisation (s), by :mod:`robustctl.budget`'s
+        policy: None (default) lets ``max_iter`` and ``passes`` bound it; a budget that stops
+        it sets ``stopped_by_budget``, says so in ``warnings`` and issues a BudgetWarning.
     ftol : float
         Stop when the relative cost change of an iteration falls below this (MACE: "halted
         when the change in cost is below a desired threshold").
@@ -1060,6 +1065,8 @@ def update(
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
             raise FitError(f"{what} must be an integer >= {least}; got {value!r}.")
     _check_update_settings(max_iter, ftol, time_budget_s, min_alignment, max_orthogonality)
+    deadline = as_deadline(time_budget_s, FitError)
+    own_clock = not isinstance(time_budget_s, Deadline)  # diagnose's polish shares its own
     if drift_sigma is not None:
         drift_sigma = positive_number(drift_sigma, "drift_sigma", FitError)
     drift_floor = positive_number(drift_floor, "drift_floor", FitError, allow_zero=True)
@@ -1106,7 +1113,7 @@ def update(
         tuple(selected),
         passes,
         max_iter,
-        time_budget_s - (time.perf_counter() - t0),
+        deadline,
         ftol,
         max_orthogonality,
         min_alignment,
@@ -1132,6 +1139,8 @@ def update(
     reduction = 1.0 - fit.cost / history[0] if history[0] > 0 else 0.0
     before, after = (_verdict(residual, x, alpha) for x in ({}, fit.x))
     noise_cov = _noise_covariance(residual, fit)
+    if own_clock and deadline.hit:
+        deadline.warn("update's optimisation")
     return UpdateResult(
         model=model.with_values(**fit.x),
         initial_model=model,
@@ -1155,6 +1164,7 @@ def update(
         noise_before=before,
         noise_after=after,
         estimator_note=residual.describe_estimator(),
+        stopped_by_budget=deadline.hit,
     )
 
 

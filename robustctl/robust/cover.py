@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from ..budget import Deadline
 from ..checks import check_band, positive_number
 from ..errors import DataError, FitError
 from ..frd import FrequencyData
@@ -80,6 +81,8 @@ class UncertaintyCover:
     fit_time_s : float
         Time of the magnitude fit (s).
     notes : tuple of str
+    stopped_by_budget : bool
+        A ``time_budget_s`` ended the weight fit early (see :mod:`robustctl.budget`).
     """
 
     weight: Any
@@ -97,6 +100,7 @@ class UncertaintyCover:
     median_overbound_db: float = 0.0
     fit_time_s: float = 0.0
     notes: tuple[str, ...] = ()
+    stopped_by_budget: bool = False
 
     @property
     def covered(self) -> bool:
@@ -366,7 +370,8 @@ def _fit_points(f: np.ndarray, bound: np.ndarray) -> np.ndarray:
 
 
 def _fit_cover(
-    f: np.ndarray, bound: np.ndarray, idx: np.ndarray, order: int, kind: str, objective: str, budget: float
+    f: np.ndarray, bound: np.ndarray, idx: np.ndarray, order: int, kind: str, objective: str,
+    deadline: Deadline,
 ) -> tuple[Any, np.ndarray, float]:
     """Fit on the points ``idx``; points left uncovered join the fit (up to 4 rounds)."""
     from ..lti import freqresp_array
@@ -379,13 +384,13 @@ def _fit_cover(
             order,
             upper_bound=True,
             objective=objective,
-            time_budget_s=max(budget - (time.perf_counter() - t0), 0.1),
+            time_budget_s=deadline,
             name=f"W_{kind.split()[0]}",
         )
         mag = np.abs(freqresp_array(fit.system, f)[:, 0, 0])
         short = bound / mag
         bad = np.flatnonzero(short > 1.0 + 1e-6)
-        if bad.size == 0 or time.perf_counter() - t0 > budget:
+        if bad.size == 0 or deadline.expired():
             break
         worst = bad[np.argsort(short[bad])[::-1][:20]]
         idx = np.union1d(idx, worst)
@@ -398,7 +403,6 @@ def _check_options(order: Any, smooth_octaves: Any, floor: Any, time_budget_s: A
     positive_number(smooth_octaves, "smooth_octaves (0: no smoothing)", FitError, allow_zero=True)
     if not (positive_number(floor, "floor", FitError) < 1):
         raise FitError(f"floor must lie in (0, 1) (a fraction of the envelope's peak); got {floor!r}.")
-    positive_number(time_budget_s, "time_budget_s", FitError, unit="s")
     if not isinstance(objective, str) or objective not in ("max", "mean"):
         raise FitError(f'objective must be "max" or "mean"; got {objective!r}.')
 
@@ -412,13 +416,14 @@ def _cover(
     band: Any,
     smooth_octaves: float,
     floor: float,
-    time_budget_s: float,
+    time_budget_s: float | None,
     objective: str,
     data_sigmas: float,
 ) -> UncertaintyCover:
     from ..lti import freqresp_array
 
     _check_options(order, smooth_octaves, floor, time_budget_s, objective)
+    deadline = Deadline(time_budget_s, error=FitError)
     f, labels, errs = error_envelope(
         nominal, data_or_models, kind, f_hz=f_hz, band=band, data_sigmas=data_sigmas
     )
@@ -435,7 +440,10 @@ def _cover(
         )
     bound = _running_max(f, np.maximum(envelope, floor * peak), float(smooth_octaves))
     idx = _fit_points(f, bound)
-    W, mag, fit_time = _fit_cover(f, bound, idx, int(order), kind, objective, time_budget_s)
+    W, mag, fit_time = _fit_cover(f, bound, idx, int(order), kind, objective, deadline)
+    if deadline.hit:
+        notes.append(f"the time budget ({deadline.budget_s:g} s) stopped the weight fit early.")
+        deadline.warn(f"the {kind} cover's weight fit", stacklevel=4)
     short = float(np.max(bound / mag))
     if short > 1.0:  # still short between fit points: raise the gain until every point is covered
         W = W * (short * (1.0 + 1e-9))
@@ -466,6 +474,7 @@ def _cover(
         median_overbound_db=float(DB_PER_NEPER * np.median(np.log(ratio))),
         fit_time_s=fit_time,
         notes=tuple(notes),
+        stopped_by_budget=deadline.hit,
     )
 
 
@@ -480,7 +489,7 @@ def cover_additive(
     floor: float = 1e-3,
     objective: str = "max",
     data_sigmas: float = 3.0,
-    time_budget_s: float = 30.0,
+    time_budget_s: float | None = None,
 ) -> UncertaintyCover:
     """An additive uncertainty weight covering ``sigma_max(G - G0)`` at every grid frequency.
 
@@ -515,8 +524,9 @@ def cover_additive(
         estimate's random error (coherence, number of averages; Bendat-Piersol eq. 9.90),
         so the cover bounds the true plant's error, not only the estimate's; 0 covers the
         estimate as measured.
-    time_budget_s : float
-        Cap on the magnitude fit (s).
+    time_budget_s : float or None
+        Optional wall-clock cap on the magnitude fit (s), by :mod:`robustctl.budget`'s policy:
+        None (default) bounds the fit by its iteration counts only.
 
     Returns
     -------
@@ -562,7 +572,7 @@ def cover_multiplicative(
     floor: float = 1e-3,
     objective: str = "max",
     data_sigmas: float = 3.0,
-    time_budget_s: float = 30.0,
+    time_budget_s: float | None = None,
 ) -> UncertaintyCover:
     """A multiplicative uncertainty weight covering the relative error at every grid frequency.
 

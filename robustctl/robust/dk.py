@@ -54,6 +54,7 @@ from typing import Any
 
 import numpy as np
 
+from ..budget import Deadline, as_deadline
 from ..checks import flag, integer, positive_number
 from ..errors import PlantError, SynthesisError
 from ..executors import check_executor, parallel_map
@@ -252,7 +253,7 @@ def _autoscaled(plant: GeneralizedPlant,
         logd.append(0.5 * np.log(n21 / n12) if ok else 0.0)
     d0 = np.exp(np.array(logd) - logd[-1])
     nb = len(d0) - 1
-    opts = {"gamma_tol": 1e-2, "backoff": HINF_BACKOFF, "time_budget_s": 10.0,
+    opts = {"gamma_tol": 1e-2, "backoff": HINF_BACKOFF,
             **{k: v for k, v in (hinf_options or {}).items() if k == "method"}}
 
     def gamma_of(x: np.ndarray) -> float:
@@ -449,15 +450,8 @@ def _fit_one(args: tuple) -> Any:
     """One D-scale fit (module level so a process executor can pickle it)."""
     from .magfit import fit_magnitude
 
-    f_hz, mag, order, budget = args
-    return _into_band(fit_magnitude(f_hz, mag, order, tol_db=FIT_TOL_DB, time_budget_s=budget), f_hz)
-
-
-def _fit_budget(deadline: float | None) -> float:
-    """Seconds one D fit may take: 10, less what would overrun ``deadline`` (at least 0.5)."""
-    if deadline is None:
-        return 10.0
-    return float(min(10.0, max(0.5, deadline - time.perf_counter())))
+    f_hz, mag, order, deadline = args
+    return _into_band(fit_magnitude(f_hz, mag, order, tol_db=FIT_TOL_DB, time_budget_s=deadline), f_hz)
 
 
 def _into_band(fit: Any, f_hz: np.ndarray, margin: float = 10.0) -> Any:
@@ -530,7 +524,7 @@ def _edge_scales(fit: Any) -> np.ndarray:
 def _fit_d_scales(
     H: np.ndarray, m: Any, blocks: BlockStructure, order_d: int | Sequence[int] | None,
     executor: Executor | None, previous: Sequence[int] = (), H_edges: np.ndarray | None = None,
-    deadline: float | None = None, scaled_bound: Callable | None = None,
+    deadline: Deadline | None = None, scaled_bound: Callable | None = None,
 ) -> tuple[list[Any], tuple[int, ...], float]:
     """Fit each block's ``|d_i|`` (last block = 1); choose the order by the scaled bound.
 
@@ -555,6 +549,7 @@ def _fit_d_scales(
     """
     from ..lti import freqresp_array
 
+    deadline = deadline or Deadline(None)
     f = np.asarray(m.f_hz, dtype=float)
     d = np.asarray(m.d_scales, dtype=float)
     d = d / d[:, [-1]]
@@ -597,25 +592,24 @@ def _fit_d_scales(
         blocks went through all nine orders, 37 fits and 39 s of a 51 s D-K run). Past
         ``deadline`` no further order is tried once one is in band."""
         if executor is not None:
-            jobs = [(f, d[:, i], o, _fit_budget(deadline)) for o in candidates]
+            jobs = [(f, d[:, i], o, deadline) for o in candidates]
             fitted = dict(zip(candidates, parallel_map(_fit_one, jobs, executor, progress=False)))
         else:
             fitted = {}
         if executor is None and len(candidates) >= SHORTCUT_MIN_ORDERS:
             top = max(candidates)
-            fitted[top] = _fit_one((f, d[:, i], top, _fit_budget(deadline)))
+            fitted[top] = _fit_one((f, d[:, i], top, deadline))
             first = judge(i, top, fitted[top])
             if first is not None and first[0] > acceptable:
                 return first
         best = None
         for o in candidates:
             if o not in fitted:
-                fitted[o] = _fit_one((f, d[:, i], o, _fit_budget(deadline)))
+                fitted[o] = _fit_one((f, d[:, i], o, deadline))
             trial = judge(i, o, fitted[o])
             if trial is not None and (best is None or trial[0] < best[0]):
                 best = trial
-            if best is not None and (best[0] <= acceptable or
-                                     (deadline is not None and time.perf_counter() > deadline)):
+            if best is not None and (best[0] <= acceptable or deadline.expired()):
                 break
         return best
 
@@ -663,7 +657,7 @@ def _log_scales(m: Any) -> tuple[np.ndarray, np.ndarray]:
 
 def _extrapolated(m: Any, previous: tuple[np.ndarray, np.ndarray], orders: Sequence[int],
                   betas: Sequence[float], executor: Executor | None,
-                  deadline: float | None = None) -> list[_DCandidate]:
+                  deadline: Deadline | None = None) -> list[_DCandidate]:
     """Fits of ``ln d_k + beta (ln d_k - ln d_{k-1})`` per block (the line search's candidates).
 
     ``previous`` is the last controller's ``(f_hz, ln d)`` (interpolated in log frequency onto
@@ -675,7 +669,8 @@ def _extrapolated(m: Any, previous: tuple[np.ndarray, np.ndarray], orders: Seque
     old = np.stack([np.interp(np.log(f), np.log(f_old), logd_old[:, i]) for i in range(logd.shape[1])],
                    axis=1)
     steps = [b for b in betas if b != 0.0]
-    jobs = [(f, np.exp(logd[:, i] + b * (logd[:, i] - old[:, i])), o, _fit_budget(deadline))
+    deadline = deadline or Deadline(None)
+    jobs = [(f, np.exp(logd[:, i] + b * (logd[:, i] - old[:, i])), o, deadline)
             for b in steps for i, o in enumerate(orders)]
     fits = list(parallel_map(_fit_one, jobs, executor, progress=False) if executor is not None
                 else (_fit_one(j) for j in jobs))
@@ -825,6 +820,9 @@ class DKResult:
     grid_mu_peak : float
         The returned controller's peak of mu on the iteration grid (what the iteration saw;
         ``mu_peak`` is at least this).
+    stopped_by_budget : bool
+        A ``time_budget_s`` ended the iteration (or a K step's bisection) early: the result
+        depends on the machine's speed (:mod:`robustctl.budget`).
     """
 
     K: Any
@@ -838,6 +836,7 @@ class DKResult:
     d_scales: tuple[Any, ...] = ()
     reduction: Reduction | None = None
     grid_mu_peak: float = float("nan")
+    stopped_by_budget: bool = False
 
     @property
     def time_s(self) -> float:
@@ -867,6 +866,9 @@ class DKResult:
         if self.mu_peak > self.grid_mu_peak * (1 + 1e-3):
             text += (f" Between and beyond the iteration grid's points mu reaches {self.mu_peak:.4f} "
                      f"(the grid saw {self.grid_mu_peak:.4f}).")
+        if self.stopped_by_budget:
+            text += (" The time budget stopped the iteration early: the result depends on the "
+                     "machine's speed (time_budget_s=None for one that does not).")
         rises = [h for h in self.history if h.note]
         if rises:
             text += " " + " ".join(f"Iteration {h.index}: {h.note}." for h in rises)
@@ -921,7 +923,7 @@ def _mu_of(cl: Any, blocks: BlockStructure, f_hz: np.ndarray, refine: bool) -> t
 
 def _check_args(max_iter: Any, time_budget_s: Any, f_hz: Any) -> np.ndarray | None:
     integer(max_iter, "max_iter", SynthesisError, lo=1, hi=100)
-    positive_number(time_budget_s, "time_budget_s", SynthesisError, unit="s")
+    as_deadline(time_budget_s, SynthesisError)  # None, seconds >= 0 or a caller's Deadline
     if f_hz is None:
         return None
     try:
@@ -952,7 +954,9 @@ def _check_options(progress: Any, rtol: Any, patience: Any, hinf_options: Any, c
             f"hinf_options must be a dict with keys among {allowed} (rc.hinfsyn's options); "
             f"got {hinf_options!r}."
         )
-    for key in ("gamma_tol", "backoff", "time_budget_s"):
+    if "time_budget_s" in hinf_options:
+        Deadline(hinf_options["time_budget_s"], error=SynthesisError)
+    for key in ("gamma_tol", "backoff"):
         if key in hinf_options:
             positive_number(hinf_options[key], f"hinf_options[{key!r}]", SynthesisError,
                             allow_zero=key == "backoff")
@@ -975,7 +979,7 @@ def check_dk_options(options: Any, where: str) -> None:
         raise SynthesisError(
             f"{where} got unknown D-K option(s) {unknown}; the options are {list(_DK_OPTIONS)}."
         )
-    _check_args(options.get("max_iter", 10), options.get("time_budget_s", 120.0), options.get("f_hz"))
+    _check_args(options.get("max_iter", 10), options.get("time_budget_s"), options.get("f_hz"))
     _check_options(None, options.get("rtol", 1e-3), options.get("patience", 1), options.get("hinf_options"),
                    options.get("callback"))
     check_executor(options.get("executor"))
@@ -989,7 +993,7 @@ def dksyn(
     order_d: int | Sequence[int] | None = None,
     f_hz: Any = None,
     executor: Executor | None = None,
-    time_budget_s: float = 120.0,
+    time_budget_s: float | None = None,
     reduce: int | str | tuple | None = None,
     progress: bool | None = None,
     *,
@@ -1025,9 +1029,13 @@ def dksyn(
         damped closed-loop poles each iteration.
     executor : concurrent.futures.Executor, optional
         Runs the D-scale fits (block x candidate order) in parallel.
-    time_budget_s : float
-        Wall-clock budget (s); the iteration stops (keeping the best controller) when what is
-        left would not cover another K step and mu analysis as long as the last one.
+    time_budget_s : float or None
+        Optional wall-clock budget (s), by :mod:`robustctl.budget`'s policy. None (default):
+        ``max_iter``, ``patience`` and the fits' own iteration caps bound the work, and the
+        result depends only on the inputs. A number: the iteration also stops (keeping the
+        best controller, ``stopped_by_budget=True``, a BudgetWarning) when what is left would
+        not cover another K step as long as the last one; the K steps' gamma bisections and
+        the D fits share the budget.
     reduce : int or "auto", optional
         Reduce the final controller to this many states by balanced truncation and re-check
         mu (kept only if it stabilises and raises the peak of mu by at most 2 %). ``"auto"``:
@@ -1046,7 +1054,7 @@ def dksyn(
         worse iteration (mu 0.79 -> 0.95 -> 0.80) cost 40 % more time and never won.
     hinf_options : dict, optional
         Extra keyword arguments for :func:`~robustctl.robust.hinf_synthesis.hinfsyn` (default
-        ``backoff=HINF_BACKOFF``, ``time_budget_s`` = what is left of the budget).
+        ``backoff=HINF_BACKOFF``, ``time_budget_s``: this call's budget, shared).
     callback : callable, optional
         Called with each :class:`DKIteration`.
     real : {"mixed", "complex"}
@@ -1108,7 +1116,8 @@ def dksyn(
             real=real, gamma=gamma), reduce)
     base = default_grid(plant.P) if grid is None else grid
     show = sys.stderr.isatty() and (progress is None or bool(progress))
-    t_start = time.perf_counter()
+    own_clock = not isinstance(time_budget_s, Deadline)  # the autoscaled starts share theirs
+    deadline = as_deadline(time_budget_s, SynthesisError)
     history: list[DKIteration] = []
     best: dict[str, Any] | None = None
     candidates = [_DCandidate((), ())]
@@ -1118,11 +1127,9 @@ def dksyn(
     try:
         for index in range(1, max_iter + 1):
             t0 = time.perf_counter()
-            remaining = time_budget_s - (t0 - t_start)
-            opts = {"time_budget_s": max(remaining, 1.0), "backoff": HINF_BACKOFF, **(hinf_options or {})}
+            opts = {"time_budget_s": deadline, "backoff": HINF_BACKOFF, **(hinf_options or {})}
             try:
-                hres, cand = _k_step_search(hinfsyn, plant, candidates, opts, index, t_start + time_budget_s,
-                                            gamma)
+                hres, cand = _k_step_search(hinfsyn, plant, candidates, opts, index, deadline, gamma)
             except SynthesisError as exc:
                 if best is None:
                     raise
@@ -1153,11 +1160,10 @@ def dksyn(
             # started with too little time left stops its gamma bisection early (gamma 7.3
             # where 1.2 was reachable, on a 28-state plant with five scaled blocks)
             k_time = time.perf_counter() - t0
-            out_of_time = time.perf_counter() - t_start + k_time > time_budget_s
+            out_of_time = deadline.expired() or deadline.remaining() < k_time
             done = stale >= patience or index == max_iter or out_of_time
             bound = float("nan")
             if not done:
-                deadline = t_start + time_budget_s
                 g_fits, level, md, zb = (), float("nan"), m, None
                 H_edges = _edge_response(cl)
                 if mixed:
@@ -1184,8 +1190,9 @@ def dksyn(
                     kept = best["it"]
                     stop += f"; iteration {kept.index}'s controller (mu {kept.mu_peak:.4f}) is kept"
                 break
-            if (out_of_time or time.perf_counter() - t_start + k_time > time_budget_s) and index < max_iter:
-                stop = (f"time budget {time_budget_s:g} s: too little left for another iteration "
+            if (out_of_time or deadline.expired() or deadline.remaining() < k_time) and index < max_iter:
+                deadline.hit = True
+                stop = (f"time budget {deadline.budget_s:g} s: too little left for another iteration "
                         f"(this one's K step and mu analysis took {k_time:.1f} s)")
                 break
     finally:
@@ -1207,9 +1214,13 @@ def dksyn(
             "iterations were judged on too coarse a grid (pass a denser f_hz, or leave it to the default).",
             RuntimeWarning, stacklevel=2,
         )
+    stopped = deadline.hit  # shared with the K steps' bisections and the D fits
+    if stopped and own_clock:
+        deadline.warn("dksyn (D-K iteration)")
     return DKResult(K=K, mu_peak=float(m.peak), mu=m, closed_loop=cl, history=tuple(history),
                     best_iteration=best["it"].index, stop_reason=stop, blocks=plant.blocks,
-                    d_scales=d_fits, reduction=reduction, grid_mu_peak=grid_peak)
+                    d_scales=d_fits, reduction=reduction, grid_mu_peak=grid_peak,
+                    stopped_by_budget=stopped)
 
 
 def _autoscaled_dksyn(plant: GeneralizedPlant, blocks: BlockStructure, options: dict,
@@ -1230,19 +1241,16 @@ def _autoscaled_dksyn(plant: GeneralizedPlant, blocks: BlockStructure, options: 
     import control
 
     scaled, sc = _autoscaled(plant, options.get("hinf_options"))
-    t0 = time.perf_counter()
-    budget = float(options["time_budget_s"])
+    deadline = as_deadline(options["time_budget_s"], SynthesisError)  # shared by the starts
     best = None
-    for k, s in enumerate(AUTOSCALE_STARTS):
-        left = budget - (time.perf_counter() - t0)
-        if best is not None and (left < 1.0 or best[0].mu_peak < AUTOSCALE_CERTIFIED):
+    for s in AUTOSCALE_STARTS:
+        if best is not None and (deadline.expired() or best[0].mu_peak < AUTOSCALE_CERTIFIED):
             break
         factor = np.exp(np.append(np.full(len(sc.d) - 1, s), 0.0))
         sc_k = _Scaling(sc.su, sc.sy, sc.d * factor)
         P_k = _constant_scaled(plant, sc.su, sc.sy, sc_k.d)
-        share = left / (len(AUTOSCALE_STARTS) - k)
         res = dksyn((P_k, plant.nmeas, plant.ncon, plant.blocks),
-                    **{**options, "time_budget_s": max(share, 1.0)}, autoscale=False)
+                    **{**options, "time_budget_s": deadline}, autoscale=False)
         if best is None or res.mu_peak < best[0].mu_peak:
             best = (res, sc_k, P_k)
     res, sc_k, P_k = best
@@ -1258,8 +1266,10 @@ def _autoscaled_dksyn(plant: GeneralizedPlant, blocks: BlockStructure, options: 
     cl = closed_loop(plant.P, K, plant.nmeas, plant.ncon)
     d_fits = tuple(control.ss(f.A, f.B, f.C * float(di), f.D * float(di))
                    for f, di in zip(res.d_scales, sc_k.d))
+    if deadline.hit:
+        deadline.warn("dksyn (D-K iteration from the autoscaled starts)")
     return _replace(res, K=K, closed_loop=cl, mu=_unscaled_mu(m, sc_k), mu_peak=float(m.peak),
-                    d_scales=d_fits, reduction=reduction)
+                    d_scales=d_fits, reduction=reduction, stopped_by_budget=deadline.hit)
 
 
 def _g_step(m: Any, H: np.ndarray, H_edges: np.ndarray,
@@ -1295,7 +1305,7 @@ def _g_step(m: Any, H: np.ndarray, H_edges: np.ndarray,
 
 
 def _k_step_search(hinfsyn: Callable, plant: GeneralizedPlant, candidates: Sequence[_DCandidate], opts: dict,
-                   index: int, deadline: float | None = None,
+                   index: int, deadline: Deadline | None = None,
                    gamma: float | None = None) -> tuple[Any, _DCandidate]:
     """The K step for each D-scale candidate; the lowest verified gamma wins (the line search).
 
@@ -1305,7 +1315,7 @@ def _k_step_search(hinfsyn: Callable, plant: GeneralizedPlant, candidates: Seque
 
     best, first_error = None, None
     for cand in candidates:
-        if best is not None and deadline is not None and time.perf_counter() > deadline:
+        if best is not None and deadline is not None and deadline.expired():
             break
         P_scaled = _scale_plant(plant, cand.fits)
         try:

@@ -47,16 +47,18 @@ def _sym(M):
 
 
 def _solve(prob, time_limit: float) -> None:
-    """Solve with Clarabel within ``time_limit`` s. An "inaccurate" status is not warned about here:
-    the caller checks the margins and hinfsyn verifies the closed loop with hinfnorm."""
+    """Solve with Clarabel, within ``time_limit`` s when finite (``inf``: Clarabel's iteration cap
+    only, so the solution depends on nothing but the problem). An "inaccurate" status is not
+    warned about here: the caller checks the margins and hinfsyn verifies the closed loop."""
     import warnings
 
     import cvxpy as cp
 
+    limit = {} if not np.isfinite(time_limit) else {"time_limit": max(time_limit, 1.0)}
     try:
         with warnings.catch_warnings():
             warnings.filterwarnings("ignore", message="Solution may be inaccurate")
-            prob.solve(solver=cp.CLARABEL, time_limit=max(time_limit, 1.0))
+            prob.solve(solver=cp.CLARABEL, **limit)
     except cp.error.SolverError as exc:
         raise SynthesisError(f"the LMI solver (Clarabel) failed: {exc}") from exc
 

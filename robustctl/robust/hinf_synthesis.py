@@ -16,10 +16,13 @@ Two routes, both verified on the closed loop:
 
 The controller is designed at ``gamma_opt (1 + backoff)``, because the Riccati solutions
 blow up at the optimum (ZDG sec. 16.9), then ``Fl(P, K)`` is formed, and the result is
-accepted only when the closed loop is stable and ``||Fl(P, K)||_inf <= gamma_design (1 + 1e-6)``
-(by :func:`robustctl.robust.hinf_norm.hinfnorm`); otherwise gamma is raised and the design
-repeated (at most ``MAX_RETRIES`` times). Every loop is capped and the whole call obeys
-``time_budget_s``.
+accepted only when the closed loop is stable and an upper bound of ``||Fl(P, K)||_inf`` is at
+most ``gamma_design (1 + 1e-6)``; otherwise gamma is raised and the design repeated (at most
+``MAX_RETRIES`` times). The bound is :func:`robustctl.robust.hinf_norm.hinfnorm`'s value ``g``
+at ``NORM_TOL`` raised to ``g (1 + 2 NORM_TOL)``: the Bruinsma-Steinbuch iteration guarantees
+``g <= ||G||_inf <= g (1 + 2 tol)``, so the reported ``gamma`` is never below the closed
+loop's norm, and at most ``2 NORM_TOL`` (relative) above it. Every loop is capped in number; an
+optional ``time_budget_s`` follows :mod:`robustctl.budget`'s policy.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from typing import Any
 import numpy as np
 import scipy.linalg
 
+from ..budget import Deadline, as_deadline
 from ..checks import positive_number
 from ..errors import SynthesisError
 from ..interconnect import PartitionedPlant, lft
@@ -51,6 +55,9 @@ MAX_BRACKET_STEPS = 16
 MAX_BISECTION_STEPS = 60
 #: Relative slack of the closed-loop check ``||Fl(P, K)||_inf <= gamma_design (1 + VERIFY_TOL)``.
 VERIFY_TOL = 1e-6
+#: Relative accuracy of the closed-loop norm (hinfnorm's ``tol``): the reported gamma is an
+#: upper bound of ``||Fl(P, K)||_inf``, at most ``2 NORM_TOL`` (relative) above it.
+NORM_TOL = 1e-7
 
 
 # ---------------------------------------------------------------------------- result
@@ -64,7 +71,9 @@ class HinfResult:
         The controller ``u = K y``: inputs named like the plant's measurements, outputs like
         its control inputs.
     gamma : float
-        Verified closed-loop H-infinity norm ``||Fl(P, K)||_inf`` (by :func:`hinfnorm`).
+        Verified upper bound of the closed-loop H-infinity norm ``||Fl(P, K)||_inf`` of
+        ``closed_loop``: ``||Fl|| <= gamma <= ||Fl|| (1 + 2 info["norm_tol"])``
+        (:func:`hinfnorm`'s bracket, Bruinsma & Steinbuch 1990); exact for a static loop.
     gamma_opt : float
         Best achievable gamma found (the bisection's smallest feasible gamma, or the LMI optimum).
     closed_loop : control.StateSpace
@@ -73,7 +82,8 @@ class HinfResult:
         ``method``, ``gamma_design``, ``backoff``, ``gamma_lower`` (largest gamma shown
         infeasible, or the Parrott bound), ``n_gamma_tests``, ``history`` (list of
         ``(gamma, feasible, reason)``), ``retries``, ``closed_loop_max_real_pole`` (rad/s),
-        ``f_peak_hz``, ``time_s``, ``stopped_by_budget``.
+        ``f_peak_hz``, ``time_s``, ``norm_tol`` (relative accuracy of ``gamma``),
+        ``stopped_by_budget``, ``time_budget_s``.
     """
 
     K: Any
@@ -224,17 +234,6 @@ def _loop_shift(K: tuple[np.ndarray, ...], D22: np.ndarray) -> tuple[np.ndarray,
 
 
 # ---------------------------------------------------------------------------- Riccati route
-class _Clock:
-    def __init__(self, budget: float) -> None:
-        self.t0, self.budget = time.monotonic(), budget
-
-    def elapsed(self) -> float:
-        return time.monotonic() - self.t0
-
-    def left(self) -> float:
-        return self.budget - self.elapsed()
-
-
 def _balance(m: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """A diagonal state similarity balancing ``[[A, B], [C, 0]]`` (LAPACK gebal, like MATLAB's ssbal).
 
@@ -276,7 +275,7 @@ def _upper_start(m: dict[str, np.ndarray], lower: float) -> tuple[float, bool]:
 
 
 def _bisect(
-    p: dgkf.Normalised, m, clock: _Clock, gamma_tol: float, history: list
+    p: dgkf.Normalised, m, clock: Deadline, gamma_tol: float, history: list
 ) -> tuple[float, float, bool]:
     """Bracket and bisect gamma; returns ``(gamma_opt, gamma_lower, stopped_by_budget)``."""
 
@@ -292,9 +291,10 @@ def _bisect(
     for _ in range(MAX_BRACKET_STEPS):
         if test(hi):
             break
-        if clock.left() <= 0:
+        if clock.expired():
             raise SynthesisError(
-                f"time budget exhausted before any feasible gamma was found (tested up to {hi:.3g})."
+                f"time_budget_s={clock.budget_s:g} s ran out before any feasible gamma was found (tested up "
+                f"to {hi:.3g}); raise time_budget_s or leave it None (the gamma tests are capped in number)."
             )
         if achievable:
             # K = 0 achieves ||P11||, and feasibility is monotone in gamma: this failure is
@@ -318,7 +318,7 @@ def _bisect(
     for _ in range(MAX_BISECTION_STEPS):
         if hi <= lo * (1.0 + gamma_tol):
             break
-        if clock.left() <= 0:
+        if clock.expired():
             stopped = True
             break
         mid = float(np.sqrt(lo * hi))
@@ -337,17 +337,27 @@ def _riccati_design(m: dict[str, np.ndarray], gamma: float) -> tuple[np.ndarray,
     return _loop_shift(K0, m["D22"])
 
 
+def _norm_bound(A, B, C, D) -> tuple[float, float]:
+    """Upper bound of ``||(A, B, C, D)||_inf`` within ``2 NORM_TOL`` (relative) and the peak (rad/s).
+
+    :func:`hinfnorm_matrices` returns ``g`` with ``g <= ||G|| <= g (1 + 2 tol)`` (Bruinsma &
+    Steinbuch 1990); without states the norm ``sigma_max(D)`` is exact.
+    """
+    norm, w = hinfnorm_matrices(A, B, C, D, NORM_TOL)
+    return (norm * (1.0 + 2.0 * NORM_TOL) if A.shape[0] else norm), w
+
+
 def _verify(m, K, gamma_design: float) -> tuple[bool, float, float, float]:
-    """Stable and ``||Fl(P,K)|| <= gamma_design (1+VERIFY_TOL)``? Returns (ok, norm, w_peak, max Re(pole))."""
+    """Stable and ``||Fl(P,K)|| <= gamma_design (1+VERIFY_TOL)``? Returns (ok, norm bound, w_peak, max Re)."""
     A, B, C, D = _closed_loop(m, K)
     if not np.all(np.isfinite(A)) or not np.all(np.isfinite(B)):
         return False, np.inf, np.nan, np.inf
     max_re = spectral_abscissa(A)
-    norm, w = hinfnorm_matrices(A, B, C, D, 1e-7)
+    norm, w = _norm_bound(A, B, C, D)
     return bool(max_re < 0 and norm <= gamma_design * (1 + VERIFY_TOL)), norm, w, max_re
 
 
-def _design_and_verify(m, design, gamma0: float, backoff: float, clock: _Clock, info: dict):
+def _design_and_verify(m, design, gamma0: float, backoff: float, clock: Deadline, info: dict):
     """Design at ``gamma0 (1 + backoff)``, raise gamma until the closed-loop check passes (bounded)."""
     gamma_d = gamma0 * (1.0 + backoff)
     step = max(backoff, 0.01)
@@ -367,7 +377,7 @@ def _design_and_verify(m, design, gamma0: float, backoff: float, clock: _Clock, 
                 f_peak_hz=w / (2 * np.pi),
             )
             return K, norm
-        if clock.left() <= 0:
+        if clock.expired():
             break
         gamma_d *= 1.0 + step
         step *= 2.0
@@ -406,7 +416,7 @@ def _lmi(m, backoff, clock, info):
     check_assumptions(m, ranks=False)
     m0 = dict(m, D22=np.zeros_like(m["D22"]))  # (no balancing: it can inflate the Lyapunov matrices)
     scale = max(1.0, float(np.abs(m["D11"]).max()) if m["D11"].size else 1.0)
-    gamma_opt, R0, S0 = lmi_gamma(m0, 1e-8 * scale, clock.left())
+    gamma_opt, R0, S0 = lmi_gamma(m0, 1e-8 * scale, clock.remaining())
     rho = (
         10.0 * max(1.0, float(np.linalg.eigvalsh(R0)[-1]), float(np.linalg.eigvalsh(S0)[-1]))
         if R0.size
@@ -420,7 +430,7 @@ def _lmi(m, backoff, clock, info):
     )
 
     def design(g):
-        return _loop_shift(lmi_controller(m0, g, rho, max(clock.left(), 1.0)), m["D22"])
+        return _loop_shift(lmi_controller(m0, g, rho, clock.remaining()), m["D22"])
 
     K, norm = _design_and_verify(m, design, gamma_opt, backoff, clock, info)
     return K, norm, gamma_opt
@@ -436,7 +446,7 @@ def hinfsyn(
     method: str = "riccati",
     gamma_tol: float = 1e-3,
     backoff: float = 0.01,
-    time_budget_s: float = 60.0,
+    time_budget_s: float | None = None,
 ) -> HinfResult:
     """H-infinity controller ``K`` minimising ``||Fl(P, K)||_inf`` (continuous or discrete time).
 
@@ -463,9 +473,12 @@ def hinfsyn(
     backoff : float
         The controller is designed at ``gamma_opt (1 + backoff)`` (relative, default 1%),
         which keeps the Riccati solutions well conditioned.
-    time_budget_s : float
-        Wall-clock budget (s) of the whole call; the bisection stops early (reported in
-        ``info["stopped_by_budget"]``) and nothing runs unbounded.
+    time_budget_s : float or None
+        Optional wall-clock budget (s) of the whole call, by :mod:`robustctl.budget`'s policy.
+        None (default): the gamma tests (``MAX_BRACKET_STEPS``, ``MAX_BISECTION_STEPS``) and
+        design retries (``MAX_RETRIES``) are capped in number, and the result depends only on
+        the inputs. A number: the bisection may stop early (``info["stopped_by_budget"]``, the
+        summary and a BudgetWarning say so); the LMI solver gets what is left as its limit.
 
     Returns
     -------
@@ -493,13 +506,15 @@ def hinfsyn(
         raise SynthesisError(f"method must be 'riccati' or 'lmi'; got {method!r}.")
     gamma_tol = _bounded(gamma_tol, "gamma_tol", 0.5)
     backoff = _bounded(backoff, "backoff", 10.0, allow_zero=True)
-    time_budget_s = positive_number(time_budget_s, "time_budget_s", SynthesisError, unit="s")
+    own_clock = not isinstance(time_budget_s, Deadline)  # a caller's (dksyn's) Deadline: it reports
+    clock = as_deadline(time_budget_s, SynthesisError)
     plant = as_partitioned(P, nmeas, ncon, who="hinfsyn", allow_discrete=True)
     m = plant.matrices()
     if not all(np.all(np.isfinite(v)) for v in m.values()):
         raise SynthesisError("the plant's state-space matrices contain NaN or inf.")
-    clock = _Clock(time_budget_s)
-    info: dict = {"method": method, "backoff": backoff, "gamma_tol": gamma_tol}
+    t0 = time.perf_counter()
+    info: dict = {"method": method, "backoff": backoff, "gamma_tol": gamma_tol,
+                  "time_budget_s": clock.budget_s}
     dt = plant.P.dt
     discrete = dt not in (0, None)
     mc = _bilinear_plant(m) if discrete else m
@@ -510,7 +525,9 @@ def hinfsyn(
     if discrete:
         K, norm = _discrete_controller(m, K, dt, info)
     info["discrete"] = discrete
-    info["time_s"] = clock.elapsed()
+    info["time_s"] = time.perf_counter() - t0
+    if own_clock and info.get("stopped_by_budget"):
+        clock.warn("hinfsyn's gamma bisection")
     return _result(plant, m, K, norm, gamma_opt, info)
 
 
@@ -557,7 +574,7 @@ def _discrete_controller(m: dict[str, np.ndarray], K: tuple, dt: Any, info: dict
     gamma_d = info["gamma_design"]
     norm, w = np.inf, np.nan
     if rho < 1.0:
-        norm, w = hinfnorm_matrices(*_discrete_to_continuous(A, B, C, D), 1e-7)
+        norm, w = _norm_bound(*_discrete_to_continuous(A, B, C, D))
     if not (rho < 1.0 and norm <= gamma_d * (1 + VERIFY_TOL)):
         raise SynthesisError(
             f"the discrete controller failed its closed-loop check (spectral radius {rho:.12g}, "
@@ -586,4 +603,10 @@ def _result(plant: PartitionedPlant, m, K, norm: float, gamma_opt: float, info: 
         name="K",
     )
     cl = lft(plant, Kss)  # the shared named interconnection: w -> z with the plant's names
+    # the bound of the realisation returned (the design loop's array LFT differs by rounding)
+    mats = tuple(np.asarray(x, dtype=float) for x in (cl.A, cl.B, cl.C, cl.D))
+    if info.get("discrete"):
+        mats = _discrete_to_continuous(*mats)  # the bilinear map keeps the H-infinity norm
+    norm, _ = _norm_bound(*mats)
+    info["norm_tol"] = NORM_TOL
     return HinfResult(K=Kss, gamma=float(norm), gamma_opt=float(gamma_opt), closed_loop=cl, info=info)

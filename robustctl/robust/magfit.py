@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from ..budget import Deadline, as_deadline
 from ..checks import flag, integer, optional_text, positive_number, real_array
 from ..errors import FitError
 from ..lti import _pair, _zpk_response, is_stable, zpk_statespace
@@ -402,7 +403,7 @@ def _mean_overbound(prob: _Problem, a: np.ndarray, b: np.ndarray) -> float:
     return float(np.sum((e - e.min()) * prob.wt) / np.sum(prob.wt))
 
 
-def _tighten(prob: _Problem, a: np.ndarray, b: np.ndarray, cap: float, deadline: float, n_iter: int = 6):
+def _tighten(prob: _Problem, a: np.ndarray, b: np.ndarray, cap: float, deadline: Deadline, n_iter: int = 6):
     """From a covering fit, lower the mean log overbound (Sanathanan-Koerner-like steps).
 
     Each LP minimises ``sum w_k A_k / A_prev_k`` (the linearised ``sum w_k ln A_k``) subject
@@ -413,7 +414,7 @@ def _tighten(prob: _Problem, a: np.ndarray, b: np.ndarray, cap: float, deadline:
     the mean criterion is kept.
     """
     best, best_val, n_lp, it = (a, b), _mean_overbound(prob, a, b), 0, 0
-    while it < n_iter and n_lp < 4 * n_iter and time.perf_counter() < deadline:
+    while it < n_iter and n_lp < 4 * n_iter and not deadline.expired():
         phi, n1 = prob.phi, prob.phi.shape[1]
         A_prev, B_prev = np.maximum(phi @ best[0], 1e-300), np.maximum(phi @ best[1], 1e-300)
         G, _ = _lp_rows(prob, cap)
@@ -464,7 +465,9 @@ def _guard_violations(prob: _Problem, a: np.ndarray, b: np.ndarray) -> bool:
     return True
 
 
-def _minimise(prob: _Problem, hi: float, tol: float, deadline: float) -> tuple[np.ndarray, np.ndarray, int]:
+def _minimise(
+    prob: _Problem, hi: float, tol: float, deadline: Deadline
+) -> tuple[np.ndarray, np.ndarray, int]:
     """Bisection on the tolerance (Boyd-Vandenberghe sec. 4.2.5, quasiconvex problems).
 
     The LP maximises a slack relative to ``B``, so a feasible point's own error is below the
@@ -491,7 +494,7 @@ def _minimise(prob: _Problem, hi: float, tol: float, deadline: float) -> tuple[n
             continue
         else:
             lo = gamma
-        if hi - lo <= tol or time.perf_counter() > deadline:
+        if hi - lo <= tol or deadline.expired():
             break
     if best is None:
         raise FitError("the magnitude fit found no feasible point within its budget; raise time_budget_s.")
@@ -574,6 +577,9 @@ class MagnitudeFit:
     n_lp : int
         Linear programs solved by the bisection.
     time_s : float
+        Wall time of the fit (s; for information, nothing depends on it).
+    stopped_by_budget : bool
+        A ``time_budget_s`` ended the bisection before its tolerance (see :mod:`robustctl.budget`).
     """
 
     system: Any
@@ -585,6 +591,7 @@ class MagnitudeFit:
     poles: np.ndarray
     n_lp: int
     time_s: float
+    stopped_by_budget: bool = False
 
 
 def _pack(zeros: np.ndarray, poles: np.ndarray) -> tuple[np.ndarray, list[tuple[str, int]]]:
@@ -725,11 +732,12 @@ def fit_magnitude_details(
     point_weights: Any = None,
     objective: str = "max",
     tol_db: float = 0.05,
-    time_budget_s: float = 10.0,
+    time_budget_s: float | Deadline | None = None,
     name: str | None = None,
 ) -> MagnitudeFit:
     """:func:`fit_magnitude` with the fit's figures (error, roots, LPs solved)."""
     t0 = time.perf_counter()
+    own_clock = not isinstance(time_budget_s, Deadline)  # a caller's Deadline: the caller reports
     f, m = _check_curve(f_hz, mag)
     order = _check_order(order)
     wt = _check_point_weights(point_weights, f.size)
@@ -743,7 +751,7 @@ def fit_magnitude_details(
             f"mean overbound); got {objective!r} with upper_bound={upper_bound!r}."
         )
     tol_db = positive_number(tol_db, "tol_db", FitError, unit="dB")
-    time_budget_s = positive_number(time_budget_s, "time_budget_s", FitError, unit="s")
+    deadline = as_deadline(time_budget_s, FitError)
     use = wt > 0
     logm = np.log(m)
     scale = float(np.exp(np.mean(logm[use])))
@@ -774,14 +782,14 @@ def fit_magnitude_details(
         best, n_lp, worst_peak = None, 0, 0.0
         for price in L1_PRICES:
             prob.price = price
-            a, b, n = _minimise(prob, hi, tol, t0 + float(time_budget_s))
+            a, b, n = _minimise(prob, hi, tol, deadline)
             n_lp += n
             if price == 0.0:
                 prob.zscale = max(float(np.abs(a).sum() + np.abs(b).sum()), 1e-300)
             if upper_bound:  # ties of the minimax fit broken by the mean ("max"), or a traded worst point
                 g_star = _achieved(prob, a, b)
                 cap, n_it = (g_star + tol, 2) if objective == "max" else (2.0 * g_star + tol, 6)
-                a, b, n = _tighten(prob, a, b, cap, t0 + float(time_budget_s), n_it)
+                a, b, n = _tighten(prob, a, b, cap, deadline, n_it)
                 n_lp += n
             cand = _realise(basis, a, b, w[use], m[use], wt[use], bool(upper_bound))
             peak = _peak_ratio(cand, w[use], m[use]) if upper_bound else 0.0
@@ -790,7 +798,7 @@ def fit_magnitude_details(
             worst_peak = max(worst_peak, peak)
             if best is cand and (
                 cand[3] <= DB_PER_NEPER * _achieved(prob, a, b) + tol_db
-                or time.perf_counter() > t0 + time_budget_s
+                or deadline.expired()
             ):
                 break  # the roots reproduce the LP's curve
         if best is None:
@@ -808,6 +816,8 @@ def fit_magnitude_details(
         k, fitted = k * short * (1 + 1e-9), fitted * (short * (1 + 1e-9))
         sys = zpk_statespace(zeros, poles, k, name=name)
     err = 20 * np.log10(fitted[use] / m[use])
+    if own_clock and deadline.hit:
+        deadline.warn(f"the order-{order} magnitude fit")
     return MagnitudeFit(
         system=sys,
         f_hz=f,
@@ -818,6 +828,7 @@ def fit_magnitude_details(
         poles=poles,
         n_lp=n_lp,
         time_s=time.perf_counter() - t0,
+        stopped_by_budget=deadline.hit,
     )
 
 
@@ -830,7 +841,7 @@ def fit_magnitude(
     point_weights: Any = None,
     objective: str = "max",
     tol_db: float = 0.05,
-    time_budget_s: float = 10.0,
+    time_budget_s: float | None = None,
     name: str | None = None,
 ):
     """A stable, minimum-phase ``W(s)`` whose magnitude fits ``mag`` on ``f_hz`` (log-Chebyshev).
@@ -863,8 +874,11 @@ def fit_magnitude(
         linearised LPs (a tighter cover over most of the band, see :func:`_tighten`).
     tol_db : float
         Bisection tolerance on the max error (dB).
-    time_budget_s : float
-        Wall-clock cap of the bisection (s); the best fit so far is returned.
+    time_budget_s : float or None
+        Optional wall-clock cap (s) of the bisection (:mod:`robustctl.budget`'s policy): None
+        (default) bounds it by its LP counts only; when a budget stops it, the best fit so far
+        is returned with a BudgetWarning. A caller's :class:`~robustctl.budget.Deadline` is
+        shared (the caller then reports).
     name : str, optional
         Name of the returned system.
 

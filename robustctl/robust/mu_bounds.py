@@ -22,7 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import flag, integer, positive_number
+from ..budget import Deadline, as_deadline
+from ..checks import flag, integer
 from ..errors import RobustctlError, SynthesisError
 from ..executors import check_executor, parallel_map
 from ..frd import FrequencyData, as_frequency_data
@@ -118,20 +119,22 @@ def validate_mu_input(M: np.ndarray, bs: BlockStructure) -> None:
 
 # ---------------------------------------------------------------------------- computation
 @limit_blas
-def _bounds_chunk(M: np.ndarray, bs: BlockStructure, lower: bool, method: str, seed: int,
-                  time_budget_s: float = 120.0) -> dict:
-    """Bounds on one chunk of frequencies (top level, so executors can pickle it)."""
+def _bounds_chunk(item: tuple[np.ndarray, int], bs: BlockStructure, lower: bool, method: str, seed: int,
+                  time_budget_s: Deadline | float | None = None) -> dict:
+    """Bounds on one chunk ``(M, index of its first frequency)`` (top level, so executors can pickle it)."""
+    M, start = item
+    deadline = as_deadline(time_budget_s, SynthesisError)
     lay = layout_of(bs)
     t0 = time.perf_counter()
     size = np.abs(M).max(axis=(1, 2))
     size = np.where(size > 0, size, 1.0)  # mu(c M) = c mu(M): work at unit size (no over/underflow)
     M = M / size[:, None, None]
-    ub = upper_bound(M, lay, time_budget_s=time_budget_s)
+    ub = upper_bound(M, lay, time_budget_s=deadline)
     t1 = time.perf_counter()
     out = {"upper": ub.upper * size, "d": ub.dblocks, "g": [g * size[:, None, None] for g in ub.gblocks],
-           "newton": ub.iterations, "t_upper": t1 - t0}
+           "newton": ub.iterations, "t_upper": t1 - t0, "stopped_by_budget": deadline.hit}
     if lower:
-        lb = lower_bound(M, lay, ub.a0, ub.w0, ub.upper, seed=seed)
+        lb = lower_bound(M, lay, ub.a0, ub.w0, ub.upper, seed=seed, index=start + np.arange(M.shape[0]))
         out.update(lower=lb.lower * size, delta=lb.delta / size[:, None, None], power=lb.iterations)
     else:
         nf = M.shape[0]
@@ -178,6 +181,7 @@ def _merge(parts: list[dict]) -> dict:
         "t_upper_s": sum(p["t_upper"] for p in parts),
         "t_lower_s": sum(p["t_lower"] for p in parts),
         "n_chunks": len(parts),
+        "stopped_by_budget": any(p["stopped_by_budget"] for p in parts),
     }
     if "t_lmi" in parts[0]:
         out["info"]["t_lmi_s"] = sum(p["t_lmi"] for p in parts)
@@ -191,7 +195,7 @@ def _scalar_of(d: np.ndarray) -> np.ndarray:
 
 def mu(M: Any, blocks: Any, f_hz: Any = None, *, lower: bool = True, method: str = "auto",
        executor: Executor | None = None, chunk: int | None = None, seed: int = 0,
-       time_budget_s: float = 120.0) -> MuResult:
+       time_budget_s: float | None = None) -> MuResult:
     """Upper and lower bounds of the structured singular value, over frequency.
 
     Parameters
@@ -220,9 +224,11 @@ def mu(M: Any, blocks: Any, f_hz: Any = None, *, lower: bool = True, method: str
         Frequencies per chunk (default: about an eighth of the grid with an executor).
     seed : int
         Seed of the lower bound's random start.
-    time_budget_s : float
-        Wall-clock limit of the upper bound's refinement per chunk (s); the bound stays valid
-        (only less tight) when it stops early.
+    time_budget_s : float or None
+        Optional wall-clock limit (s) of the upper bound's Newton refinement over the whole
+        grid, by :mod:`robustctl.budget`'s policy: None (default) caps it by its iteration
+        count only. When a budget stops it, the bound stays valid (only less tight),
+        ``info["stopped_by_budget"]`` is True and a BudgetWarning is issued.
 
     Returns
     -------
@@ -242,7 +248,7 @@ def mu(M: Any, blocks: Any, f_hz: Any = None, *, lower: bool = True, method: str
     """
     if not isinstance(method, str) or method not in _METHODS:
         raise SynthesisError(f"method must be one of {_METHODS}; got {method!r}.")
-    time_budget_s = positive_number(time_budget_s, "time_budget_s", SynthesisError, unit="s")
+    deadline = Deadline(time_budget_s, error=SynthesisError)
     lower = flag(lower, "lower", SynthesisError)
     seed = integer(seed, "seed", SynthesisError, lo=0)
     bs = as_block_structure(blocks)
@@ -253,9 +259,12 @@ def mu(M: Any, blocks: Any, f_hz: Any = None, *, lower: bool = True, method: str
         chunk = integer(chunk, "chunk", SynthesisError, lo=1)
     t0 = time.perf_counter()
     slices = _chunks(arr.shape[0], executor, chunk)
-    work = partial(_bounds_chunk, bs=bs, lower=lower, method=method, seed=seed, time_budget_s=time_budget_s)
-    parts = parallel_map(work, [arr[s] for s in slices], executor, desc="mu", progress=len(slices) > 1)
+    work = partial(_bounds_chunk, bs=bs, lower=lower, method=method, seed=seed, time_budget_s=deadline)
+    parts = parallel_map(work, [(arr[s], s.start) for s in slices], executor, desc="mu",
+                         progress=len(slices) > 1)
     out = _merge(parts)
+    if out["info"]["stopped_by_budget"]:
+        deadline.warn("mu's upper-bound refinement")
     out["info"]["t_total_s"] = time.perf_counter() - t0
     return _result(out, f, bs, method)
 

@@ -211,7 +211,7 @@ def _power(M: np.ndarray, a: np.ndarray, w: np.ndarray, ix: _Index, lay: Layout,
 
 def lower_bound(M: np.ndarray, lay: Layout, a0: np.ndarray | None = None, w0: np.ndarray | None = None,
                 upper: np.ndarray | None = None, *, seed: int = 0, max_iter: int | None = None,
-                tol: float | None = None) -> LowerBound:
+                tol: float | None = None, index: np.ndarray | None = None) -> LowerBound:
     """Power-iteration lower bound of mu at every frequency of ``M`` (nf, n_out, n_in).
 
     Parameters
@@ -224,12 +224,16 @@ def lower_bound(M: np.ndarray, lay: Layout, a0: np.ndarray | None = None, w0: np
         A known upper bound: a seeded random restart is run only where the first run stays
         more than 0.1 % below it (everywhere when not given, or without start vectors).
     seed : int
-        Seed of the random start.
+        Seed of the random start. Frequency ``k`` draws its own start from ``(seed, index[k])``,
+        so its bound does not depend on which other frequencies share the call (how a grid is
+        split into chunks for an executor).
     max_iter : int, optional
         Iteration cap (default :data:`MAX_POWER`).
     tol : float, optional
         A frequency stops iterating when ``beta`` changes by less than ``tol`` (relative;
         default :data:`POWER_TOL`).
+    index : ndarray of int (nf,), optional
+        The frequencies' positions in the whole grid (default ``0 .. nf-1``).
     """
     nf = M.shape[0]
     kind = "mixed" if lay.has_real else "complex"
@@ -241,9 +245,11 @@ def lower_bound(M: np.ndarray, lay: Layout, a0: np.ndarray | None = None, w0: np
         lower, delta, iters = _power(M, a0.copy(), w0.copy(), ix, lay, max_iter, tol)
     redo = np.ones(nf, bool) if upper is None or a0 is None else lower < (1 - 1e-3) * upper
     if redo.any():
-        rng = np.random.default_rng(seed)
-        n = int(redo.sum())
-        rnd = rng.standard_normal((2, n, lay.n_in)) + 1j * rng.standard_normal((2, n, lay.n_in))
+        pos = np.arange(nf) if index is None else np.asarray(index)
+        rnd = np.empty((2, int(redo.sum()), lay.n_in), complex)
+        for j, k in enumerate(np.flatnonzero(redo)):
+            rng = np.random.default_rng([seed, int(pos[k])])
+            rnd[:, j] = rng.standard_normal((2, lay.n_in)) + 1j * rng.standard_normal((2, lay.n_in))
         lo, dl, it = _power(M[redo], rnd[0], rnd[1], ix, lay, max_iter, tol)
         idx = np.flatnonzero(redo)
         better = lo > lower[idx]

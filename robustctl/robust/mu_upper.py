@@ -37,11 +37,12 @@ radius of 2 and the cut step's decrement as the stopping rule, and is within 0.0
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
+from ..budget import as_deadline
 from .mu_layout import Layout
 from .mu_smooth import derivatives as _derivatives
 from .mu_smooth import herm as _herm
@@ -232,7 +233,7 @@ class _State:
                 if getattr(self, k) is not None}
 
 
-def upper_bound(M: np.ndarray, lay: Layout, *, time_budget_s: float = 60.0,
+def upper_bound(M: np.ndarray, lay: Layout, *, time_budget_s: Any = None,
                 max_newton: int = MAX_NEWTON) -> UpperBound:
     """D-(G-)scaled upper bound of mu at every frequency of ``M`` (nf, n_out, n_in).
 
@@ -240,8 +241,9 @@ def upper_bound(M: np.ndarray, lay: Layout, *, time_budget_s: float = 60.0,
     ----------
     M : ndarray, complex, (nf, n_out, n_in)
     lay : Layout
-    time_budget_s : float
-        Wall-clock limit of the Newton stage (the bound stays valid when it stops early).
+    time_budget_s : float, Deadline or None
+        Optional wall-clock limit of the Newton stage (:mod:`robustctl.budget`; the bound stays
+        valid when it stops early); None: ``max_newton`` alone bounds it.
     max_newton : int
         Iteration cap of the Newton stage.
     """
@@ -263,8 +265,8 @@ def upper_bound(M: np.ndarray, lay: Layout, *, time_budget_s: float = 60.0,
     stages = TAU_STAGES_REAL if lay.has_real else TAU_STAGES
     radius = np.full(nf, START_STEP)  # trust region on the step (inf-norm, log units)
     active = (sig0 > 0) & (best > 0) & (lay.n_d + lay.n_g > 0)
-    t0, it = time.perf_counter(), 0
-    while active.any() and it < max_newton and time.perf_counter() - t0 < time_budget_s:
+    deadline, it = as_deadline(time_budget_s), 0
+    while active.any() and it < max_newton and not deadline.expired():
         it += 1
         idx = np.flatnonzero(active)
         cur = st.take(idx)

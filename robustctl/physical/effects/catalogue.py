@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import re
-import time
 from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numpy as np
 
-from ...checks import check_band, flag, positive_number
+from ...budget import Deadline, as_deadline
+from ...checks import check_band, flag
 from ...errors import FitError, ModelError
 from ...threads import limit_blas
 from ..model import PhysicalModel
@@ -231,9 +231,10 @@ def candidates(
         the most affected modal ``w^2`` by :data:`SHIFT_TARGET` (a dashpot: the damping
         ratio by :data:`DAMPING_TARGET`), from one eigensolution and one assembly per
         candidate (first-order perturbation, ``dw^2 = phi^T (dK - w^2 dM) phi``).
-    time_budget_s : float, optional
-        Wall-clock budget (s) of the calibration (``rc.diagnose`` passes what is left of
-        its own); a :class:`~robustctl.errors.FitError` when it runs out. Default: none.
+    time_budget_s : float, Deadline or None
+        Optional wall-clock budget (s) of the calibration (``rc.diagnose`` passes its own
+        :class:`~robustctl.budget.Deadline`); a :class:`~robustctl.errors.FitError` when it runs
+        out (a candidate list cut short would be a different list). Default None: no clock.
     executor : concurrent.futures.Executor, optional
         Calibrates the candidates in parallel (the model travels to each worker once); the
         steps equal the serial ones.
@@ -246,10 +247,7 @@ def candidates(
         raise ModelError(f"candidates needs a PhysicalModel; got {type(model).__name__}.")
     band = check_band(band)
     points, calibrate = flag(points, "points", ModelError), flag(calibrate, "calibrate", ModelError)
-    deadline = None
-    if time_budget_s is not None:
-        budget = positive_number(time_budget_s, "time_budget_s", FitError, unit="s")
-        deadline = (time.perf_counter() + budget, budget)
+    deadline = as_deadline(time_budget_s, FitError)
     if kinds is not None:
         kinds = set(kinds)
         unknown = sorted(kinds - set(EFFECT_KINDS))
@@ -382,14 +380,14 @@ def _changes_preload(effect: Effect, model: PhysicalModel, struct) -> bool:
 
 
 def _calibrate(
-    model: PhysicalModel, cands: list[Effect], band, deadline: tuple[float, float] | None = None,
+    model: PhysicalModel, cands: list[Effect], band, deadline: Deadline | None = None,
     executor: Any = None, modes: tuple | None = None,
 ) -> tuple[np.ndarray, np.ndarray, list]:
     """Give each structural candidate a secant step that moves the modes by about 2 %
     (:data:`SHIFT_TARGET` of ``w^2``; first-order perturbation ``phi^T (dK - w^2 dM) phi``,
     Rayleigh quotient, e.g. Geradin & Rixen, *Mechanical Vibrations*, sec. 2.9).
 
-    ``deadline`` is ``(time.perf_counter() limit, budget)``: checked before each candidate.
+    ``deadline`` (a :class:`~robustctl.budget.Deadline`) is checked before each candidate.
     ``executor`` calibrates the candidates in parallel (:func:`robustctl.executors.parallel_map_shared`;
     each is calibrated alone, so the steps equal the serial ones). ``modes`` is
     ``_modes(model, band)`` when the caller has it."""
@@ -403,8 +401,8 @@ def _calibrate(
         fresh, mats_base = model.build_structure, mats0
     full = (_dense(mats0.mass), _dense(mats0.stiffness), mats0)
     light = (_dense(mats_base.mass), _dense(mats_base.stiffness), mats_base)
-    wall = None if deadline is None else (time.time() + deadline[0] - time.perf_counter(), deadline[1])
-    shared = (model, model.build_structure(), omega, phi, fresh, full, light, wall, len(cands))
+    shared = (model, model.build_structure(), omega, phi, fresh, full, light, deadline or Deadline(None),
+              len(cands))
     steps = parallel_map_shared(_calibrate_one, shared, list(enumerate(cands)), executor, desc="calibration")
     return omega, phi, [c for c in steps if c is not None]
 
@@ -417,11 +415,11 @@ def _modal_diagonal(phi: np.ndarray, d: np.ndarray) -> np.ndarray:
 def _calibrate_one(shared: tuple, item: tuple[int, Effect]) -> Effect | None:
     """One candidate of :func:`_calibrate` with its step (unchanged when it has none to set),
     or None when it cannot change the modes (``shared`` from :func:`_calibrate`)."""
-    model, nominal, omega, phi, fresh, full, light, wall, n = shared
+    model, nominal, omega, phi, fresh, full, light, deadline, n = shared
     k, c = item
-    if wall is not None and time.time() > wall[0]:
+    if deadline.expired():
         raise FitError(
-            f"time_budget_s={wall[1]:g} s ran out while calibrating candidate {k + 1} of "
+            f"time_budget_s={deadline.budget_s:g} s ran out while calibrating candidate {k + 1} of "
             f"{n}; raise time_budget_s, or pass fewer candidates (kinds=, locations=)."
         )
     if c.domain != "structure" or c.kind in ("gravity", "joint_spring") or c.switch:

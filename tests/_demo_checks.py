@@ -1,10 +1,14 @@
-"""The main job end to end: `robustctl demo [--example caltech|mace]` writes a report holding every
-section with numbers, and the report opens in headless Chromium without console messages."""
+"""The checks of the demo's report, shared by test_demo_caltech.py and test_demo_mace.py.
+
+Each example's demo runs once, in its own test module (its own module fixture): under
+``make test``'s ``--dist loadfile`` the two demos then run on different workers, side by side,
+instead of one after the other on one worker."""
 
 import json
 import re
 import shutil
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -28,10 +32,10 @@ SECTIONS = [
 EXTRA_SECTIONS = {"caltech": [], "mace": ["13. The 0-g prediction (MACE)"]}
 
 
-@pytest.fixture(scope="module", params=["caltech", "mace"])
-def demo_out(request, tmp_path_factory):
-    out = tmp_path_factory.mktemp(f"demo-{request.param}") / "out"
-    assert main(["demo", "--example", request.param, "--out", str(out)]) == 0
+def run_demo(example: str, tmp_path_factory) -> Path:
+    """``robustctl demo --example <example>`` into a fresh folder; its output folder."""
+    out = tmp_path_factory.mktemp(f"demo-{example}") / "out"
+    assert main(["demo", "--example", example, "--out", str(out)]) == 0
     return out
 
 
@@ -39,8 +43,8 @@ def _sections(page: str) -> tuple[list[str], list[str]]:
     return re.findall(r"<h2>(.*?)</h2>", page), re.split(r"<h2>.*?</h2>", page)[1:]
 
 
-@pytest.mark.slow
-def test_demo_report_holds_every_section_with_numbers(demo_out):
+def check_report_sections(demo_out: Path) -> None:
+    """Every section, each with a table or a figure with numbers; the headline numbers."""
     page = (demo_out / "report.html").read_text()
     summary = json.loads((demo_out / "summary.json").read_text())
     example = summary["example"]
@@ -78,8 +82,8 @@ def _check_mace(summary: dict, bodies: dict) -> None:
     assert summary["zero_g_rigid_body_modes"]["nominal"] == 6
 
 
-@pytest.mark.slow
-def test_demo_report_opens_in_headless_chromium_without_console_errors(demo_out):
+def check_report_in_chromium(demo_out: Path) -> None:
+    """The report opens in headless Chromium without console messages, self-contained."""
     browser = next((shutil.which(b) for b in ("chromium", "chromium-browser", "google-chrome")
                     if shutil.which(b)), None)
     if browser is None:
@@ -97,3 +101,22 @@ def test_demo_report_opens_in_headless_chromium_without_console_errors(demo_out)
     # self-contained: every image is embedded, nothing is fetched
     assert run.stdout.count("<img") == run.stdout.count('<img src="data:image/png;base64,') > 5
     assert not re.search(r"""(src|href)=["'](?!data:|#)""", run.stdout)
+
+
+def demo_tests(example: str):
+    """The module fixture and the two tests of one example's demo (a test module assigns them)."""
+
+    @pytest.fixture(scope="module")
+    def demo_out(tmp_path_factory):
+        return run_demo(example, tmp_path_factory)
+
+    @pytest.mark.slow
+    def test_demo_report_holds_every_section_with_numbers(demo_out):
+        check_report_sections(demo_out)
+
+    @pytest.mark.slow
+    def test_demo_report_opens_in_headless_chromium_without_console_errors(demo_out):
+        check_report_in_chromium(demo_out)
+
+    return (demo_out, test_demo_report_holds_every_section_with_numbers,
+            test_demo_report_opens_in_headless_chromium_without_console_errors)

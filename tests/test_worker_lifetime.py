@@ -1,0 +1,92 @@
+"""Worker processes end with their caller: a killed or interrupted diagnose-like pool leaves no process.
+
+Each case runs the pool in a fresh Python process whose workers sit in endless tasks, so only
+the pool's own clean-up (or the workers' watch on their parent) can end them."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+
+ROOT = Path(__file__).resolve().parents[1]
+
+_CHILD = textwrap.dedent(
+    """
+    import os, sys, time
+    from robustctl.executors import parallel_map_shared, process_pool
+
+    def task(shared, item):  # a candidate's fit that never ends
+        while True:
+            time.sleep(0.05)
+
+    try:
+        with process_pool(2, 8, 1) as pool:
+            pool.submit(os.getpid).result()  # the workers are up
+            print(" ".join(str(p) for p in pool._processes), flush=True)
+            parallel_map_shared(task, None, range(8), pool)
+    except KeyboardInterrupt:
+        print("interrupted", flush=True)
+    """
+)
+
+
+def _running(pid: int) -> bool:
+    """True while ``pid`` exists and is not a zombie (an orphan's zombie waits for init to reap it)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] not in ("Z", "X")
+
+
+def _start():
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.Popen([sys.executable, "-c", _CHILD], stdout=subprocess.PIPE, text=True, env=env,
+                            cwd=ROOT)
+    line = proc.stdout.readline()
+    pids = [int(p) for p in line.split()]
+    assert len(pids) == 2 and all(_running(p) for p in pids), line
+    return proc, pids
+
+
+def _wait_until_gone(pids, limit_s=60.0):
+    """The pids still running after up to ``limit_s`` (a liveness bound, not a timing assertion)."""
+    end = time.monotonic() + limit_s
+    while time.monotonic() < end and any(_running(p) for p in pids):
+        time.sleep(0.1)
+    return [p for p in pids if _running(p)]
+
+
+def test_workers_end_when_their_caller_is_killed():
+    proc, pids = _start()
+    try:
+        proc.kill()  # SIGKILL: the caller runs no clean-up at all
+        proc.wait(30)
+        assert _wait_until_gone(pids) == []
+    finally:
+        for p in pids:
+            if _running(p):
+                os.kill(p, signal.SIGKILL)
+
+
+def test_an_interrupted_caller_stops_its_workers_before_returning():
+    proc, pids = _start()
+    try:
+        proc.send_signal(signal.SIGINT)  # KeyboardInterrupt in the caller, inside parallel_map_shared
+        out, _ = proc.communicate(timeout=60)  # a pool waiting for its endless tasks would hang here
+        assert "interrupted" in out and proc.returncode == 0
+        assert _wait_until_gone(pids, 10.0) == []
+    finally:
+        proc.kill()
+        for p in pids:
+            if _running(p):
+                os.kill(p, signal.SIGKILL)
