@@ -49,7 +49,15 @@ from .correlate import (
     verify,
 )
 from .cost import LogCost, log_cost, log_error
-from .errors import DataError, FitError, ModelError, RobustctlError, RobustctlWarning, SynthesisError
+from .errors import (
+    DataError,
+    FitError,
+    ModelError,
+    PlantError,
+    RobustctlError,
+    RobustctlWarning,
+    SynthesisError,
+)
 from .export import ExportReport, discretize, export_controller, load_controller
 from .figures import (
     ModeAnimation,
@@ -156,6 +164,7 @@ from .robust.h2 import H2Result, h2norm, h2syn
 from .robust.loop_shaping import LoopShapingResult, ncfsyn, stability_margin
 from .robust.lqg_design import LQGResult, lqg
 from .robust.margins import DiskMargin, DiskMarginResult, disk_gain_phase, diskmargin, nugap
+from .robust.partitioned import as_partitioned
 from .robust.sampled import sampled_plant
 from .robust.sweep import DesignSweep, design_sweep
 from .robust.yardsticks import Yardstick, YardstickWarning, yardstick
@@ -193,6 +202,7 @@ __all__ = [
     "ModelError",
     "FitError",
     "SynthesisError",
+    "PlantError",
     "FrequencyData",
     "load_frd",
     # how the data were made
@@ -339,4 +349,6 @@ __all__ = [
     "Deadline",
     "BudgetWarning",
     "RobustctlWarning",
+    # one partitioned plant: the coercion shared by hinfsyn, h2syn, dksyn and the yardstick
+    "as_partitioned",
 ]

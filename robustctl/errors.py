@@ -22,7 +22,10 @@ The one rule for arguments (enforced through :mod:`robustctl.checks`):
 
 from __future__ import annotations
 
-__all__ = ["RobustctlError", "DataError", "ModelError", "FitError", "SynthesisError", "RobustctlWarning"]
+__all__ = [
+    "RobustctlError", "DataError", "ModelError", "FitError", "SynthesisError", "PlantError",
+    "RobustctlWarning",
+]
 
 
 class RobustctlError(ValueError):
@@ -43,6 +46,14 @@ class FitError(RobustctlError):
 
 class SynthesisError(RobustctlError):
     """A controller synthesis or robustness analysis cannot be carried out."""
+
+
+class PlantError(ModelError, SynthesisError):
+    """A generalized plant ``[w; u] -> [z; y]`` cannot be formed from what was passed.
+
+    Both a model error (the partitioned plant is ill-posed) and a synthesis error (the
+    argument of ``hinfsyn``, ``h2syn`` or ``dksyn`` is refused), so either is caught.
+    """
 
 
 class RobustctlWarning(UserWarning):

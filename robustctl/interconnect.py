@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from .checks import flag, integer, is_default_names
-from .errors import ModelError
+from .errors import ModelError, PlantError
 from .lti import _series_arrays, as_statespace
 from .signals import _arrays, select_signals
 from .table import Table
@@ -106,12 +106,80 @@ class PartitionedPlant(PicklesStateSpaces):
         import control
 
         if not isinstance(self.P, control.StateSpace):
-            raise ModelError(
+            raise PlantError(
                 f"a partitioned plant holds a control.StateSpace; got {type(self.P).__name__}. "
-                "Convert it with rc.as_statespace first."
+                "Convert it with rc.as_statespace first, or use rc.as_partitioned(P, nmeas, ncon)."
             )
         _count(self.nmeas, "nmeas (number of measurements)", self.P.noutputs)
         _count(self.ncon, "ncon (number of control inputs)", self.P.ninputs)
+
+    # ------------------------------------------------------------------ the system
+    @property
+    def A(self) -> np.ndarray:
+        """State matrix of ``P`` (so python-control's ``hinfsyn``/``h2syn`` take the plant)."""
+        return self.P.A
+
+    @property
+    def B(self) -> np.ndarray:
+        """Input matrix of ``P``, columns ``[w..., u...]``."""
+        return self.P.B
+
+    @property
+    def C(self) -> np.ndarray:
+        """Output matrix of ``P``, rows ``[z..., y...]``."""
+        return self.P.C
+
+    @property
+    def D(self) -> np.ndarray:
+        """Feedthrough matrix of ``P``."""
+        return self.P.D
+
+    @property
+    def dt(self) -> Any:
+        """Sampling time of ``P`` (0 for continuous time)."""
+        return self.P.dt
+
+    @property
+    def ninputs(self) -> int:
+        """Number of inputs of ``P`` (``nw + ncon``)."""
+        return self.P.ninputs
+
+    @property
+    def noutputs(self) -> int:
+        """Number of outputs of ``P`` (``nz + nmeas``)."""
+        return self.P.noutputs
+
+    @property
+    def nstates(self) -> int:
+        """Number of states of ``P``."""
+        return self.P.nstates
+
+    @property
+    def input_labels(self) -> list[str]:
+        """Input names of ``P``: ``w_names + u_names``."""
+        return list(self.P.input_labels)
+
+    @property
+    def output_labels(self) -> list[str]:
+        """Output names of ``P``: ``z_names + y_names``."""
+        return list(self.P.output_labels)
+
+    @property
+    def state_labels(self) -> list[str]:
+        """State names of ``P``."""
+        return list(self.P.state_labels)
+
+    def isctime(self, strict: bool = False) -> bool:
+        """Whether ``P`` is continuous time (python-control's ``isctime``)."""
+        return self.P.isctime(strict=strict)
+
+    def isdtime(self, strict: bool = False) -> bool:
+        """Whether ``P`` is discrete time (python-control's ``isdtime``)."""
+        return self.P.isdtime(strict=strict)
+
+    def statespace(self):
+        """The plant as one ``control.StateSpace`` (``rc.as_statespace`` takes this object)."""
+        return self.P
 
     # ------------------------------------------------------------------ sizes and names
     @property

@@ -56,11 +56,14 @@ import numpy as np
 
 from ..budget import Deadline, as_deadline
 from ..checks import flag, integer, positive_number
-from ..errors import SynthesisError
+from ..errors import PlantError, SynthesisError
 from ..executors import check_executor, parallel_map
+from ..interconnect import PartitionedPlant
 from ..lti import is_stable
 from ..table import Table
-from .blocks import Block, BlockStructure, as_block_structure
+from .blocks import Block, BlockStructure
+from .partitioned import as_partitioned
+from .plant import GeneralizedPlant
 
 __all__ = ["DKIteration", "DKResult", "Reduction", "dksyn"]
 
@@ -112,22 +115,6 @@ VERIFY_WARN_RTOL = 0.01
 
 
 # ---------------------------------------------------------------------------- plant
-@dataclass(frozen=True)
-class _Plant:
-    P: Any
-    nmeas: int
-    ncon: int
-    blocks: BlockStructure
-
-    @property
-    def nw(self) -> int:
-        return self.P.ninputs - self.ncon
-
-    @property
-    def nz(self) -> int:
-        return self.P.noutputs - self.nmeas
-
-
 def _complexified(blocks: BlockStructure) -> BlockStructure:
     """Real scalar blocks treated as complex ones (D-K has no G-scales; conservative)."""
     return BlockStructure(tuple(
@@ -135,42 +122,17 @@ def _complexified(blocks: BlockStructure) -> BlockStructure:
     ))
 
 
-def _as_plant(gp: Any) -> _Plant:
-    """A GeneralizedPlant or ``(P, nmeas, ncon, blocks)`` as a checked :class:`_Plant`."""
-    import control
-
-    from ..interconnect import PartitionedPlant
-
-    if isinstance(gp, PartitionedPlant):
-        blocks = getattr(gp, "blocks", None)
-        if blocks is None:
-            raise SynthesisError(
-                "dksyn needs the uncertainty/performance block structure: pass a GeneralizedPlant "
-                "(rc.generalized_plant) or a tuple (P, nmeas, ncon, blocks)."
-            )
-        P, nmeas, ncon = gp.P, gp.nmeas, gp.ncon
-    elif isinstance(gp, tuple) and len(gp) == 4:
+def _as_plant(gp: Any) -> GeneralizedPlant:
+    """A GeneralizedPlant or ``(P, nmeas, ncon, blocks)`` as a checked continuous-time plant with blocks."""
+    if isinstance(gp, tuple) and len(gp) == 4:
         P, nmeas, ncon, blocks = gp
-        if not isinstance(P, control.StateSpace):
-            raise SynthesisError(
-                f"gp[0] must be a control.StateSpace plant [w; u] -> [z; y]; got {type(P).__name__}."
-            )
-        PartitionedPlant(P, nmeas, ncon)  # checks the counts
-    else:
-        raise SynthesisError(
-            f"gp must be a GeneralizedPlant or a tuple (P, nmeas, ncon, blocks); got {type(gp).__name__}."
-        )
-    if P.dt not in (0, None):
-        raise SynthesisError(f"dksyn designs continuous-time controllers; the plant has dt={P.dt}.")
-    bs = as_block_structure(blocks)
-    plant = _Plant(P, int(nmeas), int(ncon), bs)
-    if (bs.n_in, bs.n_out) != (plant.nw, plant.nz):
-        raise SynthesisError(
-            f"blocks {bs.mussv().tolist()} need {bs.n_in} w inputs and {bs.n_out} z outputs "
-            f"(Delta_i maps block i's z channels to its w channels); the plant has nw={plant.nw}, "
-            f"nz={plant.nz}. Put the uncertainty and performance channels first, in block order."
-        )
-    return plant
+        return as_partitioned(P, nmeas, ncon, blocks, who="dksyn", allow_discrete=False, need_blocks=True)
+    if isinstance(gp, PartitionedPlant):
+        return as_partitioned(gp, who="dksyn", allow_discrete=False, need_blocks=True)
+    raise PlantError(
+        f"dksyn takes a GeneralizedPlant (rc.generalized_plant) or a tuple (P, nmeas, ncon, blocks); "
+        f"got a {type(gp).__name__}."
+    )
 
 
 # ---------------------------------------------------------------------------- state space
@@ -198,7 +160,7 @@ def _diag_system(parts: Sequence[tuple[Any, int]]):
     return control.append(*systems)
 
 
-def _scale_plant(plant: _Plant, d_fits: Sequence[Any]):
+def _scale_plant(plant: GeneralizedPlant, d_fits: Sequence[Any]):
     """``diag(D_L, I_y) P diag(D_R^-1, I_u)`` with ``D_L = blkdiag(d_i I_cols_i)``,
     ``D_R = blkdiag(d_i I_rows_i)`` (the last block's scale is 1)."""
     import control
@@ -224,7 +186,7 @@ class _Scaling:
     d: np.ndarray
 
 
-def _constant_scaled(plant: _Plant, su: np.ndarray, sy: np.ndarray, d: np.ndarray):
+def _constant_scaled(plant: GeneralizedPlant, su: np.ndarray, sy: np.ndarray, d: np.ndarray):
     """``diag(D_z, S_y) P diag(D_w^-1, S_u)`` for constant scales."""
     import control
 
@@ -237,7 +199,8 @@ def _constant_scaled(plant: _Plant, su: np.ndarray, sy: np.ndarray, d: np.ndarra
                       inputs=list(P.input_labels), outputs=list(P.output_labels))
 
 
-def _autoscaled(plant: _Plant, hinf_options: Mapping | None = None) -> tuple[_Plant, _Scaling]:
+def _autoscaled(plant: GeneralizedPlant,
+                hinf_options: Mapping | None = None) -> tuple[GeneralizedPlant, _Scaling]:
     """The plant with its channels scaled so that D-K does not depend on the user's units.
 
     Neither the control/measurement scales (the controller absorbs them: ``K = S_u K_s S_y``)
@@ -264,7 +227,6 @@ def _autoscaled(plant: _Plant, hinf_options: Mapping | None = None) -> tuple[_Pl
     """
     from scipy.optimize import minimize
 
-    from ..interconnect import PartitionedPlant
     from ..lti import freqresp_array
     from .hinf_synthesis import hinfsyn
 
@@ -317,7 +279,7 @@ def _autoscaled(plant: _Plant, hinf_options: Mapping | None = None) -> tuple[_Pl
             x = res.x
     d = d0 * np.exp(np.append(x, 0.0))
     Ps = _constant_scaled(plant, su, sy, d)
-    return _Plant(Ps, plant.nmeas, plant.ncon, plant.blocks), _Scaling(su, sy, d)
+    return GeneralizedPlant(Ps, plant.nmeas, plant.ncon, blocks=plant.blocks), _Scaling(su, sy, d)
 
 
 def _unscaled_controller(K: Any, sc: _Scaling):
@@ -1261,7 +1223,8 @@ def dksyn(
                     stopped_by_budget=stopped)
 
 
-def _autoscaled_dksyn(plant: _Plant, blocks: BlockStructure, options: dict, reduce: Any) -> DKResult:
+def _autoscaled_dksyn(plant: GeneralizedPlant, blocks: BlockStructure, options: dict,
+                      reduce: Any) -> DKResult:
     """D-K on the automatically scaled plant (:func:`_autoscaled`) from :data:`AUTOSCALE_STARTS`
     (factors ``e^s`` on all block scales but the last; a further start only while the best
     verified peak of mu is not below :data:`AUTOSCALE_CERTIFIED`): the run with the lowest
@@ -1295,7 +1258,7 @@ def _autoscaled_dksyn(plant: _Plant, blocks: BlockStructure, options: dict, redu
     if reduce is not None:
         refine = options.get("f_hz") is None
         base = default_grid(P_k) if refine else np.asarray(options["f_hz"], dtype=float)
-        pk = _Plant(P_k, plant.nmeas, plant.ncon, plant.blocks)
+        pk = GeneralizedPlant(P_k, plant.nmeas, plant.ncon, blocks=plant.blocks)
         K, cl, m, reduction = _reduce(pk, blocks, K, cl, m, reduce, base, refine)
         if reduction.accepted:
             m = _verified_mu(cl, blocks, m.f_hz)
@@ -1341,7 +1304,7 @@ def _g_step(m: Any, H: np.ndarray, H_edges: np.ndarray,
     return fits, level, md, zbound
 
 
-def _k_step_search(hinfsyn: Callable, plant: _Plant, candidates: Sequence[_DCandidate], opts: dict,
+def _k_step_search(hinfsyn: Callable, plant: GeneralizedPlant, candidates: Sequence[_DCandidate], opts: dict,
                    index: int, deadline: Deadline | None = None,
                    gamma: float | None = None) -> tuple[Any, _DCandidate]:
     """The K step for each D-scale candidate; the lowest verified gamma wins (the line search).
@@ -1349,7 +1312,6 @@ def _k_step_search(hinfsyn: Callable, plant: _Plant, candidates: Sequence[_DCand
     A candidate whose K step fails is skipped; when all fail, the first failure is raised.
     Past ``deadline`` no further candidate is tried once one has succeeded.
     """
-    from ..interconnect import PartitionedPlant
 
     best, first_error = None, None
     for cand in candidates:
@@ -1373,7 +1335,7 @@ def _k_step_search(hinfsyn: Callable, plant: _Plant, candidates: Sequence[_DCand
     return best
 
 
-def _mixed_k_step(hinfsyn: Callable, P_scaled: Any, plant: _Plant, cand: _DCandidate, opts: dict,
+def _mixed_k_step(hinfsyn: Callable, P_scaled: Any, plant: GeneralizedPlant, cand: _DCandidate, opts: dict,
                   index: int) -> Any:
     """The D-G-K K step: the smallest level ``beta`` at which ``min_K ||Z_beta||_inf <= 1``.
 
@@ -1389,7 +1351,6 @@ def _mixed_k_step(hinfsyn: Callable, P_scaled: Any, plant: _Plant, cand: _DCandi
     """
     from dataclasses import replace as _replace
 
-    from ..interconnect import PartitionedPlant
     from .dgk import g_transform
 
     def solve(level: float) -> Any:
@@ -1432,7 +1393,7 @@ def _mixed_k_step(hinfsyn: Callable, P_scaled: Any, plant: _Plant, cand: _DCandi
                                            "scaled_gamma": ph.gamma, "level_evals": len(pts)})
 
 
-def _k_step(hinfsyn: Callable, scaled: Any, plant: _Plant, opts: dict, index: int,
+def _k_step(hinfsyn: Callable, scaled: Any, plant: GeneralizedPlant, opts: dict, index: int,
             gamma: float | None = None) -> Any:
     """One H-infinity synthesis on the scaled plant; refuses a controller that does not stabilise P."""
     hres = hinfsyn(scaled, **opts)
@@ -1447,7 +1408,7 @@ def _k_step(hinfsyn: Callable, scaled: Any, plant: _Plant, opts: dict, index: in
     return hres
 
 
-def _reduce(plant: _Plant, blocks: BlockStructure, K: Any, cl: Any, m: Any, order: Any,
+def _reduce(plant: GeneralizedPlant, blocks: BlockStructure, K: Any, cl: Any, m: Any, order: Any,
             base: np.ndarray, refine: bool, mu_rtol: float = REDUCE_MU_RTOL):
     """Balanced truncation of the controller (Moore 1981; seed eq. 13), re-checked by mu.
 
@@ -1476,7 +1437,6 @@ def _reduce(plant: _Plant, blocks: BlockStructure, K: Any, cl: Any, m: Any, orde
     if method == "balanced":
         hsv, reduce_to = None, balanced_truncation
     else:
-        from ..interconnect import PartitionedPlant
         from .controller_reduction import reducer
 
         try:
@@ -1536,7 +1496,8 @@ def _auto_order(hsv: np.ndarray, attempt: Callable[[int], tuple]) -> int | None:
     return hi if hi < n else None
 
 
-def _truncated_loop(plant: _Plant, blocks: BlockStructure, K: Any, reduced: Any, m: Any, base: np.ndarray,
+def _truncated_loop(plant: GeneralizedPlant, blocks: BlockStructure, K: Any, reduced: Any, m: Any,
+                    base: np.ndarray,
                     refine: bool, mu_rtol: float) -> tuple:
     """``(Kr, closed loop, mu, reason)`` of a truncated controller; ``reason`` is empty when it
     stabilises the plant and raises the peak of mu by at most ``mu_rtol``."""

@@ -32,7 +32,8 @@ from ..interconnect import PartitionedPlant, PicklesStateSpaces, lft
 from ..lti import as_statespace, is_stable, roundoff_margin
 from ..table import Table, result_html
 from .hinf_assumptions import _check_ranks, _pbh_loses_rank, check_assumptions
-from .hinf_synthesis import _as_partitioned, _loop_shift, lower_lft_matrices
+from .hinf_synthesis import _loop_shift, lower_lft_matrices
+from .partitioned import as_partitioned
 
 __all__ = ["h2norm", "h2norm_matrices", "H2Result", "h2syn"]
 
@@ -374,7 +375,7 @@ def h2syn(P: Any, nmeas: int | None = None, ncon: int | None = None) -> H2Result
     >>> [round(float(v), 9) for v in (res.K.A[0, 0], res.K.B[0, 0], res.K.C[0, 0])]
     [-3.0, 1.0, -1.0]
     """
-    plant = _as_partitioned(P, nmeas, ncon, who="h2syn", allow_discrete=True)
+    plant = as_partitioned(P, nmeas, ncon, who="h2syn", allow_discrete=True)
     m = plant.matrices()
     dt = plant.P.dt
     discrete = _is_discrete(dt)

@@ -35,15 +35,16 @@ import numpy as np
 import scipy.linalg
 
 from ..budget import Deadline, as_deadline
-from ..checks import integer, positive_number
-from ..errors import ModelError, SynthesisError
+from ..checks import positive_number
+from ..errors import SynthesisError
 from ..interconnect import PartitionedPlant, lft
-from ..lti import as_statespace, is_stable, spectral_abscissa
+from ..lti import is_stable, spectral_abscissa
 from ..table import Table, result_html
 from ..threads import limit_blas
 from . import dgkf
 from .hinf_assumptions import check_assumptions
 from .hinf_norm import _discrete_to_continuous, continuous_to_discrete, hinfnorm_matrices
+from .partitioned import as_partitioned
 
 __all__ = ["HinfResult", "hinfsyn"]
 
@@ -184,52 +185,6 @@ class HinfResult:
 
 
 # ---------------------------------------------------------------------------- input checks
-def _as_partitioned(
-    P: Any, nmeas: Any, ncon: Any, who: str = "hinfsyn", allow_discrete: bool = False
-) -> PartitionedPlant:
-    """The plant as a PartitionedPlant, with nmeas/ncon checked (shared by hinfsyn, h2syn, lqg)."""
-    if not isinstance(P, PartitionedPlant) and all(hasattr(P, k) for k in ("P", "nmeas", "ncon")):
-        try:  # a duck-typed generalized plant (any object with .P, .nmeas, .ncon)
-            P = PartitionedPlant(as_statespace(P.P, name="P"), P.nmeas, P.ncon)
-        except ModelError as exc:
-            raise SynthesisError(f"{who}: {exc}") from exc
-    if isinstance(P, PartitionedPlant):
-        for name, given, have in (("nmeas", nmeas, P.nmeas), ("ncon", ncon, P.ncon)):
-            if given is not None and integer(given, name, SynthesisError, lo=0) != have:
-                raise SynthesisError(
-                    f"{name}={given!r} contradicts the partitioned plant's {name}={have}; omit {name}."
-                )
-        plant = P
-    else:
-        if nmeas is None or ncon is None:
-            raise SynthesisError(
-                f"{who}(P, nmeas, ncon): give the number of measurements nmeas and of control inputs "
-                "ncon, or pass a PartitionedPlant / generalized plant (which carries them)."
-            )
-        try:
-            plant = PartitionedPlant(as_statespace(P, name="P"), nmeas, ncon)
-        except ModelError as exc:
-            raise SynthesisError(f"{who}: {exc}") from exc
-    if plant.P.dt not in (0, None) and not allow_discrete:
-        raise SynthesisError(
-            f"hinfsyn designs continuous-time controllers; the plant is discrete (dt = {plant.P.dt}). "
-            "Design on a continuous-time plant and discretise the controller afterwards."
-        )
-    for what, count in (
-        ("nmeas", plant.nmeas),
-        ("ncon", plant.ncon),
-        ("nw (exogenous inputs)", plant.nw),
-        ("nz (regulated outputs)", plant.nz),
-    ):
-        if count < 1:
-            raise SynthesisError(
-                f"{who} needs at least one of each signal group; {what} = {count} for a plant with "
-                f"{plant.P.ninputs} inputs and {plant.P.noutputs} outputs "
-                f"(nmeas={plant.nmeas}, ncon={plant.ncon})."
-            )
-    return plant
-
-
 def _bounded(value: Any, name: str, upper: float, allow_zero: bool = False, unit: str = "") -> float:
     """A finite number in ``(0, upper]`` (``[0, upper]`` with ``allow_zero``), by the shared checks."""
     v = positive_number(value, name, SynthesisError, allow_zero=allow_zero, unit=unit)
@@ -553,7 +508,7 @@ def hinfsyn(
     backoff = _bounded(backoff, "backoff", 10.0, allow_zero=True)
     own_clock = not isinstance(time_budget_s, Deadline)  # a caller's (dksyn's) Deadline: it reports
     clock = as_deadline(time_budget_s, SynthesisError)
-    plant = _as_partitioned(P, nmeas, ncon, allow_discrete=True)
+    plant = as_partitioned(P, nmeas, ncon, who="hinfsyn", allow_discrete=True)
     m = plant.matrices()
     if not all(np.all(np.isfinite(v)) for v in m.values()):
         raise SynthesisError("the plant's state-space matrices contain NaN or inf.")

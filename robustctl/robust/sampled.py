@@ -25,7 +25,7 @@ from ..checks import flag, positive_number
 from ..errors import SynthesisError
 from ..interconnect import PartitionedPlant
 from ..lti import zoh
-from .hinf_synthesis import _as_partitioned
+from .partitioned import as_partitioned
 
 __all__ = ["sampled_plant"]
 
@@ -67,7 +67,7 @@ def sampled_plant(P: Any, dt: float, *, delay: bool = False, nmeas: int | None =
 
     dt = positive_number(dt, "dt", SynthesisError, unit="s")
     delay = flag(delay, "delay", SynthesisError)
-    plant = _as_partitioned(P, nmeas, ncon, who="sampled_plant", allow_discrete=True)
+    plant = as_partitioned(P, nmeas, ncon, who="sampled_plant", allow_discrete=True)
     if plant.P.dt not in (0, None):
         raise SynthesisError(
             "sampled_plant samples a continuous-time plant; this one is already discrete "
