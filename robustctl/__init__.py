@@ -128,6 +128,9 @@ from .physical.nastran_import import (
     write_nastran_matrices,
     write_nastran_modes,
 )
+
+# large structures in reduced coordinates (physical/reduction.py)
+from .physical.reduction import band_limited, reduction_error
 from .physical.uncertain import UncertainModel, parametric_lft
 
 # robust design: weights
@@ -252,6 +255,9 @@ __all__ = [
     "read_nastran_modes",
     "write_nastran_matrices",
     "write_nastran_modes",
+    # large structures in reduced coordinates
+    "band_limited",
+    "reduction_error",
     # named interconnection (interconnect.py, signals.py) and the generalized plant (robust/plant.py)
     "PartitionedPlant",
     "lft",

@@ -34,6 +34,7 @@ from ..errors import FitError, RobustctlError
 from ..executors import check_executor
 from ..frd import FrequencyData
 from ..measure.noise import NO_NOISE_SENTENCE, format_p, noise_model
+from ..physical.reduction import for_data
 from ..table import Table, result_html
 from .optimize import LMResult, levenberg_marquardt
 from .residual import (
@@ -1078,7 +1079,8 @@ def update(
         from ..frd import as_frequency_data
 
         noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
-    residual = Residual(model, data, band=band, point_weights=point_weights, min_channel_db=min_channel_db,
+    residual = Residual(for_data(model, data, band), data, band=band, point_weights=point_weights,
+                        min_channel_db=min_channel_db,
                         estimator=estimator, noise=noise)
     if params is None:
         params = [p.name for p in model.free_params]

@@ -68,8 +68,18 @@ def _with_damping(params: tuple[Parameter, ...], damping: Any) -> tuple[tuple[Pa
 
 
 def _check_build(model: PhysicalModel) -> PhysicalModel:
-    model.statespace()  # refuse bad input now rather than at the first frequency response
+    """Refuse bad input now rather than at the first frequency response: build the model once
+    (a large structure through its lowest modes only, :func:`~robustctl.physical.reduction.band_limited`:
+    the full dense build of thousands of DOFs costs seconds and ``O(n_dof^2)`` memory)."""
+    from .reduction import band_limited
+
+    band_limited(model, _LOWEST_HZ).statespace()
     return model
+
+
+#: The frequency (Hz) below which :func:`_check_build` looks at a large structure's modes (the
+#: reduction keeps at least its lowest mode and the residual modes of the inputs).
+_LOWEST_HZ = 1e-9
 
 
 def structural_model(

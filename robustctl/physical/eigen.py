@@ -48,23 +48,36 @@ def _check_square_symmetric(name: str, mat) -> tuple[int, int]:
 
 
 def _is_positive_definite(mass) -> bool:
-    if not sp.issparse(mass) or mass.shape[0] < 3:  # eigsh needs k < n - 1
+    if not sp.issparse(mass) or mass.shape[0] < 3:
         try:
             np.linalg.cholesky(mass.toarray() if sp.issparse(mass) else np.asarray(mass, dtype=float))
         except np.linalg.LinAlgError:
             return False
         return True
-    # Sparse: an LDL^T-free test — a sparse LU of M must succeed and the smallest
-    # eigenvalue (shift-invert about 0 would fail when singular) must be positive.
     diag = mass.diagonal()
     if np.any(diag <= 0):
         return False
+    off = sp.csr_matrix(mass, copy=True)
+    off.setdiag(0.0)
+    off.eliminate_zeros()
+    if off.nnz == 0:  # a lumped (diagonal) mass matrix: positive diagonal suffices
+        return True
+    return _sparse_pivots_positive(mass, float(diag.max()))
+
+
+def _sparse_pivots_positive(mass, scale: float) -> bool:
+    """Whether a sparse symmetric matrix is positive definite, from the pivots of its
+    symmetric-mode LU without pivoting (``P^T M P = L D L^T``: Sylvester's law of inertia,
+    Golub & Van Loan, *Matrix Computations*, 4th ed., Thm. 8.1.17). ``O(nnz(L))``, where the
+    former shift-invert Lanczos check of the smallest eigenvalue needed thousands of ARPACK
+    iterations on a lumped mass matrix with clustered entries."""
     try:
-        lam = spla.eigsh(sp.csc_matrix(mass), k=1, sigma=-float(diag.max()) * 1e-3, which="LM",
-                         return_eigenvectors=False)
-    except (RuntimeError, spla.ArpackNoConvergence):
+        lu = spla.splu(sp.csc_matrix(mass), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                       options={"SymmetricMode": True})
+    except RuntimeError:  # exactly singular
         return False
-    return bool(lam[0] > 1e-12 * float(diag.max()))
+    pivots = lu.U.diagonal()
+    return bool(np.all(pivots > 1e-12 * scale))
 
 
 def check_structural_matrices(mass, stiffness) -> None:

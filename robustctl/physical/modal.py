@@ -573,4 +573,9 @@ def modal_dynamics(
                                                                                           undamped.shapes))
         return _damped(undamped, zeta, mats.modal_damping_bands, rigid_body_damping).statespace()
 
+    # what robustctl.physical.reduction.band_limited needs to evaluate the same model in
+    # reduced coordinates: all modes kept, damping read the same way
+    dynamics.reducible = n_modes is None and band_hz is None and not residual_flexibility
+    dynamics.damping = lambda theta: theta.get(damping_param, default_damping)
+    dynamics.rigid_body_damping = rigid_body_damping
     return dynamics

@@ -375,7 +375,7 @@ class PhysicalModel:
         return self._copy(params=kept + tuple(new.values()))
 
     def _copy(self, **changes: Any) -> PhysicalModel:
-        changes.setdefault("_cache", _DynamicsCache())
+        changes.setdefault("_cache", _DynamicsCache(self._cache._size))
         return replace(self, **changes)
 
     # ------------------------------------------------------------------ composition

@@ -294,12 +294,31 @@ def _dense(a) -> np.ndarray:
     return a.toarray() if hasattr(a, "toarray") else np.asarray(a, dtype=float)
 
 
+def _working(a, n_dof: int):
+    """A matrix as the calibration works on it: dense below
+    :data:`~robustctl.physical.reduction.REDUCE_MIN_DOF` DOFs (the results of the examples stay
+    bit for bit), sparse CSR above (a dense ``n_dof x n_dof`` copy per candidate made the
+    calibration of thousands of candidates ``O(n_dof^3)`` in time and ``O(n_dof^2)`` in memory)."""
+    import scipy.sparse as sp
+
+    from ..reduction import REDUCE_MIN_DOF
+
+    if n_dof < REDUCE_MIN_DOF:
+        return _dense(a)
+    return sp.csr_matrix(a, dtype=float)
+
+
 def _modes(model: PhysicalModel, band):
     from ..eigen import solve_modes
+    from ..reduction import REDUCE_MIN_DOF
 
     mats = model.build_structure().matrices()
-    M, K = _dense(mats.mass), _dense(mats.stiffness)
-    omega, phi = solve_modes(M, K)
+    n = mats.n_dof
+    M, K = _working(mats.mass, n), _working(mats.stiffness, n)
+    if n >= REDUCE_MIN_DOF and band is not None:  # the modes up to the band: Lanczos, not dense
+        omega, phi = solve_modes(M, K, band_hz=(0.0, float(band[1])), sparse=True)
+    else:
+        omega, phi = solve_modes(M, K)
     keep = omega > 0
     if band is not None:
         f = omega / (2 * np.pi)
@@ -399,8 +418,9 @@ def _calibrate(
     fresh, mats_base = _probe_copies(model)
     if mats_base.n_dof != phi.shape[0]:  # gravity alone holds some DOFs: probe the full model
         fresh, mats_base = model.build_structure, mats0
-    full = (_dense(mats0.mass), _dense(mats0.stiffness), mats0)
-    light = (_dense(mats_base.mass), _dense(mats_base.stiffness), mats_base)
+    n0, nb = mats0.n_dof, mats_base.n_dof
+    full = (_working(mats0.mass, n0), _working(mats0.stiffness, n0), mats0)
+    light = (_working(mats_base.mass, nb), _working(mats_base.stiffness, nb), mats_base)
     shared = (model, model.build_structure(), omega, phi, fresh, full, light, deadline or Deadline(None),
               len(cands))
     steps = parallel_map_shared(_calibrate_one, shared, list(enumerate(cands)), executor, desc="calibration")
@@ -432,11 +452,12 @@ def _calibrate_one(shared: tuple, item: tuple[int, Effect]) -> Effect | None:
     mats = probe._stage_fn()({probe.param_names[0]: unit}, struct).matrices()
     if mats.n_dof != M0.shape[0]:
         return c
-    dM = _dense(mats.mass) - M0
-    dK = _dense(mats.stiffness) - K0
+    n = M0.shape[0]
+    dM = _working(mats.mass, n) - M0
+    dK = _working(mats.stiffness, n) - K0
     if c.kind == "dashpot":
-        C = _dense(mats.damping) if mats.damping is not None else np.zeros_like(M0)
-        C0 = _dense(mats_ref.damping) if mats_ref.damping is not None else np.zeros_like(M0)
+        C = _working(mats.damping, n) if mats.damping is not None else 0.0 * M0
+        C0 = _working(mats_ref.damping, n) if mats_ref.damping is not None else 0.0 * M0
         dz = np.abs(_modal_diagonal(phi, C - C0)) / (2 * omega) / unit
         size = DAMPING_TARGET / dz.max() if dz.max() > 0 else None
     else:
