@@ -73,17 +73,17 @@ from typing import Any
 
 import numpy as np
 
-from ..budget import BudgetWarning, Deadline
-from ..checks import UNSET, finite_number, integer, renamed_keyword
-from ..errors import FitError, ModelError, RobustctlError
-from ..executors import check_executor, parallel_map_shared, process_pool, resolve_workers
-from ..frd import FrequencyData, as_frequency_data
-from ..measure.estimator import estimator_settings
-from ..measure.noise import NO_NOISE_SENTENCE, format_p, noise_model
-from ..table import Table, result_html
-from ..threads import limit_blas
-from .optimize import _bounds, levenberg_marquardt, marquardt_step
-from .residual import Residual, check_determined, physical_model, sensitivities
+from ...budget import BudgetWarning, Deadline
+from ...checks import UNSET, finite_number, integer, renamed_keyword
+from ...errors import FitError, ModelError, RobustctlError
+from ...executors import check_executor, parallel_map_shared, process_pool, resolve_workers
+from ...frd import FrequencyData, as_frequency_data
+from ...measure.estimator import estimator_settings
+from ...measure.noise import NO_NOISE_SENTENCE, format_p, noise_model
+from ...table import Table, result_html
+from ...threads import limit_blas
+from ..optimize import _bounds, levenberg_marquardt, marquardt_step
+from ..residual import Residual, check_determined, physical_model, sensitivities
 
 __all__ = ["diagnose", "Diagnosis", "CandidateResult", "Indistinguishable", "effective_points"]
 
@@ -449,7 +449,7 @@ class Diagnosis:
         -------
         matplotlib.figure.Figure
         """
-        from ..plots import log_frequency_axis, new_figure
+        from ...plots import log_frequency_axis, new_figure
 
         fig = new_figure(10.0, 6.5)
         ax1, ax2 = fig.subplots(2, 1)
@@ -1064,7 +1064,7 @@ def _null_fit(
     LM from the model's values stops in a local minimum of the complex-log cost, which leaves
     the parameter error in the residual for the candidates to mimic (a wrong effect ranks first).
     """
-    from .updating import _coarse_start
+    from ..updating import _coarse_start
 
     lo, hi = _bounds(res0.model, upd, None)
     if not upd:
@@ -1226,7 +1226,7 @@ def _check_update(model: Any, update_params: Sequence[str] | None) -> tuple[str,
 
 
 def _check_candidates(model: Any, cands: Sequence[Any]) -> list[Any]:
-    from ..physical.effects import Effect
+    from ...physical.effects import Effect
 
     out = []
     for c in cands:
@@ -1394,7 +1394,7 @@ def diagnose(
 def _evaluated(model: Any, data: Any, band: Any) -> Any:
     """The model as diagnose evaluates it: in reduced coordinates up to the band for a large
     structure (:func:`robustctl.physical.reduction.for_data`), else as given."""
-    from ..physical.reduction import for_data
+    from ...physical.reduction import for_data
 
     return for_data(model, data, band)
 
@@ -1409,7 +1409,7 @@ def _pool(workers: Any, executor: Any, candidates: list | None, model: Any, t_ev
     n = 0
     if resolve_workers(workers, 10**6, 1) > 1:
         if candidates is None:
-            from ..physical.effects.catalogue import candidates as all_candidates
+            from ...physical.effects.catalogue import candidates as all_candidates
 
             n = len(all_candidates(model, calibrate=False))
         else:
@@ -1421,7 +1421,7 @@ def _pool(workers: Any, executor: Any, candidates: list | None, model: Any, t_ev
 
 def _default_candidates(model: Any, res0: Residual, deadline: Deadline, executor: Any) -> list:
     """``rc.effects.candidates`` of the model on the band, calibrated within the time budget."""
-    from ..physical.effects import candidates as all_candidates
+    from ...physical.effects import candidates as all_candidates
 
     cands = all_candidates(model, band=res0.band, time_budget_s=deadline, executor=executor)
     return _check_candidates(model, cands)
