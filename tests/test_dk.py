@@ -195,6 +195,7 @@ def test_d_orders_out_of_band_fall_back_to_lower_orders_not_a_constant(monkeypat
     tried (highest first) before a constant: a constant scale raised mu from 1.20 to 1.39
     on a random 28-state plant. Here fits of order >= 2 are declared out of band."""
     import robustctl.robust.dk as dkm
+    import robustctl.robust.dk_scales as dks
     from robustctl.robust.hinf_synthesis import hinfsyn
 
     plant = _as_plant((distillation_plant(), 2, 2, BOOK_BLOCKS))
@@ -204,7 +205,7 @@ def test_d_orders_out_of_band_fall_back_to_lower_orders_not_a_constant(monkeypat
     _, orders, bound_free = dkm._fit_d_scales(H, m, blocks, 4, None, (), dkm._edge_response(cl))
     assert orders == (4, 4)
     in_band = dkm._dynamics_in_band
-    monkeypatch.setattr(dkm, "_dynamics_in_band",
+    monkeypatch.setattr(dks, "_dynamics_in_band",
                         lambda fit, f, margin=10.0: fit.nstates < 2 and in_band(fit, f))
     fits, orders, bound = dkm._fit_d_scales(H, m, blocks, 4, None, (), dkm._edge_response(cl))
     assert orders == (1, 1) and all(fit.nstates == 1 for fit in fits)
@@ -220,6 +221,7 @@ def test_a_broken_fit_of_the_only_allowed_order_falls_back_to_lower_orders(monke
     its bound was 3.2 against mu 0.48, and the next K step's gamma 3.1. Here order 4's fits
     and above are spoiled by a factor 3 (bound ~3x mu)."""
     import robustctl.robust.dk as dkm
+    import robustctl.robust.dk_scales as dks
     from robustctl.robust.hinf_synthesis import hinfsyn
 
     plant = _as_plant((distillation_plant(), 2, 2, BOOK_BLOCKS))
@@ -228,10 +230,10 @@ def test_a_broken_fit_of_the_only_allowed_order_falls_back_to_lower_orders(monke
     m, H = dkm._mu_of(cl, blocks, dkm.default_grid(plant.P), refine=True)
     edges = dkm._edge_response(cl)
     fit_one = dkm._fit_one
-    monkeypatch.setattr(dkm, "_fit_one", lambda args: 3.0 * fit_one(args) if args[2] >= 4 else fit_one(args))
+    monkeypatch.setattr(dks, "_fit_one", lambda args: 3.0 * fit_one(args) if args[2] >= 4 else fit_one(args))
     fits, orders, bound = dkm._fit_d_scales(H, m, blocks, None, None, (4, 4), edges)
     assert all(o < 4 for o in orders) and bound < 1.25 * m.peak
-    monkeypatch.setattr(dkm, "ORDER_D_BROKEN", np.inf)  # without the fallback: the spoiled fits
+    monkeypatch.setattr(dks, "ORDER_D_BROKEN", np.inf)  # without the fallback: the spoiled fits
     _, orders, spoiled = dkm._fit_d_scales(H, m, blocks, None, None, (4, 4), edges)
     assert all(o >= 4 for o in orders) and spoiled > 2 * m.peak
 

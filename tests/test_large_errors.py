@@ -269,7 +269,7 @@ def test_only_candidates_whose_secant_points_beyond_its_step_are_probed(chain, m
     (|c| > PROBE_MIN_COEF); the others are not walked out, and the large spring still wins."""
     import importlib
 
-    diagnose_module = importlib.import_module("robustctl.correlate.diagnosis")
+    diagnose_module = importlib.import_module("robustctl.correlate.diagnosis.screening")
     model, cands = chain
     seen = []
     real = diagnose_module._probe_sizes

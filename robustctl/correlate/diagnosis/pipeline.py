@@ -1,0 +1,361 @@
+"""``rc.diagnose``: argument checks and the pipeline null fit -> screening -> fits -> tests."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from concurrent.futures import Executor
+from typing import Any
+
+import numpy as np
+
+from ...budget import Deadline
+from ...checks import UNSET, finite_number, integer, renamed_keyword
+from ...errors import FitError, ModelError
+from ...executors import check_executor, parallel_map_shared, resolve_workers
+from ...frd import FrequencyData, as_frequency_data
+from ...measure.estimator import estimator_settings
+from ...measure.noise import noise_model
+from ...threads import limit_blas
+from ..residual import check_determined, physical_model
+from .results import ALPHA, DECOUPLED_DB, MIN_GAIN, MODEL_ERROR_DISPERSION, Diagnosis
+from .rivals import _indistinguishable
+from .screening import (
+    _fit_task,
+    _noise_cost,
+    _null_fit,
+    _polish,
+    _residual,
+    _residual_for,
+    _screen_all,
+    _to_fit,
+)
+from .sentences import _where
+from .significance import _channel_verdict, _null_test, _row_noise, _score, _testable_rows, effective_points
+from .workers import (
+    _check_budget,
+    _check_candidates,
+    _default_candidates,
+    _evaluated,
+    _pool,
+    _warn_if_hurried,
+)
+
+
+def _check_update(model: Any, update_params: Sequence[str] | None) -> tuple[str, ...]:
+    if update_params is None:
+        return tuple(p.name for p in model.free_params)
+    if isinstance(update_params, str):
+        update_params = (update_params,)
+    names = tuple(update_params)
+    unknown = [n for n in names if n not in model.param_names]
+    if unknown:
+        raise ModelError(f"unknown update parameter(s) {unknown}; the model has {list(model.param_names)}.")
+    return names
+
+
+
+# ============================================================================ diagnose
+@limit_blas
+def diagnose(
+    model: Any,
+    data: FrequencyData,
+    candidates: Sequence[Any] | None = None,
+    band: tuple[float, float] | None = None,
+    executor: Executor | None = None,
+    params: Sequence[str] | None = None,
+    *,
+    point_weights: Any = "auto",
+    min_channel_db: float | None = DECOUPLED_DB,
+    n_fit: int = 4,
+    max_iter: int = 8,
+    update_iter: int = 10,
+    alpha: float = ALPHA,
+    min_gain: float = MIN_GAIN,
+    time_budget_s: float | None = None,
+    update_params: Any = UNSET,
+    weights: Any = UNSET,
+    estimator: Any = "auto",
+    noise: Any = "auto",
+    measurement_model: Any = None,
+    workers: Any = "auto",
+) -> Diagnosis:
+    """Rank physical effects by how much of the model-data residual each explains.
+
+    Parameters
+    ----------
+    model : PhysicalModel
+    data : FrequencyData
+        Measured responses (Hz); channels named as the model's signals.
+    candidates : sequence of Effect, optional
+        Default ``rc.effects.candidates(model, band=band)``. Each must apply to the model.
+    band : (float, float), optional
+        Band in Hz (default: all data).
+    executor : concurrent.futures.Executor, optional
+        Screens and fits candidates in parallel (a thread pool works with any model; a
+        process pool needs a picklable model). Overrides ``workers``.
+    params : sequence of str, optional
+        Parameters the update may change (default: the model's free parameters); what they
+        can absorb is projected out before the effects are scored (as ``params=`` of
+        :func:`update`; ``update_params=`` is the deprecated name).
+    update_params
+        Deprecated name of ``params``.
+    point_weights : "auto", None, "coherence" or array
+        Data-point weights on the squared log error (:func:`robustctl.checks.point_weights`;
+        ``weights=`` is the deprecated name). ``"auto"`` (default) uses the coherence when
+        the data carry it: ``W = g2 / (1 - g2)`` is the inverse variance of the log estimate,
+        so noisy bins (low coherence, at anti-resonances and far from the excited modes) do
+        not drown the systematic error.
+    weights
+        Deprecated name of ``point_weights``.
+    measurement_model : system, optional
+        Supplies the noise model of data without coherence, as for :func:`robustctl.update`.
+    min_channel_db : float or None
+        Channels the model or data leave decoupled (this many dB below their row and column)
+        get weight 0, by the rule of :func:`compare` and :func:`update`; the default
+        :data:`DECOUPLED_DB` (-60 dB) is stricter than theirs (-80 dB). With the same value
+        the costs agree.
+    n_fit : int
+        Number of best-screened candidates given the local fit (and up to as many more whose
+        screening share ties with the best's within :data:`TIE_SHARE`).
+    max_iter, update_iter : int
+        LM iteration caps of the local fits and of the null fit.
+    alpha : float
+        Family-wise level: the candidates' p-values are Holm-adjusted over the screened candidates
+        and compared with it.
+    min_gain : float
+        Smallest share (0..1) of the null-fit residual an effect must remove to be proposed.
+    time_budget_s : float or None
+        Optional wall-clock budget (s) of the whole call, by :mod:`robustctl.budget`'s policy.
+        None (default): the iteration caps (``max_iter``, ``update_iter``, the polishing's
+        ``POLISH_ITER``) bound the work and the ranking depends only on the inputs. A number:
+        when it ends the null fit, a local fit or the polishing early, the fits keep what they
+        reached, the result has ``stopped_by_budget=True``, its summary says so and a
+        BudgetWarning is issued; when it ends before every candidate is calibrated and
+        screened, a FitError is raised (a ranking of some candidates could name a wrong effect).
+    estimator : "auto", True, False or EstimatorSettings
+        See the model through the H1 estimator (as :func:`robustctl.compare`).
+    noise : "auto", NoiseModel or None
+        The data's noise model behind the p-values (:func:`robustctl.noise_model`;
+        ``measurement_model`` supplies it for data without coherence). Without one, the
+        ranking is still given but no significance claims are made (p-values NaN) and the best
+        candidate is proposed only on its share of the residual.
+    workers : "auto", int or None
+        Worker processes for the screening, local fits and polishing when no ``executor`` is
+        given. ``"auto"`` (default): one per available core when the screening promises at least
+        :data:`PARALLEL_MIN_WORK_S` of work (:data:`SCREEN_EVALS` evaluations per candidate, timed
+        on the nominal model) for :data:`PARALLEL_MIN_CANDIDATES` or more candidates and the
+        platform can fork, otherwise serial; an int: that many processes;
+        ``1`` or None: serial, in this process. The result equals the serial one (each candidate
+        is computed alone, the model and data travel to each worker once); the model must be
+        picklable (cloudpickle) for more than one worker.
+
+    Returns
+    -------
+    Diagnosis
+
+    Raises
+    ------
+    DataError
+        Data that do not match the model's channels, a band outside the data.
+    ModelError
+        A candidate that does not apply to the model (wrong domain, unknown location),
+        unknown update parameters.
+
+    Examples
+    --------
+    >>> diag = rc.diagnose(model, data, band=(0.5, 20))                  # doctest: +SKIP
+    >>> diag.table(); diag.best                                           # doctest: +SKIP
+    >>> upd = rc.update(model.with_effect(diag.best), data)              # doctest: +SKIP
+    """
+    t0 = time.perf_counter()
+    check_executor(executor)
+    resolve_workers(workers, 0, 1)  # a bad value fails before any work
+    deadline = Deadline(time_budget_s, error=FitError)
+    max_iter = integer(max_iter, "max_iter", FitError, lo=1)
+    update_iter = integer(update_iter, "update_iter", FitError, lo=1)
+    params = renamed_keyword(params, update_params, "params", "update_params")
+    point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
+    model = _evaluated(physical_model(model, "diagnose"), data, band)
+    if isinstance(noise, str) and noise == "auto":
+        noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
+    res0, ignored = _residual(model, data, band, point_weights, min_channel_db, estimator, noise)
+    upd = _check_update(model, params)
+    check_determined(res0, len(upd) + 1, "diagnose (the free parameters and one candidate's)")
+    if candidates is not None:
+        candidates = _check_candidates(model, list(candidates))
+    alpha, min_gain = finite_number(alpha, "alpha", FitError), finite_number(min_gain, "min_gain", FitError)
+    if not 0 < alpha < 1 or not 0 <= min_gain < 1:
+        raise FitError(f"alpha must lie in (0, 1) and min_gain in [0, 1); got {alpha!r}, {min_gain!r}.")
+    if isinstance(n_fit, bool) or not isinstance(n_fit, (int, np.integer)) or n_fit < 0:
+        raise FitError(
+            f"n_fit is the number of best-screened candidates given a local fit: a whole number >= 0; "
+            f"got {n_fit!r}."
+        )
+    t_eval = time.perf_counter()
+    j_nominal = res0.vector()
+    t_eval = time.perf_counter() - t_eval
+    with _pool(workers, executor, candidates, model, t_eval) as ex:
+        if candidates is None:
+            candidates = _default_candidates(model, res0, deadline, ex)
+        return _diagnose(
+            t0, res0, ignored, upd, candidates, j_nominal, ex, n_fit, max_iter, update_iter, alpha, min_gain,
+            deadline,
+        )
+
+
+def _diagnose(
+    t0, res0, ignored, upd, cands, j_nominal, executor, n_fit, max_iter, update_iter, alpha, min_gain,
+    deadline: Deadline,
+) -> Diagnosis:
+    """:func:`diagnose` once the arguments are checked, the candidates made and the executor chosen."""
+    model = res0.model
+    evals = 1
+    cost_nominal = float(j_nominal @ j_nominal)
+    # 1. null fit of the update parameters
+    null, n_null = _null_fit(res0, upd, update_iter, executor, deadline, j_nominal)
+    evals += n_null
+    x_u, j_u, cost_u = null.x, null.j, null.cost
+    model_u = model.with_values(**x_u) if x_u else model
+    res_u = _residual_for(res0, model_u)
+    # 2. secant screening
+    _check_budget(deadline, "the null fit")
+    screens, twins, order = _screen_all(res_u, model_u, null, cands, executor, deadline)
+    evals += sum(s["evals"] for s in screens)
+    top = _to_fit(screens, order, n_fit)
+    # 3. local fits
+    fits = parallel_map_shared(
+        _fit_task, (res_u, null, max_iter, deadline), [screens[k] for k in top], executor, desc="local fits",
+    )
+    evals += sum(f["evals"] for f in fits)
+    polished = not deadline.expired()
+    if polished:  # a budget the local fits used up is reported by the warning below
+        fits, n_polish = _polish(res_u, null, screens, top, fits, executor, deadline, _noise_cost(res0))
+        evals += n_polish
+    n_cut = sum(bool(f.get("cut")) for f in fits)
+    stopped = bool(null.cut or n_cut or not polished)
+    if stopped:
+        _warn_if_hurried(null.cut, n_cut, deadline.budget_s, polished)
+    # 4. significance and words
+    e_u = res0.unstack(j_u)
+    n_eff, rho = effective_points(e_u)
+    m = len(cands)
+    settings = estimator_settings(res0.data.meta)
+    held = _input_held(res0.data)
+    stats = dict(
+        cost_u=cost_u,
+        cost_nominal=cost_nominal,
+        n_eff=n_eff,
+        p=len(upd),
+        alpha=alpha,
+        m=m,
+        min_gain=min_gain,
+        upd=upd,
+        row_noise=_row_noise(res0),
+        testable=_testable_rows(res0),
+        # a delay of half a sample is the DAC's hold only in data whose input was held and whose
+        # hold was not divided out (meta["hold_divided"])
+        fs_hz=(_sample_rate(res0.data, settings)
+               if held and not _hold_divided(res0.data, settings) else None),
+    )
+    results, explained = _score(res0, screens, order, top, fits, twins, j_u, stats)
+    best = _best(results, res0.noise is not None, min_gain)
+    fitted = _fitted_models(screens, top, fits)
+    group = _indistinguishable(res0, results, fitted, j_u, stats["row_noise"], alpha)
+    dispersion, p_null = _null_test(res0, j_u)
+    beyond = bool(np.isfinite(p_null) and p_null < alpha and dispersion > MODEL_ERROR_DISPERSION)
+    verdict = _channel_verdict(res0, j_u) if best is None and beyond else ""
+    return Diagnosis(
+        ranking=tuple(results),
+        best=best,
+        cost_nominal=cost_nominal,
+        cost_update=cost_u,
+        update_params=upd,
+        update_values=x_u,
+        n=res0.n,
+        n_eff=n_eff,
+        rho=rho,
+        alpha=alpha / m,
+        unexplained=_where(res0, j_u, unweight=False, pairs=True),
+        band=res0.band,
+        n_evals=evals,
+        time_s=time.perf_counter() - t0,
+        ignored_channels=ignored,
+        point_weights=res0.point_weights,
+        residual_update=e_u,
+        f_hz=res0.f_hz,
+        explained=explained,
+        noise_source="" if res0.noise is None else res0.noise.source,
+        estimator_note=res0.describe_estimator(),
+        indistinguishable=group,
+        stopped_by_budget=stopped,
+        family_alpha=alpha,
+        dispersion=dispersion,
+        p_null=p_null,
+        channel_verdict=verdict,
+        input_held=held,
+    )
+
+
+def _input_held(data: FrequencyData) -> bool:
+    """Whether the data say their input was a held (DAC) command: the experiment description's
+    input kind (``data.experiment.input_kind``, or ``meta["input_kind"]`` /
+    ``meta["experiment"]["input_kind"]``) is ``"held"``. Data that do not say are not held: a
+    measured force or voltage is how most modal tests are run."""
+    exp = getattr(data, "experiment", None)
+    kind = getattr(exp, "input_kind", None) if exp is not None else None
+    if kind is None:
+        meta = dict(data.meta)
+        kind = meta.get("input_kind")
+        sub = meta.get("experiment")
+        if kind is None and isinstance(sub, dict):
+            kind = sub.get("input_kind")
+        subs = meta.get("experiments")
+        if kind is None and isinstance(subs, (list, tuple)) and subs:
+            kinds = {m.get("input_kind") for m in subs if isinstance(m, dict)}
+            kind = kinds.pop() if len(kinds) == 1 else None
+    return kind == "held"
+
+
+def _hold_divided(data: FrequencyData, settings: Any) -> bool:
+    """Whether the estimate was divided by the hold's response (no half-sample delay is left)."""
+    exp = getattr(data, "experiment", None)
+    return bool((settings is not None and settings.hold_divided) or getattr(exp, "hold_divided", False))
+
+
+def _sample_rate(data: FrequencyData, settings: Any) -> float | None:
+    """The data's sample rate (Hz): the estimator settings', else the experiment description's."""
+    if settings is not None:
+        return settings.fs_hz
+    exp = getattr(data, "experiment", None)
+    for src in (exp, getattr(exp, "estimator", None)):
+        fs = getattr(src, "fs_hz", None)
+        if fs:
+            return float(fs)
+    fs = dict(data.meta).get("fs_hz")
+    try:
+        return float(fs) if fs else None
+    except (TypeError, ValueError):
+        return None
+
+
+def _fitted_models(screens: list[dict], top: list[int], fits: list[dict]) -> dict[str, dict]:
+    """Each fitted candidate's residual vector and fitted model (update values and its size)."""
+    out = {}
+    for k, fit in zip(top, fits):
+        s = screens[k]
+        pname = s["effect"].param_names[0]
+        values = {**fit["x"], pname: fit["value"]}
+        out[s["effect"].name] = dict(vector=fit["vector"], model=s["model"].with_values(**values))
+    return out
+
+
+def _best(results: list, have_noise: bool, min_gain: float) -> Any:
+    """The top significant candidate; without a noise model, the top fitted one that explains at
+    least ``min_gain`` of the residual (proposed without a significance claim). A candidate at its
+    bound is never the answer."""
+    if have_noise:
+        return next((r.effect for r in results if r.significant), None)
+    return next((r.effect for r in results if r.fitted and r.gain >= min_gain and not r.at_bound), None)
+
+
