@@ -159,7 +159,7 @@ class LQGBesideMu:
 
     def plot(self, fig: Any = None) -> Any:
         """Largest singular value of the measured open loop and of each measured closed loop (Hz)."""
-        from .plots import new_figure
+        from .plots import label_axes, new_figure
 
         fig = fig or new_figure(7.0, 4.0)
         ax = fig.add_subplot(1, 1, 1)
@@ -168,10 +168,8 @@ class LQGBesideMu:
         for label, r in self.rows.items():
             ax.loglog(r["score"].f_hz, r["score"].closed_loop, lw=1,
                       label=f"{label}: {r['attenuation_db']:.3g} dB")
-        ax.set_xlabel("frequency (Hz)")
-        ax.set_ylabel("largest singular value (rad/s per N m)")
-        ax.set_title("Measured closed loops, LQG beside mu")
-        ax.legend(fontsize=8)
+        label_axes(ax, "frequency (Hz)", "largest singular value (rad/s per N m)",
+                   "Measured closed loops, LQG beside mu")
         return fig
 
     def _repr_html_(self) -> str:

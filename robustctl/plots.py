@@ -26,6 +26,7 @@ __all__ = [
     "log_frequency_axis",
     "magnitude_label",
     "new_figure",
+    "label_axes",
 ]
 
 
@@ -60,6 +61,26 @@ def new_figure(width: float = 9.0, height: float = 6.0):
 
     _show_figures_in_kernel(Figure)
     return Figure(figsize=(width, height), layout="constrained")
+
+
+def label_axes(ax: Any, xlabel: str, ylabel: str, title: str) -> None:
+    """Label both axes, title the axes and draw the legend in the one small size of result plots.
+
+    Parameters
+    ----------
+    ax : matplotlib Axes
+    xlabel, ylabel : str
+        Axis labels, with units in parentheses.
+    title : str
+
+    See Also
+    --------
+    new_figure : the Figure the axes belong to.
+    """
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.legend(fontsize=8)
 
 
 def _channels(reference: FrequencyData, max_channels: int) -> list[tuple[int, int]]:

@@ -140,7 +140,7 @@ class HinfResult:
         Returns the matplotlib Figure.
         """
         from ..lti import freqresp_array
-        from ..plots import new_figure
+        from ..plots import label_axes, new_figure
 
         f_peak = self.info.get("f_peak_hz", np.nan)
         if f_hz is not None:
@@ -168,10 +168,7 @@ class HinfResult:
         ax.axhline(self.gamma_opt, color="C3", ls=":", lw=1, label=f"gamma_opt = {self.gamma_opt:.4g}")
         if np.isfinite(f_peak) and f_peak > 0:
             ax.plot([f_peak], [self.gamma], "ko", ms=4)
-        ax.set_xlabel("frequency (Hz)")
-        ax.set_ylabel("singular values of Fl(P, K)")
-        ax.set_title("H-infinity closed loop w -> z")
-        ax.legend(fontsize=8)
+        label_axes(ax, "frequency (Hz)", "singular values of Fl(P, K)", "H-infinity closed loop w -> z")
         return fig
 
     def _repr_html_(self) -> str:
