@@ -159,10 +159,9 @@ class LQGBesideMu:
 
     def plot(self, fig: Any = None) -> Any:
         """Largest singular value of the measured open loop and of each measured closed loop (Hz)."""
-        from .plots import label_axes, new_figure
+        from .plots import label_axes, single_axes
 
-        fig = fig or new_figure(7.0, 4.0)
-        ax = fig.add_subplot(1, 1, 1)
+        fig, ax = single_axes(fig, 7.0, 4.0)
         first = next(iter(self.rows.values()))["score"]
         ax.loglog(first.f_hz, first.open_loop, "k", lw=1, label="open loop (data)")
         for label, r in self.rows.items():

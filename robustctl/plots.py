@@ -27,6 +27,7 @@ __all__ = [
     "magnitude_label",
     "new_figure",
     "label_axes",
+    "single_axes",
 ]
 
 
@@ -61,6 +62,29 @@ def new_figure(width: float = 9.0, height: float = 6.0):
 
     _show_figures_in_kernel(Figure)
     return Figure(figsize=(width, height), layout="constrained")
+
+
+def single_axes(fig: Any = None, width: float = 9.0, height: float = 6.0) -> tuple[Any, Any]:
+    """The one axes of a result plot: on ``fig`` when given, else on a fresh Figure of the given size.
+
+    Parameters
+    ----------
+    fig : matplotlib Figure, optional
+    width, height : float
+        Size (inches) of the fresh Figure when ``fig`` is None.
+
+    Returns
+    -------
+    fig : matplotlib Figure
+    ax : matplotlib Axes
+        ``fig.add_subplot(1, 1, 1)``.
+
+    See Also
+    --------
+    new_figure, label_axes
+    """
+    fig = fig or new_figure(width, height)
+    return fig, fig.add_subplot(1, 1, 1)
 
 
 def label_axes(ax: Any, xlabel: str, ylabel: str, title: str) -> None:

@@ -121,10 +121,9 @@ class ControllerReduction(PicklesStateSpaces):
 
     def plot(self, fig: Any = None) -> Any:
         """The Hankel singular values with the kept ones marked. Returns the Figure."""
-        from ..plots import label_axes, new_figure
+        from ..plots import label_axes, single_axes
 
-        fig = fig or new_figure(6.0, 3.5)
-        ax = fig.add_subplot(1, 1, 1)
+        fig, ax = single_axes(fig, 6.0, 3.5)
         k = np.arange(1, self.hsv.size + 1)
         ax.semilogy(k, np.maximum(self.hsv, 1e-300), "o-", ms=3, lw=1)
         ax.axvline(self.order_after + 0.5, color="k", ls="--", lw=1, label=f"kept {self.order_after}")

@@ -140,7 +140,7 @@ class HinfResult:
         Returns the matplotlib Figure.
         """
         from ..lti import freqresp_array
-        from ..plots import label_axes, new_figure
+        from ..plots import label_axes, single_axes
 
         f_peak = self.info.get("f_peak_hz", np.nan)
         if f_hz is not None:
@@ -161,8 +161,7 @@ class HinfResult:
                 f_hz = np.sort(np.append(f_hz, f_peak))
         f_hz = np.asarray(f_hz, dtype=float)
         sv = np.linalg.svd(freqresp_array(self.closed_loop, f_hz), compute_uv=False)
-        fig = fig or new_figure(7.0, 4.0)
-        ax = fig.add_subplot(1, 1, 1)
+        fig, ax = single_axes(fig, 7.0, 4.0)
         ax.loglog(f_hz, sv, lw=1)
         ax.axhline(self.gamma, color="k", ls="--", lw=1, label=f"gamma = {self.gamma:.4g} (verified)")
         ax.axhline(self.gamma_opt, color="C3", ls=":", lw=1, label=f"gamma_opt = {self.gamma_opt:.4g}")

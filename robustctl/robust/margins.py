@@ -177,10 +177,9 @@ class DiskMarginResult:
 
     def plot(self, fig: Any = None) -> Any:
         """Disk size over frequency for each loop and all at once. Returns the Figure."""
-        from ..plots import label_axes, new_figure
+        from ..plots import label_axes, single_axes
 
-        fig = fig or new_figure(7.0, 4.0)
-        ax = fig.add_subplot(1, 1, 1)
+        fig, ax = single_axes(fig, 7.0, 4.0)
         names = [m.loop for m in self.loops] + ["all at once"]
         for curve, name in zip(self.alpha_curves, names):
             ax.semilogx(self.f_hz, curve, lw=1, ls="--" if name == "all at once" else "-", label=name)
