@@ -32,22 +32,20 @@ No submodule shares its name with a function or class that its package exports.
 """
 
 # shared ground: one checks module, one system coercion, one cost report, one Mode
-from . import checks, examples
+from . import checks, correlate, examples, robust, signals
 from ._version import __version__ as __version__
 
 # reproducibility: one time-budget policy (budget.py)
 from .budget import BudgetWarning, Deadline
-from .correlate import (
-    Comparison,
-    Diagnosis,
-    Residual,
-    UpdateResult,
-    Verification,
-    compare,
-    diagnose,
-    update,
-    verify,
-)
+from .correlate import Comparison as Comparison
+from .correlate import Diagnosis as Diagnosis
+from .correlate import Residual
+from .correlate import UpdateResult as UpdateResult
+from .correlate import Verification as Verification
+from .correlate import compare as compare
+from .correlate import diagnose as diagnose
+from .correlate import update as update
+from .correlate import verify as verify
 from .cost import LogCost, log_cost, log_error
 from .errors import (
     DataError,
@@ -158,24 +156,32 @@ from .robust import (
     robust_stability,
     worst_case_gain,
 )
-from .robust.controller_reduction import ControllerReduction, reduce_controller
+from .robust.controller_reduction import ControllerReduction
+from .robust.controller_reduction import reduce_controller as reduce_controller
 from .robust.dk import DKResult, dksyn
-from .robust.h2 import H2Result, h2norm, h2syn
-from .robust.loop_shaping import LoopShapingResult, ncfsyn, stability_margin
-from .robust.lqg_design import LQGResult, lqg
-from .robust.margins import DiskMargin, DiskMarginResult, disk_gain_phase, diskmargin, nugap
+from .robust.h2 import H2Result as H2Result
+from .robust.h2 import h2norm as h2norm
+from .robust.h2 import h2syn as h2syn
+from .robust.loop_shaping import LoopShapingResult as LoopShapingResult
+from .robust.loop_shaping import ncfsyn as ncfsyn
+from .robust.loop_shaping import stability_margin as stability_margin
+from .robust.lqg_design import LQGResult as LQGResult
+from .robust.lqg_design import lqg as lqg
+from .robust.margins import DiskMargin as DiskMargin
+from .robust.margins import DiskMarginResult as DiskMarginResult
+from .robust.margins import disk_gain_phase as disk_gain_phase
+from .robust.margins import diskmargin as diskmargin
+from .robust.margins import nugap as nugap
 from .robust.partitioned import as_partitioned
-from .robust.sampled import sampled_plant
+from .robust.sampled import sampled_plant as sampled_plant
 from .robust.sweep import DesignSweep, design_sweep
 from .robust.yardsticks import Yardstick, YardstickWarning, yardstick
-from .signals import (
-    combine_inputs,
-    combine_outputs,
-    rename_signals,
-    scale_inputs,
-    scale_outputs,
-    select_signals,
-)
+from .signals import combine_inputs as combine_inputs
+from .signals import combine_outputs as combine_outputs
+from .signals import rename_signals as rename_signals
+from .signals import scale_inputs as scale_inputs
+from .signals import scale_outputs as scale_outputs
+from .signals import select_signals as select_signals
 from .threads import blas_threads, set_blas_threads
 
 __all__ = [
@@ -187,14 +193,7 @@ __all__ = [
     "plot_mode_shapes",
     "plot_singular_values",
     "examples",
-    "compare",
-    "Comparison",
-    "update",
-    "UpdateResult",
-    "verify",
-    "Verification",
-    "diagnose",
-    "Diagnosis",
+    *correlate.STAGE_NAMES,
     "effects",
     "Residual",
     "RobustctlError",
@@ -266,12 +265,7 @@ __all__ = [
     "series",
     "parallel",
     "feedback",
-    "rename_signals",
-    "scale_inputs",
-    "scale_outputs",
-    "select_signals",
-    "combine_inputs",
-    "combine_outputs",
+    *signals.__all__,
     "block_diagonal",
     "GeneralizedPlant",
     "PlantWeight",
@@ -329,21 +323,7 @@ __all__ = [
     "parametric_lft",
     # H2/LQG, discrete synthesis, loop shaping, margins, controller reduction
     "is_stable",
-    "h2norm",
-    "h2syn",
-    "H2Result",
-    "lqg",
-    "LQGResult",
-    "sampled_plant",
-    "diskmargin",
-    "disk_gain_phase",
-    "DiskMargin",
-    "DiskMarginResult",
-    "nugap",
-    "ncfsyn",
-    "LoopShapingResult",
-    "stability_margin",
-    "reduce_controller",
+    *robust.TOOLBOX_NAMES,
     "ControllerReduction",
     # reproducibility: the time-budget policy and robustctl's warning base
     "Deadline",

@@ -20,7 +20,7 @@ import scipy.linalg as sla
 
 from .errors import FitError, ModelError
 from .lti import as_statespace, rebuild_statespace, statespace_state
-from .plots import new_figure
+from .plots import single_axes
 from .table import Table
 from .threads import limit_blas
 
@@ -73,8 +73,7 @@ class BalancedTruncation:
 
     def plot(self, fig: Any = None) -> Any:
         """The Hankel singular values, kept ones filled (matplotlib Figure)."""
-        fig = fig or new_figure(6, 3.5)
-        ax = fig.add_subplot(1, 1, 1)
+        fig, ax = single_axes(fig, 6, 3.5)
         k = np.arange(1, self.hsv.size + 1)
         ax.semilogy(k[: self.order], self.hsv[: self.order], "C0o", label="kept")
         ax.semilogy(k[self.order :], self.hsv[self.order :], "C0o", mfc="none", label="discarded")

@@ -31,6 +31,17 @@ _MODEL_HELP = (
 _DATA_HELP = "measured frequency responses: .npz, .csv, .mat or .uff/.unv (robustctl.load_frd)"
 
 
+def _data_command(
+    sub: Any, name: str, summary: str, description: str, *, model: bool
+) -> argparse.ArgumentParser:
+    """A sub-command reading DATA (after MODEL when ``model``); its options are added by the caller."""
+    p = sub.add_parser(name, help=summary, description=description)
+    if model:
+        p.add_argument("model", help=_MODEL_HELP)
+    p.add_argument("data", help=_DATA_HELP)
+    return p
+
+
 def _add_common(p: argparse.ArgumentParser, default_out: str) -> None:
     p.add_argument("--band", nargs=2, type=float, metavar=("LO_HZ", "HI_HZ"), help="frequency band in Hz")
     p.add_argument("--out", default=default_out, help=f"report folder (default: {default_out})")
@@ -102,33 +113,31 @@ def _parser() -> argparse.ArgumentParser:
     demo.add_argument("--no-design", action="store_true",
                       help="stop after the model update (skip weights, D-K, mu, yardstick and export)")
 
-    cmp = sub.add_parser(
-        "compare", help="where does MODEL fail against DATA (channels, bands, modes)?",
-        description="Compare a model with measured FRFs: per-channel cost (MACE eq. 5), failing bands, "
+    cmp = _data_command(
+        sub, "compare", "where does MODEL fail against DATA (channels, bands, modes)?",
+        "Compare a model with measured FRFs: per-channel cost (MACE eq. 5), failing bands, "
         "a mode table paired through a measurement model, the error's structure.",
+        model=True,
     )
-    cmp.add_argument("model", help=_MODEL_HELP)
-    cmp.add_argument("data", help=_DATA_HELP)
     cmp.add_argument("--modes", type=int, default=None,
                      help="also fit a measurement model with this many modes to pair modes through")
     _add_common(cmp, "out-compare")
 
-    diag = sub.add_parser(
-        "diagnose", help="which physical effect is MODEL missing, judged on DATA?",
-        description="Rank candidate physical effects (delays, filters, springs, masses, dashpots, taut "
+    diag = _data_command(
+        sub, "diagnose", "which physical effect is MODEL missing, judged on DATA?",
+        "Rank candidate physical effects (delays, filters, springs, masses, dashpots, taut "
         "wires, ...) by what they explain of the model's error, with a significance test.",
+        model=True,
     )
-    diag.add_argument("model", help=_MODEL_HELP)
-    diag.add_argument("data", help=_DATA_HELP)
     diag.add_argument("--time-budget", type=float, default=None,
                       help="optional wall-clock cap in s (default: none; iteration caps bound the work)")
     _add_common(diag, "out-diagnose")
 
-    ident = sub.add_parser(
-        "identify", help="fit a measurement model (the yardstick) to DATA",
-        description="Identify a modal measurement model (vector fitting, SVD mode grouping) of the data.",
+    ident = _data_command(
+        sub, "identify", "fit a measurement model (the yardstick) to DATA",
+        "Identify a modal measurement model (vector fitting, SVD mode grouping) of the data.",
+        model=False,
     )
-    ident.add_argument("data", help=_DATA_HELP)
     ident.add_argument("--modes", type=int, default=None, help="number of modes (default: automatic)")
     _add_common(ident, "out-identify")
 

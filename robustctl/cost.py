@@ -24,7 +24,7 @@ from .frd import FrequencyData, as_frequency_data
 from .lti import DB_PER_NEPER, _align, as_statespace, freqresp, log_ratio
 from .measure.estimator import model_view, resolve_estimator, split_hold
 from .measure.noise import point_weight_bias
-from .plots import channel_label, new_figure
+from .plots import channel_label, single_axes
 from .table import Table
 
 __all__ = ["LogCost", "cost_report", "channel_cost", "log_error", "log_cost"]
@@ -94,8 +94,7 @@ class LogCost:
 
     def plot(self, fig: Any = None) -> Any:
         """Cost per channel as a bar chart (matplotlib Figure)."""
-        fig = fig or new_figure(max(4.0, 0.5 * self.per_channel.size + 2), 3.5)
-        ax = fig.add_subplot(1, 1, 1)
+        fig, ax = single_axes(fig, max(4.0, 0.5 * self.per_channel.size + 2), 3.5)
         labels = [channel_label(o, i) for o in self.outputs for i in self.inputs]
         ax.bar(range(len(labels)), self.per_channel.ravel())
         ax.set_xticks(range(len(labels)))

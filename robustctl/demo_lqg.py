@@ -159,19 +159,16 @@ class LQGBesideMu:
 
     def plot(self, fig: Any = None) -> Any:
         """Largest singular value of the measured open loop and of each measured closed loop (Hz)."""
-        from .plots import new_figure
+        from .plots import label_axes, single_axes
 
-        fig = fig or new_figure(7.0, 4.0)
-        ax = fig.add_subplot(1, 1, 1)
+        fig, ax = single_axes(fig, 7.0, 4.0)
         first = next(iter(self.rows.values()))["score"]
         ax.loglog(first.f_hz, first.open_loop, "k", lw=1, label="open loop (data)")
         for label, r in self.rows.items():
             ax.loglog(r["score"].f_hz, r["score"].closed_loop, lw=1,
                       label=f"{label}: {r['attenuation_db']:.3g} dB")
-        ax.set_xlabel("frequency (Hz)")
-        ax.set_ylabel("largest singular value (rad/s per N m)")
-        ax.set_title("Measured closed loops, LQG beside mu")
-        ax.legend(fontsize=8)
+        label_axes(ax, "frequency (Hz)", "largest singular value (rad/s per N m)",
+                   "Measured closed loops, LQG beside mu")
         return fig
 
     def _repr_html_(self) -> str:

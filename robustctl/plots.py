@@ -26,6 +26,8 @@ __all__ = [
     "log_frequency_axis",
     "magnitude_label",
     "new_figure",
+    "label_axes",
+    "single_axes",
 ]
 
 
@@ -60,6 +62,49 @@ def new_figure(width: float = 9.0, height: float = 6.0):
 
     _show_figures_in_kernel(Figure)
     return Figure(figsize=(width, height), layout="constrained")
+
+
+def single_axes(fig: Any = None, width: float = 9.0, height: float = 6.0) -> tuple[Any, Any]:
+    """The one axes of a result plot: on ``fig`` when given, else on a fresh Figure of the given size.
+
+    Parameters
+    ----------
+    fig : matplotlib Figure, optional
+    width, height : float
+        Size (inches) of the fresh Figure when ``fig`` is None.
+
+    Returns
+    -------
+    fig : matplotlib Figure
+    ax : matplotlib Axes
+        ``fig.add_subplot(1, 1, 1)``.
+
+    See Also
+    --------
+    new_figure, label_axes
+    """
+    fig = fig or new_figure(width, height)
+    return fig, fig.add_subplot(1, 1, 1)
+
+
+def label_axes(ax: Any, xlabel: str, ylabel: str, title: str) -> None:
+    """Label both axes, title the axes and draw the legend in the one small size of result plots.
+
+    Parameters
+    ----------
+    ax : matplotlib Axes
+    xlabel, ylabel : str
+        Axis labels, with units in parentheses.
+    title : str
+
+    See Also
+    --------
+    new_figure : the Figure the axes belong to.
+    """
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.legend(fontsize=8)
 
 
 def _channels(reference: FrequencyData, max_channels: int) -> list[tuple[int, int]]:

@@ -110,6 +110,14 @@ def _index(labels: Sequence[str], name: str, what: str, arg: str = "") -> int:
     return labels.index(name)
 
 
+def _signal_gains(labels: Sequence[str], gains: Mapping[str, float], what: str) -> np.ndarray:
+    """One gain per signal of ``labels``: ``gains[name]`` for the named ones, 1 for the others."""
+    v = np.ones(len(labels))
+    for name, g in _mapping(gains, "gains").items():
+        v[_index(labels, name, what, "gains")] *= _gain(g, "gains", name)
+    return v
+
+
 # ============================================================================ rename and scale
 def scale_outputs(sys: Any, gains: Mapping[str, float]):
     """Multiply named outputs by gains (e.g. V per rad/s of a rate gyro's electronics).
@@ -129,13 +137,8 @@ def scale_outputs(sys: Any, gains: Mapping[str, float]):
     """
     sys = _system(sys)
     A, B, C, D = _abcd(sys)
-    C, D = C.copy(), D.copy()
-    for name, g in _mapping(gains, "gains").items():
-        i = _index(sys.output_labels, name, "output", "gains")
-        g = _gain(g, "gains", name)
-        C[i] *= g
-        D[i] *= g
-    return _ss(A, B, C, D, sys.input_labels, sys.output_labels)
+    g = _signal_gains(sys.output_labels, gains, "output")[:, None]
+    return _ss(A, B, g * C, g * D, sys.input_labels, sys.output_labels)
 
 
 def scale_inputs(sys: Any, gains: Mapping[str, float]):
@@ -155,13 +158,8 @@ def scale_inputs(sys: Any, gains: Mapping[str, float]):
     """
     sys = _system(sys)
     A, B, C, D = _abcd(sys)
-    B, D = B.copy(), D.copy()
-    for name, g in _mapping(gains, "gains").items():
-        j = _index(sys.input_labels, name, "input", "gains")
-        g = _gain(g, "gains", name)
-        B[:, j] *= g
-        D[:, j] *= g
-    return _ss(A, B, C, D, sys.input_labels, sys.output_labels)
+    g = _signal_gains(sys.input_labels, gains, "input")
+    return _ss(A, B * g, C, D * g, sys.input_labels, sys.output_labels)
 
 
 def rename_signals(

@@ -223,15 +223,15 @@ class ErrorStructure:
             f"sensor rows {self.sensor:.0%}, actuator columns {self.actuator:.0%}, "
             f"common {self.common:.0%}, channel-specific {self.interaction:.0%}"
         )
-        if self.kind == "sensor":
-            return (
-                f"sensor-side: the error is mostly the same along output {self.dominant_output!r}'s row "
-                f"(a gain, filter or delay of that sensor) [{pct}]."
+        if self.kind in ("sensor", "actuator"):
+            signal, name, line = (
+                ("output", self.dominant_output, "row")
+                if self.kind == "sensor"
+                else ("input", self.dominant_input, "column")
             )
-        if self.kind == "actuator":
             return (
-                f"actuator-side: the error is mostly the same along input {self.dominant_input!r}'s column "
-                f"(a gain, filter or delay of that actuator) [{pct}]."
+                f"{self.kind}-side: the error is mostly the same along {signal} {name!r}'s {line} "
+                f"(a gain, filter or delay of that {self.kind}) [{pct}]."
             )
         if self.kind == "common":
             return (

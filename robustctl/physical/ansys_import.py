@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -27,8 +26,8 @@ import scipy.sparse as sp
 
 from ..errors import DataError
 from ..frd_io.geometry import Geometry, ModeShapes, dof_label
-from .fe_model import fe_modal_model, fe_structural_model
-from .nastran_import import _existing, _si_transform, _units
+from .fe_model import fe_modal_model
+from .nastran_import import _existing, _si_structural_model, _units
 
 __all__ = [
     "read_ansys_modes",
@@ -239,32 +238,26 @@ def load_ansys_matrices(
     """
     M, K, labels = read_ansys_matrices(full)
     n = M.shape[0]
-    e, t = _si_transform(labels, n, units)
-    tt = sp.diags(t)
-
-    def si(a):
-        return (e * (tt @ sp.csr_matrix(a) @ tt)).tocsr()
-
-    parts = {}
     for g, a in (groups or {}).items():
         if a.shape != (n, n):
             raise DataError(
                 f"group {g!r} is {a.shape[0]}x{a.shape[1]}; the free DOFs of the .full file are {n}."
             )
-        parts[g] = si(a)
-    return fe_structural_model(
-        si(M),
-        si(K),
+    return _si_structural_model(
+        M,
+        K,
+        dict(groups or {}),
+        labels,
+        units,
+        full,
+        name,
         inputs=inputs,
         outputs=outputs,
-        dof_labels=labels,
-        groups=parts,
         lumped_masses=lumped_masses,
         output_kind=output_kind,
         damping=damping,
         n_modes=n_modes,
         band_hz=band_hz,
-        name=name or Path(full).stem,
     )
 
 

@@ -400,6 +400,59 @@ def _si_transform(labels: Sequence[str] | None, n: int, units: str) -> tuple[flo
     return mass * length**2, t
 
 
+def _si_structural_model(
+    mass: Any,
+    stiffness: Any,
+    groups: Mapping[str, Any],
+    labels: Sequence[str] | None,
+    units: str,
+    source: str | os.PathLike,
+    name: str | None,
+    **fe_options: Any,
+):
+    """``fe_structural_model`` of file matrices in ``units``, made SI by :func:`_si_transform`.
+
+    Parameters
+    ----------
+    mass, stiffness : (n, n) matrix
+        In the file's units; ``stiffness=None`` sums the group partitions.
+    groups : mapping group -> (n, n) matrix
+        Stiffness partitions over the same DOFs (file units).
+    labels : sequence of str or None
+        ``"grid:component"`` per row.
+    units : str
+        Consistent unit system of the file (:data:`UNIT_SYSTEMS`).
+    source : path
+        The file; its stem names the model when ``name`` is None.
+    name : str or None
+    **fe_options
+        ``inputs``, ``outputs``, ``lumped_masses``, ``output_kind``, ``damping``, ``n_modes``,
+        ``band_hz`` of :func:`~robustctl.physical.fe_model.fe_structural_model`.
+
+    Returns
+    -------
+    PhysicalModel
+        Mass in kg, stiffness in N/m (N m/rad on rotations): ``A_SI = e * T A T``.
+    """
+    n = mass.shape[0]
+    e, t = _si_transform(labels, n, units)
+    tt = sp.diags(t)
+
+    def si(a):
+        return (e * (tt @ sp.csr_matrix(a) @ tt)).tocsr()
+
+    parts = {g: si(a) for g, a in groups.items()}
+    if stiffness is not None:
+        K = si(stiffness)
+    elif parts:
+        K = sum(parts.values(), sp.csr_matrix((n, n)))
+    else:
+        raise DataError("give stiffness= (the complete stiffness matrix) or groups= (its partitions).")
+    return fe_structural_model(
+        si(mass), K, dof_labels=labels, groups=parts, name=name or Path(source).stem, **fe_options
+    )
+
+
 def _nastran_labels(dof_labels: Any, n: int, found: Sequence[str] | None) -> tuple[str, ...] | None:
     if dof_labels is None:
         return None if found is None else tuple(found)
@@ -498,33 +551,21 @@ def load_nastran_matrices(
                 f"matrix {nm!r} is {mats[nm].shape[0]}x{mats[nm].shape[1]}; the mass matrix is {n}x{n}."
             )
     labels = _nastran_labels(dof_labels, n, found)
-    e, t = _si_transform(labels, n, units)
-    tt = sp.diags(t)
-
-    def si(a):
-        return (e * (tt @ a @ tt)).tocsr()
-
-    M = si(mats[mass])
-    K_groups = {g: si(mats[m]) for g, m in groups.items()}
-    if stiffness:
-        K = si(mats[stiffness])
-    elif K_groups:
-        K = sum(K_groups.values(), sp.csr_matrix((n, n)))
-    else:
-        raise DataError("give stiffness= (the complete stiffness matrix) or groups= (its partitions).")
-    return fe_structural_model(
-        M,
-        K,
-        dof_labels=labels,
+    return _si_structural_model(
+        mats[mass],
+        mats[stiffness] if stiffness else None,
+        {g: mats[m] for g, m in groups.items()},
+        labels,
+        units,
+        path,
+        name,
         inputs=inputs,
         outputs=outputs,
-        groups=K_groups,
         lumped_masses=lumped_masses,
         output_kind=output_kind,
         damping=damping,
         n_modes=n_modes,
         band_hz=band_hz,
-        name=name or Path(path).stem,
     )
 
 

@@ -5,9 +5,9 @@ from .blocks import Block, BlockStructure, as_block_structure
 from .controller_reduction import (
     ControllerReduction,
     coprime_reduction,
-    reduce_controller,
     weighted_balanced_truncation,
 )
+from .controller_reduction import reduce_controller as reduce_controller
 
 # weights (uncertainty and performance weights, magnitude fits, covers)
 from .cover import UncertaintyCover, cover_additive, cover_multiplicative, error_envelope
@@ -16,24 +16,53 @@ from .cover import UncertaintyCover, cover_additive, cover_multiplicative, error
 from .dk import DKIteration, DKResult, Reduction, dksyn
 
 # H2/LQG, discrete synthesis, loop shaping, margins, controller reduction (toolbox)
-from .h2 import H2Result, h2norm, h2syn
+from .h2 import H2Result as H2Result
+from .h2 import h2norm as h2norm
+from .h2 import h2syn as h2syn
 
 # H-infinity norm and synthesis (hinf helper)
 from .hinf_norm import hinfnorm
 from .hinf_synthesis import HinfResult, hinfsyn
-from .loop_shaping import LoopShapingResult, ncfsyn, stability_margin
-from .lqg_design import LQGResult, lqg
+from .loop_shaping import LoopShapingResult as LoopShapingResult
+from .loop_shaping import ncfsyn as ncfsyn
+from .loop_shaping import stability_margin as stability_margin
+from .lqg_design import LQGResult as LQGResult
+from .lqg_design import lqg as lqg
 from .magfit import MagnitudeFit, fit_magnitude, fit_magnitude_details
-from .margins import DiskMargin, DiskMarginResult, disk_gain_phase, diskmargin, nugap
+from .margins import DiskMargin as DiskMargin
+from .margins import DiskMarginResult as DiskMarginResult
+from .margins import disk_gain_phase as disk_gain_phase
+from .margins import diskmargin as diskmargin
+from .margins import nugap as nugap
 from .mu_analysis import WorstCaseGain, robust_performance, robust_stability, worst_case_gain
 
 # --- mu analysis (mu helper) ---
 from .mu_bounds import MuResult, mu
 from .plant import GeneralizedPlant, PlantWeight, generalized_plant, mixed_sensitivity
-from .sampled import sampled_plant
+from .sampled import sampled_plant as sampled_plant
 from .sweep import DesignSweep, design_sweep
 from .weights import CALTECH_MULTIPLICATIVE, caltech_additive_weight, makeweight
 from .yardsticks import NyquistVerdict, Yardstick, YardstickWarning, nyquist_stability, yardstick
+
+#: H2/LQG, discrete synthesis, loop shaping, margins and controller reduction (re-exported by
+#: ``robustctl``).
+TOOLBOX_NAMES = [
+    "h2norm",
+    "h2syn",
+    "H2Result",
+    "lqg",
+    "LQGResult",
+    "sampled_plant",
+    "diskmargin",
+    "disk_gain_phase",
+    "DiskMargin",
+    "DiskMarginResult",
+    "nugap",
+    "ncfsyn",
+    "LoopShapingResult",
+    "stability_margin",
+    "reduce_controller",
+]
 
 __all__ = [
     "Block",
@@ -80,21 +109,7 @@ __all__ = [
     "design_sweep",
     "DesignSweep",
     # H2/LQG, discrete synthesis, loop shaping, margins, controller reduction
-    "h2norm",
-    "h2syn",
-    "H2Result",
-    "lqg",
-    "LQGResult",
-    "sampled_plant",
-    "diskmargin",
-    "disk_gain_phase",
-    "DiskMargin",
-    "DiskMarginResult",
-    "nugap",
-    "ncfsyn",
-    "LoopShapingResult",
-    "stability_margin",
-    "reduce_controller",
+    *TOOLBOX_NAMES,
     "weighted_balanced_truncation",
     "coprime_reduction",
     "ControllerReduction",

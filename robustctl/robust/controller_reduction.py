@@ -121,17 +121,13 @@ class ControllerReduction(PicklesStateSpaces):
 
     def plot(self, fig: Any = None) -> Any:
         """The Hankel singular values with the kept ones marked. Returns the Figure."""
-        from ..plots import new_figure
+        from ..plots import label_axes, single_axes
 
-        fig = fig or new_figure(6.0, 3.5)
-        ax = fig.add_subplot(1, 1, 1)
+        fig, ax = single_axes(fig, 6.0, 3.5)
         k = np.arange(1, self.hsv.size + 1)
         ax.semilogy(k, np.maximum(self.hsv, 1e-300), "o-", ms=3, lw=1)
         ax.axvline(self.order_after + 0.5, color="k", ls="--", lw=1, label=f"kept {self.order_after}")
-        ax.set_xlabel("state")
-        ax.set_ylabel("Hankel singular value")
-        ax.set_title(f"Controller reduction ({self.method})")
-        ax.legend(fontsize=8)
+        label_axes(ax, "state", "Hankel singular value", f"Controller reduction ({self.method})")
         return fig
 
     def _repr_html_(self) -> str:

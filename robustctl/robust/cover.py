@@ -172,10 +172,9 @@ class UncertaintyCover:
         matplotlib.figure.Figure
         """
         from ..lti import freqresp_array
-        from ..plots import new_figure
+        from ..plots import single_axes
 
-        fig = fig or new_figure(8.0, 4.5)
-        ax = fig.add_subplot(1, 1, 1)
+        fig, ax = single_axes(fig, 8.0, 4.5)
         f = self.f_hz
         for k, (label, err) in enumerate(zip(self.sources, self.source_errors)):
             kw = dict(color="0.65", lw=0.6)

@@ -221,13 +221,12 @@ def _default_grid(sys: Any) -> np.ndarray:
 
 def _plot_closed_loop(cl: Any, f_hz: Any, fig: Any, title: str) -> Any:
     from ..lti import freqresp_array
-    from ..plots import new_figure
+    from ..plots import single_axes
     from .mu_bounds import _frequencies
 
     f_hz = _default_grid(cl) if f_hz is None else _frequencies(f_hz)
     sv = np.linalg.svd(freqresp_array(cl, f_hz), compute_uv=False)
-    fig = fig or new_figure(7.0, 4.0)
-    ax = fig.add_subplot(1, 1, 1)
+    fig, ax = single_axes(fig, 7.0, 4.0)
     ax.loglog(f_hz, sv, lw=1)
     ax.set_xlabel("frequency (Hz)")
     ax.set_ylabel("singular values")

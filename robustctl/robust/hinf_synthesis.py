@@ -140,7 +140,7 @@ class HinfResult:
         Returns the matplotlib Figure.
         """
         from ..lti import freqresp_array
-        from ..plots import new_figure
+        from ..plots import label_axes, single_axes
 
         f_peak = self.info.get("f_peak_hz", np.nan)
         if f_hz is not None:
@@ -161,17 +161,13 @@ class HinfResult:
                 f_hz = np.sort(np.append(f_hz, f_peak))
         f_hz = np.asarray(f_hz, dtype=float)
         sv = np.linalg.svd(freqresp_array(self.closed_loop, f_hz), compute_uv=False)
-        fig = fig or new_figure(7.0, 4.0)
-        ax = fig.add_subplot(1, 1, 1)
+        fig, ax = single_axes(fig, 7.0, 4.0)
         ax.loglog(f_hz, sv, lw=1)
         ax.axhline(self.gamma, color="k", ls="--", lw=1, label=f"gamma = {self.gamma:.4g} (verified)")
         ax.axhline(self.gamma_opt, color="C3", ls=":", lw=1, label=f"gamma_opt = {self.gamma_opt:.4g}")
         if np.isfinite(f_peak) and f_peak > 0:
             ax.plot([f_peak], [self.gamma], "ko", ms=4)
-        ax.set_xlabel("frequency (Hz)")
-        ax.set_ylabel("singular values of Fl(P, K)")
-        ax.set_title("H-infinity closed loop w -> z")
-        ax.legend(fontsize=8)
+        label_axes(ax, "frequency (Hz)", "singular values of Fl(P, K)", "H-infinity closed loop w -> z")
         return fig
 
     def _repr_html_(self) -> str:

@@ -105,23 +105,19 @@ class LoopShapingResult(PicklesStateSpaces):
     def plot(self, f_hz: Any = None, fig: Any = None) -> Any:
         """Singular values of the shaped loop ``Gs`` and of the achieved loop ``-G K`` (Hz)."""
         from ..lti import freqresp_array
-        from ..plots import new_figure
+        from ..plots import label_axes, single_axes
         from .h2 import _default_grid
         from .mu_bounds import _frequencies
 
         f = _default_grid(self.shaped) if f_hz is None else _frequencies(f_hz)
         G = self.plant
-        fig = fig or new_figure(7.0, 4.0)
-        ax = fig.add_subplot(1, 1, 1)
+        fig, ax = single_axes(fig, 7.0, 4.0)
         ax.loglog(f, np.linalg.svd(freqresp_array(self.shaped, f), compute_uv=False), "C0", lw=1)
         L = freqresp_array(G, f) @ freqresp_array(self.K, f)
         ax.loglog(f, np.linalg.svd(L, compute_uv=False), "C3--", lw=1)
         ax.plot([], [], "C0", label="shaped plant W2 G W1")
         ax.plot([], [], "C3--", label="loop G K")
-        ax.set_xlabel("frequency (Hz)")
-        ax.set_ylabel("singular values")
-        ax.set_title(f"Loop shaping, b = {self.b_achieved:.3g}")
-        ax.legend(fontsize=8)
+        label_axes(ax, "frequency (Hz)", "singular values", f"Loop shaping, b = {self.b_achieved:.3g}")
         return fig
 
     def _repr_html_(self) -> str:

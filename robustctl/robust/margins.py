@@ -177,17 +177,13 @@ class DiskMarginResult:
 
     def plot(self, fig: Any = None) -> Any:
         """Disk size over frequency for each loop and all at once. Returns the Figure."""
-        from ..plots import new_figure
+        from ..plots import label_axes, single_axes
 
-        fig = fig or new_figure(7.0, 4.0)
-        ax = fig.add_subplot(1, 1, 1)
+        fig, ax = single_axes(fig, 7.0, 4.0)
         names = [m.loop for m in self.loops] + ["all at once"]
         for curve, name in zip(self.alpha_curves, names):
             ax.semilogx(self.f_hz, curve, lw=1, ls="--" if name == "all at once" else "-", label=name)
-        ax.set_xlabel("frequency (Hz)")
-        ax.set_ylabel("disk margin alpha")
-        ax.set_title("Disk margins")
-        ax.legend(fontsize=8)
+        label_axes(ax, "frequency (Hz)", "disk margin alpha", "Disk margins")
         return fig
 
     def _repr_html_(self) -> str:

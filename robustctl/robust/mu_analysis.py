@@ -193,10 +193,9 @@ class WorstCaseGain:
 
     def plot(self, fig: Any = None) -> Any:
         """Nominal and worst-case gain bounds against frequency (log axes)."""
-        from ..plots import new_figure
+        from ..plots import single_axes
 
-        fig = fig or new_figure(7.0, 4.0)
-        ax = fig.add_subplot(1, 1, 1)
+        fig, ax = single_axes(fig, 7.0, 4.0)
         x = self.f_hz if np.all(np.isfinite(self.f_hz)) else np.arange(self.f_hz.size)
         ax.plot(x, self.nominal, "k:", lw=1, label="nominal")
         ax.plot(x, self.upper, "C0-", lw=1.5, label="worst case (upper bound)")

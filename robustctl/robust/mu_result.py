@@ -147,10 +147,9 @@ class MuResult:
 
     def plot(self, fig: Any = None, *, title: str = "") -> Any:
         """Upper and lower bound against frequency (log axis); returns the matplotlib Figure."""
-        from ..plots import new_figure
+        from ..plots import single_axes
 
-        fig = fig or new_figure(7.0, 4.0)
-        ax = fig.add_subplot(1, 1, 1)
+        fig, ax = single_axes(fig, 7.0, 4.0)
         f = self.f_hz
         x = f if np.all(np.isfinite(f)) else np.arange(f.size)
         ax.plot(x, self.upper, "C0-", lw=1.5, label="mu upper bound")

@@ -183,11 +183,10 @@ class GeneralizedPlant(PartitionedPlant):
         matplotlib Figure
         """
         from ..lti import freqresp_array
-        from ..plots import new_figure
+        from ..plots import single_axes
 
         f = np.geomspace(1e-3, 1e3, 400) if f_hz is None else np.asarray(f_hz, dtype=float)
-        fig = fig or new_figure(8.0, 4.5)
-        ax = fig.add_subplot(1, 1, 1)
+        fig, ax = single_axes(fig, 8.0, 4.5)
         for wt in self.weights:
             g = freqresp_array(wt.system, f)
             ax.loglog(f, np.linalg.norm(g, ord=2, axis=(1, 2)), label=f"{wt.role} ({wt.size})")

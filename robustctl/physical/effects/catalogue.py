@@ -13,6 +13,7 @@ from ...checks import check_band, flag
 from ...errors import FitError, ModelError
 from ...threads import limit_blas
 from ..model import PhysicalModel
+from . import io_effects, setup, structural
 from .base import (
     _N_CAL_MODES,
     DAMPING_TARGET,
@@ -22,65 +23,34 @@ from .base import (
     _signals,
     _structure_info,
 )
-from .io_effects import (
-    ActuatorGain,
-    ActuatorLowPass,
-    InputDelay,
-    OutputDelay,
-    SensorGain,
-    SensorLowPass,
-    SensorMisalignment,
-)
-from .setup import (
-    ActuatorMoved,
-    ActuatorSignFlip,
-    ActuatorUnits,
-    SensorMoved,
-    SensorSignFlip,
-    SensorUnits,
-    SwappedInputs,
-    SwappedOutputs,
-    setup_candidates,
-)
-from .structural import (
-    AddedMass,
-    Dashpot,
-    GravityStiffening,
-    GroupStiffness,
-    GroupTension,
-    JointSpring,
-    ModalDamping,
-    Pendulum,
-    SuspensionSpring,
-)
 
 EFFECT_KINDS: dict[str, type[Effect]] = {
     cls.kind: cls
     for cls in (
-        OutputDelay,
-        InputDelay,
-        SensorLowPass,
-        ActuatorLowPass,
-        SensorGain,
-        ActuatorGain,
-        SensorMisalignment,
-        AddedMass,
-        SuspensionSpring,
-        Dashpot,
-        Pendulum,
-        GroupStiffness,
-        GroupTension,
-        GravityStiffening,
-        ModalDamping,
-        JointSpring,
-        SwappedOutputs,
-        SwappedInputs,
-        SensorSignFlip,
-        ActuatorSignFlip,
-        SensorUnits,
-        ActuatorUnits,
-        SensorMoved,
-        ActuatorMoved,
+        io_effects.OutputDelay,
+        io_effects.InputDelay,
+        io_effects.SensorLowPass,
+        io_effects.ActuatorLowPass,
+        io_effects.SensorGain,
+        io_effects.ActuatorGain,
+        io_effects.SensorMisalignment,
+        structural.AddedMass,
+        structural.SuspensionSpring,
+        structural.Dashpot,
+        structural.Pendulum,
+        structural.GroupStiffness,
+        structural.GroupTension,
+        structural.GravityStiffening,
+        structural.ModalDamping,
+        structural.JointSpring,
+        setup.SwappedOutputs,
+        setup.SwappedInputs,
+        setup.SensorSignFlip,
+        setup.ActuatorSignFlip,
+        setup.SensorUnits,
+        setup.ActuatorUnits,
+        setup.SensorMoved,
+        setup.ActuatorMoved,
     )
 }
 
@@ -89,15 +59,15 @@ EFFECT_KINDS: dict[str, type[Effect]] = {
 def _io_candidates(model: PhysicalModel) -> list[Effect]:
     outs = _signals(model, "output")
     cands: list[Effect] = [
-        OutputDelay(),
-        InputDelay(),
-        SensorLowPass(order=1),
-        SensorLowPass(order=2),
-        ActuatorLowPass(order=1),
-        ActuatorLowPass(order=2),
+        io_effects.OutputDelay(),
+        io_effects.InputDelay(),
+        io_effects.SensorLowPass(order=1),
+        io_effects.SensorLowPass(order=2),
+        io_effects.ActuatorLowPass(order=1),
+        io_effects.ActuatorLowPass(order=2),
     ]
-    cands += [SensorGain(o) for o in outs]
-    cands += [SensorMisalignment(a, partner=b) for i, a in enumerate(outs) for b in outs[i + 1 :]]
+    cands += [io_effects.SensorGain(o) for o in outs]
+    cands += [io_effects.SensorMisalignment(a, partner=b) for i, a in enumerate(outs) for b in outs[i + 1 :]]
     return cands
 
 
@@ -131,24 +101,27 @@ def _structure_candidates(model: PhysicalModel, include_points: bool) -> list[Ef
     if include_points:
         dirs = _directions(mats.dof_labels, info["locations"])
         for loc in info["locations"]:
-            cands.append(AddedMass(loc))
+            cands.append(structural.AddedMass(loc))
             for d in dirs[loc]:
-                cands.append(SuspensionSpring(loc, direction=d))
+                cands.append(structural.SuspensionSpring(loc, direction=d))
             for d in dirs[loc]:
-                cands.append(Dashpot(loc, direction=d))
+                cands.append(structural.Dashpot(loc, direction=d))
             if info["gravity_on"] and {"x", "y"} <= set(dirs[loc]):  # a hanging rod needs gravity
-                cands.append(Pendulum(loc))
+                cands.append(structural.Pendulum(loc))
     joints = getattr(struct, "joints", None)
     for node, group in joints() if joints is not None else ():
         # typical size: a spring 20 x stiffer than the member's end (4 E I / L): a few % on the modes
-        cands.append(JointSpring(node, group=group).with_scale(0.05 / struct.joint_stiffness(node, group)))
+        spring = structural.JointSpring(node, group=group)
+        cands.append(spring.with_scale(0.05 / struct.joint_stiffness(node, group)))
     for group in info["groups"]:
-        cands.append(GroupStiffness(group))
+        cands.append(structural.GroupStiffness(group))
         if group in info["tension_groups"]:  # a matrix group without geometric stiffness cannot
-            cands.append(GroupTension(group))
+            cands.append(structural.GroupTension(group))
     if info["gravity"]:  # only the switch that changes the model's current state
         state = info["gravity_on"]
-        cands += [GravityStiffening(enabled=on) for on in (True, False) if state is None or on != state]
+        cands += [
+            structural.GravityStiffening(enabled=on) for on in (True, False) if state is None or on != state
+        ]
     return cands
 
 
@@ -185,7 +158,7 @@ def _modal_damping_candidates(f_modes: np.ndarray, number: np.ndarray) -> list[E
     octaves = runs(lambda first, k: f[k] <= 2.0 * f[first])
     clusters = runs(lambda first, k: f[k] < _CLUSTER_RATIO * f[k - 1])
     spans = list(dict.fromkeys(octaves + clusters))
-    return [ModalDamping(modes=(int(number[a]), int(number[b]))) for a, b in spans]
+    return [structural.ModalDamping(modes=(int(number[a]), int(number[b]))) for a, b in spans]
 
 
 @limit_blas
@@ -253,7 +226,7 @@ def candidates(
         unknown = sorted(kinds - set(EFFECT_KINDS))
         if unknown:
             raise ModelError(f"unknown effect kinds {unknown}; known kinds: {sorted(EFFECT_KINDS)}.")
-    cands = _io_candidates(model) + setup_candidates(model)
+    cands = _io_candidates(model) + setup.setup_candidates(model)
     if model.structure is not None:
         cands += _structure_candidates(model, points)
         if locations is not None:
