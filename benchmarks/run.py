@@ -187,7 +187,8 @@ def headline_markdown(results: list[dict[str, Any]]) -> str:
             met_text = "" if met is None else ("yes" if met else "**no**")
             target_text = "" if target is None else _cell(target)
             lines.append(f"| {r.get('name')} | {metric} | {_cell(value)} | {target_text} | {met_text} |")
-    loads = sorted({_cell(r.get("machine", {}).get("load_average_1_5_15", [""])[0]) for r in results})
+    seen = [r.get("machine", {}).get("load_average_1_5_15") for r in results]
+    loads = [_cell(v) for v in sorted({x[0] for x in seen if x})]
     lines += [
         "",
         f"1 BLAS thread; 1-minute load averages during the runs: {', '.join(loads)}. Every metric, "
