@@ -151,8 +151,6 @@ def _reduce(mats: Any, f_cut_hz: float) -> _Basis:
     M, K = _csc(mats.mass), _csc(mats.stiffness)
     check_structural_matrices(M, K)
     n = M.shape[0]
-    b = np.asarray(mats.input_matrix, dtype=float)
-    c = np.asarray(mats.output_matrix, dtype=float)
     k_scale = float(abs(K).max() / max(abs(M).max(), 1e-300))
     sigma = -1e-6 * k_scale - 1.0  # K - sigma M positive definite, rigid-body modes included
     try:
@@ -225,7 +223,7 @@ def _reuse(base: _Basis, mats: Any, lam_cut: float) -> _Basis | None:
     if M.shape != base.mass.shape:
         return None
     phi0, lam0 = base.V[:, : base.n_exact], base.lam[: base.n_exact]
-    if (M != base.mass).nnz == 0 and (K != base.stiffness).nnz == 0:  # new inputs or outputs only
+    if (M - base.mass).count_nonzero() == 0 and (K - base.stiffness).count_nonzero() == 0:  # new I/O only
         return _attach(mats, M, K, base.lu, base.sigma, lam0, phi0)
     from .eigen import check_structural_matrices
 
@@ -538,12 +536,12 @@ POINT_KINDS = ("added_mass", "suspension_spring", "dashpot")
 @dataclass
 class PointChange:
     """The change one point effect makes per unit of its parameter: ``dofs`` (the DOFs ``J``)
-    and the dense ``|J| x |J|`` blocks ``dM`` (kg), ``dK`` (N/m), ``dC`` (N s/m) there."""
+    and the dense ``|J| x |J|`` blocks of mass (kg), stiffness (N/m) and damping (N s/m) there."""
 
     dofs: np.ndarray
-    dM: np.ndarray
-    dK: np.ndarray
-    dC: np.ndarray
+    mass: np.ndarray
+    stiffness: np.ndarray
+    damping: np.ndarray
 
 
 class PointModal:
@@ -601,7 +599,7 @@ class PointModal:
         Bt = ZU @ self.phib
         S = ZU @ U.T
         w = self.w[:, None, None]
-        B = change.dK[None] - w**2 * change.dM[None] + 1j * w * change.dC[None]
+        B = change.stiffness[None] - w**2 * change.mass[None] + 1j * w * change.damping[None]
         return At, Bt, S, B
 
     def responses(self, terms: tuple, values: np.ndarray) -> np.ndarray:

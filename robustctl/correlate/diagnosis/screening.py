@@ -543,7 +543,8 @@ def _screen_all(
         leaders = ranked[: LEADER_FACTOR * max(int(n_fit), 1)]
         exact_idx = sorted(exact_idx + leaders)
     shared = (res_u, model_u, null.j, null.Q, r_perp, deadline, len(cands))
-    done = parallel_map_shared(_screen_task, shared, [cands[k] for k in exact_idx], executor, desc="screening")
+    done = parallel_map_shared(_screen_task, shared, [cands[k] for k in exact_idx], executor,
+                               desc="screening")
     for k, sc in zip(exact_idx, done):  # each candidate's model, rebuilt here on model_u (see _screen_task)
         sc["model"] = sc["effect"].with_values(**sc["effect"].neutral_values).apply(model_u)
         sc["exact"] = True
@@ -568,7 +569,7 @@ POINT_CHUNK = 128
 #: typical size (:attr:`Effect.typical_size`), refined twice around the best by
 #: :data:`POINT_REFINE` sub-steps.
 POINT_MULTIPLES = (0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0)
-POINT_REFINE = 6
+POINT_REFINE = 4
 
 
 def _screen_points(res_u: Residual, model_u: Any, null: _Null, r_perp: np.ndarray, cands: list,
@@ -615,7 +616,13 @@ def _screen_points(res_u: Residual, model_u: Any, null: _Null, r_perp: np.ndarra
     if not items:
         return None
     sketch = np.random.default_rng(20261127).standard_normal((res_u.n, 2))
-    shared = dict(pm=pm, oi=oi, ii=ii, ratio=g_u / h_u, data=data.response, weights=res_u.weights,
+    ratio = g_u / h_u
+    identity = oi == list(range(len(pm.outputs))) and ii == list(range(len(pm.inputs)))
+    half = res_u.n // 2
+    shared = dict(pm=pm, oi=None if identity else oi, ii=None if identity else ii,
+                  ratio=None if np.allclose(ratio, 1.0, rtol=1e-13, atol=0) else ratio, data=data.response,
+                  Q_parts=(null.Q[:half], null.Q[half:]),
+                  log_abs_data=np.log(np.maximum(np.abs(data.response), 1e-300)), weights=res_u.weights,
                   bias=res_u.bias, Q=null.Q, r_perp=r_perp, j_u=null.j, sketch=sketch, deadline=deadline,
                   n=len(cands))
     chunks = [items[i:i + POINT_CHUNK] for i in range(0, len(items), POINT_CHUNK)]
@@ -666,17 +673,38 @@ def _point_sizes(effect: Any) -> tuple[np.ndarray, float]:
     return np.array(sorted(set(sizes))), float(trial)
 
 
-def _point_vectors(shared: dict, terms: tuple, values: np.ndarray) -> np.ndarray:
-    """Residual vectors (n_v, n) of the closed-form responses at ``values`` (the complex log of
-    the ratio, principal branch: the phase wrapped to (-pi, pi] as :func:`robustctl.lti.log_ratio`)."""
+def _point_errors(shared: dict, terms: tuple, values: np.ndarray) -> np.ndarray:
+    """Weighted complex log errors (n_v, n_freq * n_out * n_in) of the closed-form responses at
+    ``values`` (principal branch, the phase wrapped to (-pi, pi] as :func:`robustctl.lti.log_ratio`)."""
     pm = shared["pm"]
-    h = pm.responses(terms, values)[:, :, shared["oi"]][:, :, :, shared["ii"]]
+    h = pm.responses(terms, values)
+    if shared["oi"] is not None:
+        h = h[:, :, shared["oi"]][:, :, :, shared["ii"]]
+    g = h if shared["ratio"] is None else shared["ratio"][None] * h
+    q = shared["data"][None] * np.conj(g)
     with np.errstate(all="ignore"):
-        e = np.log(shared["data"][None] / (shared["ratio"][None] * h))
+        e = shared["log_abs_data"][None] - 0.5 * np.log(g.real**2 + g.imag**2)
+        e = e + 1j * np.arctan2(q.imag, q.real)
     if shared["bias"] is not None:
         e = e - shared["bias"][None]
-    c = (shared["weights"][None] * e).reshape(len(values), -1)
+    return (shared["weights"][None] * e).reshape(len(values), -1)
+
+
+def _point_vectors(shared: dict, terms: tuple, values: np.ndarray) -> np.ndarray:
+    """Residual vectors (n_v, n) of the closed-form responses at ``values``."""
+    c = _point_errors(shared, terms, values)
     return np.concatenate([c.real, c.imag], axis=1)
+
+
+def _point_left(shared: dict, terms: tuple, values: np.ndarray) -> np.ndarray:
+    """``|P j(v)|^2 = |j|^2 - |Q^T j|^2`` at each size (``Q`` orthonormal; inf where not finite)."""
+    c = _point_errors(shared, terms, values)
+    total = np.einsum("ij,ij->i", c.real, c.real) + np.einsum("ij,ij->i", c.imag, c.imag)
+    Qr, Qi = shared["Q_parts"]
+    if Qr.shape[1]:
+        proj = c.real @ Qr + c.imag @ Qi
+        total = total - np.einsum("ij,ij->i", proj, proj)
+    return np.where(np.isfinite(total), np.maximum(total, 0.0), np.inf)
 
 
 def _points_task(shared: dict, chunk: list) -> list:
@@ -692,9 +720,7 @@ def _points_task(shared: dict, chunk: list) -> list:
         lo, hi = effect.parameters[0].bounds
 
         def share_of(values, terms=terms):
-            P = _project_rows(Q, _point_vectors(shared, terms, values))
-            left = np.einsum("ij,ij->i", P, P)
-            return np.where(np.isfinite(left), left, np.inf)
+            return _point_left(shared, terms, values)
 
         left = share_of(sizes)
         for _ in range(2):  # refine between the best size's neighbours
@@ -718,11 +744,6 @@ def _points_task(shared: dict, chunk: list) -> list:
         out.append((k, dict(fraction=fraction, angle=angle, value=value, evals=0,
                             sketch=(float(d @ d), *map(float, sk)))))
     return out
-
-
-def _project_rows(Q: np.ndarray, X: np.ndarray) -> np.ndarray:
-    """:func:`_project` of each row of ``X``."""
-    return X - (X @ Q) @ Q.T if Q.shape[1] else X
 
 
 def _sketch_twins(screens: dict[int, dict]) -> dict[int, int]:
