@@ -319,3 +319,21 @@ def test_a_reduction_is_reused_for_a_stiffness_scale_and_not_for_a_softer_struct
     g_fresh = fresh_model.freqresp(F_HZ, k_scale=1.05).response
     assert np.max(np.abs(g_reused - g_fresh)) <= 1e-8 * np.max(np.abs(g_fresh))
     assert red._reuse(base, model.build_structure(k_scale=0.8).matrices(), lam_cut) is None
+
+
+def test_a_scaled_structure_with_a_point_change_is_a_low_rank_change_of_its_scaled_reduction(monkeypatch):
+    """An update parameter and a candidate in one fit (a stiffness scale and an added mass): no new
+    Lanczos run, and the response of a reducer that reduced the scaled structure first."""
+    effect = rc.effects.AddedMass("dof 58")
+    point = {"k_scale": 1.03, "added_mass__dof_58": 0.02}
+    other = effect.apply(red.band_limited(_model(), F_HZ[-1], min_dof=0))
+    other.freqresp(F_HZ, k_scale=1.03)
+    expected = other.freqresp(F_HZ, **point).response
+    model = effect.apply(red.band_limited(_model(), F_HZ[-1], min_dof=0))
+    model.freqresp(F_HZ)
+    calls = []
+    reduce = red._reduce
+    monkeypatch.setattr(red, "_reduce", lambda *a: calls.append(a) or reduce(*a))
+    got = model.freqresp(F_HZ, **point).response
+    assert not calls
+    assert np.max(np.abs(got - expected)) <= 1e-9 * np.max(np.abs(expected))

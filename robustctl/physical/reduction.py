@@ -216,6 +216,39 @@ def _attach(mats: Any, M: Any, K: Any, lu: Any, sigma: float, lam: np.ndarray, p
 REUSE_TOL = 1e-7
 
 
+def _scaled_part(base: _Basis, mats: Any) -> Any | None:
+    """``mats`` less a change at no more than :data:`LOW_RANK_MAX_DOFS` DOFs, when what is left is
+    the base's mass and stiffness times factors ``alpha_M``, ``alpha_K`` (the median entry ratios;
+    entries within 1e-9 of the largest count as equal), else None: a stiffness scale and an added
+    mass, an update parameter and a candidate in one fit. Its reduction is the base's, scaled
+    (:func:`_reuse`), and ``mats`` a low-rank change of it."""
+    from dataclasses import replace
+
+    M, K = _csc(mats.mass), _csc(mats.stiffness)
+    if M.shape != base.mass.shape:
+        return None
+    parts, rows = [], set()
+    for new, old in ((M, base.mass), (K, base.stiffness)):
+        both = new.multiply(old).tocoo()
+        ref = old.multiply(old).tocoo()
+        if both.nnz == 0 or ref.nnz != both.nnz:
+            return None
+        alpha = float(np.median(both.data / ref.data))
+        if not alpha > 0:
+            return None
+        d = sp.coo_matrix(new - alpha * old)
+        big = np.abs(d.data) > 1e-9 * max(float(abs(new).max()), 1e-300)
+        rows.update(d.row[big].tolist())
+        rows.update(d.col[big].tolist())
+        if len(rows) > LOW_RANK_MAX_DOFS:
+            return None
+        change = sp.csc_matrix((d.data[big], (d.row[big], d.col[big])), shape=new.shape)
+        parts.append(new - change)
+    if not rows:
+        return None  # a pure scale: _reuse handles it
+    return replace(mats, mass=parts[0], stiffness=parts[1], damping=base.damping)
+
+
 def _reuse(base: _Basis, mats: Any, lam_cut: float) -> _Basis | None:
     """The reduction of ``mats`` from ``base``'s exact modes (:data:`REUSE_TOL`) up to the cut
     ``lam_cut`` ((rad/s)^2), the same modes a fresh reduction keeps, or None."""
@@ -384,17 +417,29 @@ class _Reducer:
                     if key in self._bases:
                         self._bases.move_to_end(key)
                 return base, change
+        lam_cut = (2 * np.pi * self.f_cut_hz) ** 2
         base = None
         for _key, old in entries[:1]:
-            base = _reuse(old, mats, (2 * np.pi * self.f_cut_hz) ** 2)
+            base = _reuse(old, mats, lam_cut)
+            if base is None:  # a scaled structure with a point change: the scaled one's reduction
+                scaled = _scaled_part(old, mats)
+                base = None if scaled is None else _reuse(old, scaled, lam_cut)
+                change = None if base is None else _changed_dofs(base, mats)
+                if change is not None:
+                    self._keep(base)
+                    return base, change
+                base = None
         if base is None:
             base = _reduce(mats, self.f_cut_hz)
+        self._keep(base)
+        return base, (np.zeros(0, dtype=int), [np.zeros((0, 0))] * 3)
+
+    def _keep(self, base: _Basis) -> None:
         with self._lock:
             self._count += 1
             self._bases[self._count] = base
             while len(self._bases) > _KEEP:
                 self._bases.popitem(last=False)
-        return base, (np.zeros(0, dtype=int), [np.zeros((0, 0))] * 3)
 
     def modal_data(self, mats: Any):
         base, change = self.basis_and_dofs(mats)
