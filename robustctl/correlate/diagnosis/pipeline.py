@@ -29,6 +29,7 @@ from .screening import (
     _residual_for,
     _screen_all,
     _to_fit,
+    with_models,
 )
 from .sentences import _where
 from .significance import _channel_verdict, _null_test, _row_noise, _score, _testable_rows, effective_points
@@ -220,9 +221,10 @@ def _diagnose(
     res_u = _residual_for(res0, model_u)
     # 2. secant screening
     _check_budget(deadline, "the null fit")
-    screens, twins, order = _screen_all(res_u, model_u, null, cands, executor, deadline, n_fit)
+    screens, twins, order = _screen_all(res_u, model_u, null, cands, executor, deadline)
     evals += sum(s["evals"] for s in screens)
-    top = _to_fit(screens, [k for k in order if screens[k].get("exact", True)], n_fit)
+    top = _to_fit(screens, order, n_fit)
+    with_models(screens, top, model_u)
     # 3. local fits
     fits = parallel_map_shared(
         _fit_task, (res_u, null, max_iter, deadline), [screens[k] for k in top], executor, desc="local fits",

@@ -521,37 +521,32 @@ def _to_fit(screens: list[dict], order: list[int], n_fit: int) -> list[int]:
 
 
 def _screen_all(
-    res_u: Residual, model_u: Any, null: _Null, cands: list, executor, deadline: Deadline, n_fit: int = 4,
+    res_u: Residual, model_u: Any, null: _Null, cands: list, executor, deadline: Deadline,
 ) -> tuple:
     """Screen every candidate (step 2): the screens, indistinguishable twins, and the
     order of the others by the fraction they explain.
 
     A structure in reduced coordinates (:func:`robustctl.physical.reduction.band_limited`) has
     its point effects (an added mass, a grounded spring or dashpot at each node: three per DOF)
-    scored in closed form on the reduced modal model (:func:`_screen_points`); the
-    :data:`LEADER_FACTOR` ``* n_fit`` best of them are then screened by the exact path like every
-    other candidate, and only exactly screened candidates are given local fits (a screen's
-    ``"exact"`` says which). Every other model keeps the exact path for every candidate."""
+    scored in closed form on the reduced modal model (:func:`_screen_points`); every other
+    candidate, and every candidate of any other model, by the exact path. The candidates given
+    local fits are then fitted by the exact path whichever way they were screened (their screen
+    gets its model from :func:`with_models`)."""
     r_perp = _project(null.Q, null.j)
     fast = _screen_points(res_u, model_u, null, r_perp, cands, executor, deadline)
     exact_idx = list(range(len(cands))) if fast is None else [k for k in range(len(cands)) if k not in fast]
     screens: list[dict | None] = [None] * len(cands)
-    if fast is not None:
-        for k, sc in fast.items():
-            screens[k] = sc
-        ranked = sorted(fast, key=lambda k: (-round(fast[k]["fraction"], 9), k))
-        leaders = ranked[: LEADER_FACTOR * max(int(n_fit), 1)]
-        exact_idx = sorted(exact_idx + leaders)
+    for k, sc in (fast or {}).items():
+        screens[k] = sc
     shared = (res_u, model_u, null.j, null.Q, r_perp, deadline, len(cands))
     done = parallel_map_shared(_screen_task, shared, [cands[k] for k in exact_idx], executor,
                                desc="screening")
     for k, sc in zip(exact_idx, done):  # each candidate's model, rebuilt here on model_u (see _screen_task)
         sc["model"] = sc["effect"].with_values(**sc["effect"].neutral_values).apply(model_u)
-        sc["exact"] = True
         screens[k] = sc
     twins = {exact_idx[t]: exact_idx[i] for t, i in _equivalent([screens[k] for k in exact_idx]).items()}
     if fast is not None:
-        twins.update(_sketch_twins({k: fast[k] for k in fast if k not in twins and "sketch" in fast[k]}))
+        twins.update(_sketch_twins({k: fast[k] for k in fast if k not in twins}))
     order = sorted(
         (k for k in range(len(screens)) if k not in twins),
         key=lambda k: (-round(screens[k]["fraction"], 9), k),
@@ -559,16 +554,25 @@ def _screen_all(
     return screens, twins, order
 
 
-#: The closed-form screening of point effects hands this many times ``n_fit`` of its best to the
-#: exact screening (which then chooses the local fits among them as for any other candidate).
-LEADER_FACTOR = 3
+def with_models(screens: list[dict], ks: list[int], model_u: Any) -> None:
+    """Give the screens ``ks`` their candidate's model on ``model_u`` (at neutral) where they have
+    none (the closed-form screening keeps scalars only)."""
+    for k in ks:
+        s = screens[k]
+        if "model" not in s:
+            s["model"] = s["effect"].with_values(**s["effect"].neutral_values).apply(model_u)
+
+
 #: Point effects scored per task of the closed-form screening (the memory of a task is a few
 #: ``n_freq x n_out x n_in`` arrays per size tried, whatever the number of candidates).
 POINT_CHUNK = 128
 #: Sizes of a point effect's one-parameter fit in the closed-form screening, in multiples of its
 #: typical size (:attr:`Effect.typical_size`), refined twice around the best by
 #: :data:`POINT_REFINE` sub-steps.
-POINT_MULTIPLES = (0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0)
+#: The calibrated typical size moves the most affected mode by 2 % (``w^2``); on a large structure a
+#: point mass that changes the response by bandwidths (a 0.03 kg sensor on a 1,000-DOF grid: 1/20
+#: of its typical size) is far below it, and a large effect far above, hence six decades.
+POINT_MULTIPLES = tuple(10.0 ** np.arange(-3.0, 3.01, 0.5))
 POINT_REFINE = 4
 
 
@@ -629,25 +633,30 @@ def _screen_points(res_u: Residual, model_u: Any, null: _Null, r_perp: np.ndarra
     out: dict[int, dict] = {}
     for part in parallel_map_shared(_points_task, shared, chunks, executor, desc="point screening"):
         for k, sc in part:
-            out[k] = dict(sc, effect=cands[k], exact=False)
-    # the stages must act per channel: the closed form at the best candidate's typical size
+            out[k] = dict(sc, effect=cands[k])
+    # the stages must act per channel: the closed form at the best candidate's fitted size
     # against one exact evaluation, else every candidate goes the exact way
     best = max(out, key=lambda k: (out[k]["fraction"], -k))
-    if not _point_form_holds(res_u, model_u, shared, next(it for it in items if it[0] == best)):
+    if not _point_form_holds(res_u, model_u, shared, next(it for it in items if it[0] == best),
+                             out[best]["value"]):
         return None
     return out
 
 
-#: The closed form is trusted when its secant at the best candidate's typical size is within
-#: this fraction of the exact secant (what it leaves out -- the changed DOF's residual
+#: The closed form is trusted when its change of the residual at the best candidate's fitted size
+#: is within this fraction of the exact change (what it leaves out -- the changed DOF's residual
 #: flexibility, the changed modes' damping -- is a few percent of a change in the band).
 POINT_FORM_TOL = 0.3
 
 
-def _point_form_holds(res_u: Residual, model_u: Any, shared: dict, item: tuple) -> bool:
+def _point_form_holds(res_u: Residual, model_u: Any, shared: dict, item: tuple, value: float) -> bool:
+    """Whether the closed form's change of the residual at the best candidate's fitted ``value``
+    is within :data:`POINT_FORM_TOL` of the exact evaluation's (one model evaluation)."""
     k, effect, change = item
     pname = effect.param_names[0]
-    trial = _point_sizes(effect)[1]
+    trial = float(value)
+    if trial == float(effect.parameters[0].neutral):
+        trial = _point_sizes(effect)[1]
     m_c = effect.with_values(**effect.neutral_values).apply(model_u)
     try:
         j_exact = _residual_for(res_u, m_c).vector(**{pname: trial})
@@ -722,6 +731,12 @@ def _points_task(shared: dict, chunk: list) -> list:
         def share_of(values, terms=terms):
             return _point_left(shared, terms, values)
 
+        d = _point_vectors(shared, terms, np.array([trial]))[0] - j_u
+        d_perp = _project(Q, d)
+        dd = float(d_perp @ d_perp)
+        if dd > 0 and np.isfinite(dd):  # the secant's linear estimate, as the exact screening's
+            v_lin = float(np.clip(v0 - float(d_perp @ r_perp) / dd * (trial - v0), lo, hi))
+            sizes = np.array(sorted({*sizes.tolist(), v_lin} - {v0}))
         left = share_of(sizes)
         for _ in range(2):  # refine between the best size's neighbours
             i = int(np.argmin(left))
@@ -732,12 +747,11 @@ def _points_task(shared: dict, chunk: list) -> list:
                 extra = np.linspace(a, b, POINT_REFINE + 2)[1:-1]
             extra = np.clip(extra, lo, hi)
             sizes, left = np.concatenate([sizes, extra]), np.concatenate([left, share_of(extra)])
+            order = np.argsort(sizes, kind="stable")
+            sizes, left = sizes[order], left[order]
         i = int(np.argmin(left))
         fraction = max(0.0, 1.0 - float(left[i]) / rr) if rr > 0 and np.isfinite(left[i]) else 0.0
         value = float(sizes[i]) if fraction > 0 else v0
-        d = _point_vectors(shared, terms, np.array([trial]))[0] - j_u
-        d_perp = _project(Q, d)
-        dd = float(d_perp @ d_perp)
         cos = abs(float(d_perp @ r_perp)) / math.sqrt(dd * rr) if dd > 0 and rr > 0 else 0.0
         angle = math.degrees(math.acos(min(1.0, cos))) if np.isfinite(cos) else 90.0
         sk = d @ shared["sketch"] if np.all(np.isfinite(d)) else np.full(2, np.nan)
