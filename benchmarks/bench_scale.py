@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-SIZES = (400, 1000, 2000)
+SIZES = (500, 1000, 2000)
 FULL_SIZES = (100, 200)
 TARGET_S = 60.0
 TARGET_MB = 2048.0
