@@ -28,6 +28,7 @@ model, is :func:`robustctl.measure.noise.coherence_weight_bias`):
 
 from __future__ import annotations
 
+import math
 import numbers
 import warnings
 from collections.abc import Sequence
@@ -49,6 +50,7 @@ __all__ = [
     "match_channels",
     "is_default_names",
     "is_real_number",
+    "is_whole_number",
     "finite_number",
     "positive_number",
     "integer",
@@ -81,6 +83,12 @@ def is_real_number(value: Any) -> bool:
     return isinstance(value, (numbers.Real, np.floating, np.integer)) and not isinstance(
         value, (bool, np.bool_)
     )
+
+
+def is_whole_number(value: Any) -> bool:
+    """True for an integer or an integral real number (``2``, ``np.int64(2)``, ``2.0``); False for
+    booleans, strings, fractions, NaN and inf."""
+    return is_real_number(value) and math.isfinite(float(value)) and float(value) == int(value)
 
 
 def finite_number(value: Any, name: str, error: type[RobustctlError] = DataError) -> float:
