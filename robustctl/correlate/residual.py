@@ -169,22 +169,27 @@ class CheckedData:
         The checked band, Hz (None: every point).
     mask : ndarray of bool (n_freq,)
         The band's points in ``full``.
+    noise : "auto", NoiseModel or None
+        As for :func:`check_data`.
+    measurement_model : system, optional
+        As for :func:`check_data`.
 
     Attributes
     ----------
     data : FrequencyData
         The data on the band.
     noise : NoiseModel or None
-        The noise model on the band (set by :func:`check_data`).
+        The noise model on the band.
     averages : ndarray (n_in,) or None
         Effective number of averages per input column (computed when first asked for).
     """
 
-    def __init__(self, full: FrequencyData, band: tuple[float, float] | None, mask: np.ndarray) -> None:
+    def __init__(self, full: FrequencyData, band: tuple[float, float] | None, mask: np.ndarray,
+                 noise: Any = "auto", measurement_model: Any = None) -> None:
         self.full, self.band, self.mask = full, band, mask
         self.data = band_data(full, band, mask=mask)
-        self.noise: NoiseModel | None = None
         self._averages: Any = UNSET
+        self.noise: NoiseModel | None = _band_noise(noise, self, measurement_model)
 
     @property
     def averages(self) -> np.ndarray | None:
@@ -225,9 +230,7 @@ def check_data(
     check_complex_response(full)
     band = check_band(band)
     _warn_band_units(band, full)
-    checked = CheckedData(full, band, checked_band_mask(full.f_hz, band))
-    checked.noise = _band_noise(noise, checked, measurement_model)
-    return checked
+    return CheckedData(full, band, checked_band_mask(full.f_hz, band), noise, measurement_model)
 
 
 def _band_noise(spec: Any, checked: CheckedData, measurement_model: Any) -> NoiseModel | None:
