@@ -13,6 +13,12 @@ count alike, and so does phase.
 :class:`~robustctl.physical.model.PhysicalModel` against
 :class:`~robustctl.frd.FrequencyData` on a band, and :func:`sensitivities` its
 finite-difference derivatives with respect to named parameters (eqs. 7-8).
+
+The data are coerced and checked once, where they enter: :func:`check_data` makes them a
+FrequencyData (with its experiment description), checks the response and the band and builds
+the noise model on the band; the resulting :class:`CheckedData` travels inward
+(``Residual.of_checked``) and nothing behind ``rc.compare``, ``rc.diagnose`` and
+``rc.update`` checks the data again.
 """
 
 from __future__ import annotations
