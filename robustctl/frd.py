@@ -500,8 +500,18 @@ class FrequencyData:
         -------
         FrequencyData
             Same channels, names, units, meta and experiment description.
+
+        Raises
+        ------
+        DataError
+            ``mask`` is not a boolean array over ``f_hz`` selecting at least one point.
         """
-        mask = np.asarray(mask, dtype=bool)
+        mask = np.asarray(mask)
+        if mask.dtype != bool or mask.shape != (self.n_freq,) or not np.any(mask):
+            raise DataError(
+                f"points takes a boolean mask of shape ({self.n_freq},) over f_hz with at least one "
+                f"True; got {mask.dtype} of shape {mask.shape}. Use data.band(lo_hz, hi_hz) for a band."
+            )
         out = object.__new__(FrequencyData)
         arrays = (("f_hz", self.f_hz), ("response", self.response), ("coherence", self.coherence))
         for key, arr in arrays:

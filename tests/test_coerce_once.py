@@ -178,3 +178,9 @@ def test_points_of_frequency_data_are_read_only_copies(data):
     assert not sub.response.flags.writeable and not sub.f_hz.flags.writeable
     assert sub.meta == data.meta and sub.meta is not data.meta
     assert sub.replace().shape == sub.shape  # valid data: validation accepts them
+
+
+@pytest.mark.parametrize("mask", [[3, 10, 50], np.zeros(5, dtype=bool), np.zeros(len(F_HZ), dtype=bool)])
+def test_points_refuses_what_is_not_a_mask_over_the_data(data, mask):
+    with pytest.raises(rc.DataError, match="boolean mask of shape"):
+        data.points(mask)
