@@ -640,7 +640,7 @@ class PointModal:
         (n_f, q, q), (n_f, q, q) with ``q = |J|``."""
         U = self.V[change.dofs]  # (q, r)
         ZU = self.zinv[:, None, :] * U[None]  # (n_f, q, r)
-        At = self.k_out[:, :, None] * np.einsum("or,fqr->foq", self.cphi, ZU, optimize=True)
+        At = self.k_out[:, :, None] * (self.cphi @ ZU.transpose(0, 2, 1))
         Bt = ZU @ self.phib
         S = ZU @ U.T
         w = self.w[:, None, None]

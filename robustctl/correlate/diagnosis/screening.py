@@ -568,8 +568,9 @@ POINT_CHUNK = 128
 #: :data:`POINT_REFINE` sub-steps.
 #: The calibrated typical size moves the most affected mode by 2 % (``w^2``); on a large structure a
 #: point mass that changes the response by bandwidths (a 0.03 kg sensor on a 1,000-DOF grid: 1/20
-#: of its typical size) is far below it, and a large effect far above, hence six decades.
-POINT_MULTIPLES = tuple(10.0 ** np.arange(-3.0, 3.01, 0.5))
+#: of its typical size) is far below it, and a large effect far above, hence six decades (the two
+#: refinements then bracket the best to 10 % in size).
+POINT_MULTIPLES = tuple(10.0 ** np.arange(-3.0, 3.01, 1.0))
 POINT_REFINE = 4
 
 
