@@ -94,7 +94,7 @@ def measurement_model(data, band_hz=MM_BAND, modes=(MODES_X[1], MODE_Y)):
     """A "measurement model" on ``band_hz`` with ``modes`` and a real filler at 0.43 Hz (default: the
     1-20 Hz one, the 3.7 and 7.5 Hz modes),
     residues and feedthrough fitted per channel by linear least squares (numpy) inside the band;
-    it has no suspension mode. Returns (A, B, C, D), one block of states per channel."""
+    with the defaults it has no suspension mode. Returns (A, B, C, D), one block of states per channel."""
     band = (data.f_hz >= band_hz[0]) & (data.f_hz <= band_hz[1])
     s = 2j * np.pi * data.f_hz[band]
     poles = [complex(-z * 2 * np.pi * f, 2 * np.pi * f * np.sqrt(1 - z * z)) for f, z, _ in modes]
