@@ -528,7 +528,7 @@ def _screen_all(
     scored in closed form on the reduced modal model (:func:`_screen_points`); every other
     candidate, and every candidate of any other model, by the exact path. The candidates given
     local fits are then fitted by the exact path whichever way they were screened (their screen
-    gets its model from :func:`with_models`)."""
+    gets its model from :func:`_with_models`)."""
     r_perp = _project(null.Q, null.j)
     fast = _screen_points(res_u, model_u, null, r_perp, cands, executor, deadline)
     exact_idx = list(range(len(cands))) if fast is None else [k for k in range(len(cands)) if k not in fast]
@@ -551,7 +551,7 @@ def _screen_all(
     return screens, twins, order
 
 
-def with_models(screens: list[dict], ks: list[int], model_u: Any) -> None:
+def _with_models(screens: list[dict], ks: list[int], model_u: Any) -> None:
     """Give the screens ``ks`` their candidate's model on ``model_u`` (at neutral) where they have
     none (the closed-form screening keeps scalars only)."""
     for k in ks:
