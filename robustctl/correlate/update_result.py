@@ -258,8 +258,8 @@ class UpdateResult:
         cov = np.asarray(self.fit.covariance, dtype=float)[np.ix_(idx, idx)]
         center = np.asarray(self.fit.x_array, dtype=float)[idx]
         try:
-            return parametric_lft(self.model, chosen, center, cov, n_sigma=float(n_sigma), f_hz=f_hz, form=form,
-                                  order=order)
+            return parametric_lft(self.model, chosen, center, cov, n_sigma=float(n_sigma), f_hz=f_hz,
+                                  form=form, order=order)
         except ModelError as exc:
             raise FitError(f"cannot build the uncertain model: {exc}") from exc
 

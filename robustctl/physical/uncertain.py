@@ -158,7 +158,8 @@ class UncertainModel:
         from dataclasses import replace
 
         if cover is not None and not hasattr(cover, "weight"):
-            raise ModelError(f"the remainder must be a cover with .weight and .kind; got {type(cover).__name__}.")
+            raise ModelError(
+                f"the remainder must be a cover with .weight and .kind; got {type(cover).__name__}.")
         return replace(self, remainder=cover)
 
     def delta_of(self, model: Any, clip: bool = True) -> np.ndarray:
@@ -194,7 +195,8 @@ class UncertainModel:
             values = model if isinstance(model, dict) else dict(model.values)
             missing = [p for p in self.parameters if p not in values]
             if missing:
-                raise ModelError(f"the model has no values for {missing}; the LFT varies {list(self.parameters)}.")
+                raise ModelError(
+                    f"the model has no values for {missing}; the LFT varies {list(self.parameters)}.")
             dth = np.array([values[p] for p in self.parameters], dtype=float) - self.center
             d = np.linalg.lstsq(self.axes.T, dth, rcond=None)[0]
         return np.clip(d, -1.0, 1.0) if clip else d
@@ -301,15 +303,15 @@ def parametric_lft(model: Any, parameters: Any, center: Any, covariance: Any, *,
 
     if form not in ("auto", "modes"):
         raise ModelError(f'form must be "auto" or "modes"; got {form!r}.')
-    if order is not None and (isinstance(order, bool) or not isinstance(order, (int, np.integer)) or order < 1):
+    if order is not None and (isinstance(order, bool) or not isinstance(order, (int, np.integer))
+                              or order < 1):
         raise ModelError(f"order must be a positive number of states; got {order!r}.")
 
     def at(delta: np.ndarray):
         return _matrices(model, dict(zip(names, map(float, c + delta @ axes))), order)
 
     if form == "modes":
-        return _modes_lft(model, names, c, cov, axes, at, n_sigma=float(n_sigma), f_hz=f_hz, n_check=n_check,
-                          seed=seed, order=order)
+        return _modes_lft(model, names, c, axes, at, f_hz=f_hz, n_check=n_check, seed=seed)
 
     S0, dims, G0 = at(np.zeros(len(axes)))
     n, nu, ny = dims
@@ -495,8 +497,8 @@ def _upper_eigs(A: np.ndarray) -> np.ndarray:
     return lam[lam.imag > 0]
 
 
-def _modes_lft(model: Any, names: tuple[str, ...], c: np.ndarray, cov: np.ndarray, axes: np.ndarray, at: Any, *,
-               n_sigma: float, f_hz: Any, n_check: int, seed: int, order: int | None) -> UncertainModel:
+def _modes_lft(model: Any, names: tuple[str, ...], c: np.ndarray, axes: np.ndarray, at: Any, *,
+               f_hz: Any, n_check: int, seed: int) -> UncertainModel:
     """The ``form="modes"`` LFT (module docstring): one rank-1 real scalar per mode and direction."""
     from ..lti import freqresp_array
 
@@ -572,8 +574,8 @@ def _modes_lft(model: Any, names: tuple[str, ...], c: np.ndarray, cov: np.ndarra
     err = 0.0
     for pt in pts:
         Gs = at(np.asarray(pt))[2]
-        err = max(err, float(np.abs(freqresp_array(Gs, f) - freqresp_array(um.statespace(um.delta_of(Gs)), f)).max())
-                  / peak)
+        gap = freqresp_array(Gs, f) - freqresp_array(um.statespace(um.delta_of(Gs)), f)
+        err = max(err, float(np.abs(gap).max()) / peak)
     from dataclasses import replace
 
     return replace(um, max_error=err)

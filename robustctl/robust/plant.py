@@ -506,7 +506,8 @@ def _with_remainder(rem: Any, additive: Any, input_mult: Any, output_mult: Any) 
     given = [additive, input_mult, output_mult]
     k = slots.get(getattr(rem, "kind", None))
     if k is None:
-        raise ModelError(f"the uncertain model's remainder has an unknown kind {getattr(rem, 'kind', None)!r}.")
+        raise ModelError(
+            f"the uncertain model's remainder has an unknown kind {getattr(rem, 'kind', None)!r}.")
     if given[k] is not None:
         name = ("additive", "input_mult", "output_mult")[k]
         raise ModelError(
