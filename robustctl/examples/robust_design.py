@@ -365,7 +365,7 @@ class ParametricComparison:
 
 def caltech_parametric_plants(upd: Any, data: Any, *, n_sigma: float = 3.0, level: float = 0.5,
                               band_hz: tuple[float, float] = (0.8, 6.0), n_models: int = 20, seed: int = 0,
-                              cover_order: int = 6) -> ParametricComparison:
+                              cover_order: int = 6, fold: float = 0.1) -> ParametricComparison:
     """Design plants on what the update knows: real mode blocks + remainder (A) against a complex cover (B).
 
     Both stand for the same plants: the measured FRFs as the H1 estimator sees the six-mode
@@ -394,6 +394,14 @@ def caltech_parametric_plants(upd: Any, data: Any, *, n_sigma: float = 3.0, leve
         Seed of the draws.
     cover_order : int
         States of the remainder and of the complex cover.
+    fold : float
+        :func:`~robustctl.robust.cover.cover_remainder`'s ``fold``: mode blocks whose whole
+        effect stays below this fraction of the remainder are folded into it. On the demo's
+        data the 3-sigma mode blocks move the response by 2-18 % of the remainder (the
+        measured residual at the low-coherence peaks dominates it), and with all six kept
+        D-K reached mu 2.25 against 1.91 for the same plant without them (the same path with
+        ``real="complex"``: the extra channels, not the G-scales); 0.1 keeps the two that
+        reach 15-18 % (modes at 2.6 and 4.5 Hz).
 
     Returns
     -------
@@ -414,7 +422,7 @@ def caltech_parametric_plants(upd: Any, data: Any, *, n_sigma: float = 3.0, leve
                         + freqresp_array(G0, band.f_hz))
     samples = tuple(upd.sample_models(n_models, seed=seed))
     opts = dict(smooth_octaves=0.5, data_sigmas=0.0)
-    um = cover_remainder(um, [seen, *samples], order=cover_order, **opts)
+    um = cover_remainder(um, [seen, *samples], order=cover_order, fold=fold, **opts)
     cover = cover_additive(G0, [seen, *samples], cover_order, **opts)
     common = dict(input_mult=0.04, output_mult=0.04, performance=_band_pass(level, band_hz), disturbances=1.0)
     return ParametricComparison(um, cover, generalized_plant(um, **common),

@@ -162,6 +162,69 @@ class UncertainModel:
                 f"the remainder must be a cover with .weight and .kind; got {type(cover).__name__}.")
         return replace(self, remainder=cover)
 
+    def without(self, blocks: Any) -> UncertainModel:
+        """This LFT with the named real blocks removed (held at ``delta = 0``).
+
+        Their ``w`` and ``z`` channels are dropped from ``M`` (an exact LFT of the rest); the
+        remainder is dropped too (it covered the LFT with those blocks: refit it).
+
+        Parameters
+        ----------
+        blocks : sequence of str
+            Names among :attr:`names` (all of them: an LFT without real blocks, ``G_0`` itself).
+
+        Returns
+        -------
+        UncertainModel
+        """
+        from dataclasses import replace
+
+        import control
+
+        drop = set(blocks)
+        unknown = drop - set(self.names)
+        if unknown:
+            raise ModelError(f"no real block named {sorted(unknown)}; the blocks are {list(self.names)}.")
+        keep = [k for k, nm in enumerate(self.names) if nm not in drop]
+        starts = np.concatenate([[0], np.cumsum(self.multiplicity)]).astype(int)
+        ch = np.concatenate([np.arange(starts[k], starts[k + 1]) for k in keep] + [np.zeros(0, int)])
+        nd = self.n_delta
+        cols = np.concatenate([ch, np.arange(nd, nd + self.nominal.ninputs)])
+        rows = np.concatenate([ch, np.arange(nd, nd + self.nominal.noutputs)])
+        A, B, C, D = (np.asarray(x, dtype=float) for x in (self.M.A, self.M.B, self.M.C, self.M.D))
+        M = control.ss(A, B[:, cols], C[rows], D[np.ix_(rows, cols)],
+                       inputs=[self.M.input_labels[i] for i in cols],
+                       outputs=[self.M.output_labels[i] for i in rows])
+        modes = None if self.modes is None else tuple(self.modes[k] for k in keep)
+        return replace(self, M=M, names=tuple(self.names[k] for k in keep),
+                       multiplicity=tuple(self.multiplicity[k] for k in keep), axes=self.axes[keep],
+                       remainder=None, modes=modes)
+
+    def block_effect(self, f_hz: Any) -> np.ndarray:
+        """``max_{delta_k = +-1} sigma_max(Fu(M, delta_k e_k) - G_0)`` per block and frequency.
+
+        Parameters
+        ----------
+        f_hz : array_like
+            Frequencies (Hz).
+
+        Returns
+        -------
+        ndarray (n_blocks, nf)
+        """
+        from ..lti import freqresp_array
+
+        f = np.asarray(f_hz, dtype=float).reshape(-1)
+        H0 = freqresp_array(self.nominal, f)
+        out = np.zeros((len(self.names), f.size))
+        for k in range(len(self.names)):
+            for sgn in (-1.0, 1.0):
+                e = np.zeros(len(self.names))
+                e[k] = sgn
+                gap = freqresp_array(self.statespace(e), f) - H0
+                out[k] = np.maximum(out[k], np.linalg.norm(gap, ord=2, axis=(1, 2)))
+        return out
+
     def delta_of(self, model: Any, clip: bool = True) -> np.ndarray:
         """The real parameters ``delta`` (one per block) that stand for ``model`` in this LFT.
 
@@ -182,6 +245,8 @@ class UncertainModel:
         -------
         ndarray (n_blocks,)
         """
+        if not self.names:
+            return np.zeros(0)
         if self.modes is not None and not isinstance(model, dict):
             from ..lti import as_statespace
 

@@ -658,6 +658,7 @@ def cover_remainder(
     objective: str = "max",
     data_sigmas: float = 3.0,
     time_budget_s: float | None = None,
+    fold: float = 0.0,
 ):
     """A complex weight covering what a parametric LFT misses, attached to it as its remainder.
 
@@ -692,11 +693,18 @@ def cover_remainder(
         random error (as :func:`cover_additive`).
     time_budget_s : float or None
         Optional cap on the magnitude fit (s).
+    fold : float
+        Fold into the remainder every real block whose whole effect
+        (:meth:`~robustctl.physical.uncertain.UncertainModel.block_effect`) stays below ``fold``
+        times the remainder's weight at every grid frequency (then refit the remainder on the
+        LFT without them, so the cover still holds every source): a block that small changes
+        the uncertainty set by less than that fraction of the remainder but adds channels and a
+        scale to every D-K iteration. 0 (default) keeps every block.
 
     Returns
     -------
     UncertainModel
-        ``um.with_remainder(cover)``; the cover is ``.remainder``.
+        ``um.with_remainder(cover)`` (less the folded blocks); the cover is ``.remainder``.
 
     Raises
     ------
@@ -721,9 +729,23 @@ def cover_remainder(
     if f_hz is None and not any(isinstance(d, FrequencyData) for d in (
             data_or_models if isinstance(data_or_models, (list, tuple)) else [data_or_models])):
         f_hz = um.check_f_hz
+    positive_number(fold, "fold (0: keep every real block)", FitError, allow_zero=True)
     f, sources = _sources(data_or_models, f_hz, band)
+    fit = (order, kind, smooth_octaves, floor, time_budget_s, objective, data_sigmas)
+    out = _remainder(um, f, sources, fit)
+    if fold > 0:
+        small = out.block_effect(f) <= fold * out.remainder.weight_mag[None, :]
+        folded = [nm for nm, low in zip(out.names, small.all(axis=1)) if low]
+        if folded:  # (all of them: an LFT without real blocks, the remainder a plain complex cover)
+            out = _remainder(um.without(folded), f, sources, fit)
+    return out
+
+
+def _remainder(um: Any, f: np.ndarray, sources: list, fit: tuple) -> Any:
+    """``um`` with the remainder cover of ``sources`` on ``f`` (see :func:`cover_remainder`)."""
     from ..lti import freqresp
 
+    order, kind, smooth_octaves, floor, time_budget_s, objective, data_sigmas = fit
     g0 = freqresp(um.nominal, f)
     G0 = g0.response
     stand_ins = []
