@@ -221,3 +221,29 @@ def test_generalized_plant_places_the_remainder_by_its_kind():
         rc.generalized_plant(um, additive=0.1, performance=1.0, control_weight=0.1, noise=0.01)
     with pytest.raises(FitError, match="UncertainModel"):
         rc.cover_remainder(um.nominal, [chain()], f_hz=F)
+
+
+def test_without_holds_the_dropped_block_at_zero():
+    um = parametric_lft(chain(), ["k2"], [500.0], [[25.0**2]], n_sigma=3.0, f_hz=F, form="modes")
+    one = um.without([um.names[0]])
+    assert one.names == um.names[1:] and one.n_delta == um.n_delta - 1
+    np.testing.assert_allclose(freqresp_array(one.statespace([0.6]), F),
+                               freqresp_array(um.statespace([0.0, 0.6]), F), rtol=1e-10, atol=1e-15)
+    with pytest.raises(ModelError, match="no real block"):
+        um.without(["stiffness"])
+
+
+def test_fold_keeps_the_cover_and_drops_only_small_blocks():
+    rng = np.random.default_rng(11)
+    cov = np.array([[40.0**2, 0.0], [0.0, 20.0**2]])
+    um = parametric_lft(chain(), ["k1", "k2"], [1000.0, 500.0], cov, n_sigma=3.0, f_hz=F, form="modes")
+    samples = [chain(k1=a, k2=b) for a, b in rng.multivariate_normal([1000.0, 500.0], cov, 8)]
+    kept = rc.cover_remainder(um, samples, order=4, f_hz=F, smooth_octaves=0.0, fold=1e-6)
+    assert kept.names == um.names  # every mode moves by far more than the remainder
+    # folding everything leaves the plain complex cover of the samples about the nominal
+    none = rc.cover_remainder(um, samples, order=4, f_hz=F, smooth_octaves=0.0, fold=1e6)
+    plain = rc.cover_additive(um.nominal, samples, order=4, f_hz=F, smooth_octaves=0.0)
+    assert none.names == () and none.n_delta == 0
+    np.testing.assert_allclose(none.remainder.envelope, plain.envelope, rtol=1e-9)
+    gp = rc.generalized_plant(none, performance=1.0, control_weight=0.1, noise=0.01)
+    assert [b.kind for b in gp.blocks.blocks] == ["full", "full"]
