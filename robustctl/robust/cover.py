@@ -31,7 +31,7 @@ import numpy as np
 
 from ..budget import Deadline
 from ..checks import check_band, positive_number
-from ..errors import DataError, FitError
+from ..errors import DataError, FitError, RobustctlError
 from ..frd import FrequencyData
 from ..measure.noise import noise_model
 from ..table import Table, result_html
@@ -639,7 +639,7 @@ def _stands_for(um: Any, src: Any, f: np.ndarray, label: str) -> tuple[np.ndarra
         return fd.response, g0.response
     try:
         delta = um.delta_of(src)
-    except Exception as exc:  # noqa: BLE001 - any model the LFT cannot place is refused by name
+    except (RobustctlError, AttributeError, TypeError) as exc:  # a model the LFT cannot place
         raise FitError(f"{label} cannot be placed in the uncertain model ({exc}); give models with the "
                        "LFT's parameters (e.g. upd.sample_models) or measured FrequencyData.") from exc
     return _align(g0, freqresp(src, f)).response, freqresp(um.statespace(delta), f).response
