@@ -25,8 +25,9 @@ Cases:
 
 * the Caltech truss after its update (``_caltech_parametric``): D-G-K on the update's real
   mode blocks at 3 sigma plus a remainder cover against D-K on the complex cover of the same
-  plants, same performance weight: guaranteed performance scale, poles on 500 models at 3x the
-  update's spread, stability and attenuation on the data, times;
+  plants, same performance weight (level 0.1, where robust stability is reachable): guaranteed
+  performance scale, poles on 500 models at 3x the update's spread, stability and attenuation
+  on the data, times;
 
 * robustness cases nobody tuned for: random lightly damped modal plants (seeds 0-3, 4-30
   states, 1-3 inputs and outputs, 0.5-5 % damping) with additive or input multiplicative
@@ -267,7 +268,7 @@ def _caltech_parametric() -> dict:
     diag = rc.diagnose(model, data, band=(0.5, 50.0))
     upd = rc.update(model.with_effect(diag.best), data, band=(0.5, 50.0), progress=False)
     t = time.perf_counter()
-    plants = caltech_parametric_plants(upd, data, n_sigma=3.0)
+    plants = caltech_parametric_plants(upd, data, n_sigma=3.0, level=0.1)
     t_plants = time.perf_counter() - t
     G0 = plants.uncertain.nominal
     GA, GB = (control.ss(G0.A, G0.B, G0.C, G0.D, inputs=list(G0.input_labels), outputs=list(G0.output_labels))

@@ -15,6 +15,10 @@ from robustctl.lti import freqresp_array
 pytestmark = pytest.mark.slow
 
 N_TRUTHS = 500
+#: Performance weight gain in the band: robust stability and performance are reachable (mu about 0.9),
+#: so the guaranteed scale is informative (at ModelCoverRecipe's 0.5 robust stability fails for both
+#: designs, mu 1.3-1.7, and the guaranteed scale is 0 for both)
+LEVEL = 0.1
 
 
 def closed_loop_poles(G, K) -> np.ndarray:
@@ -33,7 +37,7 @@ def comparison():
     model = ex.caltech_truss()
     diag = rc.diagnose(model, data, band=(0.5, 50.0))
     upd = rc.update(model.with_effect(diag.best), data, band=(0.5, 50.0), progress=False)
-    plants = ex.caltech_parametric_plants(upd, data, n_sigma=3.0)
+    plants = ex.caltech_parametric_plants(upd, data, n_sigma=3.0, level=LEVEL)
     G0 = plants.uncertain.nominal
     # two copies of the nominal: the yardstick's recipe tells the designs apart by the object
     GA, GB = (rc.as_statespace(G0).__class__(G0.A, G0.B, G0.C, G0.D, inputs=list(G0.input_labels),
@@ -113,3 +117,8 @@ def test_guaranteed_level_and_attenuation_are_measured_for_both(comparison):
             assert rs > 1.0
     print("guaranteed (scale, RS mu):", levels, "attenuation dB:", yard.attenuation_db)
     assert all(np.isfinite(v) for v in yard.attenuation_db.values())
+    # the parametric description holds the same plants; where its real blocks are a small part of
+    # the uncertainty (here: the measured residual dominates) it must not cost more than D-K's
+    # own spread between runs (2 %)
+    assert levels["A"][0] > 0 and levels["B"][0] > 0
+    assert levels["A"][0] >= 0.98 * levels["B"][0]
