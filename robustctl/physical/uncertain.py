@@ -272,7 +272,7 @@ class UncertainModel:
                 f"{list(self.parameters)}; {kind} LFT, error {100 * self.max_error:.3g} % of the peak "
                 f"response on {len(self.check_f_hz)} frequencies.")
         if self.remainder is not None:
-            text += (f" Remainder: a {self.remainder.kind} complex weight of order {self.remainder.order} "
+            text += (f" Remainder: {self.remainder.kind} complex weight of order {self.remainder.order} "
                      f"(margin {self.remainder.margin:.3g} on its sources).")
         return text
 
