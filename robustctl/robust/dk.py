@@ -509,7 +509,7 @@ def dksyn(
     _orders(order_d, len(blocks) - 1)  # refuse a bad order_d now, not at the first D step
     design, shrink = reduce_design_plant(plant, design_order)
     if shrink is not None:
-        res = dksyn((design.P, plant.nmeas, plant.ncon, plant.blocks), max_iter, order_d, f_hz, executor,
+        res = dksyn((design.P, plant.nmeas, plant.ncon, design.blocks), max_iter, order_d, f_hz, executor,
                     time_budget_s, reduce, progress, rtol=rtol, patience=patience, hinf_options=hinf_options,
                     callback=callback, real=real, autoscale=autoscale, gamma=gamma, design_order=None)
         return on_full_plant(plant, blocks, res, shrink)

@@ -15,7 +15,15 @@ with the a-priori bound ``||P - P_r||_inf <= 2 sum_{i > r} sigma_i`` (Zhou, Doyl
 1996, Theorem 7.9; the seed paper's eq. 13) stated in the result. The reduced plant is given
 in balanced coordinates, where the controllability and observability Gramians are equal and
 diagonal: the Riccati problems of the K steps are balanced as well as small. The controller
-designed on ``P_r`` is then closed around the *full* plant: its stability is checked and its
+designed on ``P_r`` must not lean on the truncated modes: a K step on ``P_r`` alone is free to
+put gain where ``P_r`` has none, and the full plant's high modes then go unstable (on a
+160-mode chain every mode above 40 Hz did). The part of the truncation error that the loop
+feeds back, ``E22 = P22 - P22_r`` (``u -> y``), is therefore folded into the design plant as
+an additive uncertainty block of constant weight ``w_e >= max_f sigma_max(E22)`` (evaluated
+on a grid holding every pole frequency of ``P``, with :data:`DESIGN_COVER_MARGIN`): a design
+whose mu stays below 1 keeps the loop stable for every such error (small-gain theorem; Zhou,
+Doyle & Glover 1996, Theorem 9.1), the true one included. The controller designed on the
+augmented ``P_r`` is then closed around the *full* plant: its stability is checked and its
 mu is verified there (:func:`robustctl.robust.dk_verify.verification_grid`), so the returned
 peak of mu is the full plant's, not the design model's. A controller that does not stabilise
 the full plant is refused with that cause (the reduction error is larger than the loop
@@ -24,7 +32,7 @@ tolerates), never returned.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -34,7 +42,7 @@ from ..lti import is_stable
 from .plant import GeneralizedPlant
 
 __all__ = ["DesignReduction", "reduce_design_plant", "on_full_plant", "check_design_order",
-           "DESIGN_REDUCE_ABOVE", "DESIGN_BOUND_RTOL"]
+           "DESIGN_REDUCE_ABOVE", "DESIGN_BOUND_RTOL", "DESIGN_COVER_MARGIN"]
 
 #: ``design_order="auto"`` reduces plants with more states than this before synthesis (D-K on
 #: 80-mode plants, 164 states, runs without it; the order kept is at most this many states).
@@ -43,6 +51,9 @@ DESIGN_REDUCE_ABOVE = 100
 #: is at most this fraction of the largest Hankel singular value (and at most
 #: :data:`DESIGN_REDUCE_ABOVE` states).
 DESIGN_BOUND_RTOL = 0.01
+#: the additive block's weight is this factor times the largest ``sigma_max(P22 - P22_r)`` seen
+#: on the grid (the peaks of the truncated lightly damped modes sit between grid points)
+DESIGN_COVER_MARGIN = 1.25
 
 
 @dataclass(frozen=True)
@@ -60,8 +71,15 @@ class DesignReduction:
         Hankel singular values of the plant, descending.
     reason : str
         Why this order (the rule or the caller's ``design_order``).
+    loop_error : float
+        ``max_f sigma_max(P22 - P22_r)``: the truncation error of the loop's own channel
+        ``u -> y`` (plant units) on the grid.
+    loop_weight : float
+        The constant weight of the additive uncertainty block ("design reduction") that
+        covers it in the design plant.
     mu_peak_design : float
-        Verified peak of mu of the returned controller with the reduced plant (NaN until set).
+        Verified peak of mu of the returned controller with the augmented reduced plant (its
+        extra block included; NaN until set).
     mu_peak_full : float
         Verified peak of mu with the full plant (the result's ``mu_peak``; NaN until set).
     """
@@ -71,6 +89,8 @@ class DesignReduction:
     bound: float
     hsv: np.ndarray = field(repr=False)
     reason: str
+    loop_error: float = float("nan")
+    loop_weight: float = float("nan")
     mu_peak_design: float = float("nan")
     mu_peak_full: float = float("nan")
 
@@ -84,7 +104,9 @@ class DesignReduction:
         return (
             f"Design plant reduced by balanced truncation from {self.order_before} to {self.order_after} "
             f"states (||P - P_r||_inf <= {self.bound:.3g}, {100 * self.relative_bound:.2g} % of the largest "
-            f"Hankel singular value; {self.reason}); the controller's verified mu is "
+            f"Hankel singular value; {self.reason}), the loop's part of the error "
+            f"({self.loop_error:.3g}) covered by an additive uncertainty block of weight "
+            f"{self.loop_weight:.3g}; the controller's verified mu is "
             f"{self.mu_peak_full:.4f} with the full plant ({self.mu_peak_design:.4f} with the reduced one)."
         )
 
@@ -178,8 +200,55 @@ def reduce_design_plant(plant: GeneralizedPlant,
         raise SynthesisError(
             f"design_order={order}: {exc} Ask for fewer states or pass design_order=None."
         ) from exc
-    reduced = replace(plant, P=bt.sys)
-    return reduced, DesignReduction(n, order, float(bt.bound), hsv, reason)
+    error = _loop_error(plant, bt.sys)
+    weight = DESIGN_COVER_MARGIN * max(error, 1e-12 * float(hsv[0]))
+    design = _with_error_block(plant, bt.sys, weight)
+    return design, DesignReduction(n, order, float(bt.bound), hsv, reason, error, weight)
+
+
+def _loop_error(plant: GeneralizedPlant, reduced: Any) -> float:
+    """``max_f sigma_max(P22 - P22_r)`` over DC, a log grid a decade beyond the plant's pole
+    frequencies and every pole frequency of the full plant (where its truncated modes peak)."""
+    from ..lti import freqresp_array
+
+    poles = np.linalg.eigvals(np.asarray(plant.P.A))
+    fp = np.abs(poles) / (2 * np.pi)
+    fp = fp[fp > 0]
+    lo, hi = (float(fp.min()), float(fp.max())) if fp.size else (1e-2, 1e2)
+    f = np.unique(np.concatenate([[0.0], np.geomspace(lo / 10, hi * 10, 400), fp]))
+    nz, nw = plant.nz, plant.nw
+    e = freqresp_array(plant.P, f)[:, nz:, nw:] - freqresp_array(reduced, f)[:, nz:, nw:]
+    return float(np.max(np.linalg.norm(e, 2, axis=(1, 2))))
+
+
+def _with_error_block(plant: GeneralizedPlant, P_r: Any, weight: float) -> GeneralizedPlant:
+    """``P_r`` with an additive uncertainty ``y += w_e``, ``z_e = weight u``: a full complex
+    block ("design reduction", ``ny x nu``) inserted before the last block (the performance
+    block stays last)."""
+    import control
+
+    from .blocks import Block, BlockStructure
+
+    A, B, C, D = (np.asarray(m, dtype=float) for m in (P_r.A, P_r.B, P_r.C, P_r.D))
+    nw, nz, nu, ny, n = plant.nw, plant.nz, plant.ncon, plant.nmeas, A.shape[0]
+    blocks = tuple(plant.blocks)
+    nw1 = int(sum(b.rows for b in blocks[:-1]))
+    nz1 = int(sum(b.cols for b in blocks[:-1]))
+    col_w = np.r_[np.arange(nw1), nw + nu + np.arange(ny), np.arange(nw1, nw), nw + np.arange(nu)]
+    row_z = np.r_[np.arange(nz1), nz + ny + np.arange(nu), np.arange(nz1, nz), nz + np.arange(ny)]
+    # extended matrices with the new channels appended, then permuted into place
+    Bx = np.hstack([B, np.zeros((n, ny))])
+    Cx = np.vstack([C, np.zeros((nu, n))])
+    Dx = np.zeros((nz + ny + nu, nw + nu + ny))
+    Dx[: nz + ny, : nw + nu] = D
+    Dx[nz + np.arange(ny), nw + nu + np.arange(ny)] = 1.0  # y += w_e
+    Dx[nz + ny + np.arange(nu), nw + np.arange(nu)] = weight  # z_e = weight u
+    ins = list(P_r.input_labels) + [f"design_err_in[{k}]" for k in range(ny)]
+    outs = list(P_r.output_labels) + [f"design_err_out[{k}]" for k in range(nu)]
+    P_aug = control.ss(A, Bx[:, col_w], Cx[row_z], Dx[np.ix_(row_z, col_w)],
+                       inputs=[ins[k] for k in col_w], outputs=[outs[k] for k in row_z])
+    new = blocks[:-1] + (Block("full", ny, nu, "design reduction"),) + blocks[-1:]
+    return GeneralizedPlant(P_aug, plant.nmeas, plant.ncon, blocks=BlockStructure(new))
 
 
 def on_full_plant(plant: GeneralizedPlant, blocks: Any, result: Any, reduction: DesignReduction) -> Any:
@@ -220,6 +289,11 @@ def on_full_plant(plant: GeneralizedPlant, blocks: Any, result: Any, reduction: 
             "the full plant: the truncated dynamics matter to this loop. Pass a larger design_order (or "
             "None), or cover the truncated modes with uncertainty weights."
         )
-    m = _verified_mu(cl, blocks, np.asarray(result.mu.f_hz, dtype=float))
+    f = np.asarray(result.mu.f_hz, dtype=float)
+    m = _verified_mu(cl, blocks, f[f > 0])  # the verification grid adds DC itself
     done = _replace(reduction, mu_peak_design=float(result.mu_peak), mu_peak_full=float(m.peak))
-    return _replace(result, closed_loop=cl, mu=m, mu_peak=float(m.peak), design_reduction=done)
+    k = len(plant.blocks) - 1  # the design-reduction block's scale (the last block has none)
+    d = tuple(result.d_scales)
+    d = d[:k] + d[k + 1:] if len(d) > k else d
+    return _replace(result, closed_loop=cl, mu=m, mu_peak=float(m.peak), design_reduction=done,
+                    blocks=plant.blocks, d_scales=d)
