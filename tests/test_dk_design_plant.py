@@ -75,7 +75,8 @@ def test_auto_design_order_keeps_the_bound_and_covers_the_loop_error():
     e22 = np.linalg.norm(Hf[:, nz:, nw:] - Hd[:, nz + nu:, nw + ny:], 2, axis=(1, 2))
     assert e22.max() <= red.loop_weight
     np.testing.assert_allclose(Hd[:, nz + nu:, w1:w1 + ny], np.broadcast_to(np.eye(ny), (f.size, ny, ny)))
-    np.testing.assert_allclose(Hd[:, z1:z1 + nu, nw + ny:], red.loop_weight * np.eye(nu)[None].repeat(f.size, 0))
+    np.testing.assert_allclose(Hd[:, z1:z1 + nu, nw + ny:],
+                               np.broadcast_to(red.loop_weight * np.eye(nu), (f.size, nu, nu)))
     assert [b.name for b in design.blocks][-2:] == ["design reduction", gp.blocks[-1].name]
 
 
