@@ -12,7 +12,7 @@ import scipy.linalg as sla
 from robustctl.errors import SynthesisError
 from robustctl.lti import freqresp_array
 from robustctl.robust.dk import dksyn
-from robustctl.robust.dk_plant import DESIGN_REDUCE_ABOVE, reduce_design_plant
+from robustctl.robust.dk_plant import DESIGN_MAX_STATES, DESIGN_REDUCE_ABOVE, reduce_design_plant
 from robustctl.robust.plant import generalized_plant
 from robustctl.robust.weights import makeweight
 
@@ -52,16 +52,17 @@ def _hsv(P) -> np.ndarray:
 
 
 def test_auto_design_order_keeps_the_bound_and_covers_the_loop_error():
-    """A 60-mode chain (124 states): reduced to at most 100 states with the bound 2 sum sigma_tail
+    """A 100-mode chain (204 states): reduced to at most 100 states with the bound 2 sum sigma_tail
     of scipy's Hankel singular values within 1 % of the largest, the true error below the bound,
     and the augmented plant = the reduced one plus y += w_e, z_e = w u."""
-    gp = _design_plant(60)
+    gp = _design_plant(100)
+    assert gp.P.nstates > DESIGN_REDUCE_ABOVE
     design, red = reduce_design_plant(gp, "auto")
-    assert red is not None and red.order_before == 124 and red.order_after <= DESIGN_REDUCE_ABOVE
+    assert red is not None and red.order_before == 204 and red.order_after <= DESIGN_MAX_STATES
     hsv = _hsv(gp.P)
     assert red.bound == pytest.approx(2 * hsv[red.order_after:].sum(), rel=1e-4)
     assert red.bound <= 0.01 * hsv[0] * (1 + 1e-6)
-    assert 2 * hsv[red.order_after - 1:].sum() > 0.01 * hsv[0] or red.order_after == DESIGN_REDUCE_ABOVE
+    assert 2 * hsv[red.order_after - 1:].sum() > 0.01 * hsv[0] or red.order_after == DESIGN_MAX_STATES
     f = np.r_[0.0, np.geomspace(0.05, 200, 300)]
     Hf, Hd = freqresp_array(gp.P, f), freqresp_array(design.P, f)
     nw, nz, nu, ny = gp.nw, gp.nz, gp.ncon, gp.nmeas
@@ -122,7 +123,7 @@ def test_dksyn_completes_on_a_160_mode_plant_with_mu_verified_on_the_full_plant(
     gp = _design_plant(160)
     dk = dksyn(gp, progress=False)
     red = dk.design_reduction
-    assert red is not None and red.order_before == 324 and red.order_after <= DESIGN_REDUCE_ABOVE
+    assert red is not None and red.order_before == 324 and red.order_after <= DESIGN_MAX_STATES
     assert dk.K.nstates < 200
     assert np.linalg.eigvals(np.asarray(dk.closed_loop.A)).real.max() < 0
     assert np.isfinite(dk.mu_peak) and dk.mu_peak == pytest.approx(red.mu_peak_full)

@@ -466,13 +466,14 @@ def dksyn(
         of a higher scaled norm. Not used by the D-G-K K step (which searches its level).
     design_order : "auto", int or None
         States of the design plant the K steps see (:mod:`robustctl.robust.dk_plant`).
-        ``"auto"`` (default): a generalized plant of more than ``DESIGN_REDUCE_ABOVE`` (100)
+        ``"auto"`` (default): a generalized plant of more than ``DESIGN_REDUCE_ABOVE`` (200)
         states is reduced by balanced truncation before synthesis, to the fewest states whose
         bound ``2 sum sigma_tail`` on ``||P - P_r||_inf`` is at most 1 % of the largest
-        Hankel singular value (at most 100 states); the controller is then closed around the
-        full plant, its mu verified there (``mu_peak``), and the orders, the bound and both
-        peaks are in ``DKResult.design_reduction``; the history is the design plant's. An
-        integer: that many states. None: the full plant.
+        Hankel singular value (at most ``DESIGN_MAX_STATES``, 100), and the loop's part of the
+        truncation error (``u -> y``) is covered by an added additive uncertainty block; the
+        controller is then closed around the full plant, its mu verified there (``mu_peak``),
+        and the orders, the bound and both peaks are in ``DKResult.design_reduction``; the
+        history is the design plant's. An integer: that many states. None: the full plant.
 
     Returns
     -------

@@ -42,14 +42,16 @@ from ..lti import is_stable
 from .plant import GeneralizedPlant
 
 __all__ = ["DesignReduction", "reduce_design_plant", "on_full_plant", "check_design_order",
-           "DESIGN_REDUCE_ABOVE", "DESIGN_BOUND_RTOL", "DESIGN_COVER_MARGIN"]
+           "DESIGN_REDUCE_ABOVE", "DESIGN_MAX_STATES", "DESIGN_BOUND_RTOL", "DESIGN_COVER_MARGIN"]
 
 #: ``design_order="auto"`` reduces plants with more states than this before synthesis (D-K on
-#: 80-mode plants, 164 states, runs without it; the order kept is at most this many states).
-DESIGN_REDUCE_ABOVE = 100
+#: 80-mode plants, 164 states, runs at full order in under a minute).
+DESIGN_REDUCE_ABOVE = 200
+#: ``design_order="auto"`` keeps at most this many states.
+DESIGN_MAX_STATES = 100
 #: ``design_order="auto"`` keeps the fewest states whose truncation bound ``2 sum sigma_tail``
 #: is at most this fraction of the largest Hankel singular value (and at most
-#: :data:`DESIGN_REDUCE_ABOVE` states).
+#: :data:`DESIGN_MAX_STATES` states).
 DESIGN_BOUND_RTOL = 0.01
 #: the additive block's weight is this factor times the largest ``sigma_max(P22 - P22_r)`` seen
 #: on the grid (the peaks of the truncated lightly damped modes sit between grid points)
@@ -113,10 +115,10 @@ class DesignReduction:
 
 def _auto_order(hsv: np.ndarray) -> int:
     """The fewest states whose truncation bound is within ``DESIGN_BOUND_RTOL`` of ``hsv[0]``,
-    at most ``DESIGN_REDUCE_ABOVE``."""
+    at most ``DESIGN_MAX_STATES``."""
     tail = 2.0 * np.concatenate([np.cumsum(hsv[::-1])[::-1], [0.0]])  # tail[r]: bound keeping r states
     ok = np.flatnonzero(tail <= DESIGN_BOUND_RTOL * hsv[0])
-    return int(min(ok[0] if ok.size else hsv.size, DESIGN_REDUCE_ABOVE))
+    return int(min(ok[0] if ok.size else hsv.size, DESIGN_MAX_STATES))
 
 
 def check_design_order(value: Any) -> Any:
@@ -142,7 +144,7 @@ def reduce_design_plant(plant: GeneralizedPlant,
     design_order : "auto", int or None
         ``"auto"``: plants of more than :data:`DESIGN_REDUCE_ABOVE` states are reduced to the
         fewest states whose bound ``2 sum sigma_tail`` is at most :data:`DESIGN_BOUND_RTOL`
-        of the largest Hankel singular value (at most :data:`DESIGN_REDUCE_ABOVE` states);
+        of the largest Hankel singular value (at most :data:`DESIGN_MAX_STATES` states);
         plants that are not asymptotically stable are kept whole (balanced truncation needs
         stability). An integer: reduce to that many states (refused for an unstable plant).
         None: never reduce.
@@ -189,7 +191,7 @@ def reduce_design_plant(plant: GeneralizedPlant,
     if design_order == "auto":
         order = _auto_order(hsv)
         reason = (f"the fewest states within {100 * DESIGN_BOUND_RTOL:g} % of the largest Hankel singular "
-                  f"value, at most {DESIGN_REDUCE_ABOVE}")
+                  f"value, at most {DESIGN_MAX_STATES}")
     else:
         order, reason = int(design_order), "design_order given"
     if order >= n:
