@@ -53,8 +53,9 @@ def _hsv(P) -> np.ndarray:
 
 def test_auto_design_order_keeps_the_bound_and_covers_the_loop_error():
     """A 100-mode chain (204 states): reduced to at most 100 states with the bound 2 sum sigma_tail
-    of scipy's Hankel singular values within 1 % of the largest, the true error below the bound,
-    and the augmented plant = the reduced one plus y += w_e, z_e = w u."""
+    of scipy's Hankel singular values within 1 % of the largest, the true error below the bound
+    and the block's weight, and the augmented plant = the reduced one plus [z; y] += w_e,
+    z_e = weight [w; u]."""
     gp = _design_plant(100)
     assert gp.P.nstates > DESIGN_REDUCE_ABOVE
     design, red = reduce_design_plant(gp, "auto")
@@ -66,18 +67,20 @@ def test_auto_design_order_keeps_the_bound_and_covers_the_loop_error():
     f = np.r_[0.0, np.geomspace(0.05, 200, 300)]
     Hf, Hd = freqresp_array(gp.P, f), freqresp_array(design.P, f)
     nw, nz, nu, ny = gp.nw, gp.nz, gp.ncon, gp.nmeas
+    n_in, n_out = nw + nu, nz + ny
     k = len(gp.blocks) - 1
     w1 = sum(b.rows for b in gp.blocks[:k])
     z1 = sum(b.cols for b in gp.blocks[:k])
-    keep_w = np.r_[np.arange(w1), w1 + ny + np.arange(nw - w1), nw + ny + np.arange(nu)]
-    keep_z = np.r_[np.arange(z1), z1 + nu + np.arange(nz - z1), nz + nu + np.arange(ny)]
+    keep_w = np.r_[np.arange(w1), w1 + n_out + np.arange(nw - w1), nw + n_out + np.arange(nu)]
+    keep_z = np.r_[np.arange(z1), z1 + n_in + np.arange(nz - z1), nz + n_in + np.arange(ny)]
     err = np.linalg.norm(Hf - Hd[np.ix_(np.arange(f.size), keep_z, keep_w)], 2, axis=(1, 2))
-    assert err.max() <= red.bound
-    e22 = np.linalg.norm(Hf[:, nz:, nw:] - Hd[:, nz + nu:, nw + ny:], 2, axis=(1, 2))
-    assert e22.max() <= red.loop_weight
-    np.testing.assert_allclose(Hd[:, nz + nu:, w1:w1 + ny], np.broadcast_to(np.eye(ny), (f.size, ny, ny)))
-    np.testing.assert_allclose(Hd[:, z1:z1 + nu, nw + ny:],
-                               np.broadcast_to(red.loop_weight * np.eye(nu), (f.size, nu, nu)))
+    assert err.max() <= red.bound and err.max() <= red.error_weight
+    new_w, new_z = w1 + np.arange(n_out), z1 + np.arange(n_in)
+    np.testing.assert_allclose(Hd[np.ix_(np.arange(f.size), keep_z, new_w)],
+                               np.broadcast_to(np.eye(n_out), (f.size, n_out, n_out)))
+    np.testing.assert_allclose(Hd[np.ix_(np.arange(f.size), new_z, keep_w)],
+                               np.broadcast_to(red.error_weight * np.eye(n_in), (f.size, n_in, n_in)))
+    assert np.all(Hd[np.ix_(np.arange(f.size), new_z, new_w)] == 0)
     assert [b.name for b in design.blocks][-2:] == ["design reduction", gp.blocks[-1].name]
 
 

@@ -469,8 +469,8 @@ def dksyn(
         ``"auto"`` (default): a generalized plant of more than ``DESIGN_REDUCE_ABOVE`` (200)
         states is reduced by balanced truncation before synthesis, to the fewest states whose
         bound ``2 sum sigma_tail`` on ``||P - P_r||_inf`` is at most 1 % of the largest
-        Hankel singular value (at most ``DESIGN_MAX_STATES``, 100), and the loop's part of the
-        truncation error (``u -> y``) is covered by an added additive uncertainty block; the
+        Hankel singular value (at most ``DESIGN_MAX_STATES``, 100), and the truncation error
+        is covered by an added additive uncertainty block on the whole plant; the
         controller is then closed around the full plant, its mu verified there (``mu_peak``),
         and the orders, the bound and both peaks are in ``DKResult.design_reduction``; the
         history is the design plant's. An integer: that many states. None: the full plant.

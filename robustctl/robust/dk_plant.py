@@ -17,12 +17,15 @@ in balanced coordinates, where the controllability and observability Gramians ar
 diagonal: the Riccati problems of the K steps are balanced as well as small. The controller
 designed on ``P_r`` must not lean on the truncated modes: a K step on ``P_r`` alone is free to
 put gain where ``P_r`` has none, and the full plant's high modes then go unstable (on a
-160-mode chain every mode above 40 Hz did). The part of the truncation error that the loop
-feeds back, ``E22 = P22 - P22_r`` (``u -> y``), is therefore folded into the design plant as
-an additive uncertainty block of constant weight ``w_e >= max_f sigma_max(E22)`` (evaluated
-on a grid holding every pole frequency of ``P``, with :data:`DESIGN_COVER_MARGIN`): a design
-whose mu stays below 1 keeps the loop stable for every such error (small-gain theorem; Zhou,
-Doyle & Glover 1996, Theorem 9.1), the true one included. The controller designed on the
+160-mode chain every mode above 40 Hz did); covering only the loop's channel ``u -> y`` kept
+the loop stable but let the disturbance and uncertainty channels' error raise mu from 1.35 on
+the design plant to 1.68 on the full one. The truncation error ``E = P - P_r`` is therefore
+folded into the design plant as an additive uncertainty block on the whole plant,
+``[z; y] += w_e``, ``z_e = w_E [w; u]``, with a constant weight ``w_E >= max_f sigma_max(E)``
+(evaluated on a grid holding every pole frequency of ``P``, times
+:data:`DESIGN_COVER_MARGIN`): the full plant is one member of the design plant's uncertainty
+set, so the design's robust-performance mu bounds the full plant's (Zhou, Doyle & Glover 1996,
+Theorem 11.9, main loop theorem). The controller designed on the
 augmented ``P_r`` is then closed around the *full* plant: its stability is checked and its
 mu is verified there (:func:`robustctl.robust.dk_verify.verification_grid`), so the returned
 peak of mu is the full plant's, not the design model's. A controller that does not stabilise
@@ -53,8 +56,8 @@ DESIGN_MAX_STATES = 100
 #: is at most this fraction of the largest Hankel singular value (and at most
 #: :data:`DESIGN_MAX_STATES` states).
 DESIGN_BOUND_RTOL = 0.01
-#: the additive block's weight is this factor times the largest ``sigma_max(P22 - P22_r)`` seen
-#: on the grid (the peaks of the truncated lightly damped modes sit between grid points)
+#: the additive block's weight is this factor times the largest ``sigma_max(P - P_r)`` seen on
+#: the grid (the peaks of the truncated lightly damped modes may sit between grid points)
 DESIGN_COVER_MARGIN = 1.25
 
 
@@ -73,12 +76,11 @@ class DesignReduction:
         Hankel singular values of the plant, descending.
     reason : str
         Why this order (the rule or the caller's ``design_order``).
-    loop_error : float
-        ``max_f sigma_max(P22 - P22_r)``: the truncation error of the loop's own channel
-        ``u -> y`` (plant units) on the grid.
-    loop_weight : float
+    error_peak : float
+        ``max_f sigma_max(P - P_r)`` on the grid (plant units; at most ``bound``).
+    error_weight : float
         The constant weight of the additive uncertainty block ("design reduction") that
-        covers it in the design plant.
+        covers the truncation error in the design plant.
     mu_peak_design : float
         Verified peak of mu of the returned controller with the augmented reduced plant (its
         extra block included; NaN until set).
@@ -91,8 +93,8 @@ class DesignReduction:
     bound: float
     hsv: np.ndarray = field(repr=False)
     reason: str
-    loop_error: float = float("nan")
-    loop_weight: float = float("nan")
+    error_peak: float = float("nan")
+    error_weight: float = float("nan")
     mu_peak_design: float = float("nan")
     mu_peak_full: float = float("nan")
 
@@ -106,9 +108,9 @@ class DesignReduction:
         return (
             f"Design plant reduced by balanced truncation from {self.order_before} to {self.order_after} "
             f"states (||P - P_r||_inf <= {self.bound:.3g}, {100 * self.relative_bound:.2g} % of the largest "
-            f"Hankel singular value; {self.reason}), the loop's part of the error "
-            f"({self.loop_error:.3g}) covered by an additive uncertainty block of weight "
-            f"{self.loop_weight:.3g}; the controller's verified mu is "
+            f"Hankel singular value; {self.reason}), the error (peak {self.error_peak:.3g}) covered "
+            f"by an additive uncertainty block of weight {self.error_weight:.3g}; the controller's "
+            "verified mu is "
             f"{self.mu_peak_full:.4f} with the full plant ({self.mu_peak_design:.4f} with the reduced one)."
         )
 
@@ -202,14 +204,14 @@ def reduce_design_plant(plant: GeneralizedPlant,
         raise SynthesisError(
             f"design_order={order}: {exc} Ask for fewer states or pass design_order=None."
         ) from exc
-    error = _loop_error(plant, bt.sys)
+    error = _error_peak(plant, bt.sys)
     weight = DESIGN_COVER_MARGIN * max(error, 1e-12 * float(hsv[0]))
     design = _with_error_block(plant, bt.sys, weight)
     return design, DesignReduction(n, order, float(bt.bound), hsv, reason, error, weight)
 
 
-def _loop_error(plant: GeneralizedPlant, reduced: Any) -> float:
-    """``max_f sigma_max(P22 - P22_r)`` over DC, a log grid a decade beyond the plant's pole
+def _error_peak(plant: GeneralizedPlant, reduced: Any) -> float:
+    """``max_f sigma_max(P - P_r)`` over DC, a log grid a decade beyond the plant's pole
     frequencies and every pole frequency of the full plant (where its truncated modes peak)."""
     from ..lti import freqresp_array
 
@@ -218,38 +220,38 @@ def _loop_error(plant: GeneralizedPlant, reduced: Any) -> float:
     fp = fp[fp > 0]
     lo, hi = (float(fp.min()), float(fp.max())) if fp.size else (1e-2, 1e2)
     f = np.unique(np.concatenate([[0.0], np.geomspace(lo / 10, hi * 10, 400), fp]))
-    nz, nw = plant.nz, plant.nw
-    e = freqresp_array(plant.P, f)[:, nz:, nw:] - freqresp_array(reduced, f)[:, nz:, nw:]
+    e = freqresp_array(plant.P, f) - freqresp_array(reduced, f)
     return float(np.max(np.linalg.norm(e, 2, axis=(1, 2))))
 
 
 def _with_error_block(plant: GeneralizedPlant, P_r: Any, weight: float) -> GeneralizedPlant:
-    """``P_r`` with an additive uncertainty ``y += w_e``, ``z_e = weight u``: a full complex
-    block ("design reduction", ``ny x nu``) inserted before the last block (the performance
-    block stays last)."""
+    """``P_r`` with an additive uncertainty on the whole plant, ``[z; y] += w_e``,
+    ``z_e = weight [w; u]``: a full complex block ("design reduction", ``(nz + ny) x (nw + nu)``)
+    inserted before the last block (the performance block stays last)."""
     import control
 
     from .blocks import Block, BlockStructure
 
     A, B, C, D = (np.asarray(m, dtype=float) for m in (P_r.A, P_r.B, P_r.C, P_r.D))
     nw, nz, nu, ny, n = plant.nw, plant.nz, plant.ncon, plant.nmeas, A.shape[0]
+    n_in, n_out = nw + nu, nz + ny
     blocks = tuple(plant.blocks)
     nw1 = int(sum(b.rows for b in blocks[:-1]))
     nz1 = int(sum(b.cols for b in blocks[:-1]))
-    col_w = np.r_[np.arange(nw1), nw + nu + np.arange(ny), np.arange(nw1, nw), nw + np.arange(nu)]
-    row_z = np.r_[np.arange(nz1), nz + ny + np.arange(nu), np.arange(nz1, nz), nz + np.arange(ny)]
-    # extended matrices with the new channels appended, then permuted into place
-    Bx = np.hstack([B, np.zeros((n, ny))])
-    Cx = np.vstack([C, np.zeros((nu, n))])
-    Dx = np.zeros((nz + ny + nu, nw + nu + ny))
-    Dx[: nz + ny, : nw + nu] = D
-    Dx[nz + np.arange(ny), nw + nu + np.arange(ny)] = 1.0  # y += w_e
-    Dx[nz + ny + np.arange(nu), nw + np.arange(nu)] = weight  # z_e = weight u
-    ins = list(P_r.input_labels) + [f"design_err_in[{k}]" for k in range(ny)]
-    outs = list(P_r.output_labels) + [f"design_err_out[{k}]" for k in range(nu)]
+    # extended matrices with the new channels appended (w_e after u, z_e after y), then permuted
+    col_w = np.r_[np.arange(nw1), n_in + np.arange(n_out), np.arange(nw1, nw), nw + np.arange(nu)]
+    row_z = np.r_[np.arange(nz1), n_out + np.arange(n_in), np.arange(nz1, nz), nz + np.arange(ny)]
+    Bx = np.hstack([B, np.zeros((n, n_out))])
+    Cx = np.vstack([C, np.zeros((n_in, n))])
+    Dx = np.zeros((n_out + n_in, n_in + n_out))
+    Dx[:n_out, :n_in] = D
+    Dx[:n_out, n_in:] = np.eye(n_out)  # [z; y] += w_e
+    Dx[n_out:, :n_in] = weight * np.eye(n_in)  # z_e = weight [w; u]
+    ins = list(P_r.input_labels) + [f"design_err_in[{k}]" for k in range(n_out)]
+    outs = list(P_r.output_labels) + [f"design_err_out[{k}]" for k in range(n_in)]
     P_aug = control.ss(A, Bx[:, col_w], Cx[row_z], Dx[np.ix_(row_z, col_w)],
                        inputs=[ins[k] for k in col_w], outputs=[outs[k] for k in row_z])
-    new = blocks[:-1] + (Block("full", ny, nu, "design reduction"),) + blocks[-1:]
+    new = blocks[:-1] + (Block("full", n_out, n_in, "design reduction"),) + blocks[-1:]
     return GeneralizedPlant(P_aug, plant.nmeas, plant.ncon, blocks=BlockStructure(new))
 
 
