@@ -122,7 +122,8 @@ def test_dksyn_on_a_reduced_design_plant_verifies_mu_with_the_full_plant():
 @pytest.mark.slow
 def test_dksyn_completes_on_a_160_mode_plant_with_mu_verified_on_the_full_plant():
     """The 160-mode chain (324 states) whose full-order K step fails: D-K completes on the
-    reduced design plant, the controller stabilises the full plant and mu is verified there."""
+    reduced design plant, the controller stabilises the full plant (numpy eigenvalues) and mu
+    is verified there, below the design plant's (measured: 1.43 against 1.52)."""
     gp = _design_plant(160)
     dk = dksyn(gp, progress=False)
     red = dk.design_reduction
@@ -130,3 +131,6 @@ def test_dksyn_completes_on_a_160_mode_plant_with_mu_verified_on_the_full_plant(
     assert dk.K.nstates < 200
     assert np.linalg.eigvals(np.asarray(dk.closed_loop.A)).real.max() < 0
     assert np.isfinite(dk.mu_peak) and dk.mu_peak == pytest.approx(red.mu_peak_full)
+    # the full plant is one member of the design plant's uncertainty set (the error block covers
+    # P - P_r): its mu cannot exceed the design's but by the two verification grids' difference
+    assert red.mu_peak_full <= red.mu_peak_design * 1.02
