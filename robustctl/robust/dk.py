@@ -510,6 +510,9 @@ def dksyn(
     _orders(order_d, len(blocks) - 1)  # refuse a bad order_d now, not at the first D step
     design, shrink = reduce_design_plant(plant, design_order)
     if shrink is not None:
+        if order_d is not None and np.ndim(order_d) == 1:  # a constant D-scale for the error block
+            k = len(plant.blocks) - 1
+            order_d = [*list(order_d)[:k], 0, *list(order_d)[k:]]
         res = dksyn((design.P, plant.nmeas, plant.ncon, design.blocks), max_iter, order_d, f_hz, executor,
                     time_budget_s, reduce, progress, rtol=rtol, patience=patience, hinf_options=hinf_options,
                     callback=callback, real=real, autoscale=autoscale, gamma=gamma, design_order=None)
