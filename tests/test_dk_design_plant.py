@@ -1,6 +1,7 @@
 """D-K on large plants: the design plant reduced by balanced truncation before synthesis
-(robustctl.robust.dk_plant), the truncation error of the loop covered by an additive block, the
-controller closed around the full plant and its mu verified there."""
+(robustctl.robust.dk_plant), the truncation error covered by an additive uncertainty block, the
+controller closed around the full plant and its mu verified there. The plants are the numpy chains
+of ``benchmarks/bench_scale_dk.py``."""
 
 from __future__ import annotations
 
@@ -9,38 +10,12 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
+from benchmarks.bench_scale_dk import chain_plant, design_plant
 from robustctl.errors import SynthesisError
 from robustctl.lti import freqresp_array
 from robustctl.robust.dk import dksyn
 from robustctl.robust.dk_plant import DESIGN_MAX_STATES, DESIGN_REDUCE_ABOVE, reduce_design_plant
 from robustctl.robust.plant import generalized_plant
-from robustctl.robust.weights import makeweight
-
-
-def _chain(n_modes: int, f1: float = 0.5, zeta: float = 0.01):
-    """A fixed-free chain of ``n_modes`` equal masses in modal form (numpy ``eigh``): forces at
-    the first and the middle mass, displacements at a third and at the tip, unit DC gain scale."""
-    n = n_modes
-    K = 2 * np.eye(n) - np.eye(n, k=1) - np.eye(n, k=-1)
-    K[-1, -1] = 1.0
-    lam, phi = np.linalg.eigh(K)
-    wk = np.sqrt(lam * (2 * np.pi * f1) ** 2 / lam[0])
-    ins, outs = [0, n // 2], [n // 3, n - 1]
-    A = np.zeros((2 * n, 2 * n))
-    B = np.zeros((2 * n, 2))
-    C = np.zeros((2, 2 * n))
-    for k in range(n):
-        A[2 * k:2 * k + 2, 2 * k:2 * k + 2] = [[0, 1], [-wk[k] ** 2, -2 * zeta * wk[k]]]
-        B[2 * k + 1] = phi[ins, k]
-        C[:, 2 * k] = phi[outs, k]
-    dc = np.abs(C @ np.linalg.solve(-A, B)).max()
-    return control.ss(A, B, C / dc, np.zeros((2, 2)))
-
-
-def _design_plant(n_modes: int):
-    G = _chain(n_modes)
-    return generalized_plant(G, performance=makeweight(3.0, (1.0, 1.0), 0.01), disturbances=1.0,
-                             control_weight=0.1, noise=0.01, input_mult=makeweight(0.2, (3.0, 1.0), 2.0))
 
 
 def _hsv(P) -> np.ndarray:
@@ -51,12 +26,12 @@ def _hsv(P) -> np.ndarray:
     return np.sort(np.sqrt(np.abs(np.linalg.eigvals(Wc @ Wo))))[::-1]
 
 
-def test_auto_design_order_keeps_the_bound_and_covers_the_loop_error():
+def test_auto_design_order_keeps_the_bound_and_covers_the_truncation_error():
     """A 100-mode chain (204 states): reduced to at most 100 states with the bound 2 sum sigma_tail
     of scipy's Hankel singular values within 1 % of the largest, the true error below the bound
     and the block's weight, and the augmented plant = the reduced one plus [z; y] += w_e,
     z_e = weight [w; u]."""
-    gp = _design_plant(100)
+    gp = design_plant(100)
     assert gp.P.nstates > DESIGN_REDUCE_ABOVE
     design, red = reduce_design_plant(gp, "auto")
     assert red is not None and red.order_before == 204 and red.order_after <= DESIGN_MAX_STATES
@@ -85,13 +60,13 @@ def test_auto_design_order_keeps_the_bound_and_covers_the_loop_error():
 
 
 def test_small_plants_are_not_reduced_and_bad_orders_are_refused():
-    gp = _design_plant(10)
+    gp = design_plant(10)
     assert reduce_design_plant(gp, "auto")[1] is None
     assert reduce_design_plant(gp, None)[1] is None
     for bad in (0, -3, 2.5, "half", True):
         with pytest.raises(SynthesisError, match="design_order"):
             reduce_design_plant(gp, bad)
-    G = _chain(3)
+    G = chain_plant(3)
     unstable = control.ss(np.asarray(G.A) + 0.5 * np.eye(6), G.B, G.C, G.D)
     gpu = generalized_plant(unstable, performance=1.0, control_weight=0.1, noise=0.01, disturbances=1.0)
     with pytest.raises(SynthesisError, match="not asymptotically stable"):
@@ -102,7 +77,7 @@ def test_dksyn_on_a_reduced_design_plant_verifies_mu_with_the_full_plant():
     """A 10-mode chain designed on a 12-state truncation: the returned closed loop is the full
     plant's (its eigenvalues, from numpy, all stable), its mu is the verified full-plant mu,
     and the D-scales are one per block of the user's structure but the last."""
-    gp = _design_plant(10)
+    gp = design_plant(10)
     dk = dksyn(gp, max_iter=2, progress=False, design_order=12, order_d=[2])  # one order per user block
     red = dk.design_reduction
     assert red is not None and (red.order_before, red.order_after) == (24, 12)
@@ -124,7 +99,7 @@ def test_dksyn_completes_on_a_160_mode_plant_with_mu_verified_on_the_full_plant(
     """The 160-mode chain (324 states) whose full-order K step fails: D-K completes on the
     reduced design plant, the controller stabilises the full plant (numpy eigenvalues) and mu
     is verified there, below the design plant's (measured: 1.43 against 1.52)."""
-    gp = _design_plant(160)
+    gp = design_plant(160)
     dk = dksyn(gp, progress=False)
     red = dk.design_reduction
     assert red is not None and red.order_before == 324 and red.order_after <= DESIGN_MAX_STATES
