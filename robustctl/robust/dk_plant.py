@@ -124,7 +124,22 @@ def _auto_order(hsv: np.ndarray) -> int:
 
 
 def check_design_order(value: Any) -> Any:
-    """``None``, ``"auto"`` or a positive integer (SynthesisError otherwise)."""
+    """The checked ``design_order`` of :func:`~robustctl.dksyn`.
+
+    Parameters
+    ----------
+    value : None, "auto" or int
+        ``None``, ``"auto"`` or a positive number of states.
+
+    Returns
+    -------
+    None, "auto" or int
+
+    Raises
+    ------
+    SynthesisError
+        Anything else.
+    """
     if value is None or (isinstance(value, str) and value == "auto"):
         return value
     if isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)) and value >= 1:
