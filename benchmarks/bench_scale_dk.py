@@ -19,7 +19,9 @@ The exponents are least-squares slopes of ``log CPU time`` and ``log peak memory
 a verified mu (or refuses naming the violated assumption). Wall times depend on the load of the
 shared machine; CPU times are the steadier figure.
 
-Run: ``python -m benchmarks scale_dk`` (writes ``results/scale_dk.json``).
+Run: ``python -m benchmarks scale_dk`` (writes ``results/scale_dk.json``);
+``python -m benchmarks.bench_scale_dk 160 > row.json`` measures one size apart and
+``python -m benchmarks.bench_scale_dk --add row.json`` puts it into the result.
 """
 
 from __future__ import annotations
@@ -76,7 +78,8 @@ def case(n_modes: int) -> dict:
 
     gp = design_plant(n_modes)
     t0, c0 = time.perf_counter(), time.process_time()
-    row = {"n_modes": n_modes, "plant_states": int(gp.P.nstates)}
+    row = {"n_modes": n_modes, "plant_states": int(gp.P.nstates),
+           "load_average": [round(v, 2) for v in os.getloadavg()]}
     try:
         with rc.blas_threads(1):
             dk = rc.dksyn(gp, progress=False)
@@ -95,7 +98,7 @@ def case(n_modes: int) -> dict:
             "design_states": int(red.order_after) if red else int(gp.P.nstates),
             "design_bound": round(float(red.bound), 4) if red else 0.0,
             "design_mu": round(float(red.mu_peak_design), 4) if red else None,
-            "loop_error_weight": round(float(red.loop_weight), 5) if red else None,
+            "error_weight": round(float(red.error_weight), 5) if red else None,
         })
     return row
 
@@ -119,8 +122,13 @@ def _exponent(rows: list[dict], x: str, y: str) -> float | None:
 
 def run() -> dict:
     load = os.getloadavg()
-    rows = [_run(n) for n in MODES]
-    big = next(r for r in rows if r["n_modes"] == 160)
+    return assemble([_run(n) for n in MODES], [round(v, 2) for v in load])
+
+
+def assemble(rows: list[dict], load: list[float]) -> dict:
+    """The result from the runs (also used to add a run measured apart: ``--add row.json``)."""
+    rows = sorted(rows, key=lambda r: r["n_modes"])
+    big = next((r for r in rows if r["n_modes"] == 160), {})
     metrics = {
         "modes_160_completed_verified": bool(big.get("full_loop_stable")) and "mu_verified_full_plant" in big,
         "modes_160_mu_verified": big.get("mu_verified_full_plant"),
@@ -131,7 +139,7 @@ def run() -> dict:
         "cpu_exponent_vs_plant_states": _exponent(rows, "plant_states", "cpu_s"),
         "memory_exponent_vs_plant_states": _exponent(rows, "plant_states", "peak_mb"),
         "runs": rows,
-        "load_average_at_start": [round(v, 2) for v in load],
+        "load_average_at_start": load,
     }
     return {
         "name": "scale_dk",
@@ -143,8 +151,25 @@ def run() -> dict:
     }
 
 
+def _add(path: str) -> None:
+    """Replace one run of ``results/scale_dk.json`` by the JSON line in ``path`` (``case(n)``'s output,
+    measured apart) and recompute the metrics; the file keeps its machine and load records."""
+    out = HERE / "results" / "scale_dk.json"
+    old = json.loads(out.read_text())
+    row = json.loads(Path(path).read_text().strip().splitlines()[-1])
+    rows = [r for r in old["metrics"]["runs"] if r["n_modes"] != row["n_modes"]] + [row]
+    new = assemble(rows, old["metrics"]["load_average_at_start"])
+    new["metrics"]["added_run_load_average"] = row.get("load_average")
+    result = {**old, **new}
+    result["passed"] = bool(new["metrics"]["modes_160_completed_verified"])
+    out.write_text(json.dumps(result, indent=2) + "\n")
+    print(json.dumps(result["metrics"], indent=2))
+
+
 if __name__ == "__main__":
-    if len(sys.argv) == 2:
+    if len(sys.argv) == 3 and sys.argv[1] == "--add":
+        _add(sys.argv[2])
+    elif len(sys.argv) == 2:
         print(json.dumps(case(int(sys.argv[1]))))
     else:
         print(json.dumps(run(), indent=2))
