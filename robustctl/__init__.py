@@ -158,6 +158,7 @@ from .robust import (
 )
 from .robust.controller_reduction import ControllerReduction
 from .robust.controller_reduction import reduce_controller as reduce_controller
+from .robust.cover import cover_remainder
 from .robust.dk import DKResult, dksyn
 from .robust.dk_plant import DesignReduction
 from .robust.h2 import H2Result as H2Result
@@ -323,6 +324,7 @@ __all__ = [
     # uncertain models from the update (parametric LFT) for mixed-mu D-G-K
     "UncertainModel",
     "parametric_lft",
+    "cover_remainder",
     # H2/LQG, discrete synthesis, loop shaping, margins, controller reduction
     "is_stable",
     *robust.TOOLBOX_NAMES,
