@@ -160,6 +160,7 @@ from .robust.controller_reduction import ControllerReduction
 from .robust.controller_reduction import reduce_controller as reduce_controller
 from .robust.cover import cover_remainder
 from .robust.dk import DKResult, dksyn
+from .robust.dk_plant import DesignReduction
 from .robust.h2 import H2Result as H2Result
 from .robust.h2 import h2norm as h2norm
 from .robust.h2 import h2syn as h2syn
@@ -316,6 +317,7 @@ __all__ = [
     # D-K iteration and the measurement-model yardstick
     "dksyn",
     "DKResult",
+    "DesignReduction",
     "yardstick",
     "YardstickWarning",
     "Yardstick",

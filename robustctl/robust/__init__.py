@@ -14,6 +14,7 @@ from .cover import UncertaintyCover, cover_additive, cover_multiplicative, cover
 
 # D-K iteration and the measurement-model yardstick (dk.py, yardstick.py)
 from .dk import DKIteration, DKResult, Reduction, dksyn
+from .dk_plant import DesignReduction
 
 # H2/LQG, discrete synthesis, loop shaping, margins, controller reduction (toolbox)
 from .h2 import H2Result as H2Result
@@ -102,6 +103,7 @@ __all__ = [
     "DKResult",
     "DKIteration",
     "Reduction",
+    "DesignReduction",
     "yardstick",
     "Yardstick",
     "NyquistVerdict",
