@@ -771,11 +771,26 @@ def _mixed_k_step(hinfsyn: Callable, P_scaled: Any, plant: GeneralizedPlant, can
 
 def _k_step(hinfsyn: Callable, scaled: Any, plant: GeneralizedPlant, opts: dict, index: int,
             gamma: float | None = None) -> Any:
-    """One H-infinity synthesis on the scaled plant; refuses a controller that does not stabilise P."""
-    hres = hinfsyn(scaled, **opts)
+    """One H-infinity synthesis on the scaled plant; refuses a controller that does not stabilise P.
+
+    When the Riccati route fails and advises ``method='lmi'`` (no feasible gamma found, or no
+    controller passed its closed-loop check: a badly scaled or nearly singular scaled plant),
+    the LMI route is tried once (unless the caller chose the method).
+    """
+    try:
+        hres = hinfsyn(scaled, **opts)
+    except SynthesisError as exc:
+        if "method" in opts or "method='lmi'" not in str(exc):
+            raise
+        try:
+            hres = hinfsyn(scaled, **{**opts, "method": "lmi"})
+        except SynthesisError as exc_lmi:
+            raise SynthesisError(f"{exc} The LMI route failed too: {exc_lmi}") from exc_lmi
+        hres = replace(hres, info={**hres.info, "fallback": f"Riccati route failed: {exc}"})
     if gamma is not None and gamma > hres.info.get("gamma_design", hres.gamma):
         # a fixed design level above the optimum: the central controller at that gamma
-        hres = hinfsyn(scaled, **{**opts, "backoff": gamma / hres.gamma_opt - 1.0})
+        hres = hinfsyn(scaled, **{**opts, "method": hres.info.get("method", "riccati"),
+                                  "backoff": gamma / hres.gamma_opt - 1.0})
     if not is_stable(closed_loop(plant.P, hres.K, plant.nmeas, plant.ncon), margin=0.0):
         raise SynthesisError(
             f"the K step of iteration {index} returned a controller that does not stabilise the plant; "
