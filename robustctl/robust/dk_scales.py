@@ -42,7 +42,7 @@ SHORTCUT_MIN_ORDERS = 6
 ORDER_D_BROKEN = 1.25
 #: H-infinity syntheses the automatic scaling may spend on its constant block scales.
 AUTOSCALE_EVALS = 60
-#: Nelder-Mead stops when the simplex's ln gamma values agree within this (and its points within 0.05 in ln d).
+#: Nelder-Mead stops when the simplex's ln gamma agree within this (its points within 0.05 in ln d).
 AUTOSCALE_FATOL = 1e-3
 #: ln of the common block-scale factors the search scans before its Nelder-Mead refinement.
 AUTOSCALE_SCAN = (-6.0, -4.5, -3.0, -1.5, 0.0, 1.5, 3.0, 4.5, 6.0)
