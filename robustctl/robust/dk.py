@@ -90,6 +90,13 @@ __all__ = ["DKIteration", "DKResult", "Reduction", "dksyn"]
 
 #: Extrapolation steps ``beta`` of the D step's line search (module docstring); 0 is plain D-K.
 D_STEPS = (0.0, 0.5, 1.0)
+#: With automatic D orders, a run the iteration cap stops while it creeps is repeated with its
+#: orders lowered and raised by one (:func:`_neighbour_orders`); False turns that off.
+ORDER_NEIGHBOURS = True
+#: The fall of the peak of mu in the last iteration above which such a run counts as creeping.
+ORDER_NEIGHBOURS_CREEP = 1e-3
+#: Most states of a scaled plant whose failed Riccati K step is retried on the LMI route.
+LMI_FALLBACK_MAX_STATES = 40
 #: Starts of the automatically scaled D-K (ln of a factor on all block scales but the last).
 AUTOSCALE_STARTS = (0.0, -1.5, 1.5)
 #: A start whose verified mu is below this ends the multi-start (robust performance certified).
@@ -593,10 +600,72 @@ def dksyn(
     stopped = deadline.hit  # shared with the K steps' bisections and the D fits
     if stopped and own_clock:
         deadline.warn("dksyn (D-K iteration)")
-    return DKResult(K=K, mu_peak=float(m.peak), mu=m, closed_loop=cl, history=tuple(history),
-                    best_iteration=best["it"].index, stop_reason=stop, blocks=plant.blocks,
-                    d_scales=d_fits, reduction=reduction, grid_mu_peak=grid_peak,
-                    stopped_by_budget=stopped)
+    result = DKResult(K=K, mu_peak=float(m.peak), mu=m, closed_loop=cl, history=tuple(history),
+                      best_iteration=best["it"].index, stop_reason=stop, blocks=plant.blocks,
+                      d_scales=d_fits, reduction=reduction, grid_mu_peak=grid_peak,
+                      stopped_by_budget=stopped)
+    if order_d is not None or not ORDER_NEIGHBOURS:
+        return result
+
+    def run(orders: tuple[int, ...]) -> DKResult:
+        return dksyn((plant.P, plant.nmeas, plant.ncon, plant.blocks), max_iter=max_iter,
+                     order_d=list(orders), f_hz=f_hz, executor=executor, time_budget_s=deadline,
+                     reduce=reduce, progress=progress, rtol=rtol, patience=patience,
+                     hinf_options=hinf_options, callback=callback, real=real, autoscale=False, gamma=gamma)
+
+    return _neighbour_orders(result, blocks, run, deadline)
+
+
+def _creeping(res: DKResult) -> bool:
+    """The iteration cap ended a run whose last iteration still lowered the peak of mu."""
+    h = res.history
+    return (len(h) >= 2 and res.best_iteration == len(h) and not res.stopped_by_budget
+            and res.stop_reason.startswith("max_iter=")
+            and h[-1].mu_peak < h[-2].mu_peak * (1 - ORDER_NEIGHBOURS_CREEP))
+
+
+def _neighbour_orders(res: DKResult, blocks: BlockStructure, run: Callable[[tuple[int, ...]], DKResult],
+                      deadline: Deadline) -> DKResult:
+    """The automatic D orders' result, or a fixed-order run beside it that ends lower.
+
+    A D-K run the iteration cap stops while its peak of mu still falls by more than
+    :data:`ORDER_NEIGHBOURS_CREEP` per iteration has not converged: on flat problems it creeps
+    (1-4 % per iteration), and where it ends within ``max_iter`` depends on the path, which
+    the orders of the D fits change. On mu-tools' HIMAT with sensor noise (``mkhicn``) the
+    automatic choice (orders 3, then 4) crept to 0.980 in ten iterations while a fixed order
+    3 reached 0.954 and 5 reached 0.965. Such a run is therefore repeated from the same start
+    with every block's order of its best iteration lowered and raised by one (within
+    :data:`~robustctl.robust.dk_scales.MAX_AUTO_ORDER_D` and
+    :data:`~robustctl.robust.dk_scales.MAX_D_STATES_PER_BLOCK`), and the lowest verified peak
+    of mu is kept; ``stop_reason`` says which. A run that stopped because mu stopped falling
+    (the distillation column, the Caltech design plant) is returned as it is.
+    """
+    from .dk_scales import MAX_AUTO_ORDER_D, MAX_D_STATES_PER_BLOCK
+
+    if not _creeping(res):
+        return res
+    base = res.history[res.best_iteration - 1].d_orders
+    scaled = list(blocks)[:len(base)]
+    if not base or len(scaled) != len(base):
+        return res
+    cap = [min(MAX_AUTO_ORDER_D, MAX_D_STATES_PER_BLOCK // (b.rows + b.cols)) for b in scaled]
+    used = {h.d_orders for h in res.history if h.d_orders}
+    tried = []
+    for step in (-1, 1):
+        orders = tuple(int(min(max(o + step, 0), c)) for o, c in zip(base, cap))
+        if orders == base or orders in [t[0] for t in tried] or used == {orders}:
+            continue
+        if deadline.expired():
+            break
+        tried.append((orders, run(orders)))
+    best = min([(None, res)] + tried, key=lambda t: t[1].mu_peak)
+    if best[0] is None:
+        return res
+    others = ", ".join(f"orders {o} {r.mu_peak:.4f}" for o, r in tried if o != best[0])
+    why = (f"the automatic D orders crept to {res.mu_peak:.4f} at max_iter={len(res.history)}; "
+           f"the fixed orders {best[0]} reached {best[1].mu_peak:.4f}" + (f" ({others})" if others else ""))
+    return replace(best[1], stop_reason=f"{best[1].stop_reason}; {why}",
+                   stopped_by_budget=best[1].stopped_by_budget or res.stopped_by_budget)
 
 
 def _autoscaled_dksyn(plant: GeneralizedPlant, blocks: BlockStructure, options: dict,
@@ -705,6 +774,14 @@ def _k_step_search(hinfsyn: Callable, plant: GeneralizedPlant, candidates: Seque
             continue
         if best is None or hres.gamma < best[0].gamma:
             best = (hres, cand)
+    if best is None and candidates and not candidates[0].g_fits:
+        # every candidate failed on the Riccati route: the first (unextrapolated) on the LMI route
+        cand = candidates[0]
+        scaled = PartitionedPlant(_scale_plant(plant, cand.fits), plant.nmeas, plant.ncon)
+        try:
+            best = (_k_step(hinfsyn, scaled, plant, opts, index, gamma, lmi_fallback=True), cand)
+        except SynthesisError as exc:
+            first_error = exc  # the Riccati failure, and the LMI route's when it was tried
     if best is None:
         assert first_error is not None
         raise first_error
@@ -770,17 +847,20 @@ def _mixed_k_step(hinfsyn: Callable, P_scaled: Any, plant: GeneralizedPlant, can
 
 
 def _k_step(hinfsyn: Callable, scaled: Any, plant: GeneralizedPlant, opts: dict, index: int,
-            gamma: float | None = None) -> Any:
+            gamma: float | None = None, lmi_fallback: bool = False) -> Any:
     """One H-infinity synthesis on the scaled plant; refuses a controller that does not stabilise P.
 
-    When the Riccati route fails and advises ``method='lmi'`` (no feasible gamma found, or no
-    controller passed its closed-loop check: a badly scaled or nearly singular scaled plant),
-    the LMI route is tried once (unless the caller chose the method).
+    With ``lmi_fallback``, when the Riccati route fails and advises ``method='lmi'`` (a
+    violated rank or axis-zero assumption, no feasible gamma found, or no controller that
+    passed its closed-loop check), the LMI route is tried once, unless the caller chose the
+    method or the scaled plant has more than :data:`LMI_FALLBACK_MAX_STATES` states (the
+    interior-point solve grows like ``n^6``: 20-40 s per solve at 50 states).
     """
     try:
         hres = hinfsyn(scaled, **opts)
     except SynthesisError as exc:
-        if "method" in opts or "method='lmi'" not in str(exc):
+        if not lmi_fallback or "method" in opts or "method='lmi'" not in str(exc) \
+                or scaled.P.nstates > LMI_FALLBACK_MAX_STATES:
             raise
         try:
             hres = hinfsyn(scaled, **{**opts, "method": "lmi"})
