@@ -406,7 +406,10 @@ def dksyn(
         reach, else the one with the lowest bound (never below the previous iteration's order unless those
         fits are broken or out of band; at most 24 added states per block, e.g. order 4 for
         a 3 x 3 block). From the third iteration the K step tries the fits of the
-        extrapolated scales too (:data:`D_STEPS`, module docstring).
+        extrapolated scales too (:data:`D_STEPS`, module docstring). When ``max_iter`` stops
+        an automatic-order run whose peak of mu still falls, the run is repeated with every
+        block's order (of its best iteration) lowered and raised by one and the lowest
+        verified mu is kept (:func:`_neighbour_orders`; ``stop_reason`` says so).
     f_hz : array_like, optional
         Analysis grid (Hz). Default: :func:`default_grid` of ``P``, refined at the lightly
         damped closed-loop poles each iteration.
@@ -437,7 +440,10 @@ def dksyn(
         worse iteration (mu 0.79 -> 0.95 -> 0.80) cost 40 % more time and never won.
     hinf_options : dict, optional
         Extra keyword arguments for :func:`~robustctl.robust.hinf_synthesis.hinfsyn` (default
-        ``backoff=HINF_BACKOFF``, ``time_budget_s``: this call's budget, shared).
+        ``backoff=HINF_BACKOFF``, ``time_budget_s``: this call's budget, shared). Without a
+        ``method``, a K step whose every candidate fails on the Riccati route with its advice
+        to use ``method='lmi'`` is retried on the LMI route (scaled plants of at most
+        :data:`LMI_FALLBACK_MAX_STATES` states).
     callback : callable, optional
         Called with each :class:`DKIteration`.
     real : {"mixed", "complex"}

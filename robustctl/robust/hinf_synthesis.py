@@ -474,7 +474,10 @@ def hinfsyn(
         Number of measurements (last outputs) and control inputs (last inputs).
     method : {"riccati", "lmi"}
         "riccati" (default): DGKF gamma bisection (fast; needs the standard assumptions).
-        "lmi": Gahinet-Apkarian LMIs in cvxpy/Clarabel (slow; singular problems too).
+        "lmi": Gahinet-Apkarian LMIs in cvxpy/Clarabel (slow; singular problems too),
+        solved in the state coordinates their first solution balances
+        (:func:`~robustctl.robust.hinf_lmi.lmi_rescaled_gamma`); the controller is rebuilt
+        from well-centred ``R, S`` at the design gamma.
     gamma_tol : float
         Relative width of the final gamma bracket, ``gamma_opt <= gamma_lower (1 + gamma_tol)``.
     backoff : float
