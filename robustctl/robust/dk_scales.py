@@ -44,10 +44,6 @@ ORDER_D_BROKEN = 1.25
 AUTOSCALE_EVALS = 60
 #: Nelder-Mead stops when the simplex's ln gamma agree within this (its points within 0.05 in ln d).
 AUTOSCALE_FATOL = 1e-3
-#: The search also stops when this many syntheses in a row lowered ln gamma by less than
-#: AUTOSCALE_STALL_TOL below the best before them (0: never).
-AUTOSCALE_STALL_EVALS = 10
-AUTOSCALE_STALL_TOL = 0.01
 #: ln of the common block-scale factors the search scans before its Nelder-Mead refinement.
 AUTOSCALE_SCAN = (-6.0, -4.5, -3.0, -1.5, 0.0, 1.5, 3.0, 4.5, 6.0)
 #: Most scaled blocks (all but the last) for which that search runs (else the covariant start).
@@ -188,38 +184,14 @@ def _autoscaled(plant: GeneralizedPlant,
         g0, t0 = min(scan)
         x = np.full(nb, t0)
         simplex = np.vstack([x, x + 2.0 * np.eye(nb)])
-        seen: list[tuple[float, np.ndarray]] = []
-
-        def tracked(z: np.ndarray) -> float:
-            # Nelder-Mead's own tests shrink slowly in several dimensions: on the Caltech
-            # design plant (three scaled blocks) it spent 60 syntheses, the last 30 of them
-            # for 2 % of gamma; stop once AUTOSCALE_STALL_EVALS syntheses gained less than
-            # AUTOSCALE_STALL_TOL in ln gamma (a count of evaluations, not a clock)
-            v = gamma_of(z)
-            seen.append((v, np.array(z, dtype=float)))
-            n = len(seen)
-            if AUTOSCALE_STALL_EVALS and n > AUTOSCALE_STALL_EVALS:
-                before = min(t[0] for t in seen[:n - AUTOSCALE_STALL_EVALS])
-                if min(t[0] for t in seen[n - AUTOSCALE_STALL_EVALS:]) > before - AUTOSCALE_STALL_TOL:
-                    raise _StalledError
-            return v
-
-        try:
-            res = minimize(tracked, x, method="Nelder-Mead",
-                           options={"initial_simplex": simplex, "xatol": 0.05, "fatol": AUTOSCALE_FATOL,
-                                    "maxfev": AUTOSCALE_EVALS})
-            fun, xbest = float(res.fun), res.x
-        except _StalledError:
-            fun, xbest = min(seen, key=lambda t: t[0])
-        if fun < g0:
-            x = xbest
+        res = minimize(gamma_of, x, method="Nelder-Mead",
+                       options={"initial_simplex": simplex, "xatol": 0.05, "fatol": AUTOSCALE_FATOL,
+                                "maxfev": AUTOSCALE_EVALS})
+        if res.fun < g0:
+            x = res.x
     d = d0 * np.exp(np.append(x, 0.0))
     Ps = _constant_scaled(plant, su, sy, d)
     return GeneralizedPlant(Ps, plant.nmeas, plant.ncon, blocks=plant.blocks), _Scaling(su, sy, d)
-
-
-class _StalledError(Exception):
-    """Ends the autoscaling's Nelder-Mead search (:data:`AUTOSCALE_STALL_EVALS`)."""
 
 
 def _unscaled_controller(K: Any, sc: _Scaling):
