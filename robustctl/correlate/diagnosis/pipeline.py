@@ -13,11 +13,10 @@ from ...budget import Deadline
 from ...checks import UNSET, finite_number, integer, renamed_keyword
 from ...errors import FitError, ModelError
 from ...executors import check_executor, parallel_map_shared, resolve_workers
-from ...frd import FrequencyData, as_frequency_data
+from ...frd import FrequencyData
 from ...measure.estimator import estimator_settings
-from ...measure.noise import noise_model
 from ...threads import limit_blas
-from ..residual import check_determined, physical_model
+from ..residual import check_data, check_determined, physical_model
 from .results import ALPHA, DECOUPLED_DB, MIN_GAIN, MODEL_ERROR_DISPERSION, Diagnosis
 from .rivals import _indistinguishable
 from .screening import (
@@ -176,10 +175,10 @@ def diagnose(
     update_iter = integer(update_iter, "update_iter", FitError, lo=1)
     params = renamed_keyword(params, update_params, "params", "update_params")
     point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
-    model = _evaluated(physical_model(model, "diagnose"), data, band)
-    if isinstance(noise, str) and noise == "auto":
-        noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
-    res0, ignored = _residual(model, data, band, point_weights, min_channel_db, estimator, noise)
+    model = physical_model(model, "diagnose")
+    checked = check_data(data, band, noise, measurement_model)
+    model = _evaluated(model, checked.full, checked.band)
+    res0, ignored = _residual(model, checked, point_weights, min_channel_db, estimator)
     upd = _check_update(model, params)
     check_determined(res0, len(upd) + 1, "diagnose (the free parameters and one candidate's)")
     if candidates is not None:

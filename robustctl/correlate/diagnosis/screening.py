@@ -15,9 +15,8 @@ import numpy as np
 from ...budget import Deadline
 from ...errors import RobustctlError
 from ...executors import parallel_map_shared
-from ...frd import FrequencyData
 from ..optimize import _bounds, levenberg_marquardt, marquardt_step
-from ..residual import Residual, sensitivities
+from ..residual import CheckedData, Residual, sensitivities
 from .results import MODEL_ERROR_DISPERSION
 from .significance import _is_switch
 from .workers import _check_budget
@@ -486,8 +485,7 @@ def _equivalent(screens: list[dict[str, Any]]) -> dict[int, int]:
     return twins
 
 
-def _residual(model: Any, data: FrequencyData, band, weights, min_db, estimator="auto",
-              noise="auto") -> tuple[Residual, tuple]:
+def _residual(model: Any, checked: CheckedData, weights, min_db, estimator="auto") -> tuple[Residual, tuple]:
     """The residual, with channels the model leaves decoupled weighted 0.
 
     A channel whose model response stays ``min_db`` dB below both the largest
@@ -496,8 +494,7 @@ def _residual(model: Any, data: FrequencyData, band, weights, min_db, estimator=
     noise against a numerically zero model: no effect can explain it, so it would only
     blur the statistics. It is left out and listed in ``Diagnosis.ignored_channels``.
     """
-    res = Residual(model, data, band=band, point_weights=weights, min_channel_db=min_db,
-                   estimator=estimator, noise=noise)
+    res = Residual.of_checked(model, checked, weights, min_db, estimator)
     return res, tuple((o, i) for o, i, _level in res.dropped)
 
 
