@@ -45,6 +45,7 @@ An iteration whose mu rises above the best before it says so (``DKIteration.note
 
 from __future__ import annotations
 
+import contextvars
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -95,6 +96,10 @@ D_STEPS = (0.0, 0.5, 1.0)
 ORDER_NEIGHBOURS = True
 #: Most fixed-order runs of that repetition.
 ORDER_NEIGHBOURS_RUNS = 8
+#: A fixed-order run replaces the automatic one only when its peak of mu is this fraction lower.
+ORDER_NEIGHBOURS_GAIN = 5e-3
+#: Set while :func:`_autoscaled_dksyn` runs its starts (the neighbour orders are its to try).
+_IN_AUTOSCALED_START: contextvars.ContextVar[bool] = contextvars.ContextVar("dksyn_in_start", default=False)
 #: The fall of the peak of mu in the last iteration above which such a run counts as creeping.
 ORDER_NEIGHBOURS_CREEP = 1e-3
 #: Most states of a scaled plant whose failed Riccati K step is retried on the LMI route.
@@ -612,7 +617,7 @@ def dksyn(
                       best_iteration=best["it"].index, stop_reason=stop, blocks=plant.blocks,
                       d_scales=d_fits, reduction=reduction, grid_mu_peak=grid_peak,
                       stopped_by_budget=stopped)
-    if order_d is not None or not ORDER_NEIGHBOURS:
+    if order_d is not None or not ORDER_NEIGHBOURS or _IN_AUTOSCALED_START.get():
         return result
 
     def run(orders: tuple[int, ...]) -> DKResult:
@@ -632,8 +637,8 @@ def _creeping(res: DKResult) -> bool:
             and h[-1].mu_peak < h[-2].mu_peak * (1 - ORDER_NEIGHBOURS_CREEP))
 
 
-def _neighbour_orders(res: DKResult, blocks: BlockStructure, run: Callable[[tuple[int, ...]], DKResult],
-                      deadline: Deadline) -> DKResult:
+def _neighbour_orders(res: DKResult, blocks: BlockStructure, run: Callable[[tuple[int, ...]], Any],
+                      deadline: Deadline, result_of: Callable[[Any], DKResult] = lambda r: r) -> Any:
     """The automatic D orders' result, or a fixed-order run beside it that ends lower.
 
     A D-K run the iteration cap stops while its peak of mu still falls by more than
@@ -641,26 +646,30 @@ def _neighbour_orders(res: DKResult, blocks: BlockStructure, run: Callable[[tupl
     (1-4 % per iteration), and where it ends within ``max_iter`` depends on the path, which
     the orders of the D fits change. On mu-tools' HIMAT with sensor noise (``mkhicn``) the
     automatic choice (orders 3, then 4) crept to 0.980 in ten iterations while a fixed order
-    3 reached 0.954 and 5 reached 0.965; on ``mkhic`` it reached 0.979 (orders 2 to 3) where
-    orders 2 and 4 gave 1.047 and 1.071 and order 6 0.939: which order ends lowest is not
-    predictable from its neighbours. Such a run is therefore repeated from the same start with
-    fixed orders, every block's order of its best iteration shifted by -1, +1, -2, +2, ...
-    (within :data:`~robustctl.robust.dk_scales.MAX_AUTO_ORDER_D` and
+    3 reached 0.954 and 5 reached 0.965; on ``mkhic`` it reached 0.970 where order 5 (from the
+    second start) reached 0.943 and orders 2 and 4 1.002 and 0.987: which order ends lowest
+    is not predictable from its neighbours. Such a run is therefore repeated with fixed
+    orders, every block's order of its best iteration shifted by -1, +1, -2, +2, ... (within
+    :data:`~robustctl.robust.dk_scales.MAX_AUTO_ORDER_D` and
     :data:`~robustctl.robust.dk_scales.MAX_D_STATES_PER_BLOCK`, at most
-    :data:`ORDER_NEIGHBOURS_RUNS` runs), and the lowest verified peak of mu is kept;
-    ``stop_reason`` says which. A run that stopped because mu stopped falling (the
-    distillation column, the Caltech design plant) is returned as it is.
+    :data:`ORDER_NEIGHBOURS_RUNS` runs, each as ``dksyn`` runs that fixed order: with the
+    autoscaled starts when ``autoscale``), and the lowest verified peak of mu is kept when it
+    is :data:`ORDER_NEIGHBOURS_GAIN` below the automatic one; ``stop_reason`` says which. A
+    run that stopped because mu stopped falling (the distillation column, the Caltech design
+    plant) is returned as it is. ``run(orders)`` returns what ``result_of`` maps to a DKResult;
+    ``res`` is the automatic run's and ``run``'s results are returned as they are.
     """
     from .dk_scales import MAX_AUTO_ORDER_D, MAX_D_STATES_PER_BLOCK
 
-    if not _creeping(res):
+    first = result_of(res)
+    if not _creeping(first):
         return res
-    base = res.history[res.best_iteration - 1].d_orders
+    base = first.history[first.best_iteration - 1].d_orders
     scaled = list(blocks)[:len(base)]
     if not base or len(scaled) != len(base):
         return res
     cap = [min(MAX_AUTO_ORDER_D, MAX_D_STATES_PER_BLOCK // (b.rows + b.cols)) for b in scaled]
-    tried: list[tuple[tuple[int, ...], DKResult]] = []
+    tried: list[tuple[tuple[int, ...], Any]] = []
     # every block's order shifted by the same step, nearest first: -1, +1, -2, +2, ...
     steps = sorted(range(-max(base), max(cap) + 1), key=lambda k: (abs(k), k))
     for step in steps:
@@ -670,14 +679,27 @@ def _neighbour_orders(res: DKResult, blocks: BlockStructure, run: Callable[[tupl
         if len(tried) >= ORDER_NEIGHBOURS_RUNS or deadline.expired():
             break
         tried.append((orders, run(orders)))
-    best = min([(None, res)] + tried, key=lambda t: t[1].mu_peak)
-    if best[0] is None:
+    if not tried:
         return res
-    others = ", ".join(f"orders {o} {r.mu_peak:.4f}" for o, r in tried if o != best[0])
-    why = (f"the automatic D orders crept to {res.mu_peak:.4f} at max_iter={len(res.history)}; "
-           f"the fixed orders {best[0]} reached {best[1].mu_peak:.4f}" + (f" ({others})" if others else ""))
-    return replace(best[1], stop_reason=f"{best[1].stop_reason}; {why}",
-                   stopped_by_budget=best[1].stopped_by_budget or res.stopped_by_budget)
+    orders, best = min(tried, key=lambda t: result_of(t[1]).mu_peak)
+    rb = result_of(best)
+    listed = ", ".join(f"orders {o} {result_of(r).mu_peak:.4f}" for o, r in tried)
+    if rb.mu_peak >= first.mu_peak * (1 - ORDER_NEIGHBOURS_GAIN):
+        why = (f"the automatic D orders crept to {first.mu_peak:.4f} at max_iter={len(first.history)} and "
+               f"were kept (fixed {listed})")
+        return _with_reason(res, result_of, replace(first, stop_reason=f"{first.stop_reason}; {why}"))
+    why = (f"the automatic D orders crept to {first.mu_peak:.4f} at max_iter={len(first.history)}; "
+           f"the fixed orders {orders} reached {rb.mu_peak:.4f} (fixed {listed})")
+    return _with_reason(best, result_of, replace(rb, stop_reason=f"{rb.stop_reason}; {why}",
+                                                 stopped_by_budget=rb.stopped_by_budget
+                                                 or first.stopped_by_budget))
+
+
+def _with_reason(item: Any, result_of: Callable[[Any], DKResult], new: DKResult) -> Any:
+    """``item`` with its DKResult (``result_of(item)``) replaced by ``new``."""
+    if isinstance(item, DKResult):
+        return new
+    return (new, *item[1:])
 
 
 def _autoscaled_dksyn(plant: GeneralizedPlant, blocks: BlockStructure, options: dict,
@@ -699,17 +721,29 @@ def _autoscaled_dksyn(plant: GeneralizedPlant, blocks: BlockStructure, options: 
 
     scaled, sc = _autoscaled(plant, options.get("hinf_options"))
     deadline = as_deadline(options["time_budget_s"], SynthesisError)  # shared by the starts
-    best = None
-    for s in AUTOSCALE_STARTS:
-        if best is not None and (deadline.expired() or best[0].mu_peak < AUTOSCALE_CERTIFIED):
-            break
-        factor = np.exp(np.append(np.full(len(sc.d) - 1, s), 0.0))
-        sc_k = _Scaling(sc.su, sc.sy, sc.d * factor)
-        P_k = _constant_scaled(plant, sc.su, sc.sy, sc_k.d)
-        res = dksyn((P_k, plant.nmeas, plant.ncon, plant.blocks),
-                    **{**options, "time_budget_s": deadline}, autoscale=False)
-        if best is None or res.mu_peak < best[0].mu_peak:
-            best = (res, sc_k, P_k)
+
+    def starts(order_d: Any) -> tuple[DKResult, _Scaling, Any]:
+        best = None
+        token = _IN_AUTOSCALED_START.set(True)  # the neighbour orders are tried over the starts
+        try:
+            for s in AUTOSCALE_STARTS:
+                if best is not None and (deadline.expired() or best[0].mu_peak < AUTOSCALE_CERTIFIED):
+                    break
+                factor = np.exp(np.append(np.full(len(sc.d) - 1, s), 0.0))
+                sc_k = _Scaling(sc.su, sc.sy, sc.d * factor)
+                P_k = _constant_scaled(plant, sc.su, sc.sy, sc_k.d)
+                res = dksyn((P_k, plant.nmeas, plant.ncon, plant.blocks),
+                            **{**options, "order_d": order_d, "time_budget_s": deadline}, autoscale=False)
+                if best is None or res.mu_peak < best[0].mu_peak:
+                    best = (res, sc_k, P_k)
+        finally:
+            _IN_AUTOSCALED_START.reset(token)
+        assert best is not None
+        return best
+
+    best = starts(options["order_d"])
+    if options["order_d"] is None and ORDER_NEIGHBOURS:
+        best = _neighbour_orders(best, blocks, lambda o: starts(list(o)), deadline, lambda t: t[0])
     res, sc_k, P_k = best
     K, cl, m, reduction = res.K, res.closed_loop, res.mu, None
     if reduce is not None:
