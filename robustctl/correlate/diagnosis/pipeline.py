@@ -28,6 +28,7 @@ from .screening import (
     _residual_for,
     _screen_all,
     _to_fit,
+    _with_models,
 )
 from .sentences import _where
 from .significance import _channel_verdict, _null_test, _row_noise, _score, _testable_rows, effective_points
@@ -222,6 +223,7 @@ def _diagnose(
     screens, twins, order = _screen_all(res_u, model_u, null, cands, executor, deadline)
     evals += sum(s["evals"] for s in screens)
     top = _to_fit(screens, order, n_fit)
+    _with_models(screens, top, model_u)
     # 3. local fits
     fits = parallel_map_shared(
         _fit_task, (res_u, null, max_iter, deadline), [screens[k] for k in top], executor, desc="local fits",
