@@ -42,6 +42,8 @@ SHORTCUT_MIN_ORDERS = 6
 ORDER_D_BROKEN = 1.25
 #: H-infinity syntheses the automatic scaling may spend on its constant block scales.
 AUTOSCALE_EVALS = 60
+#: Nelder-Mead stops when the simplex's ln gamma agree within this (its points within 0.05 in ln d).
+AUTOSCALE_FATOL = 1e-3
 #: ln of the common block-scale factors the search scans before its Nelder-Mead refinement.
 AUTOSCALE_SCAN = (-6.0, -4.5, -3.0, -1.5, 0.0, 1.5, 3.0, 4.5, 6.0)
 #: Most scaled blocks (all but the last) for which that search runs (else the covariant start).
@@ -183,7 +185,7 @@ def _autoscaled(plant: GeneralizedPlant,
         x = np.full(nb, t0)
         simplex = np.vstack([x, x + 2.0 * np.eye(nb)])
         res = minimize(gamma_of, x, method="Nelder-Mead",
-                       options={"initial_simplex": simplex, "xatol": 0.05, "fatol": 1e-3,
+                       options={"initial_simplex": simplex, "xatol": 0.05, "fatol": AUTOSCALE_FATOL,
                                 "maxfev": AUTOSCALE_EVALS})
         if res.fun < g0:
             x = res.x
