@@ -397,7 +397,10 @@ def windowed_spectrum(h: np.ndarray, f_hz: np.ndarray, settings: EstimatorSettin
 def expected_h1_modal(poles, residues, d, f_hz: Any, settings: EstimatorSettings) -> np.ndarray:
     """Expected H1 of ``sum_k residue_k / (s - pole_k) + d`` at ``f_hz`` (Hz); (K, n_out, n_in).
 
-    ``poles`` must be closed under conjugation (every complex pole with its conjugate).
+    ``poles`` are closed under conjugation (every complex pole with its conjugate) or hold one
+    pole of each pair, the one with ``Im p > 0`` (as :class:`robustctl.identify.RationalFit`
+    keeps them): the sum runs over the upper poles, twice, and the real ones. The one ZOH
+    impulse sum behind every expected H1 of a pole-residue model.
     """
     h = _zoh_impulse_modal(poles, residues, np.asarray(d, dtype=float), settings.fs_hz, settings.nperseg)
     return windowed_spectrum(h, f_hz, settings)

@@ -361,25 +361,19 @@ def _assemble(data: ModalData):
     return control.ss(A, B, C, D, inputs=list(data.inputs), outputs=list(data.outputs))
 
 
-def modal_statespace(
-    mats: StructuralMatrices,
-    *,
-    n_modes: int | None = None,
-    band_hz: tuple[float, float] | None = None,
-    damping: float | np.ndarray = 0.01,
-    rigid_body_damping: float = 0.0,
-    residual_flexibility: bool = False,
-):
+def modal_statespace(mats: StructuralMatrices, **options: Any):
     """Modal state space ``x = [eta, eta_dot]`` of a structure (MACE eqs. 1-4).
 
     ``modal_decomposition(mats, ...).statespace()``.
 
     Parameters
     ----------
-    mats, n_modes, band_hz, damping, rigid_body_damping, residual_flexibility
-        The structure (kg, N/m, N s/m), the modal truncation (count or band in Hz), the modal
-        damping ratio, the rigid-body damping rate (1/s) and the static correction, as for
-        :func:`modal_decomposition`.
+    mats : StructuralMatrices
+        The structure (kg, N/m, N s/m).
+    **options
+        The keyword-only parameters of :func:`modal_decomposition`: ``n_modes``, ``band_hz``
+        (the modal truncation: count or band in Hz), ``damping`` (the modal damping ratio),
+        ``rigid_body_damping`` (1/s) and ``residual_flexibility`` (the static correction).
 
     Returns
     -------
@@ -397,14 +391,7 @@ def modal_statespace(
     >>> round(float(abs(np.linalg.eigvals(sys.A)[0])) / (2 * np.pi), 6)
     1.0
     """
-    return modal_decomposition(
-        mats,
-        n_modes=n_modes,
-        band_hz=band_hz,
-        damping=damping,
-        rigid_body_damping=rigid_body_damping,
-        residual_flexibility=residual_flexibility,
-    ).statespace()
+    return modal_decomposition(mats, **options).statespace()
 
 
 def modal_data_statespace(

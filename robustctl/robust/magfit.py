@@ -832,18 +832,7 @@ def fit_magnitude_details(
     )
 
 
-def fit_magnitude(
-    f_hz: Any,
-    mag: Any,
-    order: int,
-    *,
-    upper_bound: bool = False,
-    point_weights: Any = None,
-    objective: str = "max",
-    tol_db: float = 0.05,
-    time_budget_s: float | None = None,
-    name: str | None = None,
-):
+def fit_magnitude(f_hz: Any, mag: Any, order: int, **options: Any):
     """A stable, minimum-phase ``W(s)`` whose magnitude fits ``mag`` on ``f_hz`` (log-Chebyshev).
 
     Minimises ``max_k w_k |ln|W(j 2 pi f_k)| - ln mag_k|`` over real-rational ``W`` with
@@ -862,6 +851,9 @@ def fit_magnitude(
         Target magnitude (positive, finite; any unit).
     order : int
         Number of poles of ``W`` (0 gives a constant).
+    **options
+        The keyword-only parameters of :func:`fit_magnitude_details` (its own signature),
+        ``upper_bound`` to ``name`` below.
     upper_bound : bool
         Require ``|W| >= mag`` at every grid point (with a non-zero weight) and make the
         largest overshoot as small as possible: a covering weight.
@@ -915,14 +907,4 @@ def fit_magnitude(
     >>> f = np.logspace(-1, 2, 100)
     >>> W = rc.fit_magnitude(f, np.abs(0.1 + 1j * f) / np.abs(1 + 1j * f / 30), order=2)
     """
-    return fit_magnitude_details(
-        f_hz,
-        mag,
-        order,
-        upper_bound=upper_bound,
-        point_weights=point_weights,
-        objective=objective,
-        tol_db=tol_db,
-        time_budget_s=time_budget_s,
-        name=name,
-    ).system
+    return fit_magnitude_details(f_hz, mag, order, **options).system
