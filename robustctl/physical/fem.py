@@ -27,6 +27,7 @@ from __future__ import annotations
 import copy
 from collections.abc import Iterable, Sequence
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -795,35 +796,18 @@ class Frame(Structure):
         conv = (
             (lambda a: sp.csr_matrix(a)) if use_sparse else (lambda a: a.toarray() if sp.issparse(a) else a)
         )
-        return StructuralMatrices(
-            mass=conv(sm.mass),
-            stiffness=conv(sm.stiffness),
-            damping=conv(sm.damping),
-            input_matrix=sm.input_matrix.copy(),
-            output_matrix=sm.output_matrix.copy(),
-            output_kinds=sm.output_kinds,
-            inputs=sm.inputs,
-            outputs=sm.outputs,
-            dof_labels=sm.dof_labels,
-            modal_damping_bands=self.modal_damping_bands(),
-        )
+        return sm.copy(conv, modal_damping_bands=self.modal_damping_bands())
 
-    def modes(
-        self,
-        n_modes: int | None = None,
-        band_hz: tuple[float, float] | None = None,
-        sparse: bool | None = None,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Natural frequencies and mass-normalised mode shapes (via :func:`solve_modes`).
+    def modes(self, n_modes: int | None = None, **options: Any) -> tuple[np.ndarray, np.ndarray]:
+        """Natural frequencies and mass-normalised mode shapes: :func:`solve_modes` of :meth:`matrices`.
 
         Parameters
         ----------
         n_modes : int, optional
             Number of lowest modes (all when omitted).
-        band_hz : (float, float), optional
-            Keep the modes in this band, Hz.
-        sparse : bool, optional
-            Force the sparse shift-invert (True) or dense (False) eigensolver.
+        **options
+            ``band_hz`` (keep the modes in this band, Hz) and ``sparse`` (force the sparse
+            shift-invert or the dense eigensolver) of :func:`solve_modes`.
 
         Returns
         -------
@@ -834,9 +818,7 @@ class Frame(Structure):
             ``phi.T M phi = I``.
         """
         sm = self.matrices()  # dense up to SPARSE_THRESHOLD DOFs, as solve_modes prefers
-        w, phi = limit_blas(solve_modes)(
-            sm.mass, sm.stiffness, n_modes=n_modes, band_hz=band_hz, sparse=sparse
-        )
+        w, phi = limit_blas(solve_modes)(sm.mass, sm.stiffness, n_modes=n_modes, **options)
         return w / (2 * np.pi), phi
 
     def preload(self) -> PreloadResult | None:
