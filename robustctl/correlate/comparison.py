@@ -33,10 +33,11 @@ import scipy.signal
 
 from ..checks import UNSET, integer, match_channels, positive_number, renamed_keyword
 from ..cost import LogCost, cost_report
-from ..frd import FrequencyData
+from ..frd import FrequencyData, as_frequency_data
 from ..lti import DB_PER_NEPER, as_statespace, pole_frequency_damping
 from ..measure.noise import NoiseModel, noise_model
 from ..modes import Mode, mac, pair_modes
+from ..plots import channel_label, colorbar, log_frequency_axis, magnitude_label, new_figure
 from ..table import Table, result_html
 from .residual import NEGLIGIBLE_DB, Residual, as_model, log_ratio
 from .verdict import ALPHA, NoiseTest, no_noise_sentence, noise_test
@@ -617,8 +618,6 @@ class Comparison:
 
         Returns the matplotlib Figure.
         """
-        from ..plots import channel_label, colorbar, log_frequency_axis, magnitude_label, new_figure
-
         nf, no, ni = self.error.shape
         rows = 2 if phase else 1
         fig = fig or new_figure(3.2 * ni + 1, (2.4 + 1.4 * phase) * no + 3)
@@ -758,8 +757,6 @@ def compare(
     alpha = positive_number(alpha, "alpha")
     n_sections = integer(n_sections, "n_sections", lo=1)
     if isinstance(noise, str) and noise == "auto":
-        from ..frd import as_frequency_data
-
         noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
     res = Residual(model, data, band=band, point_weights=point_weights, min_channel_db=min_channel_db,
                    estimator=estimator, noise=noise)

@@ -30,7 +30,8 @@ from ..budget import Deadline, as_deadline
 from ..checks import UNSET, flag, integer, positive_number, probability, renamed_keyword
 from ..errors import FitError, RobustctlError
 from ..executors import check_executor
-from ..frd import FrequencyData
+from ..frd import FrequencyData, as_frequency_data
+from ..lti import log_ratio
 from ..measure.noise import NO_NOISE_SENTENCE, noise_model
 from ..physical.reduction import for_data
 from .optimize import LMResult, levenberg_marquardt
@@ -407,8 +408,6 @@ def update(
     point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     model = physical_model(model, "update")
     if isinstance(noise, str) and noise == "auto":
-        from ..frd import as_frequency_data
-
         noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
     residual = Residual(for_data(model, data, band), data, band=band, point_weights=point_weights,
                         min_channel_db=min_channel_db,
@@ -509,8 +508,6 @@ def _verdict(residual: Residual, values: dict[str, float], alpha: float) -> Nois
     moment, which the offset would only raise."""
     if residual.noise is None:
         return None
-    from ..lti import log_ratio
-
     d = residual.data
     e = log_ratio(d.response, residual.model_response(**values))
     keep = np.any(residual.weights > 0, axis=0)

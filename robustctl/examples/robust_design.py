@@ -18,6 +18,15 @@ from typing import Any
 
 import numpy as np
 
+from ..balanced import balanced_truncation
+from ..errors import DataError, FitError
+from ..frd import as_frequency_data
+from ..lti import as_statespace, freqresp_array
+from ..measure.estimator import estimator_settings, estimator_view
+from ..robust.cover import cover_additive
+from ..robust.plant import generalized_plant
+from ..robust.weights import caltech_additive_weight
+
 __all__ = ["distillation_plant", "DISTILLATION_BLOCKS", "caltech_design_plant", "six_modes",
            "ModelCoverRecipe"]
 
@@ -176,9 +185,6 @@ def six_modes(model: Any):
     """The six global modes (12 states) of a truss model by balanced truncation (seed eq. 11-13)."""
     import control
 
-    from ..balanced import balanced_truncation
-    from ..lti import as_statespace
-
     G = as_statespace(model)
     if G.nstates <= 12:
         return G
@@ -208,9 +214,6 @@ def caltech_design_plant(nominal: Any, level: float = 0.3, band_hz: tuple[float,
     -------
     GeneralizedPlant
     """
-    from ..robust.plant import generalized_plant
-    from ..robust.weights import caltech_additive_weight
-
     return generalized_plant(six_modes(nominal), additive=caltech_additive_weight(), input_mult=0.04,
                              output_mult=0.04, performance=_band_pass(level, band_hz), disturbances=1.0)
 
@@ -299,12 +302,6 @@ class ModelCoverRecipe:
         return self._covers[id(nominal)][1]
 
     def _fit_cover(self, nominal: Any):
-        from ..errors import DataError, FitError
-        from ..frd import as_frequency_data
-        from ..lti import freqresp_array
-        from ..measure.estimator import estimator_settings, estimator_view
-        from ..robust.cover import cover_additive
-
         data = as_frequency_data(self.data)
         st = estimator_settings(data.meta)
         if st is None:
@@ -332,8 +329,6 @@ class ModelCoverRecipe:
 
     def __call__(self, nominal: Any):
         """The generalized plant of ``nominal`` with its own cover (see the class notes)."""
-        from ..robust.plant import generalized_plant
-
         return generalized_plant(six_modes(nominal), additive=self.cover(nominal).weight, input_mult=0.04,
                                  output_mult=0.04, performance=_band_pass(self.level, self.band_hz),
                                  disturbances=1.0)

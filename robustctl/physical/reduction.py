@@ -66,6 +66,9 @@ import scipy.sparse.linalg as spla
 
 from ..checks import positive_number
 from ..errors import ModelError
+from .eigen import _clean_eigenvalues, check_structural_matrices
+from .modal import ModalData, _check_mats, _damped
+from .model import _DynamicsCache
 
 __all__ = ["band_limited", "reduction_error", "REDUCE_MIN_DOF", "CUT_MARGIN"]
 
@@ -146,8 +149,6 @@ def _count_below(K: Any, M: Any, lam: float) -> int | None:
 def _reduce(mats: Any, f_cut_hz: float) -> _Basis:
     """The Ritz basis of one structure: exact modes below ``f_cut_hz`` plus two attachment
     (Krylov) blocks of the inputs (module docstring)."""
-    from .eigen import _clean_eigenvalues, check_structural_matrices
-
     M, K = _csc(mats.mass), _csc(mats.stiffness)
     check_structural_matrices(M, K)
     n = M.shape[0]
@@ -246,9 +247,6 @@ def _ritz_modal(base: _Basis, mats: Any, change: tuple[np.ndarray, list]):
     W_J^T dK W_J``: ``O(n_dof r |J|)`` to form, ``O((r + |J|)^3)`` to solve; the modal input
     and output matrices follow from ``V^T b``, ``c V`` kept with the base (the ``n_dof x r``
     mode shapes are never formed)."""
-    from .eigen import _clean_eigenvalues
-    from .modal import ModalData
-
     dofs, (dM, dK, dC) = change
     V = base.V
     Vb, cV = base.Vb, base.c_v
@@ -349,8 +347,6 @@ class _Reducer:
 def _reduced_dynamics(full: Any, f_cut_hz: float, min_dof: int):
     """A dynamics callable like ``full`` (a :class:`~robustctl.physical.modal.ModalDynamics`)
     that reduces structures of at least ``min_dof`` DOFs (see the module docstring)."""
-    from .modal import _check_mats, _damped
-
     reducer = _Reducer(f_cut_hz)
 
     def dynamics(theta: Mapping[str, float], structure: Any):
@@ -404,8 +400,6 @@ def band_limited(model: Any, f_max_hz: float, *, margin: float | None = None, mi
         return model
     if model.structure is None:
         return model
-    from .model import _DynamicsCache
-
     # no per-model cache of state spaces: the reducer keeps the bases, a re-evaluation costs a
     # small eigen-solve, and diagnose holds thousands of candidate models (3 MB per state space
     # of 300 modes each)

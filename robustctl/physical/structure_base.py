@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import ModelError
+
 __all__ = ["StructuralMatrices", "Structure", "OUTPUT_KINDS"]
 
 #: Kinds of structural outputs: the sensor reads the DOF vector's displacement, its rate,
@@ -182,6 +184,4 @@ class Structure(ABC):
     ) -> Structure:
         """Point signal ``name`` at ``location`` (along ``direction``; None: as it was) with
         ``weight`` in [0, 1]: its pointing becomes ``(1 - weight) old + weight new``."""
-        from ..errors import ModelError
-
         raise ModelError(f"{type(self).__name__} cannot move its {side} {name!r}.")

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ModelError
+from ..lti import freqresp_array
 
 __all__ = ["UncertainModel", "parametric_lft"]
 
@@ -168,8 +169,6 @@ def parametric_lft(model: Any, parameters: Any, center: Any, covariance: Any, *,
         Mismatched sizes, a non-positive ``n_sigma``, or state dimensions that change with the
         parameters.
     """
-
-    from ..lti import freqresp_array
 
     names = tuple(str(p) for p in parameters)
     c = np.asarray(center, dtype=float).reshape(-1)

@@ -32,8 +32,10 @@ import numpy as np
 from ..budget import Deadline
 from ..checks import check_band, positive_number
 from ..errors import DataError, FitError
-from ..frd import FrequencyData
+from ..frd import FrequencyData, _as_frequencies
+from ..lti import _align, as_statespace, freqresp, freqresp_array
 from ..measure.noise import noise_model
+from ..plots import single_axes
 from ..table import Table, result_html
 from .magfit import DB_PER_NEPER, fit_magnitude_details
 
@@ -171,9 +173,6 @@ class UncertaintyCover:
         -------
         matplotlib.figure.Figure
         """
-        from ..lti import freqresp_array
-        from ..plots import single_axes
-
         fig, ax = single_axes(fig, 8.0, 4.5)
         f = self.f_hz
         for k, (label, err) in enumerate(zip(self.sources, self.source_errors)):
@@ -199,9 +198,6 @@ def _sources(
     data_or_models: Any, f_hz: Any, band: Sequence[float] | None
 ) -> tuple[np.ndarray, list[tuple[str, Any]]]:
     """The grid (Hz) and the labelled sources (FrequencyData or systems)."""
-    from ..frd import _as_frequencies
-    from ..lti import as_statespace
-
     items = list(data_or_models) if isinstance(data_or_models, (list, tuple)) else [data_or_models]
     if not items:
         raise FitError("data_or_models is empty; give measured FrequencyData and/or a list of models.")
@@ -249,8 +245,6 @@ def _responses(
 ) -> tuple[np.ndarray, list[np.ndarray], list[np.ndarray | None]]:
     """Nominal response, each source's response and, for measured data, the 1-sigma random
     error bound ``||G eps_r||_F`` per frequency (None when unknown)."""
-    from ..lti import _align, freqresp
-
     g0 = freqresp(nominal, f)
     out, noise = [], []
     for label, src in sources:
@@ -322,8 +316,6 @@ def error_envelope(
     labels : tuple of str
     errors : ndarray (n_sources, nf)
     """
-    from ..lti import as_statespace
-
     if not isinstance(kind, str) or kind not in _KINDS:
         raise FitError(f"kind must be one of {_KINDS}; got {kind!r}.")
     data_sigmas = positive_number(data_sigmas, "data_sigmas", FitError, allow_zero=True)
@@ -373,8 +365,6 @@ def _fit_cover(
     deadline: Deadline,
 ) -> tuple[Any, np.ndarray, float]:
     """Fit on the points ``idx``; points left uncovered join the fit (up to 4 rounds)."""
-    from ..lti import freqresp_array
-
     t0 = time.perf_counter()
     for _ in range(4):
         fit = fit_magnitude_details(
@@ -419,8 +409,6 @@ def _cover(
     objective: str,
     data_sigmas: float,
 ) -> UncertaintyCover:
-    from ..lti import freqresp_array
-
     _check_options(order, smooth_octaves, floor, time_budget_s, objective)
     deadline = Deadline(time_budget_s, error=FitError)
     f, labels, errs = error_envelope(

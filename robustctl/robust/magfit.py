@@ -41,7 +41,7 @@ import numpy as np
 from ..budget import Deadline, as_deadline
 from ..checks import flag, integer, optional_text, positive_number, real_array
 from ..errors import FitError
-from ..lti import _pair, _zpk_response, is_stable, zpk_statespace
+from ..lti import _pair, _zpk_response, freqresp_array, is_stable, zpk_statespace
 
 __all__ = ["fit_magnitude", "MagnitudeFit", "fit_magnitude_details", "zpk_statespace"]
 
@@ -706,8 +706,6 @@ def _check_realisation(
 ) -> np.ndarray:
     """The state space's ``|W|`` on the grid; FitError unless it is stable, finite and (when
     ``strict``: a cover, whose margin must be truthful) the fitted one to 1e-3 nepers."""
-    from ..lti import freqresp_array
-
     if sys.nstates == 0:
         return np.full(f_hz.size, abs(float(sys.D[0, 0])))
     with np.errstate(all="ignore"):

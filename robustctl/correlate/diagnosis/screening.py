@@ -18,6 +18,7 @@ from ...executors import parallel_map_shared
 from ...frd import FrequencyData
 from ..optimize import _bounds, levenberg_marquardt, marquardt_step
 from ..residual import Residual, sensitivities
+from ..updating import _coarse_start
 from .results import MODEL_ERROR_DISPERSION
 from .significance import _is_switch
 from .workers import _check_budget
@@ -565,8 +566,6 @@ def _null_fit(
     LM from the model's values stops in a local minimum of the complex-log cost, which leaves
     the parameter error in the residual for the candidates to mimic (a wrong effect ranks first).
     """
-    from ..updating import _coarse_start
-
     lo, hi = _bounds(res0.model, upd, None)
     if not upd:
         return _Null((), {}, {}, lo, hi, np.zeros((res0.n, 0)), j0, float(j0 @ j0)), 0

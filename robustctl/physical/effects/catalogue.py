@@ -11,8 +11,11 @@ import numpy as np
 from ...budget import Deadline, as_deadline
 from ...checks import check_band, flag
 from ...errors import FitError, ModelError
+from ...executors import parallel_map_shared
 from ...threads import limit_blas
+from ..eigen import solve_modes
 from ..model import PhysicalModel
+from ..reduction import REDUCE_MIN_DOF
 from . import io_effects, setup, structural
 from .base import (
     _N_CAL_MODES,
@@ -274,17 +277,12 @@ def _working(a, n_dof: int):
     calibration of thousands of candidates ``O(n_dof^3)`` in time and ``O(n_dof^2)`` in memory)."""
     import scipy.sparse as sp
 
-    from ..reduction import REDUCE_MIN_DOF
-
     if n_dof < REDUCE_MIN_DOF:
         return _dense(a)
     return sp.csr_matrix(a, dtype=float)
 
 
 def _modes(model: PhysicalModel, band):
-    from ..eigen import solve_modes
-    from ..reduction import REDUCE_MIN_DOF
-
     mats = model.build_structure().matrices()
     n = mats.n_dof
     M, K = _working(mats.mass, n), _working(mats.stiffness, n)
@@ -383,8 +381,6 @@ def _calibrate(
     ``executor`` calibrates the candidates in parallel (:func:`robustctl.executors.parallel_map_shared`;
     each is calibrated alone, so the steps equal the serial ones). ``modes`` is
     ``_modes(model, band)`` when the caller has it."""
-    from ...executors import parallel_map_shared
-
     omega, phi, (_, _, mats0), _ = _modes(model, band) if modes is None else modes  # with the preload
     if omega.size == 0:
         return omega, phi, cands
