@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import UNSET, flag, point_weights, positive_number, renamed_keyword
+from ..checks import UNSET, flag, positive_number, renamed_keyword
 from ..errors import FitError
 from ..lti import pole_frequency_damping
 from ..threads import limit_blas
@@ -86,6 +86,8 @@ def _check_iter(max_iter: Any) -> int:
 
 def _fit_simo_each(data: Any, order: int, band: Any, weights: Any, **kw: Any) -> RationalFit:
     """One SIMO fit per input column (own denominator each), joined by :func:`combine_simo`."""
+    from ..checks import point_weights  # the name of fit_rational's parameter: kept local
+
     fd = as_frequency_data(data)
     if weights is not None and not isinstance(weights, str):
         weights = point_weights(weights, fd)
