@@ -144,14 +144,10 @@ def load_ansys_modes(
     rst, units
         The ``.rst`` of an ``ANTYPE,MODAL`` analysis and the model's consistent unit system, as
         for :func:`read_ansys_modes`.
-    inputs, outputs
-        Force inputs and sensor outputs: DOF names ``"node:T3"`` or a mapping signal name ->
-        DOF name (:func:`~robustctl.physical.fe_model.fe_modal_model`).
-    **options
-        ``damping``, ``output_kind``, ``geometry``, ``n_modes``, ``band_hz``, ``name`` of
-        :func:`~robustctl.physical.fe_model.fe_modal_model`: the modal damping ratio (or
-        ``"file"``), the sensor kind, the geometry for figures, the modal truncation (count or
-        band in Hz) and the model's name.
+    inputs, outputs, **options
+        Force inputs, sensor outputs (``"node:T3"``) and the keywords of
+        :func:`~robustctl.physical.fe_model.fe_modal_model`, as for
+        :func:`~robustctl.physical.nastran_import.load_nastran_modes`.
     """
     return fe_modal_model(read_ansys_modes(rst, units=units), inputs, outputs, **options)
 
