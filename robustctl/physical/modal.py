@@ -21,6 +21,7 @@ Units: frequencies in Hz at the surface (``f_hz``, ``band_hz``), rad/s inside
 from __future__ import annotations
 
 import hashlib
+import inspect
 import threading
 from collections import OrderedDict
 from collections.abc import Callable, Mapping
@@ -368,12 +369,11 @@ def modal_statespace(mats: StructuralMatrices, **options: Any):
 
     Parameters
     ----------
-    mats : StructuralMatrices
-        The structure (kg, N/m, N s/m).
-    **options
-        The keyword-only parameters of :func:`modal_decomposition`: ``n_modes``, ``band_hz``
-        (the modal truncation: count or band in Hz), ``damping`` (the modal damping ratio),
-        ``rigid_body_damping`` (1/s) and ``residual_flexibility`` (the static correction).
+    mats, n_modes, band_hz, damping, rigid_body_damping, residual_flexibility
+        The structure (kg, N/m, N s/m), the modal truncation (count or band in Hz), the modal
+        damping ratio, the rigid-body damping rate (1/s) and the static correction, as for
+        :func:`modal_decomposition` (the function's signature is its signature; the keywords
+        travel as ``**options``).
 
     Returns
     -------
@@ -392,6 +392,12 @@ def modal_statespace(mats: StructuralMatrices, **options: Any):
     1.0
     """
     return modal_decomposition(mats, **options).statespace()
+
+
+#: one parameter list for both: what ``help`` and ``inspect.signature`` show of modal_statespace
+modal_statespace.__signature__ = inspect.signature(modal_decomposition).replace(  # type: ignore[attr-defined]
+    return_annotation=inspect.Signature.empty
+)
 
 
 def modal_data_statespace(

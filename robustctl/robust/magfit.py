@@ -32,6 +32,7 @@ Rosenbrock pencil of that representation (no polynomial coefficients are formed)
 
 from __future__ import annotations
 
+import inspect
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -850,8 +851,8 @@ def fit_magnitude(f_hz: Any, mag: Any, order: int, **options: Any):
     order : int
         Number of poles of ``W`` (0 gives a constant).
     **options
-        The keyword-only parameters of :func:`fit_magnitude_details` (its own signature),
-        ``upper_bound`` to ``name`` below.
+        The keyword-only parameters ``upper_bound`` to ``name`` below; the function's signature
+        is that of :func:`fit_magnitude_details` (one parameter list for both).
     upper_bound : bool
         Require ``|W| >= mag`` at every grid point (with a non-zero weight) and make the
         largest overshoot as small as possible: a covering weight.
@@ -906,3 +907,9 @@ def fit_magnitude(f_hz: Any, mag: Any, order: int, **options: Any):
     >>> W = rc.fit_magnitude(f, np.abs(0.1 + 1j * f) / np.abs(1 + 1j * f / 30), order=2)
     """
     return fit_magnitude_details(f_hz, mag, order, **options).system
+
+
+#: one parameter list for both: what ``help`` and ``inspect.signature`` show of fit_magnitude
+fit_magnitude.__signature__ = inspect.signature(fit_magnitude_details).replace(  # type: ignore[attr-defined]
+    return_annotation=inspect.Signature.empty
+)
