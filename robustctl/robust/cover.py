@@ -22,6 +22,7 @@ every point is covered (Zhou-Doyle-Glover sec. 8.1; Skogestad-Postlethwaite sec.
 
 from __future__ import annotations
 
+import inspect
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -397,18 +398,22 @@ def _check_options(order: Any, smooth_octaves: Any, floor: Any, time_budget_s: A
 
 
 def _cover(
+    kind: str,
     nominal: Any,
     data_or_models: Any,
-    order: int,
-    kind: str,
-    f_hz: Any,
-    band: Any,
-    smooth_octaves: float,
-    floor: float,
-    time_budget_s: float | None,
-    objective: str,
-    data_sigmas: float,
+    order: int = 3,
+    *,
+    f_hz: Any = None,
+    band: Sequence[float] | None = None,
+    smooth_octaves: float = 0.25,
+    floor: float = 1e-3,
+    objective: str = "max",
+    data_sigmas: float = 3.0,
+    time_budget_s: float | None = None,
 ) -> UncertaintyCover:
+    """The cover of the ``kind`` error (``"additive"``, ``"input multiplicative"`` or ``"output
+    multiplicative"``); the one parameter list of :func:`cover_additive` and
+    :func:`cover_multiplicative` (:func:`_public_signature`)."""
     _check_options(order, smooth_octaves, floor, time_budget_s, objective)
     deadline = Deadline(time_budget_s, error=FitError)
     f, labels, errs = error_envelope(
@@ -465,19 +470,7 @@ def _cover(
     )
 
 
-def cover_additive(
-    nominal: Any,
-    data_or_models: Any,
-    order: int = 3,
-    *,
-    f_hz: Any = None,
-    band: Sequence[float] | None = None,
-    smooth_octaves: float = 0.25,
-    floor: float = 1e-3,
-    objective: str = "max",
-    data_sigmas: float = 3.0,
-    time_budget_s: float | None = None,
-) -> UncertaintyCover:
+def cover_additive(nominal: Any, data_or_models: Any, order: int = 3, **options: Any) -> UncertaintyCover:
     """An additive uncertainty weight covering ``sigma_max(G - G0)`` at every grid frequency.
 
     The set ``{G0 + W_a Delta : ||Delta||_inf <= 1}`` (Caltech seed eqs. 1-2; MATLAB
@@ -532,34 +525,11 @@ def cover_additive(
     >>> cov.margin >= 1  # doctest: +SKIP
     True
     """
-    return _cover(
-        nominal,
-        data_or_models,
-        order,
-        "additive",
-        f_hz,
-        band,
-        smooth_octaves,
-        floor,
-        time_budget_s,
-        objective,
-        data_sigmas,
-    )
+    return _cover("additive", nominal, data_or_models, order, **options)
 
 
 def cover_multiplicative(
-    nominal: Any,
-    data_or_models: Any,
-    order: int = 3,
-    side: str = "input",
-    *,
-    f_hz: Any = None,
-    band: Sequence[float] | None = None,
-    smooth_octaves: float = 0.25,
-    floor: float = 1e-3,
-    objective: str = "max",
-    data_sigmas: float = 3.0,
-    time_budget_s: float | None = None,
+    nominal: Any, data_or_models: Any, order: int = 3, side: str = "input", **options: Any
 ) -> UncertaintyCover:
     """A multiplicative uncertainty weight covering the relative error at every grid frequency.
 
@@ -600,17 +570,18 @@ def cover_multiplicative(
     """
     if side not in ("input", "output"):
         raise FitError(f'side must be "input" or "output"; got {side!r}.')
-    kind = f"{side} multiplicative"
-    return _cover(
-        nominal,
-        data_or_models,
-        order,
-        kind,
-        f_hz,
-        band,
-        smooth_octaves,
-        floor,
-        time_budget_s,
-        objective,
-        data_sigmas,
-    )
+    return _cover(f"{side} multiplicative", nominal, data_or_models, order, **options)
+
+
+def _public_signature(side: bool) -> inspect.Signature:
+    """:func:`_cover`'s parameters without ``kind`` (and with ``side`` after ``order`` for the
+    multiplicative cover): what ``help`` and ``inspect.signature`` show of the two covers."""
+    params = list(inspect.signature(_cover).parameters.values())[1:]
+    if side:
+        kind = inspect.Parameter.POSITIONAL_OR_KEYWORD
+        params.insert(3, inspect.Parameter("side", kind, default="input", annotation="str"))
+    return inspect.Signature(params, return_annotation="UncertaintyCover")
+
+
+cover_additive.__signature__ = _public_signature(False)  # type: ignore[attr-defined]
+cover_multiplicative.__signature__ = _public_signature(True)  # type: ignore[attr-defined]
