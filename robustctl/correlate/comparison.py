@@ -33,13 +33,13 @@ import scipy.signal
 
 from ..checks import UNSET, integer, match_channels, positive_number, renamed_keyword
 from ..cost import LogCost, cost_report
-from ..frd import FrequencyData, as_frequency_data
+from ..frd import FrequencyData
 from ..lti import DB_PER_NEPER, as_statespace, pole_frequency_damping
-from ..measure.noise import NoiseModel, noise_model
+from ..measure.noise import NoiseModel
 from ..modes import Mode, mac, pair_modes
 from ..plots import channel_label, colorbar, log_frequency_axis, magnitude_label, new_figure
 from ..table import Table, result_html
-from .residual import NEGLIGIBLE_DB, Residual, as_model, log_ratio
+from .residual import NEGLIGIBLE_DB, Residual, as_model, check_data, log_ratio
 from .verdict import ALPHA, NoiseTest, no_noise_sentence, noise_test
 
 __all__ = [
@@ -756,10 +756,8 @@ def compare(
     model = as_model(model)
     alpha = positive_number(alpha, "alpha")
     n_sections = integer(n_sections, "n_sections", lo=1)
-    if isinstance(noise, str) and noise == "auto":
-        noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
-    res = Residual(model, data, band=band, point_weights=point_weights, min_channel_db=min_channel_db,
-                   estimator=estimator, noise=noise)
+    checked = check_data(data, band, noise, measurement_model)
+    res = Residual.of_checked(model, checked, point_weights, min_channel_db, estimator)
     g_model = res.model_response()
     d = res.data
     error = log_ratio(d.response, g_model)

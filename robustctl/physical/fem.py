@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from ..checks import flag
 from ..errors import ModelError
 from ..threads import limit_blas
 from . import elements as el
@@ -599,7 +600,7 @@ class Frame(Structure):
 
     def set_gravity(self, enabled: bool) -> Frame:
         """Switch the gravity preload on or off (on needs a non-zero ``gravity``)."""
-        self._gravity_on = bool(enabled) and self._g > 0
+        self._gravity_on = flag(enabled, "enabled", ModelError) and self._g > 0
         self._cache = None
         return self
 

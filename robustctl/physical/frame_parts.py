@@ -131,9 +131,12 @@ def _tags(tags) -> tuple[str, ...]:
 
 def _vector3(name: str, value) -> np.ndarray:
     try:
-        v = np.asarray(value, dtype=float).reshape(-1)
+        items = list(np.asarray(value, dtype=object).reshape(-1))
     except (TypeError, ValueError):
-        raise ModelError(f"{name} must be 3 numbers; got {value!r}.") from None
+        items = [None]
+    if not all(is_real_number(x) for x in items):  # no strings, no booleans
+        raise ModelError(f"{name} must be 3 numbers; got {value!r}.")
+    v = np.array(items, dtype=float)
     if v.size != 3 or not np.all(np.isfinite(v)):
         raise ModelError(f"{name} must be 3 finite numbers (x, y, z); got {value!r}.")
     return v
