@@ -23,7 +23,9 @@ from ..errors import DataError, FitError
 from ..frd import as_frequency_data
 from ..lti import as_statespace, freqresp_array
 from ..measure.estimator import estimator_settings, estimator_view
-from ..robust.cover import cover_additive
+from ..robust.cover import cover_additive, cover_remainder
+from ..robust.dk_verify import closed_loop, default_grid, verification_grid
+from ..robust.mu_bounds import mu
 from ..robust.plant import generalized_plant
 from ..robust.weights import caltech_additive_weight
 
@@ -402,12 +404,6 @@ def caltech_parametric_plants(upd: Any, data: Any, *, n_sigma: float = 3.0, leve
     -------
     ParametricComparison
     """
-    from ..frd import as_frequency_data
-    from ..lti import freqresp_array
-    from ..measure.estimator import estimator_settings, estimator_view
-    from ..robust.cover import cover_additive, cover_remainder
-    from ..robust.plant import generalized_plant
-
     um = upd.uncertain(n_sigma=n_sigma, form="modes", order=12)
     G0 = um.nominal
     data = as_frequency_data(data)
@@ -448,10 +444,6 @@ def performance_scale(gp: Any, K: Any, f_hz: Any = None, *, rtol: float = 1e-3) 
     (float, float)
         The scale ``a`` and the robust-stability peak of mu (uncertainty blocks alone).
     """
-    from ..lti import freqresp_array
-    from ..robust.dk_verify import closed_loop, default_grid, verification_grid
-    from ..robust.mu_bounds import mu
-
     cl = closed_loop(gp.P, K, gp.nmeas, gp.ncon)
     f = verification_grid(cl, default_grid(gp.P) if f_hz is None else np.asarray(f_hz, float))
     H = freqresp_array(cl, f)

@@ -67,6 +67,7 @@ import scipy.sparse.linalg as spla
 from ..checks import positive_number
 from ..errors import ModelError
 from .eigen import _clean_eigenvalues, check_structural_matrices
+from .matrices import MatrixStructure
 from .modal import ModalData, _check_mats, _damped
 from .model import _DynamicsCache
 
@@ -259,8 +260,6 @@ def _reuse(base: _Basis, mats: Any, lam_cut: float) -> _Basis | None:
     phi0, lam0 = base.V[:, : base.n_exact], base.lam[: base.n_exact]
     if (M - base.mass).count_nonzero() == 0 and (K - base.stiffness).count_nonzero() == 0:  # new I/O only
         return _attach(mats, M, K, base.lu, base.sigma, lam0, phi0)
-    from .eigen import check_structural_matrices
-
     check_structural_matrices(M, K)
     KP, MP = np.asarray(K @ phi0), np.asarray(M @ phi0)
     Kr, Mr = phi0.T @ KP, phi0.T @ MP
@@ -660,8 +659,6 @@ def point_modal(model: Any, f_hz: Any, **overrides: float) -> PointModal | None:
     """The :class:`PointModal` of a band-limited model at its values (``overrides`` as for
     ``model.freqresp``), or None when the model is on the full path, carries concentrated
     damping, or its structure cannot be reduced."""
-    from .modal import _damped
-
     dyn = model.dynamics
     reducer = getattr(dyn, "reducer", None)
     if reducer is None or model.structure is None:
@@ -675,8 +672,6 @@ def point_modal(model: Any, f_hz: Any, **overrides: float) -> PointModal | None:
         return None
     undamped = _ritz_modal(base, mats, change)
     damped = _damped(undamped, dyn.full.damping(theta), mats.modal_damping_bands, dyn.full.rigid_body_damping)
-    from .eigen import _clean_eigenvalues
-
     k_scale = float(abs(base.stiffness).max() / max(abs(base.mass).max(), 1e-300))
     order = np.argsort(_clean_eigenvalues(base.lam, k_scale), kind="stable")
     w = damped.omega
@@ -692,8 +687,6 @@ def point_change(effect: Any, model: Any, base_struct: Any, base_mats: Any) -> P
     more than :data:`LOW_RANK_MAX_DOFS` DOFs. A single-DOF location of a
     :class:`~robustctl.physical.matrices.MatrixStructure` is read off directly; otherwise the
     effect is applied at unit size and the matrices compared."""
-    from .matrices import MatrixStructure
-
     if effect.kind not in POINT_KINDS or len(effect.param_names) != 1:
         return None
     one = np.ones((1, 1))

@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from ..balanced import balanced_truncation
 from ..errors import ModelError
 from ..lti import freqresp_array
 
@@ -213,8 +214,6 @@ class UncertainModel:
         -------
         ndarray (n_blocks, nf)
         """
-        from ..lti import freqresp_array
-
         f = np.asarray(f_hz, dtype=float).reshape(-1)
         H0 = freqresp_array(self.nominal, f)
         out = np.zeros((len(self.names), f.size))
@@ -291,8 +290,6 @@ def _matrices(model: Any, values: dict[str, float], order: int | None = None
 def _reduced(sys: Any, order: int):
     """``sys`` by balanced truncation to ``order`` states, its signal names kept."""
     import control
-
-    from ..balanced import balanced_truncation
 
     red = balanced_truncation(sys, order).sys
     return control.ss(red.A, red.B, red.C, red.D, inputs=list(sys.input_labels),
@@ -564,8 +561,6 @@ def _upper_eigs(A: np.ndarray) -> np.ndarray:
 def _modes_lft(model: Any, names: tuple[str, ...], c: np.ndarray, axes: np.ndarray, at: Any, *,
                f_hz: Any, n_check: int, seed: int) -> UncertainModel:
     """The ``form="modes"`` LFT (module docstring): one rank-1 real scalar per mode and direction."""
-    from ..lti import freqresp_array
-
     S0, dims, G0 = at(np.zeros(len(axes)))
     n = dims[0]
     if n == 0:

@@ -36,6 +36,7 @@ from ..errors import DataError, FitError, RobustctlError
 from ..frd import FrequencyData, _as_frequencies
 from ..lti import _align, as_statespace, freqresp, freqresp_array
 from ..measure.noise import noise_model
+from ..physical.uncertain import UncertainModel
 from ..plots import single_axes
 from ..table import Table, result_html
 from .magfit import DB_PER_NEPER, fit_magnitude_details
@@ -664,8 +665,6 @@ def cover_remainder(
     P. M. Young, "Controller design with real parametric uncertainty", Int. J. Control 65(3),
     1996 (the mixed real/complex set); Balas & Doyle (Caltech seed), eqs. 1-3.
     """
-    from ..physical.uncertain import UncertainModel
-
     if not isinstance(um, UncertainModel):
         raise FitError(f"um must be an UncertainModel (upd.uncertain()); got {type(um).__name__}.")
     if kind not in _KINDS:
@@ -687,8 +686,6 @@ def cover_remainder(
 
 def _remainder(um: Any, f: np.ndarray, sources: list, fit: tuple) -> Any:
     """``um`` with the remainder cover of ``sources`` on ``f`` (see :func:`cover_remainder`)."""
-    from ..lti import freqresp
-
     order, kind, smooth_octaves, floor, time_budget_s, objective, data_sigmas = fit
     g0 = freqresp(um.nominal, f)
     G0 = g0.response

@@ -13,7 +13,9 @@ from ...checks import check_band, flag
 from ...errors import FitError, ModelError
 from ...executors import parallel_map_shared
 from ...threads import limit_blas
+from .. import reduction
 from ..eigen import solve_modes
+from ..matrices import MatrixStructure
 from ..model import PhysicalModel
 from ..reduction import REDUCE_MIN_DOF
 from . import io_effects, setup, structural
@@ -453,9 +455,6 @@ def _point_dof(c: Effect, nominal: Any, phi: np.ndarray) -> int | None:
     else None: its unit change is ``e_j e_j^T``, so ``diag(Phi^T dK Phi) = phi_j^2`` needs no
     probe structure (a rebuild and three sparse differences per candidate, 24 s for the 6,000 of
     a 2,000-DOF grid). Smaller structures keep the probe, and their steps bit for bit."""
-    from .. import reduction
-    from ..matrices import MatrixStructure
-
     if (c.kind not in ("added_mass", "suspension_spring", "dashpot")
             or getattr(c, "direction", None) is not None
             or not isinstance(nominal, MatrixStructure) or nominal.n_dof < reduction.REDUCE_MIN_DOF
