@@ -31,7 +31,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..threads import limit_blas
-from .block_refine import ZETA_MIN
+from .block_refine import ZETA_MIN, refine_cluster
 from .poles import evaluate
 from .rational_fit import RationalFit
 from .realization import residue_factors
@@ -251,8 +251,6 @@ def refine_modes_local(
     import time
 
     from tqdm.auto import tqdm
-
-    from .block_refine import refine_cluster
 
     if fit.data is None:
         return fit

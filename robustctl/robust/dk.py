@@ -60,9 +60,11 @@ from ..checks import flag, integer, positive_number
 from ..errors import PlantError, SynthesisError
 from ..executors import check_executor
 from ..interconnect import PartitionedPlant
-from ..lti import is_stable
+from ..lti import freqresp_array, is_stable
+from ..plots import new_figure
 from ..table import Table
 from .blocks import Block, BlockStructure
+from .dgk import blended_scales, fit_g_filter, g_transform, scaled_d_targets, transformed_norm
 from .dk_plant import DesignReduction, check_design_order, on_full_plant, reduce_design_plant
 from .dk_reduce import Reduction, _reduce
 from .dk_scales import (
@@ -85,6 +87,8 @@ from .dk_scales import _fit_one as _fit_one
 from .dk_scales import _into_band as _into_band
 from .dk_verify import _mu_of, _verified_mu, closed_loop, default_grid
 from .dk_verify import verification_grid as verification_grid
+from .hinf_synthesis import hinfsyn
+from .mu_bounds import mu
 from .partitioned import as_partitioned
 from .plant import GeneralizedPlant
 
@@ -292,8 +296,6 @@ class DKResult:
 
     def plot(self):
         """mu upper bound over frequency per iteration, and the peak of mu per iteration."""
-        from ..plots import new_figure
-
         fig = new_figure(10.0, 4.5)
         ax1, ax2 = fig.subplots(1, 2, width_ratios=(2, 1))
         for h in self.history:
@@ -514,8 +516,6 @@ def dksyn(
     >>> dk.mu_peak, dk.table()                                # doctest: +SKIP
     """
     from tqdm import tqdm
-
-    from .hinf_synthesis import hinfsyn
 
     grid = _check_args(max_iter, time_budget_s, f_hz)
     hinf_options = _check_options(progress, rtol, patience, hinf_options, callback)
@@ -808,10 +808,6 @@ def _g_step(m: Any, H: np.ndarray, H_edges: np.ndarray,
     the bound the D fits are judged by: ``beta sigma_max(Z)`` with the fitted filters
     (:func:`~robustctl.robust.dgk.transformed_norm`), on the grid and at ``w = 0, inf``.
     """
-    from ..lti import freqresp_array
-    from .dgk import blended_scales, fit_g_filter, scaled_d_targets, transformed_norm
-    from .mu_bounds import mu
-
     level = float(m.peak)
     f = np.asarray(m.f_hz, dtype=float)
     mc = mu(H, _complexified(blocks), f_hz=f, lower=False)
@@ -883,8 +879,6 @@ def _mixed_k_step(hinfsyn: Callable, P_scaled: Any, plant: GeneralizedPlant, can
     upper bound on the new peak of mixed mu), or the one with the smallest ``beta gamma``.
     """
     from dataclasses import replace as _replace
-
-    from .dgk import g_transform
 
     def solve(level: float) -> Any:
         scaled = PartitionedPlant(g_transform(P_scaled, plant.blocks, cand.g_fits, level), plant.nmeas,

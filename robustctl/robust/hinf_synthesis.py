@@ -38,12 +38,15 @@ from ..budget import Deadline, as_deadline
 from ..checks import positive_number
 from ..errors import SynthesisError
 from ..interconnect import PartitionedPlant, lft
-from ..lti import is_stable, spectral_abscissa
+from ..lti import freqresp_array, is_stable, spectral_abscissa
+from ..plots import label_axes, single_axes
 from ..table import Table, result_html
 from ..threads import limit_blas
 from . import dgkf
 from .hinf_assumptions import check_assumptions
+from .hinf_lmi import lmi_controller, lmi_gamma, lmi_rescaled_gamma
 from .hinf_norm import _discrete_to_continuous, continuous_to_discrete, hinfnorm_matrices
+from .mu_bounds import _frequencies
 from .partitioned import as_partitioned
 
 __all__ = ["HinfResult", "hinfsyn"]
@@ -139,13 +142,8 @@ class HinfResult:
 
         Returns the matplotlib Figure.
         """
-        from ..lti import freqresp_array
-        from ..plots import label_axes, single_axes
-
         f_peak = self.info.get("f_peak_hz", np.nan)
         if f_hz is not None:
-            from .mu_bounds import _frequencies
-
             f_hz = _frequencies(f_hz)  # finite numbers >= 0 Hz, at least one
         dt = self.closed_loop.dt
         if f_hz is None and dt not in (0, None):  # up to the Nyquist frequency, four decades below
@@ -402,8 +400,6 @@ def _riccati(m, gamma_tol, backoff, clock, info):
 
 
 def _lmi(m, backoff, clock, info):
-    from .hinf_lmi import lmi_controller, lmi_gamma, lmi_rescaled_gamma
-
     if m["A"].shape[0] == 0:
         raise SynthesisError(
             "method='lmi' needs a plant with states; a static plant is a Parrott problem, solved by "
