@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from ..budget import as_deadline
 from ..checks import UNSET, band_data, renamed_keyword
 from ..errors import FitError, RobustctlError
 from ..frd import FrequencyData, as_frequency_data
@@ -298,7 +299,8 @@ def _modes(
     """Modes (the poles :func:`.significance.pole_evidence` finds physical; with ``n_modes`` the
     ``n_modes`` most significant of them) and fillers (every other kept pole), each sorted by
     frequency."""
-    items = [(j, _mode(p, r, k)) for j, (p, r, k) in enumerate(zip(fit.poles, fit.residues, fit.ranks)) if k > 0]
+    terms = enumerate(zip(fit.poles, fit.residues, fit.ranks))
+    items = [(j, _mode(p, r, k)) for j, (p, r, k) in terms if k > 0]
     physical = np.flatnonzero(evidence.physical)
     if n_modes is not None and physical.size > n_modes:
         physical = physical[np.argsort(-evidence.significance[physical], kind="stable")[:n_modes]]
@@ -311,7 +313,9 @@ def _modes(
 MAX_RELOCATIONS = 3
 
 
-def _relocate_fillers(fit: RationalFit, n_mode_poles: int, evidence: PoleEvidence, n_modes: int, run):
+def _relocate_fillers(
+    fit: RationalFit, n_mode_poles: int, evidence: PoleEvidence, n_modes: int, run, diagram=None
+):
     """With ``n_modes=N`` and fewer than N physical modes: move a mode pole the evidence calls a
     filler (noise, leakage, a trend near the band edge) to the frequency where the noise-normalised
     complex-log residual is largest away from the modes' own peaks (within three half-power
@@ -350,7 +354,7 @@ def _relocate_fillers(fit: RationalFit, n_mode_poles: int, evidence: PoleEvidenc
             except ValueError:
                 continue
         trial = _stable(_realised(trial), run)
-        ev = pole_evidence(trial)
+        ev = pole_evidence(trial, diagram)
         if int(ev.physical.sum()) > n_phys and np.all(np.isfinite(trial.poles)):
             fit, evidence = trial, ev
     return fit, evidence
@@ -360,6 +364,17 @@ def _noise_sigma(fit: RationalFit) -> np.ndarray:
     from .significance import _noise_scale
 
     return _noise_scale(fit)[0]
+
+
+def _diagram_or_none(band: FrequencyData, run: FitSettings, max_modes: int, parsimony: float, weights):
+    """The stabilisation diagram of ``band`` (as the automatic order scans it), or None when the
+    scan fails numerically: with a given ``n_modes`` it only tests the modes' stability."""
+    with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        warnings.simplefilter("ignore")
+        try:
+            return _scan(band, run, max_modes, parsimony, weights, False)[1]
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError, ZeroDivisionError):
+            return None
 
 
 def _grouped_modes(fit: RationalFit, n_mode_poles: int) -> np.ndarray:
@@ -565,12 +580,13 @@ def fit_measurement_model(
         The corrected model is kept only when its expected H1 (the model with its record-end
         tail) misses the data by less than the plain fit does; ``corrections`` and the summary
         say which was kept (``correct_leakage=True`` forces the correction).
-    time_budget_s : float or None
-        Opt-in wall-time budget of the whole call, seconds. ``None`` (default): the work is
+    time_budget_s : float, Deadline or None
+        Opt-in wall-time budget of the whole call, seconds (or a caller's shared Deadline). ``None`` (default): the work is
         bounded by iteration caps only, so the result depends on the input and options alone.
         With a budget, when it runs out the order scan, pole iterations and refinement stop with
-        the best model so far: the result says so (``stopped_by_budget``, its summary) and an
-        :class:`IdentifyWarning` is issued; such a model depends on the machine's speed and load.
+        the best model so far: the result says so (``stopped_by_budget``, its summary) and a
+        :class:`robustctl.BudgetWarning` is issued; such a model depends on the machine's speed
+        and load (the policy of :mod:`robustctl.budget`; a :class:`~robustctl.Deadline` is shared).
     progress : bool, optional
         tqdm bars over the order scan and the block refinement (default: when stderr is a
         terminal).
@@ -590,20 +606,17 @@ def fit_measurement_model(
         the order, the step and what to change).
     """
     import sys
-    import time
 
     max_modes, parsimony = _check_selection(max_modes, parsimony)
-    budget = _check_budget(time_budget_s)
-    start = time.perf_counter()
+    clock = as_deadline(time_budget_s, FitError)
     point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     fd = as_frequency_data(data)
     band_fd = band_data(fd, band)
     st = _settings(fd, correct_leakage, correct_window)
     tau = _window_tau(fd, correct_window)
     show = sys.stderr.isatty() if progress is None else bool(progress)
-    deadline = None if budget is None else start + budget
     kw = dict(method=method, point_weights=point_weights, max_iter=max_iter)
-    run = FitSettings(groups, st, kw, rank_tol, refine, deadline, progress=show)
+    run = FitSettings(groups, st, kw, rank_tol, refine, clock if clock.active else None, progress=show)
     diagram = None
     order = "automatic order" if n_modes is None else f"n_modes={_check_modes(n_modes)}"
     fit, n_mode_poles, used, diagram = _fit_core(band_fd, run, n_modes, max_modes, parsimony, point_weights,
@@ -619,11 +632,15 @@ def fit_measurement_model(
             fit, n_mode_poles, used, diagram = plain
             declined = (with_t, without)
     _check_finite(fit, used, order)
-    evidence = pole_evidence(replace(fit, data=used), diagram)
+    judge = diagram  # a given order: a scan only to judge the modes' stability across orders
+    if judge is None and groups is None:
+        judge = _diagram_or_none(band_fd, run, max_modes, parsimony, point_weights)
+    evidence = pole_evidence(replace(fit, data=used), judge)
     if n_modes is not None and groups is None and not isinstance(st, TruncationSettings):
         with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             warnings.simplefilter("ignore", IdentifyWarning)
-            fit, evidence = _relocate_fillers(replace(fit, data=used), n_mode_poles, evidence, n_modes, run)
+            fit, evidence = _relocate_fillers(replace(fit, data=used), n_mode_poles, evidence, n_modes, run,
+                                              judge)
     stopped = run.expired()
     cost = _score(fit, used)
     scan = () if diagram is None else tuple((int(n), float(c)) for n, c in zip(diagram.orders, diagram.cost))
@@ -633,13 +650,8 @@ def fit_measurement_model(
             f"target {target_db:g} dB; raise n_modes (or leave it None), narrow the band or relax target_db."
         )
     if stopped:
-        warnings.warn(
-            f"the time budget of {budget:g} s ran out; the model is the best found so far and depends on "
-            "this machine's speed and load (stopped_by_budget=True). Raise time_budget_s or leave it None "
-            "(iteration caps only), narrow the band or give n_modes.",
-            IdentifyWarning,
-            stacklevel=3,
-        )
+        clock.warn("fit_measurement_model (the time budget ran out; raise time_budget_s, narrow the band or "
+                   "give n_modes)", stacklevel=4)
     if isinstance(st, EstimatorSettings) and used.meta.get("leakage_corrected"):
         miss_raw, miss_used = leakage_consistency(fit, band_fd, used, st, point_weights)
         if miss_raw > INCONSISTENT_RATIO * miss_used + INCONSISTENT_DB:
@@ -832,18 +844,6 @@ def pinned_message(pinned: tuple[Mode, ...], leakage_corrected: bool) -> str:
         f"{len(pinned)} mode(s) at {where} sit at the lower damping bound (zeta < {BOUND_ZETA:.2g}): "
         f"the data do not determine their damping.{hint}"
     )
-
-
-def _check_budget(value: Any) -> float | None:
-    if value is None:
-        return None
-    try:
-        budget = float(value)
-    except (TypeError, ValueError):
-        budget = float("nan")
-    if not (np.isfinite(budget) and budget > 0):
-        raise FitError(f"time_budget_s must be a positive number of seconds or None; got {value!r}.")
-    return budget
 
 
 def _check_selection(max_modes: Any, parsimony: Any) -> tuple[int, float]:

@@ -18,12 +18,12 @@
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
+from ..budget import Deadline
 from ..errors import FitError
 from ..frd import FrequencyData
 from ..lti import log_ratio
@@ -79,18 +79,18 @@ class FitSettings:
     fit_kw: dict
     rank_tol: float
     refine: bool
-    deadline: float | None = None
+    deadline: Deadline | None = None  # the opt-in time budget (robustctl.budget), shared by the steps
     spare: bool = True
     progress: bool = False
     extra_spare: int = 0  # pole pairs beyond spare_pairs(n) (fit_best's candidate starts)
 
     def expired(self) -> bool:
-        return self.deadline is not None and time.perf_counter() > self.deadline
+        return self.deadline is not None and self.deadline.expired()
 
 
 def rational_fit(band: FrequencyData, n_modes: int, run: FitSettings) -> RationalFit:
     """Step 1: common-denominator fit with spare poles, or one SIMO fit per input (Caltech)."""
-    left = None if run.deadline is None else max(0.0, run.deadline - time.perf_counter())
+    left = run.deadline  # fit_rational shares the call's Deadline
     if run.groups is not None:
         return fit_rational(band, 2 * n_modes, common_denominator=False, time_budget_s=left, **run.fit_kw)
     spare = spare_pairs(n_modes) + run.extra_spare if run.spare else 0

@@ -28,8 +28,10 @@ Schenk 1993, the consistent-mode indicator; Reynders, Houbrechts & De Roeck 2012
 4. **One peak, one mode**: of poles closer than three half-power half-widths
    (``3 zeta f``) with similar shapes (MAC above ``DUPLICATE_MAC``), only the most
    significant one is a mode. A stabilisation diagram, when there is one, adds
-   5. **Stability across orders**: a pole within ``F_TOL`` in frequency of poles of at least
-   ``CHAIN`` orders of the scan.
+   5. **Stability across orders**: a pole within ``F_TOL`` in frequency and a factor
+   ``ZETA_RATIO`` in damping of poles of at least ``CHAIN`` orders of the scan (a pole that
+   fits a trend moves or changes its damping from order to order; the refined damping of a
+   mode stays near the scan's).
 """
 
 from __future__ import annotations
@@ -41,7 +43,6 @@ import numpy as np
 from ..lti import log_ratio, pole_frequency_damping
 from .leakage import BOUND_ZETA
 from .rational_fit import RationalFit
-from .refine import _row_weights
 from .selection import ZETA_FILLER
 from .stabilisation import CHAIN, DUPLICATE_MAC, F_TOL, residues_normal
 
@@ -51,6 +52,8 @@ __all__ = ["MPC_MIN", "ALPHA", "PoleEvidence", "pole_evidence", "modal_phase_col
 MPC_MIN = 0.9
 #: false-alarm probability of the significance test of one pole (chi-square upper tail)
 ALPHA = 1e-6
+#: largest ratio between a mode's damping and that of the scan's poles that confirm it
+ZETA_RATIO = 3.0
 #: half-width of the neighbourhood over which a mode's significance is counted, in half-power
 #: half-widths ``zeta f`` (at least two bins)
 LOCAL_WIDTH = 3.0
@@ -100,7 +103,7 @@ class PoleEvidence:
         if self.significance[k] < 1:
             return "not significant against the noise"
         if self.mpc[k] < MPC_MIN:
-            return "shape of scattered phase (MPC below {MPC_MIN:g})".format(MPC_MIN=MPC_MIN)
+            return f"shape of scattered phase (MPC below {MPC_MIN:g})"
         return "not stable across model orders"
 
 
@@ -137,15 +140,21 @@ def _mac(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.abs(np.vdot(a, b)) ** 2 / den) if den > 0 else 0.0
 
 
-def _stable_across_orders(f_hz: np.ndarray, diagram) -> np.ndarray:
-    """Poles with a diagram pole within ``F_TOL`` (relative) at ``CHAIN`` or more orders."""
-    if diagram is None:
+def _stable_across_orders(f_hz: np.ndarray, zeta: np.ndarray, diagram) -> np.ndarray:
+    """Poles with a diagram pole within ``F_TOL`` (relative) in frequency and within a factor
+    ``ZETA_RATIO`` in damping at ``CHAIN`` or more orders, counting only the diagram's poles
+    stable in frequency and damping against their previous order (``"fd"``, ``"fds"``)."""
+    if diagram is None or len(diagram.f_hz) < CHAIN:  # no scan, or one cut short by a time budget
         return np.ones(f_hz.size, dtype=bool)
     hits = np.zeros(f_hz.size, dtype=int)
-    for f_order in diagram.f_hz:
+    z = np.maximum(zeta, 1e-12)[:, None]
+    for f_all, z_all, status in zip(diagram.f_hz, diagram.zeta, diagram.status):
+        settled = np.isin(status, ("fd", "fds"))  # stable in frequency and damping at that order
+        f_order, z_order = f_all[settled], z_all[settled]
         if f_order.size:
-            near = np.min(np.abs(f_order[None, :] / f_hz[:, None] - 1), axis=1)
-            hits += near <= F_TOL
+            near = np.abs(f_order[None, :] / f_hz[:, None] - 1) <= F_TOL
+            near &= (z_order[None, :] <= ZETA_RATIO * z) & (z_order[None, :] >= z / ZETA_RATIO)
+            hits += np.any(near, axis=1)
     return hits >= CHAIN
 
 
@@ -165,7 +174,6 @@ def pole_evidence(fit: RationalFit, diagram=None, candidates: np.ndarray | None 
     -------
     PoleEvidence
     """
-    data = fit.data
     poles = np.asarray(fit.poles)
     n_p = poles.size
     f, zeta = pole_frequency_damping(poles)
@@ -178,7 +186,7 @@ def pole_evidence(fit: RationalFit, diagram=None, candidates: np.ndarray | None 
     mpc = np.array([modal_phase_collinearity(r) for r in fit.residues])
     if np.any(cand):
         sig = _significance(fit, cand)
-    stable = _stable_across_orders(f, diagram)
+    stable = _stable_across_orders(f, zeta, diagram)
     base = cand & (sig >= 1) & stable
     ok = base & (mpc >= MPC_MIN)
     twin = np.zeros(n_p, dtype=bool)
@@ -190,7 +198,8 @@ def pole_evidence(fit: RationalFit, diagram=None, candidates: np.ndarray | None 
                 continue
             same = _mac(fit.residues[i].ravel(), fit.residues[j].ravel()) > DUPLICATE_MAC
             # a doublet: two poles of scattered phase whose sum is a mode's shape (one broadened peak)
-            doublet = max(mpc[i], mpc[j]) < MPC_MIN <= modal_phase_collinearity(fit.residues[i] + fit.residues[j])
+            joint = modal_phase_collinearity(fit.residues[i] + fit.residues[j])
+            doublet = max(mpc[i], mpc[j]) < MPC_MIN <= joint
             if ok[j] and same or doublet:
                 ok[j] = True
                 twin[i] = True
@@ -210,28 +219,31 @@ def _significance(fit: RationalFit, cand: np.ndarray) -> np.ndarray:
     k = data.f_hz.size
     s = 2j * np.pi * data.f_hz
     g = data.response.reshape(k, -1)
-    rw = _row_weights(fit, None).reshape(k, -1)
     sigma, factor, _ = _noise_scale(fit)
     sigma = sigma.reshape(k, -1)
-    full = fit.response(data.f_hz).reshape(k, -1)
-    base = np.sum(np.abs(log_ratio(g, full)) ** 2 / sigma**2, axis=1)
+    # nested least-squares fits in the test's own metric: the relative error over the noise scale
+    rw = 1.0 / (np.maximum(np.abs(g), np.finfo(float).tiny) * sigma)
+    poles = np.asarray(fit.poles)
+
+    def chi(p: np.ndarray) -> np.ndarray:  # per point: noise-normalised residual, residues refitted
+        res, d = residues_normal(s, g, rw, p)
+        model = np.broadcast_to(d, g.shape).astype(complex)
+        for q, r in zip(p, res):
+            model = model + (1.0 / (s - q))[:, None] * r
+            if q.imag != 0:
+                model = model + (1.0 / (s - np.conj(q)))[:, None] * np.conj(r)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            return np.sum(np.abs(log_ratio(g, model)) ** 2 / sigma**2, axis=1)
+
+    base = chi(poles)
     f_hz = data.f_hz
     step = np.gradient(f_hz) if f_hz.size > 1 else np.ones(1)
     n_out, n_in = data.response.shape[1:]
     n_par = 2 + 2 * (n_out + n_in - 1) if min(n_out, n_in) > 0 else 2
     threshold = factor * float(chi2.isf(ALPHA, n_par))
     out = np.zeros(fit.poles.size)
-    poles = np.asarray(fit.poles)
     for j in np.flatnonzero(cand):
-        others = np.delete(poles, j)
-        res, d = residues_normal(s, g, rw, others)
-        model = np.broadcast_to(d, g.shape).astype(complex)
-        for p, r in zip(others, res):
-            model = model + (1.0 / (s - p))[:, None] * r
-            if p.imag != 0:
-                model = model + (1.0 / (s - np.conj(p)))[:, None] * np.conj(r)
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            drop = np.sum(np.abs(log_ratio(g, model)) ** 2 / sigma**2, axis=1)
+        drop = chi(np.delete(poles, j))
         fj = abs(poles[j]) / (2 * np.pi)
         zj = -poles[j].real / abs(poles[j])
         near = np.abs(f_hz - fj) <= np.maximum(LOCAL_WIDTH * zj * fj, 2 * step)

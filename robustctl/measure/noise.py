@@ -49,7 +49,8 @@ from .estimator import USER_WINDOW, bin_correlation, effective_averages, estimat
 __all__ = [
     "coherence_weight_bias",
     "point_weight_bias",
-    "NoiseModel", "noise_model", "residual_noise", "averages_of", "neighbour_coherence", "NO_NOISE_SENTENCE", "chi2_verdict",
+    "NoiseModel", "noise_model", "residual_noise", "averages_of", "neighbour_coherence", "NO_NOISE_SENTENCE",
+    "chi2_verdict",
     "format_p",
 ]
 
