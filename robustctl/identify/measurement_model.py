@@ -581,7 +581,8 @@ def fit_measurement_model(
         tail) misses the data by less than the plain fit does; ``corrections`` and the summary
         say which was kept (``correct_leakage=True`` forces the correction).
     time_budget_s : float, Deadline or None
-        Opt-in wall-time budget of the whole call, seconds (or a caller's shared Deadline). ``None`` (default): the work is
+        Opt-in wall-time budget of the whole call, seconds (or a caller's shared Deadline).
+        ``None`` (default): the work is
         bounded by iteration caps only, so the result depends on the input and options alone.
         With a budget, when it runs out the order scan, pole iterations and refinement stop with
         the best model so far: the result says so (``stopped_by_budget``, its summary) and a

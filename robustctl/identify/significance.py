@@ -28,10 +28,10 @@ Schenk 1993, the consistent-mode indicator; Reynders, Houbrechts & De Roeck 2012
 4. **One peak, one mode**: of poles closer than three half-power half-widths
    (``3 zeta f``) with similar shapes (MAC above ``DUPLICATE_MAC``), only the most
    significant one is a mode. A stabilisation diagram, when there is one, adds
-   5. **Stability across orders**: a pole within ``F_TOL`` in frequency and a factor
-   ``ZETA_RATIO`` in damping of poles of at least ``CHAIN`` orders of the scan (a pole that
-   fits a trend moves or changes its damping from order to order; the refined damping of a
-   mode stays near the scan's).
+   5. **Stability across orders**: a pole within ``F_TOL`` in frequency of poles stable in
+   frequency and damping at ``CHAIN`` or more orders of the scan, whose damping is at least
+   ``ZETA_RATIO`` times its own (the scan fits the raw data, whose leakage only widens a peak;
+   a pole the refinement widened to fit a trend has scan poles far narrower than itself).
 """
 
 from __future__ import annotations
@@ -52,8 +52,11 @@ __all__ = ["MPC_MIN", "ALPHA", "PoleEvidence", "pole_evidence", "modal_phase_col
 MPC_MIN = 0.9
 #: false-alarm probability of the significance test of one pole (chi-square upper tail)
 ALPHA = 1e-6
-#: largest ratio between a mode's damping and that of the scan's poles that confirm it
-ZETA_RATIO = 3.0
+#: smallest ratio of the damping of the scan's poles that confirm a mode to the mode's damping
+#: (the scan fits the raw data, whose leakage only widens a peak: a real mode's scan damping is
+#: about its own or larger; a pole the refinement widened to fit a trend has scan poles far
+#: narrower than itself)
+ZETA_RATIO = 0.5
 #: half-width of the neighbourhood over which a mode's significance is counted, in half-power
 #: half-widths ``zeta f`` (at least two bins)
 LOCAL_WIDTH = 3.0
@@ -141,8 +144,8 @@ def _mac(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def _stable_across_orders(f_hz: np.ndarray, zeta: np.ndarray, diagram) -> np.ndarray:
-    """Poles with a diagram pole within ``F_TOL`` (relative) in frequency and within a factor
-    ``ZETA_RATIO`` in damping at ``CHAIN`` or more orders, counting only the diagram's poles
+    """Poles with a diagram pole within ``F_TOL`` (relative) in frequency and of damping at least
+    ``ZETA_RATIO`` times theirs at ``CHAIN`` or more orders, counting only the diagram's poles
     stable in frequency and damping against their previous order (``"fd"``, ``"fds"``)."""
     if diagram is None or len(diagram.f_hz) < CHAIN:  # no scan, or one cut short by a time budget
         return np.ones(f_hz.size, dtype=bool)
@@ -153,7 +156,7 @@ def _stable_across_orders(f_hz: np.ndarray, zeta: np.ndarray, diagram) -> np.nda
         f_order, z_order = f_all[settled], z_all[settled]
         if f_order.size:
             near = np.abs(f_order[None, :] / f_hz[:, None] - 1) <= F_TOL
-            near &= (z_order[None, :] <= ZETA_RATIO * z) & (z_order[None, :] >= z / ZETA_RATIO)
+            near &= z_order[None, :] >= ZETA_RATIO * z
             hits += np.any(near, axis=1)
     return hits >= CHAIN
 
