@@ -633,9 +633,11 @@ def fit_measurement_model(
             fit, n_mode_poles, used, diagram = plain
             declined = (with_t, without)
     _check_finite(fit, used, order)
-    judge = diagram  # a given order: a scan only to judge the modes' stability across orders
+    # a given order, or data the fit corrected: a scan of the data the model was fitted to judges
+    # the modes' stability across orders (leakage biases the raw data's poles)
+    judge = diagram if not used.meta.get("leakage_corrected") else None
     if judge is None and groups is None:
-        judge = _diagram_or_none(band_fd, run, max_modes, parsimony, point_weights)
+        judge = _diagram_or_none(used, run, max_modes, parsimony, point_weights)
     evidence = pole_evidence(replace(fit, data=used), judge)
     if n_modes is not None and groups is None and not isinstance(st, TruncationSettings):
         with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):

@@ -28,7 +28,15 @@ from ..errors import FitError
 from ..frd import FrequencyData
 from ..lti import log_ratio
 from .grouping import group_modes
-from .leakage import TruncationSettings, corrected_response, leaks, truncated_residues
+from .leakage import (
+    EstimatorSettings,
+    TruncationSettings,
+    corrected_response,
+    leakage_factor,
+    leaks,
+    truncated_residues,
+)
+from .leaked_refine import refine_through_estimator
 from .modal_refine import DENSE_MAX_ENTRIES, ZETA_MIN, refine_modes_auto
 from .poles import fit_residues
 from .rational import fit_rational
@@ -319,6 +327,8 @@ def fit_with_leakage(
         fit, n_mode_poles = modal_model(fit, n_modes, run, prefer)
     if st is None and run.refine and run.groups is None:
         fit = _swap_for_pair(fit, n_mode_poles, run)
+    if isinstance(st, EstimatorSettings) and run.refine and not run.expired():
+        return _through_estimator(band, fit, n_mode_poles, st)
     data = band
     for _ in range(_leakage_steps(fit, band, st)):
         if run.expired():
@@ -341,6 +351,20 @@ def fit_with_leakage(
     if st is not None and not run.refine:
         fit, n_mode_poles = modal_model(fit, n_modes, run)
     return fit, n_mode_poles, data
+
+
+def _through_estimator(band: FrequencyData, fit: RationalFit, n_mode_poles: int, st: EstimatorSettings):
+    """A white-noise H1 test's modal model: poles and shapes fitted so that the model's expected H1
+    matches the raw data (:func:`.leaked_refine.refine_through_estimator`), then the mode shapes
+    (rank 1) refitted on the data corrected by that model (``data * M / E[H1 of M]``, on which the
+    model is scored and its modes judged)."""
+    fit = replace(fit, data=band)
+    moved = refine_through_estimator(fit, band, st, _row_weights(fit, None))
+    factor = leakage_factor(moved, band.f_hz, st)
+    if not (np.all(np.isfinite(moved.poles)) and np.all(np.isfinite(factor))):
+        moved, factor = fit, leakage_factor(fit, band.f_hz, st)
+    data = band.replace(response=band.response * factor, meta={**band.meta, "leakage_corrected": True})
+    return refine_residues(replace(moved, data=data), sweeps=2), n_mode_poles, data
 
 
 def _fit_truncated(band: FrequencyData, fit: RationalFit, n_modes: int, run: FitSettings, prefer):
