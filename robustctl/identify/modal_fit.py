@@ -328,7 +328,7 @@ def fit_with_leakage(
     if st is None and run.refine and run.groups is None:
         fit = _swap_for_pair(fit, n_mode_poles, run)
     if isinstance(st, EstimatorSettings) and run.refine and not run.expired():
-        return _through_estimator(band, fit, n_mode_poles, st)
+        return _through_estimator(band, fit, n_mode_poles, st, run)
     data = band
     for _ in range(_leakage_steps(fit, band, st)):
         if run.expired():
@@ -353,18 +353,29 @@ def fit_with_leakage(
     return fit, n_mode_poles, data
 
 
-def _through_estimator(band: FrequencyData, fit: RationalFit, n_mode_poles: int, st: EstimatorSettings):
+def _through_estimator(band: FrequencyData, fit: RationalFit, n_mode_poles: int, st: EstimatorSettings, run):
     """A white-noise H1 test's modal model: poles and shapes fitted so that the model's expected H1
     matches the raw data (:func:`.leaked_refine.refine_through_estimator`), then the mode shapes
     (rank 1) refitted on the data corrected by that model (``data * M / E[H1 of M]``, on which the
-    model is scored and its modes judged)."""
+    model is scored and its modes judged); then one joint rank-1 refinement on those data and the
+    data corrected once more by its result."""
     fit = replace(fit, data=band)
     moved = refine_through_estimator(fit, band, st, _row_weights(fit, None))
     factor = leakage_factor(moved, band.f_hz, st)
     if not (np.all(np.isfinite(moved.poles)) and np.all(np.isfinite(factor))):
         moved, factor = fit, leakage_factor(fit, band.f_hz, st)
     data = band.replace(response=band.response * factor, meta={**band.meta, "leakage_corrected": True})
-    return refine_residues(replace(moved, data=data), sweeps=2), n_mode_poles, data
+    fit = refine_residues(replace(moved, data=data), sweeps=2)
+    if run.refine and not run.expired():  # rank-1 poles and shapes together, one step from there
+        try:
+            refined = refine_modes_auto(fit, deadline=run.deadline, progress=run.progress)
+        except ValueError:  # two poles merged onto one peak: a singular step; keep the last model
+            refined = fit
+        factor = leakage_factor(refined, band.f_hz, st)
+        if np.all(np.isfinite(factor)):
+            data = band.replace(response=band.response * factor, meta=data.meta)
+            fit = refine_residues(replace(refined, data=data), sweeps=2)
+    return fit, n_mode_poles, data
 
 
 def _fit_truncated(band: FrequencyData, fit: RationalFit, n_modes: int, run: FitSettings, prefer):
