@@ -28,7 +28,8 @@ Schenk 1993, the consistent-mode indicator; Reynders, Houbrechts & De Roeck 2012
 4. **One peak, one mode**: of poles closer than three half-power half-widths
    (``3 zeta f``) with similar shapes (MAC above ``DUPLICATE_MAC``), only the most
    significant one is a mode. A stabilisation diagram, when there is one, adds
-   5. **Stability across orders**: a pole within ``F_TOL`` in frequency of poles stable in
+   5. **Stability across orders**: a pole within ``F_TOL`` in frequency (or the half-power
+   band ``2 zeta f``, for close pairs the scan merges) of poles stable in
    frequency and damping at ``CHAIN`` or more orders of the scan, whose damping is at least
    ``ZETA_RATIO`` times its own (the scan fits the raw data, whose leakage only widens a peak;
    a pole the refinement widened to fit a trend has scan poles far narrower than itself).
@@ -144,7 +145,8 @@ def _mac(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def _stable_across_orders(f_hz: np.ndarray, zeta: np.ndarray, diagram) -> np.ndarray:
-    """Poles with a diagram pole within ``F_TOL`` (relative) in frequency and of damping at least
+    """Poles with a diagram pole within ``F_TOL`` (relative) in frequency or its half-power band
+    ``2 zeta f``, and of damping at least
     ``ZETA_RATIO`` times theirs at ``CHAIN`` or more orders, counting only the diagram's poles
     stable in frequency and damping against their previous order (``"fd"``, ``"fds"``)."""
     if diagram is None or len(diagram.f_hz) < CHAIN:  # no scan, or one cut short by a time budget
@@ -155,7 +157,10 @@ def _stable_across_orders(f_hz: np.ndarray, zeta: np.ndarray, diagram) -> np.nda
         settled = np.isin(status, ("fd", "fds"))  # stable in frequency and damping at that order
         f_order, z_order = f_all[settled], z_all[settled]
         if f_order.size:
-            near = np.abs(f_order[None, :] / f_hz[:, None] - 1) <= F_TOL
+            # within F_TOL, or under the half-power band of a scan pole (a close pair the scan
+            # merges into one pole and the rank-1 refinement resolves)
+            width = np.maximum(F_TOL * f_hz[:, None], 2 * z_order[None, :] * f_order[None, :])
+            near = np.abs(f_order[None, :] - f_hz[:, None]) <= width
             near &= z_order[None, :] >= ZETA_RATIO * z
             hits += np.any(near, axis=1)
     return hits >= CHAIN
