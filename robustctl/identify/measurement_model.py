@@ -366,6 +366,18 @@ def _noise_sigma(fit: RationalFit) -> np.ndarray:
     return _noise_scale(fit)[0]
 
 
+def _rank_one_modes(fit: RationalFit, evidence: PoleEvidence, diagram) -> tuple[RationalFit, PoleEvidence]:
+    """Physical modes realised at rank 1 (Caltech eq. 9): a pole the selection kept as a filler
+    (numerical rank) that the evidence finds to be a mode gets a rank-1 shape, refitted with the
+    others by alternating least squares, so that it counts as one mode."""
+    wide = evidence.physical & (np.asarray(fit.ranks) > 1)
+    if not np.any(wide):
+        return fit, evidence
+    ranks = np.where(wide, 1, fit.ranks)
+    fit = _realised(refine_residues(replace(fit, ranks=ranks), sweeps=2))
+    return fit, pole_evidence(fit, diagram)
+
+
 def _diagram_or_none(band: FrequencyData, run: FitSettings, max_modes: int, parsimony: float, weights):
     """The stabilisation diagram of ``band`` (as the automatic order scans it), or None when the
     scan fails numerically: with a given ``n_modes`` it only tests the modes' stability."""
@@ -639,6 +651,8 @@ def fit_measurement_model(
     if judge is None and groups is None:
         judge = _diagram_or_none(used, run, max_modes, parsimony, point_weights)
     evidence = pole_evidence(replace(fit, data=used), judge)
+    if groups is None:
+        fit, evidence = _rank_one_modes(replace(fit, data=used), evidence, judge)
     if n_modes is not None and groups is None and not isinstance(st, TruncationSettings):
         with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             warnings.simplefilter("ignore", IdentifyWarning)
