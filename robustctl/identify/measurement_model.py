@@ -366,6 +366,23 @@ def _noise_sigma(fit: RationalFit) -> np.ndarray:
     return _noise_scale(fit)[0]
 
 
+def _promote_twins(evidence: PoleEvidence, n_modes: int) -> PoleEvidence:
+    """With ``n_modes=N`` and fewer than N modes: candidates that are significant against the noise
+    and stable across orders but share a mode's peak or have a shape of scattered phase count as
+    modes too, most significant first (a close pair of nearly equal shapes, which the fit can only
+    part with mixed shapes and the automatic order lists as one mode). Poles that fit noise or a
+    trend (not significant, not stable) never do."""
+    short = n_modes - int(evidence.physical.sum())
+    ok = evidence.candidate & ~evidence.physical & evidence.stable & (evidence.significance >= 1)
+    idx = np.flatnonzero(ok)
+    if short <= 0 or idx.size == 0:
+        return evidence
+    take = idx[np.argsort(-evidence.significance[idx], kind="stable")[:short]]
+    physical, twin = evidence.physical.copy(), evidence.twin.copy()
+    physical[take], twin[take] = True, False
+    return replace(evidence, physical=physical, twin=twin)
+
+
 def _rank_one_modes(fit: RationalFit, evidence: PoleEvidence, diagram) -> tuple[RationalFit, PoleEvidence]:
     """Physical modes realised at rank 1 (Caltech eq. 9): a pole the selection kept as a filler
     (numerical rank) that the evidence finds to be a mode gets a rank-1 shape, refitted with the
@@ -653,6 +670,8 @@ def fit_measurement_model(
     evidence = pole_evidence(replace(fit, data=used), judge)
     if groups is None:
         fit, evidence = _rank_one_modes(replace(fit, data=used), evidence, judge)
+    if n_modes is not None and groups is None:
+        evidence = _promote_twins(evidence, n_modes)
     if n_modes is not None and groups is None and not isinstance(st, TruncationSettings):
         with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             warnings.simplefilter("ignore", IdentifyWarning)
