@@ -14,7 +14,7 @@ import warnings
 
 import numpy as np
 import pytest
-from test_measurement_model_consistency import _assert_one_model, frame_records, frame_system
+from test_measurement_model_consistency import _assert_one_model, _chain, frame_records, frame_system
 
 import robustctl as rc
 from robustctl.identify import IdentifyWarning
@@ -23,18 +23,6 @@ from robustctl.identify.significance import modal_phase_collinearity, pole_evide
 #: frequency of a listed mode against the true one (exact data with 0.5 % noise: the fit's
 #: frequency error is a small fraction of the half-power width, 2 zeta f)
 F_TOL = 0.005
-
-
-def _chain_k(k):
-    n = len(k)
-    K = np.zeros((n, n))
-    for i in range(n):
-        K[i, i] += k[i]
-        if i + 1 < n:
-            K[i, i] += k[i + 1]
-            K[i, i + 1] -= k[i + 1]
-            K[i + 1, i] -= k[i + 1]
-    return K
 
 
 def _receptance(M, K, C, b, c, f_hz, noise, seed):
@@ -59,7 +47,7 @@ def _receptance(M, K, C, b, c, f_hz, noise, seed):
 def chain():
     """A 5-mass chain fixed at one end, 2 forces x 3 displacements, 1-2 % Rayleigh damping."""
     M = np.diag([1.0, 1.2, 0.9, 1.1, 0.8])
-    K = _chain_k([5e4, 4e4, 4.5e4, 3.5e4, 3e4])
+    K = _chain([5e4, 4e4, 4.5e4, 3.5e4, 3e4])
     C = 2e-5 * K + 0.8 * M
     b = np.zeros((5, 2))
     b[0, 0], b[3, 1] = 1.0, 1.0
