@@ -666,8 +666,7 @@ def fit_measurement_model(
     # the modes' stability across orders (leakage biases the raw data's poles)
     judge = diagram if not used.meta.get("leakage_corrected") else None
     if judge is None and groups is None:
-        top = max_modes if n_modes is None else min(max_modes, _check_modes(n_modes))
-        judge = _diagram_or_none(used, run, top, parsimony, point_weights)
+        judge = _diagram_or_none(used, run, max_modes, parsimony, point_weights)
     evidence = pole_evidence(replace(fit, data=used), judge)
     if groups is None:
         fit, evidence = _rank_one_modes(replace(fit, data=used), evidence, judge)
