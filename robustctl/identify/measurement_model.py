@@ -402,7 +402,7 @@ def _diagram_or_none(band: FrequencyData, run: FitSettings, max_modes: int, pars
         warnings.simplefilter("ignore")
         try:
             return _scan(band, run, max_modes, parsimony, weights, False)[1]
-        except (np.linalg.LinAlgError, ValueError, FloatingPointError, ZeroDivisionError):
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError, ZeroDivisionError, IndexError):
             return None
 
 
@@ -666,7 +666,8 @@ def fit_measurement_model(
     # the modes' stability across orders (leakage biases the raw data's poles)
     judge = diagram if not used.meta.get("leakage_corrected") else None
     if judge is None and groups is None:
-        judge = _diagram_or_none(used, run, max_modes, parsimony, point_weights)
+        top = min(max_modes, max(1, used.f_hz.size // 4))  # orders the band's points can carry
+        judge = _diagram_or_none(used, run, top, parsimony, point_weights)
     evidence = pole_evidence(replace(fit, data=used), judge)
     if groups is None:
         fit, evidence = _rank_one_modes(replace(fit, data=used), evidence, judge)
