@@ -43,7 +43,7 @@ from .leakage import (
     expected_h1,
     truncation_settings,
 )
-from .modal_fit import FitSettings, fit_best, fit_with_leakage, shift_poles, spare_pairs
+from .modal_fit import FitSettings, _log_cost, fit_best, fit_with_leakage, shift_poles, spare_pairs
 from .modal_refine import ZETA_MIN
 from .rational_fit import IdentifyWarning, RationalFit
 from .realization import residue_factors
@@ -320,7 +320,8 @@ def _relocate_fillers(
     filler (noise, leakage, a trend near the band edge) to the frequency where the noise-normalised
     complex-log residual is largest away from the modes' own peaks (within three half-power
     half-widths; 3-bin smoothed: the peak the model misses), 1 % damped, refit
-    the shapes and refine; kept when it adds a physical mode. At most ``MAX_RELOCATIONS`` tries,
+    the shapes and refine; kept when it adds a physical mode and does not raise the weighted
+    complex-log cost (MACE eq. 5). At most ``MAX_RELOCATIONS`` tries,
     each a refinement."""
     from .modal_refine import refine_modes_auto
     from .poles import fit_residues
@@ -355,7 +356,8 @@ def _relocate_fillers(
                 continue
         trial = _stable(_realised(trial), run)
         ev = pole_evidence(trial, diagram)
-        if int(ev.physical.sum()) > n_phys and np.all(np.isfinite(trial.poles)):
+        better = _log_cost(trial, data) <= _log_cost(fit, data)
+        if int(ev.physical.sum()) > n_phys and better and np.all(np.isfinite(trial.poles)):
             fit, evidence = trial, ev
     return fit, evidence
 
