@@ -10,8 +10,9 @@ frequencies from 0.8 to 6 times the first mode. Each run is a fresh subprocess: 
 time and the peak resident memory of it and of its worker processes (``getrusage``).
 
 Paths: the default (``rc.diagnose`` reduces structures of at least
-:data:`robustctl.physical.reduction.REDUCE_MIN_DOF` DOFs: in-band modes + residual modes,
-candidates as low-rank modifications), the reduced path forced on a 200-DOF grid, and the
+:data:`robustctl.physical.reduction.REDUCE_MIN_DOF` DOFs: in-band modes + residual modes, the
+point candidates scored in closed form on the reduced modal model and the leaders fitted by the
+exact path), the reduced path forced on a 200-DOF grid, and the
 full dense path (all modes) forced where it runs in reasonable time; the ranking at 200 DOFs is
 compared between the two. Exponents are least-squares slopes of ``log time`` and ``log memory``
 against ``log DOFs``.
@@ -34,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-SIZES = (400, 1000, 2000)
+SIZES = (500, 1000, 2000)
 FULL_SIZES = (100, 200)
 TARGET_S = 60.0
 TARGET_MB = 2048.0

@@ -160,7 +160,9 @@ from .robust import (
 )
 from .robust.controller_reduction import ControllerReduction
 from .robust.controller_reduction import reduce_controller as reduce_controller
+from .robust.cover import cover_remainder
 from .robust.dk import DKResult, dksyn
+from .robust.dk_plant import DesignReduction
 from .robust.h2 import H2Result as H2Result
 from .robust.h2 import h2norm as h2norm
 from .robust.h2 import h2syn as h2syn
@@ -320,12 +322,14 @@ __all__ = [
     # D-K iteration and the measurement-model yardstick
     "dksyn",
     "DKResult",
+    "DesignReduction",
     "yardstick",
     "YardstickWarning",
     "Yardstick",
     # uncertain models from the update (parametric LFT) for mixed-mu D-G-K
     "UncertainModel",
     "parametric_lft",
+    "cover_remainder",
     # H2/LQG, discrete synthesis, loop shaping, margins, controller reduction
     "is_stable",
     *robust.TOOLBOX_NAMES,

@@ -28,6 +28,7 @@ model, is :func:`robustctl.measure.noise.coherence_weight_bias`):
 
 from __future__ import annotations
 
+import math
 import numbers
 import warnings
 from collections.abc import Sequence
@@ -41,6 +42,7 @@ __all__ = [
     "COHERENCE_CAP",
     "check_band",
     "band_mask",
+    "checked_band_mask",
     "band_data",
     "coherence_weights",
     "neighbour_coherence",
@@ -48,6 +50,7 @@ __all__ = [
     "match_channels",
     "is_default_names",
     "is_real_number",
+    "is_whole_number",
     "finite_number",
     "positive_number",
     "integer",
@@ -80,6 +83,12 @@ def is_real_number(value: Any) -> bool:
     return isinstance(value, (numbers.Real, np.floating, np.integer)) and not isinstance(
         value, (bool, np.bool_)
     )
+
+
+def is_whole_number(value: Any) -> bool:
+    """True for an integer or an integral real number (``2``, ``np.int64(2)``, ``2.0``); False for
+    booleans, strings, fractions, NaN and inf."""
+    return is_real_number(value) and math.isfinite(float(value)) and float(value) == int(value)
 
 
 def finite_number(value: Any, name: str, error: type[RobustctlError] = DataError) -> float:
@@ -269,11 +278,34 @@ def check_band(band: Any, name: str = "band") -> tuple[float, float] | None:
 
 def band_mask(f_hz: np.ndarray, band: Any, name: str = "band") -> np.ndarray:
     """Boolean mask of ``lo <= f <= hi`` over ``f_hz``; refuses a band holding no point."""
+    return checked_band_mask(f_hz, check_band(band, name), name)
+
+
+def checked_band_mask(f_hz: np.ndarray, band: tuple[float, float] | None, name: str = "band") -> np.ndarray:
+    """:func:`band_mask` of a band :func:`check_band` has already checked (not checked again).
+
+    Parameters
+    ----------
+    f_hz : ndarray (n_freq,)
+        The data's frequencies, Hz.
+    band : (float, float) or None
+        What :func:`check_band` returned; None: every point.
+    name : str
+        The argument's name in the message.
+
+    Returns
+    -------
+    ndarray of bool, shape (n_freq,)
+
+    Raises
+    ------
+    DataError
+        The band holds no data point.
+    """
     f = np.asarray(f_hz, dtype=float)
-    checked = check_band(band, name)
-    if checked is None:
+    if band is None:
         return np.ones(f.size, dtype=bool)
-    lo, hi = checked
+    lo, hi = band
     mask = (f >= lo) & (f <= hi)
     if not np.any(mask):
         raise DataError(
@@ -283,16 +315,16 @@ def band_mask(f_hz: np.ndarray, band: Any, name: str = "band") -> np.ndarray:
     return mask
 
 
-def band_data(data: Any, band: Any, name: str = "band"):
-    """``data`` (a FrequencyData) restricted to the band (itself when ``band`` is None)."""
-    mask = band_mask(data.f_hz, band, name)
+def band_data(data: Any, band: Any, name: str = "band", mask: np.ndarray | None = None):
+    """``data`` (a FrequencyData) restricted to the band (itself when every point is in it).
+
+    ``mask``: the band's :func:`band_mask` when the caller has it already (``band`` is then
+    not checked again). The banded data are not validated again (``FrequencyData.points``)."""
+    if mask is None:
+        mask = band_mask(data.f_hz, band, name)
     if np.all(mask):
         return data
-    return data.replace(
-        f_hz=data.f_hz[mask],
-        response=data.response[mask],
-        coherence=None if data.coherence is None else data.coherence[mask],
-    )
+    return data.points(mask)
 
 
 # ---------------------------------------------------------------------------- point weights

@@ -485,6 +485,46 @@ class FrequencyData:
         fields.update(changes)
         return FrequencyData(**fields)
 
+    def points(self, mask: Any) -> FrequencyData:
+        """The data at the frequency points a boolean mask over ``f_hz`` selects.
+
+        A subset of valid data is valid, so nothing is checked again (unlike :meth:`replace`):
+        the data were checked once, where they entered.
+
+        Parameters
+        ----------
+        mask : ndarray of bool, shape (n_freq,)
+            True at the points to keep (at least one).
+
+        Returns
+        -------
+        FrequencyData
+            Same channels, names, units, meta and experiment description.
+
+        Raises
+        ------
+        DataError
+            ``mask`` is not a boolean array over ``f_hz`` selecting at least one point.
+        """
+        mask = np.asarray(mask)
+        if mask.dtype != bool or mask.shape != (self.n_freq,) or not np.any(mask):
+            raise DataError(
+                f"points takes a boolean mask of shape ({self.n_freq},) over f_hz with at least one "
+                f"True; got {mask.dtype} of shape {mask.shape}. Use data.band(lo_hz, hi_hz) for a band."
+            )
+        out = object.__new__(FrequencyData)
+        arrays = (("f_hz", self.f_hz), ("response", self.response), ("coherence", self.coherence))
+        for key, arr in arrays:
+            if arr is not None:
+                arr = arr[mask]
+                arr.setflags(write=False)
+            object.__setattr__(out, key, arr)
+        for key in ("inputs", "outputs", "experiment"):
+            object.__setattr__(out, key, getattr(self, key))
+        object.__setattr__(out, "units", dict(self.units))
+        object.__setattr__(out, "meta", dict(self.meta))
+        return out
+
     def band(self, lo_hz: float | None = None, hi_hz: float | None = None) -> FrequencyData:
         """The data restricted to ``lo_hz <= f <= hi_hz`` (Hz); an open end (None) is the data's end.
 

@@ -12,6 +12,8 @@ import numpy as np
 import pytest
 
 import robustctl as rc
+from robustctl import checks
+from robustctl.physical import electronics
 
 matplotlib.use("Agg")
 fx = rc.effects
@@ -358,3 +360,35 @@ def test_scalar_checks_still_take_numpy_numbers():
     assert rc.electronics.lowpass1(np.float64(10.0)).nstates == 1
     frame = _frame_with_node().add_mass("a", np.float32(2.0))
     assert frame is not None
+
+
+# ---------------------------------------------------------------------------- physical scalars
+@pytest.mark.parametrize(
+    "call, match",
+    [
+        (lambda: rc.Frame().add_node("a", ("0", 0, 0)), "coordinates of node 'a' must be 3 numbers"),
+        (lambda: rc.Frame().add_node("a", (True, 0, 0)), "coordinates of node 'a' must be 3 numbers"),
+        (lambda: rc.Frame(gravity=9.81).set_gravity("no"), "enabled must be True or False"),
+        (lambda: rc.Frame(gravity=9.81).set_gravity(1), "enabled must be True or False"),
+        (lambda: electronics.butterworth_lowpass(True, 10.0), "order must be an integer in 1..20"),
+        (lambda: electronics.pade_delay(1e-3, 2.5), "Pade order must be an integer in 1..10"),
+        (lambda: electronics.pade_delay(1e-3, "2"), "Pade order must be an integer in 1..10"),
+        (lambda: electronics.lowpass1("10"), "the low-pass cutoff must be a positive number"),
+    ],
+)
+def test_physical_scalars_are_checked_by_the_shared_rules(call, match):
+    """Strings, booleans and fractions where a number, a flag or an order is meant are refused
+    (``checks.is_real_number``, ``checks.flag``, ``checks.is_whole_number``), as ``makeweight`` does."""
+    with pytest.raises(rc.ModelError, match=match):
+        call()
+
+
+def test_a_frame_still_takes_numpy_coordinates_and_whole_float_orders():
+    fr = rc.Frame()
+    fr.add_node("a", np.array([0, 1, 2], dtype=np.int64))
+    np.testing.assert_array_equal(fr.node_xyz("a"), [0.0, 1.0, 2.0])
+    a = electronics.pade_delay(1e-3, 2.0)
+    b = electronics.pade_delay(1e-3, np.int64(2))
+    np.testing.assert_array_equal(a.A, b.A)
+    assert checks.is_whole_number(3.0) and not checks.is_whole_number(3.5)
+    assert not checks.is_whole_number(True) and not checks.is_whole_number(float("inf"))

@@ -296,6 +296,8 @@ CASES = [
     case("dksyn.patience", lambda e, v: _dk(e, patience=v), bad_count(1)),
     case("dksyn.hinf_options", lambda e, v: _dk(e, hinf_options=v), bad_options()),
     case("dksyn.callback", lambda e, v: _dk(e, callback=v), st.sampled_from(["abc", 5, [], object(), True])),
+    case("dksyn.design_order", lambda e, v: _dk(e, design_order=v),
+         st.sampled_from([0, -2, 1.5, "half", True, [10], object(), NAN])),
     # weights and covers
     case("makeweight.dc_gain", lambda e, v: rc.makeweight(v, (1.0, 1.0), 0.5), bad_positive()),
     case("makeweight.hf_gain", lambda e, v: rc.makeweight(10.0, (1.0, 1.0), v), bad_positive()),

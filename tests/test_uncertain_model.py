@@ -163,3 +163,87 @@ def test_modal_form_follows_each_modes_frequency():
     peak = np.abs(freqresp_array(um.nominal, F)).max()
     err = np.abs(end - freqresp_array(um.statespace([1.0]), F)).max() / peak
     assert err <= um.max_error * (1 + 1e-9) and um.max_error < 0.5
+
+
+def chain_poles(th):
+    """Upper-half-plane eigenvalues of the chain (numpy: the quadratic eigenproblem as a 4 x 4 one)."""
+    M = np.diag([th["m1"], th["m2"]])
+    K = np.array([[th["k1"] + th["k2"], -th["k2"]], [-th["k2"], th["k2"]]])
+    C = np.array([[th["c1"] + th["c2"], -th["c2"]], [-th["c2"], th["c2"]]])
+    A = np.block([[np.zeros((2, 2)), np.eye(2)], [-np.linalg.solve(M, K), -np.linalg.solve(M, C)]])
+    lam = np.linalg.eigvals(A)
+    return np.sort_complex(lam[lam.imag > 0])
+
+
+def test_modes_form_moves_each_mode_to_the_sampled_frequency():
+    # a 5 % stiffness: both modes move by a few half-power bandwidths at 3 sigma; the modes
+    # form gives one real scalar per mode, and the LFT member standing for a sampled model
+    # has that model's eigenvalues (to second order in the shift)
+    um = parametric_lft(chain(), ["k2"], [500.0], [[25.0**2]], n_sigma=3.0, f_hz=F, form="modes")
+    assert um.form == "modes" and um.multiplicity == (1, 1) and len(um.names) == 2
+    for k2 in (450.0, 530.0, 570.0):
+        th = {**NOMINAL, "k2": k2}
+        delta = um.delta_of(chain(k2=k2))
+        assert np.all(np.abs(delta) <= 1.0)
+        lam = np.linalg.eigvals(np.asarray(um.statespace(delta).A))
+        got = np.sort_complex(lam[lam.imag > 0])
+        want, nominal = chain_poles(th), chain_poles(NOMINAL)
+        assert np.all(np.abs(got - want) < 0.05 * np.abs(want - nominal))
+
+
+def test_remainder_cover_holds_every_sample_and_is_smaller_than_a_complex_cover():
+    rng = np.random.default_rng(7)
+    cov = np.array([[40.0**2, 0.0], [0.0, 20.0**2]])  # k1, k2 at 4 % (N/m)^2
+    um = parametric_lft(chain(), ["k1", "k2"], [1000.0, 500.0], cov, n_sigma=3.0, f_hz=F, form="modes")
+    draws = rng.multivariate_normal([1000.0, 500.0], cov, 12)
+    samples = [chain(k1=a, k2=b) for a, b in draws]
+    with_rem = rc.cover_remainder(um, samples, order=4, f_hz=F, smooth_octaves=0.0)
+    rem = with_rem.remainder
+    assert with_rem.names == um.names and rem.kind == "additive"
+    w = np.abs(freqresp_array(rem.weight, F)[:, 0, 0])
+    for (a, b), s in zip(draws, samples):
+        # the sample (numpy receptance) against its LFT member: inside |W| at every frequency
+        member = freqresp_array(um.statespace(um.delta_of(s)), F)
+        gap = np.linalg.norm(receptance({**NOMINAL, "k1": a, "k2": b}, F) - member, 2, axis=(1, 2))
+        assert np.all(gap <= w * (1 + 1e-6))
+    plain = rc.cover_additive(um.nominal, samples, order=4, f_hz=F, smooth_octaves=0.0)
+    assert rem.envelope.max() < 0.25 * plain.envelope.max()
+
+
+def test_generalized_plant_places_the_remainder_by_its_kind():
+    um = parametric_lft(chain(), ["k2"], [500.0], [[25.0**2]], n_sigma=2.0, f_hz=F, form="modes")
+    um = rc.cover_remainder(um, [chain(k2=480.0), chain(k2=530.0)], order=2, f_hz=F)
+    gp = rc.generalized_plant(um, performance=1.0, control_weight=0.1, noise=0.01)
+    kinds = [(b.kind, b.name) for b in gp.blocks.blocks]
+    assert kinds[:2] == [("real", um.names[0]), ("real", um.names[1])] and kinds[2] == ("full", "additive")
+    assert any(w.system is not None and w.role == "additive uncertainty" for w in gp.weights)
+    with pytest.raises(ModelError, match="remainder"):
+        rc.generalized_plant(um, additive=0.1, performance=1.0, control_weight=0.1, noise=0.01)
+    with pytest.raises(FitError, match="UncertainModel"):
+        rc.cover_remainder(um.nominal, [chain()], f_hz=F)
+
+
+def test_without_holds_the_dropped_block_at_zero():
+    um = parametric_lft(chain(), ["k2"], [500.0], [[25.0**2]], n_sigma=3.0, f_hz=F, form="modes")
+    one = um.without([um.names[0]])
+    assert one.names == um.names[1:] and one.n_delta == um.n_delta - 1
+    np.testing.assert_allclose(freqresp_array(one.statespace([0.6]), F),
+                               freqresp_array(um.statespace([0.0, 0.6]), F), rtol=1e-10, atol=1e-15)
+    with pytest.raises(ModelError, match="no real block"):
+        um.without(["stiffness"])
+
+
+def test_fold_keeps_the_cover_and_drops_only_small_blocks():
+    rng = np.random.default_rng(11)
+    cov = np.array([[40.0**2, 0.0], [0.0, 20.0**2]])
+    um = parametric_lft(chain(), ["k1", "k2"], [1000.0, 500.0], cov, n_sigma=3.0, f_hz=F, form="modes")
+    samples = [chain(k1=a, k2=b) for a, b in rng.multivariate_normal([1000.0, 500.0], cov, 8)]
+    kept = rc.cover_remainder(um, samples, order=4, f_hz=F, smooth_octaves=0.0, fold=1e-6)
+    assert kept.names == um.names  # every mode moves by far more than the remainder
+    # folding everything leaves the plain complex cover of the samples about the nominal
+    none = rc.cover_remainder(um, samples, order=4, f_hz=F, smooth_octaves=0.0, fold=1e6)
+    plain = rc.cover_additive(um.nominal, samples, order=4, f_hz=F, smooth_octaves=0.0)
+    assert none.names == () and none.n_delta == 0
+    np.testing.assert_allclose(none.remainder.envelope, plain.envelope, rtol=1e-9)
+    gp = rc.generalized_plant(none, performance=1.0, control_weight=0.1, noise=0.01)
+    assert [b.kind for b in gp.blocks.blocks] == ["full", "full"]

@@ -35,10 +35,10 @@ from ..checks import UNSET, integer, match_channels, positive_number, renamed_ke
 from ..cost import LogCost, cost_report
 from ..frd import FrequencyData
 from ..lti import DB_PER_NEPER, as_statespace, pole_frequency_damping
-from ..measure.noise import NoiseModel, noise_model
+from ..measure.noise import NoiseModel
 from ..modes import Mode, mac, pair_modes
 from ..table import Table, result_html
-from .residual import NEGLIGIBLE_DB, Residual, as_model, log_ratio
+from .residual import NEGLIGIBLE_DB, Residual, as_model, check_data, log_ratio
 from .verdict import ALPHA, NoiseTest, no_noise_sentence, noise_test
 
 __all__ = [
@@ -757,12 +757,8 @@ def compare(
     model = as_model(model)
     alpha = positive_number(alpha, "alpha")
     n_sections = integer(n_sections, "n_sections", lo=1)
-    if isinstance(noise, str) and noise == "auto":
-        from ..frd import as_frequency_data
-
-        noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
-    res = Residual(model, data, band=band, point_weights=point_weights, min_channel_db=min_channel_db,
-                   estimator=estimator, noise=noise)
+    checked = check_data(data, band, noise, measurement_model)
+    res = Residual.of_checked(model, checked, point_weights, min_channel_db, estimator)
     g_model = res.model_response()
     d = res.data
     error = log_ratio(d.response, g_model)

@@ -13,6 +13,12 @@ count alike, and so does phase.
 :class:`~robustctl.physical.model.PhysicalModel` against
 :class:`~robustctl.frd.FrequencyData` on a band, and :func:`sensitivities` its
 finite-difference derivatives with respect to named parameters (eqs. 7-8).
+
+The data are coerced and checked once, where they enter: :func:`check_data` makes them a
+FrequencyData (with its experiment description), checks the response and the band and builds
+the noise model on the band; the resulting :class:`CheckedData` travels inward
+(``Residual.of_checked``) and nothing behind ``rc.compare``, ``rc.diagnose`` and
+``rc.update`` checks the data again.
 """
 
 from __future__ import annotations
@@ -23,17 +29,33 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import UNSET, band_data, band_mask, check_band, finite_number, match_channels, renamed_keyword
+from ..checks import (
+    UNSET,
+    band_data,
+    check_band,
+    checked_band_mask,
+    finite_number,
+    match_channels,
+    renamed_keyword,
+)
 from ..checks import point_weights as point_weights_of
 from ..errors import DataError, FitError, ModelError, RobustctlError
 from ..executors import parallel_map_shared
 from ..frd import FrequencyData, as_frequency_data
 from ..lti import as_statespace, freqresp, log_ratio
 from ..measure.estimator import model_view, resolve_estimator, resolve_view, split_hold
-from ..measure.noise import NoiseModel, noise_model, point_weight_bias
+from ..measure.noise import (
+    NoiseModel,
+    checked_averages,
+    checked_noise_model,
+    own_coherence_weights,
+    point_weight_bias,
+)
 
 __all__ = [
     "Residual",
+    "CheckedData",
+    "check_data",
     "Sensitivities",
     "sensitivities",
     "log_ratio",
@@ -138,6 +160,99 @@ def check_complex_response(data: FrequencyData, name: str = "data") -> None:
     )
 
 
+class CheckedData:
+    """Data checked once, at a public entry point, and passed inward as this object.
+
+    Made by :func:`check_data`; :class:`Residual` (``Residual.of_checked``) and everything
+    behind ``rc.compare``, ``rc.diagnose`` and ``rc.update`` take it as it is, without
+    coercing or checking the data again.
+
+    Parameters
+    ----------
+    full : FrequencyData
+        Every data point (with its experiment description, ``full.experiment``), Hz.
+    band : (float, float) or None
+        The checked band, Hz (None: every point).
+    mask : ndarray of bool (n_freq,)
+        The band's points in ``full``.
+    noise : "auto", NoiseModel or None
+        As for :func:`check_data`.
+    measurement_model : system, optional
+        As for :func:`check_data`.
+
+    Attributes
+    ----------
+    data : FrequencyData
+        The data on the band.
+    noise : NoiseModel or None
+        The noise model on the band.
+    averages : ndarray (n_in,) or None
+        Effective number of averages per input column (computed when first asked for).
+    """
+
+    def __init__(self, full: FrequencyData, band: tuple[float, float] | None, mask: np.ndarray,
+                 noise: Any = "auto", measurement_model: Any = None) -> None:
+        self.full, self.band, self.mask = full, band, mask
+        self.data = band_data(full, band, mask=mask)
+        self._averages: Any = UNSET
+        self.noise: NoiseModel | None = _band_noise(noise, self, measurement_model)
+
+    @property
+    def averages(self) -> np.ndarray | None:
+        if self._averages is UNSET:
+            self._averages = None if self.full.coherence is None else checked_averages(self.full)
+        return self._averages
+
+
+def check_data(
+    data: Any, band: Any = None, noise: Any = "auto", measurement_model: Any = None
+) -> CheckedData:
+    """Coerce and check the data of a public entry point once: FrequencyData, complex response,
+    band, and the noise model on the band.
+
+    Parameters
+    ----------
+    data : FrequencyData, (f_hz, response) pair or control.FrequencyResponseData
+        Measured responses, Hz (:func:`robustctl.frd.as_frequency_data`).
+    band : (f_lo_hz, f_hi_hz), optional
+        :func:`robustctl.checks.check_band`; a band far beyond the data warns (rad/s?).
+    noise : "auto", NoiseModel or None
+        ``"auto"``: :func:`robustctl.measure.noise.noise_model` of the data (with
+        ``measurement_model`` for data without coherence); a NoiseModel made on the data's
+        grid or on the band's; None: no noise model.
+    measurement_model : system, optional
+        Gives the noise from its residual when the data carry no coherence.
+
+    Returns
+    -------
+    CheckedData
+
+    Raises
+    ------
+    DataError
+        Data that cannot be a complex frequency response, a bad band, a bad ``noise``.
+    """
+    full = as_frequency_data(data)
+    check_complex_response(full)
+    band = check_band(band)
+    _warn_band_units(band, full)
+    return CheckedData(full, band, checked_band_mask(full.f_hz, band), noise, measurement_model)
+
+
+def _band_noise(spec: Any, checked: CheckedData, measurement_model: Any) -> NoiseModel | None:
+    """The noise model on the band: ``spec`` (a NoiseModel on the data's grid or the band's),
+    or ``"auto"``, from the data (:func:`robustctl.measure.noise.checked_noise_model`)."""
+    mask = checked.mask
+    if isinstance(spec, str) and spec == "auto":
+        nm = checked_noise_model(checked.full, checked.averages, measurement_model)
+        return None if nm is None else nm.band(mask)
+    if isinstance(spec, NoiseModel):
+        return spec.on(checked.full.f_hz[mask]) if spec.f_hz.size != int(mask.sum()) else spec
+    if spec is None:
+        return None
+    raise DataError(f"noise must be 'auto', a NoiseModel or None; got {type(spec).__name__}.")
+
+
 class Residual:
     """Weighted complex-log residual of a model against data on a band (MACE eqs. 5-6).
 
@@ -215,40 +330,50 @@ class Residual:
         noise: Any = "auto",
     ) -> None:
         point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
-        data = as_frequency_data(data)
-        check_complex_response(data)
-        model = as_model(model)
+        self._setup(as_model(model), check_data(data, band, noise), point_weights, min_channel_db, estimator)
+
+    @classmethod
+    def of_checked(
+        cls,
+        model: Any,
+        checked: CheckedData,
+        point_weights: Any = "auto",
+        min_channel_db: float | None = NEGLIGIBLE_DB,
+        estimator: Any = "auto",
+    ) -> Residual:
+        """The residual of data checked once at a public entry point (:func:`check_data`): the
+        data, band and noise model are taken as they are; the arguments as for the class."""
+        res = cls.__new__(cls)
+        res._setup(as_model(model), checked, point_weights, min_channel_db, estimator)
+        return res
+
+    def _setup(
+        self, model: Any, checked: CheckedData, point_weights: Any, min_channel_db: float | None,
+        estimator: Any,
+    ) -> None:
+        data, mask = checked.full, checked.mask
         self.model = model
-        self.band = check_band(band)
-        _warn_band_units(self.band, data)
-        mask = band_mask(data.f_hz, self.band)
-        self.data = band_data(data, self.band)
+        self.band = checked.band
+        self.data = checked.data
         self.estimator, self._view_note = resolve_view(estimator, data, model)
-        self.noise = self._noise(noise, data, mask)
+        self.noise = checked.noise
         sys0 = model.statespace()
         check_sampled_model(sys0, data)
         self._out_idx = match_channels(sys0.output_labels, self.data.outputs, "outputs")
         self._in_idx = match_channels(sys0.input_labels, self.data.inputs, "inputs")
         self.weights = self._point_weights(point_weights, data, mask)
-        nd = self.noise.averages if self.noise is not None and self.noise.kind == "coherence" else None
-        self.bias = point_weight_bias(point_weights, data, mask, n_averages=nd)
+        self.bias = None
+        if own_coherence_weights(point_weights, data):
+            coherent = self.noise is not None and self.noise.kind == "coherence"
+            nd = self.noise.averages if coherent else checked.averages
+            if nd is not None:
+                self.bias = point_weight_bias(point_weights, data, mask, n_averages=nd)
         self.dropped = self._negligible(min_channel_db)
         for o, i, _level in self.dropped:
             self.weights[:, self.data.outputs.index(o), self.data.inputs.index(i)] = 0.0
         if not np.any(self.weights > 0):
             raise DataError("every channel has zero weight; nothing is left to compare.")
         self.n = 2 * self.data.response.size
-
-    @staticmethod
-    def _noise(spec: Any, data: FrequencyData, mask: np.ndarray) -> NoiseModel | None:
-        if isinstance(spec, NoiseModel):
-            return spec.on(data.f_hz[mask]) if spec.f_hz.size != int(mask.sum()) else spec
-        if spec is None:
-            return None
-        if isinstance(spec, str) and spec == "auto":
-            nm = noise_model(data)
-            return None if nm is None else nm.band(mask)
-        raise DataError(f"noise must be 'auto', a NoiseModel or None; got {type(spec).__name__}.")
 
     def _without_hold(self) -> tuple[Any, bool]:
         """The model without its zero-order-hold stage (cached per model) and whether it had one.

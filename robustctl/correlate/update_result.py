@@ -205,7 +205,8 @@ class UpdateResult:
             )
         return out
 
-    def uncertain(self, n_sigma: float = 2.0, params: Any = None, *, f_hz: Any = None):
+    def uncertain(self, n_sigma: float = 2.0, params: Any = None, *, f_hz: Any = None, form: str = "auto",
+                  order: int | None = None):
         """The updated model with its parameters as real uncertain scalars (an LFT).
 
         The selected parameters (or ``params``, a subset; the others stay at their updated
@@ -225,6 +226,14 @@ class UpdateResult:
             The parameters to make uncertain (default: all updated ones).
         f_hz : array_like, optional
             Frequencies (Hz) of the LFT's error check.
+        form : {"auto", "modes"}
+            ``"modes"``: one real scalar per retained mode's frequency (and damping) movement
+            instead of per parameter axis (large or reduced models; see
+            :func:`~robustctl.physical.uncertain.parametric_lft`); cover what it misses with
+            :func:`robustctl.robust.cover.cover_remainder`.
+        order : int, optional
+            Reduce the model to this many states (balanced truncation) first, e.g. 12 for the
+            Caltech truss's six design modes.
 
         Returns
         -------
@@ -249,7 +258,8 @@ class UpdateResult:
         cov = np.asarray(self.fit.covariance, dtype=float)[np.ix_(idx, idx)]
         center = np.asarray(self.fit.x_array, dtype=float)[idx]
         try:
-            return parametric_lft(self.model, chosen, center, cov, n_sigma=float(n_sigma), f_hz=f_hz)
+            return parametric_lft(self.model, chosen, center, cov, n_sigma=float(n_sigma), f_hz=f_hz,
+                                  form=form, order=order)
         except ModelError as exc:
             raise FitError(f"cannot build the uncertain model: {exc}") from exc
 

@@ -31,7 +31,7 @@ from ..checks import UNSET, flag, integer, positive_number, probability, renamed
 from ..errors import FitError, RobustctlError
 from ..executors import check_executor
 from ..frd import FrequencyData
-from ..measure.noise import NO_NOISE_SENTENCE, noise_model
+from ..measure.noise import NO_NOISE_SENTENCE
 from ..physical.reduction import for_data
 from .optimize import LMResult, levenberg_marquardt
 from .parameter_drift import Drift, _drift, _noise_covariance, _std_errors
@@ -44,6 +44,7 @@ from .residual import (
     Sensitivities,
     _check_names,
     alignment,
+    check_data,
     check_determined,
     normalized,
     orthogonality,
@@ -406,13 +407,9 @@ def update(
     progress = sys.stderr.isatty() if progress is None else flag(progress, "progress", FitError)
     point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     model = physical_model(model, "update")
-    if isinstance(noise, str) and noise == "auto":
-        from ..frd import as_frequency_data
-
-        noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
-    residual = Residual(for_data(model, data, band), data, band=band, point_weights=point_weights,
-                        min_channel_db=min_channel_db,
-                        estimator=estimator, noise=noise)
+    checked = check_data(data, band, noise, measurement_model)
+    residual = Residual.of_checked(for_data(model, checked.full, checked.band), checked, point_weights,
+                                   min_channel_db, estimator)
     if params is None:
         params = [p.name for p in model.free_params]
         if not params:

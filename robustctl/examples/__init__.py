@@ -26,9 +26,12 @@ from .robust_design import (
     DISTILLATION_BLOCKS,
     TWO_MASS_BLOCKS,
     ModelCoverRecipe,
+    ParametricComparison,
     caltech_design_plant,
+    caltech_parametric_plants,
     distillation_plant,
     himat_plant,
+    performance_scale,
     six_modes,
     two_mass_spring_plant,
 )
@@ -40,3 +43,4 @@ __all__ += ["caltech_additive_weight", "caltech_truss_weights", "CaltechWeights"
 __all__ += ["distillation_plant", "DISTILLATION_BLOCKS", "caltech_design_plant", "six_modes"]
 __all__ += ["ModelCoverRecipe"]
 __all__ += ["two_mass_spring_plant", "TWO_MASS_BLOCKS", "himat_plant"]
+__all__ += ["caltech_parametric_plants", "ParametricComparison", "performance_scale"]

@@ -101,7 +101,5 @@ def prepare_problem(data: Any, order: Any, band: Any = None, weights: Any = "aut
     # tiny entries would blow up the relative weighting 1/|g|: floor them per channel
     floor = 1e-12 * np.max(np.abs(g), axis=0, keepdims=True)
     g = np.where(np.abs(g) < floor, floor, g)
-    band_data = fd.replace(
-        f_hz=f, response=fd.response[mask], coherence=None if fd.coherence is None else fd.coherence[mask]
-    )
+    band_data = fd.points(mask)  # checked by as_frequency_data above: not validated again
     return FitProblem(f, 2j * np.pi * f, g, w, n, fd.inputs, fd.outputs, band_data)

@@ -119,25 +119,26 @@ def _gram_normal(
     """Gram path: ``sum_c S_c`` with ``S_c`` the Schur complement of the sigma unknowns ``[d, c]`` in
     ``Re(M_c^H M_c)``. Every channel block is ``Re(B^H diag(v) B)`` for a per-channel weight vector
     ``v`` (``rw^2``, ``rw^2 g``, ``rw^2 |g|^2``), formed from first moments of the partial
-    fractions (:func:`.poles.basis_gram`, O(K n) per channel). Returns None when a Cholesky
-    factorisation fails (ill-conditioned basis); the caller then takes the QR path."""
+    fractions (:func:`.poles.basis_gram`, O(K n) per channel). The channel eliminations
+    ``Y_c = L_c^{-1} G12_c`` are stacked so that ``sum_c Y_c^T Y_c`` is one matrix product, and the
+    sigma unknowns stay in ``B``'s order ``[c, d]`` until the summed matrix is permuted (the sign
+    of ``G12`` cancels in ``Y^T Y``). Returns None when a Cholesky factorisation fails
+    (ill-conditioned basis); the caller then takes the QR path."""
     n = int(np.sum(np.where(poles.imag != 0, 2, 1)))
     w2 = rw**2
     n_ch = g.shape[1]
     blocks = basis_gram(s, poles, np.hstack([w2, w2 * g, w2 * np.abs(g) ** 2]))
     g11, g12, g22 = blocks.reshape(3, n_ch, n + 1, n + 1)
-    g12 = -g12  # Re(B^H diag(rw^2 g) B) with the minus of -rw g B
-    # reorder sigma unknowns from B's [c, d] to [d, c]
-    perm = np.r_[n, :n]
-    g12, g22 = g12[:, :, perm], g22[:, perm][:, :, perm]
     scale = 1.0 / np.sqrt(np.einsum("cii->ci", g11))
     try:
         chol = np.linalg.cholesky(g11 * scale[:, :, None] * scale[:, None, :])
     except np.linalg.LinAlgError:
         return None
-    y = np.linalg.solve(chol, g12 * scale[:, :, None])
-    schur = g22 - np.matmul(np.swapaxes(y, 1, 2), y)
-    return schur.sum(axis=0), float(np.sum(schur[:, 0, 0]))
+    y = np.linalg.solve(chol, g12 * scale[:, :, None]).reshape(n_ch * (n + 1), n + 1)
+    total = g22.sum(axis=0) - y.T @ y
+    cost = float(np.sum(g22[:, n, n]) - np.sum(y[:, n] ** 2))
+    perm = np.r_[n, :n]  # sigma unknowns [c, d] -> [d, c]
+    return total[perm][:, perm], cost
 
 
 def _constraint(phi: np.ndarray, scale: float) -> np.ndarray:

@@ -43,14 +43,14 @@ import numpy as np
 
 from ..checks import COHERENCE_CAP, neighbour_coherence
 from ..errors import DataError
-from ..frd import as_frequency_data
+from ..frd import FrequencyData, as_frequency_data
 from .estimator import USER_WINDOW, bin_correlation, effective_averages, estimator_settings, welch_window
 
 __all__ = [
     "coherence_weight_bias",
     "point_weight_bias",
-    "NoiseModel", "noise_model", "residual_noise", "averages_of", "neighbour_coherence", "NO_NOISE_SENTENCE",
-    "chi2_verdict",
+    "NoiseModel", "noise_model", "residual_noise", "averages_of", "checked_noise_model", "checked_averages",
+    "own_coherence_weights", "neighbour_coherence", "NO_NOISE_SENTENCE", "chi2_verdict",
     "format_p",
 ]
 
@@ -213,7 +213,22 @@ def averages_of(data: Any) -> np.ndarray | None:
     ``meta["experiments"][k]`` for data joined by :func:`robustctl.combine_experiments`;
     ``q`` simultaneous inputs (partial coherence per channel) leave ``n_d - q + 1``.
     """
-    data = as_frequency_data(data)
+    return checked_averages(as_frequency_data(data))
+
+
+def checked_averages(data: FrequencyData) -> np.ndarray | None:
+    """:func:`averages_of` of data that are a FrequencyData already (not coerced again).
+
+    Parameters
+    ----------
+    data : FrequencyData
+        The estimate, as coerced at a public entry point.
+
+    Returns
+    -------
+    ndarray (n_in,) or None
+        Effective number of averages per input column; None when unknown.
+    """
     metas = _experiment_metas(dict(data.meta), data.n_in)
     if metas is None:
         metas = _described_metas(data)
@@ -366,10 +381,35 @@ def noise_model(data: Any, *, measurement_model: Any = None, n_averages: Any = N
         the measurement model's residual; else None.
     """
     data = as_frequency_data(data)
+    nd = None
     if data.coherence is not None:
-        nd = averages_of(data) if n_averages is None else _check_averages(n_averages, data.n_in)
-        if nd is not None:
-            return _from_coherence(data, nd)
+        nd = checked_averages(data) if n_averages is None else _check_averages(n_averages, data.n_in)
+    return checked_noise_model(data, nd, measurement_model)
+
+
+def checked_noise_model(
+    data: FrequencyData, averages: np.ndarray | None, measurement_model: Any = None
+) -> NoiseModel | None:
+    """:func:`noise_model` of data that are a FrequencyData already, with their averages known.
+
+    Parameters
+    ----------
+    data : FrequencyData
+        The estimate (Hz), as coerced at a public entry point (not coerced again).
+    averages : ndarray (n_in,) or None
+        Effective number of averages per input column (:func:`checked_averages`, or the
+        user's ``n_averages`` checked); None when unknown.
+    measurement_model : system, optional
+        As for :func:`noise_model`.
+
+    Returns
+    -------
+    NoiseModel or None
+        From coherence when the data carry coherence and ``averages`` are known; else from
+        the measurement model's residual; else None.
+    """
+    if data.coherence is not None and averages is not None:
+        return _from_coherence(data, averages)
     if measurement_model is not None:
         return _from_residual(data, measurement_model)
     return None
@@ -467,6 +507,23 @@ def coherence_weight_bias(coherence: np.ndarray, n_averages: Any) -> np.ndarray:
     return (1.0 - g2) / (np.maximum(nd - 2.0, 1.0) * g2)
 
 
+def own_coherence_weights(spec: Any, data: FrequencyData) -> bool:
+    """Whether point weights ``spec`` are the data's own coherence weights (``"auto"`` on data
+    with coherence, or ``"coherence"``): the weights :func:`point_weight_bias` corrects for.
+
+    Parameters
+    ----------
+    spec : None, "auto", "coherence" or array_like
+        Point weights as in :func:`robustctl.checks.point_weights`.
+    data : FrequencyData
+
+    Returns
+    -------
+    bool
+    """
+    return isinstance(spec, str) and spec in ("auto", "coherence") and data.coherence is not None
+
+
 def point_weight_bias(
     spec: Any, data: Any, mask: np.ndarray | None = None, n_averages: Any = None
 ) -> np.ndarray | None:
@@ -479,10 +536,10 @@ def point_weight_bias(
     else the data's ``meta``: :func:`averages_of`). Uniform weights and arrays
     of weights (whatever they were made from) are taken as they are: None.
     """
-    if not isinstance(spec, str) or spec not in ("auto", "coherence") or data.coherence is None:
+    if not own_coherence_weights(spec, data):
         return None
     if n_averages is None:
-        n_averages = averages_of(data)
+        n_averages = checked_averages(data)
         if n_averages is None:
             return None
     mask = np.ones(data.n_freq, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)

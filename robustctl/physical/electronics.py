@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 import scipy.signal as signal
 
-from ..checks import is_real_number
+from ..checks import is_real_number, is_whole_number
 from ..errors import ModelError
 from ..lti import _series_arrays
 from ..signals import _abcd, _index, _names, _ss, rename_signals, scale_inputs, scale_outputs
@@ -120,7 +120,7 @@ def _positive(value: float, what: str, unit: str, allow_inf: bool = False) -> fl
 
 
 def _order(order: int, limit: int, what: str) -> int:
-    if int(order) != order or not 1 <= int(order) <= limit:
+    if not is_whole_number(order) or not 1 <= int(order) <= limit:
         raise ModelError(f"{what} order must be an integer in 1..{limit}; got {order!r}.")
     return int(order)
 

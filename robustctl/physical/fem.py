@@ -37,7 +37,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from ..checks import is_real_number
+from ..checks import flag, is_real_number
 from ..errors import ModelError
 from ..threads import limit_blas
 from . import elements as el
@@ -158,9 +158,12 @@ def _tags(tags) -> tuple[str, ...]:
 
 def _vector3(name: str, value) -> np.ndarray:
     try:
-        v = np.asarray(value, dtype=float).reshape(-1)
+        items = list(np.asarray(value, dtype=object).reshape(-1))
     except (TypeError, ValueError):
-        raise ModelError(f"{name} must be 3 numbers; got {value!r}.") from None
+        items = [None]
+    if not all(is_real_number(x) for x in items):  # no strings, no booleans
+        raise ModelError(f"{name} must be 3 numbers; got {value!r}.")
+    v = np.array(items, dtype=float)
     if v.size != 3 or not np.all(np.isfinite(v)):
         raise ModelError(f"{name} must be 3 finite numbers (x, y, z); got {value!r}.")
     return v
@@ -740,7 +743,7 @@ class Frame(Structure):
 
     def set_gravity(self, enabled: bool) -> Frame:
         """Switch the gravity preload on or off (on needs a non-zero ``gravity``)."""
-        self._gravity_on = bool(enabled) and self._g > 0
+        self._gravity_on = flag(enabled, "enabled", ModelError) and self._g > 0
         self._cache = None
         return self
 

@@ -151,8 +151,6 @@ def _reduce(mats: Any, f_cut_hz: float) -> _Basis:
     M, K = _csc(mats.mass), _csc(mats.stiffness)
     check_structural_matrices(M, K)
     n = M.shape[0]
-    b = np.asarray(mats.input_matrix, dtype=float)
-    c = np.asarray(mats.output_matrix, dtype=float)
     k_scale = float(abs(K).max() / max(abs(M).max(), 1e-300))
     sigma = -1e-6 * k_scale - 1.0  # K - sigma M positive definite, rigid-body modes included
     try:
@@ -180,6 +178,15 @@ def _reduce(mats: Any, f_cut_hz: float) -> _Basis:
     keep[: max(1, int(np.count_nonzero(keep)))] = True
     lam, phi = lam[keep], phi[:, keep]
     phi = phi / np.sqrt(np.einsum("ij,ij->j", phi, M @ phi))  # mass-normalised
+    return _attach(mats, M, K, lu, sigma, lam, phi)
+
+
+def _attach(mats: Any, M: Any, K: Any, lu: Any, sigma: float, lam: np.ndarray, phi: np.ndarray) -> _Basis:
+    """The Ritz basis from the exact modes ``(lam, phi)`` (mass-normalised) and the factor ``lu``
+    of ``K - sigma M``: the attachment (Krylov) blocks of the inputs, the Ritz problem, the
+    residual flexibilities (module docstring)."""
+    b = np.asarray(mats.input_matrix, dtype=float)
+    c = np.asarray(mats.output_matrix, dtype=float)
     A1 = lu.solve(b)
     A2 = lu.solve(np.asarray(M @ A1))
     X = _m_orthonormal(np.hstack([A1, A2]), M, phi)
@@ -198,6 +205,86 @@ def _reduce(mats: Any, f_cut_hz: float) -> _Basis:
     return _Basis(M, K, Cs, b, c, lu, sigma, V, lam_all, int(lam.size), float(lam[-1]),
                   np.maximum(static_b, floor_b), np.maximum(static_c, floor_c), V.T @ b, c @ V,
                   None if Cs is None else V.T @ np.asarray(Cs @ V))
+
+
+#: A structure whose matrices differ from a reduced one's everywhere (an update parameter: a
+#: stiffness scale, a material constant) reuses that reduction's exact modes as a Ritz basis
+#: when the Ritz pairs below the cut are eigenpairs to this relative residual ``|K x - lam M x| /
+#: (|K x| + lam |M x|)`` and Sylvester's count confirms that no mode is missing below the cut:
+#: the basis is then that of a fresh reduction, without the Lanczos run (a uniform stiffness
+#: scale passes; a softened structure whose modes come down into the cut does not).
+REUSE_TOL = 1e-7
+
+
+def _scaled_part(base: _Basis, mats: Any) -> Any | None:
+    """``mats`` less a change at no more than :data:`LOW_RANK_MAX_DOFS` DOFs, when what is left is
+    the base's mass and stiffness times factors ``alpha_M``, ``alpha_K`` (the median entry ratios;
+    entries within 1e-9 of the largest count as equal), else None: a stiffness scale and an added
+    mass, an update parameter and a candidate in one fit. Its reduction is the base's, scaled
+    (:func:`_reuse`), and ``mats`` a low-rank change of it."""
+    from dataclasses import replace
+
+    M, K = _csc(mats.mass), _csc(mats.stiffness)
+    if M.shape != base.mass.shape:
+        return None
+    parts, rows = [], set()
+    for new, old in ((M, base.mass), (K, base.stiffness)):
+        both = new.multiply(old).tocoo()
+        ref = old.multiply(old).tocoo()
+        if both.nnz == 0 or ref.nnz != both.nnz:
+            return None
+        alpha = float(np.median(both.data / ref.data))
+        if not alpha > 0:
+            return None
+        d = sp.coo_matrix(new - alpha * old)
+        big = np.abs(d.data) > 1e-9 * max(float(abs(new).max()), 1e-300)
+        rows.update(d.row[big].tolist())
+        rows.update(d.col[big].tolist())
+        if len(rows) > LOW_RANK_MAX_DOFS:
+            return None
+        change = sp.csc_matrix((d.data[big], (d.row[big], d.col[big])), shape=new.shape)
+        parts.append(new - change)
+    if not rows:
+        return None  # a pure scale: _reuse handles it
+    return replace(mats, mass=parts[0], stiffness=parts[1], damping=base.damping)
+
+
+def _reuse(base: _Basis, mats: Any, lam_cut: float) -> _Basis | None:
+    """The reduction of ``mats`` from ``base``'s exact modes (:data:`REUSE_TOL`) up to the cut
+    ``lam_cut`` ((rad/s)^2), the same modes a fresh reduction keeps, or None."""
+    M, K = _csc(mats.mass), _csc(mats.stiffness)
+    if M.shape != base.mass.shape:
+        return None
+    phi0, lam0 = base.V[:, : base.n_exact], base.lam[: base.n_exact]
+    if (M - base.mass).count_nonzero() == 0 and (K - base.stiffness).count_nonzero() == 0:  # new I/O only
+        return _attach(mats, M, K, base.lu, base.sigma, lam0, phi0)
+    from .eigen import check_structural_matrices
+
+    check_structural_matrices(M, K)
+    KP, MP = np.asarray(K @ phi0), np.asarray(M @ phi0)
+    Kr, Mr = phi0.T @ KP, phi0.T @ MP
+    try:
+        lam, psi = sla.eigh(0.5 * (Kr + Kr.T), 0.5 * (Mr + Mr.T))
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    Kx, Mx = KP @ psi, MP @ psi
+    scale = np.linalg.norm(Kx, axis=0) + np.abs(lam) * np.linalg.norm(Mx, axis=0)
+    rel = np.linalg.norm(Kx - Mx * lam, axis=0) / np.maximum(scale, 1e-300)
+    keep = lam <= lam_cut
+    if not np.all(rel[keep] <= REUSE_TOL) or not np.any(keep):
+        return None
+    if _count_below(K, M, lam_cut) != int(np.count_nonzero(keep)):  # a mode came into the cut
+        return None
+    lam, psi = lam[keep], psi[:, keep]
+    k_scale = float(abs(K).max() / max(abs(M).max(), 1e-300))
+    sigma = -1e-6 * k_scale - 1.0
+    try:
+        lu = spla.splu((K - sigma * M).tocsc())
+    except RuntimeError:
+        return None
+    phi = phi0 @ psi
+    phi = phi / np.sqrt(np.einsum("ij,ij->j", phi, M @ phi))
+    return _attach(mats, M, K, lu, sigma, lam, phi)
 
 
 def _changed_dofs(base: _Basis, mats: Any) -> tuple[np.ndarray, list] | None:
@@ -330,13 +417,29 @@ class _Reducer:
                     if key in self._bases:
                         self._bases.move_to_end(key)
                 return base, change
-        base = _reduce(mats, self.f_cut_hz)
+        lam_cut = (2 * np.pi * self.f_cut_hz) ** 2
+        base = None
+        for _key, old in entries[:1]:
+            base = _reuse(old, mats, lam_cut)
+            if base is None:  # a scaled structure with a point change: the scaled one's reduction
+                scaled = _scaled_part(old, mats)
+                base = None if scaled is None else _reuse(old, scaled, lam_cut)
+                change = None if base is None else _changed_dofs(base, mats)
+                if change is not None:
+                    self._keep(base)
+                    return base, change
+                base = None
+        if base is None:
+            base = _reduce(mats, self.f_cut_hz)
+        self._keep(base)
+        return base, (np.zeros(0, dtype=int), [np.zeros((0, 0))] * 3)
+
+    def _keep(self, base: _Basis) -> None:
         with self._lock:
             self._count += 1
             self._bases[self._count] = base
             while len(self._bases) > _KEEP:
                 self._bases.popitem(last=False)
-        return base, (np.zeros(0, dtype=int), [np.zeros((0, 0))] * 3)
 
     def modal_data(self, mats: Any):
         base, change = self.basis_and_dofs(mats)
@@ -467,3 +570,158 @@ def for_data(model: Any, data: Any, band: Any = None) -> Any:
     if not np.isfinite(top) or top <= 0:
         return model
     return band_limited(model, top)
+
+
+# ============================================================================ point modifications
+#: Effects that add a constant mass, grounded spring or dashpot at a point: their change of the
+#: matrices is linear in their one parameter and touches a few DOFs (rank one to six).
+POINT_KINDS = ("added_mass", "suspension_spring", "dashpot")
+
+
+@dataclass
+class PointChange:
+    """The change one point effect makes per unit of its parameter: ``dofs`` (the DOFs ``J``)
+    and the dense ``|J| x |J|`` blocks of mass (kg), stiffness (N/m) and damping (N s/m) there."""
+
+    dofs: np.ndarray
+    mass: np.ndarray
+    stiffness: np.ndarray
+    damping: np.ndarray
+
+
+class PointModal:
+    """The reduced modal model of one parameter point, and point changes of it in closed form.
+
+    With the damped Ritz-modal model ``Z(w) eta = V^T b u``, ``Z(w) = diag(w_k^2) - w^2 I + j w D``
+    (``D = diag(2 zeta_k w_k)`` and the rigid-body rate; :func:`_ritz_modal`, MACE eqs. 2-4), the
+    structural response is ``H(w) = k(w) c V Z^{-1} V^T b`` (``k`` = 1, ``j w``, ``-w^2`` for
+    displacement, velocity, acceleration outputs). A point effect of size ``v`` adds
+    ``v U^T B(w) U`` to ``Z`` with ``U = V[J, :]`` and ``B(w) = dK - w^2 dM + j w dC``; by the
+    Sherman-Morrison-Woodbury identity (structural dynamic modification, Avitabile 2003)
+
+    .. math::
+
+        H_v(w) = H(w) - \\tilde A(w) \\left(I + v B(w) S(w)\\right)^{-1} v B(w) \\tilde B(w),
+
+    with ``A~ = k c V Z^{-1} U^T`` (n_out x |J|), ``B~ = U Z^{-1} V^T b`` (|J| x n_in) and
+    ``S = U Z^{-1} U^T`` (|J| x |J|): ``O(n_freq r |J| (n_out + n_in))`` per effect and a
+    ``|J| x |J|`` solve per frequency and size, instead of a new reduction and eigen-solve.
+
+    Two approximations against the exact reduced evaluation (which augments the basis by the
+    changed DOFs' attachment vectors and damps the changed modes by the model's ratios): the
+    changed DOFs' residual flexibility above the cut is left out, and the modal damping stays
+    that of the unchanged modes. Both are small in the band for a change that moves the modes
+    by bandwidths; ``rc.diagnose`` scores with this form and re-solves its leaders exactly.
+    Built by :func:`point_modal`; only a diagonal ``D`` (no concentrated damping in the model)
+    is handled.
+    """
+
+    def __init__(self, f_hz: np.ndarray, V: np.ndarray, omega: np.ndarray, damp: np.ndarray,
+                 cphi: np.ndarray, phib: np.ndarray, kinds: tuple, outputs: tuple, inputs: tuple) -> None:
+        self.f_hz = np.asarray(f_hz, dtype=float)
+        w = 2 * np.pi * self.f_hz
+        self.w = w
+        self.V = V  # (n_dof, r), modes in the order of omega
+        self.zinv = 1.0 / (omega[None, :] ** 2 - w[:, None] ** 2 + 1j * w[:, None] * damp[None, :])
+        k = np.ones((w.size, len(kinds)), dtype=complex)
+        for o, kind in enumerate(kinds):
+            if kind == "velocity":
+                k[:, o] = 1j * w
+            elif kind != "displacement":
+                k[:, o] = -(w**2)
+        self.k_out = k  # (n_f, p)
+        self.cphi = cphi  # (p, r)
+        self.phib = phib  # (r, m)
+        self.outputs, self.inputs = tuple(outputs), tuple(inputs)
+        self.H = self.k_out[:, :, None] * np.einsum("or,fr,ri->foi", cphi, self.zinv, phib, optimize=True)
+
+    def terms(self, change: PointChange) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(A~, B~, S, B)`` of one change (class docstring): shapes (n_f, p, q), (n_f, q, m),
+        (n_f, q, q), (n_f, q, q) with ``q = |J|``."""
+        U = self.V[change.dofs]  # (q, r)
+        ZU = self.zinv[:, None, :] * U[None]  # (n_f, q, r)
+        At = self.k_out[:, :, None] * (self.cphi @ ZU.transpose(0, 2, 1))
+        Bt = ZU @ self.phib
+        S = ZU @ U.T
+        w = self.w[:, None, None]
+        B = change.stiffness[None] - w**2 * change.mass[None] + 1j * w * change.damping[None]
+        return At, Bt, S, B
+
+    def responses(self, terms: tuple, values: np.ndarray) -> np.ndarray:
+        """``H_v`` for each size in ``values`` (shape (n_v,)): (n_v, n_f, n_out, n_in)."""
+        At, Bt, S, B = terms
+        v = np.asarray(values, dtype=float)[:, None, None, None]
+        q = S.shape[-1]
+        if q == 1:
+            vb = v[..., 0, 0] * B[None, :, 0, 0]  # (n_v, n_f)
+            g = vb / (1.0 + vb * S[None, :, 0, 0])
+            return self.H[None] - g[:, :, None, None] * (At[None, :, :, 0, None] * Bt[None, :, None, 0, :])
+        vB = v * B[None]  # (n_v, n_f, q, q)
+        lhs = np.eye(q)[None, None] + vB @ S[None]
+        X = np.linalg.solve(lhs, vB @ Bt[None])  # (n_v, n_f, q, m)
+        return self.H[None] - At[None] @ X
+
+
+def point_modal(model: Any, f_hz: Any, **overrides: float) -> PointModal | None:
+    """The :class:`PointModal` of a band-limited model at its values (``overrides`` as for
+    ``model.freqresp``), or None when the model is on the full path, carries concentrated
+    damping, or its structure cannot be reduced."""
+    from .modal import _damped
+
+    dyn = model.dynamics
+    reducer = getattr(dyn, "reducer", None)
+    if reducer is None or model.structure is None:
+        return None
+    theta = model._theta(overrides)
+    mats = model._structure(theta).matrices()
+    if mats.n_dof < dyn.min_dof or mats.damping is not None:
+        return None
+    base, change = reducer.basis_and_dofs(mats)
+    if change[0].size:
+        return None
+    undamped = _ritz_modal(base, mats, change)
+    damped = _damped(undamped, dyn.full.damping(theta), mats.modal_damping_bands, dyn.full.rigid_body_damping)
+    from .eigen import _clean_eigenvalues
+
+    k_scale = float(abs(base.stiffness).max() / max(abs(base.mass).max(), 1e-300))
+    order = np.argsort(_clean_eigenvalues(base.lam, k_scale), kind="stable")
+    w = damped.omega
+    damp = 2 * damped.zeta * w + np.where(w == 0, damped.rigid_body_rate, 0.0)
+    return PointModal(np.asarray(f_hz, dtype=float).reshape(-1), base.V[:, order], w, damp,
+                      damped.output_shapes, damped.input_shapes, tuple(mats.output_kinds),
+                      tuple(mats.outputs), tuple(mats.inputs))
+
+
+def point_change(effect: Any, model: Any, base_struct: Any, base_mats: Any) -> PointChange | None:
+    """The change per unit size of a point effect (:data:`POINT_KINDS`) on ``model``'s structure
+    ``base_struct`` (matrices ``base_mats``), or None for any other effect or one that changes
+    more than :data:`LOW_RANK_MAX_DOFS` DOFs. A single-DOF location of a
+    :class:`~robustctl.physical.matrices.MatrixStructure` is read off directly; otherwise the
+    effect is applied at unit size and the matrices compared."""
+    from .matrices import MatrixStructure
+
+    if effect.kind not in POINT_KINDS or len(effect.param_names) != 1:
+        return None
+    one = np.ones((1, 1))
+    zero = np.zeros((1, 1))
+    if isinstance(base_struct, MatrixStructure) and getattr(effect, "direction", None) is None:
+        try:
+            j = base_struct._dof(effect.location)
+        except Exception:  # noqa: BLE001 - an unknown location: the exact path reports it
+            return None
+        blocks = {"added_mass": (one, zero, zero), "suspension_spring": (zero, one, zero),
+                  "dashpot": (zero, zero, one)}[effect.kind]
+        return PointChange(np.array([j]), *blocks)
+    pname = effect.param_names[0]
+    mats = effect.with_values(**{pname: 0.0}).apply(model).build_structure(**{pname: 1.0}).matrices()
+    dummy = _Basis(_csc(base_mats.mass), _csc(base_mats.stiffness),
+                   None if base_mats.damping is None else _csc(base_mats.damping),
+                   np.asarray(base_mats.input_matrix, dtype=float),
+                   np.asarray(base_mats.output_matrix, dtype=float), None, 0.0, np.zeros((0, 0)),
+                   np.zeros(0), 0, 0.0, np.zeros(0), np.zeros(0))
+    change = _changed_dofs(dummy, mats)
+    if change is None or change[0].size == 0:
+        return None
+    dofs, (dM, dK, dC) = change
+    return PointChange(dofs, dM, dK, dC)
+

@@ -20,6 +20,19 @@ sampled in the box is stated (:attr:`UncertainModel.max_error`, relative to the 
 peak response). A model whose state basis moves with the parameters (modal models re-solved
 per parameter value) shows that as a large error: use a physical-coordinates model, or
 cover the rest with a complex weight.
+
+``form="modes"`` parametrises the modes instead of the parameters (a large model, or one
+reduced to its design modes with ``order=``): each retained mode ``i`` is written in its
+companion coordinates ``q'' = -p_i q - q_i q'`` (``p_i = w_i^2``, ``q_i = 2 zeta_i w_i``,
+affine in both: one rank-1 real scalar per direction), its shape held at the nominal. The
+mode's first-order movement ``J_i (theta - theta_0)`` over the ``n_sigma`` ellipsoid spans
+``n_sigma^2 J_i Sigma J_i^T`` (Gelb 1974, sec. 4.4 for the linearised covariance), one real
+scalar per principal direction of that 2 x 2 matrix: a frequency (and, when the parameters
+move it, a damping) scalar per mode. The modes move independently in the LFT (the
+correlations between modes are dropped, which covers more than the ellipsoid), and what the
+parametrisation misses -- shape changes, higher-order terms, the truncated modes -- is left
+to a complex remainder cover (:func:`robustctl.robust.cover.cover_remainder`, kept in
+:attr:`UncertainModel.remainder`; ``rc.generalized_plant`` puts both into ``.blocks``).
 """
 
 from __future__ import annotations
@@ -66,11 +79,19 @@ class UncertainModel:
         Frequencies (Hz) of that check.
     nominal : control.StateSpace
         ``G(0)``.
-    form : {"state space", "modal"}
+    form : {"state space", "modal", "modes"}
         The coordinates of the LFT: the model's own state-space matrices, or (when that is
         not exact and this is closer to the sampled models) the nominal's real modal
         coordinates with each mode's eigenvalue (frequency and damping) moving to first order
-        and its shape held.
+        and its shape held; ``"modes"``: one real scalar per mode and direction of its
+        movement (module docstring).
+    remainder : UncertaintyCover or None
+        A complex weight covering what the LFT misses against sampled models and data
+        (:func:`robustctl.robust.cover.cover_remainder`); ``rc.generalized_plant`` adds its
+        block after the real ones.
+    modes : tuple or None
+        ``form="modes"``: per block ``(nominal eigenvalue, direction (2,) in (p, q), half-range)``,
+        what :meth:`delta_of` projects a model's eigenvalues on.
     """
 
     M: Any
@@ -84,6 +105,8 @@ class UncertainModel:
     check_f_hz: np.ndarray = field(repr=False)
     nominal: Any = field(repr=False)
     form: str = "state space"
+    remainder: Any = field(default=None, repr=False)
+    modes: tuple | None = field(default=None, repr=False)
 
     @property
     def n_delta(self) -> int:
@@ -120,22 +143,164 @@ class UncertainModel:
         d = np.asarray(delta, dtype=float).reshape(-1)
         return dict(zip(self.parameters, map(float, self.center + d @ self.axes)))
 
+    def with_remainder(self, cover: Any) -> UncertainModel:
+        """This LFT with ``cover`` (a complex weight of what it misses) as its remainder.
+
+        Parameters
+        ----------
+        cover : UncertaintyCover
+            Additive or multiplicative, e.g. from :func:`robustctl.robust.cover.cover_remainder`.
+
+        Returns
+        -------
+        UncertainModel
+        """
+        from dataclasses import replace
+
+        if cover is not None and not hasattr(cover, "weight"):
+            raise ModelError(
+                f"the remainder must be a cover with .weight and .kind; got {type(cover).__name__}.")
+        return replace(self, remainder=cover)
+
+    def without(self, blocks: Any) -> UncertainModel:
+        """This LFT with the named real blocks removed (held at ``delta = 0``).
+
+        Their ``w`` and ``z`` channels are dropped from ``M`` (an exact LFT of the rest); the
+        remainder is dropped too (it covered the LFT with those blocks: refit it).
+
+        Parameters
+        ----------
+        blocks : sequence of str
+            Names among :attr:`names` (all of them: an LFT without real blocks, ``G_0`` itself).
+
+        Returns
+        -------
+        UncertainModel
+        """
+        from dataclasses import replace
+
+        import control
+
+        drop = set(blocks)
+        unknown = drop - set(self.names)
+        if unknown:
+            raise ModelError(f"no real block named {sorted(unknown)}; the blocks are {list(self.names)}.")
+        keep = [k for k, nm in enumerate(self.names) if nm not in drop]
+        starts = np.concatenate([[0], np.cumsum(self.multiplicity)]).astype(int)
+        ch = np.concatenate([np.arange(starts[k], starts[k + 1]) for k in keep] + [np.zeros(0, int)])
+        nd = self.n_delta
+        cols = np.concatenate([ch, np.arange(nd, nd + self.nominal.ninputs)])
+        rows = np.concatenate([ch, np.arange(nd, nd + self.nominal.noutputs)])
+        A, B, C, D = (np.asarray(x, dtype=float) for x in (self.M.A, self.M.B, self.M.C, self.M.D))
+        M = control.ss(A, B[:, cols], C[rows], D[np.ix_(rows, cols)],
+                       inputs=[self.M.input_labels[i] for i in cols],
+                       outputs=[self.M.output_labels[i] for i in rows])
+        modes = None if self.modes is None else tuple(self.modes[k] for k in keep)
+        return replace(self, M=M, names=tuple(self.names[k] for k in keep),
+                       multiplicity=tuple(self.multiplicity[k] for k in keep), axes=self.axes[keep],
+                       remainder=None, modes=modes)
+
+    def block_effect(self, f_hz: Any) -> np.ndarray:
+        """``max_{delta_k = +-1} sigma_max(Fu(M, delta_k e_k) - G_0)`` per block and frequency.
+
+        Parameters
+        ----------
+        f_hz : array_like
+            Frequencies (Hz).
+
+        Returns
+        -------
+        ndarray (n_blocks, nf)
+        """
+        from ..lti import freqresp_array
+
+        f = np.asarray(f_hz, dtype=float).reshape(-1)
+        H0 = freqresp_array(self.nominal, f)
+        out = np.zeros((len(self.names), f.size))
+        for k in range(len(self.names)):
+            for sgn in (-1.0, 1.0):
+                e = np.zeros(len(self.names))
+                e[k] = sgn
+                gap = freqresp_array(self.statespace(e), f) - H0
+                out[k] = np.maximum(out[k], np.linalg.norm(gap, ord=2, axis=(1, 2)))
+        return out
+
+    def delta_of(self, model: Any, clip: bool = True) -> np.ndarray:
+        """The real parameters ``delta`` (one per block) that stand for ``model`` in this LFT.
+
+        Parameter forms: the least-squares solution of ``theta - theta_0 = delta @ axes`` from
+        ``model``'s parameter values. ``form="modes"``: each retained mode's ``(p, q) = (|l|^2,
+        -2 Re l)`` of the eigenvalue ``l`` of ``model`` nearest the nominal's, projected on the
+        block's direction and divided by its half-range.
+
+        Parameters
+        ----------
+        model : PhysicalModel, dict or system
+            A model with ``.values`` (parameter units), a dict of parameter values, or (modes
+            form) any system ``rc.as_statespace`` accepts.
+        clip : bool
+            Clip ``delta`` to [-1, 1] (the LFT's set; what lies outside is left to the remainder).
+
+        Returns
+        -------
+        ndarray (n_blocks,)
+        """
+        if not self.names:
+            return np.zeros(0)
+        if self.modes is not None and not isinstance(model, dict):
+            from ..lti import as_statespace
+
+            lam = np.linalg.eigvals(np.asarray(as_statespace(model).A, dtype=float))
+            d = np.empty(len(self.modes))
+            for k, (l0, direction, half) in enumerate(self.modes):
+                li = lam[int(np.argmin(np.abs(lam - l0)))]
+                dpq = np.array([abs(li) ** 2 - abs(l0) ** 2, -2.0 * (li.real - l0.real)])
+                d[k] = float(direction @ dpq) / half
+        else:
+            values = model if isinstance(model, dict) else dict(model.values)
+            missing = [p for p in self.parameters if p not in values]
+            if missing:
+                raise ModelError(
+                    f"the model has no values for {missing}; the LFT varies {list(self.parameters)}.")
+            dth = np.array([values[p] for p in self.parameters], dtype=float) - self.center
+            d = np.linalg.lstsq(self.axes.T, dth, rcond=None)[0]
+        return np.clip(d, -1.0, 1.0) if clip else d
+
     def summary(self) -> str:
         kind = "exact (affine in the parameters)" if self.exact else f"first-order ({self.form})"
-        return (f"UncertainModel: {len(self.names)} real blocks {list(self.multiplicity)} over "
+        text = (f"UncertainModel: {len(self.names)} real blocks {list(self.multiplicity)} over "
                 f"{list(self.parameters)}; {kind} LFT, error {100 * self.max_error:.3g} % of the peak "
                 f"response on {len(self.check_f_hz)} frequencies.")
+        if self.remainder is not None:
+            text += (f" Remainder: {self.remainder.kind} complex weight of order {self.remainder.order} "
+                     f"(margin {self.remainder.margin:.3g} on its sources).")
+        return text
 
 
-def _matrices(model: Any, values: dict[str, float]) -> tuple[np.ndarray, tuple[int, int, int], Any]:
+def _matrices(model: Any, values: dict[str, float], order: int | None = None
+              ) -> tuple[np.ndarray, tuple[int, int, int], Any]:
     sys = model.statespace(**values)
+    if order is not None and sys.nstates > order:
+        sys = _reduced(sys, order)
     A, B, C, D = (np.asarray(x, dtype=float) for x in (sys.A, sys.B, sys.C, sys.D))
     S = np.block([[A, B], [C, D]])
     return S, (A.shape[0], B.shape[1], C.shape[0]), sys
 
 
+def _reduced(sys: Any, order: int):
+    """``sys`` by balanced truncation to ``order`` states, its signal names kept."""
+    import control
+
+    from ..balanced import balanced_truncation
+
+    red = balanced_truncation(sys, order).sys
+    return control.ss(red.A, red.B, red.C, red.D, inputs=list(sys.input_labels),
+                      outputs=list(sys.output_labels))
+
+
 def parametric_lft(model: Any, parameters: Any, center: Any, covariance: Any, *, n_sigma: float = 2.0,
-                   f_hz: Any = None, n_check: int = 8, seed: int = 0) -> UncertainModel:
+                   f_hz: Any = None, n_check: int = 8, seed: int = 0, form: str = "auto",
+                   order: int | None = None) -> UncertainModel:
     """The LFT of ``model`` over the ``n_sigma`` box of its parameters' covariance.
 
     Parameters
@@ -157,6 +322,14 @@ def parametric_lft(model: Any, parameters: Any, center: Any, covariance: Any, *,
         always checked).
     seed : int
         Seed of the sampled points.
+    form : {"auto", "modes"}
+        ``"auto"``: the state-space LFT (exact when affine), else the modal one when it is
+        closer to the sampled models; ``"modes"``: one real scalar per retained mode and
+        direction of its movement (module docstring), for large or reduced models.
+    order : int, optional
+        Reduce the model to this many states by balanced truncation first (at every
+        parameter value; 12 for six modes, the Caltech design model). With ``form="auto"``
+        the basis of the reduction moves with the parameters, so use ``form="modes"``.
 
     Returns
     -------
@@ -165,8 +338,8 @@ def parametric_lft(model: Any, parameters: Any, center: Any, covariance: Any, *,
     Raises
     ------
     ModelError
-        Mismatched sizes, a non-positive ``n_sigma``, or state dimensions that change with the
-        parameters.
+        Mismatched sizes, a non-positive ``n_sigma``, an unknown ``form``, or state dimensions
+        that change with the parameters.
     """
 
     from ..lti import freqresp_array
@@ -189,12 +362,21 @@ def parametric_lft(model: Any, parameters: Any, center: Any, covariance: Any, *,
     corr = cov[np.ix_(live, live)] / np.outer(sd[live], sd[live])
     lam, vec = np.linalg.eigh(corr)
     keep = lam > 1e-10 * lam.max()
-    order = np.argsort(-lam[keep])
+    rank = np.argsort(-lam[keep])
     axes = np.zeros((int(keep.sum()), len(names)))
-    axes[:, live] = (n_sigma * np.sqrt(lam[keep]) * (sd[live][:, None] * vec[:, keep])).T[order]
+    axes[:, live] = (n_sigma * np.sqrt(lam[keep]) * (sd[live][:, None] * vec[:, keep])).T[rank]
+
+    if form not in ("auto", "modes"):
+        raise ModelError(f'form must be "auto" or "modes"; got {form!r}.')
+    if order is not None and (isinstance(order, bool) or not isinstance(order, (int, np.integer))
+                              or order < 1):
+        raise ModelError(f"order must be a positive number of states; got {order!r}.")
 
     def at(delta: np.ndarray):
-        return _matrices(model, dict(zip(names, map(float, c + delta @ axes))))
+        return _matrices(model, dict(zip(names, map(float, c + delta @ axes))), order)
+
+    if form == "modes":
+        return _modes_lft(model, names, c, axes, at, f_hz=f_hz, n_check=n_check, seed=seed)
 
     S0, dims, G0 = at(np.zeros(len(axes)))
     n, nu, ny = dims
@@ -248,11 +430,12 @@ def parametric_lft(model: Any, parameters: Any, center: Any, covariance: Any, *,
 
 
 def _lft(S0: np.ndarray, Sk: list[np.ndarray], n: int, names: tuple[str, ...], axes: np.ndarray, G0: Any,
-         scale: float) -> tuple[Any, tuple[str, ...], tuple[int, ...], list[int]]:
+         scale: float, block_names: Any = None) -> tuple[Any, tuple[str, ...], tuple[int, ...], list[int]]:
     """``M`` of ``S0 + sum_k delta_k S_k`` (``S_k = L_k R_k`` by SVD), its block names, multiplicities
     and the axes kept (those that change ``S``)."""
     import control
 
+    given = block_names
     Ls, Rs, mult, block_names, kept = [], [], [], [], []
     for k, S in enumerate(Sk):
         U, sv, Vt = np.linalg.svd(S)
@@ -263,7 +446,10 @@ def _lft(S0: np.ndarray, Sk: list[np.ndarray], n: int, names: tuple[str, ...], a
         Ls.append(U[:, :r] * np.sqrt(sv[:r]))
         Rs.append(np.sqrt(sv[:r])[:, None] * Vt[:r])
         mult.append(r)
-        block_names.append(names[int(np.argmax(np.abs(axes[k])))] if len(names) == 1 else f"axis{k + 1}")
+        if given is not None:
+            block_names.append(given[k])
+        else:
+            block_names.append(names[int(np.argmax(np.abs(axes[k])))] if len(names) == 1 else f"axis{k + 1}")
     if not mult:
         raise ModelError("the model does not change with these parameters over their spread.")
     L, R = np.hstack(Ls), np.vstack(Rs)
@@ -342,3 +528,119 @@ def _modal_form(S0: np.ndarray, n: int, plus: list[np.ndarray], minus: list[np.n
         S[:n, :n] = dA
         Skm.append(S)
     return S0m, Skm
+
+
+#: A mode's second direction of movement (in (p, q) = (w^2, 2 zeta w)) gets its own real
+#: scalar when its half-range is at least this fraction of the first's; smaller ones are left
+#: to the remainder cover.
+MODE_DIRECTION_RTOL = 0.05
+
+
+def _companion_basis(A0: np.ndarray):
+    """``Tc`` with ``Tc^-1 A0 Tc`` block diagonal, ``[[0, 1], [-p, -q]]`` per complex pair
+    (``p = |l|^2``, ``q = -2 Re l``) and ``[l]`` per real eigenvalue; the pairs' upper
+    eigenvalues and their first state index (None when the modes cannot be separated)."""
+    basis = _real_modal_basis(A0)
+    if basis is None:
+        return None
+    T, lam = basis
+    n = A0.shape[0]
+    P = np.eye(n)
+    pos, pairs = 0, []
+    for li in lam:
+        if abs(li.imag) > 0:
+            P[pos + 1, pos:pos + 2] = [li.real, li.imag]  # y' = s y1 + w y2 in the [[s, w], [-w, s]] block
+            pairs.append((li, pos))
+            pos += 2
+        else:
+            pos += 1
+    return T @ np.linalg.inv(P), pairs
+
+
+def _upper_eigs(A: np.ndarray) -> np.ndarray:
+    lam = np.linalg.eigvals(A)
+    return lam[lam.imag > 0]
+
+
+def _modes_lft(model: Any, names: tuple[str, ...], c: np.ndarray, axes: np.ndarray, at: Any, *,
+               f_hz: Any, n_check: int, seed: int) -> UncertainModel:
+    """The ``form="modes"`` LFT (module docstring): one rank-1 real scalar per mode and direction."""
+    from ..lti import freqresp_array
+
+    S0, dims, G0 = at(np.zeros(len(axes)))
+    n = dims[0]
+    if n == 0:
+        raise ModelError("the model has no states: there are no modes to make uncertain.")
+    A0 = S0[:n, :n]
+    found = _companion_basis(A0)
+    if found is None:
+        raise ModelError("the model's modes cannot be separated (a defective or repeated eigenvalue); "
+                         'use form="auto".')
+    Tc, pairs = found
+    if not pairs:
+        raise ModelError("the model has no oscillatory mode to make uncertain; use form=\"auto\".")
+    Ti = np.linalg.inv(Tc)
+    S0c = np.block([[Ti @ A0 @ Tc, Ti @ S0[:n, n:]], [S0[n:, :n] @ Tc, S0[n:, n:]]])
+    lam0 = np.array([li for li, _ in pairs])
+    pq0 = np.stack([np.abs(lam0) ** 2, -2.0 * lam0.real], axis=1)
+
+    def pq(A: np.ndarray) -> np.ndarray:
+        lam = _upper_eigs(A)
+        idx = [int(np.argmin(np.abs(lam - l0))) for l0 in lam0]
+        lam = lam[idx]
+        return np.stack([np.abs(lam) ** 2, -2.0 * lam.real], axis=1)
+
+    # each mode's (p, q) per unit delta along the principal axes (the n_sigma ellipsoid is the unit ball)
+    D = np.zeros((len(lam0), 2, len(axes)))
+    for k in range(len(axes)):
+        e = np.eye(len(axes))[k]
+        Sp, dp, _ = at(e)
+        Sm, dm, _ = at(-e)
+        if dp != dims or dm != dims:
+            raise ModelError("the model's state dimension changes with the parameters; no LFT in them.")
+        D[:, :, k] = 0.5 * (pq(Sp[:n, :n]) - pq(Sm[:n, :n]))
+    Sk, block_names, info, par_axes = [], [], [], []
+    for i, ((l0, pos), Di) in enumerate(zip(pairs, D)):
+        mu, U = np.linalg.eigh(Di @ Di.T)
+        half = np.sqrt(np.clip(mu[::-1], 0.0, None))
+        U = U[:, ::-1]
+        if half[0] <= 1e-12 * pq0[i, 0]:
+            continue
+        for j in range(2):
+            if half[j] < MODE_DIRECTION_RTOL * half[0]:
+                continue
+            u = U[:, j] * (1.0 if U[np.argmax(np.abs(U[:, j])), j] > 0 else -1.0)
+            S = np.zeros_like(S0c)
+            S[pos + 1, pos:pos + 2] = -half[j] * u
+            Sk.append(S)
+            f0 = abs(l0) / (2 * np.pi)
+            block_names.append(f"mode{i + 1}_{f0:.4g}Hz".replace(".", "p") + ("" if j == 0 else "_damping"))
+            info.append((complex(l0), u, float(half[j])))
+            par_axes.append((Di.T @ u / half[j]) @ axes)  # the ellipsoid's point that moves it most
+    if not Sk:
+        raise ModelError("no mode moves with these parameters over their spread.")
+    scale = max(np.abs(S0c).max(), 1e-300)
+    M, bnames, mult, kept = _lft(S0c, Sk, n, names, axes, G0, scale, block_names)
+    info = tuple(info[k] for k in kept)
+    par_axes = np.array([par_axes[k] for k in kept])
+    if f_hz is None:
+        wn = np.abs(np.linalg.eigvals(A0))
+        wn = wn[wn > 0] if np.any(wn > 0) else np.array([1.0])
+        f = np.logspace(np.log10(wn.min() / 10 / (2 * np.pi)), np.log10(wn.max() * 10 / (2 * np.pi)), 200)
+    else:
+        f = np.asarray(f_hz, dtype=float).reshape(-1)
+    um = UncertainModel(M, bnames, mult, names, c, par_axes, False, 0.0, f, G0, "modes", None, info)
+    # the error check: the axis ends and points drawn in the n_sigma ellipsoid (the unit ball)
+    rng = np.random.default_rng(seed)
+    pts = [s * np.eye(len(axes))[k] for k in range(len(axes)) for s in (-1.0, 1.0)]
+    for x in rng.standard_normal((n_check, len(axes))):
+        pts.append(x / np.linalg.norm(x) * rng.uniform() ** (1.0 / len(axes)))
+    peak = max(np.abs(freqresp_array(G0, f)).max(), 1e-300)
+    err = 0.0
+    for pt in pts:
+        Gs = at(np.asarray(pt))[2]
+        gap = freqresp_array(Gs, f) - freqresp_array(um.statespace(um.delta_of(Gs)), f)
+        err = max(err, float(np.abs(gap).max()) / peak)
+    from dataclasses import replace
+
+    return replace(um, max_error=err)

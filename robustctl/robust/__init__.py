@@ -10,10 +10,11 @@ from .controller_reduction import (
 from .controller_reduction import reduce_controller as reduce_controller
 
 # weights (uncertainty and performance weights, magnitude fits, covers)
-from .cover import UncertaintyCover, cover_additive, cover_multiplicative, error_envelope
+from .cover import UncertaintyCover, cover_additive, cover_multiplicative, cover_remainder, error_envelope
 
 # D-K iteration and the measurement-model yardstick (dk.py, yardstick.py)
 from .dk import DKIteration, DKResult, Reduction, dksyn
+from .dk_plant import DesignReduction
 
 # H2/LQG, discrete synthesis, loop shaping, margins, controller reduction (toolbox)
 from .h2 import H2Result as H2Result
@@ -88,6 +89,7 @@ __all__ = [
     "zpk_statespace",
     "cover_additive",
     "cover_multiplicative",
+    "cover_remainder",
     "error_envelope",
     "UncertaintyCover",
     "caltech_additive_weight",
@@ -101,6 +103,7 @@ __all__ = [
     "DKResult",
     "DKIteration",
     "Reduction",
+    "DesignReduction",
     "yardstick",
     "Yardstick",
     "NyquistVerdict",

@@ -31,13 +31,13 @@ import numpy as np
 
 from ..budget import Deadline
 from ..checks import check_band, positive_number
-from ..errors import DataError, FitError
+from ..errors import DataError, FitError, RobustctlError
 from ..frd import FrequencyData
 from ..measure.noise import noise_model
 from ..table import Table, result_html
 from .magfit import DB_PER_NEPER, fit_magnitude_details
 
-__all__ = ["UncertaintyCover", "cover_additive", "cover_multiplicative", "error_envelope"]
+__all__ = ["UncertaintyCover", "cover_additive", "cover_multiplicative", "cover_remainder", "error_envelope"]
 
 _KINDS = ("additive", "input multiplicative", "output multiplicative")
 #: Points the weight is fitted on (log bins of the bound's running maximum); every grid point is checked.
@@ -626,3 +626,153 @@ def cover_multiplicative(
         objective,
         data_sigmas,
     )
+
+
+def _stands_for(um: Any, src: Any, f: np.ndarray, label: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(G_src, Fu(M, delta_src))`` on ``f``: a model's own LFT member (:meth:`UncertainModel.delta_of`,
+    clipped to the box), the nominal for measured data."""
+    from ..lti import _align, freqresp
+
+    g0 = freqresp(um.nominal, f)
+    if isinstance(src, FrequencyData):
+        fd = _align(g0, FrequencyData(f, _on_grid(src, f, label), inputs=src.inputs, outputs=src.outputs))
+        return fd.response, g0.response
+    try:
+        delta = um.delta_of(src)
+    except (RobustctlError, AttributeError, TypeError) as exc:  # a model the LFT cannot place
+        raise FitError(f"{label} cannot be placed in the uncertain model ({exc}); give models with the "
+                       "LFT's parameters (e.g. upd.sample_models) or measured FrequencyData.") from exc
+    return _align(g0, freqresp(src, f)).response, freqresp(um.statespace(delta), f).response
+
+
+def cover_remainder(
+    um: Any,
+    data_or_models: Any,
+    order: int = 4,
+    kind: str = "additive",
+    *,
+    f_hz: Any = None,
+    band: Sequence[float] | None = None,
+    smooth_octaves: float = 0.25,
+    floor: float = 1e-3,
+    objective: str = "max",
+    data_sigmas: float = 3.0,
+    time_budget_s: float | None = None,
+    fold: float = 0.0,
+):
+    """A complex weight covering what a parametric LFT misses, attached to it as its remainder.
+
+    Each model ``G_s`` (e.g. ``upd.sample_models(n)``, at full order) stands in the LFT for
+    ``Fu(M, delta_s)`` with ``delta_s = um.delta_of(G_s)`` clipped to [-1, 1] (its own
+    parameters, or its modes' movement for ``form="modes"``); measured data stand for the
+    nominal (``delta = 0``). The weight covers ``G_s - Fu(M, delta_s)`` (``"additive"``) or
+    the relative error ``Fu^+ (G_s - Fu)`` / ``(G_s - Fu) Fu^+`` (``"input"`` / ``"output
+    multiplicative"``) at every grid frequency, so every source is a member of ``{Fu(M,
+    Delta_real) + W Delta_c}`` on the grid (the mixed real/complex set of Young 1996; the
+    cover as :func:`cover_additive`, Zhou-Doyle-Glover sec. 8.1). The cover's ``sources`` and
+    ``source_errors`` then state the LFT's error against each sampled model.
+
+    Parameters
+    ----------
+    um : UncertainModel
+        The parametric LFT (``upd.uncertain(...)``).
+    data_or_models : FrequencyData, system, or a list mixing both
+        Measured responses (channels matched by name) and models with the LFT's parameters.
+    order : int
+        States of the weight.
+    kind : {"additive", "input multiplicative", "output multiplicative"}
+        How the remainder enters (``rc.generalized_plant`` places it accordingly).
+    f_hz : array_like, optional
+        Grid (Hz); default the first FrequencyData's, else 200 points of the LFT's check grid.
+    band : (lo_hz, hi_hz), optional
+        Restrict the grid (Hz).
+    smooth_octaves, floor, objective : float, float, str
+        As for :func:`cover_additive`.
+    data_sigmas : float
+        Measured residuals are raised by this many standard deviations of the H1 estimate's
+        random error (as :func:`cover_additive`).
+    time_budget_s : float or None
+        Optional cap on the magnitude fit (s).
+    fold : float
+        Fold into the remainder every real block whose whole effect
+        (:meth:`~robustctl.physical.uncertain.UncertainModel.block_effect`) stays below ``fold``
+        times the remainder's weight at every grid frequency (then refit the remainder on the
+        LFT without them, so the cover still holds every source): a block that small changes
+        the uncertainty set by less than that fraction of the remainder but adds channels and a
+        scale to every D-K iteration. 0 (default) keeps every block.
+
+    Returns
+    -------
+    UncertainModel
+        ``um.with_remainder(cover)`` (less the folded blocks); the cover is ``.remainder``.
+
+    Raises
+    ------
+    FitError
+        Not an UncertainModel, an unknown ``kind``, a model the LFT cannot place, or a bad fit option.
+
+    See Also
+    --------
+    robustctl.physical.uncertain.parametric_lft, cover_additive
+
+    References
+    ----------
+    P. M. Young, "Controller design with real parametric uncertainty", Int. J. Control 65(3),
+    1996 (the mixed real/complex set); Balas & Doyle (Caltech seed), eqs. 1-3.
+    """
+    from ..physical.uncertain import UncertainModel
+
+    if not isinstance(um, UncertainModel):
+        raise FitError(f"um must be an UncertainModel (upd.uncertain()); got {type(um).__name__}.")
+    if kind not in _KINDS:
+        raise FitError(f"kind must be one of {list(_KINDS)}; got {kind!r}.")
+    if f_hz is None and not any(isinstance(d, FrequencyData) for d in (
+            data_or_models if isinstance(data_or_models, (list, tuple)) else [data_or_models])):
+        f_hz = um.check_f_hz
+    positive_number(fold, "fold (0: keep every real block)", FitError, allow_zero=True)
+    f, sources = _sources(data_or_models, f_hz, band)
+    fit = (order, kind, smooth_octaves, floor, time_budget_s, objective, data_sigmas)
+    out = _remainder(um, f, sources, fit)
+    if fold > 0:
+        small = out.block_effect(f) <= fold * out.remainder.weight_mag[None, :]
+        folded = [nm for nm, low in zip(out.names, small.all(axis=1)) if low]
+        if folded:  # (all of them: an LFT without real blocks, the remainder a plain complex cover)
+            out = _remainder(um.without(folded), f, sources, fit)
+    return out
+
+
+def _remainder(um: Any, f: np.ndarray, sources: list, fit: tuple) -> Any:
+    """``um`` with the remainder cover of ``sources`` on ``f`` (see :func:`cover_remainder`)."""
+    from ..lti import freqresp
+
+    order, kind, smooth_octaves, floor, time_budget_s, objective, data_sigmas = fit
+    g0 = freqresp(um.nominal, f)
+    G0 = g0.response
+    stand_ins = []
+    for label, src in sources:
+        G, Fu = _stands_for(um, src, f, label)
+        E = G - Fu
+        if kind == "input multiplicative":
+            E = G0 @ np.linalg.pinv(Fu) @ E
+        elif kind == "output multiplicative":
+            E = E @ np.linalg.pinv(Fu) @ G0
+        meta = src.meta if isinstance(src, FrequencyData) else {}
+        coh = None
+        if isinstance(src, FrequencyData) and src.coherence is not None:
+            coh = _on_grid_values(src, src.coherence, f, label)
+            coh = _align_values(g0, src, coh)
+        # a stand-in with the nominal's channels whose error against the nominal is the remainder
+        stand_ins.append(FrequencyData(f, G0 + E, inputs=g0.inputs, outputs=g0.outputs, coherence=coh,
+                                       meta=meta))
+    cover = _cover(um.nominal, stand_ins, order, kind, f, None, smooth_octaves, floor, time_budget_s,
+                   objective, data_sigmas)
+    return um.with_remainder(cover)
+
+
+def _align_values(g0: Any, src: FrequencyData, values: np.ndarray) -> np.ndarray:
+    """``values`` (on ``src``'s channels) reordered to ``g0``'s channels, as :func:`robustctl.lti._align`."""
+    from ..checks import match_channels
+
+    out_idx = match_channels(src.outputs, g0.outputs, "outputs")
+    in_idx = match_channels(src.inputs, g0.inputs, "inputs")
+    return values[:, out_idx][:, :, in_idx]

@@ -62,6 +62,7 @@ from ..interconnect import PartitionedPlant
 from ..lti import is_stable
 from ..table import Table
 from .blocks import Block, BlockStructure
+from .dk_plant import DesignReduction, check_design_order, on_full_plant, reduce_design_plant
 from .dk_reduce import Reduction, _reduce
 from .dk_scales import (
     HINF_BACKOFF,
@@ -86,7 +87,7 @@ from .dk_verify import verification_grid as verification_grid
 from .partitioned import as_partitioned
 from .plant import GeneralizedPlant
 
-__all__ = ["DKIteration", "DKResult", "Reduction", "dksyn"]
+__all__ = ["DKIteration", "DKResult", "Reduction", "DesignReduction", "dksyn"]
 
 #: Extrapolation steps ``beta`` of the D step's line search (module docstring); 0 is plain D-K.
 D_STEPS = (0.0, 0.5, 1.0)
@@ -208,6 +209,11 @@ class DKResult:
     stopped_by_budget : bool
         A ``time_budget_s`` ended the iteration (or a K step's bisection) early: the result
         depends on the machine's speed (:mod:`robustctl.budget`).
+    design_reduction : DesignReduction or None
+        The balanced truncation of the design plant before synthesis (``design_order``):
+        orders, error bound and the verified mu with the reduced and the full plant. When
+        set, ``mu_peak``, ``mu`` and ``closed_loop`` are the full plant's and ``history`` the
+        design plant's.
     """
 
     K: Any
@@ -222,6 +228,7 @@ class DKResult:
     reduction: Reduction | None = None
     grid_mu_peak: float = float("nan")
     stopped_by_budget: bool = False
+    design_reduction: DesignReduction | None = None
 
     @property
     def time_s(self) -> float:
@@ -257,6 +264,8 @@ class DKResult:
         rises = [h for h in self.history if h.note]
         if rises:
             text += " " + " ".join(f"Iteration {h.index}: {h.note}." for h in rises)
+        if self.design_reduction is not None:
+            text += " " + self.design_reduction.summary()
         if self.reduction is not None:
             r = self.reduction
             text += (
@@ -344,7 +353,7 @@ def _check_options(progress: Any, rtol: Any, patience: Any, hinf_options: Any, c
 
 
 _DK_OPTIONS = ("max_iter", "order_d", "f_hz", "executor", "time_budget_s", "reduce", "rtol", "patience",
-               "hinf_options", "callback", "real", "autoscale", "gamma")
+               "hinf_options", "callback", "real", "autoscale", "gamma", "design_order")
 
 
 def check_dk_options(options: Any, where: str) -> None:
@@ -359,6 +368,7 @@ def check_dk_options(options: Any, where: str) -> None:
     _check_options(None, options.get("rtol", 1e-3), options.get("patience", 1), options.get("hinf_options"),
                    options.get("callback"))
     check_executor(options.get("executor"))
+    check_design_order(options.get("design_order", "auto"))
     if options.get("order_d") is not None:
         _orders(options["order_d"], 1 if np.ndim(options["order_d"]) == 0 else len(options["order_d"]))
 
@@ -380,6 +390,7 @@ def dksyn(
     real: str = "mixed",
     autoscale: bool = True,
     gamma: float | None = None,
+    design_order: int | str | None = "auto",
 ) -> DKResult:
     """mu-synthesis by D-K iteration (Skogestad & Postlethwaite 2005, sec. 8.12.1).
 
@@ -453,6 +464,16 @@ def dksyn(
         backoff``), else at the optimum. A controller designed away from the optimum is
         better conditioned (smaller gains, no near-singular Riccati solutions) at the cost
         of a higher scaled norm. Not used by the D-G-K K step (which searches its level).
+    design_order : "auto", int or None
+        States of the design plant the K steps see (:mod:`robustctl.robust.dk_plant`).
+        ``"auto"`` (default): a generalized plant of more than ``DESIGN_REDUCE_ABOVE`` (200)
+        states is reduced by balanced truncation before synthesis, to the fewest states whose
+        bound ``2 sum sigma_tail`` on ``||P - P_r||_inf`` is at most 1 % of the largest
+        Hankel singular value (at most ``DESIGN_MAX_STATES``, 100), and the truncation error
+        is covered by an added additive uncertainty block on the whole plant; the
+        controller is then closed around the full plant, its mu verified there (``mu_peak``),
+        and the orders, the bound and both peaks are in ``DKResult.design_reduction``; the
+        history is the design plant's. An integer: that many states. None: the full plant.
 
     Returns
     -------
@@ -461,7 +482,9 @@ def dksyn(
     Raises
     ------
     SynthesisError
-        A malformed plant or block structure, or no stabilising controller.
+        A malformed plant or block structure, or no stabilising controller; a controller
+        designed on the reduced design plant that does not stabilise the full plant (the
+        reduction error exceeds what the loop tolerates: raise ``design_order``).
 
     Examples
     --------
@@ -485,6 +508,15 @@ def dksyn(
     mixed = real == "mixed" and plant.blocks.has_real
     blocks = plant.blocks if mixed else _complexified(plant.blocks)
     _orders(order_d, len(blocks) - 1)  # refuse a bad order_d now, not at the first D step
+    design, shrink = reduce_design_plant(plant, design_order)
+    if shrink is not None:
+        if order_d is not None and np.ndim(order_d) == 1:  # a constant D-scale for the error block
+            k = len(plant.blocks) - 1
+            order_d = [*list(order_d)[:k], 0, *list(order_d)[k:]]
+        res = dksyn((design.P, plant.nmeas, plant.ncon, design.blocks), max_iter, order_d, f_hz, executor,
+                    time_budget_s, reduce, progress, rtol=rtol, patience=patience, hinf_options=hinf_options,
+                    callback=callback, real=real, autoscale=autoscale, gamma=gamma, design_order=None)
+        return on_full_plant(plant, blocks, res, shrink)
     if autoscale:
         return _autoscaled_dksyn(plant, blocks, dict(
             max_iter=max_iter, order_d=order_d, f_hz=f_hz, executor=executor, time_budget_s=time_budget_s,

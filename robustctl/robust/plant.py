@@ -431,7 +431,9 @@ def generalized_plant(
         (sensors, the measurement ``y``). Its names name ``u`` and ``y``. An
         :class:`~robustctl.physical.uncertain.UncertainModel` (``upd.uncertain()``) brings its
         real parameters: their channels come first in ``w`` and ``z`` and their repeated real
-        scalar blocks first in ``.blocks`` (then the weights' blocks, as below).
+        scalar blocks first in ``.blocks`` (then the weights' blocks, as below). Its
+        remainder cover (:func:`~robustctl.robust.cover.cover_remainder`), if any, is the
+        weight of its kind (additive or multiplicative; that argument must then be None).
     additive : weight, optional
         Additive uncertainty ``G + W_a Delta``: a SISO weight (``W_a I``), an ``nu x nu``
         system (on the plant inputs), an ``ny x ny`` system (on the outputs), or a cover
@@ -488,12 +490,33 @@ def generalized_plant(
             f"the nominal model is discrete-time (dt={G.dt}); the generalized plant is continuous-time."
         )
     _mult_blocks(mult_structure, ["check"], "")  # refuse a bad structure before any work
+    if unc is not None and unc.remainder is not None:
+        additive, input_mult, output_mult = _with_remainder(unc.remainder, additive, input_mult, output_mult)
     W = _plant_weights(G, additive, input_mult, output_mult, performance, control_weight, disturbances, noise,
                        parametric=unc is not None)
     gp = _PlantBuilder(G, W, mult_structure, unc).build()
     if check_rank:
         _check_regular(gp)
     return gp
+
+
+def _with_remainder(rem: Any, additive: Any, input_mult: Any, output_mult: Any) -> tuple[Any, Any, Any]:
+    """The weights with an UncertainModel's remainder cover in the slot of its kind."""
+    slots = {"additive": 0, "input multiplicative": 1, "output multiplicative": 2}
+    given = [additive, input_mult, output_mult]
+    k = slots.get(getattr(rem, "kind", None))
+    if k is None:
+        raise ModelError(
+            f"the uncertain model's remainder has an unknown kind {getattr(rem, 'kind', None)!r}.")
+    if given[k] is not None:
+        name = ("additive", "input_mult", "output_mult")[k]
+        raise ModelError(
+            f"the uncertain model carries a {rem.kind} remainder cover and {name}= is given too: one "
+            f"{rem.kind} weight per plant. Cover both in the remainder (rc.cover_remainder over the data and "
+            f"models), or pass um.with_remainder(None) to use {name}= alone."
+        )
+    given[k] = rem.weight
+    return given[0], given[1], given[2]
 
 
 def _is_uncertain_model(x: Any) -> bool:

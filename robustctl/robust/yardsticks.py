@@ -397,6 +397,12 @@ def _recipe_plant(recipe: Callable[[Any], Any], model: Any, label: str) -> Any:
     return plant
 
 
+def _fit_band(model: Any) -> tuple[float, float] | None:
+    """The band (Hz) a measurement model was fitted on; None for other models."""
+    band = getattr(model, "band_hz", None) if hasattr(model, "fit") else None
+    return None if band is None else (float(band[0]), float(band[1]))
+
+
 def _system_of(model: Any) -> Any:
     """The model as a system: a MeasurementModel (``.sys``, no ``.statespace()``) gives its ``sys``."""
     if not hasattr(model, "statespace") and hasattr(model, "sys"):
@@ -419,17 +425,106 @@ def _aligned_response(data: FrequencyData, G: Any, values: np.ndarray | None = N
     return arr[:, out_idx][:, :, in_idx]
 
 
-def _loop_detail(f_hz: np.ndarray, L: np.ndarray, coherence: np.ndarray | None) -> str:
-    """Where the loop on the data is most at risk: the largest loop gain ``sigma_max(s G K)`` over
-    the measured points, its frequency, and the data's coherence there (lowest channel)."""
+def _windings(f_hz: np.ndarray, L: np.ndarray) -> list[tuple[int, int, int]]:
+    """Where ``det(I - L)`` winds around the origin: ``(first, last, turns)`` per stretch of points
+    with loop gain ``sigma_max(L) >= 1`` that turns it (counter-clockwise positive).
+
+    Where ``sigma_max(L) < 1`` every eigenvalue of ``I - L`` lies in the right half plane, so the
+    sum of their principal arguments is the determinant's argument without ambiguity: between two
+    such points the unwrapped argument's change minus that of the sums is ``2 pi`` times the
+    encirclements made in between. A stretch at an end of the data is closed by the end point.
+    """
     gain = np.linalg.norm(L, ord=2, axis=(1, 2))
-    k = int(np.argmax(gain))
-    text = f"largest loop gain sigma_max(GK) = {gain[k]:.3g} at {f_hz[k]:.4g} Hz"
-    if coherence is not None:
-        text += f", where the data's coherence is {float(np.min(coherence[k])):.2f} (lowest channel)"
-    else:
-        text += " (the data carry no coherence)"
-    return text
+    phase = _det_phase(L)
+    quiet = np.flatnonzero(gain < 1.0)
+    out = []
+    k = 0
+    while k < f_hz.size:
+        if gain[k] < 1.0:
+            k += 1
+            continue
+        first = k
+        while k < f_hz.size and gain[k] >= 1.0:
+            k += 1
+        last = k - 1
+        before = quiet[quiet < first]
+        after = quiet[quiet > last]
+        a = int(before[-1]) if before.size else first
+        b = int(after[0]) if after.size else last
+        direct = _eig_arg_sum(L[b]) - _eig_arg_sum(L[a]) if before.size and after.size else 0.0
+        turns = int(np.round((phase[b] - phase[a] - direct) / (2 * np.pi)))
+        if turns:
+            out.append((first, last, turns))
+    return out
+
+
+def _loop_detail(f_hz: np.ndarray, L: np.ndarray, coherence: np.ndarray | None, G: np.ndarray | None = None,
+                 K: np.ndarray | None = None, fit_band: tuple[float, float] | None = None,
+                 fine: tuple[np.ndarray, np.ndarray] | None = None) -> str:
+    """Where the loop on the data decides its verdict, in words.
+
+    The generalized Nyquist count changes only where ``det(I - s G K)`` winds around the
+    origin, which needs a loop gain of at least 1: the stretches of frequency where it winds
+    (:func:`_windings`) are named first, each with its peak loop gain and the data's coherence
+    there, then the largest loop gain. The coherence that matters is the one of the channels
+    carrying the loop: a channel counts by its share of ``||L||_F^2``,
+    ``|G_ij|^2 sum_k |K_jk|^2`` (a decoupled channel has coherence near 0 because its
+    response is near 0, and carries nothing of the loop); without ``G`` and ``K`` the lowest
+    channel's coherence is given. A winding outside ``fit_band`` (the band the controller's
+    design model was fitted on) is said to be there: outside it that model is the extrapolation
+    of its fillers, not a fit to the data.
+
+    Parameters
+    ----------
+    f_hz : ndarray, shape (nf,)
+        Measured frequencies (Hz).
+    L : ndarray, shape (nf, n, n)
+        Loop ``s G K`` on the data.
+    coherence : ndarray, shape (nf, n, m) or None
+        The data's coherence per channel, in the model's channel order.
+    G : ndarray, shape (nf, n, m), optional
+        The measured plant (weights the coherence with ``K``).
+    K : ndarray, shape (nf, m, n), optional
+        The controller's response on ``f_hz``.
+    fit_band : (f_lo_hz, f_hi_hz), optional
+        Band the design model was fitted on (a measurement model's ``band_hz``).
+    fine : (f_fine_hz, L_fine), optional
+        The loop on a finer grid (the yardstick's interpolated data) to locate the windings;
+        default: the measured points.
+
+    Returns
+    -------
+    str
+    """
+    gain = np.linalg.norm(L, ord=2, axis=(1, 2))
+
+    def coh(k: int) -> str:
+        if coherence is None:
+            return "the data carry no coherence"
+        c = np.asarray(coherence[k], dtype=float)
+        w = None if G is None or K is None else np.abs(G[k]) ** 2 * np.sum(np.abs(K[k]) ** 2, axis=1)[None, :]
+        if w is None or not np.sum(w) > 0:
+            return f"the data's coherence is {float(np.min(c)):.2f} (lowest channel)"
+        weighted = float(np.sum(w * c) / np.sum(w))
+        return (f"the data's coherence is {weighted:.2f} on the channels carrying the loop, "
+                f"{float(np.min(c)):.2f} on the lowest")
+
+    f_w, L_w = (f_hz, L) if fine is None else fine
+    g_w = np.linalg.norm(L_w, ord=2, axis=(1, 2))
+    parts = []
+    for first, last, turns in _windings(f_w, L_w):
+        peak = first + int(np.argmax(g_w[first:last + 1]))
+        k = int(np.argmin(np.abs(f_hz - f_w[peak])))
+        where = (f"det(I - GK) winds {abs(turns)} time(s) {'counter-' if turns > 0 else ''}clockwise around "
+                 f"the origin in {f_w[first]:.4g}-{f_w[last]:.4g} Hz (loop gain up to {g_w[peak]:.3g} at "
+                 f"{f_w[peak]:.4g} Hz; {coh(k)})")
+        if fit_band is not None and not fit_band[0] <= f_w[peak] <= fit_band[1]:
+            where += (f", outside the {fit_band[0]:.4g}-{fit_band[1]:.4g} Hz band the controller's design "
+                      "model was fitted on (there that model extrapolates its fillers)")
+        parts.append(where)
+    top = int(np.argmax(gain))
+    parts.append(f"largest loop gain sigma_max(GK) = {gain[top]:.3g} at {f_hz[top]:.4g} Hz ({coh(top)})")
+    return "; ".join(parts)
 
 
 class YardstickWarning(UserWarning):
@@ -675,7 +770,8 @@ def yardstick(
         verdict = nyquist_stability(f_fine, L_fine, n_ol, _model_loop(systems[lab], K, s), poles=poles)
         if verdict.stable is not True:
             coh = None if data.coherence is None else _aligned_response(data, systems[lab], data.coherence)
-            verdict = replace(verdict, reason=f"{verdict.reason}; {_loop_detail(f_all, L, coh)}")
+            detail = _loop_detail(f_all, L, coh, G_all, Kf, _fit_band(models[lab]), (f_fine, L_fine))
+            verdict = replace(verdict, reason=f"{verdict.reason}; {detail}")
             warnings.warn(
                 f"the controller designed on {lab!r} is {verdict.label} on the data: {verdict.reason}. "
                 "It is not ranked on its attenuation (Yardstick.ranked).",

@@ -13,11 +13,10 @@ from ...budget import Deadline
 from ...checks import UNSET, finite_number, integer, renamed_keyword
 from ...errors import FitError, ModelError
 from ...executors import check_executor, parallel_map_shared, resolve_workers
-from ...frd import FrequencyData, as_frequency_data
+from ...frd import FrequencyData
 from ...measure.estimator import estimator_settings
-from ...measure.noise import noise_model
 from ...threads import limit_blas
-from ..residual import check_determined, physical_model
+from ..residual import check_data, check_determined, physical_model
 from .results import ALPHA, DECOUPLED_DB, MIN_GAIN, MODEL_ERROR_DISPERSION, Diagnosis
 from .rivals import _indistinguishable
 from .screening import (
@@ -29,6 +28,7 @@ from .screening import (
     _residual_for,
     _screen_all,
     _to_fit,
+    _with_models,
 )
 from .sentences import _where
 from .significance import _channel_verdict, _null_test, _row_noise, _score, _testable_rows, effective_points
@@ -176,10 +176,10 @@ def diagnose(
     update_iter = integer(update_iter, "update_iter", FitError, lo=1)
     params = renamed_keyword(params, update_params, "params", "update_params")
     point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
-    model = _evaluated(physical_model(model, "diagnose"), data, band)
-    if isinstance(noise, str) and noise == "auto":
-        noise = noise_model(as_frequency_data(data), measurement_model=measurement_model)
-    res0, ignored = _residual(model, data, band, point_weights, min_channel_db, estimator, noise)
+    model = physical_model(model, "diagnose")
+    checked = check_data(data, band, noise, measurement_model)
+    model = _evaluated(model, checked.full, checked.band)
+    res0, ignored = _residual(model, checked, point_weights, min_channel_db, estimator)
     upd = _check_update(model, params)
     check_determined(res0, len(upd) + 1, "diagnose (the free parameters and one candidate's)")
     if candidates is not None:
@@ -223,6 +223,7 @@ def _diagnose(
     screens, twins, order = _screen_all(res_u, model_u, null, cands, executor, deadline)
     evals += sum(s["evals"] for s in screens)
     top = _to_fit(screens, order, n_fit)
+    _with_models(screens, top, model_u)
     # 3. local fits
     fits = parallel_map_shared(
         _fit_task, (res_u, null, max_iter, deadline), [screens[k] for k in top], executor, desc="local fits",
