@@ -37,7 +37,21 @@ MAX_NFEV_PER_PARAM = 20
 def leaked_basis(poles: np.ndarray, f_hz: np.ndarray, settings: EstimatorSettings) -> np.ndarray:
     """Expected H1 of each real basis term (per complex pole: residue 1 and residue j; per real
     pole: residue 1; then the feedthrough), shape (K, n_basis): columns of the linear model
-    ``E[H1 of M] = basis @ x`` (:func:`.leakage.expected_h1` term by term)."""
+    ``E[H1 of M] = basis @ x`` (:func:`.leakage.expected_h1` term by term).
+
+    Parameters
+    ----------
+    poles : ndarray, complex
+        One pole per conjugate pair plus real poles, rad/s.
+    f_hz : ndarray
+        Frequencies, Hz (below Nyquist).
+    settings : EstimatorSettings
+        Sampling rate, segment length and window of the estimate.
+
+    Returns
+    -------
+    ndarray, complex, shape (K, n_basis)
+    """
     fs, n, _ = settings
     t = 1.0 / fs
     k = np.arange(n - 1)

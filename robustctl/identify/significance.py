@@ -97,7 +97,13 @@ class PoleEvidence:
     noise: str
 
     def reason(self, k: int) -> str:
-        """Why pole ``k`` is not a mode, in words (empty for a mode)."""
+        """Why pole ``k`` is not a mode, in words (empty for a mode).
+
+        Parameters
+        ----------
+        k : int
+            Index into the fit's poles.
+        """
         if self.physical[k]:
             return ""
         if not self.candidate[k]:
@@ -114,7 +120,18 @@ class PoleEvidence:
 def modal_phase_collinearity(residue: np.ndarray) -> float:
     """MPC of a residue's entries (Pappa, Elliott & Schenk 1993, eq. 9): ``((l1 - l2)/(l1 + l2))^2``
     with ``l1 >= l2`` the eigenvalues of the 2x2 covariance of their real and imaginary parts;
-    1 for entries on one line through the origin (a real mode), 0 for a circular scatter."""
+    1 for entries on one line through the origin (a real mode), 0 for a circular scatter.
+
+    Parameters
+    ----------
+    residue : array_like, complex
+        A pole's residue matrix (any shape; its entries are pooled).
+
+    Returns
+    -------
+    float
+        In [0, 1].
+    """
     x = np.asarray(residue).ravel()
     if x.size < 2:
         return 1.0
