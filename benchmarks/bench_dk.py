@@ -216,17 +216,76 @@ def _himat() -> dict:
         for order in range(7):
             fixed[order] = dksyn((P, 2, 2, blocks), order_d=order, progress=False).mu_peak
         c = time.process_time()
-        auto = dksyn((P, 2, 2, blocks), progress=False).mu_peak
+        auto_res = dksyn((P, 2, 2, blocks), progress=False)
+        auto, auto_stop = auto_res.mu_peak, auto_res.stop_reason
         out[f"{name}_auto_cpu_s"] = round(time.process_time() - c, 2)
+        dense = _dense_mu(auto_res.closed_loop, auto_res.blocks, auto_res.mu.f_hz)
+        out[f"{name}_auto_dense_mu"] = round(dense, 4)
         plain = dksyn((P, 2, 2, blocks), progress=False, autoscale=False).mu_peak
         best = min(fixed.values())
         out[f"{name}_fixed_order_mu"] = {k: round(v, 4) for k, v in fixed.items()}
         out[f"{name}_auto_mu"] = round(auto, 4)
+        out[f"{name}_auto_stop_reason"] = auto_stop
         out[f"{name}_auto_no_autoscale_mu"] = round(plain, 4)
         out[f"{name}_auto_over_best_fixed_pct"] = round(100 * (auto / best - 1), 2)
     P, blocks = himat_plant()
     grid = dksyn((P, 2, 2, blocks), f_hz=np.logspace(-3, 3, 60) / (2 * np.pi), progress=False)
     out["himat_60pt_mu"] = round(grid.mu_peak, 4)
+    return out
+
+
+def _lmi_route() -> dict:
+    """hinfsyn's LMI route on badly scaled plants against the Riccati route, and the D-K K step's
+    fallback to it where Riccati refuses (D12 = 0).
+
+    HIMAT (mkhic, mkhicn): weight poles at 0.03 and 1e4 rad/s, where Clarabel on the raw LMIs
+    stopped at gamma 2027 (Riccati 1.675); per plant the Riccati and LMI optima, the rebuilt
+    controller's closed-loop norm by rc.hinfnorm and the LMI route's CPU time.
+    """
+    import control
+
+    from robustctl.examples import himat_plant
+    from robustctl.robust.hinf_norm import hinfnorm
+    from robustctl.robust.hinf_synthesis import hinfsyn
+
+    out = {}
+    for noise in (False, True):
+        P, _ = himat_plant(noise)
+        name = "himat_n" if noise else "himat"
+        ric = hinfsyn(P, 2, 2)
+        c = time.process_time()
+        lmi = hinfsyn(P, 2, 2, method="lmi")
+        out[f"lmi_{name}_cpu_s"] = round(time.process_time() - c, 2)
+        out[f"lmi_{name}_riccati_gamma_opt"] = round(ric.gamma_opt, 5)
+        out[f"lmi_{name}_lmi_gamma_opt"] = round(lmi.gamma_opt, 5)
+        norm = hinfnorm(lmi.closed_loop, tol=1e-8)[0]
+        out[f"lmi_{name}_rebuilt_norm"] = round(norm, 5)
+        out[f"lmi_{name}_rebuilt_over_gamma_pct"] = round(100 * (norm / lmi.gamma_opt - 1), 3)
+    s = control.tf("s")
+    parts = [control.ss(1 / (s + 1), inputs="ug", outputs="yg"),
+             control.ss(0.2 / (s / 50 + 1), inputs="u", outputs="zdel"),
+             control.ss(0.5 * (s + 2) / (s + 0.02) / (s / 200 + 1), inputs="e", outputs="zp"),
+             control.summing_junction(["u", "pert"], "ug"), control.summing_junction(["yg", "d"], "e"),
+             control.summing_junction(["yg", "d"], "y")]
+    P = control.interconnect(parts, inputs=["pert", "d", "u"], outputs=["zdel", "zp", "y"])
+    c = time.process_time()
+    dk = dksyn((P, 1, 1, [[1, 1], [1, 1]]), max_iter=3, progress=False, autoscale=False)
+    out["lmi_fallback_d12_zero_mu_per_iteration"] = [round(h.mu_peak, 4) for h in dk.history]
+    out["lmi_fallback_d12_zero_cpu_s"] = round(time.process_time() - c, 2)
+    return out
+
+
+def _caltech_autoscale() -> dict:
+    """The Caltech design plant with and without autoscale: mu, controller order, CPU time."""
+    gp = caltech_design_plant(caltech_truss(), level=0.3)
+    out = {}
+    for auto in (True, False):
+        c = time.process_time()
+        dk = dksyn(gp, progress=False, autoscale=auto)
+        key = f"caltech_{'autoscale' if auto else 'plain'}"
+        out[key + "_cpu_s"] = round(time.process_time() - c, 2)
+        out[key + "_mu"] = round(dk.mu_peak, 4)
+        out[key + "_K_order"] = dk.K.nstates
     return out
 
 
@@ -384,8 +443,8 @@ def _robustness() -> dict:
 
 def run() -> dict:
     """D-K on both plants, the robustness cases, and dkpy on the distillation plant when available."""
-    metrics = {**_distillation(), **_units(), **_mixed(), **_himat(), **_caltech(), **_robustness(),
-               **_caltech_parametric()}
+    metrics = {**_distillation(), **_units(), **_mixed(), **_himat(), **_lmi_route(), **_caltech(),
+               **_caltech_autoscale(), **_robustness(), **_caltech_parametric()}
     dkpy = _dkpy()
     metrics["dkpy_status"] = dkpy["status"]
     if dkpy["status"] == "ok":

@@ -31,6 +31,25 @@ _MODEL_HELP = (
 _DATA_HELP = "measured frequency responses: .npz, .csv, .mat or .uff/.unv (robustctl.load_frd)"
 
 
+#: The sub-commands reading DATA: name, summary, description, whether MODEL comes first, and
+#: the one option of their own (the band, report folder and experiment options are common).
+_DATA_COMMANDS = (
+    ("compare", "where does MODEL fail against DATA (channels, bands, modes)?",
+     "Compare a model with measured FRFs: per-channel cost (MACE eq. 5), failing bands, "
+     "a mode table paired through a measurement model, the error's structure.", True,
+     (("--modes",), {"type": int, "default": None,
+                     "help": "also fit a measurement model with this many modes to pair modes through"})),
+    ("diagnose", "which physical effect is MODEL missing, judged on DATA?",
+     "Rank candidate physical effects (delays, filters, springs, masses, dashpots, taut "
+     "wires, ...) by what they explain of the model's error, with a significance test.", True,
+     (("--time-budget",), {"type": float, "default": None, "help": "optional wall-clock cap in s "
+                           "(default: none; iteration caps bound the work)"})),
+    ("identify", "fit a measurement model (the yardstick) to DATA",
+     "Identify a modal measurement model (vector fitting, SVD mode grouping) of the data.", False,
+     (("--modes",), {"type": int, "default": None, "help": "number of modes (default: automatic)"})),
+)  # fmt: skip
+
+
 def _data_command(
     sub: Any, name: str, summary: str, description: str, *, model: bool
 ) -> argparse.ArgumentParser:
@@ -113,33 +132,10 @@ def _parser() -> argparse.ArgumentParser:
     demo.add_argument("--no-design", action="store_true",
                       help="stop after the model update (skip weights, D-K, mu, yardstick and export)")
 
-    cmp = _data_command(
-        sub, "compare", "where does MODEL fail against DATA (channels, bands, modes)?",
-        "Compare a model with measured FRFs: per-channel cost (MACE eq. 5), failing bands, "
-        "a mode table paired through a measurement model, the error's structure.",
-        model=True,
-    )
-    cmp.add_argument("--modes", type=int, default=None,
-                     help="also fit a measurement model with this many modes to pair modes through")
-    _add_common(cmp, "out-compare")
-
-    diag = _data_command(
-        sub, "diagnose", "which physical effect is MODEL missing, judged on DATA?",
-        "Rank candidate physical effects (delays, filters, springs, masses, dashpots, taut "
-        "wires, ...) by what they explain of the model's error, with a significance test.",
-        model=True,
-    )
-    diag.add_argument("--time-budget", type=float, default=None,
-                      help="optional wall-clock cap in s (default: none; iteration caps bound the work)")
-    _add_common(diag, "out-diagnose")
-
-    ident = _data_command(
-        sub, "identify", "fit a measurement model (the yardstick) to DATA",
-        "Identify a modal measurement model (vector fitting, SVD mode grouping) of the data.",
-        model=False,
-    )
-    ident.add_argument("--modes", type=int, default=None, help="number of modes (default: automatic)")
-    _add_common(ident, "out-identify")
+    for name, summary, description, model, option in _DATA_COMMANDS:
+        cmd = _data_command(sub, name, summary, description, model=model)
+        cmd.add_argument(*option[0], **option[1])
+        _add_common(cmd, f"out-{name}")
 
     _export_parser(sub)
     sub.add_parser("info", help="print the versions robustctl runs with")

@@ -26,7 +26,7 @@ import numpy as np
 
 from .checks import flag, integer, is_default_names
 from .errors import ModelError, PlantError
-from .lti import _series_arrays, as_statespace
+from .lti import _series_arrays, as_statespace, rebuild_statespace, statespace_state
 from .signals import _arrays, select_signals
 from .table import Table
 
@@ -41,30 +41,17 @@ def _pack(value: Any) -> Any:
     """A picklable stand-in for a ``control.StateSpace`` (python-control's holds a lambda)."""
     import control
 
-    if isinstance(value, control.StateSpace):
-        return _PackedStateSpace(
-            *(np.array(m, dtype=float) for m in (value.A, value.B, value.C, value.D)), value.dt,
-            tuple(value.input_labels), tuple(value.output_labels), tuple(value.state_labels),
-        )
-    return value
+    return _PackedStateSpace(statespace_state(value)) if isinstance(value, control.StateSpace) else value
 
 
 @dataclass(frozen=True)
 class _PackedStateSpace:
-    A: np.ndarray
-    B: np.ndarray
-    C: np.ndarray
-    D: np.ndarray
-    dt: Any
-    inputs: tuple[str, ...]
-    outputs: tuple[str, ...]
-    states: tuple[str, ...]
+    """Marks a field that was a StateSpace: :func:`robustctl.lti.statespace_state` of it."""
+
+    state: dict
 
     def unpack(self):
-        import control
-
-        return control.ss(self.A, self.B, self.C, self.D, self.dt, inputs=list(self.inputs),
-                          outputs=list(self.outputs), states=list(self.states))
+        return rebuild_statespace(self.state)
 
 
 class PicklesStateSpaces:

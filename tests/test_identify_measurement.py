@@ -86,6 +86,39 @@ def test_expected_h1_matches_brute_force_double_sum():
     np.testing.assert_allclose(got, ref, rtol=1e-8, atol=1e-10 * np.abs(ref).max())
 
 
+def test_expected_h1_of_a_fit_with_a_pole_at_the_origin_matches_the_double_sum():
+    """A real pole at s = 0 (an integrator) has the ZOH input integral ``t`` (the limit of
+    ``(e^{pt} - 1)/p``): the expected H1 is finite and equals the brute-force double sum of the
+    state space sampled by python-control."""
+    import control
+    from scipy.signal import get_window
+
+    from robustctl.identify.rational_fit import RationalFit
+
+    wn, zeta, r0 = 2 * np.pi * 1.5, 0.02, 0.7
+    p = complex(-zeta * wn, wn * np.sqrt(1 - zeta**2))
+    r = 0.3 - 0.4j
+    fit = RationalFit(
+        poles=np.array([p, 0.0 + 0.0j]), residues=np.array([[[r]], [[r0 + 0j]]]), d=np.array([[0.05]]),
+        ranks=np.array([1, 1]), inputs=("u",), outputs=("y",), band_hz=(0.5, 5.0), method="vf",
+    )
+    fs, n = 20.0, 64
+    f = np.array([0.9, 2.0, 3.1])
+    got = expected_h1(fit, f, EstimatorSettings((fs, n, "hann")))
+    num = np.real(np.polymul([2 * r.real], [1, 0])) - 2 * (r * np.conj(p)).real * np.array([0, 1])
+    sys = control.ss(control.tf(num, [1, -2 * p.real, abs(p) ** 2]) + control.tf([r0], [1, 0]) + 0.05)
+    d = control.c2d(sys, 1 / fs, method="zoh")
+    h = [np.asarray(d.D)] + [np.asarray(d.C @ np.linalg.matrix_power(d.A, k - 1) @ d.B) for k in range(1, n)]
+    w = get_window("hann", n, fftbins=True)
+    ref = np.zeros((f.size, 1, 1), dtype=complex)
+    for a in range(n):
+        for b in range(a + 1):
+            ref += (w[a] * w[b] * np.exp(-2j * np.pi * f / fs * (a - b)))[:, None, None] * h[a - b]
+    ref /= np.sum(w**2)
+    assert np.all(np.isfinite(got))
+    np.testing.assert_allclose(got, ref, rtol=1e-8, atol=1e-10 * np.abs(ref).max())
+
+
 def test_automatic_order_selection_finds_six_modes():
     mm = rc.fit_measurement_model(caltech_measurement(), band=BAND, max_modes=9, correct_leakage="auto")
     assert mm.n_modes == 6

@@ -37,6 +37,7 @@ from ..frd import FrequencyData
 from ..lti import DB_PER_NEPER, as_statespace, pole_frequency_damping
 from ..measure.noise import NoiseModel
 from ..modes import Mode, mac, pair_modes
+from ..plots import channel_label, colorbar, log_frequency_axis, magnitude_label, new_figure
 from ..table import Table, result_html
 from .residual import NEGLIGIBLE_DB, Residual, as_model, check_data, log_ratio
 from .verdict import ALPHA, NoiseTest, no_noise_sentence, noise_test
@@ -617,8 +618,6 @@ class Comparison:
 
         Returns the matplotlib Figure.
         """
-        from ..plots import channel_label, colorbar, log_frequency_axis, magnitude_label, new_figure
-
         nf, no, ni = self.error.shape
         rows = 2 if phase else 1
         fig = fig or new_figure(3.2 * ni + 1, (2.4 + 1.4 * phase) * no + 3)

@@ -37,6 +37,7 @@ from ..checks import (
     finite_number,
     match_channels,
     renamed_keyword,
+    user_stacklevel,
 )
 from ..checks import point_weights as point_weights_of
 from ..errors import DataError, FitError, ModelError, RobustctlError
@@ -744,8 +745,6 @@ def _warn_band_units(band: tuple[float, float] | None, data: FrequencyData) -> N
     if band is None:
         return
     import warnings
-
-    from ..checks import user_stacklevel
 
     top = float(data.f_hz[-1])
     if band[1] > 1.5 * top:

@@ -10,8 +10,10 @@ from typing import Any
 import numpy as np
 
 from ..checks import check_seed
-from ..errors import FitError
+from ..errors import FitError, ModelError
 from ..measure.noise import NO_NOISE_SENTENCE, format_p
+from ..physical.uncertain import parametric_lft
+from ..plots import annotated_matrix, colorbar, new_figure
 from ..table import Table, result_html
 from .optimize import LMResult
 from .parameter_drift import Drift, move_test
@@ -244,9 +246,6 @@ class UpdateResult:
         FitError
             No updated parameter, or a name in ``params`` that was not updated.
         """
-        from ..errors import ModelError
-        from ..physical.uncertain import parametric_lft
-
         names = tuple(self.fit.names)
         if not names:
             raise FitError("the update changed no parameter: there is no uncertainty to model.")
@@ -373,8 +372,6 @@ class UpdateResult:
 
     def plot(self, fig: Any = None) -> Any:
         """Cost per iteration, alignment bar chart (Fig. 3) and orthogonality matrix (Fig. 4)."""
-        from ..plots import annotated_matrix, colorbar, new_figure
-
         fig = fig or new_figure(13.0, 4.0)
         ax1, ax2, ax3 = fig.subplots(1, 3)
         ax1.semilogy(range(len(self.history)), self.history, "o-")

@@ -31,6 +31,7 @@ from ..checks import UNSET, flag, integer, positive_number, probability, renamed
 from ..errors import FitError, RobustctlError
 from ..executors import check_executor
 from ..frd import FrequencyData
+from ..lti import log_ratio
 from ..measure.noise import NO_NOISE_SENTENCE
 from ..physical.reduction import for_data
 from .optimize import LMResult, levenberg_marquardt
@@ -506,8 +507,6 @@ def _verdict(residual: Residual, values: dict[str, float], alpha: float) -> Nois
     moment, which the offset would only raise."""
     if residual.noise is None:
         return None
-    from ..lti import log_ratio
-
     d = residual.data
     e = log_ratio(d.response, residual.model_response(**values))
     keep = np.any(residual.weights > 0, axis=0)

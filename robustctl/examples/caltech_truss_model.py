@@ -84,8 +84,10 @@ from collections.abc import Mapping
 import numpy as np
 
 from ..physical.electronics import butterworth_stage, gain_stage
+from ..physical.fem import Frame
 from ..physical.modal import modal_dynamics
 from ..physical.model import PhysicalModel
+from ..table import Table
 from ._assembly import (
     G_STANDARD,
     check_band_hz,
@@ -180,8 +182,6 @@ def _corner(angle_deg: float, radius: float, z: float) -> np.ndarray:
 
 def _frame(theta: Mapping[str, float], n_el: int, diagonals: bool):
     """Assemble the truss Frame for the parameter values ``theta``."""
-    from ..physical.fem import Frame
-
     g = get_param(theta, "g_local", 0.0)
     fr = Frame(gravity=g, gravity_direction=(0.0, 0.0, -1.0))
     E, rho, nu = theta["E_aluminium"], theta["rho_aluminium"], theta["nu_aluminium"]
@@ -335,8 +335,6 @@ def truss_modes(model: PhysicalModel, n_modes: int = 12, **overrides: float):
         Columns ``mode``, ``f (Hz)``, ``type``, ``NASTRAN (Hz)``, ``test (Hz)`` (the seed's
         values for the first six modes).
     """
-    from ..table import Table
-
     f_hz, types = _classify(model, n_modes, overrides)
     rows = []
     for k, (f, t) in enumerate(zip(f_hz, types)):

@@ -21,6 +21,10 @@ from typing import Any
 
 import numpy as np
 
+from ..correlate import update
+from ..lti import freqresp, freqresp_array
+from ..plots import new_figure
+from ..robust.cover import cover_additive
 from ..robust.weights import caltech_additive_weight
 
 __all__ = ["CaltechWeights", "caltech_truss_weights", "caltech_additive_weight"]
@@ -59,9 +63,6 @@ class CaltechWeights:
 
     def plot(self, fig: Any = None) -> Any:
         """The covers with eq. 14 on one log-log axis per cover."""
-        from ..lti import freqresp_array
-        from ..plots import new_figure
-
         covers = [("updated physical model + parameter spread", self.updated)]
         if self.measurement is not None:
             covers.append(("six-mode measurement model (the seed's procedure)", self.measurement))
@@ -118,9 +119,6 @@ def caltech_truss_weights(
     -------
     CaltechWeights
     """
-    from ..correlate import update
-    from ..lti import freqresp
-    from ..robust.cover import cover_additive
     from .caltech_truss_model import caltech_truss
     from .experiments import caltech_truss_experiment
 

@@ -28,6 +28,7 @@ from ..errors import ModelError
 from ..frd import FrequencyData
 from ..measure.estimate import combine_experiments, estimate_frf, simulate_experiment
 from ..measure.estimator import hold_response
+from ..physical.effects import GroupTension
 from ..threads import limit_blas
 
 __all__ = ["make_experiment", "caltech_truss_experiment", "mace_beam_experiment", "hold_response"]
@@ -186,7 +187,6 @@ def caltech_truss_experiment(seed: int = 0, **kwargs: Any) -> tuple[FrequencyDat
         Inputs A1-A3, outputs S1-S3 (units V: actuator and sensor volts), 0.049-100 Hz.
     truth : PhysicalModel
     """
-    from ..physical.effects import GroupTension
     from .caltech_truss_model import caltech_truss
 
     _, group, values = CALTECH_TRUTH["hidden"]
@@ -231,7 +231,6 @@ def mace_beam_experiment(seed: int = 0, **kwargs: Any) -> tuple[FrequencyData, A
         ``RWA gyro x/y/z``.
     truth : PhysicalModel
     """
-    from ..physical.effects import GroupTension
     from .mace_beam_model import mace_beam
 
     _, group, values = MACE_TRUTH["hidden"]

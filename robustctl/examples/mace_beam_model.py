@@ -108,9 +108,11 @@ from collections.abc import Mapping
 import numpy as np
 
 from ..physical.electronics import bessel_stage, delay_stage, gain_stage, rate_gyro_stage, servo_stage
+from ..physical.fem import Frame
 from ..physical.modal import modal_dynamics
 from ..physical.model import PhysicalModel, Stage
 from ..signals import select_signals
+from ..table import Table
 from ._assembly import (
     check_band_hz,
     check_flags,
@@ -213,8 +215,6 @@ def _params(zero_g: bool) -> list:
 
 def _frame(theta: Mapping[str, float], n_el: int, n_rod: int, zero_g: bool):
     """Assemble the MACE-like Frame for the parameter values ``theta``."""
-    from ..physical.fem import Frame
-
     g = 0.0 if zero_g else get_param(theta, "g_local", 9.81)
     fr = Frame(gravity=g, gravity_direction=(0.0, 0.0, -1.0), name="MACE-like bus")
     nu = theta["nu_polycarbonate"]
@@ -437,8 +437,6 @@ def mace_modes(model: PhysicalModel, n_modes: int = 30, **overrides: float):
         Columns ``mode``, ``f (Hz)``, ``type``, ``rods %``, ``payloads %``, ``bus y flex``,
         ``bus z flex``.
     """
-    from ..table import Table
-
     info = classify_mace_modes(model, n_modes, **overrides)
     rows = [
         (k + 1, float(r["f_hz"]), r["type"], 100 * r["rods"], 100 * r["payloads"], r["flex_y"], r["flex_z"])

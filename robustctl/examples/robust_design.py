@@ -18,6 +18,17 @@ from typing import Any
 
 import numpy as np
 
+from ..balanced import balanced_truncation
+from ..errors import DataError, FitError
+from ..frd import as_frequency_data
+from ..lti import as_statespace, freqresp_array
+from ..measure.estimator import estimator_settings, estimator_view
+from ..robust.cover import cover_additive, cover_remainder
+from ..robust.dk_verify import closed_loop, default_grid, verification_grid
+from ..robust.mu_bounds import mu
+from ..robust.plant import generalized_plant
+from ..robust.weights import caltech_additive_weight
+
 __all__ = ["distillation_plant", "DISTILLATION_BLOCKS", "caltech_design_plant", "six_modes",
            "ModelCoverRecipe", "ParametricComparison", "caltech_parametric_plants", "performance_scale"]
 
@@ -176,9 +187,6 @@ def six_modes(model: Any):
     """The six global modes (12 states) of a truss model by balanced truncation (seed eq. 11-13)."""
     import control
 
-    from ..balanced import balanced_truncation
-    from ..lti import as_statespace
-
     G = as_statespace(model)
     if G.nstates <= 12:
         return G
@@ -208,9 +216,6 @@ def caltech_design_plant(nominal: Any, level: float = 0.3, band_hz: tuple[float,
     -------
     GeneralizedPlant
     """
-    from ..robust.plant import generalized_plant
-    from ..robust.weights import caltech_additive_weight
-
     return generalized_plant(six_modes(nominal), additive=caltech_additive_weight(), input_mult=0.04,
                              output_mult=0.04, performance=_band_pass(level, band_hz), disturbances=1.0)
 
@@ -299,12 +304,6 @@ class ModelCoverRecipe:
         return self._covers[id(nominal)][1]
 
     def _fit_cover(self, nominal: Any):
-        from ..errors import DataError, FitError
-        from ..frd import as_frequency_data
-        from ..lti import freqresp_array
-        from ..measure.estimator import estimator_settings, estimator_view
-        from ..robust.cover import cover_additive
-
         data = as_frequency_data(self.data)
         st = estimator_settings(data.meta)
         if st is None:
@@ -332,8 +331,6 @@ class ModelCoverRecipe:
 
     def __call__(self, nominal: Any):
         """The generalized plant of ``nominal`` with its own cover (see the class notes)."""
-        from ..robust.plant import generalized_plant
-
         return generalized_plant(six_modes(nominal), additive=self.cover(nominal).weight, input_mult=0.04,
                                  output_mult=0.04, performance=_band_pass(self.level, self.band_hz),
                                  disturbances=1.0)
@@ -407,12 +404,6 @@ def caltech_parametric_plants(upd: Any, data: Any, *, n_sigma: float = 3.0, leve
     -------
     ParametricComparison
     """
-    from ..frd import as_frequency_data
-    from ..lti import freqresp_array
-    from ..measure.estimator import estimator_settings, estimator_view
-    from ..robust.cover import cover_additive, cover_remainder
-    from ..robust.plant import generalized_plant
-
     um = upd.uncertain(n_sigma=n_sigma, form="modes", order=12)
     G0 = um.nominal
     data = as_frequency_data(data)
@@ -453,10 +444,6 @@ def performance_scale(gp: Any, K: Any, f_hz: Any = None, *, rtol: float = 1e-3) 
     (float, float)
         The scale ``a`` and the robust-stability peak of mu (uncertainty blocks alone).
     """
-    from ..lti import freqresp_array
-    from ..robust.dk_verify import closed_loop, default_grid, verification_grid
-    from ..robust.mu_bounds import mu
-
     cl = closed_loop(gp.P, K, gp.nmeas, gp.ncon)
     f = verification_grid(cl, default_grid(gp.P) if f_hz is None else np.asarray(f_hz, float))
     H = freqresp_array(cl, f)

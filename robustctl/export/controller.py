@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from .._version import __version__
 from ..errors import DataError, ModelError
 from ..frd_io._common import jsonable as _jsonable
 from ..frd_io._common import write_atomically
@@ -52,8 +53,6 @@ def _format(path: Path, format: str | None) -> str:
 
 
 def _provenance(user: Any) -> dict:
-    from .._version import __version__
-
     if user is not None and not isinstance(user, dict):
         raise DataError(f"provenance must be a dict of JSON-able values; got {type(user).__name__}.")
     prov = {

@@ -26,6 +26,7 @@ import numpy as np
 from ..errors import DataError
 from ..frd import FrequencyData
 from .geometry import Geometry, ModeShapes
+from .uff import _uff_names
 
 __all__ = ["load_uff_geometry", "load_uff_modes", "write_uff_geometry", "LENGTH_UNITS"]
 
@@ -146,8 +147,6 @@ def load_uff_geometry(path: str | os.PathLike, *, unit: str = "m", name: str | N
     ----------
     SDRC I-DEAS Universal File Format, datasets 15, 82, 2411, 2412, 2420 and 58.
     """
-    from .uff import _uff_names
-
     scale = _length(unit)
     sets = _read_sets(path)
     ids, xyz, disp = _nodes(sets)

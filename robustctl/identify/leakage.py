@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import FitError
-from ..measure.estimator import EstimatorSettings, estimator_settings, windowed_spectrum
+from ..measure.estimator import EstimatorSettings, estimator_settings, expected_h1_modal
 from ..threads import limit_blas
 from .modal_refine import ZETA_MIN
 from .poles import coefficients_to_residues, lstsq_normal, partial_fraction_basis
@@ -69,37 +69,19 @@ BOUND_ZETA = 1.5 * ZETA_MIN
 TAIL_NEGLIGIBLE = 1e-3
 
 
-def _zoh_impulse(model: RationalFit, fs: float, n: int) -> np.ndarray:
-    """Sampled ZOH impulse response ``h[k]``, shape (n, n_out, n_in): h[0] = D, h[k] = C Ad^(k-1) Bd."""
-    t = 1.0 / fs
-    k = np.arange(n - 1)
-    h = np.zeros((n,) + model.d.shape)
-    h[0] = model.d
-    for p, r in zip(model.poles, model.residues):
-        zp = np.exp(p * t)
-        gain = (zp - 1.0) / p  # ZOH input integral of exp(p tau) over one sample
-        seq = gain * zp**k
-        if p.imag == 0:
-            h[1:] += np.real(seq)[:, None, None] * r.real
-        else:
-            h[1:] += 2.0 * np.real(seq[:, None, None] * r)
-    return h
-
-
 @limit_blas
 def expected_h1(model: RationalFit, f_hz: np.ndarray, settings: EstimatorSettings) -> np.ndarray:
     """Expected H1 estimate of ``model`` at ``f_hz`` (Hz) for white ZOH excitation; (K, n_out, n_in).
 
-    The fit's ZOH impulse response through the estimator's lag window
-    (:func:`robustctl.measure.estimator.windowed_spectrum`, as
-    :func:`robustctl.measure.estimator.expected_h1_modal`); frequencies at or above Nyquist
-    are refused with a FitError.
+    :func:`robustctl.measure.estimator.expected_h1_modal` of the fit's poles (one of each
+    conjugate pair, as :class:`RationalFit` keeps them), residues and feedthrough; frequencies
+    at or above Nyquist are refused with a FitError.
     """
-    fs, n, _ = settings
+    fs = settings.fs_hz
     f = np.asarray(f_hz, dtype=float)
     if np.any(f >= fs / 2):
         raise FitError(f"frequencies must lie below the Nyquist frequency {fs / 2:g} Hz (leakage model).")
-    return windowed_spectrum(_zoh_impulse(model, fs, n), f, settings)
+    return expected_h1_modal(model.poles, model.residues, model.d, f, settings)
 
 
 def leakage_factor(model: RationalFit, f_hz: np.ndarray, settings: EstimatorSettings) -> np.ndarray:

@@ -29,8 +29,9 @@ from ..budget import as_deadline
 from ..checks import UNSET, band_data, renamed_keyword
 from ..errors import FitError, RobustctlError
 from ..frd import FrequencyData, as_frequency_data
-from ..lti import log_ratio, pole_frequency_damping, rebuild_statespace, statespace_state
+from ..lti import DB_PER_NEPER, log_ratio, pole_frequency_damping, rebuild_statespace, statespace_state
 from ..modes import Mode
+from ..plots import bode_grid
 from ..table import Table, result_html
 from ..threads import limit_blas
 from ._problem import prepare_problem
@@ -233,8 +234,6 @@ class MeasurementModel:
 
     def plot(self, max_channels: int = 9):
         """Data and model per channel, magnitude and phase (matplotlib Figure)."""
-        from ..plots import bode_grid
-
         fit = self.fit if self.window_tau_s is None else shift_poles(self.fit, -1.0 / self.window_tau_s)
         model = fit.freqresp(self.data.f_hz)
         label = "data (leakage-corrected)" if self.leakage_corrected else "data"
@@ -845,7 +844,6 @@ def leakage_consistency(
     unstable where the data do not determine the model).
     """
     from ..checks import point_weights as weights_of
-    from ..lti import DB_PER_NEPER, log_ratio
 
     w = weights_of(point_weights, raw)
     tiny = np.finfo(float).tiny

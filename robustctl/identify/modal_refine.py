@@ -32,7 +32,7 @@ from scipy.optimize import least_squares
 
 from ..budget import Deadline
 from ..threads import limit_blas
-from .block_refine import ZETA_MIN
+from .block_refine import ZETA_MIN, refine_cluster
 from .poles import evaluate
 from .rational_fit import RationalFit
 from .realization import residue_factors
@@ -250,8 +250,6 @@ def refine_modes_local(
     is the truncated record's (eq. T1, as :func:`refine_modes`).
     """
     from tqdm.auto import tqdm
-
-    from .block_refine import refine_cluster
 
     if fit.data is None:
         return fit

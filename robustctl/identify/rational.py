@@ -86,7 +86,7 @@ def _check_iter(max_iter: Any) -> int:
 
 def _fit_simo_each(data: Any, order: int, band: Any, weights: Any, **kw: Any) -> RationalFit:
     """One SIMO fit per input column (own denominator each), joined by :func:`combine_simo`."""
-    from ..checks import point_weights
+    from ..checks import point_weights  # the name of fit_rational's parameter: kept local
 
     fd = as_frequency_data(data)
     if weights is not None and not isinstance(weights, str):

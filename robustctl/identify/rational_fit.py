@@ -15,6 +15,8 @@ import numpy as np
 from ..errors import FitError
 from ..frd import FrequencyData
 from ..lti import pole_frequency_damping
+from ..plots import bode_grid
+from ..table import Table
 from .cost import LogCost, channel_cost
 from .poles import evaluate, n_states
 from .realization import modal_statespace
@@ -136,8 +138,6 @@ class RationalFit:
 
     def table(self):
         """One row per pole: frequency (Hz), damping (%), rank, largest residue entry."""
-        from ..table import Table
-
         rows = [
             (k, float(f), 100 * float(z), int(r), float(np.max(np.abs(res))))
             for k, (f, z, r, res) in enumerate(zip(self.f_hz, self.zeta, self.ranks, self.residues), start=1)
@@ -146,8 +146,6 @@ class RationalFit:
 
     def plot(self, max_channels: int = 9):
         """The fitted data and the fit per channel, magnitude and phase (needs the fitted data)."""
-        from ..plots import bode_grid
-
         if self.data is None:
             raise FitError("this fit keeps no data to plot against; use rc.freqresp(fit, f_hz) instead.")
         model = self.freqresp(self.data.f_hz)

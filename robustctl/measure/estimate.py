@@ -16,7 +16,7 @@ import numpy as np
 from ..checks import check_seed, flag, integer, match_channels, positive_number
 from ..errors import DataError, ModelError
 from ..frd import EXCITATIONS, INPUT_KINDS, Experiment, FrequencyData, combined_experiment
-from ..lti import zoh
+from ..lti import as_statespace, zoh
 from ..threads import limit_blas
 from .estimator import USER_WINDOW, window_values
 
@@ -623,8 +623,6 @@ def simulate_experiment(
     y : ndarray, shape (n_samples, n_out)
         The outputs, noise included.
     """
-    from ..lti import as_statespace
-
     ss = as_statespace(sys)
     if ss.dt not in (0, None):
         raise ModelError(

@@ -27,7 +27,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import DataError
-from ..lti import zoh
+from ..frd import PLAIN_NOTE, Experiment
+from ..lti import as_statespace, freqresp, zoh
 from ..threads import limit_blas
 
 __all__ = [
@@ -397,7 +398,10 @@ def windowed_spectrum(h: np.ndarray, f_hz: np.ndarray, settings: EstimatorSettin
 def expected_h1_modal(poles, residues, d, f_hz: Any, settings: EstimatorSettings) -> np.ndarray:
     """Expected H1 of ``sum_k residue_k / (s - pole_k) + d`` at ``f_hz`` (Hz); (K, n_out, n_in).
 
-    ``poles`` must be closed under conjugation (every complex pole with its conjugate).
+    ``poles`` are closed under conjugation (every complex pole with its conjugate) or hold one
+    pole of each pair, the one with ``Im p > 0`` (as :class:`robustctl.identify.RationalFit`
+    keeps them): the sum runs over the upper poles, twice, and the real ones. The one ZOH
+    impulse sum behind every expected H1 of a pole-residue model.
     """
     h = _zoh_impulse_modal(poles, residues, np.asarray(d, dtype=float), settings.fs_hz, settings.nperseg)
     return windowed_spectrum(h, f_hz, settings)
@@ -414,8 +418,6 @@ def expected_h1(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np.ndarray:
     -------
     ndarray, complex, shape (K, n_out, n_in)
     """
-    from ..lti import as_statespace
-
     ss = as_statespace(sys)
     modal = _modal(ss)
     if modal is not None:
@@ -472,8 +474,6 @@ def expected_h1_measured(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np
     -------
     ndarray, complex, shape (K, n_out, n_in)
     """
-    from ..lti import as_statespace
-
     ss = as_statespace(sys)
     fs, n, _ = settings
     T = 1.0 / fs
@@ -484,7 +484,6 @@ def expected_h1_measured(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np
     two = np.zeros((2 * n,) + D.shape)
     two[0] = D
     if modal is None:  # defective modes: transform the response itself on the fine grid
-        from ..lti import freqresp
 
         g = freqresp(ss, theta[1:] * fs / (2 * np.pi)).response - D
         g = np.concatenate([g[:1].real, g], axis=0)  # theta = 0: the first point's real part
@@ -530,8 +529,6 @@ def sampled_hold_response(sys: Any, f_hz: Any, fs: float) -> np.ndarray:
     """
     import control
 
-    from ..lti import as_statespace, freqresp
-
     ss = as_statespace(sys)
     d = control.c2d(ss, 1.0 / float(fs), method="zoh")
     return freqresp(d, f_hz).response
@@ -540,8 +537,6 @@ def sampled_hold_response(sys: Any, f_hz: Any, fs: float) -> np.ndarray:
 def discrete_view(sys: Any, f_hz: Any, settings: EstimatorSettings | None) -> np.ndarray:
     """A sampled system (``dt > 0``) as the estimate sees it: ``G(e^{j 2 pi f dt})``, through the
     lag window when the estimate has leakage (``h[0] = D``, ``h[m] = C A^{m-1} B``)."""
-    from ..lti import as_statespace, freqresp
-
     ss = as_statespace(sys)
     f = np.asarray(f_hz, dtype=float)
     if settings is None or not settings.leakage:
@@ -612,8 +607,6 @@ def experiment_view(
     ``note`` says in words what is applied (``"model seen through ..."``) or why nothing is
     (:data:`robustctl.frd.PLAIN_NOTE` when the data do not describe their experiment).
     """
-    from ..frd import PLAIN_NOTE, Experiment
-
     e = experiment if isinstance(experiment, Experiment) else Experiment.from_dict(experiment)
     if e.input_kind is None and e.excitation is None:
         return None, PLAIN_NOTE
@@ -723,8 +716,6 @@ def model_view(bare: Any, has_hold: bool, f_hz: Any, settings: EstimatorSettings
     if hasattr(bare, "param_names") and hasattr(bare, "statespace"):
         sys = bare.statespace(**overrides)
     else:
-        from ..lti import as_statespace
-
         sys = as_statespace(bare)
     if settings.input_kind == "held":  # the experiment had the hold: keep it, unless it was divided out
         return estimator_view(sys, f_hz, settings, hold=not settings.hold_divided)

@@ -41,9 +41,10 @@ from typing import Any
 
 import numpy as np
 
-from ..checks import COHERENCE_CAP, neighbour_coherence
+from ..checks import COHERENCE_CAP, match_channels, neighbour_coherence
 from ..errors import DataError
 from ..frd import FrequencyData, as_frequency_data
+from ..lti import as_statespace, freqresp, log_ratio
 from .estimator import USER_WINDOW, bin_correlation, effective_averages, estimator_settings, welch_window
 
 __all__ = [
@@ -319,9 +320,6 @@ def _running_scale(x: np.ndarray, half: int) -> np.ndarray:
 
 
 def _from_residual(data: Any, measurement_model: Any) -> NoiseModel:
-    from ..checks import match_channels
-    from ..lti import as_statespace, freqresp
-
     sys = as_statespace(measurement_model)
     out_idx = match_channels(sys.output_labels, data.outputs, "outputs")
     in_idx = match_channels(sys.input_labels, data.inputs, "inputs")
@@ -350,7 +348,6 @@ def residual_noise(data: Any, model_response: np.ndarray, what: str = "a model")
     -------
     NoiseModel
     """
-    from ..lti import log_ratio
 
     e = log_ratio(data.response, model_response)
     both = np.stack([e.real, e.imag], axis=1)  # (nf, 2, n_out, n_in): pool Re and Im

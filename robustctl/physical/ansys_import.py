@@ -132,13 +132,8 @@ def load_ansys_modes(
     inputs: Sequence[str] | Mapping[str, str],
     outputs: Sequence[str] | Mapping[str, str],
     *,
-    damping: Any = 0.01,
-    output_kind: str | Sequence[str] = "acceleration",
-    geometry: Geometry | None = None,
-    n_modes: int | None = None,
-    band_hz: tuple[float, float] | None = None,
     units: str = "m-kg-s",
-    name: str | None = None,
+    **options: Any,
 ):
     """A modal model from an ANSYS modal result (MACE eqs. 2-4); signals ``"node:T3"``.
 
@@ -149,24 +144,12 @@ def load_ansys_modes(
     rst, units
         The ``.rst`` of an ``ANTYPE,MODAL`` analysis and the model's consistent unit system, as
         for :func:`read_ansys_modes`.
-    inputs, outputs, damping, output_kind, geometry, n_modes, band_hz, name
-        As for :func:`~robustctl.physical.fe_model.fe_modal_model`: force inputs and sensor
-        outputs (DOF names ``"node:T3"`` or a mapping signal name -> DOF name), the modal
-        damping ratio (or ``"file"``), the sensor kind, the geometry for figures, the modal
-        truncation (count or band in Hz) and the model's name.
+    inputs, outputs, **options
+        Force inputs, sensor outputs (``"node:T3"``) and the keywords of
+        :func:`~robustctl.physical.fe_model.fe_modal_model`, as for
+        :func:`~robustctl.physical.nastran_import.load_nastran_modes`.
     """
-    modes = read_ansys_modes(rst, units=units)
-    return fe_modal_model(
-        modes,
-        inputs,
-        outputs,
-        damping=damping,
-        output_kind=output_kind,
-        geometry=geometry,
-        n_modes=n_modes,
-        band_hz=band_hz,
-        name=name,
-    )
+    return fe_modal_model(read_ansys_modes(rst, units=units), inputs, outputs, **options)
 
 
 def read_ansys_matrices(full: str | os.PathLike):
@@ -208,29 +191,27 @@ def read_ansys_matrices(full: str | os.PathLike):
 def load_ansys_matrices(
     full: str | os.PathLike,
     *,
-    inputs: Mapping[str, Any] | Sequence[str],
-    outputs: Mapping[str, Any] | Sequence[str],
     groups: Mapping[str, Any] | None = None,
-    lumped_masses: Mapping[str, Any] | None = None,
-    output_kind: str = "acceleration",
-    damping: Any = 0.01,
-    n_modes: int | None = None,
-    band_hz: tuple[float, float] | None = None,
     units: str = "m-kg-s",
     name: str | None = None,
+    **options: Any,
 ):
     """``rc.structural_model`` from an ANSYS ``.full`` file (MACE eq. 1).
 
     Parameters
     ----------
     full : path
-    inputs, outputs, lumped_masses, output_kind, damping, n_modes, band_hz, name :
-        See :func:`~robustctl.physical.fe_model.fe_structural_model` (DOFs ``"12:T3"``).
     groups : mapping group -> (n, n) matrix, optional
         Stiffness partitions over the same free DOFs (a ``.full`` holds only the total; export
         each property group's stiffness separately, e.g. from a second ``.full``).
     units : str
         Consistent unit system of the model; matrices become SI.
+    name : str, optional
+        The model's name (default: the file's stem).
+    **options
+        ``inputs``, ``outputs`` (required), ``lumped_masses``, ``output_kind``, ``damping``,
+        ``n_modes``, ``band_hz`` of :func:`~robustctl.physical.fe_model.fe_structural_model`
+        (DOFs ``"12:T3"``).
 
     Returns
     -------
@@ -243,22 +224,7 @@ def load_ansys_matrices(
             raise DataError(
                 f"group {g!r} is {a.shape[0]}x{a.shape[1]}; the free DOFs of the .full file are {n}."
             )
-    return _si_structural_model(
-        M,
-        K,
-        dict(groups or {}),
-        labels,
-        units,
-        full,
-        name,
-        inputs=inputs,
-        outputs=outputs,
-        lumped_masses=lumped_masses,
-        output_kind=output_kind,
-        damping=damping,
-        n_modes=n_modes,
-        band_hz=band_hz,
-    )
+    return _si_structural_model(M, K, dict(groups or {}), labels, units, full, name, **options)
 
 
 def load_ansys_geometry(

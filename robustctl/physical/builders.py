@@ -24,6 +24,7 @@ from .matrices import MatrixStructure
 from .modal import _modal_data_from_arrays, modal_dynamics
 from .model import PhysicalModel
 from .parameters import Parameter
+from .reduction import band_limited
 
 __all__ = ["structural_model", "modal_model", "MODAL_DAMPING_PARAM"]
 
@@ -71,8 +72,6 @@ def _check_build(model: PhysicalModel) -> PhysicalModel:
     """Refuse bad input now rather than at the first frequency response: build the model once
     (a large structure through its lowest modes only, :func:`~robustctl.physical.reduction.band_limited`:
     the full dense build of thousands of DOFs costs seconds and ``O(n_dof^2)`` memory)."""
-    from .reduction import band_limited
-
     band_limited(model, _LOWEST_HZ).statespace()
     return model
 

@@ -141,10 +141,8 @@ def fe_structural_model(
     groups: Mapping[str, Any] | None = None,
     lumped_masses: Mapping[str, Any] | None = None,
     output_kind: str = "acceleration",
-    damping: Any = 0.01,
-    n_modes: int | None = None,
-    band_hz: tuple[float, float] | None = None,
     name: str | None = None,
+    **options: Any,
 ):
     """``rc.structural_model`` with property-group stiffness factors and lumped masses.
 
@@ -162,8 +160,12 @@ def fe_structural_model(
         ``k_<group>`` (factor, 1 = as modelled) and a stiffness group of the structure.
     lumped_masses : mapping name -> node id or DOF names, optional
         Parameter ``m_<name>`` (kg, 0 = as modelled) on the node's translations or the DOFs.
-    output_kind, damping, n_modes, band_hz, name :
-        As for :func:`robustctl.structural_model`.
+    output_kind, name :
+        As for :func:`robustctl.structural_model`: the kind of every output (unless a mapping
+        value says otherwise) and the model's name.
+    **options
+        ``damping``, ``n_modes``, ``band_hz`` and the other keywords of
+        :func:`robustctl.structural_model` but the ones set here.
 
     Returns
     -------
@@ -282,16 +284,6 @@ def fe_structural_model(
     def groups_of(theta):
         return {g: float(theta.get(f"k_{g}", 1.0)) * kg for g, kg in K_groups.items()}
 
-    return structural_model(
-        m_of,
-        k_of,
-        inputs=b,
-        outputs=c,
-        damping=damping,
-        params=params,
-        n_modes=n_modes,
-        band_hz=band_hz,
-        dof_labels=label_list,
-        stiffness_groups=groups_of if K_groups else None,
-        name=name,
-    )
+    group_stiffness = groups_of if K_groups else None
+    return structural_model(m_of, k_of, inputs=b, outputs=c, params=params, dof_labels=label_list,
+                            stiffness_groups=group_stiffness, name=name, **options)

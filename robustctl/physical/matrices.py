@@ -254,18 +254,9 @@ class MatrixStructure(Structure):
     # ------------------------------------------------------------------ Structure contract
     def matrices(self) -> StructuralMatrices:
         """The current matrices (copies; effects and removals applied)."""
-        return StructuralMatrices(
-            mass=self._M.copy(),
-            stiffness=self._K.copy(),
-            damping=None if self._C is None else self._C.copy(),
-            input_matrix=self._b.copy(),
-            output_matrix=self._c.copy(),
-            output_kinds=self._kinds,
-            inputs=self._inputs,
-            outputs=self._outputs,
-            dof_labels=self._labels,
-            modal_damping_bands=self.modal_damping_bands(),
-        )
+        own = StructuralMatrices(self._M, self._K, self._C, self._b, self._c, self._kinds, self._inputs,
+                                 self._outputs, self._labels, self.modal_damping_bands())
+        return own.copy()
 
     def without(self, tags: Iterable[str]) -> MatrixStructure:
         """Subtract the tagged parts carrying one of ``tags`` (unknown tags are ignored:

@@ -21,6 +21,7 @@ Units: frequencies in Hz at the surface (``f_hz``, ``band_hz``), rad/s inside
 from __future__ import annotations
 
 import hashlib
+import inspect
 import threading
 from collections import OrderedDict
 from collections.abc import Callable, Mapping
@@ -361,15 +362,7 @@ def _assemble(data: ModalData):
     return control.ss(A, B, C, D, inputs=list(data.inputs), outputs=list(data.outputs))
 
 
-def modal_statespace(
-    mats: StructuralMatrices,
-    *,
-    n_modes: int | None = None,
-    band_hz: tuple[float, float] | None = None,
-    damping: float | np.ndarray = 0.01,
-    rigid_body_damping: float = 0.0,
-    residual_flexibility: bool = False,
-):
+def modal_statespace(mats: StructuralMatrices, **options: Any):
     """Modal state space ``x = [eta, eta_dot]`` of a structure (MACE eqs. 1-4).
 
     ``modal_decomposition(mats, ...).statespace()``.
@@ -379,7 +372,8 @@ def modal_statespace(
     mats, n_modes, band_hz, damping, rigid_body_damping, residual_flexibility
         The structure (kg, N/m, N s/m), the modal truncation (count or band in Hz), the modal
         damping ratio, the rigid-body damping rate (1/s) and the static correction, as for
-        :func:`modal_decomposition`.
+        :func:`modal_decomposition` (the function's signature is its signature; the keywords
+        travel as ``**options``).
 
     Returns
     -------
@@ -397,14 +391,13 @@ def modal_statespace(
     >>> round(float(abs(np.linalg.eigvals(sys.A)[0])) / (2 * np.pi), 6)
     1.0
     """
-    return modal_decomposition(
-        mats,
-        n_modes=n_modes,
-        band_hz=band_hz,
-        damping=damping,
-        rigid_body_damping=rigid_body_damping,
-        residual_flexibility=residual_flexibility,
-    ).statespace()
+    return modal_decomposition(mats, **options).statespace()
+
+
+#: one parameter list for both: what ``help`` and ``inspect.signature`` show of modal_statespace
+modal_statespace.__signature__ = inspect.signature(modal_decomposition).replace(  # type: ignore[attr-defined]
+    return_annotation=inspect.Signature.empty
+)
 
 
 def modal_data_statespace(

@@ -30,7 +30,9 @@ import numpy as np
 
 from ..checks import finite_number
 from ..errors import ModelError
+from ..lti import freqresp
 from ..threads import limit_blas
+from .fem import Frame
 from .parameters import Parameter
 from .structure_base import Structure
 
@@ -157,8 +159,6 @@ def _base_structure(build: Callable[[Mapping[str, float]], Any], theta: Mapping[
     containers and shares the frozen parts). Only frames are reused, and only when the build
     read its parameters by name (the reads, found or missing, are the cache key).
     """
-    from .fem import Frame
-
     try:
         with _BASES_LOCK:
             entries = list(_BASES.get(build, ()))
@@ -553,8 +553,6 @@ class PhysicalModel:
 
     def freqresp(self, f_hz: Any, **overrides: float):
         """Frequency response at ``f_hz`` (Hz) as :class:`~robustctl.frd.FrequencyData`."""
-        from ..lti import freqresp
-
         return freqresp(self.statespace(**overrides), f_hz)
 
     @property

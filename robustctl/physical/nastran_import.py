@@ -237,14 +237,9 @@ def load_nastran_modes(
     inputs: Sequence[str] | Mapping[str, str],
     outputs: Sequence[str] | Mapping[str, str],
     *,
-    damping: Any = 0.01,
-    output_kind: str | Sequence[str] = "acceleration",
-    geometry: Geometry | None = None,
-    n_modes: int | None = None,
-    band_hz: tuple[float, float] | None = None,
     subcase: int | None = None,
     units: str = "m-kg-s",
-    name: str | None = None,
+    **options: Any,
 ):
     """A modal model from a Nastran OP2 eigenvector result (MACE eqs. 2-4).
 
@@ -256,29 +251,21 @@ def load_nastran_modes(
     op2, subcase, units
         The OP2 file (SOL 103, ``PARAM,POST,-1``), its subcase id and the model's consistent
         unit system, as for :func:`read_nastran_modes`.
-    inputs, outputs, damping, output_kind, geometry, n_modes, band_hz, name
-        As for :func:`~robustctl.physical.fe_model.fe_modal_model`: force inputs and sensor
-        outputs (DOF names ``"node:T3"`` or a mapping signal name -> DOF name), the modal
-        damping ratio (or ``"file"``), the sensor kind, the geometry for figures, the modal
-        truncation (count or band in Hz) and the model's name.
+    inputs, outputs
+        Force inputs and sensor outputs: DOF names ``"node:T3"`` or a mapping signal name ->
+        DOF name (:func:`~robustctl.physical.fe_model.fe_modal_model`).
+    **options
+        ``damping``, ``output_kind``, ``geometry``, ``n_modes``, ``band_hz``, ``name`` of
+        :func:`~robustctl.physical.fe_model.fe_modal_model`: the modal damping ratio (or
+        ``"file"``), the sensor kind, the geometry for figures, the modal truncation (count or
+        band in Hz) and the model's name.
 
     Examples
     --------
     >>> model = rc.load_nastran_modes("truss.op2", inputs=["1001:T3"],            # doctest: +SKIP
     ...                               outputs=["1004:T3", "1005:T1"], damping=0.005)
     """
-    modes = read_nastran_modes(op2, subcase=subcase, units=units)
-    return fe_modal_model(
-        modes,
-        inputs,
-        outputs,
-        damping=damping,
-        output_kind=output_kind,
-        geometry=geometry,
-        n_modes=n_modes,
-        band_hz=band_hz,
-        name=name,
-    )
+    return fe_modal_model(read_nastran_modes(op2, subcase=subcase, units=units), inputs, outputs, **options)
 
 
 # ---------------------------------------------------------------------------- OP4 / DMIG matrices
@@ -470,19 +457,13 @@ def _nastran_labels(dof_labels: Any, n: int, found: Sequence[str] | None) -> tup
 def load_nastran_matrices(
     path: str | os.PathLike,
     *,
-    inputs: Mapping[str, Any] | Sequence[str],
-    outputs: Mapping[str, Any] | Sequence[str],
     mass: str = "MAA",
     stiffness: str | None = "KAA",
     groups: Mapping[str, str] | None = None,
-    lumped_masses: Mapping[str, Any] | None = None,
     dof_labels: Sequence[str] | None = None,
-    output_kind: str = "acceleration",
-    damping: Any = 0.01,
-    n_modes: int | None = None,
-    band_hz: tuple[float, float] | None = None,
     units: str = "m-kg-s",
     name: str | None = None,
+    **options: Any,
 ):
     """``rc.structural_model`` from Nastran mass and stiffness matrices with property-group
     superparameters (MACE eq. 1 with ``K(theta) = K + sum_g (k_g - 1) K_g``).
@@ -491,9 +472,6 @@ def load_nastran_matrices(
     ----------
     path : path
         OP4 file or BDF/punch file with DMIG cards (see :func:`read_nastran_matrices`).
-    inputs, outputs : sequence of DOF names or mapping name -> DOF name / force vector
-        ``["1001:T3"]`` names the signal after the DOF; ``{"F": "1001:T3"}`` renames it.
-        Outputs are all of ``output_kind`` (a mapping value may also be ``(dof, kind)``).
     mass : str
         Name of the mass matrix (kg after ``units``).
     stiffness : str or None
@@ -503,17 +481,22 @@ def load_nastran_matrices(
         Stiffness partition of each property group (``{"longerons": "KPBAR1"}``), included in
         ``stiffness``. Each becomes a parameter ``k_<group>`` (stiffness factor, 1 = as modelled)
         and a stiffness group of the structure (``rc.GroupStiffness`` and diagnose see it).
-    lumped_masses : mapping name -> grid id or DOF names, optional
-        A parameter ``m_<name>`` (kg, 0 = as modelled) adding mass to the translations of that
-        grid (``{"tip": 1004}``) or to the listed DOFs (``{"tip": ["1004:T3"]}``).
     dof_labels : sequence of str, optional
         ``"grid:component"`` of each row; required for OP4 (it carries no DOF names) when
         inputs, outputs or lumped masses are named by DOF; DMIG files name their own rows.
-    output_kind, damping, n_modes, band_hz :
-        As for :func:`robustctl.structural_model`.
     units : str
         The model's consistent unit system (:data:`UNIT_SYSTEMS`); matrices become SI.
     name : str, optional
+        The model's name (default: the file's stem).
+    **options
+        The keywords of :func:`~robustctl.physical.fe_model.fe_structural_model`:
+        ``inputs``, ``outputs`` (required): DOF names or a mapping name -> DOF name / force
+        vector (``["1001:T3"]`` names the signal after the DOF; ``{"F": "1001:T3"}`` renames
+        it; an output value may also be ``(dof, kind)``); ``lumped_masses``: mapping name ->
+        grid id or DOF names, a parameter ``m_<name>`` (kg, 0 = as modelled) adding mass to
+        the translations of that grid (``{"tip": 1004}``) or to the listed DOFs
+        (``{"tip": ["1004:T3"]}``); ``output_kind``, ``damping``, ``n_modes``, ``band_hz`` as
+        for :func:`robustctl.structural_model`.
 
     Returns
     -------
@@ -551,22 +534,9 @@ def load_nastran_matrices(
                 f"matrix {nm!r} is {mats[nm].shape[0]}x{mats[nm].shape[1]}; the mass matrix is {n}x{n}."
             )
     labels = _nastran_labels(dof_labels, n, found)
-    return _si_structural_model(
-        mats[mass],
-        mats[stiffness] if stiffness else None,
-        {g: mats[m] for g, m in groups.items()},
-        labels,
-        units,
-        path,
-        name,
-        inputs=inputs,
-        outputs=outputs,
-        lumped_masses=lumped_masses,
-        output_kind=output_kind,
-        damping=damping,
-        n_modes=n_modes,
-        band_hz=band_hz,
-    )
+    stiff = mats[stiffness] if stiffness else None
+    parts = {g: mats[m] for g, m in groups.items()}
+    return _si_structural_model(mats[mass], stiff, parts, labels, units, path, name, **options)
 
 
 # ---------------------------------------------------------------------------- BDF geometry

@@ -66,6 +66,10 @@ import scipy.sparse.linalg as spla
 
 from ..checks import positive_number
 from ..errors import ModelError
+from .eigen import _clean_eigenvalues, check_structural_matrices
+from .matrices import MatrixStructure
+from .modal import ModalData, _check_mats, _damped
+from .model import _DynamicsCache
 
 __all__ = ["band_limited", "reduction_error", "REDUCE_MIN_DOF", "CUT_MARGIN"]
 
@@ -146,8 +150,6 @@ def _count_below(K: Any, M: Any, lam: float) -> int | None:
 def _reduce(mats: Any, f_cut_hz: float) -> _Basis:
     """The Ritz basis of one structure: exact modes below ``f_cut_hz`` plus two attachment
     (Krylov) blocks of the inputs (module docstring)."""
-    from .eigen import _clean_eigenvalues, check_structural_matrices
-
     M, K = _csc(mats.mass), _csc(mats.stiffness)
     check_structural_matrices(M, K)
     n = M.shape[0]
@@ -258,8 +260,6 @@ def _reuse(base: _Basis, mats: Any, lam_cut: float) -> _Basis | None:
     phi0, lam0 = base.V[:, : base.n_exact], base.lam[: base.n_exact]
     if (M - base.mass).count_nonzero() == 0 and (K - base.stiffness).count_nonzero() == 0:  # new I/O only
         return _attach(mats, M, K, base.lu, base.sigma, lam0, phi0)
-    from .eigen import check_structural_matrices
-
     check_structural_matrices(M, K)
     KP, MP = np.asarray(K @ phi0), np.asarray(M @ phi0)
     Kr, Mr = phi0.T @ KP, phi0.T @ MP
@@ -333,9 +333,6 @@ def _ritz_modal(base: _Basis, mats: Any, change: tuple[np.ndarray, list]):
     W_J^T dK W_J``: ``O(n_dof r |J|)`` to form, ``O((r + |J|)^3)`` to solve; the modal input
     and output matrices follow from ``V^T b``, ``c V`` kept with the base (the ``n_dof x r``
     mode shapes are never formed)."""
-    from .eigen import _clean_eigenvalues
-    from .modal import ModalData
-
     dofs, (dM, dK, dC) = change
     V = base.V
     Vb, cV = base.Vb, base.c_v
@@ -452,8 +449,6 @@ class _Reducer:
 def _reduced_dynamics(full: Any, f_cut_hz: float, min_dof: int):
     """A dynamics callable like ``full`` (a :class:`~robustctl.physical.modal.ModalDynamics`)
     that reduces structures of at least ``min_dof`` DOFs (see the module docstring)."""
-    from .modal import _check_mats, _damped
-
     reducer = _Reducer(f_cut_hz)
 
     def dynamics(theta: Mapping[str, float], structure: Any):
@@ -507,8 +502,6 @@ def band_limited(model: Any, f_max_hz: float, *, margin: float | None = None, mi
         return model
     if model.structure is None:
         return model
-    from .model import _DynamicsCache
-
     # no per-model cache of state spaces: the reducer keeps the bases, a re-evaluation costs a
     # small eigen-solve, and diagnose holds thousands of candidate models (3 MB per state space
     # of 300 modes each)
@@ -666,8 +659,6 @@ def point_modal(model: Any, f_hz: Any, **overrides: float) -> PointModal | None:
     """The :class:`PointModal` of a band-limited model at its values (``overrides`` as for
     ``model.freqresp``), or None when the model is on the full path, carries concentrated
     damping, or its structure cannot be reduced."""
-    from .modal import _damped
-
     dyn = model.dynamics
     reducer = getattr(dyn, "reducer", None)
     if reducer is None or model.structure is None:
@@ -681,8 +672,6 @@ def point_modal(model: Any, f_hz: Any, **overrides: float) -> PointModal | None:
         return None
     undamped = _ritz_modal(base, mats, change)
     damped = _damped(undamped, dyn.full.damping(theta), mats.modal_damping_bands, dyn.full.rigid_body_damping)
-    from .eigen import _clean_eigenvalues
-
     k_scale = float(abs(base.stiffness).max() / max(abs(base.mass).max(), 1e-300))
     order = np.argsort(_clean_eigenvalues(base.lam, k_scale), kind="stable")
     w = damped.omega
@@ -698,8 +687,6 @@ def point_change(effect: Any, model: Any, base_struct: Any, base_mats: Any) -> P
     more than :data:`LOW_RANK_MAX_DOFS` DOFs. A single-DOF location of a
     :class:`~robustctl.physical.matrices.MatrixStructure` is read off directly; otherwise the
     effect is applied at unit size and the matrices compared."""
-    from .matrices import MatrixStructure
-
     if effect.kind not in POINT_KINDS or len(effect.param_names) != 1:
         return None
     one = np.ones((1, 1))

@@ -15,10 +15,13 @@ structure, so these methods may modify ``self`` in place; they return ``self``.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Iterable
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
+
+from ..errors import ModelError
 
 __all__ = ["StructuralMatrices", "Structure", "OUTPUT_KINDS"]
 
@@ -67,6 +70,27 @@ class StructuralMatrices:
     @property
     def n_dof(self) -> int:
         return self.input_matrix.shape[0]
+
+    def copy(self, convert: Callable[[Any], Any] | None = None, **changes: Any) -> StructuralMatrices:
+        """An independent copy: the pointing matrices copied, mass, stiffness and damping (None
+        stays None) through ``convert`` (default: their own ``copy``), then ``changes`` set.
+
+        Parameters
+        ----------
+        convert : callable, optional
+            ``matrix -> matrix`` (e.g. to ``scipy.sparse.csr_matrix`` or to a dense array).
+        **changes
+            Attributes to set instead (``modal_damping_bands=...``).
+
+        Returns
+        -------
+        StructuralMatrices
+        """
+        conv = convert or (lambda a: a.copy())
+        square = {k: getattr(self, k) for k in ("mass", "stiffness", "damping")}
+        square = {k: None if a is None else conv(a) for k, a in square.items()}
+        pointing = {"input_matrix": self.input_matrix.copy(), "output_matrix": self.output_matrix.copy()}
+        return replace(self, **square, **pointing, **changes)
 
 
 class Structure(ABC):
@@ -160,6 +184,4 @@ class Structure(ABC):
     ) -> Structure:
         """Point signal ``name`` at ``location`` (along ``direction``; None: as it was) with
         ``weight`` in [0, 1]: its pointing becomes ``(1 - weight) old + weight new``."""
-        from ..errors import ModelError
-
         raise ModelError(f"{type(self).__name__} cannot move its {side} {name!r}.")

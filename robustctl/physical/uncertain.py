@@ -42,7 +42,9 @@ from typing import Any
 
 import numpy as np
 
+from ..balanced import balanced_truncation
 from ..errors import ModelError
+from ..lti import freqresp_array
 
 __all__ = ["UncertainModel", "parametric_lft"]
 
@@ -212,8 +214,6 @@ class UncertainModel:
         -------
         ndarray (n_blocks, nf)
         """
-        from ..lti import freqresp_array
-
         f = np.asarray(f_hz, dtype=float).reshape(-1)
         H0 = freqresp_array(self.nominal, f)
         out = np.zeros((len(self.names), f.size))
@@ -291,8 +291,6 @@ def _reduced(sys: Any, order: int):
     """``sys`` by balanced truncation to ``order`` states, its signal names kept."""
     import control
 
-    from ..balanced import balanced_truncation
-
     red = balanced_truncation(sys, order).sys
     return control.ss(red.A, red.B, red.C, red.D, inputs=list(sys.input_labels),
                       outputs=list(sys.output_labels))
@@ -341,8 +339,6 @@ def parametric_lft(model: Any, parameters: Any, center: Any, covariance: Any, *,
         Mismatched sizes, a non-positive ``n_sigma``, an unknown ``form``, or state dimensions
         that change with the parameters.
     """
-
-    from ..lti import freqresp_array
 
     names = tuple(str(p) for p in parameters)
     c = np.asarray(center, dtype=float).reshape(-1)
@@ -565,8 +561,6 @@ def _upper_eigs(A: np.ndarray) -> np.ndarray:
 def _modes_lft(model: Any, names: tuple[str, ...], c: np.ndarray, axes: np.ndarray, at: Any, *,
                f_hz: Any, n_check: int, seed: int) -> UncertainModel:
     """The ``form="modes"`` LFT (module docstring): one rank-1 real scalar per mode and direction."""
-    from ..lti import freqresp_array
-
     S0, dims, G0 = at(np.zeros(len(axes)))
     n = dims[0]
     if n == 0:

@@ -35,9 +35,11 @@ from ..checks import integer
 from ..errors import SynthesisError
 from ..interconnect import PartitionedPlant, PicklesStateSpaces
 from ..lti import as_statespace, is_stable, roundoff_margin
+from ..plots import label_axes, single_axes
 from ..table import Table, result_html
 from .coprime import left_ncf
 from .hinf_norm import hinfnorm_matrices
+from .loop_shaping import stability_margin
 
 __all__ = [
     "ControllerReduction",
@@ -121,8 +123,6 @@ class ControllerReduction(PicklesStateSpaces):
 
     def plot(self, fig: Any = None) -> Any:
         """The Hankel singular values with the kept ones marked. Returns the Figure."""
-        from ..plots import label_axes, single_axes
-
         fig, ax = single_axes(fig, 6.0, 3.5)
         k = np.arange(1, self.hsv.size + 1)
         ax.semilogy(k, np.maximum(self.hsv, 1e-300), "o-", ms=3, lw=1)
@@ -363,8 +363,6 @@ def coprime_reduction(K: Any, order: int, *, plant: Any = None) -> ControllerRed
     G = _loop_plant(plant, Kss)
     radius = float("nan")
     if G is not None:
-        from .loop_shaping import stability_margin
-
         radius = stability_margin(G, Kss)
     return ControllerReduction(
         K=Kr, method="coprime", order_before=Kss.nstates, order_after=order, hsv=hsv, error=error,

@@ -22,6 +22,7 @@ every point is covered (Zhou-Doyle-Glover sec. 8.1; Skogestad-Postlethwaite sec.
 
 from __future__ import annotations
 
+import inspect
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -30,10 +31,13 @@ from typing import Any
 import numpy as np
 
 from ..budget import Deadline
-from ..checks import check_band, positive_number
+from ..checks import check_band, match_channels, positive_number
 from ..errors import DataError, FitError, RobustctlError
-from ..frd import FrequencyData
+from ..frd import FrequencyData, _as_frequencies
+from ..lti import _align, as_statespace, freqresp, freqresp_array
 from ..measure.noise import noise_model
+from ..physical.uncertain import UncertainModel
+from ..plots import single_axes
 from ..table import Table, result_html
 from .magfit import DB_PER_NEPER, fit_magnitude_details
 
@@ -171,9 +175,6 @@ class UncertaintyCover:
         -------
         matplotlib.figure.Figure
         """
-        from ..lti import freqresp_array
-        from ..plots import single_axes
-
         fig, ax = single_axes(fig, 8.0, 4.5)
         f = self.f_hz
         for k, (label, err) in enumerate(zip(self.sources, self.source_errors)):
@@ -199,9 +200,6 @@ def _sources(
     data_or_models: Any, f_hz: Any, band: Sequence[float] | None
 ) -> tuple[np.ndarray, list[tuple[str, Any]]]:
     """The grid (Hz) and the labelled sources (FrequencyData or systems)."""
-    from ..frd import _as_frequencies
-    from ..lti import as_statespace
-
     items = list(data_or_models) if isinstance(data_or_models, (list, tuple)) else [data_or_models]
     if not items:
         raise FitError("data_or_models is empty; give measured FrequencyData and/or a list of models.")
@@ -249,8 +247,6 @@ def _responses(
 ) -> tuple[np.ndarray, list[np.ndarray], list[np.ndarray | None]]:
     """Nominal response, each source's response and, for measured data, the 1-sigma random
     error bound ``||G eps_r||_F`` per frequency (None when unknown)."""
-    from ..lti import _align, freqresp
-
     g0 = freqresp(nominal, f)
     out, noise = [], []
     for label, src in sources:
@@ -322,8 +318,6 @@ def error_envelope(
     labels : tuple of str
     errors : ndarray (n_sources, nf)
     """
-    from ..lti import as_statespace
-
     if not isinstance(kind, str) or kind not in _KINDS:
         raise FitError(f"kind must be one of {_KINDS}; got {kind!r}.")
     data_sigmas = positive_number(data_sigmas, "data_sigmas", FitError, allow_zero=True)
@@ -373,8 +367,6 @@ def _fit_cover(
     deadline: Deadline,
 ) -> tuple[Any, np.ndarray, float]:
     """Fit on the points ``idx``; points left uncovered join the fit (up to 4 rounds)."""
-    from ..lti import freqresp_array
-
     t0 = time.perf_counter()
     for _ in range(4):
         fit = fit_magnitude_details(
@@ -407,20 +399,22 @@ def _check_options(order: Any, smooth_octaves: Any, floor: Any, time_budget_s: A
 
 
 def _cover(
+    kind: str,
     nominal: Any,
     data_or_models: Any,
-    order: int,
-    kind: str,
-    f_hz: Any,
-    band: Any,
-    smooth_octaves: float,
-    floor: float,
-    time_budget_s: float | None,
-    objective: str,
-    data_sigmas: float,
+    order: int = 3,
+    *,
+    f_hz: Any = None,
+    band: Sequence[float] | None = None,
+    smooth_octaves: float = 0.25,
+    floor: float = 1e-3,
+    objective: str = "max",
+    data_sigmas: float = 3.0,
+    time_budget_s: float | None = None,
 ) -> UncertaintyCover:
-    from ..lti import freqresp_array
-
+    """The cover of the ``kind`` error (``"additive"``, ``"input multiplicative"`` or ``"output
+    multiplicative"``); the one parameter list of :func:`cover_additive` and
+    :func:`cover_multiplicative` (:func:`_public_signature`)."""
     _check_options(order, smooth_octaves, floor, time_budget_s, objective)
     deadline = Deadline(time_budget_s, error=FitError)
     f, labels, errs = error_envelope(
@@ -477,19 +471,7 @@ def _cover(
     )
 
 
-def cover_additive(
-    nominal: Any,
-    data_or_models: Any,
-    order: int = 3,
-    *,
-    f_hz: Any = None,
-    band: Sequence[float] | None = None,
-    smooth_octaves: float = 0.25,
-    floor: float = 1e-3,
-    objective: str = "max",
-    data_sigmas: float = 3.0,
-    time_budget_s: float | None = None,
-) -> UncertaintyCover:
+def cover_additive(nominal: Any, data_or_models: Any, order: int = 3, **options: Any) -> UncertaintyCover:
     """An additive uncertainty weight covering ``sigma_max(G - G0)`` at every grid frequency.
 
     The set ``{G0 + W_a Delta : ||Delta||_inf <= 1}`` (Caltech seed eqs. 1-2; MATLAB
@@ -544,34 +526,11 @@ def cover_additive(
     >>> cov.margin >= 1  # doctest: +SKIP
     True
     """
-    return _cover(
-        nominal,
-        data_or_models,
-        order,
-        "additive",
-        f_hz,
-        band,
-        smooth_octaves,
-        floor,
-        time_budget_s,
-        objective,
-        data_sigmas,
-    )
+    return _cover("additive", nominal, data_or_models, order, **options)
 
 
 def cover_multiplicative(
-    nominal: Any,
-    data_or_models: Any,
-    order: int = 3,
-    side: str = "input",
-    *,
-    f_hz: Any = None,
-    band: Sequence[float] | None = None,
-    smooth_octaves: float = 0.25,
-    floor: float = 1e-3,
-    objective: str = "max",
-    data_sigmas: float = 3.0,
-    time_budget_s: float | None = None,
+    nominal: Any, data_or_models: Any, order: int = 3, side: str = "input", **options: Any
 ) -> UncertaintyCover:
     """A multiplicative uncertainty weight covering the relative error at every grid frequency.
 
@@ -612,27 +571,13 @@ def cover_multiplicative(
     """
     if side not in ("input", "output"):
         raise FitError(f'side must be "input" or "output"; got {side!r}.')
-    kind = f"{side} multiplicative"
-    return _cover(
-        nominal,
-        data_or_models,
-        order,
-        kind,
-        f_hz,
-        band,
-        smooth_octaves,
-        floor,
-        time_budget_s,
-        objective,
-        data_sigmas,
-    )
+    return _cover(f"{side} multiplicative", nominal, data_or_models, order, **options)
+
 
 
 def _stands_for(um: Any, src: Any, f: np.ndarray, label: str) -> tuple[np.ndarray, np.ndarray]:
     """``(G_src, Fu(M, delta_src))`` on ``f``: a model's own LFT member (:meth:`UncertainModel.delta_of`,
     clipped to the box), the nominal for measured data."""
-    from ..lti import _align, freqresp
-
     g0 = freqresp(um.nominal, f)
     if isinstance(src, FrequencyData):
         fd = _align(g0, FrequencyData(f, _on_grid(src, f, label), inputs=src.inputs, outputs=src.outputs))
@@ -720,8 +665,6 @@ def cover_remainder(
     P. M. Young, "Controller design with real parametric uncertainty", Int. J. Control 65(3),
     1996 (the mixed real/complex set); Balas & Doyle (Caltech seed), eqs. 1-3.
     """
-    from ..physical.uncertain import UncertainModel
-
     if not isinstance(um, UncertainModel):
         raise FitError(f"um must be an UncertainModel (upd.uncertain()); got {type(um).__name__}.")
     if kind not in _KINDS:
@@ -743,8 +686,6 @@ def cover_remainder(
 
 def _remainder(um: Any, f: np.ndarray, sources: list, fit: tuple) -> Any:
     """``um`` with the remainder cover of ``sources`` on ``f`` (see :func:`cover_remainder`)."""
-    from ..lti import freqresp
-
     order, kind, smooth_octaves, floor, time_budget_s, objective, data_sigmas = fit
     g0 = freqresp(um.nominal, f)
     G0 = g0.response
@@ -764,15 +705,27 @@ def _remainder(um: Any, f: np.ndarray, sources: list, fit: tuple) -> Any:
         # a stand-in with the nominal's channels whose error against the nominal is the remainder
         stand_ins.append(FrequencyData(f, G0 + E, inputs=g0.inputs, outputs=g0.outputs, coherence=coh,
                                        meta=meta))
-    cover = _cover(um.nominal, stand_ins, order, kind, f, None, smooth_octaves, floor, time_budget_s,
-                   objective, data_sigmas)
+    cover = _cover(kind, um.nominal, stand_ins, order, f_hz=f, band=None, smooth_octaves=smooth_octaves,
+                   floor=floor, time_budget_s=time_budget_s, objective=objective, data_sigmas=data_sigmas)
     return um.with_remainder(cover)
 
 
 def _align_values(g0: Any, src: FrequencyData, values: np.ndarray) -> np.ndarray:
     """``values`` (on ``src``'s channels) reordered to ``g0``'s channels, as :func:`robustctl.lti._align`."""
-    from ..checks import match_channels
-
     out_idx = match_channels(src.outputs, g0.outputs, "outputs")
     in_idx = match_channels(src.inputs, g0.inputs, "inputs")
     return values[:, out_idx][:, :, in_idx]
+
+
+def _public_signature(side: bool) -> inspect.Signature:
+    """:func:`_cover`'s parameters without ``kind`` (and with ``side`` after ``order`` for the
+    multiplicative cover): what ``help`` and ``inspect.signature`` show of the two covers."""
+    params = list(inspect.signature(_cover).parameters.values())[1:]
+    if side:
+        kind = inspect.Parameter.POSITIONAL_OR_KEYWORD
+        params.insert(3, inspect.Parameter("side", kind, default="input", annotation="str"))
+    return inspect.Signature(params, return_annotation="UncertaintyCover")
+
+
+cover_additive.__signature__ = _public_signature(False)  # type: ignore[attr-defined]
+cover_multiplicative.__signature__ = _public_signature(True)  # type: ignore[attr-defined]

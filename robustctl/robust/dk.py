@@ -45,6 +45,7 @@ An iteration whose mu rises above the best before it says so (``DKIteration.note
 
 from __future__ import annotations
 
+import contextvars
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -59,9 +60,11 @@ from ..checks import flag, integer, positive_number
 from ..errors import PlantError, SynthesisError
 from ..executors import check_executor
 from ..interconnect import PartitionedPlant
-from ..lti import is_stable
+from ..lti import freqresp_array, is_stable
+from ..plots import new_figure
 from ..table import Table
 from .blocks import Block, BlockStructure
+from .dgk import blended_scales, fit_g_filter, g_transform, scaled_d_targets, transformed_norm
 from .dk_plant import DesignReduction, check_design_order, on_full_plant, reduce_design_plant
 from .dk_reduce import Reduction, _reduce
 from .dk_scales import (
@@ -84,6 +87,8 @@ from .dk_scales import _fit_one as _fit_one
 from .dk_scales import _into_band as _into_band
 from .dk_verify import _mu_of, _verified_mu, closed_loop, default_grid
 from .dk_verify import verification_grid as verification_grid
+from .hinf_synthesis import hinfsyn
+from .mu_bounds import mu
 from .partitioned import as_partitioned
 from .plant import GeneralizedPlant
 
@@ -91,6 +96,21 @@ __all__ = ["DKIteration", "DKResult", "Reduction", "DesignReduction", "dksyn"]
 
 #: Extrapolation steps ``beta`` of the D step's line search (module docstring); 0 is plain D-K.
 D_STEPS = (0.0, 0.5, 1.0)
+#: With automatic D orders, a run the iteration cap stops while it creeps is repeated with
+#: fixed orders around its own (:func:`_neighbour_orders`); False turns that off.
+ORDER_NEIGHBOURS = True
+#: Most fixed-order runs of that repetition.
+ORDER_NEIGHBOURS_RUNS = 8
+#: A fixed-order run replaces the automatic one only when its peak of mu is this fraction lower.
+ORDER_NEIGHBOURS_GAIN = 5e-3
+#: Set while :func:`_autoscaled_dksyn` runs its starts (the neighbour orders are its to try).
+_IN_AUTOSCALED_START: contextvars.ContextVar[bool] = contextvars.ContextVar("dksyn_in_start", default=False)
+#: The fall of the peak of mu in the last iteration above which such a run counts as creeping
+#: (at 1 % per iteration more iterations could still matter; the distillation column capped at
+#: six iterations falls 0.3 % in its last, mkhic 1.8 %, mkhicn 3 %).
+ORDER_NEIGHBOURS_CREEP = 0.01
+#: Most states of a scaled plant whose failed Riccati K step is retried on the LMI route.
+LMI_FALLBACK_MAX_STATES = 40
 #: Starts of the automatically scaled D-K (ln of a factor on all block scales but the last).
 AUTOSCALE_STARTS = (0.0, -1.5, 1.5)
 #: A start whose verified mu is below this ends the multi-start (robust performance certified).
@@ -276,8 +296,6 @@ class DKResult:
 
     def plot(self):
         """mu upper bound over frequency per iteration, and the peak of mu per iteration."""
-        from ..plots import new_figure
-
         fig = new_figure(10.0, 4.5)
         ax1, ax2 = fig.subplots(1, 2, width_ratios=(2, 1))
         for h in self.history:
@@ -410,7 +428,10 @@ def dksyn(
         reach, else the one with the lowest bound (never below the previous iteration's order unless those
         fits are broken or out of band; at most 24 added states per block, e.g. order 4 for
         a 3 x 3 block). From the third iteration the K step tries the fits of the
-        extrapolated scales too (:data:`D_STEPS`, module docstring).
+        extrapolated scales too (:data:`D_STEPS`, module docstring). When ``max_iter`` stops
+        an automatic-order run whose peak of mu still falls, the run is repeated with fixed
+        orders around those of its best iteration and the lowest verified mu is kept
+        (:func:`_neighbour_orders`; ``stop_reason`` says so).
     f_hz : array_like, optional
         Analysis grid (Hz). Default: :func:`default_grid` of ``P``, refined at the lightly
         damped closed-loop poles each iteration.
@@ -441,7 +462,10 @@ def dksyn(
         worse iteration (mu 0.79 -> 0.95 -> 0.80) cost 40 % more time and never won.
     hinf_options : dict, optional
         Extra keyword arguments for :func:`~robustctl.robust.hinf_synthesis.hinfsyn` (default
-        ``backoff=HINF_BACKOFF``, ``time_budget_s``: this call's budget, shared).
+        ``backoff=HINF_BACKOFF``, ``time_budget_s``: this call's budget, shared). Without a
+        ``method``, a K step whose every candidate fails on the Riccati route with its advice
+        to use ``method='lmi'`` is retried on the LMI route (scaled plants of at most
+        :data:`LMI_FALLBACK_MAX_STATES` states).
     callback : callable, optional
         Called with each :class:`DKIteration`.
     real : {"mixed", "complex"}
@@ -492,8 +516,6 @@ def dksyn(
     >>> dk.mu_peak, dk.table()                                # doctest: +SKIP
     """
     from tqdm import tqdm
-
-    from .hinf_synthesis import hinfsyn
 
     grid = _check_args(max_iter, time_budget_s, f_hz)
     hinf_options = _check_options(progress, rtol, patience, hinf_options, callback)
@@ -625,10 +647,93 @@ def dksyn(
     stopped = deadline.hit  # shared with the K steps' bisections and the D fits
     if stopped and own_clock:
         deadline.warn("dksyn (D-K iteration)")
-    return DKResult(K=K, mu_peak=float(m.peak), mu=m, closed_loop=cl, history=tuple(history),
-                    best_iteration=best["it"].index, stop_reason=stop, blocks=plant.blocks,
-                    d_scales=d_fits, reduction=reduction, grid_mu_peak=grid_peak,
-                    stopped_by_budget=stopped)
+    result = DKResult(K=K, mu_peak=float(m.peak), mu=m, closed_loop=cl, history=tuple(history),
+                      best_iteration=best["it"].index, stop_reason=stop, blocks=plant.blocks,
+                      d_scales=d_fits, reduction=reduction, grid_mu_peak=grid_peak,
+                      stopped_by_budget=stopped)
+    if order_d is not None or not ORDER_NEIGHBOURS or _IN_AUTOSCALED_START.get():
+        return result
+
+    def run(orders: tuple[int, ...]) -> DKResult:
+        return dksyn((plant.P, plant.nmeas, plant.ncon, plant.blocks), max_iter=max_iter,
+                     order_d=list(orders), f_hz=f_hz, executor=executor, time_budget_s=deadline,
+                     reduce=reduce, progress=progress, rtol=rtol, patience=patience,
+                     hinf_options=hinf_options, callback=callback, real=real, autoscale=False, gamma=gamma)
+
+    return _neighbour_orders(result, blocks, run, deadline)
+
+
+def _creeping(res: DKResult) -> bool:
+    """The iteration cap ended a run whose last iteration still lowered the peak of mu."""
+    h = res.history
+    return (len(h) >= 2 and res.best_iteration == len(h) and not res.stopped_by_budget
+            and res.stop_reason.startswith("max_iter=")
+            and h[-1].mu_peak < h[-2].mu_peak * (1 - ORDER_NEIGHBOURS_CREEP))
+
+
+def _neighbour_orders(res: DKResult, blocks: BlockStructure, run: Callable[[tuple[int, ...]], Any],
+                      deadline: Deadline, result_of: Callable[[Any], DKResult] = lambda r: r) -> Any:
+    """The automatic D orders' result, or a fixed-order run beside it that ends lower.
+
+    A D-K run the iteration cap stops while its peak of mu still falls by more than
+    :data:`ORDER_NEIGHBOURS_CREEP` per iteration has not converged: on flat problems it creeps
+    (1-4 % per iteration), and where it ends within ``max_iter`` depends on the path, which
+    the orders of the D fits change. On mu-tools' HIMAT with sensor noise (``mkhicn``) the
+    automatic choice (orders 3, then 4) crept to 0.980 in ten iterations while a fixed order
+    3 reached 0.954 and 5 reached 0.965; on ``mkhic`` it reached 0.970 where order 5 (from the
+    second start) reached 0.943 and orders 2 and 4 1.002 and 0.987: which order ends lowest
+    is not predictable from its neighbours. Such a run is therefore repeated with fixed
+    orders, every block's order of its best iteration shifted by -1, +1, -2, +2, ... (within
+    :data:`~robustctl.robust.dk_scales.MAX_AUTO_ORDER_D` and
+    :data:`~robustctl.robust.dk_scales.MAX_D_STATES_PER_BLOCK`, at most
+    :data:`ORDER_NEIGHBOURS_RUNS` runs, each as ``dksyn`` runs that fixed order: with the
+    autoscaled starts when ``autoscale``), and the lowest verified peak of mu is kept when it
+    is :data:`ORDER_NEIGHBOURS_GAIN` below the automatic one; ``stop_reason`` says which. A
+    run that stopped because mu stopped falling (the distillation column, the Caltech design
+    plant) is returned as it is. ``run(orders)`` returns what ``result_of`` maps to a DKResult;
+    ``res`` is the automatic run's and ``run``'s results are returned as they are.
+    """
+    from .dk_scales import MAX_AUTO_ORDER_D, MAX_D_STATES_PER_BLOCK
+
+    first = result_of(res)
+    if not _creeping(first):
+        return res
+    base = first.history[first.best_iteration - 1].d_orders
+    scaled = list(blocks)[:len(base)]
+    if not base or len(scaled) != len(base):
+        return res
+    cap = [min(MAX_AUTO_ORDER_D, MAX_D_STATES_PER_BLOCK // (b.rows + b.cols)) for b in scaled]
+    tried: list[tuple[tuple[int, ...], Any]] = []
+    # every block's order shifted by the same step, nearest first: -1, +1, -2, +2, ...
+    steps = sorted(range(-max(base), max(cap) + 1), key=lambda k: (abs(k), k))
+    for step in steps:
+        orders = tuple(int(min(max(o + step, 0), c)) for o, c in zip(base, cap))
+        if orders == base or orders in [t[0] for t in tried]:
+            continue
+        if len(tried) >= ORDER_NEIGHBOURS_RUNS or deadline.expired():
+            break
+        tried.append((orders, run(orders)))
+    if not tried:
+        return res
+    orders, best = min(tried, key=lambda t: result_of(t[1]).mu_peak)
+    rb = result_of(best)
+    listed = ", ".join(f"orders {o} {result_of(r).mu_peak:.4f}" for o, r in tried)
+    if rb.mu_peak >= first.mu_peak * (1 - ORDER_NEIGHBOURS_GAIN):
+        why = (f"the automatic D orders crept to {first.mu_peak:.4f} at max_iter={len(first.history)} and "
+               f"were kept (fixed {listed})")
+        return _with_reason(res, result_of, replace(first, stop_reason=f"{first.stop_reason}; {why}"))
+    why = (f"the automatic D orders crept to {first.mu_peak:.4f} at max_iter={len(first.history)}; "
+           f"the fixed orders {orders} reached {rb.mu_peak:.4f} (fixed {listed})")
+    return _with_reason(best, result_of, replace(rb, stop_reason=f"{rb.stop_reason}; {why}",
+                                                 stopped_by_budget=rb.stopped_by_budget
+                                                 or first.stopped_by_budget))
+
+
+def _with_reason(item: Any, result_of: Callable[[Any], DKResult], new: DKResult) -> Any:
+    """``item`` with its DKResult (``result_of(item)``) replaced by ``new``."""
+    if isinstance(item, DKResult):
+        return new
+    return (new, *item[1:])
 
 
 def _autoscaled_dksyn(plant: GeneralizedPlant, blocks: BlockStructure, options: dict,
@@ -650,17 +755,29 @@ def _autoscaled_dksyn(plant: GeneralizedPlant, blocks: BlockStructure, options: 
 
     scaled, sc = _autoscaled(plant, options.get("hinf_options"))
     deadline = as_deadline(options["time_budget_s"], SynthesisError)  # shared by the starts
-    best = None
-    for s in AUTOSCALE_STARTS:
-        if best is not None and (deadline.expired() or best[0].mu_peak < AUTOSCALE_CERTIFIED):
-            break
-        factor = np.exp(np.append(np.full(len(sc.d) - 1, s), 0.0))
-        sc_k = _Scaling(sc.su, sc.sy, sc.d * factor)
-        P_k = _constant_scaled(plant, sc.su, sc.sy, sc_k.d)
-        res = dksyn((P_k, plant.nmeas, plant.ncon, plant.blocks),
-                    **{**options, "time_budget_s": deadline}, autoscale=False)
-        if best is None or res.mu_peak < best[0].mu_peak:
-            best = (res, sc_k, P_k)
+
+    def starts(order_d: Any) -> tuple[DKResult, _Scaling, Any]:
+        best = None
+        token = _IN_AUTOSCALED_START.set(True)  # the neighbour orders are tried over the starts
+        try:
+            for s in AUTOSCALE_STARTS:
+                if best is not None and (deadline.expired() or best[0].mu_peak < AUTOSCALE_CERTIFIED):
+                    break
+                factor = np.exp(np.append(np.full(len(sc.d) - 1, s), 0.0))
+                sc_k = _Scaling(sc.su, sc.sy, sc.d * factor)
+                P_k = _constant_scaled(plant, sc.su, sc.sy, sc_k.d)
+                res = dksyn((P_k, plant.nmeas, plant.ncon, plant.blocks),
+                            **{**options, "order_d": order_d, "time_budget_s": deadline}, autoscale=False)
+                if best is None or res.mu_peak < best[0].mu_peak:
+                    best = (res, sc_k, P_k)
+        finally:
+            _IN_AUTOSCALED_START.reset(token)
+        assert best is not None
+        return best
+
+    best = starts(options["order_d"])
+    if options["order_d"] is None and ORDER_NEIGHBOURS:
+        best = _neighbour_orders(best, blocks, lambda o: starts(list(o)), deadline, lambda t: t[0])
     res, sc_k, P_k = best
     K, cl, m, reduction = res.K, res.closed_loop, res.mu, None
     if reduce is not None:
@@ -691,10 +808,6 @@ def _g_step(m: Any, H: np.ndarray, H_edges: np.ndarray,
     the bound the D fits are judged by: ``beta sigma_max(Z)`` with the fitted filters
     (:func:`~robustctl.robust.dgk.transformed_norm`), on the grid and at ``w = 0, inf``.
     """
-    from ..lti import freqresp_array
-    from .dgk import blended_scales, fit_g_filter, scaled_d_targets, transformed_norm
-    from .mu_bounds import mu
-
     level = float(m.peak)
     f = np.asarray(m.f_hz, dtype=float)
     mc = mu(H, _complexified(blocks), f_hz=f, lower=False)
@@ -737,6 +850,14 @@ def _k_step_search(hinfsyn: Callable, plant: GeneralizedPlant, candidates: Seque
             continue
         if best is None or hres.gamma < best[0].gamma:
             best = (hres, cand)
+    if best is None and candidates and not candidates[0].g_fits:
+        # every candidate failed on the Riccati route: the first (unextrapolated) on the LMI route
+        cand = candidates[0]
+        scaled = PartitionedPlant(_scale_plant(plant, cand.fits), plant.nmeas, plant.ncon)
+        try:
+            best = (_k_step(hinfsyn, scaled, plant, opts, index, gamma, lmi_fallback=True), cand)
+        except SynthesisError as exc:
+            first_error = exc  # the Riccati failure, and the LMI route's when it was tried
     if best is None:
         assert first_error is not None
         raise first_error
@@ -758,8 +879,6 @@ def _mixed_k_step(hinfsyn: Callable, P_scaled: Any, plant: GeneralizedPlant, can
     upper bound on the new peak of mixed mu), or the one with the smallest ``beta gamma``.
     """
     from dataclasses import replace as _replace
-
-    from .dgk import g_transform
 
     def solve(level: float) -> Any:
         scaled = PartitionedPlant(g_transform(P_scaled, plant.blocks, cand.g_fits, level), plant.nmeas,
@@ -802,12 +921,30 @@ def _mixed_k_step(hinfsyn: Callable, P_scaled: Any, plant: GeneralizedPlant, can
 
 
 def _k_step(hinfsyn: Callable, scaled: Any, plant: GeneralizedPlant, opts: dict, index: int,
-            gamma: float | None = None) -> Any:
-    """One H-infinity synthesis on the scaled plant; refuses a controller that does not stabilise P."""
-    hres = hinfsyn(scaled, **opts)
+            gamma: float | None = None, lmi_fallback: bool = False) -> Any:
+    """One H-infinity synthesis on the scaled plant; refuses a controller that does not stabilise P.
+
+    With ``lmi_fallback``, when the Riccati route fails and advises ``method='lmi'`` (a
+    violated rank or axis-zero assumption, no feasible gamma found, or no controller that
+    passed its closed-loop check), the LMI route is tried once, unless the caller chose the
+    method or the scaled plant has more than :data:`LMI_FALLBACK_MAX_STATES` states (the
+    interior-point solve grows like ``n^6``: 20-40 s per solve at 50 states).
+    """
+    try:
+        hres = hinfsyn(scaled, **opts)
+    except SynthesisError as exc:
+        if not lmi_fallback or "method" in opts or "method='lmi'" not in str(exc) \
+                or scaled.P.nstates > LMI_FALLBACK_MAX_STATES:
+            raise
+        try:
+            hres = hinfsyn(scaled, **{**opts, "method": "lmi"})
+        except SynthesisError as exc_lmi:
+            raise SynthesisError(f"{exc} The LMI route failed too: {exc_lmi}") from exc_lmi
+        hres = replace(hres, info={**hres.info, "fallback": f"Riccati route failed: {exc}"})
     if gamma is not None and gamma > hres.info.get("gamma_design", hres.gamma):
         # a fixed design level above the optimum: the central controller at that gamma
-        hres = hinfsyn(scaled, **{**opts, "backoff": gamma / hres.gamma_opt - 1.0})
+        hres = hinfsyn(scaled, **{**opts, "method": hres.info.get("method", "riccati"),
+                                  "backoff": gamma / hres.gamma_opt - 1.0})
     if not is_stable(closed_loop(plant.P, hres.K, plant.nmeas, plant.ncon), margin=0.0):
         raise SynthesisError(
             f"the K step of iteration {index} returned a controller that does not stabilise the plant; "

@@ -40,8 +40,11 @@ from typing import Any
 
 import numpy as np
 
+from ..balanced import balanced_truncation
 from ..errors import FitError, SynthesisError
-from ..lti import is_stable
+from ..lti import freqresp_array, is_stable
+from .blocks import Block, BlockStructure
+from .dk_verify import _verified_mu, closed_loop
 from .plant import GeneralizedPlant
 
 __all__ = ["DesignReduction", "reduce_design_plant", "on_full_plant", "check_design_order",
@@ -184,8 +187,6 @@ def reduce_design_plant(plant: GeneralizedPlant,
     Zhou, Doyle & Glover, *Robust and Optimal Control* (1996), sec. 7.2 and Theorem 7.9
     (the error bound); Moore (1981); the seed paper's eqs. 11-13.
     """
-    from ..balanced import balanced_truncation
-
     design_order = check_design_order(design_order)
     n = int(plant.P.nstates)
     if design_order is None or (design_order == "auto" and n <= DESIGN_REDUCE_ABOVE):
@@ -228,8 +229,6 @@ def reduce_design_plant(plant: GeneralizedPlant,
 def _error_peak(plant: GeneralizedPlant, reduced: Any) -> float:
     """``max_f sigma_max(P - P_r)`` over DC, a log grid a decade beyond the plant's pole
     frequencies and every pole frequency of the full plant (where its truncated modes peak)."""
-    from ..lti import freqresp_array
-
     poles = np.linalg.eigvals(np.asarray(plant.P.A))
     fp = np.abs(poles) / (2 * np.pi)
     fp = fp[fp > 0]
@@ -244,8 +243,6 @@ def _with_error_block(plant: GeneralizedPlant, P_r: Any, weight: float) -> Gener
     ``z_e = weight [w; u]``: a full complex block ("design reduction", ``(nz + ny) x (nw + nu)``)
     inserted before the last block (the performance block stays last)."""
     import control
-
-    from .blocks import Block, BlockStructure
 
     A, B, C, D = (np.asarray(m, dtype=float) for m in (P_r.A, P_r.B, P_r.C, P_r.D))
     nw, nz, nu, ny, n = plant.nw, plant.nz, plant.ncon, plant.nmeas, A.shape[0]
@@ -297,8 +294,6 @@ def on_full_plant(plant: GeneralizedPlant, blocks: Any, result: Any, reduction: 
         The controller does not stabilise the full plant.
     """
     from dataclasses import replace as _replace
-
-    from .dk_verify import _verified_mu, closed_loop
 
     cl = closed_loop(plant.P, result.K, plant.nmeas, plant.ncon)
     if not is_stable(cl, margin=0.0):

@@ -9,11 +9,13 @@ from typing import Any
 
 import numpy as np
 
+from ..balanced import balanced_truncation
 from ..checks import integer
 from ..errors import SynthesisError
 from ..interconnect import PartitionedPlant
 from ..lti import is_stable
 from .blocks import BlockStructure
+from .controller_reduction import reducer
 from .dk_verify import _mu_of, closed_loop
 from .plant import GeneralizedPlant
 
@@ -54,8 +56,6 @@ def _reduce(plant: GeneralizedPlant, blocks: BlockStructure, K: Any, cl: Any, m:
     orders below the controller's numerically minimal order (Hankel singular values above
     ``HSV_RTOL`` of the largest); at most ``ceil(log2 n) + 1`` mu analyses.
     """
-    from ..balanced import balanced_truncation
-
     method = "balanced"
     if isinstance(order, tuple) and len(order) == 2 and order[0] in ("weighted", "coprime"):
         method, order = order  # controller_reduction.py: closed-loop weighted or coprime-factor truncation
@@ -74,8 +74,6 @@ def _reduce(plant: GeneralizedPlant, blocks: BlockStructure, K: Any, cl: Any, m:
     if method == "balanced":
         hsv, reduce_to = None, balanced_truncation
     else:
-        from .controller_reduction import reducer
-
         try:
             hsv, reduce_to = reducer(K, PartitionedPlant(plant.P, plant.nmeas, plant.ncon), method)
         except SynthesisError as exc:

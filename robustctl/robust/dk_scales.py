@@ -15,8 +15,11 @@ from ..checks import integer
 from ..errors import SynthesisError
 from ..executors import parallel_map
 from ..interconnect import PartitionedPlant
+from ..lti import freqresp_array, zpk_statespace
 from .blocks import BlockStructure
 from .dk_verify import default_grid
+from .hinf_synthesis import hinfsyn
+from .magfit import fit_magnitude
 from .plant import GeneralizedPlant
 
 #: Highest D-scale order tried when ``order_d`` is None.
@@ -42,6 +45,8 @@ SHORTCUT_MIN_ORDERS = 6
 ORDER_D_BROKEN = 1.25
 #: H-infinity syntheses the automatic scaling may spend on its constant block scales.
 AUTOSCALE_EVALS = 60
+#: Nelder-Mead stops when the simplex's ln gamma agree within this (its points within 0.05 in ln d).
+AUTOSCALE_FATOL = 1e-3
 #: ln of the common block-scale factors the search scans before its Nelder-Mead refinement.
 AUTOSCALE_SCAN = (-6.0, -4.5, -3.0, -1.5, 0.0, 1.5, 3.0, 4.5, 6.0)
 #: Most scaled blocks (all but the last) for which that search runs (else the covariant start).
@@ -137,9 +142,6 @@ def _autoscaled(plant: GeneralizedPlant,
     """
     from scipy.optimize import minimize
 
-    from ..lti import freqresp_array
-    from .hinf_synthesis import hinfsyn
-
     P = plant.P
     f = default_grid(P, per_decade=10, max_points=120)
     H = freqresp_array(P, f)
@@ -183,7 +185,7 @@ def _autoscaled(plant: GeneralizedPlant,
         x = np.full(nb, t0)
         simplex = np.vstack([x, x + 2.0 * np.eye(nb)])
         res = minimize(gamma_of, x, method="Nelder-Mead",
-                       options={"initial_simplex": simplex, "xatol": 0.05, "fatol": 1e-3,
+                       options={"initial_simplex": simplex, "xatol": 0.05, "fatol": AUTOSCALE_FATOL,
                                 "maxfev": AUTOSCALE_EVALS})
         if res.fun < g0:
             x = res.x
@@ -227,8 +229,6 @@ def _balanced(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, 
 
 def _fit_one(args: tuple) -> Any:
     """One D-scale fit (module level so a process executor can pickle it)."""
-    from .magfit import fit_magnitude
-
     f_hz, mag, order, deadline = args
     return _into_band(fit_magnitude(f_hz, mag, order, tol_db=FIT_TOL_DB, time_budget_s=deadline), f_hz)
 
@@ -247,8 +247,6 @@ def _into_band(fit: Any, f_hz: np.ndarray, margin: float = 10.0) -> Any:
     a zero at the origin into the band changed the Caltech plant's scaled norm from 1.08 to
     3.3). Fits without such roots are returned unchanged.
     """
-    from ..lti import zpk_statespace
-
     if fit.nstates == 0 or abs(float(np.asarray(fit.D)[0, 0])) < 1e-12:
         return fit
     hi = 2 * np.pi * f_hz[-1] * margin
@@ -286,16 +284,12 @@ def _edge_response(cl: Any) -> np.ndarray:
     1.02 hid a scaled norm of 4.17 at DC and the next K step could not do better than 3.84
     (mu 1.006 -> 1.08). Judging the fits also at the two ends closes that gap.
     """
-    from ..lti import freqresp_array
-
     dc = freqresp_array(cl, np.zeros(1))
     return np.concatenate([dc, np.asarray(cl.D, dtype=complex)[None]], axis=0)
 
 
 def _edge_scales(fit: Any) -> np.ndarray:
     """``|d(0)|`` and ``|d(inf)|`` of a fitted SISO scale."""
-    from ..lti import freqresp_array
-
     dc = complex(freqresp_array(fit, np.zeros(1))[0, 0, 0])
     return np.array([abs(dc), abs(float(np.asarray(fit.D)[0, 0]))])
 
@@ -326,8 +320,6 @@ def _fit_d_scales(
     band. Returns the fits, their orders and the joint bound with all fitted scales (an upper
     bound on the next K step's gamma).
     """
-    from ..lti import freqresp_array
-
     deadline = deadline or Deadline(None)
     f = np.asarray(m.f_hz, dtype=float)
     d = np.asarray(m.d_scales, dtype=float)

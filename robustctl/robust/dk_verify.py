@@ -7,7 +7,10 @@ from typing import Any
 
 import numpy as np
 
+from ..interconnect import lft
+from ..lti import freqresp_array, pole_frequency_damping
 from .blocks import BlockStructure
+from .mu_bounds import mu
 
 
 def closed_loop(P: Any, K: Any, nmeas: int, ncon: int):
@@ -15,8 +18,6 @@ def closed_loop(P: Any, K: Any, nmeas: int, ncon: int):
 
     :func:`robustctl.interconnect.lft` with the plant's partition given explicitly.
     """
-    from ..interconnect import lft
-
     return lft(P, K, nmeas, ncon)
 
 
@@ -36,8 +37,6 @@ def default_grid(P: Any, per_decade: int = 30, max_points: int = 400) -> np.ndar
 
 def _resonance_points(cl: Any, f_hz: np.ndarray, zeta_max: float = 0.2) -> np.ndarray:
     """Grid points at and around the lightly damped closed-loop poles inside ``f_hz``'s range."""
-    from ..lti import pole_frequency_damping
-
     if cl.nstates == 0:
         return f_hz
     fn, zeta = pole_frequency_damping(np.linalg.eigvals(np.asarray(cl.A)))
@@ -57,8 +56,6 @@ def verification_grid(cl: Any, f_hz: np.ndarray, per_interval: int = 2) -> np.nd
     peak of mu between two of its points was 0.1 % above the grid's, and a fitted D-scale
     can move between the points and beyond the grid's ends.
     """
-    from ..lti import pole_frequency_damping
-
     f = np.asarray(f_hz, dtype=float)
     t = np.arange(1, per_interval + 1) / (per_interval + 1)
     inner = (f[:-1, None] * (f[1:, None] / f[:-1, None]) ** t).ravel()
@@ -82,9 +79,6 @@ def _verified_mu(cl: Any, blocks: BlockStructure, f_hz: np.ndarray, n_peaks: int
     The grid alone is not enough at a lightly damped resonance: points ``zeta / 2`` apart
     can sit 3 % below its peak (a two-mode plant: 1.0829 on the grid, 1.0862 at the peak).
     """
-    from ..lti import freqresp_array
-    from .mu_bounds import mu
-
     f = verification_grid(cl, f_hz)
     m = mu(freqresp_array(cl, f), blocks, f_hz=f)
     u = m.upper
@@ -142,9 +136,6 @@ def _merged(a: Any, b: Any) -> Any:
 
 # ---------------------------------------------------------------------------- D step
 def _mu_of(cl: Any, blocks: BlockStructure, f_hz: np.ndarray, refine: bool) -> tuple[Any, np.ndarray]:
-    from ..lti import freqresp_array
-    from .mu_bounds import mu
-
     f = _resonance_points(cl, f_hz) if refine else f_hz
     H = freqresp_array(cl, f)
     return mu(H, blocks, f_hz=f), H

@@ -29,10 +29,12 @@ import scipy.linalg
 
 from ..errors import ModelError, SynthesisError
 from ..interconnect import PartitionedPlant, PicklesStateSpaces, lft
-from ..lti import as_statespace, is_stable, roundoff_margin
+from ..lti import as_statespace, freqresp_array, is_stable, roundoff_margin
+from ..plots import single_axes
 from ..table import Table, result_html
 from .hinf_assumptions import _check_ranks, _pbh_loses_rank, check_assumptions
 from .hinf_synthesis import _loop_shift, lower_lft_matrices
+from .mu_bounds import _frequencies
 from .partitioned import as_partitioned
 
 __all__ = ["h2norm", "h2norm_matrices", "H2Result", "h2syn"]
@@ -220,10 +222,6 @@ def _default_grid(sys: Any) -> np.ndarray:
 
 
 def _plot_closed_loop(cl: Any, f_hz: Any, fig: Any, title: str) -> Any:
-    from ..lti import freqresp_array
-    from ..plots import single_axes
-    from .mu_bounds import _frequencies
-
     f_hz = _default_grid(cl) if f_hz is None else _frequencies(f_hz)
     sv = np.linalg.svd(freqresp_array(cl, f_hz), compute_uv=False)
     fig, ax = single_axes(fig, 7.0, 4.0)

@@ -38,12 +38,15 @@ from ..budget import Deadline, as_deadline
 from ..checks import positive_number
 from ..errors import SynthesisError
 from ..interconnect import PartitionedPlant, lft
-from ..lti import is_stable, spectral_abscissa
+from ..lti import freqresp_array, is_stable, spectral_abscissa
+from ..plots import label_axes, single_axes
 from ..table import Table, result_html
 from ..threads import limit_blas
 from . import dgkf
 from .hinf_assumptions import check_assumptions
+from .hinf_lmi import lmi_controller, lmi_gamma, lmi_rescaled_gamma
 from .hinf_norm import _discrete_to_continuous, continuous_to_discrete, hinfnorm_matrices
+from .mu_bounds import _frequencies
 from .partitioned import as_partitioned
 
 __all__ = ["HinfResult", "hinfsyn"]
@@ -139,13 +142,8 @@ class HinfResult:
 
         Returns the matplotlib Figure.
         """
-        from ..lti import freqresp_array
-        from ..plots import label_axes, single_axes
-
         f_peak = self.info.get("f_peak_hz", np.nan)
         if f_hz is not None:
-            from .mu_bounds import _frequencies
-
             f_hz = _frequencies(f_hz)  # finite numbers >= 0 Hz, at least one
         dt = self.closed_loop.dt
         if f_hz is None and dt not in (0, None):  # up to the Nyquist frequency, four decades below
@@ -402,17 +400,17 @@ def _riccati(m, gamma_tol, backoff, clock, info):
 
 
 def _lmi(m, backoff, clock, info):
-    from .hinf_lmi import lmi_controller, lmi_gamma
-
     if m["A"].shape[0] == 0:
         raise SynthesisError(
             "method='lmi' needs a plant with states; a static plant is a Parrott problem, solved by "
             "method='riccati'."
         )
     check_assumptions(m, ranks=False)
-    m0 = dict(m, D22=np.zeros_like(m["D22"]))  # (no balancing: it can inflate the Lyapunov matrices)
+    # [[A, B], [C, 0]] balanced, then re-solved in the coordinates the solution balances
+    # (lmi_rescaled_gamma); the controller is rebuilt in those coordinates (same transfer matrix)
+    m0 = _balance(dict(m, D22=np.zeros_like(m["D22"])))
     scale = max(1.0, float(np.abs(m["D11"]).max()) if m["D11"].size else 1.0)
-    gamma_opt, R0, S0 = lmi_gamma(m0, 1e-8 * scale, clock.remaining())
+    gamma_opt, R0, S0, m0, passes = lmi_rescaled_gamma(m0, 1e-8 * scale, clock.remaining())
     rho = (
         10.0 * max(1.0, float(np.linalg.eigvalsh(R0)[-1]), float(np.linalg.eigvalsh(S0)[-1]))
         if R0.size
@@ -420,13 +418,22 @@ def _lmi(m, backoff, clock, info):
     )
     info.update(
         gamma_lower=gamma_opt,
-        n_gamma_tests=1,
+        n_gamma_tests=passes,
         history=[(gamma_opt, True, "LMI optimum")],
         stopped_by_budget=False,
     )
 
     def design(g):
-        return _loop_shift(lmi_controller(m0, g, rho, clock.remaining()), m["D22"])
+        # Gahinet & Apkarian's two steps: the well-centred R, S of Theorem 4.3 at this gamma
+        # (the common margin of its three LMIs maximised with R, S <= rho I), then the
+        # controller's variables with X = S, Y = R fixed (Scherer, Gahinet & Chilali 1997);
+        # the joint LMI in (X, Y, controller) is the fallback
+        try:
+            _, R, S = lmi_gamma(m0, 0.0, clock.remaining(), gamma_fixed=g, rho=rho)
+            K = lmi_controller(m0, g, rho, clock.remaining(), RS=(R, S))
+        except SynthesisError:
+            K = lmi_controller(m0, g, rho, clock.remaining())
+        return _loop_shift(K, m["D22"])
 
     K, norm = _design_and_verify(m, design, gamma_opt, backoff, clock, info)
     return K, norm, gamma_opt
@@ -463,7 +470,10 @@ def hinfsyn(
         Number of measurements (last outputs) and control inputs (last inputs).
     method : {"riccati", "lmi"}
         "riccati" (default): DGKF gamma bisection (fast; needs the standard assumptions).
-        "lmi": Gahinet-Apkarian LMIs in cvxpy/Clarabel (slow; singular problems too).
+        "lmi": Gahinet-Apkarian LMIs in cvxpy/Clarabel (slow; singular problems too),
+        solved in the state coordinates their first solution balances
+        (:func:`~robustctl.robust.hinf_lmi.lmi_rescaled_gamma`); the controller is rebuilt
+        from well-centred ``R, S`` at the design gamma.
     gamma_tol : float
         Relative width of the final gamma bracket, ``gamma_opt <= gamma_lower (1 + gamma_tol)``.
     backoff : float

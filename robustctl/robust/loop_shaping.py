@@ -36,11 +36,14 @@ import numpy as np
 from ..checks import positive_number
 from ..errors import SynthesisError
 from ..interconnect import PicklesStateSpaces
-from ..lti import as_statespace, is_stable, roundoff_margin
+from ..lti import as_statespace, freqresp_array, is_stable, roundoff_margin
+from ..plots import label_axes, single_axes
 from ..table import Table, result_html
 from .coprime import ncf_riccati
+from .h2 import _default_grid
 from .hinf_norm import hinfnorm_matrices
 from .hinf_synthesis import lower_lft_matrices
+from .mu_bounds import _frequencies
 
 __all__ = ["LoopShapingResult", "ncfsyn", "stability_margin"]
 
@@ -104,11 +107,6 @@ class LoopShapingResult(PicklesStateSpaces):
 
     def plot(self, f_hz: Any = None, fig: Any = None) -> Any:
         """Singular values of the shaped loop ``Gs`` and of the achieved loop ``-G K`` (Hz)."""
-        from ..lti import freqresp_array
-        from ..plots import label_axes, single_axes
-        from .h2 import _default_grid
-        from .mu_bounds import _frequencies
-
         f = _default_grid(self.shaped) if f_hz is None else _frequencies(f_hz)
         G = self.plant
         fig, ax = single_axes(fig, 7.0, 4.0)

@@ -32,6 +32,7 @@ Rosenbrock pencil of that representation (no polynomial coefficients are formed)
 
 from __future__ import annotations
 
+import inspect
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -41,7 +42,7 @@ import numpy as np
 from ..budget import Deadline, as_deadline
 from ..checks import flag, integer, optional_text, positive_number, real_array
 from ..errors import FitError
-from ..lti import _pair, _zpk_response, is_stable, zpk_statespace
+from ..lti import _pair, _zpk_response, freqresp_array, is_stable, zpk_statespace
 
 __all__ = ["fit_magnitude", "MagnitudeFit", "fit_magnitude_details", "zpk_statespace"]
 
@@ -706,8 +707,6 @@ def _check_realisation(
 ) -> np.ndarray:
     """The state space's ``|W|`` on the grid; FitError unless it is stable, finite and (when
     ``strict``: a cover, whose margin must be truthful) the fitted one to 1e-3 nepers."""
-    from ..lti import freqresp_array
-
     if sys.nstates == 0:
         return np.full(f_hz.size, abs(float(sys.D[0, 0])))
     with np.errstate(all="ignore"):
@@ -832,18 +831,7 @@ def fit_magnitude_details(
     )
 
 
-def fit_magnitude(
-    f_hz: Any,
-    mag: Any,
-    order: int,
-    *,
-    upper_bound: bool = False,
-    point_weights: Any = None,
-    objective: str = "max",
-    tol_db: float = 0.05,
-    time_budget_s: float | None = None,
-    name: str | None = None,
-):
+def fit_magnitude(f_hz: Any, mag: Any, order: int, **options: Any):
     """A stable, minimum-phase ``W(s)`` whose magnitude fits ``mag`` on ``f_hz`` (log-Chebyshev).
 
     Minimises ``max_k w_k |ln|W(j 2 pi f_k)| - ln mag_k|`` over real-rational ``W`` with
@@ -862,6 +850,9 @@ def fit_magnitude(
         Target magnitude (positive, finite; any unit).
     order : int
         Number of poles of ``W`` (0 gives a constant).
+    **options
+        The keyword-only parameters ``upper_bound`` to ``name`` below; the function's signature
+        is that of :func:`fit_magnitude_details` (one parameter list for both).
     upper_bound : bool
         Require ``|W| >= mag`` at every grid point (with a non-zero weight) and make the
         largest overshoot as small as possible: a covering weight.
@@ -915,14 +906,10 @@ def fit_magnitude(
     >>> f = np.logspace(-1, 2, 100)
     >>> W = rc.fit_magnitude(f, np.abs(0.1 + 1j * f) / np.abs(1 + 1j * f / 30), order=2)
     """
-    return fit_magnitude_details(
-        f_hz,
-        mag,
-        order,
-        upper_bound=upper_bound,
-        point_weights=point_weights,
-        objective=objective,
-        tol_db=tol_db,
-        time_budget_s=time_budget_s,
-        name=name,
-    ).system
+    return fit_magnitude_details(f_hz, mag, order, **options).system
+
+
+#: one parameter list for both: what ``help`` and ``inspect.signature`` show of fit_magnitude
+fit_magnitude.__signature__ = inspect.signature(fit_magnitude_details).replace(  # type: ignore[attr-defined]
+    return_annotation=inspect.Signature.empty
+)

@@ -43,9 +43,11 @@ from ..checks import choice, finite_number
 from ..errors import SynthesisError
 from ..frd import FrequencyData, as_frequency_data
 from ..lti import as_statespace, freqresp_array, is_stable, roundoff_margin
+from ..plots import label_axes, single_axes
 from ..table import Table, result_html
 from .coprime import left_ncf, right_ncf
 from .hinf_norm import _discrete_to_continuous, hinfnorm, hinfnorm_matrices
+from .mu_bounds import _frequencies, mu
 
 __all__ = ["DiskMargin", "DiskMarginResult", "diskmargin", "disk_gain_phase", "nugap"]
 
@@ -177,8 +179,6 @@ class DiskMarginResult:
 
     def plot(self, fig: Any = None) -> Any:
         """Disk size over frequency for each loop and all at once. Returns the Figure."""
-        from ..plots import label_axes, single_axes
-
         fig, ax = single_axes(fig, 7.0, 4.0)
         names = [m.loop for m in self.loops] + ["all at once"]
         for curve, name in zip(self.alpha_curves, names):
@@ -237,8 +237,6 @@ def _simultaneous(Mf: np.ndarray, f: np.ndarray) -> np.ndarray:
     n = Mf.shape[1]
     if n == 1:
         return 1.0 / np.maximum(np.abs(Mf[:, 0, 0]), 1e-300)
-    from .mu_bounds import mu
-
     r = mu(Mf, [[1, 0]] * n, lower=False)
     return 1.0 / np.maximum(r.upper, 1e-300)
 
@@ -300,12 +298,7 @@ def diskmargin(L: Any, K: Any = None, *, f_hz: Any = None, skew: float = 0.0, si
         stable, Lss = None, None
     else:
         Lss, names = _model_loop(L, K, float(sign), at)
-        if f_hz is None:
-            f = _default_grid(Lss)
-        else:
-            from .mu_bounds import _frequencies
-
-            f = _frequencies(f_hz)
+        f = _default_grid(Lss) if f_hz is None else _frequencies(f_hz)
         Lf = freqresp_array(Lss, f)
     n = Lf.shape[1]
     if Lf.shape[1] != Lf.shape[2]:

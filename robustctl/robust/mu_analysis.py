@@ -24,6 +24,7 @@ import numpy as np
 
 from ..checks import integer, positive_number
 from ..errors import SynthesisError
+from ..plots import single_axes
 from ..table import Table
 from .blocks import Block, BlockStructure, as_block_structure
 from .mu_bounds import MuResult, as_frequency_array, mu, validate_mu_input
@@ -193,8 +194,6 @@ class WorstCaseGain:
 
     def plot(self, fig: Any = None) -> Any:
         """Nominal and worst-case gain bounds against frequency (log axes)."""
-        from ..plots import single_axes
-
         fig, ax = single_axes(fig, 7.0, 4.0)
         x = self.f_hz if np.all(np.isfinite(self.f_hz)) else np.arange(self.f_hz.size)
         ax.plot(x, self.nominal, "k:", lw=1, label="nominal")

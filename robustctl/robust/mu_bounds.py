@@ -27,6 +27,7 @@ from ..checks import flag, integer
 from ..errors import RobustctlError, SynthesisError
 from ..executors import check_executor, parallel_map
 from ..frd import FrequencyData, as_frequency_data
+from ..lti import freqresp_array
 from ..threads import limit_blas
 from .blocks import BlockStructure, as_block_structure
 from .mu_layout import Layout, layout_of
@@ -63,7 +64,6 @@ def as_frequency_array(M: Any, f_hz: Any = None, what: str = "M") -> tuple[np.nd
         if f_hz is None:
             raise SynthesisError(f"{what} is a system; pass f_hz (frequencies in Hz) to evaluate it on.")
         f = _frequencies(f_hz)
-        from ..lti import freqresp_array
 
         try:
             return np.asarray(freqresp_array(M, f), complex), f

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..checks import integer
 from ..errors import SynthesisError
+from ..plots import single_axes
 from ..table import Table, result_html
 from .blocks import BlockStructure
 
@@ -147,8 +148,6 @@ class MuResult:
 
     def plot(self, fig: Any = None, *, title: str = "") -> Any:
         """Upper and lower bound against frequency (log axis); returns the matplotlib Figure."""
-        from ..plots import single_axes
-
         fig, ax = single_axes(fig, 7.0, 4.0)
         f = self.f_hz
         x = f if np.all(np.isfinite(f)) else np.arange(f.size)

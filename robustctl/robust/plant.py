@@ -43,7 +43,10 @@ import numpy as np
 from ..checks import flag, is_default_names
 from ..errors import ModelError
 from ..interconnect import PartitionedPlant, PicklesStateSpaces, block_diagonal, upper_lft
-from ..lti import is_stable
+from ..lti import as_statespace, freqresp_array, is_stable
+from ..physical.uncertain import UncertainModel
+from ..plots import single_axes
+from ..signals import select_signals
 from ..table import Table
 from .blocks import Block, BlockStructure
 
@@ -144,8 +147,6 @@ class GeneralizedPlant(PartitionedPlant):
 
     def nominal_performance(self):
         """``P`` restricted to the performance channels: ``[perf w, u] -> [perf z, y]`` (Delta = 0)."""
-        from ..signals import select_signals
-
         ins = self.perf_w_names + self.u_names
         outs = self.perf_z_names + self.y_names
         return PartitionedPlant(select_signals(self.P, ins, outs), self.nmeas, self.ncon)
@@ -182,9 +183,6 @@ class GeneralizedPlant(PartitionedPlant):
         -------
         matplotlib Figure
         """
-        from ..lti import freqresp_array
-        from ..plots import single_axes
-
         f = np.geomspace(1e-3, 1e3, 400) if f_hz is None else np.asarray(f_hz, dtype=float)
         fig, ax = single_axes(fig, 8.0, 4.5)
         for wt in self.weights:
@@ -244,8 +242,6 @@ def _weight(spec: Any, what: str, *, n_in: int | None = None, n_out: int | None 
     inputs / outputs (None: any); a number or a SISO weight is repeated to the fixed one.
     """
     import control
-
-    from ..lti import as_statespace
 
     n_rep = n_in if n_in is not None else n_out
     if hasattr(spec, "weight") and not isinstance(spec, (control.LTI, np.ndarray)):
@@ -480,8 +476,6 @@ def generalized_plant(
         reverse); nothing to build; a rank-deficient D12 / D21 (``check_rank=True``).
     """
 
-    from ..lti import as_statespace
-
     check_rank = flag(check_rank, "check_rank", ModelError)
     unc = nominal if _is_uncertain_model(nominal) else None
     G = unc.nominal if unc is not None else as_statespace(nominal, name="nominal")
@@ -521,8 +515,6 @@ def _with_remainder(rem: Any, additive: Any, input_mult: Any, output_mult: Any) 
 
 def _is_uncertain_model(x: Any) -> bool:
     """An :class:`~robustctl.physical.uncertain.UncertainModel` (a parametric LFT)."""
-    from ..physical.uncertain import UncertainModel
-
     return isinstance(x, UncertainModel)
 
 
@@ -745,8 +737,6 @@ def mixed_sensitivity(G: Any, W1: Any = None, W2: Any = None, W3: Any = None) ->
     GeneralizedPlant
         One full ``ny x nz`` performance block; no rank check (like ``augw``).
     """
-    from ..lti import as_statespace
-
     Gs = as_statespace(G, name="G")
     if Gs.isdtime(strict=True):
         raise ModelError(

@@ -17,6 +17,8 @@ from typing import Any
 from ..checks import flag
 from ..errors import SynthesisError
 from ..executors import check_executor, parallel_map
+from ..interconnect import PartitionedPlant
+from ..plots import new_figure
 from ..table import Table
 from .dk import DKResult, check_dk_options, dksyn
 
@@ -60,8 +62,6 @@ class DesignSweep:
 
     def plot(self):
         """Peak mu of each design (bar chart)."""
-        from ..plots import new_figure
-
         fig = new_figure(6.0, 3.5)
         ax = fig.add_subplot()
         ax.bar(range(len(self.labels)), [self.results[k].mu_peak for k in self.labels])
@@ -79,8 +79,6 @@ class DesignSweep:
 
 
 def _is_plant(recipe: Any) -> bool:
-    from ..interconnect import PartitionedPlant
-
     return isinstance(recipe, (tuple, PartitionedPlant))
 
 

@@ -43,7 +43,9 @@ from ..checks import check_band, flag, match_channels
 from ..errors import DataError, SynthesisError
 from ..executors import check_executor, parallel_map
 from ..frd import FrequencyData
-from ..lti import is_stable
+from ..identify._problem import as_frequency_data
+from ..lti import as_statespace, freqresp_array, is_stable
+from ..plots import new_figure
 from ..table import Table
 from .dk import DKResult, _as_plant, _mu_of, check_dk_options, closed_loop, default_grid, dksyn
 
@@ -276,8 +278,6 @@ def _measurement_sign(gp: Any, G: Any) -> float:
     The recipe may reduce the model (e.g. to its six modes), so ``P_yu`` need only be
     correlated with ``+-G`` (|correlation| > 0.5 over the model's band).
     """
-    from ..lti import freqresp_array
-
     Pyu = gp.sub("y", "u") if hasattr(gp, "sub") else None
     if Pyu is None or Pyu.noutputs != G.noutputs or Pyu.ninputs != G.ninputs:
         raise SynthesisError(
@@ -354,8 +354,6 @@ def _interpolated(data: FrequencyData, systems: dict, reference: str, f: np.ndar
     the noise and carries the resonance shape between them. The grid is a log grid of
     ``n_fine`` points plus :func:`_pole_points` around the lightly damped ``poles``.
     """
-    from ..lti import freqresp_array
-
     fine = np.union1d(f, np.geomspace(f[0], f[-1], n_fine))
     if poles is not None and poles.size:
         fine = np.union1d(fine, _pole_points(poles, f[0], f[-1]))
@@ -537,8 +535,6 @@ def _rms_frobenius(X: np.ndarray) -> float:
 
 def _model_loop(G: Any, K: Any, sign: float) -> Callable[[np.ndarray], np.ndarray]:
     """``f_hz -> s G(j 2 pi f) K(j 2 pi f)`` of a model (``f = 0`` allowed)."""
-    from ..lti import freqresp_array
-
     def loop(f: np.ndarray) -> np.ndarray:
         return sign * freqresp_array(G, f) @ freqresp_array(K, f)
 
@@ -657,8 +653,6 @@ class Yardstick:
 
     def plot(self):
         """Disturbance response on the data (open loop and each controller) and the scores."""
-        from ..plots import new_figure
-
         fig = new_figure(10.0, 4.5)
         ax1, ax2 = fig.subplots(1, 2, width_ratios=(2, 1))
         ax1.loglog(self.f_hz, self.open_loop, "k", lw=1.0, label="open loop (data)")
@@ -680,8 +674,6 @@ class Yardstick:
 
 # ---------------------------------------------------------------------------- the function
 def _check_inputs(data: Any, models: Any, recipe: Any, reference: str | None) -> tuple:
-    from ..identify._problem import as_frequency_data
-
     data = as_frequency_data(data)
     if not isinstance(models, Mapping) or len(models) < 2:
         raise SynthesisError(
@@ -737,8 +729,6 @@ def yardstick(
     -------
     Yardstick
     """
-    from ..lti import as_statespace, freqresp_array
-
     data, labels, reference = _check_inputs(data, models, recipe, reference)
     f_all, lo, hi, in_band = _band_of(data, check_band(band))
     if progress is not None:

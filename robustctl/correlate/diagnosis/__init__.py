@@ -147,16 +147,6 @@ from .significance import (
     _testable_rows,
     effective_points,
 )
-from .workers import (
-    PARALLEL_MIN_CANDIDATES,
-    PARALLEL_MIN_WORK_S,
-    SCREEN_EVALS,
-    _check_budget,
-    _check_candidates,
-    _default_candidates,
-    _evaluated,
-    _pool,
-    _warn_if_hurried,
-)
+from .workers import PARALLEL_MIN_CANDIDATES, PARALLEL_MIN_WORK_S, SCREEN_EVALS, _warn_if_hurried
 
 __all__ = ["diagnose", "Diagnosis", "CandidateResult", "Indistinguishable", "effective_points"]

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from ...measure.noise import NO_NOISE_SENTENCE, format_p
+from ...plots import log_frequency_axis, new_figure
 from ...table import Table, result_html
 
 #: Family-wise significance level of the candidates' tests (Holm-adjusted p-values are compared with it).
@@ -366,8 +367,6 @@ class Diagnosis:
         -------
         matplotlib.figure.Figure
         """
-        from ...plots import log_frequency_axis, new_figure
-
         fig = new_figure(10.0, 6.5)
         ax1, ax2 = fig.subplots(2, 1)
         top = self.ranking[:n][::-1]

@@ -15,8 +15,10 @@ import numpy as np
 from ...budget import Deadline
 from ...errors import RobustctlError
 from ...executors import parallel_map_shared
+from ...physical.reduction import POINT_KINDS, point_change, point_modal
 from ..optimize import _bounds, levenberg_marquardt, marquardt_step
 from ..residual import CheckedData, Residual, sensitivities
+from ..updating import _coarse_start
 from .results import MODEL_ERROR_DISPERSION
 from .significance import _is_switch
 from .workers import _check_budget
@@ -588,8 +590,6 @@ def _screen_points(res_u: Residual, model_u: Any, null: _Null, r_perp: np.ndarra
     refined around the best; the share ``1 - |P j(v*)|^2 / |P j_u|^2``, the angle of the secant
     at the typical size and ``v*`` are kept, with a three-number sketch of the secant for the
     twin test -- scalars only, streamed in chunks of :data:`POINT_CHUNK`."""
-    from ...physical.reduction import POINT_KINDS, point_change, point_modal
-
     points = [k for k, c in enumerate(cands) if c.kind in POINT_KINDS and not _is_switch(c)]
     if not points:
         return None
@@ -805,8 +805,6 @@ def _null_fit(
     LM from the model's values stops in a local minimum of the complex-log cost, which leaves
     the parameter error in the residual for the candidates to mimic (a wrong effect ranks first).
     """
-    from ..updating import _coarse_start
-
     lo, hi = _bounds(res0.model, upd, None)
     if not upd:
         return _Null((), {}, {}, lo, hi, np.zeros((res0.n, 0)), j0, float(j0 @ j0)), 0

@@ -255,20 +255,17 @@ def _channel_verdict(res: Residual, j_u: np.ndarray) -> str:
     if total <= 0:
         return ""
     d = res.data
-    if d.n_out > 1 and rows.max() / total > CHANNEL_SHARE and rows.max() / total > 1.5 / d.n_out:
-        k = int(np.argmax(rows))
-        return (
-            f"The misfit sits in output {d.outputs[k]}'s row ({100 * rows[k] / total:.0f}% of it); no "
-            "candidate explains it: check its cable, sign and location (node and direction), and its "
-            "calibration."
-        )
-    if d.n_in > 1 and cols.max() / total > CHANNEL_SHARE and cols.max() / total > 1.5 / d.n_in:
-        k = int(np.argmax(cols))
-        return (
-            f"The misfit sits in input {d.inputs[k]}'s column ({100 * cols[k] / total:.0f}% of it); no "
-            "candidate explains it: check its cable, sign and location (node and direction), and the "
-            "force measurement's calibration."
-        )
+    for share, n, names, what, check in (
+        (rows, d.n_out, d.outputs, "output {}'s row", "its calibration"),
+        (cols, d.n_in, d.inputs, "input {}'s column", "the force measurement's calibration"),
+    ):
+        if n > 1 and share.max() / total > CHANNEL_SHARE and share.max() / total > 1.5 / n:
+            k = int(np.argmax(share))
+            return (
+                f"The misfit sits in {what.format(names[k])} ({100 * share[k] / total:.0f}% of it); no "
+                "candidate explains it: check its cable, sign and location (node and direction), and "
+                f"{check}."
+            )
     return ""
 
 
@@ -307,22 +304,14 @@ def _score(
                                                row_noise, res0)
         raw.append(p_val)
         results.append(
-            CandidateResult(
-                effect=effect,
-                fraction=s["fraction"],
-                angle_deg=s["angle"],
-                fitted=True,
-                cost=fit["cost"],
-                reduction=_reduction(fit["cost"], st["cost_nominal"]),
+            _candidate_result(
+                s, effect, fit["cost"], st, twins_of(k), fitted=True,
                 gain=gain,
                 f_stat=f_stat,
                 p_value=p_val,
                 update_values={n: v for n, v in fit["x"].items() if n in st["upd"]},
                 where=_where(res0, delta),
-                equivalent=twins_of(k),
                 level=st["alpha"] if row_noise is not None else math.nan,
-                min_gain=st["min_gain"],
-                note=_hold_note(effect, st["fs_hz"]),
                 p_raw=p_val,
                 scale=scale,
                 at_bound=_at_bound(effect, float(fit["value"])),
@@ -361,21 +350,27 @@ def _score(
         s = screens[k]
         effect = s["effect"].with_values(**{s["effect"].param_names[0]: s["value"]})
         cost = st["cost_u"] * (1 - s["fraction"])
-        results.append(
-            CandidateResult(
-                effect=effect,
-                fraction=s["fraction"],
-                angle_deg=s["angle"],
-                fitted=False,
-                cost=cost,
-                reduction=_reduction(cost, st["cost_nominal"]),
-                gain=s["fraction"],
-                equivalent=twins_of(k),
-                min_gain=st["min_gain"],
-                note=_hold_note(effect, st["fs_hz"]),
-            )
-        )
+        results.append(_candidate_result(s, effect, cost, st, twins_of(k), fitted=False, gain=s["fraction"]))
     return [_with_sentence(r) for r in results], explained
+
+
+def _candidate_result(
+    s: dict, effect: Any, cost: float, st: dict, equivalent: tuple, *, fitted: bool, **figures: Any
+) -> CandidateResult:
+    """One ranked candidate, fitted or screened only: what both know (its screen ``s``, its cost
+    and the diagnosis state ``st``) and the ``figures`` only the fit gives."""
+    return CandidateResult(
+        effect=effect,
+        fraction=s["fraction"],
+        angle_deg=s["angle"],
+        fitted=fitted,
+        cost=cost,
+        reduction=_reduction(cost, st["cost_nominal"]),
+        equivalent=equivalent,
+        min_gain=st["min_gain"],
+        note=_hold_note(effect, st["fs_hz"]),
+        **figures,
+    )
 
 
 def _reduction(cost: float, reference: float) -> float:

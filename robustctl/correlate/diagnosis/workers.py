@@ -11,6 +11,8 @@ from typing import Any
 from ...budget import BudgetWarning, Deadline
 from ...errors import FitError, ModelError
 from ...executors import process_pool, resolve_workers
+from ...physical.effects import Effect
+from ...physical.reduction import for_data
 from ..residual import Residual
 
 #: ``workers="auto"`` starts worker processes only for at least this many candidates ...
@@ -35,8 +37,6 @@ def _check_budget(deadline: Deadline, stage: str) -> None:
 
 
 def _check_candidates(model: Any, cands: Sequence[Any]) -> list[Any]:
-    from ...physical.effects import Effect
-
     out = []
     for c in cands:
         if not isinstance(c, Effect):
@@ -53,8 +53,6 @@ def _check_candidates(model: Any, cands: Sequence[Any]) -> list[Any]:
 def _evaluated(model: Any, data: Any, band: Any) -> Any:
     """The model as diagnose evaluates it: in reduced coordinates up to the band for a large
     structure (:func:`robustctl.physical.reduction.for_data`), else as given."""
-    from ...physical.reduction import for_data
-
     return for_data(model, data, band)
 
 

@@ -13,6 +13,7 @@ from typing import Any, ClassVar
 from ...errors import ModelError
 from ..model import PhysicalModel, Stage
 from ..parameters import Parameter
+from ..structure_base import Structure
 
 #: Tag carried by every effect parameter and stage.
 EFFECT_TAG = "effect"
@@ -284,8 +285,6 @@ def _structure_info(model: PhysicalModel) -> dict[str, Any]:
 
 
 def _base_set_gravity():
-    from ..structure_base import Structure
-
     return Structure.set_gravity
 
 

@@ -11,8 +11,13 @@ import numpy as np
 from ...budget import Deadline, as_deadline
 from ...checks import check_band, flag
 from ...errors import FitError, ModelError
+from ...executors import parallel_map_shared
 from ...threads import limit_blas
+from .. import reduction
+from ..eigen import solve_modes
+from ..matrices import MatrixStructure
 from ..model import PhysicalModel
+from ..reduction import REDUCE_MIN_DOF
 from . import io_effects, setup, structural
 from .base import (
     _N_CAL_MODES,
@@ -274,17 +279,12 @@ def _working(a, n_dof: int):
     calibration of thousands of candidates ``O(n_dof^3)`` in time and ``O(n_dof^2)`` in memory)."""
     import scipy.sparse as sp
 
-    from ..reduction import REDUCE_MIN_DOF
-
     if n_dof < REDUCE_MIN_DOF:
         return _dense(a)
     return sp.csr_matrix(a, dtype=float)
 
 
 def _modes(model: PhysicalModel, band):
-    from ..eigen import solve_modes
-    from ..reduction import REDUCE_MIN_DOF
-
     mats = model.build_structure().matrices()
     n = mats.n_dof
     M, K = _working(mats.mass, n), _working(mats.stiffness, n)
@@ -383,8 +383,6 @@ def _calibrate(
     ``executor`` calibrates the candidates in parallel (:func:`robustctl.executors.parallel_map_shared`;
     each is calibrated alone, so the steps equal the serial ones). ``modes`` is
     ``_modes(model, band)`` when the caller has it."""
-    from ...executors import parallel_map_shared
-
     omega, phi, (_, _, mats0), _ = _modes(model, band) if modes is None else modes  # with the preload
     if omega.size == 0:
         return omega, phi, cands
@@ -457,9 +455,6 @@ def _point_dof(c: Effect, nominal: Any, phi: np.ndarray) -> int | None:
     else None: its unit change is ``e_j e_j^T``, so ``diag(Phi^T dK Phi) = phi_j^2`` needs no
     probe structure (a rebuild and three sparse differences per candidate, 24 s for the 6,000 of
     a 2,000-DOF grid). Smaller structures keep the probe, and their steps bit for bit."""
-    from .. import reduction
-    from ..matrices import MatrixStructure
-
     if (c.kind not in ("added_mass", "suspension_spring", "dashpot")
             or getattr(c, "direction", None) is not None
             or not isinstance(nominal, MatrixStructure) or nominal.n_dof < reduction.REDUCE_MIN_DOF
