@@ -31,7 +31,9 @@ from robustctl.identify import IdentifyWarning, channel_cost
 
 N_FREQ = 600
 N_PAIRS = 9
-DATA_DIR = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
+#: ../shared/data next to the repository, or ROBUSTCTL_SHARED_DATA (as bench_identify_scale)
+DATA_DIR = Path(os.environ.get("ROBUSTCTL_SHARED_DATA",
+                               Path(__file__).resolve().parents[1] / ".." / "shared" / "data"))
 
 
 # ---------------------------------------------------------------------------- helpers

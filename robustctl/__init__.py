@@ -75,12 +75,14 @@ from .frd_io.geometry import Geometry, ModeShapes
 from .frd_io.uff_geometry import load_uff_geometry, load_uff_modes, write_uff_geometry
 from .identify import (
     MeasurementModel,
+    PoleEvidence,
     StabilisationDiagram,
     balanced_truncation,
     combine_simo,
     fit_measurement_model,
     fit_rational,
     group_modes,
+    pole_evidence,
 )
 from .interconnect import PartitionedPlant, block_diagonal, feedback, lft, parallel, series, star, upper_lft
 from .lti import as_statespace, freqresp, is_stable
@@ -291,6 +293,9 @@ __all__ = [
     "ImpactWarning",
     "advised_nperseg",
     "StabilisationDiagram",
+    # honest mode lists: the evidence that a fitted pole is a mode
+    "PoleEvidence",
+    "pole_evidence",
     # --- mu analysis (mu helper) ---
     "Block",
     "BlockStructure",

@@ -83,7 +83,10 @@ def test_cd_player_arm_measurement_model(cd_player):
     # 0.32 cycles/sample, outside the band, used to be listed to make up the six); a shortfall
     # is said with the number the data support
     assert all(0.005 <= m.f_hz <= 0.3 and m.zeta < 0.2 for m in mm.modes)
-    assert mm.n_modes >= 5
+    # the three resonances above 0.18 cycles/sample pass every test; the peak near 0.105 is fitted
+    # by two poles of scattered phase, neither significant and stable alone: fillers, said so
+    assert mm.n_modes >= 3
+    assert all(mm.evidence.significance[k] >= 1 for k in np.flatnonzero(mm.evidence.physical))
     if mm.n_modes < 6:
         assert any(f"the data support {mm.n_modes} physical" in str(w.message) for w in caught)
     states = sum((2 if m.pole.imag else 1) * m.rank for m in mm.modes + mm.fillers)

@@ -161,15 +161,15 @@ def test_time_budget_stops_with_a_warning_and_a_model(scale_case, monkeypatch):
 
     data, _ = scale_case
     clock = itertools.count()
-    monkeypatch.setattr(time, "perf_counter", lambda: float(next(clock)))
-    with pytest.warns(IdentifyWarning, match="time budget"):
+    monkeypatch.setattr(time, "monotonic", lambda: float(next(clock)))
+    with pytest.warns(rc.BudgetWarning, match="time_budget_s"):
         mm = rc.fit_measurement_model(data, band=(50, 150), time_budget_s=5.0, progress=False)
     monkeypatch.undo()
-    assert mm.n_modes >= 1
+    assert mm.sys.nstates >= 1  # a model, whose mode list may be empty: nothing is judged stable yet
     assert mm.stopped_by_budget and "STOPPED BY THE TIME BUDGET" in mm.summary()
     plain = rc.fit_measurement_model(data, band=(50, 150), n_modes=2, progress=False)
     assert not plain.stopped_by_budget  # no budget by default: iteration caps only
-    with pytest.raises(rc.FitError, match="time_budget_s must be a positive"):
+    with pytest.raises(rc.FitError, match="time_budget_s must be non-negative"):
         rc.fit_measurement_model(data, n_modes=2, time_budget_s=-1)
 
 

@@ -6,7 +6,9 @@ SIMO-to-MIMO combination and SVD grouping of modes, balanced truncation with its
 the estimator-leakage correction, and the one-call measurement model scored by the
 complex-log cost (MACE eq. 5): spare-pole fits with mode selection by contribution (exactly
 ``n_modes`` modes, fillers apart), block variable-projection refinement that scales with the
-channels and modes, and the automatic order from a one-pass stabilisation diagram.
+channels and modes, and the automatic order from a one-pass stabilisation diagram. The
+modes listed are the poles the data support (:mod:`.significance`: significance against the
+noise, phase collinearity, one per peak, stability across orders); every other pole is a filler.
 """
 
 from ..balanced import BalancedTruncation, balanced_truncation
@@ -17,6 +19,7 @@ from .leakage import estimator_settings, expected_h1, leakage_factor
 from .measurement_model import MeasurementModel, fit_measurement_model
 from .rational import fit_rational
 from .rational_fit import IdentifyWarning, RationalFit
+from .significance import PoleEvidence, pole_evidence
 from .stabilisation import StabilisationDiagram
 
 __all__ = [
@@ -37,4 +40,6 @@ __all__ = [
     "expected_h1",
     "leakage_factor",
     "StabilisationDiagram",
+    "PoleEvidence",
+    "pole_evidence",
 ]

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from ..budget import as_deadline
 from ..checks import UNSET, band_data, renamed_keyword
 from ..errors import FitError, RobustctlError
 from ..frd import FrequencyData, as_frequency_data
@@ -43,12 +44,13 @@ from .leakage import (
     expected_h1,
     truncation_settings,
 )
-from .modal_fit import FitSettings, fit_best, fit_with_leakage, shift_poles, spare_pairs
+from .modal_fit import FitSettings, _log_cost, fit_best, fit_with_leakage, shift_poles, spare_pairs
 from .modal_refine import ZETA_MIN
 from .rational_fit import IdentifyWarning, RationalFit
 from .realization import residue_factors
 from .refine import _row_weights, refine_residues
 from .selection import ZETA_FILLER, pole_contributions
+from .significance import PoleEvidence, pole_evidence
 from .stabilisation import (
     MIN_CONTRIBUTION,
     REL_CONTRIBUTION,
@@ -77,9 +79,12 @@ class MeasurementModel:
     sys : control.StateSpace
         Real modal realisation with the data's signal names.
     modes : tuple of Mode
-        The physical modes, sorted by frequency: complex poles inside the band with damping
-        below ``ZETA_FILLER`` (0.2). With ``n_modes=N`` there are N of them, or fewer with an
-        :class:`IdentifyWarning` giving the number the data support; fillers are apart.
+        The physical modes the data support, sorted by frequency: complex poles inside the band,
+        damping between the bound and ``ZETA_FILLER`` (0.2), significant against the noise near
+        their resonance, of nearly collinear phase, one per peak and (automatic order) stable
+        across the scan's orders (:func:`.significance.pole_evidence`). With ``n_modes=N`` there
+        are N of them, or fewer with an :class:`IdentifyWarning` giving the number the data
+        support; fillers are apart.
     cost : LogCost
         MACE eq. 5 of ``sys`` against ``data`` (per channel and total).
     fit : RationalFit
@@ -94,8 +99,9 @@ class MeasurementModel:
         ``(pole pairs, total cost)`` of every order tried by the automatic order selection.
     fillers : tuple of Mode
         Poles kept in ``sys`` and ``fit`` that are not modes: outside the band, heavily damped
-        (``zeta >= 0.2``) or real (``f_hz`` 0 is not given for real poles: see ``fit``); they
-        stand for out-of-band modes and residual flexibility.
+        (``zeta >= 0.2``), real, at the damping bound, not significant against the noise, of
+        scattered phase or a second pole on a mode's peak (``evidence.reason``); they stand for
+        out-of-band modes, residual flexibility and what the estimator and the noise add.
     stabilisation : StabilisationDiagram or None
         The automatic order's stabilisation diagram (``None`` with a given ``n_modes``).
     window_tau_s : float or None
@@ -107,6 +113,9 @@ class MeasurementModel:
         found so far and depends on the machine's speed and load).
     corrections : tuple of str
         The corrections applied to the data or the model, in words (empty: a plain fit).
+    evidence : PoleEvidence or None
+        Per pole of ``fit``: the tests that make it a mode or a filler (significance against the
+        noise, phase collinearity, stability across orders; :mod:`.significance`).
     """
 
     sys: Any
@@ -122,6 +131,7 @@ class MeasurementModel:
     window_tau_s: float | None = None
     stopped_by_budget: bool = False
     corrections: tuple[str, ...] = ()
+    evidence: Any = None
 
     def statespace(self):
         """The real modal ``control.StateSpace`` (the state-space protocol, :func:`rc.as_statespace`)."""
@@ -146,8 +156,9 @@ class MeasurementModel:
         ]
         if self.fillers:
             lines.append(
-                f"{len(self.fillers)} filler pole(s) outside the band or heavily damped are kept in the "
-                "model and listed in .fillers."
+                f"{len(self.fillers)} filler pole(s) (outside the band, heavily damped, not significant "
+                "against the noise, of scattered phase or a second pole on a mode's peak) are kept in the "
+                "model and listed in .fillers, not counted as modes."
             )
         if self.leakage_corrected and truncation_settings(self.raw_data.meta) is not None:
             lines.append(
@@ -281,15 +292,129 @@ def _is_mode(m: Mode, band_hz: tuple[float, float]) -> bool:
     return m.pole.imag != 0 and band_hz[0] <= m.f_hz <= band_hz[1] and m.zeta < ZETA_FILLER
 
 
-def _modes(fit: RationalFit, n_mode_poles: int) -> tuple[tuple[Mode, ...], tuple[Mode, ...]]:
-    """Modes (of the first ``n_mode_poles`` poles, those that are still in-band, complex and
-    lightly damped after the refinement, sorted by frequency) and fillers (every other kept pole)."""
-    items = [_mode(p, r, k) for p, r, k in zip(fit.poles, fit.residues, fit.ranks) if k > 0]
-    ranked = [k > 0 for k in fit.ranks]
-    first = sum(ranked[:n_mode_poles])
-    modes = [m for m in items[:first] if _is_mode(m, fit.band_hz)]
-    fillers = [m for m in items[:first] if not _is_mode(m, fit.band_hz)] + items[first:]
+def _modes(
+    fit: RationalFit, evidence: PoleEvidence, n_modes: int | None
+) -> tuple[tuple[Mode, ...], tuple[Mode, ...]]:
+    """Modes (the poles :func:`.significance.pole_evidence` finds physical; with ``n_modes`` the
+    ``n_modes`` most significant of them) and fillers (every other kept pole), each sorted by
+    frequency."""
+    terms = enumerate(zip(fit.poles, fit.residues, fit.ranks))
+    items = [(j, _mode(p, r, k)) for j, (p, r, k) in terms if k > 0]
+    physical = np.flatnonzero(evidence.physical)
+    if n_modes is not None and physical.size > n_modes:
+        physical = physical[np.argsort(-evidence.significance[physical], kind="stable")[:n_modes]]
+    modes = [m for j, m in items if j in set(physical.tolist())]
+    fillers = [m for j, m in items if j not in set(physical.tolist())]
     return tuple(sorted(modes, key=lambda m: m.f_hz)), tuple(sorted(fillers, key=lambda m: m.f_hz))
+
+
+#: most relocations of a mode pole that is no mode to where a mode is missing (n_modes=N)
+MAX_RELOCATIONS = 3
+
+
+def _relocate_fillers(
+    fit: RationalFit, n_mode_poles: int, evidence: PoleEvidence, n_modes: int, run, diagram=None
+):
+    """With ``n_modes=N`` and fewer than N physical modes: move a mode pole the evidence calls a
+    filler (noise, leakage, a trend near the band edge) to the frequency where the noise-normalised
+    complex-log residual is largest away from the modes' own peaks (within three half-power
+    half-widths; 3-bin smoothed: the peak the model misses), 1 % damped, refit
+    the shapes and refine; kept when it adds a physical mode and does not raise the weighted
+    complex-log cost (MACE eq. 5). At most ``MAX_RELOCATIONS`` tries,
+    each a refinement."""
+    from .modal_refine import refine_modes_auto
+    from .poles import fit_residues
+
+    data = fit.data
+    s = 2j * np.pi * data.f_hz
+    tried: list[float] = []
+    for _ in range(MAX_RELOCATIONS):
+        n_phys = int(evidence.physical.sum())
+        spare = [j for j in range(n_mode_poles) if not evidence.physical[j] and fit.poles[j].imag != 0]
+        if n_phys >= n_modes or not spare or run.expired():
+            break
+        sigma = _noise_sigma(fit)
+        e = np.sum(np.abs(log_ratio(data.response, fit.response(data.f_hz))) ** 2 / sigma**2, axis=(1, 2))
+        e = np.convolve(e, np.ones(3) / 3, mode="same")
+        for f0 in tried:
+            e[np.abs(data.f_hz / f0 - 1) < 0.01] = 0.0
+        for j in np.flatnonzero(evidence.physical):  # a mode's own peak: its misfit is no missing mode
+            e[np.abs(data.f_hz - fit.f_hz[j]) <= 3 * fit.zeta[j] * fit.f_hz[j]] = 0.0
+        k = int(np.argmax(e))
+        tried.append(float(data.f_hz[k]))
+        weakest = min(spare, key=lambda j: evidence.significance[j])
+        w = 2 * np.pi * float(data.f_hz[k])
+        poles = np.array(fit.poles, dtype=complex)
+        poles[weakest] = complex(-0.01 * w, w * np.sqrt(1 - 1e-4))
+        residues, d = fit_residues(s, data.response, _row_weights(fit, None), poles)
+        trial = refine_residues(replace(fit, poles=poles, residues=residues, d=d), sweeps=2)
+        if run.refine:
+            try:
+                trial = refine_modes_auto(trial, deadline=run.deadline, progress=run.progress)
+            except ValueError:
+                continue
+        trial = _stable(_realised(trial), run)
+        ev = pole_evidence(trial, diagram)
+        better = _log_cost(trial, data) <= _log_cost(fit, data)
+        if int(ev.physical.sum()) > n_phys and better and np.all(np.isfinite(trial.poles)):
+            fit, evidence = trial, ev
+    return fit, evidence
+
+
+def _noise_sigma(fit: RationalFit) -> np.ndarray:
+    from .significance import _noise_scale
+
+    return _noise_scale(fit)[0]
+
+
+def _promote_twins(evidence: PoleEvidence, n_modes: int) -> PoleEvidence:
+    """With ``n_modes=N`` and fewer than N modes: candidates that are significant against the noise
+    and stable across orders but share a mode's peak or have a shape of scattered phase count as
+    modes too, most significant first (a close pair of nearly equal shapes, which the fit can only
+    part with mixed shapes and the automatic order lists as one mode). Poles that fit noise or a
+    trend (not significant, not stable) never do."""
+    short = n_modes - int(evidence.physical.sum())
+    ok = evidence.candidate & ~evidence.physical & evidence.stable & (evidence.significance >= 1)
+    idx = np.flatnonzero(ok)
+    if short <= 0 or idx.size == 0:
+        return evidence
+    take = idx[np.argsort(-evidence.significance[idx], kind="stable")[:short]]
+    physical, twin = evidence.physical.copy(), evidence.twin.copy()
+    physical[take], twin[take] = True, False
+    return replace(evidence, physical=physical, twin=twin)
+
+
+def _rank_one_modes(fit: RationalFit, evidence: PoleEvidence, diagram) -> tuple[RationalFit, PoleEvidence]:
+    """Physical modes realised at rank 1 (Caltech eq. 9): a pole the selection kept as a filler
+    (numerical rank) that the evidence finds to be a mode gets a rank-1 shape, refitted with the
+    others by alternating least squares, so that it counts as one mode."""
+    wide = evidence.physical & (np.asarray(fit.ranks) > 1)
+    if not np.any(wide):
+        return fit, evidence
+    ranks = np.where(wide, 1, fit.ranks)
+    fit = _realised(refine_residues(replace(fit, ranks=ranks), sweeps=2))
+    return fit, pole_evidence(fit, diagram)
+
+
+def _diagram_or_none(band: FrequencyData, run: FitSettings, max_modes: int, parsimony: float, weights):
+    """The stabilisation diagram of ``band`` (as the automatic order scans it), or None when the
+    scan fails numerically: with a given ``n_modes`` it only tests the modes' stability."""
+    with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        warnings.simplefilter("ignore")
+        try:
+            return _scan(band, run, max_modes, parsimony, weights, False)[1]
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError, ZeroDivisionError, IndexError):
+            return None
+
+
+def _grouped_modes(fit: RationalFit, n_mode_poles: int) -> np.ndarray:
+    """The Caltech route's modes (bool per pole): the first ``n_mode_poles`` poles that are complex,
+    in band and lightly damped."""
+    out = np.zeros(fit.poles.size, dtype=bool)
+    f, zeta = fit.f_hz, fit.zeta
+    inside = (fit.poles.imag != 0) & (f >= fit.band_hz[0]) & (f <= fit.band_hz[1]) & (zeta < ZETA_FILLER)
+    out[:n_mode_poles] = inside[:n_mode_poles]
+    return out & (np.asarray(fit.ranks) > 0)
 
 
 def _scan(band: FrequencyData, run: FitSettings, max_modes: int, parsimony: float, weights, progress):
@@ -485,12 +610,14 @@ def fit_measurement_model(
         The corrected model is kept only when its expected H1 (the model with its record-end
         tail) misses the data by less than the plain fit does; ``corrections`` and the summary
         say which was kept (``correct_leakage=True`` forces the correction).
-    time_budget_s : float or None
-        Opt-in wall-time budget of the whole call, seconds. ``None`` (default): the work is
+    time_budget_s : float, Deadline or None
+        Opt-in wall-time budget of the whole call, seconds (or a caller's shared Deadline).
+        ``None`` (default): the work is
         bounded by iteration caps only, so the result depends on the input and options alone.
         With a budget, when it runs out the order scan, pole iterations and refinement stop with
-        the best model so far: the result says so (``stopped_by_budget``, its summary) and an
-        :class:`IdentifyWarning` is issued; such a model depends on the machine's speed and load.
+        the best model so far: the result says so (``stopped_by_budget``, its summary) and a
+        :class:`robustctl.BudgetWarning` is issued; such a model depends on the machine's speed
+        and load (the policy of :mod:`robustctl.budget`; a :class:`~robustctl.Deadline` is shared).
     progress : bool, optional
         tqdm bars over the order scan and the block refinement (default: when stderr is a
         terminal).
@@ -510,20 +637,17 @@ def fit_measurement_model(
         the order, the step and what to change).
     """
     import sys
-    import time
 
     max_modes, parsimony = _check_selection(max_modes, parsimony)
-    budget = _check_budget(time_budget_s)
-    start = time.perf_counter()
+    clock = as_deadline(time_budget_s, FitError)
     point_weights = renamed_keyword(point_weights, weights, "point_weights", "weights", default="auto")
     fd = as_frequency_data(data)
     band_fd = band_data(fd, band)
     st = _settings(fd, correct_leakage, correct_window)
     tau = _window_tau(fd, correct_window)
     show = sys.stderr.isatty() if progress is None else bool(progress)
-    deadline = None if budget is None else start + budget
     kw = dict(method=method, point_weights=point_weights, max_iter=max_iter)
-    run = FitSettings(groups, st, kw, rank_tol, refine, deadline, progress=show)
+    run = FitSettings(groups, st, kw, rank_tol, refine, clock if clock.active else None, progress=show)
     diagram = None
     order = "automatic order" if n_modes is None else f"n_modes={_check_modes(n_modes)}"
     fit, n_mode_poles, used, diagram = _fit_core(band_fd, run, n_modes, max_modes, parsimony, point_weights,
@@ -539,6 +663,22 @@ def fit_measurement_model(
             fit, n_mode_poles, used, diagram = plain
             declined = (with_t, without)
     _check_finite(fit, used, order)
+    # a given order, or data the fit corrected: a scan of the data the model was fitted to judges
+    # the modes' stability across orders (leakage biases the raw data's poles)
+    judge = diagram if not used.meta.get("leakage_corrected") else None
+    if judge is None and groups is None:
+        top = min(max_modes, max(1, used.f_hz.size // 4))  # orders the band's points can carry
+        judge = _diagram_or_none(used, run, top, parsimony, point_weights)
+    evidence = pole_evidence(replace(fit, data=used), judge)
+    if groups is None:
+        fit, evidence = _rank_one_modes(replace(fit, data=used), evidence, judge)
+    if n_modes is not None and groups is None:
+        evidence = _promote_twins(evidence, n_modes)
+    if n_modes is not None and groups is None and not isinstance(st, TruncationSettings):
+        with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            warnings.simplefilter("ignore", IdentifyWarning)
+            fit, evidence = _relocate_fillers(replace(fit, data=used), n_mode_poles, evidence, n_modes, run,
+                                              judge)
     stopped = run.expired()
     cost = _score(fit, used)
     scan = () if diagram is None else tuple((int(n), float(c)) for n, c in zip(diagram.orders, diagram.cost))
@@ -548,13 +688,8 @@ def fit_measurement_model(
             f"target {target_db:g} dB; raise n_modes (or leave it None), narrow the band or relax target_db."
         )
     if stopped:
-        warnings.warn(
-            f"the time budget of {budget:g} s ran out; the model is the best found so far and depends on "
-            "this machine's speed and load (stopped_by_budget=True). Raise time_budget_s or leave it None "
-            "(iteration caps only), narrow the band or give n_modes.",
-            IdentifyWarning,
-            stacklevel=3,
-        )
+        clock.warn("fit_measurement_model (the time budget ran out; raise time_budget_s, narrow the band or "
+                   "give n_modes)", stacklevel=4)
     if isinstance(st, EstimatorSettings) and used.meta.get("leakage_corrected"):
         miss_raw, miss_used = leakage_consistency(fit, band_fd, used, st, point_weights)
         if miss_raw > INCONSISTENT_RATIO * miss_used + INCONSISTENT_DB:
@@ -567,9 +702,11 @@ def fit_measurement_model(
                 IdentifyWarning,
                 stacklevel=3,
             )
+    if groups is not None:  # the Caltech route's grouped modes (ranks up to 2) are its mode poles
+        evidence = replace(evidence, physical=_grouped_modes(fit, n_mode_poles))
     if tau is not None:
         fit = shift_poles(fit, 1.0 / tau)
-    modes, fillers = _modes(fit, n_mode_poles)
+    modes, fillers = _modes(fit, evidence, n_modes if groups is None else None)
     if n_modes is not None and groups is None and sum(m.rank for m in modes) < n_modes:
         warnings.warn(
             f"n_modes={n_modes} was asked but the data support {sum(m.rank for m in modes)} physical "
@@ -584,16 +721,16 @@ def fit_measurement_model(
                       stacklevel=3)
     if fillers:
         warnings.warn(
-            f"{len(fillers)} filler pole(s) (outside the band, heavily damped or real) are kept in the "
-            "model to stand for out-of-band dynamics; they are listed in MeasurementModel.fillers, not "
-            "in .modes.",
+            f"{len(fillers)} filler pole(s) (outside the band, heavily damped, real, not significant "
+            "against the noise, of scattered phase or a second pole on a mode's peak) are kept in the "
+            "model; they are listed in MeasurementModel.fillers (reasons: .evidence), not in .modes.",
             IdentifyWarning,
             stacklevel=3,
         )
     leaked = bool(used.meta.get("leakage_corrected"))
     return MeasurementModel(
         fit.statespace(), modes, cost, fit, used, band_fd, leaked, scan, fillers, diagram, tau, stopped,
-        _corrections(st, leaked, tau, declined),
+        _corrections(st, leaked, tau, declined), evidence,
     )
 
 
@@ -744,18 +881,6 @@ def pinned_message(pinned: tuple[Mode, ...], leakage_corrected: bool) -> str:
         f"{len(pinned)} mode(s) at {where} sit at the lower damping bound (zeta < {BOUND_ZETA:.2g}): "
         f"the data do not determine their damping.{hint}"
     )
-
-
-def _check_budget(value: Any) -> float | None:
-    if value is None:
-        return None
-    try:
-        budget = float(value)
-    except (TypeError, ValueError):
-        budget = float("nan")
-    if not (np.isfinite(budget) and budget > 0):
-        raise FitError(f"time_budget_s must be a positive number of seconds or None; got {value!r}.")
-    return budget
 
 
 def _check_selection(max_modes: Any, parsimony: Any) -> tuple[int, float]:

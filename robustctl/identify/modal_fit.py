@@ -18,17 +18,25 @@
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
+from ..budget import Deadline
 from ..errors import FitError
 from ..frd import FrequencyData
 from ..lti import log_ratio
 from .grouping import group_modes
-from .leakage import TruncationSettings, corrected_response, leaks, truncated_residues
+from .leakage import (
+    EstimatorSettings,
+    TruncationSettings,
+    corrected_response,
+    leakage_factor,
+    leaks,
+    truncated_residues,
+)
+from .leaked_refine import refine_through_estimator
 from .modal_refine import DENSE_MAX_ENTRIES, ZETA_MIN, refine_modes_auto
 from .poles import fit_residues
 from .rational import fit_rational
@@ -79,18 +87,18 @@ class FitSettings:
     fit_kw: dict
     rank_tol: float
     refine: bool
-    deadline: float | None = None
+    deadline: Deadline | None = None  # the opt-in time budget (robustctl.budget), shared by the steps
     spare: bool = True
     progress: bool = False
     extra_spare: int = 0  # pole pairs beyond spare_pairs(n) (fit_best's candidate starts)
 
     def expired(self) -> bool:
-        return self.deadline is not None and time.perf_counter() > self.deadline
+        return self.deadline is not None and self.deadline.expired()
 
 
 def rational_fit(band: FrequencyData, n_modes: int, run: FitSettings) -> RationalFit:
     """Step 1: common-denominator fit with spare poles, or one SIMO fit per input (Caltech)."""
-    left = None if run.deadline is None else max(0.0, run.deadline - time.perf_counter())
+    left = run.deadline  # fit_rational shares the call's Deadline
     if run.groups is not None:
         return fit_rational(band, 2 * n_modes, common_denominator=False, time_budget_s=left, **run.fit_kw)
     spare = spare_pairs(n_modes) + run.extra_spare if run.spare else 0
@@ -319,6 +327,8 @@ def fit_with_leakage(
         fit, n_mode_poles = modal_model(fit, n_modes, run, prefer)
     if st is None and run.refine and run.groups is None:
         fit = _swap_for_pair(fit, n_mode_poles, run)
+    if isinstance(st, EstimatorSettings) and run.refine and not run.expired():
+        return _through_estimator(band, fit, n_mode_poles, st, run)
     data = band
     for _ in range(_leakage_steps(fit, band, st)):
         if run.expired():
@@ -340,6 +350,31 @@ def fit_with_leakage(
             fit = rational_fit(data, n_modes, run)
     if st is not None and not run.refine:
         fit, n_mode_poles = modal_model(fit, n_modes, run)
+    return fit, n_mode_poles, data
+
+
+def _through_estimator(band: FrequencyData, fit: RationalFit, n_mode_poles: int, st: EstimatorSettings, run):
+    """A white-noise H1 test's modal model: poles and shapes fitted so that the model's expected H1
+    matches the raw data (:func:`.leaked_refine.refine_through_estimator`), then the mode shapes
+    (rank 1) refitted on the data corrected by that model (``data * M / E[H1 of M]``, on which the
+    model is scored and its modes judged); then one joint rank-1 refinement on those data and the
+    data corrected once more by its result."""
+    fit = replace(fit, data=band)
+    moved = refine_through_estimator(fit, band, st, _row_weights(fit, None))
+    factor = leakage_factor(moved, band.f_hz, st)
+    if not (np.all(np.isfinite(moved.poles)) and np.all(np.isfinite(factor))):
+        moved, factor = fit, leakage_factor(fit, band.f_hz, st)
+    data = band.replace(response=band.response * factor, meta={**band.meta, "leakage_corrected": True})
+    fit = refine_residues(replace(moved, data=data), sweeps=2)
+    if run.refine and not run.expired():  # rank-1 poles and shapes together, one step from there
+        try:
+            refined = refine_modes_auto(fit, deadline=run.deadline, progress=run.progress)
+        except ValueError:  # two poles merged onto one peak: a singular step; keep the last model
+            refined = fit
+        factor = leakage_factor(refined, band.f_hz, st)
+        if np.all(np.isfinite(factor)):
+            data = band.replace(response=band.response * factor, meta=data.meta)
+            fit = refine_residues(replace(refined, data=data), sweeps=2)
     return fit, n_mode_poles, data
 
 

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
+from ..budget import Deadline
 from ..threads import limit_blas
 from .block_refine import ZETA_MIN, refine_cluster
 from .poles import evaluate
@@ -236,20 +237,18 @@ def refine_modes_local(
     fit: RationalFit,
     weights: np.ndarray | None = None,
     sweeps: int = 1,
-    deadline: float | None = None,
+    deadline: Deadline | None = None,
     progress: bool = False,
     truncation: Any = None,
 ) -> RationalFit:
     """Block Gauss-Seidel refinement: each cluster of overlapping rank-1 modes refined by variable
     projection (:func:`.block_refine.refine_cluster`: poles and input shapes nonlinear, output
     shapes and a local constant eliminated per output) on the frequencies around it, every other
-    term held fixed. Stops at ``deadline`` (a ``time.perf_counter()`` value). The residual is the
-    relative one of MACE eq. 5 with the full data's weights; a block keeps its start when
-    refining does not lower its cost. With ``truncation`` every complex term is the truncated
-    record's (eq. T1, as :func:`refine_modes`).
+    term held fixed. Stops once ``deadline`` (a :class:`robustctl.budget.Deadline`) has
+    expired. The residual is the relative one of MACE eq. 5 with the full data's weights; a block
+    keeps its start when refining does not lower its cost. With ``truncation`` every complex term
+    is the truncated record's (eq. T1, as :func:`refine_modes`).
     """
-    import time
-
     from tqdm.auto import tqdm
 
     if fit.data is None:
@@ -263,7 +262,7 @@ def refine_modes_local(
     for _ in range(int(sweeps)):
         blocks = _clusters(fit.f_hz, fit.zeta, idx)
         for block in tqdm(blocks, desc="modal refinement", disable=not progress, leave=False):
-            if deadline is not None and time.perf_counter() > deadline:
+            if deadline is not None and deadline.expired():
                 return fit
             rows = _window(data.f_hz, fit.f_hz, fit.zeta, block)
             others = np.setdiff1d(np.arange(fit.poles.size), block)
@@ -287,7 +286,7 @@ def refine_modes_local(
 def refine_modes_auto(
     fit: RationalFit,
     weights: np.ndarray | None = None,
-    deadline: float | None = None,
+    deadline: Deadline | None = None,
     progress: bool = False,
     truncation: Any = None,
 ) -> RationalFit:

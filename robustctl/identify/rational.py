@@ -9,12 +9,12 @@ modal state space with named signals.
 
 from __future__ import annotations
 
-import time
 import warnings
 from typing import Any
 
 import numpy as np
 
+from ..budget import Deadline, as_deadline
 from ..checks import UNSET, flag, positive_number, renamed_keyword
 from ..errors import FitError
 from ..lti import pole_frequency_damping
@@ -40,7 +40,7 @@ def _pole_kernel(
     max_iter: int,
     tol: float,
     stable: bool,
-    deadline: float | None = None,
+    deadline: Deadline | None = None,
     start_poles: str = "lin",
 ) -> tuple[np.ndarray, int, bool]:
     w_s = float(np.max(np.abs(prob.s)))
@@ -180,9 +180,10 @@ def fit_rational(
         Fit a constant term ``D``.
     rank_tol : float
         Residue singular values below ``rank_tol * sigma_1`` are dropped in the realisation.
-    time_budget_s : float, optional
-        Wall-time budget of the VF pole iteration (seconds); when it runs out the best poles so
-        far are used and the fit is flagged not converged.
+    time_budget_s : float or Deadline, optional
+        Opt-in wall-time budget of the VF pole iteration (seconds, or a shared
+        :class:`robustctl.Deadline`); when it runs out the best poles so far are used and the fit
+        is flagged not converged (the policy of :mod:`robustctl.budget`).
     start_poles : {"lin", "log", "data"}
         Starting poles of VF: spread linearly (default) or logarithmically over the band, or
         ``"data"``: two runs, from poles where the data change
@@ -215,9 +216,7 @@ def fit_rational(
     _check_scale(prob.g)
     if not common_denominator and len(prob.inputs) > 1:
         return _fit_simo_each(data, order, band, weights, common_denominator=True, **kw)
-    deadline = None if time_budget_s is None else time.perf_counter() + positive_number(
-        time_budget_s, "time_budget_s", FitError, unit="s"
-    )
+    deadline = None if time_budget_s is None else as_deadline(time_budget_s, FitError)
     try:
         poles, iters, converged = _pole_kernel(prob, method, max_iter, tol, stable, deadline, start_poles)
         if stable:

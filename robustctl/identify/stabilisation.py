@@ -18,11 +18,11 @@ neither the number of physical poles nor the cost has improved for ``PATIENCE`` 
 from __future__ import annotations
 
 import html
-import time
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..budget import Deadline
 from ..lti import pole_frequency_damping
 from ..table import Table
 from .poles import coefficients_to_residues, evaluate, partial_fraction_basis, reflect_unstable
@@ -245,7 +245,7 @@ def stabilisation_scan(
     rw: np.ndarray,
     band_hz: tuple[float, float],
     max_pairs: int,
-    deadline: float | None = None,
+    deadline: Deadline | None = None,
     progress: bool = False,
     min_gain: float = 0.02,
 ):
@@ -260,8 +260,9 @@ def stabilisation_scan(
     band_hz : (float, float)
     max_pairs : int
         Largest number of pole pairs.
-    deadline : float, optional
-        ``time.perf_counter()`` value at which the scan stops (with what it has).
+    deadline : Deadline, optional
+        Opt-in time budget (:class:`robustctl.budget.Deadline`): once expired the scan stops
+        with what it has.
     progress : bool
         tqdm bar over the orders.
     min_gain : float
@@ -282,7 +283,7 @@ def stabilisation_scan(
     last, resid_w2, ever = None, None, None
     bar = tqdm(total=max_pairs, desc="order scan", disable=not progress, leave=False)
     for n in range(1, max_pairs + 1):
-        if deadline is not None and time.perf_counter() > deadline and rows:
+        if deadline is not None and rows and deadline.expired():
             break
         if poles is None:
             start = initial_poles(2 * n, float(np.abs(s).min()), w_s)

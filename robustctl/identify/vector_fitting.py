@@ -14,10 +14,9 @@ the iteration starts twice, from poles where the data change and from the linear
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
+from ..budget import Deadline
 from .poles import BestPoles, basis_gram, partial_fraction_basis, pole_change, reflect_unstable, split_poles
 
 __all__ = ["initial_poles", "data_poles", "vf_poles"]
@@ -206,7 +205,7 @@ def vf_poles(
     stable: bool = True,
     spacing: str = "lin",
     start: np.ndarray | None = None,
-    deadline: float | None = None,
+    deadline: Deadline | None = None,
 ) -> tuple[np.ndarray, int, bool]:
     """Common poles of all channels by relaxed, fast vector fitting.
 
@@ -237,9 +236,9 @@ def vf_poles(
     start : ndarray, complex, optional
         Starting poles (scaled like ``s``; one per conjugate pair), e.g. the previous order's
         poles plus new ones, instead of the spread of :func:`initial_poles`.
-    deadline : float, optional
-        ``time.perf_counter()`` value after which the best poles so far are returned
-        (``converged`` False).
+    deadline : Deadline, optional
+        Opt-in time budget (:class:`robustctl.budget.Deadline`): once it has expired the best
+        poles so far are returned (``converged`` False).
 
     Returns
     -------
@@ -253,7 +252,7 @@ def vf_poles(
         return _relocate(s, g, rw, poles, max_iter, tol, stable, deadline)[:3]
     # two starts, the lower weighted cost wins: where the data change, and the linear spread
     runs = [_relocate(s, g, rw, data_poles(s, g, order), max_iter, tol, stable, deadline)]
-    if deadline is None or time.perf_counter() < deadline:
+    if deadline is None or not deadline.expired():
         lin = initial_poles(order, float(w.min()), float(w.max()), "lin")
         runs.append(_relocate(s, g, rw, lin, max_iter, tol, stable, deadline))
     return min(runs, key=lambda run: run[3])[:3]
@@ -267,14 +266,14 @@ def _relocate(
     max_iter: int,
     tol: float,
     stable: bool,
-    deadline: float | None,
+    deadline: Deadline | None,
 ) -> tuple[np.ndarray, int, bool, float]:
     """The VF iteration of :func:`vf_poles` from ``poles``: (poles, iterations, converged, cost),
     ``cost`` the weighted cost of the best poles seen (the returned ones up to the last step)."""
     best = BestPoles(s, g, rw)
     change = np.inf
     for it in range(1, max_iter + 1):
-        if deadline is not None and it > 1 and time.perf_counter() > deadline:
+        if deadline is not None and it > 1 and deadline.expired():
             return best.best, it - 1, False, best.best_cost
         new, cost = vf_step(s, g, rw, poles, stable, gram=change > GRAM_UNTIL)
         stalled = best.record(poles, cost)

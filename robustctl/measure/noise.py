@@ -50,7 +50,7 @@ from .estimator import USER_WINDOW, bin_correlation, effective_averages, estimat
 __all__ = [
     "coherence_weight_bias",
     "point_weight_bias",
-    "NoiseModel", "noise_model", "averages_of", "checked_noise_model", "checked_averages",
+    "NoiseModel", "noise_model", "residual_noise", "averages_of", "checked_noise_model", "checked_averages",
     "own_coherence_weights", "neighbour_coherence", "NO_NOISE_SENTENCE", "chi2_verdict",
     "format_p",
 ]
@@ -324,13 +324,35 @@ def _from_residual(data: Any, measurement_model: Any) -> NoiseModel:
     out_idx = match_channels(sys.output_labels, data.outputs, "outputs")
     in_idx = match_channels(sys.input_labels, data.inputs, "inputs")
     g = freqresp(sys, data.f_hz).response[:, out_idx][:, :, in_idx]
-    e = log_ratio(data.response, g)
-    both = np.stack([e.real, e.imag], axis=1)  # (nf, 2, n_out, n_in): pool Re and Im
-    sigma = _running_scale(both, RESIDUAL_HALF_WIDTH)
-    sigma = np.maximum(sigma, SIGMA_FLOOR)
     modes = getattr(measurement_model, "n_modes", None)
     article = "an" if modes and str(modes)[0] in "8" or modes in (11, 18) else "a"
     what = f"{article} {modes}-mode measurement model" if modes else "a measurement model"
+    return residual_noise(data, g, what)
+
+
+def residual_noise(data: Any, model_response: np.ndarray, what: str = "a model") -> NoiseModel:
+    """The noise model from a model's residual: the robust local scale (1.4826 x the running
+    median absolute value over ``2 RESIDUAL_HALF_WIDTH + 1`` points, Re and Im pooled) of
+    ``ln(G_data / G_model)`` per channel.
+
+    Parameters
+    ----------
+    data : FrequencyData
+        The estimate (Hz).
+    model_response : ndarray, complex, shape (n_freq, n_out, n_in)
+        The model's response at ``data.f_hz``, channels as in ``data``.
+    what : str
+        The model, for the noise model's ``source`` sentence.
+
+    Returns
+    -------
+    NoiseModel
+    """
+
+    e = log_ratio(data.response, model_response)
+    both = np.stack([e.real, e.imag], axis=1)  # (nf, 2, n_out, n_in): pool Re and Im
+    sigma = _running_scale(both, RESIDUAL_HALF_WIDTH)
+    sigma = np.maximum(sigma, SIGMA_FLOOR)
     meta = _settings_meta(data)
     return NoiseModel(data.f_hz, sigma, f"noise estimated from the residual of {what}", None,
                       _dof_factor(meta), "residual", None, _chi2_factor(meta))
