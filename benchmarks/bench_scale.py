@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
 import sys
 from pathlib import Path
 
@@ -84,14 +83,10 @@ def case(n_dof: int, path: str) -> dict:
 
 
 def _run(n_dof: int, path: str) -> dict:
-    """:func:`case` in a fresh subprocess (its own peak memory)."""
-    code = (f"import json, sys; sys.path.insert(0, {str(HERE.parent)!r}); "
-            f"from benchmarks.bench_scale import case; print(json.dumps(case({n_dof}, {path!r})))")
-    env = dict(os.environ, PYTHONPATH=str(HERE.parent))
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=False)
-    if out.returncode != 0:
-        return {"n_dof": n_dof, "path": path, "error": out.stderr.strip().splitlines()[-1:]}
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    """:func:`case` in a fresh subprocess (its own time and peak memory)."""
+    from benchmarks.scale_cases import in_fresh_process
+
+    return in_fresh_process("bench_scale", {"n_dof": n_dof, "path": path}, n_dof, path)
 
 
 def _exponent(rows: list[dict], key: str) -> float | None:

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
 import sys
 from pathlib import Path
 
@@ -104,13 +103,10 @@ def case(n_modes: int) -> dict:
 
 
 def _run(n_modes: int) -> dict:
-    code = (f"import json, sys; sys.path.insert(0, {str(HERE.parent)!r}); "
-            f"from benchmarks.bench_scale_dk import case; print(json.dumps(case({n_modes})))")
-    env = dict(os.environ, PYTHONPATH=str(HERE.parent))
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=False)
-    if out.returncode != 0:
-        return {"n_modes": n_modes, "error": out.stderr.strip().splitlines()[-1:]}
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    """:func:`case` in a fresh subprocess (its own time and peak memory)."""
+    from benchmarks.scale_cases import in_fresh_process
+
+    return in_fresh_process("bench_scale_dk", {"n_modes": n_modes}, n_modes)
 
 
 def _exponent(rows: list[dict], x: str, y: str) -> float | None:

@@ -10,6 +10,13 @@ eigen-solution, modal sum) plus 1 % complex log-normal noise.
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
@@ -109,3 +116,18 @@ def grid_data(n_dof: int, f_hz: np.ndarray, n_out: int = 4, noise: float = 0.01,
 def noise_model(f_hz: np.ndarray, n_out: int = 4, noise: float = 0.01):
     """The data's known log noise."""
     return rc.NoiseModel(f_hz, np.full((f_hz.size, n_out, 2), noise), f"synthetic log noise of {noise}")
+
+
+def in_fresh_process(module: str, labels: dict, *args: Any) -> dict:
+    """``benchmarks.<module>.case(*args)`` run in a fresh Python process, so that its wall time,
+    CPU time and peak memory are its own; returns the case's JSON dict, or ``labels`` with the
+    last line of the error when the process fails."""
+    root = str(Path(__file__).resolve().parent.parent)
+    call = ", ".join(repr(a) for a in args)
+    code = (f"import json, sys; sys.path.insert(0, {root!r}); "
+            f"from benchmarks.{module} import case; print(json.dumps(case({call})))")
+    env = dict(os.environ, PYTHONPATH=root)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=False)
+    if out.returncode != 0:
+        return {**labels, "error": out.stderr.strip().splitlines()[-1:]}
+    return json.loads(out.stdout.strip().splitlines()[-1])
