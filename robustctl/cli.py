@@ -90,6 +90,8 @@ def _add_experiment(p: argparse.ArgumentParser) -> None:
                    help="impact test: time constant of the exponential window from the hit, s")
     g.add_argument("--force-window", dest="force_window_s", type=float, default=None, metavar="SECONDS",
                    help="impact test: force window kept after the end of each force pulse, s")
+    g.add_argument("--pretrigger", dest="pretrigger_s", type=float, default=None, metavar="SECONDS",
+                   help="impact test: time from the record start to the hit, s")
 
 
 def _described(data: Any, args: argparse.Namespace) -> Any:
@@ -103,6 +105,7 @@ def _described(data: Any, args: argparse.Namespace) -> Any:
         "window": args.window, "nperseg": args.nperseg, "noverlap": args.noverlap,
         "n_averages": args.n_averages, "whole_periods": args.whole_periods,
         "exp_window_tau_s": args.exp_window_tau_s, "force_window_s": args.force_window_s,
+        "pretrigger_s": args.pretrigger_s,
     }
     given = {k: v for k, v in given.items() if v is not None}
     if args.hold_divided:

@@ -179,13 +179,14 @@ def _opt_int(value: Any, name: str, lo: int) -> int | None:
     return int(value)
 
 
-def _opt_seconds(value: Any, name: str) -> float | None:
-    """A positive, finite duration in s, or None (unknown)."""
+def _opt_seconds(value: Any, name: str, zero: bool = False) -> float | None:
+    """A positive (with ``zero``: non-negative), finite duration in s, or None (unknown)."""
     if value is None:
         return None
     ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
-    if not ok or not (np.isfinite(value) and value > 0):
-        raise DataError(f"{name} must be a positive, finite time in s or None (unknown); got {value!r}.")
+    if not ok or not (np.isfinite(value) and (value >= 0 if zero else value > 0)):
+        sign = "non-negative" if zero else "positive"
+        raise DataError(f"{name} must be a {sign}, finite time in s or None (unknown); got {value!r}.")
     return float(value)
 
 
@@ -257,6 +258,10 @@ class Experiment:
     force_window_s : float or None
         Impact tests: length (s) of the force (transient) window kept after the end of each
         force pulse before it tapers to zero (None: no force window, or not known).
+    pretrigger_s : float or None
+        Impact tests: time (s) from the record start to the hit (the trigger's pre-trigger
+        delay). With ``fs_hz`` and the record length (the DFT bins' spacing) it places the
+        record end the model is seen through (eq. T1 of :mod:`robustctl.measure.impact_view`).
     fs : float or None
         The sampling frequency in Hz under the name :func:`robustctl.estimate_frf` uses (keyword
         only; stored as ``fs_hz``, which the attribute ``fs`` also reads).
@@ -280,6 +285,7 @@ class Experiment:
     hold_divided: bool = False
     exp_window_tau_s: float | None = None
     force_window_s: float | None = None
+    pretrigger_s: float | None = None
 
     def __init__(
         self,
@@ -294,6 +300,7 @@ class Experiment:
         hold_divided: bool = False,
         exp_window_tau_s: float | None = None,
         force_window_s: float | None = None,
+        pretrigger_s: float | None = None,
         *,
         fs: float | None = None,
         exp_window_end: float | None = None,
@@ -308,7 +315,8 @@ class Experiment:
         values = dict(input_kind=input_kind, excitation=excitation, fs_hz=fs_hz, window=window,
                       nperseg=nperseg, noverlap=noverlap, n_averages=n_averages,
                       whole_periods=whole_periods, hold_divided=hold_divided,
-                      exp_window_tau_s=exp_window_tau_s, force_window_s=force_window_s)
+                      exp_window_tau_s=exp_window_tau_s, force_window_s=force_window_s,
+                      pretrigger_s=pretrigger_s)
         for name, value in values.items():
             object.__setattr__(self, name, value)
         self.__post_init__()
@@ -348,6 +356,7 @@ class Experiment:
         object.__setattr__(self, "hold_divided", bool(self.hold_divided))
         for name in ("exp_window_tau_s", "force_window_s"):
             object.__setattr__(self, name, _opt_seconds(getattr(self, name), name))
+        object.__setattr__(self, "pretrigger_s", _opt_seconds(self.pretrigger_s, "pretrigger_s", zero=True))
 
     @property
     def described(self) -> bool:
@@ -414,6 +423,8 @@ class Experiment:
             parts.append(f"exponential window tau = {self.exp_window_tau_s:.4g} s")
         if self.force_window_s is not None:
             parts.append(f"force window {self.force_window_s:.4g} s after the pulse")
+        if self.pretrigger_s is not None:
+            parts.append(f"hit {self.pretrigger_s:.4g} s after the record start")
         return ", ".join(parts)
 
 

@@ -11,7 +11,9 @@ white noise (0.05 % of the peak force, 1 % of each response's rms).
 
 from __future__ import annotations
 
+import json
 import warnings
+from pathlib import Path
 
 import lab_corpus as lc
 import numpy as np
@@ -19,6 +21,7 @@ import pytest
 from scipy.signal import firwin, lfilter
 
 import robustctl as rc
+from robustctl.cli import main
 from robustctl.measure.impact import ringing_channels
 from robustctl.measure.impact_view import expected_h1_impact_modal, record_tails, truncation_settings
 
@@ -109,6 +112,8 @@ def test_exact_truth_is_within_the_noise_only_as_the_windowed_estimator_sees_it(
     assert "exponential window" in seen.estimator_note
     assert plain.within_noise is False
     assert plain.cost > 20 * seen.cost
+    paired = [m for m in seen.modes if np.isfinite(m.f_model) and np.isfinite(m.f_data)]
+    assert len(paired) >= 5 and all(abs(m.f_data / m.f_model - 1) < 2e-3 for m in paired)
 
 
 def test_diagnose_proposes_nothing_for_the_exact_truth(mast, null_data):
@@ -187,7 +192,7 @@ def test_the_windows_round_trip_through_every_file_format(tmp_path, suffix):
     data = rc.FrequencyData(
         np.arange(1.0, 6.0), np.exp(1j * np.arange(5.0)), outputs=["a1"], inputs=["F"],
         experiment=rc.Experiment("measured", "impact", fs_hz=256.0, n_averages=6,
-                                 exp_window_tau_s=0.8575934, force_window_s=0.03515625),
+                                 exp_window_tau_s=0.8575934, force_window_s=0.03515625, pretrigger_s=0.0975),
     )
     path = tmp_path / f"hammer{suffix}"
     with warnings.catch_warnings():
@@ -210,3 +215,38 @@ def test_the_window_given_as_its_end_value_and_bad_values_are_refused():
     with pytest.raises(rc.DataError, match="in \\(0, 1\\)"):
         rc.Experiment(exp_window_end=1.5, record_s=4.0)
     assert rc.Experiment.from_dict({"excitation": "impact"}).exp_window_tau_s is None  # older files
+
+
+def test_the_command_line_describes_a_bare_hammer_file(null_data, tmp_path):
+    """A file from another analyser that does not say how it was made (no experiment, no meta):
+    told on the command line the exponential window, the sampling rate and the hit's time in the
+    record, the model is seen at s + 1/tau with the record end of one hit (eq. W2) and the exact
+    truth is within the noise; told the window alone (no record end: the 2 Hz mode's tail is
+    about 1 % near its peak), or nothing, it is beyond the noise."""
+    spec = tmp_path / "mast_model.py"
+    spec.write_text(f"import sys\nsys.path.insert(0, {str(Path(__file__).parent)!r})\nimport lab_corpus\n"
+                    "model = lab_corpus.mast().model()\n")
+    bare = rc.FrequencyData(null_data.f_hz, null_data.response, inputs=null_data.inputs,
+                            outputs=null_data.outputs, coherence=null_data.coherence)
+    path = bare.save(tmp_path / "hammer.csv")
+    tau = null_data.experiment.exp_window_tau_s
+
+    def compare(*options):
+        out = tmp_path / f"out{len(options)}"
+        argv = ["compare", str(spec), str(path), "--band", *map(str, BAND), "--out", str(out), *options]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            assert main(argv) == 0
+        return json.loads((out / "summary.json").read_text())
+
+    pre = null_data.experiment.pretrigger_s
+    told = compare("--input-kind", "measured", "--excitation", "impact", "--n-averages", "6", "--fs", "256",
+                   "--exp-window-tau", repr(tau), "--force-window", "0.03", "--pretrigger", repr(pre))
+    assert told["within_noise"] is True
+    assert "exponential window" in told["view"] and "record end" in told["view"]
+    assert told["experiment"]["exp_window_tau_s"] == tau and told["experiment"]["force_window_s"] == 0.03
+    window_only = compare("--input-kind", "measured", "--excitation", "impact", "--n-averages", "6",
+                          "--exp-window-tau", repr(tau))
+    assert window_only["within_noise"] is False and "record end" not in window_only["view"]
+    plain = compare("--input-kind", "measured", "--excitation", "impact", "--n-averages", "6", "--fs", "256")
+    assert plain["within_noise"] is False and plain["cost"] > 20 * told["cost"]

@@ -415,7 +415,9 @@ class Comparison:
     modes : tuple of ModeRow
         Paired (and unpaired, with NaN on the missing side) modes in the band.
     mode_source : str
-        ``"measurement model"`` or ``"peak picking"``.
+        ``"measurement model"`` or ``"peak picking"`` (of the data; for an impact test seen
+        through its exponential window, of both the data and the model as the estimator sees it,
+        since the window's damping moves the peaks).
     structure : ErrorStructure
         Sensor / actuator / structural split of the error.
     outputs, inputs : tuple of str
@@ -772,6 +774,9 @@ def compare(
     else:
         data_modes = peak_pick_modes(f, d.response)
         source = "peak picking"
+        if getattr(res.estimator, "impact", False):  # the window's damping moves the peaks: pick both
+            model_modes = peak_pick_modes(f, g_model)
+            source = "peak picking of both, as the impact estimator sees them"
     keep = np.any(res.weights > 0, axis=0)
     test = noise_test(error, res.noise, f, d.outputs, d.inputs, keep, n_sections, alpha)
     bands = _worst_bands(f, error * (res.weights > 0), d.outputs, d.inputs, threshold_db, n_bands)

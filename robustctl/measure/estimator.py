@@ -159,8 +159,10 @@ def impact_settings(experiment: Experiment, meta: Mapping[str, Any] | None, f_hz
     The exponential window (``experiment.exp_window_tau_s``) and, when the data record the hits
     (``meta`` of :func:`robustctl.estimate_frf_impact`: ``n_samples``, ``hit_times_s``,
     ``hit_weights``) and ``f_hz`` are the record's DFT bins, the record end (eq. W2 of
-    :mod:`robustctl.measure.impact_view`). A recorded ``meta["exp_window_tau_s"]`` counts as
-    stated when the description is silent; two different values are refused.
+    :mod:`robustctl.measure.impact_view`), else, for a file that states its ``fs_hz`` and
+    ``pretrigger_s``, one hit at ``pretrigger_s`` in a record as long as one over the bins'
+    spacing. A recorded ``meta["exp_window_tau_s"]`` counts as stated when the description is
+    silent; two different values are refused.
     """
     tau = experiment.exp_window_tau_s
     recorded = meta.get("exp_window_tau_s") if isinstance(meta, Mapping) else None
@@ -173,6 +175,8 @@ def impact_settings(experiment: Experiment, meta: Mapping[str, Any] | None, f_hz
             )
         tau = recorded
     record = truncation_settings(meta)
+    if record is None:
+        record = _described_record(experiment, f_hz)
     if record is not None and f_hz is not None and not on_record_bins(f_hz, record):
         record = None
     if tau is None and record is None:
@@ -182,6 +186,21 @@ def impact_settings(experiment: Experiment, meta: Mapping[str, Any] | None, f_hz
     st = EstimatorSettings((fs, n, "exponential" if tau is not None else "boxcar"), None, False, "measured",
                            False, impact=True, exp_tau_s=tau, record=record)
     return st, ""
+
+
+def _described_record(e: Experiment, f_hz: Any) -> TruncationSettings | None:
+    """The record of a described impact test: one hit at ``pretrigger_s`` (s) in a record of
+    ``1 / df`` s (``df`` the spacing of the DFT bins ``f_hz``, Hz) sampled at ``fs_hz``; None when
+    any of them is unknown."""
+    if e.pretrigger_s is None or e.fs_hz is None or f_hz is None:
+        return None
+    f = np.asarray(f_hz, dtype=float)
+    if f.size < 2:
+        return None
+    df = float(np.min(np.diff(f)))
+    if not df > 0 or e.pretrigger_s >= 1.0 / df:
+        return None
+    return TruncationSettings(e.fs_hz, 1.0 / df, (e.pretrigger_s,), (1.0,))
 
 
 def estimator_settings(meta: Mapping[str, Any] | None) -> EstimatorSettings | None:

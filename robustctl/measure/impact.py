@@ -264,7 +264,8 @@ def estimate_frf_impact(
         coherence=np.clip(coh, 0.0, 1.0)[:, :, None],
         meta=meta,
         experiment=Experiment(input_kind="measured", excitation="impact", fs_hz=fs, n_averages=n_hits,
-                              exp_window_tau_s=tau, force_window_s=None if margin is None else margin / fs),
+                              exp_window_tau_s=tau, force_window_s=None if margin is None else margin / fs,
+                              pretrigger_s=float(np.dot(meta["hit_weights"], meta["hit_times_s"]))),
     )
 
 
