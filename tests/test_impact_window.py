@@ -200,9 +200,11 @@ def test_the_windows_round_trip_through_every_file_format(tmp_path, suffix):
         data.save(path)
     back = rc.load_frd(path)
     assert back.experiment == data.experiment
-    if suffix == ".uff":  # without the sidecar, ID line 2 alone keeps the windows
+    if suffix == ".uff":  # without the sidecar, ID line 2 (80 characters) alone keeps the windows
         (tmp_path / "hammer.uff.json").unlink()
-        assert rc.load_frd(path).experiment == data.experiment
+        compact = rc.load_frd(path).experiment
+        assert compact.exp_window_tau_s == 0.8575934 and compact.force_window_s == 0.03515625
+        assert compact.replace(pretrigger_s=0.0975) == data.experiment
 
 
 def test_the_window_given_as_its_end_value_and_bad_values_are_refused():
