@@ -15,6 +15,7 @@ import json
 import warnings
 from pathlib import Path
 
+import control
 import lab_corpus as lc
 import numpy as np
 import pytest
@@ -24,6 +25,7 @@ import robustctl as rc
 from robustctl.cli import main
 from robustctl.measure.impact import ringing_channels
 from robustctl.measure.impact_view import expected_h1_impact_modal, record_tails, truncation_settings
+from robustctl.measure.noise import noise_model
 
 FS = 256.0
 BAND = (1.0, 80.0)
@@ -137,35 +139,70 @@ def test_a_hidden_added_mass_measured_by_impact_is_found(mast):
     assert upd.model.param("added_mass__dof_5").value == pytest.approx(1.5, rel=0.02)
 
 
-def test_expected_impact_h1_matches_a_windowed_record_of_one_mode():
-    """Reference check of eq. W2: one mode (4 Hz, 0.2 %), an impulse-like pulse, no noise, a
-    record that cuts the decay at 60 % of its amplitude; at 1-12 Hz the H1 through an exponential
-    window equals the mode at s + 1/tau minus the record-end tail to 2.5e-3 (the pulse's second-
-    order expansion in eq. T1 errs by about 1e-3 per 10 Hz from the mode), and without the
-    tail it errs ten times more."""
-    p = -2 * np.pi * 4 * 0.002 + 2j * np.pi * 4
-    poles, weights, d = np.array([p, np.conj(p)]), np.array([[1.0 + 0.5j, 1.0 - 0.5j]]), np.zeros(1)
+ONE_POLE = -2 * np.pi * 4 * 0.002 + 2j * np.pi * 4  # 4 Hz, 0.2 %
+ONE_RESIDUE = 1.0 + 0.5j
+
+
+@pytest.fixture(scope="module")
+def one_mode():
+    """Three noise-free hits on one mode, 2 s records (the decay is cut at 60 %), tau = 1.5 s."""
+    poles = np.array([ONE_POLE, np.conj(ONE_POLE)])
+    weights = np.array([[ONE_RESIDUE, np.conj(ONE_RESIDUE)]])
     n, over = 512, 16
     t = np.arange(n * over) / (FS * over)
     taps = firwin(20 * over + 1, 0.8 / over)
     F, Y = [], []
     for start in (0.05, 0.055, 0.058):
-        f, y = _pulse_response(poles, weights, d, t, start, 0.01, 1.0)
+        f, y = _pulse_response(poles, weights, np.zeros(1), t, start, 0.01, 1.0)
         F.append(lfilter(taps, 1.0, f)[::over])
         Y.append(lfilter(taps, 1.0, y, axis=0)[::over])
-    data = rc.estimate_frf_impact(np.array(F), np.array(Y), FS, exp_window=1.5)
+    return rc.estimate_frf_impact(np.array(F), np.array(Y), FS, exp_window=1.5)
+
+
+def test_expected_impact_h1_matches_a_windowed_record_of_one_mode(one_mode):
+    """Reference check of eq. W2: one mode (4 Hz, 0.2 %), a 10 ms pulse, no noise, a record that
+    cuts the decay at 60 % of its amplitude; at 1-12 Hz the H1 through an exponential
+    window equals the mode at s + 1/tau minus the record-end tail to 2.5e-3 (the pulse's second-
+    order expansion in eq. T1 errs by about 1e-3 per 10 Hz from the mode), and without the
+    tail it errs ten times more."""
+    data = one_mode
     assert data.experiment.exp_window_tau_s == 1.5
     record = truncation_settings(data.meta)
     assert record is not None and record.record_s == 2.0
-    f = data.f_hz[(data.f_hz > 1) & (data.f_hz < 12)]
-    g = data.response[(data.f_hz > 1) & (data.f_hz < 12)]
-    residues = weights.T[:, :, None]
+    band = (data.f_hz > 1) & (data.f_hz < 12)
+    f, g = data.f_hz[band], data.response[band]
+    poles = np.array([ONE_POLE, np.conj(ONE_POLE)])
+    residues = np.array([ONE_RESIDUE, np.conj(ONE_RESIDUE)])[:, None, None]
     exact = expected_h1_impact_modal(poles, residues, np.zeros((1, 1)), f, 1.5, record)
     no_tail = expected_h1_impact_modal(poles, residues, np.zeros((1, 1)), f, 1.5, None)
     err, err_no_tail = np.max(np.abs(np.log(g / exact))), np.max(np.abs(np.log(g / no_tail)))
     assert err < 2.5e-3 and err_no_tail > 10 * err
     # the tail kernel at a pole far inside the record: exp((q - s)(T - t_h)) tiny
     assert np.all(np.abs(record_tails(2j * np.pi * f, np.array([-50.0 + 10j]), record)) < 1e-12)
+
+
+class _FittedMode:
+    """A measurement model of the one mode whose fit removed the window (and the record end)."""
+
+    def __init__(self, window_tau_s):
+        p, r = ONE_POLE, ONE_RESIDUE
+        tf = control.tf([2 * r.real, -2 * (r * np.conj(p)).real], [1.0, -2 * p.real, abs(p) ** 2])
+        self.sys = control.ss(tf, inputs=["force"], outputs=["y1"])
+        self.window_tau_s, self.leakage_corrected = window_tau_s, True
+
+    def statespace(self):
+        return self.sys
+
+
+def test_the_residual_noise_model_sees_the_measurement_model_through_the_window(one_mode):
+    """Data without coherence: the noise from a measurement model's residual. A model whose fit
+    removed the window (tau = 1.5 s) and the record end is seen through both again: the residual
+    is the eq. T1 expansion's 1e-3; compared plainly, the window's damping would pass for noise."""
+    data = one_mode.band(1.0, 12.0).replace(coherence=None)
+    seen = noise_model(data, measurement_model=_FittedMode(1.5))
+    plain = noise_model(data, measurement_model=_FittedMode(None))
+    assert np.median(seen.sigma) < 2e-3
+    assert np.median(plain.sigma) > 10 * np.median(seen.sigma)
 
 
 def test_decay_is_judged_per_channel():
