@@ -326,13 +326,13 @@ def _settled(f: np.ndarray, pulse: tuple[int, int, float]) -> int:
     return max(4, end - start, settle)
 
 
-def _positive_seconds(value: Any, name: str) -> float:
+def _positive_seconds(value: Any, name: str, what: str = "time") -> float:
     try:
         x = float(value)
     except (TypeError, ValueError):
         x = float("nan")
     if isinstance(value, (bool, np.bool_)) or not (np.isfinite(x) and x > 0):
-        raise DataError(f"{name} must be 'auto', None or a positive time in s; got {value!r}.")
+        raise DataError(f"{name} must be 'auto', None or a positive {what} in s; got {value!r}.")
     return x
 
 
@@ -342,7 +342,7 @@ def _window_tau(exp_window: Any, ringing: np.ndarray, pulses, n: int, fs: float)
     if exp_window is None:
         return None
     if not (isinstance(exp_window, str) and exp_window == "auto"):
-        return _positive_seconds(exp_window, "exp_window")
+        return _positive_seconds(exp_window, "exp_window", "time constant")
     if not np.any(ringing):
         return None
     return min(_auto_tau(n, start, fs) for start, _, _ in pulses)
