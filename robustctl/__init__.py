@@ -14,7 +14,7 @@ function-level imports included; ``tests/test_architecture.py`` reads every impo
 2. ``frd``, ``frd_io``, ``plots`` -- FrequencyData, its file formats, plotting primitives
 3. ``lti``, ``signals``, ``modes``, ``balanced`` -- systems and fast responses, named
    signals, ``Mode`` with MAC and pairing, balanced truncation
-4. ``measure/`` (estimate, estimator, impact, noise), ``cost`` (MACE eq. 5)
+4. ``measure/`` (estimate, estimator, impact, impact_view, noise), ``cost`` (MACE eq. 5)
 5. ``physical/``
 6. ``interconnect``
 7. ``correlate/``
