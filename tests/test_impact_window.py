@@ -12,6 +12,7 @@ white noise (0.05 % of the peak force, 1 % of each response's rms).
 from __future__ import annotations
 
 import json
+import pickle
 import warnings
 from pathlib import Path
 
@@ -23,6 +24,7 @@ from scipy.signal import firwin, lfilter
 
 import robustctl as rc
 from robustctl.cli import main
+from robustctl.measure.estimator import impact_settings
 from robustctl.measure.impact import ringing_channels
 from robustctl.measure.impact_view import expected_h1_impact_modal, record_tails, truncation_settings
 from robustctl.measure.noise import noise_model
@@ -289,3 +291,18 @@ def test_the_command_line_describes_a_bare_hammer_file(null_data, tmp_path):
     assert window_only["within_noise"] is False and "record end" not in window_only["view"]
     plain = compare("--input-kind", "measured", "--excitation", "impact", "--n-averages", "6", "--fs", "256")
     assert plain["within_noise"] is False and plain["cost"] > 20 * told["cost"]
+
+
+def test_a_window_stated_twice_must_agree_and_the_view_survives_pickling(one_mode):
+    e = rc.Experiment("measured", "impact", fs_hz=256.0, exp_window_tau_s=0.5)
+    with pytest.raises(rc.DataError, match="exp_window_tau_s = 0.6"):
+        impact_settings(e, {"exp_window_tau_s": 0.6})
+    with pytest.raises(rc.DataError, match="exp_window_tau_s"):
+        impact_settings(e.replace(exp_window_tau_s=None), {"exp_window_tau_s": "0.5"})
+    st, _ = impact_settings(e, {"exp_window_tau_s": 0.5})
+    assert st.impact and st.exp_tau_s == 0.5 and st.record is None
+    seen, _ = impact_settings(one_mode.experiment, one_mode.meta, one_mode.f_hz)
+    assert seen.record == truncation_settings(one_mode.meta) and seen.exp_tau_s == 1.5
+    assert pickle.loads(pickle.dumps(seen)) == seen  # diagnose's worker processes get it whole
+    off_grid, _ = impact_settings(one_mode.experiment, one_mode.meta, one_mode.f_hz[:4] + 0.1)
+    assert off_grid.record is None  # eq. T1 holds at the record's DFT bins only

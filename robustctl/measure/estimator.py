@@ -167,7 +167,10 @@ def impact_settings(experiment: Experiment, meta: Mapping[str, Any] | None, f_hz
     tau = experiment.exp_window_tau_s
     recorded = meta.get("exp_window_tau_s") if isinstance(meta, Mapping) else None
     if recorded is not None:
-        recorded = _recorded_fs(recorded) if tau is None else float(recorded)
+        ok = isinstance(recorded, (int, float, np.integer, np.floating)) and not isinstance(recorded, bool)
+        if not ok or not (np.isfinite(recorded) and recorded > 0):
+            raise _settings_error("exp_window_tau_s", recorded, "a positive, finite time constant in s")
+        recorded = float(recorded)
         if tau is not None and not np.isclose(recorded, tau, rtol=1e-9, atol=0.0):
             raise DataError(
                 f"the experiment states an exponential window tau = {tau:g} s but data.meta records "
