@@ -274,6 +274,7 @@ def bode_grid(
     labels: Sequence[str] | None = None,
     *,
     max_channels: int = 9,
+    channels: Sequence[tuple[int, int]] | None = None,
     shade_bands: Sequence[tuple[float, float]] = (),
     title: str = "",
     phase: bool = False,
@@ -296,6 +297,8 @@ def bode_grid(
     max_channels : int
         At most this many channels (output/input pairs, row by row: output-major) are drawn;
         a full matrix is laid out with one row per output and one column per input.
+    channels : sequence of (int, int), optional
+        The (output index, input index) pairs to draw instead (``max_channels`` is then unused).
     shade_bands : sequence of (lo_hz, hi_hz)
         Frequency bands to shade (e.g. where a model fails).
     title : str
@@ -320,7 +323,7 @@ def bode_grid(
                 f"cannot overlay data with signals {d.outputs}x{d.inputs} on {ref.outputs}x{ref.inputs}."
             )
     labels = list(labels) if labels is not None else [f"set {k + 1}" for k in range(len(datasets))]
-    pairs = _channels(ref, max_channels)
+    pairs = list(channels) if channels is not None else _channels(ref, max_channels)
     coherence = coherence and any(d.coherence is not None for d in datasets)
     rows_per = 1 + bool(phase) + bool(coherence)
     ncols = grid_columns(len(pairs), ref.n_in)
