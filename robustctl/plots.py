@@ -130,10 +130,11 @@ def magnitude_label(data: FrequencyData, output: str, input: str) -> str:
 
 def grid_columns(n_panels: int, n_in: int) -> int:
     """Columns of a channel grid: one per input when the full matrix fits (2x2 on 2 columns, 3x3
-    on 3); a single input's channels wrap into a near-square grid of at most 4 columns (12
-    outputs: 4 x 3, not a tall narrow column); otherwise 3."""
+    on 3); a single input's channels side by side up to 4, beyond that wrapped into a
+    near-square grid of at most 4 columns (12 outputs: 4 x 3, not a tall narrow column);
+    otherwise 3."""
     if n_in == 1 and n_panels > 1:
-        return int(min(4, np.ceil(np.sqrt(n_panels))))
+        return int(n_panels if n_panels <= 4 else min(4, np.ceil(np.sqrt(n_panels))))
     if n_panels % max(n_in, 1) == 0 and 1 < n_in <= 3 and n_panels > n_in:
         return n_in
     return max(1, min(3, n_panels))
