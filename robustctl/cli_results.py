@@ -11,7 +11,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-__all__ = ["json_value", "noise_record", "comparison_record", "diagnosis_record", "update_record",
+__all__ = ["record_of", "result_kind", "json_value", "noise_record", "comparison_record", "diagnosis_record",
+           "update_record",
            "identify_record", "data_record"]
 
 
@@ -194,3 +195,26 @@ def identify_record(mm: Any) -> dict[str, Any]:
         "modes": [{"f_hz": m.f_hz, "zeta": m.zeta} for m in mm.modes],
         "n_fillers": len(getattr(mm, "fillers", ())),
     })
+
+
+def result_kind(result: Any) -> str:
+    """``"compare"``, ``"diagnose"``, ``"update"`` or ``"identify"`` for a result (RobustctlError
+    for anything else)."""
+    from .correlate import Comparison, Diagnosis, UpdateResult
+    from .errors import RobustctlError
+    from .identify import MeasurementModel
+
+    for kind, cls in (("compare", Comparison), ("diagnose", Diagnosis), ("update", UpdateResult),
+                      ("identify", MeasurementModel)):
+        if isinstance(result, cls):
+            return kind
+    raise RobustctlError(
+        f"a report takes results of rc.compare, rc.diagnose, rc.update or rc.fit_measurement_model; got "
+        f"{type(result).__name__}."
+    )
+
+
+def record_of(result: Any) -> dict[str, Any]:
+    """The JSON record of any result :func:`result_kind` knows."""
+    return {"compare": comparison_record, "diagnose": diagnosis_record, "update": update_record,
+            "identify": identify_record}[result_kind(result)](result)
