@@ -37,14 +37,29 @@ _MODEL_HELP = (
 _DATA_HELP = "measured frequency responses: .npz, .csv, .mat or .uff/.unv (robustctl.load_frd)"
 
 
+def _modes_option(text: str) -> int | str:
+    """``--modes``: a positive number of modes or ``auto``."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"--modes takes a positive number of modes or 'auto'; got {text!r}")
+    return value
+
+
 #: The sub-commands reading DATA: name, summary, description, whether MODEL comes first, and
 #: the one option of their own (the band, report folder and experiment options are common).
 _DATA_COMMANDS = (
     ("compare", "where does MODEL fail against DATA (channels, bands, modes)?",
      "Compare a model with measured FRFs: per-channel cost (MACE eq. 5), failing bands, "
      "a mode table paired through a measurement model, the error's structure.", True,
-     (("--modes",), {"type": int, "default": None,
-                     "help": "also fit a measurement model with this many modes to pair modes through"})),
+     (("--modes",), {"type": _modes_option, "default": None,
+                     "help": "fit a measurement model with this many modes ('auto': automatic order) for "
+                     "the mode table to pair through and take the data's damping from (default: none; "
+                     "peak picking gives frequencies and shapes only)"})),
     ("diagnose", "which physical effect is MODEL missing, judged on DATA?",
      "Rank candidate physical effects (delays, filters, springs, masses, dashpots, taut "
      "wires, ...) by what they explain of the model's error, with a significance test.", True,
@@ -307,7 +322,8 @@ def _run_compare(args: argparse.Namespace) -> Path:
         model, data = _inputs(args)
         band = _band(args)
         steps("fit the measurement model")
-        mm = None if args.modes is None else fit_measurement_model(data, n_modes=args.modes, band=band,
+        n_modes = None if args.modes == "auto" else args.modes
+        mm = None if args.modes is None else fit_measurement_model(data, n_modes=n_modes, band=band,
                                                                    progress=steps.show)
         steps("compare")
         cmp = compare(model, data, band=band, measurement_model=mm)

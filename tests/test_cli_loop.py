@@ -80,13 +80,16 @@ def test_load_compare_diagnose_update_report_on_uff_files(tmp_path, capsys, monk
     assert "3 outputs ['a1', 'a2', 'a3'] x 1 inputs ['F3']" in out and "with coherence" in out
     assert summary(tmp_path / "load")["inputs"] == ["F3"]
 
-    out = run(capsys, "compare", "chain.py", uff, *band, "--out", tmp_path / "cmp")
+    out = run(capsys, "compare", "chain.py", uff, *band, "--modes", "auto", "--out", tmp_path / "cmp")
     assert "Model channels selected to match DATA: inputs ['F3']" in out  # model.select, not data.select
     assert "Beyond the noise in" in out
     cmp = summary(tmp_path / "cmp")
     assert cmp["noise"]["verdict"] == "beyond the noise" and cmp["noise"]["n_failing"] >= 1
     assert all(c["p_value"] < 0.01 / cmp["noise"]["n_cells"] for c in cmp["noise"]["failing"])
     assert sum(c["share_of_cost"] for c in cmp["channels"]) == pytest.approx(1.0, abs=1e-9)
+    # the mode table takes the data's damping from the measurement model (truth: 2 %)
+    measured = [m for m in cmp["modes"] if m["f_data_hz"] is not None]
+    assert measured and all(m["zeta_data"] == pytest.approx(ZETA, rel=0.1) for m in measured)
 
     out = run(capsys, "diagnose", "chain.py", uff, *band, "--out", tmp_path / "diag")
     assert "Proposed: 0.15 kg of added mass at node x2" in out
