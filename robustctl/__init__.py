@@ -107,6 +107,7 @@ from .physical import (
     Structure,
     effects,
     electronics,
+    frame_model,
     modal_model,
     modal_statespace,
     structural_model,
@@ -132,6 +133,7 @@ from .physical.nastran_import import (
 # large structures in reduced coordinates (physical/reduction.py)
 from .physical.reduction import band_limited, reduction_error
 from .physical.uncertain import UncertainModel, parametric_lft
+from .report import write_report
 
 # robust design: weights
 from .robust import (
@@ -191,6 +193,7 @@ from .threads import blas_threads, set_blas_threads
 __all__ = [
     # figures (the modal engineer's)
     "fit_percent",
+    "write_report",
     "mac_matrix",
     "plot_compare",
     "plot_mac",
@@ -232,6 +235,7 @@ __all__ = [
     "Structure",
     "Frame",
     "electronics",
+    "frame_model",
     "structural_model",
     "modal_model",
     "modal_statespace",

@@ -34,6 +34,7 @@ import scipy.sparse as sp
 
 from ..checks import flag
 from ..errors import ModelError
+from ..frd_io.geometry import Geometry, ModeShapes
 from ..threads import limit_blas
 from . import elements as el
 from .eigen import SPARSE_THRESHOLD, solve_modes
@@ -58,6 +59,7 @@ from .frame_parts import (
     direction_vector,
 )
 from .gravity import PreloadResult
+from .shapes import frame_geometry, frame_mode_shapes
 from .structure_base import OUTPUT_KINDS, StructuralMatrices, Structure
 
 __all__ = ["Frame", "DIRECTIONS"]
@@ -821,6 +823,16 @@ class Frame(Structure):
         sm = self.matrices()  # dense up to SPARSE_THRESHOLD DOFs, as solve_modes prefers
         w, phi = limit_blas(solve_modes)(sm.mass, sm.stiffness, n_modes=n_modes, **options)
         return w / (2 * np.pi), phi
+
+    def geometry(self) -> Geometry:
+        """Nodes (id ``k`` is the ``k``-th node added), members, links and sensors as a
+        :class:`~robustctl.frd_io.geometry.Geometry` (:func:`~robustctl.physical.shapes.frame_geometry`)."""
+        return frame_geometry(self)
+
+    def mode_shapes(self, n_modes: int | None = None, band_hz: Sequence[float] | None = None) -> ModeShapes:
+        """Every node's translation per undamped mode, mass-normalised, over :meth:`geometry`'s nodes
+        (:func:`~robustctl.physical.shapes.frame_mode_shapes`)."""
+        return frame_mode_shapes(self, n_modes, band_hz)
 
     def preload(self) -> PreloadResult | None:
         """The gravity preload iteration result (None with gravity off)."""

@@ -25,6 +25,7 @@ import scipy.sparse as sp
 
 from ..errors import ModelError
 from .eigen import _check_mass_definite, _check_square_symmetric, _dense
+from .shapes import matrix_geometry, matrix_mode_shapes
 from .structure_base import OUTPUT_KINDS, StructuralMatrices, Structure
 
 __all__ = ["MatrixStructure"]
@@ -138,6 +139,11 @@ class MatrixStructure(Structure):
         Geometric stiffness per unit tension (1/m) of a group (for ``add_group_tension``).
     tagged : mapping tag -> tuple of matrices, optional
         Parts ``(dK[, dC[, dM]])`` included in the matrices that ``without`` removes.
+    nodes : mapping node id -> (x, y, z), optional
+        Node coordinates (m) for drawing: with DOFs labelled ``"node:direction"`` (``"3:X"``)
+        the structure has a :meth:`geometry` and :meth:`mode_shapes`.
+    lines : sequence of (int, int), optional
+        Node pairs drawn as lines (members, springs).
     """
 
     def __init__(
@@ -152,6 +158,8 @@ class MatrixStructure(Structure):
         stiffness_groups: Mapping[str, Any] | None = None,
         geometric_stiffness: Mapping[str, Any] | None = None,
         tagged: Mapping[str, Sequence[Any]] | None = None,
+        nodes: Mapping[int, Sequence[float]] | None = None,
+        lines: Sequence[tuple[int, int]] = (),
     ) -> None:
         self._M = _matrix(mass, None, "mass")
         n = self._M.shape[0]
@@ -175,6 +183,11 @@ class MatrixStructure(Structure):
                 )
             self._geometric[g] = _matrix(kg, n, f"geometric stiffness of {g!r}")
         self._tagged = {str(t): self._tagged_part(t, part) for t, part in (tagged or {}).items()}
+        self._raw_outputs = dict(outputs)
+        self._nodes = None if nodes is None else {int(k): tuple(v) for k, v in nodes.items()}
+        self._lines = tuple(tuple(pair) for pair in lines)
+        if self._nodes is not None:
+            self.geometry()  # refuse labels that name no node now, not at the first drawing
 
     # ------------------------------------------------------------------ construction helpers
     @property
@@ -257,6 +270,21 @@ class MatrixStructure(Structure):
         own = StructuralMatrices(self._M, self._K, self._C, self._b, self._c, self._kinds, self._inputs,
                                  self._outputs, self._labels, self.modal_damping_bands())
         return own.copy()
+
+    def geometry(self):
+        """Nodes, lines and sensors (:func:`~robustctl.physical.shapes.matrix_geometry`)."""
+        if self._nodes is None:
+            return super().geometry()
+        return matrix_geometry(self._nodes, self._labels, self._raw_outputs, self._lines)
+
+    def mode_shapes(self, n_modes: int | None = None, band_hz: Sequence[float] | None = None):
+        """Every node's translation per undamped mode
+        (:func:`~robustctl.physical.shapes.matrix_mode_shapes`)."""
+        if self._nodes is None:
+            return super().mode_shapes(n_modes, band_hz)
+        sm = self.matrices()
+        return matrix_mode_shapes(sm.mass, sm.stiffness, self._labels, self.geometry().node_ids, n_modes,
+                                  band_hz)
 
     def without(self, tags: Iterable[str]) -> MatrixStructure:
         """Subtract the tagged parts carrying one of ``tags`` (unknown tags are ignored:

@@ -93,6 +93,12 @@ class StructuralMatrices:
         return replace(self, **square, **pointing, **changes)
 
 
+_NO_GEOMETRY = (
+    "this {} has no node coordinates to draw; a Frame has them, and rc.structural_model takes "
+    "nodes={{id: (x, y, z)}} with DOFs labelled 'node:direction' (dof_labels=['1:X', ...])."
+)
+
+
 class Structure(ABC):
     """A structural model that can be assembled and changed by physical effects."""
 
@@ -104,6 +110,15 @@ class Structure(ABC):
     @abstractmethod
     def without(self, tags: Iterable[str]) -> Structure:
         """Remove every component carrying one of ``tags`` (``"suspension"``, ``"gravity"``)."""
+
+    # ------------------------------------------------------------------ drawing
+    def geometry(self) -> Any:
+        """Nodes, lines and sensor placement (:class:`~robustctl.frd_io.geometry.Geometry`)."""
+        raise ModelError(_NO_GEOMETRY.format(type(self).__name__))
+
+    def mode_shapes(self, n_modes: int | None = None, band_hz: Any = None) -> Any:
+        """Every node's translation per undamped mode (:class:`~robustctl.frd_io.geometry.ModeShapes`)."""
+        raise ModelError(_NO_GEOMETRY.format(type(self).__name__))
 
     # ------------------------------------------------------------------ where effects go
     @abstractmethod
