@@ -9,6 +9,7 @@ and worst-case gain of an uncertain system by mixed mu, Packard & Doyle 1993, Yo
 """
 
 from .elements import UncertainComplex, UncertainDynamics, UncertainReal, ucomplex, ultidyn, ureal
+from .robust_margin import RobustStabilityMargin, WorstCaseResult, destabilizing_system, robstab, wcgain
 from .system import LFTData, UncertainSystem, append, as_uncertain, hstack, vstack
 
 __all__ = [
@@ -24,4 +25,9 @@ __all__ = [
     "append",
     "hstack",
     "vstack",
+    "robstab",
+    "RobustStabilityMargin",
+    "wcgain",
+    "WorstCaseResult",
+    "destabilizing_system",
 ]

@@ -27,7 +27,8 @@ import numpy as np
 from ...checks import finite_number, integer, positive_number
 from ...errors import SynthesisError
 
-__all__ = ["UncertainReal", "UncertainComplex", "UncertainDynamics", "ureal", "ucomplex", "ultidyn"]
+__all__ = ["register_system", "UncertainReal", "UncertainComplex", "UncertainDynamics",
+           "ureal", "ucomplex", "ultidyn"]
 
 
 def _name(name: Any) -> str:
@@ -37,14 +38,15 @@ def _name(name: Any) -> str:
 
 
 class _Element:
-    """Arithmetic of an element goes through its one-element uncertain system."""
+    """Arithmetic of an element goes through its one-element uncertain system, whose
+    constructor :mod:`.system` registers here (``_to_system``) when it is imported."""
 
     kind: str = ""
+    _to_system: Any = None
 
     def as_system(self):
-        from .system import UncertainSystem
-
-        return UncertainSystem.from_element(self)
+        """This element as a one-element :class:`~robustctl.robust.uncertainty.system.UncertainSystem`."""
+        return type(self)._to_system(self)
 
     def __add__(self, other):
         return self.as_system() + other
@@ -77,6 +79,11 @@ class _Element:
         return self.as_system() ** n
 
     __array_priority__ = 1000  # numpy scalars and arrays defer to these operators
+
+
+def register_system(constructor: Any) -> None:
+    """Install the one-element system constructor used by the elements' arithmetic."""
+    _Element._to_system = staticmethod(constructor)
 
 
 @dataclass(frozen=True, eq=False)
@@ -275,6 +282,17 @@ def ucomplex(name: str, nominal: complex, radius: float) -> UncertainComplex:
     """A named uncertain complex scalar ``nominal + radius * delta``, ``|delta| <= 1``
     (MATLAB ``ucomplex``, RobustAndOptimalControl.jl ``δc``).
 
+    Parameters
+    ----------
+    name : str
+    nominal : complex
+    radius : float
+        Radius of the disc of values (> 0).
+
+    Returns
+    -------
+    UncertainComplex
+
     Examples
     --------
     >>> import robustctl as rc
@@ -291,6 +309,18 @@ def ucomplex(name: str, nominal: complex, radius: float) -> UncertainComplex:
 def ultidyn(name: str, size: Any = (1, 1), bound: float = 1.0) -> UncertainDynamics:
     """Named unmodelled stable dynamics of ``size = (ny, nu)`` with ``||Delta||_inf <= bound``
     (MATLAB ``ultidyn``; a full complex block in mu-analysis).
+
+    Parameters
+    ----------
+    name : str
+    size : int or (int, int)
+        ``(ny, nu)``: outputs and inputs of the dynamics (an int: square).
+    bound : float
+        H-infinity norm bound (> 0), e.g. 1 for dynamics scaled by a weight outside.
+
+    Returns
+    -------
+    UncertainDynamics
 
     Examples
     --------

@@ -202,7 +202,8 @@ def _structured_space(Abig: np.ndarray, Bbig: np.ndarray, groups: list[np.ndarra
     return bases
 
 
-def reduce_scalar_blocks(p: Raw, widths: list[int], scalar: list[bool], states: bool = False) -> tuple[Raw, list[int]]:
+def reduce_scalar_blocks(p: Raw, widths: list[int], scalar: list[bool],
+                         states: bool = False) -> tuple[Raw, list[int]]:
     """Structured Kalman reduction of the repeated scalar blocks (module docstring).
 
     Parameters

@@ -8,11 +8,11 @@ Packard & Doyle 1993), real parameters as real blocks (mixed mu: Young, Newlin &
 for the D-G upper bound, Young & Doyle 1997 for the lower bound). The upper bound of mu gives
 the guaranteed margin (``lower``), a destabilising perturbation the other bound (``upper``):
 ``det(I - M11(j w0) Delta) = 0`` puts a pole at ``j w0`` (``det(sI - A(Delta)) =
-det(sI - A) det(I - M11(s) Delta)`` for a well-posed LFT with ``D_zw = 0``, ZDG sec. 10.3). That perturbation is
-returned as values of every element -- real and complex scalars as numbers, a dynamics block
-as a stable all-pass realisation ``sigma u(s) v(s)^T`` whose value at ``j w0`` is the
-constant block (ZDG sec. 9.2, the construction behind the small-gain theorem's necessity) --
-and checked by substitution.
+det(sI - A) det(I - M11(s) Delta)`` for a well-posed LFT with ``D_zw = 0``, ZDG sec. 10.3).
+That perturbation is returned as values of every element -- real and complex scalars as
+numbers, a dynamics block as a stable all-pass realisation ``sigma u(s) v(s)^T`` whose value
+at ``j w0`` is the constant block (ZDG sec. 9.2, the construction behind the small-gain
+theorem's necessity) -- and checked by substitution.
 
 With real blocks only, mu is discontinuous in frequency: besides mu's power-iteration
 bound, every vertex ``Q`` of the real blocks (``delta_j = +-1``, up to :data:`MAX_VERTICES`)
@@ -173,7 +173,8 @@ def _real_crossings(usys: UncertainSystem, bs: BlockStructure, f: np.ndarray):
         Q = np.diag(np.repeat(q, sizes))
         lam = np.linalg.eigvals(M @ Q)
         for k in range(f.size):  # exact real eigenvalues on the grid (w = 0, or M real)
-            re = lam[k][(np.abs(lam[k].imag) <= 1e-12 * max(np.abs(lam[k]).max(), 1e-300)) & (np.abs(lam[k]) > 0)]
+            tiny = 1e-12 * max(np.abs(lam[k]).max(), 1e-300)
+            re = lam[k][(np.abs(lam[k].imag) <= tiny) & (np.abs(lam[k]) > 0)]
             if re.size and (best is None or np.abs(re).max() > best[0]):
                 j = np.argmax(np.abs(re))
                 best = (float(np.abs(re[j])), float(f[k]), Q * np.sign(re[j].real) / np.abs(re[j]))
@@ -215,7 +216,8 @@ def _allpass_entry(c: complex, w0: float, dt: float):
     wc = (2 / dt) * np.tan(w0 * dt / 2) if dt else w0
     a = wc / np.tan(-phi / 2)  # (a - s)/(a + s) has phase -2 atan(w/a) = phi at w
     # (a - s)/(a + s) = -1 + 2a/(s + a)
-    A, B, C, D = np.array([[-a]]), np.array([[1.0]]), np.array([[2 * a * sign * mag]]), np.array([[-sign * mag]])
+    A, B = np.array([[-a]]), np.array([[1.0]])
+    C, D = np.array([[2 * a * sign * mag]]), np.array([[-sign * mag]])
     if dt:
         import control
 
@@ -246,7 +248,8 @@ def destabilizing_system(delta: np.ndarray, f_hz: float, dt: float = 0.0):
     delta = np.atleast_2d(np.asarray(delta, complex))
     U, s, Vh = np.linalg.svd(delta)
     if s.size > 1 and s[1] > 1e-9 * max(s[0], 1e-300):
-        raise SynthesisError("the destabilising block is not rank one; its all-pass realisation needs rank one.")
+        raise SynthesisError("the destabilising block is not rank one; its all-pass realisation "
+                             "needs rank one.")
     w0 = 2 * np.pi * float(f_hz)
     u, v = U[:, 0] * s[0], Vh[0].conj()  # delta = u v^H
 
@@ -349,7 +352,8 @@ def robstab(usys: Any, f_hz: Any = None, *, n_grid: int = 200, seed: int = 0) ->
     usys = as_uncertain(usys)
     n_grid = integer(n_grid, "n_grid", SynthesisError, lo=2)
     if not usys.blocks:
-        raise SynthesisError("robstab needs an uncertain system (with elements); use rc.is_stable for a certain one.")
+        raise SynthesisError("robstab needs an uncertain system (with elements); use rc.is_stable "
+                             "for a certain one.")
     r = usys.raw
     ok, lam = _stable(r.A, usys.dt)
     bs = usys.block_structure()
@@ -384,8 +388,8 @@ def robstab(usys: Any, f_hz: Any = None, *, n_grid: int = 200, seed: int = 0) ->
     upper = float("inf") if lo_mu == 0 else 1.0 / lo_mu
     if lo_mu == 0:
         vals = {n: e.nominal for n, e in usys.elements.items()}
-        return RobustStabilityMargin(lower, upper, float("nan"), vals, dict.fromkeys(names, 0.0), complex("nan"),
-                                     float("nan"), True, res, res.f_peak_hz)
+        return RobustStabilityMargin(lower, upper, float("nan"), vals, dict.fromkeys(names, 0.0),
+                                     complex("nan"), float("nan"), True, res, res.f_peak_hz)
     vals, norm = _values_of(usys, bs, Delta, f0)
     pole, off = _check_pole(usys, vals, f0)
     return RobustStabilityMargin(lower, upper, float(f0), vals, norm, pole, off, True, res, res.f_peak_hz)
@@ -474,7 +478,7 @@ def wcgain(usys: Any, f_hz: Any = None, *, n_grid: int = 100, seed: int = 0) -> 
     k = int(np.argmax(np.where(np.isfinite(wc.lower), wc.lower, 1e300)))
     f0 = float(f[k])
     Nk = N(np.array([f0]))
-    nz, nw = r.nz, r.nw
+    nz = r.nz
     full = BlockStructure(bs.blocks + (Block("full", r.nu, r.ny, "performance"),))
     gamma = float(wc.lower[k]) * (1 - 1e-3) if np.isfinite(wc.lower[k]) else float(wc.nominal[k])
     Ns = Nk.copy()

@@ -25,9 +25,9 @@ import numpy as np
 
 from ...checks import check_seed, integer
 from ...errors import SynthesisError
-from ...lti import as_statespace, freqresp_array
+from ...lti import as_statespace
 from ..blocks import Block, BlockStructure
-from .elements import UncertainComplex, UncertainDynamics, UncertainReal
+from .elements import UncertainComplex, UncertainDynamics, UncertainReal, register_system
 from .lft_algebra import Raw, close_channels, connect, invert, permute_delta, reduce_scalar_blocks
 
 __all__ = ["UncertainSystem", "LFTData", "as_uncertain", "append", "hstack", "vstack"]
@@ -96,12 +96,14 @@ class UncertainSystem:
         elif isinstance(e, UncertainComplex):
             D = np.array([[0.0, 1.0], [e.radius, e.nominal]], complex)
         elif isinstance(e, UncertainDynamics):
-            D = np.block([[np.zeros((e.nu, e.ny)), np.eye(e.nu)], [e.bound * np.eye(e.ny), np.zeros((e.ny, e.nu))]])
+            D = np.block([[np.zeros((e.nu, e.ny)), np.eye(e.nu)],
+                          [e.bound * np.eye(e.ny), np.zeros((e.ny, e.nu))]])
         else:
             raise SynthesisError(f"not an uncertain element: {e!r}.")
         ny, nu = e.shape
         nw, nz = ny, nu
-        raw = Raw(np.zeros((0, 0)), np.zeros((0, nw + nu), D.dtype), np.zeros((nz + ny, 0), D.dtype), D, nw, nz)
+        raw = Raw(np.zeros((0, 0)), np.zeros((0, nw + nu), D.dtype), np.zeros((nz + ny, 0), D.dtype),
+                  D, nw, nz)
         ins = [f"u[{i}]" for i in range(nu)]
         outs = [f"y[{i}]" for i in range(ny)]
         return cls(raw, ((e, 1),), ins, outs)
@@ -152,7 +154,8 @@ class UncertainSystem:
             elif isinstance(e, UncertainComplex):
                 out.append(Block("complex", c, c, e.name))
             else:
-                out += [Block("full", e.ny, e.nu, e.name if k == 0 else f"{e.name}#{k + 1}") for k in range(c)]
+                out += [Block("full", e.ny, e.nu, e.name if k == 0 else f"{e.name}#{k + 1}")
+                        for k in range(c)]
         if not out:
             raise SynthesisError("this system has no uncertain elements (no block structure).")
         return BlockStructure(tuple(out))
@@ -182,7 +185,8 @@ class UncertainSystem:
         known = self.elements
         unknown = set(values) - set(known)
         if unknown:
-            raise SynthesisError(f"no uncertain element named {sorted(unknown)}; the elements are {list(known)}.")
+            raise SynthesisError(
+                f"no uncertain element named {sorted(unknown)}; the elements are {list(known)}.")
         for name, e in known.items():
             if name not in values:
                 if fill_nominal:
@@ -431,17 +435,39 @@ class UncertainSystem:
     def __repr__(self) -> str:
         ny, nu = self.shape
         kind = "continuous" if not self.dt else f"dt={self.dt:g} s"
-        head = f"UncertainSystem({ny} output{'s' * (ny != 1)} x {nu} input{'s' * (nu != 1)}, {self.nstates} states, {kind}"
+        head = (f"UncertainSystem({ny} output{'s' * (ny != 1)} x {nu} input{'s' * (nu != 1)}, "
+                f"{self.nstates} states, {kind}")
         if not self.blocks:
             return head + ", no uncertain elements)"
         lines = [f"  {e.describe()}, {c} occurrence{'s' * (c != 1)}" for e, c in self.blocks]
         return head + ")\n" + "\n".join(lines)
 
 
+register_system(UncertainSystem.from_element)
+
+
 # ---------------------------------------------------------------------------- helpers
 def as_uncertain(x: Any, dt: float = 0.0) -> UncertainSystem:
     """``x`` as an :class:`UncertainSystem`: itself, an element, a system, or a number/matrix
-    (a static gain)."""
+    (a static gain).
+
+    Parameters
+    ----------
+    x : UncertainSystem, uncertain element, system, number or 2-D array
+    dt : float
+        Sample time (s) given to an element or a gain (0: continuous); systems keep theirs.
+
+    Returns
+    -------
+    UncertainSystem
+
+    Examples
+    --------
+    >>> import robustctl as rc, control
+    >>> G = rc.as_uncertain(control.tf([1], [1, 1])) * rc.ureal("k", 2.0, percent=10)
+    >>> G.multiplicity
+    {'k': 1}
+    """
     if isinstance(x, UncertainSystem):
         return x
     if isinstance(x, _ELEMENTS):
@@ -452,7 +478,8 @@ def as_uncertain(x: Any, dt: float = 0.0) -> UncertainSystem:
         if D.ndim != 2 or D.dtype == object or not np.all(np.isfinite(D)):
             raise SynthesisError(f"a static gain must be a finite number or 2-D matrix; got {x!r}.")
         D = D.astype(complex if np.iscomplexobj(D) else float)
-        raw = Raw(np.zeros((0, 0)), np.zeros((0, D.shape[1]), D.dtype), np.zeros((D.shape[0], 0), D.dtype), D, 0, 0)
+        raw = Raw(np.zeros((0, 0)), np.zeros((0, D.shape[1]), D.dtype),
+                  np.zeros((D.shape[0], 0), D.dtype), D, 0, 0)
         return UncertainSystem(raw, (), [f"u[{i}]" for i in range(D.shape[1])],
                                [f"y[{i}]" for i in range(D.shape[0])], dt)
     return UncertainSystem.from_system(x)
@@ -488,7 +515,8 @@ def series(first: UncertainSystem, second: UncertainSystem) -> UncertainSystem:
         second = _scalar_times(second, first.shape[0])
     if first.shape[0] != second.shape[1]:
         raise SynthesisError(
-            f"series connection needs matching sizes: {first.shape[0]} outputs into {second.shape[1]} inputs.")
+            f"series connection needs matching sizes: {first.shape[0]} outputs into "
+            f"{second.shape[1]} inputs.")
     n1y, n1u = first.shape
     n2y, n2u = second.shape
     E = np.zeros((n1u + n2u, n1y + n2y))
@@ -506,7 +534,8 @@ def append(*systems: Any) -> UncertainSystem:
     nu = sum(s.shape[1] for s in ss)
     ny = sum(s.shape[0] for s in ss)
     return ss[0]._combine(ss, np.zeros((nu, ny)), np.eye(nu), np.eye(ny), np.zeros((ny, nu)),
-                          _unique([n for s in ss for n in s.inputs]), _unique([n for s in ss for n in s.outputs]))
+                          _unique([n for s in ss for n in s.inputs]),
+                          _unique([n for s in ss for n in s.outputs]))
 
 
 def hstack(*systems: Any) -> UncertainSystem:
