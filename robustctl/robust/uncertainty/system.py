@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from ...checks import check_seed, integer
+from ...checks import check_seed, integer, is_default_names
 from ...errors import SynthesisError
 from ...lti import as_statespace
 from ..blocks import Block, BlockStructure
@@ -179,12 +179,13 @@ class UncertainSystem:
         return LFTData(M, bs, elems)
 
     # ------------------------------------------------------------------ normalisation
-    def _normalized(self, values: dict, fill_nominal: bool) -> dict:
-        """``{name: normalised value}`` (a number, or a Raw of normalised dynamics)."""
+    def _normalized(self, values: dict, fill_nominal: bool, strict: bool = True) -> dict:
+        """``{name: normalised value}`` (a number, or a Raw of normalised dynamics); names of
+        other elements are refused when ``strict`` (else ignored: samples of a larger system)."""
         out = {}
         known = self.elements
         unknown = set(values) - set(known)
-        if unknown:
+        if unknown and strict:
             raise SynthesisError(
                 f"no uncertain element named {sorted(unknown)}; the elements are {list(known)}.")
         for name, e in known.items():
@@ -292,7 +293,8 @@ class UncertainSystem:
 
     def freqresp(self, f_hz: Any, values: Any = None) -> np.ndarray:
         """Frequency response ``Fu(M(j w), Delta(j w))``, (nf, ny, nu), or (n, nf, ny, nu) for a
-        list of value dicts (e.g. :meth:`sample`'s, for plots); unnamed elements at nominal.
+        list of value dicts (e.g. :meth:`sample`'s, for plots); unnamed elements at nominal,
+        names of elements this system lacks ignored.
 
         Parameters
         ----------
@@ -308,7 +310,7 @@ class UncertainSystem:
         M11, M12, M21, M22 = Mf[:, :nz, :nw], Mf[:, :nz, nw:], Mf[:, nz:, :nw], Mf[:, nz:, nw:]
         out = []
         for vals in sets:
-            norm = self._normalized(vals, fill_nominal=True)
+            norm = self._normalized(vals, fill_nominal=True, strict=False)
             if nw == 0:
                 out.append(M22)
                 continue
@@ -336,8 +338,10 @@ class UncertainSystem:
         ny, nu = a.shape
         if b.shape != (ny, nu):
             raise SynthesisError(f"cannot add a {ny}x{nu} and a {b.shape[0]}x{b.shape[1]} system.")
+        ins = b.inputs if is_default_names(a.inputs, "u") else a.inputs
+        outs = b.outputs if is_default_names(a.outputs, "y") else a.outputs
         return self._combine([a, b], np.zeros((2 * nu, 2 * ny)), np.vstack([np.eye(nu)] * 2),
-                             np.hstack([np.eye(ny)] * 2), np.zeros((ny, nu)), a.inputs, a.outputs)
+                             np.hstack([np.eye(ny)] * 2), np.zeros((ny, nu)), ins, outs)
 
     def __radd__(self, other):
         return as_uncertain(other, self.dt) + self
@@ -523,7 +527,12 @@ def series(first: UncertainSystem, second: UncertainSystem) -> UncertainSystem:
     E[n1u:, :n1y] = np.eye(n1y)
     F = np.vstack([np.eye(n1u), np.zeros((n2u, n1u))])
     H = np.hstack([np.zeros((n2y, n1y)), np.eye(n2y)])
-    return first._combine([first, second], E, F, H, np.zeros((n2y, n1u)), first.inputs, second.outputs)
+    ins, outs = first.inputs, second.outputs
+    if is_default_names(ins, "u") and n2u == n1u and not is_default_names(second.inputs, "u"):
+        ins = second.inputs  # a gain or an element in front keeps the system's input names
+    if is_default_names(outs, "y") and n1y == n2y and not is_default_names(first.outputs, "y"):
+        outs = first.outputs
+    return first._combine([first, second], E, F, H, np.zeros((n2y, n1u)), ins, outs)
 
 
 def append(*systems: Any) -> UncertainSystem:
