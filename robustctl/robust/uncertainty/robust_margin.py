@@ -155,6 +155,33 @@ def _refine(f: np.ndarray, score: np.ndarray, dt: float) -> np.ndarray:
     return np.linspace(a, b, REFINE_POINTS)
 
 
+def _merge_mu(a: MuResult, b: MuResult) -> MuResult:
+    """Two mu results on disjoint grids as one, sorted by frequency."""
+    from dataclasses import replace
+
+    f = np.concatenate([a.f_hz, b.f_hz])
+    order = np.argsort(f, kind="stable")
+    cat = lambda x, y: np.concatenate([x, y])[order]  # noqa: E731
+    upper, lower = cat(a.upper, b.upper), cat(a.lower, b.lower)
+    k = int(np.argmax(upper))
+    best = a if a.lower_peak >= b.lower_peak else b
+    g = None if a.g_scales is None else cat(a.g_scales, b.g_scales)
+    gm = None if a.g_matrices is None else tuple(cat(x, y) for x, y in zip(a.g_matrices, b.g_matrices))
+    return replace(a, f_hz=f[order], upper=upper, lower=lower, peak=float(upper[k]),
+                   f_peak_hz=float(f[order][k]), d_scales=cat(a.d_scales, b.d_scales),
+                   d_matrices=tuple(cat(x, y) for x, y in zip(a.d_matrices, b.d_matrices)),
+                   g_scales=g, g_matrices=gm, worst_perturbation=best.worst_perturbation,
+                   f_worst_hz=best.f_worst_hz)
+
+
+def _mu_on(M11, bs: BlockStructure, res: MuResult, extra: np.ndarray, seed: int) -> MuResult:
+    """``res`` extended by the frequencies of ``extra`` it does not hold yet."""
+    new = np.setdiff1d(np.unique(extra), res.f_hz)
+    if new.size == 0:
+        return res
+    return _merge_mu(res, mu(M11(new), bs, new, seed=seed))
+
+
 def _vertices(n_real: int) -> np.ndarray:
     if 2 ** n_real <= MAX_VERTICES:
         grid = np.array(np.meshgrid(*([[-1.0, 1.0]] * n_real), indexing="ij")).reshape(n_real, -1).T
@@ -369,17 +396,15 @@ def robstab(usys: Any, f_hz: Any = None, *, n_grid: int = 200, seed: int = 0) ->
     if f.ndim != 1 or not np.all(np.isfinite(f)) or np.any(f < 0):
         raise SynthesisError("f_hz must be finite non-negative frequencies (Hz).")
     M11 = lambda ff: _raw_response(r, ff, usys.dt)[:, : r.nz, : r.nw]  # noqa: E731
+    f = np.unique(f)
     res = mu(M11(f), bs, f, seed=seed)
     for _ in range(REFINE_PASSES):
-        extra = _refine(res.f_hz, res.upper, usys.dt)
-        f = np.unique(np.concatenate([res.f_hz, extra]))
-        res = mu(M11(f), bs, f, seed=seed)
+        res = _mu_on(M11, bs, res, _refine(res.f_hz, res.upper, usys.dt), seed)
     crossing = None
     if all(b.kind == "real" for b in bs.blocks):
-        crossing = _real_crossings(usys, bs, f)
+        crossing = _real_crossings(usys, bs, res.f_hz)
         if crossing is not None:
-            f = np.unique(np.concatenate([f, [crossing[1]]]))
-            res = mu(M11(f), bs, f, seed=seed)
+            res = _mu_on(M11, bs, res, np.array([crossing[1]]), seed)
     lo_mu, f0, Delta = res.lower_peak, res.f_worst_hz, res.worst_perturbation
     if crossing is not None and crossing[0] >= lo_mu:
         lo_mu, f0, Delta = crossing
@@ -440,7 +465,20 @@ class WorstCaseResult:
         return self.gains.plot(fig)
 
 
-def wcgain(usys: Any, f_hz: Any = None, *, n_grid: int = 100, seed: int = 0) -> WorstCaseResult:
+def _merge_gain(a: Any, b: Any) -> Any:
+    from dataclasses import replace
+
+    f = np.concatenate([a.f_hz, b.f_hz])
+    order = np.argsort(f, kind="stable")
+    cat = lambda x, y: np.concatenate([x, y])[order]  # noqa: E731
+    upper = cat(a.upper, b.upper)
+    k = int(np.argmax(upper))
+    return replace(a, f_hz=f[order], upper=upper, lower=cat(a.lower, b.lower),
+                   nominal=cat(a.nominal, b.nominal),
+                   peak=float(upper[k]), f_peak_hz=float(f[order][k]))
+
+
+def wcgain(usys: Any, f_hz: Any = None, *, n_grid: int = 50, seed: int = 0) -> WorstCaseResult:
     """Worst-case gain of an uncertain system over its elements' ranges (MATLAB ``wcgain``).
 
     Skewed mu at every frequency (:func:`robustctl.robust.mu_analysis.worst_case_gain`,
@@ -470,11 +508,14 @@ def wcgain(usys: Any, f_hz: Any = None, *, n_grid: int = 100, seed: int = 0) -> 
     bs = usys.block_structure()
     f = np.atleast_1d(np.asarray(f_hz, float)) if f_hz is not None else _grid(usys, n_grid)
     N = lambda ff: _raw_response(r, ff, usys.dt)  # noqa: E731
+    f = np.unique(f)
     wc = worst_case_gain(N(f), bs, f)
     for _ in range(REFINE_PASSES):
         score = np.where(np.isfinite(wc.upper), wc.upper, 1e300)
-        f = np.unique(np.concatenate([f, _refine(f, score, usys.dt)]))
-        wc = worst_case_gain(N(f), bs, f)
+        new = np.setdiff1d(_refine(wc.f_hz, score, usys.dt), wc.f_hz)
+        if new.size:
+            wc = _merge_gain(wc, worst_case_gain(N(new), bs, new))
+    f = wc.f_hz
     k = int(np.argmax(np.where(np.isfinite(wc.lower), wc.lower, 1e300)))
     f0 = float(f[k])
     Nk = N(np.array([f0]))
