@@ -158,6 +158,7 @@ from .robust import (
     robust_stability,
     worst_case_gain,
 )
+from .robust.continuous_equivalent import d2c
 from .robust.controller_reduction import ControllerReduction
 from .robust.controller_reduction import reduce_controller as reduce_controller
 from .robust.cover import cover_remainder
@@ -361,4 +362,6 @@ __all__ = [
     "RobustStabilityMargin",
     "wcgain",
     "WorstCaseResult",
+    # the continuous original of a sampled system (ZOH or Tustin inverse)
+    "d2c",
 ]
