@@ -147,3 +147,48 @@ def test_unstable_nominal_has_zero_margin():
     x = _integrator()
     m = rc.robstab((x * x.feedback(c)).feedback(1))
     assert m.lower == 0 and m.upper == 0 and not m.nominal_stable and "unstable" in m.summary()
+
+
+def test_uncertain_system_in_generalized_plant_and_mu():
+    # the generalized plant of an uncertain system: its element's block first; closing that
+    # block at a value gives the plant built directly at that value
+    k = rc.ureal("k", 2.0, percent=50)
+    G = rc.as_uncertain(control.ss(control.tf([1.0], [1.0, 0.5, 1.0]), inputs=["F"], outputs=["x"]))
+    P = G * k
+    gp = rc.generalized_plant(P, additive=0.1, performance=1.0, control_weight=0.1, disturbances=1.0,
+                              noise=0.01)
+    assert [b.name for b in gp.blocks][:2] == ["k", "additive"] and gp.blocks[0].kind == "real"
+    f = np.array([0.05, 0.16, 0.4])
+    Pf = np.stack([np.asarray(gp.P(2j * np.pi * x)) for x in f])
+    # k = 2.5: delta = (2.5 - 2) / 1 = 0.5; close w_k = delta z_k (the first channel)
+    d = 0.5
+    closed = Pf[:, 1:, 1:] + Pf[:, 1:, :1] * d * Pf[:, :1, 1:] / (1 - d * Pf[:, :1, :1])
+    G25 = control.ss(control.tf([2.5], [1.0, 0.5, 1.0]), inputs=["F"], outputs=["x"])
+    gp_direct = rc.generalized_plant(G25, additive=0.1, performance=1.0, control_weight=0.1, disturbances=1.0,
+                                     noise=0.01)
+    direct = np.stack([np.asarray(gp_direct.P(2j * np.pi * x)) for x in f])
+    assert np.abs(closed - direct).max() <= 1e-10 * np.abs(direct).max()
+    # mu of an uncertain system: its M11 and its own blocks; |M11| = |k's half-range x G| here
+    r = rc.mu(P, f_hz=f)
+    assert np.allclose(r.upper, 0.0, atol=1e-12)  # k enters in series, no loop through it
+    loop = (G * k).feedback(1)
+    f2 = np.r_[0.0, f]
+    r2 = rc.mu(loop, f_hz=f2)
+    s = 2j * np.pi * f2
+    m11 = np.abs(1.0 / (s**2 + 0.5 * s + 1 + 2.0))  # |h G / (1 + k0 G)|, h = 1, k0 = 2
+    assert r2.upper[0] == pytest.approx(1 / 3, rel=1e-6) and r2.lower[0] == pytest.approx(1 / 3, rel=1e-6)
+    assert np.all(r2.upper <= m11 * (1 + 2e-3))  # a real scalar's mu is at most |M11|
+
+
+def test_additive_block_reads_the_control_when_asked():
+    G = control.ss(control.tf([1.0], [1.0, 0.5, 1.0]))
+    kw = dict(additive=0.5, performance=1.0, control_weight=0.1, disturbances=1.0, noise=0.01)
+    plant = rc.generalized_plant(G, **kw)
+    ctrl = rc.generalized_plant(G, additive_input="control", **kw)
+    outs, ins = list(plant.P.output_labels), list(plant.P.input_labels)
+    iz = outs.index(next(n for n in outs if n.startswith("unc_add_out")))
+    iw = ins.index(next(n for n in ins if n.startswith("dist")))
+    assert np.asarray(plant.P.D)[iz, iw] == pytest.approx(0.5)  # W_a d reaches z_add
+    assert np.asarray(ctrl.P.D)[iz, iw] == 0.0
+    with pytest.raises(rc.ModelError, match="additive_input"):
+        rc.generalized_plant(G, additive_input="total", **kw)

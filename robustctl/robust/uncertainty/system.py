@@ -30,7 +30,7 @@ from ..blocks import Block, BlockStructure
 from .elements import UncertainComplex, UncertainDynamics, UncertainReal, register_system
 from .lft_algebra import Raw, close_channels, connect, invert, permute_delta, reduce_scalar_blocks
 
-__all__ = ["UncertainSystem", "LFTData", "as_uncertain", "append", "hstack", "vstack"]
+__all__ = ["UncertainSystem", "LFTData", "PlantLFT", "as_uncertain", "append", "hstack", "vstack"]
 
 _ELEMENTS = (UncertainReal, UncertainComplex, UncertainDynamics)
 
@@ -53,6 +53,32 @@ class LFTData:
     M: Any
     blocks: BlockStructure
     elements: tuple
+
+
+@dataclass(frozen=True)
+class PlantLFT:
+    """An uncertain system's LFT as :func:`robustctl.robust.plant.generalized_plant` takes it.
+
+    Attributes
+    ----------
+    M : control.StateSpace
+        Inputs ``[w; u]``, outputs ``[z; y]`` (``w``/``z`` named ``<element>_w[i]``/``_z[i]``).
+    nominal : control.StateSpace
+        ``Fu(M, 0)`` with the system's signal names (the ranges' centres).
+    n_delta, n_z : int
+        Number of ``w`` and ``z`` channels.
+    blocks : BlockStructure
+        The elements' blocks in channel order.
+    remainder : None
+        No remainder cover (the field an ``UncertainModel`` has).
+    """
+
+    M: Any
+    nominal: Any
+    n_delta: int
+    n_z: int
+    blocks: BlockStructure
+    remainder: Any = None
 
 
 class UncertainSystem:
@@ -178,6 +204,31 @@ class UncertainSystem:
                        outputs=names_z + list(self.outputs))
         return LFTData(M, bs, elems)
 
+    def plant_lft(self) -> PlantLFT:
+        """The LFT for :func:`robustctl.robust.plant.generalized_plant` (real matrices only).
+
+        Raises
+        ------
+        SynthesisError
+            No elements, complex data (a complex nominal), or a discrete-time system.
+        """
+        import control
+
+        if not self.blocks:
+            raise SynthesisError("this system has no uncertain elements; pass it as a plain system.")
+        if self.dt:
+            raise SynthesisError("the generalized plant is continuous-time; map the system with "
+                                 "rc.d2c first.")
+        data = self.lft()
+        if not isinstance(data.M, control.StateSpace):
+            raise SynthesisError(
+                "a complex uncertain element with a complex nominal makes the plant complex; "
+                "python-control's systems are real. Use a real nominal (the complex radius stays).")
+        r = self.raw
+        nominal = control.ss(r.A, r.B[:, r.nw:], r.C[r.nz:], r.D[r.nz:, r.nw:],
+                             inputs=list(self.inputs), outputs=list(self.outputs))
+        return PlantLFT(data.M, nominal, r.nw, r.nz, data.blocks)
+
     # ------------------------------------------------------------------ normalisation
     def _normalized(self, values: dict, fill_nominal: bool, strict: bool = True) -> dict:
         """``{name: normalised value}`` (a number, or a Raw of normalised dynamics); names of
@@ -269,6 +320,17 @@ class UncertainSystem:
         if isinstance(nom, UncertainSystem):
             return np.linalg.eigvals(nom.raw.A)
         return np.linalg.eigvals(np.asarray(nom.A))
+
+    def delta_response(self, f_hz: Any) -> np.ndarray:
+        """``M11(j w)``, the ``w -> z`` channels of the LFT, (nf, nz, nw): what mu analyses.
+
+        Parameters
+        ----------
+        f_hz : array_like
+            Frequencies (Hz).
+        """
+        r = self.raw
+        return _raw_response(r, np.atleast_1d(np.asarray(f_hz, float)), self.dt)[:, : r.nz, : r.nw]
 
     # ------------------------------------------------------------------ sampling
     def sample(self, n: int = 1, seed: Any = 0) -> list[dict]:
