@@ -681,19 +681,20 @@ def point_change(effect: Any, model: Any, base_struct: Any, base_mats: Any) -> P
     constant mass, grounded spring or dashpot, linear in its one parameter) on ``model``'s structure
     ``base_struct`` (matrices ``base_mats``), or None for any other effect or one that changes
     more than :data:`LOW_RANK_MAX_DOFS` DOFs. A single-DOF location of a
-    :class:`~robustctl.physical.matrices.MatrixStructure` is read off directly; otherwise the
-    effect is applied at unit size and the matrices compared."""
+    :class:`~robustctl.physical.matrices.MatrixStructure` is read off directly; otherwise (a frame
+    node, several DOFs) the effect is applied at unit size and the matrices compared."""
     unit = getattr(effect, "point_unit", None)
     if unit is None or len(effect.param_names) != 1:
         return None
-    if isinstance(base_struct, MatrixStructure) and getattr(effect, "direction", None) is None:
-        try:
-            j = base_struct._dof(effect.location)
-        except Exception:  # noqa: BLE001 - an unknown location: the exact path reports it
-            return None
+    if (isinstance(base_struct, MatrixStructure) and getattr(effect, "direction", None) is None
+            and effect.location in base_struct.locations()):  # one DOF; else (several) compare matrices
+        j = base_struct._dof(effect.location)
         return PointChange(np.array([j]), *(np.full((1, 1), float(v)) for v in unit))
     pname = effect.param_names[0]
-    mats = effect.with_values(**{pname: 0.0}).apply(model).build_structure(**{pname: 1.0}).matrices()
+    try:
+        mats = effect.with_values(**{pname: 0.0}).apply(model).build_structure(**{pname: 1.0}).matrices()
+    except ModelError:  # an unknown location: the exact path reports it
+        return None
     dummy = _Basis(_csc(base_mats.mass), _csc(base_mats.stiffness),
                    None if base_mats.damping is None else _csc(base_mats.damping),
                    np.asarray(base_mats.input_matrix, dtype=float),

@@ -95,6 +95,11 @@ def _screen_one(
         evals += n_p
         if probed > fraction:
             fraction, clipped = probed, value_p
+    if getattr(effect, "coarse_screen", False):
+        coarse, value_c, n_c = _coarse_sizes(res_c, pname, (v0, lo, hi), step, Q, rr)
+        evals += n_c
+        if coarse > fraction:
+            fraction, clipped = coarse, value_c
     return dict(effect=effect, model=m_c, fraction=fraction, angle=angle, value=clipped, d=d, evals=evals)
 
 
@@ -207,6 +212,52 @@ def _probe_sizes(
         if share < last:
             break
         last = share
+    return max(best, 0.0), best_v, n
+
+
+#: Decades above its typical size at which an effect that first order cannot see
+#: (``Effect.coarse_screen``: a joint from rigid to pinned, an added mode) is screened.
+COARSE_DECADES = 8
+
+
+def _coarse_sizes(res_c: Residual, pname: str, span: tuple, step: float, Q: np.ndarray,
+                  rr: float) -> tuple[float, float, int]:
+    """A coarse nonlinear screen over an effect's whole range: the share explained (as in
+    :func:`_probe_sizes`, update parameters re-fitted linearly) at ``v0 + step 10^k`` for
+    ``k = 0 .. COARSE_DECADES`` (within the bounds), then half a decade either side of the best.
+    At most ``COARSE_DECADES + 3`` evaluations. Returns ``(share, value, evaluations)``."""
+    v0, lo, hi = span
+    sign = 1.0 if v0 + step <= hi else -1.0
+
+    def share_at(v: float) -> float | None:
+        try:
+            j = res_c.vector(**{pname: v})
+        except RobustctlError:  # e.g. a size the model cannot be built with
+            return None
+        if not np.all(np.isfinite(j)):
+            return None
+        return 1.0 - float(np.sum(_project(Q, j) ** 2)) / rr
+
+    best, best_v, best_k, n = 0.0, v0, None, 0
+    for k in range(COARSE_DECADES + 1):
+        v = float(np.clip(v0 + sign * step * 10.0**k, lo, hi))
+        if v == v0:
+            break
+        n += 1
+        share = share_at(v)
+        if share is not None and share > best:
+            best, best_v, best_k = share, v, k
+        if v in (lo, hi):
+            break
+    if best_k is not None:
+        for k in (best_k - 0.5, best_k + 0.5):
+            v = float(np.clip(v0 + sign * step * 10.0**k, lo, hi))
+            if v in (v0, best_v):
+                continue
+            n += 1
+            share = share_at(v)
+            if share is not None and share > best:
+                best, best_v = share, v
     return max(best, 0.0), best_v, n
 
 

@@ -94,6 +94,8 @@ class CandidateContext:
         Translational directions per location (``[None]`` for a scalar DOF).
     modes : tuple
         ``(f_hz, number)`` of the modes in the band (the ``"modes"`` sweep), or empty.
+    band : (float, float) or None
+        The frequency band of interest in Hz, when the caller gave one.
     """
 
     model: PhysicalModel
@@ -103,6 +105,7 @@ class CandidateContext:
     info: Mapping[str, Any] = field(default_factory=dict)
     directions: Mapping[str, Any] = field(default_factory=dict)
     modes: tuple = ()
+    band: tuple[float, float] | None = None
 
     def places(self, sweep: str) -> tuple:
         """The places of one sweep (see :data:`SWEEPS`)."""
@@ -118,6 +121,28 @@ class CandidateContext:
         if sweep == "group":
             return tuple(self.info["groups"])
         return (None,) if sweep == "structure" or self.modes else ()
+
+
+_DIR_RE = re.compile(r"^(?:node\s+)?(?P<loc>.+?)[\s_:/-]+u?(?P<dir>[xyz])$")
+
+
+def _directions(labels: Sequence[str], locations: Sequence[str]) -> dict[str, list[str | None]]:
+    """Translational directions present per location, read from the DOF labels.
+
+    A location whose DOF label is the location itself (``"dof 3"``) is scalar (``[None]``).
+    """
+    out: dict[str, list[str | None]] = {loc: [] for loc in locations}
+    for lab in labels:
+        if lab in out:
+            out[lab] = [None]
+            continue
+        m = _DIR_RE.match(lab)
+        if m and m.group("loc") in out and m.group("dir") not in out[m.group("loc")]:
+            out[m.group("loc")].append(m.group("dir"))
+    directed = any(d is not None for dirs in out.values() for d in dirs)
+    # A location without DOFs of its own (a rigid-link slave) takes the model's directions.
+    default: list[str | None] = ["x", "y", "z"] if directed else [None]
+    return {loc: (dirs or list(default)) for loc, dirs in out.items()}
 
 
 def article(size: str) -> str:
@@ -170,6 +195,9 @@ class Effect(ABC):
     dac_hold: ClassVar[bool] = False
     #: A switched effect whose states are factors on one channel (a units slip).
     gain_states: ClassVar[bool] = False
+    #: First order says nothing at the neutral value (the effect's shape changes with its size: a
+    #: joint from rigid to pinned, an added mode): screened at sizes a decade apart over its range.
+    coarse_screen: ClassVar[bool] = False
     _value_fields: ClassVar[tuple[str, ...]] = ()
     _extra_tags: ClassVar[tuple[str, ...]] = ()
     #: Every concrete effect class by kind, in the order the classes were defined (filled by

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import re
 from collections.abc import Iterable, Sequence
 from dataclasses import replace
 from typing import Any
@@ -19,7 +18,7 @@ from ..eigen import solve_modes
 from ..matrices import MatrixStructure
 from ..model import PhysicalModel
 from ..reduction import REDUCE_MIN_DOF
-from . import io_effects, setup, structural  # noqa: F401 - defining the classes registers them
+from . import io_effects, lab, setup, structural  # noqa: F401 - defining the classes registers them
 from .base import (
     _N_CAL_MODES,
     DAMPING_TARGET,
@@ -28,6 +27,7 @@ from .base import (
     CandidateContext,
     Effect,
     _close,
+    _directions,
     _signals,
     _structure_info,
 )
@@ -37,37 +37,15 @@ EFFECT_KINDS: dict[str, type[Effect]] = Effect.registry
 
 
 # ============================================================================ candidates
-_DIR_RE = re.compile(r"^(?:node\s+)?(?P<loc>.+?)[\s_:/-]+u?(?P<dir>[xyz])$")
-
-
-def _directions(labels: Sequence[str], locations: Sequence[str]) -> dict[str, list[str | None]]:
-    """Translational directions present per location, read from the DOF labels.
-
-    A location whose DOF label is the location itself (``"dof 3"``) is scalar (``[None]``).
-    """
-    out: dict[str, list[str | None]] = {loc: [] for loc in locations}
-    for lab in labels:
-        if lab in out:
-            out[lab] = [None]
-            continue
-        m = _DIR_RE.match(lab)
-        if m and m.group("loc") in out and m.group("dir") not in out[m.group("loc")]:
-            out[m.group("loc")].append(m.group("dir"))
-    directed = any(d is not None for dirs in out.values() for d in dirs)
-    # A location without DOFs of its own (a rigid-link slave) takes the model's directions.
-    default: list[str | None] = ["x", "y", "z"] if directed else [None]
-    return {loc: (dirs or list(default)) for loc, dirs in out.items()}
-
-
-def _context(model: PhysicalModel, points: bool) -> CandidateContext:
-    """What the effect classes need to make their candidates on ``model``."""
+def _context(model: PhysicalModel, band) -> CandidateContext:
+    """What the effect classes need to make their candidates on ``model`` (``band`` in Hz or None)."""
     outs, ins = _signals(model, "output"), _signals(model, "input")
     if model.structure is None:
-        return CandidateContext(model, outs, ins)
+        return CandidateContext(model, outs, ins, band=band)
     info = _structure_info(model)
     struct = model.build_structure()
-    dirs = _directions(struct.matrices().dof_labels, info["locations"]) if points else {}
-    return CandidateContext(model, outs, ins, struct, info, dirs)
+    dirs = _directions(struct.matrices().dof_labels, info["locations"])
+    return CandidateContext(model, outs, ins, struct, info, dirs, band=band)
 
 
 def _generate(ctx: CandidateContext, sweeps: Sequence[str], points: bool = True) -> list[Effect]:
@@ -103,7 +81,13 @@ def candidates(
     so do the test-setup errors of :mod:`.setup` (a swapped pair of outputs or inputs, a sign
     flip and a units slip of each channel; on a structural model also each sensor and actuator
     at a neighbouring node or DOF or along another axis). Frame FEM models get a semi-rigid
-    joint candidate (:class:`JointSpring`) per beam joint.
+    joint candidate (:class:`JointSpring`) per beam joint, and a hinge about each global axis,
+    screened over their whole range (rigid to nearly pinned). Every structural model gets the
+    transducers' own mass, one parameter for all sensor mounts (and one with the drive points),
+    and, when ``band`` is given, attached resonators (a spring-mass that adds a mode) at the sensor
+    and drive-point mounts on a grid of frequencies over the band (:mod:`.lab`). The classes make
+    their own candidates (:meth:`Effect.candidates_at`), place by place of their
+    :attr:`Effect.sweep`, in the order of :attr:`Effect.registry`.
     Structural effects need a structural model: an added mass, a suspension spring and a
     dashpot per location and direction (nodes of the frame FEM, each DOF of a user's
     matrices), a suspension pendulum (horizontal x-y stiffness) per node of a structure
@@ -149,7 +133,7 @@ def candidates(
         unknown = sorted(kinds - set(EFFECT_KINDS))
         if unknown:
             raise ModelError(f"unknown effect kinds {unknown}; known kinds: {sorted(EFFECT_KINDS)}.")
-    ctx = _context(model, points)
+    ctx = _context(model, band)
     cands = _generate(ctx, SWEEPS[:-1], points)
     if model.structure is not None:
         if locations is not None:

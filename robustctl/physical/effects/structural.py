@@ -636,7 +636,12 @@ class JointSpring(_StructEffect):
     are often softer, which lowers the modes that bend the members through the joint (one of the
     commonest FE errors). The parameter is the joint's rotational *compliance* ``c`` (rad/(N m)),
     neutral 0 (rigid); the spring ``1 / c`` acts about each axis
-    (:meth:`robustctl.physical.fem.Frame.add_joint_flexibility`). Frame FEM only.
+    (:meth:`robustctl.physical.fem.Frame.add_joint_flexibility`), or about one global axis only
+    (``axis``: a hinge; the other rotations stay rigid). Frame FEM only.
+
+    The compliance reaches the whole range, rigid (0) to pinned (a spring far softer than the
+    member, ``c >> L / (4 E I)``), which first-order screening at rigid cannot see (the mode shapes
+    change with the size): ``coarse_screen`` makes ``rc.diagnose`` try it at sizes a decade apart.
 
     Parameters
     ----------
@@ -646,14 +651,19 @@ class JointSpring(_StructEffect):
         The element group whose beams connect to the joint through the spring.
     compliance : float
         ``c`` in rad/(N m) (neutral 0).
+    axis : str or None
+        ``"rx"``, ``"ry"`` or ``"rz"``: a hinge about that global axis; None: the same spring about
+        each axis.
     """
 
     group: str | None = None
     compliance: float = 0.0
+    axis: str | None = None
 
     kind: ClassVar[str] = "joint_spring"
     sweep: ClassVar[str | None] = "joint"
     calibration: ClassVar[str] = "none"
+    coarse_screen: ClassVar[bool] = True
     _value_fields: ClassVar[tuple[str, ...]] = ("compliance",)
 
     @classmethod
@@ -661,13 +671,21 @@ class JointSpring(_StructEffect):
         """One per beam joint; typical size a spring 20 x stiffer than the member's end
         (``4 E I / L``): a few % on the modes."""
         node, group = where
-        return [cls(node, group=group).with_scale(0.05 / ctx.structure.joint_stiffness(node, group))]
+        step = 0.05 / ctx.structure.joint_stiffness(node, group)
+        return [cls(node, group=group, axis=axis).with_scale(step) for axis in (None, "rx", "ry", "rz")]
 
     def phrase(self) -> str:
         return f"a {self.name} ({self.describe_value()})"
 
+    def __post_init__(self) -> None:
+        if self.axis not in (None, "rx", "ry", "rz"):
+            raise ModelError(f"a joint's axis is 'rx', 'ry', 'rz' or None (every axis); got {self.axis!r}.")
+        super().__post_init__()
+
     @property
     def name(self) -> str:
+        if self.axis is not None:
+            return f"flexible hinge of {self.group} at {self._at()} about {self.axis[1]}"
         return f"semi-rigid joint of {self.group} at {self._at()}"
 
     @property
@@ -678,7 +696,8 @@ class JointSpring(_StructEffect):
         )
 
     def _suffix(self) -> str:
-        return f"__{_slug(self.location)}_{_slug(self.group)}"
+        axis = "" if self.axis is None else f"_{self.axis}"
+        return f"__{_slug(self.location)}_{_slug(self.group)}{axis}"
 
     def _check_location(self, model):
         struct = model.build_structure()
@@ -708,10 +727,11 @@ class JointSpring(_StructEffect):
 
     def _stage_fn(self):
         pname, node, group = self.param_names[0], self.location, self.group
+        axes = ("rx", "ry", "rz") if self.axis is None else (self.axis,)
 
         def fn(theta, struct):
             c = float(theta[pname])
-            return struct if c == 0.0 else struct.add_joint_flexibility(node, group, c)
+            return struct if c == 0.0 else struct.add_joint_flexibility(node, group, c, axes)
 
         return fn
 
