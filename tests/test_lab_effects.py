@@ -135,3 +135,33 @@ def test_a_01_kg_mass_on_a_12_hz_mount_is_ranked_first_and_recovered_within_3_se
     mass, f = top.param_names  # diagnose fits the mass at the grid frequency; update fits both
     _within_3_se(chain, top, data, mass, 0.1, max_iter=200)
     _within_3_se(chain, top, data, f, 12.0, max_iter=200)
+
+
+# ---------------------------------------------------------------------------- a matrix model's joint
+def test_a_joint_named_in_a_matrix_model_spans_modelled_to_pinned():
+    chain = vc.chain_model()
+    joint = fx.candidates(chain, joints={"j23": ("dof 2", "dof 3", 7e3)}, calibrate=False)
+    joint = next(c for c in joint if isinstance(c, fx.DofPairJoint))
+    K0 = np.asarray(chain.build_structure().matrices().stiffness)
+    for c, k in ((1.0 / 700 - 1.0 / 7000, 700.0), (0.0, 7000.0), (joint.parameters[0].bounds[1], 7e3 / 1001)):
+        model = chain.with_effect(joint.with_values(compliance=c))
+        K = np.asarray(model.build_structure().matrices().stiffness)
+        assert (K - K0)[1, 2] == pytest.approx(7e3 - k, rel=1e-9, abs=1e-9)  # K_23 = -k
+    with pytest.raises(rc.errors.ModelError, match="k0"):
+        fx.candidates(chain, joints={"j": ("dof 2", "dof 3", -1.0)})
+
+
+def test_a_joint_ten_times_softer_than_modelled_is_named_first_and_recovered_within_3_se():
+    chain = vc.chain_model()
+    M, K, B, C, kinds = vc.chain_matrices(s_k=1.0)
+    K[1, 1] -= 7e3 - 700.0  # the 2-3 spring, 7000 N/m in the model, is 700 N/m
+    K[2, 2] -= 7e3 - 700.0
+    K[1, 2] += 7e3 - 700.0
+    K[2, 1] += 7e3 - 700.0
+    g = vc.modal_frf(M, K, B, C, kinds, F_CHAIN)
+    data = vc.periodic_h1(g, n_avg=32, noise=0.05, seed=7, inputs=chain.inputs, outputs=chain.outputs,
+                          f_hz=F_CHAIN)
+    cands = fx.candidates(chain, joints={"j23": ("dof 2", "dof 3", 7e3)})
+    diag = _diagnose(chain, data, cands)
+    assert isinstance(diag.best, fx.DofPairJoint), diag.summary()
+    _within_3_se(chain, diag.best, data, "joint_compliance__j23", 1.0 / 700 - 1.0 / 7000)

@@ -404,6 +404,19 @@ class MatrixStructure(Structure):
         self._labels = tuple(self._labels) + (label,)
         return self
 
+    def add_coupling(self, location: str, partner: str, stiffness: float) -> MatrixStructure:
+        """Add ``stiffness`` (N/m, N m/rad; negative softens) between DOFs ``location`` and ``partner``:
+        ``K += k (e_a - e_b)(e_a - e_b)^T``."""
+        k = float(stiffness)
+        a, b = self._dof(location), self._dof(partner)
+        if a == b or not np.isfinite(k):
+            raise ModelError(f"a coupling needs two different DOFs and a finite stiffness; got {location!r}, "
+                             f"{partner!r}, {stiffness!r}.")
+        n = self.n_dof
+        dK = sp.csr_matrix(([k, -k, -k, k], ([a, a, b, b], [a, b, a, b])), shape=(n, n))
+        self._K = self._K + dK if sp.issparse(self._K) else self._K + dK.toarray()
+        return self
+
     def _group(self, group: str) -> Any:
         if group not in self._groups:
             raise ModelError(

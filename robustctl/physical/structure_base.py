@@ -179,6 +179,11 @@ class Structure(ABC):
         a mode near ``sqrt(stiffness / mass)``."""
         raise ModelError(f"{type(self).__name__} cannot carry an attached resonator.")
 
+    def add_coupling(self, location: str, partner: str, stiffness: float) -> Structure:
+        """Add a spring of ``stiffness`` (N/m or N m/rad; negative softens) between the DOFs
+        ``location`` and ``partner`` (a joint's two sides in a user's matrices)."""
+        raise ModelError(f"{type(self).__name__} cannot add a spring between two DOFs.")
+
     # ------------------------------------------------------------------ where signals are
     def signal_location(self, side: str, name: str) -> str | None:
         """The location (node or DOF) a point sensor (``side="output"``) or force (``"input"``) is

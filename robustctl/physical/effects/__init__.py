@@ -58,7 +58,7 @@ from .io_effects import (
     SensorLowPass,
     SensorMisalignment,
 )
-from .lab import RESONATORS_PER_OCTAVE, AttachedResonator, TransducerMass
+from .lab import RESONATORS_MAX, RESONATORS_PER_OCTAVE, AttachedResonator, DofPairJoint, TransducerMass
 from .setup import (
     UNIT_SLIPS,
     ActuatorMoved,
@@ -104,6 +104,8 @@ __all__ = [
     "JointSpring",
     "TransducerMass",
     "AttachedResonator",
+    "DofPairJoint",
+    "RESONATORS_MAX",
     "RESONATORS_PER_OCTAVE",
     "SwappedOutputs",
     "SwappedInputs",

@@ -96,6 +96,8 @@ class CandidateContext:
         ``(f_hz, number)`` of the modes in the band (the ``"modes"`` sweep), or empty.
     band : (float, float) or None
         The frequency band of interest in Hz, when the caller gave one.
+    joints : dict
+        Joints the user named in a matrix model: ``name -> (dof_a, dof_b, k0)``.
     """
 
     model: PhysicalModel
@@ -106,6 +108,7 @@ class CandidateContext:
     directions: Mapping[str, Any] = field(default_factory=dict)
     modes: tuple = ()
     band: tuple[float, float] | None = None
+    joints: Mapping[str, tuple[str, str, float]] = field(default_factory=dict)
 
     def places(self, sweep: str) -> tuple:
         """The places of one sweep (see :data:`SWEEPS`)."""

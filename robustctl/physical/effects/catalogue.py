@@ -37,15 +37,32 @@ EFFECT_KINDS: dict[str, type[Effect]] = Effect.registry
 
 
 # ============================================================================ candidates
-def _context(model: PhysicalModel, band) -> CandidateContext:
-    """What the effect classes need to make their candidates on ``model`` (``band`` in Hz or None)."""
+def _context(model: PhysicalModel, band, joints=None) -> CandidateContext:
+    """What the effect classes need to make their candidates on ``model`` (``band`` in Hz or None,
+    ``joints`` named by the user)."""
     outs, ins = _signals(model, "output"), _signals(model, "input")
     if model.structure is None:
         return CandidateContext(model, outs, ins, band=band)
     info = _structure_info(model)
     struct = model.build_structure()
     dirs = _directions(struct.matrices().dof_labels, info["locations"])
-    return CandidateContext(model, outs, ins, struct, info, dirs, band=band)
+    return CandidateContext(model, outs, ins, struct, info, dirs, band=band, joints=dict(joints or {}))
+
+
+def _check_joints(joints) -> dict:
+    """``joints`` as ``{name: (dof_a, dof_b, k0)}``, or a ModelError saying what is wrong."""
+    if joints is None:
+        return {}
+    try:
+        out = {str(n): (str(a), str(b), float(k)) for n, (a, b, k) in dict(joints).items()}
+    except (TypeError, ValueError) as exc:
+        raise ModelError(
+            f"joints must be {{name: (dof_a, dof_b, k0)}} (two DOF labels and the modelled stiffness); {exc}."
+        ) from None
+    bad = [n for n, (_, _, k) in out.items() if not (np.isfinite(k) and k > 0)]
+    if bad:
+        raise ModelError(f"joints {bad}: the modelled stiffness k0 must be finite and > 0.")
+    return out
 
 
 def _generate(ctx: CandidateContext, sweeps: Sequence[str], points: bool = True) -> list[Effect]:
@@ -73,6 +90,7 @@ def candidates(
     calibrate: bool = True,
     time_budget_s: float | None = None,
     executor: Any = None,
+    joints: dict | None = None,
 ) -> list[Effect]:
     """The effects applicable to ``model``, one per kind and location, at their neutral value.
 
@@ -118,6 +136,10 @@ def candidates(
     executor : concurrent.futures.Executor, optional
         Calibrates the candidates in parallel (the model travels to each worker once); the
         steps equal the serial ones.
+    joints : dict, optional
+        Joints of a matrix model, ``name -> (dof_a, dof_b, k0)`` (the two DOF labels and the
+        connection's stiffness in the model, N/m or N m/rad): a :class:`DofPairJoint` candidate
+        each, screened from as modelled to pinned.
 
     Returns
     -------
@@ -133,7 +155,7 @@ def candidates(
         unknown = sorted(kinds - set(EFFECT_KINDS))
         if unknown:
             raise ModelError(f"unknown effect kinds {unknown}; known kinds: {sorted(EFFECT_KINDS)}.")
-    ctx = _context(model, band)
+    ctx = _context(model, band, _check_joints(joints))
     cands = _generate(ctx, SWEEPS[:-1], points)
     if model.structure is not None:
         if locations is not None:

@@ -267,4 +267,91 @@ def _structure_mass(ctx) -> float:
     return float(np.sum(diag[trans])) / len({found[j].group("dir") for j in trans})
 
 
-__all__ = ["TransducerMass", "AttachedResonator", "RESONATORS_PER_OCTAVE", "RESONATORS_MAX"]
+
+
+@dataclass(frozen=True)
+class DofPairJoint(_StructEffect):
+    """A joint of a user's matrix model between two DOFs, from as modelled to pinned.
+
+    The model joins DOFs ``a`` and ``b`` by a connection of stiffness ``k0`` (a CBUSH, a stiff
+    spring, an RBE replaced by one); the effect puts a compliance ``c`` in series with it,
+    ``k = k0 / (1 + c k0)``: ``c = 0`` is the model, a large ``c`` a pin. Named by the user
+    (``rc.effects.candidates(model, joints={"hinge": ("dof 7", "dof 8", 2e5)})``): a matrix model
+    does not say where its joints are. Screened over its whole range (``coarse_screen``).
+
+    Parameters
+    ----------
+    location : str
+        The joint's name.
+    dofs : (str, str)
+        The two DOF labels it joins.
+    stiffness : float
+        ``k0``, the connection's stiffness in the model (N/m or N m/rad).
+    compliance : float
+        ``c`` in m/N (rad/(N m) between rotations), neutral 0.
+    """
+
+    dofs: tuple[str, str] = ("", "")
+    stiffness: float = 1.0
+    compliance: float = 0.0
+
+    kind: ClassVar[str] = "dof_pair_joint"
+    sweep: ClassVar[str | None] = "structure"
+    calibration: ClassVar[str] = "none"
+    coarse_screen: ClassVar[bool] = True
+    _value_fields: ClassVar[tuple[str, ...]] = ("compliance",)
+
+    def __post_init__(self) -> None:
+        k0 = float(self.stiffness)
+        if len(tuple(self.dofs)) != 2 or not (np.isfinite(k0) and k0 > 0):
+            raise ModelError(
+                "a joint needs two DOF labels and the model's connection stiffness k0 > 0; got "
+                f"dofs={self.dofs!r}, stiffness={self.stiffness!r}."
+            )
+        object.__setattr__(self, "dofs", tuple(str(d) for d in self.dofs))
+        super().__post_init__()
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """One per joint the user named (``candidates(..., joints=...)``); typical size: 5 % softer."""
+        return [cls(name, dofs=(a, b), stiffness=float(k0)).with_scale(0.05 / float(k0))
+                for name, (a, b, k0) in ctx.joints.items()]
+
+    @property
+    def name(self) -> str:
+        return f"flexible joint {self.location} ({self.dofs[0]} - {self.dofs[1]})"
+
+    @property
+    def description(self) -> str:
+        return (f"The connection {self.location} between {self.dofs[0]} and {self.dofs[1]} is softer than "
+                "modelled (a bolted or hinged joint): lowers the modes that strain it.")
+
+    def _check_location(self, model):
+        info = _structure_info(model)
+        unknown = [d for d in self.dofs if d not in info["locations"]]
+        if unknown:
+            raise ModelError(f"joint {self.location!r}: unknown DOFs {unknown}; give DOF labels of the model."
+                             )
+
+    def _specs(self):
+        k0 = float(self.stiffness)
+        return [ParamSpec(base="joint_compliance", unit="m/N", bounds=(0.0, 1e3 / k0), neutral=0.0,
+                          default_scale=0.05 / k0, meaning=f"series compliance of joint {self.location}")]
+
+    def _stage_fn(self):
+        pname, (a, b), k0 = self.param_names[0], self.dofs, float(self.stiffness)
+
+        def fn(theta, struct):
+            c = float(theta[pname])
+            return struct if c == 0.0 else struct.add_coupling(a, b, -c * k0 * k0 / (1.0 + c * k0))
+
+        return fn
+
+    def describe_value(self, values=None) -> str:
+        vals = self.values if values is None else values
+        c = float(vals.get(self.param_names[0], self.compliance))
+        k0 = float(self.stiffness)
+        return "as modelled" if c <= 0 else f"{k0 / (1.0 + c * k0):.3g} (from {k0:.3g})"
+
+
+__all__ = ["TransducerMass", "AttachedResonator", "DofPairJoint", "RESONATORS_PER_OCTAVE", "RESONATORS_MAX"]
