@@ -215,17 +215,18 @@ def _probe_sizes(
     return max(best, 0.0), best_v, n
 
 
-#: Decades above its typical size at which an effect that first order cannot see
-#: (``Effect.coarse_screen``: a joint from rigid to pinned, an added mode) is screened.
-COARSE_DECADES = 8
+#: Sizes (in decades above its typical size) at which an effect that first order cannot see
+#: (``Effect.coarse_screen``: a joint from rigid to pinned) is screened: 1.5 decades apart up to
+#: 7.5 decades, five evaluations (the local fit starts from the best; diagnose's budget is shared).
+COARSE_DECADES = (1.5, 3.0, 4.5, 6.0, 7.5)
 
 
 def _coarse_sizes(res_c: Residual, pname: str, span: tuple, step: float, Q: np.ndarray,
                   rr: float) -> tuple[float, float, int]:
     """A coarse nonlinear screen over an effect's whole range: the share explained (as in
-    :func:`_probe_sizes`, update parameters re-fitted linearly) at ``v0 + step 10^k`` for
-    ``k = 0 .. COARSE_DECADES`` (within the bounds), then half a decade either side of the best.
-    At most ``COARSE_DECADES + 3`` evaluations. Returns ``(share, value, evaluations)``."""
+    :func:`_probe_sizes`, update parameters re-fitted linearly) at ``v0 + step 10^k`` for ``k`` in
+    :data:`COARSE_DECADES` (within the bounds; the walk ends at a bound). Returns
+    ``(share, value, evaluations)``."""
     v0, lo, hi = span
     sign = 1.0 if v0 + step <= hi else -1.0
 
@@ -238,26 +239,17 @@ def _coarse_sizes(res_c: Residual, pname: str, span: tuple, step: float, Q: np.n
             return None
         return 1.0 - float(np.sum(_project(Q, j) ** 2)) / rr
 
-    best, best_v, best_k, n = 0.0, v0, None, 0
-    for k in range(COARSE_DECADES + 1):
+    best, best_v, n = 0.0, v0, 0
+    for k in COARSE_DECADES:
         v = float(np.clip(v0 + sign * step * 10.0**k, lo, hi))
         if v == v0:
             break
         n += 1
         share = share_at(v)
         if share is not None and share > best:
-            best, best_v, best_k = share, v, k
+            best, best_v = share, v
         if v in (lo, hi):
             break
-    if best_k is not None:
-        for k in (best_k - 0.5, best_k + 0.5):
-            v = float(np.clip(v0 + sign * step * 10.0**k, lo, hi))
-            if v in (v0, best_v):
-                continue
-            n += 1
-            share = share_at(v)
-            if share is not None and share > best:
-                best, best_v = share, v
     return max(best, 0.0), best_v, n
 
 

@@ -153,7 +153,7 @@ class TransducerMass(_StructEffect):
 RESONATORS_PER_OCTAVE = 3
 #: At most this many resonator candidates per model (fewer per octave on a wide band or many mounts:
 #: each costs a screen, and diagnose's budget is shared by all candidates).
-RESONATORS_MAX = 48
+RESONATORS_MAX = 24
 
 
 @dataclass(frozen=True)
@@ -162,10 +162,11 @@ class AttachedResonator(_StructEffect):
 
     It adds a mode at about ``frequency`` (Hz) and splits the host's modes near it (Den Hartog,
     *Mechanical Vibrations*, sec. 3.2): no parameter of the model can make that mode, and first
-    order at mass 0 sees it only near its own frequency. The candidates sit at the sensor and
-    drive-point mounts along their axes, at up to :data:`RESONATORS_PER_OCTAVE` frequencies per
-    octave of the band (:data:`RESONATORS_MAX` in all); diagnose fits the mass at each candidate's
-    frequency, ``rc.update`` with the effect fits the frequency as well.
+    order at mass 0 sees it only near its own frequency, hence the grid of frequencies. The
+    candidates sit at the sensor and drive-point mounts along their axes, at up to
+    :data:`RESONATORS_PER_OCTAVE` frequencies per octave of the band (:data:`RESONATORS_MAX` in
+    all); diagnose fits the mass at each candidate's frequency, ``rc.update`` with the effect fits
+    the frequency as well.
 
     Parameters
     ----------
@@ -187,7 +188,6 @@ class AttachedResonator(_StructEffect):
     domain: ClassVar[str] = "structure"
     sweep: ClassVar[str | None] = "structure"
     calibration: ClassVar[str] = "none"
-    coarse_screen: ClassVar[bool] = True
     _value_fields: ClassVar[tuple[str, ...]] = ("mass", "frequency")
 
     @classmethod
