@@ -9,6 +9,7 @@
   (the result's ``summary()``) and writes an HTML report plus ``summary.json`` (the same
   verdict words with their numbers: sizes, standard errors, p-values) into ``--out``;
   ``--inputs``/``--outputs`` select channels of both the model and the data;
+* ``robustctl report OUT...`` joins those folders into one page;
 * ``robustctl export SOURCE TARGET`` writes a controller file as another coefficient file
   (e.g. a continuous ``K.mat`` as a C header at ``--fs``), printing the export checks.
 
@@ -175,6 +176,14 @@ def _parser() -> argparse.ArgumentParser:
                              help="parameters to update (default: every free one)")
             cmd.add_argument("--max-iter", type=int, default=20, help="Levenberg-Marquardt iteration cap")
 
+    joined = sub.add_parser("report", help="join the reports of several commands into one page",
+                            description="Join the --out folders of compare, diagnose, update and identify "
+                            "into one report.html (and one summary.json keyed by folder name).")
+    joined.add_argument("folders", nargs="+", help="report folders, in the order to show them")
+    joined.add_argument("--out", default="out-report",
+                        help="folder of the joined report (default: out-report)")
+    joined.add_argument("--title", default="robustctl report", help="title of the page")
+
     load = sub.add_parser("load", help="say what a measured-FRF file holds",
                           description="Read DATA and print its channels, frequencies, coherence and "
                           "experiment description; write them to summary.json in --out.")
@@ -309,6 +318,14 @@ def _run_load(args: argparse.Namespace) -> Path:
     for key, value in record.items():
         report.record(key, value)
     return report.write()
+
+
+def _run_report(args: argparse.Namespace) -> Path:
+    from .report import join_reports
+
+    path = join_reports(args.folders, args.out, title=args.title)
+    _say(f"Joined {len(args.folders)} reports: {', '.join(Path(f).name for f in args.folders)}.")
+    return path
 
 
 def _run_compare(args: argparse.Namespace) -> Path:
@@ -469,6 +486,7 @@ _COMMANDS: dict[str, Callable[[argparse.Namespace], Path]] = {
     "compare": _run_compare,
     "diagnose": _run_diagnose,
     "update": _run_update,
+    "report": _run_report,
     "identify": _run_identify,
     "export": _run_export,
 }
