@@ -256,16 +256,26 @@ def _say(text: str) -> None:
 
 
 class _Steps:
-    """A progress bar over a command's steps, naming the one running (tqdm on standard error;
-    off when standard error is not a terminal, so logs and pipes stay clean)."""
+    """A progress bar over a command's steps, naming the one running, its clock ticking each second
+    through a long step such as a diagnosis (tqdm on standard error; off when standard error is not
+    a terminal, so logs and pipes stay clean)."""
 
     def __init__(self, names: Sequence[str]):
+        import threading
+
         from tqdm import tqdm
 
         self._bar = tqdm(total=len(names), disable=not sys.stderr.isatty(), leave=False,
                          bar_format="{desc} [{n_fmt}/{total_fmt} steps, {elapsed}]")
         self.show = not self._bar.disable
         self._started = False
+        self._stop = threading.Event()
+        if self.show:
+            threading.Thread(target=self._tick, daemon=True).start()
+
+    def _tick(self) -> None:
+        while not self._stop.wait(1.0):  # ends with close()
+            self._bar.refresh()
 
     def __call__(self, name: str) -> None:
         if self._started:
@@ -274,6 +284,7 @@ class _Steps:
         self._bar.set_description_str(name)
 
     def close(self) -> None:
+        self._stop.set()
         self._bar.close()
 
 
