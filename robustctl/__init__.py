@@ -14,7 +14,7 @@ function-level imports included; ``tests/test_architecture.py`` reads every impo
 2. ``frd``, ``frd_io``, ``plots`` -- FrequencyData, its file formats, plotting primitives
 3. ``lti``, ``signals``, ``modes``, ``balanced`` -- systems and fast responses, named
    signals, ``Mode`` with MAC and pairing, balanced truncation
-4. ``measure/`` (estimate, estimator, impact, noise), ``cost`` (MACE eq. 5)
+4. ``measure/`` (estimate, estimator, impact, impact_view, noise), ``cost`` (MACE eq. 5)
 5. ``physical/``
 6. ``interconnect``
 7. ``correlate/``
@@ -160,6 +160,7 @@ from .robust import (
     robust_stability,
     worst_case_gain,
 )
+from .robust.continuous_equivalent import d2c
 from .robust.controller_reduction import ControllerReduction
 from .robust.controller_reduction import reduce_controller as reduce_controller
 from .robust.cover import cover_remainder
@@ -181,6 +182,17 @@ from .robust.margins import nugap as nugap
 from .robust.partitioned import as_partitioned
 from .robust.sampled import sampled_plant as sampled_plant
 from .robust.sweep import DesignSweep, design_sweep
+from .robust.uncertainty import (
+    RobustStabilityMargin,
+    UncertainSystem,
+    WorstCaseResult,
+    as_uncertain,
+    robstab,
+    ucomplex,
+    ultidyn,
+    ureal,
+    wcgain,
+)
 from .robust.yardsticks import Yardstick, YardstickWarning, yardstick
 from .signals import combine_inputs as combine_inputs
 from .signals import combine_outputs as combine_outputs
@@ -344,4 +356,16 @@ __all__ = [
     "RobustctlWarning",
     # one partitioned plant: the coercion shared by hinfsyn, h2syn, dksyn and the yardstick
     "as_partitioned",
+    # uncertain elements and systems, robust stability and worst-case gain (robust/uncertainty)
+    "ureal",
+    "ucomplex",
+    "ultidyn",
+    "UncertainSystem",
+    "as_uncertain",
+    "robstab",
+    "RobustStabilityMargin",
+    "wcgain",
+    "WorstCaseResult",
+    # the continuous original of a sampled system (ZOH or Tustin inverse)
+    "d2c",
 ]

@@ -118,6 +118,12 @@ def _add_experiment(p: argparse.ArgumentParser) -> None:
                    help="periodic excitation with whole periods per segment")
     g.add_argument("--hold-divided", action="store_true", default=False,
                    help="the estimate was divided by the zero-order hold's response")
+    g.add_argument("--exp-window-tau", dest="exp_window_tau_s", type=float, default=None, metavar="TAU_S",
+                   help="impact test: time constant of the exponential window from the hit, s")
+    g.add_argument("--force-window", dest="force_window_s", type=float, default=None, metavar="SECONDS",
+                   help="impact test: force window kept after the end of each force pulse, s")
+    g.add_argument("--pretrigger", dest="pretrigger_s", type=float, default=None, metavar="SECONDS",
+                   help="impact test: time from the record start to the hit, s")
 
 
 def _described(data: Any, args: argparse.Namespace) -> Any:
@@ -130,6 +136,8 @@ def _described(data: Any, args: argparse.Namespace) -> Any:
         "input_kind": args.input_kind, "excitation": args.excitation, "fs_hz": args.fs,
         "window": args.window, "nperseg": args.nperseg, "noverlap": args.noverlap,
         "n_averages": args.n_averages, "whole_periods": args.whole_periods,
+        "exp_window_tau_s": args.exp_window_tau_s, "force_window_s": args.force_window_s,
+        "pretrigger_s": args.pretrigger_s,
     }
     given = {k: v for k, v in given.items() if v is not None}
     if args.hold_divided:
@@ -140,8 +148,9 @@ def _described(data: Any, args: argparse.Namespace) -> Any:
     for key, value in given.items():
         mine = stated[key]
         if mine not in (None, False) and mine != value:
+            flag = key.replace("_hz", "").removesuffix("_s").replace("_", "-")
             raise CommandLineError(
-                f"--{key.replace('_hz', '').replace('_', '-')} {value} contradicts the file, which states "
+                f"--{flag} {value} contradicts the file, which states "
                 f"{key} = {mine!r}; drop the option (the file's description is used)."
             )
     try:
