@@ -536,6 +536,12 @@ def as_uncertain(x: Any, dt: float = 0.0) -> UncertainSystem:
     """
     if isinstance(x, UncertainSystem):
         return x
+    if hasattr(x, "multiplicity") and hasattr(x, "n_delta") and hasattr(x, "axes"):  # an UncertainModel
+        M = x.M
+        A, B, C, D = (np.asarray(m, float) for m in (M.A, M.B, M.C, M.D))
+        blocks = tuple((UncertainReal(n, 0.0, -1.0, 1.0), r) for n, r in zip(x.names, x.multiplicity))
+        return UncertainSystem(Raw(A, B, C, D, x.n_delta, x.n_delta), blocks, x.nominal.input_labels,
+                               x.nominal.output_labels)
     if isinstance(x, _ELEMENTS):
         out = UncertainSystem.from_element(x)
         return UncertainSystem(out.raw, out.blocks, out.inputs, out.outputs, dt) if dt else out
