@@ -14,7 +14,7 @@ function-level imports included; ``tests/test_architecture.py`` reads every impo
 2. ``frd``, ``frd_io``, ``plots`` -- FrequencyData, its file formats, plotting primitives
 3. ``lti``, ``signals``, ``modes``, ``balanced`` -- systems and fast responses, named
    signals, ``Mode`` with MAC and pairing, balanced truncation
-4. ``measure/`` (estimate, estimator, impact, noise), ``cost`` (MACE eq. 5)
+4. ``measure/`` (estimate, estimator, impact, impact_view, noise), ``cost`` (MACE eq. 5)
 5. ``physical/``
 6. ``interconnect``
 7. ``correlate/``
@@ -107,6 +107,7 @@ from .physical import (
     Structure,
     effects,
     electronics,
+    frame_model,
     modal_model,
     modal_statespace,
     structural_model,
@@ -132,6 +133,7 @@ from .physical.nastran_import import (
 # large structures in reduced coordinates (physical/reduction.py)
 from .physical.reduction import band_limited, reduction_error
 from .physical.uncertain import UncertainModel, parametric_lft
+from .report import write_report
 
 # robust design: weights
 from .robust import (
@@ -206,6 +208,7 @@ from .threads import blas_threads, set_blas_threads
 __all__ = [
     # figures (the modal engineer's)
     "fit_percent",
+    "write_report",
     "mac_matrix",
     "plot_compare",
     "plot_mac",
@@ -247,6 +250,7 @@ __all__ = [
     "Structure",
     "Frame",
     "electronics",
+    "frame_model",
     "structural_model",
     "modal_model",
     "modal_statespace",
