@@ -192,3 +192,15 @@ def test_additive_block_reads_the_control_when_asked():
     assert np.asarray(ctrl.P.D)[iz, iw] == 0.0
     with pytest.raises(rc.ModelError, match="additive_input"):
         rc.generalized_plant(G, additive_input="total", **kw)
+
+
+def test_complex_scalar_margin_closed_form():
+    # y' = -(1 + c) y with c = 1 + 0.5 delta, |delta| <= 1 complex: the pole -(1 + c) reaches the
+    # axis first at c = -1 (delta = -4, the smallest |delta| with Re(1 + c) = 0): margin 4, s = 0
+    c = rc.ucomplex("c", 1.0, 0.5)
+    loop = _integrator().feedback(1 + c)
+    m = rc.robstab(loop)
+    assert m.lower == pytest.approx(4.0, rel=1e-3) and m.upper == pytest.approx(4.0, rel=1e-6)
+    assert m.destabilizing["c"] == pytest.approx(-1.0, abs=1e-5)
+    assert abs(m.pole) < 1e-5
+    assert rc.as_statespace(loop).A[0, 0] == pytest.approx(-2.0)  # the nominal where a system is expected

@@ -314,6 +314,15 @@ class UncertainSystem:
         """The system at every element's nominal value (dynamics at zero)."""
         return self._close(self._normalized({}, fill_nominal=True))
 
+    def statespace(self):
+        """The nominal system as a ``control.StateSpace`` (``rc.as_statespace`` reads this, as
+        for an ``UncertainModel``): where a certain model is expected, the nominal is used."""
+        nom = self.nominal
+        if isinstance(nom, UncertainSystem):
+            raise SynthesisError("the nominal of this system is complex (a complex nominal value); "
+                                 "python-control's systems are real.")
+        return nom
+
     def poles(self) -> np.ndarray:
         """Poles of the nominal system (all elements at their nominal values)."""
         nom = self.nominal
