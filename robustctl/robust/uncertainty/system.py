@@ -397,12 +397,14 @@ class UncertainSystem:
 
     # ------------------------------------------------------------------ algebra
     def _combine(self, parts: list[UncertainSystem], E, F, H, J, inputs, outputs) -> UncertainSystem:
-        dts = {p.dt for p in parts}
+        # parts without states (gains, elements) take the time base of the others
+        dts = {p.dt for p in parts if p.nstates or p.dt}
         if len(dts) > 1:
-            raise SynthesisError(f"cannot combine systems with different sample times {sorted(dts)}.")
+            raise SynthesisError(f"cannot combine systems with different sample times {sorted(dts)} (s; "
+                                 "0 is continuous); map one with rc.d2c or control.c2d first.")
         raw = connect([p.raw for p in parts], *(np.asarray(x, float) for x in (E, F, H, J)))
         blocks = [b for p in parts for b in p.blocks]
-        return _merged(raw, blocks, inputs, outputs, dts.pop())
+        return _merged(raw, blocks, inputs, outputs, dts.pop() if dts else 0.0)
 
     def __add__(self, other):
         a, b = _broadcast_pair(self, as_uncertain(other, self.dt))
