@@ -16,6 +16,7 @@ one line on standard error and exit status 2.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -233,7 +234,18 @@ def _run_diagnose(args: argparse.Namespace) -> Path:
     report.text(diag.summary())
     report.table(diag.table())
     report.figure(diag.plot(), "diagnose", "Candidate effects ranked by the share of the error they explain.")
+    if diag.chain:
+        report.heading(f"Verdict: {diag.verdict}")
+        report.table(diag.chain_table())
+    report.record("verdict", diag.verdict)
     report.record("best", None if diag.best is None else diag.best.name)
+    def number(x: float) -> float | None:  # JSON has no NaN: "no noise model" is null
+        return float(x) if math.isfinite(x) else None
+
+    report.record("chain", [{"effect": s.name, "size": s.effect.describe_value(), "explains": float(s.gain),
+                             "misfit_before": number(s.dispersion_before),
+                             "misfit_after": number(s.dispersion_after)} for s in diag.chain])
+    report.record("misfit_left_hz", [(float(b.lo_hz), float(b.hi_hz)) for b in diag.left])
     report.record("ranking", [r.name for r in diag.ranking[:10]])
     return report.write()
 
