@@ -52,6 +52,11 @@ DENSE_MAX_ENTRIES = 500_000
 REFINE_TOL = 1e-12
 #: relative fall of the blocks' summed cost below which the block Gauss-Seidel sweeps stop
 SWEEP_TOL = 1e-9
+#: a complex pole decaying faster than this many times its frequency (damping ratio above
+#: 1 - 1e-7) is no oscillation but a numerically real pole (a pole identification can leave one at
+#: -1e41 with a residue of 1e32): it is held fixed, since its log-decay parameter would step
+#: past exp's range and turn the Jacobian into inf and NaN.
+NOT_AN_OSCILLATION = 1e3
 
 
 @dataclass(frozen=True)
@@ -164,7 +169,8 @@ def refine_modes(
         Refined model; the starting one if the refinement does not lower the cost.
     """
     data = fit.data
-    cplx = np.flatnonzero((fit.poles.imag != 0) & (fit.ranks > 0))
+    oscillating = np.abs(fit.poles.real) < NOT_AN_OSCILLATION * np.abs(fit.poles.imag)
+    cplx = np.flatnonzero((fit.poles.imag != 0) & (fit.ranks > 0) & oscillating)
     if which is not None:
         cplx = np.intersect1d(cplx, which)
     if data is None or cplx.size == 0:
