@@ -86,3 +86,15 @@ def test_the_stationary_start_of_a_simulated_experiment_is_a_cholesky_draw():
     z = np.random.default_rng(5).standard_normal(2)
     expected = np.linalg.cholesky(p + STATE_JITTER * np.max(np.diag(p)) * np.eye(2)) @ z
     np.testing.assert_allclose(x0, expected, rtol=1e-9)
+
+
+def test_a_choice_between_near_tied_fits_keeps_the_first_and_a_clear_winner_wins():
+    from robustctl.identify.poles import TIE_MARGIN, first_lowest
+
+    # two routes whose costs differ by round-off: the first, whichever is lower by 1e-9
+    assert first_lowest([2.0, 2.0 * (1 - 1e-9)]) == 0
+    assert first_lowest([2.0 * (1 - 1e-9), 2.0]) == 0
+    # a difference beyond the margin is a decision of the data: the lower one
+    assert first_lowest([2.0, 2.0 * (1 - 10 * TIE_MARGIN)]) == 1
+    # (flag, cost): a candidate with the asked number of modes (flag False) wins outright
+    assert first_lowest([(True, 1.0), (False, 5.0), (False, 5.0 * (1 - 1e-9))]) == 1
