@@ -14,7 +14,7 @@ function-level imports included; ``tests/test_architecture.py`` reads every impo
 2. ``frd``, ``frd_io``, ``plots`` -- FrequencyData, its file formats, plotting primitives
 3. ``lti``, ``signals``, ``modes``, ``balanced`` -- systems and fast responses, named
    signals, ``Mode`` with MAC and pairing, balanced truncation
-4. ``measure/`` (estimate, estimator, impact, noise), ``cost`` (MACE eq. 5)
+4. ``measure/`` (estimate, estimator, impact, impact_view, noise), ``cost`` (MACE eq. 5)
 5. ``physical/``
 6. ``interconnect``
 7. ``correlate/``
@@ -107,6 +107,7 @@ from .physical import (
     Structure,
     effects,
     electronics,
+    frame_model,
     modal_model,
     modal_statespace,
     structural_model,
@@ -132,6 +133,7 @@ from .physical.nastran_import import (
 # large structures in reduced coordinates (physical/reduction.py)
 from .physical.reduction import band_limited, reduction_error
 from .physical.uncertain import UncertainModel, parametric_lft
+from .report import write_report
 
 # robust design: weights
 from .robust import (
@@ -158,6 +160,7 @@ from .robust import (
     robust_stability,
     worst_case_gain,
 )
+from .robust.continuous_equivalent import d2c
 from .robust.controller_reduction import ControllerReduction
 from .robust.controller_reduction import reduce_controller as reduce_controller
 from .robust.cover import cover_remainder
@@ -179,6 +182,17 @@ from .robust.margins import nugap as nugap
 from .robust.partitioned import as_partitioned
 from .robust.sampled import sampled_plant as sampled_plant
 from .robust.sweep import DesignSweep, design_sweep
+from .robust.uncertainty import (
+    RobustStabilityMargin,
+    UncertainSystem,
+    WorstCaseResult,
+    as_uncertain,
+    robstab,
+    ucomplex,
+    ultidyn,
+    ureal,
+    wcgain,
+)
 from .robust.yardsticks import Yardstick, YardstickWarning, yardstick
 from .signals import combine_inputs as combine_inputs
 from .signals import combine_outputs as combine_outputs
@@ -191,6 +205,7 @@ from .threads import blas_threads, set_blas_threads
 __all__ = [
     # figures (the modal engineer's)
     "fit_percent",
+    "write_report",
     "mac_matrix",
     "plot_compare",
     "plot_mac",
@@ -232,6 +247,7 @@ __all__ = [
     "Structure",
     "Frame",
     "electronics",
+    "frame_model",
     "structural_model",
     "modal_model",
     "modal_statespace",
@@ -340,4 +356,16 @@ __all__ = [
     "RobustctlWarning",
     # one partitioned plant: the coercion shared by hinfsyn, h2syn, dksyn and the yardstick
     "as_partitioned",
+    # uncertain elements and systems, robust stability and worst-case gain (robust/uncertainty)
+    "ureal",
+    "ucomplex",
+    "ultidyn",
+    "UncertainSystem",
+    "as_uncertain",
+    "robstab",
+    "RobustStabilityMargin",
+    "wcgain",
+    "WorstCaseResult",
+    # the continuous original of a sampled system (ZOH or Tustin inverse)
+    "d2c",
 ]

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 __all__ = [
     "RobustctlError", "DataError", "ModelError", "FitError", "SynthesisError", "PlantError",
-    "RobustctlWarning",
+    "RobustctlWarning", "DataWarning",
 ]
 
 
@@ -58,3 +58,8 @@ class PlantError(ModelError, SynthesisError):
 
 class RobustctlWarning(UserWarning):
     """Base class of robustctl's warnings: a result that holds with a caveat the user must see."""
+
+
+class DataWarning(RobustctlWarning):
+    """The data hold something a result works around and the user should look at (e.g. a channel
+    that is identically zero: a dead or disconnected sensor or actuator)."""

@@ -127,7 +127,7 @@ from .screening import (
     _start_value,
     _to_fit,
 )
-from .sentences import _article, _channel_shares, _hold_note, _phrase, _sentence, _where, _with_sentence
+from .sentences import _channel_shares, _hold_note, _phrase, _sentence, _where, _with_sentence
 from .significance import (
     CHANNEL_SHARE,
     MISFIT_HALF_WIDTH,
