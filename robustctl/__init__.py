@@ -137,49 +137,83 @@ from .physical.uncertain import UncertainModel, parametric_lft
 from .robust import (
     Block,
     BlockStructure,
+    ControllerReduction,
+    DesignReduction,
+    DesignSweep,
+    DKResult,
     GeneralizedPlant,
     HinfResult,
     MuResult,
     PlantWeight,
     UncertaintyCover,
     WorstCaseGain,
+    Yardstick,
+    YardstickWarning,
     as_block_structure,
     caltech_additive_weight,
     cover_additive,
     cover_multiplicative,
+    cover_remainder,
+    design_sweep,
+    dksyn,
     fit_magnitude,
     generalized_plant,
     hinfnorm,
     hinfsyn,
     makeweight,
     mixed_sensitivity,
-    mu,
     robust_performance,
     robust_stability,
     worst_case_gain,
+    yardstick,
 )
-from .robust.controller_reduction import ControllerReduction
-from .robust.controller_reduction import reduce_controller as reduce_controller
-from .robust.cover import cover_remainder
-from .robust.dk import DKResult, dksyn
-from .robust.dk_plant import DesignReduction
-from .robust.h2 import H2Result as H2Result
-from .robust.h2 import h2norm as h2norm
-from .robust.h2 import h2syn as h2syn
-from .robust.loop_shaping import LoopShapingResult as LoopShapingResult
-from .robust.loop_shaping import ncfsyn as ncfsyn
-from .robust.loop_shaping import stability_margin as stability_margin
-from .robust.lqg_design import LQGResult as LQGResult
-from .robust.lqg_design import lqg as lqg
-from .robust.margins import DiskMargin as DiskMargin
-from .robust.margins import DiskMarginResult as DiskMarginResult
-from .robust.margins import disk_gain_phase as disk_gain_phase
-from .robust.margins import diskmargin as diskmargin
-from .robust.margins import nugap as nugap
+from .robust import (
+    DiskMargin as DiskMargin,
+)
+from .robust import (
+    DiskMarginResult as DiskMarginResult,
+)
+from .robust import (
+    H2Result as H2Result,
+)
+from .robust import (
+    LoopShapingResult as LoopShapingResult,
+)
+from .robust import (
+    LQGResult as LQGResult,
+)
+from .robust import (
+    disk_gain_phase as disk_gain_phase,
+)
+from .robust import (
+    diskmargin as diskmargin,
+)
+from .robust import (
+    h2norm as h2norm,
+)
+from .robust import (
+    h2syn as h2syn,
+)
+from .robust import (
+    lqg as lqg,
+)
+from .robust import (
+    ncfsyn as ncfsyn,
+)
+from .robust import (
+    nugap as nugap,
+)
+from .robust import (
+    reduce_controller as reduce_controller,
+)
+from .robust import (
+    sampled_plant as sampled_plant,
+)
+from .robust import (
+    stability_margin as stability_margin,
+)
+from .robust.mu import mu
 from .robust.partitioned import as_partitioned
-from .robust.sampled import sampled_plant as sampled_plant
-from .robust.sweep import DesignSweep, design_sweep
-from .robust.yardsticks import Yardstick, YardstickWarning, yardstick
 from .signals import combine_inputs as combine_inputs
 from .signals import combine_outputs as combine_outputs
 from .signals import rename_signals as rename_signals

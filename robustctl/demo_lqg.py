@@ -6,7 +6,7 @@ design channels (reaction-wheel torques -> bus gyros, :mod:`robustctl.demo_mace`
 
 * the design model is the nominal (not updated) model's six-mode balanced truncation, the
   one the mu recipe :func:`~robustctl.demo_mace.mace_design_plant` starts from;
-* LQG (:func:`robustctl.robust.lqg_design.lqg`): process noise of unit intensity on the three
+* LQG (:func:`robustctl.robust.h2.lqg_design.lqg`): process noise of unit intensity on the three
   wheel torques, the gyro rates as performance (``Q = I``), control weight ``R = rho I`` and
   sensor noise ``V = sensor_noise I``;
 * the mu design comes from the yardstick (:func:`robustctl.robust.yardsticks.yardstick`, the
@@ -203,7 +203,7 @@ def lqg_beside_mu(seed: int = 0, *, rho: float = 1.0, sensor_noise: float = 1.0,
     from .examples import six_modes
     from .lti import as_statespace
     from .robust import diskmargin, lqg, yardstick
-    from .robust.dk import _mu_of, closed_loop, default_grid
+    from .robust.dk.iteration import _mu_of, closed_loop, default_grid
 
     data, _ = examples.mace_beam_experiment(seed=seed)
     rwa = data.select(outputs=RWA_OUTPUTS, inputs=RWA_INPUTS)

@@ -9,7 +9,7 @@ import pytest
 
 import robustctl as rc
 from robustctl.examples import DISTILLATION_BLOCKS, distillation_plant
-from robustctl.robust.dk import _as_plant
+from robustctl.robust.dk.iteration import _as_plant
 from robustctl.robust.plant import GeneralizedPlant
 
 

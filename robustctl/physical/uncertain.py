@@ -31,7 +31,7 @@ scalar per principal direction of that 2 x 2 matrix: a frequency (and, when the 
 move it, a damping) scalar per mode. The modes move independently in the LFT (the
 correlations between modes are dropped, which covers more than the ellipsoid), and what the
 parametrisation misses -- shape changes, higher-order terms, the truncated modes -- is left
-to a complex remainder cover (:func:`robustctl.robust.cover.cover_remainder`, kept in
+to a complex remainder cover (:func:`robustctl.robust.uncertainty.cover.cover_remainder`, kept in
 :attr:`UncertainModel.remainder`; ``rc.generalized_plant`` puts both into ``.blocks``).
 """
 
@@ -89,7 +89,7 @@ class UncertainModel:
         movement (module docstring).
     remainder : UncertaintyCover or None
         A complex weight covering what the LFT misses against sampled models and data
-        (:func:`robustctl.robust.cover.cover_remainder`); ``rc.generalized_plant`` adds its
+        (:func:`robustctl.robust.uncertainty.cover.cover_remainder`); ``rc.generalized_plant`` adds its
         block after the real ones.
     modes : tuple or None
         ``form="modes"``: per block ``(nominal eigenvalue, direction (2,) in (p, q), half-range)``,
@@ -151,7 +151,7 @@ class UncertainModel:
         Parameters
         ----------
         cover : UncertaintyCover
-            Additive or multiplicative, e.g. from :func:`robustctl.robust.cover.cover_remainder`.
+            Additive or multiplicative, e.g. from :func:`robustctl.robust.uncertainty.cover.cover_remainder`.
 
         Returns
         -------

@@ -6,7 +6,7 @@ experimental data, [controllers designed on it] should achieve the highest perfo
 The performance achieved using the measurement model is compared with that achieved using
 the FEM. When these performances are comparable, the FEM updating has converged."
 
-:func:`yardstick` designs one mu-controller per model with :func:`~robustctl.robust.dk.dksyn`
+:func:`yardstick` designs one mu-controller per model with :func:`~robustctl.robust.dk.iteration.dksyn`
 (the same weights and objectives for each, from one ``recipe``) and scores each controller
 on the *measured* frequency responses:
 
@@ -47,7 +47,7 @@ from ..identify._problem import as_frequency_data
 from ..lti import as_statespace, freqresp_array, is_stable
 from ..plots import new_figure
 from ..table import Table
-from .dk import DKResult, _as_plant, _mu_of, check_dk_options, closed_loop, default_grid, dksyn
+from .dk.iteration import DKResult, _as_plant, _mu_of, check_dk_options, closed_loop, default_grid, dksyn
 
 __all__ = ["NyquistVerdict", "Yardstick", "YardstickWarning", "nyquist_stability", "yardstick"]
 
@@ -553,7 +553,7 @@ class Yardstick:
     reference : str
         The measurement model's label (the yardstick).
     designs : dict
-        label -> :class:`~robustctl.robust.dk.DKResult`.
+        label -> :class:`~robustctl.robust.dk.iteration.DKResult`.
     attenuation_db : dict
         label -> disturbance attenuation on the data over the band (dB, larger is better).
     stability : dict
@@ -723,7 +723,7 @@ def yardstick(
     progress : bool, optional
         tqdm bar over the designs (only when stderr is a terminal; False switches it off).
     **dk_options
-        Passed to :func:`~robustctl.robust.dk.dksyn` (``max_iter``, ``order_d`` ...).
+        Passed to :func:`~robustctl.robust.dk.iteration.dksyn` (``max_iter``, ``order_d`` ...).
 
     Returns
     -------
