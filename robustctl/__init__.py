@@ -46,17 +46,23 @@ from .correlate import compare as compare
 from .correlate import diagnose as diagnose
 from .correlate import update as update
 from .correlate import verify as verify
+from .correlate.residual import UnitWarning
 from .cost import LogCost, log_cost, log_error
 from .errors import (
     DataError,
     FitError,
     ModelError,
+    ParallelWarning,
     PlantError,
+    RobustctlDeprecationWarning,
     RobustctlError,
     RobustctlWarning,
+    SetupWarning,
     SynthesisError,
+    SynthesisWarning,
 )
 from .export import ExportReport, discretize, export_controller, load_controller
+from .export.controller import ExportWarning
 from .figures import (
     ModeAnimation,
     animate_mode_shape,
@@ -74,6 +80,7 @@ from .frd_io import load_frd
 from .frd_io.geometry import Geometry, ModeShapes
 from .frd_io.uff_geometry import load_uff_geometry, load_uff_modes, write_uff_geometry
 from .identify import (
+    IdentifyWarning,
     MeasurementModel,
     PoleEvidence,
     StabilisationDiagram,
@@ -88,6 +95,7 @@ from .interconnect import PartitionedPlant, block_diagonal, feedback, lft, paral
 from .lti import as_statespace, freqresp, is_stable
 from .measure import estimator
 from .measure.estimate import (
+    EstimateWarning,
     HeldCommand,
     advised_nperseg,
     combine_experiments,
@@ -372,6 +380,15 @@ __all__ = [
     "Deadline",
     "BudgetWarning",
     "RobustctlWarning",
+    # the warning family: every warning robustctl issues derives from RobustctlWarning
+    "SynthesisWarning",
+    "ParallelWarning",
+    "SetupWarning",
+    "RobustctlDeprecationWarning",
+    "IdentifyWarning",
+    "UnitWarning",
+    "ExportWarning",
+    "EstimateWarning",
     # one partitioned plant: the coercion shared by hinfsyn, h2syn, dksyn and the yardstick
     "as_partitioned",
 ]

@@ -19,7 +19,7 @@ import numpy as np
 
 from .checks import UNSET, band_mask, renamed_keyword, user_stacklevel
 from .checks import point_weights as point_weights_of
-from .errors import DataError
+from .errors import DataError, RobustctlDeprecationWarning
 from .frd import FrequencyData, as_frequency_data
 from .lti import DB_PER_NEPER, _align, as_statespace, freqresp, log_ratio
 from .measure.estimator import model_view, resolve_estimator, split_hold
@@ -186,7 +186,7 @@ def _model_and_data(model: Any, data: Any, func: str) -> tuple[Any, FrequencyDat
     if old_order and data is not None and not hasattr(data, "omega"):
         warnings.warn(
             f"{func}(data, model) is deprecated; the order is {func}(model, data) as in rc.compare.",
-            DeprecationWarning,
+            RobustctlDeprecationWarning,
             stacklevel=user_stacklevel(),
         )
         model, data = data, model

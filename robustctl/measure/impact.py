@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from ..checks import positive_number
-from ..errors import DataError
+from ..errors import DataError, RobustctlWarning
 from ..frd import Experiment, FrequencyData
 
 __all__ = ["estimate_frf_impact", "ImpactWarning"]
@@ -38,7 +38,7 @@ PULSE_LEVEL = 0.05
 DECAY_LEVEL = 0.01
 
 
-class ImpactWarning(UserWarning):
+class ImpactWarning(RobustctlWarning):
     """An impact record deserves a look (double hit, overload, too few hits)."""
 
 

@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from ..checks import check_band, flag, match_channels
-from ..errors import DataError, SynthesisError
+from ..errors import DataError, RobustctlWarning, SynthesisError
 from ..executors import check_executor, parallel_map
 from ..frd import FrequencyData
 from ..identify._problem import as_frequency_data
@@ -525,7 +525,7 @@ def _loop_detail(f_hz: np.ndarray, L: np.ndarray, coherence: np.ndarray | None, 
     return "; ".join(parts)
 
 
-class YardstickWarning(UserWarning):
+class YardstickWarning(RobustctlWarning):
     """A yardstick controller whose stability on the data is not established (not ranked)."""
 
 

@@ -57,7 +57,7 @@ import numpy as np
 
 from ...budget import Deadline, as_deadline
 from ...checks import flag, integer, positive_number
-from ...errors import PlantError, SynthesisError
+from ...errors import PlantError, SynthesisError, SynthesisWarning
 from ...executors import check_executor
 from ...interconnect import PartitionedPlant
 from ...lti import freqresp_array, is_stable
@@ -642,7 +642,7 @@ def dksyn(
             f"dksyn: the returned controller's peak of mu is {m.peak:.4g} at {m.f_peak_hz:.3g} Hz on the "
             f"verification grid, but {grid_peak:.4g} on the iteration grid, which misses the peak: the "
             "iterations were judged on too coarse a grid (pass a denser f_hz, or leave it to the default).",
-            RuntimeWarning, stacklevel=2,
+            SynthesisWarning, stacklevel=2,
         )
     stopped = deadline.hit  # shared with the K steps' bisections and the D fits
     if stopped and own_clock:
