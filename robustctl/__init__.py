@@ -50,6 +50,7 @@ from .correlate.residual import UnitWarning
 from .cost import LogCost, log_cost, log_error
 from .errors import (
     DataError,
+    DataWarning,
     FitError,
     ModelError,
     ParallelWarning,
@@ -382,6 +383,7 @@ __all__ = [
     "RobustctlWarning",
     # the warning family: every warning robustctl issues derives from RobustctlWarning
     "SynthesisWarning",
+    "DataWarning",
     "ParallelWarning",
     "SetupWarning",
     "RobustctlDeprecationWarning",

@@ -10,15 +10,14 @@ export the controller as coefficient files.
 
 from __future__ import annotations
 
-import os
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from .executors import available_cores, process_pool
 from .report import Report
 from .table import Table
 
@@ -235,17 +234,11 @@ def _explain_model_cover_recipe(report: Report, recipe: Any, models: dict[str, A
     report.table(_cover_table(recipe, models))
 
 
-@contextmanager
-def _design_pool() -> Iterator[Any]:
+def _design_pool() -> Any:
     """Two worker processes for the yardstick's three independent designs (the machine's second
-    core; None, i.e. serial, on one core)."""
-    if (os.cpu_count() or 1) < 2:
-        yield None
-        return
-    from concurrent.futures import ProcessPoolExecutor
-
-    with ProcessPoolExecutor(max_workers=2) as pool:
-        yield pool
+    core; None, i.e. serial, on one core). They are :func:`robustctl.executors.process_pool`'s
+    workers, which end with the demo however it ends (an exception, Ctrl-C, SIGTERM or SIGKILL)."""
+    return process_pool(2 if available_cores() >= 2 else None, 3, 1)
 
 
 def _yardstick(report: Report, data: Any, models: dict[str, Any], design: DesignSpec,

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 __all__ = [
     "RobustctlError", "DataError", "ModelError", "FitError", "SynthesisError", "PlantError",
-    "RobustctlWarning", "SynthesisWarning", "ParallelWarning", "SetupWarning",
+    "RobustctlWarning", "DataWarning", "SynthesisWarning", "ParallelWarning", "SetupWarning",
     "RobustctlDeprecationWarning",
 ]
 
@@ -83,3 +83,8 @@ class SetupWarning(RobustctlWarning, RuntimeWarning):
 class RobustctlDeprecationWarning(RobustctlWarning, DeprecationWarning):
     """An argument name or order that still works but is deprecated (hidden by Python's default
     filters outside ``__main__``, as every ``DeprecationWarning``)."""
+
+
+class DataWarning(RobustctlWarning):
+    """The data hold something a result works around and the user should look at (e.g. a channel
+    that is identically zero: a dead or disconnected sensor or actuator)."""

@@ -90,3 +90,49 @@ def test_an_interrupted_caller_stops_its_workers_before_returning():
         for p in pids:
             if _running(p):
                 os.kill(p, signal.SIGKILL)
+
+
+def _children(pid: int) -> list[int]:
+    """The running processes whose parent is ``pid`` (read from /proc)."""
+    kids = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except (FileNotFoundError, ProcessLookupError):
+                continue
+            if int(fields[1]) == pid and fields[0] not in ("Z", "X"):
+                kids.append(int(entry.name))
+    return kids
+
+
+@pytest.mark.slow
+def test_a_killed_command_line_run_leaves_no_worker_behind(tmp_path):
+    """`robustctl demo` killed with SIGKILL as soon as it has started workers: none is alive 5 s later."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.Popen([sys.executable, "-m", "robustctl", "demo", "--out", str(tmp_path / "out")],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env, cwd=ROOT)
+    kids: list[int] = []
+    try:
+        end = time.monotonic() + 900.0  # a liveness bound: the demo starts workers in its diagnosis
+        while not kids and proc.poll() is None and time.monotonic() < end:
+            kids = _children(proc.pid)
+            time.sleep(0.05)
+        assert kids, "the demo ended or ran 900 s without starting a worker process"
+        proc.kill()
+        proc.wait(30)
+        time.sleep(5.0)
+        assert [p for p in kids if _running(p)] == []
+    finally:
+        proc.kill()
+        for p in kids:
+            if _running(p):
+                os.kill(p, signal.SIGKILL)
+
+
+def test_every_process_pool_is_the_one_that_ends_with_its_caller():
+    """No module starts a ProcessPoolExecutor of its own: pools come from executors.process_pool,
+    whose workers end with their caller (the test above and the first one in this file)."""
+    owners = [p.relative_to(ROOT).as_posix() for p in (ROOT / "robustctl").rglob("*.py")
+              if "ProcessPoolExecutor(" in p.read_text()]
+    assert owners == ["robustctl/executors.py"]

@@ -559,11 +559,15 @@ class Comparison:
     def summary(self) -> str:
         """A few sentences in plain words."""
         nf, no, ni = self.error.shape
+        kept = np.ones((no, ni), dtype=bool)
+        for o, i, _lv in self.dropped:
+            kept[self.outputs.index(o), self.inputs.index(i)] = False
         lines = [
             f"{self.model_name} against {no}x{ni} channels on {self.f_hz[0]:.4g}-{self.f_hz[-1]:.4g} Hz "
             f"({nf} points): cost J = {self.cost:.4g} ({self.cost_per_point:.3g} per point; RMS error "
-            f"{np.sqrt(np.mean(self.mag_error_db**2)):.2f} dB in magnitude, "
-            f"{np.sqrt(np.mean(self.phase_error_deg**2)):.1f} deg in phase)."
+            f"{_rms(self.mag_error_db, kept):.2f} dB in magnitude, "
+            f"{_rms(self.phase_error_deg, kept):.1f} deg in phase"
+            + (f", over the {int(kept.sum())} channels kept" if not kept.all() else "") + ")."
         ]
         o, i = np.unravel_index(int(np.argmax(self.channel_cost)), self.channel_cost.shape)
         lines.append(
@@ -600,8 +604,13 @@ class Comparison:
             lines.append("Error structure: " + self.structure.describe())
         lines += [f"Warning: {w}" for w in self.warnings]
         if self.dropped:
-            names = ", ".join(f"{o} <- {i} ({lv:.0f} dB)" for o, i, lv in self.dropped)
-            lines.append(f"Left out as negligible (decoupled) channels: {names}.")
+            dead = [f"{o} <- {i}" for o, i, lv in self.dropped if lv == -np.inf]
+            names = ", ".join(f"{o} <- {i} ({lv:.0f} dB)" for o, i, lv in self.dropped if lv > -np.inf)
+            if names:
+                lines.append(f"Left out as negligible (decoupled) channels: {names}.")
+            if dead:
+                lines.append("Left out as identically zero in the data (a dead or disconnected sensor or "
+                             f"actuator? check the cable): {', '.join(dead)}.")
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:
@@ -659,6 +668,11 @@ class Comparison:
 
 
 # ---------------------------------------------------------------------------- compare
+def _rms(values: np.ndarray, kept: np.ndarray) -> float:
+    """Root mean square of ``values`` (n_freq, n_out, n_in) over the channels ``kept``."""
+    return float(np.sqrt(np.mean(values[:, kept] ** 2))) if kept.any() else float("nan")
+
+
 def _mode_rows(model_modes: list[Mode], data_modes: list[Mode]) -> tuple[ModeRow, ...]:
     rows = []
     nan = float("nan")

@@ -23,6 +23,7 @@ the noise model on the band; the resulting :class:`CheckedData` travels inward
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from concurrent.futures import Executor
 from typing import Any
@@ -40,7 +41,7 @@ from ..checks import (
     user_stacklevel,
 )
 from ..checks import point_weights as point_weights_of
-from ..errors import DataError, FitError, ModelError, RobustctlError, RobustctlWarning
+from ..errors import DataError, DataWarning, FitError, ModelError, RobustctlError, RobustctlWarning
 from ..executors import parallel_map_shared
 from ..frd import FrequencyData, as_frequency_data
 from ..lti import as_statespace, freqresp, log_ratio
@@ -138,6 +139,26 @@ def _check_no_zero_channel(data: FrequencyData) -> None:
             "log error is undefined. Drop it with data.select(...), weight it 0, or let "
             "min_channel_db drop negligible channels."
         )
+
+
+def _warn_dead_channels(data: FrequencyData) -> None:
+    """Warn (:class:`~robustctl.errors.DataWarning`) about channels that are identically zero in
+    the data: a disconnected sensor or actuator, not a decoupled axis (whose noise is never
+    exactly zero). They are left out of the cost like negligible channels, but the user is told."""
+    rms = np.sqrt(np.mean(np.abs(data.response) ** 2, axis=0))
+    dead = np.argwhere(rms == 0)
+    if dead.size == 0:
+        return
+    rows = [data.outputs[o] for o in range(rms.shape[0]) if np.all(rms[o] == 0)]
+    cols = [data.inputs[i] for i in range(rms.shape[1]) if np.all(rms[:, i] == 0)]
+    where = ([f"output {o} (every input)" for o in rows] + [f"input {i} (every output)" for i in cols])
+    where = where or [f"{data.outputs[o]} <- {data.inputs[i]}" for o, i in dead]
+    warnings.warn(
+        f"the data are identically zero in {len(dead)} channel(s): {', '.join(where)}. That is a dead or "
+        "disconnected sensor or actuator (a cable, a channel not recorded), not a decoupled axis: those "
+        "channels are left out of the cost. Check the cable or drop them with data.select(...).",
+        DataWarning, stacklevel=4,
+    )
 
 
 def check_complex_response(data: FrequencyData, name: str = "data") -> None:
@@ -420,6 +441,7 @@ class Residual:
             return []
         min_db = finite_number(min_db, "min_channel_db", DataError)
         d = self.data
+        _warn_dead_channels(d)
         found = {(o, i): lvl for o, i, lvl in _negligible_channels(d.response, d.outputs, d.inputs, min_db)}
         model_level = _negligible_channels(self.model_response(), d.outputs, d.inputs, min_db)
         for o, i, lvl in model_level:

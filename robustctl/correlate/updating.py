@@ -454,12 +454,13 @@ def update(
         x0={**{n: model.param(n).value for n in selected}, **x0} if x0 else None,
     )
     notes += extra
-    if residual.dropped:
-        notes.append(
-            "left out as negligible (decoupled) channels: "
-            + ", ".join(f"{o} <- {i} ({lv:.0f} dB)" for o, i, lv in residual.dropped)
-            + "."
-        )
+    negligible = [f"{o} <- {i} ({lv:.0f} dB)" for o, i, lv in residual.dropped if lv > -np.inf]
+    dead = [f"{o} <- {i}" for o, i, lv in residual.dropped if lv == -np.inf]
+    if negligible:
+        notes.append("left out as negligible (decoupled) channels: " + ", ".join(negligible) + ".")
+    if dead:
+        notes.append("left out as identically zero in the data (a dead or disconnected sensor or actuator? "
+                     "check the cable): " + ", ".join(dead) + ".")
     selected = fit.names
     # a superparameter suggestion is moot once a later pass updated both parameters
     suggestions = [
