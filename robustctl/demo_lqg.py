@@ -203,7 +203,7 @@ def lqg_beside_mu(seed: int = 0, *, rho: float = 1.0, sensor_noise: float = 1.0,
     from .examples import six_modes
     from .lti import as_statespace
     from .robust import diskmargin, lqg, yardstick
-    from .robust.dk.iteration import _mu_of, closed_loop, default_grid
+    from .robust.dk.iteration import closed_loop, default_grid, mu_of
 
     data, _ = examples.mace_beam_experiment(seed=seed)
     rwa = data.select(outputs=RWA_OUTPUTS, inputs=RWA_INPUTS)
@@ -226,7 +226,7 @@ def lqg_beside_mu(seed: int = 0, *, rho: float = 1.0, sensor_noise: float = 1.0,
         score = score_on_data(rwa, K, nominal, mm, band=band, sign=sign)
         cl = closed_loop(gp.P, K, gp.nmeas, gp.ncon)
         stable_design = cl.nstates == 0 or bool(np.all(np.linalg.eigvals(np.asarray(cl.A)).real < 0))
-        mu_peak = _mu_of(cl, gp.blocks, default_grid(gp.P), refine=True)[0].peak if stable_design else np.inf
+        mu_peak = mu_of(cl, gp.blocks, default_grid(gp.P), refine=True)[0].peak if stable_design else np.inf
         dm = diskmargin(Gn, K, sign=sign)
         rows[label] = {"order": K.nstates, "attenuation_db": score.attenuation_db,
                        "stable": score.verdict.label, "score": score,
@@ -237,6 +237,6 @@ def lqg_beside_mu(seed: int = 0, *, rho: float = 1.0, sensor_noise: float = 1.0,
 
 def yard_sign(gp: Any, G: Any) -> float:
     """The sign ``s`` with which the recipe's plant measures the model (the yardstick's convention)."""
-    from .robust.yardsticks import _measurement_sign
+    from .robust.yardsticks import measurement_sign
 
-    return _measurement_sign(gp, G)
+    return measurement_sign(gp, G)

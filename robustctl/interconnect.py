@@ -26,7 +26,7 @@ import numpy as np
 
 from .checks import flag, integer, is_default_names
 from .errors import ModelError, PlantError
-from .lti import _series_arrays, as_statespace, rebuild_statespace, statespace_state
+from .lti import as_statespace, rebuild_statespace, series_matrices, statespace_state
 from .signals import _arrays, select_signals
 from .table import Table
 
@@ -630,7 +630,7 @@ def _series_pair(s1: Any, s2: Any, by_name: bool):
     else:
         T = np.eye(s1.noutputs)
     A2, B2, C2, D2 = _arrays(s2)
-    A, B, C, D = _series_arrays(_arrays(s1), (A2, B2 @ T, C2, D2 @ T))
+    A, B, C, D = series_matrices(_arrays(s1), (A2, B2 @ T, C2, D2 @ T))
     return _named(A, B, C, D, _timebase(s1, s2), s1.input_labels, s2.output_labels, "series")
 
 

@@ -233,6 +233,58 @@ def test_robust_floors_see_an_edge_up_and_name_every_subpackage():
             assert name in block, f"robust/__init__.py's floor {level} does not name {name}"
 
 
+def _package_of(module: str, is_package: bool) -> str:
+    return module if is_package else module.rsplit(".", 1)[0]
+
+
+def private_imports_across_packages() -> list[str]:
+    """``from <module of another package> import _name`` anywhere in robustctl (function-level
+    imports included). A helper another package needs has a public name in its home module."""
+    modules = _modules()
+    found = []
+    for name, (path, is_package) in modules.items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
+            if not isinstance(node, ast.ImportFrom):
+                continue
+            private = [a.name for a in node.names if a.name.startswith("_") and not a.name.startswith("__")]
+            targets = _targets(name, is_package, node, modules)
+            if not private or not targets:
+                continue
+            target = targets[0]
+            if _package_of(target, modules.get(target, (None, False))[1]) != _package_of(name, is_package):
+                found.append(f"{name}:{node.lineno} imports {', '.join(private)} from {target}")
+    return sorted(found)
+
+
+def test_no_module_imports_a_private_name_from_another_package():
+    found = private_imports_across_packages()
+    assert not found, "private names imported across packages (give them a public name):\n" + "\n".join(found)
+
+
+def test_no_package_reexports_a_private_name():
+    """A package's ``__init__`` exports its public API only; its private helpers are imported,
+    where a test needs them, from the submodule that defines them."""
+    reexported = []
+    for name, (path, is_package) in _modules().items():
+        if not is_package:
+            continue
+        for node in ast.parse(path.read_text(encoding="utf-8")).body:
+            if isinstance(node, ast.ImportFrom):
+                bound = [a.asname or a.name for a in node.names]
+                reexported += [f"{name}: {b}" for b in bound if b.startswith("_") and not b.startswith("__")]
+    assert not reexported, "private names re-exported by a package:\n" + "\n".join(reexported)
+
+
+def test_private_import_scan_resolves_relative_imports():
+    modules = _modules()
+    node = ast.parse("from ..lti import _blocks, schur_eval").body[0]
+    assert _targets(f"{PACKAGE}.robust.analysis", True, node, modules) == [f"{PACKAGE}.robust.lti"] * 2
+    node = ast.parse("from ...lti import _blocks").body[0]
+    target = _targets(f"{PACKAGE}.robust.hinf.norm", False, node, modules)[0]
+    assert target == f"{PACKAGE}.lti"
+    assert _package_of(target, False) == PACKAGE != _package_of(f"{PACKAGE}.robust.hinf.norm", False)
+
+
 @pytest.mark.parametrize("module, allowed", sorted(ONLY_IMPORTS.items()))
 def test_base_modules_import_only_the_base(module, allowed):
     name = f"{PACKAGE}.{module}"

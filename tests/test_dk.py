@@ -9,7 +9,7 @@ import pytest
 from robustctl.errors import SynthesisError
 from robustctl.examples import DISTILLATION_BLOCKS, distillation_plant
 from robustctl.lti import freqresp_array
-from robustctl.robust.dk.iteration import _as_plant, _scale_plant, closed_loop, dksyn
+from robustctl.robust.dk.iteration import _scale_plant, as_plant, closed_loop, dksyn
 from robustctl.robust.uncertainty.blocks import as_block_structure
 from robustctl.robust.yardsticks import nyquist_stability
 
@@ -51,7 +51,7 @@ def test_closed_loop_is_the_lower_lft(with_d22):
 
 def test_scaled_plant_is_d_p_dinv_on_the_uncertainty_channels():
     P = distillation_plant()
-    plant = _as_plant((P, 2, 2, BOOK_BLOCKS))
+    plant = as_plant((P, 2, 2, BOOK_BLOCKS))
     d1 = control.ss(control.tf([2.0, 1.0], [1.0, 3.0]))
     d2 = control.ss(control.tf([1.0, 0.5, 2.0], [1.0, 2.0, 1.0]))
     Ps = _scale_plant(plant, [d1, d2])
@@ -198,10 +198,10 @@ def test_d_orders_out_of_band_fall_back_to_lower_orders_not_a_constant(monkeypat
     import robustctl.robust.dk.scales as dks
     from robustctl.robust.hinf.synthesis import hinfsyn
 
-    plant = _as_plant((distillation_plant(), 2, 2, BOOK_BLOCKS))
+    plant = as_plant((distillation_plant(), 2, 2, BOOK_BLOCKS))
     blocks = dkm._complexified(plant.blocks)
     cl = closed_loop(plant.P, hinfsyn(plant.P, 2, 2, backoff=1e-3).K, 2, 2)
-    m, H = dkm._mu_of(cl, blocks, dkm.default_grid(plant.P), refine=True)
+    m, H = dkm.mu_of(cl, blocks, dkm.default_grid(plant.P), refine=True)
     _, orders, bound_free = dkm._fit_d_scales(H, m, blocks, 4, None, (), dkm._edge_response(cl))
     assert orders == (4, 4)
     in_band = dkm._dynamics_in_band
@@ -224,10 +224,10 @@ def test_a_broken_fit_of_the_only_allowed_order_falls_back_to_lower_orders(monke
     import robustctl.robust.dk.scales as dks
     from robustctl.robust.hinf.synthesis import hinfsyn
 
-    plant = _as_plant((distillation_plant(), 2, 2, BOOK_BLOCKS))
+    plant = as_plant((distillation_plant(), 2, 2, BOOK_BLOCKS))
     blocks = dkm._complexified(plant.blocks)
     cl = closed_loop(plant.P, hinfsyn(plant.P, 2, 2, backoff=1e-3).K, 2, 2)
-    m, H = dkm._mu_of(cl, blocks, dkm.default_grid(plant.P), refine=True)
+    m, H = dkm.mu_of(cl, blocks, dkm.default_grid(plant.P), refine=True)
     edges = dkm._edge_response(cl)
     fit_one = dkm._fit_one
     monkeypatch.setattr(dks, "_fit_one", lambda args: 3.0 * fit_one(args) if args[2] >= 4 else fit_one(args))
@@ -427,17 +427,17 @@ def test_fitted_bound_is_the_scaled_loops_norm_including_dc(level):
         _complexified,
         _edge_response,
         _fit_d_scales,
-        _mu_of,
         default_grid,
+        mu_of,
     )
     from robustctl.robust.hinf.synthesis import hinfsyn
 
-    plant = _as_plant(caltech_design_plant(caltech_truss(), level=level))
+    plant = as_plant(caltech_design_plant(caltech_truss(), level=level))
     blocks = _complexified(plant.blocks)
     K = hinfsyn(plant.P, plant.nmeas, plant.ncon, backoff=1e-3).K
     for _ in range(2):  # the unscaled loop, then the loop of the first scaled K step
         cl = closed_loop(plant.P, K, plant.nmeas, plant.ncon)
-        m, H = _mu_of(cl, blocks, default_grid(plant.P), refine=True)
+        m, H = mu_of(cl, blocks, default_grid(plant.P), refine=True)
         fits, _, bound = _fit_d_scales(H, m, blocks, None, None, (), _edge_response(cl))
         scaled = _scale_plant(plant, fits)
         norm, _ = hinfnorm(closed_loop(scaled, K, plant.nmeas, plant.ncon))
@@ -460,10 +460,10 @@ def _unscaled_distillation():
 def test_autoscaling_undoes_the_plant_units():
     # the scaled plant is the same whatever units the column is written in: the controls and
     # measurements at unit peak gain and the block scales from a covariant start
-    from robustctl.robust.dk.iteration import _as_plant, _autoscaled
+    from robustctl.robust.dk.iteration import _autoscaled, as_plant
 
-    a, sa = _autoscaled(_as_plant((distillation_plant(), 2, 2, BOOK_BLOCKS)))
-    b, sb = _autoscaled(_as_plant((_unscaled_distillation(), 2, 2, BOOK_BLOCKS)))
+    a, sa = _autoscaled(as_plant((distillation_plant(), 2, 2, BOOK_BLOCKS)))
+    b, sb = _autoscaled(as_plant((_unscaled_distillation(), 2, 2, BOOK_BLOCKS)))
     f = np.logspace(-4, 1, 30)
     Ha, Hb = freqresp_array(a.P, f), freqresp_array(b.P, f)
     np.testing.assert_allclose(Ha, Hb, rtol=1e-6, atol=1e-9 * np.abs(Ha).max())

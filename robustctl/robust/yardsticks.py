@@ -47,7 +47,7 @@ from ..identify._problem import as_frequency_data
 from ..lti import as_statespace, freqresp_array, is_stable
 from ..plots import new_figure
 from ..table import Table
-from .dk.iteration import DKResult, _as_plant, _mu_of, check_dk_options, closed_loop, default_grid, dksyn
+from .dk.iteration import DKResult, as_plant, check_dk_options, closed_loop, default_grid, dksyn, mu_of
 
 __all__ = ["NyquistVerdict", "Yardstick", "YardstickWarning", "nyquist_stability", "yardstick"]
 
@@ -272,7 +272,7 @@ def _n_unstable(sys1: Any, what: str) -> int:
 
 
 # ---------------------------------------------------------------------------- helpers
-def _measurement_sign(gp: Any, G: Any) -> float:
+def measurement_sign(gp: Any, G: Any) -> float:
     """``s`` with ``P_yu ~ s G``: the recipe measures +-the plant's outputs.
 
     The recipe may reduce the model (e.g. to its six modes), so ``P_yu`` need only be
@@ -389,7 +389,7 @@ def _recipe_plant(recipe: Callable[[Any], Any], model: Any, label: str) -> Any:
     """``recipe(model)``, refused unless it is a plant :func:`dksyn` takes."""
     plant = recipe(model)
     try:
-        _as_plant(plant)
+        as_plant(plant)
     except SynthesisError as exc:
         raise SynthesisError(f"recipe(models[{label!r}]) must return a GeneralizedPlant: {exc}") from exc
     return plant
@@ -738,7 +738,7 @@ def yardstick(
     given = {lab: _system_of(models[lab]) for lab in labels}
     systems = {lab: as_statespace(given[lab], name=f"models[{lab!r}]") for lab in labels}
     plants = {lab: _recipe_plant(recipe, given[lab], lab) for lab in labels}
-    signs = {lab: _measurement_sign(plants[lab], systems[lab]) for lab in labels}
+    signs = {lab: measurement_sign(plants[lab], systems[lab]) for lab in labels}
     results = parallel_map(functools.partial(_design, options=dk_options), [plants[lab] for lab in labels],
                            executor, desc="yardstick designs", progress=progress is None or bool(progress))
     designs = dict(zip(labels, results))
@@ -775,7 +775,7 @@ def yardstick(
             gp = plants[lab_m]
             cl = closed_loop(gp.P, designs[lab_k].K, gp.nmeas, gp.ncon)
             if cl.nstates and is_stable(cl, margin=0.0):
-                mu_cross[i, j] = _mu_of(cl, designs[lab_m].blocks, default_grid(gp.P), refine=True)[0].peak
+                mu_cross[i, j] = mu_of(cl, designs[lab_m].blocks, default_grid(gp.P), refine=True)[0].peak
     return Yardstick(labels=labels, reference=reference, designs=designs, attenuation_db=attenuation,
                      stability=stability, mu_cross=mu_cross, band_hz=(lo, hi), f_hz=f_all[in_band],
                      open_loop=np.linalg.norm(G_ref[in_band], ord=2, axis=(1, 2)), closed_loop=closed)

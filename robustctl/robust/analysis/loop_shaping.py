@@ -39,10 +39,10 @@ from ...interconnect import PicklesStateSpaces
 from ...lti import as_statespace, freqresp_array, is_stable, roundoff_margin
 from ...plots import label_axes, single_axes
 from ...table import Table, result_html
-from ..h2.synthesis import _default_grid
+from ..h2.synthesis import default_grid_hz
 from ..hinf.norm import hinfnorm_matrices
 from ..hinf.synthesis import lower_lft_matrices
-from ..mu.bounds import _frequencies
+from ..mu.bounds import frequencies_hz
 from .coprime import ncf_riccati
 
 __all__ = ["LoopShapingResult", "ncfsyn", "stability_margin"]
@@ -107,7 +107,7 @@ class LoopShapingResult(PicklesStateSpaces):
 
     def plot(self, f_hz: Any = None, fig: Any = None) -> Any:
         """Singular values of the shaped loop ``Gs`` and of the achieved loop ``-G K`` (Hz)."""
-        f = _default_grid(self.shaped) if f_hz is None else _frequencies(f_hz)
+        f = default_grid_hz(self.shaped) if f_hz is None else frequencies_hz(f_hz)
         G = self.plant
         fig, ax = single_axes(fig, 7.0, 4.0)
         ax.loglog(f, np.linalg.svd(freqresp_array(self.shaped, f), compute_uv=False), "C0", lw=1)

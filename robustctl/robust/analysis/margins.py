@@ -45,8 +45,8 @@ from ...frd import FrequencyData, as_frequency_data
 from ...lti import as_statespace, freqresp_array, is_stable, roundoff_margin
 from ...plots import label_axes, single_axes
 from ...table import Table, result_html
-from ..hinf.norm import _discrete_to_continuous, hinfnorm, hinfnorm_matrices
-from ..mu.bounds import _frequencies, mu
+from ..hinf.norm import discrete_to_continuous, hinfnorm, hinfnorm_matrices
+from ..mu.bounds import frequencies_hz, mu
 from .coprime import left_ncf, right_ncf
 
 __all__ = ["DiskMargin", "DiskMarginResult", "diskmargin", "disk_gain_phase", "nugap"]
@@ -298,7 +298,7 @@ def diskmargin(L: Any, K: Any = None, *, f_hz: Any = None, skew: float = 0.0, si
         stable, Lss = None, None
     else:
         Lss, names = _model_loop(L, K, float(sign), at)
-        f = _default_grid(Lss) if f_hz is None else _frequencies(f_hz)
+        f = _default_grid(Lss) if f_hz is None else frequencies_hz(f_hz)
         Lf = freqresp_array(Lss, f)
     n = Lf.shape[1]
     if Lf.shape[1] != Lf.shape[2]:
@@ -347,7 +347,7 @@ def _continuous(ss: Any) -> tuple[np.ndarray, ...]:
     A, B, C, D = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
     if ss.dt in (0, None):
         return A, B, C, D
-    return _discrete_to_continuous(A, B, C, D)
+    return discrete_to_continuous(A, B, C, D)
 
 
 def _count(ev: np.ndarray, scale: float) -> tuple[int, int]:

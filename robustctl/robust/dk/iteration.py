@@ -89,7 +89,7 @@ from .scales import (
 from .scales import _dynamics_in_band as _dynamics_in_band
 from .scales import _fit_one as _fit_one
 from .scales import _into_band as _into_band
-from .verify import _mu_of, _verified_mu, closed_loop, default_grid
+from .verify import _verified_mu, closed_loop, default_grid, mu_of
 from .verify import verification_grid as verification_grid
 
 __all__ = ["DKIteration", "DKResult", "Reduction", "DesignReduction", "dksyn"]
@@ -131,7 +131,7 @@ def _complexified(blocks: BlockStructure) -> BlockStructure:
     ))
 
 
-def _as_plant(gp: Any) -> GeneralizedPlant:
+def as_plant(gp: Any) -> GeneralizedPlant:
     """A GeneralizedPlant or ``(P, nmeas, ncon, blocks)`` as a checked continuous-time plant with blocks."""
     if isinstance(gp, tuple) and len(gp) == 4:
         P, nmeas, ncon, blocks = gp
@@ -522,7 +522,7 @@ def dksyn(
     if gamma is not None:
         gamma = positive_number(gamma, "gamma", SynthesisError)
     check_executor(executor)
-    plant = _as_plant(gp)
+    plant = as_plant(gp)
     autoscale = flag(autoscale, "autoscale", SynthesisError)
     if not isinstance(real, str) or real not in ("mixed", "complex"):
         raise SynthesisError(f"real must be 'mixed' (D-G-K with G-scales on the real blocks) or 'complex' "
@@ -567,7 +567,7 @@ def dksyn(
                 break
             K = hres.K
             cl = closed_loop(plant.P, K, plant.nmeas, plant.ncon)
-            m, H = _mu_of(cl, blocks, base, refine=grid is None)
+            m, H = mu_of(cl, blocks, base, refine=grid is None)
             entry = DKIteration(index, float(hres.gamma), float(m.peak), float(m.f_peak_hz), K.nstates,
                                 cand.orders, 0.0, m, d_step=cand.beta, n_candidates=len(candidates))
             improved = best is None or entry.mu_peak < best["it"].mu_peak * (1 - rtol)

@@ -17,7 +17,7 @@ from ...lti import is_stable
 from ..plant import GeneralizedPlant
 from ..reduction.controller import reducer
 from ..uncertainty.blocks import BlockStructure
-from .verify import _mu_of, closed_loop
+from .verify import closed_loop, mu_of
 
 #: A reduced controller is kept when the peak of mu rises by at most this fraction.
 REDUCE_MU_RTOL = 0.02
@@ -143,7 +143,7 @@ def _truncated_loop(plant: GeneralizedPlant, blocks: BlockStructure, K: Any, red
     clr = closed_loop(plant.P, Kr, plant.nmeas, plant.ncon)
     if not is_stable(clr, margin=0.0):
         return Kr, clr, None, "the reduced loop is unstable"
-    mr, _ = _mu_of(clr, blocks, base, refine)
+    mr, _ = mu_of(clr, blocks, base, refine)
     if mr.peak > m.peak * (1 + mu_rtol):
         return Kr, clr, mr, f"peak mu rose by more than {100 * mu_rtol:g} %"
     return Kr, clr, mr, ""

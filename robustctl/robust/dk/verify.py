@@ -135,7 +135,9 @@ def _merged(a: Any, b: Any) -> Any:
 
 
 # ---------------------------------------------------------------------------- D step
-def _mu_of(cl: Any, blocks: BlockStructure, f_hz: np.ndarray, refine: bool) -> tuple[Any, np.ndarray]:
+def mu_of(cl: Any, blocks: BlockStructure, f_hz: np.ndarray, refine: bool) -> tuple[Any, np.ndarray]:
+    """mu of the closed loop ``cl`` on ``f_hz`` (plus its resonance points when ``refine``) and
+    the responses it was computed from."""
     f = _resonance_points(cl, f_hz) if refine else f_hz
     H = freqresp_array(cl, f)
     return mu(H, blocks, f_hz=f), H

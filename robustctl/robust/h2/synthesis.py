@@ -32,9 +32,9 @@ from ...interconnect import PartitionedPlant, PicklesStateSpaces, lft
 from ...lti import as_statespace, freqresp_array, is_stable, roundoff_margin
 from ...plots import single_axes
 from ...table import Table, result_html
-from ..hinf.assumptions import _check_ranks, _pbh_loses_rank, check_assumptions
-from ..hinf.synthesis import _loop_shift, lower_lft_matrices
-from ..mu.bounds import _frequencies
+from ..hinf.assumptions import check_assumptions, check_ranks, pbh_loses_rank
+from ..hinf.synthesis import loop_shift, lower_lft_matrices
+from ..mu.bounds import frequencies_hz
 from ..partitioned import as_partitioned
 
 __all__ = ["h2norm", "h2norm_matrices", "H2Result", "h2syn"]
@@ -209,7 +209,9 @@ class H2Result(PicklesStateSpaces):
         return f"H2Result(norm={self.norm:.8g}, order={self.K.nstates}, discrete={self.info.get('discrete')})"
 
 
-def _default_grid(sys: Any) -> np.ndarray:
+def default_grid_hz(sys: Any) -> np.ndarray:
+    """A log grid (Hz) a decade beyond the poles of ``sys`` each way (800 points); in discrete
+    time 600 points up to Nyquist."""
     A = np.asarray(sys.A, dtype=float)
     dt = sys.dt
     if _is_discrete(dt):
@@ -222,7 +224,7 @@ def _default_grid(sys: Any) -> np.ndarray:
 
 
 def _plot_closed_loop(cl: Any, f_hz: Any, fig: Any, title: str) -> Any:
-    f_hz = _default_grid(cl) if f_hz is None else _frequencies(f_hz)
+    f_hz = default_grid_hz(cl) if f_hz is None else frequencies_hz(f_hz)
     sv = np.linalg.svd(freqresp_array(cl, f_hz), compute_uv=False)
     fig, ax = single_axes(fig, 7.0, 4.0)
     ax.loglog(f_hz, sv, lw=1)
@@ -256,20 +258,20 @@ def _check_discrete_assumptions(m: dict[str, np.ndarray]) -> None:
         ev = np.linalg.eigvals(A)
         delta = 100 * np.finfo(float).eps * max(1.0, float(np.linalg.norm(A, 2)))
         for lam in ev[np.abs(ev) >= 1 - max(delta, 1e-9)]:
-            if _pbh_loses_rank(np.hstack([A - lam * np.eye(n), m["B2"]])):
+            if pbh_loses_rank(np.hstack([A - lam * np.eye(n), m["B2"]])):
                 raise SynthesisError(
                     f"assumption (A1) violated: (A, B2) is not stabilisable -- the mode at z = {lam:.6g} "
                     "(|z| >= 1) cannot be moved by the control inputs u. Fix: make the weights stable, "
                     "or add an actuator."
                 )
-            if _pbh_loses_rank(np.vstack([A - lam * np.eye(n), m["C2"]])):
+            if pbh_loses_rank(np.vstack([A - lam * np.eye(n), m["C2"]])):
                 raise SynthesisError(
                     f"assumption (A1) violated: (C2, A) is not detectable -- the mode at z = {lam:.6g} "
                     "(|z| >= 1) is not seen by the measurements y. Fix: make the weights stable, or add a "
                     "sensor."
                 )
     scale = max((float(np.linalg.norm(M, 2)) for M in m.values() if M.size), default=1.0)
-    _check_ranks(m["D12"], m["D21"], 1e-6 * scale)
+    check_ranks(m["D12"], m["D21"], 1e-6 * scale)
 
 
 def _continuous_design(m: dict[str, np.ndarray]) -> tuple:
@@ -393,7 +395,7 @@ def h2syn(P: Any, nmeas: int | None = None, ncon: int | None = None) -> H2Result
     m0 = dict(m, D22=np.zeros_like(m["D22"]))
     try:
         K0, X, Y, F, L, fi2, opt2 = (_discrete_design if discrete else _continuous_design)(m0)
-        K = _loop_shift(K0, m["D22"])
+        K = loop_shift(K0, m["D22"])
         A_cl, B_cl, C_cl, D_cl = lower_lft_matrices(m, *K)
     except np.linalg.LinAlgError as exc:
         raise SynthesisError(f"h2syn: a singular matrix in the controller formulas ({exc}).") from exc

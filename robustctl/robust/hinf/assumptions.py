@@ -38,7 +38,9 @@ def rank_tol(M: np.ndarray, scale: float) -> float:
     return 1e-10 * max(scale, float(np.linalg.norm(M, 2)) if M.size else 0.0, 1e-300)
 
 
-def _pbh_loses_rank(M: np.ndarray) -> bool:
+def pbh_loses_rank(M: np.ndarray) -> bool:
+    """True when the PBH test matrix ``M`` is rank deficient (smallest singular value below
+    ``PBH_RTOL`` of the largest)."""
     s = np.linalg.svd(M, compute_uv=False)
     return bool(s.size == 0 or s[-1] <= PBH_RTOL * max(s[0], 1e-300))
 
@@ -75,7 +77,7 @@ def _unreachable_modes(A: np.ndarray, B: np.ndarray, region: str) -> list[comple
     for lam in ev[pick]:
         if lam.imag < 0:
             continue  # the conjugate is tested
-        if _pbh_loses_rank(np.hstack([A - lam * np.eye(n), B])):
+        if pbh_loses_rank(np.hstack([A - lam * np.eye(n), B])):
             bad.append(complex(lam))
     return bad
 
@@ -105,7 +107,9 @@ def _numerical_rank(M: np.ndarray, scale: float) -> int:
     return int(np.sum(s > rank_tol(M, scale)))
 
 
-def _check_ranks(D12, D21, scale: float) -> None:
+def check_ranks(D12, D21, scale: float) -> None:
+    """Assumption (A2): ``D12`` of full column rank and ``D21`` of full row rank, else a
+    SynthesisError that says the fix."""
     m2, p2 = D12.shape[1], D21.shape[0]
     rank12 = _numerical_rank(D12, scale)
     if rank12 < m2:
@@ -166,6 +170,6 @@ def check_assumptions(m: dict[str, np.ndarray], *, ranks: bool = True, axis_zero
         if A.size or m["D11"].size
         else 1.0
     )
-    _check_ranks(m["D12"], m["D21"], 1e-6 * scale)
+    check_ranks(m["D12"], m["D21"], 1e-6 * scale)
     if axis_zeros:
         _check_axis_zeros(A, B1, B2, C1, C2, m["D12"], m["D21"])

@@ -52,14 +52,14 @@ from scipy.linalg import lapack as _lapack
 from ...checks import positive_number
 from ...errors import ModelError, RobustctlError
 from ...lti import (
-    _abs2,
-    _blocks,
-    _modal_terms,
-    _schur_eval,
-    _schur_factors,
-    _small_block_scaling,
+    abs2,
     as_statespace,
+    modal_terms,
     roundoff_margin,
+    schur_blocks,
+    schur_eval,
+    schur_factors,
+    small_block_scaling,
 )
 from ...threads import limit_blas
 
@@ -106,9 +106,9 @@ class _SigmaMax:
         self.bad: list[tuple] = []  # Schur factors of the blocks not diagonalised
         if n == 0 or D.size == 0:
             return
-        blocks = _blocks(A)
+        blocks = schur_blocks(A)
         if max(b.shape[1] for b in blocks) <= 2:
-            scale = _small_block_scaling(A, blocks)
+            scale = small_block_scaling(A, blocks)
         else:  # LAPACK gebal scaling only (no permutation), as scipy.linalg.matrix_balance
             _, lo, hi, scale, _ = _lapack.dgebal(A, scale=1, permute=0)
         if (scale == 1.0).all():  # (a well-scaled A, e.g. an orthogonal change of a modal form)
@@ -116,12 +116,12 @@ class _SigmaMax:
         else:
             Ab = A * (scale[None, :] / scale[:, None])
             Bb, Cb = B / scale[:, None], C * scale[None, :]
-        self.lam, CV, W, bad = _modal_terms(Ab, Bb, Cb, blocks, io_B=B, io_C=C)
+        self.lam, CV, W, bad = modal_terms(Ab, Bb, Cb, blocks, io_B=B, io_C=C)
         self.R = (CV.T[:, :, None] * W[:, None, :]).reshape(self.lam.size, D.size)
         poles = [self.lam]
         for idx in bad:
             sub = np.ix_(idx, idx)
-            self.bad.append(_schur_factors(A[sub], B[idx], C[:, idx]))
+            self.bad.append(schur_factors(A[sub], B[idx], C[:, idx]))
             poles.append(np.linalg.eigvals(A[sub]))
         self.poles = np.concatenate(poles) if self.bad else self.lam
 
@@ -129,7 +129,7 @@ class _SigmaMax:
         """``||R_i|| / |Re p_i|`` per pole (of a stable system): ``sup_w ||R_i / (jw - p_i)||``,
         the peak of mode ``i`` alone (``R_i`` has rank one, ``||R_i||_2 = ||R_i||_F``); ``inf`` for
         the poles of blocks kept in Schur form, which have no residues."""
-        est = np.sqrt(_abs2(self.R).sum(axis=1)) / -self.lam.real
+        est = np.sqrt(abs2(self.R).sum(axis=1)) / -self.lam.real
         return np.append(est, np.full(self.poles.size - est.size, np.inf)) if self.bad else est
 
     def response(self, w: np.ndarray) -> np.ndarray:
@@ -151,7 +151,7 @@ class _SigmaMax:
         if self.bad:
             with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
                 for factors in self.bad:
-                    out += _schur_eval(factors, s)
+                    out += schur_eval(factors, s)
         return out
 
     def __call__(self, w: Any) -> np.ndarray:
@@ -173,7 +173,7 @@ def _sigma_max(G: np.ndarray) -> np.ndarray:
     if G.shape[1] == 1 and G.shape[2] == 1:
         return np.abs(G.reshape(-1))
     if G.shape[1] == 1 or G.shape[2] == 1:
-        return np.sqrt(_abs2(G.reshape(G.shape[0], -1)).sum(axis=1))
+        return np.sqrt(abs2(G.reshape(G.shape[0], -1)).sum(axis=1))
     Gh = np.conj(np.swapaxes(G, 1, 2))
     gram = Gh @ G if G.shape[2] <= G.shape[1] else G @ Gh
     if gram.shape[1] == 2:
@@ -189,7 +189,7 @@ def _lambda_max_2(M: np.ndarray) -> np.ndarray:
     """Largest eigenvalue of Hermitian 2x2 matrices ``[[a, b], [b*, c]]``:
     ``(a + c) / 2 + sqrt(((a - c) / 2)^2 + |b|^2)``."""
     a, c = M[:, 0, 0].real, M[:, 1, 1].real
-    return 0.5 * (a + c) + np.sqrt(0.25 * (a - c) ** 2 + _abs2(M[:, 0, 1]))
+    return 0.5 * (a + c) + np.sqrt(0.25 * (a - c) ** 2 + abs2(M[:, 0, 1]))
 
 
 def _lambda_max_3(M: np.ndarray) -> np.ndarray:
@@ -208,7 +208,7 @@ def _lambda_max_3(M: np.ndarray) -> np.ndarray:
     q = tr * inv * (1.0 / 3.0)
     b0, b1, b2 = d0 * inv - q, d1 * inv - q, d2 * inv - q
     m01, m02, m12 = m[:, 1] * inv, m[:, 2] * inv, m[:, 5] * inv
-    a01, a02, a12 = _abs2(m01), _abs2(m02), _abs2(m12)
+    a01, a02, a12 = abs2(m01), abs2(m02), abs2(m12)
     p2 = (b0 * b0 + b1 * b1 + b2 * b2 + 2.0 * (a01 + a02 + a12)) * (1.0 / 6.0)
     det = b0 * b1 * b2 - b0 * a12 - b1 * a02 - b2 * a01 + 2.0 * (m01 * m12 * m02.conj()).real
     flat = p2 <= 1e-300  # M = (tr / 3) I (or M = 0)
@@ -494,7 +494,7 @@ def hinfnorm_matrices(
     return _hinfnorm_limited(A, B, C, D, tol)
 
 
-def _discrete_to_continuous(A, B, C, D) -> tuple[np.ndarray, ...]:
+def discrete_to_continuous(A, B, C, D) -> tuple[np.ndarray, ...]:
     """Bilinear map ``z = (1 + s) / (1 - s)``: the same H-infinity norm, frequency ``w = tan(theta / 2)``."""
     n = A.shape[0]
     Ip = np.eye(n) + A
@@ -509,7 +509,7 @@ def continuous_to_discrete(Ac, Bc, Cc, Dc) -> tuple[np.ndarray, ...]:
 
     ``A = (I - Ac)^-1 (I + Ac)``, ``B = sqrt(2) (I - Ac)^-1 Bc``, ``C = sqrt(2) Cc (I - Ac)^-1``,
     ``D = Dc + Cc (I - Ac)^-1 Bc`` (Tustin's map with T = 2; the realisation inverse of
-    :func:`_discrete_to_continuous`). Raises ``np.linalg.LinAlgError`` for a pole at ``s = 1``.
+    :func:`discrete_to_continuous`). Raises ``np.linalg.LinAlgError`` for a pole at ``s = 1``.
     """
     n = Ac.shape[0]
     Im = np.eye(n) - Ac
@@ -586,6 +586,6 @@ def hinfnorm(sys: Any, tol: float = 1e-6) -> tuple[float, float]:
     if poles.size and np.max(np.abs(poles)) >= 1.0 - roundoff_margin(A):
         k = int(np.argmax(np.abs(poles)))
         return np.inf, abs(float(np.angle(poles[k]))) / (2.0 * np.pi * dt)
-    gamma, w = hinfnorm_matrices(*_discrete_to_continuous(A, B, C, D), tol)
+    gamma, w = hinfnorm_matrices(*discrete_to_continuous(A, B, C, D), tol)
     theta = 2.0 * np.arctan(w) if np.isfinite(w) else np.pi
     return gamma, theta / (2.0 * np.pi * dt)

@@ -42,12 +42,12 @@ from ...lti import freqresp_array, is_stable, spectral_abscissa
 from ...plots import label_axes, single_axes
 from ...table import Table, result_html
 from ...threads import limit_blas
-from ..mu.bounds import _frequencies
+from ..mu.bounds import frequencies_hz
 from ..partitioned import as_partitioned
 from . import dgkf
 from .assumptions import check_assumptions
 from .lmi import lmi_controller, lmi_gamma, lmi_rescaled_gamma
-from .norm import _discrete_to_continuous, continuous_to_discrete, hinfnorm_matrices
+from .norm import continuous_to_discrete, discrete_to_continuous, hinfnorm_matrices
 
 __all__ = ["HinfResult", "hinfsyn"]
 
@@ -144,7 +144,7 @@ class HinfResult:
         """
         f_peak = self.info.get("f_peak_hz", np.nan)
         if f_hz is not None:
-            f_hz = _frequencies(f_hz)  # finite numbers >= 0 Hz, at least one
+            f_hz = frequencies_hz(f_hz)  # finite numbers >= 0 Hz, at least one
         dt = self.closed_loop.dt
         if f_hz is None and dt not in (0, None):  # up to the Nyquist frequency, four decades below
             nyquist = 0.5 / (1.0 if dt is True else float(dt))
@@ -217,7 +217,7 @@ def _closed_loop(m, K):
     return lower_lft_matrices(m, *K)
 
 
-def _loop_shift(K: tuple[np.ndarray, ...], D22: np.ndarray) -> tuple[np.ndarray, ...]:
+def loop_shift(K: tuple[np.ndarray, ...], D22: np.ndarray) -> tuple[np.ndarray, ...]:
     """``K = K0 (I + D22 K0)^-1`` (Safonov, Limebeer & Chiang 1989): the controller for the plant with D22."""
     Ak, Bk, Ck, Dk = K
     if not np.any(D22):
@@ -328,7 +328,7 @@ def _riccati_design(m: dict[str, np.ndarray], gamma: float) -> tuple[np.ndarray,
     p = dgkf.normalise(m["A"], m["B1"], m["B2"], m["C1"], m["C2"], m["D11"], m["D12"], m["D21"])
     Ak, Bk, Ck, Dk = dgkf.central_controller(p, gamma)
     K0 = (Ak, Bk @ p.y_scale, p.u_scale @ Ck, p.u_scale @ Dk @ p.y_scale)
-    return _loop_shift(K0, m["D22"])
+    return loop_shift(K0, m["D22"])
 
 
 def _norm_bound(A, B, C, D) -> tuple[float, float]:
@@ -433,7 +433,7 @@ def _lmi(m, backoff, clock, info):
             K = lmi_controller(m0, g, rho, clock.remaining(), RS=(R, S))
         except SynthesisError:
             K = lmi_controller(m0, g, rho, clock.remaining())
-        return _loop_shift(K, m["D22"])
+        return loop_shift(K, m["D22"])
 
     K, norm = _design_and_verify(m, design, gamma_opt, backoff, clock, info)
     return K, norm, gamma_opt
@@ -559,7 +559,7 @@ def _bilinear_plant(m: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     B = np.hstack([m["B1"], m["B2"]])
     C = np.vstack([m["C1"], m["C2"]])
     D = np.block([[m["D11"], m["D12"]], [m["D21"], m["D22"]]])
-    Ac, Bc, Cc, Dc = _discrete_to_continuous(m["A"], B, C, D)
+    Ac, Bc, Cc, Dc = discrete_to_continuous(m["A"], B, C, D)
     return {
         "A": Ac, "B1": Bc[:, :nw], "B2": Bc[:, nw:], "C1": Cc[:nz], "C2": Cc[nz:],
         "D11": Dc[:nz, :nw], "D12": Dc[:nz, nw:], "D21": Dc[nz:, :nw], "D22": Dc[nz:, nw:nw + nu],
@@ -580,7 +580,7 @@ def _discrete_controller(m: dict[str, np.ndarray], K: tuple, dt: Any, info: dict
     gamma_d = info["gamma_design"]
     norm, w = np.inf, np.nan
     if rho < 1.0:
-        norm, w = _norm_bound(*_discrete_to_continuous(A, B, C, D))
+        norm, w = _norm_bound(*discrete_to_continuous(A, B, C, D))
     if not (rho < 1.0 and norm <= gamma_d * (1 + VERIFY_TOL)):
         raise SynthesisError(
             f"the discrete controller failed its closed-loop check (spectral radius {rho:.12g}, "
@@ -612,7 +612,7 @@ def _result(plant: PartitionedPlant, m, K, norm: float, gamma_opt: float, info: 
     # the bound of the realisation returned (the design loop's array LFT differs by rounding)
     mats = tuple(np.asarray(x, dtype=float) for x in (cl.A, cl.B, cl.C, cl.D))
     if info.get("discrete"):
-        mats = _discrete_to_continuous(*mats)  # the bilinear map keeps the H-infinity norm
+        mats = discrete_to_continuous(*mats)  # the bilinear map keeps the H-infinity norm
     norm, _ = _norm_bound(*mats)
     info["norm_tol"] = NORM_TOL
     return HinfResult(K=Kss, gamma=float(norm), gamma_opt=float(gamma_opt), closed_loop=cl, info=info)

@@ -63,7 +63,7 @@ def as_frequency_array(M: Any, f_hz: Any = None, what: str = "M") -> tuple[np.nd
     if _is_system(M):
         if f_hz is None:
             raise SynthesisError(f"{what} is a system; pass f_hz (frequencies in Hz) to evaluate it on.")
-        f = _frequencies(f_hz)
+        f = frequencies_hz(f_hz)
 
         try:
             return np.asarray(freqresp_array(M, f), complex), f
@@ -82,7 +82,7 @@ def as_frequency_array(M: Any, f_hz: Any = None, what: str = "M") -> tuple[np.nd
         raise SynthesisError(f"{what} must be (n_out, n_in) or (nf, n_out, n_in); got shape {arr.shape}.")
     if f_hz is None:
         return arr, np.full(arr.shape[0], np.nan)
-    f = _frequencies(f_hz)
+    f = frequencies_hz(f_hz)
     if f.size != arr.shape[0]:
         raise SynthesisError(
             f"f_hz has {f.size} frequencies but {what} has {arr.shape[0]}; give one per matrix."
@@ -90,7 +90,9 @@ def as_frequency_array(M: Any, f_hz: Any = None, what: str = "M") -> tuple[np.nd
     return arr, f
 
 
-def _frequencies(f_hz: Any) -> np.ndarray:
+def frequencies_hz(f_hz: Any) -> np.ndarray:
+    """``f_hz`` as a checked 1-d float array: finite, non-negative (Hz), not empty, else a
+    SynthesisError."""
     try:
         f = np.atleast_1d(np.asarray(f_hz, dtype=float)).reshape(-1)
     except (TypeError, ValueError) as exc:

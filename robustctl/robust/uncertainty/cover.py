@@ -33,8 +33,8 @@ import numpy as np
 from ...budget import Deadline
 from ...checks import check_band, match_channels, positive_number
 from ...errors import DataError, FitError, RobustctlError
-from ...frd import FrequencyData, _as_frequencies
-from ...lti import _align, as_statespace, freqresp, freqresp_array
+from ...frd import FrequencyData, as_frequencies
+from ...lti import align_channels, as_statespace, freqresp, freqresp_array
 from ...measure.noise import noise_model
 from ...physical.uncertain import UncertainModel
 from ...plots import single_axes
@@ -208,7 +208,7 @@ def _sources(
         d, name=f"data_or_models[{k}]" if many else "data_or_models") for k, d in enumerate(items)]
     datas = [d for d in items if isinstance(d, FrequencyData)]
     if f_hz is not None:
-        f = _as_frequencies(f_hz)
+        f = as_frequencies(f_hz)
     elif datas:
         f = datas[0].f_hz
     else:
@@ -257,9 +257,9 @@ def _responses(
                 meta=src.meta,
             )
             noise.append(_random_error(fd))  # a Frobenius norm: channel order is moot
-            fd = _align(g0, fd)  # (drops the coherence)
+            fd = align_channels(g0, fd)  # (drops the coherence)
         else:
-            fd = _align(g0, freqresp(src, f))
+            fd = align_channels(g0, freqresp(src, f))
             noise.append(None)
         out.append(fd.response)
     return g0.response, out, noise
@@ -580,14 +580,15 @@ def _stands_for(um: Any, src: Any, f: np.ndarray, label: str) -> tuple[np.ndarra
     clipped to the box), the nominal for measured data."""
     g0 = freqresp(um.nominal, f)
     if isinstance(src, FrequencyData):
-        fd = _align(g0, FrequencyData(f, _on_grid(src, f, label), inputs=src.inputs, outputs=src.outputs))
+        measured = FrequencyData(f, _on_grid(src, f, label), inputs=src.inputs, outputs=src.outputs)
+        fd = align_channels(g0, measured)
         return fd.response, g0.response
     try:
         delta = um.delta_of(src)
     except (RobustctlError, AttributeError, TypeError) as exc:  # a model the LFT cannot place
         raise FitError(f"{label} cannot be placed in the uncertain model ({exc}); give models with the "
                        "LFT's parameters (e.g. upd.sample_models) or measured FrequencyData.") from exc
-    return _align(g0, freqresp(src, f)).response, freqresp(um.statespace(delta), f).response
+    return align_channels(g0, freqresp(src, f)).response, freqresp(um.statespace(delta), f).response
 
 
 def cover_remainder(

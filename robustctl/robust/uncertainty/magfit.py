@@ -42,7 +42,7 @@ import numpy as np
 from ...budget import Deadline, as_deadline
 from ...checks import flag, integer, optional_text, positive_number, real_array
 from ...errors import FitError
-from ...lti import _pair, _zpk_response, freqresp_array, is_stable, zpk_statespace
+from ...lti import conjugate_pairs, freqresp_array, is_stable, zpk_response, zpk_statespace
 
 __all__ = ["fit_magnitude", "MagnitudeFit", "fit_magnitude_details", "zpk_statespace"]
 
@@ -600,7 +600,7 @@ def _pack(zeros: np.ndarray, poles: np.ndarray) -> tuple[np.ndarray, list[tuple[
     ``atanh(2 zeta - 1)`` for a complex pair (upper member)."""
     theta, layout = [], []
     for kind, roots in (("z", zeros), ("p", poles)):
-        for g in _pair(roots):
+        for g in conjugate_pairs(roots):
             if g.size == 1:
                 theta.append(np.log(abs(g[0].real)))
                 layout.append((kind, 1))
@@ -649,7 +649,7 @@ def _polish(zeros: np.ndarray, poles: np.ndarray, w: np.ndarray, target: np.ndar
 
     def resid(theta):
         z, p = _unpack(theta, layout)
-        r = np.log(np.abs(_zpk_response(z, p, 1j * w))) - target
+        r = np.log(np.abs(zpk_response(z, p, 1j * w))) - target
         return wt * (r - np.average(r, weights=wt))
 
     sol = least_squares(resid, theta0, bounds=(lo, hi), max_nfev=10 * theta0.size, x_scale="jac")
@@ -671,13 +671,13 @@ def _realise(
     zeros = _proper(zeros, poles.size)
     Phi = basis.matrix((w / basis.w0) ** 2)
     target = 0.5 * np.log(np.maximum(Phi @ a, 1e-300) / np.maximum(Phi @ b, 1e-300))
-    shape = np.log(np.abs(_zpk_response(zeros, poles, 1j * w)))
+    shape = np.log(np.abs(zpk_response(zeros, poles, 1j * w)))
     if np.ptp(shape - target) > 1e-2:  # the roots do not reproduce the LP's curve: polish them
         zp = _polish(zeros, poles, w, target, np.maximum(wt, 1e-3))
-        shape_p = np.log(np.abs(_zpk_response(*zp, 1j * w)))
+        shape_p = np.log(np.abs(zpk_response(*zp, 1j * w)))
         if np.ptp(shape_p - target) < np.ptp(shape - target):
             zeros, poles = _damping_floor(zp[0], w), _damping_floor(zp[1], w)
-    r = np.log(m / np.abs(_zpk_response(zeros, poles, 1j * w)))
+    r = np.log(m / np.abs(zpk_response(zeros, poles, 1j * w)))
     if upper_bound:  # the smallest gain that covers every point (with a rounding margin)
         c = float(r.max()) + 1e-9
     else:  # the weighted Chebyshev centre of the log ratios
@@ -699,7 +699,7 @@ def _peak_ratio(cand: tuple, w: np.ndarray, m: np.ndarray) -> float:
     over the curve's largest value."""
     zeros, poles, k, _ = cand
     wd = np.sqrt(_dense_points(w**2, per=16))
-    return float(k * np.abs(_zpk_response(zeros, poles, 1j * np.concatenate([w, wd]))).max() / m.max())
+    return float(k * np.abs(zpk_response(zeros, poles, 1j * np.concatenate([w, wd]))).max() / m.max())
 
 
 def _check_realisation(
@@ -809,7 +809,7 @@ def fit_magnitude_details(
         zeros, poles, k, _ = best
     sys = zpk_statespace(zeros, poles, k, name=name)
     # the reported |W| (and error) is the state space's own
-    fitted = _check_realisation(sys, f, k * np.abs(_zpk_response(zeros, poles, 1j * w)), order, upper_bound)
+    fitted = _check_realisation(sys, f, k * np.abs(zpk_response(zeros, poles, 1j * w)), order, upper_bound)
     short = float(np.max(m[use] / fitted[use]))
     if upper_bound and short > 1.0:  # the realisation's rounding (~1e-9) must not uncover a point
         k, fitted = k * short * (1 + 1e-9), fitted * (short * (1 + 1e-9))
