@@ -31,6 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+import control
 import numpy as np
 
 from .table import Table, result_html
@@ -83,8 +84,6 @@ def score_on_data(data: Any, K: Any, model: Any, reference: Any, *, band: tuple[
     -------
     DataScore
     """
-    import control
-
     from .lti import as_statespace, freqresp_array
     from .robust import yardsticks as ys
 
@@ -196,8 +195,6 @@ def lqg_beside_mu(seed: int = 0, *, rho: float = 1.0, sensor_noise: float = 1.0,
     -------
     LQGBesideMu
     """
-    import control
-
     from . import examples
     from .demo_mace import RWA_INPUTS, RWA_OUTPUTS, _measurement_model, mace_design_plant
     from .examples import six_modes

@@ -26,6 +26,7 @@ import warnings
 from collections.abc import Sequence
 from typing import Any
 
+import control
 import numpy as np
 
 from .checks import match_channels
@@ -111,8 +112,6 @@ DENSE_INV_MAX = 64
 
 # ---------------------------------------------------------------------------- conversions
 def _as_statespace(sys: Any, name: str = "sys"):
-    import control
-
     try:
         ss = control.ss(sys)
     except Exception as exc:  # python-control raises several types
@@ -154,8 +153,6 @@ def as_statespace(
         ``sys`` is measured data (FrequencyData), cannot be converted, or has NaN/inf in its
         matrices; names that are not one distinct non-empty string per signal.
     """
-    import control
-
     if isinstance(sys, FrequencyData) or type(sys).__name__ == "FrequencyResponseData":
         raise ModelError(
             f"{name} is a {type(sys).__name__}, which is measured data, not a model; it has no state space. "
@@ -192,8 +189,6 @@ def statespace_state(ss: Any) -> dict:
 
 def rebuild_statespace(state: dict):
     """The ``control.StateSpace`` described by :func:`statespace_state`."""
-    import control
-
     return control.ss(
         state["A"], state["B"], state["C"], state["D"], state["dt"], inputs=state["inputs"],
         outputs=state["outputs"], states=state["states"], name=state["name"],
@@ -749,8 +744,6 @@ def zpk_statespace(zeros: Any, poles: Any, gain: float, *, name: str | None = No
     control.StateSpace
         First- and second-order sections in series (no polynomial coefficients formed).
     """
-    import control
-
     zg, pg = conjugate_pairs(np.asarray(zeros)), conjugate_pairs(np.asarray(poles))
     if sum(g.size for g in zg) > sum(g.size for g in pg):
         raise FitError("more zeros than poles: the weight would be improper.")

@@ -15,6 +15,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+import control
 import numpy as np
 
 from .checks import finite_number
@@ -34,8 +35,6 @@ __all__ = [
 # ============================================================================ helpers
 def named_statespace(A, B, C, D, inputs: Sequence[str], outputs: Sequence[str], dt: Any = 0):
     """A named ``control.StateSpace`` from arrays (``dt=0``: continuous time)."""
-    import control
-
     return control.ss(
         np.asarray(A, float), np.asarray(B, float), np.asarray(C, float), np.asarray(D, float), dt,
         inputs=list(inputs), outputs=list(outputs),
@@ -44,8 +43,6 @@ def named_statespace(A, B, C, D, inputs: Sequence[str], outputs: Sequence[str], 
 
 def abcd_matrices(sys: Any, what: str = "system"):
     """Arrays ``(A, B, C, D)`` of a continuous-time LTI system (StateSpace, TransferFunction or number)."""
-    import control
-
     if isinstance(sys, (int, float, np.integer, np.floating)):
         return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.array([[float(sys)]])
     if isinstance(sys, control.StateSpace):  # its arrays, copied (control.ss(sys) copies slowly)

@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+import control
 import numpy as np
 
 from ..balanced import balanced_truncation
@@ -54,8 +55,6 @@ def distillation_plant(eps: float = 1e-6):
     control.StateSpace
         6 states; inputs ``di1 di2 w1 w2 u1 u2``, outputs ``zi1 zi2 zp1 zp2 y1 y2``.
     """
-    import control
-
     G0 = np.array([[87.8, -86.4], [108.2, -109.6]])
     I2, Z2 = np.eye(2), np.zeros((2, 2))
     A = np.block([[-I2 / 75, Z2, Z2], [Z2, -2 * I2, Z2], [G0, Z2, -eps * I2]])
@@ -103,8 +102,6 @@ def two_mass_spring_plant(k: float | None = None, *, k_range: tuple[float, float
         with :data:`TWO_MASS_BLOCKS`, ``nmeas = ncon = 1``), else inputs ``[w_d, n, u]`` and
         outputs ``[z_p, z_u, y]``. States: ``x1, x2, v1, v2`` and the weight's two.
     """
-    import control
-
     k0 = 0.5 * (k_range[0] + k_range[1])
     kd = 0.5 * (k_range[1] - k_range[0])
     kk = k0 if k is None else float(k)
@@ -146,8 +143,6 @@ def himat_plant(noise: bool = False):
     blocks : list
         mussv rows: ``[[2, 2], [2, 2]]`` (``[[2, 2], [4, 2]]`` with noise); ``nmeas = ncon = 2``.
     """
-    import control
-
     A = np.array([[-0.0226, -36.6, -18.9, -32.1], [0, -1.9, 0.983, 0], [0.0123, -11.7, -2.63, 0],
                   [0, 0, 1, 0]])
     B = np.array([[0, 0], [-0.414, 0], [-77.8, 22.4], [0, 0]])
@@ -185,8 +180,6 @@ def himat_plant(noise: bool = False):
 
 def six_modes(model: Any):
     """The six global modes (12 states) of a truss model by balanced truncation (seed eq. 11-13)."""
-    import control
-
     G = as_statespace(model)
     if G.nstates <= 12:
         return G
@@ -222,8 +215,6 @@ def caltech_design_plant(nominal: Any, level: float = 0.3, band_hz: tuple[float,
 
 def _band_pass(level: float, band_hz: tuple[float, float]):
     """``level * w2 s / ((s + w1)(s + w2))`` with corners ``band_hz`` (Hz): gain ``level`` in the band."""
-    import control
-
     w1, w2 = 2 * np.pi * band_hz[0], 2 * np.pi * band_hz[1]
     return control.ss(control.tf([level * w2, 0.0], np.polymul([1.0, w1], [1.0, w2])))
 

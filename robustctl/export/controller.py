@@ -8,6 +8,7 @@ from os import PathLike
 from pathlib import Path
 from typing import Any
 
+import control
 import numpy as np
 
 from .._version import __version__
@@ -321,8 +322,6 @@ def _error_check(K, Kd, crossover_hz: Any, was_continuous: bool, method: str):
 
 
 def _with(Kd: Any, mats: list[np.ndarray]):
-    import control
-
     return control.ss(*mats, Kd.dt, inputs=list(Kd.input_labels), outputs=list(Kd.output_labels))
 
 

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import control
 import numpy as np
 
 from ..errors import DataError
@@ -90,8 +91,6 @@ class ControllerData:
 
     def statespace(self):
         """The realisation as a named ``control.StateSpace``."""
-        import control
-
         return control.ss(
             self.A,
             self.B,

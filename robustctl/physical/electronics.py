@@ -27,6 +27,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
+import control
 import numpy as np
 import scipy.signal as signal
 
@@ -356,8 +357,6 @@ def zero_order_hold(fs_hz: float, order: int = 4):
     control.StateSpace
         SISO, input ``u``, output ``y``.
     """
-    import control
-
     fs = _number(fs_hz, "fs_hz (the DAC's sampling rate, Hz)")
     if not math.isfinite(fs) or fs <= 0:
         raise ModelError(f"fs_hz (the DAC's sampling rate, Hz) must be a positive number; got {fs_hz!r}.")

@@ -37,6 +37,7 @@ from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+import control
 import numpy as np
 
 from ..checks import check_band, flag, match_channels
@@ -326,8 +327,6 @@ def _pole_points(poles: np.ndarray, f_lo: float, f_hi: float, n: int = POLE_POIN
 def _loop_poles(systems: dict, designs: dict, signs: dict, reference: str) -> np.ndarray:
     """Poles that shape ``det(I - s G K)`` on the axis: every model's and controller's, and
     those of each controller's loop closed on its own model and on the reference model."""
-    import control
-
     poles = [np.linalg.eigvals(np.asarray(sys1.A, dtype=float)) for sys1 in systems.values() if sys1.nstates]
     for lab, design in designs.items():
         K = design.K

@@ -31,6 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+import control
 import numpy as np
 
 from ...checks import positive_number
@@ -166,8 +167,6 @@ def stability_margin(G: Any, K: Any) -> float:
 
 def _weight(W: Any, size: int, what: str):
     """A weight as a state space: None is the identity, a number or matrix a static gain."""
-    import control
-
     if W is None:
         W = np.eye(size)
     if isinstance(W, (int, float, np.number, np.ndarray, list, tuple)):
@@ -217,8 +216,6 @@ def ncfsyn(G: Any, W1: Any = None, W2: Any = None, *, factor: float = 1.1) -> Lo
     >>> abs(res.b_achieved - res.b_opt) < 1e-6
     True
     """
-    import control
-
     factor = positive_number(factor, "factor", SynthesisError)
     if factor < 1.0 + 1e-9:
         raise SynthesisError(f"factor must exceed 1 (gamma = factor gamma_min); got {factor!r}. Use 1.1.")

@@ -37,6 +37,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+import control
 import numpy as np
 
 from ...checks import choice, finite_number
@@ -309,8 +310,6 @@ def diskmargin(L: Any, K: Any = None, *, f_hz: Any = None, skew: float = 0.0, si
                        + [_simultaneous(Mf, f)])
     loops = []
     if Lss is not None:
-        import control
-
         S = control.feedback(control.ss([], [], [], np.eye(n), Lss.dt), Lss)
         stable = is_stable(S, roundoff_margin(S))
         for i in range(n):

@@ -28,6 +28,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+import control
 import numpy as np
 
 from ...checks import real_array
@@ -263,8 +264,6 @@ def lqg(
         [np.zeros((nu, nd + nv)), r],
         [Dyd @ w, v, Dyu],
     ])
-    import control
-
     w_names = [f"noise {d}" for d in dist] if dist else [f"process noise {s}" for s in G.state_labels]
     w_names += [f"noise {y}" for y in meas]
     z_names = [f"Q^1/2 {p}" for p in perf] if perf else [f"Q^1/2 {s}" for s in G.state_labels]

@@ -24,6 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+import control
 import numpy as np
 import scipy.linalg
 
@@ -424,8 +425,6 @@ def h2syn(P: Any, nmeas: int | None = None, ncon: int | None = None) -> H2Result
 
 
 def _named_controller(plant: PartitionedPlant, K: tuple, dt: Any):
-    import control
-
     Ak, Bk, Ck, Dk = K
     try:
         return control.ss(

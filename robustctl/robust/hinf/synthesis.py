@@ -31,6 +31,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+import control
 import numpy as np
 import scipy.linalg
 
@@ -594,8 +595,6 @@ def _discrete_controller(m: dict[str, np.ndarray], K: tuple, dt: Any, info: dict
 
 
 def _result(plant: PartitionedPlant, m, K, norm: float, gamma_opt: float, info: dict) -> HinfResult:
-    import control
-
     Ak, Bk, Ck, Dk = K
     Kss = control.ss(
         Ak,

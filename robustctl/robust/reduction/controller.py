@@ -28,6 +28,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+import control
 import numpy as np
 import scipy.linalg
 
@@ -188,8 +189,6 @@ def _truncate(A, B, C, D, svd, order: int):
 
 
 def _named(K0: Any, mats: tuple):
-    import control
-
     A, B, C, D = mats
     return control.ss(A, B, C, D, K0.dt, inputs=list(K0.input_labels), outputs=list(K0.output_labels),
                       states=[f"xK{i + 1}" for i in range(A.shape[0])], name="Kr")
@@ -227,8 +226,6 @@ def _loop_plant(plant: Any, K: Any):
 
 def _closed_loop_weight(G: Any, K: Any):
     """``(I - G K)^-1 G`` (u-disturbance -> y with the loop ``u = K y`` closed); must be stable."""
-    import control
-
     M = control.feedback(control.ss(G.A, G.B, G.C, G.D), control.ss(K.A, K.B, K.C, K.D), sign=+1)
     if not is_stable(M, roundoff_margin(M)):
         raise SynthesisError("the full controller does not stabilise the plant: there is no loop to keep.")
@@ -236,8 +233,6 @@ def _closed_loop_weight(G: Any, K: Any):
 
 
 def _loop_stable(G: Any, Kr: Any) -> bool:
-    import control
-
     cl = control.feedback(control.ss(G.A, G.B, G.C, G.D), control.ss(Kr.A, Kr.B, Kr.C, Kr.D), sign=+1)
     return is_stable(cl, roundoff_margin(cl))
 
@@ -303,8 +298,6 @@ def weighted_balanced_truncation(K: Any, order: int, *, Wi: Any = None, Wo: Any 
 
 
 def _weighted_error(K, Kr, wi, wo) -> float:
-    import control
-
     E = control.ss(*_mats(K)) - control.ss(*_mats(Kr))
     if wi is not None:
         E = E * control.ss(*wi)
@@ -343,8 +336,6 @@ def coprime_reduction(K: Any, order: int, *, plant: Any = None) -> ControllerRed
     Zhou, Doyle & Glover (1996), ch. 19 (controller order reduction via coprime factors).
     McFarlane & Glover (1990), LNCIS 138.
     """
-    import control
-
     Kss, order = _check_controller(K, order)
     A, B, C, D = _mats(Kss)
     F = left_ncf(A, B, C, D)  # [Nt, Mt], stable
