@@ -232,7 +232,7 @@ class UpdateResult:
             ``"modes"``: one real scalar per retained mode's frequency (and damping) movement
             instead of per parameter axis (large or reduced models; see
             :func:`~robustctl.physical.uncertain.parametric_lft`); cover what it misses with
-            :func:`robustctl.robust.cover.cover_remainder`.
+            :func:`robustctl.robust.uncertainty.cover.cover_remainder`.
         order : int, optional
             Reduce the model to this many states (balanced truncation) first, e.g. 12 for the
             Caltech truss's six design modes.
