@@ -46,7 +46,7 @@ FLOORS: tuple[tuple[str, ...], ...] = (
 #: sub-package of ``robust``; ``""`` is ``robust/__init__.py``, which re-exports them all). The
 #: same table is in the module docstring of robustctl/robust/__init__.py.
 ROBUST_FLOORS: tuple[tuple[str, ...], ...] = (
-    ("uncertainty", "conventions"),  # block structures, weights, fits, covers, uncertain systems; loop sign
+    ("uncertainty", "conventions"),  # blocks, weights, covers, uncertain systems; the loop sign
     ("plant", "partitioned", "sampled", "continuous_equivalent", "mu"),  # the generalized plant and its coercion; mu bounds
     ("hinf",),  # H-infinity norm and synthesis
     ("h2",),  # H2 norm and synthesis, LQG
