@@ -400,6 +400,9 @@ def _run_diagnose(args: argparse.Namespace) -> Path:
         report.table(diag.table())
         report.figure(diag.plot(), "diagnose",
                       "Candidate effects ranked by the share of the error they explain.")
+        if diag.chain:
+            report.heading(f"Verdict: {diag.verdict}")
+            report.table(diag.chain_table())
         for key, value in diagnosis_record(diag).items():
             report.record(key, value)
         return report.write()
