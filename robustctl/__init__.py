@@ -163,6 +163,7 @@ from .robust import (
 from .robust.continuous_equivalent import d2c
 from .robust.controller_reduction import ControllerReduction
 from .robust.controller_reduction import reduce_controller as reduce_controller
+from .robust.conventions import LoopSignWarning
 from .robust.cover import cover_remainder
 from .robust.dk import DKResult, dksyn
 from .robust.dk_plant import DesignReduction
@@ -183,10 +184,12 @@ from .robust.partitioned import as_partitioned
 from .robust.sampled import sampled_plant as sampled_plant
 from .robust.sweep import DesignSweep, design_sweep
 from .robust.uncertainty import (
+    LFTAccuracyWarning,
     RobustStabilityMargin,
     UncertainSystem,
     WorstCaseResult,
     as_uncertain,
+    physical_uncertain,
     robstab,
     ucomplex,
     ultidyn,
@@ -362,6 +365,9 @@ __all__ = [
     "ultidyn",
     "UncertainSystem",
     "as_uncertain",
+    "physical_uncertain",
+    "LFTAccuracyWarning",
+    "LoopSignWarning",
     "robstab",
     "RobustStabilityMargin",
     "wcgain",

@@ -9,6 +9,7 @@ and worst-case gain of an uncertain system by mixed mu, Packard & Doyle 1993, Yo
 """
 
 from .elements import UncertainComplex, UncertainDynamics, UncertainReal, ucomplex, ultidyn, ureal
+from .parametric import LFTAccuracyWarning, from_uncertain_model, physical_uncertain, uncertain_parameters
 from .robust_margin import RobustStabilityMargin, WorstCaseResult, destabilizing_system, robstab, wcgain
 from .system import LFTData, UncertainSystem, append, as_uncertain, hstack, vstack
 
@@ -30,4 +31,8 @@ __all__ = [
     "wcgain",
     "WorstCaseResult",
     "destabilizing_system",
+    "uncertain_parameters",
+    "physical_uncertain",
+    "from_uncertain_model",
+    "LFTAccuracyWarning",
 ]
