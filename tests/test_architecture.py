@@ -47,7 +47,7 @@ FLOORS: tuple[tuple[str, ...], ...] = (
 #: same table is in the module docstring of robustctl/robust/__init__.py.
 ROBUST_FLOORS: tuple[tuple[str, ...], ...] = (
     ("uncertainty", "conventions"),  # blocks, weights, covers, uncertain systems; the loop sign
-    ("plant", "partitioned", "sampled", "continuous_equivalent", "mu"),  # the generalized plant and its coercion; mu bounds
+    ("plant", "partitioned", "sampled", "continuous_equivalent", "mu"),  # the plant, its coercion; d2c; mu
     ("hinf",),  # H-infinity norm and synthesis
     ("h2",),  # H2 norm and synthesis, LQG
     ("analysis",),  # disk margins, nu-gap, coprime factors, loop shaping
