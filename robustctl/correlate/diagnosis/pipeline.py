@@ -18,6 +18,7 @@ from ...executors import check_executor, parallel_map_shared, resolve_workers
 from ...frd import FrequencyData
 from ...measure.estimator import estimator_settings
 from ...threads import limit_blas
+from ..optimize import levenberg_marquardt
 from ..residual import check_data, check_determined, physical_model
 from .answer import (
     ANSWER_SHARE,
@@ -230,10 +231,10 @@ def diagnose(
         steps = [first]
         while len(steps) < n_chain and steps[-1].lead is not None and not deadline.expired():
             used = {s.lead.name for s in steps}
-            rest = [c for c in candidates if c.name not in used]
+            nxt_model = _chain_model(steps, res0.model)
+            rest = [c for c in candidates if c.name not in used and _applies(c, nxt_model)]
             if not rest:
                 break
-            nxt_model = _chain_model(steps, res0.model)
             res_n, ign_n = _residual(nxt_model, checked, point_weights, min_channel_db, estimator)
             upd_n = tuple(dict.fromkeys(upd + tuple(n for s in steps for n in s.lead.param_names)))
             steps.append(_diagnose(
@@ -242,7 +243,8 @@ def diagnose(
             ))
             if steps[-1].verdict in ("answer", "within the noise"):
                 break
-        return _chained(steps, time.perf_counter() - t0, n_chain)
+        return _pruned(_chained(steps, time.perf_counter() - t0, n_chain), steps, res0, upd, alpha,
+                       update_iter, deadline)
 
 
 def _check_chain(chain: Any) -> int:
@@ -252,6 +254,16 @@ def _check_chain(chain: Any) -> int:
     return integer(chain, "chain (True, False or the most effects to chain)", FitError, lo=1)
 
 
+def _applies(effect: Any, model: Any) -> bool:
+    """Whether ``effect`` can be added to ``model``: a chain's next step leaves out the candidates
+    an earlier step made moot (a second joint spring at a joint the first already made flexible)."""
+    try:
+        effect.check(model)
+    except ModelError:
+        return False
+    return True
+
+
 def _chain_model(steps: list[Diagnosis], model: Any) -> Any:
     """``model`` with every step's lead effect applied, at the values of the last step's fit (the
     update parameters and the earlier effects re-fitted with its lead): the next step's model."""
@@ -259,6 +271,48 @@ def _chain_model(steps: list[Diagnosis], model: Any) -> Any:
         model = s.lead.apply(model)
     values = {n: v for n, v in steps[-1].best_fit_values.items() if n in model.param_names}
     return model.with_values(**values) if values else model
+
+
+def _pruned(diag: Diagnosis, steps: list[Diagnosis], res0: Any, upd: tuple[str, ...], alpha: float,
+            update_iter: int, deadline: Deadline) -> Diagnosis:
+    """A complete chain without its needless tentative steps (backward elimination, the exit test of
+    a stepwise fit: Draper & Smith, *Applied Regression Analysis*, 3rd ed., sec. 15.2).
+
+    A step taken on a tentative lead (nothing significant yet) stays in the answer only if the chain
+    without it, re-fitted with the update parameters, is no longer complete (within the noise or
+    removing :data:`ANSWER_SHARE` of the model error): an effect the data do not need is not named.
+    """
+    if diag.verdict != "answer" or len(diag.chain) < 2 or not any(c.tentative for c in diag.chain):
+        return diag
+    kept = list(diag.chain)
+    comp_kept = None
+    for link in [c for c in kept if c.tentative]:
+        others = [c for c in kept if c is not link]
+        model = res0.model
+        for c in others:
+            model = c.effect.apply(model)
+        names = tuple(dict.fromkeys(tuple(upd) + tuple(n for c in others for n in c.effect.param_names)))
+        fit = levenberg_marquardt(_residual_for(res0, model), names, max_iter=update_iter,
+                                  time_budget_s=deadline)
+        comp = completeness(res0, _residual_for(res0, model.with_values(**fit.x)).vector(),
+                            diag.dispersion, alpha)
+        if comp.complete:
+            values = dict(fit.x)
+            kept = [replace(c, effect=c.effect.with_values(
+                **{n: values[n] for n in c.effect.param_names if n in values})) for c in others]
+            comp_kept = comp
+    if comp_kept is None:
+        return diag
+    effects = tuple(c.effect for c in kept)
+    found = [s.best_result for s in steps if s.best_result is not None and s.best_result.effect.name
+             == effects[0].name] if len(kept) == 1 else []
+    one: dict[str, Any] = {}
+    if found:  # one effect left: the diagnosis names it as a single answer, ranked first
+        best = replace(found[0], effect=effects[0])
+        one = {"ranking": (best, *(r for r in diag.ranking if r.effect.name != best.effect.name)),
+               "completeness": comp_kept}
+    return replace(diag, chain=tuple(kept), effects=effects, best=effects[0],
+                   dispersion_left=comp_kept.dispersion, model_error_removed=comp_kept.share, **one)
 
 
 def _chained(steps: list[Diagnosis], time_s: float, n_chain: int) -> Diagnosis:
