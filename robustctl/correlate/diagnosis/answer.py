@@ -23,12 +23,9 @@ import numpy as np
 
 from ..residual import Residual
 from .localize import MisfitBand, misfit_bands
-from .results import MODEL_ERROR_DISPERSION
+from .results import ANSWER_SHARE, MODEL_ERROR_DISPERSION
+from .significance import _null_test
 
-#: Share of the model-error part of the misfit (the parameters-only fit's excess dispersion over
-#: the noise) a significant effect must remove to be *the answer* when the model with it is still
-#: beyond the noise.
-ANSWER_SHARE = 0.9
 #: Share of the residual left by updating a candidate must explain to lead a chain's next step when
 #: nothing is significant (a second effect's misfit can hide a first one's significance); such a
 #: tentative step is kept only when the chain ends within the noise.
@@ -97,8 +94,6 @@ def completeness(
 ) -> Completeness:
     """The completeness test of the residual ``vec`` of a fitted model (``model``: where the modes
     of the misfit left are looked up) against the parameters-only fit's dispersion ``d_null``."""
-    from .significance import _null_test
-
     disp, p = _null_test(res, vec)
     share = model_error_share(d_null, disp)
     complete = not beyond_noise(disp, p, alpha) or share >= ANSWER_SHARE
