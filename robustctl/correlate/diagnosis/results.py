@@ -564,4 +564,8 @@ def _status_legend(ax: Any, colors: list[str]) -> None:
 #: the coherence (biased low where it is low), so an exact truth's dispersion exceeds 1 a little,
 #: which a chi-square over thousands of points calls significant.
 MODEL_ERROR_DISPERSION = 1.5
+#: Share of the model-error part of the misfit (the parameters-only fit's excess dispersion over
+#: the noise) a significant effect must remove to be *the answer* when the model with it is still
+#: beyond the noise (:mod:`.answer`).
+ANSWER_SHARE = 0.9
 
