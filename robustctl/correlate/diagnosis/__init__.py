@@ -54,6 +54,18 @@ parameters can already explain:
    this band goes; the result names the group and where the fitted models' responses differ
    beyond the noise outside the band (:class:`Indistinguishable`): widen the band or measure there.
 
+6. **The answer, or "incomplete".** A significant candidate is *the answer* only when the model
+   with it is within the noise or it removes :data:`ANSWER_SHARE` of the model error
+   (:mod:`.answer`); otherwise the verdict is "incomplete": the closest candidate, the misfit it
+   leaves (x the noise) and where that sits -- bands, the model's modes there and the locations
+   they move (:mod:`.localize`). Channel advice ("check the cable") is given only when the misfit
+   is one row's or column's at every frequency (:func:`.localize.channel_pattern`).
+
+7. **Chains.** With ``chain=True`` the closest (or, when nothing is significant, a candidate
+   explaining :data:`CHAIN_TRY_GAIN` of the residual) is applied at its fitted size and the next
+   effect is proposed on the updated model, its size re-fitted with the update parameters, until
+   the misfit is within the noise or nothing more is significant (``diag.chain``, ``diag.effects``).
+
 ``n_eff`` (reported): the AR(1) effective number of independent residual entries,
 ``n (1 - rho) / (1 + rho)`` with ``rho`` the lag-one autocorrelation along frequency of the
 null-fit residual (Bartlett 1946); a systematic, unexplained model error gives ``rho`` near 1.
@@ -61,8 +73,18 @@ null-fit residual (Bartlett 1946); a systematic, unexplained model error gives `
 
 from __future__ import annotations
 
+from .answer import CHAIN_TRY_GAIN, MAX_CHAIN, ChainStep, Completeness
+from .localize import MisfitBand
 from .pipeline import diagnose
-from .results import ALPHA, DECOUPLED_DB, MIN_GAIN, MODEL_ERROR_DISPERSION, CandidateResult, Diagnosis
+from .results import (
+    ALPHA,
+    ANSWER_SHARE,
+    DECOUPLED_DB,
+    MIN_GAIN,
+    MODEL_ERROR_DISPERSION,
+    CandidateResult,
+    Diagnosis,
+)
 from .rivals import COLLINEAR, DIFFER_NP, MEASURABLE, N_DIFFER_BANDS, Indistinguishable
 from .screening import (
     CONTENDER_RATIO,
@@ -82,6 +104,12 @@ __all__ = [
     "CandidateResult",
     "Indistinguishable",
     "effective_points",
+    "ChainStep",
+    "Completeness",
+    "MisfitBand",
+    "ANSWER_SHARE",
+    "CHAIN_TRY_GAIN",
+    "MAX_CHAIN",
     "ALPHA",
     "DECOUPLED_DB",
     "MIN_GAIN",

@@ -24,6 +24,7 @@ import numpy as np
 from ..residual import Residual
 from .localize import MisfitBand, misfit_bands
 from .results import ANSWER_SHARE, MODEL_ERROR_DISPERSION
+from .significance import _null_test
 
 #: Share of the residual left by updating a candidate must explain to lead a chain's next step when
 #: nothing is significant (a second effect's misfit can hide a first one's significance); such a
@@ -93,8 +94,6 @@ def completeness(
 ) -> Completeness:
     """The completeness test of the residual ``vec`` of a fitted model (``model``: where the modes
     of the misfit left are looked up) against the parameters-only fit's dispersion ``d_null``."""
-    from .significance import _null_test
-
     disp, p = _null_test(res, vec)
     share = model_error_share(d_null, disp)
     complete = not beyond_noise(disp, p, alpha) or share >= ANSWER_SHARE

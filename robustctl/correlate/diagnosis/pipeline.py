@@ -21,7 +21,6 @@ from ...threads import limit_blas
 from ..optimize import levenberg_marquardt
 from ..residual import check_data, check_determined, physical_model
 from .answer import (
-    ANSWER_SHARE,
     CHAIN_TRY_GAIN,
     MAX_CHAIN,
     ChainStep,
@@ -30,7 +29,7 @@ from .answer import (
     model_error_share,
 )
 from .localize import misfit_bands
-from .results import ALPHA, DECOUPLED_DB, MIN_GAIN, Diagnosis
+from .results import ALPHA, ANSWER_SHARE, DECOUPLED_DB, MIN_GAIN, Diagnosis
 from .rivals import _indistinguishable
 from .screening import (
     _fit_task,

@@ -26,6 +26,10 @@ ALPHA = 0.01
 DECOUPLED_DB = -60.0
 #: Smallest share of the null-fit residual an effect must explain to be proposed.
 MIN_GAIN = 0.25
+#: Share of the model-error part of the misfit (the parameters-only fit's excess dispersion over
+#: the noise) a significant effect must remove to be *the answer* when the model with it is still
+#: beyond the noise (:mod:`robustctl.correlate.diagnosis.answer`).
+ANSWER_SHARE = 0.9
 _DB = 20.0 / math.log(10.0)
 
 
