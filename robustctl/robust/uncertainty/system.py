@@ -26,7 +26,7 @@ import numpy as np
 from ...checks import check_seed, integer, is_default_names
 from ...errors import SynthesisError
 from ...lti import as_statespace
-from ..blocks import Block, BlockStructure
+from .blocks import Block, BlockStructure
 from .elements import UncertainComplex, UncertainDynamics, UncertainReal, register_system
 from .lft_algebra import Raw, close_channels, connect, invert, permute_delta, reduce_scalar_blocks
 
@@ -314,6 +314,15 @@ class UncertainSystem:
         """The system at every element's nominal value (dynamics at zero)."""
         return self._close(self._normalized({}, fill_nominal=True))
 
+    def statespace(self):
+        """The nominal system as a ``control.StateSpace`` (``rc.as_statespace`` reads this, as
+        for an ``UncertainModel``): where a certain model is expected, the nominal is used."""
+        nom = self.nominal
+        if isinstance(nom, UncertainSystem):
+            raise SynthesisError("the nominal of this system is complex (a complex nominal value); "
+                                 "python-control's systems are real.")
+        return nom
+
     def poles(self) -> np.ndarray:
         """Poles of the nominal system (all elements at their nominal values)."""
         nom = self.nominal
@@ -330,7 +339,7 @@ class UncertainSystem:
             Frequencies (Hz).
         """
         r = self.raw
-        return _raw_response(r, np.atleast_1d(np.asarray(f_hz, float)), self.dt)[:, : r.nz, : r.nw]
+        return raw_response(r, np.atleast_1d(np.asarray(f_hz, float)), self.dt)[:, : r.nz, : r.nw]
 
     # ------------------------------------------------------------------ sampling
     def sample(self, n: int = 1, seed: Any = 0) -> list[dict]:
@@ -367,7 +376,7 @@ class UncertainSystem:
         f = np.atleast_1d(np.asarray(f_hz, dtype=float))
         many = isinstance(values, (list, tuple))
         sets = list(values) if many else [values or {}]
-        Mf = _raw_response(self.raw, f, self.dt)
+        Mf = raw_response(self.raw, f, self.dt)
         nw, nz = self.raw.nw, self.raw.nz
         M11, M12, M21, M22 = Mf[:, :nz, :nw], Mf[:, :nz, nw:], Mf[:, nz:, :nw], Mf[:, nz:, nw:]
         out = []
@@ -388,12 +397,14 @@ class UncertainSystem:
 
     # ------------------------------------------------------------------ algebra
     def _combine(self, parts: list[UncertainSystem], E, F, H, J, inputs, outputs) -> UncertainSystem:
-        dts = {p.dt for p in parts}
+        # parts without states (gains, elements) take the time base of the others
+        dts = {p.dt for p in parts if p.nstates or p.dt}
         if len(dts) > 1:
-            raise SynthesisError(f"cannot combine systems with different sample times {sorted(dts)}.")
+            raise SynthesisError(f"cannot combine systems with different sample times {sorted(dts)} (s; "
+                                 "0 is continuous); map one with rc.d2c or control.c2d first.")
         raw = connect([p.raw for p in parts], *(np.asarray(x, float) for x in (E, F, H, J)))
         blocks = [b for p in parts for b in p.blocks]
-        return _merged(raw, blocks, inputs, outputs, dts.pop())
+        return _merged(raw, blocks, inputs, outputs, dts.pop() if dts else 0.0)
 
     def __add__(self, other):
         a, b = _broadcast_pair(self, as_uncertain(other, self.dt))
@@ -536,6 +547,12 @@ def as_uncertain(x: Any, dt: float = 0.0) -> UncertainSystem:
     """
     if isinstance(x, UncertainSystem):
         return x
+    if hasattr(x, "multiplicity") and hasattr(x, "n_delta") and hasattr(x, "axes"):  # an UncertainModel
+        M = x.M
+        A, B, C, D = (np.asarray(m, float) for m in (M.A, M.B, M.C, M.D))
+        blocks = tuple((UncertainReal(n, 0.0, -1.0, 1.0), r) for n, r in zip(x.names, x.multiplicity))
+        return UncertainSystem(Raw(A, B, C, D, x.n_delta, x.n_delta), blocks, x.nominal.input_labels,
+                               x.nominal.output_labels)
     if isinstance(x, _ELEMENTS):
         out = UncertainSystem.from_element(x)
         return UncertainSystem(out.raw, out.blocks, out.inputs, out.outputs, dt) if dt else out
@@ -702,7 +719,9 @@ def _dynamics_raw(v: Any, e: UncertainDynamics, dt: float) -> Raw:
     return Raw(A, B, C / e.bound, D / e.bound, 0, 0)
 
 
-def _raw_response(r: Raw, f: np.ndarray, dt: float) -> np.ndarray:
+def raw_response(r: Raw, f: np.ndarray, dt: float) -> np.ndarray:
+    """Frequency response (n_f, n_out, n_in) of the state-space data ``r`` at ``f`` (Hz):
+    ``C (s I - A)^-1 B + D`` with ``s = j 2 pi f`` (``z = exp(j 2 pi f dt)`` when ``dt`` > 0)."""
     s = np.exp(2j * np.pi * f * dt) if dt else 2j * np.pi * f
     if r.nx == 0:
         return np.broadcast_to(r.D, (f.size, *r.D.shape)).astype(complex)
@@ -714,4 +733,4 @@ def _raw_response(r: Raw, f: np.ndarray, dt: float) -> np.ndarray:
 
 
 def _block_response(r: Raw, f: np.ndarray, dt: float) -> np.ndarray:
-    return _raw_response(r, f, dt)
+    return raw_response(r, f, dt)
