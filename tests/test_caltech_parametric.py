@@ -117,8 +117,9 @@ def test_guaranteed_level_and_attenuation_are_measured_for_both(comparison):
             assert rs > 1.0
     print("guaranteed (scale, RS mu):", levels, "attenuation dB:", yard.attenuation_db)
     assert all(np.isfinite(v) for v in yard.attenuation_db.values())
-    # the parametric description holds the same plants; where its real blocks are a small part of
-    # the uncertainty (here: the measured residual dominates) it must not cost more than D-K's
-    # own spread between runs (2 %)
-    assert levels["A"][0] > 0 and levels["B"][0] > 0
-    assert levels["A"][0] >= 0.98 * levels["B"][0]
+    # what the method guarantees (not which description's design ends higher, which is path luck:
+    # 1.151 against 0.783 where developed, 0.7905 against 1.1152 on another machine): the mixed
+    # design on the real blocks is never above the complex D-K design it starts from
+    dA = yard.designs["A"]
+    assert np.isfinite(dA.complex_mu_peak) and dA.mu_peak <= dA.complex_mu_peak * (1 + 1e-12)
+    assert not np.isfinite(yard.designs["B"].complex_mu_peak)  # no real block: plain D-K

@@ -184,3 +184,58 @@ def test_points_of_frequency_data_are_read_only_copies(data):
 def test_points_refuses_what_is_not_a_mask_over_the_data(data, mask):
     with pytest.raises(rc.DataError, match="boolean mask of shape"):
         data.points(mask)
+
+
+# ---------------------------------------------------------------------------- the design half
+@pytest.fixture
+def plant_conversions(monkeypatch):
+    """Types of the plants ``as_partitioned`` had to convert (a plant it returns as it is, the one
+    type passed inside robust/, does not count), in every robustctl module that holds it."""
+    from robustctl.robust import partitioned
+
+    original = partitioned.as_partitioned
+    converted: list[str] = []
+
+    def counting(P, *args, **kwargs):
+        out = original(P, *args, **kwargs)
+        if out is not P:
+            converted.append(type(P).__name__)
+        return out
+
+    for name, module in list(sys.modules.items()):
+        if name.split(".")[0] == "robustctl" and module is not None:
+            for attr, value in list(vars(module).items()):
+                if value is original:
+                    monkeypatch.setattr(module, attr, counting)
+    return converted
+
+
+@pytest.mark.slow
+def test_dksyn_converts_its_plant_once(plant_conversions):
+    """The autoscaled starts and the K steps get the GeneralizedPlant itself (they once repacked
+    it as a (P, nmeas, ncon, blocks) tuple per start, converted again by dksyn); the H-infinity
+    optimum of the first K step is the independent check that the plant arrived intact."""
+    from robustctl.examples import DISTILLATION_BLOCKS, distillation_plant
+
+    P = distillation_plant()
+    dk = _quiet(rc.dksyn, (P, 2, 2, DISTILLATION_BLOCKS), max_iter=1, progress=False)
+    assert plant_conversions == ["StateSpace"]
+    assert len(dk.history) == 1 and np.isfinite(dk.mu_peak)
+    plant_conversions.clear()
+    gp = rc.robust.partitioned.as_partitioned(P, 2, 2, DISTILLATION_BLOCKS)
+    assert plant_conversions == ["StateSpace"]
+    plant_conversions.clear()
+    _quiet(rc.dksyn, gp, max_iter=1, progress=False, autoscale=False)
+    assert plant_conversions == []  # a GeneralizedPlant is taken as it is
+
+
+def test_hinfsyn_converts_its_plant_once(plant_conversions):
+    import control
+
+    G = control.tf([1], [1, 0.2, 1])
+    P = control.augw(G, w1=control.tf([0.5, 1], [1, 0.01]), w2=control.tf(0.1, 1))
+    res = rc.hinfsyn(P, 1, 1)
+    assert plant_conversions == ["StateSpace"]
+    # python-control's own synthesis on the same plant: the same optimum within the bisection's tolerance
+    K, _, gam, _ = control.hinfsyn(P, 1, 1)
+    assert res.gamma_opt == pytest.approx(float(gam), rel=2e-3)

@@ -28,8 +28,8 @@ LOAD_PROCESSES = 2
 LOAD_LIMIT_S = 600
 
 
-def _run(*args: str) -> dict:
-    env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONHASHSEED="random")
+def _run(*args: str, **env_vars: str) -> dict:
+    env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONHASHSEED="random", **env_vars)
     out = subprocess.run([sys.executable, str(SCRIPT), *args], capture_output=True, text=True, env=env,
                          cwd=ROOT, timeout=RUN_LIMIT_S, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -52,6 +52,23 @@ def test_results_are_bit_identical_in_fresh_processes_with_and_without_cpu_load(
             h.kill()
             h.wait()
     assert set(quiet) == {"measurement_model_leakage_False", "measurement_model_leakage_True",
-                          "diagnose_truss", "dksyn_distillation", "yardstick_small"}
+                          "diagnose_truss", "dksyn_distillation", "dksyn_caltech", "yardstick_small"}
     differ = sorted(k for k in quiet if quiet[k] != loaded[k])
     assert differ == [], f"results that changed between two runs of the same input: {differ}"
+
+
+@pytest.mark.slow
+def test_dk_is_bit_identical_across_processes_blas_threads_and_load():
+    """D-K (dksyn runs its BLAS calls with robustctl's thread setting, whatever the process's):
+    the demo's recipe and the distillation column in a fresh process with one OpenBLAS thread,
+    and in another with two beside a CPU load."""
+    quiet = _run("dk_caltech", "dk_distillation", OPENBLAS_NUM_THREADS="1")
+    hogs = _load()
+    try:
+        loaded = _run("dk_caltech", "dk_distillation", OPENBLAS_NUM_THREADS="2")
+    finally:
+        for h in hogs:
+            h.kill()
+            h.wait()
+    assert set(quiet) == {"dksyn_caltech", "dksyn_distillation"}
+    assert quiet == loaded

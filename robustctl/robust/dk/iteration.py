@@ -32,10 +32,16 @@ With real scalar blocks (``real="mixed"``, the default) the iteration is D-G-K (
 the scales offered to the K step are the complex analysis' wherever they keep the mixed
 bound and the mixed ones elsewhere, the G-scales become stable filters absorbed by a loop
 transformation (:mod:`robustctl.robust.dk.dgk`), and the K step searches the level it can
-certify. On Wie & Bernstein's two-mass-spring benchmark (spring in [0.5, 2] as a real block,
-:func:`robustctl.examples.two_mass_spring_plant`), started from the user's scaling
-(``autoscale=False``), D-G-K reaches mixed mu 0.867 where complex D-K stops at 0.983; with
-the automatic scaling's three starts complex D-K reaches 0.869 and D-G-K 0.867.
+certify. The G-scales are fitted as follows: at the level ``beta`` (the peak of mixed mu on the
+grid) the analysis' optimal ``G_i(f)`` gives the target ``Im r_i / (1 - |r_i|^2) = -g_i /
+(2 beta d_i^2)``, which a stable real-rational filter ``r_i(s)`` with ``|r_i| <= 0.95`` on the
+axis fits by nonlinear least squares on real poles two per decade with a penalty above 0.95
+(:func:`~robustctl.robust.dk.dgk.fit_g_filter`);
+the D-scales offered to the K step are ``d_i / sqrt(1 - |r_i|^2)``. A complex-mu design is a
+valid mixed-mu design, so D-G-K starts from the complex D-K design and returns the better
+verified one of the two (``DKResult.complex_mu_peak``; :func:`_mixed_from_complex`). The
+iteration can rise: the fitted filters only approximate the optimal multipliers, and the K
+step's certified level bounds the next mixed mu, not the last; it stops when mu stops falling.
 
 The returned controller is the best of the iterations, and its mu is verified on a denser
 and wider grid with a search of its highest maxima (:func:`verification_grid`): the
@@ -50,6 +56,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -232,6 +239,11 @@ class DKResult:
         orders, error bound and the verified mu with the reduced and the full plant. When
         set, ``mu_peak``, ``mu`` and ``closed_loop`` are the full plant's and ``history`` the
         design plant's.
+    complex_mu_peak : float
+        With real blocks and ``real="mixed"``: the verified peak of complex mu (real blocks
+        complexified) of the complex D-K design that D-G-K starts from (NaN otherwise). The
+        returned mixed ``mu_peak`` is never above that design's mixed mu, hence never above
+        this figure.
     """
 
     K: Any
@@ -247,6 +259,7 @@ class DKResult:
     grid_mu_peak: float = float("nan")
     stopped_by_budget: bool = False
     design_reduction: DesignReduction | None = None
+    complex_mu_peak: float = float("nan")
 
     @property
     def time_s(self) -> float:
@@ -282,6 +295,9 @@ class DKResult:
         rises = [h for h in self.history if h.note]
         if rises:
             text += " " + " ".join(f"Iteration {h.index}: {h.note}." for h in rises)
+        if np.isfinite(self.complex_mu_peak):
+            text += (f" Complex D-K (real blocks as complex) reached mu {self.complex_mu_peak:.4f}; mixed mu "
+                     f"{self.mu_peak:.4f} is the better of that design's and D-G-K's from it.")
         if self.design_reduction is not None:
             text += " " + self.design_reduction.summary()
         if self.reduction is not None:
@@ -573,6 +589,8 @@ def _solve(plant: GeneralizedPlant, order_d: Any, autoscale: bool, run: _Setting
     """D-K on ``plant``: the autoscaled starts, or one run of the core from the user's scaling,
     each followed by the neighbouring D orders when the automatic orders crept (strategies 2, 3)."""
     blocks = _design_blocks(plant, run.real)
+    if blocks.has_real:
+        return _mixed_from_complex(plant, blocks, order_d, autoscale, run)
     if autoscale:
         return _autoscaled_dksyn(plant, blocks, order_d, run)
     result = _iterate(plant, blocks, order_d, run, run.reduce)
@@ -582,12 +600,41 @@ def _solve(plant: GeneralizedPlant, order_d: Any, autoscale: bool, run: _Setting
                              run.deadline)
 
 
+def _mixed_from_complex(plant: GeneralizedPlant, blocks: BlockStructure, order_d: Any, autoscale: bool,
+                        run: _Settings) -> DKResult:
+    """D-G-K that never loses to complex D-K (strategy 4).
+
+    A complex-mu design is a valid mixed-mu design (complex mu bounds mixed mu from above), so
+    complex D-K runs first (real blocks complexified, with the autoscaled starts and order
+    neighbours as asked); its controller's mixed mu is verified on its verification grid. D-G-K
+    then starts from that controller (its first iteration is the complex design's closed loop,
+    whose mixed analysis gives the first D- and G-scales) and runs while its verified mixed mu
+    falls (``patience``): the D-G-K iteration is not monotone -- the fitted G filters and
+    D-scales only approximate the analysis' optimal multipliers, and the K step's certified
+    level is a bound on the *next* mixed mu, not the last -- so an iteration can rise, and
+    the run stops there. The better verified design of the two is returned, with the complex
+    design's complex mu in ``complex_mu_peak``.
+    """
+    cx = _solve(plant, order_d, autoscale, replace(run, real="complex"))
+    m_cx = _verified_mu(cx.closed_loop, blocks, cx.mu.f_hz)
+    mx = _iterate(plant, blocks, order_d, run, run.reduce, first=cx.K)
+    if mx.mu_peak < m_cx.peak:
+        why = f"D-G-K from the complex D-K design reached mixed mu {mx.mu_peak:.4f} (from {m_cx.peak:.4f})"
+        return replace(mx, complex_mu_peak=float(cx.mu_peak), stop_reason=f"{mx.stop_reason}; {why}")
+    why = (f"the complex D-K design (mixed mu {m_cx.peak:.4f}) is kept: D-G-K from it reached "
+           f"{mx.mu_peak:.4f}")
+    return replace(cx, mu=m_cx, mu_peak=float(m_cx.peak), complex_mu_peak=float(cx.mu_peak),
+                   stop_reason=f"{cx.stop_reason}; {why}",
+                   stopped_by_budget=cx.stopped_by_budget or mx.stopped_by_budget)
+
+
 # ---------------------------------------------------------------------------- the core
 def _iterate(plant: GeneralizedPlant, blocks: BlockStructure, order_d: Any, run: _Settings,
-             reduce: Any) -> DKResult:
+             reduce: Any, first: Any = None) -> DKResult:
     """The D-K iteration on ``plant`` as it is (module docstring): K steps and D (and G) steps
     until the peak of mu stops falling, then the best controller reduced (``reduce``) and its mu
-    verified (:func:`verification_grid`). The one loop every strategy of :func:`dksyn` calls."""
+    verified (:func:`verification_grid`). The one loop every strategy of :func:`dksyn` calls.
+    ``first``: a controller that replaces the first K step (its ``gamma`` is NaN)."""
     from tqdm import tqdm
 
     mixed = blocks.has_real
@@ -605,7 +652,10 @@ def _iterate(plant: GeneralizedPlant, blocks: BlockStructure, order_d: Any, run:
             t0 = time.perf_counter()
             opts = {"time_budget_s": deadline, "backoff": HINF_BACKOFF, **(run.hinf_options or {})}
             try:
-                hres, cand = _k_step_search(hinfsyn, plant, candidates, opts, index, deadline, run.gamma)
+                if index == 1 and first is not None:
+                    hres, cand = SimpleNamespace(K=first, gamma=float("nan"), info={}), candidates[0]
+                else:
+                    hres, cand = _k_step_search(hinfsyn, plant, candidates, opts, index, deadline, run.gamma)
             except SynthesisError as exc:
                 if best is None:
                     raise
