@@ -9,7 +9,10 @@ CORE_STAMP := $(VENV)/.installed
 CONSTRAINTS := constraints/test.txt
 LATEST := .venv-latest
 PINS_VENV := .venv-pins
-PYTEST_ARGS := -n 2 --dist loadfile -q --durations=15 tests --nbmake notebooks
+# Whole files go to the workers in tests/conftest.py's order (files with the most slow cases and
+# the notebooks first): xdist's default reorder by test count would start the two demo files and
+# the notebooks (1-2 long tests each) last, behind the property suites' thousands of quick cases.
+PYTEST_ARGS := -n 2 --dist loadfile --no-loadscope-reorder -q --durations=15 tests --nbmake notebooks
 # pyNastran pins numpy<2: installed without its dependencies (see pyproject's nastran extra)
 NASTRAN := "pyNastran>=1.4,<1.5"
 

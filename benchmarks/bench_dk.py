@@ -59,7 +59,7 @@ import numpy as np
 
 from robustctl.examples import DISTILLATION_BLOCKS, caltech_design_plant, caltech_truss, distillation_plant
 from robustctl.lti import freqresp_array
-from robustctl.robust.dk import dksyn
+from robustctl.robust.dk.iteration import dksyn
 
 #: Time targets on CPU time (``time.process_time``, one BLAS thread): the wall times are
 #: reported too, but on the shared 2-core machine they measure the load (a single-threaded run's
@@ -182,7 +182,7 @@ def _mixed() -> dict:
     """D-G-K against complex D-K on Wie & Bernstein's two-mass-spring benchmark (k in [0.5, 2] real)."""
     from robustctl.examples import TWO_MASS_BLOCKS, two_mass_spring_plant
     from robustctl.interconnect import lft
-    from robustctl.robust.mu_bounds import mu
+    from robustctl.robust.mu.bounds import mu
 
     gp = (two_mass_spring_plant(), 1, 1, TWO_MASS_BLOCKS)
     out = {}
@@ -245,8 +245,8 @@ def _lmi_route() -> dict:
     import control
 
     from robustctl.examples import himat_plant
-    from robustctl.robust.hinf_norm import hinfnorm
-    from robustctl.robust.hinf_synthesis import hinfsyn
+    from robustctl.robust.hinf.norm import hinfnorm
+    from robustctl.robust.hinf.synthesis import hinfsyn
 
     out = {}
     for noise in (False, True):
@@ -290,7 +290,7 @@ def _caltech_autoscale() -> dict:
 
 
 def _caltech() -> dict:
-    from robustctl.robust.mu_bounds import mu
+    from robustctl.robust.mu.bounds import mu
 
     gp = caltech_design_plant(caltech_truss(), level=0.3)
     t, c = time.perf_counter(), time.process_time()
@@ -369,8 +369,8 @@ def _dense_mu(cl, blocks, f_grid) -> float:
     one above ``f_grid``, DC, and 41 points across +-3 zeta of every closed-loop pole with
     zeta < 0.3 (independent of dksyn's own verification grid)."""
     from robustctl.lti import pole_frequency_damping
-    from robustctl.robust.dk import _complexified
-    from robustctl.robust.mu_bounds import mu
+    from robustctl.robust.dk.iteration import _complexified
+    from robustctl.robust.mu.bounds import mu
 
     fpos = np.asarray(f_grid)[np.asarray(f_grid) > 0]
     parts = [np.zeros(1), np.logspace(np.log10(fpos[0]) - 2, np.log10(fpos[-1]) + 1, 4000)]
@@ -400,7 +400,7 @@ def _modal_plant(n_modes: int, ny: int, nu: int, seed: int):
 
 def _random_case(seed: int, kind: str):
     from robustctl.robust.plant import generalized_plant
-    from robustctl.robust.weights import makeweight
+    from robustctl.robust.uncertainty.weights import makeweight
 
     rng = np.random.default_rng(1000 + seed)
     n_modes, ny, nu = int(rng.integers(2, 16)), int(rng.integers(1, 4)), int(rng.integers(1, 4))

@@ -42,7 +42,7 @@ import numpy as np
 
 import robustctl as rc
 from robustctl.interconnect import PartitionedPlant
-from robustctl.robust.hinf_synthesis import lower_lft_matrices
+from robustctl.robust.hinf.synthesis import lower_lft_matrices
 from robustctl.threads import get_blas_threads
 
 N_MODES = (1, 5, 15, 30, 39)  # generalized-plant orders 2 n + 2: 4, 12, 32, 62, 80

@@ -25,9 +25,9 @@ import control
 import numpy as np
 
 import robustctl as rc
-from robustctl.robust.blocks import as_block_structure
-from robustctl.robust.mu_layout import layout_of
-from robustctl.robust.mu_lmi import lmi_upper_bound
+from robustctl.robust.mu.layout import layout_of
+from robustctl.robust.mu.lmi import lmi_upper_bound
+from robustctl.robust.uncertainty.blocks import as_block_structure
 from robustctl.threads import get_blas_threads
 
 N_FREQ = 1000

@@ -61,7 +61,7 @@ def chain_plant(n_modes: int, f1: float = 0.5, zeta: float = 0.01):
 def design_plant(n_modes: int):
     """The generalized plant of the chain with the benchmark's weights."""
     from robustctl.robust.plant import generalized_plant
-    from robustctl.robust.weights import makeweight
+    from robustctl.robust.uncertainty.weights import makeweight
 
     return generalized_plant(chain_plant(n_modes), performance=makeweight(3.0, (1.0, 1.0), 0.01),
                              disturbances=1.0, control_weight=0.1, noise=0.01,

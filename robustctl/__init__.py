@@ -46,17 +46,24 @@ from .correlate import compare as compare
 from .correlate import diagnose as diagnose
 from .correlate import update as update
 from .correlate import verify as verify
+from .correlate.residual import UnitWarning
 from .cost import LogCost, log_cost, log_error
 from .errors import (
     DataError,
+    DataWarning,
     FitError,
     ModelError,
+    ParallelWarning,
     PlantError,
+    RobustctlDeprecationWarning,
     RobustctlError,
     RobustctlWarning,
+    SetupWarning,
     SynthesisError,
+    SynthesisWarning,
 )
 from .export import ExportReport, discretize, export_controller, load_controller
+from .export.controller import ExportWarning
 from .figures import (
     ModeAnimation,
     animate_mode_shape,
@@ -74,6 +81,7 @@ from .frd_io import load_frd
 from .frd_io.geometry import Geometry, ModeShapes
 from .frd_io.uff_geometry import load_uff_geometry, load_uff_modes, write_uff_geometry
 from .identify import (
+    IdentifyWarning,
     MeasurementModel,
     PoleEvidence,
     StabilisationDiagram,
@@ -88,6 +96,7 @@ from .interconnect import PartitionedPlant, block_diagonal, feedback, lft, paral
 from .lti import as_statespace, freqresp, is_stable
 from .measure import estimator
 from .measure.estimate import (
+    EstimateWarning,
     HeldCommand,
     advised_nperseg,
     combine_experiments,
@@ -139,64 +148,100 @@ from .report import write_report
 from .robust import (
     Block,
     BlockStructure,
+    ControllerReduction,
+    DesignReduction,
+    DesignSweep,
+    DKResult,
     GeneralizedPlant,
     HinfResult,
     MuResult,
     PlantWeight,
     UncertaintyCover,
     WorstCaseGain,
+    Yardstick,
+    YardstickWarning,
     as_block_structure,
     caltech_additive_weight,
     cover_additive,
     cover_multiplicative,
+    cover_remainder,
+    design_sweep,
+    dksyn,
     fit_magnitude,
     generalized_plant,
     hinfnorm,
     hinfsyn,
     makeweight,
     mixed_sensitivity,
-    mu,
     robust_performance,
     robust_stability,
     worst_case_gain,
+    yardstick,
+)
+from .robust import (
+    DiskMargin as DiskMargin,
+)
+from .robust import (
+    DiskMarginResult as DiskMarginResult,
+)
+from .robust import (
+    H2Result as H2Result,
+)
+from .robust import (
+    LoopShapingResult as LoopShapingResult,
+)
+from .robust import (
+    LQGResult as LQGResult,
+)
+from .robust import (
+    disk_gain_phase as disk_gain_phase,
+)
+from .robust import (
+    diskmargin as diskmargin,
+)
+from .robust import (
+    h2norm as h2norm,
+)
+from .robust import (
+    h2syn as h2syn,
+)
+from .robust import (
+    lqg as lqg,
+)
+from .robust import (
+    ncfsyn as ncfsyn,
+)
+from .robust import (
+    nugap as nugap,
+)
+from .robust import (
+    reduce_controller as reduce_controller,
+)
+from .robust import (
+    sampled_plant as sampled_plant,
+)
+from .robust import (
+    stability_margin as stability_margin,
+)
+from .robust.analysis import (
+    RobustStabilityMargin,
+    WorstCaseResult,
+    robstab,
+    wcgain,
 )
 from .robust.continuous_equivalent import d2c
-from .robust.controller_reduction import ControllerReduction
-from .robust.controller_reduction import reduce_controller as reduce_controller
 from .robust.conventions import LoopSignWarning
-from .robust.cover import cover_remainder
-from .robust.dk import DKResult, dksyn
-from .robust.dk_plant import DesignReduction
-from .robust.h2 import H2Result as H2Result
-from .robust.h2 import h2norm as h2norm
-from .robust.h2 import h2syn as h2syn
-from .robust.loop_shaping import LoopShapingResult as LoopShapingResult
-from .robust.loop_shaping import ncfsyn as ncfsyn
-from .robust.loop_shaping import stability_margin as stability_margin
-from .robust.lqg_design import LQGResult as LQGResult
-from .robust.lqg_design import lqg as lqg
-from .robust.margins import DiskMargin as DiskMargin
-from .robust.margins import DiskMarginResult as DiskMarginResult
-from .robust.margins import disk_gain_phase as disk_gain_phase
-from .robust.margins import diskmargin as diskmargin
-from .robust.margins import nugap as nugap
+from .robust.mu import mu
 from .robust.partitioned import as_partitioned
-from .robust.sampled import sampled_plant as sampled_plant
-from .robust.sweep import DesignSweep, design_sweep
 from .robust.uncertainty import (
     LFTAccuracyWarning,
-    RobustStabilityMargin,
     UncertainSystem,
-    WorstCaseResult,
     as_uncertain,
     physical_uncertain,
-    robstab,
     ucomplex,
     ultidyn,
     ureal,
-    wcgain,
 )
-from .robust.yardsticks import Yardstick, YardstickWarning, yardstick
 from .signals import combine_inputs as combine_inputs
 from .signals import combine_outputs as combine_outputs
 from .signals import rename_signals as rename_signals
@@ -357,6 +402,16 @@ __all__ = [
     "Deadline",
     "BudgetWarning",
     "RobustctlWarning",
+    # the warning family: every warning robustctl issues derives from RobustctlWarning
+    "SynthesisWarning",
+    "DataWarning",
+    "ParallelWarning",
+    "SetupWarning",
+    "RobustctlDeprecationWarning",
+    "IdentifyWarning",
+    "UnitWarning",
+    "ExportWarning",
+    "EstimateWarning",
     # one partitioned plant: the coercion shared by hinfsyn, h2syn, dksyn and the yardstick
     "as_partitioned",
     # uncertain elements and systems, robust stability and worst-case gain (robust/uncertainty)

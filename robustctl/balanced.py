@@ -15,6 +15,7 @@ import html
 from dataclasses import dataclass
 from typing import Any
 
+import control
 import numpy as np
 import scipy.linalg as sla
 
@@ -189,8 +190,6 @@ def balanced_truncation(sys: Any, order: int) -> BalancedTruncation:
         ``.sys``, ``.hsv`` (Hankel singular values, eq. 13's sigma) and ``.bound`` =
         ``2 sum_{i > order} sigma_i`` with ``||G - G_m||_inf <= bound``.
     """
-    import control
-
     ss = _as_ss(sys)
     order = _check(ss, order)
     a, b, c, d = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import DataError, RobustctlError
+from .errors import DataError, RobustctlDeprecationWarning, RobustctlError
 
 __all__ = [
     "COHERENCE_CAP",
@@ -231,7 +231,7 @@ def renamed_keyword(new: Any, old: Any, new_name: str, old_name: str, default: A
     what = " (data-point weights on the squared log error)" if new_name == "point_weights" else ""
     warnings.warn(
         f"{old_name}= is deprecated; call it {new_name}={what}.",
-        DeprecationWarning,
+        RobustctlDeprecationWarning,
         stacklevel=user_stacklevel(),
     )
     return old

@@ -19,9 +19,9 @@ import numpy as np
 
 from .checks import UNSET, band_mask, renamed_keyword, user_stacklevel
 from .checks import point_weights as point_weights_of
-from .errors import DataError
+from .errors import DataError, RobustctlDeprecationWarning
 from .frd import FrequencyData, as_frequency_data
-from .lti import DB_PER_NEPER, _align, as_statespace, freqresp, log_ratio
+from .lti import DB_PER_NEPER, align_channels, as_statespace, freqresp, log_ratio
 from .measure.estimator import model_view, resolve_estimator, split_hold
 from .measure.noise import point_weight_bias
 from .plots import channel_label, single_axes
@@ -162,7 +162,7 @@ def channel_cost(
 # ---------------------------------------------------------------------------- log error
 def _model_response(data: FrequencyData, model: Any, estimator: Any = False) -> FrequencyData:
     if isinstance(model, FrequencyData):
-        model = _align(data, model)
+        model = align_channels(data, model)
         if model.n_freq != data.n_freq or not np.allclose(model.f_hz, data.f_hz, rtol=1e-9, atol=0):
             raise DataError(
                 f"the model FrequencyData has {model.n_freq} points "
@@ -172,11 +172,11 @@ def _model_response(data: FrequencyData, model: Any, estimator: Any = False) -> 
         return model
     settings = resolve_estimator(estimator, data, model)
     if settings is None:
-        return _align(data, freqresp(model, data.f_hz))
+        return align_channels(data, freqresp(model, data.f_hz))
     bare, hold = split_hold(model)
     sys = as_statespace(bare)
     g = model_view(sys, hold, data.f_hz, settings)
-    return _align(data, FrequencyData(data.f_hz, g, inputs=list(sys.input_labels),
+    return align_channels(data, FrequencyData(data.f_hz, g, inputs=list(sys.input_labels),
                                       outputs=list(sys.output_labels)))
 
 
@@ -186,7 +186,7 @@ def _model_and_data(model: Any, data: Any, func: str) -> tuple[Any, FrequencyDat
     if old_order and data is not None and not hasattr(data, "omega"):
         warnings.warn(
             f"{func}(data, model) is deprecated; the order is {func}(model, data) as in rc.compare.",
-            DeprecationWarning,
+            RobustctlDeprecationWarning,
             stacklevel=user_stacklevel(),
         )
         model, data = data, model

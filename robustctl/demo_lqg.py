@@ -6,7 +6,7 @@ design channels (reaction-wheel torques -> bus gyros, :mod:`robustctl.demo_mace`
 
 * the design model is the nominal (not updated) model's six-mode balanced truncation, the
   one the mu recipe :func:`~robustctl.demo_mace.mace_design_plant` starts from;
-* LQG (:func:`robustctl.robust.lqg_design.lqg`): process noise of unit intensity on the three
+* LQG (:func:`robustctl.robust.h2.lqg_design.lqg`): process noise of unit intensity on the three
   wheel torques, the gyro rates as performance (``Q = I``), control weight ``R = rho I`` and
   sensor noise ``V = sensor_noise I``;
 * the mu design comes from the yardstick (:func:`robustctl.robust.yardsticks.yardstick`, the
@@ -31,6 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+import control
 import numpy as np
 
 from .table import Table, result_html
@@ -83,8 +84,6 @@ def score_on_data(data: Any, K: Any, model: Any, reference: Any, *, band: tuple[
     -------
     DataScore
     """
-    import control
-
     from .lti import as_statespace, freqresp_array
     from .robust import yardsticks as ys
 
@@ -196,14 +195,12 @@ def lqg_beside_mu(seed: int = 0, *, rho: float = 1.0, sensor_noise: float = 1.0,
     -------
     LQGBesideMu
     """
-    import control
-
     from . import examples
     from .demo_mace import RWA_INPUTS, RWA_OUTPUTS, _measurement_model, mace_design_plant
     from .examples import six_modes
     from .lti import as_statespace
     from .robust import diskmargin, lqg, yardstick
-    from .robust.dk import _mu_of, closed_loop, default_grid
+    from .robust.dk.iteration import closed_loop, default_grid, mu_of
 
     data, _ = examples.mace_beam_experiment(seed=seed)
     rwa = data.select(outputs=RWA_OUTPUTS, inputs=RWA_INPUTS)
@@ -226,7 +223,7 @@ def lqg_beside_mu(seed: int = 0, *, rho: float = 1.0, sensor_noise: float = 1.0,
         score = score_on_data(rwa, K, nominal, mm, band=band, sign=sign)
         cl = closed_loop(gp.P, K, gp.nmeas, gp.ncon)
         stable_design = cl.nstates == 0 or bool(np.all(np.linalg.eigvals(np.asarray(cl.A)).real < 0))
-        mu_peak = _mu_of(cl, gp.blocks, default_grid(gp.P), refine=True)[0].peak if stable_design else np.inf
+        mu_peak = mu_of(cl, gp.blocks, default_grid(gp.P), refine=True)[0].peak if stable_design else np.inf
         dm = diskmargin(Gn, K, sign=sign)
         rows[label] = {"order": K.nstates, "attenuation_db": score.attenuation_db,
                        "stable": score.verdict.label, "score": score,
@@ -237,6 +234,6 @@ def lqg_beside_mu(seed: int = 0, *, rho: float = 1.0, sensor_noise: float = 1.0,
 
 def yard_sign(gp: Any, G: Any) -> float:
     """The sign ``s`` with which the recipe's plant measures the model (the yardstick's convention)."""
-    from .robust.yardsticks import _measurement_sign
+    from .robust.yardsticks import measurement_sign
 
-    return _measurement_sign(gp, G)
+    return measurement_sign(gp, G)

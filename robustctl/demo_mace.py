@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import control
 import numpy as np
 
 from .demo_design import DemoExample, DesignSpec
@@ -72,8 +73,6 @@ def mace_design_plant(nominal: Any):
     GeneralizedPlant
         Twelve plant states (six modes) plus the weights' (see the module notes).
     """
-    import control
-
     from .examples import six_modes
     from .robust.plant import generalized_plant
 

@@ -24,7 +24,8 @@ from __future__ import annotations
 
 __all__ = [
     "RobustctlError", "DataError", "ModelError", "FitError", "SynthesisError", "PlantError",
-    "RobustctlWarning", "DataWarning",
+    "RobustctlWarning", "DataWarning", "SynthesisWarning", "ParallelWarning", "SetupWarning",
+    "RobustctlDeprecationWarning",
 ]
 
 
@@ -57,7 +58,31 @@ class PlantError(ModelError, SynthesisError):
 
 
 class RobustctlWarning(UserWarning):
-    """Base class of robustctl's warnings: a result that holds with a caveat the user must see."""
+    """Base class of robustctl's warnings: a result that holds with a caveat the user must see.
+
+    Every warning robustctl issues derives from it (``tests/test_warnings.py`` checks every
+    ``warnings.warn`` call of the package), so
+    ``warnings.filterwarnings("error", category=rc.RobustctlWarning)`` turns all of them into
+    errors and ``"ignore"`` silences all of them.
+    """
+
+
+class SynthesisWarning(RobustctlWarning, RuntimeWarning):
+    """A synthesis or robustness analysis returned a result whose check found a caveat
+    (e.g. a mu peak the iteration grid missed)."""
+
+
+class ParallelWarning(RobustctlWarning, RuntimeWarning):
+    """Work meant for worker processes ran in the calling process instead (same result, slower)."""
+
+
+class SetupWarning(RobustctlWarning, RuntimeWarning):
+    """A setting from the environment was refused and a safe default is used instead."""
+
+
+class RobustctlDeprecationWarning(RobustctlWarning, DeprecationWarning):
+    """An argument name or order that still works but is deprecated (hidden by Python's default
+    filters outside ``__main__``, as every ``DeprecationWarning``)."""
 
 
 class DataWarning(RobustctlWarning):

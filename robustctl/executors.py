@@ -27,7 +27,7 @@ from typing import Any
 import cloudpickle
 import numpy as np
 
-from .errors import RobustctlError
+from .errors import ParallelWarning, RobustctlError
 
 __all__ = ["parallel_map", "parallel_map_shared", "check_executor", "available_cores", "process_pool"]
 
@@ -171,7 +171,7 @@ def parallel_map_shared(
         warnings.warn(
             f"{desc or 'parallel work'}: the model or data cannot be sent to worker processes "
             f"({type(exc).__name__}: {exc}); computing in this process instead (workers=1 avoids the try).",
-            RuntimeWarning,
+            ParallelWarning,
             stacklevel=3,
         )
         executor._robustctl_unpicklable = True  # the rest of the work too, without more warnings

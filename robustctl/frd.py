@@ -112,7 +112,9 @@ def _as_response(response: Any) -> np.ndarray:
     return arr
 
 
-def _as_frequencies(f_hz: Any) -> np.ndarray:
+def as_frequencies(f_hz: Any) -> np.ndarray:
+    """``f_hz`` as a checked float array: finite, positive (Hz) and strictly increasing, else a
+    DataError."""
     f = _numeric_array(f_hz, "f_hz", "iuf").astype(float).reshape(-1)
     if f.size == 0:
         raise DataError("f_hz is empty; give at least one frequency in Hz.")
@@ -472,7 +474,7 @@ class FrequencyData:
     experiment: Experiment | None = field(default=None)
 
     def __post_init__(self) -> None:
-        f = _as_frequencies(self.f_hz)
+        f = as_frequencies(self.f_hz)
         g = _as_response(self.response)
         if g.shape[0] != f.size:
             raise DataError(

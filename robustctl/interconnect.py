@@ -22,11 +22,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import control
 import numpy as np
+from control.iosys import common_timebase
 
 from .checks import flag, integer, is_default_names
 from .errors import ModelError, PlantError
-from .lti import _series_arrays, as_statespace, rebuild_statespace, statespace_state
+from .lti import as_statespace, rebuild_statespace, series_matrices, statespace_state
 from .signals import _arrays, select_signals
 from .table import Table
 
@@ -39,8 +41,6 @@ def _count(value: Any, what: str, upper: int) -> int:
 
 def _pack(value: Any) -> Any:
     """A picklable stand-in for a ``control.StateSpace`` (python-control's holds a lambda)."""
-    import control
-
     return _PackedStateSpace(statespace_state(value)) if isinstance(value, control.StateSpace) else value
 
 
@@ -90,8 +90,6 @@ class PartitionedPlant(PicklesStateSpaces):
     ncon: int
 
     def __post_init__(self) -> None:
-        import control
-
         if not isinstance(self.P, control.StateSpace):
             raise PlantError(
                 f"a partitioned plant holds a control.StateSpace; got {type(self.P).__name__}. "
@@ -234,8 +232,6 @@ class PartitionedPlant(PicklesStateSpaces):
         rows : {"z", "y"}
         cols : {"w", "u"}
         """
-        import control
-
         if rows not in ("z", "y") or cols not in ("w", "u"):
             raise ModelError(
                 f"sub(rows, cols) takes rows in ('z', 'y') and cols in ('w', 'u'); got {rows!r}, {cols!r}."
@@ -285,8 +281,6 @@ class PartitionedPlant(PicklesStateSpaces):
 # ============================================================================ coercion
 def _system(sys: Any, what: str):
     """``sys`` as a named ``control.StateSpace``; a number or 2-D array is a static gain."""
-    import control
-
     if isinstance(sys, PartitionedPlant):
         return sys.P
     if _is_static(sys):
@@ -307,8 +301,6 @@ def _is_static(sys: Any) -> bool:
 
 def _timebase(*systems) -> Any:
     """The common sampling time of the dynamic systems (static gains adapt)."""
-    from control.iosys import common_timebase
-
     dt = 0
     dynamic = [s for s in systems if s.nstates > 0]
     if dynamic:
@@ -326,8 +318,6 @@ def _timebase(*systems) -> Any:
 
 def _named(A, B, C, D, dt, inputs: Sequence[str], outputs: Sequence[str], what: str):
     """The one named ``control.StateSpace`` built at the end of every interconnection."""
-    import control
-
     for names, kind in ((inputs, "input"), (outputs, "output")):
         dup = sorted({n for n in names if list(names).count(n) > 1})
         if dup:
@@ -598,8 +588,6 @@ def _static_like(value: Any, n_out: int, n_in: int, what: str) -> np.ndarray:
 
 
 def _as_gain_system(value: Any, n_out: int, n_in: int, inputs, outputs, what: str):
-    import control
-
     D = _static_like(value, n_out, n_in, what)
     return control.ss(np.zeros((0, 0)), np.zeros((0, n_in)), np.zeros((n_out, 0)), D,
                       inputs=list(inputs), outputs=list(outputs))
@@ -630,7 +618,7 @@ def _series_pair(s1: Any, s2: Any, by_name: bool):
     else:
         T = np.eye(s1.noutputs)
     A2, B2, C2, D2 = _arrays(s2)
-    A, B, C, D = _series_arrays(_arrays(s1), (A2, B2 @ T, C2, D2 @ T))
+    A, B, C, D = series_matrices(_arrays(s1), (A2, B2 @ T, C2, D2 @ T))
     return _named(A, B, C, D, _timebase(s1, s2), s1.input_labels, s2.output_labels, "series")
 
 

@@ -26,11 +26,12 @@ import warnings
 from collections.abc import Sequence
 from typing import Any
 
+import control
 import numpy as np
 
 from .checks import match_channels
 from .errors import DataError, FitError, ModelError
-from .frd import FrequencyData, _as_frequencies
+from .frd import FrequencyData, as_frequencies
 from .threads import limit_blas
 
 __all__ = [
@@ -111,8 +112,6 @@ DENSE_INV_MAX = 64
 
 # ---------------------------------------------------------------------------- conversions
 def _as_statespace(sys: Any, name: str = "sys"):
-    import control
-
     try:
         ss = control.ss(sys)
     except Exception as exc:  # python-control raises several types
@@ -154,8 +153,6 @@ def as_statespace(
         ``sys`` is measured data (FrequencyData), cannot be converted, or has NaN/inf in its
         matrices; names that are not one distinct non-empty string per signal.
     """
-    import control
-
     if isinstance(sys, FrequencyData) or type(sys).__name__ == "FrequencyResponseData":
         raise ModelError(
             f"{name} is a {type(sys).__name__}, which is measured data, not a model; it has no state space. "
@@ -192,8 +189,6 @@ def statespace_state(ss: Any) -> dict:
 
 def rebuild_statespace(state: dict):
     """The ``control.StateSpace`` described by :func:`statespace_state`."""
-    import control
-
     return control.ss(
         state["A"], state["B"], state["C"], state["D"], state["dt"], inputs=state["inputs"],
         outputs=state["outputs"], states=state["states"], name=state["name"],
@@ -213,7 +208,7 @@ def _names(names: Sequence[str] | str, count: int, what: str) -> list[str]:
 
 
 # ---------------------------------------------------------------------------- kernel
-def _blocks(A: np.ndarray) -> list[np.ndarray]:
+def schur_blocks(A: np.ndarray) -> list[np.ndarray]:
     """The decoupled diagonal blocks of ``A`` (connected components of its sparsity graph).
 
     Returned batched by size: a list of integer arrays of shape (n_blocks, block_size).
@@ -243,7 +238,7 @@ def _blocks(A: np.ndarray) -> list[np.ndarray]:
     return [np.array(group) for group in by_size.values()]
 
 
-def _small_block_scaling(A: np.ndarray, blocks: list[np.ndarray]) -> np.ndarray:
+def small_block_scaling(A: np.ndarray, blocks: list[np.ndarray]) -> np.ndarray:
     """Diagonal scaling that balances every 2x2 block: ``|a12| = |a21|`` (the gebal goal, in closed form)."""
     scale = np.ones(A.shape[0])
     for idx in blocks:
@@ -280,7 +275,7 @@ def _batched_inv_solve(V: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.nda
     return Vinv @ B, cond
 
 
-def _modal_terms(A: np.ndarray, B: np.ndarray, C: np.ndarray, blocks: list[np.ndarray], io_B=None, io_C=None):
+def modal_terms(A: np.ndarray, B: np.ndarray, C: np.ndarray, blocks: list[np.ndarray], io_B=None, io_C=None):
     """Eigen-decompose the blocks, batched by size.
 
     A block is diagonalised only when its eigenvector matrix is well conditioned
@@ -323,7 +318,7 @@ def _modal_terms(A: np.ndarray, B: np.ndarray, C: np.ndarray, blocks: list[np.nd
 
 
 def _modal_terms_dense(A: np.ndarray, B: np.ndarray, C: np.ndarray, io_B: np.ndarray, io_C: np.ndarray):
-    """:func:`_modal_terms` for one dense block of order <= ``DENSE_INV_MAX``, without the
+    """:func:`modal_terms` for one dense block of order <= ``DENSE_INV_MAX``, without the
     batching (same tests), in real arithmetic as far as possible.
 
     LAPACK ``dgeev`` returns the real eigenvector matrix ``X`` whose column pairs
@@ -351,7 +346,7 @@ def _modal_terms_dense(A: np.ndarray, B: np.ndarray, C: np.ndarray, io_B: np.nda
             CV[:, pos + 1] = CV[:, pos].conj()
             W[pos] = 0.5 * (WX[pos] - 1j * WX[pos + 1])
             W[pos + 1] = W[pos].conj()
-        residues = float(np.sqrt(_abs2(CV).sum(axis=0) * _abs2(W).sum(axis=1)).sum())
+        residues = float(np.sqrt(abs2(CV).sum(axis=0) * abs2(W).sum(axis=1)).sum())
         gains = float(np.sqrt(np.vdot(io_C, io_C) * np.vdot(io_B, io_B)))
         growth = residues / gains if residues > 0 else 0.0
         if cond <= COND_LIMIT and growth <= GROWTH_LIMIT:
@@ -360,7 +355,7 @@ def _modal_terms_dense(A: np.ndarray, B: np.ndarray, C: np.ndarray, io_B: np.nda
     return (*empty, [np.arange(A.shape[0])])
 
 
-def _abs2(z: np.ndarray) -> np.ndarray:
+def abs2(z: np.ndarray) -> np.ndarray:
     """``|z|^2`` of a complex array (no square root)."""
     return z.real * z.real + z.imag * z.imag
 
@@ -436,8 +431,8 @@ def _pair_terms(lp: np.ndarray, rp: np.ndarray, w: np.ndarray, chunk: int | None
     return g_re, g_im
 
 
-def _schur_factors(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> tuple:
-    """What :func:`_schur_eval` needs of ``(A, B, C)``: the complex Schur form ``A = Z T Z^H``
+def schur_factors(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> tuple:
+    """What :func:`schur_eval` needs of ``(A, B, C)``: the complex Schur form ``A = Z T Z^H``
     with ``Z^H B`` and ``C Z``, computed once (on the transposed system when ``C`` has fewer
     rows than ``B`` has columns, so that the back-substitution carries fewer columns)."""
     from scipy.linalg import schur
@@ -449,8 +444,8 @@ def _schur_factors(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> tuple:
     return T, Z.conj().T @ B, C @ Z, transposed
 
 
-def _schur_eval(factors: tuple, s: np.ndarray) -> np.ndarray:
-    """``C (sI - A)^{-1} B`` at the points ``s`` from :func:`_schur_factors`, by a
+def schur_eval(factors: tuple, s: np.ndarray) -> np.ndarray:
+    """``C (sI - A)^{-1} B`` at the points ``s`` from :func:`schur_factors`, by a
     frequency-vectorised back-substitution in the triangular ``T``; shape (n_s, p, m)."""
     T, Bz, CZ, transposed = factors
     n = T.shape[0]
@@ -474,7 +469,7 @@ def _schur_eval(factors: tuple, s: np.ndarray) -> np.ndarray:
 
 def _schur_response(A: np.ndarray, B: np.ndarray, C: np.ndarray, s: np.ndarray) -> np.ndarray:
     """``C (sI - A)^{-1} B`` via the complex Schur form and a frequency-vectorised back-substitution."""
-    return _schur_eval(_schur_factors(A, B, C), s)
+    return schur_eval(schur_factors(A, B, C), s)
 
 
 @limit_blas
@@ -486,14 +481,14 @@ def _response(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, s: np.
     out = np.broadcast_to(D.astype(complex), (s.size, p, m)).copy()
     if A.shape[0] == 0 or p == 0 or m == 0:
         return out
-    blocks = _blocks(A)  # the sparsity pattern does not change under diagonal scaling
+    blocks = schur_blocks(A)  # the sparsity pattern does not change under diagonal scaling
     if max(b.shape[1] for b in blocks) <= 2:
-        scale = _small_block_scaling(A, blocks)
+        scale = small_block_scaling(A, blocks)
     else:
         _, (scale, _) = matrix_balance(A, permute=False, separate=True)
     Ab = A * (scale[None, :] / scale[:, None])  # D^-1 A D, D = diag(scale)
     Bb, Cb = B / scale[:, None], C * scale[None, :]
-    lam, CV, W, bad = _modal_terms(Ab, Bb, Cb, blocks, io_B=B, io_C=C)
+    lam, CV, W, bad = modal_terms(Ab, Bb, Cb, blocks, io_B=B, io_C=C)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         if lam.size:
             out += _diag_response(lam, CV, W, s)
@@ -574,13 +569,13 @@ def freqresp(sys: Any, f_hz: Any) -> FrequencyData:
     >>> g = rc.freqresp(control.tf([1], [1, 0.2, 1]), [0.1, 0.159, 1.0])
     """
     ss = as_statespace(sys)
-    f = _as_frequencies(f_hz)
+    f = as_frequencies(f_hz)
     g = _response(*_matrices(ss), _evaluation_points(ss, f))
     return FrequencyData(f, g, inputs=list(ss.input_labels), outputs=list(ss.output_labels))
 
 
 # ---------------------------------------------------------------------------- log error
-def _align(data: FrequencyData, model: FrequencyData) -> FrequencyData:
+def align_channels(data: FrequencyData, model: FrequencyData) -> FrequencyData:
     """``model`` with its channels in ``data``'s order (:func:`robustctl.checks.match_channels`)."""
     out_idx = match_channels(model.outputs, data.outputs, "outputs")
     in_idx = match_channels(model.inputs, data.inputs, "inputs")
@@ -693,7 +688,7 @@ def roundoff_margin(A: Any) -> float:
 
 
 # ---------------------------------------------------------------------------- construction
-def _series_arrays(p1, p2):
+def series_matrices(p1, p2):
     """Cascade ``p2 * p1`` of ``(A, B, C, D)`` tuples (``p1`` acts first; states ``[x1; x2]``)."""
     A1, B1, C1, D1 = p1
     A2, B2, C2, D2 = p2
@@ -702,7 +697,7 @@ def _series_arrays(p1, p2):
     return A, np.vstack([B1, B2 @ D1]), np.hstack([D2 @ C1, C2]), D2 @ D1
 
 
-def _pair(r: np.ndarray) -> list[np.ndarray]:
+def conjugate_pairs(r: np.ndarray) -> list[np.ndarray]:
     """Real roots singly, complex roots as conjugate pairs (upper half-plane member kept)."""
     r = np.asarray(r, dtype=complex)
     tol = 1e-8 * (1.0 + np.abs(r))
@@ -749,9 +744,7 @@ def zpk_statespace(zeros: Any, poles: Any, gain: float, *, name: str | None = No
     control.StateSpace
         First- and second-order sections in series (no polynomial coefficients formed).
     """
-    import control
-
-    zg, pg = _pair(np.asarray(zeros)), _pair(np.asarray(poles))
+    zg, pg = conjugate_pairs(np.asarray(zeros)), conjugate_pairs(np.asarray(poles))
     if sum(g.size for g in zg) > sum(g.size for g in pg):
         raise FitError("more zeros than poles: the weight would be improper.")
     if not pg:
@@ -763,7 +756,7 @@ def zpk_statespace(zeros: Any, poles: Any, gain: float, *, name: str | None = No
         # unit gain at the section's pole magnitude keeps the cascade's internal gains balanced
         wp = float(np.abs(np.concatenate(den)).max()) or 1.0
         zeros_k = np.concatenate(num) if num else np.zeros(0)
-        h = _zpk_response(zeros_k, np.concatenate(den), np.array([1j * wp]))
+        h = zpk_response(zeros_k, np.concatenate(den), np.array([1j * wp]))
         g = 1.0 / max(abs(complex(h[0])), 1e-300)
         sections.append((A, B, C * g, D * g, g))
     scale = float(gain) / float(np.prod([sec[4] for sec in sections]))
@@ -772,7 +765,7 @@ def zpk_statespace(zeros: Any, poles: Any, gain: float, *, name: str | None = No
     for i, (A, B, C, D, _) in enumerate(sections):
         f = per * (np.sign(scale) if i == 0 and scale != 0 else 1.0)
         sec = (A, B, C * f, D * f)
-        sys = sec if sys is None else _series_arrays(sys, sec)
+        sys = sec if sys is None else series_matrices(sys, sec)
     A, B, C, D = sys
     return control.ss(A, B, C, D, name=name)
 
@@ -822,7 +815,8 @@ def _assign(
 
 
 # ---------------------------------------------------------------------------- public
-def _zpk_response(zeros: np.ndarray, poles: np.ndarray, s: np.ndarray) -> np.ndarray:
+def zpk_response(zeros: np.ndarray, poles: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """``prod(s - z) / prod(s - p)`` at the points ``s`` (no gain), complex, the shape of ``s``."""
     out = np.ones(s.shape, dtype=complex)
     for z in zeros:
         out *= s - z

@@ -15,6 +15,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+import control
 import numpy as np
 
 from .checks import finite_number
@@ -32,20 +33,16 @@ __all__ = [
 
 
 # ============================================================================ helpers
-def _ss(A, B, C, D, inputs: Sequence[str], outputs: Sequence[str], dt: Any = 0):
+def named_statespace(A, B, C, D, inputs: Sequence[str], outputs: Sequence[str], dt: Any = 0):
     """A named ``control.StateSpace`` from arrays (``dt=0``: continuous time)."""
-    import control
-
     return control.ss(
         np.asarray(A, float), np.asarray(B, float), np.asarray(C, float), np.asarray(D, float), dt,
         inputs=list(inputs), outputs=list(outputs),
     )
 
 
-def _abcd(sys: Any, what: str = "system"):
+def abcd_matrices(sys: Any, what: str = "system"):
     """Arrays ``(A, B, C, D)`` of a continuous-time LTI system (StateSpace, TransferFunction or number)."""
-    import control
-
     if isinstance(sys, (int, float, np.integer, np.floating)):
         return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.array([[float(sys)]])
     if isinstance(sys, control.StateSpace):  # its arrays, copied (control.ss(sys) copies slowly)
@@ -69,7 +66,8 @@ def _arrays(ss: Any):
     ))
 
 
-def _names(names: str | Sequence[str]) -> tuple[str, ...]:
+def signal_names(names: str | Sequence[str]) -> tuple[str, ...]:
+    """One signal name or a sequence of them, as a tuple of names."""
     return (names,) if isinstance(names, str) else tuple(names)
 
 
@@ -101,7 +99,7 @@ def _name_list(value: Any, name: str) -> list[str]:
     return items
 
 
-def _index(labels: Sequence[str], name: str, what: str, arg: str = "") -> int:
+def signal_index(labels: Sequence[str], name: str, what: str, arg: str = "") -> int:
     """Position of ``name`` in ``labels`` or a ModelError listing the known names."""
     labels = list(labels)
     if name not in labels:
@@ -114,7 +112,7 @@ def _signal_gains(labels: Sequence[str], gains: Mapping[str, float], what: str) 
     """One gain per signal of ``labels``: ``gains[name]`` for the named ones, 1 for the others."""
     v = np.ones(len(labels))
     for name, g in _mapping(gains, "gains").items():
-        v[_index(labels, name, what, "gains")] *= _gain(g, "gains", name)
+        v[signal_index(labels, name, what, "gains")] *= _gain(g, "gains", name)
     return v
 
 
@@ -136,9 +134,9 @@ def scale_outputs(sys: Any, gains: Mapping[str, float]):
         Rows of ``C`` and ``D`` scaled.
     """
     sys = _system(sys)
-    A, B, C, D = _abcd(sys)
+    A, B, C, D = abcd_matrices(sys)
     g = _signal_gains(sys.output_labels, gains, "output")[:, None]
-    return _ss(A, B, g * C, g * D, sys.input_labels, sys.output_labels)
+    return named_statespace(A, B, g * C, g * D, sys.input_labels, sys.output_labels)
 
 
 def scale_inputs(sys: Any, gains: Mapping[str, float]):
@@ -157,9 +155,9 @@ def scale_inputs(sys: Any, gains: Mapping[str, float]):
         Columns of ``B`` and ``D`` scaled; names unchanged.
     """
     sys = _system(sys)
-    A, B, C, D = _abcd(sys)
+    A, B, C, D = abcd_matrices(sys)
     g = _signal_gains(sys.input_labels, gains, "input")
-    return _ss(A, B * g, C, D * g, sys.input_labels, sys.output_labels)
+    return named_statespace(A, B * g, C, D * g, sys.input_labels, sys.output_labels)
 
 
 def rename_signals(
@@ -185,10 +183,10 @@ def rename_signals(
         for old, new in _mapping(value, arg, allow_none=True).items():
             if not isinstance(new, str) or not new or "\x00" in new:
                 raise ModelError(f"{arg}[{old!r}] must be a non-empty signal name (str); got {new!r}.")
-            labels[_index(labels, old, what, arg)] = new
+            labels[signal_index(labels, old, what, arg)] = new
     if len(set(ins)) != len(ins) or len(set(outs)) != len(outs):
         raise ModelError(f"renaming would repeat a signal name: inputs {ins}, outputs {outs}.")
-    return _ss(*_abcd(sys), ins, outs)
+    return named_statespace(*abcd_matrices(sys), ins, outs)
 
 
 # ============================================================================ select and combine
@@ -250,7 +248,7 @@ def combine_inputs(sys: Any, combos: Mapping[str, Mapping[str, float]]):
     sys = _system(sys)
     T, names = _combination(sys.input_labels, combos, "input")
     A, B, C, D = (np.asarray(m, float) for m in (sys.A, sys.B, sys.C, sys.D))
-    return _ss(A, B @ T, C, D @ T, names, sys.output_labels, sys.dt)
+    return named_statespace(A, B @ T, C, D @ T, names, sys.output_labels, sys.dt)
 
 
 def combine_outputs(sys: Any, combos: Mapping[str, Mapping[str, float]]):
@@ -275,7 +273,7 @@ def combine_outputs(sys: Any, combos: Mapping[str, Mapping[str, float]]):
     sys = _system(sys)
     T, names = _combination(sys.output_labels, combos, "output")
     A, B, C, D = (np.asarray(m, float) for m in (sys.A, sys.B, sys.C, sys.D))
-    return _ss(A, B, T.T @ C, T.T @ D, sys.input_labels, names, sys.dt)
+    return named_statespace(A, B, T.T @ C, T.T @ D, sys.input_labels, names, sys.dt)
 
 
 def select_signals(sys: Any, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None):
@@ -304,4 +302,4 @@ def select_signals(sys: Any, inputs: Sequence[str] | None = None, outputs: Seque
     ii = [list(sys.input_labels).index(n) for n in ins]
     oo = [list(sys.output_labels).index(n) for n in outs]
     A, B, C, D = _arrays(sys)
-    return _ss(A, B[:, ii], C[oo], D[np.ix_(oo, ii)], ins, outs, sys.dt)
+    return named_statespace(A, B[:, ii], C[oo], D[np.ix_(oo, ii)], ins, outs, sys.dt)

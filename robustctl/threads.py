@@ -27,7 +27,7 @@ import warnings
 from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
 
-from .errors import RobustctlError
+from .errors import RobustctlError, SetupWarning
 
 __all__ = ["blas_threads", "set_blas_threads", "get_blas_threads", "limit_blas"]
 
@@ -64,7 +64,7 @@ def _initial_setting() -> int | None:
     try:
         return _parse(os.environ.get(ENV_VAR, "1"), f"environment variable {ENV_VAR}")
     except RobustctlError as exc:  # a bad environment must not break `import robustctl`
-        warnings.warn(f"{exc} Using 1 BLAS thread.", RuntimeWarning, stacklevel=2)
+        warnings.warn(f"{exc} Using 1 BLAS thread.", SetupWarning, stacklevel=2)
         return 1
 
 

@@ -79,7 +79,7 @@ def diagnosis(workers: int = 1) -> dict:
 def dk_distillation() -> dict:
     """D-K iteration on the distillation column (Skogestad & Postlethwaite's mu-synthesis example)."""
     from robustctl.examples import DISTILLATION_BLOCKS, distillation_plant
-    from robustctl.robust.dk import dksyn
+    from robustctl.robust.dk.iteration import dksyn
 
     dk = dksyn((distillation_plant(), 2, 2, DISTILLATION_BLOCKS), max_iter=3, progress=False)
     return {"dksyn_distillation": _digest(*_ss(dk.K), dk.mu.upper, dk.mu.lower,

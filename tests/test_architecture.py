@@ -42,6 +42,20 @@ FLOORS: tuple[tuple[str, ...], ...] = (
      "__main__", ""),
 )
 
+#: The floors inside ``robust/``, lowest first, by the same rule (an entry names a module or a
+#: sub-package of ``robust``; ``""`` is ``robust/__init__.py``, which re-exports them all). The
+#: same table is in the module docstring of robustctl/robust/__init__.py.
+ROBUST_FLOORS: tuple[tuple[str, ...], ...] = (
+    ("uncertainty", "conventions"),  # blocks, weights, covers, uncertain systems; the loop sign
+    ("plant", "partitioned", "sampled", "continuous_equivalent", "mu"),  # the plant, its coercion; d2c; mu
+    ("hinf",),  # H-infinity norm and synthesis
+    ("h2",),  # H2 norm and synthesis, LQG
+    ("analysis",),  # disk margins, nu-gap, coprime factors, loop shaping
+    ("reduction",),  # controller reduction
+    ("dk",),  # D-K and D-G-K iteration, design sweeps
+    ("yardsticks", ""),  # controllers designed on several models, scored on the data; the re-exports
+)
+
 #: Modules of the lowest floors that may import only the listed modules of robustctl.
 ONLY_IMPORTS = {"checks": {"errors"}, "errors": set(), "budget": {"errors", "checks"}}
 
@@ -84,17 +98,19 @@ def import_graph() -> dict[str, set[str]]:
     return graph
 
 
-def floor_of(module: str) -> int:
-    """The floor of a module: the longest matching entry of :data:`FLOORS`."""
-    rel = module[len(PACKAGE) + 1 :] if module != PACKAGE else ""
+def floor_of(module: str, floors=FLOORS, package: str = PACKAGE) -> int:
+    """The floor of a module: the longest matching entry of ``floors`` (:data:`FLOORS`) below
+    ``package``."""
+    rel = module[len(package) + 1 :] if module != package else ""
     best, best_len = None, -1
-    for level, entries in enumerate(FLOORS):
+    for level, entries in enumerate(floors):
         for entry in entries:
             matches = rel == entry or (entry and rel.startswith(entry + "."))
             if matches and len(entry) > best_len:
                 best, best_len = level, len(entry)
     if best is None:
-        raise AssertionError(f"{module} has no floor: add it to FLOORS in tests/test_architecture.py")
+        table = "FLOORS" if floors is FLOORS else "ROBUST_FLOORS"
+        raise AssertionError(f"{module} has no floor: add it to {table} in tests/test_architecture.py")
     return best
 
 
@@ -104,6 +120,28 @@ def upward_edges(graph) -> list[str]:
         for a, targets in graph.items()
         for b in targets
         if floor_of(b) > floor_of(a)
+    )
+
+
+ROBUST = f"{PACKAGE}.robust"
+
+
+def _in_robust(module: str) -> bool:
+    return module == ROBUST or module.startswith(ROBUST + ".")
+
+
+def robust_upward_edges(graph) -> list[str]:
+    """Edges between two modules of ``robust/`` that point to a higher floor of :data:`ROBUST_FLOORS`."""
+
+    def level(module: str) -> int:
+        return floor_of(module, ROBUST_FLOORS, ROBUST)
+
+    return sorted(
+        f"{a} (robust floor {level(a)}) -> {b} (robust floor {level(b)})"
+        for a, targets in graph.items()
+        if _in_robust(a)
+        for b in targets
+        if _in_robust(b) and level(b) > level(a)
     )
 
 
@@ -163,6 +201,89 @@ def test_no_import_cycles():
         inside = set(component)
         report.append("; ".join(f"{a} -> {b}" for a in component for b in sorted(graph[a] & inside)))
     assert not report, "import circles (edges inside each):\n" + "\n".join(report)
+
+
+def test_every_robust_module_has_a_robust_floor():
+    for module in _modules():
+        if _in_robust(module):
+            floor_of(module, ROBUST_FLOORS, ROBUST)
+
+
+def test_no_import_inside_robust_points_to_a_higher_robust_floor():
+    edges = robust_upward_edges(import_graph())
+    assert not edges, "imports inside robust/ that look up its floors:\n" + "\n".join(edges)
+
+
+def test_robust_floors_see_an_edge_up_and_name_every_subpackage():
+    up = {
+        f"{ROBUST}.mu.bounds": {f"{ROBUST}.dk.iteration"},
+        f"{ROBUST}.dk.iteration": {f"{ROBUST}.mu.bounds"},
+    }
+    assert robust_upward_edges(up) == [
+        f"{ROBUST}.mu.bounds (robust floor 1) -> {ROBUST}.dk.iteration (robust floor 6)"
+    ]
+    on_disk = {p.parent.name for p in (ROOT / "robust").glob("*/__init__.py")}
+    on_disk |= {p.stem for p in (ROOT / "robust").glob("*.py") if p.stem != "__init__"}
+    assert on_disk == {entry for entries in ROBUST_FLOORS for entry in entries if entry}
+    doc = robustctl.robust.__doc__
+    for level, entries in enumerate(ROBUST_FLOORS):
+        for entry in filter(None, entries):
+            name = f"``{entry}/``" if (ROOT / "robust" / entry).is_dir() else f"``{entry}``"
+            line = next((ln for ln in doc.splitlines() if ln.startswith(f"{level}. ")), "")
+            block = doc[doc.index(line) :].split(f"\n{level + 1}. ")[0] if line else ""
+            assert name in block, f"robust/__init__.py's floor {level} does not name {name}"
+
+
+def _package_of(module: str, is_package: bool) -> str:
+    return module if is_package else module.rsplit(".", 1)[0]
+
+
+def private_imports_across_packages() -> list[str]:
+    """``from <module of another package> import _name`` anywhere in robustctl (function-level
+    imports included). A helper another package needs has a public name in its home module."""
+    modules = _modules()
+    found = []
+    for name, (path, is_package) in modules.items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
+            if not isinstance(node, ast.ImportFrom):
+                continue
+            private = [a.name for a in node.names if a.name.startswith("_") and not a.name.startswith("__")]
+            targets = _targets(name, is_package, node, modules)
+            if not private or not targets:
+                continue
+            target = targets[0]
+            if _package_of(target, modules.get(target, (None, False))[1]) != _package_of(name, is_package):
+                found.append(f"{name}:{node.lineno} imports {', '.join(private)} from {target}")
+    return sorted(found)
+
+
+def test_no_module_imports_a_private_name_from_another_package():
+    found = private_imports_across_packages()
+    assert not found, "private names imported across packages (give them a public name):\n" + "\n".join(found)
+
+
+def test_no_package_reexports_a_private_name():
+    """A package's ``__init__`` exports its public API only; its private helpers are imported,
+    where a test needs them, from the submodule that defines them."""
+    reexported = []
+    for name, (path, is_package) in _modules().items():
+        if not is_package:
+            continue
+        for node in ast.parse(path.read_text(encoding="utf-8")).body:
+            if isinstance(node, ast.ImportFrom):
+                bound = [a.asname or a.name for a in node.names]
+                reexported += [f"{name}: {b}" for b in bound if b.startswith("_") and not b.startswith("__")]
+    assert not reexported, "private names re-exported by a package:\n" + "\n".join(reexported)
+
+
+def test_private_import_scan_resolves_relative_imports():
+    modules = _modules()
+    node = ast.parse("from ..lti import _blocks, schur_eval").body[0]
+    assert _targets(f"{PACKAGE}.robust.analysis", True, node, modules) == [f"{PACKAGE}.robust.lti"] * 2
+    node = ast.parse("from ...lti import _blocks").body[0]
+    target = _targets(f"{PACKAGE}.robust.hinf.norm", False, node, modules)[0]
+    assert target == f"{PACKAGE}.lti"
+    assert _package_of(target, False) == PACKAGE != _package_of(f"{PACKAGE}.robust.hinf.norm", False)
 
 
 @pytest.mark.parametrize("module, allowed", sorted(ONLY_IMPORTS.items()))

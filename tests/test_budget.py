@@ -52,7 +52,7 @@ def test_budget_warning_is_a_robustctl_and_a_runtime_warning():
 
 
 def test_fit_magnitude_used_up_budget_returns_a_flagged_fit():
-    from robustctl.robust.magfit import fit_magnitude_details
+    from robustctl.robust.uncertainty.magfit import fit_magnitude_details
 
     f = np.logspace(-1, 2, 60)
     mag = np.abs(0.1 + 1j * f) / np.abs(1 + 1j * f / 30)

@@ -108,7 +108,7 @@ def test_guaranteed_level_and_attenuation_are_measured_for_both(comparison):
         levels[lab] = (a, rs)
         # the bisection's answer is what mu says: at the scale robust performance holds
         if a > 0:
-            cl = rc.robust.dk_verify.closed_loop(gp.P, yard.designs[lab].K, gp.nmeas, gp.ncon)
+            cl = rc.robust.dk.verify.closed_loop(gp.P, yard.designs[lab].K, gp.nmeas, gp.ncon)
             f = yard.designs[lab].mu.f_hz
             H = freqresp_array(cl, f)
             H[:, H.shape[1] - gp.n_perf_z:, :] *= a

@@ -7,7 +7,7 @@ import pytest
 import robustctl as rc
 from robustctl.errors import SynthesisError
 from robustctl.lti import freqresp_array
-from robustctl.robust.controller_reduction import (
+from robustctl.robust.reduction.controller import (
     coprime_reduction,
     reduce_controller,
     weighted_balanced_truncation,

@@ -11,8 +11,7 @@ from robustctl.errors import SynthesisError
 from robustctl.examples import TWO_MASS_BLOCKS, two_mass_spring_plant
 from robustctl.interconnect import lft
 from robustctl.lti import freqresp_array
-from robustctl.robust.blocks import as_block_structure
-from robustctl.robust.dgk import (
+from robustctl.robust.dk.dgk import (
     blended_scales,
     fit_g_filter,
     g_targets,
@@ -20,6 +19,7 @@ from robustctl.robust.dgk import (
     scaled_d_targets,
     transformed_norm,
 )
+from robustctl.robust.uncertainty.blocks import as_block_structure
 
 
 def crandn(rng, *shape):

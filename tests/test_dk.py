@@ -1,4 +1,4 @@
-"""D-K iteration (robustctl.robust.dk) and the generalized Nyquist test of the yardstick."""
+"""D-K iteration (robustctl.robust.dk.iteration) and the generalized Nyquist test of the yardstick."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import pytest
 from robustctl.errors import SynthesisError
 from robustctl.examples import DISTILLATION_BLOCKS, distillation_plant
 from robustctl.lti import freqresp_array
-from robustctl.robust.blocks import as_block_structure
-from robustctl.robust.dk import _as_plant, _scale_plant, closed_loop, dksyn
+from robustctl.robust.dk.iteration import _scale_plant, as_plant, closed_loop, dksyn
+from robustctl.robust.uncertainty.blocks import as_block_structure
 from robustctl.robust.yardsticks import nyquist_stability
 
 BOOK_BLOCKS = DISTILLATION_BLOCKS
@@ -51,7 +51,7 @@ def test_closed_loop_is_the_lower_lft(with_d22):
 
 def test_scaled_plant_is_d_p_dinv_on_the_uncertainty_channels():
     P = distillation_plant()
-    plant = _as_plant((P, 2, 2, BOOK_BLOCKS))
+    plant = as_plant((P, 2, 2, BOOK_BLOCKS))
     d1 = control.ss(control.tf([2.0, 1.0], [1.0, 3.0]))
     d2 = control.ss(control.tf([1.0, 0.5, 2.0], [1.0, 2.0, 1.0]))
     Ps = _scale_plant(plant, [d1, d2])
@@ -127,7 +127,7 @@ def test_distillation_dk_with_automatic_scales():
     for k, h in enumerate(dk.history[1:], start=1):
         assert ("rose above" in h.note) == (h.mu_peak > min(g.mu_peak for g in dk.history[:k]))
     # certified on a grid 1e-7 .. 100 Hz too (mu is flat down to DC on this problem)
-    from robustctl.robust.mu_bounds import mu
+    from robustctl.robust.mu.bounds import mu
 
     fw = np.logspace(-7, 2, 400)
     wide = mu(freqresp_array(dk.closed_loop, fw), dk.blocks, f_hz=fw)
@@ -141,7 +141,7 @@ def test_distillation_with_the_weight_pole_at_1e5_reaches_mu_below_one():
     later the D fits, started with basis poles spread over all 7.8 decades, lost about one
     order each and D-K stalled at 1.019 (1.181 1.037 1.021 1.019 1.026). Now it follows
     eps = 1e-6 below 1, descending, and the returned mu holds on a grid down to DC."""
-    from robustctl.robust.mu_bounds import mu
+    from robustctl.robust.mu.bounds import mu
 
     dk = dksyn((distillation_plant(eps=1e-5), 2, 2, BOOK_BLOCKS), max_iter=6, progress=False, autoscale=False)
     peaks = [h.mu_peak for h in dk.history]
@@ -171,9 +171,9 @@ def test_returned_mu_is_verified_between_and_beyond_the_grid():
     returned controller on a denser grid, the closed-loop resonances and a search of its
     highest maxima: its mu_peak is the one an independent fine grid finds, it warns, and
     grid_mu_peak keeps the grid's."""
-    from robustctl.robust.mu_bounds import mu
+    from robustctl.robust.mu.bounds import mu
     from robustctl.robust.plant import generalized_plant
-    from robustctl.robust.weights import makeweight
+    from robustctl.robust.uncertainty.weights import makeweight
 
     G = _modal_plant([5.0166, 13.6886], [0.0298, 0.0084], [-0.4547, 0.0601], [-0.9916, 1.3402])
     gp = generalized_plant(G, output_mult=makeweight(0.05, (3.0, 0.3), 2.0),
@@ -194,14 +194,14 @@ def test_d_orders_out_of_band_fall_back_to_lower_orders_not_a_constant(monkeypat
     """When every allowed order's fit has dynamics outside the band, the lower orders are
     tried (highest first) before a constant: a constant scale raised mu from 1.20 to 1.39
     on a random 28-state plant. Here fits of order >= 2 are declared out of band."""
-    import robustctl.robust.dk as dkm
-    import robustctl.robust.dk_scales as dks
-    from robustctl.robust.hinf_synthesis import hinfsyn
+    import robustctl.robust.dk.iteration as dkm
+    import robustctl.robust.dk.scales as dks
+    from robustctl.robust.hinf.synthesis import hinfsyn
 
-    plant = _as_plant((distillation_plant(), 2, 2, BOOK_BLOCKS))
+    plant = as_plant((distillation_plant(), 2, 2, BOOK_BLOCKS))
     blocks = dkm._complexified(plant.blocks)
     cl = closed_loop(plant.P, hinfsyn(plant.P, 2, 2, backoff=1e-3).K, 2, 2)
-    m, H = dkm._mu_of(cl, blocks, dkm.default_grid(plant.P), refine=True)
+    m, H = dkm.mu_of(cl, blocks, dkm.default_grid(plant.P), refine=True)
     _, orders, bound_free = dkm._fit_d_scales(H, m, blocks, 4, None, (), dkm._edge_response(cl))
     assert orders == (4, 4)
     in_band = dkm._dynamics_in_band
@@ -220,14 +220,14 @@ def test_a_broken_fit_of_the_only_allowed_order_falls_back_to_lower_orders(monke
     are tried: on a random 12-state plant the order-8 fit rose 15x beyond the grid's top,
     its bound was 3.2 against mu 0.48, and the next K step's gamma 3.1. Here order 4's fits
     and above are spoiled by a factor 3 (bound ~3x mu)."""
-    import robustctl.robust.dk as dkm
-    import robustctl.robust.dk_scales as dks
-    from robustctl.robust.hinf_synthesis import hinfsyn
+    import robustctl.robust.dk.iteration as dkm
+    import robustctl.robust.dk.scales as dks
+    from robustctl.robust.hinf.synthesis import hinfsyn
 
-    plant = _as_plant((distillation_plant(), 2, 2, BOOK_BLOCKS))
+    plant = as_plant((distillation_plant(), 2, 2, BOOK_BLOCKS))
     blocks = dkm._complexified(plant.blocks)
     cl = closed_loop(plant.P, hinfsyn(plant.P, 2, 2, backoff=1e-3).K, 2, 2)
-    m, H = dkm._mu_of(cl, blocks, dkm.default_grid(plant.P), refine=True)
+    m, H = dkm.mu_of(cl, blocks, dkm.default_grid(plant.P), refine=True)
     edges = dkm._edge_response(cl)
     fit_one = dkm._fit_one
     monkeypatch.setattr(dks, "_fit_one", lambda args: 3.0 * fit_one(args) if args[2] >= 4 else fit_one(args))
@@ -240,7 +240,7 @@ def test_a_broken_fit_of_the_only_allowed_order_falls_back_to_lower_orders(monke
 
 def test_fit_roots_above_the_band_are_moved_to_its_edge():
     from robustctl.lti import zpk_statespace
-    from robustctl.robust.dk import _dynamics_in_band, _into_band
+    from robustctl.robust.dk.iteration import _dynamics_in_band, _into_band
 
     f = np.logspace(-3, 1, 50)           # band up to 10 Hz; margin 10 -> 628 rad/s
     d = zpk_statespace([-3e4, -0.5], [-2.0, -40.0], 1e-3)
@@ -278,7 +278,7 @@ def test_reduction_is_rechecked_by_mu():
 
 def _mu_peak_of(P, K, blocks, f_hz):
     """Peak of the mu upper bound of Fl(P, K) on ``f_hz``, computed afresh (inf: unstable loop)."""
-    from robustctl.robust.mu_bounds import mu
+    from robustctl.robust.mu.bounds import mu
 
     cl = closed_loop(P, K, 2, 2)
     if np.max(np.linalg.eigvals(np.asarray(cl.A)).real) >= 0:
@@ -423,15 +423,21 @@ def test_fitted_bound_is_the_scaled_loops_norm_including_dc(level):
     1.02, the norm was 4.2 (at DC), and the next K step could not get below 3.8."""
     from robustctl.examples import caltech_design_plant, caltech_truss
     from robustctl.robust import hinfnorm
-    from robustctl.robust.dk import _complexified, _edge_response, _fit_d_scales, _mu_of, default_grid
-    from robustctl.robust.hinf_synthesis import hinfsyn
+    from robustctl.robust.dk.iteration import (
+        _complexified,
+        _edge_response,
+        _fit_d_scales,
+        default_grid,
+        mu_of,
+    )
+    from robustctl.robust.hinf.synthesis import hinfsyn
 
-    plant = _as_plant(caltech_design_plant(caltech_truss(), level=level))
+    plant = as_plant(caltech_design_plant(caltech_truss(), level=level))
     blocks = _complexified(plant.blocks)
     K = hinfsyn(plant.P, plant.nmeas, plant.ncon, backoff=1e-3).K
     for _ in range(2):  # the unscaled loop, then the loop of the first scaled K step
         cl = closed_loop(plant.P, K, plant.nmeas, plant.ncon)
-        m, H = _mu_of(cl, blocks, default_grid(plant.P), refine=True)
+        m, H = mu_of(cl, blocks, default_grid(plant.P), refine=True)
         fits, _, bound = _fit_d_scales(H, m, blocks, None, None, (), _edge_response(cl))
         scaled = _scale_plant(plant, fits)
         norm, _ = hinfnorm(closed_loop(scaled, K, plant.nmeas, plant.ncon))
@@ -454,10 +460,10 @@ def _unscaled_distillation():
 def test_autoscaling_undoes_the_plant_units():
     # the scaled plant is the same whatever units the column is written in: the controls and
     # measurements at unit peak gain and the block scales from a covariant start
-    from robustctl.robust.dk import _as_plant, _autoscaled
+    from robustctl.robust.dk.iteration import _autoscaled, as_plant
 
-    a, sa = _autoscaled(_as_plant((distillation_plant(), 2, 2, BOOK_BLOCKS)))
-    b, sb = _autoscaled(_as_plant((_unscaled_distillation(), 2, 2, BOOK_BLOCKS)))
+    a, sa = _autoscaled(as_plant((distillation_plant(), 2, 2, BOOK_BLOCKS)))
+    b, sb = _autoscaled(as_plant((_unscaled_distillation(), 2, 2, BOOK_BLOCKS)))
     f = np.logspace(-4, 1, 30)
     Ha, Hb = freqresp_array(a.P, f), freqresp_array(b.P, f)
     np.testing.assert_allclose(Ha, Hb, rtol=1e-6, atol=1e-9 * np.abs(Ha).max())
@@ -469,7 +475,7 @@ def test_autoscaling_undoes_the_plant_units():
 def test_dk_result_does_not_depend_on_the_plant_units():
     # the book's unscaled column (G0 / 100) stopped at mu 1.09 (10 iterations) against 0.99
     # for the scaled one; automatically scaled, both reach the same mu, below 0.98
-    from robustctl.robust.mu_bounds import mu
+    from robustctl.robust.mu.bounds import mu
 
     out = []
     for P in (distillation_plant(), _unscaled_distillation()):
@@ -543,7 +549,7 @@ def _dense_mu_peak(cl, blocks, f_grid) -> float:
     beyond ``f_grid`` each way, DC, and 41 points across every closed-loop pole with damping
     below 0.3 (a grid of its own, not dksyn's verification grid)."""
     from robustctl.lti import pole_frequency_damping
-    from robustctl.robust.mu_bounds import mu
+    from robustctl.robust.mu.bounds import mu
 
     f_grid = np.asarray(f_grid)
     fpos = f_grid[f_grid > 0]

@@ -1,5 +1,5 @@
 """D-K on large plants: the design plant reduced by balanced truncation before synthesis
-(robustctl.robust.dk_plant), the truncation error covered by an additive uncertainty block, the
+(robustctl.robust.dk.design_plant), the truncation error covered by an additive uncertainty block, the
 controller closed around the full plant and its mu verified there. The plants are the numpy chains
 of ``benchmarks/bench_scale_dk.py``."""
 
@@ -13,8 +13,8 @@ import scipy.linalg as sla
 from benchmarks.bench_scale_dk import chain_plant, design_plant
 from robustctl.errors import SynthesisError
 from robustctl.lti import freqresp_array
-from robustctl.robust.dk import dksyn
-from robustctl.robust.dk_plant import DESIGN_MAX_STATES, DESIGN_REDUCE_ABOVE, reduce_design_plant
+from robustctl.robust.dk.design_plant import DESIGN_MAX_STATES, DESIGN_REDUCE_ABOVE, reduce_design_plant
+from robustctl.robust.dk.iteration import dksyn
 from robustctl.robust.plant import generalized_plant
 
 

@@ -162,7 +162,7 @@ def test_bad_system():
 def test_modal_peak_search_reaches_the_closed_form_peak(zeta):
     """The parabolic steps on 1 / sigma^2 find the peak of one mode to ~1e-12, a lightly damped
     one in three calls of sigma (the 1 / sigma^2 of a lone resonance is exactly a parabola)."""
-    from robustctl.robust.hinf_norm import PEAK_ROUNDS, _modal_peaks, _SigmaMax
+    from robustctl.robust.hinf.norm import PEAK_ROUNDS, _modal_peaks, _SigmaMax
 
     sys = control.ss(control.tf([1.0], [1.0, 2 * zeta, 1.0]))
     sigma = _SigmaMax(*(np.asarray(m, dtype=float) for m in (sys.A, sys.B, sys.C, sys.D)))
@@ -202,7 +202,7 @@ def test_overlapping_modes_match_a_dense_sweep():
 def test_level_set_iteration_from_a_poor_lower_bound(start):
     """The Hamiltonian iteration alone (started well below the norm, as when the modal search
     misses the peak) climbs to the dense-sweep peak and certifies it."""
-    from robustctl.robust.hinf_norm import _Hamiltonian, _level_set_iteration, _SigmaMax
+    from robustctl.robust.hinf.norm import _Hamiltonian, _level_set_iteration, _SigmaMax
 
     sys = modal_system(8, 3, zeta=None, n_in=3, n_out=2)
     A, B, C, D = (np.asarray(m, dtype=float) for m in (sys.A, sys.B, sys.C, sys.D))

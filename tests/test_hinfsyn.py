@@ -387,7 +387,7 @@ def test_slow_stable_mode_is_not_read_as_on_the_axis_next_to_a_fast_one():
     """A weight pole at -1e-5 rad/s unseen by y next to a -1e8 rad/s mode: ||A|| = 1e8, but the
     pole is resolved to ~2e-6 (100 eps ||A||), so (C2, A) is detectable.
     A tolerance of 1e-12 ||A|| = 1e-4 (the old rule) put it on the axis and refused the plant."""
-    from robustctl.robust.hinf_assumptions import _eig_error, _unreachable_modes
+    from robustctl.robust.hinf.assumptions import _eig_error, _unreachable_modes
 
     A = np.diag([-1e-5, -1e8, -1.0])
     C2 = np.array([[0.0, 1.0, 1.0]])
@@ -405,7 +405,7 @@ def test_slow_stable_mode_is_not_read_as_on_the_axis_next_to_a_fast_one():
 def test_bracket_restarts_low_when_the_open_loop_norm_fails_numerically(monkeypatch):
     """K = 0 achieves ||P11||, so an infeasible verdict there is numerical: the bracket climbs
     again from near the bottom instead of from ||P11|| (the eps = 1e-5 distillation stall)."""
-    from robustctl.robust import dgkf
+    from robustctl.robust.hinf import dgkf
 
     G = control.tf([1], [1, 0.2, 1])
     P = control.augw(G, w1=control.tf([0.5, 1], [1, 0.01]), w2=control.tf(0.1, 1))

@@ -15,7 +15,8 @@ import pytest
 import scipy.linalg as sla
 
 import robustctl as rc
-from robustctl.correlate.diagnosis import SCREEN_MULTIPLES, _probe_sizes
+from robustctl.correlate.diagnosis import SCREEN_MULTIPLES
+from robustctl.correlate.diagnosis.screening import _probe_sizes
 from robustctl.correlate.residual import Residual
 from robustctl.physical import effects as fx
 from robustctl.physical.fem import Frame
@@ -197,7 +198,7 @@ def test_pairing_follows_the_shapes_through_large_shifts_and_crossings():
 def test_diagnose_says_when_the_time_budget_cuts_its_fits(chain):
     """A budget that runs out is an error (no partial ranking); one that cuts fits short warns
     that the ranking depends on the machine's load (the budget is a safety cap)."""
-    from robustctl.correlate.diagnosis import _warn_if_hurried
+    from robustctl.correlate.diagnosis.workers import _warn_if_hurried
 
     model, cands = chain
     data = _data(model, model.with_effect(fx.AddedMass("dof 3", mass=0.05)), seed=7)

@@ -8,7 +8,7 @@ import scipy.linalg
 import robustctl as rc
 from robustctl.errors import SynthesisError
 from robustctl.lti import freqresp_array
-from robustctl.robust.coprime import left_ncf, right_ncf
+from robustctl.robust.analysis.coprime import left_ncf, right_ncf
 
 s = control.tf("s")
 
@@ -65,7 +65,7 @@ def test_ncfsyn_achieves_the_closed_form_optimum(k):
     # the closed loop, formed independently (positive feedback u = K y), is stable
     cl = control.feedback(control.ss(G), res.K, sign=+1)
     assert rc.is_stable(cl)
-    assert rc.robust.loop_shaping.stability_margin(G, res.K) == pytest.approx(res.b_achieved, rel=1e-9)
+    assert rc.robust.analysis.stability_margin(G, res.K) == pytest.approx(res.b_achieved, rel=1e-9)
 
 
 def test_first_order_plant_margin_is_cos_pi_over_8():

@@ -87,7 +87,7 @@ def test_freqresp_defective_jordan_block():
     assert_rel(got, exact, 1e-12)
     assert_rel(got, control_response(sys, F), 1e-9)
     # the Jordan block went through the Schur path, the oscillator was diagonalised
-    _, _, _, bad = lti._modal_terms(A, B, C, lti._blocks(A))
+    _, _, _, bad = lti.modal_terms(A, B, C, lti.schur_blocks(A))
     assert [sorted(b) for b in bad] == [[0, 1, 2]]
 
 
@@ -227,7 +227,7 @@ def test_physical_ordering_modal_form_splits_into_blocks():
     B = rng.standard_normal((2 * n + 1, 2))
     C = rng.standard_normal((3, 2 * n + 1))
     sys = control.ss(A, B, C, np.zeros((3, 2)))
-    sizes = sorted(b.shape[1] for b in lti._blocks(A) for _ in range(b.shape[0]))
+    sizes = sorted(b.shape[1] for b in lti.schur_blocks(A) for _ in range(b.shape[0]))
     assert sizes == [1] + [2] * n
     assert_rel(rc.freqresp(sys, F).response, control_response(sys, F), 1e-9)
 
@@ -243,11 +243,11 @@ def test_schur_factors_evaluate_the_transfer_function(n_points, shape):
     B, C = rng.standard_normal((n, m)), rng.standard_normal((p, n))
     s = 1j * np.linspace(0.1, 10.0, n_points)
     ref = np.stack([C @ np.linalg.solve(sk * np.eye(n) - A, B) for sk in s])
-    factors = lti._schur_factors(A, B, C)
-    out = lti._schur_eval(factors, s)
+    factors = lti.schur_factors(A, B, C)
+    out = lti.schur_eval(factors, s)
     assert out.shape == (n_points, p, m)
     assert np.max(np.abs(out - ref)) <= 1e-11 * np.max(np.abs(ref))
-    assert np.array_equal(lti._schur_eval(factors, s), out)  # the factors are reusable
+    assert np.array_equal(lti.schur_eval(factors, s), out)  # the factors are reusable
 
 
 def test_is_stable_is_a_strict_open_left_half_plane_test_with_an_explicit_margin():

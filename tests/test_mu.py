@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 import robustctl as rc
-from robustctl.robust.blocks import Block, as_block_structure
-from robustctl.robust.mu_layout import layout_of
-from robustctl.robust.mu_lmi import lmi_upper_bound
+from robustctl.robust.mu.layout import layout_of
+from robustctl.robust.mu.lmi import lmi_upper_bound
+from robustctl.robust.uncertainty.blocks import Block, as_block_structure
 
 
 def crandn(rng, *shape):

@@ -9,7 +9,7 @@ import pytest
 
 import robustctl as rc
 from robustctl.examples import DISTILLATION_BLOCKS, distillation_plant
-from robustctl.robust.dk import _as_plant
+from robustctl.robust.dk.iteration import as_plant
 from robustctl.robust.plant import GeneralizedPlant
 
 
@@ -53,8 +53,8 @@ def test_every_plant_form_gives_the_same_partition():
     bs = rc.as_block_structure(DISTILLATION_BLOCKS)
     gp = rc.as_partitioned(P, 2, 2, DISTILLATION_BLOCKS)
     assert isinstance(gp, GeneralizedPlant) and gp.blocks == bs and (gp.nw, gp.nz) == (4, 4)
-    assert rc.as_partitioned(gp) is gp and _as_plant(gp) is gp
-    from_tuple = _as_plant((P, 2, 2, DISTILLATION_BLOCKS))
+    assert rc.as_partitioned(gp) is gp and as_plant(gp) is gp
+    from_tuple = as_plant((P, 2, 2, DISTILLATION_BLOCKS))
     assert from_tuple.P is P and (from_tuple.nmeas, from_tuple.ncon) == (2, 2) and from_tuple.blocks == bs
     pp = rc.PartitionedPlant(P, 2, 2)
     assert rc.as_partitioned(pp) is pp and rc.as_partitioned(pp, nmeas=2) is pp

@@ -83,13 +83,13 @@ def test_robustctl_kernels_run_limited(two_threads, monkeypatch):
     from robustctl import lti
 
     seen = []
-    original = lti._modal_terms
+    original = lti.modal_terms
 
     def spy(*args, **kwargs):
         seen.append(blas_counts())
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(lti, "_modal_terms", spy)
+    monkeypatch.setattr(lti, "modal_terms", spy)
     rc.freqresp(control.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]]), [1.0])
     assert seen and all(n == 1 for n in seen[0])
 

@@ -441,7 +441,7 @@ def test_cover_adds_the_estimate_random_error():
     g = freqresp_array(plant(1.05), FC)
     coh = np.full(g.shape, 0.9)
     data = rc.FrequencyData(FC, g, inputs=["u"], outputs=["y"], coherence=coh, meta={"n_averages": 10})
-    from robustctl.robust.cover import error_envelope
+    from robustctl.robust.uncertainty.cover import error_envelope
 
     _, _, e0 = error_envelope(G0, data, data_sigmas=0.0)
     _, _, e2 = error_envelope(G0, data, data_sigmas=2.0)

@@ -34,8 +34,8 @@ def caltech():
 
 @pytest.mark.slow
 def test_dk_on_the_caltech_truss_certifies_robust_stability_and_stabilises_the_truth(caltech):
-    from robustctl.robust.dk import dksyn
-    from robustctl.robust.mu_bounds import mu
+    from robustctl.robust.dk.iteration import dksyn
+    from robustctl.robust.mu.bounds import mu
 
     data, truth, model = caltech
     gp = caltech_recipe(model, level=0.3)   # robust performance reachable (mu ~ 0.8)

@@ -93,7 +93,9 @@ class LMResult:
         return 0.0 if self.cost0 == 0 else 1.0 - self.cost / self.cost0
 
 
-def _bounds(model: Any, names: tuple[str, ...], bounds: Any) -> tuple[np.ndarray, np.ndarray]:
+def parameter_bounds(model: Any, names: tuple[str, ...], bounds: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper bounds of the parameters ``names``: the model's, replaced where ``bounds``
+    gives them."""
     lo = np.array([model.param(n).bounds[0] for n in names], dtype=float)
     hi = np.array([model.param(n).bounds[1] for n in names], dtype=float)
     if bounds is None:
@@ -334,7 +336,7 @@ def levenberg_marquardt(
     names = _check_names(model, names)
     if int(max_iter) < 0:
         raise FitError(f"max_iter must be >= 0; got {max_iter}.")
-    lo, hi = _bounds(model, names, bounds)
+    lo, hi = parameter_bounds(model, names, bounds)
     x = _start(model, names, x0, lo, hi)
     scale = np.where(np.abs(x) > 0, np.abs(x), 1.0)
 

@@ -41,7 +41,7 @@ from ..checks import (
     user_stacklevel,
 )
 from ..checks import point_weights as point_weights_of
-from ..errors import DataError, DataWarning, FitError, ModelError, RobustctlError
+from ..errors import DataError, DataWarning, FitError, ModelError, RobustctlError, RobustctlWarning
 from ..executors import parallel_map_shared
 from ..frd import FrequencyData, as_frequency_data
 from ..lti import as_statespace, freqresp, log_ratio
@@ -75,7 +75,7 @@ __all__ = [
 ]
 
 
-class UnitWarning(UserWarning):
+class UnitWarning(RobustctlWarning):
     """A band or frequency that looks like rad/s where Hz is meant."""
 
 #: Default level (dB) below which a channel counts as negligible (decoupled) and gets weight 0

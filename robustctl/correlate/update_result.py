@@ -130,9 +130,11 @@ class UpdateResult:
             return ""
         t, dof, p = test
         worst = max(self.moves_se.items(), key=lambda kv: abs(kv[1]) if np.isfinite(kv[1]) else -1.0)
+        before, after = self.initial_model.param(worst[0]).value, self.model.param(worst[0]).value
+        pct = f", {100 * (after - before) / before:+.3g} %" if before else ""
         head = (
             f"Parameter moves against the noise: m^T C^-1 m = {t:.3g} on {dof} dof ({format_p(p)}); "
-            f"largest {worst[0]} by {worst[1]:+.2g} SE: "
+            f"largest {worst[0]} by {worst[1]:+.2g} SE{pct}: "
         )
         if p >= alpha:
             return head + f"no parameter moved significantly (at {alpha:g}): the data do not contradict " \
@@ -232,7 +234,7 @@ class UpdateResult:
             ``"modes"``: one real scalar per retained mode's frequency (and damping) movement
             instead of per parameter axis (large or reduced models; see
             :func:`~robustctl.physical.uncertain.parametric_lft`); cover what it misses with
-            :func:`robustctl.robust.cover.cover_remainder`.
+            :func:`robustctl.robust.uncertainty.cover.cover_remainder`.
         order : int, optional
             Reduce the model to this many states (balanced truncation) first, e.g. 12 for the
             Caltech truss's six design modes.

@@ -254,7 +254,7 @@ def _trial_values(par: Any, effect: bool) -> list[float]:
     return list(dict.fromkeys(float(np.clip(neutral + m * (v - neutral), lo, hi)) for m in mults))
 
 
-def _coarse_start(
+def coarse_start(
     residual: Residual, selected: tuple[str, ...], sens: Sensitivities, effect_params: tuple[str, ...]
 ) -> tuple[dict[str, float], int]:
     """Starting values for parameters far from their best value (a coarse multi-start).
@@ -431,7 +431,7 @@ def update(
         selected, notes, suggestions = names, [], []
     if not selected:
         raise FitError("no parameter passed the selection tests; lower min_alignment or give params=[...].")
-    x0, n_coarse = _coarse_start(residual, tuple(selected), sens, effect_params)
+    x0, n_coarse = coarse_start(residual, tuple(selected), sens, effect_params)
     if x0:
         notes.append(
             "started "

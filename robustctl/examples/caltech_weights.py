@@ -24,8 +24,8 @@ import numpy as np
 from ..correlate import update
 from ..lti import freqresp, freqresp_array
 from ..plots import new_figure
-from ..robust.cover import cover_additive
-from ..robust.weights import caltech_additive_weight
+from ..robust.uncertainty.cover import cover_additive
+from ..robust.uncertainty.weights import caltech_additive_weight
 
 __all__ = ["CaltechWeights", "caltech_truss_weights", "caltech_additive_weight"]
 

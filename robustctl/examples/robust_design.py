@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+import control
 import numpy as np
 
 from ..balanced import balanced_truncation
@@ -23,11 +24,11 @@ from ..errors import DataError, FitError
 from ..frd import as_frequency_data
 from ..lti import as_statespace, freqresp_array
 from ..measure.estimator import estimator_settings, estimator_view
-from ..robust.cover import cover_additive, cover_remainder
-from ..robust.dk_verify import closed_loop, default_grid, verification_grid
-from ..robust.mu_bounds import mu
+from ..robust.dk.verify import closed_loop, default_grid, verification_grid
+from ..robust.mu.bounds import mu
 from ..robust.plant import generalized_plant
-from ..robust.weights import caltech_additive_weight
+from ..robust.uncertainty.cover import cover_additive, cover_remainder
+from ..robust.uncertainty.weights import caltech_additive_weight
 
 __all__ = ["distillation_plant", "DISTILLATION_BLOCKS", "caltech_design_plant", "six_modes",
            "ModelCoverRecipe", "ParametricComparison", "caltech_parametric_plants", "performance_scale"]
@@ -54,8 +55,6 @@ def distillation_plant(eps: float = 1e-6):
     control.StateSpace
         6 states; inputs ``di1 di2 w1 w2 u1 u2``, outputs ``zi1 zi2 zp1 zp2 y1 y2``.
     """
-    import control
-
     G0 = np.array([[87.8, -86.4], [108.2, -109.6]])
     I2, Z2 = np.eye(2), np.zeros((2, 2))
     A = np.block([[-I2 / 75, Z2, Z2], [Z2, -2 * I2, Z2], [G0, Z2, -eps * I2]])
@@ -103,8 +102,6 @@ def two_mass_spring_plant(k: float | None = None, *, k_range: tuple[float, float
         with :data:`TWO_MASS_BLOCKS`, ``nmeas = ncon = 1``), else inputs ``[w_d, n, u]`` and
         outputs ``[z_p, z_u, y]``. States: ``x1, x2, v1, v2`` and the weight's two.
     """
-    import control
-
     k0 = 0.5 * (k_range[0] + k_range[1])
     kd = 0.5 * (k_range[1] - k_range[0])
     kk = k0 if k is None else float(k)
@@ -146,8 +143,6 @@ def himat_plant(noise: bool = False):
     blocks : list
         mussv rows: ``[[2, 2], [2, 2]]`` (``[[2, 2], [4, 2]]`` with noise); ``nmeas = ncon = 2``.
     """
-    import control
-
     A = np.array([[-0.0226, -36.6, -18.9, -32.1], [0, -1.9, 0.983, 0], [0.0123, -11.7, -2.63, 0],
                   [0, 0, 1, 0]])
     B = np.array([[0, 0], [-0.414, 0], [-77.8, 22.4], [0, 0]])
@@ -185,8 +180,6 @@ def himat_plant(noise: bool = False):
 
 def six_modes(model: Any):
     """The six global modes (12 states) of a truss model by balanced truncation (seed eq. 11-13)."""
-    import control
-
     G = as_statespace(model)
     if G.nstates <= 12:
         return G
@@ -222,8 +215,6 @@ def caltech_design_plant(nominal: Any, level: float = 0.3, band_hz: tuple[float,
 
 def _band_pass(level: float, band_hz: tuple[float, float]):
     """``level * w2 s / ((s + w1)(s + w2))`` with corners ``band_hz`` (Hz): gain ``level`` in the band."""
-    import control
-
     w1, w2 = 2 * np.pi * band_hz[0], 2 * np.pi * band_hz[1]
     return control.ss(control.tf([level * w2, 0.0], np.polymul([1.0, w1], [1.0, w2])))
 
@@ -283,7 +274,7 @@ class ModelCoverRecipe:
         spans the two close pairs, so the six-state weight is a smooth hump over the modes
         rather than a fit that dips between them.
     data_sigmas : float
-        Passed to :func:`~robustctl.robust.cover.cover_additive` (0: cover the residual as
+        Passed to :func:`~robustctl.robust.uncertainty.cover.cover_additive` (0: cover the residual as
         measured; the random error at the low-coherence peaks would otherwise swamp it).
     """
 
@@ -297,7 +288,7 @@ class ModelCoverRecipe:
     _covers: dict = field(default_factory=dict, repr=False)
 
     def cover(self, nominal: Any):
-        """The additive :class:`~robustctl.robust.cover.UncertaintyCover` of ``six_modes(nominal)``
+        """The additive :class:`~robustctl.robust.uncertainty.UncertaintyCover` of ``six_modes(nominal)``
         (computed once per model object)."""
         if id(nominal) not in self._covers:
             self._covers[id(nominal)] = (nominal, self._fit_cover(nominal))
@@ -368,8 +359,8 @@ def caltech_parametric_plants(upd: Any, data: Any, *, n_sigma: float = 3.0, leve
     Both stand for the same plants: the measured FRFs as the H1 estimator sees the six-mode
     nominal (as :class:`ModelCoverRecipe`) and ``n_models`` models drawn from the update's
     covariance, at full order. (A) ``upd.uncertain(n_sigma, form="modes", order=12)`` (one
-    real scalar per design mode) with :func:`~robustctl.robust.cover.cover_remainder` over
-    those plants; (B) :func:`~robustctl.robust.cover.cover_additive` of the same plants about
+    real scalar per design mode) with :func:`~robustctl.robust.uncertainty.cover.cover_remainder` over
+    those plants; (B) :func:`~robustctl.robust.uncertainty.cover.cover_additive` of the same plants about
     the same six-mode nominal. The rest is :class:`ModelCoverRecipe`'s: 4 % input and output
     multiplicative uncertainty, unit input disturbances, the band-pass performance weight.
 
@@ -392,7 +383,7 @@ def caltech_parametric_plants(upd: Any, data: Any, *, n_sigma: float = 3.0, leve
     cover_order : int
         States of the remainder and of the complex cover.
     fold : float
-        :func:`~robustctl.robust.cover.cover_remainder`'s ``fold``: mode blocks whose whole
+        :func:`~robustctl.robust.uncertainty.cover.cover_remainder`'s ``fold``: mode blocks whose whole
         effect stays below this fraction of the remainder are folded into it. On the demo's
         data the 3-sigma mode blocks move the response by 2-18 % of the remainder (the
         measured residual at the low-coherence peaks dominates it), and with all six kept
@@ -423,7 +414,7 @@ def caltech_parametric_plants(upd: Any, data: Any, *, n_sigma: float = 3.0, leve
 def performance_scale(gp: Any, K: Any, f_hz: Any = None, *, rtol: float = 1e-3) -> tuple[float, float]:
     """The largest scale ``a`` of the performance weight with robust performance ``mu <= 1``.
 
-    The closed loop ``Fl(P, K)`` on a dense grid (:func:`~robustctl.robust.dk_verify.verification_grid`,
+    The closed loop ``Fl(P, K)`` on a dense grid (:func:`~robustctl.robust.dk.verify.verification_grid`,
     points across every lightly damped closed-loop pole), its performance outputs scaled by
     ``a``, mu (mixed when there are real blocks) by bisection on ``a`` (mu is nondecreasing in
     ``a``; Skogestad & Postlethwaite 2005, sec. 8.10.2). ``a = 0`` when robust stability
@@ -435,7 +426,7 @@ def performance_scale(gp: Any, K: Any, f_hz: Any = None, *, rtol: float = 1e-3) 
     K : system
         The controller (``u = K y``).
     f_hz : array_like, optional
-        Base grid (Hz; default :func:`~robustctl.robust.dk_verify.default_grid` of ``P``).
+        Base grid (Hz; default :func:`~robustctl.robust.dk.verify.default_grid` of ``P``).
     rtol : float
         Relative width of the final bisection bracket.
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import control
 import numpy as np
 
 from ..checks import choice
@@ -31,8 +32,6 @@ def flag(value: Any, name: str) -> bool:
 
 def unwrap(K: Any) -> tuple[Any, dict]:
     """A synthesis result (anything with ``.K``) -> its controller and design figures."""
-    import control
-
     if isinstance(K, control.StateSpace) or not hasattr(K, "K"):
         return as_statespace(K, name="K"), {}
     design = {}

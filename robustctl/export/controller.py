@@ -8,10 +8,11 @@ from os import PathLike
 from pathlib import Path
 from typing import Any
 
+import control
 import numpy as np
 
 from .._version import __version__
-from ..errors import DataError, ModelError
+from ..errors import DataError, ModelError, RobustctlWarning
 from ..frd_io._common import jsonable as _jsonable
 from ..frd_io._common import write_atomically
 from . import files, formats
@@ -37,6 +38,12 @@ MAX_SPECTRAL_RADIUS = 1.0
 #: relative response deviation of second-order sections above which export_controller warns
 SOS_WARN = 1e-6
 _BALANCE = ("diagonal", "balanced")
+
+
+class ExportWarning(RobustctlWarning, RuntimeWarning):
+    """The exported controller differs from ``K`` beyond a tolerance (discretisation error above
+    :data:`ERROR_WARN`, second-order sections above :data:`SOS_WARN`) or is unstable with
+    ``on_unstable="warn"``: the file is written and the caveat is shown."""
 
 
 def _format(path: Path, format: str | None) -> str:
@@ -173,7 +180,7 @@ def export_controller(
         warnings.warn(
             f"the second-order sections deviate from the controller by {sos_err:.3g} (relative to its peak "
             "gain); prefer the state-space formats (json, h, mat) for this channel.",
-            RuntimeWarning,
+            ExportWarning,
             stacklevel=2,
         )
     _finite_range(Kd, mats)
@@ -284,7 +291,7 @@ def _stability(rho: float, on_unstable: str) -> None:
     )
     if on_unstable == "raise":
         raise ModelError(msg)
-    warnings.warn(msg, RuntimeWarning, stacklevel=3)
+    warnings.warn(msg, ExportWarning, stacklevel=3)
 
 
 def _error_check(K, Kd, crossover_hz: Any, was_continuous: bool, method: str):
@@ -308,15 +315,13 @@ def _error_check(K, Kd, crossover_hz: Any, was_continuous: bool, method: str):
         )
         warnings.warn(
             f"the discretised controller differs from K by {100 * err:.3g} % at {f:.4g} Hz; {fix}.",
-            RuntimeWarning,
+            ExportWarning,
             stacklevel=3,
         )
     return f, err
 
 
 def _with(Kd: Any, mats: list[np.ndarray]):
-    import control
-
     return control.ss(*mats, Kd.dt, inputs=list(Kd.input_labels), outputs=list(Kd.output_labels))
 
 

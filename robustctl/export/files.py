@@ -21,10 +21,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import control
 import numpy as np
 
 from ..errors import DataError
-from ..frd_io.mat import _cell, _mat_names, _mat_string
+from ..frd_io.mat import cellstr, mat_names, mat_string
 
 __all__ = [
     "ControllerData",
@@ -90,8 +91,6 @@ class ControllerData:
 
     def statespace(self):
         """The realisation as a named ``control.StateSpace``."""
-        import control
-
         return control.ss(
             self.A,
             self.B,
@@ -319,11 +318,11 @@ def write_mat(ctrl: ControllerData, path: Path, **_: Any) -> None:
         "C": ctrl.C,
         "D": ctrl.D,
         "Ts": ctrl.dt,
-        "InputName": _cell(ctrl.inputs),
-        "OutputName": _cell(ctrl.outputs),
-        "StateName": _cell(ctrl.states),
-        "InputUnit": _cell([ctrl.units.get(x, "") for x in ctrl.inputs]),
-        "OutputUnit": _cell([ctrl.units.get(x, "") for x in ctrl.outputs]),
+        "InputName": cellstr(ctrl.inputs),
+        "OutputName": cellstr(ctrl.outputs),
+        "StateName": cellstr(ctrl.states),
+        "InputUnit": cellstr([ctrl.units.get(x, "") for x in ctrl.inputs]),
+        "OutputUnit": cellstr([ctrl.units.get(x, "") for x in ctrl.outputs]),
         "robustctl_format": FORMAT_TAG,
         "robustctl_meta": json.dumps(ctrl.meta, allow_nan=False),
     }
@@ -377,7 +376,7 @@ def read_mat(path: Path) -> ControllerData:
             "controller's sampling time in s."
         )
     names = {
-        k: _mat_names(mdict, v)
+        k: mat_names(mdict, v)
         for k, v in (("inputs", "InputName"), ("outputs", "OutputName"), ("states", "StateName"))
     }
     for key, count in (("inputs", m), ("outputs", p), ("states", n)):
@@ -385,12 +384,12 @@ def read_mat(path: Path) -> ControllerData:
             names[key] = default_names(key, count)
     units = {}
     for key, var in (("inputs", "InputUnit"), ("outputs", "OutputUnit")):
-        got = _mat_names(mdict, var) or []
+        got = mat_names(mdict, var) or []
         units.update({name: u for name, u in zip(names[key], got) if u})
     meta = {}
     if "robustctl_meta" in mdict:
         try:
-            meta = json.loads(_mat_string(mdict["robustctl_meta"]) or "{}")
+            meta = json.loads(mat_string(mdict["robustctl_meta"]) or "{}")
         except ValueError as exc:
             raise DataError(f"robustctl_meta is not valid JSON ({exc}).") from None
     return ControllerData(dt=float(ts[0]), units=units, meta=meta, **mats, **names)

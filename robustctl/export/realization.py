@@ -6,6 +6,7 @@ from __future__ import annotations
 import warnings
 from typing import Any
 
+import control
 import numpy as np
 import scipy.linalg as sla
 
@@ -148,8 +149,6 @@ def sos_sections(Kd: Any) -> tuple[np.ndarray, float]:
 
 
 def _minimal(Kd: Any):
-    import control
-
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import control
 import numpy as np
 
 from ..errors import DataError, ModelError
@@ -90,8 +91,6 @@ def discretize(K: Any, fs: float | None, method: str = "tustin", prewarp_hz: flo
     >>> import control, robustctl as rc
     >>> Kd = rc.discretize(control.tf([10], [1, 10]), fs=1000, method="zoh")
     """
-    import control
-
     ss, _ = unwrap(K)
     method = choice(method, "method", METHODS)
     if is_discrete(ss):

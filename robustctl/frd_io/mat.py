@@ -25,7 +25,8 @@ _MAT_EXPERIMENT = {
     "PreTrigger": "pretrigger_s",
 }
 
-def _cell(names: Sequence[str]) -> np.ndarray:
+def cellstr(names: Sequence[str]) -> np.ndarray:
+    """Names as a MATLAB cell column (an (n, 1) object array), as ``savemat`` writes a cellstr."""
     cell = np.empty((len(names), 1), dtype=object)
     for k, name in enumerate(names):
         cell[k, 0] = name
@@ -39,8 +40,8 @@ def write_mat(data: FrequencyData, path: Path) -> None:
         "Frequency": data.f_hz[:, None],
         "FrequencyUnit": "Hz",
         "ResponseData": np.transpose(data.response, (1, 2, 0)),
-        "InputName": _cell(data.inputs),
-        "OutputName": _cell(data.outputs),
+        "InputName": cellstr(data.inputs),
+        "OutputName": cellstr(data.outputs),
         "robustctl_format": FORMAT,
         "robustctl_units": json_dumps(data.units),
         "robustctl_meta": json_dumps(data.meta),
@@ -58,7 +59,8 @@ def write_mat(data: FrequencyData, path: Path) -> None:
         savemat(fh, mdict, do_compression=True)
 
 
-def _mat_string(value: Any) -> str:
+def mat_string(value: Any) -> str:
+    """The text of a MAT-file char array or a cell holding one (DataError for anything else)."""
     arr = np.asarray(value)
     while arr.dtype == object and arr.size == 1:
         arr = np.asarray(arr.reshape(-1)[0])
@@ -69,7 +71,8 @@ def _mat_string(value: Any) -> str:
     return "".join(str(x) for x in arr.reshape(-1))
 
 
-def _mat_names(mdict: dict, key: str) -> list[str] | None:
+def mat_names(mdict: dict, key: str) -> list[str] | None:
+    """The names stored under ``key`` (cellstr or char matrix), or None when the key is absent."""
     if key not in mdict:
         return None
     cell = np.asarray(mdict[key])
@@ -77,7 +80,7 @@ def _mat_names(mdict: dict, key: str) -> list[str] | None:
         return [str(x).rstrip() for x in cell.reshape(-1)]
     if cell.dtype != object:
         raise DataError(f"{key} must be a cell array of names; got an array of dtype {cell.dtype}.")
-    return [_mat_string(c) for c in cell.reshape(-1, order="F")]
+    return [mat_string(c) for c in cell.reshape(-1, order="F")]
 
 
 def _vector_like(arr: np.ndarray) -> bool:
@@ -134,7 +137,7 @@ def read_mat(path: Path) -> FrequencyData:
     except Exception as exc:  # scipy raises ValueError, TypeError, MatReadError, ...
         raise DataError(f"not a readable MAT file ({type(exc).__name__}: {exc}).") from None
     if _CONTENTS in mdict:
-        missing = [k for k in _mat_string(mdict[_CONTENTS]).split(",") if k and k not in mdict]
+        missing = [k for k in mat_string(mdict[_CONTENTS]).split(",") if k and k not in mdict]
         if missing:
             raise DataError(f"the MAT file lacks {missing}, listed in its {_CONTENTS}; it is truncated.")
     for key in ("Frequency", "ResponseData"):
@@ -153,13 +156,13 @@ def read_mat(path: Path) -> FrequencyData:
             f"Frequency must be a vector (1 x N or N x 1); got an array of shape {f.shape}."
         )
     f = f.astype(float).reshape(-1)
-    unit = _mat_string(mdict["FrequencyUnit"]).strip().lower() if "FrequencyUnit" in mdict else "rad/s"
+    unit = mat_string(mdict["FrequencyUnit"]).strip().lower() if "FrequencyUnit" in mdict else "rad/s"
     if unit in ("rad/s", "rad/sec", "rad/second"):
         f = f / (2.0 * np.pi)
     elif unit != "hz":
         raise DataError(f"FrequencyUnit {unit!r} is not supported; use 'Hz' or 'rad/s'.")
     g = np.asarray(mdict["ResponseData"])
-    outputs, inputs = _mat_names(mdict, "OutputName"), _mat_names(mdict, "InputName")
+    outputs, inputs = mat_names(mdict, "OutputName"), mat_names(mdict, "InputName")
     siso = g.size == f.size and _vector_like(g)  # a vector of one value per frequency
     n_out = len(outputs) if outputs is not None else (1 if siso or g.ndim < 2 else g.shape[0])
     n_in = len(inputs) if inputs is not None else (1 if siso or g.ndim < 3 else g.shape[1])
@@ -172,11 +175,11 @@ def read_mat(path: Path) -> FrequencyData:
             if np.any(coh.imag != 0):
                 raise DataError("Coherence holds complex values; coherence is real, in [0, 1].")
             coh = coh.real
-    units = json_loads(_mat_string(mdict["robustctl_units"]), "units") if "robustctl_units" in mdict else {}
-    meta = json_loads(_mat_string(mdict["robustctl_meta"]), "meta") if "robustctl_meta" in mdict else {}
+    units = json_loads(mat_string(mdict["robustctl_units"]), "units") if "robustctl_units" in mdict else {}
+    meta = json_loads(mat_string(mdict["robustctl_meta"]), "meta") if "robustctl_meta" in mdict else {}
     experiment = None
     if "robustctl_experiment" in mdict:
-        experiment = json_loads(_mat_string(mdict["robustctl_experiment"]), "experiment")
+        experiment = json_loads(mat_string(mdict["robustctl_experiment"]), "experiment")
     elif any(key in mdict for key in _MAT_EXPERIMENT):
         experiment = _plain_experiment(mdict)
     return build(
@@ -193,7 +196,7 @@ def _plain_experiment(mdict: dict) -> dict:
             continue
         raw = np.asarray(mdict[key])
         if raw.dtype.kind in "US" or raw.dtype == object:
-            found[name] = _mat_string(raw).strip()
+            found[name] = mat_string(raw).strip()
             continue
         if raw.size != 1 or raw.dtype.kind not in "fiub":
             raise DataError(f"{key} must be one number or text; got an array of shape {raw.shape}.")

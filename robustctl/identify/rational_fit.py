@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import FitError
+from ..errors import FitError, RobustctlWarning
 from ..frd import FrequencyData
 from ..lti import pole_frequency_damping
 from ..plots import bode_grid
@@ -24,7 +24,7 @@ from .realization import modal_statespace
 __all__ = ["RationalFit", "IdentifyWarning"]
 
 
-class IdentifyWarning(UserWarning):
+class IdentifyWarning(RobustctlWarning):
     """A fit succeeded but something deserves a look (pole outside the band, no convergence)."""
 
 

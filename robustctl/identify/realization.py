@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import control
 import numpy as np
 
 __all__ = ["residue_rank", "residue_factors", "modal_matrices", "modal_statespace"]
@@ -80,8 +81,6 @@ def modal_statespace(
     name: str | None = None,
 ):
     """The modal realisation as a ``control.StateSpace`` with named inputs, outputs and states."""
-    import control
-
     a, b, c, dd, states = modal_matrices(poles, residues, d, ranks)
     return control.ss(
         a, b, c, dd, inputs=list(inputs), outputs=list(outputs), states=states or None, name=name

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..checks import check_seed, flag, integer, match_channels, positive_number
-from ..errors import DataError, ModelError
+from ..errors import DataError, ModelError, RobustctlWarning
 from ..frd import EXCITATIONS, INPUT_KINDS, Experiment, FrequencyData, combined_experiment
 from ..lti import as_statespace, zoh
 from ..threads import limit_blas
@@ -26,6 +26,11 @@ __all__ = ["estimate_frf", "combine_experiments", "simulate_experiment", "advise
 MAX_SAMPLES = 50_000_000
 #: fewest Welch averages for a usable H1 estimate (random error ~ 1/sqrt(n_avg), Bendat & Piersol 9.90)
 MIN_AVERAGES = 8
+
+
+class EstimateWarning(RobustctlWarning):
+    """An FRF estimate whose settings leave it noisier than advised (fewer than
+    :data:`MIN_AVERAGES` Welch averages)."""
 
 
 def advised_nperseg(n_samples: int, min_averages: int = MIN_AVERAGES, longest: int = 4096) -> int:
@@ -201,7 +206,7 @@ def _segment_settings(n_samples: int, nperseg: Any, noverlap: Any) -> tuple[int,
             f"nperseg={nperseg} leaves {n_avg} averages on a {n_samples}-sample record; the H1 estimate's "
             f"random error falls as 1/sqrt(averages) and {MIN_AVERAGES} or more are advised: use "
             f"nperseg={advised_nperseg(n_samples)} (or nperseg='auto').",
-            UserWarning,
+            EstimateWarning,
             stacklevel=4,
         )
     return nperseg, noverlap, n_avg

@@ -24,6 +24,7 @@ from collections.abc import Mapping
 from functools import lru_cache
 from typing import Any
 
+import control
 import numpy as np
 
 from ..errors import DataError
@@ -716,8 +717,6 @@ def sampled_hold_response(sys: Any, f_hz: Any, fs: float) -> np.ndarray:
     the H1 estimate of a held input without leakage (periodic excitation with whole periods,
     stepped sine), aliasing and the hold's half-sample delay included.
     """
-    import control
-
     ss = as_statespace(sys)
     d = control.c2d(ss, 1.0 / float(fs), method="zoh")
     return freqresp(d, f_hz).response

@@ -27,13 +27,22 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
+import control
 import numpy as np
 import scipy.signal as signal
 
 from ..checks import is_real_number, is_whole_number
 from ..errors import ModelError
-from ..lti import _series_arrays
-from ..signals import _abcd, _index, _names, _ss, rename_signals, scale_inputs, scale_outputs
+from ..lti import series_matrices
+from ..signals import (
+    abcd_matrices,
+    named_statespace,
+    rename_signals,
+    scale_inputs,
+    scale_outputs,
+    signal_index,
+    signal_names,
+)
 from .model import Stage
 
 __all__ = [
@@ -91,7 +100,7 @@ _MAX_PADE_ORDER = 10
 
 # ============================================================================ helpers
 def _siso(filt: Any, what: str = "filter"):
-    A, B, C, D = _abcd(filt, what)
+    A, B, C, D = abcd_matrices(filt, what)
     if B.shape[1] != 1 or C.shape[0] != 1:
         raise ModelError(
             f"the {what} must be single-input single-output (one copy is put on each named "
@@ -128,8 +137,8 @@ def _order(order: int, limit: int, what: str) -> int:
 def _cascade(sections: Sequence[tuple]) -> Any:
     out = _identity_abcd()
     for sec in sections:
-        out = _series_arrays(out, sec)
-    return _ss(*out, ["u"], ["y"])
+        out = series_matrices(out, sec)
+    return named_statespace(*out, ["u"], ["y"])
 
 
 def _identity_abcd():
@@ -162,7 +171,7 @@ def _pole_sections(poles: np.ndarray) -> list[tuple]:
 # ============================================================================ SISO filters
 def identity():
     """The unit static gain (no states): what every filter is at its neutral value."""
-    return _ss(*_identity_abcd(), ["u"], ["y"])
+    return named_statespace(*_identity_abcd(), ["u"], ["y"])
 
 
 def _analog_lowpass(kind: str, order: int, cutoff_hz: float, norm: str | None):
@@ -173,7 +182,7 @@ def _analog_lowpass(kind: str, order: int, cutoff_hz: float, norm: str | None):
     if kind == "Bessel" and norm not in ("phase", "delay", "mag"):
         raise ModelError(f"Bessel norm must be 'phase', 'delay' or 'mag'; got {norm!r}.")
     A, B, C, D = _lowpass_abcd(kind, order, fc, norm)
-    return _ss(A.copy(), B.copy(), C.copy(), D.copy(), ["u"], ["y"])
+    return named_statespace(A.copy(), B.copy(), C.copy(), D.copy(), ["u"], ["y"])
 
 
 @functools.lru_cache(maxsize=64)
@@ -277,7 +286,7 @@ def notch(centre_hz: float, depth: float, width_hz: float):
     zeta_p = width / (2 * f0)
     A, B, _, _ = _lowpass_section(w0, zeta_p)
     C = np.array([[0.0, 2.0 * (depth - 1.0) * zeta_p]])  # H = 1 + 2 (zeta_z - zeta_p) w0 s / den
-    return _ss(A, B, C, np.ones((1, 1)), ["u"], ["y"])
+    return named_statespace(A, B, C, np.ones((1, 1)), ["u"], ["y"])
 
 
 def pade_coefficients(order: int) -> np.ndarray:
@@ -348,8 +357,6 @@ def zero_order_hold(fs_hz: float, order: int = 4):
     control.StateSpace
         SISO, input ``u``, output ``y``.
     """
-    import control
-
     fs = _number(fs_hz, "fs_hz (the DAC's sampling rate, Hz)")
     if not math.isfinite(fs) or fs <= 0:
         raise ModelError(f"fs_hz (the DAC's sampling rate, Hz) must be a positive number; got {fs_hz!r}.")
@@ -361,16 +368,16 @@ def zero_order_hold(fs_hz: float, order: int = 4):
     for j, k in enumerate(range(1, c.size, 2)):
         num_poly[k - 1] = num[j]
     sys = control.ss(control.tf(num_poly[::-1], den))
-    return _ss(sys.A, sys.B, sys.C, sys.D, ["u"], ["y"])
+    return named_statespace(sys.A, sys.B, sys.C, sys.D, ["u"], ["y"])
 
 
 def pi_controller(gain: float, integral_hz: float | None = None):
     """``gain * (1 + w_i / s)``, ``w_i = 2 pi integral_hz`` (the PI corner in Hz); P only when None."""
     gain = _number(gain, "the PI gain")
     if integral_hz is None or _number(integral_hz, "the PI corner (Hz)") == 0:
-        return _ss(*_identity_abcd()[:3], [[gain]], ["u"], ["y"])
+        return named_statespace(*_identity_abcd()[:3], [[gain]], ["u"], ["y"])
     wi = 2 * np.pi * _positive(integral_hz, "the PI corner", "Hz")
-    return _ss([[0.0]], [[wi]], [[gain]], [[gain]], ["u"], ["y"])
+    return named_statespace([[0.0]], [[wi]], [[gain]], [[gain]], ["u"], ["y"])
 
 
 def servo_controller(
@@ -438,12 +445,12 @@ def pd_controller(
     g = _number(gain, "the PD gain")
     if rolloff_order == 1:
         # gain (1 + s/wd) wc/(s + wc) = gain wc/wd + gain wc (1 - wc/wd)/(s + wc)
-        pd = _ss([[-wc]], [[wc]], [[g * (1 - wc / wd)]], [[g * wc / wd]], ["u"], ["y"])
+        pd = named_statespace([[-wc]], [[wc]], [[g * (1 - wc / wd)]], [[g * wc / wd]], ["u"], ["y"])
     else:
         # states scaled by wc: x1' = wc x2, x2' = -wc x1 - sqrt2 wc x2 + wc u; R = x1
         z = math.sqrt(2.0)
         A = [[0.0, wc], [-wc, -z * wc]]
-        pd = _ss(A, [[0.0], [wc]], [[g, g * wc / wd]], [[0.0]], ["u"], ["y"])
+        pd = named_statespace(A, [[0.0], [wc]], [[g, g * wc / wd]], [[0.0]], ["u"], ["y"])
     if delay_s:
         pd = series(pd, pade_delay(delay_s, pade_order))
     return pd
@@ -465,8 +472,8 @@ def series(*parts: Any):
     """
     out = _identity_abcd()
     for part in parts:
-        out = _series_arrays(out, _siso(part))
-    return _ss(*out, ["u"], ["y"])
+        out = series_matrices(out, _siso(part))
+    return named_statespace(*out, ["u"], ["y"])
 
 
 # ============================================================================ named systems
@@ -514,10 +521,10 @@ def filter_outputs(sys: Any, names: str | Sequence[str], filt: Any):
         Same input and output names; the filter states are appended.
     """
     f = _siso(filt)
-    abcd = _abcd(sys)
-    for name in _names(names):
-        abcd = _filter_one_output(abcd, _index(sys.output_labels, name, "output"), f)
-    return _ss(*abcd, sys.input_labels, sys.output_labels)
+    abcd = abcd_matrices(sys)
+    for name in signal_names(names):
+        abcd = _filter_one_output(abcd, signal_index(sys.output_labels, name, "output"), f)
+    return named_statespace(*abcd, sys.input_labels, sys.output_labels)
 
 
 def filter_inputs(sys: Any, names: str | Sequence[str], filt: Any):
@@ -526,10 +533,10 @@ def filter_inputs(sys: Any, names: str | Sequence[str], filt: Any):
     Same names in and out; see :func:`filter_outputs`.
     """
     f = _siso(filt)
-    abcd = _abcd(sys)
-    for name in _names(names):
-        abcd = _filter_one_input(abcd, _index(sys.input_labels, name, "input"), f)
-    return _ss(*abcd, sys.input_labels, sys.output_labels)
+    abcd = abcd_matrices(sys)
+    for name in signal_names(names):
+        abcd = _filter_one_input(abcd, signal_index(sys.input_labels, name, "input"), f)
+    return named_statespace(*abcd, sys.input_labels, sys.output_labels)
 
 
 def delay_outputs(sys: Any, names: str | Sequence[str], delay_s: float, order: int = 2):
@@ -606,17 +613,17 @@ def close_servo_loop(
     ModelError
         Unknown names, a name clash, or an ill-posed loop (``1 + K(inf) D_sa = 0``).
     """
-    A, B, C, D = _abcd(sys)
+    A, B, C, D = abcd_matrices(sys)
     Ak, Bk, Ck, Dk = _siso(controller, "servo controller")
-    s = _index(sys.output_labels, sensor, "output")
-    a = _index(sys.input_labels, actuator, "input")
+    s = signal_index(sys.output_labels, sensor, "output")
+    a = signal_index(sys.input_labels, actuator, "input")
     ref = reference_input_name or f"{sensor} ref"
     inputs = list(sys.input_labels)
     if ref in inputs and ref != actuator:
         raise ModelError(f"the reference input name {ref!r} is already an input; pick another name.")
     inputs[a] = ref
     A2, B2, C2, D2 = _close_loop((A, B, C, D), (Ak, Bk, Ck, Dk), s, a, f"{sensor!r} -> {actuator!r}")
-    return _ss(A2, B2, C2, D2, inputs, sys.output_labels)
+    return named_statespace(A2, B2, C2, D2, inputs, sys.output_labels)
 
 
 def _rotation(angle_rad: float) -> np.ndarray:
@@ -628,7 +635,7 @@ def _pair(sys_labels: Sequence[str], pair: Sequence[str], what: str) -> list[int
     pair = tuple(pair)
     if len(pair) != 2 or pair[0] == pair[1]:
         raise ModelError(f"a misalignment acts on two different {what}s; got {pair!r}.")
-    return [_index(sys_labels, p, what) for p in pair]
+    return [signal_index(sys_labels, p, what) for p in pair]
 
 
 def misalign_outputs(sys: Any, pair: Sequence[str], angle_rad: float):
@@ -637,12 +644,12 @@ def misalign_outputs(sys: Any, pair: Sequence[str], angle_rad: float):
     ``[y_a, y_b] <- R [y_a, y_b]`` with ``R = [[cos t, sin t], [-sin t, cos t]]``: the
     readings are the true components projected onto axes turned by ``t`` (rad). 0: identity.
     """
-    A, B, C, D = _abcd(sys)
+    A, B, C, D = abcd_matrices(sys)
     idx = _pair(sys.output_labels, pair, "output")
     R = _rotation(_number(angle_rad, "the misalignment angle (rad)"))
     C, D = C.copy(), D.copy()
     C[idx], D[idx] = R @ C[idx], R @ D[idx]
-    return _ss(A, B, C, D, sys.input_labels, sys.output_labels)
+    return named_statespace(A, B, C, D, sys.input_labels, sys.output_labels)
 
 
 def misalign_inputs(sys: Any, pair: Sequence[str], angle_rad: float):
@@ -650,17 +657,19 @@ def misalign_inputs(sys: Any, pair: Sequence[str], angle_rad: float):
 
     The physical force components are ``R^T [u_a, u_b]`` (``R`` of :func:`misalign_outputs`).
     """
-    A, B, C, D = _abcd(sys)
+    A, B, C, D = abcd_matrices(sys)
     idx = _pair(sys.input_labels, pair, "input")
     R = _rotation(_number(angle_rad, "the misalignment angle (rad)"))
     B, D = B.copy(), D.copy()
     B[:, idx], D[:, idx] = B[:, idx] @ R.T, D[:, idx] @ R.T
-    return _ss(A, B, C, D, sys.input_labels, sys.output_labels)
+    return named_statespace(A, B, C, D, sys.input_labels, sys.output_labels)
 
 
 def sensor_gain_error(sys: Any, names: str | Sequence[str], error: float):
     """Relative sensor gain error: ``y <- (1 + error) y`` on each named output (0: identity)."""
-    return scale_outputs(sys, {name: 1.0 + _number(error, "the sensor gain error") for name in _names(names)})
+    return scale_outputs(
+        sys, {name: 1.0 + _number(error, "the sensor gain error") for name in signal_names(names)}
+    )
 
 
 # ============================================================================ stages
@@ -695,7 +704,7 @@ def filter_stage(
     ``filter_stage("gyro", bessel_lowpass, order=4, cutoff_hz="f_bessel")``.
     """
     which = _side(side)
-    sigs = _names(signals)
+    sigs = signal_names(signals)
     apply = filter_outputs if which == "output" else filter_inputs
 
     def fn(theta, sys):
@@ -709,7 +718,8 @@ def bessel_stage(signals, order: int, cutoff_hz: Value, *, side="outputs", norm=
     """Stage: :func:`bessel_lowpass` on named signals (cutoff in Hz or a parameter name)."""
     return filter_stage(
         signals, lambda cutoff_hz: bessel_lowpass(order, cutoff_hz, norm), side=side,
-        name=kw.pop("name", f"Bessel {order} on {', '.join(_names(signals))}"), cutoff_hz=cutoff_hz, **kw,
+        name=kw.pop("name", f"Bessel {order} on {', '.join(signal_names(signals))}"), cutoff_hz=cutoff_hz,
+        **kw,
     )
 
 
@@ -717,7 +727,7 @@ def butterworth_stage(signals, order: int, cutoff_hz: Value, *, side="outputs", 
     """Stage: :func:`butterworth_lowpass` on named signals."""
     return filter_stage(
         signals, lambda cutoff_hz: butterworth_lowpass(order, cutoff_hz), side=side,
-        name=kw.pop("name", f"Butterworth {order} on {', '.join(_names(signals))}"),
+        name=kw.pop("name", f"Butterworth {order} on {', '.join(signal_names(signals))}"),
         cutoff_hz=cutoff_hz,
         **kw,
     )
@@ -749,7 +759,7 @@ def delay_stage(signals, delay_s: Value, order: int = 2, *, side="outputs", **kw
     """Stage: :func:`pade_delay` on named signals (delay in s or a parameter name)."""
     return filter_stage(
         signals, lambda delay_s: pade_delay(delay_s, order), side=side,
-        name=kw.pop("name", f"delay on {', '.join(_names(signals))}"), delay_s=delay_s, **kw,
+        name=kw.pop("name", f"delay on {', '.join(signal_names(signals))}"), delay_s=delay_s, **kw,
     )
 
 
@@ -767,7 +777,7 @@ def zero_order_hold_stage(signals, fs_hz: Value, order: int = 4, *, side="inputs
     kw.setdefault("tags", ("electronics", "zero_order_hold"))
     return filter_stage(
         signals, lambda fs_hz: zero_order_hold(fs_hz, order), side=side,
-        name=kw.pop("name", f"zero-order hold on {', '.join(_names(signals))}"), fs_hz=fs_hz, **kw,
+        name=kw.pop("name", f"zero-order hold on {', '.join(signal_names(signals))}"), fs_hz=fs_hz, **kw,
     )
 
 
@@ -777,7 +787,7 @@ def anti_alias_stage(signals, cutoff_hz: Value, order: int = 4, *, kind: str = "
         raise ModelError(f"kind must be 'butterworth' or 'bessel'; got {kind!r}.")
     make = bessel_stage if kind == "bessel" else butterworth_stage
     return make(signals, order, cutoff_hz, side="outputs",
-                name=kw.pop("name", f"anti-alias {kind} {order} on {', '.join(_names(signals))}"), **kw)
+                name=kw.pop("name", f"anti-alias {kind} {order} on {', '.join(signal_names(signals))}"), **kw)
 
 
 def gain_stage(

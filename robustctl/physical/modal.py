@@ -28,6 +28,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+import control
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -337,8 +338,6 @@ def _damped(data: ModalData, damping: Any, bands, rigid_body_damping: float) -> 
 # ---------------------------------------------------------------------------- assembly
 def _assemble(data: ModalData):
     """Build A, B, C, D of MACE eqs. 2-4 (plus the acceleration feedthrough)."""
-    import control
-
     n = data.n_modes
     w = data.omega
     damp = np.diag(2 * data.zeta * w) + data.modal_concentrated_damping

@@ -26,6 +26,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+import control
 import numpy as np
 
 from ..checks import finite_number
@@ -499,8 +500,6 @@ class PhysicalModel:
         out_idx = _signal_indices(outputs, tuple(sys.output_labels), "outputs", self.name)
 
         def pick(theta: Theta, ss: Any) -> Any:
-            import control
-
             ins, outs = list(ss.input_labels), list(ss.output_labels)
             return control.ss(
                 ss.A, ss.B[:, in_idx], ss.C[out_idx], ss.D[np.ix_(out_idx, in_idx)],

@@ -31,7 +31,7 @@ scalar per principal direction of that 2 x 2 matrix: a frequency (and, when the 
 move it, a damping) scalar per mode. The modes move independently in the LFT (the
 correlations between modes are dropped, which covers more than the ellipsoid), and what the
 parametrisation misses -- shape changes, higher-order terms, the truncated modes -- is left
-to a complex remainder cover (:func:`robustctl.robust.cover.cover_remainder`, kept in
+to a complex remainder cover (:func:`robustctl.robust.uncertainty.cover.cover_remainder`, kept in
 :attr:`UncertainModel.remainder`; ``rc.generalized_plant`` puts both into ``.blocks``).
 """
 
@@ -40,6 +40,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+import control
 import numpy as np
 
 from ..balanced import balanced_truncation
@@ -89,7 +90,7 @@ class UncertainModel:
         movement (module docstring).
     remainder : UncertaintyCover or None
         A complex weight covering what the LFT misses against sampled models and data
-        (:func:`robustctl.robust.cover.cover_remainder`); ``rc.generalized_plant`` adds its
+        (:func:`robustctl.robust.uncertainty.cover.cover_remainder`); ``rc.generalized_plant`` adds its
         block after the real ones.
     modes : tuple or None
         ``form="modes"``: per block ``(nominal eigenvalue, direction (2,) in (p, q), half-range)``,
@@ -125,8 +126,6 @@ class UncertainModel:
         inverse: ``A + B_w Delta C_z``, ``B_u + B_w Delta D_zu``, ``C_y + D_yw Delta C_z``,
         ``D_yu + D_yw Delta D_zu``.
         """
-        import control
-
         if delta is None:
             return self.nominal
         d = np.asarray(delta, dtype=float).reshape(-1)
@@ -151,7 +150,7 @@ class UncertainModel:
         Parameters
         ----------
         cover : UncertaintyCover
-            Additive or multiplicative, e.g. from :func:`robustctl.robust.cover.cover_remainder`.
+            Additive or multiplicative, e.g. from :func:`robustctl.robust.uncertainty.cover.cover_remainder`.
 
         Returns
         -------
@@ -181,7 +180,6 @@ class UncertainModel:
         """
         from dataclasses import replace
 
-        import control
 
         drop = set(blocks)
         unknown = drop - set(self.names)
@@ -297,8 +295,6 @@ def _matrices(model: Any, values: dict[str, float], order: int | None = None
 
 def _reduced(sys: Any, order: int):
     """``sys`` by balanced truncation to ``order`` states, its signal names kept."""
-    import control
-
     red = balanced_truncation(sys, order).sys
     return control.ss(red.A, red.B, red.C, red.D, inputs=list(sys.input_labels),
                       outputs=list(sys.output_labels))
@@ -437,8 +433,6 @@ def _lft(S0: np.ndarray, Sk: list[np.ndarray], n: int, names: tuple[str, ...], a
          scale: float, block_names: Any = None) -> tuple[Any, tuple[str, ...], tuple[int, ...], list[int]]:
     """``M`` of ``S0 + sum_k delta_k S_k`` (``S_k = L_k R_k`` by SVD), its block names, multiplicities
     and the axes kept (those that change ``S``)."""
-    import control
-
     given = block_names
     Ls, Rs, mult, block_names, kept = [], [], [], [], []
     for k, S in enumerate(Sk):

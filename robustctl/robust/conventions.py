@@ -1,6 +1,6 @@
 """The one loop sign of robustctl: every controller is ``u = +K y``.
 
-Synthesis (:func:`~robustctl.robust.hinf_synthesis.hinfsyn`, ``h2syn``, ``lqg``, ``dksyn``,
+Synthesis (:func:`~robustctl.robust.hinf.synthesis.hinfsyn`, ``h2syn``, ``lqg``, ``dksyn``,
 ``ncfsyn``) returns and analysis (``diskmargin``, ``stability_margin``, the yardstick,
 :meth:`UncertainSystem.feedback <robustctl.robust.uncertainty.system.UncertainSystem.feedback>`
 with ``sign=+1``) takes the controller of the lower LFT ``Fl(P, K)``: the measurement ``y``

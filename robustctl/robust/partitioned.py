@@ -14,8 +14,8 @@ from ..checks import integer
 from ..errors import ModelError, PlantError
 from ..interconnect import PartitionedPlant
 from ..lti import as_statespace
-from .blocks import as_block_structure
 from .plant import GeneralizedPlant
+from .uncertainty.blocks import as_block_structure
 
 __all__ = ["as_partitioned"]
 

@@ -48,7 +48,7 @@ from ..physical.uncertain import UncertainModel
 from ..plots import single_axes
 from ..signals import select_signals
 from ..table import Table
-from .blocks import Block, BlockStructure
+from .uncertainty.blocks import Block, BlockStructure
 from .uncertainty.system import PlantLFT, UncertainSystem
 
 __all__ = ["GeneralizedPlant", "PlantWeight", "generalized_plant", "mixed_sensitivity"]
@@ -434,7 +434,7 @@ def generalized_plant(
         :class:`~robustctl.physical.uncertain.UncertainModel` (``upd.uncertain()``) brings its
         real parameters: their channels come first in ``w`` and ``z`` and their repeated real
         scalar blocks first in ``.blocks`` (then the weights' blocks, as below). Its
-        remainder cover (:func:`~robustctl.robust.cover.cover_remainder`), if any, is the
+        remainder cover (:func:`~robustctl.robust.uncertainty.cover.cover_remainder`), if any, is the
         weight of its kind (additive or multiplicative; that argument must then be None).
     additive : weight, optional
         Additive uncertainty ``G + W_a Delta``: a SISO weight (``W_a I``), an ``nu x nu``

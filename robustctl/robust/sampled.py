@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import control
 import numpy as np
 
 from ..checks import flag, positive_number
@@ -63,8 +64,6 @@ def sampled_plant(P: Any, dt: float, *, delay: bool = False, nmeas: int | None =
     --------
     hinfsyn, h2syn
     """
-    import control
-
     dt = positive_number(dt, "dt", SynthesisError, unit="s")
     delay = flag(delay, "delay", SynthesisError)
     plant = as_partitioned(P, nmeas, ncon, who="sampled_plant", allow_discrete=True)

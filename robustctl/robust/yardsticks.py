@@ -6,7 +6,7 @@ experimental data, [controllers designed on it] should achieve the highest perfo
 The performance achieved using the measurement model is compared with that achieved using
 the FEM. When these performances are comparable, the FEM updating has converged."
 
-:func:`yardstick` designs one mu-controller per model with :func:`~robustctl.robust.dk.dksyn`
+:func:`yardstick` designs one mu-controller per model with :func:`~robustctl.robust.dk.iteration.dksyn`
 (the same weights and objectives for each, from one ``recipe``) and scores each controller
 on the *measured* frequency responses:
 
@@ -37,17 +37,18 @@ from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+import control
 import numpy as np
 
 from ..checks import check_band, flag, match_channels
-from ..errors import DataError, SynthesisError
+from ..errors import DataError, RobustctlWarning, SynthesisError
 from ..executors import check_executor, parallel_map
 from ..frd import FrequencyData
 from ..identify._problem import as_frequency_data
 from ..lti import as_statespace, freqresp_array, is_stable
 from ..plots import new_figure
 from ..table import Table
-from .dk import DKResult, _as_plant, _mu_of, check_dk_options, closed_loop, default_grid, dksyn
+from .dk.iteration import DKResult, as_plant, check_dk_options, closed_loop, default_grid, dksyn, mu_of
 
 __all__ = ["NyquistVerdict", "Yardstick", "YardstickWarning", "nyquist_stability", "yardstick"]
 
@@ -272,7 +273,7 @@ def _n_unstable(sys1: Any, what: str) -> int:
 
 
 # ---------------------------------------------------------------------------- helpers
-def _measurement_sign(gp: Any, G: Any) -> float:
+def measurement_sign(gp: Any, G: Any) -> float:
     """``s`` with ``P_yu ~ s G``: the recipe measures +-the plant's outputs.
 
     The recipe may reduce the model (e.g. to its six modes), so ``P_yu`` need only be
@@ -326,8 +327,6 @@ def _pole_points(poles: np.ndarray, f_lo: float, f_hi: float, n: int = POLE_POIN
 def _loop_poles(systems: dict, designs: dict, signs: dict, reference: str) -> np.ndarray:
     """Poles that shape ``det(I - s G K)`` on the axis: every model's and controller's, and
     those of each controller's loop closed on its own model and on the reference model."""
-    import control
-
     poles = [np.linalg.eigvals(np.asarray(sys1.A, dtype=float)) for sys1 in systems.values() if sys1.nstates]
     for lab, design in designs.items():
         K = design.K
@@ -389,7 +388,7 @@ def _recipe_plant(recipe: Callable[[Any], Any], model: Any, label: str) -> Any:
     """``recipe(model)``, refused unless it is a plant :func:`dksyn` takes."""
     plant = recipe(model)
     try:
-        _as_plant(plant)
+        as_plant(plant)
     except SynthesisError as exc:
         raise SynthesisError(f"recipe(models[{label!r}]) must return a GeneralizedPlant: {exc}") from exc
     return plant
@@ -525,7 +524,7 @@ def _loop_detail(f_hz: np.ndarray, L: np.ndarray, coherence: np.ndarray | None, 
     return "; ".join(parts)
 
 
-class YardstickWarning(UserWarning):
+class YardstickWarning(RobustctlWarning):
     """A yardstick controller whose stability on the data is not established (not ranked)."""
 
 
@@ -553,7 +552,7 @@ class Yardstick:
     reference : str
         The measurement model's label (the yardstick).
     designs : dict
-        label -> :class:`~robustctl.robust.dk.DKResult`.
+        label -> :class:`~robustctl.robust.dk.iteration.DKResult`.
     attenuation_db : dict
         label -> disturbance attenuation on the data over the band (dB, larger is better).
     stability : dict
@@ -723,7 +722,7 @@ def yardstick(
     progress : bool, optional
         tqdm bar over the designs (only when stderr is a terminal; False switches it off).
     **dk_options
-        Passed to :func:`~robustctl.robust.dk.dksyn` (``max_iter``, ``order_d`` ...).
+        Passed to :func:`~robustctl.robust.dk.iteration.dksyn` (``max_iter``, ``order_d`` ...).
 
     Returns
     -------
@@ -738,7 +737,7 @@ def yardstick(
     given = {lab: _system_of(models[lab]) for lab in labels}
     systems = {lab: as_statespace(given[lab], name=f"models[{lab!r}]") for lab in labels}
     plants = {lab: _recipe_plant(recipe, given[lab], lab) for lab in labels}
-    signs = {lab: _measurement_sign(plants[lab], systems[lab]) for lab in labels}
+    signs = {lab: measurement_sign(plants[lab], systems[lab]) for lab in labels}
     results = parallel_map(functools.partial(_design, options=dk_options), [plants[lab] for lab in labels],
                            executor, desc="yardstick designs", progress=progress is None or bool(progress))
     designs = dict(zip(labels, results))
@@ -775,7 +774,7 @@ def yardstick(
             gp = plants[lab_m]
             cl = closed_loop(gp.P, designs[lab_k].K, gp.nmeas, gp.ncon)
             if cl.nstates and is_stable(cl, margin=0.0):
-                mu_cross[i, j] = _mu_of(cl, designs[lab_m].blocks, default_grid(gp.P), refine=True)[0].peak
+                mu_cross[i, j] = mu_of(cl, designs[lab_m].blocks, default_grid(gp.P), refine=True)[0].peak
     return Yardstick(labels=labels, reference=reference, designs=designs, attenuation_db=attenuation,
                      stability=stability, mu_cross=mu_cross, band_hz=(lo, hi), f_hz=f_all[in_band],
                      open_loop=np.linalg.norm(G_ref[in_band], ord=2, axis=(1, 2)), closed_loop=closed)

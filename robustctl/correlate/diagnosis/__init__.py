@@ -59,44 +59,12 @@ parameters can already explain:
 null-fit residual (Bartlett 1946); a systematic, unexplained model error gives ``rho`` near 1.
 """
 
-# ruff: noqa: F401
 from __future__ import annotations
 
-from .pipeline import (
-    _best,
-    _check_update,
-    _diagnose,
-    _fitted_models,
-    _hold_divided,
-    _input_held,
-    _sample_rate,
-    diagnose,
-)
-from .results import (
-    _DB,
-    ALPHA,
-    DECOUPLED_DB,
-    MIN_GAIN,
-    MODEL_ERROR_DISPERSION,
-    CandidateResult,
-    Diagnosis,
-    _status_legend,
-)
-from .rivals import (
-    COLLINEAR,
-    DIFFER_NP,
-    MEASURABLE,
-    N_DIFFER_BANDS,
-    Indistinguishable,
-    _cosine,
-    _divergence,
-    _indistinguishable,
-    _vuong,
-    _where_they_differ,
-    _whitened,
-)
+from .pipeline import diagnose
+from .results import ALPHA, DECOUPLED_DB, MIN_GAIN, MODEL_ERROR_DISPERSION, CandidateResult, Diagnosis
+from .rivals import COLLINEAR, DIFFER_NP, MEASURABLE, N_DIFFER_BANDS, Indistinguishable
 from .screening import (
-    _START_MULTIPLES,
     CONTENDER_RATIO,
     POLISH_ITER,
     PROBE_MIN_COEF,
@@ -104,49 +72,34 @@ from .screening import (
     TIE_MAX_FACTOR,
     TIE_SHARE,
     UNITS_NEAREST,
-    _equivalent,
-    _fit_one,
-    _fit_switched,
-    _fit_task,
-    _likely_states,
-    _marquardt_try,
-    _noise_cost,
-    _Null,
-    _null_fit,
-    _orthonormal,
-    _polish,
-    _polish_task,
-    _probe_sizes,
-    _project,
-    _residual,
-    _residual_for,
-    _screen_all,
-    _screen_one,
-    _screen_switch,
-    _screen_task,
-    _start_value,
-    _to_fit,
 )
-from .sentences import _channel_shares, _hold_note, _phrase, _sentence, _where, _with_sentence
-from .significance import (
-    CHANNEL_SHARE,
-    MISFIT_HALF_WIDTH,
-    _at_bound,
-    _candidate_test,
-    _channel_verdict,
-    _holm,
-    _is_switch,
-    _local_variance,
-    _misfit_along,
-    _misfit_variance,
-    _null_test,
-    _reduction,
-    _rival_test,
-    _row_noise,
-    _score,
-    _testable_rows,
-    effective_points,
-)
-from .workers import PARALLEL_MIN_CANDIDATES, PARALLEL_MIN_WORK_S, SCREEN_EVALS, _warn_if_hurried
+from .significance import CHANNEL_SHARE, MISFIT_HALF_WIDTH, effective_points
+from .workers import PARALLEL_MIN_CANDIDATES, PARALLEL_MIN_WORK_S, SCREEN_EVALS
 
-__all__ = ["diagnose", "Diagnosis", "CandidateResult", "Indistinguishable", "effective_points"]
+__all__ = [
+    "diagnose",
+    "Diagnosis",
+    "CandidateResult",
+    "Indistinguishable",
+    "effective_points",
+    "ALPHA",
+    "DECOUPLED_DB",
+    "MIN_GAIN",
+    "MODEL_ERROR_DISPERSION",
+    "COLLINEAR",
+    "DIFFER_NP",
+    "MEASURABLE",
+    "N_DIFFER_BANDS",
+    "CONTENDER_RATIO",
+    "POLISH_ITER",
+    "PROBE_MIN_COEF",
+    "SCREEN_MULTIPLES",
+    "TIE_MAX_FACTOR",
+    "TIE_SHARE",
+    "UNITS_NEAREST",
+    "CHANNEL_SHARE",
+    "MISFIT_HALF_WIDTH",
+    "PARALLEL_MIN_CANDIDATES",
+    "PARALLEL_MIN_WORK_S",
+    "SCREEN_EVALS",
+]

@@ -16,9 +16,9 @@ from ...budget import Deadline
 from ...errors import RobustctlError
 from ...executors import parallel_map_shared
 from ...physical.reduction import point_change, point_modal
-from ..optimize import _bounds, levenberg_marquardt, marquardt_step
+from ..optimize import levenberg_marquardt, marquardt_step, parameter_bounds
 from ..residual import CheckedData, Residual, sensitivities
-from ..updating import _coarse_start
+from ..updating import coarse_start
 from .results import MODEL_ERROR_DISPERSION
 from .significance import _is_switch
 from .workers import _check_budget
@@ -846,15 +846,15 @@ def _null_fit(
     """Bounded LM fit of the update parameters alone (step 1), from the nominal residual ``j0``.
 
     It starts where :func:`~robustctl.correlate.updating.update` would (its coarse multi-start,
-    ``_coarse_start``): with parameters 20-50 % off, modes have moved by several bandwidths and
+    ``coarse_start``): with parameters 20-50 % off, modes have moved by several bandwidths and
     LM from the model's values stops in a local minimum of the complex-log cost, which leaves
     the parameter error in the residual for the candidates to mimic (a wrong effect ranks first).
     """
-    lo, hi = _bounds(res0.model, upd, None)
+    lo, hi = parameter_bounds(res0.model, upd, None)
     if not upd:
         return _Null((), {}, {}, lo, hi, np.zeros((res0.n, 0)), j0, float(j0 @ j0)), 0
     start = sensitivities(res0, upd, j0=j0, executor=executor)
-    x0, n_coarse = _coarse_start(res0, upd, start, ())
+    x0, n_coarse = coarse_start(res0, upd, start, ())
     x_model = {n: res0.model.param(n).value for n in upd}
     kw = dict(max_iter=max_iter, executor=executor, time_budget_s=budget)
     if x0:

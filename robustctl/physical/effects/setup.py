@@ -25,7 +25,7 @@ from typing import ClassVar
 import numpy as np
 
 from ...errors import ModelError
-from ...signals import _abcd, _index, _ss
+from ...signals import abcd_matrices, named_statespace, signal_index
 from ..model import PhysicalModel
 from .base import CandidateContext, Effect, ParamSpec, _require, _signals, _slug, _structure_info
 
@@ -42,14 +42,14 @@ UNIT_SLIPS: tuple[tuple[float, str], ...] = (
 
 def _mix(sys, side: str, idx: list[int], T: np.ndarray):
     """``sys`` with rows (``side="output"``) or columns (inputs) ``idx`` mixed by ``T``."""
-    A, B, C, D = _abcd(sys)
+    A, B, C, D = abcd_matrices(sys)
     if side == "output":
         C, D = C.copy(), D.copy()
         C[idx], D[idx] = T @ C[idx], T @ D[idx]
     else:
         B, D = B.copy(), D.copy()
         B[:, idx], D[:, idx] = B[:, idx] @ T.T, D[:, idx] @ T.T
-    return _ss(A, B, C, D, sys.input_labels, sys.output_labels)
+    return named_statespace(A, B, C, D, sys.input_labels, sys.output_labels)
 
 
 @dataclass(frozen=True)
@@ -139,7 +139,7 @@ class SwappedOutputs(_SetupEffect):
             t = float(theta[pname])
             if t == 0.0:
                 return sys
-            idx = [_index(self._labels(sys), p, side) for p in pair]
+            idx = [signal_index(self._labels(sys), p, side) for p in pair]
             return _mix(sys, side, idx, np.array([[1.0 - t, t], [t, 1.0 - t]]))
 
         return fn
@@ -198,7 +198,7 @@ class SensorSignFlip(_SetupEffect):
             t = float(theta[pname])
             if t == 0.0:
                 return sys
-            idx = [_index(self._labels(sys), self.location, side)]
+            idx = [signal_index(self._labels(sys), self.location, side)]
             return _mix(sys, side, idx, np.array([[1.0 - 2.0 * t]]))
 
         return fn
@@ -266,7 +266,7 @@ class SensorUnits(_SetupEffect):
             f = float(theta[pname])
             if f == 1.0:
                 return sys
-            idx = [_index(self._labels(sys), self.location, side)]
+            idx = [signal_index(self._labels(sys), self.location, side)]
             return _mix(sys, side, idx, np.array([[f]]))
 
         return fn
