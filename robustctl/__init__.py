@@ -14,7 +14,7 @@ function-level imports included; ``tests/test_architecture.py`` reads every impo
 2. ``frd``, ``frd_io``, ``plots`` -- FrequencyData, its file formats, plotting primitives
 3. ``lti``, ``signals``, ``modes``, ``balanced`` -- systems and fast responses, named
    signals, ``Mode`` with MAC and pairing, balanced truncation
-4. ``measure/`` (estimate, estimator, impact, noise), ``cost`` (MACE eq. 5)
+4. ``measure/`` (estimate, estimator, impact, impact_view, noise), ``cost`` (MACE eq. 5)
 5. ``physical/``
 6. ``interconnect``
 7. ``correlate/``
@@ -116,6 +116,7 @@ from .physical import (
     Structure,
     effects,
     electronics,
+    frame_model,
     modal_model,
     modal_statespace,
     structural_model,
@@ -141,6 +142,7 @@ from .physical.nastran_import import (
 # large structures in reduced coordinates (physical/reduction.py)
 from .physical.reduction import band_limited, reduction_error
 from .physical.uncertain import UncertainModel, parametric_lft
+from .report import write_report
 
 # robust design: weights
 from .robust import (
@@ -176,53 +178,27 @@ from .robust import (
     worst_case_gain,
     yardstick,
 )
-from .robust import (
-    DiskMargin as DiskMargin,
-)
-from .robust import (
-    DiskMarginResult as DiskMarginResult,
-)
-from .robust import (
-    H2Result as H2Result,
-)
-from .robust import (
-    LoopShapingResult as LoopShapingResult,
-)
-from .robust import (
-    LQGResult as LQGResult,
-)
-from .robust import (
-    disk_gain_phase as disk_gain_phase,
-)
-from .robust import (
-    diskmargin as diskmargin,
-)
-from .robust import (
-    h2norm as h2norm,
-)
-from .robust import (
-    h2syn as h2syn,
-)
-from .robust import (
-    lqg as lqg,
-)
-from .robust import (
-    ncfsyn as ncfsyn,
-)
-from .robust import (
-    nugap as nugap,
-)
-from .robust import (
-    reduce_controller as reduce_controller,
-)
-from .robust import (
-    sampled_plant as sampled_plant,
-)
-from .robust import (
-    stability_margin as stability_margin,
-)
+from .robust import DiskMargin as DiskMargin
+from .robust import DiskMarginResult as DiskMarginResult
+from .robust import H2Result as H2Result
+from .robust import LoopShapingResult as LoopShapingResult
+from .robust import LQGResult as LQGResult
+from .robust import disk_gain_phase as disk_gain_phase
+from .robust import diskmargin as diskmargin
+from .robust import h2norm as h2norm
+from .robust import h2syn as h2syn
+from .robust import lqg as lqg
+from .robust import ncfsyn as ncfsyn
+from .robust import nugap as nugap
+from .robust import reduce_controller as reduce_controller
+from .robust import sampled_plant as sampled_plant
+from .robust import stability_margin as stability_margin
+from .robust.continuous_equivalent import d2c
+from .robust.conventions import LoopSignWarning
 from .robust.mu import mu
 from .robust.partitioned import as_partitioned
+from .robust.uncertainty import UncertainSystem, as_uncertain, ucomplex, ultidyn, ureal
+from .robust.uncertainty.robust_margin import RobustStabilityMargin, WorstCaseResult, robstab, wcgain
 from .signals import combine_inputs as combine_inputs
 from .signals import combine_outputs as combine_outputs
 from .signals import rename_signals as rename_signals
@@ -234,6 +210,7 @@ from .threads import blas_threads, set_blas_threads
 __all__ = [
     # figures (the modal engineer's)
     "fit_percent",
+    "write_report",
     "mac_matrix",
     "plot_compare",
     "plot_mac",
@@ -275,6 +252,7 @@ __all__ = [
     "Structure",
     "Frame",
     "electronics",
+    "frame_model",
     "structural_model",
     "modal_model",
     "modal_statespace",
@@ -384,6 +362,7 @@ __all__ = [
     # the warning family: every warning robustctl issues derives from RobustctlWarning
     "SynthesisWarning",
     "DataWarning",
+    "LoopSignWarning",
     "ParallelWarning",
     "SetupWarning",
     "RobustctlDeprecationWarning",
@@ -393,4 +372,16 @@ __all__ = [
     "EstimateWarning",
     # one partitioned plant: the coercion shared by hinfsyn, h2syn, dksyn and the yardstick
     "as_partitioned",
+    # uncertain elements and systems, robust stability and worst-case gain (robust/uncertainty)
+    "ureal",
+    "ucomplex",
+    "ultidyn",
+    "UncertainSystem",
+    "as_uncertain",
+    "robstab",
+    "RobustStabilityMargin",
+    "wcgain",
+    "WorstCaseResult",
+    # the continuous original of a sampled system (ZOH or Tustin inverse)
+    "d2c",
 ]

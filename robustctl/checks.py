@@ -518,9 +518,15 @@ def match_channels(
     model_names, data_names = [str(n) for n in model_names], [str(n) for n in data_names]
     a, b = sides
     if len(model_names) != len(data_names):
+        if set(data_names) < set(model_names):
+            fix = f"select the {a}'s matching {what} with {a}.select({what}={data_names!r})"
+        elif set(model_names) < set(data_names):
+            fix = f"select the {b}'s matching {what} with {b}.select({what}={model_names!r})"
+        else:
+            fix = f"select matching channels with {a}.select(...) or {b}.select(...)"
         raise DataError(
             f"the {a} has {len(model_names)} {what} {model_names} but the {b} has "
-            f"{len(data_names)} {data_names}; select matching channels with data.select(...)."
+            f"{len(data_names)} {data_names}; {fix}."
         )
     if set(model_names) == set(data_names) and len(set(model_names)) == len(model_names):
         return [model_names.index(n) for n in data_names]

@@ -2,15 +2,21 @@
 
 * ``robustctl demo [--example caltech|mace]`` runs the whole pipeline on an embedded example
   (default: the Caltech truss);
-* ``robustctl compare MODEL DATA``, ``robustctl diagnose MODEL DATA`` and
-  ``robustctl identify DATA`` run one stage on a user's own files and write an HTML report
-  section plus ``summary.json`` into ``--out``;
+* ``robustctl load DATA`` says what a file holds (channels, band, coherence, the experiment);
+* ``robustctl compare MODEL DATA``, ``robustctl diagnose MODEL DATA``,
+  ``robustctl update MODEL DATA [--effect NAME | --diagnosis OUT]`` and
+  ``robustctl identify DATA`` run one stage on a user's own files: each prints its headline
+  (the result's ``summary()``) and writes an HTML report plus ``summary.json`` (the same
+  verdict words with their numbers: sizes, standard errors, p-values) into ``--out``;
+  ``--inputs``/``--outputs`` select channels of both the model and the data;
 * ``robustctl export SOURCE TARGET`` writes a controller file as another coefficient file
   (e.g. a continuous ``K.mat`` as a C header at ``--fs``), printing the export checks.
 
 MODEL is ``FILE.py[:NAME]`` or ``package.module[:NAME]`` (see :mod:`robustctl.cli_inputs`);
-DATA is any file :func:`robustctl.load_frd` reads (.npz, .csv, .mat, .uff/.unv). Errors are
-one line on standard error and exit status 2.
+DATA is any file :func:`robustctl.load_frd` reads (.npz, .csv, .mat, .uff/.unv). A data file
+with fewer channels than the model (a one-input impact test of a two-shaker model) is compared
+with the model's channels of the same names, and the command says so. Errors are one line on
+standard error and exit status 2. On a terminal a progress bar names the running step.
 """
 
 from __future__ import annotations
@@ -31,19 +37,40 @@ _MODEL_HELP = (
 _DATA_HELP = "measured frequency responses: .npz, .csv, .mat or .uff/.unv (robustctl.load_frd)"
 
 
+def _modes_option(text: str) -> int | str:
+    """``--modes``: a positive number of modes or ``auto``."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"--modes takes a positive number of modes or 'auto'; got {text!r}")
+    return value
+
+
 #: The sub-commands reading DATA: name, summary, description, whether MODEL comes first, and
 #: the one option of their own (the band, report folder and experiment options are common).
 _DATA_COMMANDS = (
     ("compare", "where does MODEL fail against DATA (channels, bands, modes)?",
      "Compare a model with measured FRFs: per-channel cost (MACE eq. 5), failing bands, "
      "a mode table paired through a measurement model, the error's structure.", True,
-     (("--modes",), {"type": int, "default": None,
-                     "help": "also fit a measurement model with this many modes to pair modes through"})),
+     (("--modes",), {"type": _modes_option, "default": None,
+                     "help": "fit a measurement model with this many modes ('auto': automatic order) for "
+                     "the mode table to pair through and take the data's damping from (default: none; "
+                     "peak picking gives frequencies and shapes only)"})),
     ("diagnose", "which physical effect is MODEL missing, judged on DATA?",
      "Rank candidate physical effects (delays, filters, springs, masses, dashpots, taut "
      "wires, ...) by what they explain of the model's error, with a significance test.", True,
      (("--time-budget",), {"type": float, "default": None, "help": "optional wall-clock cap in s "
                            "(default: none; iteration caps bound the work)"})),
+    ("update", "update MODEL's parameters (with an effect) so it matches DATA",
+     "Update the model's free parameters (MACE eqs. 5-9: sensitivities, alignment and "
+     "orthogonality tests, bounded Levenberg-Marquardt), optionally with the effect a diagnosis "
+     "proposed (--diagnosis) or one named (--effect).", True,
+     (("--effect",), {"default": None, "help": "add this candidate effect first, named as diagnose "
+                      "prints it (e.g. 'added mass at node tip')"})),
     ("identify", "fit a measurement model (the yardstick) to DATA",
      "Identify a modal measurement model (vector fitting, SVD mode grouping) of the data.", False,
      (("--modes",), {"type": int, "default": None, "help": "number of modes (default: automatic)"})),
@@ -64,6 +91,10 @@ def _data_command(
 def _add_common(p: argparse.ArgumentParser, default_out: str) -> None:
     p.add_argument("--band", nargs=2, type=float, metavar=("LO_HZ", "HI_HZ"), help="frequency band in Hz")
     p.add_argument("--out", default=default_out, help=f"report folder (default: {default_out})")
+    p.add_argument("--inputs", nargs="+", default=None, metavar="NAME",
+                   help="use only these inputs (of the data and of the model)")
+    p.add_argument("--outputs", nargs="+", default=None, metavar="NAME",
+                   help="use only these outputs (of the data and of the model)")
     _add_experiment(p)
 
 
@@ -86,6 +117,12 @@ def _add_experiment(p: argparse.ArgumentParser) -> None:
                    help="periodic excitation with whole periods per segment")
     g.add_argument("--hold-divided", action="store_true", default=False,
                    help="the estimate was divided by the zero-order hold's response")
+    g.add_argument("--exp-window-tau", dest="exp_window_tau_s", type=float, default=None, metavar="TAU_S",
+                   help="impact test: time constant of the exponential window from the hit, s")
+    g.add_argument("--force-window", dest="force_window_s", type=float, default=None, metavar="SECONDS",
+                   help="impact test: force window kept after the end of each force pulse, s")
+    g.add_argument("--pretrigger", dest="pretrigger_s", type=float, default=None, metavar="SECONDS",
+                   help="impact test: time from the record start to the hit, s")
 
 
 def _described(data: Any, args: argparse.Namespace) -> Any:
@@ -98,6 +135,8 @@ def _described(data: Any, args: argparse.Namespace) -> Any:
         "input_kind": args.input_kind, "excitation": args.excitation, "fs_hz": args.fs,
         "window": args.window, "nperseg": args.nperseg, "noverlap": args.noverlap,
         "n_averages": args.n_averages, "whole_periods": args.whole_periods,
+        "exp_window_tau_s": args.exp_window_tau_s, "force_window_s": args.force_window_s,
+        "pretrigger_s": args.pretrigger_s,
     }
     given = {k: v for k, v in given.items() if v is not None}
     if args.hold_divided:
@@ -108,8 +147,9 @@ def _described(data: Any, args: argparse.Namespace) -> Any:
     for key, value in given.items():
         mine = stated[key]
         if mine not in (None, False) and mine != value:
+            flag = key.replace("_hz", "").removesuffix("_s").replace("_", "-")
             raise CommandLineError(
-                f"--{key.replace('_hz', '').replace('_', '-')} {value} contradicts the file, which states "
+                f"--{flag} {value} contradicts the file, which states "
                 f"{key} = {mine!r}; drop the option (the file's description is used)."
             )
     try:
@@ -136,6 +176,19 @@ def _parser() -> argparse.ArgumentParser:
         cmd = _data_command(sub, name, summary, description, model=model)
         cmd.add_argument(*option[0], **option[1])
         _add_common(cmd, f"out-{name}")
+        if name == "update":
+            cmd.add_argument("--diagnosis", default=None, metavar="OUT",
+                             help="a diagnose result (its --out folder or summary.json): add the effect "
+                             "it proposed, starting from its fitted size")
+            cmd.add_argument("--params", nargs="+", default=None, metavar="NAME",
+                             help="parameters to update (default: every free one)")
+            cmd.add_argument("--max-iter", type=int, default=20, help="Levenberg-Marquardt iteration cap")
+
+    load = sub.add_parser("load", help="say what a measured-FRF file holds",
+                          description="Read DATA and print its channels, frequencies, coherence and "
+                          "experiment description; write them to summary.json in --out.")
+    load.add_argument("data", help=_DATA_HELP)
+    load.add_argument("--out", default="out-load", help="report folder (default: out-load)")
 
     _export_parser(sub)
     sub.add_parser("info", help="print the versions robustctl runs with")
@@ -197,60 +250,198 @@ def _run_demo(args: argparse.Namespace) -> Path:
     return run_demo(args.out, seed=args.seed, design=not args.no_design, example=args.example)
 
 
-def _run_compare(args: argparse.Namespace) -> Path:
-    from .cli_inputs import load_model_spec
-    from .correlate import compare
+def _say(text: str) -> None:
+    """Print a result's headline (its ``summary()``) on standard output."""
+    print(text, flush=True)
+
+
+class _Steps:
+    """A progress bar over a command's steps, naming the one running (tqdm on standard error;
+    off when standard error is not a terminal, so logs and pipes stay clean)."""
+
+    def __init__(self, names: Sequence[str]):
+        from tqdm import tqdm
+
+        self._bar = tqdm(total=len(names), disable=not sys.stderr.isatty(), leave=False,
+                         bar_format="{desc} [{n_fmt}/{total_fmt} steps, {elapsed}]")
+        self.show = not self._bar.disable
+        self._started = False
+
+    def __call__(self, name: str) -> None:
+        if self._started:
+            self._bar.update(1)
+        self._started = True
+        self._bar.set_description_str(name)
+
+    def close(self) -> None:
+        self._bar.close()
+
+
+def _inputs(args: argparse.Namespace, model: bool = True) -> tuple[Any, Any]:
+    """The model (when the command has one) and DATA, described and with matching channels."""
+    from .cli_inputs import load_model_spec, match_model_channels
     from .frd_io import load_frd
+
+    data = _described(load_frd(args.data), args)
+    if not model:
+        return None, _select_data(data, args)
+    loaded = load_model_spec(args.model)
+    mdl, data, note = match_model_channels(loaded, data, inputs=args.inputs, outputs=args.outputs)
+    if note:
+        _say(note)
+    return mdl, data
+
+
+def _select_data(data: Any, args: argparse.Namespace) -> Any:
+    from .cli_inputs import select_data_channels
+
+    return select_data_channels(data, args.inputs, args.outputs)
+
+
+def _run_load(args: argparse.Namespace) -> Path:
+    from .cli_results import data_record
+    from .frd_io import load_frd
+
+    data = load_frd(args.data)
+    record = data_record(data)
+    _say(
+        f"{Path(args.data).name}: {data.n_out} outputs {list(data.outputs)} x {data.n_in} inputs "
+        f"{list(data.inputs)}, {data.f_hz.size} frequencies {data.f_hz[0]:.4g}-{data.f_hz[-1]:.4g} Hz, "
+        f"{'with' if data.coherence is not None else 'without'} coherence."
+    )
+    stated = {k: v for k, v in record["experiment"].items() if v not in (None, False)}
+    _say("Experiment: " + (", ".join(f"{k} = {v}" for k, v in stated.items()) or "not described "
+                           "(give --excitation, --input-kind ... to the commands)") + ".")
+    report = _report(args, f"robustctl load: {Path(args.data).name}")
+    report.heading("The data")
+    report.figure(data.plot(), "data", "Measured frequency responses.")
+    for key, value in record.items():
+        report.record(key, value)
+    return report.write()
+
+
+def _run_compare(args: argparse.Namespace) -> Path:
+    from .cli_results import comparison_record
+    from .correlate import compare
     from .identify import fit_measurement_model
 
-    model, data = load_model_spec(args.model), _described(load_frd(args.data), args)
-    band = _band(args)
-    mm = None if args.modes is None else fit_measurement_model(data, n_modes=args.modes, band=band)
-    cmp = compare(model, data, band=band, measurement_model=mm)
-    report = _report(args, f"robustctl compare: {args.model} against {Path(args.data).name}")
-    report.heading("Where the model fails")
-    report.text(cmp.summary())
-    report.table(cmp.table())
-    report.table(cmp.mode_table())
-    report.figure(cmp.plot(), "compare", "Data against model; failing bands shaded.")
-    report.record("cost", float(cmp.cost))
-    report.record("within_noise", cmp.within_noise)
-    report.record("view", cmp.estimator_note)
-    report.record("experiment", data.experiment.to_dict())
-    report.record("failing_bands_hz", [(float(b.lo_hz), float(b.hi_hz)) for b in cmp.bands])
-    return report.write()
+    steps = _Steps(["load", "measurement model", "compare", "report"])
+    try:
+        steps("load model and data")
+        model, data = _inputs(args)
+        band = _band(args)
+        steps("fit the measurement model")
+        n_modes = None if args.modes == "auto" else args.modes
+        mm = None if args.modes is None else fit_measurement_model(data, n_modes=n_modes, band=band,
+                                                                   progress=steps.show)
+        steps("compare")
+        cmp = compare(model, data, band=band, measurement_model=mm)
+        _say(cmp.summary())
+        steps("write the report")
+        report = _report(args, f"robustctl compare: {args.model} against {Path(args.data).name}")
+        report.heading("Where the model fails")
+        report.text(cmp.summary())
+        report.table(cmp.table())
+        report.table(cmp.mode_table())
+        report.figure(cmp.plot(), "compare", "Data against model; failing bands shaded.")
+        report.figure(cmp.plot_error_map(), "error_map",
+                      "Error per channel and band; grey: within the noise.")
+        for key, value in comparison_record(cmp).items():
+            report.record(key, value)
+        report.record("experiment", data.experiment.to_dict())
+        return report.write()
+    finally:
+        steps.close()
 
 
 def _run_diagnose(args: argparse.Namespace) -> Path:
-    from .cli_inputs import load_model_spec
+    from .cli_results import diagnosis_record
     from .correlate import diagnose
-    from .frd_io import load_frd
 
-    model, data = load_model_spec(args.model), _described(load_frd(args.data), args)
-    diag = diagnose(model, data, band=_band(args), time_budget_s=args.time_budget)
-    report = _report(args, f"robustctl diagnose: {args.model} against {Path(args.data).name}")
-    report.heading("Which physical effect is missing?")
-    report.text(diag.summary())
-    report.table(diag.table())
-    report.figure(diag.plot(), "diagnose", "Candidate effects ranked by the share of the error they explain.")
-    report.record("best", None if diag.best is None else diag.best.name)
-    report.record("ranking", [r.name for r in diag.ranking[:10]])
-    return report.write()
+    steps = _Steps(["load", "diagnose", "report"])
+    try:
+        steps("load model and data")
+        model, data = _inputs(args)
+        steps("diagnose: rank the candidate effects")
+        diag = diagnose(model, data, band=_band(args), time_budget_s=args.time_budget)
+        _say(diag.summary())
+        steps("write the report")
+        report = _report(args, f"robustctl diagnose: {args.model} against {Path(args.data).name}")
+        report.heading("Which physical effect is missing?")
+        report.text(diag.summary())
+        report.table(diag.table())
+        report.figure(diag.plot(), "diagnose",
+                      "Candidate effects ranked by the share of the error they explain.")
+        for key, value in diagnosis_record(diag).items():
+            report.record(key, value)
+        return report.write()
+    finally:
+        steps.close()
+
+
+def _run_update(args: argparse.Namespace) -> Path:
+    from .cli_inputs import effect_from_diagnosis
+    from .cli_results import comparison_record, update_record
+    from .correlate import compare, update
+
+    steps = _Steps(["load", "effect", "update", "compare", "report"])
+    try:
+        steps("load model and data")
+        model, data = _inputs(args)
+        steps("add the effect")
+        name, values = effect_from_diagnosis(args.diagnosis, args.effect)
+        if name is not None:
+            model = model.with_effect(name)
+            known = {k: v for k, v in values.items() if k in model.param_names}
+            model = model.with_values(**known) if known else model
+            start = f", starting from {known}" if known else " (at its neutral value)"
+            _say(f"Effect added: {name}{start}.")
+        band = _band(args)
+        steps("update the parameters")
+        upd = update(model, data, params=args.params, band=band, max_iter=args.max_iter, progress=steps.show)
+        _say(upd.summary())
+        steps("compare the updated model")
+        after = compare(upd.model, data, band=band)
+        steps("write the report")
+        report = _report(args, f"robustctl update: {args.model} against {Path(args.data).name}")
+        report.heading("The updated model")
+        report.text(upd.summary())
+        report.table(upd.table())
+        report.figure(upd.plot(), "update", "Cost per iteration; MACE's alignment and orthogonality tests.")
+        report.heading("The updated model against the data")
+        report.text(after.summary())
+        report.figure(after.plot(), "compare_updated", "Data against the updated model.")
+        report.record("effect", name)
+        for key, value in update_record(upd).items():
+            report.record(key, value)
+        report.record("compare_after", comparison_record(after))
+        return report.write()
+    finally:
+        steps.close()
 
 
 def _run_identify(args: argparse.Namespace) -> Path:
-    from .frd_io import load_frd
+    from .cli_results import identify_record
     from .identify import fit_measurement_model
 
-    data = _described(load_frd(args.data), args)
-    mm = fit_measurement_model(data, n_modes=args.modes, band=_band(args))
-    report = _report(args, f"robustctl identify: {Path(args.data).name}")
-    report.heading("Measurement model")
-    report.table(mm.table())
-    report.figure(mm.plot(), "measurement_model", "Measurement model against the data.")
-    report.record("n_modes", int(mm.n_modes))
-    report.record("modes", [{"f_hz": float(m.f_hz), "zeta": float(m.zeta)} for m in mm.modes])
-    return report.write()
+    steps = _Steps(["load", "identify", "report"])
+    try:
+        steps("load data")
+        _, data = _inputs(args, model=False)
+        steps("identify the measurement model")
+        mm = fit_measurement_model(data, n_modes=args.modes, band=_band(args), progress=steps.show)
+        _say(mm.summary())
+        steps("write the report")
+        report = _report(args, f"robustctl identify: {Path(args.data).name}")
+        report.heading("Measurement model")
+        report.text(mm.summary())
+        report.table(mm.table())
+        report.figure(mm.plot(), "measurement_model", "Measurement model against the data.")
+        for key, value in identify_record(mm).items():
+            report.record(key, value)
+        return report.write()
+    finally:
+        steps.close()
 
 
 def _run_export(args: argparse.Namespace) -> Path:
@@ -283,8 +474,10 @@ def _run_export(args: argparse.Namespace) -> Path:
 
 _COMMANDS: dict[str, Callable[[argparse.Namespace], Path]] = {
     "demo": _run_demo,
+    "load": _run_load,
     "compare": _run_compare,
     "diagnose": _run_diagnose,
+    "update": _run_update,
     "identify": _run_identify,
     "export": _run_export,
 }

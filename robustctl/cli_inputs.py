@@ -18,12 +18,14 @@ import importlib
 import importlib.util
 import re
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from .errors import RobustctlError
 
-__all__ = ["CommandLineError", "load_model_spec"]
+__all__ = ["CommandLineError", "load_model_spec", "match_model_channels", "select_data_channels",
+           "effect_from_diagnosis"]
 
 _DEFAULT_NAME = "model"
 
@@ -109,3 +111,94 @@ def _is_system(obj: Any) -> bool:
 
     return isinstance(obj, control.LTI) or callable(getattr(obj, "statespace", None))
 
+
+
+def _names(given: Any, have: Sequence[str], side: str, what: str) -> list[str] | None:
+    if given is None:
+        return None
+    given = [str(g) for g in given]
+    unknown = [g for g in given if g not in have]
+    if unknown:
+        raise CommandLineError(f"--{what} {' '.join(unknown)}: the {side} has no such {what} (it has "
+                               f"{', '.join(have)}).")
+    return given
+
+
+def select_data_channels(data: Any, inputs: Sequence[str] | None, outputs: Sequence[str] | None) -> Any:
+    """``data`` cut to the named inputs and outputs (``--inputs``/``--outputs``); unchanged when none."""
+    ins = _names(inputs, data.inputs, "data", "inputs")
+    outs = _names(outputs, data.outputs, "data", "outputs")
+    if ins is None and outs is None:
+        return data
+    return data.select(outputs=outs, inputs=ins)
+
+
+def match_model_channels(
+    model: Any, data: Any, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None
+) -> tuple[Any, Any, str]:
+    """The model and the data on the same channels, and a sentence saying what was selected.
+
+    ``--inputs``/``--outputs`` select those channels of both. Without them, a data file whose
+    channel names are a subset of the model's (a one-input impact test of a two-shaker model)
+    is matched by ``model.select`` of the data's names; any other mismatch is left to the
+    one matching policy (:func:`robustctl.checks.match_channels`), which names the fix.
+
+    Returns
+    -------
+    (model, data, note) : the note is ``""`` when nothing was selected.
+    """
+    data = select_data_channels(data, inputs, outputs)
+    system = model.statespace() if callable(getattr(model, "statespace", None)) else model
+    m_in, m_out = [str(n) for n in system.input_labels], [str(n) for n in system.output_labels]
+    ins = _names(inputs, m_in, "model", "inputs") or list(data.inputs)
+    outs = _names(outputs, m_out, "model", "outputs") or list(data.outputs)
+    if not (set(ins) <= set(m_in) and set(outs) <= set(m_out)) or (ins == m_in and outs == m_out):
+        return model, data, ""
+    if callable(getattr(model, "select", None)):
+        picked = model.select(inputs=ins, outputs=outs)
+    else:
+        import control
+
+        picked = control.ss(system)[[m_out.index(o) for o in outs], [m_in.index(i) for i in ins]]
+    left = [f"{len(m_in) - len(ins)} of {len(m_in)} inputs" if len(ins) < len(m_in) else "",
+            f"{len(m_out) - len(outs)} of {len(m_out)} outputs" if len(outs) < len(m_out) else ""]
+    note = (f"Model channels selected to match DATA: inputs {ins}, outputs {outs} "
+            f"({' and '.join(x for x in left if x)} of the model left out).")
+    return picked, data, note
+
+
+def effect_from_diagnosis(diagnosis: str | None, effect: str | None) -> tuple[str | None, dict[str, float]]:
+    """The effect ``robustctl update`` adds: named (``--effect``), or the one a diagnose result
+    proposed (``--diagnosis``: its folder or ``summary.json``) with its fitted values.
+
+    Returns
+    -------
+    (name, values) : ``(None, {})`` when neither is given.
+
+    Raises
+    ------
+    CommandLineError
+        Both given, a missing or unreadable file, or a diagnosis that proposed nothing.
+    """
+    import json
+
+    if diagnosis is not None and effect is not None:
+        raise CommandLineError("give --effect or --diagnosis, not both.")
+    if diagnosis is None:
+        return effect, {}
+    path = Path(diagnosis)
+    path = path / "summary.json" if path.is_dir() else path
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise CommandLineError(
+            f"--diagnosis {diagnosis}: cannot read {path} ({exc}); give the --out folder of "
+            "'robustctl diagnose' or its summary.json."
+        ) from None
+    best = record.get("best") if isinstance(record, dict) else None
+    if not isinstance(best, dict) or not best.get("name"):
+        raise CommandLineError(
+            f"--diagnosis {diagnosis}: the diagnosis proposed no effect "
+            f"({record.get('verdict', 'no verdict')}); update without an effect, or name one with --effect."
+        )
+    return str(best["name"]), {str(k): float(v) for k, v in (best.get("values") or {}).items()}

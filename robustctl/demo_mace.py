@@ -107,7 +107,7 @@ def _diagnose_options(model: Any) -> dict:
 
     cands = effects.candidates(model, band=MACE_BAND_HZ, locations=MACE_HARDWARE)
     # dashpots look like modal damping on this bus; zeta_modal is already an update parameter
-    return {"candidates": [c for c in cands if c.kind != "dashpot"], "params": MACE_PARAMS}
+    return {"candidates": [c for c in cands if not isinstance(c, effects.Dashpot)], "params": MACE_PARAMS}
 
 
 def _update_options(model: Any, effect: Any) -> dict:

@@ -21,7 +21,7 @@ from .frd import FrequencyData, as_frequency_data, register_method
 from .frd_io.geometry import ModeShapes
 from .lti import as_statespace, freqresp
 from .modes import Mode, mac
-from .plots import annotated_matrix, bode_grid, colorbar, log_frequency_axis, new_figure
+from .plots import annotated_matrix, bode_grid, colorbar, log_frequency_axis, new_figure, shown_channels_title
 
 __all__ = [
     "fit_percent",
@@ -153,7 +153,8 @@ def plot_compare(
     *,
     phase: bool = False,
     band: Sequence[float] | None = None,
-    max_channels: int = 9,
+    channels: Sequence[tuple[str, str]] | None = None,
+    max_channels: int = 12,
 ):
     """Data and several models on one axis per channel, with each model's fit % (MATLAB ``compare``).
 
@@ -168,8 +169,12 @@ def plot_compare(
     phase : bool
         Add a phase row (deg).
     band : (lo_hz, hi_hz), optional
-        Restrict data and fit % to this band.
+        Restrict data, models, fit % and the frequency axis to this band.
+    channels : sequence of (output, input), optional
+        The channels to draw, by name (default: every channel, up to ``max_channels``).
     max_channels : int
+        At most this many channels are drawn (output-major); when channels are left out the
+        title says so (``"9 of 12 channels shown: pass channels= for others"``).
 
     Returns
     -------
@@ -187,18 +192,41 @@ def plot_compare(
         raise DataError("plot_compare needs at least one model; got none.")
     responses = {name: _model_response(data, _cut_to_data(data, m)) for name, m in models.items()}
     fits = {name: fit_percent(data, r) for name, r in responses.items()}
-    pairs = [(i, j) for i in range(data.n_out) for j in range(data.n_in)][:max_channels]
+    total = data.n_out * data.n_in
+    if channels is not None:
+        picked = [(data.outputs.index(o), data.inputs.index(i)) for o, i in _named_channels(data, channels)]
+    else:
+        picked = [(i, j) for i in range(data.n_out) for j in range(data.n_in)]
+    pairs = picked[:max_channels]
     notes = [[]] + [[f"fit {fits[name][i, j]:.0f}%" for i, j in pairs] for name in responses]
+    title = "fit % = 100 (1 - ||G_data - G_model|| / ||G_data - mean||) per channel"
+    shown = shown_channels_title(len(pairs), total)
     fig = bode_grid(
         [data, *responses.values()],
         ["data", *responses],
-        max_channels=max_channels,
+        channels=pairs,
         phase=phase,
         channel_notes=notes,
-        title="fit % = 100 (1 - ||G_data - G_model|| / ||G_data - mean||) per channel",
+        title=f"{shown}\n{title}" if shown else title,
     )
     fig.fit_percent = fits
     return fig
+
+
+def _named_channels(data: FrequencyData, channels: Sequence[tuple[str, str]]) -> list[tuple[str, str]]:
+    """``channels`` as (output, input) name pairs of ``data``; DataError naming an unknown one."""
+    out = []
+    for pair in channels:
+        if not isinstance(pair, (tuple, list)) or len(pair) != 2:
+            raise DataError(f"channels= takes (output, input) name pairs, e.g. [('S1', 'A1')]; got {pair!r}.")
+        o, i = str(pair[0]), str(pair[1])
+        if o not in data.outputs or i not in data.inputs:
+            raise DataError(
+                f"channel ({o!r}, {i!r}) is not in the data (outputs {list(data.outputs)}, inputs "
+                f"{list(data.inputs)})."
+            )
+        out.append((o, i))
+    return out
 
 
 def _cut_to_data(data: FrequencyData, model: Any) -> Any:

@@ -181,6 +181,33 @@ def _opt_int(value: Any, name: str, lo: int) -> int | None:
     return int(value)
 
 
+def _opt_seconds(value: Any, name: str, zero: bool = False) -> float | None:
+    """A positive (with ``zero``: non-negative), finite duration in s, or None (unknown)."""
+    if value is None:
+        return None
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    if not ok or not (np.isfinite(value) and (value >= 0 if zero else value > 0)):
+        sign = "non-negative" if zero else "positive"
+        raise DataError(f"{name} must be a {sign}, finite time in s or None (unknown); got {value!r}.")
+    return float(value)
+
+
+def _tau_of_end(end: Any, record_s: Any, tau: Any) -> float:
+    """The exponential window's time constant (s) from its value ``end`` at ``record_s`` after the
+    hit: ``exp(-record_s / tau) = end``."""
+    if end is None or record_s is None:
+        raise DataError("give exp_window_end (the window's value at the record end, e.g. 0.01) together "
+                        "with record_s (s from the hit to the record end), or exp_window_tau_s alone.")
+    if tau is not None:
+        raise DataError("give the exponential window once: exp_window_tau_s, or exp_window_end with "
+                        "record_s.")
+    ok = isinstance(end, (int, float, np.integer, np.floating)) and not isinstance(end, (bool, np.bool_))
+    if not ok or not 0 < end < 1:
+        raise DataError(f"exp_window_end must be the window's value at the record end, in (0, 1); "
+                        f"got {end!r}.")
+    return _opt_seconds(record_s, "record_s") / float(np.log(1.0 / end))
+
+
 def _opt_window(value: Any) -> str | tuple | None:
     if value is None:
         return None
@@ -225,9 +252,28 @@ class Experiment:
     hold_divided : bool
         The estimate was divided by the zero-order hold's response ``(1 - e^{-sT}) / (sT)``
         (:func:`robustctl.examples.make_experiment` does so for held inputs).
+    exp_window_tau_s : float or None
+        Impact tests: time constant ``tau`` (s) of the exponential window ``exp(-(t - t0)/tau)``
+        applied from the hit on force and response (None: no exponential window, or not
+        known). It adds ``1/tau`` to every pole's decay rate, so the model is compared at
+        ``s + 1/tau`` (Fladung & Rost 1997; Ewins, *Modal Testing*, sec. 3.11).
+    force_window_s : float or None
+        Impact tests: length (s) of the force (transient) window kept after the end of each
+        force pulse before it tapers to zero (None: no force window, or not known).
+    pretrigger_s : float or None
+        Impact tests: time (s) from the record start to the hit (the trigger's pre-trigger
+        delay). With ``fs_hz`` and the record length (the DFT bins' spacing) it places the
+        record end the model is seen through (eq. T1 of :mod:`robustctl.measure.impact_view`).
     fs : float or None
         The sampling frequency in Hz under the name :func:`robustctl.estimate_frf` uses (keyword
         only; stored as ``fs_hz``, which the attribute ``fs`` also reads).
+    exp_window_end : float, optional
+        Keyword only: the exponential window given as its value at the record end (a fraction
+        in (0, 1), e.g. 0.01 for "1 % at the end", the way analysers state it) with
+        ``record_s``; stored as ``exp_window_tau_s = record_s / ln(1 / exp_window_end)``.
+    record_s : float, optional
+        Keyword only, with ``exp_window_end``: the time (s) from the window's start (the hit)
+        to the record end.
     """
 
     input_kind: str | None = None
@@ -239,6 +285,9 @@ class Experiment:
     n_averages: int | None = None
     whole_periods: bool | None = None
     hold_divided: bool = False
+    exp_window_tau_s: float | None = None
+    force_window_s: float | None = None
+    pretrigger_s: float | None = None
 
     def __init__(
         self,
@@ -251,16 +300,25 @@ class Experiment:
         n_averages: int | None = None,
         whole_periods: bool | None = None,
         hold_divided: bool = False,
+        exp_window_tau_s: float | None = None,
+        force_window_s: float | None = None,
+        pretrigger_s: float | None = None,
         *,
         fs: float | None = None,
+        exp_window_end: float | None = None,
+        record_s: float | None = None,
     ) -> None:
         if fs is not None:
             if fs_hz is not None and fs_hz != fs:
                 raise DataError(f"give the sampling frequency once: fs={fs!r} and fs_hz={fs_hz!r} differ.")
             fs_hz = fs
+        if exp_window_end is not None or record_s is not None:
+            exp_window_tau_s = _tau_of_end(exp_window_end, record_s, exp_window_tau_s)
         values = dict(input_kind=input_kind, excitation=excitation, fs_hz=fs_hz, window=window,
                       nperseg=nperseg, noverlap=noverlap, n_averages=n_averages,
-                      whole_periods=whole_periods, hold_divided=hold_divided)
+                      whole_periods=whole_periods, hold_divided=hold_divided,
+                      exp_window_tau_s=exp_window_tau_s, force_window_s=force_window_s,
+                      pretrigger_s=pretrigger_s)
         for name, value in values.items():
             object.__setattr__(self, name, value)
         self.__post_init__()
@@ -298,6 +356,9 @@ class Experiment:
         whole = None if self.whole_periods is None else bool(self.whole_periods)
         object.__setattr__(self, "whole_periods", whole)
         object.__setattr__(self, "hold_divided", bool(self.hold_divided))
+        for name in ("exp_window_tau_s", "force_window_s"):
+            object.__setattr__(self, name, _opt_seconds(getattr(self, name), name))
+        object.__setattr__(self, "pretrigger_s", _opt_seconds(self.pretrigger_s, "pretrigger_s", zero=True))
 
     @property
     def described(self) -> bool:
@@ -360,6 +421,12 @@ class Experiment:
             parts.append(f"{self.n_averages} averages")
         if self.hold_divided:
             parts.append("divided by the hold")
+        if self.exp_window_tau_s is not None:
+            parts.append(f"exponential window tau = {self.exp_window_tau_s:.4g} s")
+        if self.force_window_s is not None:
+            parts.append(f"force window {self.force_window_s:.4g} s after the pulse")
+        if self.pretrigger_s is not None:
+            parts.append(f"hit {self.pretrigger_s:.4g} s after the record start")
         return ", ".join(parts)
 
 

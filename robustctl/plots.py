@@ -129,16 +129,86 @@ def magnitude_label(data: FrequencyData, output: str, input: str) -> str:
 
 
 def grid_columns(n_panels: int, n_in: int) -> int:
-    """Columns of a channel grid: one per input when the full matrix fits (2x2 on 2 columns), else 3."""
-    if n_panels % max(n_in, 1) == 0 and n_in <= 3 and n_panels > n_in:
+    """Columns of a channel grid: one per input when the full matrix fits (2x2 on 2 columns, 3x3
+    on 3); a single input's channels side by side up to 4, beyond that wrapped into a
+    near-square grid of at most 4 columns (12 outputs: 4 x 3, not a tall narrow column);
+    otherwise 3."""
+    if n_in == 1 and n_panels > 1:
+        return int(n_panels if n_panels <= 4 else min(4, np.ceil(np.sqrt(n_panels))))
+    if n_panels % max(n_in, 1) == 0 and 1 < n_in <= 3 and n_panels > n_in:
         return n_in
     return max(1, min(3, n_panels))
 
 
+def shown_channels_title(shown: int, total: int, keyword: str = "channels=") -> str:
+    """``"9 of 12 channels shown: pass channels= for others"`` when channels are left out, else ``""``."""
+    if shown >= total:
+        return ""
+    return f"{shown} of {total} channels shown: pass {keyword} for others"
+
+
+def error_heat_map(
+    ax: Any, f_hz: np.ndarray, error_db: np.ndarray, labels: Sequence[str], within: np.ndarray | None = None
+) -> Any:
+    """The error of each channel over frequency as a heat map, cells within the noise grey.
+
+    Parameters
+    ----------
+    ax : matplotlib Axes
+    f_hz : ndarray (n_freq,)
+    error_db : ndarray (n_channels, n_freq)
+        ``|log(G_data / G_model)|`` in dB (20 log10 e per neper).
+    labels : sequence of str
+        One per channel (row).
+    within : ndarray of bool (n_channels, n_freq), optional
+        Points whose channel and section the noise test finds within the noise: drawn grey, and
+        left out of the colour scale (their colour would claim an error the data cannot show).
+
+    Returns
+    -------
+    The QuadMesh of the coloured cells (for a colour bar).
+    """
+    from matplotlib.colors import ListedColormap
+
+    rows = np.arange(len(labels))
+    values = np.asarray(error_db, dtype=float)
+    grey = np.zeros_like(values, dtype=bool) if within is None else np.asarray(within, bool)
+    shown = np.ma.masked_array(values, mask=grey)
+    vmax = float(shown.max()) if shown.count() else 1.0
+    if grey.any():
+        ax.pcolormesh(f_hz, rows, np.ma.masked_array(np.ones_like(values), mask=~grey),
+                      cmap=ListedColormap(["0.82"]), shading="nearest", vmin=0, vmax=1)
+    im = ax.pcolormesh(f_hz, rows, shown, cmap="magma", shading="nearest", vmin=0.0, vmax=max(vmax, 1e-12))
+    log_frequency_axis(ax, f_hz)
+    ax.set_ylim(len(labels) - 0.5, -0.5)
+    ax.set_yticks(rows)
+    ax.set_yticklabels(list(labels), fontsize=6)
+    ax.set_ylabel("channel", fontsize=7)
+    note = "; grey: within the noise" if grey.any() else ""
+    ax.set_title(f"|log(G_data / G_model)| (dB equivalent){note}", fontsize=8)
+    return im
+
+
+def sub_decade_labels(decades: float) -> tuple[float, ...]:
+    """Which minor ticks of each decade a log axis spanning ``decades`` labels: 2, 3 and 5 up to
+    1.2 decades, 2 and 5 up to 2.5 decades (1.5-60 Hz then reads 2, 5, 10, 20, 50), none beyond
+    (the decade ticks are enough)."""
+    if decades <= 1.2:
+        return (2.0, 3.0, 5.0)
+    if decades <= 2.5:
+        return (2.0, 5.0)
+    return ()
+
+
+def plain_number(x: float) -> str:
+    """``x`` as a plain number: ``3.61``, ``0.002``, ``1.2e+06`` (4 significant digits, no
+    ``x10^n`` mathtext)."""
+    return f"{x:.4g}"
+
+
 def _plain_log_formatter(minor: bool) -> Any:
-    """Tick labels ``f"{x:g}"`` on a log axis; minor ticks labelled only on axes spanning at
-    most 1.2 decades (where the major ticks alone are too few to read), and then only at 2, 3
-    and 5 of each decade."""
+    """Tick labels ``f"{x:g}"`` on a log axis; minor ticks labelled at the sub-decade marks of
+    :func:`sub_decade_labels` (on short axes, where the decade ticks alone are too few)."""
     from matplotlib.ticker import Formatter
 
     class PlainLogFormatter(Formatter):
@@ -146,11 +216,19 @@ def _plain_log_formatter(minor: bool) -> Any:
             if minor:
                 lo, hi = sorted(self.axis.get_view_interval())
                 mantissa = round(x / 10.0 ** np.floor(np.log10(x) + 1e-9), 6) if x > 0 else 0.0
-                if not (lo > 0 and np.log10(hi / lo) <= 1.2) or mantissa not in (2.0, 3.0, 5.0):
+                if not lo > 0 or mantissa not in sub_decade_labels(float(np.log10(hi / lo))):
                     return ""
-            return f"{x:g}"
+            return plain_number(x)
 
     return PlainLogFormatter()
+
+
+def plain_log_axis(ax: Any, which: str = "y") -> None:
+    """Plain-number tick labels on a log axis (``3.6`` rather than ``3.6086x10^0``), with sub-decade
+    labels on short axes (:func:`sub_decade_labels`)."""
+    axis = ax.yaxis if which == "y" else ax.xaxis
+    axis.set_major_formatter(_plain_log_formatter(minor=False))
+    axis.set_minor_formatter(_plain_log_formatter(minor=True))
 
 
 def log_frequency_axis(ax: Any, f_hz: np.ndarray, label: bool = True) -> None:
@@ -169,6 +247,8 @@ def log_frequency_axis(ax: Any, f_hz: np.ndarray, label: bool = True) -> None:
     ax.xaxis.set_minor_formatter(_plain_log_formatter(minor=True))
     if lo > 0 and np.log10(hi / lo) > 3.0:
         ax.xaxis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))
+    else:
+        ax.xaxis.set_minor_locator(LogLocator(subs=tuple(float(k) for k in range(2, 10))))
     if label:
         ax.set_xlabel("frequency (Hz)")
 
@@ -195,6 +275,7 @@ def bode_grid(
     labels: Sequence[str] | None = None,
     *,
     max_channels: int = 9,
+    channels: Sequence[tuple[int, int]] | None = None,
     shade_bands: Sequence[tuple[float, float]] = (),
     title: str = "",
     phase: bool = False,
@@ -217,6 +298,8 @@ def bode_grid(
     max_channels : int
         At most this many channels (output/input pairs, row by row: output-major) are drawn;
         a full matrix is laid out with one row per output and one column per input.
+    channels : sequence of (int, int), optional
+        The (output index, input index) pairs to draw instead (``max_channels`` is then unused).
     shade_bands : sequence of (lo_hz, hi_hz)
         Frequency bands to shade (e.g. where a model fails).
     title : str
@@ -241,7 +324,7 @@ def bode_grid(
                 f"cannot overlay data with signals {d.outputs}x{d.inputs} on {ref.outputs}x{ref.inputs}."
             )
     labels = list(labels) if labels is not None else [f"set {k + 1}" for k in range(len(datasets))]
-    pairs = _channels(ref, max_channels)
+    pairs = list(channels) if channels is not None else _channels(ref, max_channels)
     coherence = coherence and any(d.coherence is not None for d in datasets)
     rows_per = 1 + bool(phase) + bool(coherence)
     ncols = grid_columns(len(pairs), ref.n_in)

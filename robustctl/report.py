@@ -20,7 +20,7 @@ import numpy as np
 from .errors import RobustctlError
 from .table import Table
 
-__all__ = ["Report"]
+__all__ = ["Report", "write_report"]
 
 _STYLE = """
 body { font-family: system-ui, sans-serif; max-width: 1100px; margin: 2em auto; color: #222; }
@@ -143,3 +143,61 @@ class Report:
                 "or choose another --out."
             ) from None
         return path
+
+
+#: Section heading and figure caption of each result kind :func:`write_report` takes.
+_SECTIONS = {
+    "compare": ("Where the model fails", "Data against model; failing bands shaded; grey heat-map cells "
+                "are within the noise."),
+    "diagnose": ("Which physical effect is missing?", "Candidate effects ranked by the share of the "
+                 "error they explain."),
+    "update": ("The updated model", "Cost per iteration; MACE's alignment and orthogonality tests."),
+    "identify": ("Measurement model", "Measurement model against the data."),
+}
+
+
+def write_report(folder: Any, *results: Any, title: str = "robustctl report") -> Path:
+    """One self-contained page of results, in the order given, and their numbers in ``summary.json``.
+
+    Each result (``rc.compare``, ``rc.diagnose``, ``rc.update``, ``rc.fit_measurement_model``)
+    gets a section with its ``summary()``, its ``table()`` and its ``plot()``; ``summary.json``
+    holds, under ``compare``, ``diagnose``, ``update`` or ``identify`` (numbered when a kind
+    repeats), the same verdict words and numbers the command line writes
+    (:mod:`robustctl.cli_results`: sizes, standard errors, p-values).
+
+    Parameters
+    ----------
+    folder : str or Path
+        A new or empty folder, or one robustctl wrote before (:class:`Report`).
+    *results : Comparison, Diagnosis, UpdateResult or MeasurementModel
+    title : str
+
+    Returns
+    -------
+    Path
+        ``folder/report.html``.
+
+    Raises
+    ------
+    RobustctlError
+        No result, or one of another kind (the message names it).
+    """
+    from .cli_results import record_of, result_kind
+
+    if not results:
+        raise RobustctlError(
+            "write_report needs at least one result (rc.compare, rc.diagnose, rc.update ...)."
+        )
+    kinds = [result_kind(r) for r in results]
+    report = Report(Path(folder), title=title)
+    seen: dict[str, int] = {}
+    for result, kind in zip(results, kinds):
+        seen[kind] = seen.get(kind, 0) + 1
+        key = kind if seen[kind] == 1 else f"{kind}_{seen[kind]}"
+        heading, caption = _SECTIONS[kind]
+        report.heading(heading)
+        report.preformatted(result.summary())
+        report.table(result.table())
+        report.figure(result.plot(), key, caption)
+        report.record(key, record_of(result))
+    return report.write()

@@ -281,7 +281,7 @@ def test_the_noise_model_is_calibrated_on_few_averages(cases):
         (rc.Experiment("measured", "periodic", 200.0, "boxcar", 512), None, "without whole periods"),
         (rc.Experiment("measured", "random", 200.0), None, "settings (fs, nperseg, window) are not stated"),
         (rc.Experiment(None, "random", 200.0, "hann", 512), ("measured", True), "input kind is not stated"),
-        (rc.Experiment("measured", "impact", 256.0), None, "impact excitation has no window leakage"),
+        (rc.Experiment("measured", "impact", 256.0), None, "impact test without an exponential window"),
         (rc.Experiment("held", "stepped_sine", 100.0), ("held", False), "no window leakage"),
     ],
 )

@@ -51,10 +51,10 @@ def test_disk_margins_within_classical_margins(k):
 def test_same_margins_from_model_and_its_exact_frd():
     G = control.tf([2.0], [1.0, 0.4, 4.0]) * control.tf([1.0], [0.1, 1.0])
     K = control.tf([0.8, 1.0], [0.05, 1.0])  # u = -K y
-    model = rc.diskmargin(G, K)
+    model = rc.diskmargin(G, K, sign=-1)
     f = np.unique(np.concatenate([np.geomspace(0.01, 100, 3000), [model.loops[0].f_critical_hz]]))
     data = rc.freqresp(G, f)
-    from_data = rc.diskmargin(data, K)
+    from_data = rc.diskmargin(data, K, sign=-1)
     assert from_data.source == "data" and from_data.closed_loop_stable is None
     assert from_data.loops[0].alpha == pytest.approx(model.loops[0].alpha, rel=1e-9)
     assert from_data.loops[0].phase_margin_deg == pytest.approx(model.loops[0].phase_margin_deg, rel=1e-8)
@@ -63,8 +63,8 @@ def test_same_margins_from_model_and_its_exact_frd():
 def test_positive_feedback_sign_matches_negated_controller():
     G = control.tf([2.0], [1.0, 0.4, 4.0])
     K = control.tf([0.8, 1.0], [0.05, 1.0])
-    a = rc.diskmargin(G, K).simultaneous.alpha
-    b = rc.diskmargin(G, -K, sign=+1).simultaneous.alpha
+    a = rc.diskmargin(G, K, sign=-1).simultaneous.alpha
+    b = rc.diskmargin(G, -K).simultaneous.alpha  # the default: u = +K y
     assert a == pytest.approx(b, rel=1e-12)
 
 
@@ -82,7 +82,7 @@ def test_multiloop_diagonal_and_coupled():
     den = [[[1.0, 1.0], [1.0, 2.0]], [[1.0, 3.0], [1.0, 1.0]]]
     G = control.ss(control.tf(num, den))
     K = control.ss([], [], [], 4.0 * np.eye(2))
-    dm = rc.diskmargin(G, K, at="input")
+    dm = rc.diskmargin(G, K, at="input", sign=-1)  # negative feedback, checked below
     assert dm.simultaneous.alpha <= min(m.alpha for m in dm.loops) * (1 + 1e-9)
     lo, hi = dm.simultaneous.gain_margin
     inside = [1 + 0.999 * (g - 1) for g in (lo, hi)]  # just inside the disk's real diameter
@@ -188,3 +188,19 @@ def test_simultaneous_disk_margin_holds_for_complex_gain_and_phase_changes():
             F = np.diag(f)
             Acl = A - B @ np.linalg.solve(np.eye(2) + F @ D, F @ C)
             assert np.max(np.linalg.eigvals(Acl).real) < 0
+
+
+def test_hinfsyn_controller_default_sign_and_a_sign_slip_is_named():
+    # rc.hinfsyn returns u = +K y; diskmargin's default is that sign (robust/conventions.py)
+    G = control.ss(control.tf([1.0], [1.0, 0.2, 1.0]))
+    gp = rc.generalized_plant(G, performance=control.tf([0.5, 1.0], [1.0, 0.01]), control_weight=0.1,
+                              disturbances=1.0, noise=0.01)
+    K = rc.hinfsyn(gp).K
+    dm = rc.diskmargin(G, K)
+    assert dm.closed_loop_stable and dm.simultaneous.alpha > 0.1
+    # the MATLAB sign on the same controller: unstable, said so, and the other sign named
+    slip = r"unstable with u = -K y \(sign=-1\) but stable with u = \+K y"
+    with pytest.warns(rc.RobustctlWarning, match=slip):
+        bad = rc.diskmargin(G, K, sign=-1)
+    assert bad.closed_loop_stable is False and bad.simultaneous.alpha == 0
+    assert "UNSTABLE with u = -K y (sign=-1)" in bad.summary()

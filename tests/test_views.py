@@ -63,12 +63,12 @@ def test_frf_plot_of_a_3x3_system_without_coherence(experiment):
         data.plot(coherence=True)
 
 
-def test_bode_grid_without_units_says_so_and_three_siso_panels_use_one_column(experiment):
+def test_bode_grid_without_units_says_so_and_three_siso_panels_use_one_row(experiment):
     data = experiment[0].select(inputs=["A3"])
     assert rc.plots.bode_grid([data]).axes[0].get_ylabel() == "|G| (V/V)"  # the example's volts
     fig = rc.plots.bode_grid([data.replace(units={})], ["d"])
     assert len(fig.axes) == 3
-    assert {ax.get_subplotspec().get_gridspec().ncols for ax in fig.axes} == {1}
+    assert {ax.get_subplotspec().get_gridspec().ncols for ax in fig.axes} == {3}  # a row, not a column
     assert fig.axes[0].get_ylabel() == "|G| (data units)"
 
 

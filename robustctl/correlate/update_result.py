@@ -13,7 +13,7 @@ from ..checks import check_seed
 from ..errors import FitError, ModelError
 from ..measure.noise import NO_NOISE_SENTENCE, format_p
 from ..physical.uncertain import parametric_lft
-from ..plots import annotated_matrix, colorbar, new_figure
+from ..plots import annotated_matrix, colorbar, new_figure, plain_log_axis
 from ..table import Table, result_html
 from .optimize import LMResult
 from .parameter_drift import Drift, move_test
@@ -375,6 +375,8 @@ class UpdateResult:
         fig = fig or new_figure(13.0, 4.0)
         ax1, ax2, ax3 = fig.subplots(1, 3)
         ax1.semilogy(range(len(self.history)), self.history, "o-")
+        plain_log_axis(ax1, "y")
+        ax1.xaxis.get_major_locator().set_params(integer=True)
         ax1.set_xlabel("iteration")
         ax1.set_ylabel("cost J (MACE eq. 5)")
         ax1.set_title(f"cost: {self.reduction:.1%} lower")

@@ -21,7 +21,8 @@ _CONTENTS = "robustctl_contents"
 _MAT_EXPERIMENT = {
     "InputKind": "input_kind", "Excitation": "excitation", "SampleRate": "fs_hz", "Window": "window",
     "NPerSeg": "nperseg", "NOverlap": "noverlap", "NAverages": "n_averages", "WholePeriods": "whole_periods",
-    "HoldDivided": "hold_divided",
+    "HoldDivided": "hold_divided", "ExpWindowTau": "exp_window_tau_s", "ForceWindow": "force_window_s",
+    "PreTrigger": "pretrigger_s",
 }
 
 def cellstr(names: Sequence[str]) -> np.ndarray:

@@ -2,7 +2,9 @@
 
 How the data were made (:class:`~robustctl.frd.Experiment`) is kept twice: compactly in ID
 line 2 of every record (``frf input=measured exc=random fs=200 nperseg=2048
-window=hamming nov=1024 navg=19``, read back from robustctl's own files), and completely,
+window=hamming nov=1024 navg=19``; an impact test's ``tau=`` exponential-window time constant,
+``fwin=`` force-window length and ``pretrig=`` hit time, s; read back from robustctl's own
+files), and completely,
 with ``meta``, in a sidecar ``<file>.uff.json`` that :func:`read_uff` reads when it is present
 and matches the file's channels. A file without either loads as not described.
 """
@@ -24,6 +26,7 @@ _SIDECAR = "robustctl.FrequencyData uff sidecar"
 _ID2_KEYS = {
     "input": "input_kind", "exc": "excitation", "fs": "fs_hz", "nperseg": "nperseg", "window": "window",
     "whole": "whole_periods", "hold": "hold_divided", "nov": "noverlap", "navg": "n_averages",
+    "tau": "exp_window_tau_s", "fwin": "force_window_s", "pretrig": "pretrigger_s",
 }
 
 _UFF_ID = "robustctl FrequencyData"
@@ -265,7 +268,7 @@ def id2_text(kind: str, experiment: Experiment | None) -> str:
         if isinstance(value, bool):
             value = int(value)
         if isinstance(value, float):
-            value = f"{value:.17g}"
+            value = f"{value:g}" if float(f"{value:g}") == value else repr(value)  # shortest exact text
         value = str(value)
         if name == "window" and (not isinstance(values[name], str) or " " in value):
             continue  # a tuple or user window: the sidecar keeps it
@@ -288,7 +291,7 @@ def _id2_experiment(sets: list[dict]) -> Experiment | None:
                 continue
             name = _ID2_KEYS[key]
             try:
-                if name == "fs_hz":
+                if name in ("fs_hz", "exp_window_tau_s", "force_window_s", "pretrigger_s"):
                     found[name] = float(value)
                 elif name in ("nperseg", "noverlap", "n_averages"):
                     found[name] = int(value)

@@ -34,14 +34,13 @@ at 200 Hz keeps 70 % after 0.5 s) and, starting from a leaked fit, can settle on
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import dataclass, replace
-from typing import Any
+from dataclasses import replace
 
 import numpy as np
 
 from ..errors import FitError
 from ..measure.estimator import EstimatorSettings, estimator_settings, expected_h1_modal
+from ..measure.impact_view import TruncationSettings, truncation_settings
 from ..threads import limit_blas
 from .modal_refine import ZETA_MIN
 from .poles import coefficients_to_residues, lstsq_normal, partial_fraction_basis
@@ -90,54 +89,6 @@ def leakage_factor(model: RationalFit, f_hz: np.ndarray, settings: EstimatorSett
     m = model.response(f_hz)
     tiny = np.finfo(float).tiny
     return m / np.where(np.abs(expected) > tiny, expected, tiny)
-
-
-@dataclass(frozen=True)
-class TruncationSettings:
-    """Record length, hit times and hit weights of an impact H1 estimate (eq. T1).
-
-    Attributes
-    ----------
-    fs_hz : float
-        Sampling frequency, Hz.
-    record_s : float
-        Record length ``T``, s.
-    hit_times_s : tuple of float
-        Force-pulse centroid ``t_h`` of every hit from the record start, s.
-    hit_weights : tuple of float
-        Share of every hit in the H1 average (its force energy; they sum to 1).
-    hit_spreads_s : tuple of float
-        RMS duration of every hit's force pulse about its centroid, s (the second-order term of
-        the pulse in eq. T1, :mod:`.tail`); empty: impulses.
-    """
-
-    fs_hz: float
-    record_s: float
-    hit_times_s: tuple[float, ...]
-    hit_weights: tuple[float, ...]
-    hit_spreads_s: tuple[float, ...] = ()
-
-
-def truncation_settings(meta: Mapping[str, Any] | None) -> TruncationSettings | None:
-    """The truncation settings recorded by :func:`robustctl.estimate_frf_impact`, or None (other
-    data, or data already corrected: ``meta["leakage_corrected"]``)."""
-    if not isinstance(meta, Mapping) or meta.get("leakage_corrected"):
-        return None
-    try:
-        fs, n = float(meta["fs_hz"]), int(meta["n_samples"])
-        times = tuple(float(t) for t in meta["hit_times_s"])
-        weights = np.asarray(meta["hit_weights"], dtype=float)
-    except (KeyError, TypeError, ValueError):
-        return None
-    if len(times) != weights.size or weights.size == 0 or not weights.sum() > 0:
-        return None
-    try:
-        spreads = tuple(float(v) for v in meta.get("hit_spreads_s") or ())
-    except (TypeError, ValueError):
-        spreads = ()
-    if len(spreads) != len(times) or not all(np.isfinite(spreads)):
-        spreads = ()
-    return TruncationSettings(fs, n / fs, times, tuple(weights / weights.sum()), spreads)
 
 
 def _tail_terms(s: np.ndarray, poles: np.ndarray, settings: TruncationSettings) -> np.ndarray:

@@ -514,6 +514,8 @@ def _automatic(band: FrequencyData, run: FitSettings, max_modes: int, parsimony:
 
 def _window_tau(fd: FrequencyData, correct_window: Any) -> float | None:
     tau = fd.meta.get("exp_window_tau_s") if isinstance(fd.meta, dict) else None
+    if tau is None:  # a file described as an impact test with an exponential window
+        tau = getattr(fd.experiment, "exp_window_tau_s", None)
     if correct_window is False or tau is None:
         return None
     return float(tau)
@@ -601,8 +603,8 @@ def fit_measurement_model(
         :func:`~robustctl.identify.modal_refine.refine_modes_auto`); this is what resolves
         near-coincident modes.
     correct_window : bool
-        When ``data.meta`` holds ``exp_window_tau_s`` (set by
-        :func:`robustctl.estimate_frf_impact` with an exponential window), move every pole by
+        When ``data.meta`` or ``data.experiment`` holds ``exp_window_tau_s`` (set by
+        :func:`robustctl.estimate_frf_impact` with an exponential window, or stated), move every pole by
         ``+1/tau``: ``zeta_true = zeta_meas - 1/(tau w_n)`` (Ewins, sec. 3.11). For every
         impact record (rectangular or exponential window) whose responses have not decayed by
         the record end, also try undoing the truncation (leakage): the refinement fits the

@@ -46,6 +46,11 @@ __all__ = ["refine_modes", "refine_modes_local", "refine_modes_auto", "ZETA_MIN"
 #: (5 modes, 2 x 8 channels, 400 points) that is 7 s against 1 s block by block, for the same
 #: accuracy (0.001 % in frequency); 0.5 M keeps the small SISO and few-channel fits dense.
 DENSE_MAX_ENTRIES = 500_000
+#: a complex pole decaying faster than this many times its frequency (damping ratio above
+#: 1 - 1e-7) is no oscillation but a numerically real pole (a pole identification can leave one at
+#: -1e41 with a residue of 1e32): it is held fixed, since its log-decay parameter would step
+#: past exp's range and turn the Jacobian into inf and NaN.
+NOT_AN_OSCILLATION = 1e3
 
 
 @dataclass(frozen=True)
@@ -156,7 +161,8 @@ def refine_modes(
         Refined model; the starting one if the refinement does not lower the cost.
     """
     data = fit.data
-    cplx = np.flatnonzero((fit.poles.imag != 0) & (fit.ranks > 0))
+    oscillating = np.abs(fit.poles.real) < NOT_AN_OSCILLATION * np.abs(fit.poles.imag)
+    cplx = np.flatnonzero((fit.poles.imag != 0) & (fit.ranks > 0) & oscillating)
     if which is not None:
         cplx = np.intersect1d(cplx, which)
     if data is None or cplx.size == 0:

@@ -30,23 +30,15 @@ from typing import Any
 
 import numpy as np
 
+from ..measure.impact_view import record_tails
+
 __all__ = ["tail_terms", "leaked_terms", "complex_tails"]
-
-
-def _parts(s: np.ndarray, poles: np.ndarray, settings: Any):
-    dt = 1.0 / settings.fs_hz
-    cut = settings.record_s - np.asarray(settings.hit_times_s, dtype=float)  # L_h, s
-    weights = np.asarray(settings.hit_weights, dtype=float)
-    spread = np.asarray(getattr(settings, "hit_spreads_s", ()) or np.zeros(cut.size), dtype=float)
-    q = np.stack([poles, np.conj(poles)], axis=-1)  # (n_p, 2)
-    x = q[None, :, :] - s[:, None, None]  # (K, n_p, 2), 1/s
-    quad = (q[None, :, :] ** 2 - (s**2)[:, None, None])[..., None] * (0.5 * spread**2)  # (K, n_p, 2, n_hits)
-    return dt, cut, weights, spread, q, x, quad
 
 
 def tail_terms(s: np.ndarray, poles: np.ndarray, settings: Any, derivative: bool = False):
     """``tail_q(s)`` of eq. T1 for every pole ``q`` and its conjugate, (K, n_p, 2); with
-    ``derivative`` also ``d tail_q / dq`` (eq. T1'), same shape.
+    ``derivative`` also ``d tail_q / dq`` (eq. T1'), same shape
+    (:func:`robustctl.measure.impact_view.record_tails`).
 
     Parameters
     ----------
@@ -57,16 +49,8 @@ def tail_terms(s: np.ndarray, poles: np.ndarray, settings: Any, derivative: bool
     settings : TruncationSettings
         Sampling frequency (Hz), record length (s), hit times (s) and hit weights.
     """
-    dt, cut, weights, spread, q, x, quad = _parts(s, np.asarray(poles, dtype=complex), settings)
-    decay = np.exp(x[..., None] * cut + quad)  # E_h: (K, n_p, 2, n_hits)
-    share = decay @ weights
-    one_minus = -np.expm1(x * dt)
-    terms = dt * share / one_minus
-    if not derivative:
-        return terms
-    e = np.exp(x * dt)
-    d_share = (decay * (cut + q[None, :, :, None] * spread**2)) @ weights
-    return terms, dt * (d_share / one_minus + share * dt * e / one_minus**2)
+    p = np.asarray(poles, dtype=complex)
+    return record_tails(s, np.stack([p, np.conj(p)], axis=-1), settings, derivative)
 
 
 def leaked_terms(s: np.ndarray, poles: np.ndarray, settings: Any | None):

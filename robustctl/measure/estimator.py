@@ -31,6 +31,7 @@ from ..errors import DataError
 from ..frd import PLAIN_NOTE, Experiment
 from ..lti import as_statespace, freqresp, zoh
 from ..threads import limit_blas
+from .impact_view import TruncationSettings, expected_h1_impact_modal, on_record_bins, truncation_settings
 
 __all__ = [
     "EstimatorSettings",
@@ -53,6 +54,8 @@ __all__ = [
     "sampled_hold_response",
     "discrete_view",
     "experiment_view",
+    "impact_settings",
+    "expected_h1_impact",
 ]
 
 #: tag of the zero-order-hold stage (:func:`robustctl.physical.electronics.zero_order_hold_stage`)
@@ -68,10 +71,16 @@ class EstimatorSettings(tuple):
     ``leakage`` (random excitation with known Welch settings) applies the window's lag window;
     without it a held input is seen through the exact sampled response alone (periodic
     excitation with whole periods, stepped sine). The defaults are the held, random view.
+
+    ``impact`` (an impact test, :func:`robustctl.estimate_frf_impact`): the model is seen through
+    the exponential window of time constant ``exp_tau_s`` (s; None: none) and, when ``record``
+    (:class:`~robustctl.measure.impact_view.TruncationSettings`) is known, the record end
+    (eq. W2 of :mod:`robustctl.measure.impact_view`).
     """
 
     def __new__(cls, values: tuple, noverlap: int | None = None, hold_divided: bool = False,
-                input_kind: str = "held", leakage: bool = True):
+                input_kind: str = "held", leakage: bool = True, *, impact: bool = False,
+                exp_tau_s: float | None = None, record: TruncationSettings | None = None):
         obj = super().__new__(cls, values)
         obj.noverlap = noverlap
         obj.hold_divided = hold_divided
@@ -79,18 +88,22 @@ class EstimatorSettings(tuple):
             raise DataError(f"input_kind must be 'held' or 'measured'; got {input_kind!r}.")
         obj.input_kind = input_kind
         obj.leakage = bool(leakage)
+        obj.impact = bool(impact)
+        obj.exp_tau_s = None if exp_tau_s is None else float(exp_tau_s)
+        obj.record = record
         return obj
 
     def __reduce__(self):
-        return (EstimatorSettings, (tuple(self), self.noverlap, self.hold_divided, self.input_kind,
-                                    self.leakage))
+        return (_rebuild_settings, (tuple(self), self.noverlap, self.hold_divided, self.input_kind,
+                                    self.leakage, self.impact, self.exp_tau_s, self.record))
 
     def __eq__(self, other: Any) -> bool:
         same = tuple.__eq__(self, other)
         if same is not True or not isinstance(other, EstimatorSettings):
             return same
-        return (self.input_kind, self.leakage, self.hold_divided) == (
-            other.input_kind, other.leakage, other.hold_divided)
+        mine = (self.input_kind, self.leakage, self.hold_divided, self.impact, self.exp_tau_s, self.record)
+        return mine == (other.input_kind, other.leakage, other.hold_divided, other.impact, other.exp_tau_s,
+                        other.record)
 
     def __hash__(self) -> int:
         return tuple.__hash__(self)
@@ -110,6 +123,8 @@ class EstimatorSettings(tuple):
     def describe(self) -> str:
         """``"4096-pt hamming at 200 Hz"`` (held, random: the legacy wording), else with what is applied:
         ``"window leakage of 2048-pt hamming at 200 Hz, measured input (no hold)"``."""
+        if self.impact:
+            return _describe_impact(self)
         if not self.leakage:
             return f"the sampled zero-order-hold response at {self.fs_hz:g} Hz (no window leakage)"
         win = self.window if isinstance(self.window, str) else str(self.window)
@@ -119,6 +134,77 @@ class EstimatorSettings(tuple):
         if self.input_kind == "measured":
             return f"window leakage of {text}, measured input (no hold)"
         return text
+
+
+def _rebuild_settings(values, noverlap, hold_divided, input_kind, leakage, impact, exp_tau_s, record):
+    return EstimatorSettings(values, noverlap, hold_divided, input_kind, leakage, impact=impact,
+                             exp_tau_s=exp_tau_s, record=record)
+
+
+def _describe_impact(st: EstimatorSettings) -> str:
+    """``"the impact H1 with its exponential window (tau = 0.2 s: poles moved by -5 1/s) and the
+    record end (0.5 s)"``."""
+    parts = []
+    if st.exp_tau_s is not None:
+        parts.append(f"its exponential window (tau = {st.exp_tau_s:.4g} s: poles moved by "
+                     f"-{1.0 / st.exp_tau_s:.4g} 1/s)")
+    if st.record is not None:
+        parts.append(f"the record end ({st.record.record_s:.4g} s)")
+    return "the impact H1 with " + " and ".join(parts)
+
+
+def impact_settings(experiment: Experiment, meta: Mapping[str, Any] | None, f_hz: Any = None
+                    ) -> tuple[EstimatorSettings | None, str]:
+    """What an impact test's description establishes: ``(settings or None, why not)``.
+
+    The exponential window (``experiment.exp_window_tau_s``) and, when the data record the hits
+    (``meta`` of :func:`robustctl.estimate_frf_impact`: ``n_samples``, ``hit_times_s``,
+    ``hit_weights``) and ``f_hz`` are the record's DFT bins, the record end (eq. W2 of
+    :mod:`robustctl.measure.impact_view`), else, for a file that states its ``fs_hz`` and
+    ``pretrigger_s``, one hit at ``pretrigger_s`` in a record as long as one over the bins'
+    spacing. A recorded ``meta["exp_window_tau_s"]`` counts as stated when the description is
+    silent; two different values are refused.
+    """
+    tau = experiment.exp_window_tau_s
+    recorded = meta.get("exp_window_tau_s") if isinstance(meta, Mapping) else None
+    if recorded is not None:
+        ok = isinstance(recorded, (int, float, np.integer, np.floating)) and not isinstance(recorded, bool)
+        if not ok or not (np.isfinite(recorded) and recorded > 0):
+            raise _settings_error("exp_window_tau_s", recorded, "a positive, finite time constant in s")
+        recorded = float(recorded)
+        if tau is not None and not np.isclose(recorded, tau, rtol=1e-9, atol=0.0):
+            raise DataError(
+                f"the experiment states an exponential window tau = {tau:g} s but data.meta records "
+                f"exp_window_tau_s = {recorded:g} s; correct one of them (data.replace(...))."
+            )
+        tau = recorded
+    record = truncation_settings(meta)
+    if record is None:
+        record = _described_record(experiment, f_hz)
+    if record is not None and f_hz is not None and not on_record_bins(f_hz, record):
+        record = None
+    if tau is None and record is None:
+        return None, "impact excitation without an exponential window or a recorded record length"
+    fs = experiment.fs_hz if experiment.fs_hz is not None else (record.fs_hz if record else None)
+    n = None if record is None else int(round(record.record_s * record.fs_hz))
+    st = EstimatorSettings((fs, n, "exponential" if tau is not None else "boxcar"), None, False, "measured",
+                           False, impact=True, exp_tau_s=tau, record=record)
+    return st, ""
+
+
+def _described_record(e: Experiment, f_hz: Any) -> TruncationSettings | None:
+    """The record of a described impact test: one hit at ``pretrigger_s`` (s) in a record of
+    ``1 / df`` s (``df`` the spacing of the DFT bins ``f_hz``, Hz) sampled at ``fs_hz``; None when
+    any of them is unknown."""
+    if e.pretrigger_s is None or e.fs_hz is None or f_hz is None:
+        return None
+    f = np.asarray(f_hz, dtype=float)
+    if f.size < 2:
+        return None
+    df = float(np.min(np.diff(f)))
+    if not df > 0 or e.pretrigger_s >= 1.0 / df:
+        return None
+    return TruncationSettings(e.fs_hz, 1.0 / df, (e.pretrigger_s,), (1.0,))
 
 
 def estimator_settings(meta: Mapping[str, Any] | None) -> EstimatorSettings | None:
@@ -426,6 +512,31 @@ def expected_h1(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np.ndarray:
     return windowed_spectrum(_zoh_impulse_loop(ss, settings.fs_hz, settings.nperseg), f_hz, settings)
 
 
+@limit_blas
+def expected_h1_impact(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np.ndarray:
+    """Expected impact H1 of a continuous system (eq. W2 of :mod:`robustctl.measure.impact_view`):
+    the system at ``s + 1/tau`` minus the record end's tail of every pole.
+
+    A system whose modes are defective (rigid-body double poles) is evaluated at ``s + 1/tau``
+    through its shifted state matrix ``A - I/tau`` without the tail.
+
+    Returns
+    -------
+    ndarray, complex, shape (K, n_out, n_in)
+    """
+    ss = as_statespace(sys)
+    f = np.asarray(f_hz, dtype=float)
+    modal = _modal(ss)
+    if modal is not None:
+        return expected_h1_impact_modal(*modal, f, settings.exp_tau_s, settings.record)
+    if settings.exp_tau_s is None:
+        return freqresp(ss, f).response
+    import control
+
+    A = np.asarray(ss.A, dtype=float) - np.eye(ss.nstates) / settings.exp_tau_s
+    return freqresp(control.ss(A, ss.B, ss.C, ss.D), f).response
+
+
 def _lagged_spectrum(two_sided: np.ndarray, f_hz: np.ndarray, settings: EstimatorSettings) -> np.ndarray:
     """``sum_{|m| < N} h[m] r_w[|m|] / r_w[0] e^{-j theta m}`` at ``f_hz``; ``two_sided`` has length 2N,
     lag m >= 0 at index m and lag -m at index 2N - m."""
@@ -562,13 +673,18 @@ def estimator_view(sys: Any, f_hz: Any, settings: EstimatorSettings, *, hold: bo
     ``sys`` is the model without that stage. Data divided by the hold
     (``meta["hold_divided"]``) are compared with ``hold=False``.
 
-    A measured input (``settings.input_kind == "measured"``) has no hold and no aliasing:
+    An impact test (``settings.impact``) is seen through its exponential window and record end:
+    :func:`expected_h1_impact`. A measured input (``settings.input_kind == "measured"``) has no
+    hold and no aliasing:
     :func:`expected_h1_measured`, window leakage alone. A sampled model (``dt > 0``) is
     evaluated at ``z = e^{j 2 pi f dt}`` (:func:`discrete_view`).
     """
     f = np.asarray(f_hz, dtype=float)
     if _is_discrete(sys):
         return discrete_view(sys, f, settings)
+    if settings.impact:
+        g = expected_h1_impact(sys, f, settings)
+        return g * hold_response(f, settings.fs_hz)[:, None, None] if hold and settings.fs_hz else g
     if settings.input_kind == "measured":  # a hold stage the user added stays in the model, exactly
         g = expected_h1_measured(sys, f, settings)
         return g * hold_response(f, settings.fs_hz)[:, None, None] if hold else g
@@ -592,7 +708,7 @@ def _sees_estimator(model: Any) -> bool:
 
 
 def experiment_view(
-    experiment: Any, meta: Mapping[str, Any] | None = None
+    experiment: Any, meta: Mapping[str, Any] | None = None, f_hz: Any = None
 ) -> tuple[EstimatorSettings | None, str]:
     """What the experiment description establishes about the estimate: ``(settings or None, note)``.
 
@@ -601,7 +717,9 @@ def experiment_view(
       ``fs_hz``, applied to the model unless the data were divided by the hold
       (``hold_divided``; :func:`model_view`);
     * nothing else: a measured input has no hold and no aliasing; periodic excitation with
-      whole periods per segment, bursts, impacts and stepped sines have no window leakage.
+      whole periods per segment, bursts and stepped sines have no window leakage;
+    * an impact test: its exponential window and record end (:func:`impact_settings`) at the
+      frequencies ``f_hz`` (Hz; the record's DFT bins for the record end).
 
     ``note`` says in words what is applied (``"model seen through ..."``) or why nothing is
     (:data:`robustctl.frd.PLAIN_NOTE` when the data do not describe their experiment).
@@ -613,6 +731,10 @@ def experiment_view(
         return None, "compared as the plain FRF: the data were corrected for the estimator's leakage"
     leakage = e.excitation == "random" and e.welch_known
     held = e.input_kind == "held" and e.fs_hz is not None
+    if e.excitation == "impact" and not held:
+        st, why = impact_settings(e, meta, f_hz)
+        if st is not None:
+            return st, f"model seen through {st.describe()}"
     if not leakage and not held:
         if e.excitation == "random":
             why = "the random-excitation estimate's settings (fs, nperseg, window) are not stated"
@@ -620,6 +742,8 @@ def experiment_view(
             why = "periodic excitation without whole periods per segment stated"
         elif e.excitation is None:
             why = "the excitation is not stated"
+        elif e.excitation == "impact":
+            why = "an impact test without an exponential window or a recorded record length"
         else:
             why = f"{e.excitation.replace('_', ' ')} excitation has no window leakage"
             if e.excitation == "periodic":
@@ -674,7 +798,7 @@ def resolve_view(spec: Any, data: Any, model: Any) -> tuple[EstimatorSettings | 
         st = estimator_settings(meta)
         found = (st, "" if st is None else f"model seen through the H1 estimator: {st.describe()}")
     else:
-        found = experiment_view(experiment, meta)
+        found = experiment_view(experiment, meta, getattr(data, "f_hz", None))
     if isinstance(spec, str) and spec == "auto":
         if not _sees_estimator(model):
             return None, "compared as the plain FRF: the model is a fit to the estimates themselves"

@@ -8,11 +8,15 @@ mean of a transient is signal, not drift); the pre-trigger mean (DC offset) is r
 * **Force window**: the force is kept from the record start to the end of the pulse plus a
   margin and zeroed after (with a short cosine taper), which removes the noise the force
   channel adds over the rest of the record.
-* **Exponential window** ``exp(-(t - t0)/tau)`` from the hit time ``t0`` on force and response
-  makes a response that has not died out by the end of the record decay (no leakage). It
-  adds ``1/tau`` to every pole's decay rate, i.e. ``zeta_meas = zeta_true + 1/(tau w_n)``;
-  ``tau`` is recorded in ``meta["exp_window_tau_s"]`` and
-  :func:`robustctl.fit_measurement_model` undoes it on the identified modes.
+* **Exponential window** ``exp(-(t - t0)/tau)`` (1 at the hit time ``t0``, a pure exponential
+  over the whole record, so that the anti-aliasing filter's precursor before ``t0`` is weighted
+  as the relation below needs) on force and response makes a response that has not died out by
+  the end of the record decay (no leakage). It adds ``1/tau`` to every pole's decay rate, i.e.
+  ``zeta_meas = zeta_true + 1/(tau w_n)`` (eq. W1 of :mod:`robustctl.measure.impact_view`);
+  ``tau`` is recorded in ``meta["exp_window_tau_s"]`` and ``experiment.exp_window_tau_s``:
+  :func:`robustctl.fit_measurement_model` undoes it on the identified modes, and compare,
+  diagnose and update see the model through it. Whether "auto" applies it is decided per
+  response channel (:func:`ringing_channels`).
 * **Double hits** (a second force pulse after the first has ended) and **overloads** (a
   channel at its range, or clipped: several consecutive samples at the record's extreme) are
   warned about, naming the hit.
@@ -30,12 +34,14 @@ from ..checks import positive_number
 from ..errors import DataError, RobustctlWarning
 from ..frd import Experiment, FrequencyData
 
-__all__ = ["estimate_frf_impact", "ImpactWarning"]
+__all__ = ["estimate_frf_impact", "ImpactWarning", "ringing_channels"]
 
 #: the force pulse is where |force| exceeds this fraction of the hit's peak
 PULSE_LEVEL = 0.05
 #: a response that keeps more than this fraction of its peak envelope at the end leaks
 DECAY_LEVEL = 0.01
+#: the force has settled after its pulse below this fraction of the peak (or its noise)
+SETTLED_LEVEL = 1e-3
 
 
 class ImpactWarning(RobustctlWarning):
@@ -102,14 +108,26 @@ def _force_window(n: int, end: int, margin: int) -> np.ndarray:
     return w
 
 
-def _auto_tau(y: np.ndarray, start: int, fs: float) -> float | None:
-    """``tau`` making the window fall to DECAY_LEVEL at the record end, when the response has not
-    decayed below DECAY_LEVEL of its peak in the last 10 % of the record; else None."""
-    env = np.max(np.abs(y), axis=-1)
-    tail = env[int(0.9 * env.size) :].max()
-    if tail <= DECAY_LEVEL * env.max():
-        return None
-    return (env.size - start) / fs / np.log(1 / DECAY_LEVEL)
+def ringing_channels(y: np.ndarray) -> np.ndarray:
+    """Which channels of one hit have not decayed, shape (n_channels,) bool.
+
+    A channel rings when its own envelope keeps more than DECAY_LEVEL of its own peak in the last
+    10 % of the record. Each channel is judged against itself: a strong channel that has decayed
+    does not hide a weaker one that still rings (an envelope over all channels would).
+
+    Parameters
+    ----------
+    y : ndarray, shape (n_samples, n_channels)
+        Responses of one hit (any unit).
+    """
+    a = np.abs(y)
+    tail = a[int(0.9 * a.shape[0]) :].max(axis=0)
+    return tail > DECAY_LEVEL * a.max(axis=0)
+
+
+def _auto_tau(n: int, start: int, fs: float) -> float:
+    """``tau`` (s) making the window fall to DECAY_LEVEL at the record end."""
+    return (n - start) / fs / np.log(1 / DECAY_LEVEL)
 
 
 def estimate_frf_impact(
@@ -137,14 +155,21 @@ def estimate_frf_impact(
         Sampling frequency, Hz.
     exp_window : "auto", float or None
         Time constant ``tau`` (s) of the exponential window from the hit; "auto": the window
-        falls to 1 % at the record end, applied only when the response has not decayed below
-        1 % of its peak by then (else no window); None: rectangular (leakage if the response
-        has not decayed). Recorded in ``meta["exp_window_tau_s"]`` (None when not applied);
+        falls to 1 % at the record end, applied when any response channel of any hit has not
+        decayed below 1 % of its own peak by then (:func:`ringing_channels`, recorded in
+        ``meta["ringing_channels"]``; else no window); None: rectangular (leakage if the
+        response has not decayed). The time constant used (None when not applied) is recorded
+        in ``meta["exp_window_tau_s"]`` and ``experiment.exp_window_tau_s``, so compare,
+        diagnose and update see the model at ``s + 1/tau`` (:mod:`robustctl.measure.impact_view`);
         :func:`robustctl.fit_measurement_model` corrects the damping it adds,
         ``zeta_true = zeta_meas - 1/(tau w_n)``.
     force_window : "auto", float or None
         Length (s) kept after the end of the force pulse before a cosine taper to zero; "auto":
-        the pulse's own duration (at least 4 samples); None: no force window.
+        until the force has settled below its noise (4 x the pre-trigger rms, at least 0.1 % of
+        the peak) for ``max(8, 2 x pulse length)`` samples, the longest any hit needs (at least
+        the pulse's duration and 4 samples), so an anti-aliasing filter's ringing is kept; None:
+        no force window. The length
+        used, s, is recorded in ``meta["force_window_s"]`` and ``experiment.force_window_s``.
     double_hit_ratio : float
         A second force pulse above this fraction of the hit's peak, after the first has ended,
         is a double hit (warned; the hit is still used).
@@ -192,16 +217,16 @@ def estimate_frf_impact(
     overloads = [k for k in range(n_hits) if _overloaded(f[k], force_range) or _overloaded(y[k], y_range)]
     _warn(doubles, overloads, n_hits)
     fw, yw = _offsets_removed(f, y, pulses)
-    if force_window is not None:
-        for k, (start, end, _) in enumerate(pulses):
-            auto = force_window == "auto"
-            margin = max(4, end - start) if auto else max(1, int(round(float(force_window) * fs)))
+    margin = _force_margin(force_window, fw, pulses, fs)
+    if margin is not None:
+        for k, (_, end, _) in enumerate(pulses):
             fw[k] *= _force_window(n, end, margin)
-    tau = _window_tau(exp_window, yw, pulses, fs)
+    ringing = np.any([ringing_channels(yk) for yk in yw], axis=0)
+    tau = _window_tau(exp_window, ringing, pulses, n, fs)
     if tau is not None:
         t = np.arange(n) / fs
         for k, (start, _, _) in enumerate(pulses):
-            win = np.exp(-np.maximum(t - start / fs, 0.0) / tau)
+            win = np.exp(-(t - start / fs) / tau)  # a pure exponential, also before the hit (eq. W1)
             fw[k] *= win
             yw[k] *= win[:, None]
     energy = np.sum(fw**2, axis=1)
@@ -222,7 +247,8 @@ def estimate_frf_impact(
         "n_hits": n_hits,
         "n_samples": n,
         "exp_window_tau_s": tau,
-        "force_window_s": None if force_window is None else force_window,
+        "force_window_s": None if margin is None else margin / fs,
+        "ringing_channels": [int(c) for c in np.flatnonzero(ringing)],
         "resolution_hz": fs / n,
         "double_hits": doubles,
         "overloads": overloads,
@@ -237,7 +263,9 @@ def estimate_frf_impact(
         outputs=outputs,
         coherence=np.clip(coh, 0.0, 1.0)[:, :, None],
         meta=meta,
-        experiment=Experiment(input_kind="measured", excitation="impact", fs_hz=fs, n_averages=n_hits),
+        experiment=Experiment(input_kind="measured", excitation="impact", fs_hz=fs, n_averages=n_hits,
+                              exp_window_tau_s=tau, force_window_s=None if margin is None else margin / fs,
+                              pretrigger_s=float(np.dot(meta["hit_weights"], meta["hit_times_s"]))),
     )
 
 
@@ -258,29 +286,66 @@ def _range(value: Any) -> float | None:
 
 
 def _offsets_removed(f: np.ndarray, y: np.ndarray, pulses) -> tuple[np.ndarray, np.ndarray]:
-    """Copies of force and response with each hit's pre-trigger mean (DC offset) removed."""
+    """Copies of force and response with each hit's DC offset removed: the mean of the first half
+    of the pre-trigger samples (the second half may hold the precursor of a linear-phase
+    anti-aliasing filter, which is signal)."""
     fw, yw = np.array(f), np.array(y)
     for k, (start, _, _) in enumerate(pulses):
-        if start >= 8:
-            fw[k] -= f[k, :start].mean()
-            yw[k] -= y[k, :start].mean(axis=0)
+        if start >= 8:  # the first half of the pre-trigger: clear of an anti-aliasing filter's precursor
+            fw[k] -= f[k, : start // 2].mean()
+            yw[k] -= y[k, : start // 2].mean(axis=0)
     return fw, yw
 
 
-def _window_tau(exp_window: Any, y: np.ndarray, pulses, fs: float) -> float | None:
-    """One time constant for every hit: the given one, or with "auto" the shortest any hit needs."""
+def _force_margin(force_window: Any, f: np.ndarray, pulses, fs: float) -> int | None:
+    """Samples kept after each pulse's end: the given length, or with "auto" the longest any hit
+    needs (:func:`_settled`), one number for every hit; None without a force window."""
+    if force_window is None:
+        return None
+    if isinstance(force_window, str) and force_window == "auto":
+        return max(_settled(fk, pulse) for fk, pulse in zip(f, pulses))
+    length = _positive_seconds(force_window, "force_window")
+    return max(1, int(round(length * fs)))
+
+
+def _settled(f: np.ndarray, pulse: tuple[int, int, float]) -> int:
+    """Samples after the pulse's end until the force has settled: the start of the first run of
+    ``max(8, 2 x pulse length)`` samples all below the force's noise (4 x the rms of the first half
+    of the pre-trigger, at least SETTLED_LEVEL of the peak). The ringing of an anti-aliasing filter
+    after the pulse is force: a window that cut it would bias the estimate. At least 4 samples and
+    the pulse's own duration."""
+    start, end, peak = pulse
+    noise = float(np.std(f[: start // 2])) if start >= 8 else 0.0
+    level = max(SETTLED_LEVEL * peak, 4.0 * noise)
+    run = max(8, 2 * (end - start))
+    quiet = np.abs(f[end:]) < level
+    loud = np.flatnonzero(~quiet)
+    gaps = np.diff(np.concatenate([[-1], loud, [quiet.size]])) - 1  # quiet samples after each loud one
+    first = int(np.flatnonzero(gaps >= run)[0]) if np.any(gaps >= run) else len(gaps) - 1
+    settle = 0 if first == 0 else int(loud[first - 1]) + 1
+    return max(4, end - start, settle)
+
+
+def _positive_seconds(value: Any, name: str, what: str = "time") -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        x = float("nan")
+    if isinstance(value, (bool, np.bool_)) or not (np.isfinite(x) and x > 0):
+        raise DataError(f"{name} must be 'auto', None or a positive {what} in s; got {value!r}.")
+    return x
+
+
+def _window_tau(exp_window: Any, ringing: np.ndarray, pulses, n: int, fs: float) -> float | None:
+    """One time constant for every hit: the given one, or with "auto" (when any channel of any hit
+    rings, :func:`ringing_channels`) the shortest the hits need: the latest hit's."""
     if exp_window is None:
         return None
-    if exp_window != "auto":
-        tau = float(exp_window)
-        if not (np.isfinite(tau) and tau > 0):
-            raise DataError(
-                f"exp_window must be 'auto', None or a positive time constant in s; got {exp_window!r}."
-            )
-        return tau
-    taus = [_auto_tau(yk, start, fs) for yk, (start, _, _) in zip(y, pulses)]
-    given = [t for t in taus if t is not None]
-    return min(given) if given else None
+    if not (isinstance(exp_window, str) and exp_window == "auto"):
+        return _positive_seconds(exp_window, "exp_window", "time constant")
+    if not np.any(ringing):
+        return None
+    return min(_auto_tau(n, start, fs) for start, _, _ in pulses)
 
 
 def _warn(doubles: list[int], overloads: list[int], n_hits: int) -> None:

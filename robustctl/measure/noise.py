@@ -45,7 +45,16 @@ from ..checks import COHERENCE_CAP, match_channels, neighbour_coherence
 from ..errors import DataError
 from ..frd import FrequencyData, as_frequency_data
 from ..lti import as_statespace, freqresp, log_ratio
-from .estimator import USER_WINDOW, bin_correlation, effective_averages, estimator_settings, welch_window
+from .estimator import (
+    USER_WINDOW,
+    EstimatorSettings,
+    bin_correlation,
+    effective_averages,
+    estimator_settings,
+    estimator_view,
+    welch_window,
+)
+from .impact_view import on_record_bins, truncation_settings
 
 __all__ = [
     "coherence_weight_bias",
@@ -319,11 +328,34 @@ def _running_scale(x: np.ndarray, half: int) -> np.ndarray:
     return out
 
 
+def _impact_seen(data: Any, measurement_model: Any) -> EstimatorSettings | None:
+    """The impact view of what a measurement model's fit removed: the exponential window
+    (``window_tau_s``) and, when ``leakage_corrected``, the record end (eq. W2 of
+    :mod:`robustctl.measure.impact_view`); None when it removed neither or the data are no
+    impact test."""
+    e = getattr(data, "experiment", None)
+    if e is None or e.excitation != "impact":
+        return None
+    tau = getattr(measurement_model, "window_tau_s", None)
+    corrected = bool(getattr(measurement_model, "leakage_corrected", False))
+    record = truncation_settings(data.meta) if corrected else None
+    if record is not None and not on_record_bins(data.f_hz, record):
+        record = None
+    if tau is None and record is None:
+        return None
+    return EstimatorSettings((e.fs_hz, None, "exponential"), None, False, "measured", False, impact=True,
+                             exp_tau_s=tau, record=record)
+
+
 def _from_residual(data: Any, measurement_model: Any) -> NoiseModel:
+    """The noise from a measurement model's residual, the model seen as the impact estimator saw
+    it when the fit removed the exponential window or the record end (:func:`_impact_seen`)."""
     sys = as_statespace(measurement_model)
     out_idx = match_channels(sys.output_labels, data.outputs, "outputs")
     in_idx = match_channels(sys.input_labels, data.inputs, "inputs")
-    g = freqresp(sys, data.f_hz).response[:, out_idx][:, :, in_idx]
+    seen = _impact_seen(data, measurement_model)
+    g = freqresp(sys, data.f_hz).response if seen is None else estimator_view(sys, data.f_hz, seen)
+    g = g[:, out_idx][:, :, in_idx]
     modes = getattr(measurement_model, "n_modes", None)
     article = "an" if modes and str(modes)[0] in "8" or modes in (11, 18) else "a"
     what = f"{article} {modes}-mode measurement model" if modes else "a measurement model"

@@ -1,7 +1,7 @@
 """Physical models: frame FEM, modal state space, electronics, PhysicalModel."""
 
 from . import electronics
-from .builders import modal_model, structural_model
+from .builders import frame_model, modal_model, structural_model
 from .fem import Frame
 from .gravity import PreloadResult
 from .matrices import MatrixStructure
@@ -13,6 +13,7 @@ from .structure_base import StructuralMatrices, Structure
 __all__ = ["Frame", "PreloadResult", "PhysicalModel", "Stage", "Parameter", "StructuralMatrices", "Structure"]
 __all__ += [
     "electronics",
+    "frame_model",
     "structural_model",
     "modal_model",
     "MatrixStructure",

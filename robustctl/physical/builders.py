@@ -1,15 +1,18 @@
 """Bring your own model: mass/stiffness matrices or modal data as a PhysicalModel.
 
-Two of the three ways a user brings a model (DESIGN.md; the third is the frame FEM):
+The three ways a user brings a model (DESIGN.md):
 
+* :func:`frame_model` — the built-in frame FEM (:class:`~robustctl.physical.fem.Frame`), built
+  by a function of the named parameters;
 * :func:`structural_model` — the user's own mass and stiffness matrices (arrays, or
   functions of the parameter values so that updating can change them);
 * :func:`modal_model` — frequencies, damping ratios and mass-normalised mode shapes at
   the actuator and sensor DOFs exported from an external FE code (NASTRAN, ANSYS ...).
 
-Both give a :class:`~robustctl.physical.model.PhysicalModel` whose state space is the
-modal model of MACE eqs. 1-4; electronics and input/output effects apply to both,
-structural effects (added mass, springs ...) only to :func:`structural_model`.
+Each gives a :class:`~robustctl.physical.model.PhysicalModel` whose state space is the
+modal model of MACE eqs. 1-4; electronics and input/output effects apply to all,
+structural effects (added mass, springs ...) to :func:`frame_model` and
+:func:`structural_model`.
 """
 
 from __future__ import annotations
@@ -20,13 +23,14 @@ from typing import Any
 import numpy as np
 
 from ..errors import ModelError
+from .fem import Frame
 from .matrices import MatrixStructure
 from .modal import _modal_data_from_arrays, modal_dynamics
 from .model import PhysicalModel
 from .parameters import Parameter
 from .reduction import band_limited
 
-__all__ = ["structural_model", "modal_model", "MODAL_DAMPING_PARAM"]
+__all__ = ["frame_model", "structural_model", "modal_model", "MODAL_DAMPING_PARAM"]
 
 #: Name of the modal damping-ratio parameter added to every model built here.
 MODAL_DAMPING_PARAM = "zeta_modal"
@@ -98,6 +102,8 @@ def structural_model(
     tagged: Mapping[str, Sequence[Any]] | Callable[[Theta], Mapping[str, Any]] | None = None,
     rigid_body_damping: float = 0.0,
     residual_flexibility: bool = False,
+    nodes: Mapping[int, Sequence[float]] | None = None,
+    lines: Sequence[tuple[int, int]] = (),
     name: str = "structural model",
 ) -> PhysicalModel:
     """A PhysicalModel from the user's own mass and stiffness matrices (MACE eqs. 1-4).
@@ -127,6 +133,10 @@ def structural_model(
         (e.g. ``{"suspension": (dK, dC)}``) are removed by ``model.without("suspension")``.
     rigid_body_damping, residual_flexibility :
         See :func:`~robustctl.physical.modal.modal_decomposition`.
+    nodes, lines : optional
+        Node coordinates ``{id: (x, y, z)}`` (m) and node pairs to draw; with ``dof_labels``
+        of the form ``"node:direction"`` (``"3:X"``) the model has ``model.geometry()`` and
+        ``model.mode_shapes()`` for :func:`robustctl.plot_mode_shapes`.
     name : str
         Shown in tables and plots.
 
@@ -162,6 +172,8 @@ def structural_model(
             stiffness_groups=_resolve(stiffness_groups, theta),
             geometric_stiffness=_resolve(geometric_stiffness, theta),
             tagged=_resolve(tagged, theta),
+            nodes=nodes,
+            lines=lines,
         )
 
     matrix_args = (mass, stiffness, concentrated_damping, stiffness_groups, geometric_stiffness, tagged)
@@ -190,6 +202,88 @@ def structural_model(
             return base({}, struct)
 
     return _check_build(PhysicalModel(params, dynamics, structure=structure, name=name))
+
+
+def frame_model(
+    frame: Frame | Callable[[Theta], Frame],
+    params: Sequence[Parameter] = (),
+    *,
+    damping: float = 0.01,
+    n_modes: int | None = None,
+    band_hz: tuple[float, float] | None = None,
+    name: str | None = None,
+) -> PhysicalModel:
+    """A PhysicalModel of the built-in frame FEM with named parameters (MACE eqs. 1-4).
+
+    Parameters
+    ----------
+    frame : Frame or callable ``theta -> Frame``
+        The structure. A callable receives the parameter values by name (``theta["E"]``) and
+        builds a new :class:`~robustctl.physical.fem.Frame` each call, so updating changes
+        them; a Frame is used as it stands (each build gets its own copy), for a model whose
+        only parameters are the damping and the effects diagnose adds.
+    params : sequence of Parameter
+        The physical parameters the callable reads; ``free=False`` ones stay fixed in
+        :func:`robustctl.update`.
+    damping : float
+        Modal damping ratio of every mode: the parameter ``"zeta_modal"`` (unless ``params``
+        has one).
+    n_modes, band_hz : optional
+        Modal truncation (lowest ``n_modes`` / modes in ``[lo, hi]`` Hz); all modes by default.
+    name : str, optional
+        Shown in tables and plots (default: the frame's name).
+
+    Returns
+    -------
+    PhysicalModel
+        Inputs and outputs named as the frame's; structural effects (added mass, springs,
+        stiffer element groups, taut wires ...) apply; ``model.geometry()`` and
+        ``model.mode_shapes()`` draw it.
+
+    Raises
+    ------
+    ModelError
+        ``frame`` is neither a Frame nor a callable returning one, a parameter is not a
+        :class:`Parameter`, or the frame cannot be built (checked once here).
+
+    Examples
+    --------
+    >>> import robustctl as rc
+    >>> def cantilever(th):
+    ...     fr = rc.Frame()
+    ...     for k in range(3):
+    ...         fr.add_node(f"n{k}", (0.5 * k, 0.0, 0.0))
+    ...     fr.add_beam("beam", "n0", "n2", E=th["E"], G=th["E"] / 2.6, rho=2700.0, A=1e-4,
+    ...                 Iy=1e-9, Iz=1e-9, J=2e-9)
+    ...     fr.fix("n0")
+    ...     fr.add_force_input("F", "n2", "z")
+    ...     return fr.add_output("a_tip", "n2", "z")
+    >>> model = rc.frame_model(cantilever, [rc.Parameter("E", 69e9, "Pa", bounds=(50e9, 80e9))])
+    >>> model.param_names
+    ('E', 'zeta_modal')
+    """
+    params, _ = _with_damping(_check_params(params), float(damping))
+    if isinstance(frame, Frame):
+        template = frame
+
+        def structure(theta: Theta) -> Frame:
+            return template.without()
+
+        label = template.name
+    elif callable(frame):
+        structure, label = frame, "frame model"
+    else:
+        raise ModelError(
+            f"frame must be a robustctl.Frame or a function theta -> Frame; got {type(frame).__name__}."
+        )
+    dynamics = modal_dynamics(n_modes, band_hz, MODAL_DAMPING_PARAM)
+    model = PhysicalModel(params, dynamics, structure=structure, name=name or label)
+    built = model.build_structure()
+    if not isinstance(built, Frame):
+        raise ModelError(
+            f"the frame function returned a {type(built).__name__}; it must return a robustctl.Frame."
+        )
+    return _check_build(model)
 
 
 def modal_model(

@@ -34,6 +34,7 @@ import scipy.sparse as sp
 
 from ..checks import flag
 from ..errors import ModelError
+from ..frd_io.geometry import Geometry, ModeShapes
 from ..threads import limit_blas
 from . import elements as el
 from .eigen import SPARSE_THRESHOLD, solve_modes
@@ -58,6 +59,7 @@ from .frame_parts import (
     direction_vector,
 )
 from .gravity import PreloadResult
+from .shapes import frame_geometry, frame_mode_shapes
 from .structure_base import OUTPUT_KINDS, StructuralMatrices, Structure
 
 __all__ = ["Frame", "DIRECTIONS"]
@@ -673,6 +675,27 @@ class Frame(Structure):
         held = {f.node for f in self._fixes if {0, 1, 2} <= set(f.dofs)}
         return [n for n in dict.fromkeys(near) if n != node and n not in held]
 
+    def add_resonator(self, location: str, mass: float, stiffness: float, direction=None) -> Frame:
+        """Attach a spring-mass at node ``location`` along ``direction`` (``"x"``, ``"y"``, ``"z"``):
+        a new node ``"<location>~resonator"`` at the same place carrying ``mass`` (kg), free only
+        along ``direction`` and joined to ``location`` by a spring of ``stiffness`` (N/m)."""
+        self._node(location)
+        axis = str(direction).strip().lower() if direction is not None else ""
+        if axis not in ("x", "y", "z"):
+            raise ModelError(f"a frame resonator acts along 'x', 'y' or 'z'; got direction={direction!r}.")
+        twin = f"{location}~resonator"
+        while twin in self._nodes:
+            twin += "'"
+        self.add_node(twin, self._nodes[location].xyz, ("resonator",))
+        self.fix(twin, [d for d in ("x", "y", "z", "rx", "ry", "rz") if d != axis])
+        self.add_mass(twin, mass)
+        return self.add_spring(location, stiffness, axis, node2=twin, tags=("resonator",))
+
+    def signal_location(self, side: str, name: str) -> str | None:
+        """The node of a point sensor or force (None: a strain gauge or a signal on several nodes)."""
+        sig = self._signal(side, name)
+        return sig.terms[0][0] if sig.strain is None and len(sig.terms) == 1 else None
+
     def signal_moves(self, side: str, name: str) -> list[tuple[str, str | None]]:
         """Where a point sensor or force could really be: the same direction at each neighbouring
         node (:meth:`_neighbours`), and the global axes ``x``, ``y``, ``z`` at its own node that are
@@ -735,9 +758,12 @@ class Frame(Structure):
             raise ModelError(f"no beam of group {group!r} ends at node {node!r}; joints: {self.joints()}.")
         return k
 
-    def add_joint_flexibility(self, node: str, group: str, compliance: float) -> Frame:
+    def add_joint_flexibility(self, node: str, group: str, compliance: float,
+                              axes: tuple[str, ...] = ("rx", "ry", "rz")) -> Frame:
         """Make the connection of ``group``'s beams at ``node`` semi-rigid: a rotational spring of
-        ``1 / compliance`` (N m/rad) about each axis between them and the rest of the joint.
+        ``1 / compliance`` (N m/rad) about each axis of ``axes`` (global ``"rx"``, ``"ry"``,
+        ``"rz"``; one axis: a hinge) between them and the rest of the joint; rotations about the
+        other axes stay tied as the translations are.
 
         The group's beam ends at ``node`` move to a new node at the same place (``"node~group"``),
         tied to ``node`` in translation by springs far stiffer than the members (10^5 x the largest
@@ -747,6 +773,9 @@ class Frame(Structure):
         Frames*, ch. 5).
         """
         c = _finite("joint compliance (rad/(N m))", compliance, nonneg=True)
+        axes = (axes,) if isinstance(axes, str) else tuple(axes)
+        if not axes or not set(axes) <= {"rx", "ry", "rz"}:
+            raise ModelError(f"joint axes are among 'rx', 'ry', 'rz'; got {axes!r}.")
         if c == 0.0:
             return self
         if (node, group) not in self.joints():
@@ -754,6 +783,7 @@ class Frame(Structure):
                 f"node {node!r} is not a joint of group {group!r} with other beams; the joints are "
                 f"{self.joints()}."
             )
+        k_tie = 1e5 * self.joint_stiffness(node, group)  # a rotation the joint does not release
         twin = f"{node}~{group}"
         if twin in self._nodes:
             raise ModelError(f"the joint of {group!r} at {node!r} is already flexible.")
@@ -772,7 +802,7 @@ class Frame(Structure):
         for ax in ("x", "y", "z"):
             self._add_spring("spring", node, 1e5 * k_axial, ax, twin, ("joint",))
         for ax in ("rx", "ry", "rz"):
-            self._add_spring("spring", node, 1.0 / c, ax, twin, ("joint",))
+            self._add_spring("spring", node, 1.0 / c if ax in axes else k_tie, ax, twin, ("joint",))
         return self
 
     # ------------------------------------------------------------------ assembly
@@ -821,6 +851,16 @@ class Frame(Structure):
         sm = self.matrices()  # dense up to SPARSE_THRESHOLD DOFs, as solve_modes prefers
         w, phi = limit_blas(solve_modes)(sm.mass, sm.stiffness, n_modes=n_modes, **options)
         return w / (2 * np.pi), phi
+
+    def geometry(self) -> Geometry:
+        """Nodes (id ``k`` is the ``k``-th node added), members, links and sensors as a
+        :class:`~robustctl.frd_io.geometry.Geometry` (:func:`~robustctl.physical.shapes.frame_geometry`)."""
+        return frame_geometry(self)
+
+    def mode_shapes(self, n_modes: int | None = None, band_hz: Sequence[float] | None = None) -> ModeShapes:
+        """Every node's translation per undamped mode, mass-normalised, over :meth:`geometry`'s nodes
+        (:func:`~robustctl.physical.shapes.frame_mode_shapes`)."""
+        return frame_mode_shapes(self, n_modes, band_hz)
 
     def preload(self) -> PreloadResult | None:
         """The gravity preload iteration result (None with gravity off)."""

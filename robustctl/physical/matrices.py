@@ -25,6 +25,7 @@ import scipy.sparse as sp
 
 from ..errors import ModelError
 from .eigen import _check_mass_definite, _check_square_symmetric, _dense
+from .shapes import matrix_geometry, matrix_mode_shapes
 from .structure_base import OUTPUT_KINDS, StructuralMatrices, Structure
 
 __all__ = ["MatrixStructure"]
@@ -138,6 +139,11 @@ class MatrixStructure(Structure):
         Geometric stiffness per unit tension (1/m) of a group (for ``add_group_tension``).
     tagged : mapping tag -> tuple of matrices, optional
         Parts ``(dK[, dC[, dM]])`` included in the matrices that ``without`` removes.
+    nodes : mapping node id -> (x, y, z), optional
+        Node coordinates (m) for drawing: with DOFs labelled ``"node:direction"`` (``"3:X"``)
+        the structure has a :meth:`geometry` and :meth:`mode_shapes`.
+    lines : sequence of (int, int), optional
+        Node pairs drawn as lines (members, springs).
     """
 
     def __init__(
@@ -152,6 +158,8 @@ class MatrixStructure(Structure):
         stiffness_groups: Mapping[str, Any] | None = None,
         geometric_stiffness: Mapping[str, Any] | None = None,
         tagged: Mapping[str, Sequence[Any]] | None = None,
+        nodes: Mapping[int, Sequence[float]] | None = None,
+        lines: Sequence[tuple[int, int]] = (),
     ) -> None:
         self._M = _matrix(mass, None, "mass")
         n = self._M.shape[0]
@@ -175,6 +183,11 @@ class MatrixStructure(Structure):
                 )
             self._geometric[g] = _matrix(kg, n, f"geometric stiffness of {g!r}")
         self._tagged = {str(t): self._tagged_part(t, part) for t, part in (tagged or {}).items()}
+        self._raw_outputs = dict(outputs)
+        self._nodes = None if nodes is None else {int(k): tuple(v) for k, v in nodes.items()}
+        self._lines = tuple(tuple(pair) for pair in lines)
+        if self._nodes is not None:
+            self.geometry()  # refuse labels that name no node now, not at the first drawing
 
     # ------------------------------------------------------------------ construction helpers
     @property
@@ -258,6 +271,21 @@ class MatrixStructure(Structure):
                                  self._outputs, self._labels, self.modal_damping_bands())
         return own.copy()
 
+    def geometry(self):
+        """Nodes, lines and sensors (:func:`~robustctl.physical.shapes.matrix_geometry`)."""
+        if self._nodes is None:
+            return super().geometry()
+        return matrix_geometry(self._nodes, self._labels, self._raw_outputs, self._lines)
+
+    def mode_shapes(self, n_modes: int | None = None, band_hz: Sequence[float] | None = None):
+        """Every node's translation per undamped mode
+        (:func:`~robustctl.physical.shapes.matrix_mode_shapes`)."""
+        if self._nodes is None:
+            return super().mode_shapes(n_modes, band_hz)
+        sm = self.matrices()
+        return matrix_mode_shapes(sm.mass, sm.stiffness, self._labels, self.geometry().node_ids, n_modes,
+                                  band_hz)
+
     def without(self, tags: Iterable[str]) -> MatrixStructure:
         """Subtract the tagged parts carrying one of ``tags`` (unknown tags are ignored:
         ``PhysicalModel.without`` passes every excluded tag, e.g. ``"gravity"``)."""
@@ -296,6 +324,14 @@ class MatrixStructure(Structure):
             raise ModelError(f"unknown {side} {name!r}; the structure has {side}s {list(names)}.")
         k = names.index(name)
         return self._c[k] if side == "output" else self._b[:, k]
+
+    def signal_location(self, side: str, name: str) -> str | None:
+        """The DOF a sensor row or force column points at, when it points at one DOF only."""
+        v = np.abs(self._pointing(side, name))
+        if not np.any(v > 0):
+            return None
+        k = int(np.argmax(v))
+        return self._labels[k] if np.count_nonzero(v > 1e-12 * v[k]) == 1 else None
 
     def signal_moves(self, side: str, name: str) -> list[tuple[str, str | None]]:
         """The DOFs next (by index) to the one a sensor row or force column points at most: the
@@ -355,6 +391,59 @@ class MatrixStructure(Structure):
     def add_dashpot(self, location: str, damping: float, direction: str | None = None) -> MatrixStructure:
         """Add a grounded dashpot (N s/m) at the DOF ``location`` (concentrated damping Cs)."""
         return self._add_diagonal("_C", location, damping, direction, "dashpot")
+
+    def add_resonator(self, location: str, mass: float, stiffness: float,
+                      direction: str | None = None) -> MatrixStructure:
+        """Attach a spring-mass at the DOF ``location``: a new DOF ``"<location>~resonator"`` of
+        ``mass`` (kg) joined by ``stiffness`` (N/m); every matrix, group and pointing gains a zero
+        row and column for it (the resonator carries no sensor or force)."""
+        if direction is not None:
+            raise ModelError(
+                f"the locations of a MatrixStructure are single DOFs; a resonator takes direction=None, "
+                f"got {direction!r}."
+            )
+        m, k = float(mass), float(stiffness)
+        if not (np.isfinite(m) and m > 0 and np.isfinite(k) and k >= 0):
+            raise ModelError(
+                f"a resonator needs a mass > 0 (kg) and a stiffness >= 0 (N/m); got {m!r}, {k!r}.")
+        i, n = self._dof(location), self.n_dof
+        label = f"{location}~resonator"
+        while label in self._labels:
+            label += "'"
+
+        def pad(a: Any) -> Any:
+            if a is None:
+                return None
+            if sp.issparse(a):
+                return sp.block_diag((a, sp.csr_matrix((1, 1))), format="csr")
+            return np.pad(np.asarray(a, dtype=float), ((0, 1), (0, 1)))
+
+        tie = sp.csr_matrix(([k, -k, -k, k], ([i, i, n, n], [i, n, i, n])), shape=(n + 1, n + 1))
+        added = sp.csr_matrix(([m], ([n], [n])), shape=(n + 1, n + 1))
+        K, M = pad(self._K), pad(self._M)
+        self._K = K + tie if sp.issparse(K) else K + tie.toarray()
+        self._M = M + added if sp.issparse(M) else M + added.toarray()
+        self._C = pad(self._C)
+        self._groups = {g: pad(a) for g, a in self._groups.items()}
+        self._geometric = {g: pad(a) for g, a in self._geometric.items()}
+        self._tagged = {t: tuple(pad(a) for a in part) for t, part in self._tagged.items()}
+        self._b = np.vstack([self._b, np.zeros((1, self._b.shape[1]))])
+        self._c = np.hstack([self._c, np.zeros((self._c.shape[0], 1))])
+        self._labels = tuple(self._labels) + (label,)
+        return self
+
+    def add_coupling(self, location: str, partner: str, stiffness: float) -> MatrixStructure:
+        """Add ``stiffness`` (N/m, N m/rad; negative softens) between DOFs ``location`` and ``partner``:
+        ``K += k (e_a - e_b)(e_a - e_b)^T``."""
+        k = float(stiffness)
+        a, b = self._dof(location), self._dof(partner)
+        if a == b or not np.isfinite(k):
+            raise ModelError(f"a coupling needs two different DOFs and a finite stiffness; got {location!r}, "
+                             f"{partner!r}, {stiffness!r}.")
+        n = self.n_dof
+        dK = sp.csr_matrix(([k, -k, -k, k], ([a, a, b, b], [a, b, a, b])), shape=(n, n))
+        self._K = self._K + dK if sp.issparse(self._K) else self._K + dK.toarray()
+        return self
 
     def _group(self, group: str) -> Any:
         if group not in self._groups:

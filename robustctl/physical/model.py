@@ -518,6 +518,34 @@ class PhysicalModel:
             raise ModelError(f"model {self.name!r} has no structural description.")
         return self._structure(self._theta(overrides))
 
+    def geometry(self, **overrides: float) -> Any:
+        """The structure's nodes, lines and sensors (:class:`~robustctl.frd_io.geometry.Geometry`),
+        for :func:`robustctl.plot_mode_shapes` and :func:`robustctl.animate_mode_shape`.
+
+        Raises
+        ------
+        ModelError
+            The model has no structure, or its structure has no node coordinates.
+        """
+        return self.build_structure(**overrides).geometry()
+
+    def mode_shapes(
+        self, n_modes: int | None = None, band_hz: Sequence[float] | None = None, **overrides: float
+    ) -> Any:
+        """Every node's translation in the structure's undamped modes (effects included), as
+        :class:`~robustctl.frd_io.geometry.ModeShapes` over :meth:`geometry`'s nodes.
+
+        Parameters
+        ----------
+        n_modes : int, optional
+            The lowest ``n_modes`` modes (all by default).
+        band_hz : (lo, hi), optional
+            Only the modes in this band (Hz).
+        **overrides : float
+            Parameter values to use instead of the model's.
+        """
+        return self.build_structure(**overrides).mode_shapes(n_modes, band_hz)
+
     def _structure(self, theta: Mapping[str, float]) -> Structure:
         struct = _base_structure(self.structure, theta)
         if self.structure_stages:  # effects change the structure in place

@@ -566,11 +566,6 @@ def for_data(model: Any, data: Any, band: Any = None) -> Any:
 
 
 # ============================================================================ point modifications
-#: Effects that add a constant mass, grounded spring or dashpot at a point: their change of the
-#: matrices is linear in their one parameter and touches a few DOFs (rank one to six).
-POINT_KINDS = ("added_mass", "suspension_spring", "dashpot")
-
-
 @dataclass
 class PointChange:
     """The change one point effect makes per unit of its parameter: ``dofs`` (the DOFs ``J``)
@@ -682,25 +677,24 @@ def point_modal(model: Any, f_hz: Any, **overrides: float) -> PointModal | None:
 
 
 def point_change(effect: Any, model: Any, base_struct: Any, base_mats: Any) -> PointChange | None:
-    """The change per unit size of a point effect (:data:`POINT_KINDS`) on ``model``'s structure
+    """The change per unit size of a point effect (one whose class declares a ``point_unit``: a
+    constant mass, grounded spring or dashpot, linear in its one parameter) on ``model``'s structure
     ``base_struct`` (matrices ``base_mats``), or None for any other effect or one that changes
     more than :data:`LOW_RANK_MAX_DOFS` DOFs. A single-DOF location of a
-    :class:`~robustctl.physical.matrices.MatrixStructure` is read off directly; otherwise the
-    effect is applied at unit size and the matrices compared."""
-    if effect.kind not in POINT_KINDS or len(effect.param_names) != 1:
+    :class:`~robustctl.physical.matrices.MatrixStructure` is read off directly; otherwise (a frame
+    node, several DOFs) the effect is applied at unit size and the matrices compared."""
+    unit = getattr(effect, "point_unit", None)
+    if unit is None or len(effect.param_names) != 1:
         return None
-    one = np.ones((1, 1))
-    zero = np.zeros((1, 1))
-    if isinstance(base_struct, MatrixStructure) and getattr(effect, "direction", None) is None:
-        try:
-            j = base_struct._dof(effect.location)
-        except Exception:  # noqa: BLE001 - an unknown location: the exact path reports it
-            return None
-        blocks = {"added_mass": (one, zero, zero), "suspension_spring": (zero, one, zero),
-                  "dashpot": (zero, zero, one)}[effect.kind]
-        return PointChange(np.array([j]), *blocks)
+    if (isinstance(base_struct, MatrixStructure) and getattr(effect, "direction", None) is None
+            and effect.location in base_struct.locations()):  # one DOF; else (several) compare matrices
+        j = base_struct._dof(effect.location)
+        return PointChange(np.array([j]), *(np.full((1, 1), float(v)) for v in unit))
     pname = effect.param_names[0]
-    mats = effect.with_values(**{pname: 0.0}).apply(model).build_structure(**{pname: 1.0}).matrices()
+    try:
+        mats = effect.with_values(**{pname: 0.0}).apply(model).build_structure(**{pname: 1.0}).matrices()
+    except ModelError:  # an unknown location: the exact path reports it
+        return None
     dummy = _Basis(_csc(base_mats.mass), _csc(base_mats.stiffness),
                    None if base_mats.damping is None else _csc(base_mats.damping),
                    np.asarray(base_mats.input_matrix, dtype=float),

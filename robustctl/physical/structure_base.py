@@ -93,6 +93,12 @@ class StructuralMatrices:
         return replace(self, **square, **pointing, **changes)
 
 
+_NO_GEOMETRY = (
+    "this {} has no node coordinates to draw; a Frame has them, and rc.structural_model takes "
+    "nodes={{id: (x, y, z)}} with DOFs labelled 'node:direction' (dof_labels=['1:X', ...])."
+)
+
+
 class Structure(ABC):
     """A structural model that can be assembled and changed by physical effects."""
 
@@ -104,6 +110,15 @@ class Structure(ABC):
     @abstractmethod
     def without(self, tags: Iterable[str]) -> Structure:
         """Remove every component carrying one of ``tags`` (``"suspension"``, ``"gravity"``)."""
+
+    # ------------------------------------------------------------------ drawing
+    def geometry(self) -> Any:
+        """Nodes, lines and sensor placement (:class:`~robustctl.frd_io.geometry.Geometry`)."""
+        raise ModelError(_NO_GEOMETRY.format(type(self).__name__))
+
+    def mode_shapes(self, n_modes: int | None = None, band_hz: Any = None) -> Any:
+        """Every node's translation per undamped mode (:class:`~robustctl.frd_io.geometry.ModeShapes`)."""
+        raise ModelError(_NO_GEOMETRY.format(type(self).__name__))
 
     # ------------------------------------------------------------------ where effects go
     @abstractmethod
@@ -172,7 +187,25 @@ class Structure(ABC):
         """Switch gravity preloading on or off (structures without gravity ignore this)."""
         return self
 
+    def add_resonator(self, location: str, mass: float, stiffness: float,
+                      direction: str | None = None) -> Structure:
+        """Attach a spring-mass (a payload on a mount, fuel slosh, a cable): a new DOF of ``mass``
+        (kg) joined to ``location`` along ``direction`` by a spring of ``stiffness`` (N/m). It adds
+        a mode near ``sqrt(stiffness / mass)``."""
+        raise ModelError(f"{type(self).__name__} cannot carry an attached resonator.")
+
+    def add_coupling(self, location: str, partner: str, stiffness: float) -> Structure:
+        """Add a spring of ``stiffness`` (N/m or N m/rad; negative softens) between the DOFs
+        ``location`` and ``partner`` (a joint's two sides in a user's matrices)."""
+        raise ModelError(f"{type(self).__name__} cannot add a spring between two DOFs.")
+
     # ------------------------------------------------------------------ where signals are
+    def signal_location(self, side: str, name: str) -> str | None:
+        """The location (node or DOF) a point sensor (``side="output"``) or force (``"input"``) is
+        mounted at, where its own hardware's mass sits; None for a signal spread over several
+        locations (a strain gauge, a distributed pointing). Default: None."""
+        return None
+
     def signal_moves(self, side: str, name: str) -> list[tuple[str, str | None]]:
         """Where a sensor (``side="output"``) or actuator (``"input"``) could really be, as
         ``(location, direction)`` pairs for :meth:`move_signal`: its neighbouring nodes or DOFs

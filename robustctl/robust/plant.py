@@ -49,6 +49,7 @@ from ..plots import single_axes
 from ..signals import select_signals
 from ..table import Table
 from .uncertainty.blocks import Block, BlockStructure
+from .uncertainty.system import PlantLFT, UncertainSystem
 
 __all__ = ["GeneralizedPlant", "PlantWeight", "generalized_plant", "mixed_sensitivity"]
 
@@ -413,6 +414,7 @@ def generalized_plant(
     noise: Any = None,
     mult_structure: str = "full",
     check_rank: bool = True,
+    additive_input: str = "plant",
 ) -> GeneralizedPlant:
     """The mu / H-infinity interconnection of a nominal model with uncertainty and performance weights.
 
@@ -421,10 +423,14 @@ def generalized_plant(
 
     Parameters
     ----------
-    nominal : system or UncertainModel
+    nominal : system, UncertainSystem or UncertainModel
         Anything ``rc.as_statespace`` takes (PhysicalModel, MeasurementModel, StateSpace,
         transfer function): ``nu`` inputs (actuators, the control ``u``) and ``ny`` outputs
         (sensors, the measurement ``y``). Its names name ``u`` and ``y``. An
+        :class:`~robustctl.robust.uncertainty.system.UncertainSystem` (``rc.ureal`` ... times a
+        system) brings its LFT: its elements' channels come first in ``w`` and ``z`` and their
+        blocks (real, complex, full, named after the elements) first in ``.blocks``; the
+        nominal ``G`` is the LFT at ``Delta = 0`` (ranges' centres). An
         :class:`~robustctl.physical.uncertain.UncertainModel` (``upd.uncertain()``) brings its
         real parameters: their channels come first in ``w`` and ``z`` and their repeated real
         scalar blocks first in ``.blocks`` (then the weights' blocks, as below). Its
@@ -454,6 +460,13 @@ def generalized_plant(
         the channels), one complex scalar per channel (``"diagonal"``: independent actuator /
         sensor errors), or one repeated complex scalar ``delta I`` (``"repeated"``). The
         channels, and so ``P``, are the same; only ``blocks`` changes.
+    additive_input : {"plant", "control"}
+        What the additive block reads: ``"plant"`` (default) the total plant input ``u_G = u
+        + input perturbation + input disturbance`` (the additive error acts on what the plant
+        receives), ``"control"`` the controller's ``u`` only. With ``"plant"`` and unit input
+        disturbances, ``W_a Delta`` sees the disturbance directly, so the closed loop
+        ``d -> z_add`` has a feedthrough ``W_a(inf)`` and, with a unit performance channel on
+        the same path, ``gamma >= sqrt(2)`` for any controller; ``"control"`` removes that floor.
     check_rank : bool
         Refuse a plant whose ``D12`` (u -> z) lacks full column rank or ``D21`` (w -> y)
         lacks full row rank, which the Riccati H-infinity solution needs (default). The
@@ -477,6 +490,11 @@ def generalized_plant(
     """
 
     check_rank = flag(check_rank, "check_rank", ModelError)
+    if additive_input not in ("plant", "control"):
+        raise ModelError(f"additive_input must be 'plant' (u + input perturbation + disturbance) or "
+                         f"'control' (u only); got {additive_input!r}.")
+    if isinstance(nominal, UncertainSystem):
+        nominal = nominal.plant_lft()
     unc = nominal if _is_uncertain_model(nominal) else None
     G = unc.nominal if unc is not None else as_statespace(nominal, name="nominal")
     if G.isdtime(strict=True):
@@ -488,7 +506,7 @@ def generalized_plant(
         additive, input_mult, output_mult = _with_remainder(unc.remainder, additive, input_mult, output_mult)
     W = _plant_weights(G, additive, input_mult, output_mult, performance, control_weight, disturbances, noise,
                        parametric=unc is not None)
-    gp = _PlantBuilder(G, W, mult_structure, unc).build()
+    gp = _PlantBuilder(G, W, mult_structure, unc, additive_input).build()
     if check_rank:
         _check_regular(gp)
     return gp
@@ -514,8 +532,9 @@ def _with_remainder(rem: Any, additive: Any, input_mult: Any, output_mult: Any) 
 
 
 def _is_uncertain_model(x: Any) -> bool:
-    """An :class:`~robustctl.physical.uncertain.UncertainModel` (a parametric LFT)."""
-    return isinstance(x, UncertainModel)
+    """An :class:`~robustctl.physical.uncertain.UncertainModel` (a parametric LFT) or an
+    uncertain system's :class:`~robustctl.robust.uncertainty.system.PlantLFT`."""
+    return isinstance(x, (UncertainModel, PlantLFT))
 
 
 def _plant_weights(G, additive, input_mult, output_mult, performance, control_weight, disturbances,
@@ -555,8 +574,10 @@ def _plant_weights(G, additive, input_mult, output_mult, performance, control_we
 class _PlantBuilder:
     """The signal flow of the module docstring, one step per uncertainty / performance piece."""
 
-    def __init__(self, G: Any, W: dict[str, Any], mult_structure: str, unc: Any = None) -> None:
+    def __init__(self, G: Any, W: dict[str, Any], mult_structure: str, unc: Any = None,
+                 additive_input: str = "plant") -> None:
         self.G, self.W, self.structure, self.unc = G, W, mult_structure, unc
+        self.additive_input = additive_input
         self.u_names, self.y_names = list(G.input_labels), list(G.output_labels)
         self.net = _Wiring()
         self.u = _signals(self.u_names)
@@ -603,21 +624,26 @@ class _PlantBuilder:
         else:  # the parametric LFT's channels first: one repeated real scalar block per axis
             unc = self.unc
             nd = unc.n_delta
+            nz = getattr(unc, "n_z", nd)
             w_par = list(unc.M.input_labels[:nd])
             outs = self.net.component("G", unc.M, _signals(w_par) + uG)
             self.w_names += w_par
-            self.z_eqs += list(zip(list(unc.M.output_labels[:nd]), outs[:nd]))
-            self.blocks += [Block("real", r, r, name) for name, r in zip(unc.names, unc.multiplicity)]
-            gout = outs[nd:]
+            self.z_eqs += list(zip(list(unc.M.output_labels[:nz]), outs[:nz]))
+            if isinstance(unc, PlantLFT):
+                self.blocks += list(unc.blocks.blocks)
+            else:
+                self.blocks += [Block("real", r, r, name) for name, r in zip(unc.names, unc.multiplicity)]
+            gout = outs[nz:]
         if not self._record("Wa", "additive uncertainty"):
             return gout
         ny, nu = len(self.y_names), len(self.u_names)
         w_add = _labels("unc_add_in", self.y_names, ny)
         Wa = self.W["Wa"]
+        src = uG if self.additive_input == "plant" else self.u
         if (Wa.ninputs, Wa.noutputs) == (nu, nu):
-            z_add, y_add = self.net.component("Wa", Wa, uG), _add(gout, _signals(w_add))
+            z_add, y_add = self.net.component("Wa", Wa, src), _add(gout, _signals(w_add))
         else:
-            z_add, y_add = uG, _add(gout, self._weighted("Wa", w_add))
+            z_add, y_add = src, _add(gout, self._weighted("Wa", w_add))
         self.w_names += w_add
         self.z_eqs += list(zip(_labels("unc_add_out", self.u_names, nu), z_add))
         self.blocks.append(Block("full", ny, nu, "additive"))

@@ -15,7 +15,7 @@ import numpy as np
 from ...budget import Deadline
 from ...errors import RobustctlError
 from ...executors import parallel_map_shared
-from ...physical.reduction import POINT_KINDS, point_change, point_modal
+from ...physical.reduction import point_change, point_modal
 from ..optimize import levenberg_marquardt, marquardt_step, parameter_bounds
 from ..residual import CheckedData, Residual, sensitivities
 from ..updating import coarse_start
@@ -54,7 +54,7 @@ def _screen_one(
     neutral = effect.with_values(**effect.neutral_values)
     m_c = neutral.apply(model_u)
     res_c = _residual_for(res_u, m_c)
-    if _is_switch(effect) and effect.kind != "gravity":
+    if _is_switch(effect) and not effect.toggle:
         return _screen_switch(res_c, m_c, j_u, Q, r_perp, effect)
     pname = effect.param_names[0]
     lo, hi = effect.parameters[0].bounds
@@ -83,18 +83,23 @@ def _screen_one(
     cos2 = float(d_perp @ r_perp) ** 2 / (dd * rr)
     value = v0 + coef * (trial - v0)
     clipped = min(max(value, lo), hi)
-    if effect.kind == "gravity":
+    if effect.toggle:
         clipped = hi if coef > 0.5 else lo
     c_clip = (clipped - v0) / (trial - v0)
     left = r_perp + d_perp * c_clip
     fraction = max(0.0, 1.0 - float(left @ left) / rr)
     angle = math.degrees(math.acos(min(1.0, math.sqrt(cos2))))
     evals = sens.n_evals
-    if effect.kind != "gravity" and abs(coef) > PROBE_MIN_COEF:  # a switch has no sizes to probe
+    if not effect.toggle and abs(coef) > PROBE_MIN_COEF:  # a switch has no sizes to probe
         probed, value_p, n_p = _probe_sizes(res_c, pname, (v0, lo, hi), trial - v0, coef, Q, rr, fraction)
         evals += n_p
         if probed > fraction:
             fraction, clipped = probed, value_p
+    if getattr(effect, "coarse_screen", False):
+        coarse, value_c, n_c = _coarse_sizes(res_c, pname, (v0, lo, hi), step, Q, rr)
+        evals += n_c
+        if coarse > fraction:
+            fraction, clipped = coarse, value_c
     return dict(effect=effect, model=m_c, fraction=fraction, angle=angle, value=clipped, d=d, evals=evals)
 
 
@@ -139,7 +144,7 @@ def _likely_states(res: Residual, j_u: np.ndarray, effect: Any) -> tuple[float, 
     ``Re ln(G_data / G)`` over its row or column: a slip ``f`` makes it ``ln f``, less what the
     null fit's parameters absorbed); every state otherwise."""
     states = tuple(effect.states)
-    if effect.kind not in ("sensor_units", "actuator_units") or len(states) < 2:
+    if not getattr(effect, "gain_states", False) or len(states) < 2:
         return states
     names = res.data.outputs if effect.side == "output" else res.data.inputs
     if effect.location not in names:
@@ -207,6 +212,44 @@ def _probe_sizes(
         if share < last:
             break
         last = share
+    return max(best, 0.0), best_v, n
+
+
+#: Sizes (in decades above its typical size) at which an effect that first order cannot see
+#: (``Effect.coarse_screen``: a joint from rigid to pinned) is screened: 1.5 decades apart up to
+#: 7.5 decades, five evaluations (the local fit starts from the best; diagnose's budget is shared).
+COARSE_DECADES = (1.5, 3.0, 4.5, 6.0, 7.5)
+
+
+def _coarse_sizes(res_c: Residual, pname: str, span: tuple, step: float, Q: np.ndarray,
+                  rr: float) -> tuple[float, float, int]:
+    """A coarse nonlinear screen over an effect's whole range: the share explained (as in
+    :func:`_probe_sizes`, update parameters re-fitted linearly) at ``v0 + step 10^k`` for ``k`` in
+    :data:`COARSE_DECADES` (within the bounds; the walk ends at a bound). Returns
+    ``(share, value, evaluations)``."""
+    v0, lo, hi = span
+    sign = 1.0 if v0 + step <= hi else -1.0
+
+    def share_at(v: float) -> float | None:
+        try:
+            j = res_c.vector(**{pname: v})
+        except RobustctlError:  # e.g. a size the model cannot be built with
+            return None
+        if not np.all(np.isfinite(j)):
+            return None
+        return 1.0 - float(np.sum(_project(Q, j) ** 2)) / rr
+
+    best, best_v, n = 0.0, v0, 0
+    for k in COARSE_DECADES:
+        v = float(np.clip(v0 + sign * step * 10.0**k, lo, hi))
+        if v == v0:
+            break
+        n += 1
+        share = share_at(v)
+        if share is not None and share > best:
+            best, best_v = share, v
+        if v in (lo, hi):
+            break
     return max(best, 0.0), best_v, n
 
 
@@ -581,8 +624,9 @@ def _screen_points(res_u: Residual, model_u: Any, null: _Null, r_perp: np.ndarra
     """Closed-form screening of the point effects of a reduced structure, or None (any other
     model, or a model whose I/O stages are not a per-channel factor on the structure's response).
 
-    Each point effect (:data:`robustctl.physical.reduction.POINT_KINDS`) is a low-rank change of
-    the reduced modal model at the null fit (:class:`robustctl.physical.reduction.PointModal`:
+    Each point effect (its class has a ``point_unit``: a mass, grounded spring or dashpot) is a
+    low-rank change of the reduced modal model at the null fit
+    (:class:`robustctl.physical.reduction.PointModal`:
     structural dynamic modification by Sherman-Morrison-Woodbury), and the model's response is
     the structure's times the per-channel factor ``G_u / H_u`` of the null-fit model. Its
     one-parameter fit minimises ``|P j(v)|^2`` (``P`` projects out the update parameters'
@@ -590,7 +634,8 @@ def _screen_points(res_u: Residual, model_u: Any, null: _Null, r_perp: np.ndarra
     refined around the best; the share ``1 - |P j(v*)|^2 / |P j_u|^2``, the angle of the secant
     at the typical size and ``v*`` are kept, with a three-number sketch of the secant for the
     twin test -- scalars only, streamed in chunks of :data:`POINT_CHUNK`."""
-    points = [k for k, c in enumerate(cands) if c.kind in POINT_KINDS and not _is_switch(c)]
+    points = [k for k, c in enumerate(cands)
+              if getattr(c, "point_unit", None) is not None and not _is_switch(c)]
     if not points:
         return None
     try:

@@ -67,23 +67,9 @@ def _channel_shares(res: Residual, e: np.ndarray, n: int = 3) -> str:
 
 
 def _phrase(effect: Any) -> str:
-    """The effect with its size in words: "a 3.6 ms output delay", "0.3 kg of added mass at ..."."""
-    size = effect.describe_value()
-    if effect.kind == "gravity":
-        return effect.name
-    if effect.kind in ("sensor_units", "actuator_units"):
-        return f"a units slip {size} on {effect.side} {effect.location}"
-    if getattr(effect, "switch", False):
-        return f"{effect.name} ({effect.description})"
-    if effect.kind == "joint_spring":
-        return f"a {effect.name} ({size})"
-    if effect.kind in ("sensor_lowpass", "actuator_lowpass"):
-        return f"a {effect.name} at {size}"
-    if effect.kind == "added_mass":
-        return f"{size} of {effect.name}"
-    if effect.kind == "group_tension":
-        return f"{_article(size)} {size} tension along {effect.location} (taut wires or cables)"
-    return f"{_article(size)} {size} {effect.name}"
+    """The effect with its size in words: "a 3.6 ms output delay", "0.3 kg of added mass at ..."
+    (each effect class words its own, :meth:`~robustctl.physical.effects.Effect.phrase`)."""
+    return effect.phrase()
 
 
 def _sentence(r: CandidateResult) -> str:
@@ -127,7 +113,7 @@ def _sentence(r: CandidateResult) -> str:
 def _hold_note(effect: Any, fs_hz: float | None) -> str:
     """Name a delay of about half a sample (data sampled at ``fs_hz``) as the DAC's hold;
     ``fs_hz`` is None unless the data say their input was held (:func:`_input_held`)."""
-    if fs_hz is None or effect.kind not in ("output_delay", "input_delay"):
+    if fs_hz is None or not getattr(effect, "dac_hold", False):
         return ""
     delay = float(next(iter(effect.values.values()), 0.0))
     half = 0.5 / fs_hz
@@ -137,10 +123,6 @@ def _hold_note(effect: Any, fs_hz: float | None) -> str:
         f"about half a sample at {fs_hz:g} Hz ({1e3 * half:.3g} ms): the DAC zero-order hold, not an unknown "
         "delay; add it as a known stage, rc.electronics.zero_order_hold_stage(...)"
     )
-
-
-def _article(size: str) -> str:
-    return "an" if size[:1] == "8" or size[:2] in ("11", "18") else "a"
 
 
 def _with_sentence(r: CandidateResult) -> CandidateResult:

@@ -218,7 +218,7 @@ def _at_bound(effect: Any, value: float) -> bool:
 def _is_switch(effect: Any) -> bool:
     """An effect with discrete states (gravity on/off, swapped cables, a sign flip, a units slip,
     a sensor on another node): screened at its states, fitted with the state fixed."""
-    return effect.kind == "gravity" or bool(getattr(effect, "switch", False))
+    return bool(getattr(effect, "toggle", False)) or bool(getattr(effect, "switch", False))
 
 
 def _null_test(res: Residual, j_u: np.ndarray) -> tuple[float, float]:

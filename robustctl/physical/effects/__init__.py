@@ -24,8 +24,9 @@ candidate's typical size moves the affected modes by about one percent (used by
 :func:`robustctl.diagnose`).
 
 Layout: :mod:`.base` (the ``Effect`` base class and its typed :class:`ParamSpec`),
-:mod:`.io_effects`, :mod:`.structural` (with semi-rigid frame joints), :mod:`.setup` (test-setup
-errors: swapped cables, sign flips, units slips, a sensor or actuator elsewhere),
+:mod:`.io_effects`, :mod:`.structural` (with semi-rigid frame joints and hinges), :mod:`.lab` (the
+transducers' own mass, attached resonators), :mod:`.setup` (test-setup errors: swapped cables, sign
+flips, units slips, a sensor or actuator elsewhere),
 :mod:`.catalogue` (candidates and calibration).
 
 Examples
@@ -57,6 +58,7 @@ from .io_effects import (
     SensorLowPass,
     SensorMisalignment,
 )
+from .lab import RESONATORS_MAX, RESONATORS_PER_OCTAVE, AttachedResonator, DofPairJoint, TransducerMass
 from .setup import (
     UNIT_SLIPS,
     ActuatorMoved,
@@ -100,6 +102,11 @@ __all__ = [
     "GravityStiffening",
     "ModalDamping",
     "JointSpring",
+    "TransducerMass",
+    "AttachedResonator",
+    "DofPairJoint",
+    "RESONATORS_MAX",
+    "RESONATORS_PER_OCTAVE",
     "SwappedOutputs",
     "SwappedInputs",
     "SensorSignFlip",

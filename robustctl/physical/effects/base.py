@@ -67,6 +67,92 @@ class ParamSpec:
     free: bool = True
 
 
+#: The places where candidates are made, in the order :func:`candidates` visits them:
+#: ``"signals"`` once per model (input/output and test-setup effects), ``"location"`` at each
+#: node or DOF, ``"joint"`` at each beam joint of a frame, ``"group"`` at each element group,
+#: ``"structure"`` once per structural model, ``"modes"`` once per group of modes in the band.
+SWEEPS = ("signals", "location", "joint", "group", "structure", "modes")
+#: How a candidate's step is calibrated (:attr:`Effect.calibration`).
+CALIBRATIONS = ("shift", "damping", "none")
+
+
+@dataclass(frozen=True)
+class CandidateContext:
+    """What candidate generation knows of a model: its signals and, for a structural model, its
+    structure's locations, translational directions per location, joints, groups and gravity.
+
+    Attributes
+    ----------
+    model : PhysicalModel
+    outputs, inputs : tuple of str
+        The model's output and input names.
+    structure : Structure or None
+        The built structure (None: a model without one).
+    info : dict
+        :func:`_structure_info` of the model (empty without a structure).
+    directions : dict
+        Translational directions per location (``[None]`` for a scalar DOF).
+    modes : tuple
+        ``(f_hz, number)`` of the modes in the band (the ``"modes"`` sweep), or empty.
+    band : (float, float) or None
+        The frequency band of interest in Hz, when the caller gave one.
+    joints : dict
+        Joints the user named in a matrix model: ``name -> (dof_a, dof_b, k0)``.
+    """
+
+    model: PhysicalModel
+    outputs: tuple[str, ...]
+    inputs: tuple[str, ...]
+    structure: Any = None
+    info: Mapping[str, Any] = field(default_factory=dict)
+    directions: Mapping[str, Any] = field(default_factory=dict)
+    modes: tuple = ()
+    band: tuple[float, float] | None = None
+    joints: Mapping[str, tuple[str, str, float]] = field(default_factory=dict)
+
+    def places(self, sweep: str) -> tuple:
+        """The places of one sweep (see :data:`SWEEPS`)."""
+        if sweep == "signals":
+            return (None,)
+        if self.structure is None:
+            return ()
+        if sweep == "location":
+            return tuple(self.info["locations"])
+        if sweep == "joint":
+            joints = getattr(self.structure, "joints", None)
+            return tuple(joints()) if joints is not None else ()
+        if sweep == "group":
+            return tuple(self.info["groups"])
+        return (None,) if sweep == "structure" or self.modes else ()
+
+
+_DIR_RE = re.compile(r"^(?:node\s+)?(?P<loc>.+?)[\s_:/-]+u?(?P<dir>[xyz])$")
+
+
+def _directions(labels: Sequence[str], locations: Sequence[str]) -> dict[str, list[str | None]]:
+    """Translational directions present per location, read from the DOF labels.
+
+    A location whose DOF label is the location itself (``"dof 3"``) is scalar (``[None]``).
+    """
+    out: dict[str, list[str | None]] = {loc: [] for loc in locations}
+    for lab in labels:
+        if lab in out:
+            out[lab] = [None]
+            continue
+        m = _DIR_RE.match(lab)
+        if m and m.group("loc") in out and m.group("dir") not in out[m.group("loc")]:
+            out[m.group("loc")].append(m.group("dir"))
+    directed = any(d is not None for dirs in out.values() for d in dirs)
+    # A location without DOFs of its own (a rigid-link slave) takes the model's directions.
+    default: list[str | None] = ["x", "y", "z"] if directed else [None]
+    return {loc: (dirs or list(default)) for loc, dirs in out.items()}
+
+
+def article(size: str) -> str:
+    """``"a"`` or ``"an"`` before a number written out (``"an 8 ms"``, ``"an 11 %"``)."""
+    return "an" if size[:1] == "8" or size[:2] in ("11", "18") else "a"
+
+
 # ============================================================================ base class
 @dataclass(frozen=True)
 class Effect(ABC):
@@ -93,8 +179,68 @@ class Effect(ABC):
     domain: ClassVar[str] = "io"
     #: A switched effect has discrete states (:attr:`states`) rather than a size: a test-setup error.
     switch: ClassVar[bool] = False
+    #: An on/off change of the model's own state (gravity preload): not fitted, compared as is.
+    toggle: ClassVar[bool] = False
+    #: Where :func:`~robustctl.physical.effects.candidates` makes candidates of this kind: one of
+    #: :data:`SWEEPS` (:meth:`candidates_at` is called once per place of that sweep), or None
+    #: (made by hand only).
+    sweep: ClassVar[str | None] = None
+    #: How the candidate step is calibrated on the model: ``"shift"`` (the most affected modal
+    #: ``w^2`` by :data:`SHIFT_TARGET`), ``"damping"`` (a damping ratio by :data:`DAMPING_TARGET`)
+    #: or ``"none"`` (the step set when the candidate is made, or a switch).
+    calibration: ClassVar[str] = "none"
+    #: Parameter value of the calibration probe (the change is assumed linear up to it).
+    calibration_unit: ClassVar[float] = 1.0
+    #: The reduced path's closed form: a constant ``(mass, stiffness, damping)`` per unit of the one
+    #: parameter on one DOF (kg, N/m, N s/m), or None when the effect is not such a point change.
+    point_unit: ClassVar[tuple[float, float, float] | None] = None
+    #: A delay of about half a sample is named as the DAC's zero-order hold.
+    dac_hold: ClassVar[bool] = False
+    #: A switched effect whose states are factors on one channel (a units slip).
+    gain_states: ClassVar[bool] = False
+    #: First order says nothing at the neutral value (the effect's shape changes with its size: a
+    #: joint from rigid to pinned, an added mode): screened at sizes a decade apart over its range.
+    coarse_screen: ClassVar[bool] = False
     _value_fields: ClassVar[tuple[str, ...]] = ()
     _extra_tags: ClassVar[tuple[str, ...]] = ()
+    #: Every concrete effect class by kind, in the order the classes were defined (filled by
+    #: ``__init_subclass__``; candidates are made in this order).
+    registry: ClassVar[dict[str, type[Effect]]] = {}
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """Register a concrete effect class (one that names its own ``kind``) by that kind."""
+        super().__init_subclass__(**kwargs)
+        if cls.__name__.startswith("_") or "kind" not in cls.__dict__:
+            return
+        if cls.sweep is not None and cls.sweep not in SWEEPS:
+            raise ModelError(f"effect class {cls.__name__}: sweep {cls.sweep!r} is not one of {SWEEPS}.")
+        if cls.calibration not in CALIBRATIONS:
+            raise ModelError(
+                f"effect class {cls.__name__}: calibration {cls.calibration!r} is not one of {CALIBRATIONS}."
+            )
+        known = Effect.registry.get(cls.kind)
+        if known is not None and known.__qualname__ != cls.__qualname__:
+            raise ModelError(
+                f"effect kind {cls.kind!r} of {cls.__name__} is already taken by {known.__name__}; "
+                "give the new class a kind of its own."
+            )
+        Effect.registry[cls.kind] = cls
+
+    @classmethod
+    def candidates_at(cls, ctx: CandidateContext, where: Any) -> list[Effect]:
+        """The candidates of this kind at one place ``where`` of its :attr:`sweep` (a location, a
+        joint, a group, or None for the sweeps over the whole model), at their neutral value."""
+        return []
+
+    def phrase(self) -> str:
+        """The effect with its size in words: ``"a 3.6 ms output delay"``."""
+        size = self.describe_value()
+        return f"{article(size)} {size} {self.name}"
+
+    def changes_preload(self, gravity_direction: Any) -> bool:
+        """Whether the effect changes a frame's gravity preload to first order (more weight in the
+        suspension, or a spring that takes some of it); ``gravity_direction`` is a unit 3-vector."""
+        return False
 
     @property
     def states(self) -> tuple[float, ...]:

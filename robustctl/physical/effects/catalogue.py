@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-import re
 from collections.abc import Iterable, Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -18,152 +18,65 @@ from ..eigen import solve_modes
 from ..matrices import MatrixStructure
 from ..model import PhysicalModel
 from ..reduction import REDUCE_MIN_DOF
-from . import io_effects, setup, structural
+from . import io_effects, lab, setup, structural  # noqa: F401 - defining the classes registers them
 from .base import (
     _N_CAL_MODES,
     DAMPING_TARGET,
     SHIFT_TARGET,
+    SWEEPS,
+    CandidateContext,
     Effect,
     _close,
+    _directions,
     _signals,
     _structure_info,
 )
 
-EFFECT_KINDS: dict[str, type[Effect]] = {
-    cls.kind: cls
-    for cls in (
-        io_effects.OutputDelay,
-        io_effects.InputDelay,
-        io_effects.SensorLowPass,
-        io_effects.ActuatorLowPass,
-        io_effects.SensorGain,
-        io_effects.ActuatorGain,
-        io_effects.SensorMisalignment,
-        structural.AddedMass,
-        structural.SuspensionSpring,
-        structural.Dashpot,
-        structural.Pendulum,
-        structural.GroupStiffness,
-        structural.GroupTension,
-        structural.GravityStiffening,
-        structural.ModalDamping,
-        structural.JointSpring,
-        setup.SwappedOutputs,
-        setup.SwappedInputs,
-        setup.SensorSignFlip,
-        setup.ActuatorSignFlip,
-        setup.SensorUnits,
-        setup.ActuatorUnits,
-        setup.SensorMoved,
-        setup.ActuatorMoved,
-    )
-}
+#: Every registered effect class by kind (:attr:`Effect.registry`, filled as the classes are defined).
+EFFECT_KINDS: dict[str, type[Effect]] = Effect.registry
 
 
 # ============================================================================ candidates
-def _io_candidates(model: PhysicalModel) -> list[Effect]:
-    outs = _signals(model, "output")
-    cands: list[Effect] = [
-        io_effects.OutputDelay(),
-        io_effects.InputDelay(),
-        io_effects.SensorLowPass(order=1),
-        io_effects.SensorLowPass(order=2),
-        io_effects.ActuatorLowPass(order=1),
-        io_effects.ActuatorLowPass(order=2),
-    ]
-    cands += [io_effects.SensorGain(o) for o in outs]
-    cands += [io_effects.SensorMisalignment(a, partner=b) for i, a in enumerate(outs) for b in outs[i + 1 :]]
-    return cands
-
-
-_DIR_RE = re.compile(r"^(?:node\s+)?(?P<loc>.+?)[\s_:/-]+u?(?P<dir>[xyz])$")
-
-
-def _directions(labels: Sequence[str], locations: Sequence[str]) -> dict[str, list[str | None]]:
-    """Translational directions present per location, read from the DOF labels.
-
-    A location whose DOF label is the location itself (``"dof 3"``) is scalar (``[None]``).
-    """
-    out: dict[str, list[str | None]] = {loc: [] for loc in locations}
-    for lab in labels:
-        if lab in out:
-            out[lab] = [None]
-            continue
-        m = _DIR_RE.match(lab)
-        if m and m.group("loc") in out and m.group("dir") not in out[m.group("loc")]:
-            out[m.group("loc")].append(m.group("dir"))
-    directed = any(d is not None for dirs in out.values() for d in dirs)
-    # A location without DOFs of its own (a rigid-link slave) takes the model's directions.
-    default: list[str | None] = ["x", "y", "z"] if directed else [None]
-    return {loc: (dirs or list(default)) for loc, dirs in out.items()}
-
-
-def _structure_candidates(model: PhysicalModel, include_points: bool) -> list[Effect]:
+def _context(model: PhysicalModel, band, joints=None) -> CandidateContext:
+    """What the effect classes need to make their candidates on ``model`` (``band`` in Hz or None,
+    ``joints`` named by the user)."""
+    outs, ins = _signals(model, "output"), _signals(model, "input")
+    if model.structure is None:
+        return CandidateContext(model, outs, ins, band=band)
     info = _structure_info(model)
     struct = model.build_structure()
-    mats = struct.matrices()
+    dirs = _directions(struct.matrices().dof_labels, info["locations"])
+    return CandidateContext(model, outs, ins, struct, info, dirs, band=band, joints=dict(joints or {}))
+
+
+def _check_joints(joints) -> dict:
+    """``joints`` as ``{name: (dof_a, dof_b, k0)}``, or a ModelError saying what is wrong."""
+    if joints is None:
+        return {}
+    try:
+        out = {str(n): (str(a), str(b), float(k)) for n, (a, b, k) in dict(joints).items()}
+    except (TypeError, ValueError) as exc:
+        raise ModelError(
+            f"joints must be {{name: (dof_a, dof_b, k0)}} (two DOF labels and the modelled stiffness); {exc}."
+        ) from None
+    bad = [n for n, (_, _, k) in out.items() if not (np.isfinite(k) and k > 0)]
+    if bad:
+        raise ModelError(f"joints {bad}: the modelled stiffness k0 must be finite and > 0.")
+    return out
+
+
+def _generate(ctx: CandidateContext, sweeps: Sequence[str], points: bool = True) -> list[Effect]:
+    """The candidates of every registered class, sweep by sweep, place by place, class by class
+    (the order of :data:`~robustctl.physical.effects.base.SWEEPS` and of the registry)."""
     cands: list[Effect] = []
-    if include_points:
-        dirs = _directions(mats.dof_labels, info["locations"])
-        for loc in info["locations"]:
-            cands.append(structural.AddedMass(loc))
-            for d in dirs[loc]:
-                cands.append(structural.SuspensionSpring(loc, direction=d))
-            for d in dirs[loc]:
-                cands.append(structural.Dashpot(loc, direction=d))
-            if info["gravity_on"] and {"x", "y"} <= set(dirs[loc]):  # a hanging rod needs gravity
-                cands.append(structural.Pendulum(loc))
-    joints = getattr(struct, "joints", None)
-    for node, group in joints() if joints is not None else ():
-        # typical size: a spring 20 x stiffer than the member's end (4 E I / L): a few % on the modes
-        spring = structural.JointSpring(node, group=group)
-        cands.append(spring.with_scale(0.05 / struct.joint_stiffness(node, group)))
-    for group in info["groups"]:
-        cands.append(structural.GroupStiffness(group))
-        if group in info["tension_groups"]:  # a matrix group without geometric stiffness cannot
-            cands.append(structural.GroupTension(group))
-    if info["gravity"]:  # only the switch that changes the model's current state
-        state = info["gravity_on"]
-        cands += [
-            structural.GravityStiffening(enabled=on) for on in (True, False) if state is None or on != state
-        ]
+    for sweep in sweeps:
+        if sweep == "location" and not points:
+            continue
+        classes = [cls for cls in Effect.registry.values() if cls.sweep == sweep]
+        for where in ctx.places(sweep) if classes else ():
+            for cls in classes:
+                cands += cls.candidates_at(ctx, where)
     return cands
-
-
-#: Consecutive modes closer than this frequency ratio form a cluster (a close pair of a
-#: symmetric structure, bending in x and y) that gets a damping candidate of its own.
-_CLUSTER_RATIO = 1.1
-
-
-def _modal_damping_candidates(f_modes: np.ndarray, number: np.ndarray) -> list[Effect]:
-    """Damping changes of the modes ``f_modes`` (Hz, ascending) by their mode numbers
-    ``number`` (1-based among the elastic modes), not by Hz, so each follows its modes when
-    parameter errors or the update move them (a band at the nominal modes loses them beyond
-    its margin: E -30 % moves every mode by 16 %).
-
-    One candidate per octave-wide group of modes, and one per cluster of modes closer than
-    :data:`_CLUSTER_RATIO` (a lone mode is its own cluster) when it is not already a group:
-    a change on a close pair alone (joints of one bending plane pair) is then fitted exactly,
-    not spread over the octave."""
-    f = np.asarray(f_modes, dtype=float)
-    keep = f > 0
-    f, number = f[keep], np.asarray(number)[keep]
-    if f.size == 0:
-        return []
-
-    def runs(joined) -> list[tuple[int, int]]:
-        out, first = [], 0
-        for k in range(1, f.size):
-            if not joined(first, k):
-                out.append((first, k - 1))
-                first = k
-        out.append((first, f.size - 1))
-        return out
-
-    octaves = runs(lambda first, k: f[k] <= 2.0 * f[first])
-    clusters = runs(lambda first, k: f[k] < _CLUSTER_RATIO * f[k - 1])
-    spans = list(dict.fromkeys(octaves + clusters))
-    return [structural.ModalDamping(modes=(int(number[a]), int(number[b]))) for a, b in spans]
 
 
 @limit_blas
@@ -177,6 +90,7 @@ def candidates(
     calibrate: bool = True,
     time_budget_s: float | None = None,
     executor: Any = None,
+    joints: dict | None = None,
 ) -> list[Effect]:
     """The effects applicable to ``model``, one per kind and location, at their neutral value.
 
@@ -185,7 +99,13 @@ def candidates(
     so do the test-setup errors of :mod:`.setup` (a swapped pair of outputs or inputs, a sign
     flip and a units slip of each channel; on a structural model also each sensor and actuator
     at a neighbouring node or DOF or along another axis). Frame FEM models get a semi-rigid
-    joint candidate (:class:`JointSpring`) per beam joint.
+    joint candidate (:class:`JointSpring`) per beam joint, and a hinge about each global axis,
+    screened over their whole range (rigid to nearly pinned). Every structural model gets the
+    transducers' own mass, one parameter for all sensor mounts (and one with the drive points),
+    and, when ``band`` is given, attached resonators (a spring-mass that adds a mode) at the sensor
+    and drive-point mounts on a grid of frequencies over the band (:mod:`.lab`). The classes make
+    their own candidates (:meth:`Effect.candidates_at`), place by place of their
+    :attr:`Effect.sweep`, in the order of :attr:`Effect.registry`.
     Structural effects need a structural model: an added mass, a suspension spring and a
     dashpot per location and direction (nodes of the frame FEM, each DOF of a user's
     matrices), a suspension pendulum (horizontal x-y stiffness) per node of a structure
@@ -216,6 +136,10 @@ def candidates(
     executor : concurrent.futures.Executor, optional
         Calibrates the candidates in parallel (the model travels to each worker once); the
         steps equal the serial ones.
+    joints : dict, optional
+        Joints of a matrix model, ``name -> (dof_a, dof_b, k0)`` (the two DOF labels and the
+        connection's stiffness in the model, N/m or N m/rad): a :class:`DofPairJoint` candidate
+        each, screened from as modelled to pinned.
 
     Returns
     -------
@@ -231,9 +155,9 @@ def candidates(
         unknown = sorted(kinds - set(EFFECT_KINDS))
         if unknown:
             raise ModelError(f"unknown effect kinds {unknown}; known kinds: {sorted(EFFECT_KINDS)}.")
-    cands = _io_candidates(model) + setup.setup_candidates(model)
+    ctx = _context(model, band, _check_joints(joints))
+    cands = _generate(ctx, SWEEPS[:-1], points)
     if model.structure is not None:
-        cands += _structure_candidates(model, points)
         if locations is not None:
             cands = _at_locations(model, cands, locations)
         if kinds is not None:
@@ -244,15 +168,12 @@ def candidates(
         omega, number = modes[0], modes[3]
         f_hz = omega / (2 * np.pi)
         inside = np.ones(f_hz.size, dtype=bool) if band is None else (f_hz >= band[0]) & (f_hz <= band[1])
-        cands += _modal_damping_candidates(f_hz[inside], number[inside])
+        cands += _generate(replace(ctx, modes=(f_hz[inside], number[inside])), SWEEPS[-1:])
     taken = set(model.param_names)
     cands = [c for c in cands if not taken.intersection(c.param_names)]
     if kinds is not None:
         cands = [c for c in cands if c.kind in kinds]
     return cands
-
-
-_POINT_KINDS = ("added_mass", "suspension_spring", "dashpot", "pendulum")
 
 
 def _at_locations(model: PhysicalModel, cands: list[Effect], locations: Iterable[str]) -> list[Effect]:
@@ -264,7 +185,7 @@ def _at_locations(model: PhysicalModel, cands: list[Effect], locations: Iterable
             raise ModelError(
                 f"unknown location {loc!r}; the model has locations {list(known)}." + _close(loc, known)
             )
-    return [c for c in cands if c.kind not in _POINT_KINDS or c.location in locations]
+    return [c for c in cands if c.sweep != "location" or c.location in locations]
 
 
 # ---------------------------------------------------------------------------- calibration
@@ -359,16 +280,12 @@ def _probe_copies(model: PhysicalModel):
 
 
 def _changes_preload(effect: Effect, model: PhysicalModel, struct) -> bool:
-    """Whether an effect changes a frame's gravity preload to first order: an added mass
-    (more weight in the suspension) or a spring along gravity (it takes some of the weight),
-    which changes the pendulum stiffness of the suspension modes."""
+    """Whether an effect changes a frame's gravity preload to first order
+    (:meth:`Effect.changes_preload`: an added mass, a spring along gravity), which changes the
+    pendulum stiffness of the suspension modes."""
     if not getattr(struct, "gravity_enabled", False):
         return False
-    if effect.kind == "added_mass":
-        return True
-    axis = {"x": 0, "y": 1, "z": 2}.get(getattr(effect, "direction", None) or "")
-    gdir = np.asarray(getattr(struct, "_gdir", (0.0, 0.0, 1.0)), dtype=float)
-    return effect.kind == "suspension_spring" and axis is not None and abs(gdir[axis]) > 1e-9
+    return effect.changes_preload(np.asarray(getattr(struct, "_gdir", (0.0, 0.0, 1.0)), dtype=float))
 
 
 def _calibrate(
@@ -413,17 +330,18 @@ def _calibrate_one(shared: tuple, item: tuple[int, Effect]) -> Effect | None:
             f"time_budget_s={deadline.budget_s:g} s ran out while calibrating candidate {k + 1} of "
             f"{n}; raise time_budget_s, or pass fewer candidates (kinds=, locations=)."
         )
-    if c.domain != "structure" or c.kind in ("gravity", "joint_spring") or c.switch:
-        return c  # nothing to calibrate (a switch), or its probe changes the DOFs (a joint)
-    unit = 1.0 if c.kind not in ("group_stiffness",) else 0.1
+    if c.domain != "structure" or c.calibration == "none" or c.switch:
+        return c  # nothing to calibrate (a switch), or its step was set when it was made
+    unit = c.calibration_unit
     j = _point_dof(c, nominal, phi)
     if j is not None:  # a unit mass, spring or dashpot on one DOF: its modal diagonal is phi_j^2
         p2 = phi[j] ** 2
-        if c.kind == "dashpot":
-            dz = p2 / (2 * omega)
+        mass, stiffness, damping = c.point_unit
+        if c.calibration == "damping":
+            dz = p2 * damping / (2 * omega)
             size = DAMPING_TARGET / dz.max() if dz.max() > 0 else None
         else:
-            rel = p2 * (1.0 if c.kind == "added_mass" else 1.0 / omega**2)
+            rel = p2 * (mass if stiffness == 0 else stiffness / omega**2)
             size = SHIFT_TARGET / rel.max() if rel.max() > 0 else None
         return _with_size(c, size)
     probe = c.with_values(**{c._value_fields[0]: unit})
@@ -436,7 +354,7 @@ def _calibrate_one(shared: tuple, item: tuple[int, Effect]) -> Effect | None:
     n = M0.shape[0]
     dM = _working(mats.mass, n) - M0
     dK = _working(mats.stiffness, n) - K0
-    if c.kind == "dashpot":
+    if c.calibration == "damping":
         C = _working(mats.damping, n) if mats.damping is not None else 0.0 * M0
         C0 = _working(mats_ref.damping, n) if mats_ref.damping is not None else 0.0 * M0
         dz = np.abs(_modal_diagonal(phi, C - C0)) / (2 * omega) / unit
@@ -455,7 +373,7 @@ def _point_dof(c: Effect, nominal: Any, phi: np.ndarray) -> int | None:
     else None: its unit change is ``e_j e_j^T``, so ``diag(Phi^T dK Phi) = phi_j^2`` needs no
     probe structure (a rebuild and three sparse differences per candidate, 24 s for the 6,000 of
     a 2,000-DOF grid). Smaller structures keep the probe, and their steps bit for bit."""
-    if (c.kind not in ("added_mass", "suspension_spring", "dashpot")
+    if (c.point_unit is None or len(c.param_names) != 1
             or getattr(c, "direction", None) is not None
             or not isinstance(nominal, MatrixStructure) or nominal.n_dof < reduction.REDUCE_MIN_DOF
             or phi.shape[0] != nominal.n_dof):

@@ -53,7 +53,14 @@ class OutputDelay(_IOEffect):
     pade_order: int = 3
 
     kind: ClassVar[str] = "output_delay"
+    sweep: ClassVar[str | None] = "signals"
+    dac_hold: ClassVar[bool] = True
     _value_fields: ClassVar[tuple[str, ...]] = ("delay",)
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """One delay common to all channels of its side."""
+        return [cls()]
 
     @property
     def name(self) -> str:
@@ -122,8 +129,17 @@ class SensorLowPass(_IOEffect):
     damping: float = 1.0 / math.sqrt(2.0)
 
     kind: ClassVar[str] = "sensor_lowpass"
+    sweep: ClassVar[str | None] = "signals"
     _value_fields: ClassVar[tuple[str, ...]] = ("time_constant",)
     _what: ClassVar[str] = "sensor"
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """A first- and a second-order low-pass on all channels of its side."""
+        return [cls(order=1), cls(order=2)]
+
+    def phrase(self) -> str:
+        return f"a {self.name} at {self.describe_value()}"
 
     def __post_init__(self) -> None:
         if self.order not in (1, 2):
@@ -208,7 +224,13 @@ class SensorGain(_IOEffect):
     error: float = 0.0
 
     kind: ClassVar[str] = "sensor_gain"
+    sweep: ClassVar[str | None] = "signals"
     _value_fields: ClassVar[tuple[str, ...]] = ("error",)
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """A gain error of each sensor."""
+        return [cls(o) for o in ctx.outputs]
 
     @property
     def name(self) -> str:
@@ -253,6 +275,7 @@ class ActuatorGain(SensorGain):
 
     kind: ClassVar[str] = "actuator_gain"
     side: ClassVar[str] = "input"
+    sweep: ClassVar[str | None] = None  # the force is measured: a gain error is the sensor's or the data's
 
 
 @dataclass(frozen=True)
@@ -273,7 +296,14 @@ class SensorMisalignment(_IOEffect):
     angle: float = 0.0
 
     kind: ClassVar[str] = "sensor_misalignment"
+    sweep: ClassVar[str | None] = "signals"
     _value_fields: ClassVar[tuple[str, ...]] = ("angle",)
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """A common misalignment of each pair of sensors."""
+        outs = ctx.outputs
+        return [cls(a, partner=b) for i, a in enumerate(outs) for b in outs[i + 1:]]
 
     @property
     def name(self) -> str:

@@ -27,7 +27,7 @@ import numpy as np
 from ...errors import ModelError
 from ...signals import abcd_matrices, named_statespace, signal_index
 from ..model import PhysicalModel
-from .base import Effect, ParamSpec, _require, _signals, _slug, _structure_info
+from .base import CandidateContext, Effect, ParamSpec, _require, _signals, _slug, _structure_info
 
 #: Units slips tried per channel, with what each usually is.
 UNIT_SLIPS: tuple[tuple[float, str], ...] = (
@@ -77,6 +77,9 @@ class _SetupEffect(Effect):
         t = float(vals.get(self.param_names[0], getattr(self, self._value_fields[0])))
         return "yes" if t >= 0.5 else ("no" if t == 0 else f"{100 * t:.3g} % blend")
 
+    def phrase(self) -> str:
+        return f"{self.name} ({self.description})"
+
 
 @dataclass(frozen=True)
 class SwappedOutputs(_SetupEffect):
@@ -94,6 +97,13 @@ class SwappedOutputs(_SetupEffect):
     swap: float = 0.0
 
     kind: ClassVar[str] = "swapped_outputs"
+    sweep: ClassVar[str | None] = "signals"
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """Each pair of channels of its side (neighbours only beyond :data:`ALL_PAIRS_MAX`)."""
+        names = ctx.outputs if cls.side == "output" else ctx.inputs
+        return [cls(a, partner=b) for a, b in _swap_pairs(names)]
     _value_fields: ClassVar[tuple[str, ...]] = ("swap",)
 
     @property
@@ -158,6 +168,12 @@ class SensorSignFlip(_SetupEffect):
     flip: float = 0.0
 
     kind: ClassVar[str] = "sensor_sign"
+    sweep: ClassVar[str | None] = "signals"
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """One per channel of its side."""
+        return [cls(n) for n in (ctx.outputs if cls.side == "output" else ctx.inputs)]
     _value_fields: ClassVar[tuple[str, ...]] = ("flip",)
 
     @property
@@ -211,6 +227,17 @@ class SensorUnits(_SetupEffect):
     factor: float = 1.0
 
     kind: ClassVar[str] = "sensor_units"
+    sweep: ClassVar[str | None] = "signals"
+    #: Its states are factors on one channel (screening tries those nearest the channel's offset).
+    gain_states: ClassVar[bool] = True
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """One per channel of its side."""
+        return [cls(n) for n in (ctx.outputs if cls.side == "output" else ctx.inputs)]
+
+    def phrase(self) -> str:
+        return f"a units slip {self.describe_value()} on {self.side} {self.location}"
     _value_fields: ClassVar[tuple[str, ...]] = ("factor",)
 
     @property
@@ -280,6 +307,16 @@ class SensorMoved(_SetupEffect):
     moved: float = 0.0
 
     kind: ClassVar[str] = "sensor_moved"
+    sweep: ClassVar[str | None] = "signals"
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """Each structural sensor (actuator) at a neighbouring node or DOF, or along another axis."""
+        if ctx.structure is None:
+            return []
+        return [cls(name, to=to, direction=direction)
+                for name in _structure_signals(ctx.model, cls.side)
+                for to, direction in ctx.structure.signal_moves(cls.side, name)]
     domain: ClassVar[str] = "structure"
     _value_fields: ClassVar[tuple[str, ...]] = ("moved",)
 
@@ -356,16 +393,7 @@ def setup_candidates(model: PhysicalModel) -> list[Effect]:
     every output and input, and (structural models) each sensor and actuator moved to a
     neighbouring node or DOF or turned to another axis
     (:meth:`~robustctl.physical.structure_base.Structure.signal_moves`)."""
-    outs, ins = _signals(model, "output"), _signals(model, "input")
-    cands: list[Effect] = []
-    cands += [SwappedOutputs(a, partner=b) for a, b in _swap_pairs(outs)]
-    cands += [SwappedInputs(a, partner=b) for a, b in _swap_pairs(ins)]
-    cands += [SensorSignFlip(o) for o in outs] + [ActuatorSignFlip(i) for i in ins]
-    cands += [SensorUnits(o) for o in outs] + [ActuatorUnits(i) for i in ins]
-    if model.structure is not None:
-        struct = model.build_structure()
-        for side, cls in (("output", SensorMoved), ("input", ActuatorMoved)):
-            for name in _structure_signals(model, side):
-                for to, direction in struct.signal_moves(side, name):
-                    cands.append(cls(name, to=to, direction=direction))
-    return cands
+    struct = model.build_structure() if model.structure is not None else None
+    ctx = CandidateContext(model, _signals(model, "output"), _signals(model, "input"), struct)
+    return [c for cls in Effect.registry.values() if issubclass(cls, _SetupEffect) and cls.sweep == "signals"
+            for c in cls.candidates_at(ctx, None)]

@@ -6,6 +6,8 @@ import math
 from dataclasses import dataclass
 from typing import ClassVar
 
+import numpy as np
+
 from ...errors import ModelError
 from .base import (
     Effect,
@@ -13,12 +15,14 @@ from .base import (
     _require,
     _slug,
     _structure_info,
+    article,
 )
 
 
 @dataclass(frozen=True)
 class _StructEffect(Effect):
     domain: ClassVar[str] = "structure"
+    calibration: ClassVar[str] = "shift"
     _where_word: ClassVar[str] = "node"
 
     def _check_location(self, model):
@@ -58,7 +62,20 @@ class AddedMass(_StructEffect):
     mass: float = 0.0
 
     kind: ClassVar[str] = "added_mass"
+    sweep: ClassVar[str | None] = "location"
+    point_unit: ClassVar[tuple[float, float, float] | None] = (1.0, 0.0, 0.0)
     _value_fields: ClassVar[tuple[str, ...]] = ("mass",)
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """One mass at the location."""
+        return [cls(where)]
+
+    def phrase(self) -> str:
+        return f"{self.describe_value()} of {self.name}"
+
+    def changes_preload(self, gravity_direction) -> bool:
+        return True  # more weight in the suspension
 
     @property
     def name(self) -> str:
@@ -109,8 +126,19 @@ class SuspensionSpring(_DirectedEffect):
     stiffness: float = 0.0
 
     kind: ClassVar[str] = "suspension_spring"
+    sweep: ClassVar[str | None] = "location"
+    point_unit: ClassVar[tuple[float, float, float] | None] = (0.0, 1.0, 0.0)
     _value_fields: ClassVar[tuple[str, ...]] = ("stiffness",)
     _extra_tags: ClassVar[tuple[str, ...]] = ("suspension",)
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """One spring per translational direction of the location."""
+        return [cls(where, direction=d) for d in ctx.directions[where]]
+
+    def changes_preload(self, gravity_direction) -> bool:
+        axis = {"x": 0, "y": 1, "z": 2}.get(self.direction or "")
+        return axis is not None and abs(float(gravity_direction[axis])) > 1e-9  # takes some weight
 
     @property
     def name(self) -> str:
@@ -160,7 +188,15 @@ class Dashpot(_DirectedEffect):
     damping: float = 0.0
 
     kind: ClassVar[str] = "dashpot"
+    sweep: ClassVar[str | None] = "location"
+    calibration: ClassVar[str] = "damping"
+    point_unit: ClassVar[tuple[float, float, float] | None] = (0.0, 0.0, 1.0)
     _value_fields: ClassVar[tuple[str, ...]] = ("damping",)
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """One dashpot per translational direction of the location."""
+        return [cls(where, direction=d) for d in ctx.directions[where]]
 
     @property
     def name(self) -> str:
@@ -216,8 +252,14 @@ class Pendulum(_StructEffect):
     directions: tuple[str, ...] = ("x", "y")
 
     kind: ClassVar[str] = "pendulum"
+    sweep: ClassVar[str | None] = "location"
     _value_fields: ClassVar[tuple[str, ...]] = ("stiffness",)
     _extra_tags: ClassVar[tuple[str, ...]] = ("suspension",)
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """A pendulum at a location moving in x and y, on a structure under gravity."""
+        return [cls(where)] if ctx.info["gravity_on"] and {"x", "y"} <= set(ctx.directions[where]) else []
 
     @property
     def name(self) -> str:
@@ -271,7 +313,14 @@ class GroupStiffness(_StructEffect):
     change: float = 0.0
 
     kind: ClassVar[str] = "group_stiffness"
+    sweep: ClassVar[str | None] = "group"
+    calibration_unit: ClassVar[float] = 0.1
     _value_fields: ClassVar[tuple[str, ...]] = ("change",)
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """One stiffness change per element group."""
+        return [cls(where)]
     _where_word: ClassVar[str] = "group"
 
     @property
@@ -330,7 +379,17 @@ class GroupTension(_StructEffect):
     tension: float = 0.0
 
     kind: ClassVar[str] = "group_tension"
+    sweep: ClassVar[str | None] = "group"
     _value_fields: ClassVar[tuple[str, ...]] = ("tension",)
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """A tension along each group with geometric stiffness (a matrix group without one cannot)."""
+        return [cls(where)] if where in ctx.info["tension_groups"] else []
+
+    def phrase(self) -> str:
+        size = self.describe_value()
+        return f"{article(size)} {size} tension along {self.location} (taut wires or cables)"
     _where_word: ClassVar[str] = "group"
 
     @property
@@ -389,7 +448,21 @@ class GravityStiffening(_StructEffect):
     switch: float = 0.0
 
     kind: ClassVar[str] = "gravity"
+    sweep: ClassVar[str | None] = "structure"
+    toggle: ClassVar[bool] = True
+    calibration: ClassVar[str] = "none"
     _value_fields: ClassVar[tuple[str, ...]] = ("switch",)
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """Only the switch that changes the model's current state (frame FEM with a preload)."""
+        if not ctx.info["gravity"]:
+            return []
+        state = ctx.info["gravity_on"]
+        return [cls(enabled=on) for on in (True, False) if state is None or on != state]
+
+    def phrase(self) -> str:
+        return self.name
     _extra_tags: ClassVar[tuple[str, ...]] = ("gravity",)
 
     @property
@@ -474,7 +547,15 @@ class ModalDamping(_StructEffect):
     modes: tuple[int, int] | None = None
 
     kind: ClassVar[str] = "modal_damping"
+    sweep: ClassVar[str | None] = "modes"
+    calibration: ClassVar[str] = "none"
     _value_fields: ClassVar[tuple[str, ...]] = ("change",)
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """One change per octave-wide group and per cluster of the modes in the band."""
+        f_hz, number = ctx.modes
+        return _modal_damping_groups(cls, f_hz, number)
 
     def __post_init__(self) -> None:
         if self.modes is not None:
@@ -555,7 +636,12 @@ class JointSpring(_StructEffect):
     are often softer, which lowers the modes that bend the members through the joint (one of the
     commonest FE errors). The parameter is the joint's rotational *compliance* ``c`` (rad/(N m)),
     neutral 0 (rigid); the spring ``1 / c`` acts about each axis
-    (:meth:`robustctl.physical.fem.Frame.add_joint_flexibility`). Frame FEM only.
+    (:meth:`robustctl.physical.fem.Frame.add_joint_flexibility`), or about one global axis only
+    (``axis``: a hinge; the other rotations stay rigid). Frame FEM only.
+
+    The compliance reaches the whole range, rigid (0) to pinned (a spring far softer than the
+    member, ``c >> L / (4 E I)``), which first-order screening at rigid cannot see (the mode shapes
+    change with the size): ``coarse_screen`` makes ``rc.diagnose`` try it at sizes a decade apart.
 
     Parameters
     ----------
@@ -565,16 +651,41 @@ class JointSpring(_StructEffect):
         The element group whose beams connect to the joint through the spring.
     compliance : float
         ``c`` in rad/(N m) (neutral 0).
+    axis : str or None
+        ``"rx"``, ``"ry"`` or ``"rz"``: a hinge about that global axis; None: the same spring about
+        each axis.
     """
 
     group: str | None = None
     compliance: float = 0.0
+    axis: str | None = None
 
     kind: ClassVar[str] = "joint_spring"
+    sweep: ClassVar[str | None] = "joint"
+    calibration: ClassVar[str] = "none"
+    coarse_screen: ClassVar[bool] = True
     _value_fields: ClassVar[tuple[str, ...]] = ("compliance",)
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """One per beam joint; typical size a spring 20 x stiffer than the member's end
+        (``4 E I / L``): a few % on the modes."""
+        node, group = where
+        step = 0.05 / ctx.structure.joint_stiffness(node, group)
+        return [cls(node, group=group, axis=axis).with_scale(step) for axis in (None, "rx", "ry", "rz")]
+
+    def phrase(self) -> str:
+        return f"a {self.name} ({self.describe_value()})"
+
+    def __post_init__(self) -> None:
+        if self.axis not in (None, "rx", "ry", "rz"):
+            raise ModelError(f"a joint's axis is 'rx', 'ry', 'rz' or None (every axis); got {self.axis!r}.")
+        super().__post_init__()
 
     @property
     def name(self) -> str:
+        if self.axis is not None:
+            return f"flexible hinge of {self.group} at {self._at()} about {self.axis[1]}"
         return f"semi-rigid joint of {self.group} at {self._at()}"
 
     @property
@@ -585,7 +696,8 @@ class JointSpring(_StructEffect):
         )
 
     def _suffix(self) -> str:
-        return f"__{_slug(self.location)}_{_slug(self.group)}"
+        axis = "" if self.axis is None else f"_{self.axis}"
+        return f"__{_slug(self.location)}_{_slug(self.group)}{axis}"
 
     def _check_location(self, model):
         struct = model.build_structure()
@@ -615,10 +727,11 @@ class JointSpring(_StructEffect):
 
     def _stage_fn(self):
         pname, node, group = self.param_names[0], self.location, self.group
+        axes = ("rx", "ry", "rz") if self.axis is None else (self.axis,)
 
         def fn(theta, struct):
             c = float(theta[pname])
-            return struct if c == 0.0 else struct.add_joint_flexibility(node, group, c)
+            return struct if c == 0.0 else struct.add_joint_flexibility(node, group, c, axes)
 
         return fn
 
@@ -628,4 +741,37 @@ class JointSpring(_StructEffect):
         return "rigid" if c <= 0 else f"{1.0 / c:.3g} N m/rad"
 
 
-#: Every effect class by kind.
+#: Consecutive modes closer than this frequency ratio form a cluster (a close pair of a
+#: symmetric structure, bending in x and y) that gets a damping candidate of its own.
+_CLUSTER_RATIO = 1.1
+
+
+def _modal_damping_groups(cls: type, f_modes: np.ndarray, number: np.ndarray) -> list[Effect]:
+    """Damping changes of the modes ``f_modes`` (Hz, ascending) by their mode numbers
+    ``number`` (1-based among the elastic modes), not by Hz, so each follows its modes when
+    parameter errors or the update move them (a band at the nominal modes loses them beyond
+    its margin: E -30 % moves every mode by 16 %).
+
+    One candidate per octave-wide group of modes, and one per cluster of modes closer than
+    :data:`_CLUSTER_RATIO` (a lone mode is its own cluster) when it is not already a group:
+    a change on a close pair alone (joints of one bending plane pair) is then fitted exactly,
+    not spread over the octave."""
+    f = np.asarray(f_modes, dtype=float)
+    keep = f > 0
+    f, number = f[keep], np.asarray(number)[keep]
+    if f.size == 0:
+        return []
+
+    def runs(joined) -> list[tuple[int, int]]:
+        out, first = [], 0
+        for k in range(1, f.size):
+            if not joined(first, k):
+                out.append((first, k - 1))
+                first = k
+        out.append((first, f.size - 1))
+        return out
+
+    octaves = runs(lambda first, k: f[k] <= 2.0 * f[first])
+    clusters = runs(lambda first, k: f[k] < _CLUSTER_RATIO * f[k - 1])
+    spans = list(dict.fromkeys(octaves + clusters))
+    return [cls(modes=(int(number[a]), int(number[b]))) for a, b in spans]

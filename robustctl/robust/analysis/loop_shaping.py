@@ -221,7 +221,10 @@ def ncfsyn(G: Any, W1: Any = None, W2: Any = None, *, factor: float = 1.1) -> Lo
         raise SynthesisError(f"factor must exceed 1 (gamma = factor gamma_min); got {factor!r}. Use 1.1.")
     Gss = as_statespace(G, name="G")
     if Gss.dt not in (0, None):
-        raise SynthesisError("ncfsyn designs in continuous time; map a discrete plant with d2c first.")
+        raise SynthesisError(
+            f"ncfsyn designs in continuous time and G is discrete (dt={G.dt}); map it with "
+            "rc.d2c(G) (the inverse of its zero-order hold, or method='tustin'), design, then "
+            "discretise the controller with rc.discretize.")
     p, m = Gss.noutputs, Gss.ninputs
     W1s, W2s = _weight(W1, m, "W1"), _weight(W2, p, "W2")
     if (W1s.noutputs, W1s.ninputs) != (m, m) or (W2s.noutputs, W2s.ninputs) != (p, p):

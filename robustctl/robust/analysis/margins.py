@@ -34,6 +34,7 @@ distance) when ``det(I + G2~ G1)`` has no zero on the imaginary axis and
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -46,6 +47,7 @@ from ...frd import FrequencyData, as_frequency_data
 from ...lti import as_statespace, freqresp_array, is_stable, roundoff_margin
 from ...plots import label_axes, single_axes
 from ...table import Table, result_html
+from ..conventions import LOOP_SIGN, LoopSignWarning, loop_sign_words
 from ..hinf.norm import discrete_to_continuous, hinfnorm, hinfnorm_matrices
 from ..mu.bounds import frequencies_hz, mu
 from .coprime import left_ncf, right_ncf
@@ -165,7 +167,9 @@ class DiskMarginResult:
     def summary(self) -> str:
         """A few sentences in plain words."""
         s = self.simultaneous
-        stab = {True: "stable", False: "UNSTABLE", None: "not checked (measured data)"}
+        conv = self.info.get("convention", "")
+        stab = {True: "stable", False: f"UNSTABLE with {conv}: margins 0",
+                None: "not checked (measured data)"}
         stab = stab[self.closed_loop_stable]
         worst = min(self.loops, key=lambda m: m.alpha)
         return (
@@ -189,6 +193,20 @@ class DiskMarginResult:
 
     def _repr_html_(self) -> str:
         return result_html(self.summary(), self.table())
+
+
+def _warn_other_sign(Lss: Any, sign: float) -> None:
+    """An unstable loop that the other controller sign would stabilise is most likely a sign slip."""
+    import control
+
+    n = Lss.ninputs
+    other = control.feedback(control.ss([], [], [], np.eye(n), Lss.dt), -Lss)
+    if is_stable(other, roundoff_margin(other)):
+        warnings.warn(
+            f"diskmargin: the closed loop is unstable with {loop_sign_words(sign)} but stable with "
+            f"{loop_sign_words(-sign)}; robustctl's controllers are u = +K y (sign=+1), MATLAB's "
+            "diskmargin(G, K) assumes u = -K y: pass the sign of your controller.",
+            LoopSignWarning, stacklevel=3)
 
 
 # ---------------------------------------------------------------------------- loop assembly
@@ -242,7 +260,7 @@ def _simultaneous(Mf: np.ndarray, f: np.ndarray) -> np.ndarray:
     return 1.0 / np.maximum(r.upper, 1e-300)
 
 
-def diskmargin(L: Any, K: Any = None, *, f_hz: Any = None, skew: float = 0.0, sign: float = -1.0,
+def diskmargin(L: Any, K: Any = None, *, f_hz: Any = None, skew: float = 0.0, sign: float = LOOP_SIGN,
                at: str = "output") -> DiskMarginResult:
     """Disk margins of a feedback loop, loop at a time and all loops at once.
 
@@ -260,9 +278,13 @@ def diskmargin(L: Any, K: Any = None, *, f_hz: Any = None, skew: float = 0.0, si
     skew : float
         Disk skew ``sigma`` (0: balanced, gain margins ``g`` and ``1/g``; > 0 more gain
         increase, < 0 more decrease; Seiler et al. 2020 sec. "Skewed disks").
-    sign : {-1, +1}
-        The feedback sign of ``K``: -1 for ``u = -K y`` (MATLAB's convention), +1 for
-        ``u = K y`` (the convention of :func:`hinfsyn`, :func:`h2syn`, :func:`lqg`).
+    sign : {+1, -1}
+        The feedback sign of ``K``: +1 (default) for ``u = K y``, robustctl's one loop sign
+        (:mod:`robustctl.robust.conventions`; what :func:`hinfsyn`, :func:`h2syn`, :func:`lqg`,
+        :func:`dksyn` return), -1 for ``u = -K y`` (MATLAB's ``diskmargin(G, K)``). A closed
+        loop that is unstable with this sign is reported as such (``closed_loop_stable``,
+        the summary names the sign) and, when the other sign would be stable, a
+        :class:`~robustctl.robust.conventions.LoopSignWarning` says so.
     at : {"output", "input"}
         Where the loops are broken when ``K`` is given.
 
@@ -312,6 +334,8 @@ def diskmargin(L: Any, K: Any = None, *, f_hz: Any = None, skew: float = 0.0, si
     if Lss is not None:
         S = control.feedback(control.ss([], [], [], np.eye(n), Lss.dt), Lss)
         stable = is_stable(S, roundoff_margin(S))
+        if not stable and K is not None:
+            _warn_other_sign(Lss, float(sign))
         for i in range(n):
             if not stable:
                 loops.append(_margin(names[i], 0.0, skew, np.nan))
@@ -337,7 +361,8 @@ def diskmargin(L: Any, K: Any = None, *, f_hz: Any = None, skew: float = 0.0, si
     return DiskMarginResult(
         loops=tuple(loops), simultaneous=sim, f_hz=np.asarray(f, float), alpha_curves=curves, skew=skew,
         source="data" if Lss is None else "model", closed_loop_stable=stable,
-        info={"at": at, "sign": float(sign)},
+        info={"at": at, "sign": float(sign), "convention": loop_sign_words(float(sign)) if K is not None
+              else "L in negative feedback, closed loop (I + L)^-1"},
     )
 
 

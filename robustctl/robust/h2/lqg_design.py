@@ -48,8 +48,11 @@ class LQGResult(PicklesStateSpaces):
     Attributes
     ----------
     K : control.StateSpace
-        The controller ``u = K y`` (inputs: the plant's measurement names; outputs: its control
-        names; the plant's time base).
+        The controller ``u = +K y``, robustctl's one loop sign (:mod:`robustctl.robust.conventions`;
+        positive feedback, so ``K`` is the negative of the textbook observer-based controller
+        ``u = -K_r x_hat``, ``x_hat' = (A - B K_r - L C) x_hat + L y``, that MATLAB's ``lqg``
+        returns for ``u = -K y``). Inputs: the plant's measurement names; outputs: its control
+        names; the plant's time base.
     cost : float
         ``E[p^T Q p + u^T R u]`` in steady state (= ``||Fl(P, K)||_2^2``, verified on the closed loop).
     lqr_gain : ndarray
@@ -96,7 +99,8 @@ class LQGResult(PicklesStateSpaces):
         base = "discrete-time" if i.get("discrete") else "continuous-time"
         return (
             f"LQG {base} controller of order {self.K.nstates} from {len(i.get('measurements', []))} "
-            f"measurement(s) to {len(i.get('controls', []))} control input(s).\n"
+            f"measurement(s) to {len(i.get('controls', []))} control input(s), closed as u = +K y "
+            "(positive feedback; the textbook u = -K_r x_hat controller is -K).\n"
             f"Steady-state cost E[p'Qp + u'Ru] = {self.cost:.8g} (verified as the closed loop's "
             "squared H2 norm)."
         )

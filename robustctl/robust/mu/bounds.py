@@ -52,6 +52,11 @@ def as_frequency_array(M: Any, f_hz: Any = None, what: str = "M") -> tuple[np.nd
     Accepts a constant matrix, an (nf, n_out, n_in) array, a FrequencyData, or a system
     (anything :func:`robustctl.lti.as_statespace` accepts) evaluated on ``f_hz``.
     """
+    if hasattr(M, "delta_response") and hasattr(M, "block_structure"):  # an uncertain system: its M11
+        if f_hz is None:
+            raise SynthesisError(f"{what} is an uncertain system: give f_hz (Hz).")
+        f = frequencies_hz(f_hz)
+        return M.delta_response(f), f
     if hasattr(M, "omega") and (hasattr(M, "frdata") or hasattr(M, "fresp")):  # python-control's FRD
         M = as_frequency_data(M, what)
     if isinstance(M, FrequencyData):
@@ -195,7 +200,7 @@ def _scalar_of(d: np.ndarray) -> np.ndarray:
     return np.abs(np.linalg.det(d)) ** (1.0 / d.shape[-1])
 
 
-def mu(M: Any, blocks: Any, f_hz: Any = None, *, lower: bool = True, method: str = "auto",
+def mu(M: Any, blocks: Any = None, f_hz: Any = None, *, lower: bool = True, method: str = "auto",
        executor: Executor | None = None, chunk: int | None = None, seed: int = 0,
        time_budget_s: float | None = None) -> MuResult:
     """Upper and lower bounds of the structured singular value, over frequency.
@@ -206,9 +211,10 @@ def mu(M: Any, blocks: Any, f_hz: Any = None, *, lower: bool = True, method: str
         A constant matrix (n_out, n_in) or scalar, an array (nf, n_out, n_in), a FrequencyData
         (response (nf, n_out, n_in)) or python-control FrequencyResponseData, or a system
         (control.StateSpace, TransferFunction, anything with ``.statespace()``) evaluated at
-        ``f_hz``. ``Delta`` closes the loop from
-        the outputs of ``M`` back to its inputs: ``det(I - M Delta)``.
-    blocks : BlockStructure, list of Block, or MATLAB mussv rows
+        ``f_hz``, or an uncertain system (``rc.ureal(...) * G``: mu of its ``w -> z`` channels
+        ``M11`` with its own blocks, real parameters as real blocks). ``Delta`` closes the loop
+        from the outputs of ``M`` back to its inputs: ``det(I - M Delta)``.
+    blocks : BlockStructure, list of Block, MATLAB mussv rows, or None (an uncertain system's own)
         ``[[-r, 0]]`` repeated real scalar, ``[[r, 0]]`` repeated complex scalar, ``[[r, c]]``
         full ``r x c`` block (``M`` is then ``(sum c) x (sum r)``).
     f_hz : array_like, optional
@@ -253,6 +259,8 @@ def mu(M: Any, blocks: Any, f_hz: Any = None, *, lower: bool = True, method: str
     deadline = Deadline(time_budget_s, error=SynthesisError)
     lower = flag(lower, "lower", SynthesisError)
     seed = integer(seed, "seed", SynthesisError, lo=0)
+    if blocks is None and hasattr(M, "block_structure"):
+        blocks = M.block_structure()
     bs = as_block_structure(blocks)
     arr, f = as_frequency_array(M, f_hz)
     validate_mu_input(arr, bs)

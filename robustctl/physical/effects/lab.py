@@ -1,0 +1,357 @@
+"""Effects a laboratory brings to the structure: the transducers' own mass and attached resonators.
+
+A modal test adds hardware to what the model describes. Every accelerometer and its mount adds
+the same mass at each measured point (one physical cause acting at many places, invisible to a
+screen that tries one point mass at a time); a payload on a soft mount, fuel slosh or a hanging
+cable adds a *mode* no parameter of the model has. Both are given here for any structural model
+(``rc.Frame``, a user's matrices, FE imports), found from the model's own sensors and forces
+(:meth:`~robustctl.physical.structure_base.Structure.signal_location`).
+
+References: Ewins, *Modal Testing: Theory, Practice and Application* (2000), sec. 3.9 (transducer
+mass loading) and sec. 3.6 (attachment); Den Hartog, *Mechanical Vibrations*, sec. 3.2 (a spring-mass
+absorber adds a mode and splits the host's).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from ...errors import ModelError
+from .base import _DIR_RE, ParamSpec, _slug, _structure_info
+from .setup import _structure_signals
+from .structural import _StructEffect  # defined (and registered) before the laboratory's effects
+
+
+def _mounts(ctx, side: str) -> list[tuple[str, str | None]]:
+    """``(location, direction)`` of each point sensor (``side="output"``) or force of the model's
+    structure, in signal order, one per location."""
+    found: dict[str, str | None] = {}
+    mats = None
+    for name in _structure_signals(ctx.model, side):
+        loc = ctx.structure.signal_location(side, name)
+        if loc is None or loc in found:
+            continue
+        if mats is None:
+            mats = ctx.structure.matrices()
+        found[loc] = _signal_axis(ctx, mats, side, name, loc)
+    return list(found.items())
+
+
+def _signal_axis(ctx, mats, side: str, name: str, loc: str) -> str | None:
+    """The translational axis a point signal at ``loc`` points along most (None: a scalar DOF)."""
+    dirs = [d for d in ctx.directions.get(loc, [None]) if d is not None]
+    if not dirs:
+        return None
+    names = mats.outputs if side == "output" else mats.inputs
+    if name not in names:
+        return dirs[0]
+    k = list(names).index(name)
+    v = np.abs(np.asarray(mats.output_matrix)[k] if side == "output" else np.asarray(mats.input_matrix)[:, k])
+    best, best_v = dirs[0], -1.0
+    for j, lab in enumerate(mats.dof_labels):
+        m = _DIR_RE.match(lab)
+        if m and m.group("loc") == loc and m.group("dir") in dirs and v[j] > best_v:
+            best, best_v = m.group("dir"), float(v[j])
+    return best
+
+
+@dataclass(frozen=True)
+class TransducerMass(_StructEffect):
+    """The mass of the transducers: the same mass ``m`` at the mount of every sensor (and, with
+    ``location="sensors and drive points"``, of every force gauge's structure side).
+
+    One parameter for all: the accelerometer with its mount and cable clamp is the same hardware
+    at each point (Ewins 2000, sec. 3.9). Each mount's single mass alone explains little of what
+    they do together, so a screen of single masses misses it.
+
+    Parameters
+    ----------
+    location : str
+        ``"sensors"`` or ``"sensors and drive points"`` (a label: the mounts are ``mounts``).
+    mounts : tuple of str
+        The locations (nodes or DOFs) that carry the mass.
+    mass : float
+        Mass at each mount in kg (neutral 0).
+    """
+
+    mounts: tuple[str, ...] = ()
+    mass: float = 0.0
+
+    kind: ClassVar[str] = "transducer_mass"
+    domain: ClassVar[str] = "structure"
+    sweep: ClassVar[str | None] = "structure"
+    calibration: ClassVar[str] = "shift"
+    point_unit: ClassVar[tuple[float, float, float] | None] = (1.0, 0.0, 0.0)
+    _value_fields: ClassVar[tuple[str, ...]] = ("mass",)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "mounts", tuple(str(m) for m in self.mounts))
+        if not self.mounts:
+            raise ModelError("a transducer mass needs the mounts that carry it: mounts=('n1', 'n2', ...).")
+        super().__post_init__()
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """One mass for every sensor mount (two mounts or more), and one for every sensor and
+        drive point when the forces act elsewhere."""
+        sensors = [loc for loc, _ in _mounts(ctx, "output")]
+        drives = [loc for loc, _ in _mounts(ctx, "input") if loc not in sensors]
+        out = [cls("sensors", mounts=tuple(sensors))] if len(sensors) >= 2 else []
+        if sensors and drives:
+            out.append(cls("sensors and drive points", mounts=tuple(sensors + drives)))
+        return out
+
+    @property
+    def name(self) -> str:
+        return f"transducer mass at each of the {len(self.mounts)} {self.location}"
+
+    @property
+    def description(self) -> str:
+        return (
+            f"The same unmodelled mass at each of {', '.join(self.mounts)} (the accelerometers, their "
+            "mounts and cable clamps): lowers the modes that move the measured points."
+        )
+
+    def _check_location(self, model):
+        info = _structure_info(model)
+        unknown = [m for m in self.mounts if m not in info["locations"]]
+        if unknown:
+            raise ModelError(f"{self.kind}: unknown mounts {unknown}; give nodes or DOFs of the model.")
+
+    def _suffix(self) -> str:
+        return "__" + _slug(self.location or "mounts")
+
+    def _specs(self):
+        return [ParamSpec(base="transducer_mass", unit="kg", bounds=(0.0, 1e3), neutral=0.0,
+                          default_scale=0.01, meaning=f"mass of each transducer at the {self.location}")]
+
+    def _stage_fn(self):
+        pname, mounts = self.param_names[0], self.mounts
+
+        def fn(theta, struct):
+            m = float(theta[pname])
+            if m == 0.0:
+                return struct
+            for loc in mounts:
+                struct = struct.add_mass(loc, m)
+            return struct
+
+        return fn
+
+    def phrase(self) -> str:
+        return f"{self.describe_value()} of transducer mass at each of the {len(self.mounts)} {self.location}"
+
+    def changes_preload(self, gravity_direction) -> bool:
+        return True  # more weight in the suspension
+
+
+#: Resonator frequencies per octave of the band at which :func:`candidates` places them (at most).
+RESONATORS_PER_OCTAVE = 3
+#: At most this many resonator candidates per model (fewer per octave on a wide band or many mounts:
+#: each costs a screen, and diagnose's budget is shared by all candidates).
+RESONATORS_MAX = 24
+
+
+@dataclass(frozen=True)
+class AttachedResonator(_StructEffect):
+    """A spring-mass attached at a point: a payload on a soft mount, fuel slosh, a hanging cable.
+
+    It adds a mode at about ``frequency`` (Hz) and splits the host's modes near it (Den Hartog,
+    *Mechanical Vibrations*, sec. 3.2): no parameter of the model can make that mode, and first
+    order at mass 0 sees it only near its own frequency, hence the grid of frequencies. The
+    candidates sit at the sensor and drive-point mounts along their axes, at up to
+    :data:`RESONATORS_PER_OCTAVE` frequencies per octave of the band (:data:`RESONATORS_MAX` in
+    all); diagnose fits the mass at each candidate's frequency, ``rc.update`` with the effect fits
+    the frequency as well.
+
+    Parameters
+    ----------
+    location : str
+        Node or DOF carrying the resonator.
+    direction : str or None
+        ``"x"``, ``"y"``, ``"z"`` on a frame; None on a scalar DOF.
+    mass : float
+        Moving mass in kg (neutral 0).
+    frequency : float
+        Natural frequency of the mass on its mount when the attachment point is held, in Hz.
+    """
+
+    direction: str | None = None
+    mass: float = 0.0
+    frequency: float = 10.0
+
+    kind: ClassVar[str] = "attached_resonator"
+    domain: ClassVar[str] = "structure"
+    sweep: ClassVar[str | None] = "structure"
+    calibration: ClassVar[str] = "none"
+    _value_fields: ClassVar[tuple[str, ...]] = ("mass", "frequency")
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """At each sensor and drive-point mount, along its axis, over the band's octaves."""
+        band = ctx.band
+        if band is None or not band[1] > band[0] > 0:
+            return []  # no band given: no frequencies to place them at
+        mounts = dict(_mounts(ctx, "output"))
+        for loc, d in _mounts(ctx, "input"):
+            mounts.setdefault(loc, d)
+        octaves = math.log2(band[1] / band[0])
+        per_octave = min(RESONATORS_PER_OCTAVE, RESONATORS_MAX / max(len(mounts) * octaves, 1e-9))
+        n = max(1, int(math.floor(per_octave * octaves)))
+        grid = band[0] * (band[1] / band[0]) ** ((np.arange(n) + 0.5) / n)
+        step = 0.01 * _structure_mass(ctx)
+        return [cls(loc, direction=d, frequency=float(f)).with_scale(step)
+                for loc, d in mounts.items() for f in grid]
+
+    @property
+    def name(self) -> str:
+        along = "" if self.direction is None else f" along {self.direction}"
+        return f"attached resonator at {self.location}{along} ({self.frequency:.3g} Hz)"
+
+    @property
+    def description(self) -> str:
+        return (
+            f"A mass on a soft mount at {self.location} (a payload, fuel slosh, a cable): adds a mode "
+            "near its own frequency and splits the structure's modes there."
+        )
+
+    def _check_location(self, model):
+        info = _structure_info(model)
+        if self.location not in info["locations"]:
+            raise ModelError(f"{self.kind}: unknown location {self.location!r}.")
+
+    def _suffix(self) -> str:
+        d = "" if self.direction is None else "_" + _slug(self.direction)
+        return f"__{_slug(self.location)}{d}_{_slug(f'{self.frequency:.3g}')}Hz"
+
+    def _specs(self):
+        f = float(self.frequency)
+        return [
+            ParamSpec(base="resonator_mass", unit="kg", bounds=(0.0, 1e4), neutral=0.0, default_scale=0.1,
+                      meaning=f"moving mass of the resonator at {self.location}"),
+            ParamSpec(base="resonator_frequency", unit="Hz", bounds=(1e-3, 1e5), neutral=f,
+                      default_scale=0.1 * f,
+                      meaning=f"natural frequency of the resonator at {self.location} on its mount"),
+        ]
+
+    def _stage_fn(self):
+        pm, pf = self.param_names
+        loc, d = self.location, self.direction
+
+        def fn(theta, struct):
+            m, f = float(theta[pm]), float(theta[pf])
+            if m == 0.0:
+                return struct
+            return struct.add_resonator(loc, m, m * (2.0 * math.pi * f) ** 2, d)
+
+        return fn
+
+    def phrase(self) -> str:
+        along = "" if self.direction is None else f" along {self.direction}"
+        return f"a {self.describe_value()} mass on a {self.frequency:.3g} Hz mount at {self.location}{along}"
+
+
+def _structure_mass(ctx) -> float:
+    """The structure's total translational mass per direction (kg): trace of ``M`` over the
+    translational DOFs, divided by the number of directions."""
+    mats = ctx.structure.matrices()
+    diag = np.asarray(mats.mass.diagonal()).reshape(-1)
+    found = [_DIR_RE.match(lab) for lab in mats.dof_labels]
+    trans = [j for j, m in enumerate(found) if m]
+    if not trans:  # scalar DOFs (a user's matrices): their masses
+        return float(np.sum(diag))
+    return float(np.sum(diag[trans])) / len({found[j].group("dir") for j in trans})
+
+
+
+
+@dataclass(frozen=True)
+class DofPairJoint(_StructEffect):
+    """A joint of a user's matrix model between two DOFs, from as modelled to pinned.
+
+    The model joins DOFs ``a`` and ``b`` by a connection of stiffness ``k0`` (a CBUSH, a stiff
+    spring, an RBE replaced by one); the effect puts a compliance ``c`` in series with it,
+    ``k = k0 / (1 + c k0)``: ``c = 0`` is the model, a large ``c`` a pin. Named by the user
+    (``rc.effects.candidates(model, joints={"hinge": ("dof 7", "dof 8", 2e5)})``): a matrix model
+    does not say where its joints are. Screened over its whole range (``coarse_screen``).
+
+    Parameters
+    ----------
+    location : str
+        The joint's name.
+    dofs : (str, str)
+        The two DOF labels it joins.
+    stiffness : float
+        ``k0``, the connection's stiffness in the model (N/m or N m/rad).
+    compliance : float
+        ``c`` in m/N (rad/(N m) between rotations), neutral 0.
+    """
+
+    dofs: tuple[str, str] = ("", "")
+    stiffness: float = 1.0
+    compliance: float = 0.0
+
+    kind: ClassVar[str] = "dof_pair_joint"
+    sweep: ClassVar[str | None] = "structure"
+    calibration: ClassVar[str] = "none"
+    coarse_screen: ClassVar[bool] = True
+    _value_fields: ClassVar[tuple[str, ...]] = ("compliance",)
+
+    def __post_init__(self) -> None:
+        k0 = float(self.stiffness)
+        if len(tuple(self.dofs)) != 2 or not (np.isfinite(k0) and k0 > 0):
+            raise ModelError(
+                "a joint needs two DOF labels and the model's connection stiffness k0 > 0; got "
+                f"dofs={self.dofs!r}, stiffness={self.stiffness!r}."
+            )
+        object.__setattr__(self, "dofs", tuple(str(d) for d in self.dofs))
+        super().__post_init__()
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """One per joint the user named (``candidates(..., joints=...)``); typical size: 5 % softer."""
+        return [cls(name, dofs=(a, b), stiffness=float(k0)).with_scale(0.05 / float(k0))
+                for name, (a, b, k0) in ctx.joints.items()]
+
+    @property
+    def name(self) -> str:
+        return f"flexible joint {self.location} ({self.dofs[0]} - {self.dofs[1]})"
+
+    @property
+    def description(self) -> str:
+        return (f"The connection {self.location} between {self.dofs[0]} and {self.dofs[1]} is softer than "
+                "modelled (a bolted or hinged joint): lowers the modes that strain it.")
+
+    def _check_location(self, model):
+        info = _structure_info(model)
+        unknown = [d for d in self.dofs if d not in info["locations"]]
+        if unknown:
+            raise ModelError(f"joint {self.location!r}: unknown DOFs {unknown}; give DOF labels of the model."
+                             )
+
+    def _specs(self):
+        k0 = float(self.stiffness)
+        return [ParamSpec(base="joint_compliance", unit="m/N", bounds=(0.0, 1e3 / k0), neutral=0.0,
+                          default_scale=0.05 / k0, meaning=f"series compliance of joint {self.location}")]
+
+    def _stage_fn(self):
+        pname, (a, b), k0 = self.param_names[0], self.dofs, float(self.stiffness)
+
+        def fn(theta, struct):
+            c = float(theta[pname])
+            return struct if c == 0.0 else struct.add_coupling(a, b, -c * k0 * k0 / (1.0 + c * k0))
+
+        return fn
+
+    def describe_value(self, values=None) -> str:
+        vals = self.values if values is None else values
+        c = float(vals.get(self.param_names[0], self.compliance))
+        k0 = float(self.stiffness)
+        return "as modelled" if c <= 0 else f"{k0 / (1.0 + c * k0):.3g} (from {k0:.3g})"
+
+
+__all__ = ["TransducerMass", "AttachedResonator", "DofPairJoint", "RESONATORS_PER_OCTAVE", "RESONATORS_MAX"]
