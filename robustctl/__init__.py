@@ -198,6 +198,7 @@ from .robust.conventions import LoopSignWarning
 from .robust.mu import mu
 from .robust.partitioned import as_partitioned
 from .robust.uncertainty import UncertainSystem, as_uncertain, ucomplex, ultidyn, ureal
+from .robust.uncertainty.parametric import LFTAccuracyWarning, physical_uncertain
 from .robust.uncertainty.robust_margin import RobustStabilityMargin, WorstCaseResult, robstab, wcgain
 from .signals import combine_inputs as combine_inputs
 from .signals import combine_outputs as combine_outputs
@@ -378,6 +379,9 @@ __all__ = [
     "ultidyn",
     "UncertainSystem",
     "as_uncertain",
+    "physical_uncertain",
+    "LFTAccuracyWarning",
+    "LoopSignWarning",
     "robstab",
     "RobustStabilityMargin",
     "wcgain",

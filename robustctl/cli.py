@@ -9,6 +9,7 @@
   (the result's ``summary()``) and writes an HTML report plus ``summary.json`` (the same
   verdict words with their numbers: sizes, standard errors, p-values) into ``--out``;
   ``--inputs``/``--outputs`` select channels of both the model and the data;
+* ``robustctl report OUT...`` joins those folders into one page;
 * ``robustctl export SOURCE TARGET`` writes a controller file as another coefficient file
   (e.g. a continuous ``K.mat`` as a C header at ``--fs``), printing the export checks.
 
@@ -184,6 +185,14 @@ def _parser() -> argparse.ArgumentParser:
                              help="parameters to update (default: every free one)")
             cmd.add_argument("--max-iter", type=int, default=20, help="Levenberg-Marquardt iteration cap")
 
+    joined = sub.add_parser("report", help="join the reports of several commands into one page",
+                            description="Join the --out folders of compare, diagnose, update and identify "
+                            "into one report.html (and one summary.json keyed by folder name).")
+    joined.add_argument("folders", nargs="+", help="report folders, in the order to show them")
+    joined.add_argument("--out", default="out-report",
+                        help="folder of the joined report (default: out-report)")
+    joined.add_argument("--title", default="robustctl report", help="title of the page")
+
     load = sub.add_parser("load", help="say what a measured-FRF file holds",
                           description="Read DATA and print its channels, frequencies, coherence and "
                           "experiment description; write them to summary.json in --out.")
@@ -256,16 +265,26 @@ def _say(text: str) -> None:
 
 
 class _Steps:
-    """A progress bar over a command's steps, naming the one running (tqdm on standard error;
-    off when standard error is not a terminal, so logs and pipes stay clean)."""
+    """A progress bar over a command's steps, naming the one running, its clock ticking each second
+    through a long step such as a diagnosis (tqdm on standard error; off when standard error is not
+    a terminal, so logs and pipes stay clean)."""
 
     def __init__(self, names: Sequence[str]):
+        import threading
+
         from tqdm import tqdm
 
         self._bar = tqdm(total=len(names), disable=not sys.stderr.isatty(), leave=False,
                          bar_format="{desc} [{n_fmt}/{total_fmt} steps, {elapsed}]")
         self.show = not self._bar.disable
         self._started = False
+        self._stop = threading.Event()
+        if self.show:
+            threading.Thread(target=self._tick, daemon=True).start()
+
+    def _tick(self) -> None:
+        while not self._stop.wait(1.0):  # ends with close()
+            self._bar.refresh()
 
     def __call__(self, name: str) -> None:
         if self._started:
@@ -274,6 +293,7 @@ class _Steps:
         self._bar.set_description_str(name)
 
     def close(self) -> None:
+        self._stop.set()
         self._bar.close()
 
 
@@ -318,6 +338,14 @@ def _run_load(args: argparse.Namespace) -> Path:
     for key, value in record.items():
         report.record(key, value)
     return report.write()
+
+
+def _run_report(args: argparse.Namespace) -> Path:
+    from .report import join_reports
+
+    path = join_reports(args.folders, args.out, title=args.title)
+    _say(f"Joined {len(args.folders)} reports: {', '.join(Path(f).name for f in args.folders)}.")
+    return path
 
 
 def _run_compare(args: argparse.Namespace) -> Path:
@@ -372,6 +400,9 @@ def _run_diagnose(args: argparse.Namespace) -> Path:
         report.table(diag.table())
         report.figure(diag.plot(), "diagnose",
                       "Candidate effects ranked by the share of the error they explain.")
+        if diag.chain:
+            report.heading(f"Verdict: {diag.verdict}")
+            report.table(diag.chain_table())
         for key, value in diagnosis_record(diag).items():
             report.record(key, value)
         return report.write()
@@ -478,6 +509,7 @@ _COMMANDS: dict[str, Callable[[argparse.Namespace], Path]] = {
     "compare": _run_compare,
     "diagnose": _run_diagnose,
     "update": _run_update,
+    "report": _run_report,
     "identify": _run_identify,
     "export": _run_export,
 }

@@ -120,13 +120,25 @@ def diagnosis_record(diag: Any, n: int = 10) -> dict[str, Any]:
     """A :class:`~robustctl.correlate.diagnosis.Diagnosis`: the proposal with its size and p-value,
     the next candidates, the costs and the null fit's verdict."""
     best = diag.best_result
+    effects = getattr(diag, "effects", ())
+    closest = getattr(diag, "closest", None)
     verdict = (
-        f"proposed: {best.name}" if best is not None
+        "proposed: " + " + ".join(e.name for e in effects) if len(effects) > 1
+        else f"proposed: {best.name}" if best is not None
+        else f"closest, incomplete: {closest.name}" if closest is not None
         else "no candidate is significant" if diag.noise_source
         else "no noise estimate: no candidate proposed"
     )
     return json_value({
         "verdict": verdict,
+        "verdict_word": getattr(diag, "verdict", ""),
+        "chain": [{"effect": s.name, "size": s.effect.describe_value(), "values": dict(s.effect.values),
+                   "explains": s.gain, "p_value": s.p_value, "misfit_before": s.dispersion_before,
+                   "misfit_after": s.dispersion_after, "tentative": s.tentative}
+                  for s in getattr(diag, "chain", ())],
+        "misfit_left": [{"lo_hz": b.lo_hz, "hi_hz": b.hi_hz, "share": b.share, "x_noise": b.dispersion,
+                         "modes_hz": [f for f, _, _ in b.modes]} for b in getattr(diag, "left", ())],
+        "dispersion_left": getattr(diag, "dispersion_left", None),
         "best": None if best is None else _candidate(best),
         "ranking": [_candidate(r) for r in diag.ranking[:n]],
         "cost_nominal": diag.cost_nominal,

@@ -303,7 +303,8 @@ def bode_grid(
     shade_bands : sequence of (lo_hz, hi_hz)
         Frequency bands to shade (e.g. where a model fails).
     title : str
-        Figure title.
+        Figure title (channels left out by ``max_channels`` are stated above it: "9 of 12
+        channels shown: pass max_channels= for others").
     phase : bool
         Add a phase row (deg) under each magnitude panel.
     coherence : bool
@@ -361,6 +362,9 @@ def bode_grid(
         for ax_k in stack:
             log_frequency_axis(ax_k, ref.f_hz, label=ax_k is stack[-1])
             ax_k.tick_params(labelsize=7)
+    left_out = "" if channels is not None else shown_channels_title(len(pairs), ref.n_out * ref.n_in,
+                                                                     "max_channels=")
+    title = "\n".join(t for t in (left_out, title) if t)
     if title:
         fig.suptitle(title)
     return fig

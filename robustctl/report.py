@@ -20,7 +20,7 @@ import numpy as np
 from .errors import RobustctlError
 from .table import Table
 
-__all__ = ["Report", "write_report"]
+__all__ = ["Report", "write_report", "join_reports"]
 
 _STYLE = """
 body { font-family: system-ui, sans-serif; max-width: 1100px; margin: 2em auto; color: #222; }
@@ -200,4 +200,51 @@ def write_report(folder: Any, *results: Any, title: str = "robustctl report") ->
         report.table(result.table())
         report.figure(result.plot(), key, caption)
         report.record(key, record_of(result))
+    return report.write()
+
+
+def join_reports(folders: Any, out: Any, title: str = "robustctl report") -> Path:
+    """One page from reports robustctl wrote (``robustctl compare/diagnose/update ... --out``), in order.
+
+    Each folder's ``report.html`` becomes a section under its own title, and its
+    ``summary.json`` goes into the joined ``summary.json`` under the folder's name.
+
+    Parameters
+    ----------
+    folders : sequence of str or Path
+        Report folders (each holds ``report.html`` and ``summary.json``).
+    out : str or Path
+        The folder of the joined report (new, empty, or written by robustctl before).
+    title : str
+
+    Returns
+    -------
+    Path
+        ``out/report.html``.
+
+    Raises
+    ------
+    RobustctlError
+        No folder, or one without a robustctl report.
+    """
+    folders = [Path(f) for f in folders]
+    if not folders:
+        raise RobustctlError("join_reports needs at least one report folder.")
+    sections = []
+    for folder in folders:
+        page, numbers = folder / "report.html", folder / "summary.json"
+        if not page.is_file() or not numbers.is_file():
+            raise RobustctlError(
+                f"{folder} holds no robustctl report (report.html and summary.json); give the --out "
+                "folders of robustctl compare, diagnose, update or identify."
+            )
+        text = page.read_text(encoding="utf-8")
+        head, body = text.split("<h1>", 1) if "<h1>" in text else ("", text)
+        heading, body = body.split("</h1>", 1) if "</h1>" in body else (folder.name, body)
+        body = body.rsplit("</body>", 1)[0]
+        sections.append((folder.name, heading, body, json.loads(numbers.read_text(encoding="utf-8"))))
+    report = Report(Path(out), title=title)
+    for name, heading, body, numbers in sections:
+        report._parts.append(f"<h2>{heading}</h2>\n{body}")
+        report.record(name, numbers)
     return report.write()

@@ -39,7 +39,8 @@ Hidden effects (switches of :func:`measure`, any combination)
 ``"accel_mass"`` a 40 g accelerometer mount at each sensor node; ``"resonator"`` a 1 kg box on a
 12 Hz mount (z) on the bus top corner ``bus_pmp`` (an added mode, not in any library);
 ``"stiffer"`` +4 % stiffness everywhere; ``"swapped"`` the cables of a1 and a2 exchanged;
-``"tip_mass"`` 0.15 kg more at the boom tip; ``()`` is the null case.
+``"tip_mass"`` 0.15 kg more at the boom tip; ``"harness"`` 0.25 kg of cable harness clamped at
+the bus corner ``bus_mmp``; ``()`` is the null case.
 
 :func:`nominal_model` is the same structure as ``rc.Frame`` inside ``rc.PhysicalModel`` with
 free parameters ``E_bus``, ``E_array``, ``E_boom`` and ``zeta_modal``.
@@ -143,7 +144,9 @@ HINGE_K = 1500.0  # N m/rad
 ACCEL_MASS = 0.040  # kg
 RESONATOR = ("bus_pmp", "z", 1.0, 12.0)  # node, direction, kg, Hz
 TIP_MASS = 0.15  # kg
-EFFECTS = ("hinge_1axis", "hinge_iso", "accel_mass", "resonator", "stiffer", "swapped", "tip_mass")
+HARNESS = ("bus_mmp", 0.25)  # a cable harness clamped at a bus corner: node, kg
+EFFECTS = ("hinge_1axis", "hinge_iso", "accel_mass", "resonator", "stiffer", "swapped", "tip_mass",
+           "harness")
 
 
 # ---------------------------------------------------------------------------- numpy FEM
@@ -209,6 +212,8 @@ def truth_matrices(effects: tuple[str, ...] = ()) -> tuple[np.ndarray, np.ndarra
     masses = dict(MASSES)
     if "tip_mass" in effects:
         masses["boom_3"] += TIP_MASS
+    if "harness" in effects:
+        masses[HARNESS[0]] += HARNESS[1]
     if "accel_mass" in effects:
         for node, _ in OUTPUTS.values():
             masses[node] = masses.get(node, 0.0) + ACCEL_MASS

@@ -71,6 +71,9 @@ def test_diagnose_and_identify_from_files(files, tmp_path, capsys):
     assert code == 0, capsys.readouterr().err
     page, summary = _summary(tmp_path / "d")
     assert "Which physical effect is missing?" in page and isinstance(summary["ranking"], list)
+    assert summary["verdict_word"] in ("within the noise", "answer", "incomplete", "unexplained",
+                                       "no noise model")
+    assert isinstance(summary["chain"], list) and isinstance(summary["misfit_left"], list)
 
     code = main(["identify", str(files / "chain.csv"), "--modes", "4", "--band", "1", "20",
                  "--out", str(tmp_path / "i")])

@@ -117,6 +117,15 @@ def test_load_compare_diagnose_update_report_on_uff_files(tmp_path, capsys, monk
     html = (tmp_path / "upd" / "report.html").read_text()
     assert "within the noise in every channel and band" in html
 
+    out = run(capsys, "report", tmp_path / "cmp", tmp_path / "diag", tmp_path / "upd",
+              "--out", tmp_path / "all")
+    assert "Joined 3 reports" in out
+    page = (tmp_path / "all" / "report.html").read_text()
+    order = [page.index(h) for h in ("Where the model fails", "Which physical effect", "updated model")]
+    assert order == sorted(order)
+    joined = summary(tmp_path / "all")
+    assert joined["diag"]["best"]["name"] == "added mass at node x2" and joined["upd"] == upd
+
 
 def test_channel_flags_and_bad_diagnosis(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)

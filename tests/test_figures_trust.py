@@ -87,6 +87,9 @@ def test_plot_compare_draws_every_channel_in_the_band_with_readable_ticks(model,
     fig9 = rc.plot_compare(shifted, {"model": model}, band=BAND, max_channels=9)
     assert len(panels(fig9)) == 9
     assert "9 of 12 channels shown: pass channels= for others" in fig9._suptitle.get_text()
+    data_fig = shifted.plot(max_channels=9)  # every bode grid states what it leaves out
+    assert "9 of 12 channels shown: pass max_channels= for others" in data_fig._suptitle.get_text()
+    assert "12 of" not in (shifted.plot(max_channels=12)._suptitle or matplotlib.text.Text()).get_text()
     picked = rc.plot_compare(shifted, {"model": model}, channels=[("a3", "F"), ("a12", "F")])
     assert [ax.get_title() for ax in panels(picked)] == ["a3 <- F", "a12 <- F"]
     with pytest.raises(rc.DataError, match="not in the data"):

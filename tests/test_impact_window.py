@@ -26,7 +26,12 @@ import robustctl as rc
 from robustctl.cli import main
 from robustctl.measure.estimator import impact_settings
 from robustctl.measure.impact import ringing_channels
-from robustctl.measure.impact_view import expected_h1_impact_modal, record_tails, truncation_settings
+from robustctl.measure.impact_view import (
+    exp_window_correlation,
+    expected_h1_impact_modal,
+    record_tails,
+    truncation_settings,
+)
 from robustctl.measure.noise import noise_model
 
 FS = 256.0
@@ -306,3 +311,17 @@ def test_a_window_stated_twice_must_agree_and_the_view_survives_pickling(one_mod
     assert pickle.loads(pickle.dumps(seen)) == seen  # diagnose's worker processes get it whole
     off_grid, _ = impact_settings(one_mode.experiment, one_mode.meta, one_mode.f_hz[:4] + 0.1)
     assert off_grid.record is None  # eq. T1 holds at the record's DFT bins only
+
+
+def test_the_exponential_window_correlates_neighbouring_bins(null_data):
+    """Reference: for w = a^n, a = exp(-2 dt / tau), sum_n a^n e^{-j 2 pi m n / N} =
+    (1 - a^N) / (1 - a e^{-j 2 pi m / N}), so |rho_m| = (1 - a) / |1 - a e^{-j 2 pi m / N}|."""
+    tau, n = null_data.experiment.exp_window_tau_s, null_data.meta["n_samples"]
+    r = exp_window_correlation(tau, n, FS)
+    a = np.exp(-2.0 / FS / tau)
+    m = np.arange(r.size)
+    np.testing.assert_allclose(r, ((1 - a) / np.abs(1 - a * np.exp(-2j * np.pi * m / n))) ** 2, rtol=1e-9)
+    assert r[1] == pytest.approx(0.69, abs=0.02) and r[-1] >= 1e-3
+    nm = noise_model(null_data)  # the Satterthwaite factors of correlated bins (module notes of noise)
+    assert nm.dof_factor == pytest.approx(1 + 2 * np.sum(r[1:] ** 2)) and nm.dof_factor > 2
+    assert nm.chi2_factor == pytest.approx(1 + 2 * np.sum(r[1:])) and nm.chi2_factor > nm.dof_factor

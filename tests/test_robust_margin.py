@@ -192,3 +192,29 @@ def test_additive_block_reads_the_control_when_asked():
     assert np.asarray(ctrl.P.D)[iz, iw] == 0.0
     with pytest.raises(rc.ModelError, match="additive_input"):
         rc.generalized_plant(G, additive_input="total", **kw)
+
+
+def test_complex_scalar_margin_closed_form():
+    # y' = -(1 + c) y with c = 1 + 0.5 delta, |delta| <= 1 complex: the pole -(1 + c) reaches the
+    # axis first at c = -1 (delta = -4, the smallest |delta| with Re(1 + c) = 0): margin 4, s = 0
+    c = rc.ucomplex("c", 1.0, 0.5)
+    loop = _integrator().feedback(1 + c)
+    m = rc.robstab(loop)
+    assert m.lower == pytest.approx(4.0, rel=1e-3) and m.upper == pytest.approx(4.0, rel=1e-6)
+    assert m.destabilizing["c"] == pytest.approx(-1.0, abs=1e-5)
+    assert abs(m.pole) < 1e-5
+    assert rc.as_statespace(loop).A[0, 0] == pytest.approx(-2.0)  # the nominal where a system is expected
+
+
+def test_discrete_time_margins_closed_form():
+    # x(k+1) = a x(k), a = 0.5 +- 0.2: |a| = 1 first at a = 1, 2.5 x the range, pole z = 1
+    a = rc.ureal("a", 0.5, plusminus=0.2)
+    delay = rc.as_uncertain(control.ss([[0.0]], [[1.0]], [[1.0]], [[0.0]], 0.1))  # 1 / z
+    m = rc.robstab(delay.feedback(a, sign=1))
+    assert m.lower == pytest.approx(2.5, rel=1e-6) and m.upper == pytest.approx(2.5, rel=1e-9)
+    assert m.destabilizing["a"] == pytest.approx(1.0, rel=1e-9) and abs(m.pole - 1) < 1e-9
+    # x(k+1) = 0.5 (1 + D) x(k), ||D|| <= 0.3: small gain |0.5 D / (1 - 0.5 z^-1)|... peaks at z = 1
+    # where 0.5 / (1 - 0.5) = 1: margin 1 / 0.3
+    d = rc.ultidyn("d", 1, 0.3)
+    m2 = rc.robstab((delay * 0.5).feedback(1 + d, sign=1))
+    assert m2.upper == pytest.approx(1 / 0.3, rel=1e-6) and abs(abs(m2.pole) - 1) < 1e-9

@@ -184,3 +184,48 @@ def test_compact_repr_and_clear_errors():
         sys.substitute(q=1.0)
     with pytest.raises(SynthesisError, match="both named"):
         k + rc.ureal("k", 1.0, percent=5)
+
+
+def test_update_parameters_as_uncertain_reals_and_the_model_as_an_uncertain_system():
+    from test_residual import NOMINAL, analytic_receptance, chain_model
+
+    f = np.linspace(0.5, 12.0, 120)
+    rng = np.random.default_rng(3)
+    g = analytic_receptance({**NOMINAL, "k2": 2100.0}, f)  # the truth, in numpy
+    g = g * (1 + 0.01 * (rng.standard_normal(g.shape) + 1j * rng.standard_normal(g.shape)))
+    data = rc.FrequencyData(f, g, inputs=["f1", "f2"], outputs=["x1", "x2"])
+    upd = rc.update(chain_model(), data, params=["k2"], max_iter=20)
+    reals = upd.uncertain_parameters(n_sigma=2.0)
+    k2 = reals["k2"]
+    se = upd.std_errors["k2"]
+    assert k2.nominal == pytest.approx(upd.model.values["k2"], rel=1e-12)
+    assert (k2.low, k2.high) == pytest.approx((k2.nominal - 2 * se, k2.nominal + 2 * se), rel=1e-12)
+    assert k2.low < 2100.0 < k2.high  # the truth inside the 2-sigma interval
+    # the updated model with k2 uncertain: exact (stiffness is affine), checked against numpy
+    usys = rc.physical_uncertain(upd.model, reals)
+    assert usys.multiplicity == {"k2": 1} and "k2: real" in repr(usys)
+    for kv in (k2.low, k2.nominal, k2.high):
+        th = {**dict(upd.model.values), "k2": kv}
+        ref = analytic_receptance(th, f[:5])
+        got = usys.freqresp(f[:5], {"k2": kv})
+        assert np.abs(got - ref).max() <= 1e-9 * np.abs(ref).max()
+
+
+def test_uncertain_model_prints_in_a_few_lines():
+    from test_uncertain_model import chain
+
+    from robustctl.physical.uncertain import parametric_lft
+
+    um = parametric_lft(chain(), ["k1", "k2"], [1000.0, 500.0], np.diag([400.0, 100.0]), n_sigma=2.0)
+    text = repr(um)
+    assert text.startswith("UncertainModel(2x2, 4 states") and "\n" not in text and "array" not in text
+    usys = rc.as_uncertain(um)  # its blocks as normalised reals, the same LFT
+    d = {um.names[0]: 0.3, um.names[1]: -0.8}
+    ref = freqresp_um(um, [0.3, -0.8])
+    np.testing.assert_allclose(usys.freqresp(F_HZ[1:], d), ref, rtol=1e-10, atol=1e-16)
+
+
+def freqresp_um(um, delta):
+    from robustctl.lti import freqresp_array
+
+    return freqresp_array(um.statespace(np.array(delta)), F_HZ[1:])

@@ -700,8 +700,10 @@ class Comparison:
             ax = fig.add_subplot(1, 1, 1)
         emap = np.abs(self.error.reshape(nf, -1)).T * DB_PER_NEPER
         labels = [channel_label(a, b) for a in self.outputs for b in self.inputs]
-        im = error_heat_map(ax, self.f_hz, emap, labels, self.within_noise_mask())
-        colorbar(ax.figure, im, ax, "error (dB)")
+        within = self.within_noise_mask()
+        im = error_heat_map(ax, self.f_hz, emap, labels, within)
+        if within is None or not within.all():  # an all-grey map has no colour to read
+            colorbar(ax.figure, im, ax, "error (dB)")
         return ax.figure
 
 

@@ -12,7 +12,8 @@ their error. For given poles ``p`` and input shapes ``b`` it is linear in the ou
 (``log(-Re p)``, ``Im p``, ``Re b``, ``Im b``), whatever the number of outputs, and each
 residual evaluation is one batched solve of ``n_out`` small normal-equation systems. The
 residual is the relative one of MACE eq. 5 (``rw = sqrt(w)/|g|``). Levenberg-Marquardt with a
-finite-difference Jacobian (``scipy.optimize.least_squares(method="lm")``).
+finite-difference Jacobian (``scipy.optimize.least_squares(method="lm")``), converged to
+``CLUSTER_TOL``.
 """
 
 from __future__ import annotations
@@ -59,12 +60,12 @@ def _solve(x: np.ndarray, target: np.ndarray, rw2: np.ndarray) -> np.ndarray:
     return np.linalg.solve(gs, (rhs * scale)[:, :, None])[:, :, 0] * scale
 
 
-def _noise_ftol(n_res: int, n_theta: int, n_lin: int) -> float:
-    """Relative cost change below which a step only fits noise: a tenth of the share of the cost
-    that fitting ``n_theta`` free parameters to pure noise removes (each takes out about one noise
-    variance of a cost that holds ``n_res - n_lin - n_theta`` of them), within [1e-7, 1e-3]."""
-    dof = max(n_res - n_lin - n_theta, 1)
-    return float(np.clip(0.1 * n_theta / dof, 1e-7, 1e-3))
+#: relative cost and step tolerance of a cluster's refinement: converged far below any decision
+#: taken on the result (a swap kept, a block accepted), so round-off cannot move those decisions
+CLUSTER_TOL = 1e-10
+#: cap of a cluster's Levenberg-Marquardt iterations, per nonlinear parameter (a bound on the work;
+#: the Jacobian's finite differences are counted apart)
+MAX_ITER_PER_PARAM = 40
 
 
 def _decay(theta: np.ndarray, omega: np.ndarray) -> np.ndarray:
@@ -88,7 +89,7 @@ def refine_cluster(
     poles: np.ndarray,
     cs: np.ndarray,
     bs: np.ndarray,
-    max_nfev: int = 120,
+    max_nfev: int | None = None,
     truncation: Any = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
     """Refine a cluster's poles and shapes by variable projection.
@@ -107,8 +108,9 @@ def refine_cluster(
         Starting output shapes (only the starting cost uses them).
     bs : ndarray, complex, shape (M, n_in)
         Starting input shapes.
-    max_nfev : int
-        Cap of residual evaluations.
+    max_nfev : int, optional
+        Cap of residual evaluations, the finite-difference Jacobian's included (default
+        ``MAX_ITER_PER_PARAM`` iterations per parameter); the refinement stops at ``CLUSTER_TOL``.
     truncation : TruncationSettings, optional
         Fit the truncated record's terms (eq. T1 of :mod:`.leakage`) to raw impact data.
 
@@ -135,8 +137,9 @@ def refine_cluster(
     n_res = r0.size
     if n_res <= theta0.size:
         return poles, cs, bs, 0.0, 0.0
-    ftol = _noise_ftol(n_res, theta0.size, 2 * target.shape[1] * (m + n_in))
-    sol = least_squares(resid, theta0, method="lm", x_scale="jac", max_nfev=max_nfev, ftol=ftol, xtol=1e-6)
+    cap = max_nfev if max_nfev is not None else MAX_ITER_PER_PARAM * theta0.size * (theta0.size + 1)
+    sol = least_squares(resid, theta0, method="lm", x_scale="jac", max_nfev=cap, ftol=CLUSTER_TOL,
+                        xtol=CLUSTER_TOL, gtol=CLUSTER_TOL)
     before, after = float(r0 @ r0), float(sol.fun @ sol.fun)
     if not after < before:
         return poles, cs, bs, before, before

@@ -38,7 +38,7 @@ from .leakage import (
 )
 from .leaked_refine import refine_through_estimator
 from .modal_refine import DENSE_MAX_ENTRIES, ZETA_MIN, refine_modes_auto
-from .poles import fit_residues
+from .poles import TIE_MARGIN, first_lowest, fit_residues
 from .rational import fit_rational
 from .rational_fit import RationalFit
 from .realization import residue_rank
@@ -250,7 +250,7 @@ def _swap_for_pair(fit: RationalFit, n_mode_poles: int, run: FitSettings) -> Rat
         trial = refine_residues(trial, sweeps=2)
         trial = refine_modes_auto(trial, deadline=run.deadline, progress=run.progress)
         trial_cost = _log_cost(trial, data)
-        if trial_cost < cost:
+        if trial_cost < cost * (1 - TIE_MARGIN):  # a swap that ties the current model is not kept
             fit, cost = trial, trial_cost
     return fit
 
@@ -285,7 +285,7 @@ def fit_best(
         start = rational_fit(band, n_modes, r) if start is None else start
         modal, n_found = select_modes(start, n_modes, pref)
         staged.append(((n_found != n_modes, _log_cost(modal, band)), r, start, pref))
-    _, r, start, pref = min(staged, key=lambda item: item[0])
+    _, r, start, pref = staged[first_lowest([item[0] for item in staged])]
     return fit_with_leakage(band, n_modes, r, start, pref)
 
 
@@ -300,7 +300,7 @@ def _best_finished(band: FrequencyData, n_modes: int, run: FitSettings, first, p
             break
         fit, n_found, used = fit_with_leakage(band, n_modes, r, start, pref)
         done.append(((n_found != n_modes, _log_cost(fit, used)), (fit, n_found, used)))
-    return min(done, key=lambda item: item[0])[1]
+    return done[first_lowest([item[0] for item in done])][1]
 
 
 def _log_cost(fit: RationalFit, data: FrequencyData) -> float:

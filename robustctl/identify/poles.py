@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
+    "TIE_MARGIN",
+    "first_lowest",
     "split_poles",
     "reflect_unstable",
     "partial_fraction_basis",
@@ -70,14 +72,15 @@ def partial_fraction_basis(s: np.ndarray, poles: np.ndarray) -> np.ndarray:
     ``(x1, x2)`` are the residue ``x1 + j x2`` of ``p``.
     """
     s = np.asarray(s)[:, None]
-    cols = []
-    for p in poles:
-        if p.imag == 0:
-            cols.append(1.0 / (s - p.real))
-        else:
-            a, b = 1.0 / (s - p), 1.0 / (s - np.conj(p))
-            cols += [a + b, 1j * (a - b)]
-    return np.hstack(cols) if cols else np.zeros((s.shape[0], 0), dtype=complex)
+    poles = np.asarray(poles, dtype=complex)
+    cplx = poles.imag != 0
+    first = np.cumsum(np.where(cplx, 2, 1)) - np.where(cplx, 2, 1)  # each pole's first column
+    out = np.empty((s.shape[0], int(np.sum(np.where(cplx, 2, 1)))), dtype=complex)
+    out[:, first[~cplx]] = 1.0 / (s - poles[~cplx].real)
+    a, b = 1.0 / (s - poles[cplx]), 1.0 / (s - np.conj(poles[cplx]))
+    out[:, first[cplx]] = a + b
+    out[:, first[cplx] + 1] = 1j * (a - b)
+    return out
 
 
 def _atoms(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -266,6 +269,26 @@ def weighted_cost(s: np.ndarray, g: np.ndarray, rw: np.ndarray, poles: np.ndarra
     return float(np.sum(np.abs(rw * (g - model)) ** 2))
 
 
+#: relative cost difference below which two candidate fits count as tied and the first one (in a
+#: fixed order of candidates, iterates or routes) is kept: converged fits move by 1e-10 - 1e-8
+#: under round-off (another BLAS kernel, a 1e-12 change of the data), so a choice between them by
+#: a bare ``<`` followed the round-off wherever two were nearly equal
+TIE_MARGIN = 1e-6
+
+
+def first_lowest(costs, margin: float = TIE_MARGIN) -> int:
+    """Index of the first of ``costs`` within ``margin`` (relative) of the lowest one.
+
+    ``costs`` holds floats or ``(flag, cost)`` pairs; a pair with a smaller flag wins outright
+    (``False`` before ``True``), the margin applies among those with the smallest flag.
+    """
+    keys = [c if isinstance(c, tuple) else (0, c) for c in costs]
+    flag = min(k[0] for k in keys)
+    values = np.array([k[1] if k[0] == flag else np.inf for k in keys], dtype=float)
+    best = float(np.min(values))
+    return int(np.flatnonzero(values <= best + margin * abs(best))[0])
+
+
 class BestPoles:
     """Keeps the pole set of lowest weighted cost seen by an iteration and says when to stop.
 
@@ -288,6 +311,6 @@ class BestPoles:
             self.stale = 0
         else:
             self.stale += 1
-        if cost < self.best_cost:
+        if cost < self.best_cost * (1 - TIE_MARGIN) or self.best is None:  # a near tie keeps the earlier
             self.best_cost, self.best = cost, poles
         return self.stale >= self.patience

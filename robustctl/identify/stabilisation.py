@@ -25,7 +25,7 @@ import numpy as np
 from ..budget import Deadline
 from ..lti import pole_frequency_damping
 from ..table import Table
-from .poles import coefficients_to_residues, evaluate, partial_fraction_basis, reflect_unstable
+from .poles import basis_gram, coefficients_to_residues, evaluate, partial_fraction_basis, reflect_unstable
 from .selection import ZETA_FILLER, pole_contributions
 from .vector_fitting import initial_poles, vf_poles
 
@@ -144,14 +144,16 @@ class StabilisationDiagram:
 
 def residues_normal(s: np.ndarray, g: np.ndarray, rw: np.ndarray, poles: np.ndarray):
     """Per-channel residues and feedthrough for fixed poles from the normal equations of all
-    channels at once (one matrix product for every channel's Gram matrix, as the fast VF of
+    channels at once (every channel's Gram matrix from first moments of the partial fractions,
+    :func:`.poles.basis_gram`, O(K n) per channel and no (K, n^2) product; the fast VF of
     Deschrijver et al. 2008); ``g``, ``rw`` of shape (K, n_ch). Returns residues (n_p, n_ch)
     and d (n_ch,)."""
     basis = np.hstack([partial_fraction_basis(s, poles), np.ones((s.size, 1))])
-    k, m = basis.shape
     w2 = rw**2
-    z = (np.conj(basis)[:, :, None] * basis[:, None, :]).reshape(k, m * m)
-    gram = (z.real.T @ w2).T.reshape(-1, m, m)  # Re(B^H diag(w2_c) B) per channel
+    if np.all(poles.real < 0) and np.all(s.real == 0):
+        gram = basis_gram(s, poles, w2)  # Re(B^H diag(w2_c) B) per channel
+    else:  # the moments need stable poles on the imaginary axis: the direct product per channel
+        gram = np.einsum("kc,kiw->cwi", w2, (np.conj(basis)[:, :, None] * basis[:, None, :])).real
     rhs = (np.conj(basis).T @ (w2 * g)).real.T  # Re(B^H diag(w2_c) g_c), (n_ch, m)
     scale = 1.0 / np.sqrt(np.maximum(np.einsum("cii->ci", gram), 1e-300))
     gs = gram * scale[:, :, None] * scale[:, None, :]

@@ -17,7 +17,15 @@ from __future__ import annotations
 import numpy as np
 
 from ..budget import Deadline
-from .poles import BestPoles, basis_gram, partial_fraction_basis, pole_change, reflect_unstable, split_poles
+from .poles import (
+    BestPoles,
+    basis_gram,
+    first_lowest,
+    partial_fraction_basis,
+    pole_change,
+    reflect_unstable,
+    split_poles,
+)
 
 __all__ = ["initial_poles", "data_poles", "vf_poles"]
 
@@ -255,7 +263,7 @@ def vf_poles(
     if deadline is None or not deadline.expired():
         lin = initial_poles(order, float(w.min()), float(w.max()), "lin")
         runs.append(_relocate(s, g, rw, lin, max_iter, tol, stable, deadline))
-    return min(runs, key=lambda run: run[3])[:3]
+    return runs[first_lowest([run[3] for run in runs])][:3]
 
 
 def _relocate(

@@ -395,10 +395,16 @@ def bin_correlation(window: Any, nperseg: int, max_lag: int = 4) -> np.ndarray:
 
 # ---------------------------------------------------------------------------- expected H1
 def _modal(sys: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """Poles, residues (n, n_out, n_in) and D of a state space, or None when defective."""
+    """Poles, residues (n, n_out, n_in) and D of a state space, or None when defective.
+
+    A second-order modal form (:func:`_second_order_modal`, what ``modal_dynamics`` builds) is
+    decomposed mode by mode in closed form; any other by ``eig`` with a conditioning check."""
     A, B, C, D = (np.asarray(m, dtype=float) for m in (sys.A, sys.B, sys.C, sys.D))
     if A.size == 0:
         return np.zeros(0, complex), np.zeros((0,) + D.shape, complex), D
+    fast = _second_order_modal(A, B, C)
+    if fast is not None:
+        return fast[0], fast[1], D
     lam, V = np.linalg.eig(A)
     if np.linalg.cond(V) > 1e10:
         return None
@@ -406,6 +412,45 @@ def _modal(sys: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     CV = C @ V
     res = np.einsum("ok,ki->koi", CV, W)
     return lam, res, D
+
+
+#: Smallest relative separation ``|lambda_+ - lambda_-| / |lambda|`` of a mode's two poles for the
+#: closed-form decomposition (a nearly critically damped or rigid mode goes to ``eig``).
+_DISTINCT_POLES = 1e-6
+
+
+def _second_order_modal(A: np.ndarray, B: np.ndarray, C: np.ndarray):
+    """Poles and residues of ``A = [[0, I], [-diag(w^2), -diag(c)]]`` (modal coordinates ``q`` and
+    their rates), or None for any other ``A``.
+
+    Mode ``k`` is ``(C_q[:, k] + C_v[:, k] s) B_v[k] / (s^2 + c_k s + w_k^2)``: poles
+    ``lambda = (-c +- sqrt(c^2 - 4 w^2)) / 2`` and residue ``(C_q + C_v lambda) B_v / (lambda - lambda')``
+    at each (the partial fractions of a second-order system), so the decomposition costs
+    ``O(n)`` instead of a dense eigenproblem and its condition number."""
+    n2 = A.shape[0]
+    if n2 % 2 or n2 < 2 or not np.all(B[: n2 // 2] == 0):
+        return None
+    n = n2 // 2
+    k_diag, c_diag = np.diag(A[n:, :n]).copy(), np.diag(A[n:, n:]).copy()
+    structured = (
+        not np.any(A[:n, :n]) and np.array_equal(A[:n, n:], np.eye(n))
+        and np.array_equal(A[n:, :n], np.diag(k_diag)) and np.array_equal(A[n:, n:], np.diag(c_diag))
+    )
+    if not structured:
+        return None
+    w2, c = -k_diag, -c_diag
+    root = np.sqrt((c * c - 4.0 * w2).astype(complex))
+    lam_p, lam_m = (-c + root) / 2.0, (-c - root) / 2.0
+    scale = np.maximum(np.abs(lam_p), np.abs(lam_m))
+    if np.any(np.abs(lam_p - lam_m) <= _DISTINCT_POLES * np.maximum(scale, 1e-300)):
+        return None
+    cq, cv, bv = C[:, :n], C[:, n:], B[n:]
+    poles = np.concatenate([lam_p, lam_m])
+    res = np.concatenate([
+        np.einsum("ok,ki->koi", cq + cv * lam_p[None], bv.astype(complex)) / (lam_p - lam_m)[:, None, None],
+        np.einsum("ok,ki->koi", cq + cv * lam_m[None], bv.astype(complex)) / (lam_m - lam_p)[:, None, None],
+    ])
+    return poles, res
 
 
 def _zoh_impulse_modal(poles, residues, d, fs: float, n: int) -> np.ndarray:
@@ -558,6 +603,31 @@ def _lagged_spectrum(two_sided: np.ndarray, f_hz: np.ndarray, settings: Estimato
 
 #: Oversampling of the Nyquist interval for the smooth part of the measured-input view.
 _GRID_FACTOR = 4
+#: Rows of the fine grid computed at a time (the temporaries of a chunk stay in cache).
+_GRID_CHUNK = 1024
+#: Poles at least this many times the Nyquist frequency (in modulus) above it enter the
+#: measured-input view through their power series (:func:`_far_pole_series`) ...
+_FAR_POLE = 4.0
+#: ... summed to this order: each pole's truncation error is at most
+#: ``|r / p| (1 / _FAR_POLE)^(order + 1) / (1 - 1 / _FAR_POLE)``, 2e-13 of its static response.
+_FAR_ORDER = 21
+
+
+def _far_pole_series(omega: np.ndarray, poles: np.ndarray, flat: np.ndarray, omega_max: float) -> np.ndarray:
+    """``sum_p r_p / (j omega - p)`` for poles far beyond ``|omega| <= omega_max`` (rad/s), by the
+    geometric series ``-sum_k (j omega)^k sum_p r_p / p^(k+1)``: the residues are summed once per
+    power, so the cost is ``_FAR_ORDER`` columns instead of one per pole. Terms are scaled by
+    ``omega_max^k`` (``|j omega / omega_max| <= 1``); shape ``(omega.size, flat.shape[1])``."""
+    inv = 1.0 / poles
+    coef = np.empty((_FAR_ORDER + 1, flat.shape[1]), complex)
+    term = inv.copy()  # omega_max^k / p^(k+1)
+    for k in range(_FAR_ORDER + 1):
+        coef[k] = term @ flat
+        term = term * (omega_max * inv)
+    x = 1j * np.asarray(omega, dtype=float) / omega_max
+    powers = np.cumprod(np.concatenate([np.ones((x.size, 1), complex),
+                                        np.broadcast_to(x[:, None], (x.size, _FAR_ORDER))], axis=1), axis=1)
+    return -(powers @ coef)
 
 
 @limit_blas
@@ -577,10 +647,11 @@ def expected_h1_measured(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np
     transform of the smooth alias sum ``sum_{q != 0} r / (j (theta + 2 pi q) fs - p) =
     r [cot((theta - beta) / 2) / (2 j fs) - 1 / (j theta fs - p)]``, ``beta = -j p / fs``, taken
     by an FFT over ``8 N`` points; a pole above the Nyquist frequency is transformed by the FFT
-    directly. The alias sum is Poisson's summation of the sampled impulse response
-    (Oppenheim & Schafer, *Discrete-Time Signal Processing*, 3rd ed., sec. 4.2); the lag window
-    is that of the module notes (the expectation of the windowed cross-spectrum of a white
-    input).
+    directly (one beyond :data:`_FAR_POLE` times it through the power series of
+    :func:`_far_pole_series`: all such poles at the cost of a few). The alias sum is Poisson's
+    summation of the sampled impulse response (Oppenheim & Schafer, *Discrete-Time Signal
+    Processing*, 3rd ed., sec. 4.2); the lag window is that of the module notes (the expectation
+    of the windowed cross-spectrum of a white input).
 
     Returns
     -------
@@ -604,19 +675,26 @@ def expected_h1_measured(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np
     else:
         poles, res, _ = modal
         below = np.abs(poles.imag) < np.pi * fs
+        far = ~below & (np.abs(poles) >= _FAR_POLE * np.pi * fs)
+        near = ~below & ~far
         flat = res.reshape(len(poles), -1)
         grid = np.zeros((theta.size, flat.shape[1]), complex)
+        if np.any(far):
+            grid += _far_pole_series(theta * fs, poles[far], flat[far], np.pi * fs)
+        pb = poles[below]
+        eb = np.exp(pb / fs)
         with np.errstate(divide="ignore", invalid="ignore"):
-            if np.any(~below):
-                grid += (1.0 / (1j * theta[:, None] * fs - poles[None, ~below])) @ flat[~below]
-            if np.any(below):
-                pb = poles[below]
-                # cot((theta - beta) / 2) = j (1 + e) / (1 - e), e = e^{-j theta} e^{j beta} (= e^{p / fs}):
-                # (|e| <= 1 for a stable pole)
-                e = np.exp(-1j * theta)[:, None] * np.exp(pb / fs)[None, :]
-                cot = 1j * (1.0 + e) / (1.0 - e)
-                alias = cot / (2j * fs) - 1.0 / (1j * theta[:, None] * fs - pb[None, :])
-                grid -= alias @ flat[below]
+            for lo in range(0, theta.size, _GRID_CHUNK):  # chunks of rows: temporaries stay small
+                th = theta[lo:lo + _GRID_CHUNK, None]
+                if np.any(near):
+                    grid[lo:lo + _GRID_CHUNK] += (1.0 / (1j * th * fs - poles[None, near])) @ flat[near]
+                if pb.size:
+                    # cot((theta - beta) / 2) = j (1 + e) / (1 - e), e = e^{-j theta} e^{j beta}
+                    # (= e^{p / fs}; |e| <= 1 for a stable pole)
+                    e = np.exp(-1j * th) * eb[None, :]
+                    cot = 1j * (1.0 + e) / (1.0 - e)
+                    alias = cot / (2j * fs) - 1.0 / (1j * th * fs - pb[None, :])
+                    grid[lo:lo + _GRID_CHUNK] -= alias @ flat[below]
         # (big/2 + 1, n_out * n_in)
         grid[-1] = grid[-1].real  # theta = pi: the mean of the two sides of the jump
         c = np.fft.irfft(grid, big, axis=0).reshape((big,) + D.shape)

@@ -52,9 +52,10 @@ from .estimator import (
     effective_averages,
     estimator_settings,
     estimator_view,
+    impact_settings,
     welch_window,
 )
-from .impact_view import on_record_bins, truncation_settings
+from .impact_view import exp_window_correlation, on_record_bins, truncation_settings
 
 __all__ = [
     "coherence_weight_bias",
@@ -259,25 +260,40 @@ def checked_averages(data: FrequencyData) -> np.ndarray | None:
     return np.asarray(out)
 
 
-def _dof_factor(meta: dict) -> float:
+def _correlation(data: Any) -> np.ndarray | None:
+    """``r_m``, the H1 error correlation at bins ``m`` apart (module notes), or None when the
+    bins are independent or the estimate's window is not known: a Welch window's
+    (:func:`robustctl.measure.estimator.bin_correlation`) or an impact test's exponential
+    window (:func:`robustctl.measure.impact_view.exp_window_correlation`)."""
+    st = estimator_settings(_settings_meta(data))
+    if st is not None:
+        return bin_correlation(st.window, st.nperseg)
+    e = getattr(data, "experiment", None)
+    if e is None or e.excitation != "impact":
+        return None
+    st, _ = impact_settings(e, data.meta, data.f_hz)
+    if st is None or st.exp_tau_s is None:
+        return None
+    if st.record is not None:
+        fs, n = st.record.fs_hz, st.record.record_s * st.record.fs_hz
+    elif e.fs_hz is not None and data.n_freq > 1:
+        fs, n = e.fs_hz, e.fs_hz / float(np.min(np.diff(data.f_hz)))
+    else:
+        return None
+    return exp_window_correlation(st.exp_tau_s, int(round(n)), fs)
+
+
+def _dof_factor(r: np.ndarray | None) -> float:
     """``1 + 2 sum_m r_m^2``: the Satterthwaite factor of output noise alone (module notes)."""
-    st = estimator_settings(meta)
-    if st is None:
-        return 1.0
-    rho = bin_correlation(st.window, st.nperseg)
-    return float(1.0 + 2.0 * np.sum(rho[1:] ** 2))
+    return 1.0 if r is None else float(1.0 + 2.0 * np.sum(r[1:] ** 2))
 
 
-def _chi2_factor(meta: dict) -> float:
+def _chi2_factor(r: np.ndarray | None) -> float:
     """``1 + 2 sum_m r_m``: the Satterthwaite factor of sums of squares over contiguous bins
     whatever the mix of output noise and leakage (module notes; ``r_m`` the H1 error correlation
     of output noise, :func:`robustctl.measure.estimator.bin_correlation`, whose square root bounds that
     of leakage errors)."""
-    st = estimator_settings(meta)
-    if st is None:
-        return 1.0
-    rho = bin_correlation(st.window, st.nperseg)
-    return float(1.0 + 2.0 * np.sum(rho[1:]))
+    return 1.0 if r is None else float(1.0 + 2.0 * np.sum(r[1:]))
 
 
 # ---------------------------------------------------------------------------- noise_model
@@ -310,9 +326,8 @@ def _from_coherence(data: Any, nd: np.ndarray) -> NoiseModel:
         f"the H1 random error from coherence and {nd_txt} effective averages (Bendat & Piersol "
         "Table 9.6)"
     )
-    meta = _settings_meta(data)
-    return NoiseModel(data.f_hz, sigma, source, nd, _dof_factor(meta), "coherence", testable,
-                      _chi2_factor(meta))
+    r = _correlation(data)
+    return NoiseModel(data.f_hz, sigma, source, nd, _dof_factor(r), "coherence", testable, _chi2_factor(r))
 
 
 def _running_scale(x: np.ndarray, half: int) -> np.ndarray:
@@ -385,9 +400,9 @@ def residual_noise(data: Any, model_response: np.ndarray, what: str = "a model")
     both = np.stack([e.real, e.imag], axis=1)  # (nf, 2, n_out, n_in): pool Re and Im
     sigma = _running_scale(both, RESIDUAL_HALF_WIDTH)
     sigma = np.maximum(sigma, SIGMA_FLOOR)
-    meta = _settings_meta(data)
+    r = _correlation(data)
     return NoiseModel(data.f_hz, sigma, f"noise estimated from the residual of {what}", None,
-                      _dof_factor(meta), "residual", None, _chi2_factor(meta))
+                      _dof_factor(r), "residual", None, _chi2_factor(r))
 
 
 def noise_model(data: Any, *, measurement_model: Any = None, n_averages: Any = None) -> NoiseModel | None:

@@ -264,6 +264,14 @@ class UncertainModel:
             d = np.linalg.lstsq(self.axes.T, dth, rcond=None)[0]
         return np.clip(d, -1.0, 1.0) if clip else d
 
+    def __repr__(self) -> str:
+        kind = "exact" if self.exact else f"first order ({self.form}), error {100 * self.max_error:.3g} %"
+        blocks = ", ".join(f"{n} x{r}" for n, r in zip(self.names, self.multiplicity))
+        rem = "" if self.remainder is None else f", {self.remainder.kind} remainder"
+        nom = self.nominal
+        return (f"UncertainModel({nom.noutputs}x{nom.ninputs}, {nom.nstates} states; "
+                f"real blocks [{blocks}] over {list(self.parameters)}; {kind}{rem})")
+
     def summary(self) -> str:
         kind = "exact (affine in the parameters)" if self.exact else f"first-order ({self.form})"
         text = (f"UncertainModel: {len(self.names)} real blocks {list(self.multiplicity)} over "

@@ -2,22 +2,34 @@
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from concurrent.futures import Executor
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from ...budget import Deadline
-from ...checks import UNSET, finite_number, integer, renamed_keyword
+from ...checks import UNSET, finite_number, flag, integer, renamed_keyword
 from ...errors import FitError, ModelError
 from ...executors import check_executor, parallel_map_shared, resolve_workers
 from ...frd import FrequencyData
 from ...measure.estimator import estimator_settings
 from ...threads import limit_blas
 from ..residual import check_data, check_determined, physical_model
-from .results import ALPHA, DECOUPLED_DB, MIN_GAIN, MODEL_ERROR_DISPERSION, Diagnosis
+from .answer import (
+    ANSWER_SHARE,
+    CHAIN_TRY_GAIN,
+    MAX_CHAIN,
+    ChainStep,
+    beyond_noise,
+    completeness,
+    model_error_share,
+)
+from .localize import misfit_bands
+from .results import ALPHA, DECOUPLED_DB, MIN_GAIN, Diagnosis
 from .rivals import _indistinguishable
 from .screening import (
     _fit_task,
@@ -30,7 +42,7 @@ from .screening import (
     _to_fit,
     _with_models,
 )
-from .sentences import _where
+from .sentences import _where, _with_sentence
 from .significance import _channel_verdict, _null_test, _row_noise, _score, _testable_rows, effective_points
 from .workers import (
     _check_budget,
@@ -79,6 +91,7 @@ def diagnose(
     noise: Any = "auto",
     measurement_model: Any = None,
     workers: Any = "auto",
+    chain: Any = True,
 ) -> Diagnosis:
     """Rank physical effects by how much of the model-data residual each explains.
 
@@ -149,10 +162,21 @@ def diagnose(
         ``1`` or None: serial, in this process. The result equals the serial one (each candidate
         is computed alone, the model and data travel to each worker once); the model must be
         picklable (cloudpickle) for more than one worker.
+    chain : bool or int
+        Several effects at once. A significant effect that leaves the model beyond the noise
+        (verdict ``"incomplete"``, :mod:`.answer`) is applied with its fitted size, and the next
+        effect is proposed on the model updated with it (its size re-fitted with the update
+        parameters), until the misfit is within the noise, nothing more is significant, or
+        ``chain`` effects (True: :data:`~.answer.MAX_CHAIN`) are found; ``diag.chain`` lists them.
+        False: one step.
 
     Returns
     -------
     Diagnosis
+        ``verdict`` is one of ``"within the noise"``, ``"answer"`` (``best``, and ``effects`` for
+        a chain), ``"incomplete"`` (``best`` is None; ``closest`` and ``left`` say what the
+        closest candidates explain and where the rest sits), ``"unexplained"`` or
+        ``"no noise model"``.
 
     Raises
     ------
@@ -195,13 +219,98 @@ def diagnose(
     t_eval = time.perf_counter()
     j_nominal = res0.vector()
     t_eval = time.perf_counter() - t_eval
+    n_chain = _check_chain(chain)
     with _pool(workers, executor, candidates, model, t_eval) as ex:
         if candidates is None:
             candidates = _default_candidates(model, res0, deadline, ex)
-        return _diagnose(
+        first = _diagnose(
             t0, res0, ignored, upd, candidates, j_nominal, ex, n_fit, max_iter, update_iter, alpha, min_gain,
             deadline,
         )
+        steps = [first]
+        while len(steps) < n_chain and steps[-1].lead is not None and not deadline.expired():
+            used = {s.lead.name for s in steps}
+            rest = [c for c in candidates if c.name not in used]
+            if not rest:
+                break
+            nxt_model = _chain_model(steps, res0.model)
+            res_n, ign_n = _residual(nxt_model, checked, point_weights, min_channel_db, estimator)
+            upd_n = tuple(dict.fromkeys(upd + tuple(n for s in steps for n in s.lead.param_names)))
+            steps.append(_diagnose(
+                time.perf_counter(), res_n, ign_n, upd_n, rest, res_n.vector(), ex, n_fit, max_iter,
+                update_iter, alpha, min_gain, deadline,
+            ))
+            if steps[-1].verdict in ("answer", "within the noise"):
+                break
+        return _chained(steps, time.perf_counter() - t0, n_chain)
+
+
+def _check_chain(chain: Any) -> int:
+    """The most effects a diagnosis chains: ``True`` -> :data:`MAX_CHAIN`, ``False`` -> 1, or an int."""
+    if isinstance(chain, (bool, np.bool_)):
+        return MAX_CHAIN if flag(chain, "chain", FitError) else 1
+    return integer(chain, "chain (True, False or the most effects to chain)", FitError, lo=1)
+
+
+def _chain_model(steps: list[Diagnosis], model: Any) -> Any:
+    """``model`` with every step's lead effect applied, at the values of the last step's fit (the
+    update parameters and the earlier effects re-fitted with its lead): the next step's model."""
+    for s in steps:
+        model = s.lead.apply(model)
+    values = {n: v for n, v in steps[-1].best_fit_values.items() if n in model.param_names}
+    return model.with_values(**values) if values else model
+
+
+def _chained(steps: list[Diagnosis], time_s: float, n_chain: int) -> Diagnosis:
+    """The first step's diagnosis with the chain, the overall verdict and the effects.
+
+    The chain is the answer when its last model is within the noise or its effects together remove
+    :data:`ANSWER_SHARE` of the model error. Otherwise only its leading run of significant steps is
+    kept ("incomplete"); steps taken on a tentative lead (nothing significant, a candidate explaining
+    :data:`~.answer.CHAIN_TRY_GAIN` of the residual: an effect masked by another one) are dropped."""
+    first, last = steps[0], steps[-1]
+    links = [_link(s) for s in steps if s.lead is not None or s.best is not None]
+    if len(steps) == 1:
+        one = first.best is not None or first.closest is not None
+        return replace(first, chain=tuple(links[:1]) if one else (),
+                       effects=(first.best,) if first.best is not None else (), time_s=time_s,
+                       chain_limit=n_chain)
+    complete = last.verdict in ("answer", "within the noise")
+    final = last.completeness if last.verdict == "answer" else None
+    disp_end = final.dispersion if final is not None else last.dispersion
+    share = model_error_share(first.dispersion, disp_end)
+    if complete or share >= ANSWER_SHARE:
+        kept = links if last.best is not None else links[:len(steps) - 1]
+        joint = last.best_fit_values  # the earlier effects re-fitted with the last one
+        kept = [replace(link, effect=link.effect.with_values(
+            **{n: joint[n] for n in link.effect.param_names if n in joint})) for link in kept]
+        effects = tuple(link.effect for link in kept)
+        return replace(first, chain=tuple(kept), verdict="answer", effects=effects, best=effects[0],
+                       closest=None, left=(), dispersion_left=disp_end, model_error_removed=share,
+                       time_s=time_s, chain_limit=n_chain)
+    run = 0
+    while run < len(steps) and steps[run].verdict == "incomplete":
+        run += 1
+    if run == 0:
+        return replace(first, chain=(), time_s=time_s, chain_limit=n_chain, chain_exhausted=True)
+    comp = steps[run - 1].completeness
+    return replace(
+        first, chain=tuple(links[:run]), verdict="incomplete", effects=(), best=None, closest=first.closest,
+        left=comp.bands, dispersion_left=comp.dispersion,
+        model_error_removed=model_error_share(first.dispersion, comp.dispersion),
+        chain_exhausted=run < len(steps), time_s=time_s, chain_limit=n_chain,
+    )
+
+
+def _link(s: Diagnosis) -> ChainStep:
+    """One step of a chain from its diagnosis: the proposed, closest or tentative effect."""
+    r = s.best_result if s.best is not None else s.lead_result
+    comp = s.completeness if s.best is not None or s.closest is not None else None
+    return ChainStep(
+        effect=r.effect, sentence=r.sentence, gain=r.gain, p_value=r.p_value,
+        dispersion_before=s.dispersion, dispersion_after=comp.dispersion if comp is not None else math.nan,
+        update_values=dict(s.best_fit_values), tentative=s.best is None and s.closest is None,
+    )
 
 
 def _diagnose(
@@ -264,8 +373,36 @@ def _diagnose(
     fitted = _fitted_models(screens, top, fits)
     group = _indistinguishable(res0, results, fitted, j_u, stats["row_noise"], alpha)
     dispersion, p_null = _null_test(res0, j_u)
-    beyond = bool(np.isfinite(p_null) and p_null < alpha and dispersion > MODEL_ERROR_DISPERSION)
-    verdict = _channel_verdict(res0, j_u) if best is None and beyond else ""
+    beyond = beyond_noise(dispersion, p_null, alpha)
+    # 5. the answer, or the closest and where the rest sits
+    closest, comp, best_fit_values, left, lead = None, None, dict(x_u), (), None
+    if best is not None:
+        fit = fitted[best.name]
+        best_fit_values = {n: v for n, v in fit["model"].values.items() if n in upd}
+        lead = best
+        if res0.noise is not None:
+            comp = completeness(res0, fit["vector"], dispersion, alpha, fit["model"])
+            if not comp.complete:
+                closest, best, left = best, None, comp.bands
+                results = [_with_sentence(replace(r, incomplete=True)) if r.effect is closest else r
+                           for r in results]
+    if res0.noise is None:
+        word = "no noise model"
+    elif best is not None:
+        word = "answer"
+    elif closest is not None:
+        word = "incomplete"
+    else:
+        word = "unexplained" if beyond else "within the noise"
+    verdict = _channel_verdict(res0, j_u) if best is None and closest is None and beyond else ""
+    if word == "unexplained":
+        left = misfit_bands(res0, j_u, model_u)
+        top = next((r for r in results if r.fitted and not r.at_bound and r.gain >= CHAIN_TRY_GAIN), None)
+        if top is not None:  # a tentative lead for a chain: an effect another one may mask
+            lead = top.effect
+            best_fit_values = {n: v for n, v in fitted[top.name]["model"].values.items() if n in upd}
+    if word not in ("incomplete", "unexplained"):
+        lead = None  # nothing to chain: answered, within the noise, or no noise model to judge by
     return Diagnosis(
         ranking=tuple(results),
         best=best,
@@ -295,6 +432,14 @@ def _diagnose(
         p_null=p_null,
         channel_verdict=verdict,
         input_held=held,
+        verdict=word,
+        closest=closest,
+        completeness=comp,
+        left=left,
+        dispersion_left=comp.dispersion if comp is not None else dispersion,
+        model_error_removed=comp.share if comp is not None else 0.0,
+        best_fit_values=best_fit_values,
+        lead=lead,
     )
 
 

@@ -87,6 +87,9 @@ class CandidateResult:
     at_bound : bool
         The fit ended at a bound of the effect's parameter (far from neutral): the model form is
         likely wrong, and the candidate is never proposed.
+    incomplete : bool
+        Significant, but the model with it is still beyond the noise and it removes less than
+        :data:`~.answer.ANSWER_SHARE` of the model error: the closest candidate, not the answer.
     z_vs_best, p_vs_best : float
         Vuong's (1989) statistic of the best candidate against this one and its one-sided
         p-value ("the best explains the data no better"), the variance of the pointwise
@@ -115,6 +118,7 @@ class CandidateResult:
     at_bound: bool = False
     z_vs_best: float = math.nan
     p_vs_best: float = math.nan
+    incomplete: bool = False
 
     @property
     def name(self) -> str:
@@ -204,6 +208,40 @@ class Diagnosis:
     input_held : bool
         Whether the data say their input was a held (DAC) command: only then is a half-sample
         delay named the zero-order hold.
+    verdict : str
+        ``"within the noise"`` (nothing is missing), ``"answer"`` (``best``, or the chain's
+        ``effects``, bring the model within the noise or remove nearly all of the model error),
+        ``"incomplete"`` (significant effects leave the misfit beyond the noise: ``best`` is None,
+        ``closest`` is the closest candidate), ``"unexplained"`` (beyond the noise, nothing
+        significant) or ``"no noise model"`` (:data:`~.answer.VERDICTS`).
+    closest : Effect or None
+        When the verdict is ``"incomplete"``: the significant effect (fitted) that explains most,
+        but not all, of the misfit.
+    completeness : Completeness or None
+        The completeness test of the proposed or closest effect (:func:`~.answer.completeness`).
+    left : tuple of MisfitBand
+        Where the misfit left sits (bands, the modes of the model there and the locations they
+        move) when the verdict is ``"incomplete"`` or ``"unexplained"``.
+    dispersion_left : float
+        The misfit left over the noise (1 within the noise) with the proposed or closest effects.
+    model_error_removed : float
+        Share of the model-error part of the parameters-only fit's misfit they remove (0..1).
+    best_fit_values : dict
+        The update parameters' values fitted with the proposed (or closest) effect.
+    chain : tuple of ChainStep
+        The effects proposed one after another, each on the model updated with those before
+        (``diagnose(..., chain=True)``); one step without a chain.
+    effects : tuple of Effect
+        The answer's effects in chain order (empty unless the verdict is ``"answer"``):
+        ``diag.with_effects(model)`` applies them.
+    chain_exhausted : bool
+        An incomplete chain ended because nothing more was significant on the model with its
+        effects: the missing effect is probably not among the candidates.
+    lead : Effect or None
+        The effect the next step of a chain starts from: the closest one, or, when nothing is
+        significant, a candidate explaining :data:`~.answer.CHAIN_TRY_GAIN` of the residual.
+    chain_limit : int
+        The most effects the call chained (1: ``chain=False``).
     """
 
     ranking: tuple[CandidateResult, ...]
@@ -234,6 +272,53 @@ class Diagnosis:
     p_null: float = math.nan
     channel_verdict: str = ""
     input_held: bool = False
+    verdict: str = ""
+    closest: Any = None
+    completeness: Any = None
+    left: tuple = ()
+    dispersion_left: float = math.nan
+    model_error_removed: float = 0.0
+    best_fit_values: dict = field(default_factory=dict)
+    chain: tuple = ()
+    effects: tuple = ()
+    chain_exhausted: bool = False
+    lead: Any = None
+    chain_limit: int = 1
+
+    @property
+    def lead_result(self) -> CandidateResult | None:
+        """The CandidateResult of :attr:`lead` (or None)."""
+        if self.lead is None:
+            return None
+        return next((r for r in self.ranking if r.effect is self.lead), None)
+
+    @property
+    def closest_result(self) -> CandidateResult | None:
+        """The CandidateResult of :attr:`closest` (or None)."""
+        if self.closest is None:
+            return None
+        return next((r for r in self.ranking if r.effect is self.closest), None)
+
+    def with_effects(self, model: Any) -> Any:
+        """``model`` with the answer's effects (the chain's, in order) at their fitted sizes.
+
+        Raises
+        ------
+        ModelError
+            When the verdict is not ``"answer"``: an incomplete explanation is not applied silently
+            (apply ``closest`` by hand with ``model.with_effect(diag.closest)`` to try it).
+        """
+        from ...errors import ModelError
+
+        effects = self.effects or ((self.best,) if self.best is not None else ())
+        if not effects:
+            raise ModelError(
+                f"the diagnosis's verdict is {self.verdict!r}: no effect is the answer to apply; "
+                "model.with_effect(diag.closest) applies the closest one to try it."
+            )
+        for e in effects:
+            model = model.with_effect(e)
+        return model
 
     @property
     def weights(self) -> np.ndarray:
@@ -314,11 +399,20 @@ class Diagnosis:
                 "it leaves where that exceeds the noise."
             )
         best = self.best_result
-        if best is not None:
+        if self.verdict == "answer" and len(self.effects) > 1:
+            lines.append(f"Proposed: {len(self.effects)} effects at once, each found on the model updated "
+                         "with those before it:")
+            lines.extend("  " + step.describe(k) for k, step in enumerate(self.chain, start=1))
+            lines.append(self._left_sentence("them"))
+        elif best is not None:
             lines.append("Proposed: " + best.sentence)
+            if self.completeness is not None:
+                lines.append(self._left_sentence("it"))
             others = [r for r in self.ranking if r.fitted and r is not best][:2]
             for r in others:
                 lines.append("Next: " + r.sentence)
+        elif self.verdict == "incomplete":
+            lines.extend(self._incomplete_lines())
         else:
             test = (
                 f"Holm-adjusted tests at {self.family_alpha:.2g} family-wise"
@@ -334,6 +428,15 @@ class Diagnosis:
             lines.append("The unexplained residual sits in " + self.unexplained + ".")
             if self.channel_verdict:
                 lines.append(self.channel_verdict)
+            elif self.left:
+                lines.append("It is not one channel's (a cable or a calibration would be there at every "
+                             "frequency): it sits at " + "; ".join(b.describe() for b in self.left) + ".")
+            if self.lead is not None and self.chain_limit <= 1:
+                lines.append("Two effects may act at once, one masking the other: diagnose(..., chain=True) "
+                             "tries the closest one and proposes the next on the model with it.")
+            elif self.chain_exhausted and self.lead is not None:
+                lines.append("Chaining the closest candidates did not bring the model within the noise: the "
+                             "missing effect is probably not among the candidates.")
         if self.indistinguishable is not None:
             lines.append(self.indistinguishable.sentence())
         if self.ignored_channels:
@@ -345,6 +448,62 @@ class Diagnosis:
                 "the same min_channel_db to rc.update for the same cost."
             )
         return "\n".join(lines)
+
+    def chain_table(self) -> Table:
+        """The chain of effects, one row per step: the effect and its size, the share of what the
+        model before it leaves that it explains, its p-value and the misfit over the noise before
+        and after it, and the verdict of the whole diagnosis in the title."""
+        rows = [
+            (k, step.name, step.effect.describe_value(), 100 * step.gain,
+             format_p(step.p_value) if np.isfinite(step.p_value) else None,
+             step.dispersion_before, step.dispersion_after)
+            for k, step in enumerate(self.chain, start=1)
+        ]
+        return Table(
+            ("step", "effect", "size", "explains (%)", "p-value", "misfit before (x noise)",
+             "misfit after (x noise)"),
+            rows, title=f"Verdict: {self.verdict or 'none'}", digits=3,
+        )
+
+    def _left_sentence(self, pronoun: str) -> str:
+        if not np.isfinite(self.dispersion_left):
+            return ""
+        if self.dispersion_left <= MODEL_ERROR_DISPERSION:
+            return (f"With {pronoun} the model is within the noise "
+                    f"({self.dispersion_left:.3g} x its variance).")
+        return (f"With {pronoun} the model leaves {self.dispersion_left:.3g} x the noise variance, "
+                f"{100 * self.model_error_removed:.0f}% of the model error removed.")
+
+    def _incomplete_lines(self) -> list[str]:
+        from .answer import ANSWER_SHARE
+
+        r = self.closest_result
+        lines = []
+        if len(self.chain) > 1:
+            lines.append(f"Closest, incomplete: a chain of {len(self.chain)} significant effects, each on "
+                         "the model updated with those before it:")
+            lines.extend("  " + step.describe(k) for k, step in enumerate(self.chain, start=1))
+            pronoun = "them"
+        else:
+            lines.append("Closest, incomplete: " + (r.sentence if r is not None else self.closest.name))
+            pronoun = "it"
+        lines.append(
+            f"With {pronoun} the model still leaves {self.dispersion_left:.3g} x the noise variance "
+            f"({100 * self.model_error_removed:.0f}% of the model error removed; the answer must reach the "
+            f"noise or remove {100 * ANSWER_SHARE:.0f}%), so it is not proposed as the answer."
+        )
+        if self.left:
+            lines.append("The rest sits at " + "; ".join(b.describe() for b in self.left) + ".")
+        if self.chain_exhausted:
+            lines.append(
+                "No further candidate is significant on the model with " + pronoun + ": the missing effect "
+                f"is probably not among the {len(self.ranking)} candidates (look at the structure named "
+                "above: a joint, an attached mass or resonator, a boundary)."
+            )
+        elif self.chain_limit <= 1:
+            lines.append("Another effect may act with it: diagnose(..., chain=True) proposes the next one on "
+                         "the model with it.")
+        return lines
 
     def __str__(self) -> str:
         return self.summary() + "\n\n" + str(self.table())

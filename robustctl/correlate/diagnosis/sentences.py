@@ -91,6 +91,9 @@ def _sentence(r: CandidateResult) -> str:
             )
         elif not np.isfinite(r.p_value):
             verdict = NO_NOISE_SENTENCE
+        elif r.significant and r.incomplete:
+            verdict = (f"significant ({format_p(r.p_value)} < {r.level:.2g}{against}) but incomplete: the "
+                       "model with it is still beyond the noise")
         elif r.significant:
             verdict = f"significant ({format_p(r.p_value)} < {r.level:.2g}{against})"
         elif r.p_value < r.level:

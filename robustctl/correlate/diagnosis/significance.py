@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from ..residual import Residual
+from .localize import channel_pattern
 from .results import CandidateResult
 from .sentences import _hold_note, _where, _with_sentence
 
@@ -245,28 +246,38 @@ CHANNEL_SHARE = 0.5
 
 
 def _channel_verdict(res: Residual, j_u: np.ndarray) -> str:
-    """Name the output row (or input column) that holds most of an unexplained misfit."""
-    e = res.unstack(j_u)
-    per = np.abs(e) ** 2
-    if res.noise is not None:  # the excess over the noise expectation
-        per = np.maximum(per - 2 * res.point_weights * res.noise.sigma**2, 0.0)
-    rows, cols = per.sum(axis=(0, 2)), per.sum(axis=(0, 1))
-    total = float(per.sum())
-    if total <= 0:
-        return ""
+    """Name the output row (or input column) that holds an unexplained misfit, when its pattern is
+    a channel's: that row or column holds most of it at every frequency (:func:`channel_pattern`);
+    a structural fault, at its modes in every channel that sees them, is named by its bands and
+    modes instead (:func:`robustctl.correlate.diagnosis.localize.misfit_bands`). Without a noise
+    model the row or column holding most of the squared misfit is named."""
     d = res.data
-    for share, n, names, what, check in (
-        (rows, d.n_out, d.outputs, "output {}'s row", "its calibration"),
-        (cols, d.n_in, d.inputs, "input {}'s column", "the force measurement's calibration"),
-    ):
-        if n > 1 and share.max() / total > CHANNEL_SHARE and share.max() / total > 1.5 / n:
-            k = int(np.argmax(share))
-            return (
-                f"The misfit sits in {what.format(names[k])} ({100 * share[k] / total:.0f}% of it); no "
-                "candidate explains it: check its cable, sign and location (node and direction), and "
-                f"{check}."
-            )
-    return ""
+    if res.noise is not None:
+        pattern = channel_pattern(res, j_u, CHANNEL_SHARE)
+        if pattern is None:
+            return ""
+        side, k, share = pattern
+    else:
+        per = np.abs(res.unstack(j_u)) ** 2
+        total = float(per.sum())
+        if total <= 0:
+            return ""
+        side, k, share = "", 0, 0.0
+        for name, axis, n in (("output", (0, 2), d.n_out), ("input", (0, 1), d.n_in)):
+            part = per.sum(axis=axis) / total
+            if n > 1 and part.max() > CHANNEL_SHARE and part.max() > 1.5 / n:
+                side, k, share = name, int(np.argmax(part)), float(part.max())
+                break
+        if not side:
+            return ""
+    what, check = (
+        (f"output {d.outputs[k]}'s row", "its calibration") if side == "output"
+        else (f"input {d.inputs[k]}'s column", "the force measurement's calibration")
+    )
+    return (
+        f"The misfit sits in {what} ({100 * share:.0f}% of it, at every frequency); no candidate explains "
+        f"it: check its cable, sign and location (node and direction), and {check}."
+    )
 
 
 def _score(

@@ -45,7 +45,6 @@ An iteration whose mu rises above the best before it says so (``DKIteration.note
 
 from __future__ import annotations
 
-import contextvars
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -63,6 +62,7 @@ from ...interconnect import PartitionedPlant
 from ...lti import freqresp_array, is_stable
 from ...plots import new_figure
 from ...table import Table
+from ...threads import limit_blas
 from ..hinf.synthesis import hinfsyn
 from ..mu.bounds import mu
 from ..partitioned import as_partitioned
@@ -103,8 +103,6 @@ ORDER_NEIGHBOURS = True
 ORDER_NEIGHBOURS_RUNS = 8
 #: A fixed-order run replaces the automatic one only when its peak of mu is this fraction lower.
 ORDER_NEIGHBOURS_GAIN = 5e-3
-#: Set while :func:`_autoscaled_dksyn` runs its starts (the neighbour orders are its to try).
-_IN_AUTOSCALED_START: contextvars.ContextVar[bool] = contextvars.ContextVar("dksyn_in_start", default=False)
 #: The fall of the peak of mu in the last iteration above which such a run counts as creeping
 #: (at 1 % per iteration more iterations could still matter; the distillation column capped at
 #: six iterations falls 0.3 % in its last, mkhic 1.8 %, mkhicn 3 %).
@@ -391,6 +389,7 @@ def check_dk_options(options: Any, where: str) -> None:
         _orders(options["order_d"], 1 if np.ndim(options["order_d"]) == 0 else len(options["order_d"]))
 
 
+@limit_blas
 def dksyn(
     gp: Any,
     max_iter: int = 10,
@@ -515,8 +514,6 @@ def dksyn(
     >>> dk = rc.dksyn((P, 2, 2, [[1, 1], [1, 1], [2, 2]]))   # doctest: +SKIP
     >>> dk.mu_peak, dk.table()                                # doctest: +SKIP
     """
-    from tqdm import tqdm
-
     grid = _check_args(max_iter, time_budget_s, f_hz)
     hinf_options = _check_options(progress, rtol, patience, hinf_options, callback)
     if gamma is not None:
@@ -527,27 +524,76 @@ def dksyn(
     if not isinstance(real, str) or real not in ("mixed", "complex"):
         raise SynthesisError(f"real must be 'mixed' (D-G-K with G-scales on the real blocks) or 'complex' "
                              f"(real blocks treated as complex); got {real!r}.")
-    mixed = real == "mixed" and plant.blocks.has_real
-    blocks = plant.blocks if mixed else _complexified(plant.blocks)
-    _orders(order_d, len(blocks) - 1)  # refuse a bad order_d now, not at the first D step
+    _orders(order_d, len(plant.blocks) - 1)  # refuse a bad order_d now, not at the first D step
+    own_clock = not isinstance(time_budget_s, Deadline)  # a caller's Deadline: the caller reports
+    run = _Settings(max_iter=max_iter, grid=grid, executor=executor, rtol=rtol, patience=patience,
+                    hinf_options=hinf_options, callback=callback, real=real, gamma=gamma, progress=progress,
+                    reduce=reduce, deadline=as_deadline(time_budget_s, SynthesisError))
     design, shrink = reduce_design_plant(plant, design_order)
-    if shrink is not None:
+    if shrink is None:
+        result = _solve(plant, order_d, autoscale, run)
+    else:
         if order_d is not None and np.ndim(order_d) == 1:  # a constant D-scale for the error block
             k = len(plant.blocks) - 1
             order_d = [*list(order_d)[:k], 0, *list(order_d)[k:]]
-        res = dksyn((design.P, plant.nmeas, plant.ncon, design.blocks), max_iter, order_d, f_hz, executor,
-                    time_budget_s, reduce, progress, rtol=rtol, patience=patience, hinf_options=hinf_options,
-                    callback=callback, real=real, autoscale=autoscale, gamma=gamma, design_order=None)
-        return on_full_plant(plant, blocks, res, shrink)
+        designed = _solve(design, order_d, autoscale, run)
+        result = on_full_plant(plant, _design_blocks(plant, real), designed, shrink)
+    if run.deadline.hit and own_clock:
+        run.deadline.warn("dksyn (D-K iteration from the autoscaled starts)" if autoscale
+                          else "dksyn (D-K iteration)")
+    return result
+
+
+# ---------------------------------------------------------------------------- strategies
+@dataclass(frozen=True)
+class _Settings:
+    """The checked options of one :func:`dksyn` call, shared by its strategies and the core."""
+
+    max_iter: int
+    grid: np.ndarray | None
+    executor: Executor | None
+    rtol: float
+    patience: int
+    hinf_options: dict
+    callback: Callable[[DKIteration], None] | None
+    real: str
+    gamma: float | None
+    progress: bool | None
+    reduce: Any
+    deadline: Deadline
+
+
+def _design_blocks(plant: GeneralizedPlant, real: str) -> BlockStructure:
+    """The blocks D-K designs for: the plant's, real ones complexified unless ``real="mixed"``."""
+    mixed = real == "mixed" and plant.blocks.has_real
+    return plant.blocks if mixed else _complexified(plant.blocks)
+
+
+def _solve(plant: GeneralizedPlant, order_d: Any, autoscale: bool, run: _Settings) -> DKResult:
+    """D-K on ``plant``: the autoscaled starts, or one run of the core from the user's scaling,
+    each followed by the neighbouring D orders when the automatic orders crept (strategies 2, 3)."""
+    blocks = _design_blocks(plant, run.real)
     if autoscale:
-        return _autoscaled_dksyn(plant, blocks, dict(
-            max_iter=max_iter, order_d=order_d, f_hz=f_hz, executor=executor, time_budget_s=time_budget_s,
-            progress=progress, rtol=rtol, patience=patience, hinf_options=hinf_options, callback=callback,
-            real=real, gamma=gamma), reduce)
+        return _autoscaled_dksyn(plant, blocks, order_d, run)
+    result = _iterate(plant, blocks, order_d, run, run.reduce)
+    if order_d is not None or not ORDER_NEIGHBOURS:
+        return result
+    return _neighbour_orders(result, blocks, lambda o: _iterate(plant, blocks, list(o), run, run.reduce),
+                             run.deadline)
+
+
+# ---------------------------------------------------------------------------- the core
+def _iterate(plant: GeneralizedPlant, blocks: BlockStructure, order_d: Any, run: _Settings,
+             reduce: Any) -> DKResult:
+    """The D-K iteration on ``plant`` as it is (module docstring): K steps and D (and G) steps
+    until the peak of mu stops falling, then the best controller reduced (``reduce``) and its mu
+    verified (:func:`verification_grid`). The one loop every strategy of :func:`dksyn` calls."""
+    from tqdm import tqdm
+
+    mixed = blocks.has_real
+    grid, max_iter, rtol, deadline = run.grid, run.max_iter, run.rtol, run.deadline
     base = default_grid(plant.P) if grid is None else grid
-    show = sys.stderr.isatty() and (progress is None or bool(progress))
-    own_clock = not isinstance(time_budget_s, Deadline)  # the autoscaled starts share theirs
-    deadline = as_deadline(time_budget_s, SynthesisError)
+    show = sys.stderr.isatty() and (run.progress is None or bool(run.progress))
     history: list[DKIteration] = []
     best: dict[str, Any] | None = None
     candidates = [_DCandidate((), ())]
@@ -557,9 +603,9 @@ def dksyn(
     try:
         for index in range(1, max_iter + 1):
             t0 = time.perf_counter()
-            opts = {"time_budget_s": deadline, "backoff": HINF_BACKOFF, **(hinf_options or {})}
+            opts = {"time_budget_s": deadline, "backoff": HINF_BACKOFF, **(run.hinf_options or {})}
             try:
-                hres, cand = _k_step_search(hinfsyn, plant, candidates, opts, index, deadline, gamma)
+                hres, cand = _k_step_search(hinfsyn, plant, candidates, opts, index, deadline, run.gamma)
             except SynthesisError as exc:
                 if best is None:
                     raise
@@ -591,30 +637,30 @@ def dksyn(
             # where 1.2 was reachable, on a 28-state plant with five scaled blocks)
             k_time = time.perf_counter() - t0
             out_of_time = deadline.expired() or deadline.remaining() < k_time
-            done = stale >= patience or index == max_iter or out_of_time
+            done = stale >= run.patience or index == max_iter or out_of_time
             bound = float("nan")
             if not done:
                 g_fits, level, md, zb = (), float("nan"), m, None
                 H_edges = _edge_response(cl)
                 if mixed:
                     g_fits, level, md, zb = _g_step(m, H, H_edges, blocks)
-                fits, orders, bound = _fit_d_scales(H, md, blocks, order_d, executor, cand.orders,
+                fits, orders, bound = _fit_d_scales(H, md, blocks, order_d, run.executor, cand.orders,
                                                     H_edges, deadline, zb)
                 candidates = [_DCandidate(tuple(fits), orders, 0.0, bound, g_fits, level)]
                 if previous is not None and fits:
                     candidates += [replace(c, g_fits=g_fits, level=level) for c in
-                                   _extrapolated(md, previous, orders, D_STEPS, executor, deadline)]
+                                   _extrapolated(md, previous, orders, D_STEPS, run.executor, deadline)]
                 previous = _log_scales(md)
             elapsed = time.perf_counter() - t0
             entry = DKIteration(**{**entry.__dict__, "time_s": elapsed, "fitted_bound": bound})
             history.append(entry)
             if best["it"].index == index:
                 best["it"] = entry
-            if callback is not None:
-                callback(entry)
+            if run.callback is not None:
+                run.callback(entry)
             bar.update(1)
             bar.set_postfix(mu=f"{entry.mu_peak:.4f}")
-            if stale >= patience:
+            if stale >= run.patience:
                 stop = f"peak mu did not fall by {rtol:g} for {stale} iteration(s)"
                 if entry.mu_peak > best["it"].mu_peak:
                     kept = best["it"]
@@ -644,23 +690,10 @@ def dksyn(
             "iterations were judged on too coarse a grid (pass a denser f_hz, or leave it to the default).",
             SynthesisWarning, stacklevel=2,
         )
-    stopped = deadline.hit  # shared with the K steps' bisections and the D fits
-    if stopped and own_clock:
-        deadline.warn("dksyn (D-K iteration)")
-    result = DKResult(K=K, mu_peak=float(m.peak), mu=m, closed_loop=cl, history=tuple(history),
-                      best_iteration=best["it"].index, stop_reason=stop, blocks=plant.blocks,
-                      d_scales=d_fits, reduction=reduction, grid_mu_peak=grid_peak,
-                      stopped_by_budget=stopped)
-    if order_d is not None or not ORDER_NEIGHBOURS or _IN_AUTOSCALED_START.get():
-        return result
-
-    def run(orders: tuple[int, ...]) -> DKResult:
-        return dksyn((plant.P, plant.nmeas, plant.ncon, plant.blocks), max_iter=max_iter,
-                     order_d=list(orders), f_hz=f_hz, executor=executor, time_budget_s=deadline,
-                     reduce=reduce, progress=progress, rtol=rtol, patience=patience,
-                     hinf_options=hinf_options, callback=callback, real=real, autoscale=False, gamma=gamma)
-
-    return _neighbour_orders(result, blocks, run, deadline)
+    return DKResult(K=K, mu_peak=float(m.peak), mu=m, closed_loop=cl, history=tuple(history),
+                    best_iteration=best["it"].index, stop_reason=stop, blocks=plant.blocks,
+                    d_scales=d_fits, reduction=reduction, grid_mu_peak=grid_peak,
+                    stopped_by_budget=deadline.hit)
 
 
 def _creeping(res: DKResult) -> bool:
@@ -736,65 +769,57 @@ def _with_reason(item: Any, result_of: Callable[[Any], DKResult], new: DKResult)
     return (new, *item[1:])
 
 
-def _autoscaled_dksyn(plant: GeneralizedPlant, blocks: BlockStructure, options: dict,
-                      reduce: Any) -> DKResult:
+def _autoscaled_dksyn(plant: GeneralizedPlant, blocks: BlockStructure, order_d: Any,
+                      run: _Settings) -> DKResult:
     """D-K on the automatically scaled plant (:func:`_autoscaled`) from :data:`AUTOSCALE_STARTS`
     (factors ``e^s`` on all block scales but the last; a further start only while the best
     verified peak of mu is not below :data:`AUTOSCALE_CERTIFIED`): the run with the lowest
     verified peak is kept (then reduced, when asked), and its controller, closed loop, mu and
-    D-scales are returned for the user's plant.
+    D-scales are returned for the user's plant. With automatic D orders, a run that crept is
+    followed by the neighbouring orders over all starts (:func:`_neighbour_orders`).
 
     D-K is a local method: on the distillation column the final mu depends on the constant
     block scale it starts from (0.97 from 0.3 times the book's, 1.00 from the book's own, 1.10
     from 1.3 times, the scale whose first K step is best), so starting from several covariant
     points makes the result both independent of the user's units and less a matter of luck.
     """
-    from dataclasses import replace as _replace
-
     import control
 
-    scaled, sc = _autoscaled(plant, options.get("hinf_options"))
-    deadline = as_deadline(options["time_budget_s"], SynthesisError)  # shared by the starts
+    _, sc = _autoscaled(plant, run.hinf_options)
+    deadline = run.deadline  # shared by the starts
 
-    def starts(order_d: Any) -> tuple[DKResult, _Scaling, Any]:
+    def starts(od: Any) -> tuple[DKResult, _Scaling, GeneralizedPlant]:
         best = None
-        token = _IN_AUTOSCALED_START.set(True)  # the neighbour orders are tried over the starts
-        try:
-            for s in AUTOSCALE_STARTS:
-                if best is not None and (deadline.expired() or best[0].mu_peak < AUTOSCALE_CERTIFIED):
-                    break
-                factor = np.exp(np.append(np.full(len(sc.d) - 1, s), 0.0))
-                sc_k = _Scaling(sc.su, sc.sy, sc.d * factor)
-                P_k = _constant_scaled(plant, sc.su, sc.sy, sc_k.d)
-                res = dksyn((P_k, plant.nmeas, plant.ncon, plant.blocks),
-                            **{**options, "order_d": order_d, "time_budget_s": deadline}, autoscale=False)
-                if best is None or res.mu_peak < best[0].mu_peak:
-                    best = (res, sc_k, P_k)
-        finally:
-            _IN_AUTOSCALED_START.reset(token)
+        for s in AUTOSCALE_STARTS:
+            if best is not None and (deadline.expired() or best[0].mu_peak < AUTOSCALE_CERTIFIED):
+                break
+            factor = np.exp(np.append(np.full(len(sc.d) - 1, s), 0.0))
+            sc_k = _Scaling(sc.su, sc.sy, sc.d * factor)
+            p_k = GeneralizedPlant(_constant_scaled(plant, sc.su, sc.sy, sc_k.d), plant.nmeas, plant.ncon,
+                                   blocks=plant.blocks)
+            res = _iterate(p_k, blocks, od, run, None)
+            if best is None or res.mu_peak < best[0].mu_peak:
+                best = (res, sc_k, p_k)
         assert best is not None
         return best
 
-    best = starts(options["order_d"])
-    if options["order_d"] is None and ORDER_NEIGHBOURS:
+    best = starts(order_d)
+    if order_d is None and ORDER_NEIGHBOURS:
         best = _neighbour_orders(best, blocks, lambda o: starts(list(o)), deadline, lambda t: t[0])
-    res, sc_k, P_k = best
+    res, sc_k, p_k = best
     K, cl, m, reduction = res.K, res.closed_loop, res.mu, None
-    if reduce is not None:
-        refine = options.get("f_hz") is None
-        base = default_grid(P_k) if refine else np.asarray(options["f_hz"], dtype=float)
-        pk = GeneralizedPlant(P_k, plant.nmeas, plant.ncon, blocks=plant.blocks)
-        K, cl, m, reduction = _reduce(pk, blocks, K, cl, m, reduce, base, refine)
+    if run.reduce is not None:
+        refine = run.grid is None
+        base = default_grid(p_k.P) if refine else run.grid
+        K, cl, m, reduction = _reduce(p_k, blocks, K, cl, m, run.reduce, base, refine)
         if reduction.accepted:
             m = _verified_mu(cl, blocks, m.f_hz)
     K = _unscaled_controller(K, sc_k)
     cl = closed_loop(plant.P, K, plant.nmeas, plant.ncon)
     d_fits = tuple(control.ss(f.A, f.B, f.C * float(di), f.D * float(di))
                    for f, di in zip(res.d_scales, sc_k.d))
-    if deadline.hit:
-        deadline.warn("dksyn (D-K iteration from the autoscaled starts)")
-    return _replace(res, K=K, closed_loop=cl, mu=_unscaled_mu(m, sc_k), mu_peak=float(m.peak),
-                    d_scales=d_fits, reduction=reduction, stopped_by_budget=deadline.hit)
+    return replace(res, K=K, closed_loop=cl, mu=_unscaled_mu(m, sc_k), mu_peak=float(m.peak),
+                   d_scales=d_fits, reduction=reduction, stopped_by_budget=deadline.hit)
 
 
 def _g_step(m: Any, H: np.ndarray, H_edges: np.ndarray,

@@ -29,6 +29,7 @@ from .blocks import Block, BlockStructure, as_block_structure
 from .cover import UncertaintyCover, cover_additive, cover_multiplicative, cover_remainder, error_envelope
 from .elements import UncertainComplex, UncertainDynamics, UncertainReal, ucomplex, ultidyn, ureal
 from .magfit import MagnitudeFit, fit_magnitude, fit_magnitude_details
+from .parametric import LFTAccuracyWarning, from_uncertain_model, physical_uncertain, uncertain_parameters
 from .system import LFTData, UncertainSystem, append, as_uncertain, hstack, vstack
 from .weights import CALTECH_MULTIPLICATIVE, caltech_additive_weight, makeweight
 
@@ -59,4 +60,8 @@ __all__ = [
     "append",
     "hstack",
     "vstack",
+    "uncertain_parameters",
+    "physical_uncertain",
+    "from_uncertain_model",
+    "LFTAccuracyWarning",
 ]

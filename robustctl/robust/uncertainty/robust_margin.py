@@ -43,6 +43,8 @@ __all__ = ["RobustStabilityMargin", "robstab", "WorstCaseResult", "wcgain", "des
 MAX_VERTICES = 256
 #: bisection steps of a crossing frequency (relative width 2^-60 of its grid interval)
 CROSSING_STEPS = 60
+#: relative distance of the substituted pole from the stability boundary that confirms the values
+VERIFY_TOL = 1e-6
 #: refinement passes and points per pass near the peak
 REFINE_PASSES, REFINE_POINTS = 3, 25
 
@@ -56,7 +58,10 @@ class RobustStabilityMargin:
     lower, upper : float
         Stable for every element within ``lower`` times its range (guaranteed, from mu's upper
         bound on the grid); unstable for the :attr:`destabilizing` values, which lie at
-        ``upper`` times the ranges. ``lower > 1``: robustly stable over the given ranges.
+        ``upper`` times the ranges and were substituted to confirm it (``inf`` when the
+        substitution did not put a pole within :data:`VERIFY_TOL` of the boundary, e.g. for
+        a dynamics element used twice, whose copies mu treats as independent).
+        ``lower > 1``: robustly stable over the given ranges.
     f_critical_hz : float
         Frequency (Hz) where the destabilising values put a pole (0: a real pole through 0).
     destabilizing : dict
@@ -417,6 +422,8 @@ def robstab(usys: Any, f_hz: Any = None, *, n_grid: int = 200, seed: int = 0) ->
                                      complex("nan"), float("nan"), True, res, res.f_peak_hz)
     vals, norm = _values_of(usys, bs, Delta, f0)
     pole, off = _check_pole(usys, vals, f0)
+    if not off <= VERIFY_TOL:  # e.g. copies of one dynamics element that mu treats as independent
+        upper = float("inf")  # no destabilising values confirmed: claim none
     return RobustStabilityMargin(lower, upper, float(f0), vals, norm, pole, off, True, res, res.f_peak_hz)
 
 

@@ -314,6 +314,15 @@ class UncertainSystem:
         """The system at every element's nominal value (dynamics at zero)."""
         return self._close(self._normalized({}, fill_nominal=True))
 
+    def statespace(self):
+        """The nominal system as a ``control.StateSpace`` (``rc.as_statespace`` reads this, as
+        for an ``UncertainModel``): where a certain model is expected, the nominal is used."""
+        nom = self.nominal
+        if isinstance(nom, UncertainSystem):
+            raise SynthesisError("the nominal of this system is complex (a complex nominal value); "
+                                 "python-control's systems are real.")
+        return nom
+
     def poles(self) -> np.ndarray:
         """Poles of the nominal system (all elements at their nominal values)."""
         nom = self.nominal
@@ -388,12 +397,14 @@ class UncertainSystem:
 
     # ------------------------------------------------------------------ algebra
     def _combine(self, parts: list[UncertainSystem], E, F, H, J, inputs, outputs) -> UncertainSystem:
-        dts = {p.dt for p in parts}
+        # parts without states (gains, elements) take the time base of the others
+        dts = {p.dt for p in parts if p.nstates or p.dt}
         if len(dts) > 1:
-            raise SynthesisError(f"cannot combine systems with different sample times {sorted(dts)}.")
+            raise SynthesisError(f"cannot combine systems with different sample times {sorted(dts)} (s; "
+                                 "0 is continuous); map one with rc.d2c or control.c2d first.")
         raw = connect([p.raw for p in parts], *(np.asarray(x, float) for x in (E, F, H, J)))
         blocks = [b for p in parts for b in p.blocks]
-        return _merged(raw, blocks, inputs, outputs, dts.pop())
+        return _merged(raw, blocks, inputs, outputs, dts.pop() if dts else 0.0)
 
     def __add__(self, other):
         a, b = _broadcast_pair(self, as_uncertain(other, self.dt))
@@ -536,6 +547,12 @@ def as_uncertain(x: Any, dt: float = 0.0) -> UncertainSystem:
     """
     if isinstance(x, UncertainSystem):
         return x
+    if hasattr(x, "multiplicity") and hasattr(x, "n_delta") and hasattr(x, "axes"):  # an UncertainModel
+        M = x.M
+        A, B, C, D = (np.asarray(m, float) for m in (M.A, M.B, M.C, M.D))
+        blocks = tuple((UncertainReal(n, 0.0, -1.0, 1.0), r) for n, r in zip(x.names, x.multiplicity))
+        return UncertainSystem(Raw(A, B, C, D, x.n_delta, x.n_delta), blocks, x.nominal.input_labels,
+                               x.nominal.output_labels)
     if isinstance(x, _ELEMENTS):
         out = UncertainSystem.from_element(x)
         return UncertainSystem(out.raw, out.blocks, out.inputs, out.outputs, dt) if dt else out

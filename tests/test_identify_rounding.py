@@ -1,0 +1,100 @@
+"""Identification whose answer rounding cannot move: a relative change of 1e-12 in the data (what
+another BLAS kernel or machine does to an FRF estimate) moves the measurement model by round-off
+amplified by the problem's conditioning, far below 1e-6, not by a decision it flips."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+import robustctl as rc
+from robustctl.identify import IdentifyWarning
+
+#: relative size of the perturbation of the data and the most it may move the fit
+EPS, MOVE = 1e-12, 1e-6
+
+
+def _two_mode_test(seed: int = 3) -> rc.FrequencyData:
+    """A 2-output, 1-input modal test written here: two lightly damped modes (8 and 11 Hz, 1 and
+    2 % damping), their residues as the truth, 2 % complex measurement noise."""
+    f = np.linspace(4.0, 16.0, 240)
+    s = 2j * np.pi * f
+    f0, zeta = np.array([8.0, 11.0]), np.array([0.01, 0.02])
+    poles = 2 * np.pi * f0 * (-zeta + 1j * np.sqrt(1 - zeta**2))
+    shapes = np.array([[1.0, 0.6], [0.5, -0.9]])  # (output, mode)
+    g = np.zeros((f.size, 2, 1), dtype=complex)
+    for m, p in enumerate(poles):
+        r = 40.0 * shapes[:, m] * (1 + 0.3j)
+        g[:, :, 0] += r[None, :] / (s[:, None] - p) + np.conj(r)[None, :] / (s[:, None] - np.conj(p))
+    rng = np.random.default_rng(seed)
+    noise = 0.02 * (rng.standard_normal(g.shape) + 1j * rng.standard_normal(g.shape)) / np.sqrt(2)
+    return rc.FrequencyData(f, g * (1 + noise), inputs=["u"], outputs=["y1", "y2"])
+
+
+def _fit(data, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IdentifyWarning)
+        return rc.fit_measurement_model(data, **kw)
+
+
+def _moved(a, b) -> tuple[float, float]:
+    """Relative moves of the total cost and of the poles (sorted) between two fits."""
+    pa, pb = np.sort_complex(a.fit.poles), np.sort_complex(b.fit.poles)
+    assert pa.size == pb.size and a.n_modes == b.n_modes
+    return abs(a.cost.total / b.cost.total - 1), float(np.max(np.abs(pa - pb) / np.abs(pa)))
+
+
+def _perturbed(data: rc.FrequencyData, seed: int) -> rc.FrequencyData:
+    rng = np.random.default_rng(seed)
+    return data.replace(response=data.response * (1 + EPS * rng.standard_normal(data.response.shape)))
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_1e_12_change_of_the_data_moves_a_fixed_order_fit_by_round_off(seed):
+    data = _two_mode_test()
+    base = _fit(data, n_modes=2)
+    # the fit is a converged optimum: its poles are the truth's to the noise (8 and 11 Hz)
+    assert sorted(round(m.f_hz, 1) for m in base.modes) == [8.0, 11.0]
+    cost, poles = _moved(base, _fit(_perturbed(data, seed), n_modes=2))
+    assert cost < MOVE and poles < MOVE, (cost, poles)
+
+
+def test_the_caltech_demo_measurement_model_is_not_moved_by_a_1e_12_change():
+    from robustctl.demo import _caltech_measurement_model
+
+    data, _ = rc.examples.caltech_truss_experiment(seed=0)
+    base = _caltech_measurement_model(data)
+    cost, poles = _moved(base, _caltech_measurement_model(_perturbed(data, 1)))
+    # measured: 1e-8 - 3e-8 in the cost, 6e-10 - 1.2e-9 in the poles; 3e-7 - 8e-7 and 5e-8 while
+    # the joint refinement stopped at its evaluation cap short of the optimum, which this bound misses
+    assert cost < 0.1 * MOVE and poles < 0.1 * MOVE, (cost, poles)
+
+
+def test_the_stationary_start_of_a_simulated_experiment_is_a_cholesky_draw():
+    """The simulated record starts from ``L z``, ``L`` the Cholesky factor of the stationary
+    covariance (unique, so the same on every machine), not an eigenvector factor whose column
+    signs are the LAPACK kernel's choice."""
+    from robustctl.measure.estimate import STATE_JITTER, _stationary_state
+
+    a = np.array([[0.9, 0.2], [-0.2, 0.9]])
+    b = np.array([[1.0], [0.5]])
+    x0 = _stationary_state(a, b, np.array([2.0]), np.random.default_rng(5))
+    # the covariance by its series sum_k A^k B S B^T A^kT, independently of the Lyapunov solver
+    p, term = np.zeros((2, 2)), 4.0 * b @ b.T
+    for _ in range(2000):
+        p, term = p + term, a @ term @ a.T
+    z = np.random.default_rng(5).standard_normal(2)
+    expected = np.linalg.cholesky(p + STATE_JITTER * np.max(np.diag(p)) * np.eye(2)) @ z
+    np.testing.assert_allclose(x0, expected, rtol=1e-9)
+
+
+def test_a_choice_between_near_tied_fits_keeps_the_first_and_a_clear_winner_wins():
+    from robustctl.identify.poles import TIE_MARGIN, first_lowest
+
+    # two routes whose costs differ by round-off: the first, whichever is lower by 1e-9
+    assert first_lowest([2.0, 2.0 * (1 - 1e-9)]) == 0
+    assert first_lowest([2.0 * (1 - 1e-9), 2.0]) == 0
+    # a difference beyond the margin is a decision of the data: the lower one
+    assert first_lowest([2.0, 2.0 * (1 - 10 * TIE_MARGIN)]) == 1
+    # (flag, cost): a candidate with the asked number of modes (flag False) wins outright
+    assert first_lowest([(True, 1.0), (False, 5.0), (False, 5.0 * (1 - 1e-9))]) == 1
