@@ -193,13 +193,20 @@ from .robust import nugap as nugap
 from .robust import reduce_controller as reduce_controller
 from .robust import sampled_plant as sampled_plant
 from .robust import stability_margin as stability_margin
+from .robust.analysis import RobustStabilityMargin, WorstCaseResult, robstab, wcgain
 from .robust.continuous_equivalent import d2c
 from .robust.conventions import LoopSignWarning
 from .robust.mu import mu
 from .robust.partitioned import as_partitioned
-from .robust.uncertainty import UncertainSystem, as_uncertain, ucomplex, ultidyn, ureal
-from .robust.uncertainty.parametric import LFTAccuracyWarning, physical_uncertain
-from .robust.uncertainty.robust_margin import RobustStabilityMargin, WorstCaseResult, robstab, wcgain
+from .robust.uncertainty import (
+    LFTAccuracyWarning,
+    UncertainSystem,
+    as_uncertain,
+    physical_uncertain,
+    ucomplex,
+    ultidyn,
+    ureal,
+)
 from .signals import combine_inputs as combine_inputs
 from .signals import combine_outputs as combine_outputs
 from .signals import rename_signals as rename_signals

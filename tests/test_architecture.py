@@ -47,10 +47,8 @@ FLOORS: tuple[tuple[str, ...], ...] = (
 #: sub-package of ``robust``; ``""`` is ``robust/__init__.py``, which re-exports them all). The
 #: same table is in the module docstring of robustctl/robust/__init__.py.
 ROBUST_FLOORS: tuple[tuple[str, ...], ...] = (
-    # block structures, weights, magnitude fits, covers, uncertain elements and systems; conventions
-    ("uncertainty", "conventions", "continuous_equivalent"),
-    # the generalized plant and its coercion; mu bounds; robust stability of uncertain systems (by mu)
-    ("plant", "partitioned", "sampled", "mu", "uncertainty.robust_margin"),
+    ("uncertainty", "conventions"),  # blocks, weights, covers, uncertain systems; the loop sign
+    ("plant", "partitioned", "sampled", "continuous_equivalent", "mu"),  # the plant, its coercion; d2c; mu
     ("hinf",),  # H-infinity norm and synthesis
     ("h2",),  # H2 norm and synthesis, LQG
     ("analysis",),  # disk margins, nu-gap, coprime factors, loop shaping

@@ -130,9 +130,11 @@ class UpdateResult:
             return ""
         t, dof, p = test
         worst = max(self.moves_se.items(), key=lambda kv: abs(kv[1]) if np.isfinite(kv[1]) else -1.0)
+        before, after = self.initial_model.param(worst[0]).value, self.model.param(worst[0]).value
+        pct = f", {100 * (after - before) / before:+.3g} %" if before else ""
         head = (
             f"Parameter moves against the noise: m^T C^-1 m = {t:.3g} on {dof} dof ({format_p(p)}); "
-            f"largest {worst[0]} by {worst[1]:+.2g} SE: "
+            f"largest {worst[0]} by {worst[1]:+.2g} SE{pct}: "
         )
         if p >= alpha:
             return head + f"no parameter moved significantly (at {alpha:g}): the data do not contradict " \

@@ -279,8 +279,19 @@ TIE_MARGIN = 1e-6
 def first_lowest(costs, margin: float = TIE_MARGIN) -> int:
     """Index of the first of ``costs`` within ``margin`` (relative) of the lowest one.
 
-    ``costs`` holds floats or ``(flag, cost)`` pairs; a pair with a smaller flag wins outright
-    (``False`` before ``True``), the margin applies among those with the smallest flag.
+    Parameters
+    ----------
+    costs : sequence of float or of (bool, float)
+        Costs (dimensionless weighted sums of squares) in the candidates' fixed order; a
+        ``(flag, cost)`` pair with the smaller flag wins outright (``False`` before ``True``), the
+        margin applies among those with the smallest flag.
+    margin : float
+        Relative tie margin (default ``TIE_MARGIN``).
+
+    Returns
+    -------
+    int
+        Index of the chosen candidate.
     """
     keys = [c if isinstance(c, tuple) else (0, c) for c in costs]
     flag = min(k[0] for k in keys)

@@ -3,16 +3,15 @@
 Floors inside ``robust/`` (lowest first; a module imports from its own floor without a
 circle and from the floors below, never up; ``tests/test_architecture.py`` checks it):
 
-0. ``uncertainty/`` -- block structures, weights, magnitude fits, covers, uncertain elements
-   and systems (all but ``robust_margin``); ``conventions`` -- the loop-sign convention;
-   ``continuous_equivalent`` -- ``rc.d2c``
+0. ``uncertainty/`` -- block structures, weights, magnitude fits, covers, uncertain elements and
+   systems; ``conventions`` -- the one loop sign of synthesis, analysis and margins
 1. ``plant``, ``partitioned``, ``sampled`` -- the generalized plant, its one coercion, its
-   sampled-data form; ``mu/`` -- structured singular value bounds and analyses;
-   ``uncertainty/``'s ``robust_margin`` (robust stability and worst-case gain by mu; not
-   imported by ``uncertainty/__init__``, which ``mu`` runs)
+   sampled-data form; ``continuous_equivalent`` -- d2c; ``mu/`` -- structured singular value
+   bounds and analyses
 2. ``hinf/`` -- H-infinity norm and synthesis (Riccati, LMI), assumptions
 3. ``h2/`` -- H2 norm and synthesis, LQG
-4. ``analysis/`` -- disk margins, nu-gap, coprime factors, loop shaping
+4. ``analysis/`` -- disk margins, nu-gap, coprime factors, loop shaping, robust-stability margin
+   and worst-case gain of uncertain systems
 5. ``reduction/`` -- controller reduction
 6. ``dk/`` -- D-K and D-G-K iteration, design sweeps
 7. ``yardsticks`` -- controllers designed on several models scored on the data

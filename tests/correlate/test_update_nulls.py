@@ -8,6 +8,7 @@ parameters (Wald: m^T C^-1 m against chi-square) must flag at most 2 % at alpha 
 0.5 % stiffness change must be flagged every time.
 """
 
+import re
 import warnings
 
 import numpy as np
@@ -79,4 +80,5 @@ def test_a_null_says_no_parameter_moved_and_a_real_change_is_flagged():
         p, upd = move_p(measure(seed, k1=1.005 * K1), m)
         assert p < 1e-6, upd.summary()
         assert "the data moved the parameters beyond the noise" in upd.summary()
+        assert re.search(r"largest k1 by \+[0-9.e+]+ SE, \+0\.[45]\d* %:", upd.summary())  # SE and %
         assert upd.model.param("k1").value == pytest.approx(1.005 * K1, rel=1e-3)

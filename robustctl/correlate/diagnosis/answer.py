@@ -23,12 +23,8 @@ import numpy as np
 
 from ..residual import Residual
 from .localize import MisfitBand, misfit_bands
-from .results import MODEL_ERROR_DISPERSION
+from .results import ANSWER_SHARE, MODEL_ERROR_DISPERSION
 
-#: Share of the model-error part of the misfit (the parameters-only fit's excess dispersion over
-#: the noise) a significant effect must remove to be *the answer* when the model with it is still
-#: beyond the noise.
-ANSWER_SHARE = 0.9
 #: Share of the residual left by updating a candidate must explain to lead a chain's next step when
 #: nothing is significant (a second effect's misfit can hide a first one's significance); such a
 #: tentative step is kept only when the chain ends within the noise.

@@ -89,7 +89,7 @@ class CandidateResult:
         likely wrong, and the candidate is never proposed.
     incomplete : bool
         Significant, but the model with it is still beyond the noise and it removes less than
-        :data:`~.answer.ANSWER_SHARE` of the model error: the closest candidate, not the answer.
+        :data:`ANSWER_SHARE` of the model error: the closest candidate, not the answer.
     z_vs_best, p_vs_best : float
         Vuong's (1989) statistic of the best candidate against this one and its one-sided
         p-value ("the best explains the data no better"), the variance of the pointwise
@@ -475,8 +475,6 @@ class Diagnosis:
                 f"{100 * self.model_error_removed:.0f}% of the model error removed.")
 
     def _incomplete_lines(self) -> list[str]:
-        from .answer import ANSWER_SHARE
-
         r = self.closest_result
         lines = []
         if len(self.chain) > 1:
@@ -562,4 +560,8 @@ def _status_legend(ax: Any, colors: list[str]) -> None:
 #: the coherence (biased low where it is low), so an exact truth's dispersion exceeds 1 a little,
 #: which a chi-square over thousands of points calls significant.
 MODEL_ERROR_DISPERSION = 1.5
+#: Share of the model-error part of the misfit (the parameters-only fit's excess dispersion over
+#: the noise) a significant effect must remove to be *the answer* when the model with it is still
+#: beyond the noise (:mod:`.answer`).
+ANSWER_SHARE = 0.9
 

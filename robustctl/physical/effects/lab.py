@@ -351,7 +351,10 @@ class DofPairJoint(_StructEffect):
         vals = self.values if values is None else values
         c = float(vals.get(self.param_names[0], self.compliance))
         k0 = float(self.stiffness)
-        return "as modelled" if c <= 0 else f"{k0 / (1.0 + c * k0):.3g} (from {k0:.3g})"
+        return "as modelled" if c <= 0 else f"{k0 / (1.0 + c * k0):.3g} instead of {k0:.3g}"
+
+    def phrase(self) -> str:
+        return f"a {self.name} of stiffness {self.describe_value()}"
 
 
 __all__ = ["TransducerMass", "AttachedResonator", "DofPairJoint", "RESONATORS_PER_OCTAVE", "RESONATORS_MAX"]

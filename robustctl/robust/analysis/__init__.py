@@ -5,6 +5,9 @@ Holds
                         McFarlane & Glover 1990).
     ``margins``      -- disk margins (Seiler, Packard & Gahinet 2020, IEEE CSM 40(5), eqs. 7, 9, 11)
                         and the nu-gap (Vinnicombe 2001).
+    ``robust_margin`` -- robust-stability margin and worst-case gain of an uncertain system by
+                        mixed mu, with destabilising and worst values (Packard & Doyle 1993;
+                        Young & Doyle 1997).
     ``loop_shaping`` -- ``rc.ncfsyn`` and the normalized-coprime stability margin
                         (McFarlane & Glover 1990; Zhou, Doyle & Glover 1996, ch. 18).
 
@@ -15,6 +18,7 @@ May import
 
 from .loop_shaping import LoopShapingResult, ncfsyn, stability_margin
 from .margins import DiskMargin, DiskMarginResult, disk_gain_phase, diskmargin, nugap
+from .robust_margin import RobustStabilityMargin, WorstCaseResult, destabilizing_system, robstab, wcgain
 
 __all__ = [
     "LoopShapingResult",
@@ -25,4 +29,9 @@ __all__ = [
     "disk_gain_phase",
     "diskmargin",
     "nugap",
+    "RobustStabilityMargin",
+    "WorstCaseResult",
+    "destabilizing_system",
+    "robstab",
+    "wcgain",
 ]

@@ -77,7 +77,35 @@ def h2norm_matrices(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, 
     return float(np.sqrt(max(val, 0.0) + dd))
 
 
-def _continuous_h2_squared(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> float:
+def _schur_eigenvalues(T: np.ndarray) -> np.ndarray:
+    """Eigenvalues of a real quasi-triangular Schur factor from its 1x1 and 2x2 diagonal blocks."""
+    n = T.shape[0]
+    out = np.empty(n, complex)
+    k = 0
+    while k < n:
+        if k + 1 < n and T[k + 1, k] != 0.0:
+            a, b, c, d = T[k, k], T[k, k + 1], T[k + 1, k], T[k + 1, k + 1]
+            mid, disc = 0.5 * (a + d), 0.25 * (a - d) ** 2 + b * c
+            root = np.sqrt(complex(disc))
+            out[k], out[k + 1] = mid + root, mid - root
+            k += 2
+        else:
+            out[k] = T[k, k]
+            k += 1
+    return out
+
+
+def _stable_continuous_h2(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> tuple[float | None, float]:
+    """``(||(A, B, C, 0)||_2, max Re eig(A))`` with one real Schur form for both the stability
+    check (beyond :func:`roundoff_margin`) and the Lyapunov solve; the norm is None when unstable."""
+    T, U = scipy.linalg.schur(A, output="real")
+    abscissa = float(np.max(_schur_eigenvalues(T).real))
+    if not abscissa < -roundoff_margin(A):
+        return None, abscissa
+    return float(np.sqrt(max(_continuous_h2_squared(A, B, C, (T, U)), 0.0))), abscissa
+
+
+def _continuous_h2_squared(A: np.ndarray, B: np.ndarray, C: np.ndarray, schur: tuple | None = None) -> float:
     """``trace(C Lc C^T)`` (or ``trace(B^T Lo B)``) with one real Schur form ``A = U T U^T``.
 
     The Lyapunov equation ``T Y + Y T^T = -U^T B B^T U`` is solved by LAPACK ``dtrsyl`` on the
@@ -85,7 +113,7 @@ def _continuous_h2_squared(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> float
     ``solve_continuous_lyapunov`` factors ``A`` and ``A^T``); the Gramian with the fewer
     columns on the outside is used.
     """
-    T, U = scipy.linalg.schur(A, output="real")
+    T, U = scipy.linalg.schur(A, output="real") if schur is None else schur
     Bt, Ct = U.T @ B, C @ U
     if B.shape[1] <= C.shape[0]:
         Y, scale, info = scipy.linalg.lapack.dtrsyl(T, T, -(Bt @ Bt.T), trana="N", tranb="T")
@@ -236,8 +264,34 @@ def _plot_closed_loop(cl: Any, f_hz: Any, fig: Any, title: str) -> Any:
 
 
 # ---------------------------------------------------------------------------- Riccati kernels
-def _are(A, B, Q, R, S, what: str, discrete: bool) -> np.ndarray:
-    """Stabilising solution of the continuous or discrete Riccati equation with cross term ``S``."""
+def _hamiltonian_are(A, B, Q, R, S) -> np.ndarray | None:
+    """Continuous Riccati solution from the ordered real Schur form of the ``2n`` Hamiltonian
+    (Laub 1979, IEEE TAC 24(6); the method of SLICOT SB02RD that SB10HD uses), the cross term
+    removed first: ``A_s = A - B R^-1 S^T``, ``Q_s = Q - S R^-1 S^T``,
+    ``H = [[A_s, -B R^-1 B^T], [-Q_s, -A_s^T]]``, ``X = U21 U11^-1`` from the stable invariant
+    subspace. None when the stable subspace is not ``n``-dimensional or ``U11`` is singular
+    (the caller then uses the QZ solver)."""
+    n = A.shape[0]
+    RiSt = np.linalg.solve(R, S.T)
+    As = A - B @ RiSt
+    H = np.block([[As, -B @ np.linalg.solve(R, B.T)], [-(Q - S @ RiSt), -As.T]])
+    T, Z, sdim = scipy.linalg.schur(H, output="real", sort="lhp")
+    if sdim != n:
+        return None
+    U11, U21 = Z[:n, :n], Z[n:, :n]
+    if np.linalg.cond(U11) > 1e12:
+        return None
+    X = np.linalg.solve(U11.T, U21.T).T
+    return (X + X.T) / 2
+
+
+def _are(A, B, Q, R, S, what: str, discrete: bool, fast: bool = False) -> np.ndarray:
+    """Stabilising solution of the continuous or discrete Riccati equation with cross term ``S``
+    (``fast``: the Hamiltonian Schur method first, :func:`_hamiltonian_are`)."""
+    if fast and not discrete:
+        X = _hamiltonian_are(A, B, Q, R, S)
+        if X is not None:
+            return X
     solve = scipy.linalg.solve_discrete_are if discrete else scipy.linalg.solve_continuous_are
     try:
         X = solve(A, B, Q, R, s=S)
@@ -275,12 +329,12 @@ def _check_discrete_assumptions(m: dict[str, np.ndarray]) -> None:
     check_ranks(m["D12"], m["D21"], 1e-6 * scale)
 
 
-def _continuous_design(m: dict[str, np.ndarray]) -> tuple:
+def _continuous_design(m: dict[str, np.ndarray], fast: bool = False) -> tuple:
     """ZDG ch. 14 output-feedback H2 controller, general ``R1 = D12^T D12``, ``R2 = D21 D21^T`` (D22 = 0)."""
     A, B1, B2, C1, C2, D12, D21 = (m[k] for k in ("A", "B1", "B2", "C1", "C2", "D12", "D21"))
     R1, R2 = D12.T @ D12, D21 @ D21.T
-    X = _are(A, B2, C1.T @ C1, R1, C1.T @ D12, "control (X)", False)
-    Y = _are(A.T, C2.T, B1 @ B1.T, R2, B1 @ D21.T, "filter (Y)", False)
+    X = _are(A, B2, C1.T @ C1, R1, C1.T @ D12, "control (X)", False, fast)
+    Y = _are(A.T, C2.T, B1 @ B1.T, R2, B1 @ D21.T, "filter (Y)", False, fast)
     F = -np.linalg.solve(R1, B2.T @ X + D12.T @ C1)  # state-feedback gain F2
     L = -np.linalg.solve(R2, C2 @ Y + D21 @ B1.T).T  # filter gain L2
     Ak = A + B2 @ F + L @ C2
@@ -394,29 +448,48 @@ def h2syn(P: Any, nmeas: int | None = None, ncon: int | None = None) -> H2Result
     else:
         _check_discrete_assumptions(m)
     m0 = dict(m, D22=np.zeros_like(m["D22"]))
-    try:
-        K0, X, Y, F, L, fi2, opt2 = (_discrete_design if discrete else _continuous_design)(m0)
-        K = loop_shift(K0, m["D22"])
-        A_cl, B_cl, C_cl, D_cl = lower_lft_matrices(m, *K)
-    except np.linalg.LinAlgError as exc:
-        raise SynthesisError(f"h2syn: a singular matrix in the controller formulas ({exc}).") from exc
-    if not is_stable(A_cl, roundoff_margin(A_cl), dt=dt):
-        raise SynthesisError(
-            "h2syn: the closed loop Fl(P, K) is not stable (the Riccati solutions are not stabilising to "
-            "working accuracy); rescale the plant or damp marginal weights."
-        )
-    norm = h2norm_matrices(A_cl, B_cl, C_cl, D_cl, dt)
-    opt = float(np.sqrt(max(opt2, 0.0)))
-    if not abs(norm - opt) <= VERIFY_RTOL * max(opt, 1e-300) + 1e-12 * max(1.0, norm):
-        raise SynthesisError(
-            f"h2syn: the closed loop's H2 norm {norm:.10g} differs from the Riccati optimum {opt:.10g} "
-            "(ill-conditioned Riccati solutions); rescale the plant."
-        )
-    ev = np.linalg.eigvals(A_cl) if A_cl.size else np.zeros(1)
+    # continuous: the Hamiltonian Schur solver first (SB10HD's method), then, if its closed loop
+    # fails the checks below, scipy's QZ solver; every design is verified the same way
+    for fast in ((True, False) if not discrete else (False,)):
+        try:
+            if discrete:
+                K0, X, Y, F, L, fi2, opt2 = _discrete_design(m0)
+            else:
+                K0, X, Y, F, L, fi2, opt2 = _continuous_design(m0, fast=fast)
+            K = loop_shift(K0, m["D22"])
+            A_cl, B_cl, C_cl, D_cl = lower_lft_matrices(m, *K)
+        except np.linalg.LinAlgError as exc:
+            if fast:
+                continue
+            raise SynthesisError(f"h2syn: a singular matrix in the controller formulas ({exc}).") from exc
+        if discrete:
+            stable = is_stable(A_cl, roundoff_margin(A_cl), dt=dt)
+            norm = h2norm_matrices(A_cl, B_cl, C_cl, D_cl, dt) if stable else np.inf
+        else:  # D_cl = D11 = 0 here; one Schur form checks stability and gives the norm
+            h2, abscissa = _stable_continuous_h2(A_cl, B_cl, C_cl) if A_cl.size else (0.0, 0.0)
+            stable, norm = h2 is not None, (np.inf if h2 is None else h2)
+        if not stable:
+            if fast:
+                continue
+            raise SynthesisError(
+                "h2syn: the closed loop Fl(P, K) is not stable (the Riccati solutions are not stabilising "
+                "to working accuracy); rescale the plant or damp marginal weights."
+            )
+        opt = float(np.sqrt(max(opt2, 0.0)))
+        if abs(norm - opt) <= VERIFY_RTOL * max(opt, 1e-300) + 1e-12 * max(1.0, norm):
+            break
+        if not fast:
+            raise SynthesisError(
+                f"h2syn: the closed loop's H2 norm {norm:.10g} differs from the Riccati optimum {opt:.10g} "
+                "(ill-conditioned Riccati solutions); rescale the plant."
+            )
+    if discrete:
+        ev = np.linalg.eigvals(A_cl) if A_cl.size else np.zeros(1)
+        abscissa = float(np.max(np.abs(ev)))
     info = {
         "norm_riccati": opt,
         "full_information_norm": float(np.sqrt(max(fi2, 0.0))),
-        "closed_loop_stability": float(np.max(np.abs(ev)) if discrete else np.max(ev.real)),
+        "closed_loop_stability": abscissa,
         "discrete": discrete,
         "dt": dt,
     }

@@ -1,28 +1,24 @@
-"""Uncertainty descriptions of the design half: block structures, weights, magnitude fits, covers,
-uncertain elements and systems.
+"""Uncertainty descriptions of the design half: block structures, weights, magnitude fits, covers.
 
 Holds
-    ``blocks``        -- :class:`BlockStructure` of ``Delta = diag(Delta_1, ...)`` in ``det(I - M Delta)``
-                         (Packard & Doyle 1993, Automatica 29(1), eq. 3.1).
-    ``weights``       -- MATLAB's ``makeweight`` and the Caltech seed's additive weight
-                         (Skogestad & Postlethwaite 2005, sec. 7.4; Zhou, Doyle & Glover 1996, sec. 9.1).
-    ``magfit``        -- stable minimum-phase rational fits to a magnitude curve, log-Chebyshev
-                         (Packard & Doyle 1993, sec. 9; MATLAB's ``fitmagfrd``).
-    ``cover``         -- additive and multiplicative weights covering measured and modelled errors
-                         (Caltech seed eqs. 1-3; MATLAB's ``ucover``).
-    ``elements``      -- ``ureal``, ``ucomplex``, ``ultidyn``: uncertain elements.
-    ``lft_algebra``   -- the LFT interconnection rule (Zhou, Doyle & Glover 1996, sec. 10.2) and the
-                         structured Kalman reduction (Beck & Doyle 1999).
-    ``system``        -- ``UncertainSystem``: arithmetic, LFT, sampling, substitution, frequency response.
-    ``robust_margin`` -- robust-stability margin and worst-case gain of an uncertain system by mixed mu
-                         (Packard & Doyle 1993; Young & Doyle 1997).
+    ``blocks``  -- :class:`BlockStructure` of ``Delta = diag(Delta_1, ...)`` in ``det(I - M Delta)``
+                   (Packard & Doyle 1993, Automatica 29(1), eq. 3.1).
+    ``weights`` -- MATLAB's ``makeweight`` and the Caltech seed's additive weight
+                   (Skogestad & Postlethwaite 2005, sec. 7.4; Zhou, Doyle & Glover 1996, sec. 9.1).
+    ``magfit``  -- stable minimum-phase rational fits to a magnitude curve, log-Chebyshev
+                   (Packard & Doyle 1993, sec. 9; MATLAB's ``fitmagfrd``).
+    ``cover``   -- additive and multiplicative weights covering measured and modelled errors
+                   (Caltech seed eqs. 1-3; MATLAB's ``ucover``).
+    ``elements``    -- uncertain real parameters, complex scalars and unmodelled dynamics
+                       (MATLAB ``ureal``/``ucomplex``/``ultidyn``).
+    ``lft_algebra`` -- the LFT interconnection rule (Zhou, Doyle & Glover 1996, sec. 10.2) and the
+                       structured Kalman reduction of repeated blocks (Beck & Doyle 1999).
+    ``system``      -- :class:`UncertainSystem`: arithmetic, LFT, sampling, substitution, response.
+    ``parametric``  -- the update's parameters and a physical model as uncertain systems.
 
 May import
-    The floors below ``robust`` and nothing else of ``robust``, except ``robust_margin``, which
-    also imports ``robust.mu`` and sits on the floor above it (``ROBUST_FLOORS`` in
-    ``tests/test_architecture.py``); so this ``__init__`` does not import it (``mu`` imports
-    ``uncertainty.blocks``, which runs this file): ``rc.robstab`` and ``rc.wcgain`` come from
-    ``robustctl.robust.uncertainty.robust_margin``.
+    The floors below ``robust`` (``errors`` ... ``identify``) and nothing else of ``robust``:
+    it is the lowest floor of ``robust/`` (see ``ROBUST_FLOORS`` in ``tests/test_architecture.py``).
 """
 
 from .blocks import Block, BlockStructure, as_block_structure

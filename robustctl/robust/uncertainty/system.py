@@ -339,7 +339,7 @@ class UncertainSystem:
             Frequencies (Hz).
         """
         r = self.raw
-        return _raw_response(r, np.atleast_1d(np.asarray(f_hz, float)), self.dt)[:, : r.nz, : r.nw]
+        return raw_response(r, np.atleast_1d(np.asarray(f_hz, float)), self.dt)[:, : r.nz, : r.nw]
 
     # ------------------------------------------------------------------ sampling
     def sample(self, n: int = 1, seed: Any = 0) -> list[dict]:
@@ -376,7 +376,7 @@ class UncertainSystem:
         f = np.atleast_1d(np.asarray(f_hz, dtype=float))
         many = isinstance(values, (list, tuple))
         sets = list(values) if many else [values or {}]
-        Mf = _raw_response(self.raw, f, self.dt)
+        Mf = raw_response(self.raw, f, self.dt)
         nw, nz = self.raw.nw, self.raw.nz
         M11, M12, M21, M22 = Mf[:, :nz, :nw], Mf[:, :nz, nw:], Mf[:, nz:, :nw], Mf[:, nz:, nw:]
         out = []
@@ -719,7 +719,9 @@ def _dynamics_raw(v: Any, e: UncertainDynamics, dt: float) -> Raw:
     return Raw(A, B, C / e.bound, D / e.bound, 0, 0)
 
 
-def _raw_response(r: Raw, f: np.ndarray, dt: float) -> np.ndarray:
+def raw_response(r: Raw, f: np.ndarray, dt: float) -> np.ndarray:
+    """Frequency response (n_f, n_out, n_in) of the state-space data ``r`` at ``f`` (Hz):
+    ``C (s I - A)^-1 B + D`` with ``s = j 2 pi f`` (``z = exp(j 2 pi f dt)`` when ``dt`` > 0)."""
     s = np.exp(2j * np.pi * f * dt) if dt else 2j * np.pi * f
     if r.nx == 0:
         return np.broadcast_to(r.D, (f.size, *r.D.shape)).astype(complex)
@@ -731,4 +733,4 @@ def _raw_response(r: Raw, f: np.ndarray, dt: float) -> np.ndarray:
 
 
 def _block_response(r: Raw, f: np.ndarray, dt: float) -> np.ndarray:
-    return _raw_response(r, f, dt)
+    return raw_response(r, f, dt)

@@ -33,9 +33,10 @@ from ...checks import integer
 from ...errors import SynthesisError
 from ...table import Table
 from ..mu.bounds import MuResult, mu
-from .blocks import Block, BlockStructure
-from .elements import UncertainComplex, UncertainDynamics, UncertainReal
-from .system import UncertainSystem, _raw_response, as_uncertain
+from ..mu.robust_analysis import worst_case_gain
+from ..uncertainty.blocks import Block, BlockStructure
+from ..uncertainty.elements import UncertainComplex, UncertainDynamics, UncertainReal
+from ..uncertainty.system import UncertainSystem, as_uncertain, raw_response
 
 __all__ = ["RobustStabilityMargin", "robstab", "WorstCaseResult", "wcgain", "destabilizing_system"]
 
@@ -199,7 +200,7 @@ def _real_crossings(usys: UncertainSystem, bs: BlockStructure, f: np.ndarray):
     """Best vertex crossing: (mu lower bound, frequency, Delta) or None (module docstring)."""
     sizes = [b.rows for b in bs.blocks]
     best = None
-    resp = lambda ff: _raw_response(usys.raw, np.atleast_1d(ff), usys.dt)[:, : usys.raw.nz, : usys.raw.nw]  # noqa: E731
+    resp = lambda ff: raw_response(usys.raw, np.atleast_1d(ff), usys.dt)[:, : usys.raw.nz, : usys.raw.nw]  # noqa: E731
     M = resp(f)
     for q in _vertices(len(sizes)):
         Q = np.diag(np.repeat(q, sizes))
@@ -400,7 +401,7 @@ def robstab(usys: Any, f_hz: Any = None, *, n_grid: int = 200, seed: int = 0) ->
     f = np.atleast_1d(np.asarray(f_hz, float)) if f_hz is not None else _grid(usys, n_grid)
     if f.ndim != 1 or not np.all(np.isfinite(f)) or np.any(f < 0):
         raise SynthesisError("f_hz must be finite non-negative frequencies (Hz).")
-    M11 = lambda ff: _raw_response(r, ff, usys.dt)[:, : r.nz, : r.nw]  # noqa: E731
+    M11 = lambda ff: raw_response(r, ff, usys.dt)[:, : r.nz, : r.nw]  # noqa: E731
     f = np.unique(f)
     res = mu(M11(f), bs, f, seed=seed)
     for _ in range(REFINE_PASSES):
@@ -505,8 +506,6 @@ def wcgain(usys: Any, f_hz: Any = None, *, n_grid: int = 50, seed: int = 0) -> W
     -------
     WorstCaseResult
     """
-    from ..mu.robust_analysis import worst_case_gain
-
     usys = as_uncertain(usys)
     n_grid = integer(n_grid, "n_grid", SynthesisError, lo=2)
     if not usys.blocks:
@@ -514,7 +513,7 @@ def wcgain(usys: Any, f_hz: Any = None, *, n_grid: int = 50, seed: int = 0) -> W
     r = usys.raw
     bs = usys.block_structure()
     f = np.atleast_1d(np.asarray(f_hz, float)) if f_hz is not None else _grid(usys, n_grid)
-    N = lambda ff: _raw_response(r, ff, usys.dt)  # noqa: E731
+    N = lambda ff: raw_response(r, ff, usys.dt)  # noqa: E731
     f = np.unique(f)
     wc = worst_case_gain(N(f), bs, f)
     for _ in range(REFINE_PASSES):
