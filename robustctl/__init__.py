@@ -178,57 +178,22 @@ from .robust import (
     worst_case_gain,
     yardstick,
 )
-from .robust import (
-    DiskMargin as DiskMargin,
-)
-from .robust import (
-    DiskMarginResult as DiskMarginResult,
-)
-from .robust import (
-    H2Result as H2Result,
-)
-from .robust import (
-    LoopShapingResult as LoopShapingResult,
-)
-from .robust import (
-    LQGResult as LQGResult,
-)
-from .robust import (
-    disk_gain_phase as disk_gain_phase,
-)
-from .robust import (
-    diskmargin as diskmargin,
-)
-from .robust import (
-    h2norm as h2norm,
-)
-from .robust import (
-    h2syn as h2syn,
-)
-from .robust import (
-    lqg as lqg,
-)
-from .robust import (
-    ncfsyn as ncfsyn,
-)
-from .robust import (
-    nugap as nugap,
-)
-from .robust import (
-    reduce_controller as reduce_controller,
-)
-from .robust import (
-    sampled_plant as sampled_plant,
-)
-from .robust import (
-    stability_margin as stability_margin,
-)
-from .robust.analysis import (
-    RobustStabilityMargin,
-    WorstCaseResult,
-    robstab,
-    wcgain,
-)
+from .robust import DiskMargin as DiskMargin
+from .robust import DiskMarginResult as DiskMarginResult
+from .robust import H2Result as H2Result
+from .robust import LoopShapingResult as LoopShapingResult
+from .robust import LQGResult as LQGResult
+from .robust import disk_gain_phase as disk_gain_phase
+from .robust import diskmargin as diskmargin
+from .robust import h2norm as h2norm
+from .robust import h2syn as h2syn
+from .robust import lqg as lqg
+from .robust import ncfsyn as ncfsyn
+from .robust import nugap as nugap
+from .robust import reduce_controller as reduce_controller
+from .robust import sampled_plant as sampled_plant
+from .robust import stability_margin as stability_margin
+from .robust.analysis import RobustStabilityMargin, WorstCaseResult, robstab, wcgain
 from .robust.continuous_equivalent import d2c
 from .robust.conventions import LoopSignWarning
 from .robust.mu import mu
@@ -405,6 +370,7 @@ __all__ = [
     # the warning family: every warning robustctl issues derives from RobustctlWarning
     "SynthesisWarning",
     "DataWarning",
+    "LoopSignWarning",
     "ParallelWarning",
     "SetupWarning",
     "RobustctlDeprecationWarning",

@@ -8,6 +8,7 @@ still a circle). Relative imports are resolved against the importing module's pa
 from __future__ import annotations
 
 import ast
+import functools
 import importlib
 import pkgutil
 import types
@@ -87,15 +88,25 @@ def _targets(module: str, is_package: bool, node: ast.AST, modules) -> list[str]
     return [f"{target}.{a.name}" if f"{target}.{a.name}" in modules else target for a in node.names]
 
 
-def import_graph() -> dict[str, set[str]]:
+@functools.cache
+def _import_nodes() -> dict[str, list[ast.AST]]:
+    """Every ``import``/``from ... import`` node of each module, parsed once per session."""
+    return {
+        name: [node for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path)))
+               if isinstance(node, (ast.Import, ast.ImportFrom))]
+        for name, (path, _) in _modules().items()
+    }
+
+
+@functools.cache
+def import_graph() -> dict[str, frozenset[str]]:
     """Edges ``module -> imported module`` of robustctl, function-level imports included."""
     modules = _modules()
     graph: dict[str, set[str]] = {name: set() for name in modules}
-    for name, (path, is_package) in modules.items():
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
-            if isinstance(node, (ast.Import, ast.ImportFrom)):
-                graph[name].update(t for t in _targets(name, is_package, node, modules) if t != name)
-    return graph
+    for name, (_, is_package) in modules.items():
+        for node in _import_nodes()[name]:
+            graph[name].update(t for t in _targets(name, is_package, node, modules) if t != name)
+    return {name: frozenset(targets) for name, targets in graph.items()}
 
 
 def floor_of(module: str, floors=FLOORS, package: str = PACKAGE) -> int:
@@ -224,11 +235,15 @@ def test_robust_floors_see_an_edge_up_and_name_every_subpackage():
     ]
     on_disk = {p.parent.name for p in (ROOT / "robust").glob("*/__init__.py")}
     on_disk |= {p.stem for p in (ROOT / "robust").glob("*.py") if p.stem != "__init__"}
-    assert on_disk == {entry for entries in ROBUST_FLOORS for entry in entries if entry}
+    named = {entry.split(".")[0] for entries in ROBUST_FLOORS for entry in entries if entry}
+    assert on_disk == named
+    for path in (ROOT / "robust").glob("*/*.py"):
+        floor_of(f"{ROBUST}.{path.parent.name}.{path.stem}", ROBUST_FLOORS, ROBUST)
     doc = robustctl.robust.__doc__
     for level, entries in enumerate(ROBUST_FLOORS):
         for entry in filter(None, entries):
-            name = f"``{entry}/``" if (ROOT / "robust" / entry).is_dir() else f"``{entry}``"
+            top = entry.split(".")[0]
+            name = f"``{top}/``" if (ROOT / "robust" / top).is_dir() else f"``{top}``"
             line = next((ln for ln in doc.splitlines() if ln.startswith(f"{level}. ")), "")
             block = doc[doc.index(line) :].split(f"\n{level + 1}. ")[0] if line else ""
             assert name in block, f"robust/__init__.py's floor {level} does not name {name}"
@@ -243,8 +258,8 @@ def private_imports_across_packages() -> list[str]:
     imports included). A helper another package needs has a public name in its home module."""
     modules = _modules()
     found = []
-    for name, (path, is_package) in modules.items():
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
+    for name, (_, is_package) in modules.items():
+        for node in _import_nodes()[name]:
             if not isinstance(node, ast.ImportFrom):
                 continue
             private = [a.name for a in node.names if a.name.startswith("_") and not a.name.startswith("__")]

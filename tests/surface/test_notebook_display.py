@@ -28,7 +28,7 @@ def test_stored_notebooks_show_a_picture_for_every_plot_cell():
     """The notebooks are stored executed, so they read well on a code host."""
     from pathlib import Path
 
-    notebooks = sorted((Path(__file__).resolve().parents[1] / "notebooks").glob("*.ipynb"))
+    notebooks = sorted((Path(__file__).resolve().parents[2] / "notebooks").glob("*.ipynb"))
     assert notebooks
     for path in notebooks:
         nb = nbformat.read(path, as_version=4)

@@ -19,7 +19,7 @@ import pytest
 import robustctl as rc
 from robustctl.cli import main
 
-sys.path.insert(0, str(Path(__file__).parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import lab_corpus as lc  # noqa: E402
 
 ALL = sorted(lc.CASES)
@@ -194,7 +194,7 @@ MODEL_PY = textwrap.dedent(
 
 def _cli_compare(tmp_path, key, path, band, *options):
     spec = tmp_path / f"{key}_model.py"
-    spec.write_text(MODEL_PY.format(tests=str(Path(__file__).parent), key=key))
+    spec.write_text(MODEL_PY.format(tests=str(Path(__file__).resolve().parents[1]), key=key))
     out = tmp_path / f"out_{path.suffix[1:]}"
     argv = ["compare", str(spec), str(path), "--band", str(band[0]), str(band[1]), "--out", str(out)]
     argv += list(options)

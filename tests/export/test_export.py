@@ -26,7 +26,7 @@ from robustctl.export import files as controller_data
 from robustctl.export import formats, sos_file
 from robustctl.lti import freqresp_array
 
-C_CLIENT = Path(__file__).parent / "c_client" / "run_controller.c"
+C_CLIENT = Path(__file__).resolve().parents[1] / "c_client" / "run_controller.c"
 FORMATS = ("json", "csv", "mat", "h")
 
 

@@ -20,7 +20,7 @@ import robustctl as rc
 from robustctl.identify import channel_cost
 
 # next to the repository, or where ROBUSTCTL_SHARED_DATA points (git worktrees live elsewhere)
-DATA = Path(os.environ.get("ROBUSTCTL_SHARED_DATA", Path(__file__).parents[1] / ".." / "shared" / "data"))
+DATA = Path(os.environ.get("ROBUSTCTL_SHARED_DATA", Path(__file__).parents[2] / ".." / "shared" / "data"))
 
 
 def _load(name: str) -> np.ndarray:

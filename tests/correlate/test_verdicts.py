@@ -8,7 +8,7 @@ import re
 
 import numpy as np
 import pytest
-from test_noise import _chain  # the same user-matrix chain as the noise tests
+from measure.test_noise import _chain  # the same user-matrix chain as the noise tests
 
 import robustctl as rc
 from robustctl.measure.noise import NO_NOISE_SENTENCE, format_p

@@ -19,7 +19,7 @@ import pytest
 import robustctl as rc
 from robustctl.identify import IdentifyWarning
 
-DATA = Path(os.environ.get("ROBUSTCTL_SHARED_DATA", Path(__file__).parents[1] / ".." / "shared" / "data"))
+DATA = Path(os.environ.get("ROBUSTCTL_SHARED_DATA", Path(__file__).parents[2] / ".." / "shared" / "data"))
 FOLDER = DATA / "pyfrf_impact_hammer"
 FS = 25600.0
 BAND = (700.0, 6200.0)

@@ -271,7 +271,8 @@ def test_the_command_line_describes_a_bare_hammer_file(null_data, tmp_path):
     truth is within the noise; told the window alone (no record end: the 2 Hz mode's tail is
     about 1 % near its peak), or nothing, it is beyond the noise."""
     spec = tmp_path / "mast_model.py"
-    spec.write_text(f"import sys\nsys.path.insert(0, {str(Path(__file__).parent)!r})\nimport lab_corpus\n"
+    tests = str(Path(__file__).resolve().parents[1])  # where lab_corpus.py lives
+    spec.write_text(f"import sys\nsys.path.insert(0, {tests!r})\nimport lab_corpus\n"
                     "model = lab_corpus.mast().model()\n")
     bare = rc.FrequencyData(null_data.f_hz, null_data.response, inputs=null_data.inputs,
                             outputs=null_data.outputs, coherence=null_data.coherence)

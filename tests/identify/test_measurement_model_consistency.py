@@ -238,7 +238,7 @@ def test_leakage_corrected_fit_is_bit_identical_in_fresh_processes(frame_welch, 
 
     path = tmp_path / "frame.npz"
     frame_welch.save(path)
-    root = str(Path(__file__).parents[1])
+    root = str(Path(__file__).parents[2])
     digests = []
     for threads in ("1", "2"):
         seed = str(len(digests))

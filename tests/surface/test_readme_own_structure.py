@@ -20,7 +20,7 @@ import scipy.linalg
 
 import robustctl as rc
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+README = Path(__file__).resolve().parents[2] / "README.md"
 E_TRUE, M_TOP_TRUE, CLAMP = 72.1e9, 0.9, 0.25
 
 
