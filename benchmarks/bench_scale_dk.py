@@ -8,9 +8,12 @@ to unit static gain; ``n`` = 20, 40, 80, 160 modes (44 to 324 states of the gene
 Weights: performance ``makeweight(3, (1 Hz, 1), 0.01)`` on the sensors, unit input
 disturbances, control weight 0.1, sensor noise 0.01, input multiplicative uncertainty
 ``makeweight(0.2, (3 Hz, 1), 2)``. ``dksyn`` with its defaults (``design_order="auto"``:
-plants above 100 states are designed on a balanced truncation with the loop's truncation error
-covered by an additive block, the controller closed around the full plant and its mu verified
-there). Each run is a fresh subprocess with one BLAS thread: wall and CPU time, peak resident
+plants above 200 states are designed on a balanced truncation, the fewest states whose bound
+``2 sum sigma_tail`` is within 1 % of the largest Hankel singular value, no fixed cap, with the
+truncation error covered by an additive block, the controller closed around the full plant and
+its mu verified there; a controller that does not stabilise the full plant makes D-K retry at a
+higher order from the loop's small-gain tolerance, each order tried recorded as
+``design_tried``). Each run is a fresh subprocess with one BLAS thread: wall and CPU time, peak resident
 memory, plant states, design-plant states and bound, controller states, the verified mu with
 the full plant, and whether the full closed loop is stable (numpy eigenvalues).
 
@@ -98,6 +101,7 @@ def case(n_modes: int) -> dict:
             "design_bound": round(float(red.bound), 4) if red else 0.0,
             "design_mu": round(float(red.mu_peak_design), 4) if red else None,
             "error_weight": round(float(red.error_weight), 5) if red else None,
+            "design_tried": [[int(r), round(float(b), 4), why] for r, b, why in red.tried] if red else [],
         })
     return row
 

@@ -75,7 +75,7 @@ from ..mu.bounds import mu
 from ..partitioned import as_partitioned
 from ..plant import GeneralizedPlant
 from ..uncertainty.blocks import Block, BlockStructure
-from .design_plant import DesignReduction, check_design_order, on_full_plant, reduce_design_plant
+from .design_plant import DesignReduction, check_design_order, design_on_reduced
 from .dgk import blended_scales, fit_g_filter, g_transform, scaled_d_targets, transformed_norm
 from .reduce import Reduction, _reduce
 from .scales import (
@@ -508,8 +508,9 @@ def dksyn(
         ``"auto"`` (default): a generalized plant of more than ``DESIGN_REDUCE_ABOVE`` (200)
         states is reduced by balanced truncation before synthesis, to the fewest states whose
         bound ``2 sum sigma_tail`` on ``||P - P_r||_inf`` is at most 1 % of the largest
-        Hankel singular value (at most ``DESIGN_MAX_STATES``, 100), and the truncation error
-        is covered by an added additive uncertainty block on the whole plant; the
+        Hankel singular value (no fixed cap; raised from the loop's small-gain tolerance, at
+        most ``DESIGN_RETRIES`` times, when the controller does not stabilise the full plant),
+        and the truncation error is covered by an added additive uncertainty block on the whole plant; the
         controller is then closed around the full plant, its mu verified there (``mu_peak``),
         and the orders, the bound and both peaks are in ``DKResult.design_reduction``; the
         history is the design plant's. An integer: that many states. None: the full plant.
@@ -545,15 +546,15 @@ def dksyn(
     run = _Settings(max_iter=max_iter, grid=grid, executor=executor, rtol=rtol, patience=patience,
                     hinf_options=hinf_options, callback=callback, real=real, gamma=gamma, progress=progress,
                     reduce=reduce, deadline=as_deadline(time_budget_s, SynthesisError))
-    design, shrink = reduce_design_plant(plant, design_order)
-    if shrink is None:
-        result = _solve(plant, order_d, autoscale, run)
-    else:
-        if order_d is not None and np.ndim(order_d) == 1:  # a constant D-scale for the error block
+
+    def design(p: GeneralizedPlant, error_block: bool) -> DKResult:
+        od = order_d
+        if error_block and od is not None and np.ndim(od) == 1:  # a constant D-scale for the error block
             k = len(plant.blocks) - 1
-            order_d = [*list(order_d)[:k], 0, *list(order_d)[k:]]
-        designed = _solve(design, order_d, autoscale, run)
-        result = on_full_plant(plant, _design_blocks(plant, real), designed, shrink)
+            od = [*list(od)[:k], 0, *list(od)[k:]]
+        return _solve(p, od, autoscale, run)
+
+    result = design_on_reduced(plant, design_order, _design_blocks(plant, real), design)
     if run.deadline.hit and own_clock:
         run.deadline.warn("dksyn (D-K iteration from the autoscaled starts)" if autoscale
                           else "dksyn (D-K iteration)")
