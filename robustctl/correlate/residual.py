@@ -119,11 +119,16 @@ def physical_model(model: Any, func: str) -> Any:
     )
 
 
+def _channel_rms(response: np.ndarray) -> np.ndarray:
+    """RMS magnitude over frequency of each channel of ``response`` (n_freq, n_out, n_in)."""
+    return np.sqrt(np.mean(np.abs(response) ** 2, axis=0))
+
+
 def _negligible_channels(
     response: np.ndarray, outputs: tuple[str, ...], inputs: tuple[str, ...], min_db: float
 ) -> list[tuple[str, str, float]]:
     """Channels whose rms response is ``min_db`` below the largest of their row and column."""
-    rms = np.sqrt(np.mean(np.abs(response) ** 2, axis=0))
+    rms = _channel_rms(response)
     ref = np.sqrt(np.outer(rms.max(axis=1), rms.max(axis=0)))
     with np.errstate(divide="ignore"):
         level = 20.0 * np.log10(np.where(ref > 0, rms / np.where(ref > 0, ref, 1.0), 0.0))
@@ -131,7 +136,7 @@ def _negligible_channels(
 
 
 def _check_no_zero_channel(data: FrequencyData) -> None:
-    rms = np.sqrt(np.mean(np.abs(data.response) ** 2, axis=0))
+    rms = _channel_rms(data.response)
     if np.any(rms == 0):
         o, i = np.argwhere(rms == 0)[0]
         raise DataError(
@@ -145,7 +150,7 @@ def _warn_dead_channels(data: FrequencyData) -> None:
     """Warn (:class:`~robustctl.errors.DataWarning`) about channels that are identically zero in
     the data: a disconnected sensor or actuator, not a decoupled axis (whose noise is never
     exactly zero). They are left out of the cost like negligible channels, but the user is told."""
-    rms = np.sqrt(np.mean(np.abs(data.response) ** 2, axis=0))
+    rms = _channel_rms(data.response)
     dead = np.argwhere(rms == 0)
     if dead.size == 0:
         return
