@@ -244,6 +244,11 @@ class DKResult:
         complexified) of the complex D-K design that D-G-K starts from (NaN otherwise). The
         returned mixed ``mu_peak`` is never above that design's mixed mu, hence never above
         this figure.
+    elapsed_s : float
+        Wall-clock time of the :func:`dksyn` call that returned this result (s): every
+        strategy's runs (autoscaled starts, neighbouring D orders, the complex D-K before
+        D-G-K), the verification and the reduction, not only the iterations in ``history``.
+        NaN for a result built outside ``dksyn``.
     """
 
     K: Any
@@ -260,10 +265,18 @@ class DKResult:
     stopped_by_budget: bool = False
     design_reduction: DesignReduction | None = None
     complex_mu_peak: float = float("nan")
+    elapsed_s: float = float("nan")
 
     @property
     def time_s(self) -> float:
-        """Total wall-clock time of the iterations (s)."""
+        """Wall-clock time of the call (s): ``elapsed_s``, or the iterations' sum without it."""
+        if np.isfinite(self.elapsed_s):
+            return float(self.elapsed_s)
+        return self.iterations_time_s
+
+    @property
+    def iterations_time_s(self) -> float:
+        """Wall-clock time of the iterations in ``history`` (s)."""
         return float(sum(h.time_s for h in self.history))
 
     def table(self) -> Table:
@@ -283,9 +296,12 @@ class DKResult:
         verdict = "certified (< 1)" if self.mu_peak < 1 else "not certified (>= 1)"
         text = (
             f"D-K iteration: peak mu {self.mu_peak:.4f} {verdict} at {self.mu.f_peak_hz:.3g} Hz with a "
-            f"{self.K.nstates}-state controller (iteration {self.best_iteration} of {len(self.history)}, "
-            f"{self.time_s:.2f} s; stopped: {self.stop_reason})."
+            f"{self.K.nstates}-state controller (iteration {self.best_iteration} of {len(self.history)}; "
+            f"stopped: {self.stop_reason}). The call took {self.time_s:.2f} s"
         )
+        if np.isfinite(self.elapsed_s):
+            text += f", {self.iterations_time_s:.2f} s of it in the iterations listed"
+        text += "."
         if self.mu_peak > self.grid_mu_peak * (1 + 1e-3):
             text += (f" Between and beyond the iteration grid's points mu reaches {self.mu_peak:.4f} "
                      f"(the grid saw {self.grid_mu_peak:.4f}).")
@@ -531,6 +547,7 @@ def dksyn(
     >>> dk = rc.dksyn((P, 2, 2, [[1, 1], [1, 1], [2, 2]]))   # doctest: +SKIP
     >>> dk.mu_peak, dk.table()                                # doctest: +SKIP
     """
+    t0 = time.perf_counter()
     grid = _check_args(max_iter, time_budget_s, f_hz)
     hinf_options = _check_options(progress, rtol, patience, hinf_options, callback)
     if gamma is not None:
@@ -558,7 +575,7 @@ def dksyn(
     if run.deadline.hit and own_clock:
         run.deadline.warn("dksyn (D-K iteration from the autoscaled starts)" if autoscale
                           else "dksyn (D-K iteration)")
-    return result
+    return replace(result, elapsed_s=time.perf_counter() - t0)
 
 
 # ---------------------------------------------------------------------------- strategies
@@ -607,26 +624,37 @@ def _mixed_from_complex(plant: GeneralizedPlant, blocks: BlockStructure, order_d
 
     A complex-mu design is a valid mixed-mu design (complex mu bounds mixed mu from above), so
     complex D-K runs first (real blocks complexified, with the autoscaled starts and order
-    neighbours as asked); its controller's mixed mu is verified on its verification grid. D-G-K
-    then starts from that controller (its first iteration is the complex design's closed loop,
-    whose mixed analysis gives the first D- and G-scales) and runs while its verified mixed mu
-    falls (``patience``): the D-G-K iteration is not monotone -- the fitted G filters and
-    D-scales only approximate the analysis' optimal multipliers, and the K step's certified
-    level is a bound on the *next* mixed mu, not the last -- so an iteration can rise, and
-    the run stops there. The better verified design of the two is returned, with the complex
-    design's complex mu in ``complex_mu_peak``.
+    neighbours as asked). D-G-K then starts from that controller: its first iteration is the
+    complex design's closed loop, whose mixed analysis gives the first D- and G-scales, and it
+    runs while its mixed mu falls (``patience``). The D-G-K iteration is not monotone -- the
+    fitted G filters and D-scales only approximate the analysis' optimal multipliers, and the
+    K step's certified level is a bound on the *next* mixed mu, not the last -- so an
+    iteration can rise, and the run stops there. The core keeps the best iterate, so when no
+    D-G-K step beats the complex design its verified mixed mu is the complex design's own (no
+    separate analysis). Only when the D-G-K design verifies above the complex design's
+    complex mu (a different verification grid) is the complex design's mixed mu verified on
+    its iteration grid, and the lower of the two is returned. ``complex_mu_peak`` is the
+    complex design's complex mu.
     """
     cx = _solve(plant, order_d, autoscale, replace(run, real="complex"))
-    m_cx = _verified_mu(cx.closed_loop, blocks, cx.mu.f_hz)
     mx = _iterate(plant, blocks, order_d, run, run.reduce, first=cx.K)
-    if mx.mu_peak < m_cx.peak:
-        why = f"D-G-K from the complex D-K design reached mixed mu {mx.mu_peak:.4f} (from {m_cx.peak:.4f})"
-        return replace(mx, complex_mu_peak=float(cx.mu_peak), stop_reason=f"{mx.stop_reason}; {why}")
-    why = (f"the complex D-K design (mixed mu {m_cx.peak:.4f}) is kept: D-G-K from it reached "
-           f"{mx.mu_peak:.4f}")
-    return replace(cx, mu=m_cx, mu_peak=float(m_cx.peak), complex_mu_peak=float(cx.mu_peak),
-                   stop_reason=f"{cx.stop_reason}; {why}",
-                   stopped_by_budget=cx.stopped_by_budget or mx.stopped_by_budget)
+    done = {"stopped_by_budget": cx.stopped_by_budget or mx.stopped_by_budget,
+            "complex_mu_peak": float(cx.mu_peak)}
+    if mx.best_iteration == 1:
+        why = (f"the complex D-K design (mixed mu {mx.mu_peak:.4f}) is kept: D-G-K from it did not "
+               "reach lower")
+        return replace(cx, mu=mx.mu, mu_peak=mx.mu_peak, grid_mu_peak=mx.grid_mu_peak,
+                       closed_loop=mx.closed_loop, stop_reason=f"{cx.stop_reason}; {why}", **done)
+    if mx.mu_peak > cx.mu_peak:
+        m_cx = _verified_mu(cx.closed_loop, blocks, cx.history[cx.best_iteration - 1].mu.f_hz)
+        if m_cx.peak <= mx.mu_peak:
+            why = (f"the complex D-K design (mixed mu {m_cx.peak:.4f}) is kept: D-G-K from it reached "
+                   f"{mx.mu_peak:.4f}")
+            return replace(cx, mu=m_cx, mu_peak=float(m_cx.peak), stop_reason=f"{cx.stop_reason}; {why}",
+                           **done)
+    why = (f"D-G-K from the complex D-K design reached mixed mu {mx.mu_peak:.4f} (from "
+           f"{mx.history[0].mu_peak:.4f} on the iteration grid)")
+    return replace(mx, stop_reason=f"{mx.stop_reason}; {why}", **done)
 
 
 # ---------------------------------------------------------------------------- the core
@@ -727,7 +755,7 @@ def _iterate(plant: GeneralizedPlant, blocks: BlockStructure, order_d: Any, run:
     assert best is not None
     K, cl, m = best["K"], best["cl"], best["it"].mu
     reduction = None
-    if reduce is not None:
+    if reduce is not None and (first is None or best["it"].index > 1):  # ``first`` came reduced
         K, cl, m, reduction = _reduce(plant, blocks, K, cl, m, reduce, base, grid is None)
     grid_peak = float(m.peak)
     m = _verified_mu(cl, blocks, m.f_hz)
