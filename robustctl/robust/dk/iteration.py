@@ -78,6 +78,7 @@ from ..uncertainty.blocks import Block, BlockStructure
 from .design_plant import DesignReduction, check_design_order, design_on_reduced
 from .dgk import blended_scales, fit_g_filter, g_transform, scaled_d_targets, transformed_norm
 from .reduce import Reduction, _reduce
+from .sampled_design import sampled_result, tustin_original
 from .scales import (
     HINF_BACKOFF,
     _autoscaled,
@@ -137,12 +138,13 @@ def _complexified(blocks: BlockStructure) -> BlockStructure:
 
 
 def as_plant(gp: Any) -> GeneralizedPlant:
-    """A GeneralizedPlant or ``(P, nmeas, ncon, blocks)`` as a checked continuous-time plant with blocks."""
+    """A GeneralizedPlant or ``(P, nmeas, ncon, blocks)`` as a checked plant with blocks
+    (continuous, or sampled: :mod:`.sampled_design`)."""
     if isinstance(gp, tuple) and len(gp) == 4:
         P, nmeas, ncon, blocks = gp
-        return as_partitioned(P, nmeas, ncon, blocks, who="dksyn", allow_discrete=False, need_blocks=True)
+        return as_partitioned(P, nmeas, ncon, blocks, who="dksyn", need_blocks=True)
     if isinstance(gp, PartitionedPlant):
-        return as_partitioned(gp, who="dksyn", allow_discrete=False, need_blocks=True)
+        return as_partitioned(gp, who="dksyn", need_blocks=True)
     raise PlantError(
         f"dksyn takes a GeneralizedPlant (rc.generalized_plant) or a tuple (P, nmeas, ncon, blocks); "
         f"got a {type(gp).__name__}."
@@ -450,7 +452,10 @@ def dksyn(
         performance channels in block order (block ``i`` maps its ``cols_i`` z channels to
         its ``rows_i`` w channels); ``blocks`` in any form ``as_block_structure`` takes, e.g.
         mussv rows ``[[1, 1], [1, 1], [2, 2]]``; real scalar blocks ``[-r, 0]`` are real
-        parameters (see ``real``).
+        parameters (see ``real``). A sampled plant (``dt > 0`` s, e.g. ``rc.sampled_plant``)
+        is designed through the Tustin map, which keeps stability and mu
+        (:mod:`~robustctl.robust.dk.sampled_design`): the controller runs at ``dt``, the mu
+        result's frequencies are the sampled system's, the history is the Tustin original's.
     max_iter : int
         Iteration cap (each iteration is one K step and one mu analysis).
     order_d : int, sequence of int or None
@@ -540,7 +545,8 @@ def dksyn(
     SynthesisError
         A malformed plant or block structure, or no stabilising controller; a controller
         designed on the reduced design plant that does not stabilise the full plant (the
-        reduction error exceeds what the loop tolerates: raise ``design_order``).
+        reduction error exceeds what the loop tolerates: raise ``design_order``); a sampled
+        plant with a pole at ``z = -1`` (no Tustin original).
 
     Examples
     --------
@@ -554,6 +560,9 @@ def dksyn(
         gamma = positive_number(gamma, "gamma", SynthesisError)
     check_executor(executor)
     plant = as_plant(gp)
+    sampled = plant if plant.P.isdtime(strict=True) else None
+    if sampled is not None:
+        plant = tustin_original(sampled)
     autoscale = flag(autoscale, "autoscale", SynthesisError)
     if not isinstance(real, str) or real not in ("mixed", "complex"):
         raise SynthesisError(f"real must be 'mixed' (D-G-K with G-scales on the real blocks) or 'complex' "
@@ -575,6 +584,8 @@ def dksyn(
     if run.deadline.hit and own_clock:
         run.deadline.warn("dksyn (D-K iteration from the autoscaled starts)" if autoscale
                           else "dksyn (D-K iteration)")
+    if sampled is not None:
+        result = sampled_result(result, sampled)
     return replace(result, elapsed_s=time.perf_counter() - t0)
 
 
