@@ -36,7 +36,7 @@ import numpy as np
 
 from ...checks import positive_number
 from ...errors import ModelError, SynthesisError
-from ...interconnect import PicklesStateSpaces
+from ...interconnect import PartitionedPlant, PicklesStateSpaces
 from ...lti import as_statespace, freqresp_array, is_stable, roundoff_margin
 from ...plots import label_axes, single_axes
 from ...table import Table, result_html
@@ -45,6 +45,7 @@ from ..h2.synthesis import default_grid_hz
 from ..hinf.norm import hinfnorm_matrices
 from ..hinf.synthesis import lower_lft_matrices
 from ..mu.bounds import frequencies_hz
+from ..partitioned import as_partitioned
 from .coprime import ncf_riccati
 
 __all__ = ["LoopShapingResult", "ncfsyn", "stability_margin"]
@@ -184,9 +185,11 @@ def ncfsyn(G: Any, W1: Any = None, W2: Any = None, *, factor: float = 1.1) -> Lo
 
     Parameters
     ----------
-    G : system
+    G : system or PartitionedPlant
         The plant, p outputs x m inputs, named. Continuous, or sampled (``dt > 0`` s): a
-        sampled plant is designed through the bilinear map (:func:`_ncfsyn_sampled`).
+        sampled plant is designed through the bilinear map (:func:`_ncfsyn_sampled`). A
+        partitioned plant (``rc.as_partitioned``, a GeneralizedPlant) gives its ``u -> y``
+        part ``P22``: the plant the controller sees.
     W1 : system or array_like, optional
         Input (pre-compensator) weight, m x m (default identity): integral action, roll-off.
         With a sampled ``G``: sampled at the same ``dt``, or a constant.
@@ -224,7 +227,11 @@ def ncfsyn(G: Any, W1: Any = None, W2: Any = None, *, factor: float = 1.1) -> Lo
     factor = positive_number(factor, "factor", SynthesisError)
     if factor < 1.0 + 1e-9:
         raise SynthesisError(f"factor must exceed 1 (gamma = factor gamma_min); got {factor!r}. Use 1.1.")
-    Gss = as_statespace(G, name="G")
+    if isinstance(G, PartitionedPlant):
+        plant = as_partitioned(G, who="ncfsyn")
+        Gss = plant.P[plant.nz:, plant.nw:]
+    else:
+        Gss = as_statespace(G, name="G")
     if Gss.dt not in (0, None):
         return _ncfsyn_sampled(Gss, W1, W2, factor)
     p, m = Gss.noutputs, Gss.ninputs
