@@ -443,110 +443,69 @@ def dksyn(
     gamma: float | None = None,
     design_order: int | str | None = "auto",
 ) -> DKResult:
-    """mu-synthesis by D-K iteration (Skogestad & Postlethwaite 2005, sec. 8.12.1).
+    """mu-synthesis by D-K iteration (Skogestad & Postlethwaite 2005, sec. 8.12.1; module docstring).
 
     Parameters
     ----------
     gp : GeneralizedPlant or tuple (P, nmeas, ncon, blocks)
-        The plant ``[w; u] -> [z; y]``. Its first inputs/outputs are the uncertainty and
-        performance channels in block order (block ``i`` maps its ``cols_i`` z channels to
-        its ``rows_i`` w channels); ``blocks`` in any form ``as_block_structure`` takes, e.g.
-        mussv rows ``[[1, 1], [1, 1], [2, 2]]``; real scalar blocks ``[-r, 0]`` are real
-        parameters (see ``real``). A sampled plant (``dt > 0`` s, e.g. ``rc.sampled_plant``)
-        is designed through the Tustin map, which keeps stability and mu
-        (:mod:`~robustctl.robust.dk.sampled_design`): the controller runs at ``dt``, the mu
-        result's frequencies are the sampled system's, the history is the Tustin original's.
+        The plant ``[w; u] -> [z; y]``, the uncertainty and performance channels first in block
+        order; ``blocks`` in any form ``as_block_structure`` takes (mussv rows ``[[1, 1], [2,
+        2]]``; ``[-r, 0]`` a real parameter, see ``real``). A sampled plant (``dt > 0`` s) is
+        designed through the Tustin map, which keeps stability and mu (:mod:`.sampled_design`).
     max_iter : int
         Iteration cap (each iteration is one K step and one mu analysis).
     order_d : int, sequence of int or None
-        Order of each D-scale fit (one per block but the last); None chooses per block the
-        lowest order in 0..8 that keeps the scaled bound within 5 % of what the block can
-        reach, else the one with the lowest bound (never below the previous iteration's order unless those
-        fits are broken or out of band; at most 24 added states per block, e.g. order 4 for
-        a 3 x 3 block). From the third iteration the K step tries the fits of the
-        extrapolated scales too (:data:`D_STEPS`, module docstring). When ``max_iter`` stops
-        an automatic-order run whose peak of mu still falls, the run is repeated with fixed
-        orders around those of its best iteration and the lowest verified mu is kept
-        (:func:`_neighbour_orders`; ``stop_reason`` says so).
+        Order of each D-scale fit (one per block but the last). None: per block the lowest
+        order in 0..8 within 5 % of the best bound (:func:`~.scales._fit_d_scales`); a run the
+        cap stops while mu still falls is repeated at neighbouring orders (:func:`_neighbour_orders`).
     f_hz : array_like, optional
-        Analysis grid (Hz). Default: :func:`default_grid` of ``P``, refined at the lightly
-        damped closed-loop poles each iteration.
+        Analysis grid (Hz). Default: :func:`default_grid`, refined at lightly damped closed-loop poles.
     executor : concurrent.futures.Executor, optional
-        Runs the D-scale fits (block x candidate order) in parallel.
+        Runs the D-scale fits in parallel.
     time_budget_s : float or None
-        Optional wall-clock budget (s), by :mod:`robustctl.budget`'s policy. None (default):
-        ``max_iter``, ``patience`` and the fits' own iteration caps bound the work, and the
-        result depends only on the inputs. A number: the iteration also stops (keeping the
-        best controller, ``stopped_by_budget=True``, a BudgetWarning) when what is left would
-        not cover another K step as long as the last one; the K steps' gamma bisections and
-        the D fits share the budget.
-    reduce : int or "auto", optional
-        Reduce the final controller to this many states by balanced truncation and re-check
-        mu (kept only if it stabilises and raises the peak of mu by at most 2 %). ``"auto"``:
-        the smallest such order, by bisection (a few more mu analyses); what a real-time
-        implementation wants before :func:`~robustctl.export.export_controller`. A pair
-        ``("weighted", order)`` truncates with the closed-loop weight (Enns), ``("coprime",
-        order)`` the normalized coprime factors (unstable controllers too); see
-        :mod:`robustctl.robust.reduction.controller`.
+        Optional wall-clock budget (s) by :mod:`robustctl.budget`'s policy; None (default): the
+        result depends only on the inputs. A budget that stops the iteration keeps the best
+        controller and sets ``stopped_by_budget``.
+    reduce : int, "auto" or (method, order), optional
+        Reduce the final controller and re-check mu (kept if it stabilises and raises mu by at
+        most 2 %; :mod:`robustctl.robust.dk.reduce`, :mod:`robustctl.robust.reduction.controller`).
     progress : bool, optional
         tqdm bar over iterations (default: when stderr is a terminal).
     rtol : float
-        The peak of mu must fall by this fraction to count as an improvement.
+        The fraction by which the peak of mu must fall to count as an improvement.
     patience : int
-        Non-improving iterations tolerated before stopping. The default 1 is the D-K rule
-        "repeat while the peak mu falls": on the Caltech design plant a second try after a
-        worse iteration (mu 0.79 -> 0.95 -> 0.80) cost 40 % more time and never won.
+        Non-improving iterations tolerated before stopping (1: "repeat while mu falls").
     hinf_options : dict, optional
-        Extra keyword arguments for :func:`~robustctl.robust.hinf.synthesis.hinfsyn` (default
-        ``backoff=HINF_BACKOFF``, ``time_budget_s``: this call's budget, shared). Without a
-        ``method``, a K step whose every candidate fails on the Riccati route with its advice
-        to use ``method='lmi'`` is retried on the LMI route (scaled plants of at most
-        :data:`LMI_FALLBACK_MAX_STATES` states).
+        Extra keyword arguments of :func:`~robustctl.robust.hinf.synthesis.hinfsyn`
+        (``method``, ``gamma_tol``, ``backoff``, ``time_budget_s``); see :func:`_k_step`.
     callback : callable, optional
         Called with each :class:`DKIteration`.
     real : {"mixed", "complex"}
-        With real blocks, ``"mixed"`` runs D-G-K iteration (Young 1996): each iteration's
-        closed loop is analysed with the mixed-mu bound (D- and G-scales), the G-scales are
-        fitted by stable filters and absorbed by a loop transformation
-        (:mod:`robustctl.robust.dk.dgk`), and the K step finds the smallest level its H-infinity
-        synthesis certifies (``DKIteration.gamma`` is then that level, an upper bound on the
-        next peak of mixed mu); ``mu_peak`` is mixed mu. ``"complex"``: real blocks are treated
-        as complex ones (plain D-K; conservative).
+        With real blocks, ``"mixed"`` runs D-G-K (Young 1996; :mod:`robustctl.robust.dk.dgk`)
+        from the complex D-K design and returns the better (:func:`_mixed_from_complex`);
+        ``mu_peak`` is then mixed mu. ``"complex"``: real blocks treated as complex.
     autoscale : bool
-        Scale the plant's channels before the iteration (controls and measurements to unit
-        peak gain, constant block scales balancing the closed loop; :func:`_autoscaled`), so
-        that the result does not depend on the units the plant was written in. The returned
-        controller, closed loop, mu and D-scales are the user's plant's; the history's
-        closed loops and scales are the scaled plant's (mu is the same).
+        Scale the plant's channels first and start from several block scalings
+        (:func:`_autoscaled_dksyn`), so the result does not depend on the plant's units.
     gamma : float, optional
-        A fixed design level for the D-K K steps: each H-infinity synthesis designs its
-        central controller at ``gamma`` when that is above its optimum (times ``1 +
-        backoff``), else at the optimum. A controller designed away from the optimum is
-        better conditioned (smaller gains, no near-singular Riccati solutions) at the cost
-        of a higher scaled norm. Not used by the D-G-K K step (which searches its level).
+        A fixed design level for the K steps when above their optimum (better conditioned
+        controllers; not used by D-G-K's K step, which searches its level).
     design_order : "auto", int or None
-        States of the design plant the K steps see (:mod:`robustctl.robust.dk.design_plant`).
-        ``"auto"`` (default): a generalized plant of more than ``DESIGN_REDUCE_ABOVE`` (200)
-        states is reduced by balanced truncation before synthesis, to the fewest states whose
-        bound ``2 sum sigma_tail`` on ``||P - P_r||_inf`` is at most 1 % of the largest
-        Hankel singular value (no fixed cap; raised from the loop's small-gain tolerance, at
-        most ``DESIGN_RETRIES`` times, when the controller does not stabilise the full plant),
-        and the truncation error is covered by an added additive uncertainty block on the whole plant; the
-        controller is then closed around the full plant, its mu verified there (``mu_peak``),
-        and the orders, the bound and both peaks are in ``DKResult.design_reduction``; the
-        history is the design plant's. An integer: that many states. None: the full plant.
+        States of the design plant the K steps see (:mod:`robustctl.robust.dk.design_plant`):
+        ``"auto"`` reduces plants above 200 states by balanced truncation with the error as an
+        added block and verifies mu on the full plant; an integer: that many; None: the full plant.
 
     Returns
     -------
     DKResult
+        With ``elapsed_s``, the call's own wall-clock time (s).
 
     Raises
     ------
     SynthesisError
-        A malformed plant or block structure, or no stabilising controller; a controller
-        designed on the reduced design plant that does not stabilise the full plant (the
-        reduction error exceeds what the loop tolerates: raise ``design_order``); a sampled
-        plant with a pole at ``z = -1`` (no Tustin original).
+        A malformed plant, blocks or option; no stabilising controller; a design-plant
+        controller that does not stabilise the full plant (raise ``design_order``); a
+        sampled plant with a pole at ``z = -1``.
 
     Examples
     --------
@@ -554,24 +513,14 @@ def dksyn(
     >>> dk.mu_peak, dk.table()                                # doctest: +SKIP
     """
     t0 = time.perf_counter()
-    grid = _check_args(max_iter, time_budget_s, f_hz)
-    hinf_options = _check_options(progress, rtol, patience, hinf_options, callback)
-    if gamma is not None:
-        gamma = positive_number(gamma, "gamma", SynthesisError)
-    check_executor(executor)
+    run = _settings(max_iter, f_hz, executor, time_budget_s, reduce, progress, rtol, patience, hinf_options,
+                    callback, real, gamma)
     plant = as_plant(gp)
     sampled = plant if plant.P.isdtime(strict=True) else None
     if sampled is not None:
         plant = tustin_original(sampled)
     autoscale = flag(autoscale, "autoscale", SynthesisError)
-    if not isinstance(real, str) or real not in ("mixed", "complex"):
-        raise SynthesisError(f"real must be 'mixed' (D-G-K with G-scales on the real blocks) or 'complex' "
-                             f"(real blocks treated as complex); got {real!r}.")
     _orders(order_d, len(plant.blocks) - 1)  # refuse a bad order_d now, not at the first D step
-    own_clock = not isinstance(time_budget_s, Deadline)  # a caller's Deadline: the caller reports
-    run = _Settings(max_iter=max_iter, grid=grid, executor=executor, rtol=rtol, patience=patience,
-                    hinf_options=hinf_options, callback=callback, real=real, gamma=gamma, progress=progress,
-                    reduce=reduce, deadline=as_deadline(time_budget_s, SynthesisError))
 
     def design(p: GeneralizedPlant, error_block: bool) -> DKResult:
         od = order_d
@@ -581,12 +530,28 @@ def dksyn(
         return _solve(p, od, autoscale, run)
 
     result = design_on_reduced(plant, design_order, _design_blocks(plant, real), design)
-    if run.deadline.hit and own_clock:
+    if run.deadline.hit and not isinstance(time_budget_s, Deadline):  # a caller's Deadline: it reports
         run.deadline.warn("dksyn (D-K iteration from the autoscaled starts)" if autoscale
                           else "dksyn (D-K iteration)")
     if sampled is not None:
         result = sampled_result(result, sampled)
     return replace(result, elapsed_s=time.perf_counter() - t0)
+
+
+def _settings(max_iter: Any, f_hz: Any, executor: Any, time_budget_s: Any, reduce: Any, progress: Any,
+              rtol: Any, patience: Any, hinf_options: Any, callback: Any, real: Any, gamma: Any) -> _Settings:
+    """:func:`dksyn`'s options checked before any work (SynthesisError naming each), as one record."""
+    grid = _check_args(max_iter, time_budget_s, f_hz)
+    hinf_options = _check_options(progress, rtol, patience, hinf_options, callback)
+    if gamma is not None:
+        gamma = positive_number(gamma, "gamma", SynthesisError)
+    check_executor(executor)
+    if not isinstance(real, str) or real not in ("mixed", "complex"):
+        raise SynthesisError(f"real must be 'mixed' (D-G-K with G-scales on the real blocks) or 'complex' "
+                             f"(real blocks treated as complex); got {real!r}.")
+    return _Settings(max_iter=max_iter, grid=grid, executor=executor, rtol=rtol, patience=patience,
+                     hinf_options=hinf_options, callback=callback, real=real, gamma=gamma, progress=progress,
+                     reduce=reduce, deadline=as_deadline(time_budget_s, SynthesisError))
 
 
 # ---------------------------------------------------------------------------- strategies
