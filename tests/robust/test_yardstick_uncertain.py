@@ -12,6 +12,7 @@ import robustctl as rc
 from robustctl.interconnect import lft
 from robustctl.lti import freqresp_array
 from robustctl.robust.dk.verify import default_grid, mu_of
+from robustctl.robust.mu.bounds import mu
 from robustctl.robust.uncertainty.blocks import Block, BlockStructure
 
 ZETA = 0.01
@@ -66,14 +67,17 @@ def test_yardstick_designs_on_an_uncertain_system_and_scores_it_on_the_data():
         # the data's verdict is the truth's: closed-loop poles by numpy
         Acl = np.block([[truth.A + truth.B @ d.K.D @ truth.C, truth.B @ d.K.C], [d.K.B @ truth.C, d.K.A]])
         assert yard.stability[lab].stable is bool(np.linalg.eigvals(Acl).real.max() < 0)
-    # mu of the nominal design against the uncertain model's set is mixed mu, the real block real:
-    # recomputed on the yardstick's grid it is the same, and treating the block as complex would give
-    # a figure ten times higher (4.36 where measured)
+    # mu of the nominal design against the uncertain model's set is mixed mu, the real block real.
+    # It spikes between grid points (0.2 at 3.0 and 3.4 Hz, 0.49 at 3.2 Hz, where measured): the
+    # yardstick verifies it, and an independent grid of 600 points per decade finds the peak within
+    # 2 %; treating the block as complex would give a figure ten times higher
     gp = _recipe(models["uncertain"])
     loop = lft(gp.P, dn.K, gp.nmeas, gp.ncon)
-    m = mu_of(loop, gp.blocks, default_grid(gp.P), refine=True)[0]
+    dense = np.logspace(-1, 1.5, 1500)
+    peak = mu(freqresp_array(loop, dense), gp.blocks, f_hz=dense, lower=False).peak
     i, j = yard.labels.index("nominal"), yard.labels.index("uncertain")
-    assert yard.mu_cross[i, j] == pytest.approx(m.peak, rel=1e-9)
+    assert peak * (1 - 1e-3) <= yard.mu_cross[i, j] <= 1.02 * peak  # a refined maximum: at least the grid's
+    assert mu_of(loop, gp.blocks, default_grid(gp.P), refine=True)[0].peak < 0.9 * peak  # the grid misses it
     complexified = [Block("complex", b.rows, b.cols, b.name) if b.kind == "real" else b for b in gp.blocks]
     as_complex = mu_of(loop, BlockStructure(tuple(complexified)), default_grid(gp.P), refine=True)[0].peak
     assert yard.mu_cross[i, j] < 0.2 * as_complex

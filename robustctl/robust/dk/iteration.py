@@ -97,7 +97,7 @@ from .scales import (
 from .scales import _dynamics_in_band as _dynamics_in_band
 from .scales import _fit_one as _fit_one
 from .scales import _into_band as _into_band
-from .verify import _verified_mu, closed_loop, default_grid, mu_of
+from .verify import closed_loop, default_grid, mu_of, verified_mu
 from .verify import verification_grid as verification_grid
 
 __all__ = ["DKIteration", "DKResult", "Reduction", "DesignReduction", "dksyn"]
@@ -622,7 +622,7 @@ def _mixed_from_complex(plant: GeneralizedPlant, blocks: BlockStructure, order_d
         return replace(cx, mu=mx.mu, mu_peak=mx.mu_peak, grid_mu_peak=mx.grid_mu_peak,
                        closed_loop=mx.closed_loop, stop_reason=f"{cx.stop_reason}; {why}", **done)
     if mx.mu_peak > cx.mu_peak:
-        m_cx = _verified_mu(cx.closed_loop, blocks, cx.history[cx.best_iteration - 1].mu.f_hz)
+        m_cx = verified_mu(cx.closed_loop, blocks, cx.history[cx.best_iteration - 1].mu.f_hz)
         if m_cx.peak <= mx.mu_peak:
             why = (f"the complex D-K design (mixed mu {m_cx.peak:.4f}) is kept: D-G-K from it reached "
                    f"{mx.mu_peak:.4f}")
@@ -734,7 +734,7 @@ def _iterate(plant: GeneralizedPlant, blocks: BlockStructure, order_d: Any, run:
     if reduce is not None and (first is None or best["it"].index > 1):  # ``first`` came reduced
         K, cl, m, reduction = _reduce(plant, blocks, K, cl, m, reduce, base, grid is None)
     grid_peak = float(m.peak)
-    m = _verified_mu(cl, blocks, m.f_hz)
+    m = verified_mu(cl, blocks, m.f_hz)
     d_fits = best["d"]
     if m.peak > grid_peak * (1 + VERIFY_WARN_RTOL):
         import warnings
@@ -868,7 +868,7 @@ def _autoscaled_dksyn(plant: GeneralizedPlant, blocks: BlockStructure, order_d: 
         base = default_grid(p_k.P) if refine else run.grid
         K, cl, m, reduction = _reduce(p_k, blocks, K, cl, m, run.reduce, base, refine)
         if reduction.accepted:
-            m = _verified_mu(cl, blocks, m.f_hz)
+            m = verified_mu(cl, blocks, m.f_hz)
     K = _unscaled_controller(K, sc_k)
     cl = closed_loop(plant.P, K, plant.nmeas, plant.ncon)
     d_fits = tuple(control.ss(f.A, f.B, f.C * float(di), f.D * float(di))
