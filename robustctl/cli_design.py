@@ -69,6 +69,20 @@ class DesignRecipe:
     cover_order: int = 4
     cover_band_hz: tuple[float, float] | None = None
 
+    def __post_init__(self) -> None:
+        from .checks import integer, positive_number
+        from .errors import DataError
+
+        lo, hi = (positive_number(f, "the performance band", unit="Hz") for f in self.perf_band_hz)
+        if not lo < hi:
+            raise DataError(
+                f"the performance band must be (low, high) in Hz with low < high; got {self.perf_band_hz}."
+            )
+        positive_number(self.level, "level")
+        positive_number(self.input_mult, "input_mult", allow_zero=True)
+        positive_number(self.output_mult, "output_mult", allow_zero=True)
+        integer(self.cover_order, "cover_order", lo=0)
+
     def cover(self, nominal: Any) -> Any:
         """The additive :class:`~robustctl.robust.uncertainty.UncertaintyCover` of ``nominal`` against
         the data, or None without data."""

@@ -200,3 +200,22 @@ def test_design_from_an_update_to_an_exported_controller(tmp_path, capsys, monke
     nominal = np.abs(Wp * G / (1.0 - G * k_c))  # input disturbance -> weighted sensor: a block of mu's matrix
     assert nominal.max() <= mu * (1 + 1e-3)
     assert nominal.max() > 0.5 * mu  # 0.62 mu measured: the performance block is most of mu
+
+
+def test_design_refuses_bad_input_in_one_line(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "chain.py").write_text(MODEL_FILE)
+    cases = [
+        (["--perf-band", "5", "2"], "the performance band must be (low, high) in Hz with low < high"),
+        (["--perf-band", "1", "5", "--level", "-1"], "level must be positive"),
+        ([], "give --perf-band LO_HZ HI_HZ (or DATA, whose span is the default)"),
+        (["--update", "nowhere"], "--update nowhere: cannot read nowhere"),
+    ]
+    for extra, message in cases:
+        assert main(["design", "chain.py", "--fs", "200", *extra]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("robustctl design: ") and message in err and err.count("\n") == 1
+    (tmp_path / "upd").mkdir()
+    (tmp_path / "upd" / "summary.json").write_text(json.dumps({"parameters": [{"name": "q", "after": 1.0}]}))
+    assert main(["design", "chain.py", "--fs", "200", "--perf-band", "1", "5", "--update", "upd"]) == 2
+    assert "MODEL has no parameter q" in capsys.readouterr().err
