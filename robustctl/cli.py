@@ -239,6 +239,9 @@ def _design_parser(sub: Any) -> None:
     des.add_argument("--input-mult", type=float, default=0.04, help="input multiplicative uncertainty")
     des.add_argument("--output-mult", type=float, default=0.04, help="output multiplicative uncertainty")
     des.add_argument("--cover-order", type=int, default=4, help="states of the additive weight")
+    des.add_argument("--data-sigmas", type=float, default=3.0,
+                     help="raise the measured error by this many standard deviations of the H1 estimate's "
+                     "random error before covering it (default 3; 0: cover the error as measured)")
     des.add_argument("--max-iter", type=int, default=4, help="D-K iteration cap")
     des.add_argument("--d-order", type=int, default=None,
                      help="order of every D-scale fit (default: chosen per block and iteration)")
@@ -558,7 +561,7 @@ def _design_inputs(args: argparse.Namespace) -> tuple[Any, Any, Any]:
     if perf is None:
         raise CommandLineError("give --perf-band LO_HZ HI_HZ (or DATA, whose span is the default).")
     return model, data, DesignRecipe(data, tuple(perf), args.level, args.input_mult, args.output_mult,
-                                     args.cover_order, _band(args))
+                                     args.cover_order, _band(args), args.data_sigmas)
 
 
 def _run_design(args: argparse.Namespace) -> Path:

@@ -59,6 +59,9 @@ class DesignRecipe:
         States of the additive weight.
     cover_band_hz : (float, float) or None
         Band of the cover, Hz (None: every data point).
+    data_sigmas : float
+        The measured error is raised by this many standard deviations of the H1 estimate's random
+        error before it is covered (:func:`~robustctl.robust.cover_additive`; 0: as measured).
     """
 
     data: Any = None
@@ -68,6 +71,7 @@ class DesignRecipe:
     output_mult: float = 0.04
     cover_order: int = 4
     cover_band_hz: tuple[float, float] | None = None
+    data_sigmas: float = 3.0
 
     def __post_init__(self) -> None:
         from .checks import integer, positive_number
@@ -82,6 +86,7 @@ class DesignRecipe:
         positive_number(self.input_mult, "input_mult", allow_zero=True)
         positive_number(self.output_mult, "output_mult", allow_zero=True)
         integer(self.cover_order, "cover_order", lo=0)
+        positive_number(self.data_sigmas, "data_sigmas", allow_zero=True)
 
     def cover(self, nominal: Any) -> Any:
         """The additive :class:`~robustctl.robust.uncertainty.UncertaintyCover` of ``nominal`` against
@@ -92,7 +97,12 @@ class DesignRecipe:
             return None
         seen = self.seen_data(nominal)
         return cover_additive(
-            nominal, seen, order=self.cover_order, band=self.cover_band_hz, smooth_octaves=0.5
+            nominal,
+            seen,
+            order=self.cover_order,
+            band=self.cover_band_hz,
+            smooth_octaves=0.5,
+            data_sigmas=self.data_sigmas,
         )
 
     def seen_data(self, nominal: Any) -> Any:
