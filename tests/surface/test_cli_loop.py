@@ -1,4 +1,4 @@
-"""The whole loop from the shell: load -> compare -> diagnose -> update (-> report) on UFF files.
+"""The whole loop from the shell: load -> compare -> diagnose -> update -> design (-> report) on UFF files.
 
 The truth is a three-mass chain written here with numpy/scipy (5 % stiffer springs and 0.15 kg on
 the middle mass than the user's model); the measurement is a long random-phase multisine on the
@@ -117,6 +117,16 @@ def test_load_compare_diagnose_update_report_on_uff_files(tmp_path, capsys, monk
     assert upd["cost_after"] < 0.01 * upd["cost_before"]
     html = (tmp_path / "upd" / "report.html").read_text()
     assert "within the noise in every channel and band" in html
+
+    # the design step on the model as the update left it (its effect and fitted values)
+    out = run(capsys, "design", "chain.py", uff, "--update", tmp_path / "upd", "--inputs", "F3",
+              "--outputs", "a3", "--band", 1, 40, "--perf-band", 2, 20, "--level", 0.05, "--fs", 256,
+              "--max-iter", 1, "--d-order", 2, "--no-reduce", "--out", tmp_path / "des")
+    after = {p["name"]: p["after"] for p in upd["parameters"]}
+    assert "effect 'added mass at node x2' added" in out
+    assert all(f"{name} = {value:.6g}" in out for name, value in after.items()), (after, out)
+    des = summary(tmp_path / "des")
+    assert f"mu: peak {des['mu_peak']:.4g}" in out and des["controller_states"] >= 1
 
     out = run(capsys, "report", tmp_path / "cmp", tmp_path / "diag", tmp_path / "upd",
               "--out", tmp_path / "all")
