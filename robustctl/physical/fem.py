@@ -765,10 +765,13 @@ class Frame(Structure):
         ``"rz"``; one axis: a hinge) between them and the rest of the joint; rotations about the
         other axes stay tied as the translations are.
 
-        The group's beam ends at ``node`` move to a new node at the same place (``"node~group"``),
-        tied to ``node`` in translation by springs far stiffer than the members (10^5 x the largest
-        axial stiffness ``E A / L`` at the joint) and in rotation by the joint's springs. Compliance
-        0 leaves the frame unchanged (a rigid joint); a large one approaches a pin (the
+        The group's beam ends at ``node`` move to a new node at the same place (``"node~group"``)
+        that follows ``node`` exactly (a rigid link, its DOFs eliminated) in translation and in the
+        rotations the joint does not release; each released rotation is a DOF of its own, joined to
+        ``node``'s by the joint's spring. Ties by penalty springs (far stiffer than the members)
+        would put modes near 10^7 rad/s beside the suspension's 1 rad/s, beyond what a double
+        precision eigensolver separates: the lowest modes of a free-free structure came out at 0.
+        Compliance 0 leaves the frame unchanged (a rigid joint); a large one approaches a pin (the
         semi-rigid connections of steel frames, e.g. Chen & Lui, *Stability Design of Steel
         Frames*, ch. 5).
         """
@@ -783,26 +786,23 @@ class Frame(Structure):
                 f"node {node!r} is not a joint of group {group!r} with other beams; the joints are "
                 f"{self.joints()}."
             )
-        k_tie = 1e5 * self.joint_stiffness(node, group)  # a rotation the joint does not release
         twin = f"{node}~{group}"
         if twin in self._nodes:
             raise ModelError(f"the joint of {group!r} at {node!r} is already flexible.")
         nodes = dict(self._nodes)
         nodes[twin] = _Node(twin, self._nodes[node].xyz, self._nodes[node].tags)
-        k_axial = 0.0
         elements = {}
         for name, e in self._elements.items():
-            if node in (e.n1, e.n2):
-                L = float(np.linalg.norm(self._nodes[e.n2].xyz - self._nodes[e.n1].xyz))
-                k_axial = max(k_axial, e.E * e.A / L)
             if e.group == group and e.kind == "beam" and node in (e.n1, e.n2):
                 e = replace(e, n1=twin if e.n1 == node else e.n1, n2=twin if e.n2 == node else e.n2)
             elements[name] = e
         self._nodes, self._elements, self._springs = nodes, elements, list(self._springs)
-        for ax in ("x", "y", "z"):
-            self._add_spring("spring", node, 1e5 * k_axial, ax, twin, ("joint",))
+        released = tuple(3 + ("rx", "ry", "rz").index(ax) for ax in ("rx", "ry", "rz") if ax in axes)
+        self._links = [*self._links, _Link(node, twin, ("joint",), released)]
+        self._cache = None
         for ax in ("rx", "ry", "rz"):
-            self._add_spring("spring", node, 1.0 / c if ax in axes else k_tie, ax, twin, ("joint",))
+            if ax in axes:
+                self._add_spring("spring", node, 1.0 / c, ax, twin, ("joint",))
         return self
 
     # ------------------------------------------------------------------ assembly
