@@ -26,6 +26,7 @@ from typing import Any
 
 import control
 import numpy as np
+import scipy.linalg as sla
 
 from ..errors import DataError
 from ..frd import PLAIN_NOTE, Experiment
@@ -406,9 +407,12 @@ def _modal(sys: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     if fast is not None:
         return fast[0], fast[1], D
     lam, V = np.linalg.eig(A)
-    if np.linalg.cond(V) > 1e10:
+    lu = sla.lu_factor(V, check_finite=False)
+    # the 1-norm condition number from the LU (LAPACK zgecon, O(n^2)); an SVD costs more than eig
+    rcond, info = sla.lapack.zgecon(lu[0], float(np.max(np.sum(np.abs(V), axis=0))), norm="1")
+    if info != 0 or not rcond * 1e10 >= 1.0:
         return None
-    W = np.linalg.solve(V, B.astype(complex))
+    W = sla.lu_solve(lu, B.astype(complex), check_finite=False)
     CV = C @ V
     res = np.einsum("ok,ki->koi", CV, W)
     return lam, res, D
@@ -595,7 +599,7 @@ def _lagged_spectrum(two_sided: np.ndarray, f_hz: np.ndarray, settings: Estimato
     bins = f * n / fs
     idx = np.rint(bins).astype(int)
     if np.allclose(bins, idx, atol=1e-6):
-        return np.fft.fft(h, 2 * n, axis=0)[2 * idx]
+        return np.fft.rfft(h, 2 * n, axis=0)[2 * idx]  # h is real; 2 idx <= n below Nyquist
     m = np.concatenate([np.arange(n), np.arange(-n, 0)])
     phase = np.exp(-2j * np.pi * np.outer(f / fs, m))
     return np.einsum("fk,koi->foi", phase, h)
@@ -613,11 +617,14 @@ _FAR_POLE = 4.0
 _FAR_ORDER = 21
 
 
-def _far_pole_series(omega: np.ndarray, poles: np.ndarray, flat: np.ndarray, omega_max: float) -> np.ndarray:
+def _far_pole_series(omega: np.ndarray, poles: np.ndarray, flat: np.ndarray, omega_max: float,
+                     second: bool = False) -> Any:
     """``sum_p r_p / (j omega - p)`` for poles far beyond ``|omega| <= omega_max`` (rad/s), by the
     geometric series ``-sum_k (j omega)^k sum_p r_p / p^(k+1)``: the residues are summed once per
     power, so the cost is ``_FAR_ORDER`` columns instead of one per pole. Terms are scaled by
-    ``omega_max^k`` (``|j omega / omega_max| <= 1``); shape ``(omega.size, flat.shape[1])``."""
+    ``omega_max^k`` (``|j omega / omega_max| <= 1``); shape ``(omega.size, flat.shape[1])``.
+    ``second=True`` also returns its second derivative in ``omega``, the series differentiated
+    term by term."""
     inv = 1.0 / poles
     coef = np.empty((_FAR_ORDER + 1, flat.shape[1]), complex)
     term = inv.copy()  # omega_max^k / p^(k+1)
@@ -627,7 +634,12 @@ def _far_pole_series(omega: np.ndarray, poles: np.ndarray, flat: np.ndarray, ome
     x = 1j * np.asarray(omega, dtype=float) / omega_max
     powers = np.cumprod(np.concatenate([np.ones((x.size, 1), complex),
                                         np.broadcast_to(x[:, None], (x.size, _FAR_ORDER))], axis=1), axis=1)
-    return -(powers @ coef)
+    value = -(powers @ coef)
+    if not second:
+        return value
+    k = np.arange(2, _FAR_ORDER + 1)
+    # d^2/domega^2 (j omega / omega_max)^k = -k (k - 1) / omega_max^2 (j omega / omega_max)^(k - 2)
+    return value, (powers[:, : k.size] @ (coef[2:] * (k * (k - 1))[:, None])) / omega_max**2
 
 
 #: The local form of the measured-input view (:func:`_measured_local`) is used when the window's
@@ -684,19 +696,25 @@ def _measured_local(poles: np.ndarray, flat: np.ndarray, D: np.ndarray, f: np.nd
     fs, n, _ = settings
     T = 1.0 / fs
     below = np.abs(poles.imag) < np.pi * fs
+    far = ~below & (np.abs(poles) >= _FAR_POLE * np.pi * fs)
+    near = ~below & ~far
     two = np.zeros((2 * n,) + D.shape)
     two[0] = D
     pb = poles[below]
-    if pb.size:
-        seq = _powers(pb * T, n) * T
+    if pb.size:  # real: one pole of each conjugate pair, twice, and the real poles
+        half = below & (poles.imag >= 0)
+        weight = np.where(poles[half].imag > 0, 2.0 * T, T)
+        seq = _powers(poles[half] * T, n) * weight[None, :]
         seq[0] *= 0.5
-        two[:n] += np.real(seq @ flat[below]).reshape((n,) + D.shape)
+        two[:n] += np.real(seq @ flat[half]).reshape((n,) + D.shape)
     out = _lagged_spectrum(two, f, settings).reshape(f.size, -1)
     th = (2.0 * np.pi * f / fs)[:, None]
-    pa = poles[~below]
-    if pa.size:  # r / (j theta fs - p) and its second derivative in theta, -2 fs^2 r / (...)^3
-        x = 1.0 / (1j * th * fs - pa[None, :])
-        out += (x - (2.0 * c2 * fs * fs) * (x * x * x)) @ flat[~below]
+    if np.any(near):  # r / (j theta fs - p) and its second derivative in theta, -2 fs^2 r / (...)^3
+        x = 1.0 / (1j * th * fs - poles[None, near])
+        out += (x - (2.0 * c2 * fs * fs) * (x * x * x)) @ flat[near]
+    if np.any(far):
+        s0, s2 = _far_pole_series(th[:, 0] * fs, poles[far], flat[far], np.pi * fs, second=True)
+        out += s0 + (c2 * fs * fs) * s2
     if pb.size:  # a = r [cot((theta - beta) / 2) / (2 j fs) - 1 / (j theta fs - p)], as in the grid path
         e = np.exp(-1j * th) * np.exp(pb / fs)[None, :]
         cot = 1j * (1.0 + e) / (1.0 - e)
