@@ -47,10 +47,64 @@ def _project(Q: np.ndarray, x: np.ndarray) -> np.ndarray:
     return x - Q @ (Q.T @ x) if Q.shape[1] else x
 
 
-def _screen_one(
+#: Peaks of the misfit at which an effect with a second value to choose (``Effect.retune``: an attached
+#: resonator's frequency) is screened, the largest first; each is then refined by :data:`RETUNE_STEPS`.
+RETUNE_PEAKS = 4
+#: Relative offsets around the best peak tried to refine a retuned effect's value (the peak of the
+#: misfit sits within a few half-power bandwidths of the mode it lacks).
+RETUNE_STEPS = (-0.04, -0.015, 0.015, 0.04)
+
+
+def _misfit_peaks(res_u: Residual, r_perp: np.ndarray, n: int) -> list[float]:
+    """The ``n`` largest local maxima (Hz) of the misfit left by updating, summed over the channels
+    (smoothed over three bins), at least 5 % apart."""
+    e = res_u.unstack(r_perp)
+    power = np.sum(np.abs(e) ** 2, axis=tuple(range(1, e.ndim)))
+    if power.size < 3:
+        return []
+    smooth = np.convolve(power, np.ones(3) / 3.0, mode="same")
+    inner = np.flatnonzero((smooth[1:-1] >= smooth[:-2]) & (smooth[1:-1] > smooth[2:])) + 1
+    f = np.asarray(res_u.f_hz, dtype=float)
+    found: list[float] = []
+    for k in inner[np.argsort(-smooth[inner], kind="stable")]:
+        if all(abs(f[k] / g - 1.0) >= 0.05 for g in found):
+            found.append(float(f[k]))
+        if len(found) == n:
+            break
+    return found
+
+
+def _screen_retuned(
     res_u: Residual, model_u: Any, j_u: np.ndarray, Q: np.ndarray, r_perp: np.ndarray, effect: Any
 ) -> dict[str, Any]:
+    """Screen an effect whose second value first order cannot see (``Effect.retune``: a resonator's
+    frequency) at its own value and at the :data:`RETUNE_PEAKS` largest peaks of the misfit, then
+    around the best by :data:`RETUNE_STEPS`; the screen of the best, with that effect."""
+    tried: dict[float, dict] = {}
+
+    def at(value: float) -> dict:
+        key = float(f"{value:.6g}")
+        if key not in tried:
+            tried[key] = _screen_one(res_u, model_u, j_u, Q, r_perp, effect.retuned(key), retune=False)
+        return tried[key]
+
+    current = float(getattr(effect, effect.retune))
+    for value in [current, *_misfit_peaks(res_u, r_perp, RETUNE_PEAKS)]:
+        at(value)
+    best_key = max(tried, key=lambda k: (tried[k]["fraction"], -k))
+    for step in RETUNE_STEPS:
+        at(best_key * (1.0 + step))
+    best = max(tried.values(), key=lambda sc: (sc["fraction"], -float(getattr(sc["effect"], effect.retune))))
+    return dict(best, evals=sum(sc["evals"] for sc in tried.values()))
+
+
+def _screen_one(
+    res_u: Residual, model_u: Any, j_u: np.ndarray, Q: np.ndarray, r_perp: np.ndarray, effect: Any,
+    retune: bool = True,
+) -> dict[str, Any]:
     """Secant of one candidate from neutral to its typical size, projected (step 2)."""
+    if retune and getattr(effect, "retune", None) is not None and not _is_switch(effect):
+        return _screen_retuned(res_u, model_u, j_u, Q, r_perp, effect)
     neutral = effect.with_values(**effect.neutral_values)
     m_c = neutral.apply(model_u)
     res_c = _residual_for(res_u, m_c)
@@ -441,10 +495,13 @@ def _polish_task(shared: tuple, item: tuple) -> dict:
     ``shared = (res_u, update names, budget)``, ``item = (screen, local fit)``)."""
     res_u, names, budget = shared
     s, fit = item
-    pname = s["effect"].param_names[0]
+    effect = s["effect"]
+    pname = effect.param_names[0]
+    # an effect's retuned value (a resonator's frequency) is fitted with its size
+    extra = tuple(p.name for p in effect.parameters[1:] if p.free) if effect.retune is not None else ()
     res_c = _residual_for(res_u, s["model"])
     try:
-        lm = levenberg_marquardt(res_c, names + (pname,), x0={**fit["x"], pname: fit["value"]},
+        lm = levenberg_marquardt(res_c, names + (pname,) + extra, x0={**fit["x"], pname: fit["value"]},
                                  max_iter=POLISH_ITER, ftol=1e-4, time_budget_s=budget)
     except RobustctlError:
         return dict(fit, evals=0)
@@ -452,7 +509,7 @@ def _polish_task(shared: tuple, item: tuple) -> dict:
         return dict(fit, evals=lm.n_evals)
     x = dict(lm.x)
     return dict(x={n: x[n] for n in names}, cost=float(lm.cost), vector=lm.vector, evals=lm.n_evals,
-                value=float(x[pname]), cut=lm.stopped_by_budget)
+                value=float(x[pname]), cut=lm.stopped_by_budget, extra={n: float(x[n]) for n in extra})
 
 
 #: Multiples of an effect's typical size tried as starting values of its local fit.

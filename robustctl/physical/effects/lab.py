@@ -41,6 +41,13 @@ def _mounts(ctx, side: str) -> list[tuple[str, str | None]]:
     return list(found.items())
 
 
+def _signal_mounts(ctx, side: str) -> list[str]:
+    """The location of each point sensor (or force) of the model's structure, one per signal: a node
+    with two single-axis accelerometers appears twice (it carries both)."""
+    found = (ctx.structure.signal_location(side, name) for name in _structure_signals(ctx.model, side))
+    return [loc for loc in found if loc is not None]
+
+
 def _signal_axis(ctx, mats, side: str, name: str, loc: str) -> str | None:
     """The translational axis a point signal at ``loc`` points along most (None: a scalar DOF)."""
     dirs = [d for d in ctx.directions.get(loc, [None]) if d is not None]
@@ -96,11 +103,15 @@ class TransducerMass(_StructEffect):
 
     @classmethod
     def candidates_at(cls, ctx, where):
-        """One mass for every sensor mount (two mounts or more), and one for every sensor and
-        drive point when the forces act elsewhere."""
-        sensors = [loc for loc, _ in _mounts(ctx, "output")]
-        drives = [loc for loc, _ in _mounts(ctx, "input") if loc not in sensors]
+        """One mass for every point sensor (two or more; a node carrying two single-axis sensors
+        carries two masses), one for every sensor mount when some carry several sensors (a triaxial
+        accelerometer: one mass), and one for every sensor and drive point when forces act elsewhere."""
+        sensors = _signal_mounts(ctx, "output")
+        mounts = list(dict.fromkeys(sensors))
+        drives = [loc for loc in dict.fromkeys(_signal_mounts(ctx, "input")) if loc not in mounts]
         out = [cls("sensors", mounts=tuple(sensors))] if len(sensors) >= 2 else []
+        if len(mounts) >= 2 and len(mounts) < len(sensors):
+            out.append(cls("sensor mounts", mounts=tuple(mounts)))
         if sensors and drives:
             out.append(cls("sensors and drive points", mounts=tuple(sensors + drives)))
         return out
@@ -113,7 +124,8 @@ class TransducerMass(_StructEffect):
     def description(self) -> str:
         return (
             f"The same unmodelled mass at each of {', '.join(self.mounts)} (the accelerometers, their "
-            "mounts and cable clamps): lowers the modes that move the measured points."
+            "mounts and cable clamps; a location named twice carries two): lowers the modes that move "
+            "the measured points."
         )
 
     def _check_location(self, model):
@@ -149,11 +161,12 @@ class TransducerMass(_StructEffect):
         return True  # more weight in the suspension
 
 
-#: Resonator frequencies per octave of the band at which :func:`candidates` places them (at most).
-RESONATORS_PER_OCTAVE = 3
-#: At most this many resonator candidates per model (fewer per octave on a wide band or many mounts:
-#: each costs a screen, and diagnose's budget is shared by all candidates).
-RESONATORS_MAX = 24
+#: Frequencies at which a resonator candidate's screen is tried besides the misfit's peaks: this many
+#: per octave of the band (``rc.diagnose`` retunes it; see :attr:`AttachedResonator.retune`).
+RESONATORS_PER_OCTAVE = 0
+#: At most this many resonator candidates per model (one per sensor or drive-point mount: each costs a
+#: screen at several frequencies, and diagnose's budget is shared by all candidates).
+RESONATORS_MAX = 12
 
 
 @dataclass(frozen=True)
@@ -162,11 +175,10 @@ class AttachedResonator(_StructEffect):
 
     It adds a mode at about ``frequency`` (Hz) and splits the host's modes near it (Den Hartog,
     *Mechanical Vibrations*, sec. 3.2): no parameter of the model can make that mode, and first
-    order at mass 0 sees it only near its own frequency, hence the grid of frequencies. The
-    candidates sit at the sensor and drive-point mounts along their axes, at up to
-    :data:`RESONATORS_PER_OCTAVE` frequencies per octave of the band (:data:`RESONATORS_MAX` in
-    all); diagnose fits the mass at each candidate's frequency, ``rc.update`` with the effect fits
-    the frequency as well.
+    order at mass 0 sees it only near its own frequency. The candidates sit at the sensor and
+    drive-point mounts along their axes (:data:`RESONATORS_MAX` at most), one each, at the band's
+    geometric middle; ``rc.diagnose`` screens each at the peaks of the misfit the update leaves
+    (:attr:`retune`: the added mode sits where the model has none) and fits mass and frequency.
 
     Parameters
     ----------
@@ -188,24 +200,24 @@ class AttachedResonator(_StructEffect):
     domain: ClassVar[str] = "structure"
     sweep: ClassVar[str | None] = "structure"
     calibration: ClassVar[str] = "none"
+    retune: ClassVar[str | None] = "frequency"
     _value_fields: ClassVar[tuple[str, ...]] = ("mass", "frequency")
 
     @classmethod
     def candidates_at(cls, ctx, where):
-        """At each sensor and drive-point mount, along its axis, over the band's octaves."""
+        """At each sensor and drive-point mount, along its axis, at the band's geometric middle (the
+        screening moves it to the misfit's peaks); typical mass 1 % of the structure's."""
         band = ctx.band
         if band is None or not band[1] > band[0] > 0:
-            return []  # no band given: no frequencies to place them at
+            return []  # no band given: no frequencies to screen it at
         mounts = dict(_mounts(ctx, "output"))
         for loc, d in _mounts(ctx, "input"):
             mounts.setdefault(loc, d)
-        octaves = math.log2(band[1] / band[0])
-        per_octave = min(RESONATORS_PER_OCTAVE, RESONATORS_MAX / max(len(mounts) * octaves, 1e-9))
-        n = max(1, int(math.floor(per_octave * octaves)))
+        n = max(1, int(math.floor(RESONATORS_PER_OCTAVE * math.log2(band[1] / band[0]))))
         grid = band[0] * (band[1] / band[0]) ** ((np.arange(n) + 0.5) / n)
         step = 0.01 * _structure_mass(ctx)
         return [cls(loc, direction=d, frequency=float(f)).with_scale(step)
-                for loc, d in mounts.items() for f in grid]
+                for loc, d in list(mounts.items())[:RESONATORS_MAX] for f in grid]
 
     @property
     def name(self) -> str:
