@@ -53,6 +53,9 @@ RETUNE_PEAKS = 4
 #: Relative offsets around the best peak tried to refine a retuned effect's value (the peak of the
 #: misfit sits within a few half-power bandwidths of the mode it lacks).
 RETUNE_STEPS = (-0.04, -0.015, 0.015, 0.04)
+#: Candidates with a retuned value are first screened at the misfit's largest peak only; this many
+#: of the best (by the share explained there) are then screened at every peak and refined.
+RETUNE_TOP = 3
 
 
 def _misfit_peaks(res_u: Residual, r_perp: np.ndarray, n: int) -> list[float]:
@@ -86,6 +89,7 @@ def _screen_retuned(
         key = float(f"{value:.6g}")
         if key not in tried:
             tried[key] = _screen_one(res_u, model_u, j_u, Q, r_perp, effect.retuned(key), retune=False)
+            tried[key].pop("model", None)
         return tried[key]
 
     current = float(getattr(effect, effect.retune))
@@ -100,11 +104,18 @@ def _screen_retuned(
 
 def _screen_one(
     res_u: Residual, model_u: Any, j_u: np.ndarray, Q: np.ndarray, r_perp: np.ndarray, effect: Any,
-    retune: bool = True,
+    retune: Any = "peak",
 ) -> dict[str, Any]:
-    """Secant of one candidate from neutral to its typical size, projected (step 2)."""
+    """Secant of one candidate from neutral to its typical size, projected (step 2). An effect with
+    a value to retune (``Effect.retune``) is screened at the misfit's largest peak
+    (``retune="peak"``), or at every peak and around the best (``"all"``: :func:`_screen_retuned`);
+    ``retune=False`` screens it as it is."""
     if retune and getattr(effect, "retune", None) is not None and not _is_switch(effect):
-        return _screen_retuned(res_u, model_u, j_u, Q, r_perp, effect)
+        if retune == "all":
+            return _screen_retuned(res_u, model_u, j_u, Q, r_perp, effect)
+        peaks = _misfit_peaks(res_u, r_perp, 1)
+        if peaks:
+            return _screen_one(res_u, model_u, j_u, Q, r_perp, effect.retuned(peaks[0]), retune=False)
     neutral = effect.with_values(**effect.neutral_values)
     m_c = neutral.apply(model_u)
     res_c = _residual_for(res_u, m_c)
@@ -640,6 +651,14 @@ def _screen_all(
     shared = (res_u, model_u, null.j, null.Q, r_perp, deadline, len(cands))
     done = parallel_map_shared(_screen_task, shared, [cands[k] for k in exact_idx], executor,
                                desc="screening")
+    tuned = [i for i, k in enumerate(exact_idx) if getattr(cands[k], "retune", None) is not None
+             and not _is_switch(cands[k])]
+    tuned = sorted(tuned, key=lambda i: (-round(done[i]["fraction"], 9), i))[:RETUNE_TOP]
+    if tuned:  # the best of them at every peak of the misfit and around the best
+        again = parallel_map_shared(_retune_task, shared, [cands[exact_idx[i]] for i in tuned], executor,
+                                    desc="retuning")
+        for i, sc in zip(tuned, again):
+            done[i] = sc
     for k, sc in zip(exact_idx, done):  # each candidate's model, rebuilt here on model_u (see _screen_task)
         sc["model"] = sc["effect"].with_values(**sc["effect"].neutral_values).apply(model_u)
         screens[k] = sc
@@ -878,6 +897,15 @@ def _sketch_twins(screens: dict[int, dict]) -> dict[int, int]:
                 twins.setdefault(late, twins.get(early, early))
             b += 1
     return twins
+
+
+def _retune_task(shared: tuple, effect: Any) -> dict:
+    """One candidate's full retuning screen (:func:`_screen_retuned`; ``shared`` as :func:`_screen_task`)."""
+    res_u, model_u, j_u, Q, r_perp, deadline, n = shared
+    _check_budget(deadline, f"the screening of {n} candidates")
+    out = _screen_one(res_u, model_u, j_u, Q, r_perp, effect, retune="all")
+    out.pop("model", None)
+    return out
 
 
 def _screen_task(shared: tuple, effect: Any) -> dict:
