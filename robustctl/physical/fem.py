@@ -745,6 +745,56 @@ class Frame(Structure):
                     groups.append(e.group)
         return [(n, g) for n, groups in at.items() if len(groups) > 1 for g in groups[1:]]
 
+    def supports(self) -> list[tuple[str, tuple[str, ...]]]:
+        """Clamped nodes that beams hold, with the rotations their supports clamp:
+        ``[(node, ("rx", "ry", "rz")), ...]`` (a support that clamps no rotation is a pin: left out)."""
+        held = {n for e in self._elements.values() if e.kind == "beam" for n in (e.n1, e.n2)}
+        out: dict[str, set[int]] = {}
+        for f in self._fixes:
+            rot = {d for d in f.dofs if d >= 3}
+            if rot and f.node in held:
+                out.setdefault(f.node, set()).update(rot)
+        return [(n, tuple(("rx", "ry", "rz")[d - 3] for d in sorted(rot))) for n, rot in out.items()]
+
+    def support_stiffness(self, node: str) -> float:
+        """``4 E I / L`` (N m/rad) of the stiffest beam at ``node``: the rotational stiffness of the
+        members' end, the scale a support's rotational spring is compared with."""
+        groups = {e.group for e in self._elements.values() if e.kind == "beam" and node in (e.n1, e.n2)}
+        if not groups:
+            raise ModelError(f"no beam ends at node {node!r}; supports: {self.supports()}.")
+        return max(self.joint_stiffness(node, g) for g in groups)
+
+    def soften_support(self, node: str, compliance: float,
+                       axes: tuple[str, ...] = ("rx", "ry", "rz")) -> Frame:
+        """Make the clamp of ``node``'s rotations ``axes`` a rotational spring of ``1 / compliance``
+        (N m/rad) to ground about each (a base plate, bolts, a foundation softer than a clamp): the
+        rotations become DOFs of their own. Compliance 0 leaves the clamp; a large one approaches a
+        pin. Rotations ``axes`` that no support clamps are left as they are."""
+        c = _finite("support compliance (rad/(N m))", compliance, nonneg=True)
+        axes = (axes,) if isinstance(axes, str) else tuple(axes)
+        if not axes or not set(axes) <= {"rx", "ry", "rz"}:
+            raise ModelError(f"support axes are among 'rx', 'ry', 'rz'; got {axes!r}.")
+        clamped = dict(self.supports())
+        if node not in clamped:
+            raise ModelError(f"node {node!r} has no clamped rotation a beam holds; the supports are "
+                             f"{self.supports()}.")
+        if c == 0.0:
+            return self
+        released = {3 + ("rx", "ry", "rz").index(a) for a in axes if a in clamped[node]}
+        fixes = []
+        for f in self._fixes:
+            if f.node == node:
+                kept = tuple(d for d in f.dofs if d not in released)
+                if kept:
+                    fixes.append(_Fix(f.node, kept, f.tags))
+            else:
+                fixes.append(f)
+        self._fixes = fixes
+        self._cache = None
+        for d in sorted(released):
+            self._add_spring("spring", node, 1.0 / c, ("rx", "ry", "rz")[d - 3], None, ("support",))
+        return self
+
     def joint_stiffness(self, node: str, group: str) -> float:
         """``4 E I / L`` (N m/rad) of the stiffest beam of ``group`` at ``node``: the rotational
         stiffness of the member's end (``I`` the larger second moment), the scale a joint's spring is

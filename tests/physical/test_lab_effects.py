@@ -180,3 +180,44 @@ def test_a_joint_ten_times_softer_than_modelled_is_named_first_and_recovered_wit
     diag = _diagnose(chain, data, cands)
     assert isinstance(diag.best, fx.DofPairJoint), diag.summary()
     _within_3_se(chain, diag.best, data, "joint_compliance__j23", 1.0 / 700 - 1.0 / 7000)
+
+
+# ---------------------------------------------------------------------------- a support softer than a clamp
+def test_a_flexible_support_spans_clamped_to_pinned():
+    fr = vc.portal_frame()
+    assert fr.supports() == [("b1", ("rx", "ry", "rz")), ("b2", ("rx", "ry", "rz"))]
+    k = fr.support_stiffness("b1")
+    soft = vc.portal_frame().soften_support("b1", 1.0 / k).matrices()
+    lab = list(soft.dof_labels)
+    assert {"b1 rx", "b1 ry", "b1 rz"} <= set(lab) and "b1 x" not in lab  # translations stay clamped
+    K = _dense(soft.stiffness)
+    K0 = _dense(vc.portal_frame().matrices().stiffness)
+    i = lab.index("b1 ry")
+    ref = [x for x in vc.portal_frame().matrices().dof_labels]
+    j = [lab.index(n) for n in ref]
+    assert np.allclose(K[np.ix_(j, j)], K0)  # the free DOFs' stiffness is unchanged
+    # the released rotation: the member's own end stiffness plus the support spring k
+    with pytest.raises(rc.errors.ModelError, match="clamped"):
+        vc.portal_frame().soften_support("t1", 1e-3)
+    assert K[i, i] > k
+
+
+def test_a_flexible_support_is_named_and_recovered_and_left_out_is_not_answered():
+    """The base b1 clamps through a spring 20 x softer than the column's end (4EI/L): named with the
+    symmetric b2 reported alike or below, its compliance within 3 SE; without support candidates no
+    other effect is the answer."""
+    model = vc.frame_model()
+    k = vc.portal_frame().support_stiffness("b1") / 20.0
+    data = _frame_data(model, vc.portal_frame().soften_support("b1", 1.0 / k), seed=4)
+    cands = fx.candidates(model)
+    assert {c.location for c in cands if isinstance(c, fx.SupportFlexibility)} == {"b1", "b2"}
+    diag = _diagnose(model, data, cands)
+    best = diag.best
+    assert diag.verdict == "answer" and isinstance(best, fx.SupportFlexibility), diag.summary()
+    if best.location != "b1":
+        assert diag.indistinguishable is not None and "b1" in diag.indistinguishable.sentence()
+        best = next(r.effect for r in diag.ranking if r.effect.location == "b1" and r.kind == best.kind)
+    _within_3_se(model, best, data, best.param_names[0], 1.0 / k)
+    rest = _diagnose(model, data, [c for c in cands if c.kind != "support_flexibility"])
+    assert rest.best is None and rest.verdict in ("incomplete", "unexplained"), rest.summary()
+    assert rest.left and "check its cable" not in rest.summary()

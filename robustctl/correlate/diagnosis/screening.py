@@ -284,6 +284,9 @@ def _probe_sizes(
 #: (``Effect.coarse_screen``: a joint from rigid to pinned) is screened: 1.5 decades apart up to
 #: 7.5 decades, five evaluations (the local fit starts from the best; diagnose's budget is shared).
 COARSE_DECADES = (1.5, 3.0, 4.5, 6.0, 7.5)
+#: Refinements of the coarse screen around its best size, each halving the spacing (two sizes each):
+#: a joint between two decades' sizes starts its local fit within 0.2 decade of its value.
+COARSE_REFINE = 3
 
 
 def _coarse_sizes(res_c: Residual, pname: str, span: tuple, step: float, Q: np.ndarray,
@@ -304,7 +307,7 @@ def _coarse_sizes(res_c: Residual, pname: str, span: tuple, step: float, Q: np.n
             return None
         return 1.0 - float(np.sum(_project(Q, j) ** 2)) / rr
 
-    best, best_v, n = 0.0, v0, 0
+    best, best_v, best_k, n = 0.0, v0, None, 0
     for k in COARSE_DECADES:
         v = float(np.clip(v0 + sign * step * 10.0**k, lo, hi))
         if v == v0:
@@ -312,9 +315,22 @@ def _coarse_sizes(res_c: Residual, pname: str, span: tuple, step: float, Q: np.n
         n += 1
         share = share_at(v)
         if share is not None and share > best:
-            best, best_v = share, v
+            best, best_v, best_k = share, v, k
         if v in (lo, hi):
             break
+    if best_k is not None:  # halve the spacing twice around the best (a local fit's start within 0.2 decade)
+        spacing = COARSE_DECADES[1] - COARSE_DECADES[0] if len(COARSE_DECADES) > 1 else 1.0
+        for _ in range(COARSE_REFINE):
+            spacing /= 2.0
+            centre = best_k
+            for k in (centre - spacing, centre + spacing):
+                v = float(np.clip(v0 + sign * step * 10.0**k, lo, hi))
+                if v == v0:
+                    continue
+                n += 1
+                share = share_at(v)
+                if share is not None and share > best:
+                    best, best_v, best_k = share, v, k
     return max(best, 0.0), best_v, n
 
 

@@ -58,7 +58,14 @@ from .io_effects import (
     SensorLowPass,
     SensorMisalignment,
 )
-from .lab import RESONATORS_MAX, RESONATORS_PER_OCTAVE, AttachedResonator, DofPairJoint, TransducerMass
+from .lab import (
+    RESONATORS_MAX,
+    RESONATORS_PER_OCTAVE,
+    AttachedResonator,
+    DofPairJoint,
+    SupportFlexibility,
+    TransducerMass,
+)
 from .setup import (
     UNIT_SLIPS,
     ActuatorMoved,
@@ -105,6 +112,7 @@ __all__ = [
     "TransducerMass",
     "AttachedResonator",
     "DofPairJoint",
+    "SupportFlexibility",
     "RESONATORS_MAX",
     "RESONATORS_PER_OCTAVE",
     "SwappedOutputs",

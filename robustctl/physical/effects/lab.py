@@ -372,4 +372,81 @@ class DofPairJoint(_StructEffect):
         return f"a {self.name} of stiffness {self.describe_value()}"
 
 
-__all__ = ["TransducerMass", "AttachedResonator", "DofPairJoint", "RESONATORS_PER_OCTAVE", "RESONATORS_MAX"]
+@dataclass(frozen=True)
+class SupportFlexibility(_StructEffect):
+    """A clamped support that is really a rotational spring: a base plate, bolts or a foundation
+    softer than a clamp (one of the commonest boundary errors of a frame model).
+
+    The parameter is the support's rotational compliance ``c`` (rad/(N m)) about every rotation the
+    support clamps (:meth:`robustctl.physical.fem.Frame.soften_support`), neutral 0 (the clamp),
+    a large one a pin: screened over its whole range (``coarse_screen``), as a joint's. Frame FEM
+    supports only (a matrix model's supports are eliminated already; its grounded springs are the
+    :class:`SuspensionSpring` candidates at every DOF).
+
+    Parameters
+    ----------
+    location : str
+        The supported node.
+    compliance : float
+        ``c`` in rad/(N m) (neutral 0).
+    """
+
+    compliance: float = 0.0
+
+    kind: ClassVar[str] = "support_flexibility"
+    sweep: ClassVar[str | None] = "structure"
+    calibration: ClassVar[str] = "none"
+    coarse_screen: ClassVar[bool] = True
+    _value_fields: ClassVar[tuple[str, ...]] = ("compliance",)
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """One per clamped node of a frame; typical size a spring 20 x stiffer than the members' end."""
+        supports = getattr(ctx.structure, "supports", None)
+        if supports is None:
+            return []
+        return [cls(node).with_scale(0.05 / ctx.structure.support_stiffness(node)) for node, _ in supports()]
+
+    @property
+    def name(self) -> str:
+        return f"flexible support at {self._at()}"
+
+    @property
+    def description(self) -> str:
+        return (f"The clamp at {self._at()} is a rotational spring (a base plate, bolts, a foundation): "
+                "lowers the modes that bend the members at the support.")
+
+    def _check_location(self, model):
+        struct = model.build_structure()
+        supports = getattr(struct, "supports", None)
+        if supports is None or self.location not in dict(supports()):
+            found = supports() if supports is not None else []
+            raise ModelError(f"{self.kind} needs a clamped node of a frame FEM; {self.location!r} is not one "
+                             f"(supports: {found}).")
+
+    def _specs(self):
+        return [ParamSpec(base="support_compliance", unit="rad/(N m)", bounds=(0.0, 1.0), neutral=0.0,
+                          default_scale=1e-6,
+                          meaning=f"rotational compliance of the support at {self.location}")]
+
+    def _stage_fn(self):
+        pname, node = self.param_names[0], self.location
+
+        def fn(theta, struct):
+            c = float(theta[pname])
+            return struct if c == 0.0 else struct.soften_support(node, c)
+
+        return fn
+
+    def describe_value(self, values=None) -> str:
+        vals = self.values if values is None else values
+        c = float(vals.get(self.param_names[0], self.compliance))
+        return "clamped" if c <= 0 else f"{1.0 / c:.3g} N m/rad"
+
+    def phrase(self) -> str:
+        return f"a {self.name} ({self.describe_value()})"
+
+
+__all__ = ["TransducerMass", "AttachedResonator", "DofPairJoint", "SupportFlexibility",
+           "RESONATORS_PER_OCTAVE",
+           "RESONATORS_MAX"]
