@@ -12,11 +12,16 @@ PINS_VENV := .venv-pins
 # Whole files go to the workers in tests/conftest.py's order (files with the most slow cases and
 # the notebooks first): xdist's default reorder by test count would start the two demo files and
 # the notebooks (1-2 long tests each) last, behind the property suites' thousands of quick cases.
-PYTEST_ARGS := -n 2 --dist loadfile --no-loadscope-reorder -q --durations=15 tests --nbmake notebooks
+# `make test` runs every case not marked slow (target: under 10 minutes on 2 cores); `make
+# test-slow` runs the slow ones; CI (.ci/run) runs both.
+PYTEST_RUN := -n 2 --dist loadfile --no-loadscope-reorder -q --durations=15
+PYTEST_ARGS := $(PYTEST_RUN) -m "not slow" tests --nbmake notebooks
+PYTEST_SLOW := $(PYTEST_RUN) -m slow tests
+PYTEST_ALL := $(PYTEST_RUN) tests --nbmake notebooks
 # pyNastran pins numpy<2: installed without its dependencies (see pyproject's nastran extra)
 NASTRAN := "pyNastran>=1.4,<1.5"
 
-.PHONY: demo test test-loaded test-latest pins lint bench clean
+.PHONY: demo test test-slow test-all test-loaded test-latest pins lint bench clean
 
 $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
@@ -38,12 +43,18 @@ demo: $(CORE_STAMP)
 test: $(STAMP)
 	$(PY) -m pytest $(PYTEST_ARGS)
 
+test-slow: $(STAMP)
+	$(PY) -m pytest $(PYTEST_SLOW)
+
+test-all: $(STAMP)
+	$(PY) -m pytest $(PYTEST_ALL)
+
 # The suite on a busy machine: two busy loops (one per core here) run beside it and end with
 # this recipe's shell (they poll their parent), so no outcome may depend on time or load.
 BUSY := import os; p = os.getppid()\nwhile os.getppid() == p: pass
 test-loaded: $(STAMP)
 	$(PY) -c "$$(printf '$(BUSY)')" & a=$$!; $(PY) -c "$$(printf '$(BUSY)')" & b=$$!; \
-	$(PY) -m pytest $(PYTEST_ARGS); rc=$$?; kill $$a $$b 2>/dev/null; exit $$rc
+	$(PY) -m pytest $(PYTEST_ALL); rc=$$?; kill $$a $$b 2>/dev/null; exit $$rc
 
 # The newest releases the pyproject ranges allow, in a venv of their own; allowed to differ.
 test-latest:
@@ -51,7 +62,7 @@ test-latest:
 	$(LATEST)/bin/python -m pip install --quiet --upgrade --upgrade-strategy eager -e ".[dev]"
 	$(LATEST)/bin/python -m pip install --quiet --upgrade --no-deps $(NASTRAN)
 	$(LATEST)/bin/python -m pip freeze --exclude-editable
-	$(LATEST)/bin/python -m pytest $(PYTEST_ARGS)
+	$(LATEST)/bin/python -m pytest $(PYTEST_ALL)
 
 # Re-resolve the dev install from scratch (no constraints) and write its exact releases to
 # $(CONSTRAINTS), marked for this interpreter's Python and newer (older ones resolve freely).
