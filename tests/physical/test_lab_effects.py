@@ -221,3 +221,38 @@ def test_a_flexible_support_is_named_and_recovered_and_left_out_is_not_answered(
     rest = _diagnose(model, data, [c for c in cands if c.kind != "support_flexibility"])
     assert rest.best is None and rest.verdict in ("incomplete", "unexplained"), rest.summary()
     assert rest.left and "check its cable" not in rest.summary()
+
+
+# ---------------------------------------------------------------------------- local damping at a joint
+def _chain_frf_with_dashpot(c_joint, a, b, f_hz):
+    """The chain's FRF with its modal damping and a dashpot ``c_joint`` (N s/m) between DOFs a and b,
+    in modal coordinates (non-proportional: the full modal damping matrix), numpy only."""
+    M, K, B, C, kinds = vc.chain_matrices(s_k=1.03)
+    w2, phi = sla.eigh(K, M)
+    wn = np.sqrt(w2)
+    Cd = np.zeros_like(K)
+    Cd[np.ix_([a, b], [a, b])] = c_joint * np.array([[1.0, -1.0], [-1.0, 1.0]])
+    Z = np.diag(2 * vc.ZETA * wn) + phi.T @ Cd @ phi
+    power = np.array([{"displacement": 0, "velocity": 1, "acceleration": 2}[k] for k in kinds])
+    out = []
+    for f in f_hz:
+        s = 2j * np.pi * f
+        q = np.linalg.solve(np.diag(w2) + s * Z + s * s * np.eye(wn.size), phi.T @ B)
+        out.append((C @ phi @ q) * (s ** power)[:, None])
+    return np.array(out)
+
+
+def test_local_damping_across_a_named_joint_is_named_and_recovered_and_left_out_is_not_answered():
+    chain = vc.chain_model()
+    g = _chain_frf_with_dashpot(4.0, 1, 2, F_CHAIN)  # 4 N s/m across dof 2 - dof 3
+    data = vc.periodic_h1(g, n_avg=32, noise=0.05, seed=8, inputs=chain.inputs, outputs=chain.outputs,
+                          f_hz=F_CHAIN)
+    cands = fx.candidates(chain, joints={"j23": ("dof 2", "dof 3", 7e3)})
+    joint = next(c for c in cands if isinstance(c, fx.JointDamping))
+    assert joint.parameters[0].unit == "N s/m" and joint.dofs == ("dof 2", "dof 3")
+    diag = _diagnose(chain, data, cands)
+    assert diag.verdict == "answer" and isinstance(diag.best, fx.JointDamping), diag.summary()
+    _within_3_se(chain, diag.best, data, "joint_damping__j23", 4.0)
+    rest = _diagnose(chain, data, [c for c in cands if c.kind != "joint_damping"])
+    assert rest.best is None and rest.verdict in ("incomplete", "unexplained", "within the noise"), \
+        rest.summary()

@@ -63,6 +63,7 @@ from .lab import (
     RESONATORS_PER_OCTAVE,
     AttachedResonator,
     DofPairJoint,
+    JointDamping,
     SupportFlexibility,
     TransducerMass,
 )
@@ -113,6 +114,7 @@ __all__ = [
     "AttachedResonator",
     "DofPairJoint",
     "SupportFlexibility",
+    "JointDamping",
     "RESONATORS_MAX",
     "RESONATORS_PER_OCTAVE",
     "SwappedOutputs",

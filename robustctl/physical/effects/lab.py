@@ -373,6 +373,74 @@ class DofPairJoint(_StructEffect):
 
 
 @dataclass(frozen=True)
+class JointDamping(_StructEffect):
+    """Local (non-proportional) damping at a joint of a user's matrix model: a dashpot across the
+    connection between two DOFs (friction and micro-slip in a bolted or hinged joint damp the modes
+    that strain it, not every mode alike). Named by the user with the joint
+    (``rc.effects.candidates(model, joints={"hinge": ("dof 7", "dof 8", k0)})``), as
+    :class:`DofPairJoint`; the step is calibrated to change the most affected modal damping ratio
+    by :data:`~robustctl.physical.effects.base.DAMPING_TARGET`.
+
+    Parameters
+    ----------
+    location : str
+        The joint's name.
+    dofs : (str, str)
+        The two DOF labels it joins.
+    damping : float
+        Dashpot in N s/m (N m s/rad between rotations), neutral 0.
+    """
+
+    dofs: tuple[str, str] = ("", "")
+    damping: float = 0.0
+
+    kind: ClassVar[str] = "joint_damping"
+    sweep: ClassVar[str | None] = "structure"
+    calibration: ClassVar[str] = "damping"
+    _value_fields: ClassVar[tuple[str, ...]] = ("damping",)
+
+    def __post_init__(self) -> None:
+        if len(tuple(self.dofs)) != 2:
+            raise ModelError(f"a joint's damping needs the two DOF labels it joins; got dofs={self.dofs!r}.")
+        object.__setattr__(self, "dofs", tuple(str(d) for d in self.dofs))
+        super().__post_init__()
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """One per joint the user named (``candidates(..., joints=...)``)."""
+        return [cls(name, dofs=(a, b)) for name, (a, b, _k0) in ctx.joints.items()]
+
+    @property
+    def name(self) -> str:
+        return f"damping across joint {self.location} ({self.dofs[0]} - {self.dofs[1]})"
+
+    @property
+    def description(self) -> str:
+        return (f"A dashpot across the connection {self.location} between {self.dofs[0]} and {self.dofs[1]} "
+                "(friction in a bolted or hinged joint): damps the modes that strain it.")
+
+    def _check_location(self, model):
+        info = _structure_info(model)
+        unknown = [d for d in self.dofs if d not in info["locations"]]
+        if unknown:
+            raise ModelError(f"joint {self.location!r}: unknown DOFs {unknown}; give DOF labels of the "
+                             "model.")
+
+    def _specs(self):
+        return [ParamSpec(base="joint_damping", unit="N s/m", bounds=(0.0, 1e9), neutral=0.0,
+                          default_scale=1.0, meaning=f"dashpot across joint {self.location}")]
+
+    def _stage_fn(self):
+        pname, (a, b) = self.param_names[0], self.dofs
+
+        def fn(theta, struct):
+            c = float(theta[pname])
+            return struct if c == 0.0 else struct.add_coupling_damping(a, b, c)
+
+        return fn
+
+
+@dataclass(frozen=True)
 class SupportFlexibility(_StructEffect):
     """A clamped support that is really a rotational spring: a base plate, bolts or a foundation
     softer than a clamp (one of the commonest boundary errors of a frame model).
@@ -447,6 +515,6 @@ class SupportFlexibility(_StructEffect):
         return f"a {self.name} ({self.describe_value()})"
 
 
-__all__ = ["TransducerMass", "AttachedResonator", "DofPairJoint", "SupportFlexibility",
+__all__ = ["TransducerMass", "AttachedResonator", "DofPairJoint", "SupportFlexibility", "JointDamping",
            "RESONATORS_PER_OCTAVE",
            "RESONATORS_MAX"]
