@@ -745,6 +745,10 @@ class Frame(Structure):
                     groups.append(e.group)
         return [(n, g) for n, groups in at.items() if len(groups) > 1 for g in groups[1:]]
 
+    def mass_locations(self) -> tuple[str, ...]:
+        """Nodes carrying a point mass (:meth:`add_mass`), in order of creation."""
+        return tuple(dict.fromkeys(m.node for m in self._masses))
+
     def supports(self) -> list[tuple[str, tuple[str, ...]]]:
         """Clamped nodes that beams hold, with the rotations their supports clamp:
         ``[(node, ("rx", "ry", "rz")), ...]`` (a support that clamps no rotation is a pin: left out)."""

@@ -55,7 +55,7 @@ RETUNE_PEAKS = 4
 RETUNE_STEPS = (-0.04, -0.015, 0.015, 0.04)
 #: Candidates with a retuned value are first screened at the misfit's largest peak only; this many
 #: of the best (by the share explained there) are then screened at every peak and refined.
-RETUNE_TOP = 3
+RETUNE_TOP = 2
 
 
 def _misfit_peaks(res_u: Residual, r_perp: np.ndarray, n: int) -> list[float]:
@@ -104,18 +104,20 @@ def _screen_retuned(
 
 def _screen_one(
     res_u: Residual, model_u: Any, j_u: np.ndarray, Q: np.ndarray, r_perp: np.ndarray, effect: Any,
-    retune: Any = "peak",
+    retune: Any = "peak", probe: bool = True,
 ) -> dict[str, Any]:
     """Secant of one candidate from neutral to its typical size, projected (step 2). An effect with
-    a value to retune (``Effect.retune``) is screened at the misfit's largest peak
-    (``retune="peak"``), or at every peak and around the best (``"all"``: :func:`_screen_retuned`);
-    ``retune=False`` screens it as it is."""
+    a value to retune (``Effect.retune``) is screened at the misfit's largest peak by its secant alone
+    (``retune="peak"``: one evaluation, the first pass over them all), or at every peak and around
+    the best (``"all"``: :func:`_screen_retuned`); ``retune=False`` screens it as it is. ``probe``:
+    walk out to larger sizes (:func:`_probe_sizes`) when the secant asks for more."""
     if retune and getattr(effect, "retune", None) is not None and not _is_switch(effect):
         if retune == "all":
             return _screen_retuned(res_u, model_u, j_u, Q, r_perp, effect)
         peaks = _misfit_peaks(res_u, r_perp, 1)
         if peaks:
-            return _screen_one(res_u, model_u, j_u, Q, r_perp, effect.retuned(peaks[0]), retune=False)
+            return _screen_one(res_u, model_u, j_u, Q, r_perp, effect.retuned(peaks[0]), retune=False,
+                               probe=False)
     neutral = effect.with_values(**effect.neutral_values)
     m_c = neutral.apply(model_u)
     res_c = _residual_for(res_u, m_c)
@@ -155,7 +157,7 @@ def _screen_one(
     fraction = max(0.0, 1.0 - float(left @ left) / rr)
     angle = math.degrees(math.acos(min(1.0, math.sqrt(cos2))))
     evals = sens.n_evals
-    if not effect.toggle and abs(coef) > PROBE_MIN_COEF:  # a switch has no sizes to probe
+    if probe and not effect.toggle and abs(coef) > PROBE_MIN_COEF:  # a switch has no sizes to probe
         probed, value_p, n_p = _probe_sizes(res_c, pname, (v0, lo, hi), trial - v0, coef, Q, rr, fraction)
         evals += n_p
         if probed > fraction:

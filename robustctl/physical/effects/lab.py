@@ -165,8 +165,9 @@ class TransducerMass(_StructEffect):
 #: per octave of the band (``rc.diagnose`` retunes it; see :attr:`AttachedResonator.retune`).
 RESONATORS_PER_OCTAVE = 0
 #: At most this many resonator candidates per model: the sensor and drive-point mounts along their
-#: axes first, then every location along each of its directions (diagnose screens each at the misfit's
-#: largest peak and retunes only the best few, so each costs a few evaluations).
+#: axes first, then every location carrying a lumped mass (``Structure.mass_locations``: equipment and
+#: payload mounts) along each of its directions (diagnose screens each at the misfit's largest peak
+#: and retunes only the best few, so each costs one or two evaluations).
 RESONATORS_MAX = 96
 
 
@@ -177,8 +178,8 @@ class AttachedResonator(_StructEffect):
     It adds a mode at about ``frequency`` (Hz) and splits the host's modes near it (Den Hartog,
     *Mechanical Vibrations*, sec. 3.2): no parameter of the model can make that mode, and first
     order at mass 0 sees it only near its own frequency. The candidates sit at the sensor and
-    drive-point mounts along their axes, then at every location along each direction
-    (:data:`RESONATORS_MAX` at most), one each, at the band's geometric middle; ``rc.diagnose``
+    drive-point mounts along their axes, then at every location carrying a lumped mass along each
+    direction (:data:`RESONATORS_MAX` at most), one each, at the band's geometric middle; ``rc.diagnose``
     screens each at the largest peak of the misfit the update leaves and the best few at more peaks
     and around them (:attr:`retune`: the added mode sits where the model has none), and fits mass
     and frequency.
@@ -208,14 +209,16 @@ class AttachedResonator(_StructEffect):
 
     @classmethod
     def candidates_at(cls, ctx, where):
-        """At each sensor and drive-point mount along its axis, then at every location along each
-        direction, at the band's geometric middle (the screening moves it to the misfit's peaks);
-        typical mass 1 % of the structure's."""
+        """At each sensor and drive-point mount along its axis, then at every location carrying a lumped
+        mass along each direction, at the band's geometric middle (the screening moves it to the
+        misfit's peaks); typical mass 1 % of the structure's."""
         band = ctx.band
         if band is None or not band[1] > band[0] > 0:
             return []  # no band given: no frequencies to screen it at
         places = list(dict.fromkeys([*_mounts(ctx, "output"), *_mounts(ctx, "input")]))
-        places += [(loc, d) for loc in ctx.info["locations"] for d in ctx.directions.get(loc, [None])]
+        masses = getattr(ctx.structure, "mass_locations", None)
+        where = masses() if masses is not None else ctx.info["locations"]
+        places += [(loc, d) for loc in where for d in ctx.directions.get(loc, [None])]
         places = list(dict.fromkeys(places))[:RESONATORS_MAX]
         n = max(1, int(math.floor(RESONATORS_PER_OCTAVE * math.log2(band[1] / band[0]))))
         grid = band[0] * (band[1] / band[0]) ** ((np.arange(n) + 0.5) / n)
