@@ -822,12 +822,11 @@ class Frame(Structure):
         The group's beam ends at ``node`` move to a new node at the same place (``"node~group"``)
         that follows ``node`` exactly (a rigid link, its DOFs eliminated) in translation and in the
         rotations the joint does not release; each released rotation is a DOF of its own, joined to
-        ``node``'s by the joint's spring. Ties by penalty springs (far stiffer than the members)
-        would put modes near 10^7 rad/s beside the suspension's 1 rad/s, beyond what a double
-        precision eigensolver separates: the lowest modes of a free-free structure came out at 0.
-        Compliance 0 leaves the frame unchanged (a rigid joint); a large one approaches a pin (the
-        semi-rigid connections of steel frames, e.g. Chen & Lui, *Stability Design of Steel
-        Frames*, ch. 5).
+        ``node``'s by the joint's spring (ties by penalty springs far stiffer than the members would
+        put modes near 10^7 rad/s beside a suspension's 1 rad/s, beyond what a double precision
+        eigensolver separates). Compliance 0 leaves the frame unchanged (a rigid joint); a large one
+        approaches a pin (the semi-rigid connections of steel frames, e.g. Chen & Lui, *Stability
+        Design of Steel Frames*, ch. 5).
         """
         c = _finite("joint compliance (rad/(N m))", compliance, nonneg=True)
         axes = (axes,) if isinstance(axes, str) else tuple(axes)
