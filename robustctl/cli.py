@@ -10,6 +10,10 @@
   verdict words with their numbers: sizes, standard errors, p-values) into ``--out``;
   ``--inputs``/``--outputs`` select channels of both the model and the data;
 * ``robustctl report OUT...`` joins those folders into one page;
+* ``robustctl design MODEL [DATA] --fs HZ`` designs a mu-controller (D-K iteration) for the
+  model as an update left it (``--update OUT``), covering its error against DATA
+  (:mod:`robustctl.cli_design`), prints the D-K summary and mu and writes the controller
+  (.json, .h, .mat) and ``summary.json`` into ``--out``;
 * ``robustctl export SOURCE TARGET`` writes a controller file as another coefficient file
   (e.g. a continuous ``K.mat`` as a C header at ``--fs``), printing the export checks.
 
@@ -199,9 +203,55 @@ def _parser() -> argparse.ArgumentParser:
     load.add_argument("data", help=_DATA_HELP)
     load.add_argument("--out", default="out-load", help="report folder (default: out-load)")
 
+    _design_parser(sub)
     _export_parser(sub)
     sub.add_parser("info", help="print the versions robustctl runs with")
     return parser
+
+
+def _design_parser(sub: Any) -> None:
+    des = sub.add_parser(
+        "design",
+        help="design a mu-controller for MODEL (covering its error against DATA) and export it",
+        description="The loop's design step (robustctl.cli_design): the model (as an update left it, "
+        "--update), an additive weight covering its error against DATA, 4 %% input and output "
+        "multiplicative uncertainty and a band-pass performance weight on the sensors (or a recipe of "
+        "your own, --plant), D-K iteration (robustctl.dksyn), then the controller written with "
+        "robustctl.export_controller at --fs. Prints the D-K summary and mu.",
+    )
+    des.add_argument("model", help=_MODEL_HELP)
+    des.add_argument("data", nargs="?", default=None,
+                     help=_DATA_HELP + "; the additive weight covers the model's error against it")
+    des.add_argument("--fs", type=float, required=True, help="sample rate of the exported controller, Hz")
+    des.add_argument("--update", default=None, metavar="OUT",
+                     help="an update result (its --out folder or summary.json): design on the model as "
+                     "updated")
+    des.add_argument("--plant", default=None, metavar="FILE.py:NAME",
+                     help="your own design recipe: a callable nominal -> GeneralizedPlant (replaces the "
+                     "cover, uncertainty and performance options)")
+    des.add_argument("--order", type=int, default=None,
+                     help="reduce the design model to this many states by balanced truncation first")
+    des.add_argument("--band", nargs=2, type=float, metavar=("LO_HZ", "HI_HZ"),
+                     help="band of the uncertainty cover, Hz (default: every data point)")
+    des.add_argument("--perf-band", nargs=2, type=float, metavar=("LO_HZ", "HI_HZ"), default=None,
+                     help="corners of the performance weight, Hz (default: --band, else the data's span)")
+    des.add_argument("--level", type=float, default=0.3, help="performance weight gain in its band")
+    des.add_argument("--input-mult", type=float, default=0.04, help="input multiplicative uncertainty")
+    des.add_argument("--output-mult", type=float, default=0.04, help="output multiplicative uncertainty")
+    des.add_argument("--cover-order", type=int, default=4, help="states of the additive weight")
+    des.add_argument("--data-sigmas", type=float, default=3.0,
+                     help="raise the measured error by this many standard deviations of the H1 estimate's "
+                     "random error before covering it (default 3; 0: cover the error as measured)")
+    des.add_argument("--max-iter", type=int, default=4, help="D-K iteration cap")
+    des.add_argument("--d-order", type=int, default=None,
+                     help="order of every D-scale fit (default: chosen per block and iteration)")
+    des.add_argument("--no-reduce", action="store_true",
+                     help="keep the full-order controller (default: the smallest order that keeps mu)")
+    des.add_argument("--inputs", nargs="+", default=None, metavar="NAME",
+                     help="control inputs (actuators) to use, of the model and the data")
+    des.add_argument("--outputs", nargs="+", default=None, metavar="NAME",
+                     help="sensors to use, of the model and the data")
+    des.add_argument("--out", default="out-design", help="report and controller folder (default: out-design)")
 
 
 def _export_parser(sub: Any) -> None:
@@ -475,6 +525,95 @@ def _run_identify(args: argparse.Namespace) -> Path:
         steps.close()
 
 
+def _design_inputs(args: argparse.Namespace) -> tuple[Any, Any, Any]:
+    """The design model (updated, selected, reduced), the data (or None) and the recipe."""
+    from .balanced import balanced_truncation
+    from .cli_design import DesignRecipe
+    from .cli_inputs import (
+        CommandLineError,
+        load_model_spec,
+        load_recipe_spec,
+        match_model_channels,
+        updated_model,
+    )
+    from .frd_io import load_frd
+
+    model, note = updated_model(load_model_spec(args.model), args.update)
+    if note:
+        _say(note)
+    data = None if args.data is None else load_frd(args.data)
+    if data is not None:
+        model, data, note = match_model_channels(model, data, inputs=args.inputs, outputs=args.outputs)
+    elif args.inputs or args.outputs:
+        model = model.select(inputs=args.inputs, outputs=args.outputs)
+        note = f"Model channels selected: inputs {args.inputs or 'all'}, outputs {args.outputs or 'all'}."
+    if note:
+        _say(note)
+    if args.order is not None:
+        bt = balanced_truncation(model, args.order)
+        _say(f"Design model reduced to {args.order} states by balanced truncation "
+             f"(||G - G_r||_inf <= {bt.bound:.3g}).")
+        model = bt.sys
+    if args.plant is not None:
+        return model, data, load_recipe_spec(args.plant)
+    span = None if data is None else (float(data.f_hz[0]), float(data.f_hz[-1]))
+    perf = args.perf_band or args.band or span
+    if perf is None:
+        raise CommandLineError("give --perf-band LO_HZ HI_HZ (or DATA, whose span is the default).")
+    return model, data, DesignRecipe(data, tuple(perf), args.level, args.input_mult, args.output_mult,
+                                     args.cover_order, _band(args), args.data_sigmas)
+
+
+def _run_design(args: argparse.Namespace) -> Path:
+    from .cli_results import design_record
+    from .export import export_controller
+    from .robust import dksyn
+
+    steps = _Steps(["load", "cover", "D-K", "export", "report"])
+    try:
+        steps("load the model and data")
+        model, data, recipe = _design_inputs(args)
+        steps("cover the model's error")
+        cover = recipe.cover(model) if hasattr(recipe, "cover") else None
+        gp = recipe(model, cover) if cover is not None else recipe(model)
+        if cover is not None:
+            _say(cover.summary())
+        steps("D-K iteration")
+        reduce = None if args.no_reduce else "auto"
+        dk = dksyn(gp, max_iter=args.max_iter, order_d=args.d_order, reduce=reduce, progress=steps.show)
+        _say(dk.summary())
+        certified = "certified" if dk.mu_peak < 1 else "NOT certified"
+        _say(f"mu: peak {dk.mu.peak:.4g} at {dk.mu.f_peak_hz:.4g} Hz (upper bound; lower bound "
+             f"{dk.mu.lower_peak:.4g}): robust performance {certified}.")
+        steps("export the controller")
+        report = _report(args, f"robustctl design: {args.model}")
+        folder = Path(report.folder)
+        exported = []
+        provenance = {"model": args.model, "data": args.data, "update": args.update}
+        for suffix in (".json", ".h", ".mat"):  # diagonal: the exact power-of-two state scaling
+            exported.append(export_controller(dk, folder / f"controller{suffix}", fs=args.fs, overwrite=True,
+                                              balance="diagonal", provenance=provenance))
+        _say(f"Controller ({dk.K.nstates} states) at {args.fs:g} Hz: {exported[0].summary()}")
+        steps("write the report")
+        report.heading("Design plant")
+        report.text(gp.summary())
+        if cover is not None:
+            report.text(cover.summary())
+            report.figure(cover.plot(), "cover", "The model's error against the data and its additive cover.")
+        report.heading("D-K iteration")
+        report.text(dk.summary())
+        report.table(dk.table())
+        report.figure(dk.plot(), "dk", "mu upper bound per D-K iteration.")
+        report.figure(dk.mu.plot(), "mu", "Robust performance mu of the controller: upper and lower bounds.")
+        report.heading("Exported controller")
+        report.text(" ".join(f"{r.path.name}: {r.summary()}" for r in exported))
+        for key, value in design_record(dk, cover, [r.path.name for r in exported], args.fs).items():
+            report.record(key, value)
+        return report.write()
+    finally:
+        steps.close()
+
+
 def _run_export(args: argparse.Namespace) -> Path:
     from .cli_inputs import CommandLineError
     from .export import export_controller, load_controller
@@ -511,6 +650,7 @@ _COMMANDS: dict[str, Callable[[argparse.Namespace], Path]] = {
     "update": _run_update,
     "report": _run_report,
     "identify": _run_identify,
+    "design": _run_design,
     "export": _run_export,
 }
 

@@ -25,7 +25,7 @@ from typing import Any
 from .errors import RobustctlError
 
 __all__ = ["CommandLineError", "load_model_spec", "match_model_channels", "select_data_channels",
-           "effect_from_diagnosis"]
+           "effect_from_diagnosis", "updated_model", "load_recipe_spec"]
 
 _DEFAULT_NAME = "model"
 
@@ -180,25 +180,88 @@ def effect_from_diagnosis(diagnosis: str | None, effect: str | None) -> tuple[st
     CommandLineError
         Both given, a missing or unreadable file, or a diagnosis that proposed nothing.
     """
-    import json
-
     if diagnosis is not None and effect is not None:
         raise CommandLineError("give --effect or --diagnosis, not both.")
     if diagnosis is None:
         return effect, {}
-    path = Path(diagnosis)
-    path = path / "summary.json" if path.is_dir() else path
-    try:
-        record = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise CommandLineError(
-            f"--diagnosis {diagnosis}: cannot read {path} ({exc}); give the --out folder of "
-            "'robustctl diagnose' or its summary.json."
-        ) from None
-    best = record.get("best") if isinstance(record, dict) else None
+    record = _summary_record(diagnosis, "--diagnosis", "diagnose")
+    best = record.get("best")
     if not isinstance(best, dict) or not best.get("name"):
         raise CommandLineError(
             f"--diagnosis {diagnosis}: the diagnosis proposed no effect "
             f"({record.get('verdict', 'no verdict')}); update without an effect, or name one with --effect."
         )
     return str(best["name"]), {str(k): float(v) for k, v in (best.get("values") or {}).items()}
+
+
+def _summary_record(folder: str, option: str, command: str) -> dict[str, Any]:
+    """The ``summary.json`` of a command's ``--out`` folder (or the file itself)."""
+    import json
+
+    path = Path(folder)
+    path = path / "summary.json" if path.is_dir() else path
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise CommandLineError(
+            f"{option} {folder}: cannot read {path} ({exc}); give the --out folder of "
+            f"'robustctl {command}' or its summary.json."
+        ) from None
+    if not isinstance(record, dict):
+        raise CommandLineError(f"{option} {folder}: {path} is not a robustctl {command} summary.")
+    return record
+
+
+def updated_model(model: Any, update: str | None) -> tuple[Any, str]:
+    """``model`` as ``robustctl update`` left it (``--update OUT``): the effect it added and every
+    updated parameter at its value after the update, with a sentence saying so.
+
+    Returns
+    -------
+    (model, note) : ``(model, "")`` when ``update`` is None.
+
+    Raises
+    ------
+    CommandLineError
+        An unreadable summary, one that is not an update's, or a model without the parameters.
+    """
+    if update is None:
+        return model, ""
+    record = _summary_record(update, "--update", "update")
+    params = record.get("parameters")
+    if not isinstance(params, list) or not all(isinstance(p, dict) and "name" in p for p in params):
+        raise CommandLineError(f"--update {update}: its summary.json holds no updated parameters "
+                               "(is it the --out folder of 'robustctl update'?).")
+    if not callable(getattr(model, "with_values", None)):
+        raise CommandLineError(f"--update {update}: MODEL is a {type(model).__name__}, which has no "
+                               "parameters to set; give the PhysicalModel the update started from.")
+    effect = record.get("effect")
+    if effect:
+        model = model.with_effect(str(effect))
+    values = {str(p["name"]): float(p["after"]) for p in params if p.get("after") is not None}
+    missing = sorted(set(values) - set(model.param_names))
+    if missing:
+        raise CommandLineError(f"--update {update}: MODEL has no parameter {', '.join(missing)} (the "
+                               "update was made on another model).")
+    model = model.with_values(**values)
+    added = f"effect {effect!r} added, " if effect else ""
+    shown = ", ".join(f"{k} = {v:.6g}" for k, v in values.items())
+    return model, f"Model as updated in {update}: {added}{shown}."
+
+
+def load_recipe_spec(spec: str) -> Any:
+    """The design-plant recipe named by ``spec`` (``FILE.py:NAME`` or ``package.module:NAME``): a
+    callable ``nominal -> GeneralizedPlant``.
+
+    Raises
+    ------
+    CommandLineError
+        Missing file, module or attribute, or an attribute that is not callable.
+    """
+    where, name = _split(str(spec))
+    module = _module_from_file(Path(where)) if where.endswith(".py") else _module_from_name(where)
+    recipe = getattr(module, name, None)
+    if not callable(recipe):
+        raise CommandLineError(f"--plant {spec}: {where} has no callable {name!r} (a function nominal -> "
+                               "GeneralizedPlant, e.g. robustctl.examples:caltech_design_plant).")
+    return recipe

@@ -13,7 +13,7 @@ from typing import Any
 
 __all__ = ["record_of", "result_kind", "json_value", "noise_record", "comparison_record", "diagnosis_record",
            "update_record",
-           "identify_record", "data_record"]
+           "identify_record", "data_record", "design_record"]
 
 
 def json_value(x: Any) -> Any:
@@ -206,6 +206,27 @@ def identify_record(mm: Any) -> dict[str, Any]:
         "n_modes": int(mm.n_modes),
         "modes": [{"f_hz": m.f_hz, "zeta": m.zeta} for m in mm.modes],
         "n_fillers": len(getattr(mm, "fillers", ())),
+    })
+
+
+def design_record(dk: Any, cover: Any, files: list[str], fs_hz: float) -> dict[str, Any]:
+    """A :class:`~robustctl.robust.dk.iteration.DKResult` as ``robustctl design`` made it: the verdict,
+    mu (upper and lower bound, where), the controller, the iteration history, the cover and the files."""
+    return json_value({
+        "verdict": "robust performance certified (mu < 1)" if dk.mu_peak < 1 else "not certified (mu >= 1)",
+        "mu_peak": dk.mu_peak,
+        "mu_lower_peak": dk.mu.lower_peak,
+        "mu_f_peak_hz": dk.mu.f_peak_hz,
+        "controller_states": int(dk.K.nstates),
+        "controller_inputs": [str(n) for n in dk.K.input_labels],
+        "controller_outputs": [str(n) for n in dk.K.output_labels],
+        "best_iteration": dk.best_iteration,
+        "history_mu": [h.mu_peak for h in dk.history],
+        "stop_reason": dk.stop_reason,
+        "cover_margin": None if cover is None else cover.margin,
+        "cover_order": None if cover is None else cover.order,
+        "fs_hz": fs_hz,
+        "files": list(files),
     })
 
 

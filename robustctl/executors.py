@@ -180,9 +180,11 @@ def parallel_map_shared(
     blobs = [cloudpickle.dumps([items[k] for k in idx]) for idx in chunks]
     futures = [executor.submit(_run_chunk, token, payload, b) for b in blobs]
     out: list[Any] = [None] * len(items)
-    for idx, f in zip(chunks, tqdm(futures, desc=desc, disable=not show, leave=False)):
-        for k, r in zip(idx, cloudpickle.loads(f.result())):
-            out[k] = r
+    with tqdm(total=len(items), desc=desc, disable=not show, leave=False) as bar:
+        for idx, f in zip(chunks, futures):  # the bar counts items (not chunks) as they come back
+            for k, r in zip(idx, cloudpickle.loads(f.result())):
+                out[k] = r
+            bar.update(len(idx))
     return out
 
 

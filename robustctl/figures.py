@@ -20,6 +20,7 @@ from .errors import DataError
 from .frd import FrequencyData, as_frequency_data, register_method
 from .frd_io.geometry import ModeShapes
 from .lti import as_statespace, freqresp
+from .measure.estimator import model_view, resolve_view, split_hold
 from .modes import Mode, mac
 from .plots import annotated_matrix, bode_grid, colorbar, log_frequency_axis, new_figure, shown_channels_title
 
@@ -155,6 +156,7 @@ def plot_compare(
     band: Sequence[float] | None = None,
     channels: Sequence[tuple[str, str]] | None = None,
     max_channels: int = 12,
+    estimator: Any = "auto",
 ):
     """Data and several models on one axis per channel, with each model's fit % (MATLAB ``compare``).
 
@@ -175,6 +177,12 @@ def plot_compare(
     max_channels : int
         At most this many channels are drawn (output-major); when channels are left out the
         title says so (``"9 of 12 channels shown: pass channels= for others"``).
+    estimator : "auto", True, False or EstimatorSettings
+        Draw each model as the data's estimator sees it, by the rule of :func:`robustctl.compare`
+        (:func:`robustctl.measure.estimator.resolve_view`): with ``"auto"``, the window leakage of
+        a described random-excitation H1 estimate (a 2 %-damped mode's peak at a 0.25 Hz line
+        spacing is drawn as the estimate shows it, not twice as high), a held input's hold, an
+        impact test's window; the title says what was applied. False: the plain FRF.
 
     Returns
     -------
@@ -190,7 +198,9 @@ def plot_compare(
         models = {getattr(m, "name", None) or f"model {k + 1}": m for k, m in enumerate(models)}
     if not models:
         raise DataError("plot_compare needs at least one model; got none.")
-    responses = {name: _model_response(data, _cut_to_data(data, m)) for name, m in models.items()}
+    seen = {name: _seen(data, m, estimator) for name, m in models.items()}
+    responses = {name: _model_response(data, _cut_to_data(data, r)) for name, (r, _) in seen.items()}
+    views = sorted({note for _, note in seen.values() if note})
     fits = {name: fit_percent(data, r) for name, r in responses.items()}
     total = data.n_out * data.n_in
     if channels is not None:
@@ -200,6 +210,8 @@ def plot_compare(
     pairs = picked[:max_channels]
     notes = [[]] + [[f"fit {fits[name][i, j]:.0f}%" for i, j in pairs] for name in responses]
     title = "fit % = 100 (1 - ||G_data - G_model|| / ||G_data - mean||) per channel"
+    if views:
+        title += "\n" + "; ".join(views)
     shown = shown_channels_title(len(pairs), total)
     fig = bode_grid(
         [data, *responses.values()],
@@ -211,6 +223,22 @@ def plot_compare(
     )
     fig.fit_percent = fits
     return fig
+
+
+def _seen(data: FrequencyData, model: Any, estimator: Any) -> tuple[Any, str]:
+    """``(model or its response as the estimator sees it, note)``; the note is empty when the model is
+    drawn as given (a FrequencyData, ``estimator=False``, or data that describe no estimator)."""
+    if isinstance(model, FrequencyData):
+        return model, ""
+    settings, note = resolve_view(estimator, data, model)
+    if settings is None:
+        return model, ""
+    bare, hold = split_hold(model)
+    sys = as_statespace(bare)
+    g = model_view(sys, hold, data.f_hz, settings)
+    return FrequencyData(data.f_hz, g, inputs=list(sys.input_labels), outputs=list(sys.output_labels)), (
+        note.replace("model seen", "models seen")
+    )
 
 
 def _named_channels(data: FrequencyData, channels: Sequence[tuple[str, str]]) -> list[tuple[str, str]]:

@@ -74,19 +74,56 @@ def mac(a: np.ndarray | None, b: np.ndarray | None) -> float:
     return float(abs(np.vdot(a, b)) ** 2 / den)
 
 
-def pair_modes(
-    model: list[Mode], measured: list[Mode], tol: float = 0.2, *, max_ratio: float = 4.0, min_mac: float = 0.8
-) -> list[tuple[int | None, int | None]]:
-    """Pair model and measured modes (Hungarian assignment on frequency distance and MAC).
+#: Weight of ``|ln(f_model / f_data)|`` against ``1 - MAC`` when both modes have shapes: the MAC
+#: decides, the frequency only breaks near-ties (1 % of frequency counts as 0.001 of MAC).
+FREQUENCY_TIE_WEIGHT = 0.1
+#: Weight of ``|ln(f_model / f_data)|`` when a shape is missing (frequency-only pairing).
+FREQUENCY_WEIGHT = 10.0
 
-    Cost of a pair within ``tol`` (relative frequency distance): ``10 |ln(f_model / f_data)|
-    + (1 - MAC)``. A pair further apart -- a mode moved by a large model error, up to a
-    factor ``max_ratio`` -- is allowed when its shapes agree (``MAC >= min_mac``, MAC-first
-    pairing as in FE model updating practice, e.g. Friswell & Mottershead, *Finite Element
-    Model Updating in Structural Dynamics*, sec. 4.2), at a cost above every within-``tol``
-    pair: ``10 ln(1 + tol) + (1 - MAC) + |ln(f_model / f_data)|``. Returns
-    ``(i_model, i_measured)`` index pairs sorted by frequency, with ``None`` on the side of
-    an unpaired mode.
+
+def pair_modes(
+    model: list[Mode],
+    measured: list[Mode],
+    tol: float = 0.2,
+    *,
+    max_ratio: float = 4.0,
+    min_mac: float = 0.8,
+    min_pair_mac: float = 0.5,
+) -> list[tuple[int | None, int | None]]:
+    """Pair model and measured modes: the assignment of largest total MAC within a frequency window.
+
+    Where both modes have shapes (a residue over the same channels), a pair is allowed when its
+    relative frequency distance ``|ln(f_model / f_data)|`` is within ``ln(1 + tol)`` and its
+    MAC at least ``min_pair_mac``, or -- a mode moved by a large model error, up to a factor
+    ``max_ratio`` -- when its shapes agree (``MAC >= min_mac``); its cost is ``(1 - MAC) +
+    FREQUENCY_TIE_WEIGHT |ln(f_model / f_data)|``, so the Hungarian assignment
+    (``scipy.optimize.linear_sum_assignment``) maximises the summed MAC and the frequency
+    only breaks near-ties (MAC-first pairing as in FE model updating practice, Friswell &
+    Mottershead, *Finite Element Model Updating in Structural Dynamics*, sec. 4.2). A model
+    mode whose own measured counterpart is missing (outside the band, or not picked) is thus
+    not paired with a neighbour of another shape that happens to sit close in frequency.
+
+    Where a shape is missing (NaN MAC), only frequency pairs: within ``tol``, at cost
+    ``FREQUENCY_WEIGHT |ln(f_model / f_data)|``.
+
+    Parameters
+    ----------
+    model, measured : list of Mode
+        Modes of the model and of the data.
+    tol : float
+        Frequency window of an ordinary pair (relative, 0.2 = 20 %).
+    max_ratio : float
+        Largest frequency ratio of a pair whose shapes agree.
+    min_mac : float
+        MAC a pair beyond ``tol`` needs.
+    min_pair_mac : float
+        MAC a pair within ``tol`` needs when both shapes are known.
+
+    Returns
+    -------
+    list of (int or None, int or None)
+        ``(i_model, i_measured)`` index pairs sorted by frequency, with ``None`` on the side
+        of an unpaired mode.
     """
     nm, nd = len(model), len(measured)
     pairs: list[tuple[int | None, int | None]] = []
@@ -100,12 +137,12 @@ def pair_modes(
                 rel = abs(np.log(a.f_hz / b.f_hz))
                 if rel > far:
                     continue
-                m = mac(a.shape, b.shape)
-                m = 0.0 if np.isnan(m) else m
-                if rel <= near:
-                    cost[i, j] = 10 * rel + (1 - m)
-                elif m >= min_mac:
-                    cost[i, j] = 10 * near + (1 - m) + rel
+                m = mac(a.shape, b.shape) if _same_channels(a, b) else float("nan")
+                if np.isnan(m):
+                    if rel <= near:
+                        cost[i, j] = FREQUENCY_WEIGHT * rel
+                elif (rel <= near and m >= min_pair_mac) or m >= min_mac:
+                    cost[i, j] = (1.0 - m) + FREQUENCY_TIE_WEIGHT * rel
         rows, cols = scipy.optimize.linear_sum_assignment(cost)
         for i, j in zip(rows, cols):
             if cost[i, j] < big:
@@ -120,3 +157,8 @@ def pair_modes(
         return model[i].f_hz if i is not None else measured[j].f_hz
 
     return sorted(pairs, key=key)
+
+
+def _same_channels(a: Mode, b: Mode) -> bool:
+    """Whether both modes have shapes over the same number of channel entries (a MAC is defined)."""
+    return a.shape is not None and b.shape is not None and a.shape.size == b.shape.size

@@ -361,7 +361,7 @@ def bode_grid(
             axc.set_ylabel("coherence (-)", fontsize=8)
         for ax_k in stack:
             log_frequency_axis(ax_k, ref.f_hz, label=ax_k is stack[-1])
-            ax_k.tick_params(labelsize=7)
+            ax_k.tick_params(which="both", labelsize=7)
     left_out = "" if channels is not None else shown_channels_title(len(pairs), ref.n_out * ref.n_in,
                                                                      "max_channels=")
     title = "\n".join(t for t in (left_out, title) if t)

@@ -39,7 +39,7 @@ FLOORS: tuple[tuple[str, ...], ...] = (
     ("export",),
     # the surface: figures, report, embedded examples, demo, command line, the flat public API ("")
     ("figures", "report", "examples", "demo", "demo_design", "demo_mace", "demo_lqg", "cli", "cli_inputs",
-     "cli_results",
+     "cli_results", "cli_design",
      "__main__", ""),
 )
 

@@ -664,7 +664,7 @@ class Comparison:
             ax.set_ylabel(magnitude_label(self.data, self.outputs[o], self.inputs[i]), fontsize=7)
             log_frequency_axis(ax, f, label=not phase)
             ax.xaxis.label.set_size(7)
-            ax.tick_params(labelsize=7)
+            ax.tick_params(which="both", labelsize=7)
             if k == 0:
                 ax.legend(fontsize=7)
             if phase:
@@ -674,7 +674,7 @@ class Comparison:
                 axp.set_ylabel("phase (deg)", fontsize=7)
                 log_frequency_axis(axp, f)
                 axp.xaxis.label.set_size(7)
-                axp.tick_params(labelsize=7)
+                axp.tick_params(which="both", labelsize=7)
         self.plot_error_map(ax=fig.add_subplot(grid[rows * nrows, :]))
         return fig
 

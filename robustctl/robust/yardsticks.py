@@ -49,6 +49,7 @@ from ..lti import as_statespace, freqresp_array, is_stable
 from ..plots import new_figure
 from ..table import Table
 from .dk.iteration import DKResult, as_plant, check_dk_options, closed_loop, default_grid, dksyn, mu_of
+from .dk.verify import verified_mu
 
 __all__ = ["NyquistVerdict", "Yardstick", "YardstickWarning", "nyquist_stability", "yardstick"]
 
@@ -559,7 +560,9 @@ class Yardstick:
         label -> :class:`NyquistVerdict` of the loop closed on the measured plant.
     mu_cross : ndarray, shape (n, n)
         Peak mu of controller ``i`` (row) against model ``j``'s uncertainty set (column);
-        inf when that loop is unstable.
+        inf when that loop is unstable. Against a set with real blocks (mixed mu, which can
+        rise in a narrow spike between grid points) the peak is verified as ``dksyn``
+        verifies its own (:func:`~robustctl.robust.dk.verify.verification_grid`).
     band_hz : tuple of float
     f_hz : ndarray
         The data's frequencies in the band.
@@ -774,7 +777,11 @@ def yardstick(
             gp = plants[lab_m]
             cl = closed_loop(gp.P, designs[lab_k].K, gp.nmeas, gp.ncon)
             if cl.nstates and is_stable(cl, margin=0.0):
-                mu_cross[i, j] = mu_of(cl, designs[lab_m].blocks, default_grid(gp.P), refine=True)[0].peak
+                blocks = designs[lab_m].blocks
+                m = mu_of(cl, blocks, default_grid(gp.P), refine=True)[0]
+                if blocks.has_real:  # mixed mu can spike between grid points: verify it
+                    m = verified_mu(cl, blocks, m.f_hz)
+                mu_cross[i, j] = m.peak
     return Yardstick(labels=labels, reference=reference, designs=designs, attenuation_db=attenuation,
                      stability=stability, mu_cross=mu_cross, band_hz=(lo, hi), f_hz=f_all[in_band],
                      open_loop=np.linalg.norm(G_ref[in_band], ord=2, axis=(1, 2)), closed_loop=closed)

@@ -103,7 +103,9 @@ def test_fit_percent_analytic_values():
 
 def test_plot_compare_overlays_models_with_fit_and_phase(experiment, data22):
     _, truth, model = experiment
-    fig = rc.plot_compare(data22, {"nominal": model, "truth": truth}, phase=True)
+    # the plain FRF (estimator=False): fit % against rc.freqresp; the default view is tested in
+    # tests/surface/test_figures_trust.py
+    fig = rc.plot_compare(data22, {"nominal": model, "truth": truth}, phase=True, estimator=False)
     axes = _stacks_ok(fig, data22.f_hz)
     assert len(axes) == 4 * 2
     expected = rc.fit_percent(data22, rc.freqresp(model, data22.f_hz).select(["S1", "S2"], ["A1", "A2"]))

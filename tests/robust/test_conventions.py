@@ -1,5 +1,5 @@
 """Conventions a control engineer can't get wrong: d2c round trips and refusals, the LQG sign,
-ncfsyn's pointer to d2c."""
+ncfsyn on a sampled plant."""
 
 from __future__ import annotations
 
@@ -48,13 +48,47 @@ def test_d2c_refuses_what_cannot_be_mapped():
         rc.d2c(control.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]]))
 
 
-def test_ncfsyn_on_a_discrete_plant_points_at_d2c_which_exists():
+def _four_block_margin_on_the_circle(G, K, dt, n=20001):
+    """b(G, K) = 1 / max ||[I; K](I - G K)^-1 [I, G]|| on z = exp(j w dt), 0 <= w <= pi / dt, by numpy."""
+    A, B, C, D, Ak, Bk, Ck, Dk = (np.asarray(x, float) for x in (G.A, G.B, G.C, G.D, K.A, K.B, K.C, K.D))
+    z = np.exp(1j * np.linspace(0.0, np.pi, n))[:, None, None]
+    g = C @ np.linalg.solve(z * np.eye(len(A)) - A, np.broadcast_to(B, (n, *B.shape))) + D
+    k = Ck @ np.linalg.solve(z * np.eye(len(Ak)) - Ak, np.broadcast_to(Bk, (n, *Bk.shape))) + Dk
+    p = g.shape[1]
+    S = np.linalg.inv(np.eye(p) - g @ k)
+    four = np.concatenate([S, k @ S], axis=1) @ np.concatenate(
+        [np.broadcast_to(np.eye(p), (n, p, p)), g], axis=2)
+    return 1.0 / np.linalg.norm(four, 2, axis=(1, 2)).max()
+
+
+def test_ncfsyn_on_a_sampled_plant_designs_through_the_tustin_map():
+    # a lightly damped plant sampled with a zero-order hold at 50 Hz, shaped by an integrator-like
+    # weight sampled at the same rate
+    dt = 0.02
+    Gd = control.c2d(control.ss(control.tf([1.0], [1.0, 0.4, 4.0])), dt)
+    W1d = control.c2d(control.ss(control.tf([1.0, 2.0], [1.0, 0.01])), dt, method="tustin")
+    res = rc.ncfsyn(Gd, W1d)
+    assert res.K.dt == dt and res.Ks.dt == dt
+    # the same design as the continuous one through the same map: margins equal
+    cont = rc.ncfsyn(rc.d2c(Gd, method="tustin"), rc.d2c(W1d, method="tustin"))
+    assert res.b_opt == pytest.approx(cont.b_opt, rel=1e-12)
+    assert res.b_achieved == pytest.approx(cont.b_achieved, rel=1e-12)
+    # independently, on the unit circle with numpy: the sampled shaped loop's margin is b_achieved,
+    # and the sampled loop G, K is stable (every closed-loop pole inside the unit circle)
+    b = _four_block_margin_on_the_circle(res.shaped, res.Ks, dt)
+    assert b == pytest.approx(res.b_achieved, rel=1e-4)
+    assert 0.2 < b < 1.0
+    cl = control.feedback(Gd, res.K, sign=+1)
+    assert np.max(np.abs(np.linalg.eigvals(np.asarray(cl.A)))) < 1.0
+
+
+def test_ncfsyn_on_a_sampled_plant_refuses_what_the_map_cannot_take():
     Gd = control.c2d(control.ss(control.tf([1.0], [1.0, 0.4, 4.0])), 0.02)
-    with pytest.raises(SynthesisError, match=r"rc\.d2c\(G\)") as err:
-        rc.ncfsyn(Gd)
-    assert hasattr(rc, "d2c") and "discretize" in str(err.value)
-    Ks = rc.ncfsyn(rc.d2c(Gd))  # the advice works
-    assert Ks.K.isctime()
+    with pytest.raises(SynthesisError, match="sampled at the same"):
+        rc.ncfsyn(Gd, control.tf([1.0, 2.0], [1.0, 0.01]))  # a continuous weight
+    with pytest.raises(SynthesisError, match="z = -1"):
+        rc.ncfsyn(control.ss([[-1.0]], [[1.0]], [[1.0]], [[0.0]], 0.1))
+    assert rc.ncfsyn(Gd, 2.0).K.dt == 0.02  # a constant weight is fine
 
 
 def test_lqg_states_its_loop_sign_and_it_is_the_negated_textbook_controller():

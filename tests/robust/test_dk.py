@@ -95,6 +95,55 @@ def test_one_iteration_is_the_hinf_controller_and_its_mu():
     assert "mu peak" in str(dk.table()) and "not certified" in dk.summary()
 
 
+def test_dksyn_on_a_sampled_plant_is_the_tustin_originals_design_mapped_back():
+    """A sampled plant is designed through the bilinear map, which keeps stability and mu: the
+    result is the Tustin original's design sampled again, and mu of the sampled loop on the unit
+    circle (computed here from the sampled closed loop) is the continuous design's."""
+    import robustctl as rc
+    from robustctl.robust.dk.sampled_design import warped_hz
+    from robustctl.robust.mu.bounds import mu
+
+    dt = 0.5
+    Pd = control.c2d(distillation_plant(), dt, method="zoh")
+    dkd = dksyn((Pd, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, autoscale=False)
+    dkc = dksyn((rc.d2c(Pd, method="tustin"), 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, autoscale=False)
+    assert dkd.K.dt == dt and dkd.closed_loop.dt == dt
+    assert dkd.mu_peak == pytest.approx(dkc.mu_peak, rel=1e-12)
+    # the sampled controller takes the continuous one's values at the warped frequencies
+    fc = np.logspace(-3, 1, 40)
+    np.testing.assert_allclose(freqresp_array(dkd.K, warped_hz(fc, dt)), freqresp_array(dkc.K, fc),
+                               rtol=1e-8, atol=1e-10)
+    assert warped_hz(1e9, dt) == pytest.approx(1 / (2 * dt))  # infinity maps to the Nyquist frequency
+    # mu of the sampled loop, from its own response on z = exp(j 2 pi f dt), at the reported frequencies
+    m = mu(freqresp_array(dkd.closed_loop, dkd.mu.f_hz), dkd.blocks, f_hz=dkd.mu.f_hz, lower=False)
+    assert m.peak == pytest.approx(dkd.mu_peak, rel=1e-6)
+    assert np.all(dkd.mu.f_hz < 1 / (2 * dt))
+    assert np.max(np.abs(np.linalg.eigvals(np.asarray(dkd.closed_loop.A)))) < 1.0
+    # a sampled plant with a pole at z = -1 has no Tustin original
+    bad = control.ss(np.diag([-1.0, 0.5]), np.eye(2), np.eye(2), np.zeros((2, 2)), dt)
+    with pytest.raises(SynthesisError, match="z = -1"):
+        dksyn((bad, 1, 1, [[1, 1]]), max_iter=1, progress=False)
+
+
+def test_the_reported_time_is_the_calls_own():
+    """``time_s`` (and the summary) is the whole call's wall-clock time -- the iterations, the
+    verification on the denser grid and every strategy's runs -- and a second call does not
+    add the first's (issue 33: 20.1 s reported for a call of 24.3 s)."""
+    import time
+
+    P = distillation_plant()
+    for _ in range(2):
+        t0 = time.perf_counter()
+        dk = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, autoscale=False)
+        outside = time.perf_counter() - t0
+        assert dk.iterations_time_s < dk.time_s <= outside
+        assert dk.time_s >= 0.9 * outside
+        assert f"The call took {dk.time_s:.2f} s, {dk.iterations_time_s:.2f} s of it" in dk.summary()
+    from dataclasses import replace
+
+    assert replace(dk, elapsed_s=float("nan")).time_s == dk.iterations_time_s  # built outside dksyn
+
+
 @pytest.mark.slow
 def test_distillation_reproduces_the_book_with_fourth_order_scales():
     """S&P Table 8.2 (4th-order D fits): 1.1818, 1.0238, 1.0189."""

@@ -94,5 +94,7 @@ def test_ncfsyn_refuses_bad_input():
         rc.ncfsyn(1 / (s + 1), factor=0.9)
     with pytest.raises(SynthesisError, match="W1"):
         rc.ncfsyn(1 / (s + 1), np.eye(2))
-    with pytest.raises(SynthesisError, match="continuous"):
-        rc.ncfsyn(control.c2d(1 / (s + 1), 0.1))
+    with pytest.raises(SynthesisError, match="continuous"):  # a sampled weight on a continuous plant
+        rc.ncfsyn(1 / (s + 1), control.c2d(control.ss(1 / (s + 2)), 0.1))
+    with pytest.raises(SynthesisError, match="sampled at the same"):  # and the reverse
+        rc.ncfsyn(control.c2d(1 / (s + 1), 0.1), 1 / (s + 2))

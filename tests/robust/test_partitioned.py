@@ -89,3 +89,50 @@ def test_refusals_are_one_error_naming_what_was_passed_and_the_fix():
             rc.dksyn(P)
         with pytest.raises(err, match="as_statespace"):
             rc.PartitionedPlant(np.eye(2), 1, 1)
+
+
+def test_one_partitioned_plant_is_taken_by_every_design_entry_and_converted_once(monkeypatch):
+    """hinfsyn, h2syn, lqg, mu, ncfsyn and sampled_plant take the same PartitionedPlant, each
+    converting the user's object once at its entry, and give what they give for the plant's
+    parts passed by hand (issue 32)."""
+    import importlib
+
+    from robustctl.lti import freqresp_array
+    from robustctl.robust import partitioned
+
+    rng = np.random.default_rng(3)
+    A = np.diag([-0.5, -2.0, -0.1]) + 0.2 * rng.standard_normal((3, 3))
+    B, C = rng.standard_normal((3, 2)), rng.standard_normal((2, 3))
+    P = control.ss(A, B, C, [[0.0, 1.0], [1.0, 0.0]], inputs=["w", "u"], outputs=["z", "y"])
+    pp = rc.as_partitioned(P, 1, 1)
+    gp = rc.as_partitioned(P, 1, 1, blocks=[[1, 1]])
+    seen = []
+    real = partitioned.as_partitioned
+
+    def counting(obj, *args, **kw):
+        seen.append(obj)
+        return real(obj, *args, **kw)
+
+    for mod in ("robust.hinf.synthesis", "robust.h2.synthesis", "robust.h2.lqg_design",
+                "robust.analysis.loop_shaping", "robust.sampled"):
+        monkeypatch.setattr(importlib.import_module(f"robustctl.{mod}"), "as_partitioned", counting)
+
+    def once(call):
+        del seen[:]
+        out = call()
+        assert sum(o is pp or o is gp for o in seen) <= 1
+        return out
+
+    assert once(lambda: rc.hinfsyn(pp)).gamma == rc.hinfsyn(P, 1, 1).gamma
+    assert once(lambda: rc.h2syn(pp)).norm == rc.h2syn(P, 1, 1).norm
+    by_names = rc.lqg(P, 1.0, 0.1, 1.0, 0.01, controls=["u"], measurements=["y"], disturbances=["w"],
+                      performance=["z"])
+    assert once(lambda: rc.lqg(pp, 1.0, 0.1, 1.0, 0.01)).cost == pytest.approx(by_names.cost, rel=1e-12)
+    f = np.logspace(-2, 1, 20)
+    m = once(lambda: rc.mu(gp, f_hz=f))  # P11 with the plant's own blocks
+    assert m.peak == pytest.approx(np.abs(freqresp_array(P, f)[:, 0, 0]).max(), rel=1e-6)
+    ncf = once(lambda: rc.ncfsyn(pp))  # the u -> y part P22
+    assert ncf.b_opt == pytest.approx(rc.ncfsyn(control.ss(P.A, P.B[:, 1:], P.C[1:], P.D[1:, 1:])).b_opt,
+                                      rel=1e-12)
+    assert once(lambda: rc.sampled_plant(pp, 0.01)).P.dt == 0.01
+    assert len(seen) == 1

@@ -1,4 +1,4 @@
-"""The whole loop from the shell: load -> compare -> diagnose -> update (-> report) on UFF files.
+"""The whole loop from the shell: load -> compare -> diagnose -> update -> design (-> report) on UFF files.
 
 The truth is a three-mass chain written here with numpy/scipy (5 % stiffer springs and 0.15 kg on
 the middle mass than the user's model); the measurement is a long random-phase multisine on the
@@ -11,6 +11,7 @@ import json
 import numpy as np
 import pytest
 import scipy.linalg
+import scipy.signal
 
 import robustctl as rc
 from robustctl.cli import main
@@ -117,6 +118,16 @@ def test_load_compare_diagnose_update_report_on_uff_files(tmp_path, capsys, monk
     html = (tmp_path / "upd" / "report.html").read_text()
     assert "within the noise in every channel and band" in html
 
+    # the design step on the model as the update left it (its effect and fitted values)
+    out = run(capsys, "design", "chain.py", uff, "--update", tmp_path / "upd", "--inputs", "F3",
+              "--outputs", "a3", "--band", 1, 40, "--perf-band", 2, 20, "--level", 0.05, "--fs", 256,
+              "--max-iter", 1, "--d-order", 2, "--no-reduce", "--out", tmp_path / "des")
+    after = {p["name"]: p["after"] for p in upd["parameters"]}
+    assert "effect 'added mass at node x2' added" in out
+    assert all(f"{name} = {value:.6g}" in out for name, value in after.items()), (after, out)
+    des = summary(tmp_path / "des")
+    assert f"mu: peak {des['mu_peak']:.4g}" in out and des["controller_states"] >= 1
+
     out = run(capsys, "report", tmp_path / "cmp", tmp_path / "diag", tmp_path / "upd",
               "--out", tmp_path / "all")
     assert "Joined 3 reports" in out
@@ -141,3 +152,80 @@ def test_channel_flags_and_bad_diagnosis(tmp_path, capsys, monkeypatch):
                                                                      "best": None}))
     assert main(["update", "chain.py", str(uff), "--diagnosis", str(tmp_path / "nothing")]) == 2
     assert "proposed no effect (no candidate is significant)" in capsys.readouterr().err
+
+
+def truth_statespace():
+    """The true chain from F3 to a3 (accelerance): x = (q, dq), numpy, 2 % modal damping."""
+    M, K = np.diag([1.0, 1.0 + ADDED_TRUE, 1.0]), K_TRUE * K_UNIT
+    w2, phi = scipy.linalg.eigh(K, M)  # phi.T M phi = I
+    Mp = M @ phi
+    C_damp = Mp @ np.diag(2 * ZETA * np.sqrt(w2)) @ Mp.T
+    Minv = np.linalg.inv(M)
+    A = np.block([[np.zeros((3, 3)), np.eye(3)], [-Minv @ K, -Minv @ C_damp]])
+    B = np.concatenate([np.zeros(3), Minv[:, 2]])[:, None]
+    return A, B, A[5:6], B[5:6]
+
+
+def test_design_from_an_update_to_an_exported_controller(tmp_path, capsys, monkeypatch):
+    """robustctl design on the model as an update left it: mu printed and recorded, the written
+    controller checked by numpy on the true chain (sampled loop stable, nominal performance <= mu)."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "chain.py").write_text(MODEL_FILE)
+    uff = measured_file(tmp_path / "chain.uff", n_seg=8)
+    (tmp_path / "upd").mkdir()
+    params = [{"name": "k", "after": K_TRUE}, {"name": "added_mass__x2", "after": ADDED_TRUE}]
+    (tmp_path / "upd" / "summary.json").write_text(
+        json.dumps({"effect": "added mass at node x2", "parameters": params}))
+    fs, perf_band, level = 256.0, (2.0, 20.0), 0.05
+    out = run(capsys, "design", "chain.py", uff, "--update", tmp_path / "upd", "--inputs", "F3",
+              "--outputs", "a3", "--band", 1, 40, "--perf-band", *perf_band, "--level", level, "--fs", fs,
+              "--max-iter", 1, "--d-order", 2, "--no-reduce", "--out", tmp_path / "des")
+    assert "effect 'added mass at node x2' added, k = 42000, added_mass__x2 = 0.15" in out
+    rec = summary(tmp_path / "des")
+    mu = rec["mu_peak"]
+    assert f"mu: peak {mu:.4g}" in out and "D-K iteration: peak mu" in out
+    certified = "robust performance certified (mu < 1)"
+    assert rec["verdict"] == (certified if mu < 1 else "not certified (mu >= 1)")
+    assert rec["mu_lower_peak"] <= mu * (1 + 1e-9) and rec["controller_inputs"] == ["a3"]
+    assert rec["files"] == ["controller.json", "controller.h", "controller.mat"]
+    K = json.loads((tmp_path / "des" / "controller.json").read_text())
+    assert K["fs_hz"] == fs and K["inputs"] == ["a3"] and K["outputs"] == ["F3"]
+    Ak, Bk, Ck, Dk = (np.atleast_2d(np.asarray(K[m], dtype=float)) for m in "ABCD")
+    # the sampled loop: the truth held (ZOH) at fs with the file's controller, u = +K y
+    A, B, C, D = truth_statespace()
+    Ad, Bd, Cd, Dd, _ = scipy.signal.cont2discrete((A, B, C, D), 1 / fs, "zoh")
+    g = 1.0 / (1.0 - (Dd @ Dk).item())
+    top = np.hstack([Ad + g * Bd @ Dk @ Cd, g * Bd @ Ck])
+    bottom = np.hstack([g * Bk @ Cd, Ak + g * Bk @ Dd @ Ck])
+    assert np.abs(np.linalg.eigvals(np.vstack([top, bottom]))).max() < 1.0
+    # Tustin maps s = jw to z = (2 fs + jw) / (2 fs - jw): the file gives the continuous K(jw) exactly
+    f = np.geomspace(0.5, 100.0, 2000)
+    s = 2j * np.pi * f
+    z = (2 * fs + s) / (2 * fs - s)
+    n = Ak.shape[0]
+    k_c = np.array([(Ck @ np.linalg.solve(zz * np.eye(n) - Ak, Bk) + Dk).item() for zz in z])
+    G = np.array([(C @ np.linalg.solve(ss * np.eye(6) - A, B) + D).item() for ss in s])
+    w1, w2 = 2 * np.pi * np.asarray(perf_band)
+    Wp = level * w2 * s / ((s + w1) * (s + w2))
+    nominal = np.abs(Wp * G / (1.0 - G * k_c))  # input disturbance -> weighted sensor: a block of mu's matrix
+    assert nominal.max() <= mu * (1 + 1e-3)
+    assert nominal.max() > 0.5 * mu  # 0.62 mu measured: the performance block is most of mu
+
+
+def test_design_refuses_bad_input_in_one_line(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "chain.py").write_text(MODEL_FILE)
+    cases = [
+        (["--perf-band", "5", "2"], "the performance band must be (low, high) in Hz with low < high"),
+        (["--perf-band", "1", "5", "--level", "-1"], "level must be positive"),
+        ([], "give --perf-band LO_HZ HI_HZ (or DATA, whose span is the default)"),
+        (["--update", "nowhere"], "--update nowhere: cannot read nowhere"),
+    ]
+    for extra, message in cases:
+        assert main(["design", "chain.py", "--fs", "200", *extra]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("robustctl design: ") and message in err and err.count("\n") == 1
+    (tmp_path / "upd").mkdir()
+    (tmp_path / "upd" / "summary.json").write_text(json.dumps({"parameters": [{"name": "q", "after": 1.0}]}))
+    assert main(["design", "chain.py", "--fs", "200", "--perf-band", "1", "5", "--update", "upd"]) == 2
+    assert "MODEL has no parameter q" in capsys.readouterr().err

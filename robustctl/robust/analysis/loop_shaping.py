@@ -35,15 +35,17 @@ import control
 import numpy as np
 
 from ...checks import positive_number
-from ...errors import SynthesisError
-from ...interconnect import PicklesStateSpaces
+from ...errors import ModelError, SynthesisError
+from ...interconnect import PartitionedPlant, PicklesStateSpaces
 from ...lti import as_statespace, freqresp_array, is_stable, roundoff_margin
 from ...plots import label_axes, single_axes
 from ...table import Table, result_html
+from ..continuous_equivalent import d2c
 from ..h2.synthesis import default_grid_hz
 from ..hinf.norm import hinfnorm_matrices
 from ..hinf.synthesis import lower_lft_matrices
 from ..mu.bounds import frequencies_hz
+from ..partitioned import as_partitioned
 from .coprime import ncf_riccati
 
 __all__ = ["LoopShapingResult", "ncfsyn", "stability_margin"]
@@ -183,12 +185,16 @@ def ncfsyn(G: Any, W1: Any = None, W2: Any = None, *, factor: float = 1.1) -> Lo
 
     Parameters
     ----------
-    G : system
-        The plant (continuous time), p outputs x m inputs, named.
+    G : system or PartitionedPlant
+        The plant, p outputs x m inputs, named. Continuous, or sampled (``dt > 0`` s): a
+        sampled plant is designed through the bilinear map (:func:`_ncfsyn_sampled`). A
+        partitioned plant (``rc.as_partitioned``, a GeneralizedPlant) gives its ``u -> y``
+        part ``P22``: the plant the controller sees.
     W1 : system or array_like, optional
         Input (pre-compensator) weight, m x m (default identity): integral action, roll-off.
+        With a sampled ``G``: sampled at the same ``dt``, or a constant.
     W2 : system or array_like, optional
-        Output weight, p x p (default identity).
+        Output weight, p x p (default identity); as ``W1``.
     factor : float
         ``gamma = factor gamma_min`` (>= 1 + 1e-9; default 1.1, MATLAB's). Close to 1 gives the
         largest margin and a worse-conditioned controller.
@@ -196,12 +202,14 @@ def ncfsyn(G: Any, W1: Any = None, W2: Any = None, *, factor: float = 1.1) -> Lo
     Returns
     -------
     LoopShapingResult
-        ``K`` (for ``G``, ``u = K y``), ``Ks``, ``b_opt``, ``b_achieved``, ``gamma``.
+        ``K`` (for ``G``, ``u = K y``), ``Ks``, ``b_opt``, ``b_achieved``, ``gamma``; for a
+        sampled ``G`` the controllers and the shaped plant are sampled at its ``dt``.
 
     Raises
     ------
     SynthesisError
-        A discrete plant, weights of the wrong shape, a shaped plant that is not stabilisable
+        A sampled plant with a pole at ``z = -1`` or weights of another sample time,
+        weights of the wrong shape, a shaped plant that is not stabilisable
         and detectable, a factor below 1, or a closed loop that fails its check.
 
     References
@@ -219,12 +227,13 @@ def ncfsyn(G: Any, W1: Any = None, W2: Any = None, *, factor: float = 1.1) -> Lo
     factor = positive_number(factor, "factor", SynthesisError)
     if factor < 1.0 + 1e-9:
         raise SynthesisError(f"factor must exceed 1 (gamma = factor gamma_min); got {factor!r}. Use 1.1.")
-    Gss = as_statespace(G, name="G")
+    if isinstance(G, PartitionedPlant):
+        plant = as_partitioned(G, who="ncfsyn")
+        Gss = plant.P[plant.nz:, plant.nw:]
+    else:
+        Gss = as_statespace(G, name="G")
     if Gss.dt not in (0, None):
-        raise SynthesisError(
-            f"ncfsyn designs in continuous time and G is discrete (dt={G.dt}); map it with "
-            "rc.d2c(G) (the inverse of its zero-order hold, or method='tustin'), design, then "
-            "discretise the controller with rc.discretize.")
+        return _ncfsyn_sampled(Gss, W1, W2, factor)
     p, m = Gss.noutputs, Gss.ninputs
     W1s, W2s = _weight(W1, m, "W1"), _weight(W2, p, "W2")
     if (W1s.noutputs, W1s.ninputs) != (m, m) or (W2s.noutputs, W2s.ninputs) != (p, p):
@@ -275,3 +284,50 @@ def ncfsyn(G: Any, W1: Any = None, W2: Any = None, *, factor: float = 1.1) -> Lo
     }
     return LoopShapingResult(K=K, Ks=Ks, shaped=Gs, b_opt=1.0 / gamma_min, b_achieved=b, gamma=gamma,
                              plant=Gss, info=info)
+
+
+def _ncfsyn_sampled(Gd: Any, W1: Any, W2: Any, factor: float) -> LoopShapingResult:
+    """:func:`ncfsyn` of a sampled plant through the bilinear (Tustin) map.
+
+    ``s = (2/T)(z - 1)/(z + 1)`` maps the unit circle onto the imaginary axis and the unit
+    disc onto the left half plane, so a sampled system and its Tustin original
+    (:func:`~robustctl.robust.continuous_equivalent.d2c`, ``method="tustin"``) take the same
+    values, frequency warped: stability, H-infinity norms and the normalisation of coprime
+    factors are the same, hence ``b_opt``, ``gamma`` and the achieved margin of the loop are
+    those of the continuous design (Zhou, Doyle & Glover 1996, sec. 21.3). The plant and its
+    weights are mapped to continuous time, designed there, and the controllers and the
+    shaped plant mapped back with ``control.c2d(method="tustin")``.
+    """
+    dt = Gd.dt
+    if dt is True or not float(dt) > 0:
+        raise SynthesisError(f"ncfsyn needs G's numeric sample time for a sampled plant; got dt={dt!r}.")
+    dt = float(dt)
+
+    def continuous(W: Any, what: str) -> Any:
+        if W is None or isinstance(W, (int, float, np.number, np.ndarray, list, tuple)):
+            return W
+        Ws = as_statespace(W, name=what)
+        if Ws.dt in (0, None) or Ws.dt is True or not np.isclose(float(Ws.dt), dt, rtol=1e-12, atol=0.0):
+            raise SynthesisError(
+                f"G is sampled (dt={dt:g} s) but {what} has dt={Ws.dt!r}: give {what} sampled at the same "
+                f"rate (control.c2d({what}, {dt:g}, method='tustin')) or as a constant.")
+        return _d2c(Ws, what)
+
+    res = ncfsyn(_d2c(Gd, "G"), continuous(W1, "W1"), continuous(W2, "W2"), factor=factor)
+
+    def sampled(S: Any) -> Any:
+        Sd = control.c2d(S, dt, method="tustin")
+        return control.ss(Sd.A, Sd.B, Sd.C, Sd.D, dt, inputs=list(S.input_labels),
+                          outputs=list(S.output_labels), states=list(S.state_labels), name=S.name)
+
+    return LoopShapingResult(K=sampled(res.K), Ks=sampled(res.Ks), shaped=sampled(res.shaped),
+                             b_opt=res.b_opt, b_achieved=res.b_achieved, gamma=res.gamma, plant=Gd,
+                             info={**res.info, "sampled": f"designed through the Tustin map at dt={dt:g} s"})
+
+
+def _d2c(S: Any, what: str) -> Any:
+    """``d2c(S, "tustin")`` with its refusal worded for ncfsyn."""
+    try:
+        return d2c(S, method="tustin")
+    except ModelError as exc:
+        raise SynthesisError(f"ncfsyn designs a sampled plant through the Tustin map; {what}: {exc}") from exc

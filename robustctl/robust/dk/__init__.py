@@ -11,6 +11,8 @@ Holds
                         1996, Theorem 7.9).
     ``reduce``       -- controller reduction after D-K, checked by the truncated loop's mu.
     ``verify``       -- the closed loop, its frequency grids and its verified mu peak.
+    ``sampled_design`` -- D-K on a sampled plant through the Tustin map, which keeps stability
+                        and mu (Zhou, Doyle & Glover 1996, sec. 21.3).
     ``sweep``        -- ``rc.design_sweep``: one D-K run per weight choice over any executor.
 
 May import

@@ -59,7 +59,7 @@ from ...errors import FitError, SynthesisError
 from ...lti import freqresp_array, is_stable
 from ..plant import GeneralizedPlant
 from ..uncertainty.blocks import Block, BlockStructure
-from .verify import _verified_mu, closed_loop
+from .verify import closed_loop, verified_mu
 
 __all__ = ["DesignReduction", "reduce_design_plant", "on_full_plant", "check_design_order",
            "design_on_reduced", "loop_tolerance", "truncation_bounds",
@@ -362,7 +362,7 @@ def on_full_plant(plant: GeneralizedPlant, blocks: Any, result: Any, reduction: 
             "the full plant: the truncated dynamics matter to this loop. Pass a larger design_order (or "
             "None), or cover the truncated modes with uncertainty weights.", alpha)
     f = np.asarray(result.mu.f_hz, dtype=float)
-    m = _verified_mu(cl, blocks, f[f > 0])  # the verification grid adds DC itself
+    m = verified_mu(cl, blocks, f[f > 0])  # the verification grid adds DC itself
     done = _replace(reduction, mu_peak_design=float(result.mu_peak), mu_peak_full=float(m.peak))
     k = len(plant.blocks) - 1  # the design-reduction block's scale (the last block has none)
     d = tuple(result.d_scales)

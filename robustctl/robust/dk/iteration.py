@@ -78,6 +78,7 @@ from ..uncertainty.blocks import Block, BlockStructure
 from .design_plant import DesignReduction, check_design_order, design_on_reduced
 from .dgk import blended_scales, fit_g_filter, g_transform, scaled_d_targets, transformed_norm
 from .reduce import Reduction, _reduce
+from .sampled_design import sampled_result, tustin_original
 from .scales import (
     HINF_BACKOFF,
     _autoscaled,
@@ -96,7 +97,7 @@ from .scales import (
 from .scales import _dynamics_in_band as _dynamics_in_band
 from .scales import _fit_one as _fit_one
 from .scales import _into_band as _into_band
-from .verify import _verified_mu, closed_loop, default_grid, mu_of
+from .verify import closed_loop, default_grid, mu_of, verified_mu
 from .verify import verification_grid as verification_grid
 
 __all__ = ["DKIteration", "DKResult", "Reduction", "DesignReduction", "dksyn"]
@@ -137,12 +138,13 @@ def _complexified(blocks: BlockStructure) -> BlockStructure:
 
 
 def as_plant(gp: Any) -> GeneralizedPlant:
-    """A GeneralizedPlant or ``(P, nmeas, ncon, blocks)`` as a checked continuous-time plant with blocks."""
+    """A GeneralizedPlant or ``(P, nmeas, ncon, blocks)`` as a checked plant with blocks
+    (continuous, or sampled: :mod:`.sampled_design`)."""
     if isinstance(gp, tuple) and len(gp) == 4:
         P, nmeas, ncon, blocks = gp
-        return as_partitioned(P, nmeas, ncon, blocks, who="dksyn", allow_discrete=False, need_blocks=True)
+        return as_partitioned(P, nmeas, ncon, blocks, who="dksyn", need_blocks=True)
     if isinstance(gp, PartitionedPlant):
-        return as_partitioned(gp, who="dksyn", allow_discrete=False, need_blocks=True)
+        return as_partitioned(gp, who="dksyn", need_blocks=True)
     raise PlantError(
         f"dksyn takes a GeneralizedPlant (rc.generalized_plant) or a tuple (P, nmeas, ncon, blocks); "
         f"got a {type(gp).__name__}."
@@ -244,6 +246,11 @@ class DKResult:
         complexified) of the complex D-K design that D-G-K starts from (NaN otherwise). The
         returned mixed ``mu_peak`` is never above that design's mixed mu, hence never above
         this figure.
+    elapsed_s : float
+        Wall-clock time of the :func:`dksyn` call that returned this result (s): every
+        strategy's runs (autoscaled starts, neighbouring D orders, the complex D-K before
+        D-G-K), the verification and the reduction, not only the iterations in ``history``.
+        NaN for a result built outside ``dksyn``.
     """
 
     K: Any
@@ -260,10 +267,18 @@ class DKResult:
     stopped_by_budget: bool = False
     design_reduction: DesignReduction | None = None
     complex_mu_peak: float = float("nan")
+    elapsed_s: float = float("nan")
 
     @property
     def time_s(self) -> float:
-        """Total wall-clock time of the iterations (s)."""
+        """Wall-clock time of the call (s): ``elapsed_s``, or the iterations' sum without it."""
+        if np.isfinite(self.elapsed_s):
+            return float(self.elapsed_s)
+        return self.iterations_time_s
+
+    @property
+    def iterations_time_s(self) -> float:
+        """Wall-clock time of the iterations in ``history`` (s)."""
         return float(sum(h.time_s for h in self.history))
 
     def table(self) -> Table:
@@ -283,9 +298,12 @@ class DKResult:
         verdict = "certified (< 1)" if self.mu_peak < 1 else "not certified (>= 1)"
         text = (
             f"D-K iteration: peak mu {self.mu_peak:.4f} {verdict} at {self.mu.f_peak_hz:.3g} Hz with a "
-            f"{self.K.nstates}-state controller (iteration {self.best_iteration} of {len(self.history)}, "
-            f"{self.time_s:.2f} s; stopped: {self.stop_reason})."
+            f"{self.K.nstates}-state controller (iteration {self.best_iteration} of {len(self.history)}; "
+            f"stopped: {self.stop_reason}). The call took {self.time_s:.2f} s"
         )
+        if np.isfinite(self.elapsed_s):
+            text += f", {self.iterations_time_s:.2f} s of it in the iterations listed"
+        text += "."
         if self.mu_peak > self.grid_mu_peak * (1 + 1e-3):
             text += (f" Between and beyond the iteration grid's points mu reaches {self.mu_peak:.4f} "
                      f"(the grid saw {self.grid_mu_peak:.4f}).")
@@ -425,127 +443,84 @@ def dksyn(
     gamma: float | None = None,
     design_order: int | str | None = "auto",
 ) -> DKResult:
-    """mu-synthesis by D-K iteration (Skogestad & Postlethwaite 2005, sec. 8.12.1).
+    """mu-synthesis by D-K iteration (Skogestad & Postlethwaite 2005, sec. 8.12.1; module docstring).
 
     Parameters
     ----------
     gp : GeneralizedPlant or tuple (P, nmeas, ncon, blocks)
-        The plant ``[w; u] -> [z; y]``. Its first inputs/outputs are the uncertainty and
-        performance channels in block order (block ``i`` maps its ``cols_i`` z channels to
-        its ``rows_i`` w channels); ``blocks`` in any form ``as_block_structure`` takes, e.g.
-        mussv rows ``[[1, 1], [1, 1], [2, 2]]``; real scalar blocks ``[-r, 0]`` are real
-        parameters (see ``real``).
+        The plant ``[w; u] -> [z; y]``, the uncertainty and performance channels first in block
+        order; ``blocks`` in any form ``as_block_structure`` takes (mussv rows ``[[1, 1], [2,
+        2]]``; ``[-r, 0]`` a real parameter, see ``real``). A sampled plant (``dt > 0`` s) is
+        designed through the Tustin map, which keeps stability and mu (:mod:`.sampled_design`).
     max_iter : int
         Iteration cap (each iteration is one K step and one mu analysis).
     order_d : int, sequence of int or None
-        Order of each D-scale fit (one per block but the last); None chooses per block the
-        lowest order in 0..8 that keeps the scaled bound within 5 % of what the block can
-        reach, else the one with the lowest bound (never below the previous iteration's order unless those
-        fits are broken or out of band; at most 24 added states per block, e.g. order 4 for
-        a 3 x 3 block). From the third iteration the K step tries the fits of the
-        extrapolated scales too (:data:`D_STEPS`, module docstring). When ``max_iter`` stops
-        an automatic-order run whose peak of mu still falls, the run is repeated with fixed
-        orders around those of its best iteration and the lowest verified mu is kept
-        (:func:`_neighbour_orders`; ``stop_reason`` says so).
+        Order of each D-scale fit (one per block but the last). None: per block the lowest
+        order in 0..8 within 5 % of the best bound (:func:`~.scales._fit_d_scales`); a run the
+        cap stops while mu still falls is repeated at neighbouring orders (:func:`_neighbour_orders`).
     f_hz : array_like, optional
-        Analysis grid (Hz). Default: :func:`default_grid` of ``P``, refined at the lightly
-        damped closed-loop poles each iteration.
+        Analysis grid (Hz). Default: :func:`default_grid`, refined at lightly damped closed-loop poles.
     executor : concurrent.futures.Executor, optional
-        Runs the D-scale fits (block x candidate order) in parallel.
+        Runs the D-scale fits in parallel.
     time_budget_s : float or None
-        Optional wall-clock budget (s), by :mod:`robustctl.budget`'s policy. None (default):
-        ``max_iter``, ``patience`` and the fits' own iteration caps bound the work, and the
-        result depends only on the inputs. A number: the iteration also stops (keeping the
-        best controller, ``stopped_by_budget=True``, a BudgetWarning) when what is left would
-        not cover another K step as long as the last one; the K steps' gamma bisections and
-        the D fits share the budget.
-    reduce : int or "auto", optional
-        Reduce the final controller to this many states by balanced truncation and re-check
-        mu (kept only if it stabilises and raises the peak of mu by at most 2 %). ``"auto"``:
-        the smallest such order, by bisection (a few more mu analyses); what a real-time
-        implementation wants before :func:`~robustctl.export.export_controller`. A pair
-        ``("weighted", order)`` truncates with the closed-loop weight (Enns), ``("coprime",
-        order)`` the normalized coprime factors (unstable controllers too); see
-        :mod:`robustctl.robust.reduction.controller`.
+        Optional wall-clock budget (s) by :mod:`robustctl.budget`'s policy; None (default): the
+        result depends only on the inputs. A budget that stops the iteration keeps the best
+        controller and sets ``stopped_by_budget``.
+    reduce : int, "auto" or (method, order), optional
+        Reduce the final controller and re-check mu (kept if it stabilises and raises mu by at
+        most 2 %; :mod:`robustctl.robust.dk.reduce`, :mod:`robustctl.robust.reduction.controller`).
     progress : bool, optional
         tqdm bar over iterations (default: when stderr is a terminal).
     rtol : float
-        The peak of mu must fall by this fraction to count as an improvement.
+        The fraction by which the peak of mu must fall to count as an improvement.
     patience : int
-        Non-improving iterations tolerated before stopping. The default 1 is the D-K rule
-        "repeat while the peak mu falls": on the Caltech design plant a second try after a
-        worse iteration (mu 0.79 -> 0.95 -> 0.80) cost 40 % more time and never won.
+        Non-improving iterations tolerated before stopping (1: "repeat while mu falls").
     hinf_options : dict, optional
-        Extra keyword arguments for :func:`~robustctl.robust.hinf.synthesis.hinfsyn` (default
-        ``backoff=HINF_BACKOFF``, ``time_budget_s``: this call's budget, shared). Without a
-        ``method``, a K step whose every candidate fails on the Riccati route with its advice
-        to use ``method='lmi'`` is retried on the LMI route (scaled plants of at most
-        :data:`LMI_FALLBACK_MAX_STATES` states).
+        Extra keyword arguments of :func:`~robustctl.robust.hinf.synthesis.hinfsyn`
+        (``method``, ``gamma_tol``, ``backoff``, ``time_budget_s``); see :func:`_k_step`.
     callback : callable, optional
         Called with each :class:`DKIteration`.
     real : {"mixed", "complex"}
-        With real blocks, ``"mixed"`` runs D-G-K iteration (Young 1996): each iteration's
-        closed loop is analysed with the mixed-mu bound (D- and G-scales), the G-scales are
-        fitted by stable filters and absorbed by a loop transformation
-        (:mod:`robustctl.robust.dk.dgk`), and the K step finds the smallest level its H-infinity
-        synthesis certifies (``DKIteration.gamma`` is then that level, an upper bound on the
-        next peak of mixed mu); ``mu_peak`` is mixed mu. ``"complex"``: real blocks are treated
-        as complex ones (plain D-K; conservative).
+        With real blocks, ``"mixed"`` runs D-G-K (Young 1996; :mod:`robustctl.robust.dk.dgk`)
+        from the complex D-K design and returns the better (:func:`_mixed_from_complex`);
+        ``mu_peak`` is then mixed mu. ``"complex"``: real blocks treated as complex.
     autoscale : bool
-        Scale the plant's channels before the iteration (controls and measurements to unit
-        peak gain, constant block scales balancing the closed loop; :func:`_autoscaled`), so
-        that the result does not depend on the units the plant was written in. The returned
-        controller, closed loop, mu and D-scales are the user's plant's; the history's
-        closed loops and scales are the scaled plant's (mu is the same).
+        Scale the plant's channels first and start from several block scalings
+        (:func:`_autoscaled_dksyn`), so the result does not depend on the plant's units.
     gamma : float, optional
-        A fixed design level for the D-K K steps: each H-infinity synthesis designs its
-        central controller at ``gamma`` when that is above its optimum (times ``1 +
-        backoff``), else at the optimum. A controller designed away from the optimum is
-        better conditioned (smaller gains, no near-singular Riccati solutions) at the cost
-        of a higher scaled norm. Not used by the D-G-K K step (which searches its level).
+        A fixed design level for the K steps when above their optimum (better conditioned
+        controllers; not used by D-G-K's K step, which searches its level).
     design_order : "auto", int or None
-        States of the design plant the K steps see (:mod:`robustctl.robust.dk.design_plant`).
-        ``"auto"`` (default): a generalized plant of more than ``DESIGN_REDUCE_ABOVE`` (200)
-        states is reduced by balanced truncation before synthesis, to the fewest states whose
-        bound ``2 sum sigma_tail`` on ``||P - P_r||_inf`` is at most 1 % of the largest
-        Hankel singular value (no fixed cap; raised from the loop's small-gain tolerance, at
-        most ``DESIGN_RETRIES`` times, when the controller does not stabilise the full plant),
-        and the truncation error is covered by an added additive uncertainty block on the whole plant; the
-        controller is then closed around the full plant, its mu verified there (``mu_peak``),
-        and the orders, the bound and both peaks are in ``DKResult.design_reduction``; the
-        history is the design plant's. An integer: that many states. None: the full plant.
+        States of the design plant the K steps see (:mod:`robustctl.robust.dk.design_plant`):
+        ``"auto"`` reduces plants above 200 states by balanced truncation with the error as an
+        added block and verifies mu on the full plant; an integer: that many; None: the full plant.
 
     Returns
     -------
     DKResult
+        With ``elapsed_s``, the call's own wall-clock time (s).
 
     Raises
     ------
     SynthesisError
-        A malformed plant or block structure, or no stabilising controller; a controller
-        designed on the reduced design plant that does not stabilise the full plant (the
-        reduction error exceeds what the loop tolerates: raise ``design_order``).
+        A malformed plant, blocks or option; no stabilising controller; a design-plant
+        controller that does not stabilise the full plant (raise ``design_order``); a
+        sampled plant with a pole at ``z = -1``.
 
     Examples
     --------
     >>> dk = rc.dksyn((P, 2, 2, [[1, 1], [1, 1], [2, 2]]))   # doctest: +SKIP
     >>> dk.mu_peak, dk.table()                                # doctest: +SKIP
     """
-    grid = _check_args(max_iter, time_budget_s, f_hz)
-    hinf_options = _check_options(progress, rtol, patience, hinf_options, callback)
-    if gamma is not None:
-        gamma = positive_number(gamma, "gamma", SynthesisError)
-    check_executor(executor)
+    t0 = time.perf_counter()
+    run = _settings(max_iter, f_hz, executor, time_budget_s, reduce, progress, rtol, patience, hinf_options,
+                    callback, real, gamma)
     plant = as_plant(gp)
+    sampled = plant if plant.P.isdtime(strict=True) else None
+    if sampled is not None:
+        plant = tustin_original(sampled)
     autoscale = flag(autoscale, "autoscale", SynthesisError)
-    if not isinstance(real, str) or real not in ("mixed", "complex"):
-        raise SynthesisError(f"real must be 'mixed' (D-G-K with G-scales on the real blocks) or 'complex' "
-                             f"(real blocks treated as complex); got {real!r}.")
     _orders(order_d, len(plant.blocks) - 1)  # refuse a bad order_d now, not at the first D step
-    own_clock = not isinstance(time_budget_s, Deadline)  # a caller's Deadline: the caller reports
-    run = _Settings(max_iter=max_iter, grid=grid, executor=executor, rtol=rtol, patience=patience,
-                    hinf_options=hinf_options, callback=callback, real=real, gamma=gamma, progress=progress,
-                    reduce=reduce, deadline=as_deadline(time_budget_s, SynthesisError))
 
     def design(p: GeneralizedPlant, error_block: bool) -> DKResult:
         od = order_d
@@ -555,10 +530,28 @@ def dksyn(
         return _solve(p, od, autoscale, run)
 
     result = design_on_reduced(plant, design_order, _design_blocks(plant, real), design)
-    if run.deadline.hit and own_clock:
+    if run.deadline.hit and not isinstance(time_budget_s, Deadline):  # a caller's Deadline: it reports
         run.deadline.warn("dksyn (D-K iteration from the autoscaled starts)" if autoscale
                           else "dksyn (D-K iteration)")
-    return result
+    if sampled is not None:
+        result = sampled_result(result, sampled)
+    return replace(result, elapsed_s=time.perf_counter() - t0)
+
+
+def _settings(max_iter: Any, f_hz: Any, executor: Any, time_budget_s: Any, reduce: Any, progress: Any,
+              rtol: Any, patience: Any, hinf_options: Any, callback: Any, real: Any, gamma: Any) -> _Settings:
+    """:func:`dksyn`'s options checked before any work (SynthesisError naming each), as one record."""
+    grid = _check_args(max_iter, time_budget_s, f_hz)
+    hinf_options = _check_options(progress, rtol, patience, hinf_options, callback)
+    if gamma is not None:
+        gamma = positive_number(gamma, "gamma", SynthesisError)
+    check_executor(executor)
+    if not isinstance(real, str) or real not in ("mixed", "complex"):
+        raise SynthesisError(f"real must be 'mixed' (D-G-K with G-scales on the real blocks) or 'complex' "
+                             f"(real blocks treated as complex); got {real!r}.")
+    return _Settings(max_iter=max_iter, grid=grid, executor=executor, rtol=rtol, patience=patience,
+                     hinf_options=hinf_options, callback=callback, real=real, gamma=gamma, progress=progress,
+                     reduce=reduce, deadline=as_deadline(time_budget_s, SynthesisError))
 
 
 # ---------------------------------------------------------------------------- strategies
@@ -607,26 +600,37 @@ def _mixed_from_complex(plant: GeneralizedPlant, blocks: BlockStructure, order_d
 
     A complex-mu design is a valid mixed-mu design (complex mu bounds mixed mu from above), so
     complex D-K runs first (real blocks complexified, with the autoscaled starts and order
-    neighbours as asked); its controller's mixed mu is verified on its verification grid. D-G-K
-    then starts from that controller (its first iteration is the complex design's closed loop,
-    whose mixed analysis gives the first D- and G-scales) and runs while its verified mixed mu
-    falls (``patience``): the D-G-K iteration is not monotone -- the fitted G filters and
-    D-scales only approximate the analysis' optimal multipliers, and the K step's certified
-    level is a bound on the *next* mixed mu, not the last -- so an iteration can rise, and
-    the run stops there. The better verified design of the two is returned, with the complex
-    design's complex mu in ``complex_mu_peak``.
+    neighbours as asked). D-G-K then starts from that controller: its first iteration is the
+    complex design's closed loop, whose mixed analysis gives the first D- and G-scales, and it
+    runs while its mixed mu falls (``patience``). The D-G-K iteration is not monotone -- the
+    fitted G filters and D-scales only approximate the analysis' optimal multipliers, and the
+    K step's certified level is a bound on the *next* mixed mu, not the last -- so an
+    iteration can rise, and the run stops there. The core keeps the best iterate, so when no
+    D-G-K step beats the complex design its verified mixed mu is the complex design's own (no
+    separate analysis). Only when the D-G-K design verifies above the complex design's
+    complex mu (a different verification grid) is the complex design's mixed mu verified on
+    its iteration grid, and the lower of the two is returned. ``complex_mu_peak`` is the
+    complex design's complex mu.
     """
     cx = _solve(plant, order_d, autoscale, replace(run, real="complex"))
-    m_cx = _verified_mu(cx.closed_loop, blocks, cx.mu.f_hz)
     mx = _iterate(plant, blocks, order_d, run, run.reduce, first=cx.K)
-    if mx.mu_peak < m_cx.peak:
-        why = f"D-G-K from the complex D-K design reached mixed mu {mx.mu_peak:.4f} (from {m_cx.peak:.4f})"
-        return replace(mx, complex_mu_peak=float(cx.mu_peak), stop_reason=f"{mx.stop_reason}; {why}")
-    why = (f"the complex D-K design (mixed mu {m_cx.peak:.4f}) is kept: D-G-K from it reached "
-           f"{mx.mu_peak:.4f}")
-    return replace(cx, mu=m_cx, mu_peak=float(m_cx.peak), complex_mu_peak=float(cx.mu_peak),
-                   stop_reason=f"{cx.stop_reason}; {why}",
-                   stopped_by_budget=cx.stopped_by_budget or mx.stopped_by_budget)
+    done = {"stopped_by_budget": cx.stopped_by_budget or mx.stopped_by_budget,
+            "complex_mu_peak": float(cx.mu_peak)}
+    if mx.best_iteration == 1:
+        why = (f"the complex D-K design (mixed mu {mx.mu_peak:.4f}) is kept: D-G-K from it did not "
+               "reach lower")
+        return replace(cx, mu=mx.mu, mu_peak=mx.mu_peak, grid_mu_peak=mx.grid_mu_peak,
+                       closed_loop=mx.closed_loop, stop_reason=f"{cx.stop_reason}; {why}", **done)
+    if mx.mu_peak > cx.mu_peak:
+        m_cx = verified_mu(cx.closed_loop, blocks, cx.history[cx.best_iteration - 1].mu.f_hz)
+        if m_cx.peak <= mx.mu_peak:
+            why = (f"the complex D-K design (mixed mu {m_cx.peak:.4f}) is kept: D-G-K from it reached "
+                   f"{mx.mu_peak:.4f}")
+            return replace(cx, mu=m_cx, mu_peak=float(m_cx.peak), stop_reason=f"{cx.stop_reason}; {why}",
+                           **done)
+    why = (f"D-G-K from the complex D-K design reached mixed mu {mx.mu_peak:.4f} (from "
+           f"{mx.history[0].mu_peak:.4f} on the iteration grid)")
+    return replace(mx, stop_reason=f"{mx.stop_reason}; {why}", **done)
 
 
 # ---------------------------------------------------------------------------- the core
@@ -727,10 +731,10 @@ def _iterate(plant: GeneralizedPlant, blocks: BlockStructure, order_d: Any, run:
     assert best is not None
     K, cl, m = best["K"], best["cl"], best["it"].mu
     reduction = None
-    if reduce is not None:
+    if reduce is not None and (first is None or best["it"].index > 1):  # ``first`` came reduced
         K, cl, m, reduction = _reduce(plant, blocks, K, cl, m, reduce, base, grid is None)
     grid_peak = float(m.peak)
-    m = _verified_mu(cl, blocks, m.f_hz)
+    m = verified_mu(cl, blocks, m.f_hz)
     d_fits = best["d"]
     if m.peak > grid_peak * (1 + VERIFY_WARN_RTOL):
         import warnings
@@ -864,7 +868,7 @@ def _autoscaled_dksyn(plant: GeneralizedPlant, blocks: BlockStructure, order_d: 
         base = default_grid(p_k.P) if refine else run.grid
         K, cl, m, reduction = _reduce(p_k, blocks, K, cl, m, run.reduce, base, refine)
         if reduction.accepted:
-            m = _verified_mu(cl, blocks, m.f_hz)
+            m = verified_mu(cl, blocks, m.f_hz)
     K = _unscaled_controller(K, sc_k)
     cl = closed_loop(plant.P, K, plant.nmeas, plant.ncon)
     d_fits = tuple(control.ss(f.A, f.B, f.C * float(di), f.D * float(di))

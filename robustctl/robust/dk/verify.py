@@ -70,7 +70,7 @@ def verification_grid(cl: Any, f_hz: np.ndarray, per_interval: int = 2) -> np.nd
     return g[g >= 0]
 
 
-def _verified_mu(cl: Any, blocks: BlockStructure, f_hz: np.ndarray, n_peaks: int = 5,
+def verified_mu(cl: Any, blocks: BlockStructure, f_hz: np.ndarray, n_peaks: int = 5,
                  n_steps: int = 24) -> Any:
     """mu of ``cl`` on :func:`verification_grid`, with its ``n_peaks`` highest local maxima
     refined by golden-section search between their neighbours (all peaks at once, one mu call

@@ -36,6 +36,7 @@ from ...errors import SynthesisError
 from ...interconnect import PartitionedPlant, PicklesStateSpaces
 from ...lti import as_statespace
 from ...table import Table, result_html
+from ..partitioned import as_partitioned
 from .synthesis import H2Result, _plot_closed_loop, h2syn
 
 __all__ = ["LQGResult", "lqg"]
@@ -177,9 +178,12 @@ def lqg(
 
     Parameters
     ----------
-    sys : control.StateSpace, PhysicalModel, ...
+    sys : control.StateSpace, PhysicalModel, PartitionedPlant, ...
         The plant (continuous, or discrete with ``dt``), inputs ``[d..., u...]`` and outputs
-        ``[p..., y...]`` in any order, told apart by name.
+        ``[p..., y...]`` in any order, told apart by name. A partitioned plant
+        (``rc.as_partitioned``, ``rc.sampled_plant``, a GeneralizedPlant) brings its own
+        partition: by default its ``w`` are the disturbances, ``u`` the controls, ``z`` the
+        performance outputs and ``y`` the measurements.
     Q : array_like
         Weight on the performance outputs (``len(performance)`` square) or, without
         ``performance``, on the states (n x n); symmetric positive semidefinite (a scalar or a
@@ -221,7 +225,15 @@ def lqg(
     Glaese & Miller, "Derivation of 0-g structural control models from analysis and 1-g
     experimentation" (the MACE LQG designs).
     """
-    G = as_statespace(sys, name="sys")
+    if isinstance(sys, PartitionedPlant):
+        plant = as_partitioned(sys, who="lqg")
+        G = plant.P
+        controls = list(plant.u_names) if controls is None else controls
+        measurements = list(plant.y_names) if measurements is None else measurements
+        disturbances = list(plant.w_names) if disturbances is None else disturbances
+        performance = list(plant.z_names) if performance is None else performance
+    else:
+        G = as_statespace(sys, name="sys")
     ins, outs = list(G.input_labels), list(G.output_labels)
     dist = _names(disturbances, ins, "disturbances")
     perf = _names(performance, outs, "performance")

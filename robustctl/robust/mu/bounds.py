@@ -27,6 +27,7 @@ from ...checks import flag, integer
 from ...errors import RobustctlError, SynthesisError
 from ...executors import check_executor, parallel_map
 from ...frd import FrequencyData, as_frequency_data
+from ...interconnect import PartitionedPlant
 from ...lti import freqresp_array
 from ...threads import limit_blas
 from ..uncertainty.blocks import BlockStructure, as_block_structure
@@ -212,7 +213,9 @@ def mu(M: Any, blocks: Any = None, f_hz: Any = None, *, lower: bool = True, meth
         (response (nf, n_out, n_in)) or python-control FrequencyResponseData, or a system
         (control.StateSpace, TransferFunction, anything with ``.statespace()``) evaluated at
         ``f_hz``, or an uncertain system (``rc.ureal(...) * G``: mu of its ``w -> z`` channels
-        ``M11`` with its own blocks, real parameters as real blocks). ``Delta`` closes the loop
+        ``M11`` with its own blocks, real parameters as real blocks), or a partitioned plant
+        (``rc.generalized_plant``, ``rc.as_partitioned``): mu of its open-loop ``w -> z``
+        channels ``P11`` (the loop with ``K = 0``), with its own blocks. ``Delta`` closes the loop
         from the outputs of ``M`` back to its inputs: ``det(I - M Delta)``.
     blocks : BlockStructure, list of Block, MATLAB mussv rows, or None (an uncertain system's own)
         ``[[-r, 0]]`` repeated real scalar, ``[[r, 0]]`` repeated complex scalar, ``[[r, c]]``
@@ -259,6 +262,10 @@ def mu(M: Any, blocks: Any = None, f_hz: Any = None, *, lower: bool = True, meth
     deadline = Deadline(time_budget_s, error=SynthesisError)
     lower = flag(lower, "lower", SynthesisError)
     seed = integer(seed, "seed", SynthesisError, lo=0)
+    if isinstance(M, PartitionedPlant):
+        if blocks is None:
+            blocks = getattr(M, "blocks", None)
+        M = M.P[:M.nz, :M.nw]
     if blocks is None and hasattr(M, "block_structure"):
         blocks = M.block_structure()
     bs = as_block_structure(blocks)
