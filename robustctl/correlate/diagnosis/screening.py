@@ -55,7 +55,7 @@ RETUNE_PEAKS = 4
 RETUNE_STEPS = (-0.04, -0.015, 0.015, 0.04)
 #: Candidates with a retuned value are first screened at the misfit's largest peak only; this many
 #: of the best (by the share explained there) are then screened at every peak and refined.
-RETUNE_TOP = 2
+RETUNE_TOP = 3
 
 
 def _misfit_peaks(res_u: Residual, r_perp: np.ndarray, n: int) -> list[float]:
@@ -107,8 +107,8 @@ def _screen_one(
     retune: Any = "peak", probe: bool = True,
 ) -> dict[str, Any]:
     """Secant of one candidate from neutral to its typical size, projected (step 2). An effect with
-    a value to retune (``Effect.retune``) is screened at the misfit's largest peak by its secant alone
-    (``retune="peak"``: one evaluation, the first pass over them all), or at every peak and around
+    a value to retune (``Effect.retune``) is screened at the misfit's largest peak (``retune="peak"``:
+    the first pass over them all), or at every peak and around
     the best (``"all"``: :func:`_screen_retuned`); ``retune=False`` screens it as it is. ``probe``:
     walk out to larger sizes (:func:`_probe_sizes`) when the secant asks for more."""
     if retune and getattr(effect, "retune", None) is not None and not _is_switch(effect):
@@ -116,8 +116,7 @@ def _screen_one(
             return _screen_retuned(res_u, model_u, j_u, Q, r_perp, effect)
         peaks = _misfit_peaks(res_u, r_perp, 1)
         if peaks:
-            return _screen_one(res_u, model_u, j_u, Q, r_perp, effect.retuned(peaks[0]), retune=False,
-                               probe=False)
+            return _screen_one(res_u, model_u, j_u, Q, r_perp, effect.retuned(peaks[0]), retune=False)
     neutral = effect.with_values(**effect.neutral_values)
     m_c = neutral.apply(model_u)
     res_c = _residual_for(res_u, m_c)
