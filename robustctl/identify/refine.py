@@ -86,7 +86,8 @@ def refine_residues(fit: RationalFit, weights: np.ndarray | None = None, sweeps:
     Returns
     -------
     RationalFit
-        Same poles and ranks, refined residues and ``D``.
+        Same poles and ranks, refined residues and ``D`` (``fit`` itself when a shape solve is
+        singular and would leave inf or NaN).
     """
     if fit.data is None or sweeps < 1:
         return fit
@@ -114,4 +115,6 @@ def refine_residues(fit: RationalFit, weights: np.ndarray | None = None, sweeps:
     residues = np.array(fit.residues)
     for g, c, b in zip(cplx, cs, bs):
         residues[g] = c @ b
+    if not (np.all(np.isfinite(residues)) and np.all(np.isfinite(d))):  # a singular shape solve
+        return fit
     return replace(fit, residues=residues, d=d)
