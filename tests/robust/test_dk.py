@@ -622,18 +622,31 @@ def _dense_mu_peak(cl, blocks, f_grid) -> float:
     return float(mu(freqresp_array(cl, f), blocks, f_hz=f, lower=False).peak)
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("noise", [False, True])
-def test_automatic_d_order_is_within_two_percent_of_the_best_fixed_order_on_himat(noise):
-    # mu-tools' mkhic / mkhicn: the automatic D orders against every fixed order 0-6 with the
-    # same defaults (max_iter 10); on mkhicn the automatic choice alone crept to 0.980 where
-    # order 3 reaches 0.954
+@pytest.fixture(scope="module", params=[False, True], ids=["mkhic", "mkhicn"])
+def himat_auto(request):
+    """mu-tools' mkhic (``False``) or mkhicn (``True``) and its automatic D-order design."""
     from robustctl.examples import himat_plant
 
-    P, blocks = himat_plant(noise)
-    fixed = [dksyn((P, 2, 2, blocks), order_d=o, progress=False).mu_peak for o in range(7)]
-    auto = dksyn((P, 2, 2, blocks), progress=False)
-    assert auto.mu_peak <= 1.02 * min(fixed)
+    P, blocks = himat_plant(request.param)
+    return P, blocks, dksyn((P, 2, 2, blocks), progress=False)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("order", [3, 4, 5, 6])
+def test_automatic_d_order_is_within_two_percent_of_each_fixed_order_on_himat(himat_auto, order):
+    # mu-tools' mkhic / mkhicn: the automatic D orders against each fixed order with the same
+    # defaults (max_iter 10); on mkhicn the automatic choice alone crept to 0.980 where order
+    # 3 reaches 0.954. Orders 0-2 stay >= 4.6 % above the best fixed order on both (bench_dk:
+    # mkhic 1.500 1.074 1.002 against order 5's 0.943, mkhicn 1.507 1.098 0.998 against order
+    # 3's 0.954), so the best fixed order is among 3-6.
+    P, blocks, auto = himat_auto
+    fixed = dksyn((P, 2, 2, blocks), order_d=order, progress=False)
+    assert auto.mu_peak <= 1.02 * fixed.mu_peak
+
+
+@pytest.mark.slow
+def test_automatic_d_order_on_himat_holds_on_a_dense_grid(himat_auto):
+    _, blocks, auto = himat_auto
     dense = _dense_mu_peak(auto.closed_loop, blocks, auto.mu.f_hz)
     assert dense <= auto.mu_peak * (1 + 2e-3)
     assert auto.mu_peak <= dense * (1 + 2e-3)
