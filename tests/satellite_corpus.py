@@ -40,7 +40,8 @@ Hidden effects (switches of :func:`measure`, any combination)
 12 Hz mount (z) on the bus top corner ``bus_pmp`` (an added mode, not in any library);
 ``"stiffer"`` +4 % stiffness everywhere; ``"swapped"`` the cables of a1 and a2 exchanged;
 ``"tip_mass"`` 0.15 kg more at the boom tip; ``"harness"`` 0.25 kg of cable harness clamped at
-the bus corner ``bus_mmp``; ``()`` is the null case.
+the bus corner ``bus_mmp``; ``"attachment"`` 80 g of hardware between F1's force gauge and the
+structure (at ``bus_ppm``); ``()`` is the null case.
 
 :func:`nominal_model` is the same structure as ``rc.Frame`` inside ``rc.PhysicalModel`` with
 free parameters ``E_bus``, ``E_array``, ``E_boom`` and ``zeta_modal``.
@@ -145,8 +146,9 @@ ACCEL_MASS = 0.040  # kg
 RESONATOR = ("bus_pmp", "z", 1.0, 12.0)  # node, direction, kg, Hz
 TIP_MASS = 0.15  # kg
 HARNESS = ("bus_mmp", 0.25)  # a cable harness clamped at a bus corner: node, kg
+ATTACHMENT = 0.080  # kg of hardware between F1's force gauge and the structure
 EFFECTS = ("hinge_1axis", "hinge_iso", "accel_mass", "resonator", "stiffer", "swapped", "tip_mass",
-           "harness")
+           "harness", "attachment")
 
 
 # ---------------------------------------------------------------------------- numpy FEM
@@ -214,6 +216,8 @@ def truth_matrices(effects: tuple[str, ...] = ()) -> tuple[np.ndarray, np.ndarra
         masses["boom_3"] += TIP_MASS
     if "harness" in effects:
         masses[HARNESS[0]] += HARNESS[1]
+    if "attachment" in effects:
+        masses[INPUTS["F1"][0]] += ATTACHMENT
     if "accel_mass" in effects:
         for node, _ in OUTPUTS.values():
             masses[node] = masses.get(node, 0.0) + ACCEL_MASS

@@ -26,6 +26,7 @@ from typing import Any
 
 import control
 import numpy as np
+import scipy.linalg as sla
 
 from ..errors import DataError
 from ..frd import PLAIN_NOTE, Experiment
@@ -406,9 +407,12 @@ def _modal(sys: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     if fast is not None:
         return fast[0], fast[1], D
     lam, V = np.linalg.eig(A)
-    if np.linalg.cond(V) > 1e10:
+    lu = sla.lu_factor(V, check_finite=False)
+    # the 1-norm condition number from the LU (LAPACK zgecon, O(n^2)); an SVD costs more than eig
+    rcond, info = sla.lapack.zgecon(lu[0], float(np.max(np.sum(np.abs(V), axis=0))), norm="1")
+    if info != 0 or not rcond * 1e10 >= 1.0:
         return None
-    W = np.linalg.solve(V, B.astype(complex))
+    W = sla.lu_solve(lu, B.astype(complex), check_finite=False)
     CV = C @ V
     res = np.einsum("ok,ki->koi", CV, W)
     return lam, res, D
@@ -595,7 +599,7 @@ def _lagged_spectrum(two_sided: np.ndarray, f_hz: np.ndarray, settings: Estimato
     bins = f * n / fs
     idx = np.rint(bins).astype(int)
     if np.allclose(bins, idx, atol=1e-6):
-        return np.fft.fft(h, 2 * n, axis=0)[2 * idx]
+        return np.fft.rfft(h, 2 * n, axis=0)[2 * idx]  # h is real; 2 idx <= n below Nyquist
     m = np.concatenate([np.arange(n), np.arange(-n, 0)])
     phase = np.exp(-2j * np.pi * np.outer(f / fs, m))
     return np.einsum("fk,koi->foi", phase, h)
@@ -613,11 +617,14 @@ _FAR_POLE = 4.0
 _FAR_ORDER = 21
 
 
-def _far_pole_series(omega: np.ndarray, poles: np.ndarray, flat: np.ndarray, omega_max: float) -> np.ndarray:
+def _far_pole_series(omega: np.ndarray, poles: np.ndarray, flat: np.ndarray, omega_max: float,
+                     second: bool = False) -> Any:
     """``sum_p r_p / (j omega - p)`` for poles far beyond ``|omega| <= omega_max`` (rad/s), by the
     geometric series ``-sum_k (j omega)^k sum_p r_p / p^(k+1)``: the residues are summed once per
     power, so the cost is ``_FAR_ORDER`` columns instead of one per pole. Terms are scaled by
-    ``omega_max^k`` (``|j omega / omega_max| <= 1``); shape ``(omega.size, flat.shape[1])``."""
+    ``omega_max^k`` (``|j omega / omega_max| <= 1``); shape ``(omega.size, flat.shape[1])``.
+    ``second=True`` also returns its second derivative in ``omega``, the series differentiated
+    term by term."""
     inv = 1.0 / poles
     coef = np.empty((_FAR_ORDER + 1, flat.shape[1]), complex)
     term = inv.copy()  # omega_max^k / p^(k+1)
@@ -627,7 +634,96 @@ def _far_pole_series(omega: np.ndarray, poles: np.ndarray, flat: np.ndarray, ome
     x = 1j * np.asarray(omega, dtype=float) / omega_max
     powers = np.cumprod(np.concatenate([np.ones((x.size, 1), complex),
                                         np.broadcast_to(x[:, None], (x.size, _FAR_ORDER))], axis=1), axis=1)
-    return -(powers @ coef)
+    value = -(powers @ coef)
+    if not second:
+        return value
+    k = np.arange(2, _FAR_ORDER + 1)
+    # d^2/domega^2 (j omega / omega_max)^k = -k (k - 1) / omega_max^2 (j omega / omega_max)^(k - 2)
+    return value, (powers[:, : k.size] @ (coef[2:] * (k * (k - 1))[:, None])) / omega_max**2
+
+
+#: The local form of the measured-input view (:func:`_measured_local`) is used when the window's
+#: ends are this close to zero: ``n (w[0]^2 + w[n-1]^2) / (2 sum w^2)``, the weight of the lag
+#: window's kink at lag 0 over the segment (Hann 4e-13, Blackman 3e-12; Hamming 0.016, boxcar 1).
+_SMOOTH_ENDS = 1e-7
+#: ... and every frequency is at most this fraction of the Nyquist frequency (the jump of the alias
+#: sum at the Nyquist frequency stays out of the window's main lobe by 10 % of the band).
+_LOCAL_MAX_NYQUIST = 0.9
+#: Lags per block of the exact time sequence ``e^{p T m}`` (powers by blocks: two small ``exp``
+#: tables and one product instead of an ``exp`` per lag and pole).
+_POWER_BLOCK = 64
+
+
+@lru_cache(maxsize=16)
+def _lag_curvature(window: Any, n: int) -> float | None:
+    """``c2`` of the lag window near lag 0, ``r_w[m] / r_w[0] = 1 - c2 m^2 + O(|m|^3)``, or None when
+    the window's ends are not zero (:data:`_SMOOTH_ENDS`): its lag window then has a kink
+    ``-c1 |m|`` whose effect on a smooth response is not local (Hamming, boxcar).
+
+    ``c2`` is fitted to the lags 1..3 with the cubic term (``1 - r[m] = c1 m + c2 m^2 + c3 m^3``);
+    Hann, 4096 points: 3.92184e-7 against ``2 pi^2 / (3 N^2)`` = 3.92183e-7 of the continuous window."""
+    w = window_values(window, n, " in the estimator settings")
+    kink = n * (w[0] ** 2 + w[-1] ** 2) / (2.0 * float(np.sum(w * w)))
+    if not kink <= _SMOOTH_ENDS or n < 8:
+        return None
+    r = _lag_window_cached(window, n)
+    m = np.arange(1.0, 4.0)
+    c = np.linalg.solve(np.stack([m, m**2, m**3], axis=1), 1.0 - r[1:4])
+    return float(c[1])
+
+
+def _powers(z_log: np.ndarray, n: int) -> np.ndarray:
+    """``exp(m z_log)`` for ``m = 0..n-1`` (n, len(z_log)): ``exp`` of whole blocks of
+    :data:`_POWER_BLOCK` lags times ``exp`` of the lags inside a block (rounding 1e-15)."""
+    b = _POWER_BLOCK
+    inner = np.exp(np.outer(np.arange(b), z_log))
+    outer = np.exp(np.outer(np.arange(0, n, b), z_log))
+    return (outer[:, None, :] * inner[None, :, :]).reshape(-1, z_log.size)[:n]
+
+
+def _measured_local(poles: np.ndarray, flat: np.ndarray, D: np.ndarray, f: np.ndarray,
+                    settings: EstimatorSettings, c2: float) -> np.ndarray:
+    """The measured-input view by its local form (:func:`expected_h1_measured`).
+
+    ``h = h_ii - a + h_above``: the poles below the Nyquist frequency as the exact one-sided
+    sequence ``h_ii[m] = T r e^{p T m}`` (halved at ``m = 0``), through the lag window and the DFT;
+    their alias sums ``a`` and the poles above the Nyquist frequency are smooth on the band, and a
+    smooth ``S(theta)`` seen through a lag window ``1 - c2 m^2 + ...`` of a window with zero ends
+    is ``S + c2 S''`` (``sum_m m^2 s[m] e^{-j theta m} = -S''``), evaluated at ``f`` directly:
+    ``O(K P)`` instead of a transform of every pole over an ``8 N``-point grid. Against that grid
+    (16 x finer), 1.3e-13 of the peak on the satellite (Hann, 4096 points, 106 poles in or near
+    the band)."""
+    fs, n, _ = settings
+    T = 1.0 / fs
+    below = np.abs(poles.imag) < np.pi * fs
+    far = ~below & (np.abs(poles) >= _FAR_POLE * np.pi * fs)
+    near = ~below & ~far
+    two = np.zeros((2 * n,) + D.shape)
+    two[0] = D
+    pb = poles[below]
+    if pb.size:  # real: one pole of each conjugate pair, twice, and the real poles
+        half = below & (poles.imag >= 0)
+        weight = np.where(poles[half].imag > 0, 2.0 * T, T)
+        seq = _powers(poles[half] * T, n) * weight[None, :]
+        seq[0] *= 0.5
+        two[:n] += np.real(seq @ flat[half]).reshape((n,) + D.shape)
+    out = _lagged_spectrum(two, f, settings).reshape(f.size, -1)
+    th = (2.0 * np.pi * f / fs)[:, None]
+    if np.any(near):  # r / (j theta fs - p) and its second derivative in theta, -2 fs^2 r / (...)^3
+        x = 1.0 / (1j * th * fs - poles[None, near])
+        out += (x - (2.0 * c2 * fs * fs) * (x * x * x)) @ flat[near]
+    if np.any(far):
+        s0, s2 = _far_pole_series(th[:, 0] * fs, poles[far], flat[far], np.pi * fs, second=True)
+        out += s0 + (c2 * fs * fs) * s2
+    if pb.size:  # a = r [cot((theta - beta) / 2) / (2 j fs) - 1 / (j theta fs - p)], as in the grid path
+        e = np.exp(-1j * th) * np.exp(pb / fs)[None, :]
+        cot = 1j * (1.0 + e) / (1.0 - e)
+        x = 1.0 / (1j * th * fs - pb[None, :])
+        # d^2/dtheta^2 cot((theta - beta) / 2) = cot (1 + cot^2) / 2
+        alias = (cot + (0.5 * c2) * cot * (1.0 + cot * cot)) / (2j * fs)
+        alias += (2.0 * c2 * fs * fs) * (x * x * x) - x
+        out -= alias @ flat[below]
+    return out.reshape((f.size,) + D.shape)
 
 
 @limit_blas
@@ -653,17 +749,30 @@ def expected_h1_measured(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np
     Processing*, 3rd ed., sec. 4.2); the lag window is that of the module notes (the expectation
     of the windowed cross-spectrum of a white input).
 
+    With a window whose ends are zero (Hann, Blackman: :func:`_lag_curvature`) and frequencies
+    below :data:`_LOCAL_MAX_NYQUIST` of the Nyquist frequency, the smooth parts (the alias sums and
+    the poles above the Nyquist frequency) are seen through the lag window locally, ``S + c2 S''``
+    at the frequencies themselves (:func:`_measured_local`), and no grid is needed: 1.3e-13 of the
+    peak from the grid path on the satellite test structure, 5-10 x faster. Other windows (Hamming,
+    boxcar: a kink of the lag window at lag 0 spreads the alias sum's jump at the Nyquist frequency
+    over the band) take the grid.
+
     Returns
     -------
     ndarray, complex, shape (K, n_out, n_in)
     """
     ss = as_statespace(sys)
-    fs, n, _ = settings
+    fs, n, window = settings
     T = 1.0 / fs
-    big = _GRID_FACTOR * 2 * n
-    theta = 2.0 * np.pi * np.arange(big // 2 + 1) / big
     modal = _modal(ss)
     D = np.asarray(ss.D, dtype=float)
+    f = np.asarray(f_hz, dtype=float)
+    c2 = _lag_curvature(window, int(n)) if modal is not None and f.size else None
+    if c2 is not None and np.all(f > 0) and np.all(f <= _LOCAL_MAX_NYQUIST * fs / 2):
+        poles, res, _ = modal
+        return _measured_local(poles, res.reshape(len(poles), -1), D, f, settings, c2)
+    big = _GRID_FACTOR * 2 * n
+    theta = 2.0 * np.pi * np.arange(big // 2 + 1) / big
     two = np.zeros((2 * n,) + D.shape)
     two[0] = D
     if modal is None:  # defective modes: transform the response itself on the fine grid

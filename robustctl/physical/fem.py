@@ -745,6 +745,60 @@ class Frame(Structure):
                     groups.append(e.group)
         return [(n, g) for n, groups in at.items() if len(groups) > 1 for g in groups[1:]]
 
+    def mass_locations(self) -> tuple[str, ...]:
+        """Nodes carrying a point mass (:meth:`add_mass`), in order of creation."""
+        return tuple(dict.fromkeys(m.node for m in self._masses))
+
+    def supports(self) -> list[tuple[str, tuple[str, ...]]]:
+        """Clamped nodes that beams hold, with the rotations their supports clamp:
+        ``[(node, ("rx", "ry", "rz")), ...]`` (a support that clamps no rotation is a pin: left out)."""
+        held = {n for e in self._elements.values() if e.kind == "beam" for n in (e.n1, e.n2)}
+        out: dict[str, set[int]] = {}
+        for f in self._fixes:
+            rot = {d for d in f.dofs if d >= 3}
+            if rot and f.node in held:
+                out.setdefault(f.node, set()).update(rot)
+        return [(n, tuple(("rx", "ry", "rz")[d - 3] for d in sorted(rot))) for n, rot in out.items()]
+
+    def support_stiffness(self, node: str) -> float:
+        """``4 E I / L`` (N m/rad) of the stiffest beam at ``node``: the rotational stiffness of the
+        members' end, the scale a support's rotational spring is compared with."""
+        groups = {e.group for e in self._elements.values() if e.kind == "beam" and node in (e.n1, e.n2)}
+        if not groups:
+            raise ModelError(f"no beam ends at node {node!r}; supports: {self.supports()}.")
+        return max(self.joint_stiffness(node, g) for g in groups)
+
+    def soften_support(self, node: str, compliance: float,
+                       axes: tuple[str, ...] = ("rx", "ry", "rz")) -> Frame:
+        """Make the clamp of ``node``'s rotations ``axes`` a rotational spring of ``1 / compliance``
+        (N m/rad) to ground about each (a base plate, bolts, a foundation softer than a clamp): the
+        rotations become DOFs of their own. Compliance 0 leaves the clamp; a large one approaches a
+        pin. Rotations ``axes`` that no support clamps are left as they are."""
+        c = _finite("support compliance (rad/(N m))", compliance, nonneg=True)
+        axes = (axes,) if isinstance(axes, str) else tuple(axes)
+        if not axes or not set(axes) <= {"rx", "ry", "rz"}:
+            raise ModelError(f"support axes are among 'rx', 'ry', 'rz'; got {axes!r}.")
+        clamped = dict(self.supports())
+        if node not in clamped:
+            raise ModelError(f"node {node!r} has no clamped rotation a beam holds; the supports are "
+                             f"{self.supports()}.")
+        if c == 0.0:
+            return self
+        released = {3 + ("rx", "ry", "rz").index(a) for a in axes if a in clamped[node]}
+        fixes = []
+        for f in self._fixes:
+            if f.node == node:
+                kept = tuple(d for d in f.dofs if d not in released)
+                if kept:
+                    fixes.append(_Fix(f.node, kept, f.tags))
+            else:
+                fixes.append(f)
+        self._fixes = fixes
+        self._cache = None
+        for d in sorted(released):
+            self._add_spring("spring", node, 1.0 / c, ("rx", "ry", "rz")[d - 3], None, ("support",))
+        return self
+
     def joint_stiffness(self, node: str, group: str) -> float:
         """``4 E I / L`` (N m/rad) of the stiffest beam of ``group`` at ``node``: the rotational
         stiffness of the member's end (``I`` the larger second moment), the scale a joint's spring is
@@ -765,12 +819,14 @@ class Frame(Structure):
         ``"rz"``; one axis: a hinge) between them and the rest of the joint; rotations about the
         other axes stay tied as the translations are.
 
-        The group's beam ends at ``node`` move to a new node at the same place (``"node~group"``),
-        tied to ``node`` in translation by springs far stiffer than the members (10^5 x the largest
-        axial stiffness ``E A / L`` at the joint) and in rotation by the joint's springs. Compliance
-        0 leaves the frame unchanged (a rigid joint); a large one approaches a pin (the
-        semi-rigid connections of steel frames, e.g. Chen & Lui, *Stability Design of Steel
-        Frames*, ch. 5).
+        The group's beam ends at ``node`` move to a new node at the same place (``"node~group"``)
+        that follows ``node`` exactly (a rigid link, its DOFs eliminated) in translation and in the
+        rotations the joint does not release; each released rotation is a DOF of its own, joined to
+        ``node``'s by the joint's spring (ties by penalty springs far stiffer than the members would
+        put modes near 10^7 rad/s beside a suspension's 1 rad/s, beyond what a double precision
+        eigensolver separates). Compliance 0 leaves the frame unchanged (a rigid joint); a large one
+        approaches a pin (the semi-rigid connections of steel frames, e.g. Chen & Lui, *Stability
+        Design of Steel Frames*, ch. 5).
         """
         c = _finite("joint compliance (rad/(N m))", compliance, nonneg=True)
         axes = (axes,) if isinstance(axes, str) else tuple(axes)
@@ -783,26 +839,23 @@ class Frame(Structure):
                 f"node {node!r} is not a joint of group {group!r} with other beams; the joints are "
                 f"{self.joints()}."
             )
-        k_tie = 1e5 * self.joint_stiffness(node, group)  # a rotation the joint does not release
         twin = f"{node}~{group}"
         if twin in self._nodes:
             raise ModelError(f"the joint of {group!r} at {node!r} is already flexible.")
         nodes = dict(self._nodes)
         nodes[twin] = _Node(twin, self._nodes[node].xyz, self._nodes[node].tags)
-        k_axial = 0.0
         elements = {}
         for name, e in self._elements.items():
-            if node in (e.n1, e.n2):
-                L = float(np.linalg.norm(self._nodes[e.n2].xyz - self._nodes[e.n1].xyz))
-                k_axial = max(k_axial, e.E * e.A / L)
             if e.group == group and e.kind == "beam" and node in (e.n1, e.n2):
                 e = replace(e, n1=twin if e.n1 == node else e.n1, n2=twin if e.n2 == node else e.n2)
             elements[name] = e
         self._nodes, self._elements, self._springs = nodes, elements, list(self._springs)
-        for ax in ("x", "y", "z"):
-            self._add_spring("spring", node, 1e5 * k_axial, ax, twin, ("joint",))
+        released = tuple(3 + ("rx", "ry", "rz").index(ax) for ax in ("rx", "ry", "rz") if ax in axes)
+        self._links = [*self._links, _Link(node, twin, ("joint",), released)]
+        self._cache = None
         for ax in ("rx", "ry", "rz"):
-            self._add_spring("spring", node, 1.0 / c if ax in axes else k_tie, ax, twin, ("joint",))
+            if ax in axes:
+                self._add_spring("spring", node, 1.0 / c, ax, twin, ("joint",))
         return self
 
     # ------------------------------------------------------------------ assembly

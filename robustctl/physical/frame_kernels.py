@@ -211,6 +211,7 @@ def _spring_triplets(run: list[_Spring], index: dict[str, int]) -> _Trip:
 def _link_roots(frame: Structure) -> dict[str, str]:
     """Each rigid-link slave's ultimate master (chains of links resolved)."""
     master_of = {lk.slave: lk.master for lk in frame._links}
+    partial = {lk.slave for lk in frame._links if lk.released}
     root = {}
     for s in master_of:
         m, seen = master_of[s], {s}
@@ -218,6 +219,11 @@ def _link_roots(frame: Structure) -> dict[str, str]:
             if m in seen:
                 raise ModelError(
                     f"rigid links form a loop through node {m!r}; a chain of links must end at a master."
+                )
+            if m in partial:
+                raise ModelError(
+                    f"node {m!r} follows its master only partly (a flexible joint's twin), so node {s!r} "
+                    "cannot be linked to it; link it to the joint's node instead."
                 )
             seen.add(m)
             m = master_of[m]
@@ -236,11 +242,13 @@ def _link_pairs(frame: Structure, index: dict[str, int], X: np.ndarray) -> tuple
 def _constraint_transform(
     frame: Structure, index: dict[str, int], X: np.ndarray
 ) -> tuple[sp.csr_matrix, np.ndarray]:
-    """``q_full = T q``: rigid-link slaves follow their (root) master; fixed DOFs dropped.
+    """``q_full = T q``: rigid-link slaves follow their (root) master, but for the DOFs a link
+    releases (a hinge's rotations, which stay the slave's own); fixed DOFs dropped.
 
     Returns ``T`` and, per column, the full DOF it stands for."""
     n_full = 6 * len(index)
     root = _link_roots(frame)
+    released = {lk.slave: set(lk.released) for lk in frame._links}
     fixed = np.zeros(n_full, dtype=bool)
     for f in frame._fixes:
         if f.node in root:
@@ -252,6 +260,7 @@ def _constraint_transform(
     is_slave = np.zeros(n_full, dtype=bool)
     for s in root:
         is_slave[6 * index[s] : 6 * index[s] + 6] = True
+        is_slave[[6 * index[s] + d for d in released[s]]] = False
     indep = ~fixed & ~is_slave
     col = -np.ones(n_full, dtype=int)
     col[indep] = np.arange(indep.sum())
@@ -263,6 +272,8 @@ def _constraint_transform(
         link = np.eye(6)
         link[:3, 3:] = -_skew(X[index[s]] - X[index[m]])
         for i in range(6):
+            if i in released[s]:
+                continue
             for j in range(6):
                 if link[i, j] != 0 and col[mi + j] >= 0:
                     rows.append(si + i)

@@ -74,9 +74,13 @@ class _Spring:
 
 @dataclass(frozen=True)
 class _Link:
+    """``slave`` follows ``master`` rigidly, except in the DOFs ``released`` (indices 3..5 of
+    ``rx, ry, rz``), which stay the slave's own (a hinge's free rotations)."""
+
     master: str
     slave: str
     tags: tuple[str, ...] = ()
+    released: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -445,6 +445,22 @@ class MatrixStructure(Structure):
         self._K = self._K + dK if sp.issparse(self._K) else self._K + dK.toarray()
         return self
 
+    def add_coupling_damping(self, location: str, partner: str, damping: float) -> MatrixStructure:
+        """Add a dashpot of ``damping`` (N s/m, N m s/rad) between DOFs ``location`` and ``partner``:
+        ``Cs += c (e_a - e_b)(e_a - e_b)^T`` (concentrated damping, MACE eq. 2's ``C_s``)."""
+        c = float(damping)
+        a, b = self._dof(location), self._dof(partner)
+        if a == b or not (np.isfinite(c) and c >= 0):
+            raise ModelError(f"a dashpot between DOFs needs two different DOFs and a damping >= 0 (N s/m); "
+                             f"got {location!r}, {partner!r}, {damping!r}.")
+        n = self.n_dof
+        dC = sp.csr_matrix(([c, -c, -c, c], ([a, a, b, b], [a, b, a, b])), shape=(n, n))
+        if self._C is None:
+            self._C = dC if sp.issparse(self._M) else dC.toarray()
+        else:
+            self._C = self._C + dC if sp.issparse(self._C) else self._C + dC.toarray()
+        return self
+
     def _group(self, group: str) -> Any:
         if group not in self._groups:
             raise ModelError(

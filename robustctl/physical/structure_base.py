@@ -129,6 +129,12 @@ class Structure(ABC):
     def element_groups(self) -> tuple[str, ...]:
         """Names of element groups whose stiffness an effect may change."""
 
+    def mass_locations(self) -> tuple[str, ...]:
+        """Locations carrying a lumped mass of their own (equipment, payload mounts): where an attached
+        resonator is looked for besides the sensors and forces. Every location by default (a user's
+        matrices do not say which of their masses are lumped)."""
+        return tuple(self.locations())
+
     def tension_groups(self) -> tuple[str, ...]:
         """Element groups that can carry a tension (:meth:`add_group_tension`): every group of
         a frame FEM; a matrix structure only those it was given geometric stiffness for."""

@@ -544,8 +544,11 @@ def _fitted_models(screens: list[dict], top: list[int], fits: list[dict]) -> dic
     for k, fit in zip(top, fits):
         s = screens[k]
         pname = s["effect"].param_names[0]
-        values = {**fit["x"], pname: fit["value"]}
-        out[s["effect"].name] = dict(vector=fit["vector"], model=s["model"].with_values(**values))
+        own = {pname: fit["value"], **fit.get("extra", {})}
+        values = {**fit["x"], **own}
+        # keyed by the fitted effect's name (a retuned resonator's carries its fitted frequency)
+        out[s["effect"].with_values(**own).name] = dict(vector=fit["vector"],
+                                                        model=s["model"].with_values(**values))
     return out
 
 

@@ -47,10 +47,76 @@ def _project(Q: np.ndarray, x: np.ndarray) -> np.ndarray:
     return x - Q @ (Q.T @ x) if Q.shape[1] else x
 
 
-def _screen_one(
+#: Peaks of the misfit at which an effect with a second value to choose (``Effect.retune``: an attached
+#: resonator's frequency) is screened, the largest first; each is then refined by :data:`RETUNE_STEPS`.
+RETUNE_PEAKS = 4
+#: Relative offsets around the best peak tried to refine a retuned effect's value (the peak of the
+#: misfit sits within a few half-power bandwidths of the mode it lacks).
+RETUNE_STEPS = (-0.04, -0.015, 0.015, 0.04)
+#: Candidates with a retuned value are first screened at the misfit's largest peak only; this many
+#: of the best (by the share explained there) are then screened at every peak and refined.
+RETUNE_TOP = 3
+
+
+def _misfit_peaks(res_u: Residual, r_perp: np.ndarray, n: int) -> list[float]:
+    """The ``n`` largest local maxima (Hz) of the misfit left by updating, summed over the channels
+    (smoothed over three bins), at least 5 % apart."""
+    e = res_u.unstack(r_perp)
+    power = np.sum(np.abs(e) ** 2, axis=tuple(range(1, e.ndim)))
+    if power.size < 3:
+        return []
+    smooth = np.convolve(power, np.ones(3) / 3.0, mode="same")
+    inner = np.flatnonzero((smooth[1:-1] >= smooth[:-2]) & (smooth[1:-1] > smooth[2:])) + 1
+    f = np.asarray(res_u.f_hz, dtype=float)
+    found: list[float] = []
+    for k in inner[np.argsort(-smooth[inner], kind="stable")]:
+        if all(abs(f[k] / g - 1.0) >= 0.05 for g in found):
+            found.append(float(f[k]))
+        if len(found) == n:
+            break
+    return found
+
+
+def _screen_retuned(
     res_u: Residual, model_u: Any, j_u: np.ndarray, Q: np.ndarray, r_perp: np.ndarray, effect: Any
 ) -> dict[str, Any]:
-    """Secant of one candidate from neutral to its typical size, projected (step 2)."""
+    """Screen an effect whose second value first order cannot see (``Effect.retune``: a resonator's
+    frequency) at its own value and at the :data:`RETUNE_PEAKS` largest peaks of the misfit, then
+    around the best by :data:`RETUNE_STEPS`; the screen of the best, with that effect."""
+    tried: dict[float, dict] = {}
+
+    def at(value: float) -> dict:
+        key = float(f"{value:.6g}")
+        if key not in tried:
+            tried[key] = _screen_one(res_u, model_u, j_u, Q, r_perp, effect.retuned(key), retune=False)
+            tried[key].pop("model", None)
+        return tried[key]
+
+    current = float(getattr(effect, effect.retune))
+    for value in [current, *_misfit_peaks(res_u, r_perp, RETUNE_PEAKS)]:
+        at(value)
+    best_key = max(tried, key=lambda k: (tried[k]["fraction"], -k))
+    for step in RETUNE_STEPS:
+        at(best_key * (1.0 + step))
+    best = max(tried.values(), key=lambda sc: (sc["fraction"], -float(getattr(sc["effect"], effect.retune))))
+    return dict(best, evals=sum(sc["evals"] for sc in tried.values()))
+
+
+def _screen_one(
+    res_u: Residual, model_u: Any, j_u: np.ndarray, Q: np.ndarray, r_perp: np.ndarray, effect: Any,
+    retune: Any = "peak", probe: bool = True,
+) -> dict[str, Any]:
+    """Secant of one candidate from neutral to its typical size, projected (step 2). An effect with
+    a value to retune (``Effect.retune``) is screened at the misfit's largest peak (``retune="peak"``:
+    the first pass over them all), or at every peak and around
+    the best (``"all"``: :func:`_screen_retuned`); ``retune=False`` screens it as it is. ``probe``:
+    walk out to larger sizes (:func:`_probe_sizes`) when the secant asks for more."""
+    if retune and getattr(effect, "retune", None) is not None and not _is_switch(effect):
+        if retune == "all":
+            return _screen_retuned(res_u, model_u, j_u, Q, r_perp, effect)
+        peaks = _misfit_peaks(res_u, r_perp, 1)
+        if peaks:
+            return _screen_one(res_u, model_u, j_u, Q, r_perp, effect.retuned(peaks[0]), retune=False)
     neutral = effect.with_values(**effect.neutral_values)
     m_c = neutral.apply(model_u)
     res_c = _residual_for(res_u, m_c)
@@ -90,7 +156,7 @@ def _screen_one(
     fraction = max(0.0, 1.0 - float(left @ left) / rr)
     angle = math.degrees(math.acos(min(1.0, math.sqrt(cos2))))
     evals = sens.n_evals
-    if not effect.toggle and abs(coef) > PROBE_MIN_COEF:  # a switch has no sizes to probe
+    if probe and not effect.toggle and abs(coef) > PROBE_MIN_COEF:  # a switch has no sizes to probe
         probed, value_p, n_p = _probe_sizes(res_c, pname, (v0, lo, hi), trial - v0, coef, Q, rr, fraction)
         evals += n_p
         if probed > fraction:
@@ -219,6 +285,9 @@ def _probe_sizes(
 #: (``Effect.coarse_screen``: a joint from rigid to pinned) is screened: 1.5 decades apart up to
 #: 7.5 decades, five evaluations (the local fit starts from the best; diagnose's budget is shared).
 COARSE_DECADES = (1.5, 3.0, 4.5, 6.0, 7.5)
+#: Refinements of the coarse screen around its best size, each halving the spacing (two sizes each):
+#: a joint between two decades' sizes starts its local fit within 0.2 decade of its value.
+COARSE_REFINE = 3
 
 
 def _coarse_sizes(res_c: Residual, pname: str, span: tuple, step: float, Q: np.ndarray,
@@ -239,7 +308,7 @@ def _coarse_sizes(res_c: Residual, pname: str, span: tuple, step: float, Q: np.n
             return None
         return 1.0 - float(np.sum(_project(Q, j) ** 2)) / rr
 
-    best, best_v, n = 0.0, v0, 0
+    best, best_v, best_k, n = 0.0, v0, None, 0
     for k in COARSE_DECADES:
         v = float(np.clip(v0 + sign * step * 10.0**k, lo, hi))
         if v == v0:
@@ -247,9 +316,22 @@ def _coarse_sizes(res_c: Residual, pname: str, span: tuple, step: float, Q: np.n
         n += 1
         share = share_at(v)
         if share is not None and share > best:
-            best, best_v = share, v
+            best, best_v, best_k = share, v, k
         if v in (lo, hi):
             break
+    if best_k is not None:  # halve the spacing twice around the best (a local fit's start within 0.2 decade)
+        spacing = COARSE_DECADES[1] - COARSE_DECADES[0] if len(COARSE_DECADES) > 1 else 1.0
+        for _ in range(COARSE_REFINE):
+            spacing /= 2.0
+            centre = best_k
+            for k in (centre - spacing, centre + spacing):
+                v = float(np.clip(v0 + sign * step * 10.0**k, lo, hi))
+                if v == v0:
+                    continue
+                n += 1
+                share = share_at(v)
+                if share is not None and share > best:
+                    best, best_v, best_k = share, v, k
     return max(best, 0.0), best_v, n
 
 
@@ -441,10 +523,13 @@ def _polish_task(shared: tuple, item: tuple) -> dict:
     ``shared = (res_u, update names, budget)``, ``item = (screen, local fit)``)."""
     res_u, names, budget = shared
     s, fit = item
-    pname = s["effect"].param_names[0]
+    effect = s["effect"]
+    pname = effect.param_names[0]
+    # an effect's retuned value (a resonator's frequency) is fitted with its size
+    extra = tuple(p.name for p in effect.parameters[1:] if p.free) if effect.retune is not None else ()
     res_c = _residual_for(res_u, s["model"])
     try:
-        lm = levenberg_marquardt(res_c, names + (pname,), x0={**fit["x"], pname: fit["value"]},
+        lm = levenberg_marquardt(res_c, names + (pname,) + extra, x0={**fit["x"], pname: fit["value"]},
                                  max_iter=POLISH_ITER, ftol=1e-4, time_budget_s=budget)
     except RobustctlError:
         return dict(fit, evals=0)
@@ -452,7 +537,7 @@ def _polish_task(shared: tuple, item: tuple) -> dict:
         return dict(fit, evals=lm.n_evals)
     x = dict(lm.x)
     return dict(x={n: x[n] for n in names}, cost=float(lm.cost), vector=lm.vector, evals=lm.n_evals,
-                value=float(x[pname]), cut=lm.stopped_by_budget)
+                value=float(x[pname]), cut=lm.stopped_by_budget, extra={n: float(x[n]) for n in extra})
 
 
 #: Multiples of an effect's typical size tried as starting values of its local fit.
@@ -583,6 +668,14 @@ def _screen_all(
     shared = (res_u, model_u, null.j, null.Q, r_perp, deadline, len(cands))
     done = parallel_map_shared(_screen_task, shared, [cands[k] for k in exact_idx], executor,
                                desc="screening")
+    tuned = [i for i, k in enumerate(exact_idx) if getattr(cands[k], "retune", None) is not None
+             and not _is_switch(cands[k])]
+    tuned = sorted(tuned, key=lambda i: (-round(done[i]["fraction"], 9), i))[:RETUNE_TOP]
+    if tuned:  # the best of them at every peak of the misfit and around the best
+        again = parallel_map_shared(_retune_task, shared, [cands[exact_idx[i]] for i in tuned], executor,
+                                    desc="retuning")
+        for i, sc in zip(tuned, again):
+            done[i] = sc
     for k, sc in zip(exact_idx, done):  # each candidate's model, rebuilt here on model_u (see _screen_task)
         sc["model"] = sc["effect"].with_values(**sc["effect"].neutral_values).apply(model_u)
         screens[k] = sc
@@ -821,6 +914,15 @@ def _sketch_twins(screens: dict[int, dict]) -> dict[int, int]:
                 twins.setdefault(late, twins.get(early, early))
             b += 1
     return twins
+
+
+def _retune_task(shared: tuple, effect: Any) -> dict:
+    """One candidate's full retuning screen (:func:`_screen_retuned`; ``shared`` as :func:`_screen_task`)."""
+    res_u, model_u, j_u, Q, r_perp, deadline, n = shared
+    _check_budget(deadline, f"the screening of {n} candidates")
+    out = _screen_one(res_u, model_u, j_u, Q, r_perp, effect, retune="all")
+    out.pop("model", None)
+    return out
 
 
 def _screen_task(shared: tuple, effect: Any) -> dict:

@@ -306,7 +306,7 @@ def _score(
     raw = []
     for k, fit in zip(top, fits):
         s = screens[k]
-        effect = s["effect"].with_values(**{s["effect"].param_names[0]: fit["value"]})
+        effect = s["effect"].with_values(**{s["effect"].param_names[0]: fit["value"], **fit.get("extra", {})})
         gain = _reduction(fit["cost"], st["cost_u"])
         delta = j_u - fit["vector"]
         ok = st["testable"]  # the test counts the points where ln H1 is near Gaussian (noise module)

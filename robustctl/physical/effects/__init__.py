@@ -58,7 +58,15 @@ from .io_effects import (
     SensorLowPass,
     SensorMisalignment,
 )
-from .lab import RESONATORS_MAX, RESONATORS_PER_OCTAVE, AttachedResonator, DofPairJoint, TransducerMass
+from .lab import (
+    RESONATORS_MAX,
+    RESONATORS_PER_OCTAVE,
+    AttachedResonator,
+    DofPairJoint,
+    JointDamping,
+    SupportFlexibility,
+    TransducerMass,
+)
 from .setup import (
     UNIT_SLIPS,
     ActuatorMoved,
@@ -105,6 +113,8 @@ __all__ = [
     "TransducerMass",
     "AttachedResonator",
     "DofPairJoint",
+    "SupportFlexibility",
+    "JointDamping",
     "RESONATORS_MAX",
     "RESONATORS_PER_OCTAVE",
     "SwappedOutputs",

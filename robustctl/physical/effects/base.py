@@ -201,6 +201,10 @@ class Effect(ABC):
     #: First order says nothing at the neutral value (the effect's shape changes with its size: a
     #: joint from rigid to pinned, an added mode): screened at sizes a decade apart over its range.
     coarse_screen: ClassVar[bool] = False
+    #: A second value field whose value the screening chooses (None: none): an attached resonator's
+    #: frequency, which first order at mass 0 sees only at that frequency. ``rc.diagnose`` screens the
+    #: candidate with it at the peaks of the misfit (:meth:`retuned`) and fits it with the size.
+    retune: ClassVar[str | None] = None
     _value_fields: ClassVar[tuple[str, ...]] = ()
     _extra_tags: ClassVar[tuple[str, ...]] = ()
     #: Every concrete effect class by kind, in the order the classes were defined (filled by
@@ -348,6 +352,13 @@ class Effect(ABC):
                 )
             changes[fname] = float(value)
         return replace(self, **changes)
+
+    def retuned(self, value: float) -> Effect:
+        """A copy whose :attr:`retune` field is ``value`` (its parameter's neutral value and its
+        name follow); the typical size is kept."""
+        if self.retune is None:
+            raise ModelError(f"{self.name} has no second value the screening chooses (retune is None).")
+        return replace(self, **{self.retune: float(value)})
 
     def with_scale(self, scale: float) -> Effect:
         """A copy whose secant step (typical size of the first parameter) is ``scale``."""

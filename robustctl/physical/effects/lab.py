@@ -41,6 +41,13 @@ def _mounts(ctx, side: str) -> list[tuple[str, str | None]]:
     return list(found.items())
 
 
+def _signal_mounts(ctx, side: str) -> list[str]:
+    """The location of each point sensor (or force) of the model's structure, one per signal: a node
+    with two single-axis accelerometers appears twice (it carries both)."""
+    found = (ctx.structure.signal_location(side, name) for name in _structure_signals(ctx.model, side))
+    return [loc for loc in found if loc is not None]
+
+
 def _signal_axis(ctx, mats, side: str, name: str, loc: str) -> str | None:
     """The translational axis a point signal at ``loc`` points along most (None: a scalar DOF)."""
     dirs = [d for d in ctx.directions.get(loc, [None]) if d is not None]
@@ -96,11 +103,15 @@ class TransducerMass(_StructEffect):
 
     @classmethod
     def candidates_at(cls, ctx, where):
-        """One mass for every sensor mount (two mounts or more), and one for every sensor and
-        drive point when the forces act elsewhere."""
-        sensors = [loc for loc, _ in _mounts(ctx, "output")]
-        drives = [loc for loc, _ in _mounts(ctx, "input") if loc not in sensors]
+        """One mass for every point sensor (two or more; a node carrying two single-axis sensors
+        carries two masses), one for every sensor mount when some carry several sensors (a triaxial
+        accelerometer: one mass), and one for every sensor and drive point when forces act elsewhere."""
+        sensors = _signal_mounts(ctx, "output")
+        mounts = list(dict.fromkeys(sensors))
+        drives = [loc for loc in dict.fromkeys(_signal_mounts(ctx, "input")) if loc not in mounts]
         out = [cls("sensors", mounts=tuple(sensors))] if len(sensors) >= 2 else []
+        if len(mounts) >= 2 and len(mounts) < len(sensors):
+            out.append(cls("sensor mounts", mounts=tuple(mounts)))
         if sensors and drives:
             out.append(cls("sensors and drive points", mounts=tuple(sensors + drives)))
         return out
@@ -113,7 +124,8 @@ class TransducerMass(_StructEffect):
     def description(self) -> str:
         return (
             f"The same unmodelled mass at each of {', '.join(self.mounts)} (the accelerometers, their "
-            "mounts and cable clamps): lowers the modes that move the measured points."
+            "mounts and cable clamps; a location named twice carries two): lowers the modes that move "
+            "the measured points."
         )
 
     def _check_location(self, model):
@@ -149,11 +161,14 @@ class TransducerMass(_StructEffect):
         return True  # more weight in the suspension
 
 
-#: Resonator frequencies per octave of the band at which :func:`candidates` places them (at most).
-RESONATORS_PER_OCTAVE = 3
-#: At most this many resonator candidates per model (fewer per octave on a wide band or many mounts:
-#: each costs a screen, and diagnose's budget is shared by all candidates).
-RESONATORS_MAX = 24
+#: Frequencies at which a resonator candidate's screen is tried besides the misfit's peaks: this many
+#: per octave of the band (``rc.diagnose`` retunes it; see :attr:`AttachedResonator.retune`).
+RESONATORS_PER_OCTAVE = 0
+#: At most this many resonator candidates per model: the sensor and drive-point mounts along their
+#: axes first, then every location carrying a lumped mass (``Structure.mass_locations``: equipment and
+#: payload mounts) along each of its directions (diagnose screens each at the misfit's largest peak
+#: and retunes only the best few, so each costs one or two evaluations).
+RESONATORS_MAX = 96
 
 
 @dataclass(frozen=True)
@@ -162,11 +177,12 @@ class AttachedResonator(_StructEffect):
 
     It adds a mode at about ``frequency`` (Hz) and splits the host's modes near it (Den Hartog,
     *Mechanical Vibrations*, sec. 3.2): no parameter of the model can make that mode, and first
-    order at mass 0 sees it only near its own frequency, hence the grid of frequencies. The
-    candidates sit at the sensor and drive-point mounts along their axes, at up to
-    :data:`RESONATORS_PER_OCTAVE` frequencies per octave of the band (:data:`RESONATORS_MAX` in
-    all); diagnose fits the mass at each candidate's frequency, ``rc.update`` with the effect fits
-    the frequency as well.
+    order at mass 0 sees it only near its own frequency. The candidates sit at the sensor and
+    drive-point mounts along their axes, then at every location carrying a lumped mass along each
+    direction (:data:`RESONATORS_MAX` at most), one each, at the band's geometric middle; ``rc.diagnose``
+    screens each at the largest peak of the misfit the update leaves and the best few at more peaks
+    and around them (:attr:`retune`: the added mode sits where the model has none), and fits mass
+    and frequency.
 
     Parameters
     ----------
@@ -188,24 +204,26 @@ class AttachedResonator(_StructEffect):
     domain: ClassVar[str] = "structure"
     sweep: ClassVar[str | None] = "structure"
     calibration: ClassVar[str] = "none"
+    retune: ClassVar[str | None] = "frequency"
     _value_fields: ClassVar[tuple[str, ...]] = ("mass", "frequency")
 
     @classmethod
     def candidates_at(cls, ctx, where):
-        """At each sensor and drive-point mount, along its axis, over the band's octaves."""
+        """At each sensor and drive-point mount along its axis, then at every location carrying a lumped
+        mass along each direction, at the band's geometric middle (the screening moves it to the
+        misfit's peaks); typical mass 1 % of the structure's."""
         band = ctx.band
         if band is None or not band[1] > band[0] > 0:
-            return []  # no band given: no frequencies to place them at
-        mounts = dict(_mounts(ctx, "output"))
-        for loc, d in _mounts(ctx, "input"):
-            mounts.setdefault(loc, d)
-        octaves = math.log2(band[1] / band[0])
-        per_octave = min(RESONATORS_PER_OCTAVE, RESONATORS_MAX / max(len(mounts) * octaves, 1e-9))
-        n = max(1, int(math.floor(per_octave * octaves)))
+            return []  # no band given: no frequencies to screen it at
+        places = list(dict.fromkeys([*_mounts(ctx, "output"), *_mounts(ctx, "input")]))
+        masses = getattr(ctx.structure, "mass_locations", None)
+        where = masses() if masses is not None else ctx.info["locations"]
+        places += [(loc, d) for loc in where for d in ctx.directions.get(loc, [None])]
+        places = list(dict.fromkeys(places))[:RESONATORS_MAX]
+        n = max(1, int(math.floor(RESONATORS_PER_OCTAVE * math.log2(band[1] / band[0]))))
         grid = band[0] * (band[1] / band[0]) ** ((np.arange(n) + 0.5) / n)
         step = 0.01 * _structure_mass(ctx)
-        return [cls(loc, direction=d, frequency=float(f)).with_scale(step)
-                for loc, d in mounts.items() for f in grid]
+        return [cls(loc, direction=d, frequency=float(f)).with_scale(step) for loc, d in places for f in grid]
 
     @property
     def name(self) -> str:
@@ -357,4 +375,149 @@ class DofPairJoint(_StructEffect):
         return f"a {self.name} of stiffness {self.describe_value()}"
 
 
-__all__ = ["TransducerMass", "AttachedResonator", "DofPairJoint", "RESONATORS_PER_OCTAVE", "RESONATORS_MAX"]
+@dataclass(frozen=True)
+class JointDamping(_StructEffect):
+    """Local (non-proportional) damping at a joint of a user's matrix model: a dashpot across the
+    connection between two DOFs (friction and micro-slip in a bolted or hinged joint damp the modes
+    that strain it, not every mode alike). Named by the user with the joint
+    (``rc.effects.candidates(model, joints={"hinge": ("dof 7", "dof 8", k0)})``), as
+    :class:`DofPairJoint`; the step is calibrated to change the most affected modal damping ratio
+    by :data:`~robustctl.physical.effects.base.DAMPING_TARGET`.
+
+    Parameters
+    ----------
+    location : str
+        The joint's name.
+    dofs : (str, str)
+        The two DOF labels it joins.
+    damping : float
+        Dashpot in N s/m (N m s/rad between rotations), neutral 0.
+    """
+
+    dofs: tuple[str, str] = ("", "")
+    damping: float = 0.0
+
+    kind: ClassVar[str] = "joint_damping"
+    sweep: ClassVar[str | None] = "structure"
+    calibration: ClassVar[str] = "damping"
+    _value_fields: ClassVar[tuple[str, ...]] = ("damping",)
+
+    def __post_init__(self) -> None:
+        if len(tuple(self.dofs)) != 2:
+            raise ModelError(f"a joint's damping needs the two DOF labels it joins; got dofs={self.dofs!r}.")
+        object.__setattr__(self, "dofs", tuple(str(d) for d in self.dofs))
+        super().__post_init__()
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """One per joint the user named (``candidates(..., joints=...)``)."""
+        return [cls(name, dofs=(a, b)) for name, (a, b, _k0) in ctx.joints.items()]
+
+    @property
+    def name(self) -> str:
+        return f"damping across joint {self.location} ({self.dofs[0]} - {self.dofs[1]})"
+
+    @property
+    def description(self) -> str:
+        return (f"A dashpot across the connection {self.location} between {self.dofs[0]} and {self.dofs[1]} "
+                "(friction in a bolted or hinged joint): damps the modes that strain it.")
+
+    def _check_location(self, model):
+        info = _structure_info(model)
+        unknown = [d for d in self.dofs if d not in info["locations"]]
+        if unknown:
+            raise ModelError(f"joint {self.location!r}: unknown DOFs {unknown}; give DOF labels of the "
+                             "model.")
+
+    def _specs(self):
+        return [ParamSpec(base="joint_damping", unit="N s/m", bounds=(0.0, 1e9), neutral=0.0,
+                          default_scale=1.0, meaning=f"dashpot across joint {self.location}")]
+
+    def _stage_fn(self):
+        pname, (a, b) = self.param_names[0], self.dofs
+
+        def fn(theta, struct):
+            c = float(theta[pname])
+            return struct if c == 0.0 else struct.add_coupling_damping(a, b, c)
+
+        return fn
+
+
+@dataclass(frozen=True)
+class SupportFlexibility(_StructEffect):
+    """A clamped support that is really a rotational spring: a base plate, bolts or a foundation
+    softer than a clamp (one of the commonest boundary errors of a frame model).
+
+    The parameter is the support's rotational compliance ``c`` (rad/(N m)) about every rotation the
+    support clamps (:meth:`robustctl.physical.fem.Frame.soften_support`), neutral 0 (the clamp),
+    a large one a pin: screened over its whole range (``coarse_screen``), as a joint's. Frame FEM
+    supports only (a matrix model's supports are eliminated already; its grounded springs are the
+    :class:`SuspensionSpring` candidates at every DOF).
+
+    Parameters
+    ----------
+    location : str
+        The supported node.
+    compliance : float
+        ``c`` in rad/(N m) (neutral 0).
+    """
+
+    compliance: float = 0.0
+
+    kind: ClassVar[str] = "support_flexibility"
+    sweep: ClassVar[str | None] = "structure"
+    calibration: ClassVar[str] = "none"
+    coarse_screen: ClassVar[bool] = True
+    _value_fields: ClassVar[tuple[str, ...]] = ("compliance",)
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """One per clamped node of a frame; typical size a spring 20 x stiffer than the members' end."""
+        supports = getattr(ctx.structure, "supports", None)
+        if supports is None:
+            return []
+        return [cls(node).with_scale(0.05 / ctx.structure.support_stiffness(node)) for node, _ in supports()]
+
+    @property
+    def name(self) -> str:
+        return f"flexible support at {self._at()}"
+
+    @property
+    def description(self) -> str:
+        return (f"The clamp at {self._at()} is a rotational spring (a base plate, bolts, a foundation): "
+                "lowers the modes that bend the members at the support.")
+
+    def _check_location(self, model):
+        struct = model.build_structure()
+        supports = getattr(struct, "supports", None)
+        if supports is None or self.location not in dict(supports()):
+            found = supports() if supports is not None else []
+            raise ModelError(f"{self.kind} needs a clamped node of a frame FEM; {self.location!r} is not one "
+                             f"(supports: {found}).")
+
+    def _specs(self):
+        return [ParamSpec(base="support_compliance", unit="rad/(N m)", bounds=(0.0, 1.0), neutral=0.0,
+                          default_scale=1e-6,
+                          meaning=f"rotational compliance of the support at {self.location}")]
+
+    def _stage_fn(self):
+        pname, node = self.param_names[0], self.location
+
+        def fn(theta, struct):
+            c = float(theta[pname])
+            return struct if c == 0.0 else struct.soften_support(node, c)
+
+        return fn
+
+    def describe_value(self, values=None) -> str:
+        vals = self.values if values is None else values
+        c = float(vals.get(self.param_names[0], self.compliance))
+        return "clamped" if c <= 0 else f"{1.0 / c:.3g} N m/rad"
+
+    def phrase(self) -> str:
+        return f"a {self.name} ({self.describe_value()})"
+
+
+__all__ = ["TransducerMass", "AttachedResonator", "DofPairJoint", "SupportFlexibility", "JointDamping",
+           "RESONATORS_PER_OCTAVE",
+           "RESONATORS_MAX"]
