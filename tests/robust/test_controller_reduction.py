@@ -102,11 +102,13 @@ def test_dksyn_weighted_and_coprime_reduction_options():
     P = distillation_plant()
     # at 4 of 6 states, plain balanced truncation wrecks the loop (peak mu 1.18 -> 23) while the
     # closed-loop weight keeps it near (1.21): the weight puts the error where the loop is sensitive
-    plain = rc.dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, reduce=4).reduction
-    weighted = rc.dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, reduce=("weighted", 4)).reduction
+    opts = {"max_iter": 1, "progress": False, "autoscale": False}
+    runs = {method: rc.dksyn((P, 2, 2, BOOK_BLOCKS), reduce=(method, 4) if method != "balanced" else 4,
+                             **opts) for method in ("balanced", "weighted", "coprime")}
+    plain, weighted = runs["balanced"].reduction, runs["weighted"].reduction
     assert weighted.mu_peak_after < 1.1 * weighted.mu_peak_before < plain.mu_peak_after
     for method in ("weighted", "coprime"):
-        dk = rc.dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, reduce=(method, 4))
+        dk = runs[method]
         r = dk.reduction
         assert r is not None and r.order_before == 6 and r.order_after == 4
         assert r.method == method and np.isfinite(r.error) and r.error > 0

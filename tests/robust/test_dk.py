@@ -216,7 +216,7 @@ def _modal_plant(fn_hz, zeta, b, c):
 
 def test_returned_mu_is_verified_between_and_beyond_the_grid():
     """With a coarse grid (14 points over 3 decades) the resonances of a two-mode plant fall
-    between the points: the iteration sees mu 0.83 where it is 1.067. dksyn verifies the
+    between the points: the iteration sees mu 0.91 where it is 1.079. dksyn verifies the
     returned controller on a denser grid, the closed-loop resonances and a search of its
     highest maxima: its mu_peak is the one an independent fine grid finds, it warns, and
     grid_mu_peak keeps the grid's."""
@@ -229,7 +229,8 @@ def test_returned_mu_is_verified_between_and_beyond_the_grid():
                            performance=makeweight(0.5, (0.5, 0.3), 0.01), disturbances=1.0,
                            control_weight=0.1, noise=0.01)
     with pytest.warns(RuntimeWarning, match="misses the peak"):
-        dk = dksyn(gp, max_iter=2, f_hz=np.logspace(-1.5, 1.7, 14), progress=False)
+        dk = dksyn(gp, max_iter=2, f_hz=np.logspace(-1.5, 1.7, 14), progress=False, autoscale=False,
+                   order_d=1)
     fw = np.logspace(-2, 2.5, 6000)
     dense = mu(freqresp_array(dk.closed_loop, fw), dk.blocks, f_hz=fw, lower=False)
     assert dk.grid_mu_peak < 0.9 * dense.peak           # the coarse grid missed the peak
@@ -313,7 +314,7 @@ def test_fit_roots_above_the_band_are_moved_to_its_edge():
 
 def test_reduction_is_rechecked_by_mu():
     P = distillation_plant()
-    dk = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, reduce=4)
+    dk = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, reduce=4, autoscale=False)
     r = dk.reduction
     assert r is not None and r.order_before == 6 and r.order_after == 4
     if r.accepted:
@@ -322,7 +323,7 @@ def test_reduction_is_rechecked_by_mu():
     else:
         assert dk.K.nstates == 6 and r.reason
     with pytest.raises(SynthesisError, match="reduce"):
-        dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, reduce=0)
+        dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, reduce=0, autoscale=False)
 
 
 def _mu_peak_of(P, K, blocks, f_hz):
@@ -339,7 +340,8 @@ def test_automatic_reduction_finds_the_smallest_order_that_keeps_mu():
     from robustctl.balanced import balanced_truncation
 
     P = distillation_plant()
-    dk = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=2, progress=False, reduce="auto")
+    opts = {"max_iter": 2, "progress": False, "autoscale": False, "order_d": 4}
+    dk = dksyn((P, 2, 2, BOOK_BLOCKS), reduce="auto", **opts)
     r = dk.reduction
     assert r is not None and r.accepted and r.order_after < r.order_before
     assert dk.K.nstates == r.order_after
@@ -348,11 +350,12 @@ def test_automatic_reduction_finds_the_smallest_order_that_keeps_mu():
     assert _mu_peak_of(P, dk.K, BOOK_BLOCKS, f) == pytest.approx(dk.mu_peak, rel=1e-6)
     assert dk.mu_peak <= r.mu_peak_before * 1.02
     # and one state fewer breaks the 2 % rule (bisection ends next to a failing order)
-    full = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=2, progress=False)
+    full = dksyn((P, 2, 2, BOOK_BLOCKS), **opts)
+    assert full.K.nstates == r.order_before
     smaller = balanced_truncation(full.K, r.order_after - 1).sys
     assert _mu_peak_of(P, smaller, BOOK_BLOCKS, f) > r.mu_peak_before * 1.02
     with pytest.raises(SynthesisError, match="auto"):
-        dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, reduce="smallest")
+        dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=1, progress=False, reduce="smallest", autoscale=False)
 
 
 # ---------------------------------------------------------------------------- Nyquist on data
@@ -453,10 +456,18 @@ def test_executor_gives_the_same_iteration_and_results_render():
     from concurrent.futures import ThreadPoolExecutor
 
     P = distillation_plant()
-    serial = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=2, progress=False, patience=10)
+    opts = {"max_iter": 3, "progress": False, "patience": 10, "autoscale": False}
+    serial = dksyn((P, 2, 2, BOOK_BLOCKS), **opts)
     with ThreadPoolExecutor(2) as ex:
-        threaded = dksyn((P, 2, 2, BOOK_BLOCKS), max_iter=2, progress=False, patience=10, executor=ex)
+        threaded = dksyn((P, 2, 2, BOOK_BLOCKS), executor=ex, **opts)
+    assert len(serial.history) == len(threaded.history) == 3
+    # the executor ran the D fits of every order (iterations 1-2) and the extrapolated D
+    # steps along the change of the scales (iteration 2, the candidates of iteration 3)
+    assert serial.history[2].n_candidates > 1
+    assert [h.n_candidates for h in threaded.history] == [h.n_candidates for h in serial.history]
     assert [h.d_orders for h in threaded.history] == [h.d_orders for h in serial.history]
+    peaks = [h.mu_peak for h in serial.history]
+    assert [h.mu_peak for h in threaded.history] == pytest.approx(peaks, rel=1e-6)
     assert threaded.mu_peak == pytest.approx(serial.mu_peak, rel=1e-6)
     assert serial.history[1].mu_peak < serial.history[0].mu_peak
     assert serial.plot() is not None and "<table>" in serial._repr_html_()
@@ -611,18 +622,32 @@ def _dense_mu_peak(cl, blocks, f_grid) -> float:
     return float(mu(freqresp_array(cl, f), blocks, f_hz=f, lower=False).peak)
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("noise", [False, True])
-def test_automatic_d_order_is_within_two_percent_of_the_best_fixed_order_on_himat(noise):
-    # mu-tools' mkhic / mkhicn: the automatic D orders against every fixed order 0-6 with the
-    # same defaults (max_iter 10); on mkhicn the automatic choice alone crept to 0.980 where
-    # order 3 reaches 0.954
+@pytest.fixture(scope="module", params=[False, True], ids=["mkhic", "mkhicn"])
+def himat_auto(request):
+    """mu-tools' mkhic (``False``) or mkhicn (``True``) and its automatic D-order design."""
     from robustctl.examples import himat_plant
 
-    P, blocks = himat_plant(noise)
-    fixed = [dksyn((P, 2, 2, blocks), order_d=o, progress=False).mu_peak for o in range(7)]
-    auto = dksyn((P, 2, 2, blocks), progress=False)
-    assert auto.mu_peak <= 1.02 * min(fixed)
+    P, blocks = himat_plant(request.param)
+    return P, blocks, dksyn((P, 2, 2, blocks), progress=False)
+
+
+@pytest.mark.slow
+def test_automatic_d_order_on_himat_holds_on_a_dense_grid(himat_auto):
+    _, blocks, auto = himat_auto
     dense = _dense_mu_peak(auto.closed_loop, blocks, auto.mu.f_hz)
     assert dense <= auto.mu_peak * (1 + 2e-3)
     assert auto.mu_peak <= dense * (1 + 2e-3)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("order", [3, 4, 5, 6])
+def test_automatic_d_order_is_within_two_percent_of_each_fixed_order_on_himat(himat_auto, order):
+    # mu-tools' mkhic / mkhicn: the automatic D orders against each fixed order with the same
+    # defaults (max_iter 10); on mkhicn the automatic choice alone crept to 0.980 where order
+    # 3 reaches 0.954. Orders 0-2 stay >= 4.6 % above the best fixed order on both (bench_dk:
+    # mkhic 1.500 1.074 1.002 against order 5's 0.943, mkhicn 1.507 1.098 0.998 against order
+    # 3's 0.954), so the best fixed order is among 3-6.
+    P, blocks, auto = himat_auto
+    fixed = dksyn((P, 2, 2, blocks), order_d=order, progress=False)
+    assert auto.mu_peak <= 1.02 * fixed.mu_peak
+
