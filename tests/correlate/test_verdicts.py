@@ -92,7 +92,8 @@ def test_mace_truth_is_within_the_noise_everywhere():
 
 
 @pytest.mark.xfail(
-    reason="issue 36, open: on OpenBLAS's Haswell kernel (this CI machine) the 8-mode measurement model keeps a "
+    reason="issue 36, open: on OpenBLAS's Haswell kernel (this CI machine) the 8-mode measurement model "
+    "keeps a "
     "7th mode and its residual noise puts the exact truth beyond the noise in 2 of 54 cells (S3 <- A3 and "
     "S1 <- A3, 0.54-5.4 Hz); the order decision is taken by round-off",
     strict=False,
