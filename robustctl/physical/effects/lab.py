@@ -287,6 +287,14 @@ def _structure_mass(ctx) -> float:
 
 
 
+def _check_dof_pair(effect, model) -> None:
+    """Both DOF labels of a joint effect are DOFs of ``model`` (ModelError naming the unknown ones)."""
+    info = _structure_info(model)
+    unknown = [d for d in effect.dofs if d not in info["locations"]]
+    if unknown:
+        raise ModelError(f"joint {effect.location!r}: unknown DOFs {unknown}; give DOF labels of the model.")
+
+
 @dataclass(frozen=True)
 class DofPairJoint(_StructEffect):
     """A joint of a user's matrix model between two DOFs, from as modelled to pinned.
@@ -345,11 +353,7 @@ class DofPairJoint(_StructEffect):
                 "modelled (a bolted or hinged joint): lowers the modes that strain it.")
 
     def _check_location(self, model):
-        info = _structure_info(model)
-        unknown = [d for d in self.dofs if d not in info["locations"]]
-        if unknown:
-            raise ModelError(f"joint {self.location!r}: unknown DOFs {unknown}; give DOF labels of the model."
-                             )
+        _check_dof_pair(self, model)
 
     def _specs(self):
         k0 = float(self.stiffness)
@@ -423,11 +427,7 @@ class JointDamping(_StructEffect):
                 "(friction in a bolted or hinged joint): damps the modes that strain it.")
 
     def _check_location(self, model):
-        info = _structure_info(model)
-        unknown = [d for d in self.dofs if d not in info["locations"]]
-        if unknown:
-            raise ModelError(f"joint {self.location!r}: unknown DOFs {unknown}; give DOF labels of the "
-                             "model.")
+        _check_dof_pair(self, model)
 
     def _specs(self):
         return [ParamSpec(base="joint_damping", unit="N s/m", bounds=(0.0, 1e9), neutral=0.0,
