@@ -285,8 +285,6 @@ def _structure_mass(ctx) -> float:
     return float(np.sum(diag[trans])) / len({found[j].group("dir") for j in trans})
 
 
-
-
 def _check_dof_pair(effect, model) -> None:
     """Both DOF labels of a joint effect are DOFs of ``model`` (ModelError naming the unknown ones)."""
     info = _structure_info(model)
