@@ -309,29 +309,30 @@ def _coarse_sizes(res_c: Residual, pname: str, span: tuple, step: float, Q: np.n
         return 1.0 - float(np.sum(_project(Q, j) ** 2)) / rr
 
     best, best_v, best_k, n = 0.0, v0, None, 0
-    for k in COARSE_DECADES:
+
+    def probe(k: float) -> float | None:
+        """Share explained at ``10**k`` steps from the start (None: clipped back to the start)."""
+        nonlocal best, best_v, best_k, n
         v = float(np.clip(v0 + sign * step * 10.0**k, lo, hi))
         if v == v0:
-            break
+            return None
         n += 1
         share = share_at(v)
         if share is not None and share > best:
             best, best_v, best_k = share, v, k
-        if v in (lo, hi):
+        return v
+
+    for k in COARSE_DECADES:
+        v = probe(k)
+        if v is None or v in (lo, hi):
             break
-    if best_k is not None:  # halve the spacing twice around the best (a local fit's start within 0.2 decade)
+    if best_k is not None:  # halve the spacing COARSE_REFINE times around the best
         spacing = COARSE_DECADES[1] - COARSE_DECADES[0] if len(COARSE_DECADES) > 1 else 1.0
         for _ in range(COARSE_REFINE):
             spacing /= 2.0
             centre = best_k
             for k in (centre - spacing, centre + spacing):
-                v = float(np.clip(v0 + sign * step * 10.0**k, lo, hi))
-                if v == v0:
-                    continue
-                n += 1
-                share = share_at(v)
-                if share is not None and share > best:
-                    best, best_v, best_k = share, v, k
+                probe(k)
     return max(best, 0.0), best_v, n
 
 
