@@ -36,13 +36,14 @@ assumed), with the bound on none.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from ..checks import COHERENCE_CAP, match_channels, neighbour_coherence
-from ..errors import DataError
+from ..checks import COHERENCE_CAP, match_channels, neighbour_coherence, user_stacklevel
+from ..errors import DataError, DataWarning
 from ..frd import FrequencyData, as_frequency_data
 from ..lti import as_statespace, freqresp, log_ratio
 from .estimator import (
@@ -61,8 +62,8 @@ __all__ = [
     "coherence_weight_bias",
     "point_weight_bias",
     "NoiseModel", "noise_model", "residual_noise", "averages_of", "checked_noise_model", "checked_averages",
-    "own_coherence_weights", "neighbour_coherence", "NO_NOISE_SENTENCE", "chi2_verdict",
-    "format_p",
+    "own_coherence_weights", "neighbour_coherence", "coherence_placeholders", "NO_NOISE_SENTENCE",
+    "chi2_verdict", "format_p",
 ]
 
 #: what a result says when it has no noise estimate
@@ -86,6 +87,12 @@ COHERENCE_NULL_P = 1e-4
 
 #: smallest sigma (nepers / rad): coherence 1 would otherwise claim a perfect estimate
 SIGMA_FLOOR = 1e-4
+
+#: distance from 1 (and from 0) within which a channel's coherence at *every* point is not an
+#: H1 estimate of noisy data but a placeholder: a file's column of ones (or zeros), noise-free
+#: simulated data. An estimate from ``n_d`` averages of a measurement with any noise is below
+#: ``1 - 1e-12`` wherever the noise reaches 1e-6 of the signal in amplitude (``1 - g2 ~ N/S``)
+PLACEHOLDER_COHERENCE_TOL = 1e-12
 
 
 @dataclass(frozen=True, eq=False)
@@ -306,6 +313,56 @@ def _sigma_of(g2: np.ndarray, nd: np.ndarray) -> np.ndarray:
 PLUG_IN_DOF = 2.0
 
 
+def coherence_placeholders(coherence: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Channels whose coherence is 1 (``ones``) or 0 (``zeros``) at every point, within
+    :data:`PLACEHOLDER_COHERENCE_TOL`: a placeholder, not an estimate. Coherence 1 everywhere
+    would give an H1 random error of zero (Bendat & Piersol Table 9.6), coherence 0 everywhere a
+    channel of noise only (a disconnected sensor).
+
+    Parameters
+    ----------
+    coherence : ndarray (nf, n_out, n_in)
+        Coherence in [0, 1].
+
+    Returns
+    -------
+    ones, zeros : ndarray of bool (n_out, n_in)
+    """
+    g2 = np.asarray(coherence, dtype=float)
+    return (np.all(g2 >= 1.0 - PLACEHOLDER_COHERENCE_TOL, axis=0),
+            np.all(g2 <= PLACEHOLDER_COHERENCE_TOL, axis=0))
+
+
+def _warn_placeholders(data: Any, ones: np.ndarray, zeros: np.ndarray) -> None:
+    """A :class:`~robustctl.errors.DataWarning` naming the channels of :func:`coherence_placeholders`."""
+    def names(mask):
+        return ", ".join(f"{data.outputs[o]} <- {data.inputs[i]}" for o, i in np.argwhere(mask))
+
+    if np.all(ones):
+        warnings.warn(
+            "the data's coherence is 1 at every point of every channel: an H1 estimate of a measurement "
+            "with noise is never exactly 1 (its random error would be zero), so it is a placeholder (a "
+            "column of ones in a file, noise-free simulated data). The noise is not taken from it: give "
+            "the estimate's real coherence, a measurement_model, or data.replace(coherence=None).",
+            DataWarning, stacklevel=user_stacklevel(),
+        )
+    elif np.any(ones):
+        warnings.warn(
+            f"the data's coherence is 1 at every point of {names(ones)}: a placeholder, not an H1 "
+            "estimate (its random error would be zero); those channels are left out of the noise test. "
+            "Give the estimate's real coherence for them.",
+            DataWarning, stacklevel=user_stacklevel(),
+        )
+    if np.any(zeros):
+        warnings.warn(
+            f"the data's coherence is 0 at every point of {names(zeros)}: those channels are noise only "
+            "(a disconnected or overloaded sensor, an input that never reached the structure) or their "
+            "coherence is missing; they carry no weight and are left out of the noise test. Check the "
+            "channel, or drop it with data.select(...).",
+            DataWarning, stacklevel=user_stacklevel(),
+        )
+
+
 def _from_coherence(data: Any, nd: np.ndarray) -> NoiseModel:
     """The noise model from each bin's own estimated coherence.
 
@@ -321,6 +378,7 @@ def _from_coherence(data: Any, nd: np.ndarray) -> NoiseModel:
     nb = np.clip(neighbour_coherence(g2), 1e-12, 1.0)  # which points to test: independent of their error
     null_level = 1.0 - COHERENCE_NULL_P ** (1.0 / np.maximum(nd - 1.0, 1.0))
     testable = (nb > null_level[None, None, :]) & (_sigma_of(nb, nd) <= SIGMA_TESTABLE)
+    testable &= ~coherence_placeholders(data.coherence)[0][None]
     nd_txt = ", ".join(f"{v:.3g}" for v in np.unique(np.round(nd, 2)))
     source = (
         f"the H1 random error from coherence and {nd_txt} effective averages (Bendat & Piersol "
@@ -449,11 +507,16 @@ def checked_noise_model(
     Returns
     -------
     NoiseModel or None
-        From coherence when the data carry coherence and ``averages`` are known; else from
-        the measurement model's residual; else None.
+        From coherence when the data carry coherence and ``averages`` are known (channels
+        whose coherence is 1 everywhere are not tested; coherence 1 in every channel is no noise
+        model: :func:`coherence_placeholders`, with a DataWarning); else from the measurement
+        model's residual; else None.
     """
     if data.coherence is not None and averages is not None:
-        return _from_coherence(data, averages)
+        ones, zeros = coherence_placeholders(data.coherence)
+        _warn_placeholders(data, ones, zeros)
+        if not np.all(ones):
+            return _from_coherence(data, averages)
     if measurement_model is not None:
         return _from_residual(data, measurement_model)
     return None

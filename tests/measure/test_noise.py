@@ -260,3 +260,54 @@ def test_the_noise_model_of_a_simultaneous_mimo_estimate_fits_each_channels_scat
     np.testing.assert_allclose(rms, 1.0, atol=0.25)
     # the cross channels are the weak ones: their coherence is visibly below the direct ones'
     assert np.median(data.coherence[:, 0, 1]) < np.median(data.coherence[:, 0, 0])
+
+
+# ---------------------------------------------------------------------------- placeholder coherence
+def _numpy_h1(noise: float = 0.05, seed: int = 0) -> tuple[rc.FrequencyData, int]:
+    """A SIMO H1 estimate made with scipy alone (two filtered outputs of one random input, 50 %
+    overlapped Hann segments) and its number of averages."""
+    from scipy import signal
+
+    rng = np.random.default_rng(seed)
+    n, nper = 2**15, 512
+    u = rng.standard_normal(n)
+    y = np.stack([signal.lfilter(*signal.butter(2, [0.1, 0.2], "bandpass"), u),
+                  signal.lfilter(*signal.butter(2, 0.3), u)], axis=1)
+    y += noise * y.std(axis=0) * rng.standard_normal(y.shape)
+    f, puu = signal.welch(u, FS, nperseg=nper)
+    g, coh = [], []
+    for k in range(2):
+        _, puy = signal.csd(u, y[:, k], FS, nperseg=nper)
+        _, pyy = signal.welch(y[:, k], FS, nperseg=nper)
+        g.append(puy / puu)
+        coh.append(np.abs(puy) ** 2 / (puu * pyy))
+    keep = slice(1, None)  # no DC
+    g = np.stack(g, axis=1)[keep, :, None]
+    coh = np.clip(np.stack(coh, axis=1)[keep, :, None], 0.0, 1.0)
+    data = rc.FrequencyData(f[keep], g, inputs=["u"], outputs=["y1", "y2"], coherence=coh)
+    return data, 2 * n // nper - 1
+
+
+def test_coherence_of_one_or_zero_everywhere_is_a_placeholder_not_an_estimate():
+    """Coherence 1 at every point would make the H1 random error 0 (a truth 1e6 x 'beyond the
+    noise'); coherence 0 everywhere is a channel of noise. Both are warned; a channel of ones is
+    not tested, ones everywhere give no noise model; a real estimate is not flagged."""
+    data, n_avg = _numpy_h1()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", rc.DataWarning)
+        nm = rc.noise_model(data, n_averages=n_avg)  # a real estimate: no warning
+        assert rc.noise_model(_numpy_h1(noise=1e-4)[0], n_averages=n_avg) is not None
+    assert nm.testable[:, 0, 0].sum() > 100 and nm.testable[:, 1, 0].sum() > 100
+    coh = np.array(data.coherence)
+    coh[:, 0, 0] = 1.0
+    with pytest.warns(rc.DataWarning, match=r"coherence is 1 at every point of y1 <- u: a placeholder"):
+        one = rc.noise_model(data.replace(coherence=coh), n_averages=n_avg)
+    assert not one.testable[:, 0, 0].any()
+    np.testing.assert_array_equal(one.testable[:, 1, 0], nm.testable[:, 1, 0])
+    with pytest.warns(rc.DataWarning, match="coherence is 1 at every point of every channel"):
+        assert rc.noise_model(data.replace(coherence=np.ones(data.shape)), n_averages=n_avg) is None
+    coh = np.array(data.coherence)
+    coh[:, 1, 0] = 0.0
+    with pytest.warns(rc.DataWarning, match=r"coherence is 0 at every point of y2 <- u"):
+        zero = rc.noise_model(data.replace(coherence=coh), n_averages=n_avg)
+    assert not zero.testable[:, 1, 0].any()
