@@ -1,11 +1,15 @@
-"""Effects a laboratory brings to the structure: the transducers' own mass and attached resonators.
+"""Effects a laboratory brings to the structure: the transducers' own mass, the stingers, attached
+resonators, and the joints and supports a test finds softer or more damped than modelled.
 
 A modal test adds hardware to what the model describes. Every accelerometer and its mount adds
 the same mass at each measured point (one physical cause acting at many places, invisible to a
-screen that tries one point mass at a time); a payload on a soft mount, fuel slosh or a hanging
-cable adds a *mode* no parameter of the model has. Both are given here for any structural model
+screen that tries one point mass at a time); each stinger restrains its driving point across the
+drive axis where the force gauge does not see it; a payload on a soft mount, fuel slosh or a hanging
+cable adds a *mode* no parameter of the model has. These are given here for any structural model
 (``rc.Frame``, a user's matrices, FE imports), found from the model's own sensors and forces
-(:meth:`~robustctl.physical.structure_base.Structure.signal_location`).
+(:meth:`~robustctl.physical.structure_base.Structure.signal_location`). Joints and supports come from
+the model where it says where they are (a frame's flexible joints), else from the user
+(``candidates(model, joints=..., supports=...)``).
 
 References: Ewins, *Modal Testing: Theory, Practice and Application* (2000), sec. 3.9 (transducer
 mass loading) and sec. 3.6 (attachment); Den Hartog, *Mechanical Vibrations*, sec. 3.2 (a spring-mass
@@ -813,6 +817,11 @@ class StingerConstraint(_StructEffect):
             return struct if k == 0.0 else struct.add_stinger(drive, k, length)
 
         return fn
+
+    def changes_preload(self, gravity_direction) -> bool:
+        """Its lateral springs carry weight whenever gravity has a component across the drive axis,
+        which the effect does not know without the structure: taken as changing the preload."""
+        return True
 
     def phrase(self) -> str:
         return (f"a stinger of {self.describe_value()} lateral stiffness on {self.drive} at {self._at()} "
