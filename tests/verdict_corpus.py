@@ -238,10 +238,11 @@ H, W = 1.0, 1.2
 STEEL = dict(E=2.1e11, G=8.1e10, rho=7850.0, A=4e-4, Iy=2e-8, Iz=3e-8, J=4e-8)
 
 
-def portal_frame(E=2.1e11, joint=None, added=None, n_el=2):
+def portal_frame(E=2.1e11, joint=None, added=None, n_el=2, hinge=None):
     """The frame: columns ``c1`` (node b1 -> t1) and ``c2`` (b2 -> t2), beam ``beam`` (t1 -> t2),
     a 2 kg mass at ``t2``; sensors at ``t1`` (x, accel.) and ``t2`` (x, z); a force at ``t2`` along x
-    and one at the beam's middle along z."""
+    and one at the beam's middle along z. ``hinge`` (N m/rad): the beam meets t1 through a hinge
+    about y of that stiffness (``Frame.add_joint_flexibility``)."""
     fr = rc.Frame(name="portal")
     for name, xyz in (("b1", (0, 0, 0)), ("t1", (0, 0, H)), ("b2", (W, 0, 0)), ("t2", (W, 0, H)),
                       ("mid", (W / 2, 0, H))):
@@ -262,11 +263,14 @@ def portal_frame(E=2.1e11, joint=None, added=None, n_el=2):
     fr.add_output("S3", "mid", "z")
     fr.add_force_input("A1", "t2", "x")
     fr.add_force_input("A2", "mid", "z")
+    if hinge is not None:
+        fr.add_joint_flexibility("t1", "beam", 1.0 / hinge, axes=("ry",))
     return fr
 
 
-def frame_model():
-    """The portal frame as a PhysicalModel whose parameter ``E`` (Pa) updating may change."""
+def frame_model(hinge=None):
+    """The portal frame as a PhysicalModel whose parameter ``E`` (Pa) updating may change (``hinge``:
+    see :func:`portal_frame`)."""
     from robustctl.physical.modal import modal_dynamics
     from robustctl.physical.model import PhysicalModel
 
@@ -274,7 +278,7 @@ def frame_model():
     zeta = rc.Parameter("zeta_modal", ZETA, "", (0.0, 0.2), rel_step=1e-2, abs_step=1e-5,
                         meaning="modal damping ratio")
     return PhysicalModel((par, zeta), modal_dynamics(None, None, "zeta_modal"),
-                         structure=lambda th: portal_frame(E=th["E"]), name="portal frame")
+                         structure=lambda th: portal_frame(E=th["E"], hinge=hinge), name="portal frame")
 
 
 def structure_matrices(struct):

@@ -60,7 +60,7 @@ from .frame_parts import (
 )
 from .gravity import PreloadResult
 from .shapes import frame_geometry, frame_mode_shapes
-from .structure_base import OUTPUT_KINDS, StructuralMatrices, Structure
+from .structure_base import OUTPUT_KINDS, STINGER_LENGTH, StructuralMatrices, Structure, stinger_stiffness
 
 __all__ = ["Frame", "DIRECTIONS"]
 
@@ -797,6 +797,68 @@ class Frame(Structure):
         self._cache = None
         for d in sorted(released):
             self._add_spring("spring", node, 1.0 / c, ("rx", "ry", "rz")[d - 3], None, ("support",))
+        return self
+
+    def _released_links(self) -> list[tuple[str, str, tuple[str, ...], str]]:
+        """``(node, group, axes, twin)`` of each flexible joint (:meth:`flexible_joints`), with its twin."""
+        out = []
+        for lk in self._links:
+            if not lk.released:
+                continue
+            groups = [e.group for e in self._elements.values()
+                      if e.kind == "beam" and lk.slave in (e.n1, e.n2)]
+            if groups:
+                axes = tuple(("rx", "ry", "rz")[d - 3] for d in lk.released)
+                out.append((lk.master, groups[0], axes, lk.slave))
+        return out
+
+    def flexible_joints(self) -> list[tuple[str, str, tuple[str, ...]]]:
+        """Joints made flexible (:meth:`add_joint_flexibility`): ``(node, group, axes)`` with the global
+        rotations each releases (``("ry",)`` for a hinge about y), in order of creation."""
+        return [(n, g, ax) for n, g, ax, _ in self._released_links()]
+
+    def add_joint_damping(self, node: str, group: str, damping: float,
+                          axes: tuple[str, ...] | None = None) -> Frame:
+        """A rotational dashpot of ``damping`` (N m s/rad) across a flexible joint (:meth:`flexible_joints`)
+        about each rotation it releases (or about ``axes``, some of them): local, non-proportional damping
+        of the joint (friction and micro-slip in a bolted or hinged connection), in parallel with the
+        joint's spring. A rigid joint has no relative rotation to damp: make it flexible first."""
+        c = _finite("joint damping (N m s/rad)", damping, nonneg=True)
+        found = {(n, g): (ax, twin) for n, g, ax, twin in self._released_links()}
+        if (node, group) not in found:
+            raise ModelError(
+                f"the joint of {group!r} at {node!r} releases no rotation (a rigid joint has none to damp); "
+                f"the flexible joints are {self.flexible_joints()} (Frame.add_joint_flexibility makes one)."
+            )
+        released, twin = found[(node, group)]
+        axes = released if axes is None else ((axes,) if isinstance(axes, str) else tuple(axes))
+        if not axes or not set(axes) <= set(released):
+            raise ModelError(f"the joint of {group!r} at {node!r} releases {released}; got axes={axes!r}.")
+        if c == 0.0:
+            return self
+        for ax in axes:
+            self._add_spring("dashpot", node, c, ax, twin, ("joint",))
+        return self
+
+    def add_stinger(self, input_name: str, lateral_stiffness: float, length: float = STINGER_LENGTH) -> Frame:
+        """Restrain the drive point of the point force ``input_name`` as its stinger does: the grounded
+        lateral, rotational and torsional stiffness of a drive rod clamped in the shaker
+        (:func:`~robustctl.physical.structure_base.stinger_stiffness`; ``lateral_stiffness`` in N/m,
+        ``length`` in m), as springs tagged ``"stinger"``."""
+        sig = self._signal("input", input_name)
+        if sig.kind != "force" or sig.strain is not None or len(sig.terms) != 1:
+            raise ModelError(f"input {input_name!r} is not a point force; a stinger drives one node along "
+                             "one axis.")
+        node, vec = sig.terms[0]
+        k = _finite(f"stinger lateral stiffness of {input_name!r} (N/m)", lateral_stiffness)
+        if k == 0.0:
+            return self
+        lam, vecs = np.linalg.eigh(stinger_stiffness(vec[:3], k, _finite("stinger length (m)", length,
+                                                                          positive=True)))
+        for value, u in zip(lam, vecs.T):
+            if abs(value) > 1e-12 * np.abs(lam).max():
+                self._springs.append(_Spring(node, None, float(value), u.copy(), "spring", ("stinger",)))
+        self._cache = None
         return self
 
     def joint_stiffness(self, node: str, group: str) -> float:

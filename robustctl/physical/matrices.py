@@ -23,10 +23,11 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from ..errors import ModelError
+from ..errors import DataError, ModelError
+from ..frd_io.geometry import parse_dof
 from .eigen import _check_mass_definite, _check_square_symmetric, _dense
 from .shapes import matrix_geometry, matrix_mode_shapes
-from .structure_base import OUTPUT_KINDS, StructuralMatrices, Structure
+from .structure_base import OUTPUT_KINDS, STINGER_LENGTH, StructuralMatrices, Structure, stinger_stiffness
 
 __all__ = ["MatrixStructure"]
 
@@ -430,6 +431,46 @@ class MatrixStructure(Structure):
         self._b = np.vstack([self._b, np.zeros((1, self._b.shape[1]))])
         self._c = np.hstack([self._c, np.zeros((self._c.shape[0], 1))])
         self._labels = tuple(self._labels) + (label,)
+        return self
+
+    def add_stinger(self, input_name: str, lateral_stiffness: float,
+                    length: float = STINGER_LENGTH) -> MatrixStructure:
+        """Restrain the drive point of force input ``input_name`` as its stinger does
+        (:func:`~robustctl.physical.structure_base.stinger_stiffness`: ``lateral_stiffness`` in N/m,
+        ``length`` in m) on the DOFs of the drive's node: the input must point at one DOF labelled
+        ``"node:direction"`` (``"12:Z"``, an FE import's labels), and the node's other DOFs take the
+        stinger's stiffness (a DOF the matrices do not have is held by the model already)."""
+        loc = self.signal_location("input", input_name)
+        try:
+            node, vec = parse_dof(loc) if loc is not None else (None, None)
+        except DataError:
+            node = None
+        if node is None or not np.any(vec[:3]):
+            raise ModelError(
+                f"input {input_name!r} does not act on one translational DOF labelled 'node:direction' "
+                f"(it acts on {loc!r}); a stinger needs the drive node's DOFs, e.g. dof_labels=['12:X', ...]."
+            )
+        k = float(lateral_stiffness)
+        if not np.isfinite(k):
+            raise ModelError(f"the stinger's lateral stiffness must be finite (N/m); got "
+                             f"{lateral_stiffness!r}.")
+        if k == 0.0:
+            return self
+        dofs, rows = [], []
+        for j, lab in enumerate(self._labels):
+            try:
+                nd, v = parse_dof(lab)
+            except DataError:
+                continue
+            if nd == node:
+                dofs.append(j)
+                rows.append(v)
+        P = np.array(rows)
+        block = P @ stinger_stiffness(vec[:3], k, length) @ P.T
+        n = self.n_dof
+        ii, jj = np.meshgrid(dofs, dofs, indexing="ij")
+        dK = sp.csr_matrix((block.ravel(), (ii.ravel(), jj.ravel())), shape=(n, n))
+        self._K = self._K + dK if sp.issparse(self._K) else self._K + dK.toarray()
         return self
 
     def add_coupling(self, location: str, partner: str, stiffness: float) -> MatrixStructure:

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..errors import ModelError
 
-__all__ = ["StructuralMatrices", "Structure", "OUTPUT_KINDS"]
+__all__ = ["StructuralMatrices", "Structure", "OUTPUT_KINDS", "STINGER_LENGTH", "stinger_stiffness"]
 
 #: Kinds of structural outputs: the sensor reads the DOF vector's displacement, its rate,
 #: or its acceleration (an accelerometer needs the feedthrough term of MACE eq. 4).
@@ -91,6 +91,68 @@ class StructuralMatrices:
         square = {k: None if a is None else conv(a) for k, a in square.items()}
         pointing = {"input_matrix": self.input_matrix.copy(), "output_matrix": self.output_matrix.copy()}
         return replace(self, **square, **pointing, **changes)
+
+
+#: Length (m) of the drive rod (stinger) between shaker and force gauge that the stinger candidates
+#: assume: 50 to 150 mm is the usual range (Ewins, *Modal Testing*, 2000, sec. 3.6).
+STINGER_LENGTH = 0.1
+#: ``G J / (E I)`` of a round rod (``J = 2 I``) of steel or aluminium (Poisson's ratio 0.3):
+#: ``2 / (2 (1 + 0.3))``.
+_ROD_TORSION = 1.0 / 1.3
+
+
+def stinger_stiffness(direction: Any, lateral_stiffness: float, length: float = STINGER_LENGTH) -> np.ndarray:
+    r"""The 6 x 6 stiffness (over ``[ux uy uz rx ry rz]`` of the drive point, global axes) that a drive rod
+    (stinger) clamped in the shaker's armature adds where it meets the structure, without its axial
+    stiffness.
+
+    With the force gauge at the structure (the practice Ewins, *Modal Testing: Theory, Practice and
+    Application*, 2000, sec. 3.6 recommends) the gauge measures the rod's axial force, so the rod's
+    axial stiffness and the shaker change the force that is measured, not the measured FRF; what the
+    gauge does not measure is the rod's lateral force and its moments, which restrain the drive point
+    as a grounded stiffness (the armature taken as held laterally and in rotation). For a round rod
+    of length ``L`` and bending stiffness ``E I`` clamped at both ends, each lateral axis ``a``
+    (normal to the drive axis ``d``) gives the end stiffness of a beam element on ``(u_a, theta_n)``,
+    ``n = d x a`` (the rod running along ``+d`` from the armature to the structure),
+
+    .. math::
+
+        \frac{E I}{L^3} \begin{bmatrix} 12 & -6 L \\ -6 L & 4 L^2 \end{bmatrix}
+        = k \begin{bmatrix} 1 & -L/2 \\ -L/2 & L^2/3 \end{bmatrix}, \quad k = 12 E I / L^3,
+
+    and the rod's torsion ``G J / L = k L^2 / (12 \cdot 1.3)`` acts about ``d`` (Przemieniecki,
+    *Theory of Matrix Structural Analysis*, 1968, sec. 5.4).
+
+    Parameters
+    ----------
+    direction : 3-vector
+        The drive axis ``d`` (the force's direction), normalised here.
+    lateral_stiffness : float
+        ``k = 12 E I / L^3`` in N/m: the rod's lateral stiffness with both ends held in rotation.
+    length : float
+        ``L`` in m.
+
+    Returns
+    -------
+    ndarray, shape (6, 6)
+        N/m, N/rad and N m/rad blocks.
+    """
+    d = np.asarray(direction, dtype=float).reshape(-1)
+    k, L = float(lateral_stiffness), float(length)
+    if d.size != 3 or not np.all(np.isfinite(d)) or np.linalg.norm(d) == 0:
+        raise ModelError(f"a stinger's drive axis is a non-zero 3-vector; got {direction!r}.")
+    if not (np.isfinite(k) and np.isfinite(L) and L > 0):
+        raise ModelError(f"a stinger needs a finite lateral stiffness (N/m) and a length > 0 (m); got {k!r}, "
+                         f"{L!r}.")
+    d = d / np.linalg.norm(d)
+    out = np.zeros((6, 6))
+    for a in np.linalg.svd(d[None, :])[2][1:]:  # two unit axes normal to d
+        n = np.cross(d, a)
+        w = np.concatenate([a, -0.5 * L * n])
+        out += k * np.outer(w, w)
+        out[3:, 3:] += k * L * L / 12.0 * np.outer(n, n)
+    out[3:, 3:] += k * L * L / 12.0 * _ROD_TORSION * np.outer(d, d)
+    return out
 
 
 _NO_GEOMETRY = (
@@ -199,6 +261,13 @@ class Structure(ABC):
         (kg) joined to ``location`` along ``direction`` by a spring of ``stiffness`` (N/m). It adds
         a mode near ``sqrt(stiffness / mass)``."""
         raise ModelError(f"{type(self).__name__} cannot carry an attached resonator.")
+
+    def add_stinger(self, input_name: str, lateral_stiffness: float,
+                    length: float = STINGER_LENGTH) -> Structure:
+        """Restrain the drive point of force input ``input_name`` as its stinger does
+        (:func:`stinger_stiffness`: lateral stiffness ``lateral_stiffness`` in N/m, rod ``length`` in m;
+        the axial stiffness is behind the force gauge and left out)."""
+        raise ModelError(f"{type(self).__name__} cannot carry a stinger.")
 
     def add_coupling(self, location: str, partner: str, stiffness: float) -> Structure:
         """Add a spring of ``stiffness`` (N/m or N m/rad; negative softens) between the DOFs

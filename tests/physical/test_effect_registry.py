@@ -26,8 +26,10 @@ F_CHAIN = np.arange(2.0, 40.0, 0.125)
 
 @functools.cache
 def _corpus_candidates() -> tuple:
-    models = (vc.chain_model(), vc.frame_model())
-    return tuple(c for m in models for c in fx.candidates(m, calibrate=False))
+    models = (vc.chain_model(), vc.frame_model(), vc.frame_model(hinge=1500.0))
+    named = dict(joints={"j23": ("dof 2", "dof 3", 7e3)}, supports={"ground": ("dof 1", 1.2e4)})
+    return tuple(c for m in models for c in fx.candidates(m, calibrate=False)) + tuple(
+        fx.candidates(vc.chain_model(), calibrate=False, **named))
 
 
 def _instance(cls):

@@ -98,6 +98,9 @@ class CandidateContext:
         The frequency band of interest in Hz, when the caller gave one.
     joints : dict
         Joints the user named in a matrix model: ``name -> (dof_a, dof_b, k0)``.
+    supports : dict
+        Supports the user named in a matrix model: ``name -> (dofs, k0s)`` (DOF labels and the
+        grounded stiffness the model has at each).
     """
 
     model: PhysicalModel
@@ -109,6 +112,7 @@ class CandidateContext:
     modes: tuple = ()
     band: tuple[float, float] | None = None
     joints: Mapping[str, tuple[str, str, float]] = field(default_factory=dict)
+    supports: Mapping[str, tuple[tuple[str, ...], tuple[float, ...]]] = field(default_factory=dict)
 
     def places(self, sweep: str) -> tuple:
         """The places of one sweep (see :data:`SWEEPS`)."""

@@ -37,16 +37,17 @@ EFFECT_KINDS: dict[str, type[Effect]] = Effect.registry
 
 
 # ============================================================================ candidates
-def _context(model: PhysicalModel, band, joints=None) -> CandidateContext:
+def _context(model: PhysicalModel, band, joints=None, supports=None) -> CandidateContext:
     """What the effect classes need to make their candidates on ``model`` (``band`` in Hz or None,
-    ``joints`` named by the user)."""
+    ``joints`` and ``supports`` named by the user)."""
     outs, ins = _signals(model, "output"), _signals(model, "input")
     if model.structure is None:
         return CandidateContext(model, outs, ins, band=band)
     info = _structure_info(model)
     struct = model.build_structure()
     dirs = _directions(struct.matrices().dof_labels, info["locations"])
-    return CandidateContext(model, outs, ins, struct, info, dirs, band=band, joints=dict(joints or {}))
+    return CandidateContext(model, outs, ins, struct, info, dirs, band=band, joints=dict(joints or {}),
+                            supports=dict(supports or {}))
 
 
 def _check_joints(joints) -> dict:
@@ -62,6 +63,29 @@ def _check_joints(joints) -> dict:
     bad = [n for n, (_, _, k) in out.items() if not (np.isfinite(k) and k > 0)]
     if bad:
         raise ModelError(f"joints {bad}: the modelled stiffness k0 must be finite and > 0.")
+    return out
+
+
+def _check_supports(supports) -> dict:
+    """``supports`` as ``{name: (dofs, k0s)}`` (a tuple of DOF labels and one modelled grounded
+    stiffness per DOF), or a ModelError saying what is wrong."""
+    if supports is None:
+        return {}
+    form = ("supports must be {name: (dofs, k0)}: the DOF labels the support holds (one label or a list) "
+            "and the grounded stiffness the model has at each (N/m or N m/rad; one number or one per DOF)")
+    try:
+        items = dict(supports).items()
+        out = {}
+        for name, (dofs, k0) in items:
+            dofs = (str(dofs),) if isinstance(dofs, str) else tuple(str(d) for d in dofs)
+            k = np.atleast_1d(np.asarray(k0, dtype=float)).reshape(-1)
+            out[str(name)] = (dofs, tuple(float(x) for x in (np.full(len(dofs), k[0]) if k.size == 1 else k)))
+    except (TypeError, ValueError) as exc:
+        raise ModelError(f"{form}; {exc}.") from None
+    bad = [n for n, (d, k) in out.items() if not d or len(k) != len(d) or len(set(d)) < len(d)
+           or not all(np.isfinite(x) and x > 0 for x in k)]
+    if bad:
+        raise ModelError(f"supports {bad}: {form}; each DOF once, each k0 finite and > 0.")
     return out
 
 
@@ -91,6 +115,7 @@ def candidates(
     time_budget_s: float | None = None,
     executor: Any = None,
     joints: dict | None = None,
+    supports: dict | None = None,
 ) -> list[Effect]:
     """The effects applicable to ``model``, one per kind and location, at their neutral value.
 
@@ -100,8 +125,11 @@ def candidates(
     flip and a units slip of each channel; on a structural model also each sensor and actuator
     at a neighbouring node or DOF or along another axis). Frame FEM models get a semi-rigid
     joint candidate (:class:`JointSpring`) per beam joint, and a hinge about each global axis,
-    screened over their whole range (rigid to nearly pinned). Every structural model gets the
-    transducers' own mass, one parameter for all sensor mounts (and one with the drive points),
+    screened over their whole range (rigid to nearly pinned), a flexible support per clamped node,
+    and a rotational dashpot (:class:`FrameJointDamping`) per joint the frame models as flexible.
+    Every structural model gets the transducers' own mass, one parameter for all sensor mounts
+    (and one with the drive points), the stinger's restraint of each driving point
+    (:class:`StingerConstraint`: a frame's point forces, a matrix DOF labelled ``"node:direction"``)
     and, when ``band`` is given, attached resonators (a spring-mass that adds a mode) at the sensor
     and drive-point mounts on a grid of frequencies over the band (:mod:`.lab`). The classes make
     their own candidates (:meth:`Effect.candidates_at`), place by place of their
@@ -139,7 +167,12 @@ def candidates(
     joints : dict, optional
         Joints of a matrix model, ``name -> (dof_a, dof_b, k0)`` (the two DOF labels and the
         connection's stiffness in the model, N/m or N m/rad): a :class:`DofPairJoint` candidate
-        each, screened from as modelled to pinned.
+        each, screened from as modelled to pinned, and a :class:`JointDamping` candidate.
+    supports : dict, optional
+        Supports of a matrix or FE model, ``name -> (dofs, k0)`` (the DOF labels the support holds,
+        one label or a list, and the grounded stiffness the model has at each, N/m or N m/rad: one
+        number, or one per DOF): a :class:`DofSupportFlexibility` candidate each, screened from as
+        modelled to free.
 
     Returns
     -------
@@ -155,7 +188,7 @@ def candidates(
         unknown = sorted(kinds - set(EFFECT_KINDS))
         if unknown:
             raise ModelError(f"unknown effect kinds {unknown}; known kinds: {sorted(EFFECT_KINDS)}.")
-    ctx = _context(model, band, _check_joints(joints))
+    ctx = _context(model, band, _check_joints(joints), _check_supports(supports))
     cands = _generate(ctx, SWEEPS[:-1], points)
     if model.structure is not None:
         if locations is not None:

@@ -1,11 +1,15 @@
-"""Effects a laboratory brings to the structure: the transducers' own mass and attached resonators.
+"""Effects a laboratory brings to the structure: the transducers' own mass, the stingers, attached
+resonators, and the joints and supports a test finds softer or more damped than modelled.
 
 A modal test adds hardware to what the model describes. Every accelerometer and its mount adds
 the same mass at each measured point (one physical cause acting at many places, invisible to a
-screen that tries one point mass at a time); a payload on a soft mount, fuel slosh or a hanging
-cable adds a *mode* no parameter of the model has. Both are given here for any structural model
+screen that tries one point mass at a time); each stinger restrains its driving point across the
+drive axis where the force gauge does not see it; a payload on a soft mount, fuel slosh or a hanging
+cable adds a *mode* no parameter of the model has. These are given here for any structural model
 (``rc.Frame``, a user's matrices, FE imports), found from the model's own sensors and forces
-(:meth:`~robustctl.physical.structure_base.Structure.signal_location`).
+(:meth:`~robustctl.physical.structure_base.Structure.signal_location`). Joints and supports come from
+the model where it says where they are (a frame's flexible joints), else from the user
+(``candidates(model, joints=..., supports=...)``).
 
 References: Ewins, *Modal Testing: Theory, Practice and Application* (2000), sec. 3.9 (transducer
 mass loading) and sec. 3.6 (attachment); Den Hartog, *Mechanical Vibrations*, sec. 3.2 (a spring-mass
@@ -21,6 +25,7 @@ from typing import ClassVar
 import numpy as np
 
 from ...errors import ModelError
+from ..structure_base import STINGER_LENGTH
 from .base import _DIR_RE, ParamSpec, _slug, _structure_info
 from .setup import _structure_signals
 from .structural import _StructEffect  # defined (and registered) before the laboratory's effects
@@ -516,6 +521,324 @@ class SupportFlexibility(_StructEffect):
         return f"a {self.name} ({self.describe_value()})"
 
 
+@dataclass(frozen=True)
+class FrameJointDamping(_StructEffect):
+    """Local (non-proportional) damping at a flexible joint of a frame: a rotational dashpot across the
+    rotations the joint releases, in parallel with its spring (friction and micro-slip in a bolted or
+    hinged connection damp the modes that rotate the joint, not every mode alike; e.g. Gaul & Nitsche,
+    "The role of friction in mechanical joints", *Appl. Mech. Rev.* 54(2), 2001).
+
+    Made at every joint the frame models as flexible (:meth:`robustctl.physical.fem.Frame.flexible_joints`:
+    a hinge or semi-rigid joint made with ``add_joint_flexibility``, twin nodes tied by a rigid link that
+    releases those rotations): a joint the model takes as rigid has no relative rotation to damp (its
+    flexibility is the :class:`~robustctl.physical.effects.structural.JointSpring` candidate). Frame FEM
+    only; a matrix model's joints are :class:`JointDamping`. The step is calibrated to change the most
+    affected modal damping ratio by :data:`~robustctl.physical.effects.base.DAMPING_TARGET`.
+
+    Parameters
+    ----------
+    location : str
+        The joint's node.
+    group : str
+        The element group whose beams the joint connects to the node.
+    damping : float
+        Rotational dashpot in N m s/rad about each released rotation (neutral 0).
+    """
+
+    group: str | None = None
+    damping: float = 0.0
+
+    kind: ClassVar[str] = "frame_joint_damping"
+    sweep: ClassVar[str | None] = "structure"
+    calibration: ClassVar[str] = "damping"
+    _value_fields: ClassVar[tuple[str, ...]] = ("damping",)
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """One per flexible joint of a frame whose released rotations carry inertia (a rotation without
+        any is condensed out of the matrices and cannot carry a dashpot)."""
+        flexible = getattr(ctx.structure, "flexible_joints", None)
+        if flexible is None:
+            return []
+        labels = set(ctx.structure.matrices().dof_labels)
+        return [cls(node, group=group) for node, group, axes in flexible()
+                if all(f"{node}~{group} {ax}" in labels for ax in axes)]
+
+    @property
+    def name(self) -> str:
+        return f"damping in the joint of {self.group} at {self._at()}"
+
+    @property
+    def description(self) -> str:
+        return (f"A rotational dashpot across the flexible joint of {self.group} at {self._at()} (friction "
+                "in a bolted or hinged connection): damps the modes that rotate the joint, not every mode "
+                "alike.")
+
+    def _suffix(self) -> str:
+        return f"__{_slug(self.location)}_{_slug(self.group)}"
+
+    def _check_location(self, model):
+        struct = model.build_structure()
+        flexible = getattr(struct, "flexible_joints", None)
+        found = [(n, g) for n, g, _ in flexible()] if flexible is not None else []
+        if (self.location, self.group) not in found:
+            raise ModelError(
+                f"{self.kind} needs a flexible joint of a frame FEM (rc.Frame.add_joint_flexibility); the "
+                f"joint of {self.group!r} at {self.location!r} is not one (flexible joints: {found})."
+            )
+
+    def _specs(self):
+        return [ParamSpec(base="joint_damping", unit="N m s/rad", bounds=(0.0, 1e9), neutral=0.0,
+                          default_scale=1.0,
+                          meaning=f"rotational dashpot across the joint of {self.group} at {self.location}")]
+
+    def _stage_fn(self):
+        pname, node, group = self.param_names[0], self.location, self.group
+
+        def fn(theta, struct):
+            c = float(theta[pname])
+            return struct if c == 0.0 else struct.add_joint_damping(node, group, c)
+
+        return fn
+
+    def phrase(self) -> str:
+        return f"a {self.describe_value()} dashpot {self.name[len('damping '):]}"
+
+
+def _check_support_dofs(effect, model) -> None:
+    """The support's DOFs are DOFs of ``model`` and each carries at least its modelled stiffness on the
+    diagonal of ``K`` (ModelError saying which do not)."""
+    info = _structure_info(model)
+    unknown = [d for d in effect.dofs if d not in info["locations"]]
+    if unknown:
+        raise ModelError(f"support {effect.location!r}: unknown DOFs {unknown}; give DOF labels of the "
+                         "model.")
+    mats = model.build_structure().matrices()
+    diag = np.asarray(mats.stiffness.diagonal()).reshape(-1)
+    labels = list(mats.dof_labels)
+    short = [(d, k0) for d, k0 in zip(effect.dofs, effect.stiffness)
+             if diag[labels.index(d)] < k0 * (1 - 1e-9)]
+    if short:
+        d, k0 = short[0]
+        raise ModelError(
+            f"support {effect.location!r}: the modelled stiffness {k0:g} at {d} exceeds the model's own "
+            f"K[{d}, {d}] = {diag[labels.index(d)]:g}; give the grounded spring the model has there."
+        )
+
+
+@dataclass(frozen=True)
+class DofSupportFlexibility(_StructEffect):
+    """A support of a user's matrix or FE model softer than modelled, from as modelled to free.
+
+    The model grounds DOFs ``dofs`` through springs of stiffness ``k0`` (a foundation, a mount, a CBUSH
+    to ground, a clamp the user modelled as a stiff spring); the effect puts one compliance ``c`` in
+    series with each, ``k = k0 / (1 + c k0)``: ``c = 0`` is the model, a large ``c`` a free DOF. Named
+    by the user (``rc.effects.candidates(model, supports={"base": (["1:Z", "9:Z"], 2e6)})``): a
+    matrix model does not say which of its springs hold it to the ground. Screened over its whole range
+    (``coarse_screen``), as :class:`DofPairJoint`. Name the translations and the rotations of a support
+    as two supports (their compliances have different units). A support eliminated from the matrices (a
+    clamp, an SPC) has no DOF left to soften; a frame's clamps are :class:`SupportFlexibility`.
+
+    Parameters
+    ----------
+    location : str
+        The support's name.
+    dofs : tuple of str
+        The DOF labels it holds.
+    stiffness : tuple of float
+        ``k0`` at each DOF, the grounded spring in the model (N/m, or N m/rad at rotations).
+    compliance : float
+        ``c`` in m/N (rad/(N m) at rotations), neutral 0.
+    """
+
+    dofs: tuple[str, ...] = ()
+    stiffness: tuple[float, ...] = ()
+    compliance: float = 0.0
+
+    kind: ClassVar[str] = "dof_support_flexibility"
+    sweep: ClassVar[str | None] = "structure"
+    calibration: ClassVar[str] = "none"
+    coarse_screen: ClassVar[bool] = True
+    _value_fields: ClassVar[tuple[str, ...]] = ("compliance",)
+
+    def __post_init__(self) -> None:
+        dofs = (self.dofs,) if isinstance(self.dofs, str) else tuple(str(d) for d in self.dofs)
+        k0 = np.atleast_1d(np.asarray(self.stiffness, dtype=float)).reshape(-1)
+        if k0.size == 1 and len(dofs) > 1:
+            k0 = np.full(len(dofs), float(k0[0]))
+        ok = bool(dofs) and k0.size == len(dofs) and len(set(dofs)) == len(dofs)
+        if not ok or not np.all(np.isfinite(k0) & (k0 > 0)):
+            raise ModelError(
+                "a support needs its DOF labels (each once) and the model's grounded stiffness k0 > 0 at "
+                "each "
+                f"(one number for all, or one per DOF); got dofs={self.dofs!r}, stiffness={self.stiffness!r}."
+            )
+        object.__setattr__(self, "dofs", dofs)
+        object.__setattr__(self, "stiffness", tuple(float(k) for k in k0))
+        super().__post_init__()
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """One per support the user named (``candidates(..., supports=...)``); typical size: the stiffest
+        DOF 5 % softer."""
+        return [cls(name, dofs=dofs, stiffness=k0).with_scale(0.05 / max(k0))
+                for name, (dofs, k0) in ctx.supports.items()]
+
+    @property
+    def name(self) -> str:
+        return f"flexible support {self.location} ({', '.join(self.dofs)})"
+
+    @property
+    def description(self) -> str:
+        return (f"The support {self.location} holding {', '.join(self.dofs)} is softer than modelled (a "
+                "foundation, a mount, bolts): lowers the modes that load it, towards those of a free end.")
+
+    def _check_location(self, model):
+        _check_support_dofs(self, model)
+
+    def _specs(self):
+        k0 = max(self.stiffness)
+        return [ParamSpec(base="support_compliance", unit="m/N", bounds=(0.0, 1e3 / min(self.stiffness)),
+                          neutral=0.0, default_scale=0.05 / k0,
+                          meaning=f"series compliance of support {self.location} at each of its DOFs")]
+
+    def _stage_fn(self):
+        pname, dofs, k0 = self.param_names[0], self.dofs, self.stiffness
+
+        def fn(theta, struct):
+            c = float(theta[pname])
+            if c == 0.0:
+                return struct
+            for d, k in zip(dofs, k0):
+                struct = struct.add_spring(d, -c * k * k / (1.0 + c * k))
+            return struct
+
+        return fn
+
+    def describe_value(self, values=None) -> str:
+        vals = self.values if values is None else values
+        c = float(vals.get(self.param_names[0], self.compliance))
+        k0 = max(self.stiffness)
+        return "as modelled" if c <= 0 else f"{k0 / (1.0 + c * k0):.3g} instead of {k0:.3g}"
+
+    def phrase(self) -> str:
+        return f"a {self.name} of stiffness {self.describe_value()}"
+
+
+@dataclass(frozen=True)
+class StingerConstraint(_StructEffect):
+    """The stinger's restraint of a driving point: the grounded lateral, rotational and torsional
+    stiffness of the drive rod between shaker and force gauge, which the gauge does not measure.
+
+    A stinger is meant to pass only an axial force; with the force gauge at the structure (Ewins,
+    *Modal Testing: Theory, Practice and Application*, 2000, sec. 3.6) its axial stiffness and the
+    shaker sit behind the gauge and change the force, not the measured FRF, while its bending and
+    torsion restrain the drive point unmeasured: a short or thick rod stiffens the modes that move or
+    rotate the drive point across the drive axis. Modelled as a round rod of length ``length``
+    clamped in the armature (:func:`~robustctl.physical.structure_base.stinger_stiffness`), one
+    parameter: its lateral stiffness ``k = 12 E I / L^3``. Made at every point force of a frame, and
+    of a matrix or FE model whose drive DOF is labelled ``"node:direction"``; the mass between gauge
+    and structure is the drive point's :class:`~robustctl.physical.effects.structural.AddedMass`
+    (and :class:`TransducerMass` with the drive points).
+
+    Parameters
+    ----------
+    location : str
+        The drive point (node or DOF).
+    drive : str
+        The force input the stinger carries.
+    stiffness : float
+        Lateral stiffness ``12 E I / L^3`` in N/m (neutral 0: an ideal stinger).
+    length : float
+        The rod's free length in m (default :data:`~robustctl.physical.structure_base.STINGER_LENGTH`).
+    """
+
+    drive: str = ""
+    stiffness: float = 0.0
+    length: float = STINGER_LENGTH
+
+    kind: ClassVar[str] = "stinger"
+    sweep: ClassVar[str | None] = "structure"
+    calibration: ClassVar[str] = "shift"
+    _value_fields: ClassVar[tuple[str, ...]] = ("stiffness",)
+
+    def __post_init__(self) -> None:
+        if not self.drive or not (np.isfinite(float(self.length)) and float(self.length) > 0):
+            raise ModelError(f"a stinger needs the force input it carries (drive=) and a length > 0 (m); got "
+                             f"drive={self.drive!r}, length={self.length!r}.")
+        super().__post_init__()
+
+    @classmethod
+    def candidates_at(cls, ctx, where):
+        """One per point force whose drive point can carry one (a frame node; a matrix DOF labelled
+        ``"node:direction"``), at :data:`~robustctl.physical.structure_base.STINGER_LENGTH`."""
+        out = []
+        for name in _structure_signals(ctx.model, "input"):
+            loc = ctx.structure.signal_location("input", name)
+            if loc is None or not _carries_stinger(ctx.structure, name):
+                continue
+            out.append(cls(loc, drive=name))
+        return out
+
+    @property
+    def name(self) -> str:
+        return f"stinger restraint of {self.drive} at {self._at()}"
+
+    @property
+    def description(self) -> str:
+        return (f"The drive rod of {self.drive} restrains {self._at()} across its axis and in rotation, "
+                "unmeasured by the force gauge: stiffens the modes that move the drive point sideways or "
+                "rotate it.")
+
+    def _suffix(self) -> str:
+        return "__" + _slug(self.drive)
+
+    def _check_location(self, model):
+        struct = model.build_structure()
+        if (self.drive not in struct.matrices().inputs
+                or struct.signal_location("input", self.drive) != self.location):
+            raise ModelError(f"{self.kind}: the model has no point force {self.drive!r} at "
+                             f"{self.location!r}.")
+        if not _carries_stinger(struct, self.drive):
+            raise ModelError(f"{self.kind}: the drive point of {self.drive!r} cannot carry a stinger (a "
+                             "frame's point force, or a matrix DOF labelled 'node:direction').")
+
+    def _specs(self):
+        return [ParamSpec(base="stinger_stiffness", unit="N/m", bounds=(0.0, 1e12), neutral=0.0,
+                          default_scale=100.0,
+                          meaning=f"lateral stiffness 12 E I / L^3 of the stinger of {self.drive} "
+                                  f"(L = {self.length:g} m)")]
+
+    def _stage_fn(self):
+        pname, drive, length = self.param_names[0], self.drive, float(self.length)
+
+        def fn(theta, struct):
+            k = float(theta[pname])
+            return struct if k == 0.0 else struct.add_stinger(drive, k, length)
+
+        return fn
+
+    def changes_preload(self, gravity_direction) -> bool:
+        """Its lateral springs carry weight whenever gravity has a component across the drive axis,
+        which the effect does not know without the structure: taken as changing the preload."""
+        return True
+
+    def phrase(self) -> str:
+        return (f"a stinger of {self.describe_value()} lateral stiffness on {self.drive} at {self._at()} "
+                f"({self.length * 1e3:.3g} mm rod)")
+
+
+def _carries_stinger(struct, name: str) -> bool:
+    """Whether force input ``name`` of ``struct`` can carry a stinger (its ``add_stinger`` works at a unit
+    stiffness on a copy)."""
+    copy = struct.copy() if hasattr(struct, "copy") else struct.without(())
+    try:
+        copy.add_stinger(name, 1.0)
+    except ModelError:
+        return False
+    return True
+
+
 __all__ = ["TransducerMass", "AttachedResonator", "DofPairJoint", "SupportFlexibility", "JointDamping",
-           "RESONATORS_PER_OCTAVE",
+           "FrameJointDamping", "DofSupportFlexibility", "StingerConstraint", "RESONATORS_PER_OCTAVE",
            "RESONATORS_MAX"]
