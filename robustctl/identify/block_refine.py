@@ -11,9 +11,9 @@ their error. For given poles ``p`` and input shapes ``b`` it is linear in the ou
 1973, variable projection): the nonlinear problem has only ``2 M (1 + n_in)`` unknowns
 (``log(-Re p)``, ``Im p``, ``Re b``, ``Im b``), whatever the number of outputs, and each
 residual evaluation is one batched solve of ``n_out`` small normal-equation systems. The
-residual is the relative one of MACE eq. 5 (``rw = sqrt(w)/|g|``). Levenberg-Marquardt with a
-finite-difference Jacobian (``scipy.optimize.least_squares(method="lm")``), converged to
-``CLUSTER_TOL``.
+residual is the relative one of MACE eq. 5 (``rw = sqrt(w)/|g|``). Levenberg-Marquardt
+(``scipy.optimize.least_squares(method="lm")``) with the projected residual's exact Jacobian
+(:class:`_Projection`), converged to ``CLUSTER_TOL``.
 """
 
 from __future__ import annotations
@@ -34,10 +34,13 @@ LOG_DECAY_MAX = 700.0
 __all__ = ["refine_cluster"]
 
 
-def _basis(s: np.ndarray, poles: np.ndarray, bs: np.ndarray, truncation: Any = None) -> np.ndarray:
+def _basis(
+    s: np.ndarray, poles: np.ndarray, bs: np.ndarray, truncation: Any = None, terms=None
+) -> np.ndarray:
     """Columns (K, n_in, 2M + 2 n_in): per mode the Re c and Im c columns, then the complex constants
-    (the truncated record's terms with ``truncation``, eq. T1)."""
-    a, ab, _, _ = leaked_terms(s, poles, truncation)  # (K, M)
+    (the truncated record's terms with ``truncation``, eq. T1); ``terms`` are
+    :func:`.tail.leaked_terms` of ``poles`` when already computed."""
+    a, ab, _, _ = leaked_terms(s, poles, truncation) if terms is None else terms  # (K, M)
     u = a[:, None, :] * bs.T[None] + ab[:, None, :] * np.conj(bs.T)[None]  # (K, n_in, M)
     v = 1j * (a[:, None, :] * bs.T[None] - ab[:, None, :] * np.conj(bs.T)[None])
     k, n_in = s.size, bs.shape[1]
@@ -46,25 +49,40 @@ def _basis(s: np.ndarray, poles: np.ndarray, bs: np.ndarray, truncation: Any = N
     return np.concatenate([cols, eye + 0j, 1j * eye], axis=-1)
 
 
-def _solve(x: np.ndarray, target: np.ndarray, rw2: np.ndarray) -> np.ndarray:
-    """Per-output weighted least squares, batched normal equations; returns (n_out, n_cols)."""
+def _gram(x: np.ndarray, rw2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-output Gram matrices of the weighted real basis, column-scaled with a 1e-12 ridge:
+    ``(gs, scale)`` with ``gs[o] = S G_o S + 1e-12 I`` and ``S = diag(scale[o])``; (n_out, U, U)."""
     k, n_in, u = x.shape
     z = (np.conj(x)[:, :, :, None] * x[:, :, None, :]).reshape(k * n_in, u * u)
     w = np.transpose(rw2, (0, 2, 1)).reshape(k * n_in, -1)  # (K n_in, n_out)
     gram = (z.real.T @ w).T.reshape(-1, u, u)
-    xc = np.conj(x).reshape(k * n_in, u)
-    rhs = (xc.T @ np.transpose(rw2 * target, (0, 2, 1)).reshape(k * n_in, -1)).real.T
     scale = 1.0 / np.sqrt(np.maximum(np.einsum("oii->oi", gram), 1e-300))
     gs = gram * scale[:, :, None] * scale[:, None, :]
     gs += 1e-12 * np.eye(gs.shape[-1])[None]
-    return np.linalg.solve(gs, (rhs * scale)[:, :, None])[:, :, 0] * scale
+    return gs, scale
+
+
+def _gram_solve(gs: np.ndarray, scale: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """``G_o^{-1} rhs[o]`` with the scaled, ridged Gram of :func:`_gram`; rhs (n_out, U, ...)."""
+    tail = rhs.shape[2:]
+    flat = rhs.reshape(rhs.shape[0], rhs.shape[1], -1) * scale[:, :, None]
+    return (np.linalg.solve(gs, flat) * scale[:, :, None]).reshape(rhs.shape[:2] + tail)
+
+
+def _solve(x: np.ndarray, target: np.ndarray, rw2: np.ndarray, gram=None) -> np.ndarray:
+    """Per-output weighted least squares, batched normal equations; returns (n_out, n_cols)."""
+    k, n_in, u = x.shape
+    gs, scale = _gram(x, rw2) if gram is None else gram
+    xc = np.conj(x).reshape(k * n_in, u)
+    rhs = (xc.T @ np.transpose(rw2 * target, (0, 2, 1)).reshape(k * n_in, -1)).real.T
+    return _gram_solve(gs, scale, rhs[:, :, None])[:, :, 0]
 
 
 #: relative cost and step tolerance of a cluster's refinement: converged far below any decision
 #: taken on the result (a swap kept, a block accepted), so round-off cannot move those decisions
 CLUSTER_TOL = 1e-10
-#: cap of a cluster's Levenberg-Marquardt iterations, per nonlinear parameter (a bound on the work;
-#: the Jacobian's finite differences are counted apart)
+#: cap of a cluster's Levenberg-Marquardt residual evaluations, per nonlinear parameter (a bound on
+#: the work, not the stopping rule: the refinement stops at CLUSTER_TOL)
 MAX_ITER_PER_PARAM = 40
 
 
@@ -80,6 +98,106 @@ def _unpack(theta: np.ndarray, m: int, n_in: int):
     poles = -_decay(theta[:m], omega) + 1j * omega
     b = theta[2 * m :].reshape(m, 2, n_in)
     return poles, b[:, 0] + 1j * b[:, 1]
+
+
+def _column_derivatives(terms, bs: np.ndarray, dsigma: np.ndarray, domega: tuple) -> np.ndarray:
+    """``d X[:, :, (Re c_m, Im c_m)] / d theta_j`` for every parameter ``j`` (the only two columns of
+    the basis a parameter moves: those of its mode), (n_par, K, n_in, 2), parameters in the order of
+    :func:`_unpack` (``log`` decays, ``Im p``, then per mode ``Re b`` and ``Im b``).
+
+    A pole parameter moves ``a = 1/(s - p)`` by ``da dp`` and ``ab = 1/(s - conj p)`` by
+    ``dab d conj(p)`` (``dp/d theta = -exp(theta)``, ``dp/d Im p = j - ZETA_MIN sign(Im p)``); an
+    input shape entry ``b_i`` moves only input ``i``'s rows of ``u = a b + ab conj(b)`` and
+    ``v = j (a b - ab conj(b))``."""
+    a, ab, da, dab = terms  # (K, M)
+    m, n_in = bs.shape
+    k = a.shape[0]
+    fp = (dsigma, domega[0])  # d p / d theta, d p / d omega (per mode)
+    fq = (dsigma, domega[1])  # d conj(p) / d theta, d conj(p) / d omega
+    out = np.zeros((2 * m + 2 * m * n_in, k, n_in, 2), dtype=complex)
+    for q in range(2):
+        ea, eab = da * fp[q][None], dab * fq[q][None]  # (K, M)
+        pa = ea[:, None, :] * bs.T[None]  # (K, n_in, M)
+        pb = eab[:, None, :] * np.conj(bs.T)[None]
+        out[q * m : (q + 1) * m, :, :, 0] = np.moveaxis(pa + pb, -1, 0)
+        out[q * m : (q + 1) * m, :, :, 1] = np.moveaxis(1j * (pa - pb), -1, 0)
+    plus, minus = (a + ab).T, (a - ab).T  # (M, K)
+    for mode in range(m):
+        base = 2 * m + 2 * mode * n_in
+        for i in range(n_in):
+            out[base + i, :, i, 0], out[base + i, :, i, 1] = plus[mode], 1j * minus[mode]  # Re b_i
+            out[base + n_in + i, :, i, 0] = 1j * minus[mode]  # Im b_i
+            out[base + n_in + i, :, i, 1] = -plus[mode]
+    return out
+
+
+class _Projection:
+    """The variable-projection residual of a cluster and its exact Jacobian (Golub & Pereyra 1973).
+
+    For poles and input shapes ``theta`` the weighted basis ``A_o = rw_o X`` of output ``o`` gives
+    the linear coefficients ``c_o = A_o^+ b_o`` and the projected residual ``r_o = A_o c_o - b_o``
+    (real-stacked rows). Its derivative is
+
+        d r_o / d theta_j = P_o^perp (dA_o/dtheta_j) c_o - (A_o^+)^T (dA_o/dtheta_j)^T r_o
+                          = v_j - A_o G_o^{-1} (A_o^T v_j + (dA_o/dtheta_j)^T r_o),
+
+    with ``v_j = (dA_o/dtheta_j) c_o`` and ``G_o = A_o^T A_o`` (the Gram of the residual's own
+    solve, same scaling and ridge). Both terms are kept (Kaufman's approximation drops the
+    second), so the Jacobian is the residual's derivative to round-off and the finite differences
+    of the residual check it. Each Jacobian costs about two residual evaluations, against
+    ``n_par`` for finite differences. The state of the last ``theta`` is kept, since the solver
+    asks for the residual and the Jacobian at the same point."""
+
+    def __init__(self, s, target, rw, m, n_in, truncation):
+        self.s, self.target, self.rw, self.rw2 = s, target, rw, rw**2
+        self.m, self.n_in, self.truncation = m, n_in, truncation
+        self._key, self._state = None, None
+
+    def state(self, theta: np.ndarray):
+        key = theta.tobytes()
+        if key != self._key:
+            p, b = _unpack(theta, self.m, self.n_in)
+            terms = leaked_terms(self.s, p, self.truncation)
+            x = _basis(self.s, p, b, terms=terms)
+            gram = _gram(x, self.rw2)
+            coef = _solve(x, self.target, self.rw2, gram)
+            model = np.swapaxes(x @ coef.T, 1, 2)  # (K, n_out, n_in)
+            self._key, self._state = key, (p, b, terms, x, gram, coef, model)
+        return self._state
+
+    def residual(self, theta: np.ndarray) -> np.ndarray:
+        model = self.state(theta)[-1]
+        r = self.rw * (model - self.target)
+        return np.concatenate([r.real.ravel(), r.imag.ravel()])
+
+    def jacobian(self, theta: np.ndarray) -> np.ndarray:
+        p, b, terms, x, (gs, scale), coef, model = self.state(theta)
+        m = self.m
+        omega = theta[m : 2 * m]
+        dsigma = -np.exp(theta[:m]) * (theta[:m] < LOG_DECAY_MAX)  # d Re p / d theta (clamped: 0)
+        tilt = -ZETA_MIN * np.sign(omega)
+        dx = _column_derivatives(terms, b, dsigma + 0j, (tilt + 1j, tilt - 1j))  # (J, K, n_in, 2)
+        n_par = dx.shape[0]
+        pair = np.arange(2 * m).reshape(m, 2)  # the two columns of each mode
+        cols = np.concatenate([pair, pair, np.repeat(pair, 2 * self.n_in, axis=0)])  # of each parameter
+        cj = coef[:, cols]  # (n_out, J, 2)
+        k, n_in, u = x.shape
+        n_out = coef.shape[0]
+        dxt = np.transpose(dx, (1, 2, 0, 3))  # (K, n_in, J, 2)
+        delta = dxt[None, ..., 0] * cj[:, None, None, :, 0] + dxt[None, ..., 1] * cj[:, None, None, :, 1]
+        rho = self.rw2 * (model - self.target)  # rw * weighted residual, (K, n_out, n_in)
+        rows = np.conj(np.transpose(dx, (0, 3, 1, 2)).reshape(n_par * 2, k * n_in))
+        w_sel = (rows @ np.transpose(rho, (0, 2, 1)).reshape(k * n_in, n_out)).real.reshape(n_par, 2, n_out)
+        w = np.zeros((n_out, u, n_par))
+        w[:, cols[:, 0], np.arange(n_par)] = w_sel[:, 0].T
+        w[:, cols[:, 1], np.arange(n_par)] = w_sel[:, 1].T
+        xf = x.reshape(k * n_in, u)
+        weighted = (np.transpose(self.rw2, (1, 0, 2))[..., None] * delta).reshape(n_out, k * n_in, n_par)
+        z = (np.conj(xf).T @ weighted).real  # A_o^T v_j, (n_out, U, J)
+        y = _gram_solve(gs, scale, z + w)
+        jac = (delta - (xf @ y).reshape(n_out, k, n_in, n_par)) * np.transpose(self.rw, (1, 0, 2))[..., None]
+        jac = np.transpose(jac, (1, 0, 2, 3)).reshape(-1, n_par)  # rows as the residual's (K, n_out, n_in)
+        return np.concatenate([jac.real, jac.imag])
 
 
 def refine_cluster(
@@ -109,8 +227,8 @@ def refine_cluster(
     bs : ndarray, complex, shape (M, n_in)
         Starting input shapes.
     max_nfev : int, optional
-        Cap of residual evaluations, the finite-difference Jacobian's included (default
-        ``MAX_ITER_PER_PARAM`` iterations per parameter); the refinement stops at ``CLUSTER_TOL``.
+        Cap of residual evaluations (default ``MAX_ITER_PER_PARAM`` per nonlinear parameter); the
+        refinement stops at ``CLUSTER_TOL`` well before it.
     truncation : TruncationSettings, optional
         Fit the truncated record's terms (eq. T1 of :mod:`.leakage`) to raw impact data.
 
@@ -120,26 +238,28 @@ def refine_cluster(
     """
     m, n_in = bs.shape
     rw2 = rw**2
-
-    def resid(theta):
-        p, b = _unpack(theta, m, n_in)
-        x = _basis(s, p, b, truncation)
-        coef = _solve(x, target, rw2)
-        model = np.swapaxes(x @ coef.T, 1, 2)  # (K, n_out, n_in)
-        r = rw * (model - target)
-        return np.concatenate([r.real.ravel(), r.imag.ravel()])
+    proj = _Projection(s, target, rw, m, n_in, truncation)
 
     floor = ZETA_MIN * np.abs(poles.imag)
     sigma = np.maximum(-poles.real - floor, floor)
     log_sigma = np.log(np.maximum(sigma, np.finfo(float).tiny))
     theta0 = np.concatenate([log_sigma, poles.imag, np.stack([bs.real, bs.imag], axis=1).ravel()])
-    r0 = resid(theta0)
+    r0 = proj.residual(theta0)
     n_res = r0.size
     if n_res <= theta0.size:
         return poles, cs, bs, 0.0, 0.0
-    cap = max_nfev if max_nfev is not None else MAX_ITER_PER_PARAM * theta0.size * (theta0.size + 1)
-    sol = least_squares(resid, theta0, method="lm", x_scale="jac", max_nfev=cap, ftol=CLUSTER_TOL,
-                        xtol=CLUSTER_TOL, gtol=CLUSTER_TOL)
+    cap = max_nfev if max_nfev is not None else MAX_ITER_PER_PARAM * theta0.size
+    sol = least_squares(
+        proj.residual,
+        theta0,
+        jac=proj.jacobian,
+        method="lm",
+        x_scale="jac",
+        max_nfev=cap,
+        ftol=CLUSTER_TOL,
+        xtol=CLUSTER_TOL,
+        gtol=CLUSTER_TOL,
+    )
     before, after = float(r0 @ r0), float(sol.fun @ sol.fun)
     if not after < before:
         return poles, cs, bs, before, before

@@ -1,0 +1,101 @@
+"""The block refinement's analytic variable-projection Jacobian (Golub & Pereyra 1973) against
+central differences of a projected residual written here with numpy's ``lstsq``, with and without
+an impact record's truncation (eq. T1), and the refinement it drives recovering exact poles."""
+
+import numpy as np
+import pytest
+
+from robustctl.identify.block_refine import ZETA_MIN, _Projection, refine_cluster
+from robustctl.identify.tail import leaked_terms
+from robustctl.measure.impact_view import TruncationSettings
+
+
+def _cluster(seed: int = 0, noise: float = 0.05):
+    """Two modes 3 % apart (10 and 10.3 Hz, 1 % damping), 3 outputs x 2 inputs, 60 lines."""
+    rng = np.random.default_rng(seed)
+    poles = 2 * np.pi * np.array([10.0, 10.3]) * (-0.01 + 1j)
+    s = 2j * np.pi * np.linspace(9.0, 11.5, 60)
+    bs = rng.normal(size=(2, 2)) + 1j * rng.normal(size=(2, 2))
+    cs = rng.normal(size=(2, 3)) + 1j * rng.normal(size=(2, 3))
+    a, ab = 1 / (s[:, None] - poles), 1 / (s[:, None] - np.conj(poles))
+    g = np.einsum("km,mo,mi->koi", a, cs, bs) + np.einsum("km,mo,mi->koi", ab, np.conj(cs), np.conj(bs))
+    g = g * (1 + noise * (rng.normal(size=g.shape) + 1j * rng.normal(size=g.shape)))
+    rw = rng.uniform(0.5, 1.5, g.shape) / np.abs(g)
+    return s, g, rw, poles, cs, bs
+
+
+def _numpy_residual(theta, s, g, rw, m, n_in, truncation):
+    """The projected residual from scratch: poles ``-(ZETA_MIN |w| + exp(theta)) + j w``, per output
+    the real least-squares fit (numpy lstsq) of the mode columns ``a c b + ab conj(c b)`` and a
+    complex constant per input, real and imaginary parts stacked."""
+    omega = theta[m : 2 * m]
+    poles = -(ZETA_MIN * np.abs(omega) + np.exp(theta[:m])) + 1j * omega
+    b = theta[2 * m :].reshape(m, 2, n_in)
+    b = b[:, 0] + 1j * b[:, 1]
+    a, ab, _, _ = leaked_terms(s, poles, truncation)
+    out = np.zeros(g.shape, dtype=complex)
+    for o in range(g.shape[1]):
+        cols = []
+        for j in range(m):
+            cols += [
+                a[:, j, None] * b[j] + ab[:, j, None] * np.conj(b[j]),
+                1j * (a[:, j, None] * b[j] - ab[:, j, None] * np.conj(b[j])),
+            ]
+        for i in range(n_in):
+            e = np.zeros((s.size, n_in), dtype=complex)
+            e[:, i] = 1.0
+            cols += [e, 1j * e]
+        x = np.stack(cols, axis=-1) * rw[:, o, :, None]  # (K, n_in, U)
+        x = x.reshape(-1, x.shape[-1])
+        y = (rw[:, o] * g[:, o]).ravel()
+        coef = np.linalg.lstsq(np.vstack([x.real, x.imag]), np.concatenate([y.real, y.imag]), rcond=None)[0]
+        out[:, o] = (x @ coef - y).reshape(s.size, n_in)
+    return np.concatenate([out.real.ravel(), out.imag.ravel()])
+
+
+TRUNCATION = TruncationSettings(
+    fs_hz=64.0, record_s=2.0, hit_times_s=(0.1, 0.2), hit_weights=(0.6, 0.4), hit_spreads_s=(0.01, 0.02)
+)
+
+
+@pytest.mark.parametrize("truncation", [None, TRUNCATION], ids=["plain", "truncated"])
+def test_variable_projection_jacobian_matches_finite_differences(truncation):
+    s, g, rw, poles, _, bs = _cluster()
+    m, n_in = bs.shape
+    # a point away from the optimum: decays 10 % up, frequencies 0.1 % up, input shapes 5 % up
+    theta = np.concatenate(
+        [
+            np.log(-poles.real * 1.1 - ZETA_MIN * poles.imag),
+            poles.imag * 1.001,
+            np.stack([bs.real, bs.imag], axis=1).ravel() * 1.05,
+        ]
+    )
+    proj = _Projection(s, g, rw, m, n_in, truncation)
+    ref = _numpy_residual(theta, s, g, rw, m, n_in, truncation)
+    np.testing.assert_allclose(proj.residual(theta), ref, atol=1e-9 * np.max(np.abs(ref)))
+    jac = proj.jacobian(theta)
+    fd = np.empty_like(jac)
+    for j in range(theta.size):
+        h = 1e-6 * max(1.0, abs(theta[j]))
+        up, down = theta.copy(), theta.copy()
+        up[j], down[j] = up[j] + h, down[j] - h
+        fd[:, j] = (
+            _numpy_residual(up, s, g, rw, m, n_in, truncation)
+            - _numpy_residual(down, s, g, rw, m, n_in, truncation)
+        ) / (2 * h)
+    err = np.linalg.norm(jac - fd, axis=0) / np.linalg.norm(fd, axis=0)
+    assert np.all(err < 1e-6), err  # measured 2e-9 - 2e-8 (the differences' own error)
+
+
+def test_cluster_refinement_recovers_exact_poles_and_shapes():
+    """Noise-free data of the two modes, starts 0.3 % off in frequency and 30 % in damping: the
+    refined poles are the true ones to 1e-9 relative and the weighted cost falls to round-off."""
+    s, g, rw, poles, cs, bs = _cluster(noise=0.0)
+    start = poles.real * 1.3 + 1j * poles.imag * np.array([1.003, 0.997])
+    p, c, b, before, after = refine_cluster(s, g, rw, start, cs, bs)
+    order = np.argsort(p.imag)
+    np.testing.assert_allclose(p[order], poles, rtol=1e-9)
+    assert before > 1.0 and after < 1e-16 * before  # from 8.5 to 7e-20 measured
+    model = np.einsum("km,mo,mi->koi", 1 / (s[:, None] - p), c, b)
+    model += np.einsum("km,mo,mi->koi", 1 / (s[:, None] - np.conj(p)), np.conj(c), np.conj(b))
+    assert np.max(np.abs(model / g - 1)) < 1e-8  # the shapes are the true ones (the constant is 0)
