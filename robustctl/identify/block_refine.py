@@ -35,18 +35,29 @@ __all__ = ["refine_cluster"]
 
 
 def _basis(
-    s: np.ndarray, poles: np.ndarray, bs: np.ndarray, truncation: Any = None, terms=None
+    s: np.ndarray,
+    poles: np.ndarray,
+    bs: np.ndarray,
+    truncation: Any = None,
+    terms=None,
+    term_pole: np.ndarray | None = None,
+    complex_constant: bool = True,
 ) -> np.ndarray:
-    """Columns (K, n_in, 2M + 2 n_in): per mode the Re c and Im c columns, then the complex constants
-    (the truncated record's terms with ``truncation``, eq. T1); ``terms`` are
+    """Columns (K, n_in, 2T + n_const): per term ``t`` (pole ``term_pole[t]``, default one term per
+    pole) the Re c and Im c columns ``u = a b + ab conj(b)``, ``v = j (a b - ab conj(b))``, then
+    the constants per input (complex: two columns each; real: one); ``a``, ``ab`` are the
+    truncated record's terms with ``truncation`` (eq. T1); ``terms`` are
     :func:`.tail.leaked_terms` of ``poles`` when already computed."""
     a, ab, _, _ = leaked_terms(s, poles, truncation) if terms is None else terms  # (K, M)
-    u = a[:, None, :] * bs.T[None] + ab[:, None, :] * np.conj(bs.T)[None]  # (K, n_in, M)
+    if term_pole is not None:
+        a, ab = a[:, term_pole], ab[:, term_pole]
+    u = a[:, None, :] * bs.T[None] + ab[:, None, :] * np.conj(bs.T)[None]  # (K, n_in, T)
     v = 1j * (a[:, None, :] * bs.T[None] - ab[:, None, :] * np.conj(bs.T)[None])
     k, n_in = s.size, bs.shape[1]
     cols = np.stack([u, v], axis=-1).reshape(k, n_in, -1)
     eye = np.broadcast_to(np.eye(n_in)[None], (k, n_in, n_in))
-    return np.concatenate([cols, eye + 0j, 1j * eye], axis=-1)
+    const = [eye + 0j, 1j * eye] if complex_constant else [eye + 0j]
+    return np.concatenate([cols, *const], axis=-1)
 
 
 def _gram(x: np.ndarray, rw2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -86,53 +97,57 @@ CLUSTER_TOL = 1e-10
 MAX_ITER_PER_PARAM = 40
 
 
-def _decay(theta: np.ndarray, omega: np.ndarray) -> np.ndarray:
+def _decay(theta: np.ndarray, omega: np.ndarray, floor: float = ZETA_MIN) -> np.ndarray:
     """``-Re p = ZETA_MIN |Im p| + exp(theta)``: the damping ratio stays above ``ZETA_MIN`` (the
     dense refinement's bound) for every ``theta``, so a step can never leave a marginal pole
     (``exp`` of a large negative ``theta`` underflows to 0 and gave ``Re p = 0``)."""
-    return ZETA_MIN * np.abs(omega) + np.exp(np.minimum(theta, LOG_DECAY_MAX))
+    return floor * np.abs(omega) + np.exp(np.minimum(theta, LOG_DECAY_MAX))
 
 
-def _unpack(theta: np.ndarray, m: int, n_in: int):
+def _unpack(theta: np.ndarray, m: int, n_in: int, floor: float = ZETA_MIN):
+    """Poles (``m``) and input shapes (one row per term) of the parameter vector; ``-Re p =
+    floor |Im p| + exp(theta)`` (:func:`_decay`)."""
     omega = theta[m : 2 * m]
-    poles = -_decay(theta[:m], omega) + 1j * omega
-    b = theta[2 * m :].reshape(m, 2, n_in)
+    poles = -_decay(theta[:m], omega, floor) + 1j * omega
+    b = theta[2 * m :].reshape(-1, 2, n_in)
     return poles, b[:, 0] + 1j * b[:, 1]
 
 
-def _column_derivatives(terms, bs: np.ndarray, dsigma: np.ndarray, domega: tuple) -> np.ndarray:
-    """``d X[:, :, (Re c_m, Im c_m)] / d theta_j`` for every parameter ``j`` (the only two columns of
-    the basis a parameter moves: those of its mode), (n_par, K, n_in, 2), parameters in the order of
-    :func:`_unpack` (``log`` decays, ``Im p``, then per mode ``Re b`` and ``Im b``).
+def _column_derivatives(
+    terms, bs: np.ndarray, term_pole: np.ndarray, dpole: tuple, n_cols: int
+) -> np.ndarray:
+    """``d X / d theta_j`` for every parameter ``j`` (parameters in the order of :func:`_unpack`:
+    ``log`` decays, ``Im p``, then per term ``Re b`` and ``Im b``), (n_par, K, n_in, n_cols).
 
     A pole parameter moves ``a = 1/(s - p)`` by ``da dp`` and ``ab = 1/(s - conj p)`` by
-    ``dab d conj(p)`` (``dp/d theta = -exp(theta)``, ``dp/d Im p = j - ZETA_MIN sign(Im p)``); an
-    input shape entry ``b_i`` moves only input ``i``'s rows of ``u = a b + ab conj(b)`` and
-    ``v = j (a b - ab conj(b))``."""
+    ``dab d conj(p)`` in the columns of every term of that pole (``dpole``: ``(dp, d conj p)``
+    per pole for ``theta`` and for ``Im p``); an input shape entry ``b_i`` of a term moves only
+    input ``i``'s rows of its columns ``u = a b + ab conj(b)`` and ``v = j (a b - ab conj(b))``."""
     a, ab, da, dab = terms  # (K, M)
-    m, n_in = bs.shape
+    m = a.shape[1]
+    t, n_in = bs.shape
     k = a.shape[0]
-    fp = (dsigma, domega[0])  # d p / d theta, d p / d omega (per mode)
-    fq = (dsigma, domega[1])  # d conj(p) / d theta, d conj(p) / d omega
-    out = np.zeros((2 * m + 2 * m * n_in, k, n_in, 2), dtype=complex)
-    for q in range(2):
-        ea, eab = da * fp[q][None], dab * fq[q][None]  # (K, M)
-        pa = ea[:, None, :] * bs.T[None]  # (K, n_in, M)
+    out = np.zeros((2 * m + 2 * t * n_in, k, n_in, n_cols), dtype=complex)
+    cols = 2 * np.arange(t)
+    for q, (fp, fq) in enumerate(dpole):
+        ea, eab = (da * fp[None])[:, term_pole], (dab * fq[None])[:, term_pole]  # (K, T)
+        pa = ea[:, None, :] * bs.T[None]  # (K, n_in, T)
         pb = eab[:, None, :] * np.conj(bs.T)[None]
-        out[q * m : (q + 1) * m, :, :, 0] = np.moveaxis(pa + pb, -1, 0)
-        out[q * m : (q + 1) * m, :, :, 1] = np.moveaxis(1j * (pa - pb), -1, 0)
-    plus, minus = (a + ab).T, (a - ab).T  # (M, K)
-    for mode in range(m):
-        base = 2 * m + 2 * mode * n_in
+        rows = q * m + term_pole
+        out[rows, :, :, cols] = np.moveaxis(pa + pb, -1, 0)
+        out[rows, :, :, cols + 1] = np.moveaxis(1j * (pa - pb), -1, 0)
+    plus, minus = (a + ab)[:, term_pole].T, (a - ab)[:, term_pole].T  # (T, K)
+    for term in range(t):
+        base = 2 * m + 2 * term * n_in
         for i in range(n_in):
-            out[base + i, :, i, 0], out[base + i, :, i, 1] = plus[mode], 1j * minus[mode]  # Re b_i
-            out[base + n_in + i, :, i, 0] = 1j * minus[mode]  # Im b_i
-            out[base + n_in + i, :, i, 1] = -plus[mode]
+            out[base + i, :, i, 2 * term], out[base + i, :, i, 2 * term + 1] = plus[term], 1j * minus[term]
+            out[base + n_in + i, :, i, 2 * term] = 1j * minus[term]  # Im b_i
+            out[base + n_in + i, :, i, 2 * term + 1] = -plus[term]
     return out
 
 
 class _Projection:
-    """The variable-projection residual of a cluster and its exact Jacobian (Golub & Pereyra 1973).
+    """The variable-projection residual of a set of terms and its exact Jacobian (Golub & Pereyra 1973).
 
     For poles and input shapes ``theta`` the weighted basis ``A_o = rw_o X`` of output ``o`` gives
     the linear coefficients ``c_o = A_o^+ b_o`` and the projected residual ``r_o = A_o c_o - b_o``
@@ -146,19 +161,31 @@ class _Projection:
     second), so the Jacobian is the residual's derivative to round-off and the finite differences
     of the residual check it. Each Jacobian costs about two residual evaluations, against
     ``n_par`` for finite differences. The state of the last ``theta`` is kept, since the solver
-    asks for the residual and the Jacobian at the same point."""
+    asks for the residual and the Jacobian at the same point.
 
-    def __init__(self, s, target, rw, m, n_in, truncation):
+    ``term_pole`` maps terms to poles (several terms share a pole of rank above 1; default one
+    term per pole); ``complex_constant`` chooses a complex constant per channel (a cluster's local
+    constant) or a real one (the model's feedthrough ``D``); ``floor`` the damping ratio below the
+    decay ``exp(theta)`` (:func:`_decay`; 0: ``-Re p = exp(theta)``, for a solver that bounds
+    ``theta`` itself)."""
+
+    def __init__(
+        self, s, target, rw, m, n_in, truncation, term_pole=None, complex_constant=True, floor=ZETA_MIN
+    ):
         self.s, self.target, self.rw, self.rw2 = s, target, rw, rw**2
         self.m, self.n_in, self.truncation = m, n_in, truncation
+        self.term_pole = np.arange(m) if term_pole is None else np.asarray(term_pole)
+        self.complex_constant, self.floor = complex_constant, floor
         self._key, self._state = None, None
 
     def state(self, theta: np.ndarray):
         key = theta.tobytes()
         if key != self._key:
-            p, b = _unpack(theta, self.m, self.n_in)
+            p, b = _unpack(theta, self.m, self.n_in, self.floor)
             terms = leaked_terms(self.s, p, self.truncation)
-            x = _basis(self.s, p, b, terms=terms)
+            x = _basis(
+                self.s, p, b, terms=terms, term_pole=self.term_pole, complex_constant=self.complex_constant
+            )
             gram = _gram(x, self.rw2)
             coef = _solve(x, self.target, self.rw2, gram)
             model = np.swapaxes(x @ coef.T, 1, 2)  # (K, n_out, n_in)
@@ -175,22 +202,18 @@ class _Projection:
         m = self.m
         omega = theta[m : 2 * m]
         dsigma = -np.exp(theta[:m]) * (theta[:m] < LOG_DECAY_MAX)  # d Re p / d theta (clamped: 0)
-        tilt = -ZETA_MIN * np.sign(omega)
-        dx = _column_derivatives(terms, b, dsigma + 0j, (tilt + 1j, tilt - 1j))  # (J, K, n_in, 2)
-        n_par = dx.shape[0]
-        pair = np.arange(2 * m).reshape(m, 2)  # the two columns of each mode
-        cols = np.concatenate([pair, pair, np.repeat(pair, 2 * self.n_in, axis=0)])  # of each parameter
-        cj = coef[:, cols]  # (n_out, J, 2)
+        tilt = -self.floor * np.sign(omega)
         k, n_in, u = x.shape
-        n_out = coef.shape[0]
-        dxt = np.transpose(dx, (1, 2, 0, 3))  # (K, n_in, J, 2)
-        delta = dxt[None, ..., 0] * cj[:, None, None, :, 0] + dxt[None, ..., 1] * cj[:, None, None, :, 1]
-        rho = self.rw2 * (model - self.target)  # rw * weighted residual, (K, n_out, n_in)
-        rows = np.conj(np.transpose(dx, (0, 3, 1, 2)).reshape(n_par * 2, k * n_in))
-        w_sel = (rows @ np.transpose(rho, (0, 2, 1)).reshape(k * n_in, n_out)).real.reshape(n_par, 2, n_out)
-        w = np.zeros((n_out, u, n_par))
-        w[:, cols[:, 0], np.arange(n_par)] = w_sel[:, 0].T
-        w[:, cols[:, 1], np.arange(n_par)] = w_sel[:, 1].T
+        dx = _column_derivatives(
+            terms, b, self.term_pole, ((dsigma + 0j, dsigma + 0j), (tilt + 1j, tilt - 1j)), u
+        )
+        n_par, n_out = dx.shape[0], coef.shape[0]
+        flat = dx.reshape(n_par, k * n_in, u)
+        delta = (flat @ coef.T).reshape(n_par, k, n_in, n_out)  # d(X c_o)/d theta_j
+        delta = np.transpose(delta, (3, 1, 2, 0))  # (n_out, K, n_in, J)
+        rho = np.transpose(self.rw2 * (model - self.target), (0, 2, 1)).reshape(k * n_in, n_out)
+        w = (np.conj(np.swapaxes(flat, 1, 2)) @ rho).real  # (dA_j/dtheta)^T r: (J, U, n_out)
+        w = np.transpose(w, (2, 1, 0))  # (n_out, U, J)
         xf = x.reshape(k * n_in, u)
         weighted = (np.transpose(self.rw2, (1, 0, 2))[..., None] * delta).reshape(n_out, k * n_in, n_par)
         z = (np.conj(xf).T @ weighted).real  # A_o^T v_j, (n_out, U, J)
