@@ -30,6 +30,9 @@ from .tail import leaked_terms
 ZETA_MIN = 1e-6
 #: largest ``theta`` of the decay rate ``exp(theta)``, 1/s (keeps ``exp`` finite for any step)
 LOG_DECAY_MAX = 700.0
+#: each residual entry where a parameter vector makes the projected residual inf or NaN: finite,
+#: and its cost far above any start's, so the solver rejects that step and shrinks its region
+NOT_FINITE = 1e150
 
 __all__ = ["refine_cluster"]
 
@@ -92,6 +95,10 @@ def _solve(x: np.ndarray, target: np.ndarray, rw2: np.ndarray, gram=None) -> np.
 #: relative cost and step tolerance of a cluster's refinement: converged far below any decision
 #: taken on the result (a swap kept, a block accepted), so round-off cannot move those decisions
 CLUSTER_TOL = 1e-10
+#: relative fall of the cost a refinement must reach for its result to replace the start: far above
+#: round-off (1e-16) and far below any decision taken on the result, so that a refinement that
+#: cannot improve returns its start whatever the BLAS kernel, not a round-off-different copy
+ACCEPT_MARGIN = 1e-10
 #: cap of a cluster's Levenberg-Marquardt residual evaluations, per nonlinear parameter (a bound on
 #: the work, not the stopping rule: the refinement stops at CLUSTER_TOL)
 MAX_ITER_PER_PARAM = 40
@@ -193,15 +200,20 @@ class _Projection:
         return self._state
 
     def residual(self, theta: np.ndarray) -> np.ndarray:
+        """The projected residual; at a ``theta`` where it is not finite (a singular projection, an
+        overflow), ``NOT_FINITE`` in every entry, so that a solver's step there fails its cost test
+        and the region shrinks (its Jacobian is never asked for there)."""
         model = self.state(theta)[-1]
         r = self.rw * (model - self.target)
-        return np.concatenate([r.real.ravel(), r.imag.ravel()])
+        r = np.concatenate([r.real.ravel(), r.imag.ravel()])
+        return r if np.all(np.isfinite(r)) else np.full(r.size, NOT_FINITE)
 
     def jacobian(self, theta: np.ndarray) -> np.ndarray:
         p, b, terms, x, (gs, scale), coef, model = self.state(theta)
         m = self.m
         omega = theta[m : 2 * m]
-        dsigma = -np.exp(theta[:m]) * (theta[:m] < LOG_DECAY_MAX)  # d Re p / d theta (clamped: 0)
+        clamped = theta[:m] >= LOG_DECAY_MAX  # d Re p / d theta is 0 there (not inf * 0)
+        dsigma = np.where(clamped, 0.0, -np.exp(np.minimum(theta[:m], LOG_DECAY_MAX)))
         tilt = -self.floor * np.sign(omega)
         k, n_in, u = x.shape
         dx = _column_derivatives(
@@ -284,10 +296,12 @@ def refine_cluster(
         gtol=CLUSTER_TOL,
     )
     before, after = float(r0 @ r0), float(sol.fun @ sol.fun)
-    if not after < before:
+    if not (np.all(np.isfinite(sol.x)) and after < before * (1 - ACCEPT_MARGIN)):
         return poles, cs, bs, before, before
     p, b = _unpack(sol.x, m, n_in)
     coef = _solve(_basis(s, p, b, truncation), target, rw2)
+    if not np.all(np.isfinite(coef)):
+        return poles, cs, bs, before, before
     c = coef[:, : 2 * m].reshape(-1, m, 2)
     c = (c[:, :, 0] + 1j * c[:, :, 1]).T  # (M, n_out)
     return p, c, b, before, after
