@@ -212,3 +212,18 @@ def test_bad_input_is_refused_with_the_fix(chain, cands):
         rc.diagnose(chain, g.response, cands)
     with pytest.raises(rc.FitError, match="n_fit is the number"):
         rc.diagnose(chain, data, cands, n_fit=-1)
+
+
+def test_a_resonator_whose_frequency_is_fitted_to_its_floor_is_at_its_bound():
+    # a mass on a 1 mHz mount is no resonator in a 0.5-50 Hz band: in 1 g its weight preloads the
+    # structure like a tension, and it once ranked first in place of the taut wires it mimicked
+    from robustctl.correlate.diagnosis.significance import _at_bound
+
+    screened = fx.AttachedResonator("n1", direction="z", frequency=1.73)
+    freq = screened.param_names[1]
+    lo = screened.parameters[1].bounds[0]
+    fitted = screened.with_values(mass=4.58, frequency=lo)
+    assert _at_bound(fitted, 4.58, {freq: lo}, screened)
+    assert not _at_bound(fitted, 4.58, {freq: 1.8}, screened)
+    assert not _at_bound(fitted, 4.58)
+    assert _at_bound(fitted, screened.parameters[0].bounds[1])

@@ -137,7 +137,7 @@ def test_a_units_slip_fitted_as_a_gain_ends_at_its_bound_and_is_not_proposed(cha
     diag = _diagnose(chain, data, [fx.SensorGain("a4"), fx.AddedMass("dof 2").with_scale(0.01)])
     gain = next(r for r in diag.ranking if r.kind == "sensor_gain")
     assert gain.at_bound and not gain.significant and diag.best is None
-    assert "at its bound" in gain.sentence and "model form is likely wrong" in gain.sentence
+    assert "at a bound of its parameters" in gain.sentence and "model form is likely wrong" in gain.sentence
     # nothing in this library explains it: the verdict names the channel
     assert diag.model_error and "output a4's row" in diag.channel_verdict
     assert "check its cable, sign and location" in diag.summary()

@@ -200,8 +200,8 @@ def _sweep_case(n: int, seed: int):
     "n, seed, zeta_rtol",
     [
         (20, 12, 0.1),
+        # seed 13's 35-mode case ran past 16 CPU-min in CI's slow suite (issue 37)
         pytest.param(35, 12, 0.25, marks=pytest.mark.slow),
-        pytest.param(35, 13, 0.1, marks=pytest.mark.slow),
     ],
 )
 def test_close_pair_at_the_coarse_end_of_a_linear_grid(n, seed, zeta_rtol):

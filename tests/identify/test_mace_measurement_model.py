@@ -30,6 +30,7 @@ def test_modes_at_the_damping_bound_are_found_and_named():
 def test_mace_measurement_model_fits_the_design_channels_near_the_noise_with_physical_modes():
     from robustctl.demo import EXAMPLES
     from robustctl.demo_mace import RWA_INPUTS, RWA_OUTPUTS, _measurement_model
+    from robustctl.lti import as_statespace
 
     data, truth = EXAMPLES["mace"]().experiment(0)
     with warnings.catch_warnings(record=True) as caught:
@@ -55,9 +56,18 @@ def test_mace_measurement_model_fits_the_design_channels_near_the_noise_with_phy
     assert rms_db(model) < 1.5 * rms_db(meas)
     f_modes = np.array([m.f_hz for m in mm.modes])
     resolution = float(np.median(np.diff(data.f_hz)))  # 0.195 Hz, wider than the 1.39 Hz peak
+    lam = np.linalg.eigvals(np.asarray(as_statespace(truth).A))
+    f_all = np.abs(lam) / (2 * np.pi)
+    f_all = f_all[(lam.imag > 0) & (-lam.real < 0.2 * np.abs(lam))]
     for f_true in TRUTH_MODES_HZ:
-        # a resolution-limited peak is located to a fraction of a bin: a quarter bin
-        assert np.min(np.abs(f_modes - f_true)) < 0.25 * resolution, (f_true, f_modes)
+        # a resolution-limited peak is located to a fraction of a bin: a quarter bin. Truth modes
+        # within a bin of each other (15.039-15.139 Hz: five modes in half a bin) are one peak of
+        # these data: the cluster is located, not each member (14.90 and 15.12 Hz on OpenBLAS's
+        # Haswell kernel, 15.04 elsewhere)
+        cluster = f_all[np.abs(f_all - f_true) < resolution]
+        lo, hi = min(cluster.min(), f_true), max(cluster.max(), f_true)
+        gap = np.maximum(np.maximum(lo - f_modes, f_modes - hi), 0.0)
+        assert np.min(gap) < 0.25 * resolution, (f_true, cluster, f_modes)
     assert all(m.zeta < 0.2 for m in mm.modes)  # heavily damped servo poles are fillers, not modes
     zeta_17 = mm.modes[int(np.argmin(np.abs(f_modes - 16.974)))].zeta
     assert 0.003 < zeta_17 < 0.015  # truth 0.58 %; 0.195 Hz resolution broadens it, never to 0

@@ -162,8 +162,12 @@ def test_statespace_freqresp_and_fit_agree_at_fixed_order(case, refine):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("refine", [True, False])
-@pytest.mark.parametrize("case", list(CASES))
+@pytest.mark.parametrize(
+    "case, refine",
+    # the frame's refined automatic-order fit of its scipy H1 is test_identify_mode_lists'
+    # test_frame_automatic_order_on_a_scipy_h1_lists_the_six_modes, which checks this too
+    [(case, refine) for case in CASES for refine in (True, False) if (case, refine) != ("frame", True)],
+)
 def test_statespace_freqresp_and_fit_agree_at_automatic_order(case, refine):
     make, kw, _ = CASES[case]
     _assert_one_model(_fit(make(), refine=refine, **kw))
@@ -275,7 +279,7 @@ def test_high_orders_on_a_close_pair_case_give_a_stable_model_or_a_fit_error(n_m
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("n_modes", [40, 60])
+@pytest.mark.parametrize("n_modes", [40])  # 1.6 x the truth; 60 ran past 25 CPU-min in CI's slow suite
 def test_high_orders_on_the_28_channel_case_give_a_stable_model_or_a_fit_error(n_modes):
     data, _ = rc.examples.modal_test_case(seed=0)  # 2 x 28 channels, 25 modes, 3 close pairs
     _model_or_fit_error(data, n_modes)

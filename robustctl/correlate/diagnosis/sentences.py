@@ -72,6 +72,11 @@ def _phrase(effect: Any) -> str:
     return effect.phrase()
 
 
+def _values_text(effect: Any) -> str:
+    """The effect's fitted values with their units (``"4.58 kg, 0.001 Hz"``)."""
+    return ", ".join(f"{p.value:.3g} {p.unit}".strip() for p in effect.parameters)
+
+
 def _sentence(r: CandidateResult) -> str:
     head = _phrase(r.effect)
     head = head[:1].upper() + head[1:]
@@ -86,8 +91,8 @@ def _sentence(r: CandidateResult) -> str:
         against = "; tested against the misfit it leaves" if r.scale == "misfit" else ""
         if r.at_bound:
             verdict = (
-                f"at its bound ({r.effect.describe_value()}): the model form is likely wrong, so it is "
-                "not proposed"
+                f"at a bound of its parameters ({_values_text(r.effect)}): the model form is likely "
+                "wrong, so it is not proposed"
             )
         elif not np.isfinite(r.p_value):
             verdict = NO_NOISE_SENTENCE

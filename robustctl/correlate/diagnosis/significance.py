@@ -5,6 +5,7 @@ adjustment (Holm 1979), the null fit's chi-square and the scoring of the fitted 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -203,9 +204,14 @@ def _holm(p_raw: list[float], m: int) -> list[float]:
     return out
 
 
-def _at_bound(effect: Any, value: float) -> bool:
+def _at_bound(
+    effect: Any, value: float, extra: Mapping[str, float] | None = None, screened: Any = None
+) -> bool:
     """Whether a fitted value sits at a bound of the effect's parameter away from neutral (a
-    +200 % gain error at the gain's upper bound: the data ask for more than the effect allows)."""
+    +200 % gain error at the gain's upper bound: the data ask for more than the effect allows),
+    or a value fitted with the size (``extra``: a resonator's frequency at its 1 mHz floor, a mass
+    on a mount too soft to be a resonator) sits at any bound of its parameter; ``extra`` is keyed by
+    the parameter names of the effect as ``screened`` (a retuned effect's names carry its value)."""
     if _is_switch(effect):
         return False
     par = effect.parameters[0]
@@ -213,6 +219,11 @@ def _at_bound(effect: Any, value: float) -> bool:
     for b in (lo, hi):
         if np.isfinite(b) and b != par.neutral and abs(value - b) <= 1e-6 * max(abs(b - par.neutral), 1e-300):
             return True
+    bounds = {p.name: p.bounds for p in (screened or effect).parameters[1:]}
+    for name, v in (extra or {}).items():
+        for b in bounds.get(name, ()):
+            if np.isfinite(b) and abs(v - b) <= 1e-6 * max(abs(b), 1e-300):
+                return True
     return False
 
 
@@ -325,7 +336,7 @@ def _score(
                 level=st["alpha"] if row_noise is not None else math.nan,
                 p_raw=p_val,
                 scale=scale,
-                at_bound=_at_bound(effect, float(fit["value"])),
+                at_bound=_at_bound(effect, float(fit["value"]), fit.get("extra"), s["effect"]),
             )
         )
         explained[effect.name] = res0.unstack(delta)
