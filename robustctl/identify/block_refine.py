@@ -11,9 +11,11 @@ their error. For given poles ``p`` and input shapes ``b`` it is linear in the ou
 1973, variable projection): the nonlinear problem has only ``2 M (1 + n_in)`` unknowns
 (``log(-Re p)``, ``Im p``, ``Re b``, ``Im b``), whatever the number of outputs, and each
 residual evaluation is one batched solve of ``n_out`` small normal-equation systems. The
-residual is the relative one of MACE eq. 5 (``rw = sqrt(w)/|g|``). Levenberg-Marquardt
-(``scipy.optimize.least_squares(method="lm")``) with the projected residual's exact Jacobian
-(:class:`_Projection`), converged to ``CLUSTER_TOL``.
+residual is the relative one of MACE eq. 5 (``rw = sqrt(w)/|g|``). A bounded trust region
+(``scipy.optimize.least_squares(method="trf")``, :func:`_solve_bounded`) with the projected
+residual's exact Jacobian (:class:`_Projection`) moves the scaled parameters of
+:func:`_scaled_problem` (the ones :func:`.modal_refine.refine_modes` moves for all modes at once),
+converged to ``CLUSTER_TOL``.
 """
 
 from __future__ import annotations
@@ -99,7 +101,18 @@ CLUSTER_TOL = 1e-10
 #: round-off (1e-16) and far below any decision taken on the result, so that a refinement that
 #: cannot improve returns its start whatever the BLAS kernel, not a round-off-different copy
 ACCEPT_MARGIN = 1e-10
-#: cap of a cluster's Levenberg-Marquardt residual evaluations, per nonlinear parameter (a bound on
+#: a complex pole decaying faster than this many times its frequency (damping ratio above
+#: 1 - 1e-7) is no oscillation but a numerically real pole (a pole identification can leave one at
+#: -1e41 with a residue of 1e32): it is held fixed, since its log-decay parameter would step
+#: past exp's range and turn the Jacobian into inf and NaN.
+NOT_AN_OSCILLATION = 1e3
+#: smallest ``Im p`` of a refined complex pole, relative to its start's ``|p|`` (a step may not turn
+#: it into a real pair or its own conjugate)
+OMEGA_MIN = 1e-3
+#: smallest unit of a pole's ``Im p`` in the trust region, relative to its ``|p|`` (a pole at the
+#: damping bound would otherwise move in steps of 1e-6 of its frequency)
+OMEGA_UNIT_MIN = 1e-4
+#: cap of a cluster's trust-region residual evaluations, per nonlinear parameter (a bound on
 #: the work, not the stopping rule: the refinement stops at CLUSTER_TOL)
 MAX_ITER_PER_PARAM = 40
 
@@ -235,6 +248,117 @@ class _Projection:
         return np.concatenate([jac.real, jac.imag])
 
 
+def _scaled_problem(poles0: np.ndarray, bs: np.ndarray):
+    """The start ``theta0`` of :class:`_Projection` (``log(-Re p)``, ``Im p``, ``Re b``,
+    ``Im b``), each parameter's unit and its bounds: the solver moves ``x = (theta - theta0) /
+    unit``, which starts at 0 (a trust region's first radius is then 1 unit, not the norm of the
+    start: about 1e4 rad/s of ``Im p``, which let the first step send a decay to ``exp(1e4)``).
+    Units: 1 for a log decay, the pole's decay ``-Re p`` (a half-power half-width, at least
+    ``OMEGA_UNIT_MIN |p|``) for ``Im p``, the term's ``|b|`` for its input shape. Bounds: the
+    damping ratio at least ``ZETA_MIN`` (of the start's ``|p|``) and the decay at most ``e
+    NOT_AN_OSCILLATION |p|`` (``exp`` and every Jacobian term finite), ``Im p`` at least
+    ``OMEGA_MIN |p|`` (a complex pole stays one). ``free`` marks the parameters the solver moves
+    (all but each term's largest input-shape entry)."""
+    m = poles0.size
+    mag = np.abs(poles0)
+    sigma = np.maximum(-poles0.real, 1e-9 * mag)  # damping kept strictly positive
+    lo_t, hi_t = np.log(ZETA_MIN * mag), np.log(NOT_AN_OSCILLATION * mag) + 1.0
+    log_sigma = np.clip(np.log(sigma), lo_t + 1e-12, hi_t - 1.0)
+    theta0 = np.concatenate([log_sigma, poles0.imag, np.stack([bs.real, bs.imag], axis=1).ravel()])
+    b_norm = np.linalg.norm(bs, axis=1)
+    b_unit = np.where(b_norm > 0, b_norm, 1.0)
+    omega_unit = np.maximum(sigma, OMEGA_UNIT_MIN * mag)
+    unit = np.concatenate([np.ones(m), omega_unit, np.repeat(b_unit, 2 * bs.shape[1])])
+    lower = np.full(theta0.size, -np.inf)
+    upper = np.full(theta0.size, np.inf)
+    lower[:m], upper[:m] = lo_t, hi_t
+    lower[m : 2 * m] = np.minimum(OMEGA_MIN * mag, poles0.imag * (1 - 1e-9))
+    # c b^T is unchanged by b -> alpha b, c -> c / alpha, and c is eliminated: each term's largest
+    # input-shape entry stays as it starts, which removes that null space of the Jacobian
+    free = np.ones(theta0.size, dtype=bool)
+    n_in = bs.shape[1]
+    for term, row in enumerate(bs):
+        if np.any(row != 0):
+            ref = 2 * m + 2 * term * n_in + int(np.argmax(np.abs(row)))
+            free[[ref, ref + n_in]] = False
+    return theta0, unit, free, (lower - theta0)[free] / unit[free], (upper - theta0)[free] / unit[free]
+
+
+class _Best:
+    """The residual and Jacobian of :class:`_Projection` in the scaled parameters of
+    :func:`_scaled_problem`, remembering the lowest finite cost evaluated (the refinement's
+    answer if the solver fails) and refusing a non-finite Jacobian (:class:`_NotFiniteError`)."""
+
+    def __init__(self, proj: _Projection, theta0: np.ndarray, unit: np.ndarray, free: np.ndarray):
+        self.proj, self.theta0, self.unit, self.free = proj, theta0, unit[free], free
+        self.cost, self.x = np.inf, None
+
+    def theta(self, x: np.ndarray) -> np.ndarray:
+        theta = np.array(self.theta0)
+        theta[self.free] += self.unit * x
+        return theta
+
+    def residual(self, x: np.ndarray) -> np.ndarray:
+        r = self.proj.residual(self.theta(x))
+        cost = float(r @ r)
+        if np.isfinite(cost) and np.all(r != NOT_FINITE) and cost < self.cost:
+            self.cost, self.x = cost, np.array(x)
+        return r
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        jac = self.proj.jacobian(self.theta(x))[:, self.free] * self.unit
+        if not np.all(np.isfinite(jac)):
+            raise _NotFiniteError
+        return jac
+
+
+class _NotFiniteError(ArithmeticError):
+    """A Jacobian entry overflowed: the solver stops and the best point so far is kept."""
+
+
+def _solve_bounded(
+    proj: _Projection, poles0: np.ndarray, bs: np.ndarray, max_nfev: int, before: float, tol: float
+):
+    """The trust-region solve (``least_squares(method="trf")``, relative cost, step and gradient
+    tolerance ``tol``) of :func:`refine_cluster` and :func:`.modal_refine.refine_modes` in the
+    scaled, bounded parameters of :func:`_scaled_problem`; the refined ``theta`` of
+    :class:`_Projection` (built with ``floor=0``), or ``None``
+    when nothing lowers the starting ``before`` cost by ``ACCEPT_MARGIN`` (relative). A solver
+    failure (a non-finite Jacobian, an SVD that does not converge) keeps the lowest-cost point it
+    evaluated."""
+    theta0, unit, free, lb, ub = _scaled_problem(poles0, bs)
+    best = _Best(proj, theta0, unit, free)
+    x0 = np.zeros(lb.size)
+    if not np.all(np.isfinite(best.residual(x0))):
+        return None
+    try:
+        # unit scaling, not x_scale="jac": near the damping bound the log-decay column vanishes
+        # with exp(theta), and a Jacobian-scaled trust region then lets that pole jump to the bound
+        # or not as round-off decides (the two-mode fit's spare pole: 15.09 Hz or 15.53 Hz)
+        sol = least_squares(
+            best.residual,
+            x0,
+            jac=best.jacobian,
+            bounds=(lb, ub),
+            method="trf",
+            x_scale=1.0,
+            max_nfev=max_nfev,
+            ftol=tol,
+            xtol=tol,
+            gtol=tol,
+        )
+        x = sol.x if np.all(np.isfinite(sol.fun)) and np.all(sol.fun != NOT_FINITE) else best.x
+    except (_NotFiniteError, np.linalg.LinAlgError, ValueError):
+        x = best.x
+    if x is None:
+        return None
+    r = best.residual(x)
+    finite = np.all(np.isfinite(r)) and np.all(r != NOT_FINITE)
+    if not (finite and float(r @ r) < before * (1 - ACCEPT_MARGIN)):
+        return None
+    return best.theta(x)
+
+
 def refine_cluster(
     s: np.ndarray,
     target: np.ndarray,
@@ -272,36 +396,25 @@ def refine_cluster(
     poles, cs, bs, cost_before, cost_after
     """
     m, n_in = bs.shape
-    rw2 = rw**2
-    proj = _Projection(s, target, rw, m, n_in, truncation)
-
-    floor = ZETA_MIN * np.abs(poles.imag)
-    sigma = np.maximum(-poles.real - floor, floor)
-    log_sigma = np.log(np.maximum(sigma, np.finfo(float).tiny))
-    theta0 = np.concatenate([log_sigma, poles.imag, np.stack([bs.real, bs.imag], axis=1).ravel()])
-    r0 = proj.residual(theta0)
-    n_res = r0.size
-    if n_res <= theta0.size:
+    proj = _Projection(s, target, rw, m, n_in, truncation, floor=0.0)
+    n_par = 2 * m * (1 + n_in)
+    if 2 * target.size <= n_par:
         return poles, cs, bs, 0.0, 0.0
-    cap = max_nfev if max_nfev is not None else MAX_ITER_PER_PARAM * theta0.size
-    sol = least_squares(
-        proj.residual,
-        theta0,
-        jac=proj.jacobian,
-        method="lm",
-        x_scale="jac",
-        max_nfev=cap,
-        ftol=CLUSTER_TOL,
-        xtol=CLUSTER_TOL,
-        gtol=CLUSTER_TOL,
-    )
-    before, after = float(r0 @ r0), float(sol.fun @ sol.fun)
-    if not (np.all(np.isfinite(sol.x)) and after < before * (1 - ACCEPT_MARGIN)):
+    # the start's own cost (output shapes and constants re-fitted to its poles and input shapes)
+    decay = np.maximum(-poles.real, np.finfo(float).tiny)
+    start = np.concatenate([np.log(decay), poles.imag, np.stack([bs.real, bs.imag], axis=1).ravel()])
+    r0 = proj.residual(start)
+    before = float(r0 @ r0)
+    if not (np.isfinite(before) and np.all(r0 != NOT_FINITE)):
         return poles, cs, bs, before, before
-    p, b = _unpack(sol.x, m, n_in)
-    coef = _solve(_basis(s, p, b, truncation), target, rw2)
+    cap = max_nfev if max_nfev is not None else MAX_ITER_PER_PARAM * n_par
+    theta = _solve_bounded(proj, poles, bs, cap, before, CLUSTER_TOL)
+    if theta is None:
+        return poles, cs, bs, before, before
+    r = proj.residual(theta)
+    p, b, _, _, _, coef, _ = proj.state(theta)
     if not np.all(np.isfinite(coef)):
         return poles, cs, bs, before, before
     c = coef[:, : 2 * m].reshape(-1, m, 2)
     c = (c[:, :, 0] + 1j * c[:, :, 1]).T  # (M, n_out)
-    return p, c, b, before, after
+    return p, c, b, before, float(r @ r)
