@@ -221,7 +221,8 @@ class _Projection:
         r = np.concatenate([r.real.ravel(), r.imag.ravel()])
         return r if np.all(np.isfinite(r)) else np.full(r.size, NOT_FINITE)
 
-    def jacobian(self, theta: np.ndarray) -> np.ndarray:
+    def jacobian(self, theta: np.ndarray, free: np.ndarray | None = None) -> np.ndarray:
+        """The Jacobian of :meth:`residual`; with ``free`` (bool per parameter) only those columns."""
         p, b, terms, x, (gs, scale), coef, model = self.state(theta)
         m = self.m
         omega = theta[m : 2 * m]
@@ -232,6 +233,8 @@ class _Projection:
         dx = _column_derivatives(
             terms, b, self.term_pole, ((dsigma + 0j, dsigma + 0j), (tilt + 1j, tilt - 1j)), u
         )
+        if free is not None:
+            dx = dx[free]
         n_par, n_out = dx.shape[0], coef.shape[0]
         flat = dx.reshape(n_par, k * n_in, u)
         delta = (flat @ coef.T).reshape(n_par, k, n_in, n_out)  # d(X c_o)/d theta_j
@@ -306,7 +309,8 @@ class _Best:
         return r
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
-        jac = self.proj.jacobian(self.theta(x))[:, self.free] * self.unit
+        jac = self.proj.jacobian(self.theta(x), self.free)
+        jac *= self.unit
         if not np.all(np.isfinite(jac)):
             raise _NotFiniteError
         return jac
