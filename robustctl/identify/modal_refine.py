@@ -8,13 +8,16 @@ moves from up to 0.7 % frequency and 30 % damping error to under 0.1 % and about
 
 The model is ``G(s) = D + sum_terms [c b^T/(s-p) + conj(c b^T)/(s-conj p)]`` with one term per
 kept rank of each complex pole; the residual is ``rw (G - g)`` with ``rw = sqrt(w)/|g|`` (the
-relative, log-like error of MACE eq. 5), minimised by ``scipy.optimize.least_squares`` (trust
-region, analytic Jacobian) over ``log(-Re p)``, ``Im p``, the real and imaginary parts of every
-``c`` and ``b``, and ``D``, with the damping ratio bounded below by ``ZETA_MIN``. Real poles
-are kept fixed.
+relative, log-like error of MACE eq. 5). For given poles and input shapes ``b`` it is linear in
+every output's shapes ``c`` and feedthrough row ``D``, which are eliminated (variable projection,
+Golub & Pereyra 1973, :class:`.block_refine._Projection`): ``scipy.optimize.least_squares``
+(trust region, the projected residual's exact Jacobian) moves only ``log(-Re p)``, ``Im p`` and
+the real and imaginary parts of every ``b``, with the damping ratio bounded below by
+``ZETA_MIN``. Real poles are kept fixed.
 
-The dense Jacobian of that problem has ``2 K n_out n_in`` rows and about
-``2 n_modes (n_out + n_in)`` columns, which explodes on modal tests with dozens of channels and
+The Jacobian of that problem has ``2 K n_out n_in`` rows and ``2 n_modes (1 + n_in)`` columns
+(the full problem's, with ``c`` and ``D`` as unknowns, about ``2 n_modes (n_out + n_in)``), which
+explodes on modal tests with dozens of channels and
 modes (2 x 28 channels, 25 modes, 800 points: 1.2 GB, more than ten minutes). There
 :func:`refine_modes_local` refines one cluster of neighbouring modes at a time on the
 frequencies around it, the other modes' terms held fixed (block Gauss-Seidel over the modes):
@@ -24,20 +27,19 @@ channels and of modes. :func:`refine_modes_auto` chooses between the two by the 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from ..budget import Deadline
 from ..threads import limit_blas
-from .block_refine import ZETA_MIN, refine_cluster
+from .block_refine import NOT_AN_OSCILLATION, ZETA_MIN, _Projection, _solve_bounded, refine_cluster
 from .poles import evaluate
 from .rational_fit import RationalFit
 from .realization import residue_factors
 from .refine import _row_weights, refine_residues
-from .tail import complex_tails, leaked_terms
+from .tail import complex_tails
 
 __all__ = ["refine_modes", "refine_modes_local", "refine_modes_auto", "ZETA_MIN", "DENSE_MAX_ENTRIES"]
 
@@ -52,87 +54,6 @@ DENSE_MAX_ENTRIES = 500_000
 REFINE_TOL = 1e-12
 #: relative fall of the blocks' summed cost below which the block Gauss-Seidel sweeps stop
 SWEEP_TOL = 1e-9
-#: a complex pole decaying faster than this many times its frequency (damping ratio above
-#: 1 - 1e-7) is no oscillation but a numerically real pole (a pole identification can leave one at
-#: -1e41 with a residue of 1e32): it is held fixed, since its log-decay parameter would step
-#: past exp's range and turn the Jacobian into inf and NaN.
-NOT_AN_OSCILLATION = 1e3
-
-
-@dataclass(frozen=True)
-class _Layout:
-    """Where each parameter lives: poles (2 each), then per term c (2 n_out) and b (2 n_in), then D."""
-
-    n_poles: int
-    term_pole: np.ndarray
-    n_out: int
-    n_in: int
-    truncation: Any = None  # TruncationSettings: fit the truncated record's response (eq. T1)
-
-    @property
-    def n_terms(self) -> int:
-        return self.term_pole.size
-
-    def split(self, x: np.ndarray):
-        n_p, n_t, no, ni = self.n_poles, self.n_terms, self.n_out, self.n_in
-        poles = -np.exp(x[:n_p]) + 1j * x[n_p : 2 * n_p]
-        k = 2 * n_p
-        c = x[k : k + 2 * n_t * no].reshape(n_t, 2, no)
-        k += 2 * n_t * no
-        b = x[k : k + 2 * n_t * ni].reshape(n_t, 2, ni)
-        k += 2 * n_t * ni
-        return poles, c[:, 0] + 1j * c[:, 1], b[:, 0] + 1j * b[:, 1], x[k:].reshape(no, ni)
-
-
-def _pack(poles, cs, bs, d) -> np.ndarray:
-    c = np.stack([cs.real, cs.imag], axis=1).ravel()
-    b = np.stack([bs.real, bs.imag], axis=1).ravel()
-    sigma = np.maximum(-poles.real, 1e-9 * np.abs(poles))  # damping kept strictly positive
-    return np.concatenate([np.log(sigma), poles.imag, c, b, d.ravel()])
-
-
-def _model(s, lay: _Layout, x):
-    poles, cs, bs, d = lay.split(x)
-    a, ab, da, dab = (v[:, lay.term_pole] for v in leaked_terms(s, poles, lay.truncation))  # (K, T)
-    outer = cs[:, :, None] * bs[:, None, :]  # (T, no, ni)
-    g = d[None] + np.einsum("kt,toi->koi", a, outer) + np.einsum("kt,toi->koi", ab, np.conj(outer))
-    return g, poles, cs, bs, a, ab, outer, da, dab
-
-
-def _jacobian(s, lay: _Layout, x, rw):
-    """d(rw G)/dx as a complex array (K, n_out, n_in, n_params)."""
-    _, poles, cs, bs, a, ab, outer, da, dab = _model(s, lay, x)
-    k, no, ni, t = s.size, lay.n_out, lay.n_in, lay.n_terms
-    jac = np.zeros((k, no, ni, x.size), dtype=complex)
-    a2 = np.einsum("kt,toi->ktoi", da, outer)
-    ab2 = np.einsum("kt,toi->ktoi", dab, np.conj(outer))
-    for term, pole in enumerate(lay.term_pole):
-        dsig = a2[:, term] + ab2[:, term]
-        jac[..., pole] += dsig * poles[pole].real  # d/d log(-Re p) = Re p * d/d Re p
-        jac[..., lay.n_poles + pole] += 1j * (a2[:, term] - ab2[:, term])
-    base = 2 * lay.n_poles
-    for term in range(t):
-        ap, am = a[:, term], ab[:, term]
-        for o in range(no):
-            col = base + (term * 2) * no + o
-            jac[:, o, :, col] = ap[:, None] * bs[term] + am[:, None] * np.conj(bs[term])
-            jac[:, o, :, col + no] = 1j * (ap[:, None] * bs[term] - am[:, None] * np.conj(bs[term]))
-    base += 2 * t * no
-    for term in range(t):
-        ap, am = a[:, term], ab[:, term]
-        for i in range(ni):
-            col = base + (term * 2) * ni + i
-            jac[:, :, i, col] = ap[:, None] * cs[term] + am[:, None] * np.conj(cs[term])
-            jac[:, :, i, col + ni] = 1j * (ap[:, None] * cs[term] - am[:, None] * np.conj(cs[term]))
-    base += 2 * t * ni
-    for o in range(no):
-        for i in range(ni):
-            jac[:, o, i, base + o * ni + i] = 1.0
-    return jac * rw[..., None]
-
-
-def _stack(z: np.ndarray) -> np.ndarray:
-    return np.concatenate([z.real.reshape(-1, *z.shape[3:]), z.imag.reshape(-1, *z.shape[3:])])
 
 
 @limit_blas
@@ -152,9 +73,8 @@ def refine_modes(
     weights : ndarray, optional
         Weights on squared residuals (default: coherence-based, as :func:`fit_rational`).
     max_nfev : int
-        Cap on model evaluations of the trust-region solver (a bound on the work; the
-        refinement stops at ``REFINE_TOL`` well before it: the Caltech demo's 93 parameters
-        converge in 35-85 evaluations, where the former cap of 60 stopped one short of the optimum).
+        Cap on residual evaluations of the trust-region solver (a bound on the work; the
+        refinement stops at ``REFINE_TOL`` well before it).
     which : ndarray of int, optional
         Indices of the complex poles to refine (default: all with a non-zero rank); the other
         poles' terms are held fixed.
@@ -180,36 +100,32 @@ def refine_modes(
     fixed = np.setdiff1d(np.arange(fit.poles.size), cplx)
     held = evaluate(s, fit.poles[fixed], fit.residues[fixed], np.zeros_like(fit.d))
     target = data.response - held + complex_tails(s, fit.poles[fixed], fit.residues[fixed], truncation)
-    term_pole, cs, bs = [], [], []
+    term_pole, bs = [], []
     for j, g in enumerate(cplx):
-        c, b = residue_factors(fit.residues[g], int(fit.ranks[g]))
-        term_pole += [j] * c.shape[1]
-        cs += list(c.T)
+        _, b = residue_factors(fit.residues[g], int(fit.ranks[g]))
+        term_pole += [j] * b.shape[0]
         bs += list(b)
-    lay = _Layout(cplx.size, np.array(term_pole), *fit.d.shape, truncation)
-    x0 = _pack(fit.poles[cplx], np.array(cs), np.array(bs), fit.d)
-
-    def resid(x):
-        return _stack(rw * (_model(s, lay, x)[0] - target))
-
-    def jac(x):
-        return _stack(_jacobian(s, lay, x, rw)).reshape(-1, x.size)
-
-    lower = np.full(x0.size, -np.inf)
-    lower[: cplx.size] = np.log(ZETA_MIN * np.abs(fit.poles[cplx]))  # damping ratio >= ZETA_MIN
-    x0[: cplx.size] = np.maximum(x0[: cplx.size], lower[: cplx.size] + 1e-12)
-    sol = least_squares(
-        resid, x0, jac=jac, bounds=(lower, np.inf), method="trf", x_scale="jac", max_nfev=max_nfev,
-        ftol=REFINE_TOL, xtol=REFINE_TOL, gtol=REFINE_TOL,
-    )
-    if not np.sum(sol.fun**2) < np.sum(resid(x0) ** 2):
+    n_out, n_in = fit.d.shape
+    poles0 = fit.poles[cplx]
+    proj = _Projection(s, target, rw, cplx.size, n_in, truncation, np.array(term_pole), False, floor=0.0)
+    bs = np.array(bs)
+    start = evaluate(s, poles0, fit.residues[cplx], fit.d)
+    start -= complex_tails(s, poles0, fit.residues[cplx], truncation)
+    before = float(np.sum(np.abs(rw * (start - target)) ** 2))  # the starting model's own cost
+    theta = _solve_bounded(proj, poles0, bs, max_nfev, before, REFINE_TOL)
+    if theta is None:
         return fit
-    poles_c, cs, bs, d = lay.split(sol.x)
+    poles_c, b, _, x, _, coef, _ = proj.state(theta)
+    n_terms = b.shape[0]
+    c = coef[:, : 2 * n_terms : 2] + 1j * coef[:, 1 : 2 * n_terms : 2]  # (n_out, T)
     poles, residues = np.array(fit.poles), np.array(fit.residues)
     poles[cplx] = poles_c
     residues[cplx] = 0
-    for term, j in enumerate(lay.term_pole):
-        residues[cplx[j]] += np.outer(cs[term], bs[term])
+    for term, j in enumerate(term_pole):
+        residues[cplx[j]] += np.outer(c[:, term], b[term])
+    d = coef[:, 2 * n_terms :].reshape(n_out, n_in)
+    if not (np.all(np.isfinite(residues)) and np.all(np.isfinite(d)) and np.all(np.isfinite(poles))):
+        return fit
     return replace(fit, poles=poles, residues=residues, d=d)
 
 

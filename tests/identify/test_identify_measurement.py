@@ -99,8 +99,14 @@ def test_expected_h1_of_a_fit_with_a_pole_at_the_origin_matches_the_double_sum()
     p = complex(-zeta * wn, wn * np.sqrt(1 - zeta**2))
     r = 0.3 - 0.4j
     fit = RationalFit(
-        poles=np.array([p, 0.0 + 0.0j]), residues=np.array([[[r]], [[r0 + 0j]]]), d=np.array([[0.05]]),
-        ranks=np.array([1, 1]), inputs=("u",), outputs=("y",), band_hz=(0.5, 5.0), method="vf",
+        poles=np.array([p, 0.0 + 0.0j]),
+        residues=np.array([[[r]], [[r0 + 0j]]]),
+        d=np.array([[0.05]]),
+        ranks=np.array([1, 1]),
+        inputs=("u",),
+        outputs=("y",),
+        band_hz=(0.5, 5.0),
+        method="vf",
     )
     fs, n = 20.0, 64
     f = np.array([0.9, 2.0, 3.1])
@@ -163,24 +169,3 @@ def test_result_object_table_plot_html(truss_model):
     np.testing.assert_allclose(m.output_shape @ m.input_shape, m.residue, rtol=1e-10, atol=1e-12)
     assert mm.cost.per_channel.shape == (3, 3)
     np.testing.assert_allclose(mm.cost.total, mm.cost.per_channel.sum())
-
-
-def test_modal_refinement_jacobian_matches_finite_differences():
-    from robustctl.identify.modal_refine import _jacobian, _Layout, _model, _pack
-
-    rng = np.random.default_rng(1)
-    s = 2j * np.pi * np.linspace(0.5, 5, 40)
-    lay = _Layout(2, np.array([0, 1, 1]), 3, 2)
-    poles = np.array([-0.2 + 7j, -0.3 + 20j])
-    cs = rng.normal(size=(3, 3)) + 1j * rng.normal(size=(3, 3))
-    bs = rng.normal(size=(3, 2)) + 1j * rng.normal(size=(3, 2))
-    x = _pack(poles, cs, bs, rng.normal(size=(3, 2)))
-    rw = rng.uniform(0.5, 2, size=(40, 3, 2))
-    jac = _jacobian(s, lay, x, rw)
-    for k in range(x.size):
-        step = 1e-6 * max(1.0, abs(x[k]))
-        xp, xm = x.copy(), x.copy()
-        xp[k] += step
-        xm[k] -= step
-        fd = rw * (_model(s, lay, xp)[0] - _model(s, lay, xm)[0]) / (2 * step)
-        np.testing.assert_allclose(jac[..., k], fd, rtol=1e-5, atol=1e-7 * np.abs(fd).max() + 1e-12)
