@@ -21,8 +21,10 @@ ROOT = Path(__file__).resolve().parents[2]
 
 _CHILD = textwrap.dedent(
     """
-    import os, sys, time
+    import faulthandler, os, signal, sys, time
     from robustctl.executors import parallel_map_shared, process_pool
+
+    faulthandler.register(signal.SIGUSR1, all_threads=True)  # where it hangs, if it ever does
 
     def task(shared, item):  # a candidate's fit that never ends
         while True:
@@ -50,8 +52,8 @@ def _running(pid: int) -> bool:
 
 def _start():
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    proc = subprocess.Popen([sys.executable, "-c", _CHILD], stdout=subprocess.PIPE, text=True, env=env,
-                            cwd=ROOT)
+    proc = subprocess.Popen([sys.executable, "-c", _CHILD], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env=env, cwd=ROOT)
     line = proc.stdout.readline()
     pids = [int(p) for p in line.split()]
     assert len(pids) == 2 and all(_running(p) for p in pids), line
@@ -82,7 +84,14 @@ def test_an_interrupted_caller_stops_its_workers_before_returning():
     proc, pids = _start()
     try:
         proc.send_signal(signal.SIGINT)  # KeyboardInterrupt in the caller, inside parallel_map_shared
-        out, _ = proc.communicate(timeout=60)  # a pool waiting for its endless tasks would hang here
+        try:
+            out, _ = proc.communicate(timeout=60)  # a pool waiting for its endless tasks would hang here
+        except subprocess.TimeoutExpired:
+            proc.send_signal(signal.SIGUSR1)  # every thread's stack, to say where
+            time.sleep(2.0)
+            proc.kill()
+            _, err = proc.communicate()
+            pytest.fail(f"the interrupted caller did not return in 60 s; its threads:\n{err}")
         assert "interrupted" in out and proc.returncode == 0
         assert _wait_until_gone(pids, 10.0) == []
     finally:
