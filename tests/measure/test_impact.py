@@ -48,6 +48,7 @@ def _matched(mm, truth):
     return f[idx], z[idx]
 
 
+@pytest.mark.slow  # 56 s each: the automatic-order fits of an 8-mode impact record
 def test_exponential_window_modes_and_damping_recovered(hits):
     """'auto' applies an exponential window (the response has not decayed); the identified
     damping, corrected by zeta -= 1/(tau w_n), matches the truth within 3 % for every mode,
@@ -68,6 +69,7 @@ def test_exponential_window_modes_and_damping_recovered(hits):
     np.testing.assert_allclose(z_raw - 1 / (tau * 2 * np.pi * f), truth.zeta, rtol=0.03)
 
 
+@pytest.mark.slow  # 56 s each: the automatic-order fits of an 8-mode impact record
 def test_rectangular_window_truncation_corrected(hits):
     """No window: every response is cut at the record end (the 1086 Hz mode keeps 18 %, the 206 Hz
     mode 44 % of its amplitude), which leaks (eq. T1 of robustctl.identify.leakage). With the
