@@ -25,6 +25,9 @@ _CHILD = textwrap.dedent(
     from robustctl.executors import parallel_map_shared, process_pool
 
     faulthandler.register(signal.SIGUSR1, all_threads=True)  # where it hangs, if it ever does
+    # Ctrl-C as in a user's interpreter: Python installs this handler only when the SIGINT it
+    # inherits is not ignored, and a pytest worker's may be (the caller then never sees the signal)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
     def task(shared, item):  # a candidate's fit that never ends
         while True:
