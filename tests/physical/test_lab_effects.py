@@ -226,18 +226,9 @@ def _chain_frf_with_dashpot(c_joint, a, b, f_hz):
     """The chain's FRF with its modal damping and a dashpot ``c_joint`` (N s/m) between DOFs a and b,
     in modal coordinates (non-proportional: the full modal damping matrix), numpy only."""
     M, K, B, C, kinds = vc.chain_matrices(s_k=1.03)
-    w2, phi = sla.eigh(K, M)
-    wn = np.sqrt(w2)
     Cd = np.zeros_like(K)
     Cd[np.ix_([a, b], [a, b])] = c_joint * np.array([[1.0, -1.0], [-1.0, 1.0]])
-    Z = np.diag(2 * vc.ZETA * wn) + phi.T @ Cd @ phi
-    power = np.array([{"displacement": 0, "velocity": 1, "acceleration": 2}[k] for k in kinds])
-    out = []
-    for f in f_hz:
-        s = 2j * np.pi * f
-        q = np.linalg.solve(np.diag(w2) + s * Z + s * s * np.eye(wn.size), phi.T @ B)
-        out.append((C @ phi @ q) * (s ** power)[:, None])
-    return np.array(out)
+    return _frf_with_damping(M, K, B, C, kinds, Cd, f_hz)
 
 
 def test_local_damping_across_a_named_joint_is_named_and_recovered_and_left_out_is_not_answered():
