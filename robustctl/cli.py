@@ -453,11 +453,32 @@ def _run_diagnose(args: argparse.Namespace) -> Path:
         if diag.chain:
             report.heading(f"Verdict: {diag.verdict}")
             report.table(diag.chain_table())
+            _error_before_and_after(report, model, data, diag, _band(args))
         for key, value in diagnosis_record(diag).items():
             report.record(key, value)
         return report.write()
     finally:
         steps.close()
+
+
+def _error_before_and_after(report: Any, model: Any, data: Any, diag: Any, band: Any) -> None:
+    """The error map of the parameters-only fit, then of the model with each effect of the diagnosis's
+    chain added in turn (its jointly fitted size, the parameters fitted with it): where each effect
+    brings the misfit within the noise (grey) and where misfit is left."""
+    from .correlate import compare
+
+    current = model.with_values(**diag.update_values) if diag.update_values else model
+    cmp = compare(current, data, band=band)
+    report.figure(cmp.plot_error_map(), "error_parameters_only",
+                  f"Error with the parameters alone updated (cost {cmp.cost:.4g}); grey: within the noise.")
+    current = model
+    for k, step in enumerate(diag.chain, start=1):
+        current = current.with_effect(step.effect)
+        values = {n: v for n, v in step.update_values.items() if n in current.param_names}
+        cmp = compare(current.with_values(**values) if values else current, data, band=band)
+        report.figure(cmp.plot_error_map(), f"error_with_effect_{k}",
+                      f"Error with effect {k}, {step.effect.name} = {step.effect.describe_value()}, and the "
+                      f"parameters re-fitted (cost {cmp.cost:.4g}); grey: within the noise.")
 
 
 def _run_update(args: argparse.Namespace) -> Path:

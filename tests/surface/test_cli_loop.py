@@ -7,6 +7,7 @@ computed exactly in the frequency domain, 1 % output noise, and an H1 estimate w
 """
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -99,6 +100,12 @@ def test_load_compare_diagnose_update_report_on_uff_files(tmp_path, capsys, monk
     best = diag["best"]
     assert best["significant"] and best["p_value"] < 0.01
     assert best["values"]["added_mass__x2"] == pytest.approx(ADDED_TRUE, rel=0.03)
+    # the error before and after the effect: the parameters alone leave the misfit, the effect removes it
+    page = (tmp_path / "diag" / "report.html").read_text()
+    before = re.search(r"Error with the parameters alone updated \(cost ([0-9.e+-]+)\)", page)
+    after = re.search(r"Error with effect 1, added mass at node x2 = [^(]*\(cost ([0-9.e+-]+)\)", page)
+    assert before and after, page[:2000]
+    assert float(after.group(1)) < 0.05 * float(before.group(1))
 
     out = run(capsys, "update", "chain.py", uff, *band, "--diagnosis", tmp_path / "diag",
               "--out", tmp_path / "upd")

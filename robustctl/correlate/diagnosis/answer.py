@@ -30,6 +30,10 @@ from .significance import _null_test
 #: nothing is significant (a second effect's misfit can hide a first one's significance); such a
 #: tentative step is kept only when the chain ends within the noise.
 CHAIN_TRY_GAIN = 0.5
+#: An answer that removes :data:`~.results.ANSWER_SHARE` of the model error but leaves more than this
+#: many times the noise variance does not end a chain: its next step looks for a second, smaller effect
+#: (a hinge's own damping once the hinge is found) and is kept only if that effect is significant.
+CHAIN_PAST_ANSWER = 2.0
 #: Most effects one diagnosis chains (``chain=True``): each is proposed on the model updated with
 #: the ones before.
 MAX_CHAIN = 4

@@ -21,6 +21,7 @@ from ...threads import limit_blas
 from ..optimize import levenberg_marquardt
 from ..residual import check_data, check_determined, physical_model
 from .answer import (
+    CHAIN_PAST_ANSWER,
     CHAIN_TRY_GAIN,
     MAX_CHAIN,
     ChainStep,
@@ -49,6 +50,7 @@ from .workers import (
     _check_candidates,
     _default_candidates,
     _evaluated,
+    _new_defaults,
     _pool,
     _warn_if_hurried,
 )
@@ -221,7 +223,8 @@ def diagnose(
     t_eval = time.perf_counter() - t_eval
     n_chain = _check_chain(chain)
     with _pool(workers, executor, candidates, model, t_eval) as ex:
-        if candidates is None:
+        defaults = candidates is None
+        if defaults:
             candidates = _default_candidates(model, res0, deadline, ex)
         first = _diagnose(
             t0, res0, ignored, upd, candidates, j_nominal, ex, n_fit, max_iter, update_iter, alpha, min_gain,
@@ -229,21 +232,34 @@ def diagnose(
         )
         steps = [first]
         while len(steps) < n_chain and steps[-1].lead is not None and not deadline.expired():
+            past_answer = steps[-1].verdict == "answer"
             used = {s.lead.name for s in steps}
             nxt_model = _chain_model(steps, res0.model)
+            res_n, ign_n = _residual(nxt_model, checked, point_weights, min_channel_db, estimator)
+            if defaults:
+                candidates = candidates + _new_defaults(nxt_model, res_n, candidates, deadline, ex)
             rest = [c for c in candidates if c.name not in used and _applies(c, nxt_model)]
             if not rest:
                 break
-            res_n, ign_n = _residual(nxt_model, checked, point_weights, min_channel_db, estimator)
             upd_n = tuple(dict.fromkeys(upd + tuple(n for s in steps for n in s.lead.param_names)))
             steps.append(_diagnose(
                 time.perf_counter(), res_n, ign_n, upd_n, rest, res_n.vector(), ex, n_fit, max_iter,
                 update_iter, alpha, min_gain, deadline,
             ))
-            if steps[-1].verdict in ("answer", "within the noise"):
+            if past_answer and steps[-1].best is None:
+                steps.pop()  # nothing significant beyond the answer: the chain ends with it
+                break
+            if steps[-1].verdict in ("answer", "within the noise") and steps[-1].lead is None:
                 break
         return _pruned(_chained(steps, time.perf_counter() - t0, n_chain), steps, res0, upd, alpha,
                        update_iter, deadline)
+
+
+def _chain_past(comp: Any, alpha: float) -> bool:
+    """Whether an answer's completeness test leaves so much misfit (significant, and over
+    :data:`~.answer.CHAIN_PAST_ANSWER` x the noise) that a chain goes on to a second effect."""
+    return (comp is not None and comp.dispersion > CHAIN_PAST_ANSWER
+            and beyond_noise(comp.dispersion, comp.p_value, alpha))
 
 
 def _check_chain(chain: Any) -> int:
@@ -454,7 +470,7 @@ def _diagnose(
         if top is not None:  # a tentative lead for a chain: an effect another one may mask
             lead = top.effect
             best_fit_values = {n: v for n, v in fitted[top.name]["model"].values.items() if n in upd}
-    if word not in ("incomplete", "unexplained"):
+    if word not in ("incomplete", "unexplained") and not (word == "answer" and _chain_past(comp, alpha)):
         lead = None  # nothing to chain: answered, within the noise, or no noise model to judge by
     return Diagnosis(
         ranking=tuple(results),

@@ -84,6 +84,21 @@ def _default_candidates(model: Any, res0: Residual, deadline: Deadline, executor
     return _check_candidates(model, cands)
 
 
+def _new_defaults(model: Any, res: Residual, known: list, deadline: Deadline, executor: Any) -> list:
+    """The default candidates of a chain's next model that its first model did not have, calibrated:
+    an effect can open places for others (a joint an earlier step made flexible can carry a dashpot,
+    :class:`~robustctl.physical.effects.FrameJointDamping`)."""
+    from ...physical.effects import candidates as all_candidates
+
+    names = {c.name for c in known}
+    kinds = {c.kind for c in all_candidates(model, band=res.band, calibrate=False) if c.name not in names}
+    if not kinds:
+        return []
+    fresh = all_candidates(model, band=res.band, kinds=sorted(kinds), time_budget_s=deadline,
+                           executor=executor)
+    return _check_candidates(model, [c for c in fresh if c.name not in names])
+
+
 def _warn_if_hurried(null_cut: bool, n_cut: int, budget: float, polished: bool = True) -> None:
     """Say so when the wall-clock budget, not convergence, stopped a fit: the ranking then
     depends on the machine's speed and load (a fit cut short understates its candidate).
