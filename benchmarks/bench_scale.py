@@ -4,8 +4,9 @@ Cases (:mod:`benchmarks.scale_cases`): a spring grid (plate-like, one out-of-pla
 node, sparse ``M``, ``K``) of 100 to 2,000 DOFs with 2 force inputs and 8 acceleration
 outputs, update parameters ``k_scale`` and ``zeta_modal``, the default candidates
 (``rc.effects.candidates``: an added mass, a grounded spring and a dashpot at every DOF, I/O
-effects, modal damping groups), data = the exact FRF of the truth made with numpy (a 0.03 kg
-mass hidden at the second sensor's node, a 2 % stiffness error) plus 1 % complex noise, 400
+effects, modal damping groups), data = the exact FRF of the truth by sparse direct solves (a 0.03 kg
+mass hidden at the second sensor's node, a 2 % stiffness error, structural damping of loss
+factor 0.02) plus 1 % complex noise, 400
 frequencies from 0.8 to 6 times the first mode. Each run is a fresh subprocess: wall time, CPU
 time and the peak resident memory of it and of its worker processes (``getrusage``).
 
@@ -16,6 +17,9 @@ exact path), the reduced path forced on a 200-DOF grid, and the
 full dense path (all modes) forced where it runs in reasonable time; the ranking at 200 DOFs is
 compared between the two. Exponents are least-squares slopes of ``log time`` and ``log memory``
 against ``log DOFs``.
+
+Path "fe" (:mod:`benchmarks.bench_fe20k` runs it): the grid of :data:`FE_REF_DOF` nodes meshed
+finer, imported through an OP4 file (:func:`fe_model`).
 
 Run: ``python -m benchmarks.bench_scale`` (writes ``benchmarks/results/scale.json``);
 ``SCALE_SIZES=400,1000`` limits the sizes of the default path, ``SCALE_FULL=100,200`` those of
@@ -42,9 +46,38 @@ N_OUT = 8
 HIDDEN_KG = 0.03
 
 
+#: The FE case's mesh: the grid of this many nodes refined (``scale_cases.grid_matrices``'
+#: ``node_scale``), so its modes in the band are those of the 2,000-DOF case.
+FE_REF_DOF = 2000
+
+
+def fe_model(n_dof: int, node_scale: float, tmp: str):
+    """The grid as a user's imported FE model: ``M``, ``K`` written to an ASCII OP4 file
+    (``rc.write_nastran_matrices``, pyNastran's writer) and read back with
+    ``rc.load_nastran_matrices`` (one property group ``grid`` = all of ``K``: parameter
+    ``k_grid``, the stiffness factor), DOFs named ``"<node>:T3"``, modal damping ``ZETA``."""
+    import robustctl as rc
+    from benchmarks.scale_cases import ZETA, grid_matrices, grid_shape, sensor_layout
+
+    nx, ny = grid_shape(n_dof)
+    M, K = grid_matrices(nx, ny, node_scale)
+    ins, outs = sensor_layout(nx, ny, N_OUT)
+    path = str(Path(tmp) / f"grid{n_dof}.op4")
+    rc.write_nastran_matrices(path, {"MAA": M, "KAA": K})
+    labels = [f"{i + 1}:T3" for i in range(n_dof)]
+    return rc.load_nastran_matrices(
+        path, mass="MAA", stiffness="KAA", groups={"grid": "KAA"}, dof_labels=labels,
+        inputs={f"F{k + 1}": f"{d + 1}:T3" for k, d in enumerate(ins)},
+        outputs={f"a{k + 1}": (f"{d + 1}:T3", "acceleration") for k, d in enumerate(outs)},
+        damping=ZETA, name=f"{nx}x{ny} grid (OP4)")
+
+
 def case(n_dof: int, path: str) -> dict:
-    """One diagnose run in this process (``path``: "default", "reduced" or "full")."""
+    """One diagnose run in this process (``path``: "default", "reduced" or "full" on
+    ``scale_cases.grid_model``; "fe": the mesh of :data:`FE_REF_DOF` nodes refined to ``n_dof``,
+    imported through an OP4 file, :func:`fe_model`)."""
     import resource
+    import tempfile
     import time
 
     import robustctl as rc
@@ -55,22 +88,31 @@ def case(n_dof: int, path: str) -> dict:
         red.REDUCE_MIN_DOF = 0
     elif path == "full":
         red.REDUCE_MIN_DOF = 10**9
-    model = grid_model(n_dof, N_OUT)
+    node_scale = FE_REF_DOF / n_dof if path == "fe" else 1.0
+    c_start = time.process_time()
+    if path == "fe":
+        with tempfile.TemporaryDirectory() as tmp:
+            model = fe_model(n_dof, node_scale, tmp)
+        true_name = f"added mass at node {hidden_node(n_dof, N_OUT) + 1}:T3"
+    else:
+        model = grid_model(n_dof, N_OUT)
+        true_name = f"added mass at dof {hidden_node(n_dof, N_OUT) + 1}"
     f1 = 3.39  # first mode of the grid family (Hz): springs to ground dominate it
     f = np.linspace(0.8 * f1, 6.0 * f1, 400)
-    data = grid_data(n_dof, f, N_OUT, added_mass=HIDDEN_KG)
+    data = grid_data(n_dof, f, N_OUT, added_mass=HIDDEN_KG, node_scale=node_scale)
+    setup_cpu = time.process_time() - c_start
     t0, c0 = time.perf_counter(), os.times()
     diag = rc.diagnose(model, data, noise=noise_model(f, N_OUT))
     c1 = os.times()
     wall = time.perf_counter() - t0
     cpu = sum(getattr(c1, k) - getattr(c0, k) for k in ("user", "system", "children_user", "children_system"))
-    true_name = f"added mass at dof {hidden_node(n_dof, N_OUT) + 1}"
     names = [r.name for r in diag.ranking]
     return {
         "n_dof": n_dof,
         "path": path,
         "time_s": round(wall, 2),
         "cpu_s": round(cpu, 2),
+        "setup_cpu_s": round(setup_cpu, 2),
         "peak_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
         "peak_workers_mb": round(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024, 1),
         "n_candidates": len(diag.ranking) + sum(len(r.equivalent) for r in diag.ranking),
@@ -79,6 +121,7 @@ def case(n_dof: int, path: str) -> dict:
         "rank_of_true_effect": names.index(true_name) + 1 if true_name in names else None,
         "true_effect_significant": any(r.significant for r in diag.ranking if r.name == true_name),
         "ranking": names[:20],
+        "load_average": [round(x, 2) for x in os.getloadavg()],
     }
 
 

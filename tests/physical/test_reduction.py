@@ -195,16 +195,33 @@ def test_diagnose_ranks_the_same_with_the_reduced_and_the_full_path(monkeypatch)
     assert reduced.ranking[0].gain == pytest.approx(full.ranking[0].gain, abs=0.05)
 
 
-def test_band_limited_model_travels_to_worker_processes():
-    """Pickled for a process pool, a band-limited model starts with empty bases and gives the
-    same response bit for bit (the Lanczos start vector is fixed, not random)."""
+def test_band_limited_model_travels_to_worker_processes(monkeypatch):
+    """Pickled for a process pool before any evaluation, a band-limited model starts with empty
+    bases and gives the same response bit for bit (the Lanczos start vector is fixed, not random);
+    pickled after one, it carries that basis without its factor (no Lanczos run on the other
+    side), makes the factor again and gives the same response and low-rank change bit for bit.
+    Copies of one reducer unpickled in one process are one object (a worker's payloads share it)."""
     import pickle
+    import weakref
 
     reduced = red.band_limited(_model(), F_HZ[-1], min_dof=0)
+    fresh = pickle.loads(pickle.dumps(reduced))
+    assert fresh.dynamics.reducer._bases == {}
+    assert pickle.loads(pickle.dumps(reduced)).dynamics.reducer is fresh.dynamics.reducer
     g = reduced.freqresp(F_HZ).response
-    copy = pickle.loads(pickle.dumps(reduced))
-    assert copy.dynamics.reducer._bases == {}
+    assert fresh.freqresp(F_HZ).response.tobytes() == g.tobytes()
+    mass = rc.effects.AddedMass("dof 58")
+    g_mass = mass.apply(reduced).freqresp(F_HZ, added_mass__dof_58=0.02).response
+    monkeypatch.setattr(red, "_RESTORED", weakref.WeakValueDictionary())  # as in a new process
+    copy = pickle.loads(pickle.dumps(mass.apply(reduced)))
+    (base,) = copy.dynamics.reducer._bases.values()
+    assert base.lu is None
+    calls = []
+    reduce = red._reduce
+    monkeypatch.setattr(red, "_reduce", lambda *a: calls.append(a) or reduce(*a))
     assert copy.freqresp(F_HZ).response.tobytes() == g.tobytes()
+    assert copy.freqresp(F_HZ, added_mass__dof_58=0.02).response.tobytes() == g_mass.tobytes()
+    assert not calls
 
 
 def _hidden_mass_data(model, dof=57, mass=0.03, seed=1):
@@ -337,3 +354,75 @@ def test_a_scaled_structure_with_a_point_change_is_a_low_rank_change_of_its_scal
     got = model.freqresp(F_HZ, **point).response
     assert not calls
     assert np.max(np.abs(got - expected)) <= 1e-9 * np.max(np.abs(expected))
+
+
+@pytest.mark.slow
+def test_first_order_prescreen_equals_the_closed_forms_derivative(monkeypatch):
+    """The prescreen's share of each point effect (its first-order direction, two matrix products
+    per block of DOFs) equals the share of the closed form's residual derivative by a central
+    difference at 1e-7 of its typical size, to 1e-5; the 40 it leaves out carry that share, and
+    the 5 it keeps include the hidden mass, which still ranks first."""
+    import robustctl.correlate.diagnosis.screening as scr
+
+    model = _model()
+    data, noise = _hidden_mass_data(model)
+    dofs = (36, 46, 47, 48, 49, 56, 57, 58, 59, 60, 66, 67, 68, 69, 104)
+    cands = rc.effects.calibrate(
+        model, [rc.effects.AddedMass(f"dof {d}") for d in dofs]
+        + [rc.effects.SuspensionSpring(f"dof {d}") for d in dofs]
+        + [rc.effects.Dashpot(f"dof {d}") for d in dofs], band=(3.0, 20.0))
+    seen = []
+    real = scr._prescreen
+
+    def spy(shared, items, keep):
+        out = real(shared, items, keep)
+        seen.append((shared, items, out))
+        return out
+
+    monkeypatch.setattr(scr, "PRESCREEN_MIN", 10)
+    monkeypatch.setattr(scr, "PRESCREEN_KEEP", 5)
+    monkeypatch.setattr(scr, "_prescreen", spy)
+    reduced = red.band_limited(model, F_HZ[-1], min_dof=0)
+    diag = rc.diagnose(reduced, data, cands, noise=noise, workers=1, n_fit=2)
+    assert diag.ranking[0].name == "added mass at dof 58"
+    shared, items, (kept, rest) = seen[0]
+    assert len(kept) == 5 and len(rest) == 40
+    assert "added mass at dof 58" in [it[1].name for it in kept]
+    r = shared["r_perp"]
+    Q = shared["Q"]
+    for k, effect, change in items:
+        h = 1e-7 * float(effect.typical_size)
+        j = scr._point_vectors(shared, shared["pm"].terms(change), np.array([h, -h]))
+        d = scr._project(Q, (j[0] - j[1]) / (2 * h))
+        want = float(d @ r) ** 2 / (float(d @ d) * float(r @ r))
+        if k in rest:
+            assert rest[k]["fraction"] == pytest.approx(want, rel=1e-5, abs=1e-12)
+            assert rest[k]["first_order"]
+        else:
+            assert want >= max(sc["fraction"] for sc in rest.values()) * (1 - 1e-5)
+
+
+def test_a_slightly_softer_structure_extends_the_reduction_by_the_modes_that_came_in(monkeypatch):
+    """A 7 % softer grid brings two modes into the cut: the reducer keeps the nominal modes (made
+    eigenpairs by Rayleigh-Ritz), finds the new ones by one Lanczos run about the middle of the
+    gap, and gives a fresh reduction's modes (to 1e-9) and response (to 1e-8) without reducing
+    anew; a 30 % softer one (too many new modes) is reduced anew."""
+    model = red.band_limited(_model(), F_HZ[-1], min_dof=0)
+    model.freqresp(F_HZ)
+    reducer = model.dynamics.reducer
+    lam_cut = (2 * np.pi * reducer.f_cut_hz) ** 2
+    base = next(iter(reducer._bases.values()))
+    softer = model.build_structure(k_scale=0.93).matrices()
+    assert red._reuse(base, softer, lam_cut) is None
+    ext = red._extend(base, softer, lam_cut)
+    fresh = red._reduce(softer, reducer.f_cut_hz)
+    assert ext is not None and ext.n_exact == fresh.n_exact > base.n_exact
+    assert np.allclose(ext.lam[: ext.n_exact], fresh.lam[: fresh.n_exact], rtol=1e-9)
+    calls = []
+    reduce = red._reduce
+    monkeypatch.setattr(red, "_reduce", lambda *a: calls.append(a) or reduce(*a))
+    got = model.freqresp(F_HZ, k_scale=0.93).response
+    assert not calls
+    want = red.band_limited(_model(), F_HZ[-1], min_dof=0).freqresp(F_HZ, k_scale=0.93).response
+    assert np.max(np.abs(got - want)) <= 1e-8 * np.max(np.abs(want))
+    assert red._extend(base, model.build_structure(k_scale=0.7).matrices(), lam_cut) is None

@@ -238,12 +238,26 @@ def _working(a, n_dof: int):
     return sp.csr_matrix(a, dtype=float)
 
 
+def _lowest_elastic(M, K, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The lowest modes of a large structure (sparse shift-invert Lanczos) up to and including
+    :data:`_N_CAL_MODES` elastic ones (rigid-body modes, 0 rad/s, come first and are counted
+    apart), or all ``n - 2`` that Lanczos can give."""
+    k = _N_CAL_MODES + 6
+    while True:
+        omega, phi = solve_modes(M, K, n_modes=min(k, n - 2), sparse=True)
+        if np.count_nonzero(omega > 0) >= _N_CAL_MODES or k >= n - 2:
+            return omega, phi
+        k *= 2
+
+
 def _modes(model: PhysicalModel, band):
     mats = model.build_structure().matrices()
     n = mats.n_dof
     M, K = _working(mats.mass, n), _working(mats.stiffness, n)
     if n >= REDUCE_MIN_DOF and band is not None:  # the modes up to the band: Lanczos, not dense
         omega, phi = solve_modes(M, K, band_hz=(0.0, float(band[1])), sparse=True)
+    elif n >= REDUCE_MIN_DOF:  # the lowest elastic modes: Lanczos (a dense eigh is O(n^2) memory)
+        omega, phi = _lowest_elastic(M, K, n)
     else:
         omega, phi = solve_modes(M, K)
     keep = omega > 0
