@@ -260,6 +260,32 @@ def _scaled_part(base: _Basis, mats: Any) -> Any | None:
     return replace(mats, mass=parts[0], stiffness=parts[1], damping=base.damping)
 
 
+def _shift_factor(M: Any, K: Any) -> tuple[float, float, Any] | None:
+    """The stiffness scale ``max|K| / max|M|`` ((rad/s)^2), the shift ``sigma`` below every mode (rigid-body
+    modes included) and the sparse LU of ``K - sigma M``; None when the factorisation fails."""
+    k_scale = float(abs(K).max() / max(abs(M).max(), 1e-300))
+    sigma = -1e-6 * k_scale - 1.0
+    try:
+        return k_scale, sigma, spla.splu((K - sigma * M).tocsc())
+    except RuntimeError:
+        return None
+
+
+def _ritz(phi0: np.ndarray, M: Any, K: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Rayleigh-Ritz of ``(K, M)`` on the basis ``phi0``: the Ritz values ((rad/s)^2), their vectors in
+    ``phi0``'s coordinates and each pair's relative residual ``|K x - lam M x| / (|K x| + |lam| |M x|)``;
+    None when the reduced pencil is not symmetric positive definite."""
+    KP, MP = np.asarray(K @ phi0), np.asarray(M @ phi0)
+    Kr, Mr = phi0.T @ KP, phi0.T @ MP
+    try:
+        lam, psi = sla.eigh(0.5 * (Kr + Kr.T), 0.5 * (Mr + Mr.T))
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    Kx, Mx = KP @ psi, MP @ psi
+    scale = np.linalg.norm(Kx, axis=0) + np.abs(lam) * np.linalg.norm(Mx, axis=0)
+    return lam, psi, np.linalg.norm(Kx - Mx * lam, axis=0) / np.maximum(scale, 1e-300)
+
+
 def _reuse(base: _Basis, mats: Any, lam_cut: float) -> _Basis | None:
     """The reduction of ``mats`` from ``base``'s exact modes (:data:`REUSE_TOL`) up to the cut
     ``lam_cut`` ((rad/s)^2), the same modes a fresh reduction keeps, or None."""
@@ -270,27 +296,20 @@ def _reuse(base: _Basis, mats: Any, lam_cut: float) -> _Basis | None:
     if (M - base.mass).count_nonzero() == 0 and (K - base.stiffness).count_nonzero() == 0:  # new I/O only
         return _attach(mats, M, K, _factor(base), base.sigma, lam0, phi0)
     check_structural_matrices(M, K)
-    KP, MP = np.asarray(K @ phi0), np.asarray(M @ phi0)
-    Kr, Mr = phi0.T @ KP, phi0.T @ MP
-    try:
-        lam, psi = sla.eigh(0.5 * (Kr + Kr.T), 0.5 * (Mr + Mr.T))
-    except (np.linalg.LinAlgError, ValueError):
+    ritz = _ritz(phi0, M, K)
+    if ritz is None:
         return None
-    Kx, Mx = KP @ psi, MP @ psi
-    scale = np.linalg.norm(Kx, axis=0) + np.abs(lam) * np.linalg.norm(Mx, axis=0)
-    rel = np.linalg.norm(Kx - Mx * lam, axis=0) / np.maximum(scale, 1e-300)
+    lam, psi, rel = ritz
     keep = lam <= lam_cut
     if not np.all(rel[keep] <= REUSE_TOL) or not np.any(keep):
         return None
     if _count_below(K, M, lam_cut) != int(np.count_nonzero(keep)):  # a mode came into the cut
         return None
     lam, psi = lam[keep], psi[:, keep]
-    k_scale = float(abs(K).max() / max(abs(M).max(), 1e-300))
-    sigma = -1e-6 * k_scale - 1.0
-    try:
-        lu = spla.splu((K - sigma * M).tocsc())
-    except RuntimeError:
+    shifted = _shift_factor(M, K)
+    if shifted is None:
         return None
+    k_scale, sigma, lu = shifted
     phi = phi0 @ psi
     phi = phi / np.sqrt(np.einsum("ij,ij->j", phi, M @ phi))
     return _attach(mats, M, K, lu, sigma, lam, phi)
@@ -319,15 +338,10 @@ def _extend(base: _Basis, mats: Any, lam_cut: float) -> _Basis | None:
         return None
     phi0 = base.V[:, : base.n_exact]
     check_structural_matrices(M, K)
-    KP, MP = np.asarray(K @ phi0), np.asarray(M @ phi0)
-    Kr, Mr = phi0.T @ KP, phi0.T @ MP
-    try:
-        lam, psi = sla.eigh(0.5 * (Kr + Kr.T), 0.5 * (Mr + Mr.T))
-    except (np.linalg.LinAlgError, ValueError):
+    ritz = _ritz(phi0, M, K)
+    if ritz is None:
         return None
-    Kx, Mx = KP @ psi, MP @ psi
-    scale = np.linalg.norm(Kx, axis=0) + np.abs(lam) * np.linalg.norm(Mx, axis=0)
-    rel = np.linalg.norm(Kx - Mx * lam, axis=0) / np.maximum(scale, 1e-300)
+    lam, psi, rel = ritz
     if not np.all(rel <= REUSE_TOL) or not lam[-1] < lam_cut:
         return None
     total = _count_below(K, M, lam_cut)
@@ -346,12 +360,10 @@ def _extend(base: _Basis, mats: Any, lam_cut: float) -> _Basis | None:
     inside = (lam_new > lam[-1] + 1e-7 * lam_cut) & (lam_new <= lam_cut)  # not the top mode again
     if int(np.count_nonzero(inside)) != missing:
         return None
-    k_scale = float(abs(K).max() / max(abs(M).max(), 1e-300))
-    sigma = -1e-6 * k_scale - 1.0
-    try:
-        lu = spla.splu((K - sigma * M).tocsc())
-    except RuntimeError:
+    shifted = _shift_factor(M, K)
+    if shifted is None:
         return None
+    k_scale, sigma, lu = shifted
     lam_all = np.concatenate([lam, _clean_eigenvalues(lam_new[inside], k_scale)])
     order = np.argsort(lam_all, kind="stable")
     phi = np.hstack([phi0 @ psi, phi_new[:, inside]])[:, order]

@@ -224,6 +224,15 @@ def test_band_limited_model_travels_to_worker_processes(monkeypatch):
     assert not calls
 
 
+def _point_candidates(model):
+    """A mass, a grounded spring and a dashpot at 15 DOFs around the hidden mass, calibrated on 3-20 Hz."""
+    dofs = (36, 46, 47, 48, 49, 56, 57, 58, 59, 60, 66, 67, 68, 69, 104)
+    return rc.effects.calibrate(
+        model, [rc.effects.AddedMass(f"dof {d}") for d in dofs]
+        + [rc.effects.SuspensionSpring(f"dof {d}") for d in dofs]
+        + [rc.effects.Dashpot(f"dof {d}") for d in dofs], band=(3.0, 20.0))
+
+
 def _hidden_mass_data(model, dof=57, mass=0.03, seed=1):
     M, K = _grid()
     M = M.tolil()
@@ -247,11 +256,7 @@ def test_closed_form_screening_keeps_the_exact_ranking(monkeypatch):
 
     model = _model()
     data, noise = _hidden_mass_data(model)
-    dofs = (36, 46, 47, 48, 49, 56, 57, 58, 59, 60, 66, 67, 68, 69, 104)
-    cands = rc.effects.calibrate(
-        model, [rc.effects.AddedMass(f"dof {d}") for d in dofs]
-        + [rc.effects.SuspensionSpring(f"dof {d}") for d in dofs]
-        + [rc.effects.Dashpot(f"dof {d}") for d in dofs], band=(3.0, 20.0))
+    cands = _point_candidates(model)
     kw = dict(noise=noise, workers=1, n_fit=2)
     full = rc.diagnose(model, data, cands, **kw)
     reduced = red.band_limited(model, F_HZ[-1], min_dof=0)
@@ -366,11 +371,7 @@ def test_first_order_prescreen_equals_the_closed_forms_derivative(monkeypatch):
 
     model = _model()
     data, noise = _hidden_mass_data(model)
-    dofs = (36, 46, 47, 48, 49, 56, 57, 58, 59, 60, 66, 67, 68, 69, 104)
-    cands = rc.effects.calibrate(
-        model, [rc.effects.AddedMass(f"dof {d}") for d in dofs]
-        + [rc.effects.SuspensionSpring(f"dof {d}") for d in dofs]
-        + [rc.effects.Dashpot(f"dof {d}") for d in dofs], band=(3.0, 20.0))
+    cands = _point_candidates(model)
     seen = []
     real = scr._prescreen
 
