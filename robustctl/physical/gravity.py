@@ -77,18 +77,11 @@ def regularised_mass(M) -> sp.csr_matrix:
     d = M.diagonal()
     ref = d[d > 0].mean() if np.any(d > 0) else 1.0
     fill = np.where(d > 1e-14 * ref, 0.0, ref)
-    if not np.any(fill):  # every DOF has mass: M itself (adding zeros changes no entry)
-        return M.copy()
     return (M + sp.diags(fill)).tocsr()
 
 
 def _lambda_ref(K, Mreg) -> float:
-    return _lambda_ref_diag(K.diagonal(), Mreg.diagonal())
-
-
-def _lambda_ref_diag(k_diag: np.ndarray, m_diag: np.ndarray) -> float:
-    """The largest ``|K_ii| / Mreg_ii`` (rad^2/s^2), from the two diagonals."""
-    ratio = np.abs(k_diag) / m_diag
+    ratio = np.abs(K.diagonal()) / Mreg.diagonal()
     return float(max(ratio.max(), 1e-300))
 
 
@@ -187,20 +180,16 @@ def solve_static(
     ModelError
         When ``K`` is not positive semi-definite (a compressive preload beyond buckling).
     """
-    dense = K.shape[0] <= DENSE_LIMIT
-    if dense:  # a dense K (the preload iteration's) is used as it is
-        Kd = K.toarray() if sp.issparse(K) else np.asarray(K, dtype=float)
-    else:
-        K = sp.csr_matrix(K)
+    K = sp.csr_matrix(K)
     Mreg = regularised_mass(M) if Mreg is None else Mreg
     if Z is None:
-        Z = null_space(Kd if dense else K, M)
+        Z = null_space(K, M)
     MZ = Mreg @ Z
     f_removed = MZ @ (Z.T @ f)
     f_p = f - f_removed
-    lam_ref = _lambda_ref_diag(np.diag(Kd) if dense else K.diagonal(), Mreg.diagonal())
-    if dense:
-        A = Kd + lam_ref * (MZ @ MZ.T) if Z.shape[1] else Kd
+    lam_ref = _lambda_ref(K, Mreg)
+    if K.shape[0] <= DENSE_LIMIT:
+        A = K.toarray() + lam_ref * (MZ @ MZ.T)
         try:
             u = sla.cho_solve(sla.cho_factor(A), f_p)
         except np.linalg.LinAlgError:
@@ -302,8 +291,6 @@ def preload_iteration(
     Mreg = regularised_mass(M)
     lam_ref = _lambda_ref(K_elastic, Mreg)
     Z0 = null_space(K_elastic, M, Mreg=Mreg)
-    # a small model iterates on dense matrices: K + K_g(N) entry by entry, as the sparse sum
-    K_dense = K_elastic.toarray() if K_elastic.shape[0] <= DENSE_LIMIT else None
     n_add = np.zeros(0) if n_fixed is None else np.asarray(n_fixed, float)
     N = n_add.copy() if n_add.size else None
     history: list[float] = []
@@ -311,10 +298,7 @@ def preload_iteration(
     u = np.zeros(K_elastic.shape[0])
     removed = np.zeros_like(u)
     for it in range(1, max_iter + 1):
-        if K_dense is not None:
-            Kt = K_dense if N is None else K_dense + _dense(geometric(N))
-        else:
-            Kt = K_elastic if N is None else (K_elastic + geometric(N)).tocsr()
+        Kt = K_elastic if N is None else (K_elastic + geometric(N)).tocsr()
         Z = _surviving_null_space(Kt, Z0, lam_ref)
         u, removed = solve_static(Kt, M, f, Z, Mreg=Mreg)
         N_new = axial_force(u, N) + (n_add if n_add.size else 0.0)
@@ -351,10 +335,6 @@ def _stalled_at_rounding(history: list[float], scale: float) -> bool:
     shows as changes that stay large or grow.
     """
     return len(history) >= 3 and history[-1] <= STALL_FACTOR * scale and history[-1] > 0.9 * history[-2]
-
-
-def _dense(A) -> np.ndarray:
-    return A.toarray() if sp.issparse(A) else np.asarray(A, dtype=float)
 
 
 def _surviving_null_space(Kt, Z0, lam_ref) -> np.ndarray:

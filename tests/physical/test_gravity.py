@@ -345,37 +345,3 @@ def test_rounding_floor_of_the_forces_ends_the_iteration_but_divergence_still_ra
     assert gravity._stalled_at_rounding([1.0, 1e-7, 1e-7], 1e-8)
     assert not gravity._stalled_at_rounding([1.0, 1e-7, 1e-7], 1e-10)  # 1000x the tolerance
     assert not gravity._stalled_at_rounding([1.0, 1e-6, 5e-7], 1e-8)  # still falling
-
-
-@pytest.mark.parametrize("n_null", [0, 3])
-def test_solve_static_gives_the_same_bits_for_a_dense_or_a_sparse_stiffness(n_null):
-    """The preload iteration hands a small model's K + K_g over as a dense array: the solution
-    (and the load removed) equals the one from the same matrix in CSR form bit for bit."""
-    K, M, f = _singular_system(n_null=n_null)
-    u_s, r_s = gravity.solve_static(sp.csr_matrix(K), sp.csr_matrix(M), f)
-    u_d, r_d = gravity.solve_static(K, sp.csr_matrix(M), f)
-    assert np.array_equal(u_s, u_d) and np.array_equal(r_s, r_d)
-    assert np.allclose(K @ u_d, f - r_d, atol=1e-10 * np.abs(f).max())
-
-
-def test_link_force_rows_equal_the_rows_of_the_whole_matrix_product():
-    """A rigid link's force needs ``(K + K_g(N)) u`` on its slave node's translations only:
-    ``_SlaveRows`` sums the same triplets in the same order as the full CSR matrix, so the rows
-    are the full product's bit for bit (Caltech truss: beams, rods, ten rigid links)."""
-    import robustctl as rc
-    from robustctl.physical.frame_assembly import _SlaveRows
-    from robustctl.physical.frame_cache import _full_triplets, _geometry
-    from robustctl.physical.frame_kernels import _G, _K, _Pattern, _point_triplets
-
-    frame = rc.examples.caltech_truss().build_structure()
-    geo = _geometry(frame)
-    full = _full_triplets(geo, _point_triplets(frame, geo.index))
-    masters, slaves = geo.links
-    assert slaves.size == 10
-    n = 6 * len(geo.names)
-    dofs = (6 * slaves[:, None] + np.arange(3)).ravel()
-    rng = np.random.default_rng(3)
-    n_elem = rng.normal(scale=50.0, size=int(full.tag.max()) + 1)
-    x = rng.normal(size=n)
-    whole = _Pattern(full.rows, full.cols, n).matrix(full.vals[:, _K] + full.vals[:, _G] * n_elem[full.tag])
-    assert np.array_equal(_SlaveRows(full, dofs, n).times(n_elem, x), (whole @ x)[dofs])
