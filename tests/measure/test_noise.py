@@ -18,7 +18,7 @@ from robustctl.measure.estimator import (
     expected_h1,
     hold_response,
 )
-from robustctl.measure.noise import averages_of, chi2_verdict, format_p
+from robustctl.measure.noise import LEAKAGE_NOTE, averages_of, chi2_verdict, format_p
 
 FS = 200.0
 
@@ -86,7 +86,11 @@ def test_noise_model_sources_and_refusals():
     assert rc.noise_model(bare) is None
     mm = rc.fit_measurement_model(bare, n_modes=1, band=(2.0, 40.0))
     res = rc.noise_model(bare.band(2.0, 40.0), measurement_model=mm)
-    assert res.source == "noise estimated from the residual of a 1-mode measurement model"
+    assert res.source == "noise estimated from the residual of a 1-mode measurement model" + LEAKAGE_NOTE
+    # a user's file without the Welch settings: the residual's scale alone, below it at the peak
+    alone = rc.noise_model(rc.FrequencyData(d.f_hz, d.response).band(2.0, 40.0), measurement_model=mm)
+    assert alone.source == "noise estimated from the residual of a 1-mode measurement model"
+    assert np.all(res.sigma >= alone.sigma) and np.max(res.sigma / alone.sigma) > 1.05
     # coherence without recorded averages: only an explicit n_averages makes a model
     plain = rc.FrequencyData(d.f_hz, d.response, coherence=d.coherence)
     assert rc.noise_model(plain) is None
