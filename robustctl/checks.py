@@ -256,7 +256,7 @@ def check_band(band: Any, name: str = "band") -> tuple[float, float] | None:
     Raises
     ------
     DataError
-        Not a pair of real numbers, not finite, or ``f_lo >= f_hi``.
+        Not a pair of real numbers, not finite, ``f_lo >= f_hi`` or ``f_lo < 0``.
     """
     if band is None:
         return None
@@ -272,6 +272,11 @@ def check_band(band: Any, name: str = "band") -> tuple[float, float] | None:
     if not (np.isfinite(lo) and np.isfinite(hi)) or not lo < hi:
         raise DataError(
             f"{name} ({lo:g}, {hi:g}) Hz is empty or not finite; give finite f_lo_hz < f_hi_hz in Hz."
+        )
+    if lo < 0:
+        raise DataError(
+            f"{name} ({lo:g}, {hi:g}) Hz starts below 0 Hz: frequency responses are one-sided here, so "
+            f"a negative edge selects nothing more than 0 Hz would; give 0 <= f_lo_hz < f_hi_hz in Hz."
         )
     return lo, hi
 

@@ -71,11 +71,15 @@ BAD_BANDS = [
     ((50.0, 60.0), r"^band \(50, 60\) Hz holds 0 data points; the data span 0\.5-40 Hz\. Choose a band"),
     ("ab", r"^band must be a pair \(f_lo_hz, f_hi_hz\) of finite frequencies in Hz; got 'ab'\.$"),
     ((1.0, 2.0, 3.0), r"^band must be a pair \(f_lo_hz, f_hi_hz\) of finite frequencies in Hz; got"),
+    ((-5.0, 5.0), r"^band \(-5, 5\) Hz starts below 0 Hz: .* give 0 <= f_lo_hz < f_hi_hz in Hz\.$"),
 ]
 
 
+BAD_BAND_IDS = ["reversed", "nan", "outside", "text", "triple", "negative"]
+
+
 @pytest.mark.parametrize("entry", list(_entry_points(None, None)) + ["FrequencyData.band", "candidates"])
-@pytest.mark.parametrize("band, message", BAD_BANDS, ids=["reversed", "nan", "outside", "text", "triple"])
+@pytest.mark.parametrize("band, message", BAD_BANDS, ids=BAD_BAND_IDS)
 def test_every_entry_point_refuses_a_bad_band_in_the_same_words(chain, data, entry, band, message):
     calls = _entry_points(chain, data)
     calls["FrequencyData.band"] = lambda band: data.band(*band) if len(band) == 2 else data.band(*band[:2])
