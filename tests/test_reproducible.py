@@ -15,24 +15,30 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = Path(__file__).with_name("_reproducible_run.py")
-#: Longest a run may take (s; a hang guard, not a timing assertion).
+#: Longest the quiet run may take (s; a hang guard, not a timing assertion). The loaded run may
+#: take LOADED_FACTOR x as long as the quiet one took, plus this: a fixed 600 s guard failed the
+#: loaded run when other jobs already kept this 2-core machine at load 18.
 RUN_LIMIT_S = 600
+LOADED_FACTOR = 4
 #: Busy-loop processes of the load generator, and how long each may live (s) at most.
 LOAD_PROCESSES = 2
 LOAD_LIMIT_S = 600
 
 
-def _run(*args: str, **env_vars: str) -> dict:
+def _run(*args: str, limit_s: float = RUN_LIMIT_S, **env_vars: str) -> tuple[dict, float]:
+    """The script's results and how long it ran (s, for the next run's hang guard)."""
     env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONHASHSEED="random", **env_vars)
+    start = time.monotonic()
     out = subprocess.run([sys.executable, str(SCRIPT), *args], capture_output=True, text=True, env=env,
-                         cwd=ROOT, timeout=RUN_LIMIT_S, check=True)
-    return json.loads(out.stdout.strip().splitlines()[-1])
+                         cwd=ROOT, timeout=limit_s, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1]), time.monotonic() - start
 
 
 def _load() -> list[subprocess.Popen]:
@@ -43,10 +49,11 @@ def _load() -> list[subprocess.Popen]:
 
 @pytest.mark.slow
 def test_results_are_bit_identical_in_fresh_processes_with_and_without_cpu_load():
-    quiet = _run("--workers=1")
+    quiet, took = _run("--workers=1")
     hogs = _load()
     try:
-        loaded = _run("--workers=2")  # and diagnose in two worker processes instead of serially
+        # and diagnose in two worker processes instead of serially
+        loaded, _ = _run("--workers=2", limit_s=RUN_LIMIT_S + LOADED_FACTOR * took)
     finally:
         for h in hogs:
             h.kill()
@@ -62,10 +69,11 @@ def test_dk_is_bit_identical_across_processes_blas_threads_and_load():
     """D-K (dksyn runs its BLAS calls with robustctl's thread setting, whatever the process's):
     the demo's recipe and the distillation column in a fresh process with one OpenBLAS thread,
     and in another with two beside a CPU load."""
-    quiet = _run("dk_caltech", "dk_distillation", OPENBLAS_NUM_THREADS="1")
+    quiet, took = _run("dk_caltech", "dk_distillation", OPENBLAS_NUM_THREADS="1")
     hogs = _load()
     try:
-        loaded = _run("dk_caltech", "dk_distillation", OPENBLAS_NUM_THREADS="2")
+        loaded, _ = _run("dk_caltech", "dk_distillation", limit_s=RUN_LIMIT_S + LOADED_FACTOR * took,
+                         OPENBLAS_NUM_THREADS="2")
     finally:
         for h in hogs:
             h.kill()
