@@ -17,7 +17,7 @@ import scipy.sparse as sp
 
 from ..errors import ModelError
 from ..threads import limit_blas
-from .frame_cache import _PRELOADS, _full_triplets, _Geometry, _geometry, _reduced
+from .frame_cache import _GEOMETRY_LOCK, _PRELOADS, _full_triplets, _Geometry, _geometry, _Kept, _reduced
 from .frame_kernels import _C, _G, _K, _M, _point_triplets, _Trip
 from .frame_parts import _DOF_NAMES, _Assembly
 from .gravity import PreloadResult, preload_iteration
@@ -33,16 +33,14 @@ def _assemble(frame: Structure) -> _Assembly:
     n_full = 6 * len(names)
     points = _point_triplets(frame, geo.index)
     full = _full_triplets(geo, points)
-    T, dof_of_col = geo.T, geo.dof_of_col
     # DOFs with neither mass nor stiffness (nor damping, nor geometric stiffness) are dropped
     weight_full = np.bincount(full.rows, weights=np.abs(full.vals).sum(axis=1), minlength=n_full)
-    keep = abs(T).T @ weight_full > 0
-    B1, Cy1 = T.T @ geo.B_full, np.asarray((T.T @ geo.C_full.T).T)
-    _check_signals_on_empty(frame, keep, dof_of_col, B1, Cy1, names)
-    new_index = np.append(-np.ones(T.shape[1], dtype=int), -1)
+    keep = abs(geo.T).T @ weight_full > 0
+    kept = _kept(frame, geo, keep)
+    new_index = np.append(-np.ones(geo.T.shape[1], dtype=int), -1)
     new_index[np.flatnonzero(keep)] = np.arange(keep.sum())
     red, pattern = _reduced(geo, points, keep, new_index)
-    T, dof_of_col, B1, Cy1 = T[:, keep].tocsr(), dof_of_col[keep], B1[keep], Cy1[:, keep]
+    T, B1, Cy1 = kept.T, kept.B1.copy(), kept.Cy1.copy()
     K1, M1, C1 = (pattern.matrix(red.vals[:, j]) for j in (_K, _M, _C))
 
     def kg_red(N: np.ndarray) -> sp.csr_matrix:
@@ -61,8 +59,7 @@ def _assemble(frame: Structure) -> _Assembly:
             _PRELOADS.put(key, (geo, preload))
         axial = preload.axial_forces
     Kt = (K1 + kg_red(axial)).tocsr() if np.any(axial) else K1
-    labels = [f"{names[d // 6]} {_DOF_NAMES[d % 6]}" for d in dof_of_col]
-    mats = _condense(Kt, M1, C1, B1, Cy1, labels, frame)
+    mats = _condense(Kt, M1, C1, B1, Cy1, list(kept.labels), frame)
     link_names = tuple(f"{names[m]}->{names[k]}" for m, k in zip(*links))
     return _Assembly(mats, names, tuple(frame._elements) + link_names, T, preload, axial)
 
@@ -145,6 +142,26 @@ class _SlaveRows:
         """``((K + K_g(n_elem)) x)[dofs]``."""
         data = np.bincount(self.pos, weights=self.k + self.g * n_elem[self.tag], minlength=self.nnz)
         return np.bincount(self.row, weights=data * x[self.col], minlength=self.dofs.size)
+
+
+def _kept(frame: Structure, geo: _Geometry, keep: np.ndarray) -> _Kept:
+    """The constraint transform, DOF numbers, signal matrices and labels of the kept DOFs,
+    made once per geometry and keep mask (the signals are checked on the dropped DOFs first)."""
+    key = keep.tobytes()
+    with _GEOMETRY_LOCK:
+        found = geo.kept.get(key)
+    if found is not None:
+        return found
+    T, dof_of_col, names = geo.T, geo.dof_of_col, geo.names
+    B1, Cy1 = T.T @ geo.B_full, np.asarray((T.T @ geo.C_full.T).T)
+    _check_signals_on_empty(frame, keep, dof_of_col, B1, Cy1, names)
+    labels = tuple(f"{names[d // 6]} {_DOF_NAMES[d % 6]}" for d in dof_of_col[keep])
+    found = _Kept(T[:, keep].tocsr(), dof_of_col[keep], B1[keep], Cy1[:, keep], labels)
+    with _GEOMETRY_LOCK:
+        found = geo.kept.setdefault(key, found)
+        while len(geo.kept) > 8:
+            geo.kept.pop(next(iter(geo.kept)))
+    return found
 
 
 def _check_signals_on_empty(frame, keep, dof_of_col, B1, Cy1, names) -> None:
