@@ -477,11 +477,15 @@ def _zoh_impulse_modal(poles, residues, d, fs: float, n: int) -> np.ndarray:
     zp = np.exp(poles * t)
     with np.errstate(divide="ignore", invalid="ignore"):
         gain = np.where(np.abs(poles) > 0, (zp - 1.0) / poles, t)
-    # zp**k, k = 0..n-2, by a running product (|zp| < 1 for stable poles: no overflow)
-    powers = np.ones((n - 1, zp.size), dtype=complex)
+    # zp**k, k = 0..n-2, by a running product (|zp| < 1 for stable poles: no overflow), each
+    # pole's along a contiguous row (numpy's running product down the columns of a broadcast
+    # array is several times slower, with the same products)
+    powers = np.empty((zp.size, n - 1), dtype=complex)
+    powers[:, 0] = 1.0
     if n > 2:
-        powers[1:] = np.cumprod(np.broadcast_to(zp, (n - 2, zp.size)), axis=0)
-    seq = powers * gain[None, :]
+        np.cumprod(np.broadcast_to(zp[:, None], (zp.size, n - 2)), axis=1, out=powers[:, 1:])
+    seq = np.empty((n - 1, zp.size), dtype=complex)
+    np.multiply(powers.T, gain[None, :], out=seq)
     h[1:] = np.real(seq @ flat).reshape((n - 1,) + np.shape(d))
     return h
 

@@ -17,8 +17,8 @@ import scipy.sparse as sp
 
 from ..errors import ModelError
 from ..threads import limit_blas
-from .frame_cache import _PRELOADS, _full_triplets, _Geometry, _geometry, _reduced
-from .frame_kernels import _C, _G, _K, _M, _Pattern, _point_triplets, _Trip
+from .frame_cache import _GEOMETRY_LOCK, _PRELOADS, _full_triplets, _Geometry, _geometry, _Kept, _reduced
+from .frame_kernels import _C, _G, _K, _M, _point_triplets, _Trip
 from .frame_parts import _DOF_NAMES, _Assembly
 from .gravity import PreloadResult, preload_iteration
 from .structure_base import StructuralMatrices, Structure
@@ -33,16 +33,14 @@ def _assemble(frame: Structure) -> _Assembly:
     n_full = 6 * len(names)
     points = _point_triplets(frame, geo.index)
     full = _full_triplets(geo, points)
-    T, dof_of_col = geo.T, geo.dof_of_col
     # DOFs with neither mass nor stiffness (nor damping, nor geometric stiffness) are dropped
     weight_full = np.bincount(full.rows, weights=np.abs(full.vals).sum(axis=1), minlength=n_full)
-    keep = abs(T).T @ weight_full > 0
-    B1, Cy1 = T.T @ geo.B_full, np.asarray((T.T @ geo.C_full.T).T)
-    _check_signals_on_empty(frame, keep, dof_of_col, B1, Cy1, names)
-    new_index = np.append(-np.ones(T.shape[1], dtype=int), -1)
+    keep = abs(geo.T).T @ weight_full > 0
+    kept = _kept(frame, geo, keep)
+    new_index = np.append(-np.ones(geo.T.shape[1], dtype=int), -1)
     new_index[np.flatnonzero(keep)] = np.arange(keep.sum())
     red, pattern = _reduced(geo, points, keep, new_index)
-    T, dof_of_col, B1, Cy1 = T[:, keep].tocsr(), dof_of_col[keep], B1[keep], Cy1[:, keep]
+    T, B1, Cy1 = kept.T, kept.B1.copy(), kept.Cy1.copy()
     K1, M1, C1 = (pattern.matrix(red.vals[:, j]) for j in (_K, _M, _C))
 
     def kg_red(N: np.ndarray) -> sp.csr_matrix:
@@ -61,8 +59,7 @@ def _assemble(frame: Structure) -> _Assembly:
             _PRELOADS.put(key, (geo, preload))
         axial = preload.axial_forces
     Kt = (K1 + kg_red(axial)).tocsr() if np.any(axial) else K1
-    labels = [f"{names[d // 6]} {_DOF_NAMES[d % 6]}" for d in dof_of_col]
-    mats = _condense(Kt, M1, C1, B1, Cy1, labels, frame)
+    mats = _condense(Kt, M1, C1, B1, Cy1, list(kept.labels), frame)
     link_names = tuple(f"{names[m]}->{names[k]}" for m, k in zip(*links))
     return _Assembly(mats, names, tuple(frame._elements) + link_names, T, preload, axial)
 
@@ -97,20 +94,20 @@ def _gravity_preload(frame, st, T, full: _Trip, K1, M1, kg_red, tension, links, 
     f = T.T @ f_full
     masters, slaves = links
     ne = st.EA_L.size
-    full_pattern = _Pattern(full.rows, full.cols, n_full) if masters.size else None
+    rows = _SlaveRows(full, (6 * slaves[:, None] + np.arange(3)).ravel(), n_full) if masters.size else None
     e_link = (X[slaves] - X[masters]) / np.linalg.norm(X[slaves] - X[masters], axis=1, keepdims=True)
 
     def axial_force(u: np.ndarray, N_used: np.ndarray | None) -> np.ndarray:
         uf = T @ u
         du = uf.reshape(-1, 6)[st.n2, :3] - uf.reshape(-1, 6)[st.n1, :3]
         N = st.EA_L * np.sum(du * st.axis, axis=1)
-        if full_pattern is None:
+        if rows is None:
             return N
         n_elem = np.zeros(ne + masters.size)  # the elements' forces, not the links' own
         if N_used is not None:
             n_elem[:ne] = N_used[:ne]
-        K = full_pattern.matrix(full.vals[:, _K] + full.vals[:, _G] * n_elem[full.tag])
-        link_force = (K @ uf - f_full).reshape(-1, 6)[slaves, :3]  # what the link must apply
+        # what the link must apply: (K + K_g) uf - f on the slaves' translations
+        link_force = (rows.times(n_elem, uf) - f_full[rows.dofs]).reshape(-1, 3)
         return np.concatenate([N, -np.sum(link_force * e_link, axis=1)])
 
     return preload_iteration(
@@ -124,6 +121,47 @@ def _gravity_preload(frame, st, T, full: _Trip, K1, M1, kg_red, tension, links, 
         max_iter=frame.max_gravity_iterations,
     )
 
+
+
+class _SlaveRows:
+    """The rows ``dofs`` of the full ``K + K_g(N)`` (triplets ``full``, ``n`` full DOFs) times a
+    vector: only the triplets on those rows, summed per entry in their order and each row's
+    entries in column order, as a CSR matrix of the whole would (the same sums)."""
+
+    def __init__(self, full: _Trip, dofs: np.ndarray, n: int) -> None:
+        where = np.full(n, -1)
+        where[dofs] = np.arange(dofs.size)
+        sel = np.flatnonzero(where[full.rows] >= 0)
+        lin = where[full.rows[sel]].astype(np.int64) * n + full.cols[sel]
+        uniq, self.pos = np.unique(lin, return_inverse=True)
+        self.row, self.col = uniq // n, uniq % n
+        self.k, self.g, self.tag = full.vals[sel, _K], full.vals[sel, _G], full.tag[sel]
+        self.dofs, self.nnz = dofs, uniq.size
+
+    def times(self, n_elem: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """``((K + K_g(n_elem)) x)[dofs]``."""
+        data = np.bincount(self.pos, weights=self.k + self.g * n_elem[self.tag], minlength=self.nnz)
+        return np.bincount(self.row, weights=data * x[self.col], minlength=self.dofs.size)
+
+
+def _kept(frame: Structure, geo: _Geometry, keep: np.ndarray) -> _Kept:
+    """The constraint transform, DOF numbers, signal matrices and labels of the kept DOFs,
+    made once per geometry and keep mask (the signals are checked on the dropped DOFs first)."""
+    key = keep.tobytes()
+    with _GEOMETRY_LOCK:
+        found = geo.kept.get(key)
+    if found is not None:
+        return found
+    T, dof_of_col, names = geo.T, geo.dof_of_col, geo.names
+    B1, Cy1 = T.T @ geo.B_full, np.asarray((T.T @ geo.C_full.T).T)
+    _check_signals_on_empty(frame, keep, dof_of_col, B1, Cy1, names)
+    labels = tuple(f"{names[d // 6]} {_DOF_NAMES[d % 6]}" for d in dof_of_col[keep])
+    found = _Kept(T[:, keep].tocsr(), dof_of_col[keep], B1[keep], Cy1[:, keep], labels)
+    with _GEOMETRY_LOCK:
+        found = geo.kept.setdefault(key, found)
+        while len(geo.kept) > 8:
+            geo.kept.pop(next(iter(geo.kept)))
+    return found
 
 
 def _check_signals_on_empty(frame, keep, dof_of_col, B1, Cy1, names) -> None:

@@ -14,7 +14,7 @@ import hashlib
 import pickle
 import threading
 from collections import OrderedDict
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -53,6 +53,19 @@ class _Geometry:
     B_full: np.ndarray
     C_full: np.ndarray
     reduced: dict  # keep-mask bytes -> (elements reduced, {point pattern key: _Pattern})
+    kept: dict = field(default_factory=dict)  # keep-mask bytes -> _Kept
+
+
+@dataclass(frozen=True)
+class _Kept:
+    """The parts of an assembly fixed by the geometry and the kept DOFs: the constraint
+    transform, DOF numbers and signal matrices restricted to them, the DOF labels."""
+
+    T: sp.csr_matrix
+    dof_of_col: np.ndarray
+    B1: np.ndarray
+    Cy1: np.ndarray
+    labels: tuple[str, ...]
 
 
 class _LRU:
@@ -165,8 +178,9 @@ def _reduced(
             while len(geo.reduced) > 8:
                 geo.reduced.pop(next(iter(geo.reduced)))
     head, tail, patterns = entry
-    red = _Trip.cat([head, points.reduce(geo.T, new_index), tail])
-    pkey = red.rows.tobytes() + b"|" + red.cols.tobytes()
+    pts = points.reduce(geo.T, new_index)
+    red = _Trip.cat([head, pts, tail])
+    pkey = pts.rows.tobytes() + b"|" + pts.cols.tobytes()  # head and tail are the keep mask's
     with _GEOMETRY_LOCK:
         pattern = patterns.get(pkey)
     if pattern is None:

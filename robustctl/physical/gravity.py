@@ -189,14 +189,19 @@ def solve_static(
     f_p = f - f_removed
     lam_ref = _lambda_ref(K, Mreg)
     if K.shape[0] <= DENSE_LIMIT:
-        A = K.toarray() + lam_ref * (MZ @ MZ.T)
-        try:
-            u = sla.cho_solve(sla.cho_factor(A), f_p)
-        except np.linalg.LinAlgError:
-            raise _unstable_error() from None
+        u = _solve_definite(K.toarray() + lam_ref * (MZ @ MZ.T), f_p)
     else:
         u = _sparse_projected_solve(K, Mreg, Z, f_p, lam_ref, float(np.linalg.norm(f)))
     return u, f_removed
+
+
+def _solve_definite(A: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """``A^-1 f`` by Cholesky for a dense ``A`` that must be positive definite. ``A + 0.0``: a
+    stored ``-0.0`` reads as the ``+0.0`` a sparse sum (which drops zeros) or ``MZ MZ^T`` adds."""
+    try:
+        return sla.cho_solve(sla.cho_factor(A + 0.0), f)
+    except np.linalg.LinAlgError:
+        raise _unstable_error() from None
 
 
 def _unstable_error() -> ModelError:
@@ -288,9 +293,16 @@ def preload_iteration(
     if max_iter < 1:
         raise ModelError(f"max_iter must be at least 1; got {max_iter}.")
     K_elastic = sp.csr_matrix(K_elastic)
-    Mreg = regularised_mass(M)
-    lam_ref = _lambda_ref(K_elastic, Mreg)
-    Z0 = null_space(K_elastic, M, Mreg=Mreg)
+    # a small supported structure (null_space's own definiteness test) iterates on dense
+    # matrices: no rigid-body or mechanism mode, so no inertia relief and no regularised mass
+    K_dense = K_elastic.toarray() if K_elastic.shape[0] <= DENSE_LIMIT else None
+    supported = K_dense is not None and _clearly_definite(K_dense)
+    if supported:
+        Mreg, lam_ref, Z0 = None, None, np.zeros((K_elastic.shape[0], 0))
+    else:
+        Mreg = regularised_mass(M)
+        lam_ref = _lambda_ref(K_elastic, Mreg)
+        Z0 = null_space(K_elastic, M, Mreg=Mreg)
     n_add = np.zeros(0) if n_fixed is None else np.asarray(n_fixed, float)
     N = n_add.copy() if n_add.size else None
     history: list[float] = []
@@ -298,9 +310,12 @@ def preload_iteration(
     u = np.zeros(K_elastic.shape[0])
     removed = np.zeros_like(u)
     for it in range(1, max_iter + 1):
-        Kt = K_elastic if N is None else (K_elastic + geometric(N)).tocsr()
-        Z = _surviving_null_space(Kt, Z0, lam_ref)
-        u, removed = solve_static(Kt, M, f, Z, Mreg=Mreg)
+        if supported:
+            u = _solve_definite(K_dense if N is None else K_dense + geometric(N).toarray(), f)
+        else:
+            Kt = K_elastic if N is None else (K_elastic + geometric(N)).tocsr()
+            Z = _surviving_null_space(Kt, Z0, lam_ref)
+            u, removed = solve_static(Kt, M, f, Z, Mreg=Mreg)
         N_new = axial_force(u, N) + (n_add if n_add.size else 0.0)
         change = float(np.abs(N_new - (0.0 if N is None else N)).max(initial=0.0))
         history.append(change)

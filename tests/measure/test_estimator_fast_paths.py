@@ -101,3 +101,26 @@ def test_local_form_is_the_band_limited_response_through_the_hann_lag_window(k_t
     ref = np.fft.fft(two, axis=0)[2 * np.arange(1, f.size + 1)]
     assert np.max(np.abs(np.log(g / ref))) < 1e-6
     assert np.max(np.abs(np.log(frf(f) / ref))) > 0.05  # the leakage is real
+
+
+@pytest.mark.parametrize("n", [2, 3, 64])
+def test_zoh_impulse_sum_of_poles_matches_stepping_the_sampled_state_space(n):
+    """The pole-residue ZOH impulse response (running powers of each pole) against stepping
+    ``x[k+1] = Ad x[k]`` of the exact ZOH discretisation: two lightly damped modes, a real pole
+    and a 2 x 2 feedthrough, at the shortest lengths (no running product, one step) and at 64."""
+    import control
+
+    w1, w2 = 2 * np.pi * 3.0, 2 * np.pi * 11.0
+    A = np.zeros((5, 5))
+    A[0, 1] = A[2, 3] = 1.0
+    A[1, :2] = [-(w1**2), -0.04 * w1]
+    A[3, 2:4] = [-(w2**2), -0.02 * w2]
+    A[4, 4] = -30.0
+    B = np.array([[0, 0], [1, 0.5], [0, 0], [0.3, 1], [1, 1]])
+    C = np.array([[w1**2, 0, 0.5 * w2**2, 0, 2.0], [0, 1.0, w2**2, 0, -1.0]])
+    D = np.array([[0.1, 0.0], [0.0, -0.2]])
+    sys = control.ss(A, B, C, D)
+    poles, res, d = est._modal(sys)
+    h = est._zoh_impulse_modal(poles, res, d, 100.0, n)
+    ref = est._zoh_impulse_loop(sys, 100.0, n)
+    np.testing.assert_allclose(h, ref, rtol=0, atol=1e-12 * np.abs(ref).max())

@@ -345,3 +345,51 @@ def test_rounding_floor_of_the_forces_ends_the_iteration_but_divergence_still_ra
     assert gravity._stalled_at_rounding([1.0, 1e-7, 1e-7], 1e-8)
     assert not gravity._stalled_at_rounding([1.0, 1e-7, 1e-7], 1e-10)  # 1000x the tolerance
     assert not gravity._stalled_at_rounding([1.0, 1e-6, 5e-7], 1e-8)  # still falling
+
+
+def test_supported_structure_iterates_densely_with_the_bits_of_the_general_path(monkeypatch):
+    """A small supported structure skips the null space, the regularised mass and the inertia
+    relief and iterates on dense matrices: its preload (Caltech truss: beams, rods, ten rigid
+    links, 4 iterations) equals the general sparse path's bit for bit."""
+    import robustctl as rc
+    from robustctl.physical import frame_assembly, frame_cache
+
+    def preload(general: bool):
+        monkeypatch.setattr(frame_assembly, "_PRELOADS", frame_cache._LRU(4))
+        if general:  # null_space's eigen-decomposition decides: no null mode, the sparse loop
+            monkeypatch.setattr(gravity, "_clearly_definite", lambda K: False)
+        frame = rc.examples.caltech_truss().build_structure()
+        result = frame.preload()
+        monkeypatch.undo()
+        return frame, result
+
+    frame, fast = preload(general=False)
+    _, ref = preload(general=True)
+    assert fast.iterations == ref.iterations >= 3 and fast.converged
+    for a in ("axial_forces", "displacement", "unbalanced_load"):
+        assert np.array_equal(getattr(fast, a), getattr(ref, a))
+    assert fast.history == ref.history and fast.unbalanced_fraction == 0.0
+    assert not np.any(fast.unbalanced_load) and np.abs(fast.axial_forces).max() > 1.0
+
+
+def test_link_force_rows_equal_the_rows_of_the_whole_matrix_product():
+    """A rigid link's force needs ``(K + K_g(N)) u`` on its slave node's translations only:
+    ``_SlaveRows`` sums the same triplets in the same order as the full CSR matrix, so the rows
+    are the full product's bit for bit (Caltech truss: beams, rods, ten rigid links)."""
+    import robustctl as rc
+    from robustctl.physical.frame_assembly import _SlaveRows
+    from robustctl.physical.frame_cache import _full_triplets, _geometry
+    from robustctl.physical.frame_kernels import _G, _K, _Pattern, _point_triplets
+
+    frame = rc.examples.caltech_truss().build_structure()
+    geo = _geometry(frame)
+    full = _full_triplets(geo, _point_triplets(frame, geo.index))
+    masters, slaves = geo.links
+    assert slaves.size == 10
+    n = 6 * len(geo.names)
+    dofs = (6 * slaves[:, None] + np.arange(3)).ravel()
+    rng = np.random.default_rng(3)
+    n_elem = rng.normal(scale=50.0, size=int(full.tag.max()) + 1)
+    x = rng.normal(size=n)
+    whole = _Pattern(full.rows, full.cols, n).matrix(full.vals[:, _K] + full.vals[:, _G] * n_elem[full.tag])
+    assert np.array_equal(_SlaveRows(full, dofs, n).times(n_elem, x), (whole @ x)[dofs])
