@@ -491,15 +491,23 @@ def _scan_fit(prob, diagram, last) -> tuple[RationalFit, np.ndarray]:
     return first, np.isin(np.arange(poles.size), phys)
 
 
-def _automatic(band: FrequencyData, run: FitSettings, max_modes: int, parsimony: float, weights, progress):
+def _automatic(
+    band: FrequencyData, run: FitSettings, max_modes: int, parsimony: float, weights, progress, scans=None
+):
     """Stabilisation-diagram order selection, then the modal model of the chosen order; modes the
-    final model does not need (below the contribution floor) are dropped by one refit.
+    final model does not need (below the contribution floor) are dropped by one refit. ``scans``
+    (a dict, optional) keeps the scan for a second call on the same band (the scan does not depend
+    on the corrections: it runs on the band as measured).
 
     An impact record that leaks (truncated decays, eq. T1 of :mod:`.leakage`) makes the scan of
     the raw data find extra stable poles that model the leakage; once the refinement with the
     truncation in its model (eq. T1) has corrected the data, they no longer carry data or sit at
     the damping bound, and are dropped by a warm refit."""
-    prob, diagram, last, n = _scan(band, run, max_modes, parsimony, weights, progress)
+    if scans is None or "scan" not in scans:
+        scanned = _scan(band, run, max_modes, parsimony, weights, progress)
+        if scans is not None:
+            scans["scan"] = scanned
+    prob, diagram, last, n = scanned if scans is None else scans["scan"]
     welch = run.settings is not None and not isinstance(run.settings, TruncationSettings)
     if run.groups is not None or welch:
         fit, n_mode_poles, used = fit_best(band, n, run)
@@ -652,14 +660,15 @@ def fit_measurement_model(
     run = FitSettings(groups, st, kw, rank_tol, refine, clock if clock.active else None, progress=show)
     diagram = None
     order = "automatic order" if n_modes is None else f"n_modes={_check_modes(n_modes)}"
+    scans: dict = {}  # the order scan of band_fd, shared by the corrected and the plain fit
     fit, n_mode_poles, used, diagram = _fit_core(band_fd, run, n_modes, max_modes, parsimony, point_weights,
-                                                 show, order)
+                                                 show, order, scans)
     declined = None
     chosen = isinstance(st, TruncationSettings) and correct_leakage is not True
     if chosen and used.meta.get("leakage_corrected"):
         # the truncation correction is chosen only where it lowers the error against the H1 data
         plain = _fit_core(band_fd, replace(run, settings=None), n_modes, max_modes, parsimony, point_weights,
-                          show, order)
+                          show, order, scans)
         with_t, without = _raw_miss_db(fit, used), _raw_miss_db(plain[0], plain[2])
         if not with_t < without:
             fit, n_mode_poles, used, diagram = plain
@@ -736,16 +745,17 @@ def fit_measurement_model(
     )
 
 
-def _fit_core(band_fd, run, n_modes, max_modes, parsimony, point_weights, show, order):
+def _fit_core(band_fd, run, n_modes, max_modes, parsimony, point_weights, show, order, scans=None):
     """The fit of :func:`fit_measurement_model` for one setting of the corrections, realised and
-    stable; numerical failures become a :class:`FitError` naming the order, the step and the fix."""
+    stable; numerical failures become a :class:`FitError` naming the order, the step and the fix.
+    ``scans``: the automatic order's scan kept across the calls on ``band_fd`` (:func:`_automatic`)."""
     diagram = None
     with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         warnings.simplefilter("ignore", IdentifyWarning)
         try:
             if n_modes is None:
                 fit, n_mode_poles, used, diagram = _automatic(
-                    band_fd, run, max_modes, parsimony, point_weights, show
+                    band_fd, run, max_modes, parsimony, point_weights, show, scans
                 )
             else:
                 fit, n_mode_poles, used = fit_best(band_fd, _check_modes(n_modes), run)

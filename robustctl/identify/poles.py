@@ -71,15 +71,30 @@ def partial_fraction_basis(s: np.ndarray, poles: np.ndarray) -> np.ndarray:
     ``1/(s-p) + 1/(s-conj p)`` and ``j/(s-p) - j/(s-conj p)``, whose real coefficients
     ``(x1, x2)`` are the residue ``x1 + j x2`` of ``p``.
     """
-    s = np.asarray(s)[:, None]
-    poles = np.asarray(poles, dtype=complex)
-    cplx = poles.imag != 0
-    first = np.cumsum(np.where(cplx, 2, 1)) - np.where(cplx, 2, 1)  # each pole's first column
-    out = np.empty((s.shape[0], int(np.sum(np.where(cplx, 2, 1)))), dtype=complex)
-    out[:, first[~cplx]] = 1.0 / (s - poles[~cplx].real)
-    a, b = 1.0 / (s - poles[cplx]), 1.0 / (s - np.conj(poles[cplx]))
-    out[:, first[cplx]] = a + b
-    out[:, first[cplx] + 1] = 1j * (a - b)
+    s = np.asarray(s)
+    q, idx, _ = _atoms(np.asarray(poles, dtype=complex))
+    return _basis_from_atoms(1.0 / (s[:, None] - q[None, :]), idx)
+
+
+def _basis_from_atoms(atoms: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """:func:`partial_fraction_basis` from the atoms ``1/(s - q)`` of :func:`_atoms` (K, M) and their
+    index pairs: ``a + b`` and ``j (a - b)`` per pair, ``a`` per real pole, written block by block
+    (a scattered column assignment is several times slower than the divisions)."""
+    k = atoms.shape[0]
+    pair = idx[:, 0] != idx[:, 1]
+    if np.all(pair):  # every pole complex: the atoms come as (p, conj p) side by side
+        a, b = atoms[:, 0::2], atoms[:, 1::2]
+        out = np.empty((k, a.shape[1], 2), dtype=complex)
+        np.add(a, b, out=out[:, :, 0])
+        out[:, :, 1] = 1j * (a - b)
+        return out.reshape(k, -1)
+    out = np.empty((k, idx.shape[0]), dtype=complex)
+    real = np.flatnonzero(~pair)
+    out[:, real] = atoms[:, idx[real, 0]]
+    first = np.flatnonzero(pair)[0::2]  # each complex pole's first column
+    a, b = atoms[:, idx[first, 0]], atoms[:, idx[first, 1]]
+    out[:, first] = a + b
+    out[:, first + 1] = 1j * (a - b)
     return out
 
 
@@ -108,7 +123,7 @@ def _re_products(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarr
     return np.matmul(np.ascontiguousarray(np.swapaxes(left, 0, 1)), right)
 
 
-def basis_gram(s: np.ndarray, poles: np.ndarray, v: np.ndarray) -> np.ndarray:
+def basis_gram(s: np.ndarray, poles: np.ndarray, v: np.ndarray, with_basis: bool = False):
     """``Re(B^H diag(v_c) B)`` for every weight column ``v_c``, with ``B = [partial_fraction_basis(s,
     poles), 1]`` and ``s`` on the imaginary axis, in O(K n) per column instead of O(K n^2).
 
@@ -129,16 +144,22 @@ def basis_gram(s: np.ndarray, poles: np.ndarray, v: np.ndarray) -> np.ndarray:
         One pole per conjugate pair plus real poles, all with ``Re p < 0``.
     v : ndarray, complex or real, shape (K, n_w)
         Weight columns.
+    with_basis : bool
+        Also return :func:`partial_fraction_basis` ``(s, poles)``, made from the same atoms
+        ``1/(s - q)`` (one set of divisions for both).
 
     Returns
     -------
     ndarray, shape (n_w, n + 1, n + 1)
-        Real Gram matrices, basis order of :func:`partial_fraction_basis` then the constant.
+        Real Gram matrices, basis order of :func:`partial_fraction_basis` then the constant; with
+        ``with_basis``, the tuple (Gram matrices, basis (K, n)).
     """
     q, idx, coef = _atoms(poles)
     vt = np.ascontiguousarray(np.asarray(v, dtype=complex).T)
-    mirror = vt @ (1.0 / (s[:, None] + np.conj(q)[None, :]))  # E (n_w, M)
-    first = vt @ (1.0 / (s[:, None] - q[None, :]))  # F
+    atoms = 1.0 / (s[:, None] - q[None, :])
+    # on s = j w, 1/(s + conj q) = -conj(1/(s - q)): E = -conj(conj(v)^T atoms), no second division
+    mirror = -np.conj(np.conj(vt) @ atoms)  # E (n_w, M)
+    first = vt @ atoms  # F
     r = 1.0 / (q[None, :] + np.conj(q)[:, None])  # r[a, b] = 1/(q_b + conj q_a)
     # P[a, y] = sum_{b in y} t_yb r[a, b];  Q[x, b] = sum_{a in x} conj(t_xa) r[a, b]
     p_ay = r[:, idx[:, 0]] * coef[:, 0] + r[:, idx[:, 1]] * coef[:, 1]
@@ -154,7 +175,7 @@ def basis_gram(s: np.ndarray, poles: np.ndarray, v: np.ndarray) -> np.ndarray:
     gram[:, :n, n] = -(e[0] + e[1]).real  # sum v conj(B_x) = -sum conj(t_xa) E_a
     gram[:, n, :n] = (f[0] + f[1]).real
     gram[:, n, n] = vt.sum(axis=1).real
-    return gram
+    return (gram, _basis_from_atoms(atoms, idx)) if with_basis else gram
 
 
 def coefficients_to_residues(x: np.ndarray, poles: np.ndarray) -> np.ndarray:

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..checks import coherence_weights
 from ..threads import limit_blas
-from .poles import basis_gram, evaluate, n_states, partial_fraction_basis
+from .poles import basis_gram, evaluate, n_states
 from .rational_fit import RationalFit
 from .realization import residue_factors
 
@@ -103,8 +103,9 @@ def refine_residues(fit: RationalFit, weights: np.ndarray | None = None, sweeps:
     # the Gram matrices and right-hand sides of every channel: fixed poles, so shared by all sweeps
     k, n_out, n_in = target.shape
     w2 = (rw**2).reshape(k, -1)
-    gram = basis_gram(s, poles, w2).reshape(n_out, n_in, *(2 * [n_states(poles) + 1]))
-    basis = np.hstack([partial_fraction_basis(s, poles), np.ones((k, 1))])
+    gram, phi = basis_gram(s, poles, w2, with_basis=True)
+    gram = gram.reshape(n_out, n_in, *(2 * [n_states(poles) + 1]))
+    basis = np.hstack([phi, np.ones((k, 1))])
     rhs = (np.conj(basis).T @ (w2 * target.reshape(k, -1))).real.T.reshape(n_out, n_in, -1)
     gram_t, rhs_t = np.swapaxes(gram, 0, 1), np.swapaxes(rhs, 0, 1)
     for _ in range(int(sweeps)):

@@ -148,11 +148,12 @@ def residues_normal(s: np.ndarray, g: np.ndarray, rw: np.ndarray, poles: np.ndar
     :func:`.poles.basis_gram`, O(K n) per channel and no (K, n^2) product; the fast VF of
     Deschrijver et al. 2008); ``g``, ``rw`` of shape (K, n_ch). Returns residues (n_p, n_ch)
     and d (n_ch,)."""
-    basis = np.hstack([partial_fraction_basis(s, poles), np.ones((s.size, 1))])
     w2 = rw**2
     if np.all(poles.real < 0) and np.all(s.real == 0):
-        gram = basis_gram(s, poles, w2)  # Re(B^H diag(w2_c) B) per channel
+        gram, phi = basis_gram(s, poles, w2, with_basis=True)  # Re(B^H diag(w2_c) B) per channel
+        basis = np.hstack([phi, np.ones((s.size, 1))])
     else:  # the moments need stable poles on the imaginary axis: the direct product per channel
+        basis = np.hstack([partial_fraction_basis(s, poles), np.ones((s.size, 1))])
         gram = np.einsum("kc,kiw->cwi", w2, (np.conj(basis)[:, :, None] * basis[:, None, :])).real
     rhs = (np.conj(basis).T @ (w2 * g)).real.T  # Re(B^H diag(w2_c) g_c), (n_ch, m)
     scale = 1.0 / np.sqrt(np.maximum(np.einsum("cii->ci", gram), 1e-300))

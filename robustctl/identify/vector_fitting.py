@@ -122,7 +122,7 @@ def _channel_blocks(phi: np.ndarray, g: np.ndarray, rw: np.ndarray) -> tuple[lis
 
 
 def _gram_normal(
-    s: np.ndarray, poles: np.ndarray, g: np.ndarray, rw: np.ndarray
+    s: np.ndarray, poles: np.ndarray, g: np.ndarray, rw: np.ndarray, blocks: np.ndarray | None = None
 ) -> tuple[np.ndarray, float] | None:
     """Gram path: ``sum_c S_c`` with ``S_c`` the Schur complement of the sigma unknowns ``[d, c]`` in
     ``Re(M_c^H M_c)``. Every channel block is ``Re(B^H diag(v) B)`` for a per-channel weight vector
@@ -131,11 +131,12 @@ def _gram_normal(
     ``Y_c = L_c^{-1} G12_c`` are stacked so that ``sum_c Y_c^T Y_c`` is one matrix product, and the
     sigma unknowns stay in ``B``'s order ``[c, d]`` until the summed matrix is permuted (the sign
     of ``G12`` cancels in ``Y^T Y``). Returns None when a Cholesky factorisation fails
-    (ill-conditioned basis); the caller then takes the QR path."""
+    (ill-conditioned basis); the caller then takes the QR path. ``blocks``: those Gram matrices
+    (:func:`_gram_weights`) when already formed."""
     n = int(np.sum(np.where(poles.imag != 0, 2, 1)))
-    w2 = rw**2
     n_ch = g.shape[1]
-    blocks = basis_gram(s, poles, np.hstack([w2, w2 * g, w2 * np.abs(g) ** 2]))
+    if blocks is None:
+        blocks = basis_gram(s, poles, _gram_weights(g, rw))
     g11, g12, g22 = blocks.reshape(3, n_ch, n + 1, n + 1)
     scale = 1.0 / np.sqrt(np.einsum("cii->ci", g11))
     try:
@@ -147,6 +148,12 @@ def _gram_normal(
     cost = float(np.sum(g22[:, n, n]) - np.sum(y[:, n] ** 2))
     perm = np.r_[n, :n]  # sigma unknowns [c, d] -> [d, c]
     return total[perm][:, perm], cost
+
+
+def _gram_weights(g: np.ndarray, rw: np.ndarray) -> np.ndarray:
+    """The weight columns ``[rw^2, rw^2 g, rw^2 |g|^2]`` of :func:`_gram_normal`'s Gram blocks."""
+    w2 = rw**2
+    return np.hstack([w2, w2 * g, w2 * np.abs(g) ** 2])
 
 
 def _constraint(phi: np.ndarray, scale: float) -> np.ndarray:
@@ -184,10 +191,14 @@ def vf_step(
     least-squares fit. ``gram=True`` forms the channel eliminations from one Gram product (several
     times faster, accurate to about sqrt(eps) in the poles); the default QR path is accurate to eps.
     """
-    phi = partial_fraction_basis(s, poles)
+    normal = None
+    if gram:  # the basis for the constraint from the Gram blocks' atoms (one set of divisions)
+        blocks, phi = basis_gram(s, poles, _gram_weights(g, rw), with_basis=True)
+        normal = _gram_normal(s, poles, g, rw, blocks)
+    else:
+        phi = partial_fraction_basis(s, poles)
     scale = np.sqrt(np.sum(np.abs(rw * g) ** 2)) / s.size
     con = _constraint(phi, scale)
-    normal = _gram_normal(s, poles, g, rw) if gram else None
     x = None
     if normal is not None:
         try:
