@@ -61,7 +61,10 @@ def test_coprime_reduction_bound_and_exactness(loop):
     assert red.error <= red.bound * (1 + 1e-9)  # 2 sum of the discarded Hankel singular values
     assert red.error >= red.hsv[7] * (1 - 1e-9)  # no truncation beats the first discarded sigma
     full = coprime_reduction(K, K.nstates - 1, plant=G)
-    assert full.error <= full.bound * (1 + 1e-9)
+    # one discarded sigma of 1.2e-8: the error, an H-inf norm of a difference of factors of norm
+    # ~ hsv[0], is computed to an absolute accuracy of a few eps x hsv[0] (1e-10 x hsv[0] here: on
+    # OpenBLAS's Sandybridge kernel the error exceeded the bound by 6.7e-12, 2.7e-4 of it)
+    assert full.error <= full.bound * (1 + 1e-9) + 1e-10 * full.hsv[0]
 
 
 def test_coprime_reduction_of_an_unstable_controller():
