@@ -156,11 +156,11 @@ def expected_coherence(sys: Any, f_hz: Any, settings: EstimatorSettings) -> np.n
     """
     ss = as_statespace(sys)
     A, B, C, D = (np.asarray(m, dtype=float) for m in (ss.A, ss.B, ss.C, ss.D))
-    if A.size and np.max(np.linalg.eigvals(A).real) >= 0:
-        raise DataError("the expected coherence needs a stable system: its impulse response must decay.")
     modal = _modal(ss)
     if modal is not None:
-        return expected_coherence_modal(*modal, f_hz, settings)
+        return expected_coherence_modal(*modal, f_hz, settings)  # checks the poles' stability
+    if np.max(np.linalg.eigvals(A).real) >= 0:
+        raise DataError("the expected coherence needs a stable system: its impulse response must decay.")
     h, r = _autocorrelation_state(A, B, C, D, float(settings.fs_hz), int(settings.nperseg))
     return _coherence(h, r, f_hz, settings)
 
