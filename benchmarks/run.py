@@ -78,7 +78,7 @@ def speed_reference(repeats: int = 5) -> dict[str, float]:
     """CPU milliseconds of two fixed workloads, the least of ``repeats`` runs: a 300 x 300 symmetric
     eigenproblem (LAPACK ``dsyevd``, one BLAS thread) and 200,000 turns of a Python loop. The same code
     measured on two days, or two machines, scales with these (this machine ran the diagnose benchmark's
-    reference case 2.3x slower on one day than on another): a figure is compared with its target
+    reference case about 2x slower on one day than on another): a figure is compared with its target
     together with them."""
     import numpy as np
     import scipy.linalg as sla
