@@ -37,3 +37,13 @@ def test_target_met_reads_ranges_and_booleans():
     assert target_met(0.84, "0.85 .. 1.15") is False
     assert target_met(True, "== True") is True and target_met(False, "== True") is False
     assert target_met(False, "== False") is True and target_met(1, "== True") is False
+
+
+def test_speed_reference_scales_with_the_work():
+    """The two reference workloads are timed (CPU ms) and the summary shows them beside the load."""
+    from benchmarks.run import speed_reference, summary_markdown
+
+    ref = speed_reference(repeats=3)
+    assert set(ref) == {"eigh_300", "python_loop_200k"} and all(v > 0 for v in ref.values())
+    row = summary_markdown([{"name": "x", "passed": True, "machine": {"speed_reference_ms": ref}}])
+    assert f"{ref['eigh_300']:g} / {ref['python_loop_200k']:g}" in row

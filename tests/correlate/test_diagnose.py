@@ -132,6 +132,31 @@ def test_worker_processes_give_the_serial_result(chain, cands, start, monkeypatc
         rc.diagnose(chain, data, cands, workers=0)
 
 
+def test_default_candidates_calibrated_beside_the_null_fit_give_the_serial_result(chain, monkeypatch):
+    """With worker processes the default candidates are calibrated by a second thread while the main
+    thread runs the null fit: the result equals the serial one to the last digit."""
+    import importlib
+    import threading
+
+    pipeline = importlib.import_module("robustctl.correlate.diagnosis.pipeline")
+    seen = []
+
+    def calibrate(*args):
+        seen.append(threading.current_thread() is threading.main_thread())
+        return calibrate.original(*args)
+
+    calibrate.original = pipeline._default_candidates
+    monkeypatch.setattr(pipeline, "_default_candidates", calibrate)
+    data = _data(chain, fx.AddedMass("dof 3", mass=0.05))
+    serial = rc.diagnose(chain, data, noise=KNOWN, workers=1, chain=False)
+    par = rc.diagnose(chain, data, noise=KNOWN, workers=2, chain=False)
+    assert seen == [True, False]  # serial: in order on the main thread; workers: beside it
+    assert serial.ranking[0].name == "added mass at dof 3"
+    same = [(r.name, r.cost, r.values) for r in serial.ranking]
+    assert [(r.name, r.cost, r.values) for r in par.ranking] == same
+    assert par.n_evals == serial.n_evals and par.update_values == serial.update_values
+
+
 def test_a_model_that_cannot_be_pickled_is_diagnosed_in_this_process(chain, cands):
     """Worker processes need the model pickled; one holding a lock is diagnosed serially, with
     a RuntimeWarning saying why, and gives the serial answer."""

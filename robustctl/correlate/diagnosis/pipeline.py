@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from concurrent.futures import Executor
+from concurrent.futures import Executor, Future
 from dataclasses import replace
 from typing import Any
 
@@ -46,6 +46,7 @@ from .screening import (
 from .sentences import _where, _with_sentence
 from .significance import _channel_verdict, _null_test, _row_noise, _score, _testable_rows, effective_points
 from .workers import (
+    _alongside,
     _check_budget,
     _check_candidates,
     _default_candidates,
@@ -224,12 +225,13 @@ def diagnose(
     n_chain = _check_chain(chain)
     with _pool(workers, executor, candidates, model, t_eval) as ex:
         defaults = candidates is None
-        if defaults:
-            candidates = _default_candidates(model, res0, deadline, ex)
-        first = _diagnose(
-            t0, res0, ignored, upd, candidates, j_nominal, ex, n_fit, max_iter, update_iter, alpha, min_gain,
-            deadline,
-        )
+        with _alongside(ex) as submit:
+            first_cands = submit(_default_candidates, model, res0, deadline, ex) if defaults else candidates
+            first = _diagnose(
+                t0, res0, ignored, upd, first_cands, j_nominal, ex, n_fit, max_iter, update_iter, alpha,
+                min_gain, deadline,
+            )
+            candidates = first_cands.result() if defaults else candidates
         steps = [first]
         while len(steps) < n_chain and steps[-1].lead is not None and not deadline.expired():
             past_answer = steps[-1].verdict == "answer"
@@ -386,7 +388,8 @@ def _diagnose(
     t0, res0, ignored, upd, cands, j_nominal, executor, n_fit, max_iter, update_iter, alpha, min_gain,
     deadline: Deadline,
 ) -> Diagnosis:
-    """:func:`diagnose` once the arguments are checked, the candidates made and the executor chosen."""
+    """:func:`diagnose` once the arguments are checked, the candidates made and the executor chosen
+    (``cands`` may be a Future: the default candidates calibrated beside the null fit)."""
     model = res0.model
     evals = 1
     cost_nominal = float(j_nominal @ j_nominal)
@@ -396,7 +399,8 @@ def _diagnose(
     x_u, j_u, cost_u = null.x, null.j, null.cost
     model_u = model.with_values(**x_u) if x_u else model
     res_u = _residual_for(res0, model_u)
-    # 2. secant screening
+    # 2. secant screening (the default candidates may have been calibrated beside the null fit)
+    cands = cands.result() if isinstance(cands, Future) else cands
     _check_budget(deadline, "the null fit")
     screens, twins, order = _screen_all(res_u, model_u, null, cands, executor, deadline)
     evals += sum(s["evals"] for s in screens)

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import contextlib
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
 from ...budget import BudgetWarning, Deadline
@@ -82,6 +83,30 @@ def _default_candidates(model: Any, res0: Residual, deadline: Deadline, executor
 
     cands = all_candidates(model, band=res0.band, time_budget_s=deadline, executor=executor)
     return _check_candidates(model, cands)
+
+
+@contextlib.contextmanager
+def _alongside(executor: Any) -> Iterator[Callable[..., Future]]:
+    """``submit(fn, *args)``: a call run beside the caller's own work, returning a Future.
+
+    With diagnose's own worker processes (``workers=``), the default candidates are calibrated on
+    the workers by a thread of this process while its main thread runs the null fit, whose
+    Levenberg-Marquardt steps (between its parallel Jacobians) would leave the workers idle: the
+    two do not depend on each other, and each candidate's calibration is computed alone, so the
+    result is the same as one after the other. The workers are started before the thread (a fork
+    copies only the calling thread, which must not be this one). With any other executor (or
+    none) the call runs at once, in order, as before."""
+    if not getattr(executor, "_robustctl_own", False):
+        def at_once(fn: Callable[..., Any], *args: Any) -> Future:
+            done: Future = Future()
+            done.set_result(fn(*args))
+            return done
+
+        yield at_once
+        return
+    executor.submit(int).result()  # a forking pool starts all its workers at its first task
+    with ThreadPoolExecutor(1, thread_name_prefix="robustctl-candidates") as side:
+        yield side.submit
 
 
 def _new_defaults(model: Any, res: Residual, known: list, deadline: Deadline, executor: Any) -> list:
