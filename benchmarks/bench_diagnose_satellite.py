@@ -80,7 +80,8 @@ def run() -> dict:
             estimator._FAR_POLE, estimator._second_order_modal, estimator._SMOOTH_ENDS = saved
             estimator._lag_curvature.cache_clear()
         old_cost = {r.name: r.cost for r in old.ranking}
-        rel = max(abs(r.cost - old_cost[r.name]) / max(abs(old_cost[r.name]), 1e-300) for r in new.ranking)
+        rel = max((abs(r.cost - old_cost[r.name]) / max(abs(old_cost[r.name]), 1e-300)
+                   for r in new.ranking if r.name in old_cost), default=float("nan"))
         same = ([r.name for r in new.ranking[:5]] == [r.name for r in old.ranking[:5]]
                 and new.verdict == old.verdict)
         top = new.best if new.best is not None else new.ranking[0].effect
