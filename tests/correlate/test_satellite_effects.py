@@ -114,3 +114,14 @@ def test_the_hinge_left_out_is_never_answered(satellite, cands):
         diag.summary()
     assert "array_py" in _where(diag) and "check its cable" not in diag.summary()
     assert np.isfinite(diag.dispersion_left) and diag.dispersion_left > 3.0
+
+
+def test_swapped_cables_left_out_name_the_two_rows(satellite, cands):
+    """Without the swapped-cable candidates, accelerometers a1 and a2 exchanged are not answered by a
+    structural effect: the misfit is placed in those two rows at every frequency, and their cables
+    are named (each row alone holds 5-93 % of a segment's excess, so no single channel is)."""
+    rest = [c for c in cands if c.kind != "swapped_outputs"]
+    diag = _diagnose(satellite, ("swapped",), rest)
+    assert diag.best is None and diag.effects == () and diag.verdict in ("incomplete", "unexplained"), \
+        diag.summary()
+    assert "outputs a1 and a2's rows" in diag.channel_verdict and "cables are swapped" in diag.summary()

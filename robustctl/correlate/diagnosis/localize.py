@@ -195,9 +195,50 @@ def channel_pattern(res: Residual, vec: np.ndarray, share_needed: float) -> tupl
     spreads over the segments (participation ratio at least :data:`CHANNEL_SPREAD`): a cable, sign
     or calibration fault is there at every frequency, a structural fault at its modes. None
     otherwise (or without a noise model)."""
+    found = _channel_sets(res, vec, share_needed, size=1)
+    return None if found is None else (found[0], found[1][0], found[2])
+
+
+def channel_pair_pattern(res: Residual, vec: np.ndarray,
+                         share_needed: float) -> tuple[str, tuple[int, int], float] | None:
+    """``(side, (i, j), share)`` when the excess of ``vec`` is two channels' together: two output
+    rows (or input columns) hold at least ``share_needed`` of it overall and in every segment that
+    holds a real part of it, and their excess together spreads over the segments as
+    :func:`channel_pattern` asks of one channel's. Two cables swapped (or two sensors exchanged) put their
+    misfit ``|H_i - H_j|`` in both rows at every frequency, its split between them changing from
+    mode to mode, so neither row alone passes :func:`channel_pattern`. Only with at least three
+    channels on that side (with two, every misfit is the pair's); None otherwise."""
+    return _channel_sets(res, vec, share_needed, size=2)
+
+
+def _channel_sets(res: Residual, vec: np.ndarray, share_needed: float,
+                  size: int) -> tuple[str, tuple[int, ...], float] | None:
+    """The ``size`` output rows (else input columns) holding most of the excess, when they hold
+    ``share_needed`` of it overall and in every real segment and their excess spreads over them."""
     got = point_excess(res, vec)
     if got is None:
         return None
+    excess = got[0]
+    total = float(excess.sum())
+    if total <= 0:
+        return None
+    segs = np.array_split(np.arange(excess.shape[0]), min(N_SEGMENTS, excess.shape[0]))
+    d = res.data
+    for side, axis, n in (("output", (0, 2), d.n_out), ("input", (0, 1), d.n_in)):
+        per = excess.sum(axis=axis)
+        ks = tuple(int(k) for k in np.argsort(-per, kind="stable")[:size])
+        share = float(per[list(ks)].sum()) / total
+        if n < size + 1 or share < share_needed or share <= 1.5 * size / n:
+            continue
+        rows = np.array([excess[s].sum(axis=axis) for s in segs])
+        seg_tot = rows.sum(axis=1)
+        real = seg_tot > total / (2 * len(segs))
+        x = rows[:, list(ks)].sum(axis=1)
+        consistent = all(x[i] >= share_needed * seg_tot[i] for i in np.flatnonzero(real))
+        spread = float(x.sum() ** 2 / (x.size * float(x @ x))) if x.any() else 0.0
+        if consistent and spread >= CHANNEL_SPREAD:
+            return side, tuple(sorted(ks)), share
+    return None
     excess = got[0]
     total = float(excess.sum())
     if total <= 0:

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from ..residual import Residual
-from .localize import channel_pattern
+from .localize import channel_pair_pattern, channel_pattern
 from .results import CandidateResult
 from .sentences import _hold_note, _where, _with_sentence
 
@@ -254,6 +254,9 @@ def _null_test(res: Residual, j_u: np.ndarray) -> tuple[float, float]:
 
 #: Share of the null fit's excess misfit one output row (input column) must hold to be named.
 CHANNEL_SHARE = 0.5
+#: Share of the excess two output rows (input columns) must hold together, overall and in every
+#: frequency segment holding a real part of it, to be named as a pair (:func:`_pair_verdict`).
+PAIR_SHARE = 0.8
 
 
 def _channel_verdict(res: Residual, j_u: np.ndarray) -> str:
@@ -266,7 +269,7 @@ def _channel_verdict(res: Residual, j_u: np.ndarray) -> str:
     if res.noise is not None:
         pattern = channel_pattern(res, j_u, CHANNEL_SHARE)
         if pattern is None:
-            return ""
+            return _pair_verdict(res, j_u)
         side, k, share = pattern
     else:
         per = np.abs(res.unstack(j_u)) ** 2
@@ -288,6 +291,23 @@ def _channel_verdict(res: Residual, j_u: np.ndarray) -> str:
     return (
         f"The misfit sits in {what} ({100 * share:.0f}% of it, at every frequency); no candidate explains "
         f"it: check its cable, sign and location (node and direction), and {check}."
+    )
+
+
+def _pair_verdict(res: Residual, j_u: np.ndarray) -> str:
+    """Name two output rows (input columns) that together hold an unexplained misfit at every
+    frequency (:func:`channel_pair_pattern`, :data:`PAIR_SHARE`): two cables swapped, or two
+    sensors (shakers) exchanged or mislabelled; "" when the pattern is not two channels'."""
+    pattern = channel_pair_pattern(res, j_u, PAIR_SHARE)
+    if pattern is None:
+        return ""
+    side, (i, j), share = pattern
+    names = res.data.outputs if side == "output" else res.data.inputs
+    what = "rows" if side == "output" else "columns"
+    return (
+        f"The misfit sits in {side}s {names[i]} and {names[j]}'s {what} ({100 * share:.0f}% of it, at every "
+        "frequency); no candidate explains it: check whether their cables are swapped, then each one's "
+        "sign, location (node and direction) and calibration."
     )
 
 
