@@ -156,7 +156,9 @@ def noise_test(
 
     ``keep`` (n_out, n_in) bool leaves channels out (e.g. negligible ones). Points whose
     sigma exceeds :data:`robustctl.measure.noise.SIGMA_TESTABLE` are noise-dominated and left out
-    (counted in ``n_untested``).
+    (counted in ``n_untested``). A coherence noise model's cells are tested on the exact scores
+    of its plug-in sigma (:func:`robustctl.measure.noise.plug_in_scores`, with the column's
+    averages): at few averages (an impact test's hits) ``|z|^2`` is F-distributed, not chi-square.
     """
     if noise is None:
         return None
@@ -165,6 +167,9 @@ def noise_test(
     f = np.asarray(f_hz, dtype=float)
     no, ni = z.shape[1:]
     keep = np.ones((no, ni), dtype=bool) if keep is None else np.asarray(keep, dtype=bool)
+    averages = [None] * ni
+    if noise.kind == "coherence" and noise.averages is not None:
+        averages = [float(v) for v in np.broadcast_to(np.asarray(noise.averages, dtype=float).reshape(-1), (ni,))]
     raw: list[tuple[Any, ...]] = []
     untested = 0
     for sl in sections(f.size, n_sections):
@@ -176,7 +181,7 @@ def noise_test(
                 untested += int(ok.size - ok.sum())
                 if not ok.any():
                     continue
-                ratio, dof, p = chi2_verdict(z[sl, o, i][ok], noise.chi2_factor)
+                ratio, dof, p = chi2_verdict(z[sl, o, i][ok], noise.chi2_factor, averages[i])
                 raw.append((outputs[o], inputs[i], float(f[sl][0]), float(f[sl][-1]), int(ok.sum()),
                             ratio, dof, p))
     limit = alpha / max(len(raw), 1)
