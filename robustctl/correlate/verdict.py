@@ -169,7 +169,8 @@ def noise_test(
     keep = np.ones((no, ni), dtype=bool) if keep is None else np.asarray(keep, dtype=bool)
     averages = [None] * ni
     if noise.kind == "coherence" and noise.averages is not None:
-        averages = [float(v) for v in np.broadcast_to(np.asarray(noise.averages, dtype=float).reshape(-1), (ni,))]
+        nd = np.asarray(noise.averages, dtype=float).reshape(-1)
+        averages = [float(v) for v in np.broadcast_to(nd, (ni,))]
     raw: list[tuple[Any, ...]] = []
     untested = 0
     for sl in sections(f.size, n_sections):

@@ -605,7 +605,9 @@ def plug_in_scores(t: np.ndarray, averages: float) -> np.ndarray:
     return m * np.log1p(np.asarray(t, dtype=float) / k)
 
 
-def chi2_verdict(z: np.ndarray, dof_factor: float, averages: float | None = None) -> tuple[float, float, float]:
+def chi2_verdict(
+    z: np.ndarray, dof_factor: float, averages: float | None = None
+) -> tuple[float, float, float]:
     """Chi-square test of normalised complex residuals ``z`` (unit variance per real part).
 
     ``S = sum |z|^2`` over ``n`` complex points has mean ``2n``; with correlated neighbouring
