@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ..measure.noise import NO_NOISE_SENTENCE, NoiseModel, chi2_verdict, format_p
+from ..measure.noise import NO_NOISE_SENTENCE, NoiseModel, cell_chi2_factor, chi2_verdict, format_p
 from ..table import Table
 
 __all__ = ["Cell", "NoiseTest", "noise_test", "sections"]
@@ -182,7 +182,8 @@ def noise_test(
                 untested += int(ok.size - ok.sum())
                 if not ok.any():
                     continue
-                ratio, dof, p = chi2_verdict(z[sl, o, i][ok], noise.chi2_factor, averages[i])
+                factor = cell_chi2_factor(noise, np.arange(f.size)[sl][ok], o, i)
+                ratio, dof, p = chi2_verdict(z[sl, o, i][ok], factor, averages[i])
                 raw.append((outputs[o], inputs[i], float(f[sl][0]), float(f[sl][-1]), int(ok.sum()),
                             ratio, dof, p))
     limit = alpha / max(len(raw), 1)

@@ -69,7 +69,7 @@ __all__ = [
     "point_weight_bias",
     "NoiseModel", "noise_model", "residual_noise", "averages_of", "checked_noise_model", "checked_averages",
     "own_coherence_weights", "neighbour_coherence", "coherence_placeholders", "NO_NOISE_SENTENCE",
-    "chi2_verdict", "plug_in_scores", "format_p",
+    "chi2_verdict", "plug_in_scores", "cell_chi2_factor", "format_p",
 ]
 
 #: what a result says when it has no noise estimate
@@ -131,6 +131,14 @@ class NoiseModel:
     testable : ndarray of bool (nf, n_out, n_in) or None
         Points where the log-normal error model holds (coherence significantly above zero
         and ``sigma <= SIGMA_TESTABLE``); verdicts use only these. None: every point.
+    bin_r : ndarray or None
+        ``r_m`` (``m = 0, 1, ..``), the output noise's H1 error correlation at bins ``m``
+        apart (:func:`_correlation`); None: independent bins.
+    force_share : ndarray (nf, n_out, n_in) or None
+        Share of each point's variance ``2 sigma^2`` that the force channel's noise makes
+        (an impact test's eq. N1, :func:`robustctl.measure.impact._force_noise`), in [0, 1].
+    force_corr : ndarray or None
+        Bound ``|D(m)| / D(0)`` on the correlation of that error at bins ``m`` apart.
     """
 
     f_hz: np.ndarray
@@ -141,6 +149,9 @@ class NoiseModel:
     kind: str = "coherence"
     testable: np.ndarray | None = field(default=None, repr=False)
     chi2_factor: float | None = None
+    bin_r: np.ndarray | None = field(default=None, repr=False)
+    force_share: np.ndarray | None = field(default=None, repr=False)
+    force_corr: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         f = np.asarray(self.f_hz, dtype=float).reshape(-1)
@@ -165,8 +176,10 @@ class NoiseModel:
     def band(self, mask: np.ndarray) -> NoiseModel:
         """The model on the points selected by a boolean mask over ``f_hz``."""
         mask = np.asarray(mask, dtype=bool)
+        share = None if self.force_share is None else self.force_share[mask]
         return NoiseModel(self.f_hz[mask], self.sigma[mask], self.source, self.averages, self.dof_factor,
-                          self.kind, self.testable[mask], self.chi2_factor)
+                          self.kind, self.testable[mask], self.chi2_factor, self.bin_r, share,
+                          self.force_corr)
 
     def on(self, f_hz: np.ndarray) -> NoiseModel:
         """The model on the data points ``f_hz`` (a subset of its own grid)."""
@@ -177,8 +190,9 @@ class NoiseModel:
             raise DataError(
                 "the noise model was made on another frequency grid; build it from the same data."
             )
+        share = None if self.force_share is None else self.force_share[idx]
         return NoiseModel(f, self.sigma[idx], self.source, self.averages, self.dof_factor, self.kind,
-                          self.testable[idx], self.chi2_factor)
+                          self.testable[idx], self.chi2_factor, self.bin_r, share, self.force_corr)
 
     def normalised(self, error: np.ndarray) -> np.ndarray:
         """``error / sigma`` (complex): unit variance in each of the real and imaginary parts."""
@@ -394,7 +408,72 @@ def _from_coherence(data: Any, nd: np.ndarray) -> NoiseModel:
         "Table 9.6)"
     )
     r = _correlation(data)
-    return NoiseModel(data.f_hz, sigma, source, nd, _dof_factor(r), "coherence", testable, _chi2_factor(r))
+    share, corr = _force_noise_share(data, sigma)
+    return NoiseModel(data.f_hz, sigma, source, nd, _dof_factor(r), "coherence", testable, _chi2_factor(r),
+                      r, share, corr)
+
+
+def _force_noise_share(data: Any, sigma: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The share of each point's variance ``2 sigma^2`` the force channel's noise makes, and that
+    error's bin correlation, from an impact test's ``meta["force_noise"]`` (eq. N1 of
+    :func:`robustctl.measure.impact._force_noise`); ``(None, None)`` without it or off its grid."""
+    rec = data.meta.get("force_noise")
+    e = getattr(data, "experiment", None)
+    if not isinstance(rec, dict) or e is None or e.excitation != "impact" or data.n_in != 1:
+        return None, None
+    try:
+        f = np.asarray(rec["f_hz"], dtype=float)
+        v = np.asarray(rec["rel_var"], dtype=float)
+        corr = np.asarray(rec["corr"], dtype=float).reshape(-1)
+    except (KeyError, TypeError, ValueError):
+        return None, None
+    if f.shape != v.shape or f.size == 0 or corr.size == 0 or not np.all(np.isfinite(v)):
+        return None, None
+    idx = np.clip(np.searchsorted(f, data.f_hz), 0, f.size - 1)
+    if not np.allclose(f[idx], data.f_hz, rtol=1e-9, atol=0):
+        return None, None
+    share = np.clip(v[idx][:, None, None] / (2.0 * sigma**2), 0.0, 1.0)
+    return share, np.clip(corr, 0.0, 1.0)
+
+
+def cell_chi2_factor(noise: NoiseModel, idx: np.ndarray, o: int, i: int) -> float:
+    """Satterthwaite factor ``tr(C^2) / n`` of a sum of squares over the points ``idx`` (indices on
+    the noise model's grid) of one channel, with the force noise's band-wide correlation.
+
+    Each normalised error is the sum of an output-noise part, share ``1 - phi``, correlated
+    ``sqrt(r_m)`` at bins ``m`` apart (:attr:`NoiseModel.bin_r`), and a force-noise part, share
+    ``phi`` (:attr:`NoiseModel.force_share`), correlated at most ``force_corr[m]``;
+    ``|C_jl| <= sqrt((1 - phi_j)(1 - phi_l)) sqrt(r_m) + sqrt(phi_j phi_l) force_corr[m]``. Never
+    below the model's ``chi2_factor``.
+
+    Parameters
+    ----------
+    noise : NoiseModel
+    idx : ndarray of int
+        The points of the sum.
+    o, i : int
+        Output and input index of the channel.
+
+    Returns
+    -------
+    float
+    """
+    base = max(float(noise.chi2_factor), 1.0)
+    if noise.force_share is None or noise.force_corr is None or idx.size == 0:
+        return base
+    phi = noise.force_share[idx, o, i]
+    lag = np.abs(idx[:, None] - idx[None, :])
+    fc = np.asarray(noise.force_corr)
+    rf = np.where(lag < fc.size, fc[np.minimum(lag, fc.size - 1)], 0.0)
+    if noise.bin_r is None:
+        rn = (lag == 0).astype(float)
+    else:
+        r = np.sqrt(np.clip(np.asarray(noise.bin_r, dtype=float), 0.0, 1.0))
+        rn = np.where(lag < r.size, r[np.minimum(lag, r.size - 1)], 0.0)
+    q = np.sqrt(1.0 - phi)
+    p = np.sqrt(phi)
+    c = q[:, None] * q[None, :] * rn + p[:, None] * p[None, :] * rf
+    return max(base, float(np.sum(c**2)) / idx.size)
 
 
 def _running_scale(x: np.ndarray, half: int) -> np.ndarray:
