@@ -5,7 +5,10 @@ deviation (:class:`robustctl.measure.noise.NoiseModel`) has unit variance in its
 parts when the model is right. Over a channel and a contiguous section of ``n`` points,
 ``S = sum |e / sigma|^2`` is then about ``c chi2_nu`` with ``nu = 2n / c`` and ``c`` the
 Satterthwaite factor of the window's bin-to-bin correlation (``NoiseModel.chi2_factor``, the
-bound over output noise and leakage; :func:`robustctl.measure.noise.chi2_verdict`). A cell fails when
+bound over output noise and leakage, raised per cell by an impact test's band-wide correlated
+force noise: :func:`robustctl.measure.noise.cell_chi2_factor`;
+:func:`robustctl.measure.noise.chi2_verdict`). With a coherence noise model the sum is of the exact
+scores of the plug-in sigma (:func:`robustctl.measure.noise.plug_in_scores`). A cell fails when
 its upper-tail probability is below ``alpha / n_tests`` (Bonferroni: the family of all
 channel-section cells holds the false-alarm rate at ``alpha``), so a true model passes
 everywhere with probability ``>= 1 - alpha``.
@@ -159,6 +162,8 @@ def noise_test(
     (counted in ``n_untested``). A coherence noise model's cells are tested on the exact scores
     of its plug-in sigma (:func:`robustctl.measure.noise.plug_in_scores`, with the column's
     averages): at few averages (an impact test's hits) ``|z|^2`` is F-distributed, not chi-square.
+    Each cell's Satterthwaite factor counts an impact test's force noise, correlated across the
+    band (:func:`robustctl.measure.noise.cell_chi2_factor`).
     """
     if noise is None:
         return None
