@@ -163,3 +163,45 @@ def test_five_percent_more_mass_at_a_node_is_still_flagged(n_hits):
     test = cmp.noise_test
     assert not test.within, test.sentence()
     assert max(c.ratio for c in test.failing) > 3
+
+
+@pytest.mark.slow
+def test_the_satellite_of_issue_34_by_impact():
+    """The free-free satellite of ``tests/satellite_corpus.py`` (120 DOF, numpy truth, exact
+    first-order-hold discretisation on a 16384 Hz grid), hammer at F1 (2 ms half-sine), a scipy
+    FIR anti-aliasing filter, 1024 Hz, 8 s records, 5 hits, exponential window: the exact truth
+    is within the noise in three seeds (4 of 8 seeds had failing cells with the plain chi-square,
+    0-4 of 36); 0.15 kg more at the boom tip is beyond it in most cells."""
+    import satellite_corpus as sc
+    from scipy.signal import firwin, lfilter
+
+    fs, over, n = 1024.0, 16, 8192
+    t = np.arange(n * over + 1) / (fs * over)
+    taps = firwin(20 * over + 1, 0.8 / over)
+    model = sc.nominal_model().select(inputs=["F1"])
+
+    def compare(seed, effects=()):
+        rng = np.random.default_rng(seed)
+        forces, responses = [], []
+        for _ in range(5):
+            start, width, amp = 0.05 + rng.uniform(0, 0.01), 0.002, 100 * (1 + 0.2 * rng.standard_normal())
+            f = np.where((t >= start) & (t <= start + width),
+                         amp * np.sin(np.pi * np.clip(t - start, 0, width) / width), 0.0)
+            y = sc.simulate(np.column_stack([f, np.zeros_like(f)]), 1 / (fs * over), effects)
+            forces.append(lfilter(taps, 1.0, f)[::over][:n])
+            responses.append(lfilter(taps, 1.0, y, axis=0)[::over][:n])
+        F, Y = np.array(forces), np.array(responses)
+        F += 5e-4 * np.abs(F[0]).max() * rng.standard_normal(F.shape)
+        Y += 0.01 * Y[0].std(axis=0) * rng.standard_normal(Y.shape)
+        data = rc.estimate_frf_impact(F, Y, fs, inputs=["F1"], outputs=list(sc.OUTPUTS))
+        assert data.meta["exp_window_tau_s"] is not None  # the suspension modes ring
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return rc.compare(model, data, band=sc.BAND).noise_test
+
+    for seed in (501, 503, 506):  # the seeds whose plain chi-square flagged 4, 3 and 1 cells
+        test = compare(seed)
+        assert test.within, test.sentence()
+        assert abs(test.overall_ratio - 1) < 0.35  # about 4 x its scatter (F variance 2, chi2_factor 4.6)
+    flagged = compare(501, ("tip_mass",))
+    assert len(flagged.failing) > len(flagged.cells) // 2, flagged.sentence()
