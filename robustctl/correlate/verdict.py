@@ -5,7 +5,10 @@ deviation (:class:`robustctl.measure.noise.NoiseModel`) has unit variance in its
 parts when the model is right. Over a channel and a contiguous section of ``n`` points,
 ``S = sum |e / sigma|^2`` is then about ``c chi2_nu`` with ``nu = 2n / c`` and ``c`` the
 Satterthwaite factor of the window's bin-to-bin correlation (``NoiseModel.chi2_factor``, the
-bound over output noise and leakage; :func:`robustctl.measure.noise.chi2_verdict`). A cell fails when
+bound over output noise and leakage, raised per cell by an impact test's band-wide correlated
+force noise: :func:`robustctl.measure.noise.cell_chi2_factor`;
+:func:`robustctl.measure.noise.chi2_verdict`). With a coherence noise model the sum is of the exact
+scores of the plug-in sigma (:func:`robustctl.measure.noise.plug_in_scores`). A cell fails when
 its upper-tail probability is below ``alpha / n_tests`` (Bonferroni: the family of all
 channel-section cells holds the false-alarm rate at ``alpha``), so a true model passes
 everywhere with probability ``>= 1 - alpha``.
@@ -19,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from ..measure.noise import NO_NOISE_SENTENCE, NoiseModel, chi2_verdict, format_p
+from ..measure.noise import NO_NOISE_SENTENCE, NoiseModel, cell_chi2_factor, chi2_verdict, format_p
 from ..table import Table
 
 __all__ = ["Cell", "NoiseTest", "noise_test", "sections"]
@@ -156,7 +159,11 @@ def noise_test(
 
     ``keep`` (n_out, n_in) bool leaves channels out (e.g. negligible ones). Points whose
     sigma exceeds :data:`robustctl.measure.noise.SIGMA_TESTABLE` are noise-dominated and left out
-    (counted in ``n_untested``).
+    (counted in ``n_untested``). A coherence noise model's cells are tested on the exact scores
+    of its plug-in sigma (:func:`robustctl.measure.noise.plug_in_scores`, with the column's
+    averages): at few averages (an impact test's hits) ``|z|^2`` is F-distributed, not chi-square.
+    Each cell's Satterthwaite factor counts an impact test's force noise, correlated across the
+    band (:func:`robustctl.measure.noise.cell_chi2_factor`).
     """
     if noise is None:
         return None
@@ -165,6 +172,10 @@ def noise_test(
     f = np.asarray(f_hz, dtype=float)
     no, ni = z.shape[1:]
     keep = np.ones((no, ni), dtype=bool) if keep is None else np.asarray(keep, dtype=bool)
+    averages = [None] * ni
+    if noise.kind == "coherence" and noise.averages is not None:
+        nd = np.asarray(noise.averages, dtype=float).reshape(-1)
+        averages = [float(v) for v in np.broadcast_to(nd, (ni,))]
     raw: list[tuple[Any, ...]] = []
     untested = 0
     for sl in sections(f.size, n_sections):
@@ -176,7 +187,8 @@ def noise_test(
                 untested += int(ok.size - ok.sum())
                 if not ok.any():
                     continue
-                ratio, dof, p = chi2_verdict(z[sl, o, i][ok], noise.chi2_factor)
+                factor = cell_chi2_factor(noise, np.arange(f.size)[sl][ok], o, i)
+                ratio, dof, p = chi2_verdict(z[sl, o, i][ok], factor, averages[i])
                 raw.append((outputs[o], inputs[i], float(f[sl][0]), float(f[sl][-1]), int(ok.sum()),
                             ratio, dof, p))
     limit = alpha / max(len(raw), 1)

@@ -17,6 +17,10 @@ mean of a transient is signal, not drift); the pre-trigger mean (DC offset) is r
   :func:`robustctl.fit_measurement_model` undoes it on the identified modes, and compare,
   diagnose and update see the model through it. Whether "auto" applies it is decided per
   response channel (:func:`ringing_channels`).
+* **Force noise**: the force channel's noise kept by the force window (the pre-trigger, the
+  pulse and its margin) is a relative H1 error common to every output and correlated over about
+  ``n / (window length)`` bins (eq. N1 of :func:`_force_noise`), recorded in
+  ``meta["force_noise"]`` for the noise test.
 * **Double hits** (a second force pulse after the first has ended) and **overloads** (a
   channel at its range, or clipped: several consecutive samples at the record's extreme) are
   warned about, naming the hit.
@@ -189,7 +193,11 @@ def estimate_frf_impact(
         ``hit_times_s`` (force-pulse centroids), ``hit_spreads_s`` (their rms durations) and
         ``hit_weights`` (force-energy shares): with
         them :func:`robustctl.fit_measurement_model` undoes the truncation of a response that
-        has not decayed by the record end (:mod:`robustctl.identify.leakage`, eq. T1).
+        has not decayed by the record end (:mod:`robustctl.identify.leakage`, eq. T1);
+        ``force_noise``: the relative H1 error the force channel's noise makes and its bin
+        correlation (eq. N1 of :func:`_force_noise`, from the pre-trigger's noise; None without
+        8 pre-trigger samples), which the noise test counts
+        (:func:`robustctl.measure.noise.cell_chi2_factor`).
 
     Warns
     -----
@@ -217,10 +225,13 @@ def estimate_frf_impact(
     overloads = [k for k in range(n_hits) if _overloaded(f[k], force_range) or _overloaded(y[k], y_range)]
     _warn(doubles, overloads, n_hits)
     fw, yw = _offsets_removed(f, y, pulses)
+    force_noise_var = _force_noise_variance(fw, pulses)
+    mult = np.ones((n_hits, n))  # what each hit's force record is multiplied by
     margin = _force_margin(force_window, fw, pulses, fs)
     if margin is not None:
         for k, (_, end, _) in enumerate(pulses):
-            fw[k] *= _force_window(n, end, margin)
+            mult[k] *= _force_window(n, end, margin)
+            fw[k] *= mult[k]
     ringing = np.any([ringing_channels(yk) for yk in yw], axis=0)
     tau = _window_tau(exp_window, ringing, pulses, n, fs)
     if tau is not None:
@@ -228,6 +239,7 @@ def estimate_frf_impact(
         for k, (start, _, _) in enumerate(pulses):
             win = np.exp(-(t - start / fs) / tau)  # a pure exponential, also before the hit (eq. W1)
             fw[k] *= win
+            mult[k] *= win
             yw[k] *= win[:, None]
     energy = np.sum(fw**2, axis=1)
     centroid = np.sum(np.arange(n) * np.abs(fw), axis=1) / np.maximum(np.sum(np.abs(fw), axis=1), 1e-300)
@@ -241,6 +253,8 @@ def estimate_frf_impact(
     with np.errstate(divide="ignore", invalid="ignore"):
         coh = np.where(syy > 0, np.abs(syf) ** 2 / (sff[:, None] * syy), 0.0)
     freqs = np.fft.rfftfreq(n, 1.0 / fs)[1:]
+    quiet = [start // 2 if start >= 8 else 0 for start, _, _ in pulses]  # the offsets' samples
+    force_noise = _force_noise(force_noise_var, mult, quiet, F, sff, freqs)
     meta = {
         "method": "H1 impact (one average per hit)",
         "fs_hz": fs,
@@ -255,6 +269,7 @@ def estimate_frf_impact(
         "hit_times_s": [float(c / fs) for c in centroid],
         "hit_spreads_s": [float(v) for v in spreads],
         "hit_weights": [float(e / energy.sum()) for e in energy],
+        "force_noise": force_noise,
     }
     return FrequencyData(
         freqs,
@@ -267,6 +282,76 @@ def estimate_frf_impact(
                               exp_window_tau_s=tau, force_window_s=None if margin is None else margin / fs,
                               pretrigger_s=float(np.dot(meta["hit_weights"], meta["hit_times_s"]))),
     )
+
+
+def _force_noise_variance(f: np.ndarray, pulses) -> float | None:
+    """Variance (N^2) of the force channel's noise: the pooled (unbiased) variance of the first half
+    of each hit's pre-trigger (clear of an anti-aliasing filter's precursor), None when no hit has
+    8 pre-trigger samples."""
+    quiet = [f[k, : start // 2] for k, (start, _, _) in enumerate(pulses) if start >= 8]
+    if not quiet:
+        return None
+    return float(np.mean([np.var(q, ddof=1) for q in quiet]))
+
+
+def _force_noise(var: float | None, mult: np.ndarray, quiet: list[int], F: np.ndarray, sff: np.ndarray,
+                 freqs: np.ndarray) -> dict | None:
+    """The H1 error the force channel's noise makes, band-wide correlated (eq. N1).
+
+    White force noise ``m`` of variance ``s2``, less its mean over the first ``h_k`` samples (the
+    DC offset removed, :func:`_offsets_removed`), times the window ``w_k`` of hit ``k`` (the force
+    window times the exponential window), has the DFT ``M_k`` with
+
+    ``E[M_k(j) conj(M_k(l))] / s2 = W2(j - l) - B(j) conj(A(l)) - A(j) conj(B(l)) + A(j) conj(A(l)) / h``
+
+    (``W2``, ``A``, ``B``: the DFTs of ``w^2``, ``w`` and ``w`` over the first ``h`` samples,
+    ``/ h``): a short force window correlates it over about ``n / (window length)`` bins, the
+    offset's error over every bin. It enters H1 as the relative error
+    ``-sum_k conj(F_k) M_k / sum_k |F_k|^2`` of every output alike, of complex variance
+
+    ``v(f) = sum_k |F_k|^2 E|M_k(f)|^2 / (sum_k |F_k|^2)^2``                            (N1)
+
+    and a correlation at bins ``m`` apart bounded by the largest ``|E[M_k(j) conj(M_k(j + m))]| /
+    sqrt(E|M_k(j)|^2 E|M_k(j + m)|^2)`` over bins and hits. The coherence counts ``v`` in each
+    bin's variance, but a sum over a band of bins dominated by it varies like a few independent
+    points, not like its number of bins.
+
+    Returns
+    -------
+    dict or None
+        ``{"f_hz": [...], "rel_var": [...], "corr": [...]}`` (Hz, dimensionless, the bound for
+        ``m = 0, 1, ..`` up to its last value of 0.05 or more); None without a noise estimate.
+    """
+    if var is None or not var > 0:
+        return None
+    n = mult.shape[1]
+    A = np.fft.fft(mult, axis=1)
+    W2 = np.fft.fft(mult**2, axis=1)
+    B = np.zeros_like(A)
+    for k, h in enumerate(quiet):
+        if h > 0:
+            B[k] = np.fft.fft(np.where(np.arange(n) < h, mult[k], 0.0)) / h
+    inv_h = np.array([1.0 / h if h > 0 else 0.0 for h in quiet])[:, None]
+    bins = np.arange(1, freqs.size + 1)
+
+    def cov(j: np.ndarray, m: int) -> np.ndarray:  # E[M_k(j) conj(M_k(j + m))] / s2, (n_hits, len(j))
+        lag = W2[:, (-m) % n][:, None]
+        Aj, Al, Bj, Bl = A[:, j], A[:, (j + m) % n], B[:, j], B[:, (j + m) % n]
+        return lag - Bj * np.conj(Al) - Aj * np.conj(Bl) + inv_h * Aj * np.conj(Al)
+
+    d = np.real(cov(bins, 0))
+    v = var * np.sum(np.abs(F) ** 2 * d, axis=0) / np.maximum(sff, 1e-300) ** 2
+    corr = [1.0]
+    for m in range(1, freqs.size):
+        j = bins[: freqs.size - m]
+        c = np.abs(cov(j, m)) / np.sqrt(np.maximum(d[:, : j.size] * d[:, m:m + j.size], 1e-300))
+        corr.append(float(np.max(c)))
+        if m >= 8 and max(corr[-8:]) < 0.05:
+            break
+    corr_arr = np.array(corr)
+    corr_arr = corr_arr[: int(np.flatnonzero(corr_arr >= 0.05)[-1]) + 1]
+    return {"f_hz": [float(x) for x in freqs], "rel_var": [float(x) for x in v],
+            "corr": [float(x) for x in corr_arr]}
 
 
 def _spread(pulse: np.ndarray) -> float:

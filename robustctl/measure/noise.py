@@ -69,7 +69,7 @@ __all__ = [
     "point_weight_bias",
     "NoiseModel", "noise_model", "residual_noise", "averages_of", "checked_noise_model", "checked_averages",
     "own_coherence_weights", "neighbour_coherence", "coherence_placeholders", "NO_NOISE_SENTENCE",
-    "chi2_verdict", "format_p",
+    "chi2_verdict", "plug_in_scores", "cell_chi2_factor", "format_p",
 ]
 
 #: what a result says when it has no noise estimate
@@ -131,6 +131,14 @@ class NoiseModel:
     testable : ndarray of bool (nf, n_out, n_in) or None
         Points where the log-normal error model holds (coherence significantly above zero
         and ``sigma <= SIGMA_TESTABLE``); verdicts use only these. None: every point.
+    bin_r : ndarray or None
+        ``r_m`` (``m = 0, 1, ..``), the output noise's H1 error correlation at bins ``m``
+        apart (:func:`_correlation`); None: independent bins.
+    force_share : ndarray (nf, n_out, n_in) or None
+        Share of each point's variance ``2 sigma^2`` that the force channel's noise makes
+        (an impact test's eq. N1, :func:`robustctl.measure.impact._force_noise`), in [0, 1].
+    force_corr : ndarray or None
+        Bound ``|D(m)| / D(0)`` on the correlation of that error at bins ``m`` apart.
     """
 
     f_hz: np.ndarray
@@ -141,6 +149,9 @@ class NoiseModel:
     kind: str = "coherence"
     testable: np.ndarray | None = field(default=None, repr=False)
     chi2_factor: float | None = None
+    bin_r: np.ndarray | None = field(default=None, repr=False)
+    force_share: np.ndarray | None = field(default=None, repr=False)
+    force_corr: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         f = np.asarray(self.f_hz, dtype=float).reshape(-1)
@@ -165,8 +176,10 @@ class NoiseModel:
     def band(self, mask: np.ndarray) -> NoiseModel:
         """The model on the points selected by a boolean mask over ``f_hz``."""
         mask = np.asarray(mask, dtype=bool)
+        share = None if self.force_share is None else self.force_share[mask]
         return NoiseModel(self.f_hz[mask], self.sigma[mask], self.source, self.averages, self.dof_factor,
-                          self.kind, self.testable[mask], self.chi2_factor)
+                          self.kind, self.testable[mask], self.chi2_factor, self.bin_r, share,
+                          self.force_corr)
 
     def on(self, f_hz: np.ndarray) -> NoiseModel:
         """The model on the data points ``f_hz`` (a subset of its own grid)."""
@@ -177,8 +190,9 @@ class NoiseModel:
             raise DataError(
                 "the noise model was made on another frequency grid; build it from the same data."
             )
+        share = None if self.force_share is None else self.force_share[idx]
         return NoiseModel(f, self.sigma[idx], self.source, self.averages, self.dof_factor, self.kind,
-                          self.testable[idx], self.chi2_factor)
+                          self.testable[idx], self.chi2_factor, self.bin_r, share, self.force_corr)
 
     def normalised(self, error: np.ndarray) -> np.ndarray:
         """``error / sigma`` (complex): unit variance in each of the real and imaginary parts."""
@@ -394,7 +408,72 @@ def _from_coherence(data: Any, nd: np.ndarray) -> NoiseModel:
         "Table 9.6)"
     )
     r = _correlation(data)
-    return NoiseModel(data.f_hz, sigma, source, nd, _dof_factor(r), "coherence", testable, _chi2_factor(r))
+    share, corr = _force_noise_share(data, sigma)
+    return NoiseModel(data.f_hz, sigma, source, nd, _dof_factor(r), "coherence", testable, _chi2_factor(r),
+                      r, share, corr)
+
+
+def _force_noise_share(data: Any, sigma: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The share of each point's variance ``2 sigma^2`` the force channel's noise makes, and that
+    error's bin correlation, from an impact test's ``meta["force_noise"]`` (eq. N1 of
+    :func:`robustctl.measure.impact._force_noise`); ``(None, None)`` without it or off its grid."""
+    rec = data.meta.get("force_noise")
+    e = getattr(data, "experiment", None)
+    if not isinstance(rec, dict) or e is None or e.excitation != "impact" or data.n_in != 1:
+        return None, None
+    try:
+        f = np.asarray(rec["f_hz"], dtype=float)
+        v = np.asarray(rec["rel_var"], dtype=float)
+        corr = np.asarray(rec["corr"], dtype=float).reshape(-1)
+    except (KeyError, TypeError, ValueError):
+        return None, None
+    if f.shape != v.shape or f.size == 0 or corr.size == 0 or not np.all(np.isfinite(v)):
+        return None, None
+    idx = np.clip(np.searchsorted(f, data.f_hz), 0, f.size - 1)
+    if not np.allclose(f[idx], data.f_hz, rtol=1e-9, atol=0):
+        return None, None
+    share = np.clip(v[idx][:, None, None] / (2.0 * sigma**2), 0.0, 1.0)
+    return share, np.clip(corr, 0.0, 1.0)
+
+
+def cell_chi2_factor(noise: NoiseModel, idx: np.ndarray, o: int, i: int) -> float:
+    """Satterthwaite factor ``tr(C^2) / n`` of a sum of squares over the points ``idx`` (indices on
+    the noise model's grid) of one channel, with the force noise's band-wide correlation.
+
+    Each normalised error is the sum of an output-noise part, share ``1 - phi``, correlated
+    ``sqrt(r_m)`` at bins ``m`` apart (:attr:`NoiseModel.bin_r`), and a force-noise part, share
+    ``phi`` (:attr:`NoiseModel.force_share`), correlated at most ``force_corr[m]``;
+    ``|C_jl| <= sqrt((1 - phi_j)(1 - phi_l)) sqrt(r_m) + sqrt(phi_j phi_l) force_corr[m]``. Never
+    below the model's ``chi2_factor``.
+
+    Parameters
+    ----------
+    noise : NoiseModel
+    idx : ndarray of int
+        The points of the sum.
+    o, i : int
+        Output and input index of the channel.
+
+    Returns
+    -------
+    float
+    """
+    base = max(float(noise.chi2_factor), 1.0)
+    if noise.force_share is None or noise.force_corr is None or idx.size == 0:
+        return base
+    phi = noise.force_share[idx, o, i]
+    lag = np.abs(idx[:, None] - idx[None, :])
+    fc = np.asarray(noise.force_corr)
+    rf = np.where(lag < fc.size, fc[np.minimum(lag, fc.size - 1)], 0.0)
+    if noise.bin_r is None:
+        rn = (lag == 0).astype(float)
+    else:
+        r = np.sqrt(np.clip(np.asarray(noise.bin_r, dtype=float), 0.0, 1.0))
+        rn = np.where(lag < r.size, r[np.minimum(lag, r.size - 1)], 0.0)
+    q = np.sqrt(1.0 - phi)
+    p = np.sqrt(phi)
+    c = q[:, None] * q[None, :] * rn + p[:, None] * p[None, :] * rf
+    return max(base, float(np.sum(c**2)) / idx.size)
 
 
 def _running_scale(x: np.ndarray, half: int) -> np.ndarray:
@@ -571,13 +650,52 @@ def _check_averages(value: Any, n_in: int) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------- tests and words
-def chi2_verdict(z: np.ndarray, dof_factor: float) -> tuple[float, float, float]:
+def plug_in_scores(t: np.ndarray, averages: float) -> np.ndarray:
+    """Exponential scores of the normalised squared errors of a coherence noise model.
+
+    With ``n = n_d`` averages a bin's ``t = |z|^2 / 2`` (``z = e / sigma``, ``sigma`` from the
+    bin's own coherence with ``n - 2`` averages, :func:`_from_coherence`) is not ``Exp(1)``, as
+    it would be with the true coherence, but ``(n - 2) Exp(1) / Gamma(n - 1)``: ``(n - 2) / (n - 1)``
+    times an ``F(2, 2 (n - 1))`` variable, whose survival function is ``(1 + t / (n - 2))^-(n - 1)``.
+    Its mean is 1, but its variance ``2 (n - 2) / (n - 3) - 1`` is 2 at 5 averages (1 for
+    ``Exp(1)``) and infinite at 3: a chi-square test of ``sum t`` over a section flags the exact
+    model far more often than its alpha (impact tests, one average per hit). The score
+
+    ``x = (n - 1) ln(1 + t / (n - 2))``                                                 (S1)
+
+    is ``-ln`` of that survival function, exactly ``Exp(1)`` at every ``n`` (a probability
+    integral transform), and ``x -> t`` as ``n -> inf``.
+
+    Parameters
+    ----------
+    t : ndarray
+        ``|e / sigma|^2 / 2`` (dimensionless, mean 1 for the right model).
+    averages : float
+        Effective number of averages ``n_d`` of the column (``NoiseModel.averages``).
+
+    Returns
+    -------
+    ndarray
+        ``x``, shape of ``t``: independent ``Exp(1)`` variables for the right model.
+    """
+    n = float(averages)
+    k = max(n - PLUG_IN_DOF, 1.0)  # the averages sigma was computed with
+    m = max(n - 1.0, 1.0)  # the Gamma shape of the residual power
+    return m * np.log1p(np.asarray(t, dtype=float) / k)
+
+
+def chi2_verdict(
+    z: np.ndarray, dof_factor: float, averages: float | None = None
+) -> tuple[float, float, float]:
     """Chi-square test of normalised complex residuals ``z`` (unit variance per real part).
 
     ``S = sum |z|^2`` over ``n`` complex points has mean ``2n``; with correlated neighbouring
     bins it is approximately ``c chi2_nu`` (Satterthwaite 1946) with ``c = dof_factor`` (a
-    noise model's ``chi2_factor``) and ``nu = 2n / c``. Returns ``(S / 2n, nu, p)``, ``p`` the
-    upper-tail probability.
+    noise model's ``chi2_factor``) and ``nu = 2n / c``. With ``averages`` (a coherence noise
+    model's ``n_d`` of the column) the test sums the exact scores :func:`plug_in_scores`
+    (``2 sum x`` in place of ``S``), which hold the false-alarm rate at few averages; the ratio
+    reported is ``S / 2n`` either way. Returns ``(S / 2n, nu, p)``, ``p`` the upper-tail
+    probability.
     """
     from scipy.stats import chi2
 
@@ -585,10 +703,12 @@ def chi2_verdict(z: np.ndarray, dof_factor: float) -> tuple[float, float, float]
     n = z.size
     if n == 0:
         return float("nan"), 0.0, float("nan")
-    s = float(np.sum(np.abs(z) ** 2))
+    z2 = np.abs(z) ** 2
+    s = float(np.sum(z2))
+    stat = s if averages is None else 2.0 * float(np.sum(plug_in_scores(z2 / 2.0, averages)))
     c = max(float(dof_factor), 1.0)
     nu = 2.0 * n / c
-    return s / (2.0 * n), nu, float(chi2.sf(s / c, nu))
+    return s / (2.0 * n), nu, float(chi2.sf(stat / c, nu))
 
 
 def format_p(p: float) -> str:
