@@ -30,12 +30,16 @@ HINF_BACKOFF = 1e-3
 MAX_D_STATES_PER_BLOCK = 24
 #: Target accuracy of each D fit (dB), passed to fit_magnitude.
 FIT_TOL_DB = 0.1
-#: Each D fit is the analytic centre of the fits within (1 + FIT_CENTRE) times the bisection's
-#: level (fit_magnitude's ``centre``): a unique fit that rounding of the optimal scales moves
-#: in proportion. The LP's own solution at the last level moved 1.6e-3 for a 1e-9 change of
-#: the scales on the Caltech design plant (issue 36); the centre moves ~1e-9 (4e-8 at most over
-#: the first three D steps' 45 fits of that plant), at a max error 0-4 % above the LP's.
-FIT_CENTRE = 0.05
+#: With a float ``rho``, each D fit is the analytic centre of the fits within ``(1 + rho)``
+#: times the bisection's level (fit_magnitude's ``centre``): a unique fit that rounding of the
+#: optimal scales moves in proportion. None: the LP solution at the bisection's last level
+#: (the default: the best D-K results measured). On the Caltech design plant a 1e-12 relative
+#: change of the plant moved the final mu 3.9e-4 with None and 6.7e-9 with 0.05 (issue 36); but
+#: the centre's max error sits at its level, ~5 % above the LP's, and D-K on the distillation
+#: column reached 1.0285 (automatic orders) against 0.9996, 1.0261 against 1.0127 with fourth
+#: order scales; rho of 0.01-0.02 fitted no better (1.0099, 1.0729) and rho 0.005 with a
+#: bisection to 0.5 % met the column's numbers but let rounding flip the bisection's last steps.
+FIT_CENTRE: float | None = None
 #: Orders the automatic choice may drop below the previous iteration's (0: an order once
 #: needed is kept).
 ORDER_D_DROP = 0
