@@ -467,14 +467,17 @@ def _guard_violations(prob: _Problem, a: np.ndarray, b: np.ndarray) -> bool:
 
 
 def _minimise(
-    prob: _Problem, hi: float, tol: float, deadline: Deadline
-) -> tuple[np.ndarray, np.ndarray, int]:
+    prob: _Problem, hi: float, tol: float, deadline: Deadline, levels_only: bool = False
+) -> tuple[np.ndarray, np.ndarray, int, float]:
     """Bisection on the tolerance (Boyd-Vandenberghe sec. 4.2.5, quasiconvex problems).
 
     The LP maximises a slack relative to ``B``, so a feasible point's own error is below the
-    tolerance tried and becomes the new upper end of the bracket at once. Non-negativity of
-    ``A`` and ``B`` off the grid is imposed lazily: guard points a solution violates join
-    the LP and the step is repeated (cutting planes).
+    tolerance tried and becomes the new upper end of the bracket at once (unless
+    ``levels_only``: then the bracket's ends are levels tried, so that they depend on the data
+    only through which LPs were feasible, not through the solutions' rounding). Non-negativity
+    of ``A`` and ``B`` off the grid is imposed lazily: guard points a solution violates join
+    the LP and the step is repeated (cutting planes). Returns the best solution, the LPs
+    solved and the bracket's upper end (a level with a feasible solution).
     """
     lo, best, n_lp = 0.0, None, 0
     while n_lp < 80:
@@ -486,7 +489,7 @@ def _minimise(
             cut = _guard_violations(prob, *sol) or _cut_midpoints(prob, *sol, gamma)
             if cut or _peak_violations(prob, *sol):
                 continue
-            best, hi = sol, min(err, gamma)
+            best, hi = sol, (gamma if levels_only else min(err, gamma))
             prob.b_ref = sol[1]
         elif best is None:
             hi *= 2.0  # not expected: a constant is feasible at the start
@@ -499,7 +502,137 @@ def _minimise(
             break
     if best is None:
         raise FitError("the magnitude fit found no feasible point within its budget; raise time_budget_s.")
-    return best[0], best[1], n_lp
+    return best[0], best[1], n_lp, hi
+
+
+#: Newton steps of the analytic centre (:func:`_centre`): a cap; self-concordance makes it
+#: converge in ~10-30 steps from the bisection's solution.
+CENTRE_MAX_NEWTON = 100
+#: Squared Newton decrement that ends the centring (two full steps follow it, so the
+#: returned point does not depend on where the test was passed).
+CENTRE_DECREMENT = 1e-10
+
+
+@dataclass(frozen=True)
+class _CentreData:
+    """The fit's constraints independent of the bisection's path: every point, midpoint and
+    guard point (the LPs add midpoints and guard points lazily, in an order rounding decides)."""
+
+    phi: np.ndarray  # basis on the fitted points
+    y: np.ndarray  # squared targets there (normalised)
+    wt: np.ndarray  # point weights
+    mid_phi: np.ndarray  # basis at the grid's midpoints
+    mid_y: np.ndarray
+    mid_wt: np.ndarray
+    mid_slack: np.ndarray  # allowed excursion there beyond the level (nepers)
+    guard: np.ndarray  # basis on every guard point (A, B >= 0 there)
+    y_inf: float  # cap of |W(inf)|^2 relative to the largest t
+
+
+def _centre_rows(data: _CentreData, gamma: float) -> np.ndarray:
+    """Rows ``G`` of ``G [a; b] <= 0``: the fit within ``gamma`` (nepers, per point over its weight)
+    at the points, within ``gamma`` plus their slack at the midpoints, ``A, B >= 0`` at the guard
+    points and ``|W(inf)|^2`` capped; each row scaled to unit largest entry."""
+    rows = []
+    t_max = 1.0
+    for phi, y, wt, extra in ((data.phi, data.y, data.wt, 0.0),
+                              (data.mid_phi, data.mid_y, data.mid_wt, data.mid_slack)):
+        if y.size == 0:
+            continue
+        t = np.exp(2.0 * (gamma + extra) / wt)
+        t_max = max(t_max, float(np.max(t)))
+        rows.append(np.hstack([phi, -(t * y)[:, None] * phi]))  # A <= t y B
+        rows.append(np.hstack([-phi, (y / t)[:, None] * phi]))  # A >= y B / t
+    g, zg = data.guard, np.zeros_like(data.guard)
+    rows += [np.hstack([-g, zg]), np.hstack([zg, -g])]
+    inf_row = data.guard[1]  # the basis at x = inf
+    rows.append(np.concatenate([inf_row, -data.y_inf * t_max * inf_row])[None])
+    G = np.vstack(rows)
+    return G / np.maximum(np.abs(G).max(axis=1, keepdims=True), 1e-300)
+
+
+def _centre(data: _CentreData, gamma: float, a0: np.ndarray,
+            b0: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The analytic centre of the fits within ``gamma``: ``max sum ln s_i`` over the slacks
+    ``s = -G z`` of :func:`_centre_rows`, normalised to ``mean B = 1`` on the points.
+
+    The set is bounded (``A / B`` is pinned within a band at more points than coefficients,
+    ``B >= 0`` with a fixed mean), so the centre is unique; it is a smooth function of the data
+    while the set has an interior, and rounding of the data moves it in proportion (unlike a
+    vertex of the LP at the bisection's last level, which rounding fixes only to the solver's
+    accuracy when that level is close to the optimum). Newton's method with the damped steps of
+    self-concordant barriers (Boyd-Vandenberghe sec. 9.6 and 10.2) from a strictly feasible
+    start: ``(a0, b0)`` (feasible within the solver's accuracy) moved towards the best
+    constant fit until every slack is positive. Returns None when no such start is found or
+    the Newton steps stall (the caller keeps the LP's solution).
+    """
+    G = _centre_rows(data, gamma)
+    n1 = data.phi.shape[1]
+    eq = np.concatenate([np.zeros(n1), data.phi.mean(axis=0)])
+    z1 = np.concatenate([a0, b0])
+    zc = np.zeros(2 * n1)  # the constant fit at the log-centre of the targets (positive everywhere)
+    zc[0], zc[n1] = float(np.sqrt(data.y.max() * data.y.min())), 1.0
+    s1, sc = -G @ z1, -G @ zc
+    # slacks on the segment z1 + lam (zc - z1) are linear in lam: the interval where all are positive
+    lo_lam, hi_lam = 0.0, 1.0
+    up = sc - s1
+    with np.errstate(divide="ignore", invalid="ignore"):
+        need = np.where(up > 0, -s1 / up, -np.inf)  # lam > need where s1 <= 0 < sc
+        allow = np.where(up < 0, -s1 / up, np.inf)  # lam < allow where s1 > 0 > sc
+    lo_lam = max(lo_lam, float(np.max(need[s1 <= 0], initial=0.0)))
+    hi_lam = min(hi_lam, float(np.min(allow[s1 > 0], initial=1.0)))
+    if not lo_lam < hi_lam:
+        return None
+    lam = 0.5 * (lo_lam + hi_lam) if lo_lam > 0 else min(0.5 * hi_lam, 1e-3)
+    z = z1 + lam * (zc - z1)
+    z = z / float(eq @ z)
+    s = -G @ z
+    if not np.all(s > 0):
+        return None
+    K = np.zeros((2 * n1 + 1, 2 * n1 + 1))
+    K[-1, :-1] = K[:-1, -1] = eq
+    extra = 0
+    for _ in range(CENTRE_MAX_NEWTON):
+        g = G.T @ (1.0 / s)
+        Gs = G / s[:, None]
+        K[:-1, :-1] = Gs.T @ Gs
+        d = np.sqrt(np.maximum(np.diag(K[:-1, :-1]), 1e-300))  # Jacobi scaling of the KKT system
+        D = np.append(1.0 / d, 1.0)
+        try:
+            sol = D * np.linalg.solve(D[:, None] * K * D[None, :], -D * np.append(g, 0.0))
+        except np.linalg.LinAlgError:
+            return None
+        dz = sol[:-1]
+        dec = float(-g @ dz)
+        if not np.isfinite(dec):
+            return None
+        ds = -G @ dz
+        if dec < CENTRE_DECREMENT:  # converged: full steps, at rounding level
+            if not np.all(s + ds > 0):
+                return None
+            z = z + dz
+            s = -G @ z
+            extra += 1
+            if extra >= 2:
+                break
+            continue
+        # backtracking from the full step (or 0.99 of the way to the boundary) on the barrier
+        with np.errstate(divide="ignore"):
+            to_edge = float(np.min(np.where(ds < 0, -s / ds, np.inf)))
+        step = min(1.0, 0.99 * to_edge)
+        phi0 = -float(np.sum(np.log(s)))
+        while True:
+            s_new = s + step * ds
+            if np.all(s_new > 0) and -float(np.sum(np.log(s_new))) <= phi0 - 0.25 * step * dec:
+                break
+            step *= 0.5
+            if step < 1e-12:
+                return None
+        z = z + step * dz
+        s = -G @ z
+    else:
+        return None
+    return z[:n1], z[n1:]
 
 
 # ---------------------------------------------------------------------------- realisation
@@ -628,10 +761,13 @@ def _unpack(theta: np.ndarray, layout: list[tuple[str, int]]) -> tuple[np.ndarra
     return np.array(out["z"], dtype=complex), np.array(out["p"], dtype=complex)
 
 
-def _polish(zeros: np.ndarray, poles: np.ndarray, w: np.ndarray, target: np.ndarray, wt: np.ndarray):
+def _polish(zeros: np.ndarray, poles: np.ndarray, w: np.ndarray, target: np.ndarray, wt: np.ndarray,
+            exact: bool = False):
     """Refine roots so ``ln|W|`` matches the LP's own curve ``target`` (least squares, gain
     free): a safety net when the roots of large cancelling coefficients came out inaccurate.
-    The parametrisation keeps every root in the left half plane."""
+    The parametrisation keeps every root in the left half plane. ``exact``: iterate to the
+    solver's limits (tolerances 1e-15), so that the roots are those of ``target`` and not of
+    the eigenvalue solver's rounding."""
     from scipy.optimize import least_squares
 
     theta0, layout = _pack(zeros, poles)
@@ -652,7 +788,9 @@ def _polish(zeros: np.ndarray, poles: np.ndarray, w: np.ndarray, target: np.ndar
         r = np.log(np.abs(zpk_response(z, p, 1j * w))) - target
         return wt * (r - np.average(r, weights=wt))
 
-    sol = least_squares(resid, theta0, bounds=(lo, hi), max_nfev=10 * theta0.size, x_scale="jac")
+    tight = {"ftol": 1e-15, "xtol": 1e-15, "gtol": 1e-15} if exact else {}
+    sol = least_squares(resid, theta0, bounds=(lo, hi), max_nfev=(30 if exact else 10) * theta0.size,
+                        x_scale="jac", **tight)
     return _unpack(sol.x, layout)
 
 
@@ -664,16 +802,21 @@ def _realise(
     m: np.ndarray,
     wt: np.ndarray,
     upper_bound: bool,
+    exact: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """Spectral factors of ``A / B``, the gain, and the realised weighted max log error (dB)."""
+    """Spectral factors of ``A / B``, the gain, and the realised weighted max log error (dB).
+
+    ``exact``: the roots are always polished onto ``A / B``'s curve to the solver's limits (the
+    roots of coefficients that cancel over many decades carry the eigenvalue solver's rounding,
+    amplified by their conditioning: 2e-3 on a D-scale of the Caltech design plant)."""
     zeros = _damping_floor(_lhp(basis.roots(a), basis.w0), w)
     poles = _damping_floor(_lhp(basis.roots(b), basis.w0), w)
     zeros = _proper(zeros, poles.size)
     Phi = basis.matrix((w / basis.w0) ** 2)
     target = 0.5 * np.log(np.maximum(Phi @ a, 1e-300) / np.maximum(Phi @ b, 1e-300))
     shape = np.log(np.abs(zpk_response(zeros, poles, 1j * w)))
-    if np.ptp(shape - target) > 1e-2:  # the roots do not reproduce the LP's curve: polish them
-        zp = _polish(zeros, poles, w, target, np.maximum(wt, 1e-3))
+    if exact or np.ptp(shape - target) > 1e-2:  # the roots do not reproduce the LP's curve: polish them
+        zp = _polish(zeros, poles, w, target, np.maximum(wt, 1e-3), exact)
         shape_p = np.log(np.abs(zpk_response(*zp, 1j * w)))
         if np.ptp(shape_p - target) < np.ptp(shape - target):
             zeros, poles = _damping_floor(zp[0], w), _damping_floor(zp[1], w)
@@ -733,6 +876,7 @@ def fit_magnitude_details(
     tol_db: float = 0.05,
     time_budget_s: float | Deadline | None = None,
     name: str | None = None,
+    centre: float | None = None,
 ) -> MagnitudeFit:
     """:func:`fit_magnitude` with the fit's figures (error, roots, LPs solved)."""
     t0 = time.perf_counter()
@@ -750,6 +894,10 @@ def fit_magnitude_details(
             f"mean overbound); got {objective!r} with upper_bound={upper_bound!r}."
         )
     tol_db = positive_number(tol_db, "tol_db", FitError, unit="dB")
+    if centre is not None:
+        centre = positive_number(centre, "centre", FitError)
+        if upper_bound:
+            raise FitError("centre applies to a log-Chebyshev fit, not to a cover (upper_bound=True).")
     deadline = as_deadline(time_budget_s, FitError)
     use = wt > 0
     logm = np.log(m)
@@ -779,10 +927,17 @@ def fit_magnitude_details(
         hi = (2.0 * spread if upper_bound else spread) + 1e-3
         tol = tol_db / DB_PER_NEPER
         best, n_lp, worst_peak = None, 0, 0.0
+        fixed = None if centre is None else _CentreData(
+            phi=prob.phi, y=prob.y, wt=prob.wt, mid_phi=prob.mid_phi, mid_y=prob.mid_y, mid_wt=prob.mid_wt,
+            mid_slack=prob.mid_slack, guard=prob.guard_all, y_inf=prob.y_inf)
         for price in L1_PRICES:
             prob.price = price
-            a, b, n = _minimise(prob, hi, tol, deadline)
+            a, b, n, level = _minimise(prob, hi, tol, deadline, levels_only=fixed is not None)
             n_lp += n
+            if fixed is not None and price == 0.0:
+                ab = _centre(fixed, level * (1.0 + centre) + 1e-6, a, b)
+                if ab is not None:
+                    a, b = ab
             if price == 0.0:
                 prob.zscale = max(float(np.abs(a).sum() + np.abs(b).sum()), 1e-300)
             if upper_bound:  # ties of the minimax fit broken by the mean ("max"), or a traded worst point
@@ -790,7 +945,7 @@ def fit_magnitude_details(
                 cap, n_it = (g_star + tol, 2) if objective == "max" else (2.0 * g_star + tol, 6)
                 a, b, n = _tighten(prob, a, b, cap, deadline, n_it)
                 n_lp += n
-            cand = _realise(basis, a, b, w[use], m[use], wt[use], bool(upper_bound))
+            cand = _realise(basis, a, b, w[use], m[use], wt[use], bool(upper_bound), fixed is not None)
             peak = _peak_ratio(cand, w[use], m[use]) if upper_bound else 0.0
             if peak <= 2.0 * PEAK_CAP and (best is None or cand[3] < best[3]):
                 best = cand
