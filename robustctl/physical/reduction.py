@@ -83,8 +83,10 @@ REDUCE_MIN_DOF = 300
 #: residual modes stand for the rest (error estimate ``e(1 / CUT_MARGIN)``, see the module).
 CUT_MARGIN = 3.0
 #: A structure differing from a reduced one at no more than this many DOFs is treated as a
-#: low-rank modification of it (structural dynamic modification) rather than reduced anew.
-LOW_RANK_MAX_DOFS = 6
+#: low-rank modification of it (structural dynamic modification) rather than reduced anew: each
+#: changed DOF adds one attachment vector (a solve with the base's factor), against a Lanczos run
+#: for a new reduction; 24 holds a transducer mass at every sensor and drive point of a test.
+LOW_RANK_MAX_DOFS = 24
 #: A full garbage collection after this many reduced evaluations. A candidate's model (its
 #: stages are closures that refer back to it) is a reference cycle that lives through several
 #: young-generation collections, so it reaches the oldest generation, which Python collects
@@ -286,17 +288,19 @@ def _ritz(phi0: np.ndarray, M: Any, K: Any) -> tuple[np.ndarray, np.ndarray, np.
     return lam, psi, np.linalg.norm(Kx - Mx * lam, axis=0) / np.maximum(scale, 1e-300)
 
 
-def _reuse(base: _Basis, mats: Any, lam_cut: float) -> _Basis | None:
+def _reuse(base: _Basis, mats: Any, lam_cut: float, ritz: Any = None) -> _Basis | None:
     """The reduction of ``mats`` from ``base``'s exact modes (:data:`REUSE_TOL`) up to the cut
-    ``lam_cut`` ((rad/s)^2), the same modes a fresh reduction keeps, or None."""
+    ``lam_cut`` ((rad/s)^2), the same modes a fresh reduction keeps, or None. ``ritz``: the
+    Rayleigh-Ritz step of ``mats`` on those modes (:func:`_ritz`), when the caller has it."""
     M, K = _csc(mats.mass), _csc(mats.stiffness)
     if M.shape != base.mass.shape:
         return None
     phi0, lam0 = base.V[:, : base.n_exact], base.lam[: base.n_exact]
-    if (M - base.mass).count_nonzero() == 0 and (K - base.stiffness).count_nonzero() == 0:  # new I/O only
-        return _attach(mats, M, K, _factor(base), base.sigma, lam0, phi0)
-    check_structural_matrices(M, K)
-    ritz = _ritz(phi0, M, K)
+    if ritz is None:
+        if (M - base.mass).count_nonzero() == 0 and (K - base.stiffness).count_nonzero() == 0:  # new I/O only
+            return _attach(mats, M, K, _factor(base), base.sigma, lam0, phi0)
+        check_structural_matrices(M, K)
+        ritz = _ritz(phi0, M, K)
     if ritz is None:
         return None
     lam, psi, rel = ritz
@@ -320,7 +324,7 @@ def _reuse(base: _Basis, mats: Any, lam_cut: float) -> _Basis | None:
 EXTEND_MAX_SHARE = 0.25
 
 
-def _extend(base: _Basis, mats: Any, lam_cut: float) -> _Basis | None:
+def _extend(base: _Basis, mats: Any, lam_cut: float, ritz: Any = None) -> _Basis | None:
     """The reduction of a structure whose modes below the cut include ``base``'s exact modes, made
     eigenpairs to :data:`REUSE_TOL` by the Rayleigh-Ritz step of :func:`_reuse` (a uniformly
     softer structure, an update parameter's step down), plus the few modes that came into the cut
@@ -332,13 +336,15 @@ def _extend(base: _Basis, mats: Any, lam_cut: float) -> _Basis | None:
     shift-invert Lanczos run about the middle of that interval for its ``m + 8`` nearest modes
     finds them (any mode outside the interval is farther from the shift than every mode in it):
     a factor and a handful of modes instead of all of them. The basis is then that of a fresh
-    reduction (the same exact modes, attachment vectors from its own factor)."""
+    reduction (the same exact modes, attachment vectors from its own factor). ``ritz``: as for
+    :func:`_reuse`."""
     M, K = _csc(mats.mass), _csc(mats.stiffness)
     if M.shape != base.mass.shape:
         return None
     phi0 = base.V[:, : base.n_exact]
-    check_structural_matrices(M, K)
-    ritz = _ritz(phi0, M, K)
+    if ritz is None:
+        check_structural_matrices(M, K)
+        ritz = _ritz(phi0, M, K)
     if ritz is None:
         return None
     lam, psi, rel = ritz
@@ -372,9 +378,19 @@ def _extend(base: _Basis, mats: Any, lam_cut: float) -> _Basis | None:
 
 
 def _reuse_or_extend(base: _Basis, mats: Any, lam_cut: float) -> _Basis | None:
-    """:func:`_reuse`, else :func:`_extend`."""
-    out = _reuse(base, mats, lam_cut)
-    return out if out is not None else _extend(base, mats, lam_cut)
+    """:func:`_reuse`, else :func:`_extend`, from one Rayleigh-Ritz step of ``mats`` on the base's
+    exact modes (the same inputs give both the same step)."""
+    M, K = _csc(mats.mass), _csc(mats.stiffness)
+    if M.shape != base.mass.shape:
+        return None
+    if (M - base.mass).count_nonzero() == 0 and (K - base.stiffness).count_nonzero() == 0:
+        return _reuse(base, mats, lam_cut)  # new I/O only: the base's own modes
+    check_structural_matrices(M, K)
+    ritz = _ritz(base.V[:, : base.n_exact], M, K)
+    if ritz is None:
+        return None
+    out = _reuse(base, mats, lam_cut, ritz)
+    return out if out is not None else _extend(base, mats, lam_cut, ritz)
 
 
 def _changed_dofs(base: _Basis, mats: Any) -> tuple[np.ndarray, list] | None:
@@ -512,15 +528,17 @@ class _Reducer:
         lam_cut = (2 * np.pi * self.f_cut_hz) ** 2
         base = None
         for _key, old in entries[:1]:
+            # a scaled structure with a point change (an update parameter and a candidate in one
+            # fit): the scaled one's reduction, the point change exact on top of it; the Ritz step
+            # of the changed structure itself on the base's modes would leave the residual of the
+            # point change (rejected for any change that matters, at the cost of two dense products)
+            scaled = _scaled_part(old, mats)
+            base = None if scaled is None else _reuse_or_extend(old, scaled, lam_cut)
+            change = None if base is None else _changed_dofs(base, mats)
+            if change is not None:
+                self._keep(base)
+                return base, change
             base = _reuse_or_extend(old, mats, lam_cut)
-            if base is None:  # a scaled structure with a point change: the scaled one's reduction
-                scaled = _scaled_part(old, mats)
-                base = None if scaled is None else _reuse_or_extend(old, scaled, lam_cut)
-                change = None if base is None else _changed_dofs(base, mats)
-                if change is not None:
-                    self._keep(base)
-                    return base, change
-                base = None
         if base is None:
             base = _reduce(mats, self.f_cut_hz)
         self._keep(base)
