@@ -125,3 +125,21 @@ def test_swapped_cables_left_out_name_the_two_rows(satellite, cands):
     assert diag.best is None and diag.effects == () and diag.verdict in ("incomplete", "unexplained"), \
         diag.summary()
     assert "outputs a1 and a2's rows" in diag.channel_verdict and "cables are swapped" in diag.summary()
+
+
+@pytest.mark.parametrize("effect, kinds", [
+    ("accel_mass", {"transducer_mass"}),
+    ("attachment", {"transducer_mass", "added_mass", "stinger"}),
+])
+def test_masses_left_out_are_never_answered_and_are_placed_on_the_structure(satellite, cands, effect, kinds):
+    """40 g at each accelerometer without the transducer-mass candidate, and 80 g between a force
+    gauge and the structure without any mass or stinger candidate: no effect is the answer (single
+    masses and sensor gains together leave 5-23 x the noise), and the misfit is placed at the
+    structure's modes, not on a cable."""
+    rest = [c for c in cands if c.kind not in kinds]
+    diag = _diagnose(satellite, (effect,), rest)
+    assert diag.best is None and diag.effects == () and diag.verdict in ("incomplete", "unexplained"), \
+        diag.summary()
+    assert diag.left and all(b.modes for b in diag.left), _where(diag)
+    assert diag.channel_verdict == "" and "check its cable" not in diag.summary()
+    assert diag.dispersion_left > 3.0
