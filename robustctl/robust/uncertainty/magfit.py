@@ -1006,7 +1006,7 @@ def fit_magnitude(f_hz: Any, mag: Any, order: int, **options: Any):
     order : int
         Number of poles of ``W`` (0 gives a constant).
     **options
-        The keyword-only parameters ``upper_bound`` to ``name`` below; the function's signature
+        The keyword-only parameters ``upper_bound`` to ``centre`` below; the function's signature
         is that of :func:`fit_magnitude_details` (one parameter list for both).
     upper_bound : bool
         Require ``|W| >= mag`` at every grid point (with a non-zero weight) and make the
@@ -1027,6 +1027,12 @@ def fit_magnitude(f_hz: Any, mag: Any, order: int, **options: Any):
         shared (the caller then reports).
     name : str, optional
         Name of the returned system.
+    centre : float, optional
+        With a log-Chebyshev fit, return instead of the last bisection LP's solution the unique
+        centre of the fits whose weighted max error is within ``(1 + centre)`` times the bisection's
+        level (dimensionless, e.g. 0.05): a fit that rounding of ``mag`` moves only in
+        proportion (the LP's solution on a nearly infeasible level is fixed only to the solver's
+        accuracy), about ``centre`` looser. None (default): the LP's fit.
 
     Returns
     -------
