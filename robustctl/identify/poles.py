@@ -25,6 +25,7 @@ __all__ = [
     "BestPoles",
     "lstsq_normal",
     "basis_gram",
+    "GramWeights",
 ]
 
 #: |Im p| below this fraction of |p| counts as a real pole.
@@ -118,12 +119,28 @@ def _atoms(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def _re_products(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """``out[x, w, y] = Re(a0[w, x] b0[x, y] + a1[w, x] b1[x, y])`` as one batched real product."""
-    left = np.stack([a[0].real, a[1].real, -a[0].imag, -a[1].imag], axis=-1)  # (n_w, n, 4)
+    left = np.stack([a[0].real.T, a[1].real.T, -a[0].imag.T, -a[1].imag.T], axis=-1)  # (n, n_w, 4)
     right = np.stack([b[0].real, b[1].real, b[0].imag, b[1].imag], axis=1)  # (n, 4, n)
-    return np.matmul(np.ascontiguousarray(np.swapaxes(left, 0, 1)), right)
+    return np.matmul(left, right)
 
 
-def basis_gram(s: np.ndarray, poles: np.ndarray, v: np.ndarray, with_basis: bool = False):
+class GramWeights:
+    """Weight columns prepared once for many :func:`basis_gram` calls on the same data (the
+    transposed columns, their conjugates and their sums), e.g. every relocation of a vector fit.
+
+    Parameters
+    ----------
+    v : ndarray, complex or real, shape (K, n_w)
+        Weight columns, as :func:`basis_gram` takes them.
+    """
+
+    def __init__(self, v: np.ndarray):
+        self.vt = np.ascontiguousarray(np.asarray(v, dtype=complex).T)
+        self.vt_conj = np.conj(self.vt)
+        self.sums = self.vt.sum(axis=1).real
+
+
+def basis_gram(s: np.ndarray, poles: np.ndarray, v, with_basis: bool = False):
     """``Re(B^H diag(v_c) B)`` for every weight column ``v_c``, with ``B = [partial_fraction_basis(s,
     poles), 1]`` and ``s`` on the imaginary axis, in O(K n) per column instead of O(K n^2).
 
@@ -142,8 +159,8 @@ def basis_gram(s: np.ndarray, poles: np.ndarray, v: np.ndarray, with_basis: bool
         Laplace variable ``j w`` (purely imaginary).
     poles : ndarray, complex
         One pole per conjugate pair plus real poles, all with ``Re p < 0``.
-    v : ndarray, complex or real, shape (K, n_w)
-        Weight columns.
+    v : ndarray, complex or real, shape (K, n_w), or GramWeights
+        Weight columns (or the same prepared by :class:`GramWeights`).
     with_basis : bool
         Also return :func:`partial_fraction_basis` ``(s, poles)``, made from the same atoms
         ``1/(s - q)`` (one set of divisions for both).
@@ -155,10 +172,12 @@ def basis_gram(s: np.ndarray, poles: np.ndarray, v: np.ndarray, with_basis: bool
         ``with_basis``, the tuple (Gram matrices, basis (K, n)).
     """
     q, idx, coef = _atoms(poles)
-    vt = np.ascontiguousarray(np.asarray(v, dtype=complex).T)
+    if not isinstance(v, GramWeights):
+        v = GramWeights(v)
+    vt = v.vt
     atoms = 1.0 / (s[:, None] - q[None, :])
     # on s = j w, 1/(s + conj q) = -conj(1/(s - q)): E = -conj(conj(v)^T atoms), no second division
-    mirror = -np.conj(np.conj(vt) @ atoms)  # E (n_w, M)
+    mirror = -np.conj(v.vt_conj @ atoms)  # E (n_w, M)
     first = vt @ atoms  # F
     r = 1.0 / (q[None, :] + np.conj(q)[:, None])  # r[a, b] = 1/(q_b + conj q_a)
     # P[a, y] = sum_{b in y} t_yb r[a, b];  Q[x, b] = sum_{a in x} conj(t_xa) r[a, b]
@@ -170,11 +189,10 @@ def basis_gram(s: np.ndarray, poles: np.ndarray, v: np.ndarray, with_basis: bool
     term_e = _re_products(e, [p_ay[idx[:, j]] for j in range(2)])  # (x, w, y)
     term_f = _re_products(f, [q_xb[:, idx[:, j]].T for j in range(2)])  # (y, w, x)
     gram = np.empty((vt.shape[0], n + 1, n + 1))
-    gram[:, :n, :n] = np.swapaxes(term_e, 0, 1)
-    gram[:, :n, :n] -= np.transpose(term_f, (1, 2, 0))
+    np.subtract(np.swapaxes(term_e, 0, 1), np.transpose(term_f, (1, 2, 0)), out=gram[:, :n, :n])
     gram[:, :n, n] = -(e[0] + e[1]).real  # sum v conj(B_x) = -sum conj(t_xa) E_a
     gram[:, n, :n] = (f[0] + f[1]).real
-    gram[:, n, n] = vt.sum(axis=1).real
+    gram[:, n, n] = v.sums
     return (gram, _basis_from_atoms(atoms, idx)) if with_basis else gram
 
 
