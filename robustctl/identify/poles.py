@@ -117,11 +117,14 @@ def _atoms(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.array(q, dtype=complex), np.array(idx, dtype=int).reshape(-1, 2), np.array(coef).reshape(-1, 2)
 
 
-def _re_products(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-    """``out[x, w, y] = Re(a0[w, x] b0[x, y] + a1[w, x] b1[x, y])`` as one batched real product."""
+def _re_products(
+    a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray], out: np.ndarray | None = None
+) -> np.ndarray:
+    """``out[x, w, y] = Re(a0[w, x] b0[x, y] + a1[w, x] b1[x, y])`` as one batched real product
+    (into ``out``, shape (n, n_w, n), when given)."""
     left = np.stack([a[0].real.T, a[1].real.T, -a[0].imag.T, -a[1].imag.T], axis=-1)  # (n, n_w, 4)
     right = np.stack([b[0].real, b[1].real, b[0].imag, b[1].imag], axis=1)  # (n, 4, n)
-    return np.matmul(left, right)
+    return np.matmul(left, right, out=out)
 
 
 class GramWeights:
@@ -132,12 +135,26 @@ class GramWeights:
     ----------
     v : ndarray, complex or real, shape (K, n_w)
         Weight columns, as :func:`basis_gram` takes them.
+    reuse : bool
+        Keep :func:`basis_gram`'s working arrays, and the Gram blocks it returns, for its next
+        call with as many poles (the caller is done with the blocks before that call): a large
+        problem's arrays are then not allocated and first touched again at every call.
     """
 
-    def __init__(self, v: np.ndarray):
+    def __init__(self, v: np.ndarray, reuse: bool = False):
         self.vt = np.ascontiguousarray(np.asarray(v, dtype=complex).T)
         self.vt_conj = np.conj(self.vt)
         self.sums = self.vt.sum(axis=1).real
+        self._work: dict | None = {} if reuse else None
+
+    def buffer(self, key: str, shape: tuple[int, ...]) -> np.ndarray:
+        """An uninitialised float array of ``shape``: the one kept under ``key`` when reused."""
+        if self._work is None:
+            return np.empty(shape)
+        buf = self._work.get(key)
+        if buf is None or buf.shape != shape:
+            buf = self._work[key] = np.empty(shape)
+        return buf
 
 
 def basis_gram(s: np.ndarray, poles: np.ndarray, v, with_basis: bool = False):
@@ -186,9 +203,11 @@ def basis_gram(s: np.ndarray, poles: np.ndarray, v, with_basis: bool = False):
     n = idx.shape[0]
     e = [np.conj(coef[:, j]) * mirror[:, idx[:, j]] for j in range(2)]  # conj(t_xa) E_a, (n_w, n)
     f = [coef[:, j] * first[:, idx[:, j]] for j in range(2)]  # t_yb F_b
-    term_e = _re_products(e, [p_ay[idx[:, j]] for j in range(2)])  # (x, w, y)
-    term_f = _re_products(f, [q_xb[:, idx[:, j]].T for j in range(2)])  # (y, w, x)
-    gram = np.empty((vt.shape[0], n + 1, n + 1))
+    n_w = vt.shape[0]
+    # (x, w, y) and (y, w, x)
+    term_e = _re_products(e, [p_ay[idx[:, j]] for j in range(2)], v.buffer("e", (n, n_w, n)))
+    term_f = _re_products(f, [q_xb[:, idx[:, j]].T for j in range(2)], v.buffer("f", (n, n_w, n)))
+    gram = v.buffer("gram", (n_w, n + 1, n + 1))
     np.subtract(np.swapaxes(term_e, 0, 1), np.transpose(term_f, (1, 2, 0)), out=gram[:, :n, :n])
     gram[:, :n, n] = -(e[0] + e[1]).real  # sum v conj(B_x) = -sum conj(t_xa) E_a
     gram[:, n, :n] = (f[0] + f[1]).real

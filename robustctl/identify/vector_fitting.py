@@ -133,20 +133,21 @@ def _gram_normal(
     sigma unknowns stay in ``B``'s order ``[c, d]`` until the summed matrix is permuted (the sign
     of ``G12`` cancels in ``Y^T Y``). Returns None when a Cholesky factorisation fails
     (ill-conditioned basis); the caller then takes the QR path. ``blocks``: those Gram matrices
-    (:func:`_gram_weights`) when already formed."""
+    (:func:`_gram_weights`) when already formed; their first two thirds are scaled in place."""
     n = int(np.sum(np.where(poles.imag != 0, 2, 1)))
     n_ch = g.shape[1]
     if blocks is None:
         blocks = basis_gram(s, poles, _gram_weights(g, rw))
     g11, g12, g22 = blocks.reshape(3, n_ch, n + 1, n + 1)
     scale = 1.0 / np.sqrt(np.einsum("cii->ci", g11))
-    scaled = g11 * scale[:, :, None]
-    scaled *= scale[:, None, :]
+    g11 *= scale[:, :, None]
+    g11 *= scale[:, None, :]
     try:
-        chol = np.linalg.cholesky(scaled)
+        chol = np.linalg.cholesky(g11)
     except np.linalg.LinAlgError:
         return None
-    y = np.linalg.solve(chol, g12 * scale[:, :, None]).reshape(n_ch * (n + 1), n + 1)
+    g12 *= scale[:, :, None]
+    y = np.linalg.solve(chol, g12).reshape(n_ch * (n + 1), n + 1)
     total = g22.sum(axis=0) - y.T @ y
     cost = float(np.sum(g22[:, n, n]) - np.sum(y[:, n] ** 2))
     perm = np.r_[n, :n]  # sigma unknowns [c, d] -> [d, c]
@@ -166,7 +167,7 @@ class StepWeights:
     ``K``). Formed once per fit (or per order scan) instead of once per relocation."""
 
     def __init__(self, g: np.ndarray, rw: np.ndarray):
-        self.gram = GramWeights(_gram_weights(g, rw))
+        self.gram = GramWeights(_gram_weights(g, rw), reuse=True)  # vf_step is done with its blocks
         self.scale = np.sqrt(np.sum(np.abs(rw * g) ** 2)) / g.shape[0]
 
 
