@@ -25,6 +25,7 @@ __all__ = [
     "BestPoles",
     "lstsq_normal",
     "basis_gram",
+    "GramWeights",
 ]
 
 #: |Im p| below this fraction of |p| counts as a real pole.
@@ -116,14 +117,47 @@ def _atoms(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.array(q, dtype=complex), np.array(idx, dtype=int).reshape(-1, 2), np.array(coef).reshape(-1, 2)
 
 
-def _re_products(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-    """``out[x, w, y] = Re(a0[w, x] b0[x, y] + a1[w, x] b1[x, y])`` as one batched real product."""
-    left = np.stack([a[0].real, a[1].real, -a[0].imag, -a[1].imag], axis=-1)  # (n_w, n, 4)
+def _re_products(
+    a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray], out: np.ndarray | None = None
+) -> np.ndarray:
+    """``out[x, w, y] = Re(a0[w, x] b0[x, y] + a1[w, x] b1[x, y])`` as one batched real product
+    (into ``out``, shape (n, n_w, n), when given)."""
+    left = np.stack([a[0].real.T, a[1].real.T, -a[0].imag.T, -a[1].imag.T], axis=-1)  # (n, n_w, 4)
     right = np.stack([b[0].real, b[1].real, b[0].imag, b[1].imag], axis=1)  # (n, 4, n)
-    return np.matmul(np.ascontiguousarray(np.swapaxes(left, 0, 1)), right)
+    return np.matmul(left, right, out=out)
 
 
-def basis_gram(s: np.ndarray, poles: np.ndarray, v: np.ndarray, with_basis: bool = False):
+class GramWeights:
+    """Weight columns prepared once for many :func:`basis_gram` calls on the same data (the
+    transposed columns, their conjugates and their sums), e.g. every relocation of a vector fit.
+
+    Parameters
+    ----------
+    v : ndarray, complex or real, shape (K, n_w)
+        Weight columns, as :func:`basis_gram` takes them.
+    reuse : bool
+        Keep :func:`basis_gram`'s working arrays, and the Gram blocks it returns, for its next
+        call with as many poles (the caller is done with the blocks before that call): a large
+        problem's arrays are then not allocated and first touched again at every call.
+    """
+
+    def __init__(self, v: np.ndarray, reuse: bool = False):
+        self.vt = np.ascontiguousarray(np.asarray(v, dtype=complex).T)
+        self.vt_conj = np.conj(self.vt)
+        self.sums = self.vt.sum(axis=1).real
+        self._work: dict | None = {} if reuse else None
+
+    def buffer(self, key: str, shape: tuple[int, ...]) -> np.ndarray:
+        """An uninitialised float array of ``shape``: the one kept under ``key`` when reused."""
+        if self._work is None:
+            return np.empty(shape)
+        buf = self._work.get(key)
+        if buf is None or buf.shape != shape:
+            buf = self._work[key] = np.empty(shape)
+        return buf
+
+
+def basis_gram(s: np.ndarray, poles: np.ndarray, v, with_basis: bool = False):
     """``Re(B^H diag(v_c) B)`` for every weight column ``v_c``, with ``B = [partial_fraction_basis(s,
     poles), 1]`` and ``s`` on the imaginary axis, in O(K n) per column instead of O(K n^2).
 
@@ -142,8 +176,8 @@ def basis_gram(s: np.ndarray, poles: np.ndarray, v: np.ndarray, with_basis: bool
         Laplace variable ``j w`` (purely imaginary).
     poles : ndarray, complex
         One pole per conjugate pair plus real poles, all with ``Re p < 0``.
-    v : ndarray, complex or real, shape (K, n_w)
-        Weight columns.
+    v : ndarray, complex or real, shape (K, n_w), or GramWeights
+        Weight columns (or the same prepared by :class:`GramWeights`).
     with_basis : bool
         Also return :func:`partial_fraction_basis` ``(s, poles)``, made from the same atoms
         ``1/(s - q)`` (one set of divisions for both).
@@ -155,10 +189,12 @@ def basis_gram(s: np.ndarray, poles: np.ndarray, v: np.ndarray, with_basis: bool
         ``with_basis``, the tuple (Gram matrices, basis (K, n)).
     """
     q, idx, coef = _atoms(poles)
-    vt = np.ascontiguousarray(np.asarray(v, dtype=complex).T)
+    if not isinstance(v, GramWeights):
+        v = GramWeights(v)
+    vt = v.vt
     atoms = 1.0 / (s[:, None] - q[None, :])
     # on s = j w, 1/(s + conj q) = -conj(1/(s - q)): E = -conj(conj(v)^T atoms), no second division
-    mirror = -np.conj(np.conj(vt) @ atoms)  # E (n_w, M)
+    mirror = -np.conj(v.vt_conj @ atoms)  # E (n_w, M)
     first = vt @ atoms  # F
     r = 1.0 / (q[None, :] + np.conj(q)[:, None])  # r[a, b] = 1/(q_b + conj q_a)
     # P[a, y] = sum_{b in y} t_yb r[a, b];  Q[x, b] = sum_{a in x} conj(t_xa) r[a, b]
@@ -167,14 +203,15 @@ def basis_gram(s: np.ndarray, poles: np.ndarray, v: np.ndarray, with_basis: bool
     n = idx.shape[0]
     e = [np.conj(coef[:, j]) * mirror[:, idx[:, j]] for j in range(2)]  # conj(t_xa) E_a, (n_w, n)
     f = [coef[:, j] * first[:, idx[:, j]] for j in range(2)]  # t_yb F_b
-    term_e = _re_products(e, [p_ay[idx[:, j]] for j in range(2)])  # (x, w, y)
-    term_f = _re_products(f, [q_xb[:, idx[:, j]].T for j in range(2)])  # (y, w, x)
-    gram = np.empty((vt.shape[0], n + 1, n + 1))
-    gram[:, :n, :n] = np.swapaxes(term_e, 0, 1)
-    gram[:, :n, :n] -= np.transpose(term_f, (1, 2, 0))
+    n_w = vt.shape[0]
+    # (x, w, y) and (y, w, x)
+    term_e = _re_products(e, [p_ay[idx[:, j]] for j in range(2)], v.buffer("e", (n, n_w, n)))
+    term_f = _re_products(f, [q_xb[:, idx[:, j]].T for j in range(2)], v.buffer("f", (n, n_w, n)))
+    gram = v.buffer("gram", (n_w, n + 1, n + 1))
+    np.subtract(np.swapaxes(term_e, 0, 1), np.transpose(term_f, (1, 2, 0)), out=gram[:, :n, :n])
     gram[:, :n, n] = -(e[0] + e[1]).real  # sum v conj(B_x) = -sum conj(t_xa) E_a
     gram[:, n, :n] = (f[0] + f[1]).real
-    gram[:, n, n] = vt.sum(axis=1).real
+    gram[:, n, n] = v.sums
     return (gram, _basis_from_atoms(atoms, idx)) if with_basis else gram
 
 

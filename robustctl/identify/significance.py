@@ -45,7 +45,7 @@ from ..lti import log_ratio, pole_frequency_damping
 from .leakage import BOUND_ZETA
 from .rational_fit import RationalFit
 from .selection import ZETA_FILLER
-from .stabilisation import CHAIN, DUPLICATE_MAC, F_TOL, residues_normal
+from .stabilisation import CHAIN, DUPLICATE_MAC, F_TOL, NormalWeights, residues_normal
 
 __all__ = ["MPC_MIN", "ALPHA", "PoleEvidence", "pole_evidence", "modal_phase_collinearity"]
 
@@ -249,9 +249,10 @@ def _significance(fit: RationalFit, cand: np.ndarray) -> np.ndarray:
     # nested least-squares fits in the test's own metric: the relative error over the noise scale
     rw = 1.0 / (np.maximum(np.abs(g), np.finfo(float).tiny) * sigma)
     poles = np.asarray(fit.poles)
+    weights = NormalWeights(g, rw)  # the same for every pole set
 
     def chi(p: np.ndarray) -> np.ndarray:  # per point: noise-normalised residual, residues refitted
-        res, d = residues_normal(s, g, rw, p)
+        res, d = residues_normal(s, g, rw, p, weights)
         model = np.broadcast_to(d, g.shape).astype(complex)
         for q, r in zip(p, res):
             model = model + (1.0 / (s - q))[:, None] * r

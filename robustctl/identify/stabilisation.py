@@ -25,11 +25,18 @@ import numpy as np
 from ..budget import Deadline
 from ..lti import pole_frequency_damping
 from ..table import Table
-from .poles import basis_gram, coefficients_to_residues, evaluate, partial_fraction_basis, reflect_unstable
+from .poles import (
+    GramWeights,
+    basis_gram,
+    coefficients_to_residues,
+    evaluate,
+    partial_fraction_basis,
+    reflect_unstable,
+)
 from .selection import ZETA_FILLER, pole_contributions
-from .vector_fitting import initial_poles, vf_poles
+from .vector_fitting import StepWeights, initial_poles, vf_poles
 
-__all__ = ["StabilisationDiagram", "stabilisation_scan", "residues_normal", "distinct_modes"]
+__all__ = ["StabilisationDiagram", "stabilisation_scan", "residues_normal", "NormalWeights", "distinct_modes"]
 
 F_TOL = 0.01  #: relative frequency change of a stable pole between orders
 ZETA_TOL = 0.2  #: relative damping change of a stable pole
@@ -142,20 +149,36 @@ class StabilisationDiagram:
         )
 
 
-def residues_normal(s: np.ndarray, g: np.ndarray, rw: np.ndarray, poles: np.ndarray):
+class NormalWeights:
+    """What :func:`residues_normal` uses unchanged for every pole set on the data ``g``, ``rw``
+    (shape (K, n_ch)): the squared row weights (prepared for :func:`.poles.basis_gram`) and the
+    weighted data. Formed once for many pole sets (an order scan, a significance test)."""
+
+    def __init__(self, g: np.ndarray, rw: np.ndarray):
+        self.w2 = rw**2
+        self.gram = GramWeights(self.w2)
+        self.w2g = self.w2 * g
+
+
+def residues_normal(
+    s: np.ndarray, g: np.ndarray, rw: np.ndarray, poles: np.ndarray, weights: NormalWeights | None = None
+):
     """Per-channel residues and feedthrough for fixed poles from the normal equations of all
     channels at once (every channel's Gram matrix from first moments of the partial fractions,
     :func:`.poles.basis_gram`, O(K n) per channel and no (K, n^2) product; the fast VF of
-    Deschrijver et al. 2008); ``g``, ``rw`` of shape (K, n_ch). Returns residues (n_p, n_ch)
-    and d (n_ch,)."""
-    w2 = rw**2
+    Deschrijver et al. 2008); ``g``, ``rw`` of shape (K, n_ch); ``weights``: their
+    :class:`NormalWeights` when already formed. Returns residues (n_p, n_ch) and d (n_ch,)."""
+    if weights is None:
+        weights = NormalWeights(g, rw)
+    w2 = weights.w2
     if np.all(poles.real < 0) and np.all(s.real == 0):
-        gram, phi = basis_gram(s, poles, w2, with_basis=True)  # Re(B^H diag(w2_c) B) per channel
+        # Re(B^H diag(w2_c) B) per channel
+        gram, phi = basis_gram(s, poles, weights.gram, with_basis=True)
         basis = np.hstack([phi, np.ones((s.size, 1))])
     else:  # the moments need stable poles on the imaginary axis: the direct product per channel
         basis = np.hstack([partial_fraction_basis(s, poles), np.ones((s.size, 1))])
         gram = np.einsum("kc,kiw->cwi", w2, (np.conj(basis)[:, :, None] * basis[:, None, :])).real
-    rhs = (np.conj(basis).T @ (w2 * g)).real.T  # Re(B^H diag(w2_c) g_c), (n_ch, m)
+    rhs = (np.conj(basis).T @ weights.w2g).real.T  # Re(B^H diag(w2_c) g_c), (n_ch, m)
     scale = 1.0 / np.sqrt(np.maximum(np.einsum("cii->ci", gram), 1e-300))
     gs = gram * scale[:, :, None] * scale[:, None, :]
     try:
@@ -284,6 +307,7 @@ def stabilisation_scan(
     rows: list[tuple] = []
     prev, poles, best_cost, stale, best_phys = None, None, np.inf, 0, 0
     last, resid_w2, ever = None, None, None
+    step_weights, normal_weights = StepWeights(g, rw), NormalWeights(g, rw)  # the same at every order
     bar = tqdm(total=max_pairs, desc="order scan", disable=not progress, leave=False)
     for n in range(1, max_pairs + 1):
         if deadline is not None and rows and deadline.expired():
@@ -292,9 +316,10 @@ def stabilisation_scan(
             start = initial_poles(2 * n, float(np.abs(s).min()), w_s)
         else:
             start = np.append(poles, _new_pair(s, resid_w2, poles))
-        new, _, _ = vf_poles(s / w_s, g, rw, 2 * n, max_iter=WARM_ITERS, tol=1e-6, start=start / w_s)
+        new, _, _ = vf_poles(s / w_s, g, rw, 2 * n, max_iter=WARM_ITERS, tol=1e-6, start=start / w_s,
+                             weights=step_weights)
         poles = reflect_unstable(new * w_s)[0]
-        res, d = residues_normal(s, g, rw, poles)
+        res, d = residues_normal(s, g, rw, poles, normal_weights)
         model = evaluate(s, poles, res[:, :, None], d[:, None])[:, :, 0]
         resid_w2 = np.sum(np.abs(rw * (g - model)) ** 2, axis=1)
         with np.errstate(divide="ignore", invalid="ignore"):

@@ -19,6 +19,7 @@ import numpy as np
 from ..budget import Deadline
 from .poles import (
     BestPoles,
+    GramWeights,
     basis_gram,
     first_lowest,
     partial_fraction_basis,
@@ -132,18 +133,21 @@ def _gram_normal(
     sigma unknowns stay in ``B``'s order ``[c, d]`` until the summed matrix is permuted (the sign
     of ``G12`` cancels in ``Y^T Y``). Returns None when a Cholesky factorisation fails
     (ill-conditioned basis); the caller then takes the QR path. ``blocks``: those Gram matrices
-    (:func:`_gram_weights`) when already formed."""
+    (:func:`_gram_weights`) when already formed; their first two thirds are scaled in place."""
     n = int(np.sum(np.where(poles.imag != 0, 2, 1)))
     n_ch = g.shape[1]
     if blocks is None:
         blocks = basis_gram(s, poles, _gram_weights(g, rw))
     g11, g12, g22 = blocks.reshape(3, n_ch, n + 1, n + 1)
     scale = 1.0 / np.sqrt(np.einsum("cii->ci", g11))
+    g11 *= scale[:, :, None]
+    g11 *= scale[:, None, :]
     try:
-        chol = np.linalg.cholesky(g11 * scale[:, :, None] * scale[:, None, :])
+        chol = np.linalg.cholesky(g11)
     except np.linalg.LinAlgError:
         return None
-    y = np.linalg.solve(chol, g12 * scale[:, :, None]).reshape(n_ch * (n + 1), n + 1)
+    g12 *= scale[:, :, None]
+    y = np.linalg.solve(chol, g12).reshape(n_ch * (n + 1), n + 1)
     total = g22.sum(axis=0) - y.T @ y
     cost = float(np.sum(g22[:, n, n]) - np.sum(y[:, n] ** 2))
     perm = np.r_[n, :n]  # sigma unknowns [c, d] -> [d, c]
@@ -154,6 +158,17 @@ def _gram_weights(g: np.ndarray, rw: np.ndarray) -> np.ndarray:
     """The weight columns ``[rw^2, rw^2 g, rw^2 |g|^2]`` of :func:`_gram_normal`'s Gram blocks."""
     w2 = rw**2
     return np.hstack([w2, w2 * g, w2 * np.abs(g) ** 2])
+
+
+class StepWeights:
+    """What every relocation of a vector fit on the data ``g``, ``rw`` (shape (K, n_channels))
+    uses unchanged: the Gram weight columns (:func:`_gram_weights`, prepared by
+    :class:`.poles.GramWeights`) and the scale of the relaxation row (the weighted data norm over
+    ``K``). Formed once per fit (or per order scan) instead of once per relocation."""
+
+    def __init__(self, g: np.ndarray, rw: np.ndarray):
+        self.gram = GramWeights(_gram_weights(g, rw), reuse=True)  # vf_step is done with its blocks
+        self.scale = np.sqrt(np.sum(np.abs(rw * g) ** 2)) / g.shape[0]
 
 
 def _constraint(phi: np.ndarray, scale: float) -> np.ndarray:
@@ -183,21 +198,30 @@ def _solve_sigma_gram(normal: np.ndarray, con: np.ndarray, target: float) -> np.
 
 
 def vf_step(
-    s: np.ndarray, g: np.ndarray, rw: np.ndarray, poles: np.ndarray, stable: bool = True, gram: bool = False
+    s: np.ndarray,
+    g: np.ndarray,
+    rw: np.ndarray,
+    poles: np.ndarray,
+    stable: bool = True,
+    gram: bool = False,
+    weights: StepWeights | None = None,
 ) -> tuple[np.ndarray, float]:
     """One relaxed VF pole relocation; ``g`` and ``rw`` have shape (K, n_channels).
 
     Returns the new poles and the weighted cost ``sum |rw (g - G)|^2`` of the *current* poles'
     least-squares fit. ``gram=True`` forms the channel eliminations from one Gram product (several
     times faster, accurate to about sqrt(eps) in the poles); the default QR path is accurate to eps.
+    ``weights``: :class:`StepWeights` of these ``g``, ``rw`` when already formed.
     """
+    if weights is None:
+        weights = StepWeights(g, rw)
     normal = None
     if gram:  # the basis for the constraint from the Gram blocks' atoms (one set of divisions)
-        blocks, phi = basis_gram(s, poles, _gram_weights(g, rw), with_basis=True)
+        blocks, phi = basis_gram(s, poles, weights.gram, with_basis=True)
         normal = _gram_normal(s, poles, g, rw, blocks)
     else:
         phi = partial_fraction_basis(s, poles)
-    scale = np.sqrt(np.sum(np.abs(rw * g) ** 2)) / s.size
+    scale = weights.scale
     con = _constraint(phi, scale)
     x = None
     if normal is not None:
@@ -225,6 +249,7 @@ def vf_poles(
     spacing: str = "lin",
     start: np.ndarray | None = None,
     deadline: Deadline | None = None,
+    weights: StepWeights | None = None,
 ) -> tuple[np.ndarray, int, bool]:
     """Common poles of all channels by relaxed, fast vector fitting.
 
@@ -258,22 +283,26 @@ def vf_poles(
     deadline : Deadline, optional
         Opt-in time budget (:class:`robustctl.budget.Deadline`): once it has expired the best
         poles so far are returned (``converged`` False).
+    weights : StepWeights, optional
+        :class:`StepWeights` of these ``g``, ``rw`` when already formed (an order scan forms them
+        once for all its orders).
 
     Returns
     -------
     poles, iterations, converged
     """
     w = np.abs(s)
+    weights = StepWeights(g, rw) if weights is None else weights
     if start is not None:
-        return _relocate(s, g, rw, start, max_iter, tol, stable, deadline)[:3]
+        return _relocate(s, g, rw, start, max_iter, tol, stable, deadline, weights)[:3]
     if spacing != "data":
         poles = initial_poles(order, float(w.min()), float(w.max()), spacing)
-        return _relocate(s, g, rw, poles, max_iter, tol, stable, deadline)[:3]
+        return _relocate(s, g, rw, poles, max_iter, tol, stable, deadline, weights)[:3]
     # two starts, the lower weighted cost wins: where the data change, and the linear spread
-    runs = [_relocate(s, g, rw, data_poles(s, g, order), max_iter, tol, stable, deadline)]
+    runs = [_relocate(s, g, rw, data_poles(s, g, order), max_iter, tol, stable, deadline, weights)]
     if deadline is None or not deadline.expired():
         lin = initial_poles(order, float(w.min()), float(w.max()), "lin")
-        runs.append(_relocate(s, g, rw, lin, max_iter, tol, stable, deadline))
+        runs.append(_relocate(s, g, rw, lin, max_iter, tol, stable, deadline, weights))
     return runs[first_lowest([run[3] for run in runs])][:3]
 
 
@@ -286,15 +315,17 @@ def _relocate(
     tol: float,
     stable: bool,
     deadline: Deadline | None,
+    weights: StepWeights | None = None,
 ) -> tuple[np.ndarray, int, bool, float]:
     """The VF iteration of :func:`vf_poles` from ``poles``: (poles, iterations, converged, cost),
     ``cost`` the weighted cost of the best poles seen (the returned ones up to the last step)."""
+    weights = StepWeights(g, rw) if weights is None else weights
     best = BestPoles(s, g, rw)
     change = np.inf
     for it in range(1, max_iter + 1):
         if deadline is not None and it > 1 and deadline.expired():
             return best.best, it - 1, False, best.best_cost
-        new, cost = vf_step(s, g, rw, poles, stable, gram=change > GRAM_UNTIL)
+        new, cost = vf_step(s, g, rw, poles, stable, gram=change > GRAM_UNTIL, weights=weights)
         stalled = best.record(poles, cost)
         change = pole_change(poles, new)
         poles = new

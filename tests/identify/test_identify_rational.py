@@ -185,6 +185,36 @@ def test_fast_gram_elimination_equals_the_qr_elimination():
     np.testing.assert_allclose(cost, cost_qr, rtol=1e-10)
 
 
+def test_weights_prepared_once_give_the_same_gram_blocks_relocations_and_residues():
+    """Weight columns prepared once (GramWeights, StepWeights, NormalWeights; with working arrays
+    kept between calls) must give exactly (==) the numbers formed per call: the measurement
+    model's fits are decided by round-off, so a reuse that moved them by one ulp would change
+    models. Calls alternate between pole sets of equal and of different size (kept arrays
+    reused and replaced)."""
+    from robustctl.identify.poles import GramWeights, basis_gram
+    from robustctl.identify.stabilisation import NormalWeights, residues_normal
+    from robustctl.identify.vector_fitting import StepWeights, _gram_weights, initial_poles, vf_step
+
+    rng = np.random.default_rng(5)
+    s = 1j * np.linspace(0.1, 1.0, 300)
+    g = rng.normal(size=(300, 6)) + 1j * rng.normal(size=(300, 6))
+    rw = rng.uniform(0.5, 2.0, size=(300, 6))
+    a, b = initial_poles(8, 0.1, 1.0), initial_poles(8, 0.12, 0.97) * (1 + 0.01j)
+    c = np.r_[initial_poles(10, 0.1, 1.0), -0.3 + 0j]
+    v = _gram_weights(g, rw)
+    kept, step, normal = GramWeights(v, reuse=True), StepWeights(g, rw), NormalWeights(g, rw)
+    for poles in (a, b, c, a, a):
+        ref = basis_gram(s, poles, v)
+        assert np.array_equal(basis_gram(s, poles, kept), ref)
+        for gram in (True, False):  # the Gram path, and the QR path (the relaxation row's scale)
+            new_ref, cost_ref = vf_step(s, g, rw, poles, gram=gram)
+            new, cost = vf_step(s, g, rw, poles, gram=gram, weights=step)
+            assert np.array_equal(new, new_ref) and cost == cost_ref
+        res_ref, d_ref = residues_normal(s, g, rw, poles * 50)
+        res, d = residues_normal(s, g, rw, poles * 50, normal)
+        assert np.array_equal(res, res_ref) and np.array_equal(d, d_ref)
+
+
 def test_moment_gram_equals_the_direct_product_for_light_damping_and_close_pairs():
     """basis_gram forms Re(B^H diag(v) B) from first moments of the partial fractions; it must
     match the O(K n^2) product to ~eps relative to the diagonal even with damping 1e-5, a pair
