@@ -14,14 +14,12 @@ from robustctl.identify import IdentifyWarning
 EPS, MOVE = 1e-12, 1e-6
 
 
-def _two_mode_test(seed: int = 3) -> rc.FrequencyData:
-    """A 2-output, 1-input modal test written here: two lightly damped modes (8 and 11 Hz, 1 and
-    2 % damping), their residues as the truth, 2 % complex measurement noise."""
-    f = np.linspace(4.0, 16.0, 240)
+def _modal_test(f, f0, zeta, shapes, seed: int) -> rc.FrequencyData:
+    """A 2-output, 1-input modal test written here: modes at ``f0`` (Hz) with damping ratios
+    ``zeta`` and shapes ``shapes`` (output, mode), residues ``40 shape (1 + 0.3j)``, 2 % complex
+    measurement noise."""
     s = 2j * np.pi * f
-    f0, zeta = np.array([8.0, 11.0]), np.array([0.01, 0.02])
     poles = 2 * np.pi * f0 * (-zeta + 1j * np.sqrt(1 - zeta**2))
-    shapes = np.array([[1.0, 0.6], [0.5, -0.9]])  # (output, mode)
     g = np.zeros((f.size, 2, 1), dtype=complex)
     for m, p in enumerate(poles):
         r = 40.0 * shapes[:, m] * (1 + 0.3j)
@@ -29,24 +27,19 @@ def _two_mode_test(seed: int = 3) -> rc.FrequencyData:
     rng = np.random.default_rng(seed)
     noise = 0.02 * (rng.standard_normal(g.shape) + 1j * rng.standard_normal(g.shape)) / np.sqrt(2)
     return rc.FrequencyData(f, g * (1 + noise), inputs=["u"], outputs=["y1", "y2"])
+
+
+def _two_mode_test(seed: int = 3) -> rc.FrequencyData:
+    """Two lightly damped modes (8 and 11 Hz, 1 and 2 % damping), their residues as the truth."""
+    return _modal_test(np.linspace(4.0, 16.0, 240), np.array([8.0, 11.0]), np.array([0.01, 0.02]),
+                       np.array([[1.0, 0.6], [0.5, -0.9]]), seed)
 
 
 def _close_pair_test(seed: int = 3) -> rc.FrequencyData:
-    """A 2-output, 1-input modal test written here for the automatic order: a mode at 5 Hz (2 %
-    damping) and a close pair at 9.0 and 9.6 Hz (1 and 1.5 %, half-power bands 0.18 and 0.29 Hz,
-    0.06 Hz bins) of different shapes, 2 % complex measurement noise."""
-    f = np.linspace(2.0, 20.0, 300)
-    s = 2j * np.pi * f
-    f0, zeta = np.array([5.0, 9.0, 9.6]), np.array([0.02, 0.01, 0.015])
-    poles = 2 * np.pi * f0 * (-zeta + 1j * np.sqrt(1 - zeta**2))
-    shapes = np.array([[1.0, 0.6, -0.4], [0.5, -0.9, 0.8]])  # (output, mode)
-    g = np.zeros((f.size, 2, 1), dtype=complex)
-    for m, p in enumerate(poles):
-        r = 40.0 * shapes[:, m] * (1 + 0.3j)
-        g[:, :, 0] += r[None, :] / (s[:, None] - p) + np.conj(r)[None, :] / (s[:, None] - np.conj(p))
-    rng = np.random.default_rng(seed)
-    noise = 0.02 * (rng.standard_normal(g.shape) + 1j * rng.standard_normal(g.shape)) / np.sqrt(2)
-    return rc.FrequencyData(f, g * (1 + noise), inputs=["u"], outputs=["y1", "y2"])
+    """For the automatic order: a mode at 5 Hz (2 % damping) and a close pair at 9.0 and 9.6 Hz (1
+    and 1.5 %, half-power bands 0.18 and 0.29 Hz, 0.06 Hz bins) of different shapes."""
+    return _modal_test(np.linspace(2.0, 20.0, 300), np.array([5.0, 9.0, 9.6]), np.array([0.02, 0.01, 0.015]),
+                       np.array([[1.0, 0.6, -0.4], [0.5, -0.9, 0.8]]), seed)
 
 
 def _fit(data, **kw):

@@ -239,24 +239,3 @@ def _channel_sets(res: Residual, vec: np.ndarray, share_needed: float,
         if consistent and spread >= CHANNEL_SPREAD:
             return side, tuple(sorted(ks)), share
     return None
-    excess = got[0]
-    total = float(excess.sum())
-    if total <= 0:
-        return None
-    segs = np.array_split(np.arange(excess.shape[0]), min(N_SEGMENTS, excess.shape[0]))
-    d = res.data
-    for side, axis, n in (("output", (0, 2), d.n_out), ("input", (0, 1), d.n_in)):
-        per = excess.sum(axis=axis)
-        k = int(np.argmax(per))
-        share = float(per[k]) / total
-        if n < 2 or share < share_needed or share <= 1.5 / n:
-            continue
-        rows = [excess[s].sum(axis=axis) for s in segs]
-        x = np.array([float(r[k]) for r in rows])
-        seg_tot = np.array([float(r.sum()) for r in rows])
-        spread = float(x.sum() ** 2 / (x.size * float(x @ x))) if x.any() else 0.0
-        real = seg_tot > total / (2 * len(segs))
-        consistent = all(x[i] >= share_needed * seg_tot[i] for i in np.flatnonzero(real))
-        if spread >= CHANNEL_SPREAD and consistent:
-            return side, k, share
-    return None
