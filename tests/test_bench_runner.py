@@ -47,3 +47,19 @@ def test_speed_reference_is_timed_and_shown_in_the_summary():
     assert set(ref) == {"eigh_300", "python_loop_200k"} and all(v > 0 for v in ref.values())
     row = summary_markdown([{"name": "x", "passed": True, "machine": {"speed_reference_ms": ref}}])
     assert f"{ref['eigh_300']:g} / {ref['python_loop_200k']:g}" in row
+
+
+def test_the_blas_kernel_is_recorded_and_shown():
+    """Each OpenBLAS pool's kernel is kept (``architecture``) and both tables name it."""
+    from benchmarks.run import blas_info, blas_kernel, headline_markdown, summary_markdown
+
+    info = blas_info()
+    kernels = {p.get("architecture") for p in info["pools"] if p["internal_api"] == "openblas"}
+    assert kernels and None not in kernels
+    r = {"name": "x", "passed": True, "blas_threads": info,
+         "machine": {"cpu_model": "CPU A", "cpu_count": 2, "load_average_1_5_15": [1.0, 1.0, 1.0]}}
+    kernel = blas_kernel(r)
+    assert kernel == "/".join(sorted(kernels))
+    assert f"| 1 | {kernel} |" in summary_markdown([r])
+    assert f"CPU A, 2 cores, OpenBLAS kernel {kernel}" in headline_markdown([r])
+    assert blas_kernel({"name": "old"}) == ""
