@@ -645,6 +645,11 @@ def _truss_data():
     return rc.examples.caltech_truss_experiment()
 
 
+def _noise(f_hz, shape):
+    """A 1 % noise model of the given sigma shape on ``f_hz``."""
+    return rc.NoiseModel(f_hz, np.full(shape, 0.01), "1 % noise")
+
+
 REGRESSIONS = [
     # silently accepted
     ("diagnose time_budget_s=0", lambda e: rc.diagnose(e["model"], e["data"], time_budget_s=0), rc.FitError),
@@ -812,6 +817,33 @@ REGRESSIONS = [
     ("caltech_truss band_hz='ab'", lambda e: rc.examples.caltech_truss(band_hz="ab"), rc.ModelError),
     ("make_experiment('abc')", lambda e: rc.examples.make_experiment("abc"), rc.ModelError),
     ("names with NUL", lambda e: rc.FrequencyData([1, 2], np.ones(2), inputs=["a\x00"]), rc.DataError),
+    # a noise model of as many points on another grid was used as if on the data's grid
+    (
+        "compare noise on a shifted grid",
+        lambda e: rc.compare(e["model"], e["data"], noise=_noise(1.01 * F_HZ, (60, 2, 2))),
+        rc.DataError,
+    ),
+    (
+        "update noise on a shifted grid",
+        lambda e: rc.update(e["model"], e["data"], noise=_noise(1.01 * F_HZ, (60, 2, 2))),
+        rc.DataError,
+    ),
+    # a noise model of other channels leaked IndexError / ValueError
+    (
+        "compare noise of one channel on 2x2 data",
+        lambda e: rc.compare(e["model"], e["data"], noise=_noise(F_HZ, 60)),
+        rc.DataError,
+    ),
+    (
+        "update noise of 3x2 channels on 2x2 data",
+        lambda e: rc.update(e["model"], e["data"], noise=_noise(F_HZ, (60, 3, 2))),
+        rc.DataError,
+    ),
+    (
+        "diagnose noise of 3x2 channels on 2x2 data",
+        lambda e: rc.diagnose(e["model"], e["data"], noise=_noise(F_HZ, (60, 3, 2))),
+        rc.DataError,
+    ),
 ]
 
 

@@ -267,14 +267,23 @@ def check_data(
 
 
 def _band_noise(spec: Any, checked: CheckedData, measurement_model: Any) -> NoiseModel | None:
-    """The noise model on the band: ``spec`` (a NoiseModel on the data's grid or the band's),
-    or ``"auto"``, from the data (:func:`robustctl.measure.noise.checked_noise_model`)."""
+    """The noise model on the band: ``spec`` (a NoiseModel on the data's grid or the band's, with
+    the data's channels; DataError otherwise), or ``"auto"``, from the data
+    (:func:`robustctl.measure.noise.checked_noise_model`)."""
     mask = checked.mask
     if isinstance(spec, str) and spec == "auto":
         nm = checked_noise_model(checked.full, checked.averages, measurement_model)
         return None if nm is None else nm.band(mask)
     if isinstance(spec, NoiseModel):
-        return spec.on(checked.full.f_hz[mask]) if spec.f_hz.size != int(mask.sum()) else spec
+        nm = spec.on(checked.full.f_hz[mask])
+        shape = checked.full.response.shape[1:]
+        if nm.sigma.shape[1:] != shape:
+            raise DataError(
+                f"the noise model has {nm.sigma.shape[1]} x {nm.sigma.shape[2]} channels (outputs x inputs) "
+                f"but the data have {shape[0]} x {shape[1]}; build it on the same data "
+                "(rc.noise_model(data)) or give sigma the shape (n_freq, n_out, n_in) of the data's response."
+            )
+        return nm
     if spec is None:
         return None
     raise DataError(f"noise must be 'auto', a NoiseModel or None; got {type(spec).__name__}.")
