@@ -235,9 +235,11 @@ def _noise_source(fit: RationalFit) -> str:
     return "coherence" if fit.data.coherence is not None else "residual"
 
 
-def _significance(fit: RationalFit, cand: np.ndarray) -> np.ndarray:
+def _significance(fit: RationalFit, cand: np.ndarray, local: bool = True) -> np.ndarray:
     """Per candidate pole: the rise of ``sum |ln(G/G_model)|^2 / sigma^2`` when the pole is
-    removed and the other residues refitted, over the chi-square threshold of a noise pole."""
+    removed and the other residues refitted, over the chi-square threshold of a noise pole; summed
+    over the pole's own half-power neighbourhood (``local``) or over the whole band (a pole outside
+    the band, whose neighbourhood holds no data)."""
     from scipy.stats import chi2
 
     data = fit.data
@@ -272,7 +274,7 @@ def _significance(fit: RationalFit, cand: np.ndarray) -> np.ndarray:
         drop = chi(np.delete(poles, j))
         fj = abs(poles[j]) / (2 * np.pi)
         zj = -poles[j].real / abs(poles[j])
-        near = np.abs(f_hz - fj) <= np.maximum(LOCAL_WIDTH * zj * fj, 2 * step)
+        near = np.abs(f_hz - fj) <= np.maximum(LOCAL_WIDTH * zj * fj, 2 * step) if local else slice(None)
         gain = float(np.sum(drop[near] - base[near]))
         out[j] = gain / threshold if np.isfinite(gain) else np.inf
     return out
