@@ -72,34 +72,70 @@ def fe_model(n_dof: int, node_scale: float, tmp: str):
         damping=ZETA, name=f"{nx}x{ny} grid (OP4)")
 
 
+#: The seam case's soft joint: the seam (``scale_cases.seam_stiffness``) this many times as stiff as
+#: modelled in the truth (the panels 2 % stiffer), beside the hidden mass.
+SEAM_FACTOR = 0.4
+
+
+def fe_seam_model(n_dof: int, node_scale: float, tmp: str):
+    """The grid as two panels joined by a bolted seam, as a user's FE model with property groups:
+    ``MAA``, ``KAA`` and the partitions ``KPANEL`` (the panels' springs and the ground springs) and
+    ``KSEAM`` (the springs crossing the grid's middle, ``scale_cases.seam_stiffness``) written to an
+    ASCII OP4 file and read with ``rc.load_nastran_matrices(..., groups={"panels": "KPANEL",
+    "seam": "KSEAM"}, fixed_groups=["seam"])``: ``k_panels`` is the update's stiffness factor, the
+    seam is left to the diagnosis (a ``stiffness change of seam`` candidate)."""
+    import robustctl as rc
+    from benchmarks.scale_cases import ZETA, grid_matrices, grid_shape, seam_stiffness, sensor_layout
+
+    nx, ny = grid_shape(n_dof)
+    M, K = grid_matrices(nx, ny, node_scale)
+    Ks = seam_stiffness(nx, ny)
+    ins, outs = sensor_layout(nx, ny, N_OUT)
+    path = str(Path(tmp) / f"seam{n_dof}.op4")
+    rc.write_nastran_matrices(path, {"MAA": M, "KAA": K, "KPANEL": (K - Ks).tocsr(), "KSEAM": Ks})
+    labels = [f"{i + 1}:T3" for i in range(n_dof)]
+    return rc.load_nastran_matrices(
+        path, mass="MAA", stiffness="KAA", groups={"panels": "KPANEL", "seam": "KSEAM"},
+        fixed_groups=["seam"], dof_labels=labels,
+        inputs={f"F{k + 1}": f"{d + 1}:T3" for k, d in enumerate(ins)},
+        outputs={f"a{k + 1}": (f"{d + 1}:T3", "acceleration") for k, d in enumerate(outs)},
+        damping=ZETA, name=f"{nx}x{ny} two panels and a seam (OP4)")
+
+
 def case(n_dof: int, path: str) -> dict:
     """One diagnose run in this process (``path``: "default", "reduced" or "full" on
     ``scale_cases.grid_model``; "fe": the mesh of :data:`FE_REF_DOF` nodes refined to ``n_dof``,
-    imported through an OP4 file, :func:`fe_model`)."""
+    imported through an OP4 file, :func:`fe_model`; "fe_seam": that mesh as two panels and a
+    seam, :func:`fe_seam_model`, the truth with the seam :data:`SEAM_FACTOR` times as stiff as
+    modelled beside the hidden mass, ``scale_cases.seam_data``)."""
     import resource
     import tempfile
     import time
 
     import robustctl as rc
     import robustctl.physical.reduction as red
-    from benchmarks.scale_cases import grid_data, grid_model, hidden_node, noise_model
+    from benchmarks.scale_cases import grid_data, grid_model, hidden_node, noise_model, seam_data
 
     if path == "reduced":
         red.REDUCE_MIN_DOF = 0
     elif path == "full":
         red.REDUCE_MIN_DOF = 10**9
-    node_scale = FE_REF_DOF / n_dof if path == "fe" else 1.0
+    node_scale = FE_REF_DOF / n_dof if path in ("fe", "fe_seam") else 1.0
     c_start = time.process_time()
-    if path == "fe":
+    if path in ("fe", "fe_seam"):
         with tempfile.TemporaryDirectory() as tmp:
-            model = fe_model(n_dof, node_scale, tmp)
+            model = (fe_model if path == "fe" else fe_seam_model)(n_dof, node_scale, tmp)
         true_name = f"added mass at node {hidden_node(n_dof, N_OUT) + 1}:T3"
     else:
         model = grid_model(n_dof, N_OUT)
         true_name = f"added mass at dof {hidden_node(n_dof, N_OUT) + 1}"
     f1 = 3.39  # first mode of the grid family (Hz): springs to ground dominate it
     f = np.linspace(0.8 * f1, 6.0 * f1, 400)
-    data = grid_data(n_dof, f, N_OUT, added_mass=HIDDEN_KG, node_scale=node_scale)
+    if path == "fe_seam":
+        data = seam_data(n_dof, f, N_OUT, added_mass=HIDDEN_KG, seam_factor=SEAM_FACTOR,
+                         node_scale=node_scale)
+    else:
+        data = grid_data(n_dof, f, N_OUT, added_mass=HIDDEN_KG, node_scale=node_scale)
     setup_cpu = time.process_time() - c_start
     t0, c0 = time.perf_counter(), os.times()
     diag = rc.diagnose(model, data, noise=noise_model(f, N_OUT))
@@ -107,6 +143,9 @@ def case(n_dof: int, path: str) -> dict:
     wall = time.perf_counter() - t0
     cpu = sum(getattr(c1, k) - getattr(c0, k) for k in ("user", "system", "children_user", "children_system"))
     names = [r.name for r in diag.ranking]
+    extra = {}
+    if path == "fe_seam":
+        extra = _seam_report(diag, names, true_name, model)
     return {
         "n_dof": n_dof,
         "path": path,
@@ -122,6 +161,28 @@ def case(n_dof: int, path: str) -> dict:
         "true_effect_significant": any(r.significant for r in diag.ranking if r.name == true_name),
         "ranking": names[:20],
         "load_average": [round(x, 2) for x in os.getloadavg()],
+        **extra,
+    }
+
+
+def _seam_report(diag, names: list[str], mass_name: str, model) -> dict:
+    """The seam case's figures: the chain (each effect's name and fitted values), the verdict,
+    the rank of each hidden effect in the first step's ranking and in the chain, and how the
+    point candidates were screened (``diag.screening``)."""
+    seam_name = "stiffness change of seam"
+    chain = [{"name": c.effect.name, "values": {k: round(float(v), 5) for k, v in c.effect.values.items()},
+              "gain": round(float(c.gain), 4), "p_value": float(c.p_value)} for c in diag.chain]
+    chain_names = [c["name"] for c in chain]
+    return {
+        "verdict": diag.verdict,
+        "chain": chain,
+        "update_values": {k: round(float(v), 5) for k, v in diag.best_fit_values.items()},
+        "rank_of_mass_first_step": names.index(mass_name) + 1 if mass_name in names else None,
+        "rank_of_seam_first_step": names.index(seam_name) + 1 if seam_name in names else None,
+        "mass_in_chain": mass_name in chain_names,
+        "seam_in_chain": seam_name in chain_names,
+        "seam_factor_true": SEAM_FACTOR,
+        "screening": dict(getattr(diag, "screening", {}) or {}),
     }
 
 

@@ -61,6 +61,48 @@ def grid_matrices(nx: int, ny: int, node_scale: float = 1.0) -> tuple[sp.csr_mat
     return sp.diags(m).tocsr(), K.tocsr()
 
 
+def seam_pairs(nx: int, ny: int) -> np.ndarray:
+    """The neighbour springs crossing the grid's middle (between rows ``ny // 2 - 1`` and
+    ``ny // 2``): the line of a bolted seam joining two panels, ``nx`` node pairs (0-based)."""
+    idx = np.arange(nx * ny).reshape(ny, nx)
+    return np.stack([idx[ny // 2 - 1], idx[ny // 2]], axis=1)
+
+
+def seam_stiffness(nx: int, ny: int) -> sp.csr_matrix:
+    """The seam's part of the grid's stiffness (N/m): its :func:`seam_pairs` springs, sparse."""
+    pairs = seam_pairs(nx, ny)
+    i, j = pairs[:, 0], pairs[:, 1]
+    n = nx * ny
+    rows, cols = np.concatenate([i, j, i, j]), np.concatenate([i, j, j, i])
+    vals = K_SPRING * np.concatenate([np.ones(2 * i.size), -np.ones(2 * i.size)])
+    return sp.coo_matrix((vals, (rows, cols)), shape=(n, n)).tocsr()
+
+
+def seam_frf(n_dof: int, f_hz: np.ndarray, n_out: int = 8, added_mass: float = 0.03,
+             seam_factor: float = 0.5, k_error: float = 0.02, node_scale: float = 1.0) -> np.ndarray:
+    """The truth of the seam case (n_freq, n_out, 2): the grid with ``added_mass`` (kg) at
+    :func:`hidden_node`, its panels ``1 + k_error`` times as stiff as modelled and its seam
+    (:func:`seam_stiffness`) ``seam_factor`` times, structural damping of loss factor ``2 ZETA``
+    (:func:`sparse_frf`)."""
+    nx, ny = grid_shape(n_dof)
+    M, K = grid_matrices(nx, ny, node_scale)
+    Ks = seam_stiffness(nx, ny)
+    ins, outs = sensor_layout(nx, ny, n_out)
+    j = hidden_node(n_dof, n_out)
+    M = (M + sp.csr_matrix(([added_mass], ([j], [j])), shape=M.shape)).tocsr()
+    K = (1.0 + k_error) * (K - Ks) + seam_factor * Ks
+    return sparse_frf(M, K, ins, outs, f_hz, 2 * ZETA)
+
+
+def seam_data(n_dof: int, f_hz: np.ndarray, n_out: int = 8, noise: float = 0.01, seed: int = 0,
+              added_mass: float = 0.03, seam_factor: float = 0.5, node_scale: float = 1.0):
+    """:func:`seam_frf` plus ``noise`` complex log-normal noise, as FrequencyData."""
+    g = seam_frf(n_dof, f_hz, n_out, added_mass=added_mass, seam_factor=seam_factor, node_scale=node_scale)
+    rng = np.random.default_rng(seed)
+    g = g * np.exp(noise * (rng.standard_normal(g.shape) + 1j * rng.standard_normal(g.shape)))
+    return rc.FrequencyData(f_hz, g, inputs=["F1", "F2"], outputs=[f"a{k + 1}" for k in range(n_out)])
+
+
 def sensor_layout(nx: int, ny: int, n_out: int) -> tuple[list[int], list[int]]:
     """Input and output nodes (0-based) spread over the grid."""
     n = nx * ny

@@ -142,6 +142,7 @@ def fe_structural_model(
     lumped_masses: Mapping[str, Any] | None = None,
     output_kind: str = "acceleration",
     name: str | None = None,
+    fixed_groups: Sequence[str] = (),
     **options: Any,
 ):
     """``rc.structural_model`` with property-group stiffness factors and lumped masses.
@@ -158,6 +159,12 @@ def fe_structural_model(
     groups : mapping group -> (n, n) matrix, optional
         Stiffness partition of each property group (included in ``stiffness``): parameter
         ``k_<group>`` (factor, 1 = as modelled) and a stiffness group of the structure.
+    fixed_groups : sequence of str
+        Groups whose factor ``k_<group>`` is not free (``Parameter.free=False``): ``rc.update``
+        and ``rc.diagnose`` leave it as modelled by default, and diagnose checks the group as a
+        candidate effect (:class:`~robustctl.physical.effects.GroupStiffness`, ``stiffness change
+        of <group>``) -- a joint, seam or bolted flange the test is to judge rather than absorb
+        into the update. Default none: every group factor is an update parameter.
     lumped_masses : mapping name -> node id or DOF names, optional
         Parameter ``m_<name>`` (kg, 0 = as modelled) on the node's translations or the DOFs.
     output_kind, name :
@@ -181,6 +188,12 @@ def fe_structural_model(
     """
     M, K = mass, stiffness
     K_groups = dict(groups or {})
+    fixed = (fixed_groups,) if isinstance(fixed_groups, str) else tuple(str(g) for g in fixed_groups)
+    unknown = sorted(set(fixed) - set(K_groups))
+    if unknown:
+        raise DataError(
+            f"fixed_groups {unknown} are not groups of the model; it has groups {sorted(K_groups)}."
+        )
     n = M.shape[0]
     labels = None if dof_labels is None else tuple(str(x) for x in dof_labels)
     dense = n <= 600
@@ -236,6 +249,7 @@ def fe_structural_model(
             rel_step=1e-3,
             meaning=f"stiffness factor of property group {g!r} (1 = as modelled)",
             tags=("stiffness",),
+            free=g not in fixed,
         )
         for g in K_groups
     ]

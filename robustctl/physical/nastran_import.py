@@ -495,8 +495,12 @@ def load_nastran_matrices(
         it; an output value may also be ``(dof, kind)``); ``lumped_masses``: mapping name ->
         grid id or DOF names, a parameter ``m_<name>`` (kg, 0 = as modelled) adding mass to
         the translations of that grid (``{"tip": 1004}``) or to the listed DOFs
-        (``{"tip": ["1004:T3"]}``); ``output_kind``, ``damping``, ``n_modes``, ``band_hz`` as
-        for :func:`robustctl.structural_model`.
+        (``{"tip": ["1004:T3"]}``); ``fixed_groups``: groups whose factor ``k_<group>`` is
+        not a free update parameter (a seam or bolted joint diagnose is to judge as a
+        ``stiffness change of <group>`` candidate rather than absorb into the update:
+        ``groups={"panels": "KPANEL", "seam": "KSEAM"}, fixed_groups=["seam"]``);
+        ``output_kind``, ``damping``, ``n_modes``, ``band_hz`` as for
+        :func:`robustctl.structural_model`.
 
     Returns
     -------

@@ -513,7 +513,26 @@ def _diagnose(
         model_error_removed=comp.share if comp is not None else 0.0,
         best_fit_values=best_fit_values,
         lead=lead,
+        screening=_screening_counts(screens),
     )
+
+
+def _screening_counts(screens: list[dict]) -> dict:
+    """How many candidates each screening stage scored, and how the point effects' locations were
+    chosen (:attr:`Diagnosis.screening`)."""
+    from .screening import PRESCREEN_KEEP
+
+    counts = {"candidates": len(screens), "exact": 0, "closed form": 0, "first order": 0}
+    for sc in screens:
+        counts[sc.get("stage", "exact")] += 1
+    rule = "every candidate screened on the model"
+    if counts["closed form"]:
+        rule = "point effects at every location fitted in closed form on the reduced modal model"
+    if counts["first order"]:
+        rule = (f"point effects at every location scored by their first-order share of the misfit (the "
+                f"misfit's modes' kinetic and strain energy at the location, with the mode-shape change); "
+                f"the {PRESCREEN_KEEP} best fitted in closed form on the reduced modal model")
+    return {**counts, "rule": rule}
 
 
 def _input_held(data: FrequencyData) -> bool:

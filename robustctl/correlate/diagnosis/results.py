@@ -246,6 +246,12 @@ class Diagnosis:
         significant, a candidate explaining :data:`~.answer.CHAIN_TRY_GAIN` of the residual.
     chain_limit : int
         The most effects the call chained (1: ``chain=False``).
+    screening : dict
+        How the (first step's) candidates were screened: ``"candidates"`` in all, and how many by
+        each stage -- ``"exact"`` (secant screening on the model), ``"closed form"`` (point effects
+        fitted in closed form on the reduced modal model) and ``"first order"`` (point effects only
+        scored by their first-order share of the misfit, below the closed form's
+        :data:`~.screening.PRESCREEN_KEEP` best); ``"rule"`` says how the locations were chosen.
     """
 
     ranking: tuple[CandidateResult, ...]
@@ -288,6 +294,7 @@ class Diagnosis:
     chain_exhausted: bool = False
     lead: Any = None
     chain_limit: int = 1
+    screening: dict = field(default_factory=dict)
 
     @property
     def lead_result(self) -> CandidateResult | None:

@@ -121,7 +121,8 @@ def _new_defaults(model: Any, res: Residual, known: list, deadline: Deadline, ex
         return []
     fresh = all_candidates(model, band=res.band, kinds=sorted(kinds), time_budget_s=deadline,
                            executor=executor)
-    return _check_candidates(model, [c for c in fresh if c.name not in names])
+    fresh = [c for c in fresh if c.name not in names]
+    return _check_candidates(model, fresh) if fresh else []  # none left once calibrated: nothing new
 
 
 def _warn_if_hurried(null_cut: bool, n_cut: int, budget: float, polished: bool = True) -> None:
