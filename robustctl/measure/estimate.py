@@ -525,20 +525,56 @@ def _per_channel(value: Any, count: int, what: str, allow_zero: bool) -> np.ndar
     return arr
 
 
-#: relative diagonal loading of the stationary covariance before its Cholesky factor (a variance
+#: relative diagonal loading of the stationary covariance before its square root (a variance
 #: 1e-12 of the largest adds nothing measurable to the record)
 STATE_JITTER = 1e-12
 
+#: weight ``rho^K`` left on the coordinate-dependent part of the stationary start after ``K``
+#: samples of simulated past excitation (:func:`_past_state`)
+BURN_IN_TOL = 1e-8
 
-def _stationary_state(Ad: np.ndarray, Bd: np.ndarray, rms: np.ndarray, rng) -> np.ndarray:
+#: at most this many samples of simulated past excitation (a system with ``1 - rho < 2e-5`` keeps
+#: a weight ``rho^K > BURN_IN_TOL`` on the coordinate-dependent part)
+BURN_IN_MAX = 1 << 20
+
+
+def _covariance_root(P: np.ndarray) -> np.ndarray:
+    """The symmetric square root ``S = V sqrt(max(w, 0) + j) V^T`` of ``P = V diag(w) V^T``.
+
+    ``j = STATE_JITTER * max(diag P)``. Unique (each eigenvector appears twice, so neither its sign
+    nor the basis of a repeated eigenvalue matters) and continuous in ``P``: a change ``dP`` moves
+    ``S`` by at most about ``|dP| / sqrt(j)``, 1e-6 of ``sqrt(max(diag P))`` for a round-off
+    ``|dP| = 1e-12 max(diag P)``. A Cholesky factor is unique too, but of a ``P`` that is singular
+    to round-off (a lightly damped system's) it moved 1 % under a 1e-13 change of the input matrix.
+
+    Parameters
+    ----------
+    P : ndarray, shape (n, n)
+        Symmetric covariance, possibly indefinite by round-off.
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+        ``S`` with ``S S^T = V (max(w, 0) + j) V^T``.
+    """
+    from scipy.linalg import eigh
+
+    w, V = eigh(P)
+    jitter = STATE_JITTER * max(float(np.max(np.diag(P))), np.finfo(float).tiny)
+    return (V * np.sqrt(np.clip(w, 0.0, None) + jitter)) @ V.T
+
+
+def _drawn_state(Ad: np.ndarray, Bd: np.ndarray, rms: np.ndarray, rng) -> np.ndarray:
     """A draw ``L z`` from the stationary state distribution ``P = Ad P Ad^T + Bd S Bd^T``.
 
     ``L`` is the Cholesky factor of ``P`` (plus ``STATE_JITTER`` times its largest diagonal entry on
-    the diagonal): unique and continuous in ``P``, so the draw is the same on every machine. An
-    eigenvector factor is not: each column's sign (and the basis of a repeated eigenvalue, as of a
-    symmetric structure) is the LAPACK kernel's choice, which gave another record, up to 12 % apart
-    in an FRF bin, under another OpenBLAS kernel. Only a ``P`` that is indefinite beyond the jitter
-    falls back to the eigenvector factor, its columns' signs fixed by their largest entry.
+    the diagonal): unique and continuous in ``P``, so the draw is the same on every machine for a
+    well-conditioned ``P``. An eigenvector factor is not: each column's sign (and the basis of a
+    repeated eigenvalue, as of a symmetric structure) is the LAPACK kernel's choice, which gave
+    another record, up to 12 % apart in an FRF bin, under another OpenBLAS kernel. Only a ``P``
+    that is indefinite beyond the jitter falls back to the eigenvector factor, its columns' signs
+    fixed by their largest entry. A draw in the state basis is not the same state in another
+    realization of the system: :func:`_past_state` is (``simulate_experiment(start="past")``).
     """
     from scipy.linalg import eigh, solve_discrete_lyapunov
 
@@ -553,6 +589,82 @@ def _stationary_state(Ad: np.ndarray, Bd: np.ndarray, rms: np.ndarray, rng) -> n
         w, V = eigh(P)
         V = V * np.sign(V[np.argmax(np.abs(V), axis=0), np.arange(V.shape[1])])
         return V @ (np.sqrt(np.clip(w, 0.0, None)) * z)
+
+
+def _past_state(Ad: np.ndarray, Bd: np.ndarray, rms: np.ndarray, rng) -> np.ndarray:
+    """A draw from the stationary state distribution ``P = Ad P Ad^T + Bd S Bd^T``.
+
+    The state the system would be in after white excitation since ever:
+    ``x0 = sum_{k<K} Ad^k Bd w_k + Ad^K S_P z``, ``w_k`` the excitation ``k + 1`` samples before
+    the record (``S = diag(rms**2)``), ``S_P`` the square root :func:`_covariance_root` of ``P``
+    and ``K`` the samples after which ``rho^K <= BURN_IN_TOL`` (``rho`` the spectral radius of
+    ``Ad``; at most ``BURN_IN_MAX``). Its covariance is exactly ``P``. The sum is the same state
+    in any realization of the system -- another state basis ``T x`` gives ``T x0``, the same
+    record -- and the square root's part, which depends on the basis, weighs ``rho^K``. A draw
+    ``L z`` in the state basis alone does not: MACE's closed-loop realization differs between
+    OpenBLAS kernels by a change of basis among its near-repeated modes, and ``L z`` gave its
+    records up to 7 % apart (median FRF entry) between kernels.
+
+    Parameters
+    ----------
+    Ad : ndarray, shape (n, n)
+        Sampled state matrix, spectral radius < 1.
+    Bd : ndarray, shape (n, m)
+        Sampled input matrix.
+    rms : ndarray, shape (m,)
+        RMS of each white input (its units).
+    rng : numpy.random.Generator
+        Draws ``z`` (``n`` standard normal values); the past excitation comes from a generator it
+        spawns, so the draws after this one do not depend on ``K``.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        The initial state, in the units of ``Bd @ rms``.
+
+    Raises
+    ------
+    ModelError
+        The stationary covariance is not finite.
+    """
+    from scipy.linalg import solve_discrete_lyapunov
+
+    n = Ad.shape[0]
+    z = rng.standard_normal(n)
+    past = rng.spawn(1)[0]
+    with np.errstate(over="ignore", invalid="ignore"):  # refused below
+        Q = (Bd * rms**2) @ Bd.T
+    P = solve_discrete_lyapunov(Ad, Q) if np.all(np.isfinite(Q)) else Q
+    if not np.all(np.isfinite(P)):
+        raise ModelError("the stationary state covariance is not finite; the system is too close to "
+                         "instability for a stationary start.")
+    tail = _covariance_root((P + P.T) / 2) @ z
+    mu, V = np.linalg.eig(Ad)
+    rho = float(np.max(np.abs(mu)))
+    K = BURN_IN_MAX if rho**BURN_IN_MAX > BURN_IN_TOL else int(np.ceil(np.log(BURN_IN_TOL) / np.log(rho)))
+    W = past.standard_normal((K, Bd.shape[1])) * rms  # row k: k + 1 samples before the record
+    if np.linalg.cond(V) > 1e8:  # defective or nearly: the plain recursion, oldest sample first
+        x = tail
+        for k in range(K - 1, -1, -1):
+            x = Ad @ x + Bd @ W[k]
+        return x
+    Vinv = np.linalg.inv(V)
+    # modal state after K samples: mu^K q0 + G-weighted sums sum_k mu^k w_k, by blocks of
+    # ``block`` samples, mu^(k0 + i) = mu^k0 mu^i
+    block = min(K, 4096)
+    powers = mu[:, None] ** np.arange(block)[None, :]
+    H = np.zeros((n, Bd.shape[1]), dtype=complex)
+    for k0 in range(0, K, block):
+        Wb = W[k0:k0 + block]
+        H += mu[:, None] ** k0 * (powers[:, :Wb.shape[0]] @ Wb)
+    q = mu**K * (Vinv @ tail) + np.sum((Vinv @ Bd) * H, axis=1)
+    return np.real(V @ q)
+
+
+#: The stationary starts of :func:`simulate_experiment`: the draw in the state basis
+#: (:func:`_drawn_state`, the default) and the state after simulated past excitation
+#: (:func:`_past_state`, the same in any realization of the system).
+STARTS = {"draw": _drawn_state, "past": _past_state}
 
 
 def _simulate_modal(Ad, Bd, C, D, u, x0) -> np.ndarray | None:
@@ -602,15 +714,16 @@ def simulate_experiment(
     noise_rms: float | Sequence[float] = 0.0,
     seed: int | None = 0,
     inputs: Any = None,
+    start: str = "draw",
 ) -> tuple[np.ndarray, np.ndarray]:
     """Simulate a white-noise identification experiment on a continuous-time system.
 
     The excitation is sampled Gaussian white noise held constant over each sample
     (zero-order hold), so the sampled response is exact: ``x[k+1] = Ad x[k] + Bd u[k]``,
     ``y[k] = C x[k] + D u[k]`` with ``[[Ad, Bd], [0, I]] = expm([[A, B], [0, 0]] / fs)``.
-    The record starts in the stationary state (a draw from the solution of
-    ``P = Ad P Ad^T + Bd S Bd^T``), so there is no start-up transient; marginally stable
-    systems start at rest. Defaults are the Caltech settings (200 Hz, 81,920 samples).
+    The record starts in the stationary state (a draw with covariance the solution of
+    ``P = Ad P Ad^T + Bd S Bd^T``, see ``start``), so there is no start-up transient; marginally
+    stable systems start at rest. Defaults are the Caltech settings (200 Hz, 81,920 samples).
 
     The zero-order hold is part of the simulated experiment, as of a real one driven by a
     DAC: an H1 estimate of ``u -> y`` (:func:`estimate_frf`) carries the hold's half-sample
@@ -639,6 +752,12 @@ def simulate_experiment(
     inputs : sequence of str or int, optional
         The inputs to excite (names or indices), default all. One SIMO experiment per
         actuator (as Caltech) is ``inputs=[k]``.
+    start : {"draw", "past"}
+        The stationary start. ``"draw"`` (default): a draw ``L z`` in the system's state basis
+        (Cholesky factor of ``P``). ``"past"``: the state after simulated past excitation, the same
+        state in any realization of ``sys``, so the record does not depend on the basis a
+        computation (an OpenBLAS kernel) gave the system: MACE's records under two kernels differ by
+        2-7 % with ``"draw"`` and by about 1e-6 with ``"past"``. Both have covariance ``P``.
 
     Returns
     -------
@@ -666,6 +785,8 @@ def simulate_experiment(
     B, D = B[:, idx], D[:, idx]
     rms_u = _per_channel(input_rms, len(idx), "input_rms", allow_zero=False)
     rms_y = _per_channel(noise_rms, C.shape[0], "noise_rms", allow_zero=True)
+    if start not in STARTS:
+        raise DataError(f"start must be one of {sorted(STARTS)}; got {start!r}.")
     rng = np.random.default_rng(check_seed(seed))
     u = rng.standard_normal((n_samples, len(idx))) * rms_u
     n = A.shape[0]
@@ -679,7 +800,7 @@ def simulate_experiment(
                 f"the system is unstable (spectral radius of the sampled A is {rho:.6g} > 1); an "
                 "open-loop white-noise experiment would diverge. Stabilise it (close a loop) first."
             )
-        x0 = _stationary_state(Ad, Bd, rms_u, rng) if rho < 1.0 - 1e-12 else np.zeros(n)
+        x0 = STARTS[start](Ad, Bd, rms_u, rng) if rho < 1.0 - 1e-12 else np.zeros(n)
         y = _simulate_modal(Ad, Bd, C, D, u, x0)
         if y is None:
             y = _simulate_loop(Ad, Bd, C, D, u, x0)

@@ -119,11 +119,11 @@ def test_the_stationary_start_of_a_simulated_experiment_is_a_cholesky_draw():
     """The simulated record starts from ``L z``, ``L`` the Cholesky factor of the stationary
     covariance (unique, so the same on every machine), not an eigenvector factor whose column
     signs are the LAPACK kernel's choice."""
-    from robustctl.measure.estimate import STATE_JITTER, _stationary_state
+    from robustctl.measure.estimate import STATE_JITTER, _drawn_state
 
     a = np.array([[0.9, 0.2], [-0.2, 0.9]])
     b = np.array([[1.0], [0.5]])
-    x0 = _stationary_state(a, b, np.array([2.0]), np.random.default_rng(5))
+    x0 = _drawn_state(a, b, np.array([2.0]), np.random.default_rng(5))
     # the covariance by its series sum_k A^k B S B^T A^kT, independently of the Lyapunov solver
     p, term = np.zeros((2, 2)), 4.0 * b @ b.T
     for _ in range(2000):
