@@ -13,6 +13,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 import robustctl as rc
+from benchmarks.scale_cases import grid_matrices
 from robustctl.budget import Deadline
 from robustctl.correlate.diagnosis import screening as scr
 from robustctl.correlate.diagnosis.results import DECOUPLED_DB
@@ -29,19 +30,6 @@ def _chain(n):
     K = sp.coo_matrix((1e4 * np.concatenate([np.ones(2 * i.size), -np.ones(2 * i.size)]),
                        (np.concatenate([i, i + 1, i, i + 1]), np.concatenate([i, i + 1, i + 1, i]))),
                       shape=(n, n)).tocsr() + 50.0 * sp.identity(n, format="csr")
-    M = sp.diags(0.1 * (1.0 + 0.3 * np.linspace(0.0, 1.0, n) ** 2)).tocsr()
-    return M, K
-
-
-def _grid(nx, ny):
-    n = nx * ny
-    idx = np.arange(n).reshape(ny, nx)
-    pairs = np.concatenate([np.stack([idx[:, :-1].ravel(), idx[:, 1:].ravel()], axis=1),
-                            np.stack([idx[:-1, :].ravel(), idx[1:, :].ravel()], axis=1)])
-    i, j = pairs[:, 0], pairs[:, 1]
-    K = sp.coo_matrix((1e4 * np.concatenate([np.ones(2 * i.size), -np.ones(2 * i.size)]),
-                       (np.concatenate([i, j, i, j]), np.concatenate([i, j, j, i]))), shape=(n, n)).tocsr()
-    K = K + 50.0 * sp.identity(n, format="csr")
     M = sp.diags(0.1 * (1.0 + 0.3 * np.linspace(0.0, 1.0, n) ** 2)).tocsr()
     return M, K
 
@@ -110,7 +98,7 @@ def test_the_screen_keeps_a_mass_on_a_one_dimensional_chain(tight, seed):
 
 
 def test_the_screen_keeps_a_spring_on_a_grid_of_another_size(tight):
-    M, K = _grid(15, 24)  # 360 DOFs
+    M, K = grid_matrices(15, 24)  # 360 DOFs
     f = np.linspace(3.0, 14.0, 240)
     out, cands, truth = _screened(M, K, [50, 271], [16, 80, 140, 200, 260, 330], 188, f, kind="spring",
                                   size=300.0)
