@@ -513,7 +513,7 @@ def _attachment(base: _Basis, dofs: np.ndarray) -> tuple:
     """The attachment block of the DOFs ``dofs`` on ``base``, projected: ``X = K_sigma^-1 E_J``
     M-orthonormalised against the Ritz vectors ``V`` (static correction vectors of the changed
     DOFs), returned as ``(X_J, V^T K X, X^T K X, X^T b, c X, V^T Cs X, X^T Cs X)`` (the last two
-    None without dashpots): everything :func:`_ritz_modal` needs, ``O((r + |J|) |J|)`` numbers.
+    zero without dashpots): everything :func:`_ritz_modal` needs, ``O((r + |J|) |J|)`` numbers.
 
     Made once per DOF set and base (``|J|`` solves with the base's factor and ``O(n_dof r |J|)``
     products; the ``n_dof x |J|`` block itself is not kept) and kept with the base
@@ -530,12 +530,10 @@ def _attachment(base: _Basis, dofs: np.ndarray) -> tuple:
     E[dofs, np.arange(dofs.size)] = 1.0
     X = _m_orthonormal(_factor(base).solve(E), base.mass, V)
     KX = np.asarray(base.stiffness @ X)
-    CsX = None if base.damping is None else np.asarray(base.damping @ X)
+    # without dashpots in the structure the damping blocks are zero (a dashpot candidate adds its own)
+    CsX = np.zeros_like(X) if base.damping is None else np.asarray(base.damping @ X)
     block = (X[dofs], V.T @ KX, X.T @ KX, X.T @ base.input_matrix, base.output_matrix @ X,
-             None if CsX is None else V.T @ CsX, None if CsX is None else X.T @ CsX)
-    if CsX is None:  # a dashpot candidate on a structure without: zero blocks of the right shape
-        q = X.shape[1]
-        block = (*block[:5], np.zeros((V.shape[1], q)), np.zeros((q, q)))
+             V.T @ CsX, X.T @ CsX)
     with _ATTACH_LOCK:
         if base.attached is None:
             base.attached = OrderedDict()
