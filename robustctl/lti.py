@@ -449,7 +449,7 @@ def schur_eval(factors: tuple, s: np.ndarray) -> np.ndarray:
     frequency-vectorised back-substitution in the triangular ``T``; shape (n_s, p, m)."""
     T, Bz, CZ, transposed = factors
     n = T.shape[0]
-    X = np.empty((n, s.size, Bz.shape[1]), dtype=complex)  # row i of the solution at every point
+    X = np.empty((s.size, n, Bz.shape[1]), dtype=complex)
     if s.size < n:  # few points, a large block: one LAPACK triangular solve per point
         from scipy.linalg.lapack import ztrtrs
 
@@ -457,14 +457,13 @@ def schur_eval(factors: tuple, s: np.ndarray) -> np.ndarray:
         d = np.diag(T)
         for k, sk in enumerate(s):
             M[np.diag_indices(n)] = sk - d
-            X[:, k], _ = ztrtrs(M, Bz)
+            X[k], _ = ztrtrs(M, Bz)
     else:  # many points: a back-substitution vectorised over them, one row at a time
         diag = s[:, None] - np.diag(T)[None, :]
-        flat = X.reshape(n, -1)  # rows below i as one contiguous (n - i - 1) x (points m) block
         for i in range(n - 1, -1, -1):  # (sI - T) X = Bz, upper triangular
-            rhs = Bz[i][None, :] + (T[i, i + 1 :] @ flat[i + 1 :]).reshape(s.size, -1)
-            X[i] = rhs / diag[:, i : i + 1]
-    out = np.transpose(np.tensordot(CZ, X, axes=(1, 0)), (1, 0, 2))  # (points, p, m)
+            rhs = Bz[i][None, :] + np.einsum("j,fjm->fm", T[i, i + 1 :], X[:, i + 1 :, :])
+            X[:, i, :] = rhs / diag[:, i : i + 1]
+    out = np.einsum("pj,fjm->fpm", CZ, X)
     return np.transpose(out, (0, 2, 1)) if transposed else out
 
 
