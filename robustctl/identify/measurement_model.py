@@ -310,6 +310,9 @@ def _modes(
 
 #: most relocations of a mode pole that is no mode to where a mode is missing (n_modes=N)
 MAX_RELOCATIONS = 3
+#: most rounds of :func:`_prune_noise_poles` (the refit after one round may turn a spare,
+#: overdamped pole into a new lightly damped one that fits noise)
+PRUNE_ROUNDS = 3
 
 
 def _relocate_fillers(
@@ -365,7 +368,7 @@ def _prune_noise_poles(fit: RationalFit, evidence: PoleEvidence, run, diagram=No
     """With ``n_modes=N``: drop the complex poles that fit noise, then refine the rest once more.
 
     A fit asked for more modes than the data hold spends the spare poles on noise: lightly damped
-    (below ``ZETA_FILLER``), not physical, and not significant against the noise (the
+    (below ``ZETA_FILLER``) or outside the band, not physical, and not significant against the noise (the
     :func:`.significance.pole_evidence` test; a pole outside the band, which that test does not
     score, by the same test over the whole band). Where such a pole settles is decided by the
     refinement's path, not by the data (on a two-output test of three modes and an overdamped pair
@@ -386,7 +389,10 @@ def _prune_noise_poles(fit: RationalFit, evidence: PoleEvidence, run, diagram=No
         return fit, evidence
     poles = np.asarray(fit.poles)
     zeta = -poles.real / np.maximum(np.abs(poles), np.finfo(float).tiny)
-    light = (poles.imag != 0) & (np.asarray(fit.ranks) > 0) & (zeta < ZETA_FILLER) & ~evidence.physical
+    f_pole = np.abs(poles) / (2 * np.pi)
+    outside = (f_pole < fit.data.f_hz[0]) | (f_pole > fit.data.f_hz[-1])
+    light = ((poles.imag != 0) & (np.asarray(fit.ranks) > 0) & ((zeta < ZETA_FILLER) | outside)
+             & ~evidence.physical)
     if not np.any(light):
         return fit, evidence
     sig = np.where(evidence.candidate, evidence.significance, np.inf)
@@ -742,8 +748,12 @@ def fit_measurement_model(
             fit, evidence = _relocate_fillers(replace(fit, data=used), n_mode_poles, evidence, n_modes, run,
                                               judge)
             if not used.meta.get("leakage_corrected"):
-                fit, evidence = _prune_noise_poles(replace(fit, data=used), evidence, run, judge)
-                evidence = _promote_twins(evidence, n_modes)
+                for _ in range(PRUNE_ROUNDS):
+                    n_before = len(fit.poles)
+                    fit, evidence = _prune_noise_poles(replace(fit, data=used), evidence, run, judge)
+                    evidence = _promote_twins(evidence, n_modes)
+                    if len(fit.poles) == n_before:
+                        break
     stopped = run.expired()
     cost = _score(fit, used)
     scan = () if diagram is None else tuple((int(n), float(c)) for n, c in zip(diagram.orders, diagram.cost))

@@ -194,3 +194,25 @@ def test_spare_poles_that_fit_noise_are_dropped_so_a_1e_12_change_cannot_move_th
     for seed in (1, 2):
         # measured: 2e-12 - 1.1e-11 in the cost, 3e-10 in the damping ratios
         assert max(_modes_moved(base, _fit(_perturbed(data, seed), n_modes=5))) < MOVE
+
+
+@pytest.mark.parametrize("noise_seed", [1, 7])
+def test_spare_poles_outside_the_band_or_left_by_a_refit_are_dropped_too(noise_seed):
+    """Four or six modes asked of the overdamped test made with other noise: a spare pole may
+    settle outside the band, overdamped (1198 Hz, damping ratio 0.999: a residual term the
+    whole-band significance test finds no need for) or lightly damped (29 Hz), and the refit
+    after dropping one spare pole may turn an overdamped one into a new lightly damped pole (3.05
+    Hz, damping 0.43, became 4.07 Hz, 0.019). Which happens was the path's choice: under
+    another OpenBLAS kernel a 1e-12 change moved the cost by 4.9e-3 and 1.1e-2. Out-of-band
+    spare poles that are not significant are dropped too, and the drop is repeated after
+    each refit."""
+    data = _modal_test(np.linspace(2.0, 20.0, 300), np.array([5.0, 9.0, 9.6, 4.0]),
+                       np.array([0.02, 0.01, 0.015, 0.9]),
+                       np.array([[1.0, 0.6, -0.4, 3.0], [0.5, -0.9, 0.8, 2.0]]), noise_seed)
+    n_modes = 4 if noise_seed == 1 else 6
+    base = _fit(data, n_modes=n_modes)
+    assert [round(m.f_hz, 1) for m in base.modes] == [5.0, 9.0, 9.6]
+    assert not any((f.zeta < 0.2 or not 2.0 <= f.f_hz <= 20.0) and f.pole.imag != 0 for f in base.fillers)
+    for seed in (1, 2, 3):
+        # measured (Haswell and Sandybridge): 4e-13 - 2.5e-10
+        assert max(_modes_moved(base, _fit(_perturbed(data, seed), n_modes=n_modes))) < MOVE

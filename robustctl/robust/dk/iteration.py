@@ -115,6 +115,11 @@ ORDER_NEIGHBOURS_GAIN = 5e-3
 #: (at 1 % per iteration more iterations could still matter; the distillation column capped at
 #: six iterations falls 0.3 % in its last, mkhic 1.8 %, mkhicn 3 %).
 ORDER_NEIGHBOURS_CREEP = 0.01
+#: Most fixed-order runs of that repetition when the automatic run's K steps were solved by
+#: LMIs (the orders one below and one above): the interior-point solve grows like ``n^6`` in
+#: the scaled plant's states, which each order adds to (eight runs of the D12 = 0 plant took
+#: 35x the automatic run's CPU time).
+ORDER_NEIGHBOURS_LMI_RUNS = 2
 #: Most states of a scaled plant whose failed Riccati K step is retried on the LMI route.
 LMI_FALLBACK_MAX_STATES = 40
 #: Starts of the automatically scaled D-K (ln of a factor on all block scales but the last).
@@ -187,6 +192,10 @@ class DKIteration:
         approximate the optimal scales, so D-K need not descend): the two peaks, and the
         K step's gamma when it was already above that best (the fitted scales, not the K
         step, lost the ground).
+    k_method : str
+        The route of this iteration's H-infinity synthesis: ``"riccati"``, or ``"lmi"`` when
+        the K step was solved by LMIs (asked in ``hinf_options``, or the fallback where the
+        Riccati route refuses, e.g. ``D12 = 0``); empty when the first controller was given.
     """
 
     index: int
@@ -201,6 +210,7 @@ class DKIteration:
     d_step: float = 0.0
     n_candidates: int = 1
     note: str = ""
+    k_method: str = "riccati"
 
 
 @dataclass(frozen=True)
@@ -670,7 +680,8 @@ def _iterate(plant: GeneralizedPlant, blocks: BlockStructure, order_d: Any, run:
             cl = closed_loop(plant.P, K, plant.nmeas, plant.ncon)
             m, H = mu_of(cl, blocks, base, refine=grid is None)
             entry = DKIteration(index, float(hres.gamma), float(m.peak), float(m.f_peak_hz), K.nstates,
-                                cand.orders, 0.0, m, d_step=cand.beta, n_candidates=len(candidates))
+                                cand.orders, 0.0, m, d_step=cand.beta, n_candidates=len(candidates),
+                                k_method=hres.info.get("method", ""))
             improved = best is None or entry.mu_peak < best["it"].mu_peak * (1 - rtol)
             if best is not None and entry.mu_peak > best["it"].mu_peak:
                 prev = best["it"]
@@ -752,7 +763,8 @@ def _iterate(plant: GeneralizedPlant, blocks: BlockStructure, order_d: Any, run:
 
 
 def _creeping(res: DKResult) -> bool:
-    """The iteration cap ended a run whose last iteration still lowered the peak of mu."""
+    """The iteration cap ended a run whose last iteration still lowered the peak of mu (by more
+    than :data:`ORDER_NEIGHBOURS_CREEP`)."""
     h = res.history
     return (len(h) >= 2 and res.best_iteration == len(h) and not res.stopped_by_budget
             and res.stop_reason.startswith("max_iter=")
@@ -778,14 +790,19 @@ def _neighbour_orders(res: DKResult, blocks: BlockStructure, run: Callable[[tupl
     autoscaled starts when ``autoscale``), and the lowest verified peak of mu is kept when it
     is :data:`ORDER_NEIGHBOURS_GAIN` below the automatic one; ``stop_reason`` says which. A
     run that stopped because mu stopped falling (the distillation column, the Caltech design
-    plant) is returned as it is. ``run(orders)`` returns what ``result_of`` maps to a DKResult;
-    ``res`` is the automatic run's and ``run``'s results are returned as they are.
+    plant) is returned as it is. When the automatic run's K steps were solved by LMIs (the
+    Riccati route's fallback, or ``hinf_options``), at most :data:`ORDER_NEIGHBOURS_LMI_RUNS`
+    orders are tried.
+    ``run(orders)`` returns what ``result_of`` maps to a DKResult; ``res`` is the automatic
+    run's and ``run``'s results are returned as they are.
     """
     from .scales import MAX_AUTO_ORDER_D, MAX_D_STATES_PER_BLOCK
 
     first = result_of(res)
     if not _creeping(first):
         return res
+    lmi = any(h.k_method == "lmi" for h in first.history)
+    max_runs = ORDER_NEIGHBOURS_LMI_RUNS if lmi else ORDER_NEIGHBOURS_RUNS
     base = first.history[first.best_iteration - 1].d_orders
     scaled = list(blocks)[:len(base)]
     if not base or len(scaled) != len(base):
@@ -798,7 +815,7 @@ def _neighbour_orders(res: DKResult, blocks: BlockStructure, run: Callable[[tupl
         orders = tuple(int(min(max(o + step, 0), c)) for o, c in zip(base, cap))
         if orders == base or orders in [t[0] for t in tried]:
             continue
-        if len(tried) >= ORDER_NEIGHBOURS_RUNS or deadline.expired():
+        if len(tried) >= max_runs or deadline.expired():
             break
         tried.append((orders, run(orders)))
     if not tried:

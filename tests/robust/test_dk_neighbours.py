@@ -1,0 +1,112 @@
+"""dksyn's neighbouring-D-order strategy: when it runs fixed orders beside the automatic run, how
+many, and what it returns (robustctl.robust.dk.iteration._neighbour_orders)."""
+
+from __future__ import annotations
+
+import control
+import numpy as np
+import pytest
+
+import robustctl.robust.dk.iteration as dki
+from robustctl.budget import Deadline
+from robustctl.lti import freqresp_array
+from robustctl.robust.dk.iteration import DKIteration, DKResult, _neighbour_orders, dksyn
+from robustctl.robust.mu.bounds import mu
+from robustctl.robust.uncertainty.blocks import as_block_structure
+
+BLOCKS = as_block_structure([[1, 1], [1, 1]])
+
+
+def _result(peaks, orders=(2,), method="riccati", stop="max_iter={n} reached") -> DKResult:
+    """A D-K result whose iterations have the peaks of mu ``peaks`` (the last one best)."""
+    hist = tuple(DKIteration(i + 1, p, p, 1.0, 4, orders if i else (), 0.0, None, k_method=method)
+                 for i, p in enumerate(peaks))
+    return DKResult(K=None, mu_peak=peaks[-1], mu=None, closed_loop=None, history=hist,
+                    best_iteration=len(peaks), stop_reason=stop.format(n=len(peaks)), blocks=BLOCKS)
+
+
+def _fixed_runs(mu_of_orders):
+    """A ``run(orders)`` for _neighbour_orders that records the orders it was asked for."""
+    asked = []
+
+    def run(orders):
+        asked.append(orders)
+        return _result([1.0, mu_of_orders(orders)], orders=orders)
+
+    return run, asked
+
+
+def test_a_creeping_riccati_run_tries_the_nearest_orders_first_and_keeps_the_lowest():
+    run, asked = _fixed_runs(lambda o: 0.90 if o == (4,) else 0.97)
+    res = _neighbour_orders(_result([1.0, 0.98]), BLOCKS, run, Deadline(None))   # fell 2 %
+    assert asked == [(1,), (3,), (0,), (4,), (5,), (6,), (7,), (8,)]  # -1, +1, -2, +2, then up to the cap
+    assert len(asked) == dki.ORDER_NEIGHBOURS_RUNS
+    assert res.mu_peak == 0.90 and res.history[-1].d_orders == (4,)
+    assert "fixed orders (4,) reached 0.9000" in res.stop_reason
+
+
+def test_lmi_k_steps_limit_the_neighbouring_runs_to_one_order_each_way():
+    run, asked = _fixed_runs(lambda o: 0.90 if o == (3,) else 0.97)
+    res = _neighbour_orders(_result([1.0, 0.98], method="lmi"), BLOCKS, run, Deadline(None))
+    assert asked == [(1,), (3,)]
+    assert len(asked) == dki.ORDER_NEIGHBOURS_LMI_RUNS
+    assert res.mu_peak == 0.90
+
+
+def test_a_fixed_order_less_than_the_required_gain_lower_keeps_the_automatic_run():
+    run, asked = _fixed_runs(lambda o: 0.98 * (1 - 0.5 * dki.ORDER_NEIGHBOURS_GAIN))
+    first = _result([1.0, 0.98], method="lmi")
+    res = _neighbour_orders(first, BLOCKS, run, Deadline(None))
+    assert len(asked) == 2
+    assert res.mu_peak == first.mu_peak and res.history == first.history
+    assert "were kept" in res.stop_reason
+
+
+@pytest.mark.parametrize("peaks, stop", [([1.0, 0.995], "max_iter={n} reached"),  # fell 0.5 %: converged
+                                         ([1.0, 0.98], "peak mu did not fall by 0.001")])  # not capped
+def test_runs_that_are_not_creeping_are_returned_as_they_are(peaks, stop):
+    run, asked = _fixed_runs(lambda o: 0.5)
+    first = _result(peaks, stop=stop)
+    assert _neighbour_orders(first, BLOCKS, run, Deadline(None)) is first
+    assert asked == []
+
+
+def _d12_zero_plant():
+    """A first-order plant with a strictly proper weight on u (D12 = 0): the Riccati route
+    refuses every K step, dksyn's K step takes the LMI route."""
+    s = control.tf("s")
+    parts = [control.ss(1 / (s + 1), inputs="ug", outputs="yg"),
+             control.ss(0.2 / (s / 50 + 1), inputs="u", outputs="zdel"),
+             control.ss(0.5 * (s + 2) / (s + 0.02) / (s / 200 + 1), inputs="e", outputs="zp"),
+             control.summing_junction(["u", "pert"], "ug"), control.summing_junction(["yg", "d"], "e"),
+             control.summing_junction(["yg", "d"], "y")]
+    return control.interconnect(parts, inputs=["pert", "d", "u"], outputs=["zdel", "zp", "y"])
+
+
+@pytest.mark.slow
+def test_lmi_route_dk_tries_one_neighbouring_order_each_way_and_its_mu_holds(monkeypatch):
+    """D12 = 0 with max_iter=3: every K step is an LMI solve, and the automatic orders are still
+    falling when the cap stops them. Two fixed-order runs follow (the order below and above),
+    not eight (each a further three LMI solves, larger ones for higher orders); the returned
+    loop is stable, its peak of mu is what an independent dense-grid analysis finds, and it is
+    not above the automatic run's."""
+    runs = []
+    original = dki._iterate
+
+    def counted(plant, blocks, order_d, *args, **kwargs):
+        res = original(plant, blocks, order_d, *args, **kwargs)
+        runs.append((order_d, res))
+        return res
+
+    monkeypatch.setattr(dki, "_iterate", counted)
+    dk = dksyn((_d12_zero_plant(), 1, 1, [[1, 1], [1, 1]]), max_iter=3, progress=False, autoscale=False)
+    assert len(runs) == 1 + dki.ORDER_NEIGHBOURS_LMI_RUNS
+    auto = runs[0][1]
+    assert runs[0][0] is None and all(h.k_method == "lmi" for h in auto.history)
+    base = auto.history[auto.best_iteration - 1].d_orders[0]
+    assert sorted(o[0] for o, _ in runs[1:]) == [max(base - 1, 0), base + 1]
+    assert dk.mu_peak <= auto.mu_peak
+    assert np.max(np.linalg.eigvals(np.asarray(dk.closed_loop.A)).real) < 0
+    f = np.unique(np.concatenate([[0.0], np.logspace(-5, 4, 3000)]))
+    dense = float(mu(freqresp_array(dk.closed_loop, f), [[1, 1], [1, 1]], f_hz=f, lower=False).peak)
+    assert dense <= dk.mu_peak * (1 + 2e-3)
