@@ -661,9 +661,9 @@ def _past_state(Ad: np.ndarray, Bd: np.ndarray, rms: np.ndarray, rng) -> np.ndar
     return np.real(V @ q)
 
 
-#: The stationary starts of :func:`simulate_experiment`: the draw in the state basis
-#: (:func:`_drawn_state`, the default) and the state after simulated past excitation
-#: (:func:`_past_state`, the same in any realization of the system).
+#: The stationary starts of :func:`simulate_experiment`: the state after simulated past
+#: excitation (:func:`_past_state`, the default: the same in any realization of the system) and
+#: the draw in the state basis (:func:`_drawn_state`).
 STARTS = {"draw": _drawn_state, "past": _past_state}
 
 
@@ -714,7 +714,7 @@ def simulate_experiment(
     noise_rms: float | Sequence[float] = 0.0,
     seed: int | None = 0,
     inputs: Any = None,
-    start: str = "draw",
+    start: str = "past",
 ) -> tuple[np.ndarray, np.ndarray]:
     """Simulate a white-noise identification experiment on a continuous-time system.
 
@@ -752,12 +752,13 @@ def simulate_experiment(
     inputs : sequence of str or int, optional
         The inputs to excite (names or indices), default all. One SIMO experiment per
         actuator (as Caltech) is ``inputs=[k]``.
-    start : {"draw", "past"}
-        The stationary start. ``"draw"`` (default): a draw ``L z`` in the system's state basis
-        (Cholesky factor of ``P``). ``"past"``: the state after simulated past excitation, the same
-        state in any realization of ``sys``, so the record does not depend on the basis a
+    start : {"past", "draw"}
+        The stationary start. ``"past"`` (default): the state after simulated past excitation, the
+        same state in any realization of ``sys``, so the record does not depend on the basis a
         computation (an OpenBLAS kernel) gave the system: MACE's records under two kernels differ by
-        2-7 % with ``"draw"`` and by about 1e-6 with ``"past"``. Both have covariance ``P``.
+        about 1e-6. ``"draw"``: a draw ``L z`` in the system's state basis (Cholesky factor of
+        ``P``): another record in another basis (MACE's under two kernels: 2-7 %). Both have
+        covariance ``P``.
 
     Returns
     -------

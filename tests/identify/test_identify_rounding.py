@@ -109,10 +109,17 @@ def test_the_caltech_demo_measurement_model_is_not_moved_by_a_1e_12_change():
 
     data, _ = rc.examples.caltech_truss_experiment(seed=0)
     base = _caltech_measurement_model(data)
-    cost, poles = _moved(base, _caltech_measurement_model(_perturbed(data, 1)))
-    # measured: 1e-8 - 3e-8 in the cost, 6e-10 - 1.2e-9 in the poles; 3e-7 - 8e-7 and 5e-8 while
-    # the joint refinement stopped at its evaluation cap short of the optimum, which this bound misses
-    assert cost < 0.1 * MOVE and poles < 0.1 * MOVE, (cost, poles)
+    moved = _caltech_measurement_model(_perturbed(data, 1))
+    # measured: 2e-8 in the cost; 1.5e-11 - 9e-10 in the modes' poles, 1.6e-9 in the in-band filler
+    # (2.9 Hz, real); 3e-7 - 8e-7 and 5e-8 while the joint refinement stopped at its evaluation cap
+    # short of the optimum, which this bound misses
+    assert abs(moved.cost.total / base.cost.total - 1) < 0.1 * MOVE
+    near = [(m.pole, n.pole) for m, n in zip(base.modes + base.fillers, moved.modes + moved.fillers)
+            if abs(m.pole) < 2 * np.pi * 550]
+    assert len(near) == 7 and max(abs(a - b) / abs(a) for a, b in near) < 0.1 * MOVE
+    # not asserted: the real filler at 6.7e4 Hz (1e4 times the band's top) moves by 5e-5: its
+    # partial fraction is a constant over the band, collinear with D, so the data do not locate it
+    # (as in the close-pair test above)
 
 
 def test_the_stationary_start_of_a_simulated_experiment_is_a_cholesky_draw():

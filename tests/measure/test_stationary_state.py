@@ -111,8 +111,8 @@ def test_a_non_finite_covariance_is_refused():
 
 
 def test_simulate_experiment_with_the_past_start_gives_one_record_in_any_realization():
-    """``start="past"``: the same record from a system and from it in a badly scaled basis (to the
-    sum's round-off, 1e-6 of the largest output); ``start="draw"`` (the default) gives another
+    """``start="past"`` (the default): the same record from a system and from it in a badly scaled
+    basis (to the sum's round-off, 1e-6 of the largest output); ``start="draw"`` gives another
     record there (its draw is made in the state basis); an unknown start is refused."""
     import control
 
@@ -129,11 +129,13 @@ def test_simulate_experiment_with_the_past_start_gives_one_record_in_any_realiza
     one = control.ss(a, b, c, np.zeros((2, 1)))
     other = control.ss(t @ a @ ti, t @ b, c @ ti, np.zeros((2, 1)))
     kw = dict(fs=50.0, n_samples=4096, seed=4)
-    _, y1 = rc.simulate_experiment(one, start="past", **kw)
-    _, y2 = rc.simulate_experiment(other, start="past", **kw)
+    _, y1 = rc.simulate_experiment(one, **kw)
+    _, y2 = rc.simulate_experiment(other, **kw)
     assert np.max(np.abs(y1 - y2)) < 1e-6 * np.max(np.abs(y1))
-    _, d1 = rc.simulate_experiment(one, **kw)
-    _, d2 = rc.simulate_experiment(other, **kw)
+    _, p1 = rc.simulate_experiment(one, start="past", **kw)
+    np.testing.assert_array_equal(p1, y1)
+    _, d1 = rc.simulate_experiment(one, start="draw", **kw)
+    _, d2 = rc.simulate_experiment(other, start="draw", **kw)
     assert np.max(np.abs(d1[:200] - d2[:200])) > 1e-3 * np.max(np.abs(d1))
     with pytest.raises(rc.DataError, match="start must be one of"):
         rc.simulate_experiment(one, start="rest", **kw)

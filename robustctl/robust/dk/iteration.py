@@ -620,16 +620,27 @@ def _mixed_from_complex(plant: GeneralizedPlant, blocks: BlockStructure, order_d
     separate analysis). Only when the D-G-K design verifies above the complex design's
     complex mu (a different verification grid) is the complex design's mixed mu verified on
     its iteration grid, and the lower of the two is returned. ``complex_mu_peak`` is the
-    complex design's complex mu.
+    complex design's complex mu; when that design is kept and its mixed mu verified above it
+    (a finer grid at a peak), its complex mu on the mixed grid too, which also bounds the mixed
+    mu reported.
     """
     cx = _solve(plant, order_d, autoscale, replace(run, real="complex"))
     mx = _iterate(plant, blocks, order_d, run, run.reduce, first=cx.K)
     done = {"stopped_by_budget": cx.stopped_by_budget or mx.stopped_by_budget,
             "complex_mu_peak": float(cx.mu_peak)}
     if mx.best_iteration == 1:
-        why = (f"the complex D-K design (mixed mu {mx.mu_peak:.4f}) is kept: D-G-K from it did not "
+        mixed_peak = float(mx.mu_peak)
+        if mixed_peak > cx.mu_peak:
+            # one controller, two verification grids: its mixed mu cannot exceed its complex mu,
+            # so the complex mu is also taken on the mixed analysis' grid, where it bounds the
+            # mixed mu too (a complex bound is a mixed bound)
+            f = np.asarray(mx.mu.f_hz, dtype=float)
+            mc = mu(freqresp_array(mx.closed_loop, f), _complexified(blocks), f_hz=f, lower=False)
+            done["complex_mu_peak"] = max(float(cx.mu_peak), float(mc.peak))
+            mixed_peak = min(mixed_peak, done["complex_mu_peak"])
+        why = (f"the complex D-K design (mixed mu {mixed_peak:.4f}) is kept: D-G-K from it did not "
                "reach lower")
-        return replace(cx, mu=mx.mu, mu_peak=mx.mu_peak, grid_mu_peak=mx.grid_mu_peak,
+        return replace(cx, mu=mx.mu, mu_peak=mixed_peak, grid_mu_peak=mx.grid_mu_peak,
                        closed_loop=mx.closed_loop, stop_reason=f"{cx.stop_reason}; {why}", **done)
     if mx.mu_peak > cx.mu_peak:
         m_cx = verified_mu(cx.closed_loop, blocks, cx.history[cx.best_iteration - 1].mu.f_hz)
