@@ -28,6 +28,10 @@ the thousand) is not reduced again: the basis is augmented by the attachment vec
 ``K_sigma^{-1} E_J`` of the changed DOFs ``J`` and the small projected problem is re-solved
 (structural dynamic modification, Avitabile 2003; the Ritz basis makes the change exact at
 statics and the rank-``|J|`` update of ``W^T M W`` and ``W^T K W`` costs ``O(n_dof r)``).
+A structure that is a reduced one scaled (``alpha_M M``, ``alpha_K K``: an update parameter on
+the whole stiffness, or on one property group beside a group the diagnosis changes, whose
+difference from a scale lies on that group's DOFs) takes the reduced one's modes, factor and
+attachment blocks scaled (:func:`_scaled_basis`): no Lanczos run or factorisation.
 
 Error estimate (per channel, in the band): for modal truncation with static correction the
 truncated modes contribute ``sum_k c phi_k phi_k^T b / (w_k^2 - w^2 + 2 j zeta w_k w)``, of
@@ -130,6 +134,7 @@ class _Basis:
     c_v: np.ndarray = None  # (p, r) c V
     VCV: np.ndarray | None = None  # (r, r) V^T Cs V, None without dashpots
     attached: Any = None  # OrderedDict DOF set -> projected attachment block (_attachment)
+    complete_to: float = 0.0  # every mode of the structure up to this w^2 ((rad/s)^2) is in V exactly
 
 
 def _max_changed(n: int) -> int:
@@ -211,13 +216,15 @@ def _reduce(mats: Any, f_cut_hz: float) -> _Basis:
     keep[: max(1, int(np.count_nonzero(keep)))] = True
     lam, phi = lam[keep], phi[:, keep]
     phi = phi / np.sqrt(np.einsum("ij,ij->j", phi, M @ phi))  # mass-normalised
-    return _attach(mats, M, K, lu, sigma, lam, phi)
+    return _attach(mats, M, K, lu, sigma, lam, phi, lam_cut)
 
 
-def _attach(mats: Any, M: Any, K: Any, lu: Any, sigma: float, lam: np.ndarray, phi: np.ndarray) -> _Basis:
+def _attach(mats: Any, M: Any, K: Any, lu: Any, sigma: float, lam: np.ndarray, phi: np.ndarray,
+            complete_to: float) -> _Basis:
     """The Ritz basis from the exact modes ``(lam, phi)`` (mass-normalised) and the factor ``lu``
     of ``K - sigma M``: the attachment (Krylov) blocks of the inputs, the Ritz problem, the
-    residual flexibilities (module docstring)."""
+    residual flexibilities (module docstring). ``complete_to`` ((rad/s)^2): every mode below it is
+    among ``lam``."""
     b = np.asarray(mats.input_matrix, dtype=float)
     c = np.asarray(mats.output_matrix, dtype=float)
     A1 = lu.solve(b)
@@ -237,7 +244,7 @@ def _attach(mats: Any, M: Any, K: Any, lu: Any, sigma: float, lam: np.ndarray, p
     floor_c = 1e-12 * np.abs(np.einsum("ij,ij->j", c.T, Ac))
     return _Basis(M, K, Cs, b, c, lu, sigma, V, lam_all, int(lam.size), float(lam[-1]),
                   np.maximum(static_b, floor_b), np.maximum(static_c, floor_c), V.T @ b, c @ V,
-                  None if Cs is None else V.T @ np.asarray(Cs @ V))
+                  None if Cs is None else V.T @ np.asarray(Cs @ V), complete_to=float(complete_to))
 
 
 #: A structure whose matrices differ from a reduced one's everywhere (an update parameter: a
@@ -281,6 +288,136 @@ def _scaled_part(base: _Basis, mats: Any) -> Any | None:
     return replace(mats, mass=parts[0], stiffness=parts[1], damping=base.damping)
 
 
+class _RootFactor:
+    """The sparse LU of a reduced structure's shifted stiffness ``K - sigma M`` (``shifted``), kept
+    with the matrix so that it pickles without the factor (which does not) and is made again on the
+    other side by the same ``splu`` call as :func:`_reduce`'s: the same factor, bit for bit."""
+
+    def __init__(self, shifted: Any, lu: Any = None) -> None:
+        self.shifted, self.lu = shifted, lu
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        if self.lu is None:
+            self.lu = spla.splu(self.shifted)
+        return self.lu.solve(rhs)
+
+    def __getstate__(self) -> dict:
+        return {"shifted": self.shifted, "lu": None}
+
+
+class _ScaledFactor:
+    """The factor of ``c (K - sigma M)`` from the factor ``root`` (a :class:`_RootFactor`) of ``K -
+    sigma M``: each solve is ``root``'s divided by ``c`` (no new factorisation)."""
+
+    def __init__(self, root: _RootFactor, c: float) -> None:
+        self.root, self.c = root, float(c)
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        return self.root.solve(rhs) / self.c
+
+
+#: Entries of a structure left over when its change is taken out, up to this fraction of its largest
+#: entry, count as the rounding of a scale (:func:`_scaled_basis`); the change itself is what
+#: exceeds 1e-9 of it, as in :func:`_scaled_part`.
+SCALE_ROUNDING = 1e-12
+
+
+def _scaled_basis(base: _Basis, mats: Any, lam_cut: float) -> _Basis | None:
+    """The reduction of ``alpha_M M0``, ``alpha_K K0`` (``M0``, ``K0`` the base's matrices) read off
+    the base's, when ``mats`` is that scaled structure plus a change at no more than
+    :func:`_max_changed` DOFs (an update parameter's step of one property group beside a group
+    left to the diagnosis, ``k_panels`` beside a seam, or of the whole stiffness); None otherwise.
+
+    Scaling ``M0`` by ``alpha_M`` and ``K0`` by ``alpha_K`` scales every eigenvalue by ``rho =
+    alpha_K / alpha_M`` and every mass-normalised shape by ``1 / sqrt(alpha_M)``, and ``K - rho sigma M
+    = alpha_K (K0 - sigma M0)``: the base's exact modes (scaled), its factor (each solve divided by
+    ``alpha_K``), its attachment vectors of the inputs (a multiple of the same Krylov vectors, hence
+    the same Ritz vectors) and the projected attachment blocks of the changed DOFs it holds
+    (:func:`_attachment`: ``X_J``, ``X^T b``, ``c X`` by ``1 / sqrt(alpha_M)``, ``V^T K X``, ``X^T K X``
+    by ``rho``, the damping blocks by ``1 / alpha_M``) are the scaled structure's reduction with the
+    shift ``rho sigma``: no Ritz step, factorisation or solve. A mode the scale lifts over the cut
+    ``lam_cut`` ((rad/s)^2) stays exact when the change is a group's (over :data:`LOW_RANK_MAX_DOFS`
+    DOFs), so that the attachment blocks held stay those of the basis (a larger basis than a fresh
+    reduction's, as accurate against the full model); with a point change or none it is left out and
+    the inputs' attachment vectors are solved again with the scaled factor (a few solves: a fresh
+    reduction's basis but for its shift). The basis holds every mode up to ``rho`` times the base's
+    ``complete_to``; when that falls below the cut, Sylvester's count (:func:`_count_below`) must find
+    no mode missing there, else None (the caller reduces it another way)."""
+    M, K = _csc(mats.mass), _csc(mats.stiffness)
+    if M.shape != base.mass.shape:
+        return None
+    if not (np.array_equal(np.asarray(mats.input_matrix, dtype=float), base.input_matrix)
+            and np.array_equal(np.asarray(mats.output_matrix, dtype=float), base.output_matrix)):
+        return None
+    alphas, parts, rows = [], [], set()
+    for new, old in ((M, base.mass), (K, base.stiffness)):
+        both = new.multiply(old).tocoo()
+        ref = old.multiply(old).tocoo()
+        if both.nnz == 0 or ref.nnz != both.nnz:
+            return None
+        alpha = float(np.median(both.data / ref.data))
+        if not alpha > 0:
+            return None
+        d = sp.coo_matrix(new - alpha * old)
+        top = max(float(abs(new).max()), 1e-300)
+        big = np.abs(d.data) > 1e-9 * top
+        if np.any(np.abs(d.data[~big]) > SCALE_ROUNDING * top):
+            return None  # a change spread over the structure, below the change's threshold
+        rows.update(d.row[big].tolist())
+        rows.update(d.col[big].tolist())
+        if len(rows) > _max_changed(new.shape[0]):
+            return None
+        change = sp.csc_matrix((d.data[big], (d.row[big], d.col[big])), shape=new.shape)
+        alphas.append(alpha)
+        parts.append(new - change if change.nnz else new)
+    a_m, a_k = alphas
+    if a_m == 1.0 and a_k == 1.0:
+        return None  # the base itself (its changes: _changed_dofs)
+    rho = a_k / a_m
+    lam = base.lam * rho
+    complete_to = base.complete_to * rho
+    if not complete_to >= lam_cut:  # the scale may have brought modes into the cut
+        below = _count_below(parts[1], parts[0], lam_cut)
+        if below is None or below != int(np.count_nonzero(lam[: base.n_exact] <= lam_cut)):
+            return None
+        complete_to = lam_cut
+    s = 1.0 if a_m == 1.0 else 1.0 / np.sqrt(a_m)
+    d_m = 1.0 if a_m == 1.0 else 1.0 / a_m
+
+    def sc(x, f):
+        return x if (x is None or f == 1.0) else x * f
+
+    if isinstance(base.lu, _ScaledFactor):  # a scale of a scaled base: one division
+        lu = _ScaledFactor(base.lu.root, base.lu.c * a_k)
+    else:
+        if not isinstance(base.lu, _RootFactor):  # the base's own factor, with its matrix (_factor's)
+            base.lu = _RootFactor((base.stiffness - base.sigma * base.mass).tocsc(), base.lu)
+        lu = _ScaledFactor(base.lu, a_k)
+    above = lam[: base.n_exact] > lam_cut
+    if np.any(above) and len(rows) <= LOW_RANK_MAX_DOFS:
+        # modes lifted over the cut, and a change whose attachment vectors are few (a point effect,
+        # or none): the modes a fresh reduction keeps, the inputs' attachment vectors solved again
+        # with the scaled factor (a few solves); the result is a fresh reduction's but for its shift
+        keep = ~above
+        if not np.any(keep):
+            return None
+        phi = sc(base.V[:, : base.n_exact][:, keep], s)
+        scaled = replace(mats, mass=parts[0], stiffness=parts[1], damping=base.damping)
+        return _attach(scaled, parts[0], parts[1], lu, base.sigma * rho, lam[: base.n_exact][keep], phi,
+                       complete_to)
+    attached = None
+    with _ATTACH_LOCK:
+        held = list(base.attached.items()) if base.attached is not None else []
+    if held:
+        attached = OrderedDict(
+            (key, (sc(XJ, s), VKX * rho, XKX * rho, sc(Xb, s), sc(cX, s), sc(VCX, d_m), sc(XCX, d_m)))
+            for key, (XJ, VKX, XKX, Xb, cX, VCX, XCX) in held)
+    return replace(base, mass=parts[0], stiffness=parts[1], lu=lu, sigma=base.sigma * rho, V=sc(base.V, s),
+                   lam=lam, lam_cut=base.lam_cut * rho, resid_in=base.resid_in / a_k,
+                   resid_out=base.resid_out / a_k, Vb=sc(base.Vb, s), c_v=sc(base.c_v, s),
+                   VCV=sc(base.VCV, d_m), attached=attached, complete_to=float(complete_to))
+
+
 def _shift_factor(M: Any, K: Any) -> tuple[float, float, Any] | None:
     """The stiffness scale ``max|K| / max|M|`` ((rad/s)^2), the shift ``sigma`` below every mode (rigid-body
     modes included) and the sparse LU of ``K - sigma M``; None when the factorisation fails."""
@@ -317,7 +454,7 @@ def _reuse(base: _Basis, mats: Any, lam_cut: float, ritz: Any = None) -> _Basis 
     phi0, lam0 = base.V[:, : base.n_exact], base.lam[: base.n_exact]
     if ritz is None:
         if (M - base.mass).count_nonzero() == 0 and (K - base.stiffness).count_nonzero() == 0:  # new I/O only
-            return _attach(mats, M, K, _factor(base), base.sigma, lam0, phi0)
+            return _attach(mats, M, K, _factor(base), base.sigma, lam0, phi0, base.complete_to)
         check_structural_matrices(M, K)
         ritz = _ritz(phi0, M, K)
     if ritz is None:
@@ -335,7 +472,7 @@ def _reuse(base: _Basis, mats: Any, lam_cut: float, ritz: Any = None) -> _Basis 
     k_scale, sigma, lu = shifted
     phi = phi0 @ psi
     phi = phi / np.sqrt(np.einsum("ij,ij->j", phi, M @ phi))
-    return _attach(mats, M, K, lu, sigma, lam, phi)
+    return _attach(mats, M, K, lu, sigma, lam, phi, lam_cut)
 
 
 #: :func:`_extend` completes a reused basis when at most this share of the cut's modes (and at
@@ -393,7 +530,7 @@ def _extend(base: _Basis, mats: Any, lam_cut: float, ritz: Any = None) -> _Basis
     order = np.argsort(lam_all, kind="stable")
     phi = np.hstack([phi0 @ psi, phi_new[:, inside]])[:, order]
     phi = phi / np.sqrt(np.einsum("ij,ij->j", phi, M @ phi))
-    return _attach(mats, M, K, lu, sigma, lam_all[order], phi)
+    return _attach(mats, M, K, lu, sigma, lam_all[order], phi, lam_cut)
 
 
 def _reuse_or_extend(base: _Basis, mats: Any, lam_cut: float) -> _Basis | None:
@@ -555,13 +692,20 @@ class _Reducer:
         self._token = uuid.uuid4().hex
 
     def __reduce__(self):
-        # the most recent basis travels (without its factor, which does not pickle): a worker
-        # process then starts from the parameter point the caller last evaluated instead of a
-        # Lanczos run of its own (23 s at 20,000 DOFs); and every copy of one reducer in a process
-        # is one object (:func:`_restored_reducer`), whose bases all its payloads share
+        # the most recent basis travels (without its factor, which does not pickle: a scaled
+        # basis's factor travels as its matrix, :class:`_RootFactor`) with its attachment blocks: a
+        # worker process then starts from the parameter point the caller last evaluated instead of
+        # a Lanczos run of its own (23 s at 20,000 DOFs) or a seam's attachment vectors (250 solves);
+        # and every copy of one reducer in a process is one object (:func:`_restored_reducer`),
+        # whose bases all its payloads share
         with self._lock:
             last = next(reversed(self._bases.values()), None)
-        basis = None if last is None else replace(last, lu=None, attached=None)
+        basis = None
+        if last is not None:
+            with _ATTACH_LOCK:
+                attached = None if last.attached is None else OrderedDict(last.attached)
+            lu = last.lu if isinstance(last.lu, _ScaledFactor) else None
+            basis = replace(last, lu=lu, attached=attached)
         return _restored_reducer, (self._token, self.f_cut_hz, basis)
 
     def basis_and_dofs(self, mats: Any) -> tuple[_Basis, tuple]:
@@ -575,6 +719,14 @@ class _Reducer:
                         self._bases.move_to_end(key)
                 return base, change
         lam_cut = (2 * np.pi * self.f_cut_hz) ** 2
+        for _key, old in entries:
+            # a scale of a held structure with a change at a few DOFs (or none): its reduction scaled,
+            # the change exact on top of it with the attachment blocks the base holds
+            scaled = _scaled_basis(old, mats, lam_cut)
+            change = None if scaled is None else _changed_dofs(scaled, mats)
+            if change is not None:
+                self._keep(scaled)
+                return scaled, change
         base = None
         for _key, old in entries[:1]:
             # a scaled structure with a point change (an update parameter and a candidate in one

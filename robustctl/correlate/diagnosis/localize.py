@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from ...physical.eigen import solve_modes
+from ...physical.reduction import REDUCE_MIN_DOF
 from ..residual import Residual
 
 #: A band extends from a peak of the smoothed excess while it stays above this share of the peak.
@@ -138,7 +139,10 @@ def band_modes(model: Any, bands: list[tuple[float, float]]) -> list[tuple]:
     try:
         struct = model.build_structure()
         mats = struct.matrices()
-        w, phi = solve_modes(mats.mass, mats.stiffness, band_hz=(lo, hi))
+        # a large structure's modes by Lanczos (a dense eigh of 20,000 DOFs needs 20 GB), as the
+        # candidates' calibration finds them (effects.catalogue._modes)
+        w, phi = solve_modes(mats.mass, mats.stiffness, band_hz=(lo, hi),
+                             sparse=True if mats.n_dof >= REDUCE_MIN_DOF else None)
         f_modes = w / (2 * np.pi)
         shapes = (phi, mats.mass, tuple(mats.dof_labels))
     except Exception:  # noqa: BLE001 - a model without a structure: its poles name the modes

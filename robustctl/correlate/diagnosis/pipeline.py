@@ -246,7 +246,7 @@ def diagnose(
             upd_n = tuple(dict.fromkeys(upd + tuple(n for s in steps for n in s.lead.param_names)))
             steps.append(_diagnose(
                 time.perf_counter(), res_n, ign_n, upd_n, rest, res_n.vector(), ex, n_fit, max_iter,
-                update_iter, alpha, min_gain, deadline,
+                update_iter, alpha, min_gain, deadline, coarse=False,
             ))
             if past_answer and steps[-1].best is None:
                 steps.pop()  # nothing significant beyond the answer: the chain ends with it
@@ -386,15 +386,17 @@ def _link(s: Diagnosis) -> ChainStep:
 
 def _diagnose(
     t0, res0, ignored, upd, cands, j_nominal, executor, n_fit, max_iter, update_iter, alpha, min_gain,
-    deadline: Deadline,
+    deadline: Deadline, coarse: bool = True,
 ) -> Diagnosis:
     """:func:`diagnose` once the arguments are checked, the candidates made and the executor chosen
-    (``cands`` may be a Future: the default candidates calibrated beside the null fit)."""
+    (``cands`` may be a Future: the default candidates calibrated beside the null fit). ``coarse``:
+    the null fit starts from a coarse multi-start (False for a chain's next step, whose model holds
+    the values the previous step fitted)."""
     model = res0.model
     evals = 1
     cost_nominal = float(j_nominal @ j_nominal)
     # 1. null fit of the update parameters
-    null, n_null = _null_fit(res0, upd, update_iter, executor, deadline, j_nominal)
+    null, n_null = _null_fit(res0, upd, update_iter, executor, deadline, j_nominal, coarse=coarse)
     evals += n_null
     x_u, j_u, cost_u = null.x, null.j, null.cost
     model_u = model.with_values(**x_u) if x_u else model

@@ -1067,6 +1067,7 @@ def _null_fit(
     executor: Executor | None,
     budget: Deadline,
     j0: np.ndarray,
+    coarse: bool = True,
 ) -> tuple[_Null, int]:
     """Bounded LM fit of the update parameters alone (step 1), from the nominal residual ``j0``.
 
@@ -1074,12 +1075,15 @@ def _null_fit(
     ``coarse_start``): with parameters 20-50 % off, modes have moved by several bandwidths and
     LM from the model's values stops in a local minimum of the complex-log cost, which leaves
     the parameter error in the residual for the candidates to mimic (a wrong effect ranks first).
+    ``coarse=False`` starts LM from the model's values: a chain's next step, whose model carries
+    the update parameters and earlier effects as the previous step fitted them with its lead
+    (the coarse trials, each a new reduction of a large structure, would start from a fitted point).
     """
     lo, hi = parameter_bounds(res0.model, upd, None)
     if not upd:
         return _Null((), {}, {}, lo, hi, np.zeros((res0.n, 0)), j0, float(j0 @ j0)), 0
     start = sensitivities(res0, upd, j0=j0, executor=executor)
-    x0, n_coarse = coarse_start(res0, upd, start, ())
+    x0, n_coarse = coarse_start(res0, upd, start, ()) if coarse else ({}, 0)
     x_model = {n: res0.model.param(n).value for n in upd}
     kw = dict(max_iter=max_iter, executor=executor, time_budget_s=budget)
     if x0:
