@@ -24,12 +24,26 @@ class Terminal(io.StringIO):
 
 
 def bars(text):
-    """``{stage: {(n, total), ...}}`` of the tqdm bars drawn in ``text`` (tqdm draws at most every
-    0.1 s, and a bar that leaves no trace is cleared at its end: not every count is drawn)."""
+    """``{stage: {(n, total), ...}}`` of the tqdm bars drawn in ``text`` (every update, see
+    :func:`every_update_drawn`)."""
     seen = {}
     for m in re.finditer(r"([A-Za-z][A-Za-z \-]*?):\s+\d+%\|[^|]*\|\s*(\d+)/(\d+)", text):
         seen.setdefault(m.group(1).strip(), set()).add((int(m.group(2)), int(m.group(3))))
     return seen
+
+
+@pytest.fixture(autouse=True)
+def every_update_drawn(monkeypatch):
+    """Bars that draw at every update, not at most every 0.1 s: what is drawn does not depend on
+    how fast the machine runs the stage (a quick screening drew only its 0/N)."""
+    import tqdm
+
+    class Eager(tqdm.tqdm):
+        def __init__(self, *args, **kwargs):
+            kwargs.update(mininterval=0.0, miniters=1)
+            super().__init__(*args, **kwargs)
+
+    monkeypatch.setattr(tqdm, "tqdm", Eager)
 
 
 def run_with_stderr(stream, fn):
@@ -76,6 +90,8 @@ def test_diagnose_counts_candidates_on_a_terminal_and_gives_the_same_result(case
     # per candidate, not per step: the screening bar counts its candidates, and moves
     totals = {total for _, total in stages["screening"]}
     assert len(totals) == 1 and totals.pop() >= 20
+    total = next(iter(stages["screening"]))[1]
+    assert (total, total) in stages["screening"]  # it counts up to every candidate
     assert len(stages["screening"]) >= 2 and {"calibration", "local fits"} <= set(stages)
     # the bars stay out of the result: the ranking is the same to the last bit
     assert quiet.best is not None and quiet.best.name == shown.best.name == "added mass at dof 3"
