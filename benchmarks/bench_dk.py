@@ -234,6 +234,21 @@ def _himat() -> dict:
     return out
 
 
+def d12_zero_plant():
+    """A first-order plant with a strictly proper weight on ``u`` (D12 = 0), inputs ``pert, d, u``
+    and outputs ``zdel, zp, y``: the Riccati route refuses every K step, so dksyn's K steps take
+    the LMI route."""
+    import control
+
+    s = control.tf("s")
+    parts = [control.ss(1 / (s + 1), inputs="ug", outputs="yg"),
+             control.ss(0.2 / (s / 50 + 1), inputs="u", outputs="zdel"),
+             control.ss(0.5 * (s + 2) / (s + 0.02) / (s / 200 + 1), inputs="e", outputs="zp"),
+             control.summing_junction(["u", "pert"], "ug"), control.summing_junction(["yg", "d"], "e"),
+             control.summing_junction(["yg", "d"], "y")]
+    return control.interconnect(parts, inputs=["pert", "d", "u"], outputs=["zdel", "zp", "y"])
+
+
 def _lmi_route() -> dict:
     """hinfsyn's LMI route on badly scaled plants against the Riccati route, and the D-K K step's
     fallback to it where Riccati refuses (D12 = 0).
@@ -242,7 +257,6 @@ def _lmi_route() -> dict:
     stopped at gamma 2027 (Riccati 1.675); per plant the Riccati and LMI optima, the rebuilt
     controller's closed-loop norm by rc.hinfnorm and the LMI route's CPU time.
     """
-    import control
 
     from robustctl.examples import himat_plant
     from robustctl.robust.hinf.norm import hinfnorm
@@ -261,13 +275,7 @@ def _lmi_route() -> dict:
         norm = hinfnorm(lmi.closed_loop, tol=1e-8)[0]
         out[f"lmi_{name}_rebuilt_norm"] = round(norm, 5)
         out[f"lmi_{name}_rebuilt_over_gamma_pct"] = round(100 * (norm / lmi.gamma_opt - 1), 3)
-    s = control.tf("s")
-    parts = [control.ss(1 / (s + 1), inputs="ug", outputs="yg"),
-             control.ss(0.2 / (s / 50 + 1), inputs="u", outputs="zdel"),
-             control.ss(0.5 * (s + 2) / (s + 0.02) / (s / 200 + 1), inputs="e", outputs="zp"),
-             control.summing_junction(["u", "pert"], "ug"), control.summing_junction(["yg", "d"], "e"),
-             control.summing_junction(["yg", "d"], "y")]
-    P = control.interconnect(parts, inputs=["pert", "d", "u"], outputs=["zdel", "zp", "y"])
+    P = d12_zero_plant()
     c = time.process_time()
     dk = dksyn((P, 1, 1, [[1, 1], [1, 1]]), max_iter=3, progress=False, autoscale=False)
     out["lmi_fallback_d12_zero_mu_per_iteration"] = [round(h.mu_peak, 4) for h in dk.history]

@@ -256,6 +256,28 @@ def _attach(mats: Any, M: Any, K: Any, lu: Any, sigma: float, lam: np.ndarray, p
 REUSE_TOL = 1e-7
 
 
+def _scale_and_change(new: Any, old: Any, rows: set, spread_tol: float | None = None) -> tuple | None:
+    """``(alpha, change)`` with ``new = alpha old + change``: ``alpha`` the median ratio of the
+    entries, ``change`` (csc) the entries of ``new - alpha old`` above 1e-9 of ``new``'s largest,
+    their rows and columns added to ``rows``. None when the sparsity patterns differ, ``alpha <=
+    0``, or (``spread_tol``) an entry left out exceeds ``spread_tol`` times ``new``'s largest."""
+    both = new.multiply(old).tocoo()
+    ref = old.multiply(old).tocoo()
+    if both.nnz == 0 or ref.nnz != both.nnz:
+        return None
+    alpha = float(np.median(both.data / ref.data))
+    if not alpha > 0:
+        return None
+    d = sp.coo_matrix(new - alpha * old)
+    top = max(float(abs(new).max()), 1e-300)
+    big = np.abs(d.data) > 1e-9 * top
+    if spread_tol is not None and np.any(np.abs(d.data[~big]) > spread_tol * top):
+        return None
+    rows.update(d.row[big].tolist())
+    rows.update(d.col[big].tolist())
+    return alpha, sp.csc_matrix((d.data[big], (d.row[big], d.col[big])), shape=new.shape)
+
+
 def _scaled_part(base: _Basis, mats: Any) -> Any | None:
     """``mats`` less a change at no more than :data:`LOW_RANK_MAX_DOFS` DOFs, when what is left is
     the base's mass and stiffness times factors ``alpha_M``, ``alpha_K`` (the median entry ratios;
@@ -268,21 +290,10 @@ def _scaled_part(base: _Basis, mats: Any) -> Any | None:
         return None
     parts, rows = [], set()
     for new, old in ((M, base.mass), (K, base.stiffness)):
-        both = new.multiply(old).tocoo()
-        ref = old.multiply(old).tocoo()
-        if both.nnz == 0 or ref.nnz != both.nnz:
+        split = _scale_and_change(new, old, rows)
+        if split is None or len(rows) > _max_changed(new.shape[0]):
             return None
-        alpha = float(np.median(both.data / ref.data))
-        if not alpha > 0:
-            return None
-        d = sp.coo_matrix(new - alpha * old)
-        big = np.abs(d.data) > 1e-9 * max(float(abs(new).max()), 1e-300)
-        rows.update(d.row[big].tolist())
-        rows.update(d.col[big].tolist())
-        if len(rows) > _max_changed(new.shape[0]):
-            return None
-        change = sp.csc_matrix((d.data[big], (d.row[big], d.col[big])), shape=new.shape)
-        parts.append(new - change)
+        parts.append(new - split[1])
     if not rows:
         return None  # a pure scale: _reuse handles it
     return replace(mats, mass=parts[0], stiffness=parts[1], damping=base.damping)
@@ -351,23 +362,11 @@ def _scaled_basis(base: _Basis, mats: Any, lam_cut: float) -> _Basis | None:
         return None
     alphas, parts, rows = [], [], set()
     for new, old in ((M, base.mass), (K, base.stiffness)):
-        both = new.multiply(old).tocoo()
-        ref = old.multiply(old).tocoo()
-        if both.nnz == 0 or ref.nnz != both.nnz:
+        # a change spread over the structure below the change's threshold: no scaled base
+        split = _scale_and_change(new, old, rows, spread_tol=SCALE_ROUNDING)
+        if split is None or len(rows) > _max_changed(new.shape[0]):
             return None
-        alpha = float(np.median(both.data / ref.data))
-        if not alpha > 0:
-            return None
-        d = sp.coo_matrix(new - alpha * old)
-        top = max(float(abs(new).max()), 1e-300)
-        big = np.abs(d.data) > 1e-9 * top
-        if np.any(np.abs(d.data[~big]) > SCALE_ROUNDING * top):
-            return None  # a change spread over the structure, below the change's threshold
-        rows.update(d.row[big].tolist())
-        rows.update(d.col[big].tolist())
-        if len(rows) > _max_changed(new.shape[0]):
-            return None
-        change = sp.csc_matrix((d.data[big], (d.row[big], d.col[big])), shape=new.shape)
+        alpha, change = split
         alphas.append(alpha)
         parts.append(new - change if change.nnz else new)
     a_m, a_k = alphas

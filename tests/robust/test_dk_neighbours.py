@@ -3,11 +3,11 @@ many, and what it returns (robustctl.robust.dk.iteration._neighbour_orders)."""
 
 from __future__ import annotations
 
-import control
 import numpy as np
 import pytest
 
 import robustctl.robust.dk.iteration as dki
+from benchmarks.bench_dk import d12_zero_plant
 from robustctl.budget import Deadline
 from robustctl.lti import freqresp_array
 from robustctl.robust.dk.iteration import DKIteration, DKResult, _neighbour_orders, dksyn
@@ -71,18 +71,6 @@ def test_runs_that_are_not_creeping_are_returned_as_they_are(peaks, stop):
     assert asked == []
 
 
-def _d12_zero_plant():
-    """A first-order plant with a strictly proper weight on u (D12 = 0): the Riccati route
-    refuses every K step, dksyn's K step takes the LMI route."""
-    s = control.tf("s")
-    parts = [control.ss(1 / (s + 1), inputs="ug", outputs="yg"),
-             control.ss(0.2 / (s / 50 + 1), inputs="u", outputs="zdel"),
-             control.ss(0.5 * (s + 2) / (s + 0.02) / (s / 200 + 1), inputs="e", outputs="zp"),
-             control.summing_junction(["u", "pert"], "ug"), control.summing_junction(["yg", "d"], "e"),
-             control.summing_junction(["yg", "d"], "y")]
-    return control.interconnect(parts, inputs=["pert", "d", "u"], outputs=["zdel", "zp", "y"])
-
-
 @pytest.mark.slow
 def test_lmi_route_dk_tries_one_neighbouring_order_each_way_and_its_mu_holds(monkeypatch):
     """D12 = 0 with max_iter=3: every K step is an LMI solve, and the automatic orders are still
@@ -99,7 +87,7 @@ def test_lmi_route_dk_tries_one_neighbouring_order_each_way_and_its_mu_holds(mon
         return res
 
     monkeypatch.setattr(dki, "_iterate", counted)
-    dk = dksyn((_d12_zero_plant(), 1, 1, [[1, 1], [1, 1]]), max_iter=3, progress=False, autoscale=False)
+    dk = dksyn((d12_zero_plant(), 1, 1, [[1, 1], [1, 1]]), max_iter=3, progress=False, autoscale=False)
     assert len(runs) == 1 + dki.ORDER_NEIGHBOURS_LMI_RUNS
     auto = runs[0][1]
     assert runs[0][0] is None and all(h.k_method == "lmi" for h in auto.history)
