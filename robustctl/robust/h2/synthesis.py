@@ -63,10 +63,11 @@ def h2norm_matrices(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, 
     dd = float(np.sum(D * D)) if discrete else 0.0
     if A.shape[0] == 0:
         return float(np.sqrt(dd))
+    if not discrete:  # one Schur form for the stability check and the Lyapunov solve
+        h2, _ = _stable_continuous_h2(A, B, C)
+        return np.inf if h2 is None else h2
     if not is_stable(A, roundoff_margin(A), dt=dt):
         return np.inf
-    if not discrete:
-        return float(np.sqrt(max(_continuous_h2_squared(A, B, C), 0.0)))
     lyap = scipy.linalg.solve_discrete_lyapunov
     if B.shape[1] <= C.shape[0]:
         L = lyap(A, B @ B.T)  # controllability: A L A^T - L + B B^T = 0
