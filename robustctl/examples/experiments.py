@@ -292,7 +292,8 @@ def mace_beam_experiment(seed: int = 0, **kwargs: Any) -> tuple[FrequencyData, A
     the wiring is also taut. Spoiler: the truth is the nominal bus plus a 50 N tension along
     ``bus_struts`` (a cable harness pulled taut along the bus,
     :class:`~robustctl.physical.effects.GroupTension`), polycarbonate modulus +3 %, active
-    strut modulus -4 %, reaction-wheel mass +3 %, 1 % sensor noise; one white-noise
+    strut modulus -4 %, reaction-wheel mass +3 %, 1 % sensor noise (above each gyro's floor,
+    1e-4 of its largest RMS: the channels symmetry decouples are that noise); one white-noise
     experiment per input, 200 Hz, 204.8 s, 1024-point Hamming windows (0.2 Hz
     resolution; the suspension modes near 0.2 Hz are below it -- analyse from 0.3 Hz).
     ``data.meta["truth"]`` holds the same.
