@@ -71,7 +71,7 @@ def sensor_noise_levels(records: Sequence[np.ndarray], noise_rms: float,
     a channel whose input hardly reaches the sensor is measured as the sensor's floor noise.
 
     The floor matters where symmetry decouples a channel: its simulated response is round-off
-    (MACE's bus: 1e-7 to 3e-6 of the sensor's largest response, different under each BLAS
+    (MACE's bus: 1e-8 to 3e-6 of the sensor's largest response, different under each BLAS
     kernel), and a level of 1 % of that round-off measured the round-off almost noise-free, at
     high coherence, so a fit followed it. Above the floor, round-off moves the data by at most
     round-off / floor (2.5 % of that channel's noise on MACE, its worst channel).
