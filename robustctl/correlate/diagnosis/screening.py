@@ -735,7 +735,9 @@ def _screen_points(res_u: Residual, model_u: Any, null: _Null, r_perp: np.ndarra
     Each point effect (its class has a ``point_unit``: a mass, grounded spring or dashpot) is a
     low-rank change of the reduced modal model at the null fit
     (:class:`robustctl.physical.reduction.PointModal`:
-    structural dynamic modification by Sherman-Morrison-Woodbury), and the model's response is
+    structural dynamic modification by Sherman-Morrison-Woodbury, with the static residual
+    flexibility of the changed DOFs and of the outputs to them: a solve per DOF scored in closed
+    form, made here, so that worker processes score the same), and the model's response is
     the structure's times the per-channel factor ``G_u / H_u`` of the null-fit model. Its
     one-parameter fit minimises ``|P j(v)|^2`` (``P`` projects out the update parameters'
     sensitivities, as the exact screening does) over :data:`POINT_MULTIPLES` of its typical size,
@@ -784,6 +786,8 @@ def _screen_points(res_u: Residual, model_u: Any, null: _Null, r_perp: np.ndarra
     if len(items) > PRESCREEN_MIN:
         items, rest = _prescreen(shared, items, PRESCREEN_KEEP)
         out.update({k: dict(sc, effect=cands[k]) for k, sc in rest.items()})
+    # the changed DOFs' residual flexibility (a solve per DOF, here: the same in every process)
+    items = [(k, c, ch) for (k, c, _), ch in zip(items, pm.with_residuals([it[2] for it in items]))]
     chunks = [items[i:i + POINT_CHUNK] for i in range(0, len(items), POINT_CHUNK)]
     for part in parallel_map_shared(_points_task, shared, chunks, executor, desc="point screening"):
         for k, sc in part:
@@ -795,8 +799,9 @@ def _screen_points(res_u: Residual, model_u: Any, null: _Null, r_perp: np.ndarra
     if _point_form_holds(res_u, model_u, shared, item, out[best]["value"]):
         return out
     # it fails at the best one's fitted size but holds for one of the next best (the best a large mass
-    # or spring far outside the closed form's range, which leaves out the changed DOF's residual
-    # flexibility): the stages do act per channel, and the leaders are screened again by the exact path
+    # or spring far outside the closed form's range, where the residual's inertia and the changed modes'
+    # damping it leaves out matter): the stages do act per channel, and the leaders are screened
+    # again by the exact path
     fitted = sorted((k for k in out if not out[k].get("first_order")), key=lambda k: (-out[k]["fraction"], k))
     if not any(_point_form_holds(res_u, model_u, shared, next(it for it in items if it[0] == k),
                                  out[k]["value"]) for k in fitted[1:POINT_FORM_TRIES]):
@@ -838,7 +843,8 @@ def _prescreen(shared: dict, items: list, keep: int) -> tuple[list, dict[int, di
     the update parameters (``P`` projects out their sensitivities) is what a small size of it
     explains (the cosine squared of the angle between the residual and the effect's direction,
     to first order). ``A~_j``, ``B~_j`` for a block of DOFs are two matrix products with the
-    reduced mode shapes at those DOFs (``O(n_freq (n_out + n_in) r)`` per DOF), against the
+    reduced mode shapes at those DOFs (``O(n_freq (n_out + n_in) r)`` per DOF; ``A~_j`` with the
+    outputs' residual flexibility to ``j``, ``PointModal.resid_c``), against the
     closed form's ``O(n_freq r)`` per size tried and some 20 sizes per effect. Effects on more
     than one DOF are all kept. The others get that share as their ``fraction``, the angle, their
     neutral value and ``first_order=True`` (a first-order share is not a fitted one: it can
@@ -871,7 +877,10 @@ def _prescreen(shared: dict, items: list, keep: int) -> tuple[list, dict[int, di
         _check_budget(shared["deadline"], f"the screening of {shared['n']} candidates")
         block = dofs[start:start + PRESCREEN_BLOCK]
         U = pm.V[block].T  # (r, c)
-        At = (AZ @ U).reshape(n_f, p, -1) * pm.k_out[:, :, None]
+        At = (AZ @ U).reshape(n_f, p, -1)
+        if pm.resid_c is not None:  # the outputs' residual flexibility to the DOFs (R b = 0: none for B~)
+            At = At + pm.resid_c[:, block][None]
+        At = At * pm.k_out[:, :, None]
         Bt = (BZ @ U).reshape(n_f, m, -1)
         u = At[:, oi][:, :, None, :] * Bt[:, ii][:, None, :, :] * scale[..., None]  # (n_f, o, i, c)
         u = u.reshape(-1, block.size)
@@ -903,8 +912,8 @@ def _prescreen(shared: dict, items: list, keep: int) -> tuple[list, dict[int, di
 
 
 #: The closed form is trusted when its change of the residual at the best candidate's fitted size
-#: is within this fraction of the exact change (what it leaves out -- the changed DOF's residual
-#: flexibility, the changed modes' damping -- is a few percent of a change in the band).
+#: is within this fraction of the exact change (what it leaves out -- the inertia of the changed
+#: DOF's residual flexibility, the changed modes' damping -- is a few percent of a change in the band).
 POINT_FORM_TOL = 0.3
 
 
