@@ -922,12 +922,16 @@ def for_data(model: Any, data: Any, band: Any = None) -> Any:
 @dataclass
 class PointChange:
     """The change one point effect makes per unit of its parameter: ``dofs`` (the DOFs ``J``)
-    and the dense ``|J| x |J|`` blocks of mass (kg), stiffness (N/m) and damping (N s/m) there."""
+    and the dense ``|J| x |J|`` blocks of mass (kg), stiffness (N/m) and damping (N s/m) there,
+    with the reduction's residual flexibility at ``J`` when the closed form is to include it."""
 
     dofs: np.ndarray
     mass: np.ndarray
     stiffness: np.ndarray
     damping: np.ndarray
+    #: The static residual flexibility ``R_JJ`` (m/N) of the reduction at ``J``
+    #: (:meth:`PointModal.residual_blocks`), or None (left out of the closed form).
+    residual: np.ndarray | None = None
 
 
 class PointModal:
@@ -936,29 +940,45 @@ class PointModal:
     With the damped Ritz-modal model ``Z(w) eta = V^T b u``, ``Z(w) = diag(w_k^2) - w^2 I + j w D``
     (``D = diag(2 zeta_k w_k)`` and the rigid-body rate; :func:`_ritz_modal`, MACE eqs. 2-4), the
     structural response is ``H(w) = k(w) c V Z^{-1} V^T b`` (``k`` = 1, ``j w``, ``-w^2`` for
-    displacement, velocity, acceleration outputs). A point effect of size ``v`` adds
-    ``v U^T B(w) U`` to ``Z`` with ``U = V[J, :]`` and ``B(w) = dK - w^2 dM + j w dC``; by the
+    displacement, velocity, acceleration outputs). The structure's compliance is that modal sum
+    plus the static residual flexibility of what the reduction leaves out,
+
+    .. math::
+
+        G(w) \\approx V Z(w)^{-1} V^T + R, \\quad R = K_\\sigma^{-1} - V (\\Lambda - \\sigma)^{-1} V^T
+
+    (the mode-acceleration / static correction, Craig & Kurdila 2006, sec. 11.4; ``V`` is
+    ``K_sigma``-orthogonal, so ``R`` is what ``K_sigma^-1`` holds beyond the Ritz basis, and ``R b =
+    0`` since the inputs' attachment vectors are in it). A point effect of size ``v`` adds ``v
+    E_J B(w) E_J^T`` to the dynamic stiffness, ``B(w) = dK - w^2 dM + j w dC``; by the
     Sherman-Morrison-Woodbury identity (structural dynamic modification, Avitabile 2003)
 
     .. math::
 
         H_v(w) = H(w) - \\tilde A(w) \\left(I + v B(w) S(w)\\right)^{-1} v B(w) \\tilde B(w),
 
-    with ``A~ = k c V Z^{-1} U^T`` (n_out x |J|), ``B~ = U Z^{-1} V^T b`` (|J| x n_in) and
-    ``S = U Z^{-1} U^T`` (|J| x |J|): ``O(n_freq r |J| (n_out + n_in))`` per effect and a
-    ``|J| x |J|`` solve per frequency and size, instead of a new reduction and eigen-solve.
+    with ``A~ = k c (V Z^{-1} U^T + R E_J)`` (n_out x |J|), ``B~ = U Z^{-1} V^T b`` (|J| x n_in)
+    and ``S = U Z^{-1} U^T + R_JJ`` (|J| x |J|), ``U = V[J, :]``: ``O(n_freq r |J| (n_out + n_in))``
+    per effect and a ``|J| x |J|`` solve per frequency and size, instead of a new reduction and
+    eigen-solve. ``c R`` at every DOF (:attr:`resid_c`) costs one solve per output; ``R_JJ`` one
+    solve per DOF (:meth:`residual_blocks`, kept with the change: :attr:`PointChange.residual`), and
+    without it the closed form leaves it out.
 
-    Two approximations against the exact reduced evaluation (which augments the basis by the
-    changed DOFs' attachment vectors and damps the changed modes by the model's ratios): the
-    changed DOFs' residual flexibility above the cut is left out, and the modal damping stays
-    that of the unchanged modes. Both are small in the band for a change that moves the modes
-    by bandwidths; ``rc.diagnose`` scores with this form and re-solves its leaders exactly.
+    The changed DOFs' local flexibility matters: on a membrane the static deflection under a point
+    load grows with the mesh's refinement (logarithmically), all of it above any cut, and it is what
+    tells a sensor's own node from its neighbour's (the sensor sees the mass's inertia force through
+    ``R`` at its own DOF) and what keeps a large mass from pinning the reduced modes. What is still
+    left out against the exact reduced evaluation (which augments the basis by the changed DOFs'
+    attachment vectors and damps the changed modes by the model's ratios) is the residual's
+    inertia, ``O(w^2 / w_cut^2)`` of it, and the change of the modal damping: small in the band.
     Built by :func:`point_modal`; only a diagonal ``D`` (no concentrated damping in the model)
     is handled.
     """
 
     def __init__(self, f_hz: np.ndarray, V: np.ndarray, omega: np.ndarray, damp: np.ndarray,
-                 cphi: np.ndarray, phib: np.ndarray, kinds: tuple, outputs: tuple, inputs: tuple) -> None:
+                 cphi: np.ndarray, phib: np.ndarray, kinds: tuple, outputs: tuple, inputs: tuple,
+                 resid_c: np.ndarray | None = None, factor: Any = None,
+                 shift_inv: np.ndarray | None = None) -> None:
         self.f_hz = np.asarray(f_hz, dtype=float)
         w = 2 * np.pi * self.f_hz
         self.w = w
@@ -975,15 +995,70 @@ class PointModal:
         self.phib = phib  # (r, m)
         self.outputs, self.inputs = tuple(outputs), tuple(inputs)
         self.H = self.k_out[:, :, None] * np.einsum("or,fr,ri->foi", cphi, self.zinv, phib, optimize=True)
+        #: ``c R`` (p, n_dof), m/N: the outputs' static residual flexibility to every DOF, or None
+        self.resid_c = resid_c
+        self._factor = factor  # the factor of K - sigma M (not pickled: the parent adds R_JJ)
+        self._shift_inv = shift_inv  # (r,) 1 / (lam_k - sigma) in V's order
+
+    def __getstate__(self) -> dict:
+        return {**self.__dict__, "_factor": None}
+
+    def residual_blocks(self, dofs: list[np.ndarray], block: int = 256) -> list[np.ndarray] | None:
+        """``R_JJ = E_J^T K_sigma^-1 E_J - U (Lambda - sigma)^-1 U^T`` (m/N) for each DOF set of
+        ``dofs`` (class docstring), by solves with the reduction's factor (``block`` right-hand sides
+        at a time); None without the factor. Rounding is floored at 1e-12 of the static flexibility
+        (the residual is positive semi-definite)."""
+        if self._factor is None or self._shift_inv is None:
+            return None
+        n = self.V.shape[0]
+        single = sorted({int(d[0]) for d in dofs if d.size == 1})
+        diag: dict[int, float] = {}
+        for start in range(0, len(single), block):
+            part = np.array(single[start:start + block], dtype=int)
+            E = np.zeros((n, part.size))
+            E[part, np.arange(part.size)] = 1.0
+            full = np.asarray(self._factor.solve(E))[part, np.arange(part.size)]
+            U = self.V[part]
+            modal = np.einsum("jr,r,jr->j", U, self._shift_inv, U)
+            diag.update(zip(part.tolist(), np.maximum(full - modal, 1e-12 * np.abs(full)).tolist()))
+        out = []
+        for d in dofs:
+            if d.size == 1:
+                out.append(np.full((1, 1), diag[int(d[0])]))
+                continue
+            E = np.zeros((n, d.size))
+            E[d, np.arange(d.size)] = 1.0
+            full = np.asarray(self._factor.solve(E))[d]
+            U = self.V[d]
+            r = full - (U * self._shift_inv) @ U.T
+            r = 0.5 * (r + r.T)
+            lam, vec = np.linalg.eigh(r)
+            floor = 1e-12 * float(np.max(np.abs(np.diag(full)), initial=0.0))
+            out.append((vec * np.maximum(lam, floor)) @ vec.T)
+        return out
+
+    def with_residuals(self, changes: list[PointChange]) -> list[PointChange]:
+        """``changes`` with their :attr:`PointChange.residual` (:meth:`residual_blocks`); unchanged
+        without the factor."""
+        blocks = self.residual_blocks([c.dofs for c in changes])
+        if blocks is None:
+            return list(changes)
+        return [replace(c, residual=r) for c, r in zip(changes, blocks)]
 
     def terms(self, change: PointChange) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(A~, B~, S, B)`` of one change (class docstring): shapes (n_f, p, q), (n_f, q, m),
-        (n_f, q, q), (n_f, q, q) with ``q = |J|``."""
+        (n_f, q, q), (n_f, q, q) with ``q = |J|``; the residual terms where the model (``c R``) and
+        the change (``R_JJ``) carry them."""
         U = self.V[change.dofs]  # (q, r)
         ZU = self.zinv[:, None, :] * U[None]  # (n_f, q, r)
-        At = self.k_out[:, :, None] * (self.cphi @ ZU.transpose(0, 2, 1))
+        cg = self.cphi @ ZU.transpose(0, 2, 1)  # (n_f, p, q)
+        if self.resid_c is not None:
+            cg = cg + self.resid_c[:, change.dofs][None]
+        At = self.k_out[:, :, None] * cg
         Bt = ZU @ self.phib
         S = ZU @ U.T
+        if change.residual is not None:
+            S = S + change.residual[None]
         w = self.w[:, None, None]
         B = change.stiffness[None] - w**2 * change.mass[None] + 1j * w * change.damping[None]
         return At, Bt, S, B
@@ -1003,12 +1078,14 @@ class PointModal:
         return self.H[None] - At[None] @ X
 
 
-def point_modal(model: Any, f_hz: Any, **overrides: float) -> PointModal | None:
+def point_modal(model: Any, f_hz: Any, residual: bool = True, **overrides: float) -> PointModal | None:
     """The :class:`PointModal` of a band-limited model at its values (``overrides`` as for
     ``model.freqresp``), or None when the model is on the full path, carries concentrated
     damping, or its structure cannot be reduced. A structure the reducer holds only as a
     modification of another (a chain's next step: the model with an earlier effect) is reduced on
-    its own first (:meth:`_Reducer.own_basis`)."""
+    its own first (:meth:`_Reducer.own_basis`). ``residual``: with the outputs' static residual
+    flexibility ``c R`` at every DOF (one solve per output) and the factor for the changed DOFs'
+    (:meth:`PointModal.residual_blocks`); False leaves the residual out."""
     dyn = model.dynamics
     reducer = getattr(dyn, "reducer", None)
     if reducer is None or model.structure is None:
@@ -1027,9 +1104,17 @@ def point_modal(model: Any, f_hz: Any, **overrides: float) -> PointModal | None:
     order = np.argsort(_clean_eigenvalues(base.lam, k_scale), kind="stable")
     w = damped.omega
     damp = 2 * damped.zeta * w + np.where(w == 0, damped.rigid_body_rate, 0.0)
-    return PointModal(np.asarray(f_hz, dtype=float).reshape(-1), base.V[:, order], w, damp,
+    V = base.V[:, order]
+    resid_c = factor = shift_inv = None
+    if residual:
+        factor = _factor(base)
+        shift_inv = 1.0 / (base.lam[order] - base.sigma)
+        c = base.output_matrix
+        full = np.asarray(factor.solve(np.ascontiguousarray(c.T))).T  # (p, n) c K_sigma^-1
+        resid_c = full - (base.c_v[:, order] * shift_inv) @ V.T
+    return PointModal(np.asarray(f_hz, dtype=float).reshape(-1), V, w, damp,
                       damped.output_shapes, damped.input_shapes, tuple(mats.output_kinds),
-                      tuple(mats.outputs), tuple(mats.inputs))
+                      tuple(mats.outputs), tuple(mats.inputs), resid_c, factor, shift_inv)
 
 
 def point_change(effect: Any, model: Any, base_struct: Any, base_mats: Any) -> PointChange | None:
