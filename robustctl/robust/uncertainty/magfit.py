@@ -1112,7 +1112,11 @@ def fit_magnitude(f_hz: Any, mag: Any, order: int, **options: Any):
     factorisation: zeros and poles are the left-half-plane roots of ``A(-s^2)`` and
     ``B(-s^2)``. See the module docstring for the basis and the numerics. The D-scale fit of
     D-K iteration (Packard-Doyle 1993) and the weight fit of an uncertainty cover (MATLAB
-    ``fitmagfrd`` / ``ucover``).
+    ``fitmagfrd`` / ``ucover``). A log-Chebyshev fit (not a cover) returns, among the fits within
+    the bisection's last feasible level (plus a tenth of ``tol_db``), the one of least squared
+    error (:func:`_least_squares_fit`): unique and a smooth function of ``mag``, so that rounding
+    of the data moves it in proportion (the LP's own solution there is fixed only to the
+    solver's accuracy).
 
     Parameters
     ----------
@@ -1145,11 +1149,10 @@ def fit_magnitude(f_hz: Any, mag: Any, order: int, **options: Any):
     name : str, optional
         Name of the returned system.
     centre : float, optional
-        With a log-Chebyshev fit, return instead of the last bisection LP's solution the unique
+        With a log-Chebyshev fit, return instead of the least-squares fit the unique analytic
         centre of the fits whose weighted max error is within ``(1 + centre)`` times the bisection's
-        level (dimensionless, e.g. 0.05): a fit that rounding of ``mag`` moves only in
-        proportion (the LP's solution on a nearly infeasible level is fixed only to the solver's
-        accuracy), about ``centre`` looser. None (default): the LP's fit.
+        level (dimensionless, e.g. 0.05): also moved by rounding of ``mag`` only in proportion,
+        about ``centre`` looser. None (default): the least-squares fit within the level.
 
     Returns
     -------
