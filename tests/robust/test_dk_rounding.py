@@ -47,15 +47,23 @@ def _design(eps: float):
 
 
 @pytest.mark.slow
-def test_a_1e_12_change_of_the_plant_moves_centred_dk_mu_in_proportion(monkeypatch):
-    """With centred D fits (``FIT_CENTRE = 0.05``), every entry of the plant times ``1 + 1e-12 u``:
-    the same D orders at every iteration, and the returned mu, each iteration's peak of mu and
-    the D-scales' magnitudes within 1e-6 (the LP solution of the D fits' last bisection step
-    moved the final mu of the Caltech design plant by 3.9e-4; on this plant it happens to be
-    proportional too: the fit-level test below is the one the LP fails)."""
+@pytest.mark.parametrize("centre", [
+    pytest.param(None, marks=pytest.mark.xfail(strict=True, reason=(
+        "the fits agree to 1e-11, but the second K step's gamma bisection (hinfsyn, Riccati "
+        "route) finds nothing feasible below 1.3e7 on one of the two scaled plants (gamma 1.41 "
+        "against 0.81): a discontinuity of hinfsyn's feasibility test, not of the D fits"))),
+    0.05,
+])
+def test_a_1e_12_change_of_the_plant_moves_dk_mu_in_proportion(monkeypatch, centre):
+    """With the default (least-squares) or centred D fits (``FIT_CENTRE = 0.05``), every entry of
+    the plant times ``1 + 1e-12 u``: the same D orders at every iteration, and the returned mu,
+    each iteration's peak of mu and the D-scales' magnitudes within 1e-6 (the LP solution of the
+    D fits' last bisection step moved the final mu of the Caltech design plant by 3.9e-4; on
+    this plant it happens to be proportional too: the fit-level tests below are the ones the LP
+    fails)."""
     import robustctl.robust.dk.scales as dks
 
-    monkeypatch.setattr(dks, "FIT_CENTRE", 0.05)
+    monkeypatch.setattr(dks, "FIT_CENTRE", centre)
     a, b = _design(0.0), _design(1e-12)
     assert 0.3 < a.mu_peak < 2.0 and a.mu.lower.max() <= a.mu_peak * (1 + 1e-6)
     assert [h.d_orders for h in a.history] == [h.d_orders for h in b.history]
