@@ -3,6 +3,8 @@ many, and what it returns (robustctl.robust.dk.iteration._neighbour_orders)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -62,13 +64,44 @@ def test_a_fixed_order_less_than_the_required_gain_lower_keeps_the_automatic_run
     assert "were kept" in res.stop_reason
 
 
-@pytest.mark.parametrize("peaks, stop", [([1.0, 0.995], "max_iter={n} reached"),  # fell 0.5 %: converged
-                                         ([1.0, 0.98], "peak mu did not fall by 0.001")])  # not capped
+STALE = "peak mu did not fall by 0.001"
+
+
+@pytest.mark.parametrize("peaks, stop", [([1.0, 0.997], "max_iter={n} reached"),  # fell 0.3 %: converged
+                                         ([1.0, 0.98], STALE),  # not capped, did not rise
+                                         ([1.0, 0.95, 0.9505], STALE),  # fell 5 %, rose 0.05 %
+                                         ([1.0, 0.997, 0.999], STALE)])  # rose 0.2 % after a fall of 0.3 %
 def test_runs_that_are_not_creeping_are_returned_as_they_are(peaks, stop):
     run, asked = _fixed_runs(lambda o: 0.5)
-    first = _result(peaks, stop=stop)
+    first = _rise(peaks, stop) if peaks[-1] > min(peaks) else _result(peaks, stop=stop)
     assert _neighbour_orders(first, BLOCKS, run, Deadline(None)) is first
     assert asked == []
+
+
+def _rise(peaks, stop="peak mu did not fall by 0.001", orders=None) -> DKResult:
+    """A D-K result that stopped because its last peak rose above the one before (the best)."""
+    res = _result(peaks, stop=stop)
+    if orders is not None:
+        res = replace(res, history=tuple(replace(h, d_orders=o) for h, o in zip(res.history, orders)))
+    return replace(res, best_iteration=len(peaks) - 1, mu_peak=peaks[-2])
+
+
+def test_a_rise_after_a_fall_tries_two_neighbouring_orders():
+    # fell 5 % at its best iteration, then rose 2 %: a fixed-order run on each side
+    run, asked = _fixed_runs(lambda o: 0.90 if o == (3,) else 0.97)
+    res = _neighbour_orders(_rise([1.0, 0.95, 0.97]), BLOCKS, run, Deadline(None))
+    assert asked == [(1,), (3,)]
+    assert len(asked) == dki.ORDER_NEIGHBOURS_RISE_RUNS
+    assert res.mu_peak == 0.90
+    assert "reached 0.9500 and rose at iteration 3" in res.stop_reason
+
+
+def test_a_run_that_changed_orders_tries_its_best_orders_fixed_first():
+    run, asked = _fixed_runs(lambda o: 0.97)
+    first = _rise([1.0, 0.95, 0.93, 0.97], orders=[(), (1,), (2,), (2,)])
+    res = _neighbour_orders(first, BLOCKS, run, Deadline(None))
+    assert asked == [(2,), (1,)]
+    assert res.mu_peak == first.mu_peak and "were kept" in res.stop_reason
 
 
 @pytest.mark.slow

@@ -47,15 +47,23 @@ def _design(eps: float):
 
 
 @pytest.mark.slow
-def test_a_1e_12_change_of_the_plant_moves_centred_dk_mu_in_proportion(monkeypatch):
-    """With centred D fits (``FIT_CENTRE = 0.05``), every entry of the plant times ``1 + 1e-12 u``:
-    the same D orders at every iteration, and the returned mu, each iteration's peak of mu and
-    the D-scales' magnitudes within 1e-6 (the LP solution of the D fits' last bisection step
-    moved the final mu of the Caltech design plant by 3.9e-4; on this plant it happens to be
-    proportional too: the fit-level test below is the one the LP fails)."""
+@pytest.mark.parametrize("centre", [
+    pytest.param(None, marks=pytest.mark.xfail(strict=True, reason=(
+        "the fits agree to 1e-11, but the second K step's gamma bisection (hinfsyn, Riccati "
+        "route) finds nothing feasible below 1.3e7 on one of the two scaled plants (gamma 1.41 "
+        "against 0.81): a discontinuity of hinfsyn's feasibility test, not of the D fits"))),
+    0.05,
+])
+def test_a_1e_12_change_of_the_plant_moves_dk_mu_in_proportion(monkeypatch, centre):
+    """With the default (least-squares) or centred D fits (``FIT_CENTRE = 0.05``), every entry of
+    the plant times ``1 + 1e-12 u``: the same D orders at every iteration, and the returned mu,
+    each iteration's peak of mu and the D-scales' magnitudes within 1e-6 (the LP solution of the
+    D fits' last bisection step moved the final mu of the Caltech design plant by 3.9e-4; on
+    this plant it happens to be proportional too: the fit-level tests below are the ones the LP
+    fails)."""
     import robustctl.robust.dk.scales as dks
 
-    monkeypatch.setattr(dks, "FIT_CENTRE", 0.05)
+    monkeypatch.setattr(dks, "FIT_CENTRE", centre)
     a, b = _design(0.0), _design(1e-12)
     assert 0.3 < a.mu_peak < 2.0 and a.mu.lower.max() <= a.mu_peak * (1 + 1e-6)
     assert [h.d_orders for h in a.history] == [h.d_orders for h in b.history]
@@ -91,3 +99,26 @@ def test_a_centred_magnitude_fit_moves_in_proportion_to_its_data():
             c1 = fit_magnitude_details(f, curve * (1 + 1e-9 * u), order, tol_db=0.1, centre=0.05)
             assert np.max(np.abs(c1.fitted - c0.fitted) / c0.fitted) <= 1e-7, (name, order)
             assert c0.max_error_db <= 1.1 * lp.max_error_db + 0.1, (name, order)
+
+
+def test_the_default_magnitude_fit_moves_in_proportion_to_its_data():
+    """The default log-Chebyshev fit (the least-squares fit within the bisection's level, not the
+    last LP's interior-point solution), its data changed by 1e-12 relative: the fitted magnitude
+    and the max error move by less than 1e-8 at every order 1-6 on both curves (the LP's solution
+    moved 6e-4 at order 6 on the notch, 3.7e-6 on the ripple). The fits stay good: within 0.15 dB
+    of the notch (a rational curve of order 3 plus a floor) from order 3 on, and on the ripple
+    no order more than 0.01 dB worse than the one below."""
+    f = np.logspace(-2, 2, 120)
+    u = np.random.default_rng(3).uniform(-1.0, 1.0, f.size)
+    for name, curve in _curves(f).items():
+        errors = []
+        for order in range(1, 7):
+            a = fit_magnitude_details(f, curve, order, tol_db=0.1)
+            b = fit_magnitude_details(f, curve * (1 + 1e-12 * u), order, tol_db=0.1)
+            assert np.max(np.abs(b.fitted - a.fitted) / a.fitted) < 1e-8, (name, order)
+            assert abs(b.max_error_db - a.max_error_db) < 1e-8 * a.max_error_db, (name, order)
+            errors.append(a.max_error_db)
+        if name == "notch":
+            assert max(errors[2:]) <= 0.15, errors
+        else:
+            assert all(e1 <= e0 + 0.01 for e0, e1 in zip(errors, errors[1:])), errors

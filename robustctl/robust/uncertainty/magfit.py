@@ -137,8 +137,19 @@ class _Basis:
         return np.hstack([np.ones((x.shape[0], 1)), phi])
 
     def roots(self, c: np.ndarray) -> np.ndarray:
-        """Finite roots in ``x`` of ``c0 + sum c_j p_j / (x + p_j)`` (Rosenbrock pencil)."""
+        """Finite roots in ``x`` of ``c0 + sum c_j p_j / (x + p_j)``.
+
+        With ``c0`` not negligible they are the eigenvalues of ``-diag(p) - 1 (c_j p_j)' / c0``
+        (its characteristic polynomial is ``prod (x + p_j)`` times the function over ``c0``), a
+        standard problem that LAPACK balances: on a D-scale of the Caltech design plant whose
+        ``B`` nearly touches zero (coefficients +-26 summing to 1e-7 on the grid) the
+        generalised eigenvalues of the Rosenbrock pencil came out as two real roots where
+        ``B`` is positive (residual 3e-6 against 4e-15 for these), and rounding of the data
+        moved the realised fit by 20 %. Otherwise (the numerator's degree drops) the pencil."""
         n = self.p.size
+        if abs(c[0]) > 1e-10 * float(np.abs(c).max()):
+            lam = np.linalg.eigvals(-np.diag(self.p) - np.outer(np.ones(n), c[1:] * self.p) / c[0])
+            return lam[np.isfinite(lam) & (np.abs(lam) < 1e8 * self.x_max)]
         M = np.zeros((n + 1, n + 1))
         M[:n, :n] = np.diag(-self.p)
         M[:n, n] = 1.0
@@ -151,6 +162,7 @@ class _Basis:
         lam = eig(M, E, right=False)
         # beyond 1e4 x the grid's top frequency a root acts as one at infinity
         return lam[np.isfinite(lam) & (np.abs(lam) < 1e8 * self.x_max)]
+
 
 
 def _basis(w: np.ndarray, order: int, mag: np.ndarray | None = None) -> tuple[_Basis, np.ndarray]:
@@ -505,6 +517,63 @@ def _minimise(
     return best[0], best[1], n_lp, hi
 
 
+#: The least-squares choice among the fits (:func:`_least_squares_fit`) works at the bisection's
+#: last feasible level plus this fraction of its tolerance (an interior for the barrier).
+SELECT_MARGIN = 0.1
+#: Ridge on the coefficients in that choice (relative to the mean diagonal of the squared
+#: error's matrix): large cancelling coefficients put ``A``'s and ``B``'s roots at the mercy of
+#: rounding.
+SELECT_RIDGE = 1e-6
+#: Weights ``tau`` of the barrier against the squared error on the way to the least-squares
+#: fit (the last one is where it stops: a fixed, interior point).
+SELECT_TAUS = (1.0, 1e-1, 1e-2, 1e-3, 1e-4, 1e-5)
+
+
+def _least_squares_fit(data: _CentreData, gamma: float, a0: np.ndarray,
+                       b0: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """Among the fits within ``gamma`` (nepers), the one of least squared linearised error
+    (kept off the set's boundary by a weak barrier): a unique choice, smooth in the data.
+
+    Near the optimal level the max error is set by a few points (a notch or a step of a
+    D-scale), the other coefficients are free within a set, and the LP's interior-point solution
+    at the bisection's last level is a point of that set fixed only to the solver's accuracy: a
+    1e-12 relative change of a D-scale moved its order-3 fit 1e-5 and an order-4 fit 1.5e-3 on
+    the Caltech design plant (issue 36). Here, from the analytic centre of the set
+    (:func:`_centre`), the barrier's weight falls over :data:`SELECT_TAUS` towards the minimiser of
+    ``sum_k ((A_k - y_k B_k) / y_k)^2`` (scaled by its value at the centre) subject to the fit's
+    constraints at ``gamma`` (:func:`_centre_rows`: points, midpoints, guard points, the cap at
+    infinity) and ``mean B = 1``. Each stage is strictly convex and solved by Newton's method to
+    rounding (:func:`_barrier_newton`), so the result is a smooth function of the data. Returns
+    None when a stage fails (the caller keeps the LP's fit).
+    """
+    n1 = data.phi.shape[1]
+    G = _centre_rows(data, gamma)
+    eq = np.concatenate([np.zeros(n1), data.phi.mean(axis=0)])
+    ab = _centre(data, gamma, a0, b0)
+    if ab is None:  # no strictly feasible start on the way to the constant fit: a phase-I LP
+        Gs = np.hstack([G, np.ones((G.shape[0], 1))])  # G z + s <= 0 (rows of unit largest entry)
+        c = np.zeros(2 * n1 + 1)
+        c[-1] = -1.0
+        z = _clarabel_lp(c, Gs, np.append(eq, 0.0), 0.0)
+        if z is None or not z[-1] > 0:
+            return None
+        z = _barrier_newton(G, eq, z[:-1] / float(eq @ z[:-1]), None)
+        if z is None:
+            return None
+        ab = z[:n1], z[n1:]
+    M = np.hstack([data.phi, -data.y[:, None] * data.phi]) / data.y[:, None]
+    P = M.T @ M
+    P += SELECT_RIDGE * float(np.trace(P)) / P.shape[0] * np.eye(P.shape[0])
+    z = np.concatenate(ab)
+    f0 = 0.5 * float(z @ P @ z)
+    if not f0 > 0:
+        return ab
+    for tau in SELECT_TAUS:
+        z = _barrier_newton(G, eq, z, P / (tau * f0))
+        if z is None:
+            return None
+    return z[:n1], z[n1:]
+
 #: Newton steps of the analytic centre (:func:`_centre`): a cap; self-concordance makes it
 #: converge in ~10-30 steps from the bisection's solution.
 CENTRE_MAX_NEWTON = 100
@@ -589,13 +658,41 @@ def _centre(data: _CentreData, gamma: float, a0: np.ndarray,
     s = -G @ z
     if not np.all(s > 0):
         return None
-    K = np.zeros((2 * n1 + 1, 2 * n1 + 1))
+    z = _barrier_newton(G, eq, z, None)
+    return None if z is None else (z[:n1], z[n1:])
+
+
+def _barrier_newton(G: np.ndarray, eq: np.ndarray, z: np.ndarray, Q: np.ndarray | None) -> np.ndarray | None:
+    """Minimise ``z' Q z / 2 - sum ln s_i`` (``s = -G z``) subject to ``eq z = 1`` from a strictly
+    feasible ``z`` by Newton's method (equality-constrained); ``Q`` None: the analytic centre.
+
+    The function is self-concordant: backtracking (from the full step, or 0.99 of the way to
+    the boundary) while the Newton decrement ``lambda^2`` is at least 1/16, then full steps,
+    which converge quadratically (Boyd-Vandenberghe sec. 9.5-9.6): no comparison of function
+    values near the minimum, where rounding would decide it.
+    The minimiser is unique (strictly convex on a bounded set); the steps go on until the
+    decrement is at rounding level (below :data:`CENTRE_DECREMENT`, or no longer falling), plus two
+    full steps, so the result does not depend on where the test was passed. None when a step
+    fails or :data:`CENTRE_MAX_NEWTON` steps do not converge.
+    """
+    n = z.size
+    K = np.zeros((n + 1, n + 1))
     K[-1, :-1] = K[:-1, -1] = eq
-    extra = 0
+    s = -G @ z
+
+    def value(zz: np.ndarray, ss: np.ndarray) -> float:
+        if not np.all(ss > 0):
+            return np.inf
+        return -float(np.sum(np.log(ss))) + (0.0 if Q is None else 0.5 * float(zz @ Q @ zz))
+
+    extra, last = 0, np.inf
     for _ in range(CENTRE_MAX_NEWTON):
         g = G.T @ (1.0 / s)
         Gs = G / s[:, None]
         K[:-1, :-1] = Gs.T @ Gs
+        if Q is not None:
+            g = g + Q @ z
+            K[:-1, :-1] += Q
         d = np.sqrt(np.maximum(np.diag(K[:-1, :-1]), 1e-300))  # Jacobi scaling of the KKT system
         D = np.append(1.0 / d, 1.0)
         try:
@@ -606,33 +703,27 @@ def _centre(data: _CentreData, gamma: float, a0: np.ndarray,
         dec = float(-g @ dz)
         if not np.isfinite(dec):
             return None
+        done = extra > 0 or dec < CENTRE_DECREMENT or (last < 1e-6 and dec > 0.25 * last)
         ds = -G @ dz
-        if dec < CENTRE_DECREMENT:  # converged: full steps, at rounding level
-            if not np.all(s + ds > 0):
-                return None
-            z = z + dz
-            s = -G @ z
+        if dec < 1.0 / 16.0:  # the quadratic phase: full steps
+            step = 1.0
+        else:  # backtracking from the full step (or 0.99 of the way to the boundary)
+            with np.errstate(divide="ignore"):
+                step = min(1.0, 0.99 * float(np.min(np.where(ds < 0, -s / ds, np.inf))))
+            f0 = value(z, s)
+            while value(z + step * dz, s + step * ds) > f0 - 0.25 * step * dec:
+                step *= 0.5
+                if step < 1e-12:
+                    return None
+        s_new = -G @ (z + step * dz)
+        if not np.all(s_new > 0):
+            return None
+        z, s, last = z + step * dz, s_new, dec
+        if done:
             extra += 1
             if extra >= 2:
-                break
-            continue
-        # backtracking from the full step (or 0.99 of the way to the boundary) on the barrier
-        with np.errstate(divide="ignore"):
-            to_edge = float(np.min(np.where(ds < 0, -s / ds, np.inf)))
-        step = min(1.0, 0.99 * to_edge)
-        phi0 = -float(np.sum(np.log(s)))
-        while True:
-            s_new = s + step * ds
-            if np.all(s_new > 0) and -float(np.sum(np.log(s_new))) <= phi0 - 0.25 * step * dec:
-                break
-            step *= 0.5
-            if step < 1e-12:
-                return None
-        z = z + step * dz
-        s = -G @ z
-    else:
-        return None
-    return z[:n1], z[n1:]
+                return z
+    return None
 
 
 # ---------------------------------------------------------------------------- realisation
@@ -809,32 +900,54 @@ def _realise(
     ``exact``: the roots are always polished onto ``A / B``'s curve to the solver's limits (the
     roots of coefficients that cancel over many decades carry the eigenvalue solver's rounding,
     amplified by their conditioning: 2e-3 on a D-scale of the Caltech design plant)."""
-    zeros = _damping_floor(_lhp(basis.roots(a), basis.w0), w)
-    poles = _damping_floor(_lhp(basis.roots(b), basis.w0), w)
-    zeros = _proper(zeros, poles.size)
     Phi = basis.matrix((w / basis.w0) ** 2)
     target = 0.5 * np.log(np.maximum(Phi @ a, 1e-300) / np.maximum(Phi @ b, 1e-300))
-    shape = np.log(np.abs(zpk_response(zeros, poles, 1j * w)))
-    if exact or np.ptp(shape - target) > 1e-2:  # the roots do not reproduce the LP's curve: polish them
-        zp = _polish(zeros, poles, w, target, np.maximum(wt, 1e-3), exact)
-        shape_p = np.log(np.abs(zpk_response(*zp, 1j * w)))
-        if np.ptp(shape_p - target) < np.ptp(shape - target):
-            zeros, poles = _damping_floor(zp[0], w), _damping_floor(zp[1], w)
+    if exact:
+        # polished from the roots as found (before the damping floor, which would move the start
+        # away from the curve and let the polish settle wherever its start leads), taken as
+        # polished: no comparison for rounding to decide
+        zeros, poles = _lhp(basis.roots(a), basis.w0), _lhp(basis.roots(b), basis.w0)
+        zeros = _proper(zeros, poles.size)
+        zp = _polish(zeros, poles, w, target, np.maximum(wt, 1e-3), True)
+        zeros, poles = _damping_floor(zp[0], w), _damping_floor(zp[1], w)
+    else:
+        zeros = _damping_floor(_lhp(basis.roots(a), basis.w0), w)
+        poles = _damping_floor(_lhp(basis.roots(b), basis.w0), w)
+        zeros = _proper(zeros, poles.size)
+        shape = np.log(np.abs(zpk_response(zeros, poles, 1j * w)))
+        if np.ptp(shape - target) > 1e-2:  # the roots do not reproduce the LP's curve: polish them
+            zp = _polish(zeros, poles, w, target, np.maximum(wt, 1e-3), exact)
+            shape_p = np.log(np.abs(zpk_response(*zp, 1j * w)))
+            if np.ptp(shape_p - target) < np.ptp(shape - target):
+                zeros, poles = _damping_floor(zp[0], w), _damping_floor(zp[1], w)
     r = np.log(m / np.abs(zpk_response(zeros, poles, 1j * w)))
-    if upper_bound:  # the smallest gain that covers every point (with a rounding margin)
-        c = float(r.max()) + 1e-9
-    else:  # the weighted Chebyshev centre of the log ratios
-        from scipy.optimize import minimize_scalar
-
-        c = float(
-            minimize_scalar(
-                lambda c: np.max(wt * np.abs(r - c)),
-                bounds=(r.min(), r.max()),
-                method="bounded",
-                options={"xatol": 1e-10},
-            ).x
-        )
+    # a cover: the smallest gain that covers every point (with a rounding margin); else the
+    # weighted Chebyshev centre of the log ratios
+    c = float(r.max()) + 1e-9 if upper_bound else _weighted_centre(r, wt)
     return zeros, poles, float(np.exp(c)), float(DB_PER_NEPER * np.max(wt * np.abs(c - r)))
+
+
+def _weighted_centre(r: np.ndarray, wt: np.ndarray) -> float:
+    """``argmin_c max_k w_k |r_k - c|`` in closed form (points with ``w_k = 0`` ignored).
+
+    The largest of ``w_i (r_i - c)`` falls and the largest of ``w_j (c - r_j)`` rises with ``c``;
+    the minimum is where they meet, at the pair ``(i, j)`` with the largest
+    ``w_i w_j (r_i - r_j) / (w_i + w_j)``: ``c = (w_i r_i + w_j r_j) / (w_i + w_j)``. Exact, unlike
+    a scalar search (whose stopping point rounding can move by its tolerance).
+    """
+    keep = wt > 0
+    r, wt = np.asarray(r, dtype=float)[keep], np.asarray(wt, dtype=float)[keep]
+    if np.all(wt == wt[0]):
+        return float(0.5 * (r.max() + r.min()))
+    best, pair = -np.inf, (0, 0)
+    for k0 in range(0, r.size, 1024):  # rows in blocks: memory stays ~8 MB per block
+        wi, ri = wt[k0:k0 + 1024, None], r[k0:k0 + 1024, None]
+        value = wi * wt[None, :] * (ri - r[None, :]) / (wi + wt[None, :])
+        k = int(np.argmax(value))
+        if value.flat[k] > best:
+            best, pair = float(value.flat[k]), (k0 + k // r.size, k % r.size)
+    i, j = pair
+    return float((wt[i] * r[i] + wt[j] * r[j]) / (wt[i] + wt[j]))
 
 
 def _peak_ratio(cand: tuple, w: np.ndarray, m: np.ndarray) -> float:
@@ -927,17 +1040,20 @@ def fit_magnitude_details(
         hi = (2.0 * spread if upper_bound else spread) + 1e-3
         tol = tol_db / DB_PER_NEPER
         best, n_lp, worst_peak = None, 0, 0.0
-        fixed = None if centre is None else _CentreData(
+        fixed = None if upper_bound else _CentreData(
             phi=prob.phi, y=prob.y, wt=prob.wt, mid_phi=prob.mid_phi, mid_y=prob.mid_y, mid_wt=prob.mid_wt,
             mid_slack=prob.mid_slack, guard=prob.guard_all, y_inf=prob.y_inf)
         for price in L1_PRICES:
             prob.price = price
-            a, b, n, level = _minimise(prob, hi, tol, deadline, levels_only=fixed is not None)
+            a, b, n, level = _minimise(prob, hi, tol, deadline, levels_only=not upper_bound)
             n_lp += n
+            exact = False
             if fixed is not None and price == 0.0:
-                ab = _centre(fixed, level * (1.0 + centre) + 1e-6, a, b)
+                ab = (_centre(fixed, level * (1.0 + centre) + 1e-6, a, b) if centre is not None
+                      else _least_squares_fit(fixed, level + SELECT_MARGIN * tol, a, b))
                 if ab is not None:
                     a, b = ab
+                    exact = True
             if price == 0.0:
                 prob.zscale = max(float(np.abs(a).sum() + np.abs(b).sum()), 1e-300)
             if upper_bound:  # ties of the minimax fit broken by the mean ("max"), or a traded worst point
@@ -945,13 +1061,14 @@ def fit_magnitude_details(
                 cap, n_it = (g_star + tol, 2) if objective == "max" else (2.0 * g_star + tol, 6)
                 a, b, n = _tighten(prob, a, b, cap, deadline, n_it)
                 n_lp += n
-            cand = _realise(basis, a, b, w[use], m[use], wt[use], bool(upper_bound), fixed is not None)
+            cand = _realise(basis, a, b, w[use], m[use], wt[use], bool(upper_bound), exact)
             peak = _peak_ratio(cand, w[use], m[use]) if upper_bound else 0.0
             if peak <= 2.0 * PEAK_CAP and (best is None or cand[3] < best[3]):
                 best = cand
             worst_peak = max(worst_peak, peak)
             if best is cand and (
-                cand[3] <= DB_PER_NEPER * _achieved(prob, a, b) + tol_db
+                exact  # the least-squares choice: the priced LPs would bring back the solver's noise
+                or cand[3] <= DB_PER_NEPER * _achieved(prob, a, b) + tol_db
                 or deadline.expired()
             ):
                 break  # the roots reproduce the LP's curve
@@ -995,7 +1112,11 @@ def fit_magnitude(f_hz: Any, mag: Any, order: int, **options: Any):
     factorisation: zeros and poles are the left-half-plane roots of ``A(-s^2)`` and
     ``B(-s^2)``. See the module docstring for the basis and the numerics. The D-scale fit of
     D-K iteration (Packard-Doyle 1993) and the weight fit of an uncertainty cover (MATLAB
-    ``fitmagfrd`` / ``ucover``).
+    ``fitmagfrd`` / ``ucover``). A log-Chebyshev fit (not a cover) returns, among the fits within
+    the bisection's last feasible level (plus a tenth of ``tol_db``), the one of least squared
+    error (:func:`_least_squares_fit`): unique and a smooth function of ``mag``, so that rounding
+    of the data moves it in proportion (the LP's own solution there is fixed only to the
+    solver's accuracy).
 
     Parameters
     ----------
@@ -1028,11 +1149,10 @@ def fit_magnitude(f_hz: Any, mag: Any, order: int, **options: Any):
     name : str, optional
         Name of the returned system.
     centre : float, optional
-        With a log-Chebyshev fit, return instead of the last bisection LP's solution the unique
+        With a log-Chebyshev fit, return instead of the least-squares fit the unique analytic
         centre of the fits whose weighted max error is within ``(1 + centre)`` times the bisection's
-        level (dimensionless, e.g. 0.05): a fit that rounding of ``mag`` moves only in
-        proportion (the LP's solution on a nearly infeasible level is fixed only to the solver's
-        accuracy), about ``centre`` looser. None (default): the LP's fit.
+        level (dimensionless, e.g. 0.05): also moved by rounding of ``mag`` only in proportion,
+        about ``centre`` looser. None (default): the least-squares fit within the level.
 
     Returns
     -------
