@@ -164,7 +164,6 @@ class _Basis:
         return lam[np.isfinite(lam) & (np.abs(lam) < 1e8 * self.x_max)]
 
 
-
 def _basis(w: np.ndarray, order: int, mag: np.ndarray | None = None) -> tuple[_Basis, np.ndarray]:
     """The start basis: poles log-spaced over the grid, or (given ``mag``) over the part of it
     where the curve changes (:func:`_active_range`)."""
