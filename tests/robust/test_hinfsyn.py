@@ -383,6 +383,34 @@ def test_time_budget_bounds_the_bisection():
     assert not free.info["stopped_by_budget"] and free.gamma_opt < res.gamma_opt
 
 
+def _near_integrator(eps: float):
+    """``x' = -eps x + w + u``, ``z = [x; 0.1 u]``, ``y = x + 0.1 n``: with ``eps = 1e-12`` stable
+    but ``||P11||_inf = 1e12``, with ``eps = -1e-12`` unstable; the optimal gamma (about 0.1414)
+    is the same to 1e-12."""
+    D = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.1], [0.0, 0.1, 0.0]])
+    return control.ss([[-eps]], [[1.0, 0.0, 1.0]], [[1.0], [0.0], [1.0]], D)
+
+
+def test_the_bisection_does_not_stop_at_its_floor_and_does_not_depend_on_its_bracket():
+    """A stable near-integrator starts the search at ``||P11|| = 1e12``; the bisection's floor is
+    1e-8 of the smaller of that and 1 (1e-8 of ``||P11||`` made it return 1.01e4). The unstable
+    twin starts at 1; both end on the same grid point ``(1 + gamma_tol)^k``, within ``gamma_tol``
+    of SB10AD's optimum."""
+    gammas = []
+    for eps in (1e-12, -1e-12):
+        res = rc.hinfsyn(_near_integrator(eps), 1, 1)
+        assert_verified(res)
+        gammas.append(res.gamma_opt)
+        assert res.info["gamma_lower"] < res.gamma_opt <= res.info["gamma_lower"] * (1 + 1e-3) ** 1.000001
+    assert gammas[0] == gammas[1]
+    k = np.log(gammas[0]) / np.log1p(1e-3)
+    assert abs(k - round(k)) < 1e-6
+    status, value, _ = slycot_hinfsyn(_near_integrator(1e-3), 1, 1, SLYCOT_TIMEOUT_S)
+    assert status == "ok" and value[0] == pytest.approx(0.141411, rel=1e-4)
+    # eps = 1e-3 moves the optimum by 1e-4 relative: SB10AD's value at 1e-12 is 0.1414214
+    assert abs(gammas[0] / 0.1414214 - 1) <= 1e-3
+
+
 def test_slow_stable_mode_is_not_read_as_on_the_axis_next_to_a_fast_one():
     """A weight pole at -1e-5 rad/s unseen by y next to a -1e8 rad/s mode: ||A|| = 1e8, but the
     pole is resolved to ~2e-6 (100 eps ||A||), so (C2, A) is detectable.

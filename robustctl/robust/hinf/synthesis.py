@@ -8,8 +8,10 @@ Two routes, both verified on the closed loop:
   after the assumption checks of :mod:`robustctl.robust.hinf.assumptions`. The optimal
   ``gamma`` is bracketed below by the Parrott bound of ``D11`` and above by ``||P11||_inf``
   (the open loop ``K = 0``, when ``P`` is stable) or by a geometric search, and bisected
-  geometrically to the relative tolerance ``gamma_tol``; each test is two Riccati
-  equations (real Schur forms of order ``2n``).
+  over the fixed grid ``gamma_k = (1 + gamma_tol)^k`` (integer ``k``) to the smallest feasible
+  grid point: the result does not depend on the bracket the search started from, so a
+  rounding-level change of the plant that changes the bracket does not move it. Each test is
+  two Riccati equations (real Schur forms of order ``2n``).
 * ``method="lmi"``: the Gahinet-Apkarian (1994) LMIs in cvxpy/Clarabel
   (:mod:`robustctl.robust.hinf.lmi`), without bisection and without the rank and
   imaginary-axis-zero assumptions; slower (a reference and a fallback for singular problems).
@@ -57,6 +59,13 @@ MAX_RETRIES = 8
 #: Gamma tests of the upper-bound search (factor 10 each) and of the bisection.
 MAX_BRACKET_STEPS = 16
 MAX_BISECTION_STEPS = 60
+#: Without a positive lower bound (D11 = 0), the bisection's floor: this fraction of the first
+#: feasible gamma or of 1, whichever is smaller (``||P11||_inf`` of a stable plant with a
+#: near-integrator can be 1e15, and its fraction would cut the bisection off far above the
+#: optimum). Not a proven bound: the Riccati tests lose their meaning far below it.
+BISECTION_FLOOR = 1e-8
+#: The finest ``gamma_tol``: the feasibility tests' own rounding is far above it.
+MIN_GAMMA_TOL = 1e-12
 #: Relative slack of the closed-loop check ``||Fl(P, K)||_inf <= gamma_design (1 + VERIFY_TOL)``.
 VERIFY_TOL = 1e-6
 #: Relative accuracy of the closed-loop norm (hinfnorm's ``tol``): the reported gamma is an
@@ -306,22 +315,30 @@ def _bisect(
             "holds only marginally (a nearly unobservable/uncontrollable unstable or undamped mode); "
             "rescale the weights or try method='lmi'."
         )
+    # bisection over the grid gamma_k = (1 + gamma_tol)^k: the smallest feasible grid point is a
+    # function of the plant alone, whichever bracket (hence path) led to it
+    step = np.log1p(gamma_tol)
     proven = lo  # largest gamma shown infeasible (or the Parrott bound)
-    if lo <= 0:
-        lo = hi * 1e-8  # a floor for the geometric bisection, not a proven bound
+    hi_k = int(np.ceil(np.log(hi) / step))
+    if lo > 0:
+        lo_k = int(np.floor(np.log(lo) / step))  # infeasible, or the Parrott bound
+    else:
+        # a floor, not a proven bound, below the unstable plant's start whatever ||P11|| is
+        lo_k = int(np.floor(np.log(BISECTION_FLOOR * min(hi, 1.0)) / step))
     stopped = False
     for _ in range(MAX_BISECTION_STEPS):
-        if hi <= lo * (1.0 + gamma_tol):
+        if hi_k - lo_k <= 1:
             break
         if clock.expired():
             stopped = True
             break
-        mid = float(np.sqrt(lo * hi))
+        mid_k = (lo_k + hi_k) // 2
+        mid = float(np.exp(mid_k * step))
         if test(mid):
-            hi = mid
+            hi_k = mid_k
         else:
-            lo = proven = mid
-    return hi, proven, stopped
+            lo_k, proven = mid_k, mid
+    return float(np.exp(hi_k * step)), proven, stopped
 
 
 def _riccati_design(m: dict[str, np.ndarray], gamma: float) -> tuple[np.ndarray, ...]:
@@ -476,7 +493,8 @@ def hinfsyn(
         (:func:`~robustctl.robust.hinf.lmi.lmi_rescaled_gamma`); the controller is rebuilt
         from well-centred ``R, S`` at the design gamma.
     gamma_tol : float
-        Relative width of the final gamma bracket, ``gamma_opt <= gamma_lower (1 + gamma_tol)``.
+        Relative width of the final gamma bracket, ``gamma_opt <= gamma_lower (1 + gamma_tol)``,
+        and the ratio of the bisection's grid (at least 1e-12).
     backoff : float
         The controller is designed at ``gamma_opt (1 + backoff)`` (relative, default 1%),
         which keeps the Riccati solutions well conditioned.
@@ -512,6 +530,9 @@ def hinfsyn(
     if not isinstance(method, str) or method not in ("riccati", "lmi"):
         raise SynthesisError(f"method must be 'riccati' or 'lmi'; got {method!r}.")
     gamma_tol = _bounded(gamma_tol, "gamma_tol", 0.5)
+    if gamma_tol < MIN_GAMMA_TOL:
+        raise SynthesisError(f"gamma_tol must be at least {MIN_GAMMA_TOL:g} (the gamma tests do not resolve "
+                             f"finer); got {gamma_tol!r}.")
     backoff = _bounded(backoff, "backoff", 10.0, allow_zero=True)
     own_clock = not isinstance(time_budget_s, Deadline)  # a caller's (dksyn's) Deadline: it reports
     clock = as_deadline(time_budget_s, SynthesisError)
