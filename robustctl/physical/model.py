@@ -546,15 +546,21 @@ class PhysicalModel:
         """
         return self.build_structure(**overrides).mode_shapes(n_modes, band_hz)
 
-    def _structure(self, theta: Mapping[str, float]) -> Structure:
+    def _structure(self, theta: Mapping[str, float], n_stages: int | None = None) -> Structure:
+        stages = self.structure_stages if n_stages is None else self.structure_stages[:n_stages]
         struct = _base_structure(self.structure, theta)
-        if self.structure_stages:  # effects change the structure in place
+        if stages:  # effects change the structure in place
             struct = _fresh(struct, self.name)
         if self.excluded_tags:
             struct = struct.without(self.excluded_tags)
-        for stage in self.structure_stages:
+        for stage in stages:
             struct = stage.fn(theta, struct)
         return struct
+
+    def _anchor_matrices(self, theta: Mapping[str, float]) -> Any:
+        """The matrices of the structure without the last effect (a candidate's: the model it
+        modifies), for a dynamics callable that takes an ``anchor`` (a band-limited model's)."""
+        return self._structure(theta, len(self.structure_stages) - 1).matrices()
 
     def _dynamics(self, theta: dict[str, float]) -> Any:
         cached = self._cache.lookup(theta)
@@ -562,7 +568,10 @@ class PhysicalModel:
             return cached
         recorder = _RecordingTheta(theta)
         struct = self._structure(recorder) if self.structure is not None else None
-        sys = self.dynamics(recorder, struct)
+        if struct is not None and self.structure_stages and getattr(self.dynamics, "takes_anchor", False):
+            sys = self.dynamics(recorder, struct, anchor=functools.partial(self._anchor_matrices, recorder))
+        else:
+            sys = self.dynamics(recorder, struct)
         self._cache.store(tuple(sorted(recorder.read)), theta, sys)
         return sys
 

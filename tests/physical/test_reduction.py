@@ -406,8 +406,8 @@ def test_a_reduction_is_reused_for_a_stiffness_scale_and_not_for_a_softer_struct
     assert reused is not None and reused.n_exact == fresh.n_exact
     assert np.allclose(reused.lam[: reused.n_exact], fresh.lam[: fresh.n_exact], rtol=1e-10)
     g_reused = model.freqresp(F_HZ, k_scale=1.05).response
-    fresh_model = red.band_limited(_model(), F_HZ[-1], min_dof=0)
-    g_fresh = fresh_model.freqresp(F_HZ, k_scale=1.05).response
+    fresh_model = red.band_limited(_model().with_values(k_scale=1.05), F_HZ[-1], min_dof=0)  # its own root
+    g_fresh = fresh_model.freqresp(F_HZ).response
     assert np.max(np.abs(g_reused - g_fresh)) <= 1e-8 * np.max(np.abs(g_fresh))
     assert red._reuse(base, model.build_structure(k_scale=0.8).matrices(), lam_cut) is None
 
@@ -493,7 +493,7 @@ def test_a_slightly_softer_structure_extends_the_reduction_by_the_modes_that_cam
     monkeypatch.setattr(red, "_reduce", lambda *a: calls.append(a) or reduce(*a))
     got = model.freqresp(F_HZ, k_scale=0.93).response
     assert not calls
-    want = red.band_limited(_model(), F_HZ[-1], min_dof=0).freqresp(F_HZ, k_scale=0.93).response
+    want = red.band_limited(_model().with_values(k_scale=0.93), F_HZ[-1], min_dof=0).freqresp(F_HZ).response
     assert np.max(np.abs(got - want)) <= 1e-8 * np.max(np.abs(want))
     assert red._extend(base, model.build_structure(k_scale=0.7).matrices(), lam_cut) is None
 
@@ -576,8 +576,9 @@ def test_a_group_change_is_a_low_rank_change_with_its_attachment_vectors_made_on
         wk, w = np.sqrt(lam), 2 * np.pi * F_HZ[:, None]
         truth = np.einsum("fk,ok,ik->foi", -(w**2) / (wk**2 - w**2 + 2j * ZETA * wk * w), phi[outs], phi[ins])
         err = np.max(np.abs(got - truth) / np.abs(truth).max(axis=0))
-        fresh = red.band_limited(model, F_HZ[-1], min_dof=0)
-        fresh = seam.apply(fresh).freqresp(F_HZ, **{pname: c}).response
+        # a fresh reduction of the changed structure: the root of a band-limited model at its values
+        fresh = red.band_limited(seam.apply(model).with_values(**{pname: c}), F_HZ[-1], min_dof=0)
+        fresh = fresh.freqresp(F_HZ).response
         err_fresh = np.max(np.abs(fresh - truth) / np.abs(truth).max(axis=0))
         assert err < 5e-3 and err < 2.0 * err_fresh + 1e-6
         # the change moves the response far more than the error: a real test of the route
@@ -640,8 +641,9 @@ def test_a_group_factor_beside_a_group_change_reuses_the_reduction_and_its_attac
         truths[kp] = _seam_truth(M, K + (kp - 1.0) * (K - Ks) - 0.5 * Ks, F_HZ, ins, outs)
         peak = np.abs(truths[kp]).max(axis=0)
         err = np.max(np.abs(got[kp] - truths[kp]) / peak)
-        fresh = seam.apply(red.band_limited(model, F_HZ[-1], min_dof=0))
-        g_fresh = fresh.freqresp(F_HZ, k_panels=kp, **{pname: -0.5}).response
+        fresh = red.band_limited(seam.apply(model).with_values(k_panels=kp, **{pname: -0.5}), F_HZ[-1],
+                                 min_dof=0)  # a fresh reduction of the changed structure (its root)
+        g_fresh = fresh.freqresp(F_HZ).response
         err_fresh = np.max(np.abs(g_fresh - truths[kp]) / peak)
         assert err < 5e-3 and err < 2.0 * err_fresh + 1e-6
         # the step moves the response far more than the error: the scale is really applied
@@ -649,7 +651,8 @@ def test_a_group_factor_beside_a_group_change_reuses_the_reduction_and_its_attac
 
 
 def test_a_scaled_reduction_is_the_scaled_structures_own():
-    """The reduction of ``1.1 M0``, ``1.3 K0`` plus a seam change read off the base's (no solve): its
+    """The reduction of ``1.1 M0``, ``1.3 K0`` plus a seam change (the scales and the change found by
+    ``_scale_split``) read off the base's (no solve): its
     exact modes are the dense eigenpairs of the scaled pencil (to 1e-9, M-orthonormal), and the
     seam's change on it with the base's attachment blocks scaled gives the same reduced model
     (eigenvalues and the transfer function at three frequencies, to 1e-8) as attachment vectors
@@ -667,7 +670,11 @@ def test_a_scaled_reduction_is_the_scaled_structures_own():
     assert base.attached  # the seam's blocks
     mats0 = changed.build_structure().matrices()
     mats = replace(mats0, mass=1.1 * mats0.mass, stiffness=(1.3 * K - 0.6 * Ks).tocsr())
-    sb = red._scaled_basis(base, mats, lam_cut)
+    a_m, a_k, change = red._scale_split(base, mats)
+    assert a_m == pytest.approx(1.1, rel=1e-14) and a_k == pytest.approx(1.3, rel=1e-14)
+    assert change[0].size == 40
+    assert np.allclose(change[1][1], -0.6 * Ks.toarray()[np.ix_(change[0], change[0])], rtol=1e-12, atol=1e-9)
+    sb = red._scaled_basis(base, a_m, a_k, change[0].size <= red.LOW_RANK_MAX_DOFS, lam_cut)
     assert sb is not None and sb.n_exact == base.n_exact
     lam, phi = sla.eigh(1.3 * K.toarray(), 1.1 * M.toarray())
     n = sb.n_exact
@@ -675,8 +682,6 @@ def test_a_scaled_reduction_is_the_scaled_structures_own():
     Ve = sb.V[:, :n]
     assert np.allclose(Ve.T @ (1.1 * M) @ Ve, np.eye(n), atol=1e-9)
     assert np.max(np.abs(1.3 * K @ Ve - 1.1 * M @ Ve * sb.lam[:n])) < 1e-7 * np.max(np.abs(1.3 * K @ Ve))
-    change = red._changed_dofs(sb, mats)
-    assert change is not None and change[0].size == 40
 
     def frf(basis):
         md = red._ritz_modal(basis, mats, change)
@@ -685,9 +690,11 @@ def test_a_scaled_reduction_is_the_scaled_structures_own():
                                    md.input_shapes)
 
     om_scaled, h_scaled = frf(sb)
-    om_new, h_new = frf(replace(sb, attached=None))  # the seam's attachment vectors solved on sb
+    om_new, h_new = frf(replace(sb, attached=None, scale=None))  # the seam's attachment vectors solved on sb
     assert np.allclose(om_scaled, om_new, rtol=1e-8)
     assert np.max(np.abs(h_scaled - h_new)) < 1e-8 * np.max(np.abs(h_new))
     # softer by half: modes come into the cut that the base lacks
     softer = replace(mats0, stiffness=(0.5 * K).tocsr())
-    assert red._scaled_basis(base, softer, lam_cut) is None
+    a_m, a_k, change = red._scale_split(base, softer)
+    assert (a_m, a_k, change[0].size) == (1.0, 0.5, 0)
+    assert red._scaled_basis(base, a_m, a_k, True, lam_cut) is None
