@@ -114,6 +114,12 @@ _ATTACH_LOCK = threading.Lock()
 COLLECT_EVERY = 64
 #: Reduced bases kept per model (parameter points: the null fit's, the polishing fits').
 _KEEP = 4
+#: A structure softer than the root by a scale ``rho = alpha_K / alpha_M < 1`` that brings more modes
+#: into the cut than :func:`_extend` takes is the reduction of the root scaled by the rung ``2 **
+#: (-j RUNG_LOG2)`` at or below ``rho`` (a fresh reduction, made once per rung) scaled up: an update
+#: parameter's coarse search over stiffness factors (0.5, 0.7, ...) costs a Lanczos run per rung, not
+#: per factor, and each scaled-up basis holds every mode below the cut.
+RUNG_LOG2 = 0.5
 
 
 @dataclass
@@ -302,19 +308,26 @@ class _ScaledFactor:
 SCALE_ROUNDING = 1e-12
 
 
-def _scale_split(root: _Basis, mats: Any) -> tuple[float, float, tuple[np.ndarray, list]] | None:
+def _same_io(base: _Basis, mats: Any) -> bool:
+    """Whether ``mats`` has the base's input and output matrices."""
+    return (np.array_equal(np.asarray(mats.input_matrix, dtype=float), base.input_matrix)
+            and np.array_equal(np.asarray(mats.output_matrix, dtype=float), base.output_matrix))
+
+
+def _scale_split(root: _Basis, mats: Any,
+                 io: bool = False) -> tuple[float, float, tuple[np.ndarray, list]] | None:
     """``(alpha_M, alpha_K, change)`` with ``mats`` = the root's mass and stiffness times ``alpha_M``,
     ``alpha_K`` plus a change at no more than :func:`_max_changed` DOFs: ``change = (J, [dM, dK, dC])``
     as :func:`_changed_dofs` gives it (``dM``, ``dK`` the entries of ``M - alpha_M M0``, ``K - alpha_K
     K0`` above 1e-9 of the largest, ``dC`` the difference from the root's damping); None when the
-    inputs or outputs differ, the patterns differ, an entry left out exceeds :data:`SCALE_ROUNDING`
-    of the largest, or the change touches more DOFs. A function of ``root`` and ``mats`` alone."""
+    inputs or outputs differ (unless ``io``), the patterns differ, an entry left out exceeds
+    :data:`SCALE_ROUNDING` of the largest, or the change touches more DOFs. A function of ``root``
+    and ``mats`` alone."""
     M, K = _csc(mats.mass), _csc(mats.stiffness)
     n = root.mass.shape[0]
     if M.shape != root.mass.shape:
         return None
-    if not (np.array_equal(np.asarray(mats.input_matrix, dtype=float), root.input_matrix)
-            and np.array_equal(np.asarray(mats.output_matrix, dtype=float), root.output_matrix)):
+    if not io and not _same_io(root, mats):
         return None
     alphas, changes, rows = [], [], set()
     for new, old in ((M, root.mass), (K, root.stiffness)):
@@ -349,6 +362,16 @@ def _scaled_matrices(root: _Basis, a_m: float, a_k: float) -> tuple[Any, Any, An
     io = SimpleNamespace(mass=Ms, stiffness=Ks, damping=root.damping, input_matrix=root.input_matrix,
                          output_matrix=root.output_matrix)
     return Ms, Ks, io
+
+
+def _with_io(base: _Basis, mats: Any) -> _Basis:
+    """``base``'s structure with the inputs and outputs of ``mats``: its exact modes, factor and shift
+    with the attachment (Krylov) blocks of the new inputs (:func:`_attach`: a few solves)."""
+    io = SimpleNamespace(input_matrix=mats.input_matrix, output_matrix=mats.output_matrix,
+                         damping=base.damping)
+    n = base.n_exact
+    return _attach(io, base.mass, base.stiffness, _factor(base), base.sigma, base.lam[:n], base.V[:, :n],
+                   base.complete_to)
 
 
 def _scaled_basis(root: _Basis, a_m: float, a_k: float, point: bool, lam_cut: float) -> _Basis | None:
@@ -686,6 +709,13 @@ def _content_key(mats: Any) -> bytes:
         h.update(np.asarray(a.shape, dtype=np.int64).tobytes())
         for part in (a.indptr, a.indices, a.data):
             h.update(np.ascontiguousarray(part).tobytes())
+    h.update(_io_key(mats))
+    return h.digest()
+
+
+def _io_key(mats: Any) -> bytes:
+    """A digest of a structure's input and output matrices."""
+    h = hashlib.blake2b(digest_size=20)
     for a in (mats.input_matrix, mats.output_matrix):
         a = np.ascontiguousarray(np.asarray(a, dtype=float))
         h.update(np.asarray(a.shape, dtype=np.int64).tobytes())
@@ -780,9 +810,10 @@ class _Reducer:
                     self._root_mats = None  # the root holds the matrices (or is not to be had)
         return self._root
 
-    def _memoized(self, key: tuple, build: Any) -> _Basis | None:
+    def _memoized(self, key: tuple, build: Any, keep: int = _KEEP) -> _Basis | None:
         """The basis ``build()`` kept under ``key`` (made once while it is kept; two threads asking
-        for it at once wait for one build)."""
+        for it at once wait for one build); ``keep``: how many bases of the kind of ``key`` (its first
+        item) are kept, least recently used dropped."""
         with self._lock:
             if key in self._memo:
                 self._memo.move_to_end(key)
@@ -806,8 +837,9 @@ class _Reducer:
                         self._refused.popitem(last=False)
                 else:
                     self._memo[key] = base
-                    while len(self._memo) > _KEEP:
-                        self._memo.popitem(last=False)
+                    same = [k for k in self._memo if (k[0] == "rung") == (key[0] == "rung")]
+                    for k in same[: max(0, len(same) - keep)]:
+                        del self._memo[k]
         return base
 
     def _scaled(self, root: _Basis, a_m: float, a_k: float, point: bool, lam_cut: float) -> _Basis | None:
@@ -821,6 +853,17 @@ class _Reducer:
                 return _reuse_or_extend(root, _scaled_matrices(root, a_m, a_k)[2], lam_cut)
 
             base = self._memoized(("scaled own", a_m, a_k), own)
+        rho = a_k / a_m
+        if base is None and 0.0 < rho < 1.0:
+            # softer by more than an extension takes: a rung of the ladder below it, scaled up
+            j = max(1, int(np.ceil(-np.log2(rho) / RUNG_LOG2)))
+            if 2.0 ** (-j * RUNG_LOG2) > rho:  # rounding of the logarithm
+                j += 1
+            rung = 2.0 ** (-j * RUNG_LOG2)
+            below = self._memoized(("rung", j),
+                                   lambda: _reduce(_scaled_matrices(root, 1.0, rung)[2], self.f_cut_hz), 2)
+            base = self._memoized(("scaled rung", j, a_m, a_k, bool(point)),
+                                  lambda: _scaled_basis(below, a_m, a_k / rung, point, lam_cut))
         return base
 
     def basis_and_dofs(self, mats: Any, anchor: Any = None) -> tuple[_Basis, tuple]:
@@ -832,10 +875,15 @@ class _Reducer:
             change = _changed_dofs(root, mats)
             if change is not None:
                 return root, change
-            split = _scale_split(root, mats)
+            split = _scale_split(root, mats, io=True)
             if split is not None:
                 a_m, a_k, change = split
                 base = self._scaled(root, a_m, a_k, change[0].size <= LOW_RANK_MAX_DOFS, lam_cut)
+                if base is not None and not _same_io(root, mats):  # an I/O effect: the new inputs' blocks
+                    io_key = _io_key(mats)
+                    scaled = base
+                    base = self._memoized(("io", a_m, a_k, change[0].size <= LOW_RANK_MAX_DOFS, io_key),
+                                          lambda: _with_io(scaled, mats))
                 if base is not None:
                     return base, change
         if anchor is not None:
@@ -860,9 +908,13 @@ class _Reducer:
             change = _changed_dofs(root, mats)
             if change is not None and change[0].size == 0:
                 return root
-            split = _scale_split(root, mats)
+            split = _scale_split(root, mats, io=True)
             if split is not None and split[2][0].size == 0:
                 base = self._scaled(root, split[0], split[1], True, lam_cut)
+                if base is not None and not _same_io(root, mats):
+                    scaled = base
+                    base = self._memoized(("io", split[0], split[1], True, _io_key(mats)),
+                                          lambda: _with_io(scaled, mats))
                 if base is not None:
                     return base
 
@@ -903,8 +955,6 @@ def _restored_reducer(token: str, f_cut_hz: float, root_mats: Any, root: _Basis 
             reducer._root, reducer._root_mats = root, None
         if last is not None and last[0] not in reducer._memo:
             reducer._memo[last[0]] = last[1]
-            while len(reducer._memo) > _KEEP:
-                reducer._memo.popitem(last=False)
     return reducer
 
 
