@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import copy
 import functools
+import math
 import threading
 import weakref
 from collections import OrderedDict
@@ -557,10 +558,26 @@ class PhysicalModel:
             struct = stage.fn(theta, struct)
         return struct
 
-    def _anchor_matrices(self, theta: Mapping[str, float]) -> Any:
+    def _anchor_matrices(self, theta: Mapping[str, float], rung: bool = False) -> Any:
         """The matrices of the structure without the last effect (a candidate's: the model it
-        modifies), for a dynamics callable that takes an ``anchor`` (a band-limited model's)."""
-        return self._structure(theta, len(self.structure_stages) - 1).matrices()
+        modifies), for a dynamics callable that takes an ``anchor`` (a band-limited model's); with
+        ``rung``, the structure with it, its own parameters (those the structure without it does not
+        read) each at the power of two at or below its magnitude (0 kept): one structure for a range
+        of the effect's sizes, the anchor of an effect that adds DOFs (a resonator)."""
+        n = len(self.structure_stages)
+        if not rung:
+            return self._structure(theta, n - 1).matrices()
+        values = theta._values if isinstance(theta, _RecordingTheta) else theta
+        reads = _RecordingTheta(values)
+        self._structure(reads, n - 1)
+
+        def ladder(v: float) -> float:
+            if v == 0.0 or not math.isfinite(v):
+                return v
+            return math.copysign(2.0 ** math.floor(math.log2(abs(v))), v)
+
+        rungs = {k: (v if k in reads.read else ladder(float(v))) for k, v in values.items()}
+        return self._structure(rungs).matrices()
 
     def _dynamics(self, theta: dict[str, float]) -> Any:
         cached = self._cache.lookup(theta)

@@ -31,7 +31,11 @@ statics and the rank-``|J|`` update of ``W^T M W`` and ``W^T K W`` costs ``O(n_d
 A structure that is a reduced one scaled (``alpha_M M``, ``alpha_K K``: an update parameter on
 the whole stiffness, or on one property group beside a group the diagnosis changes, whose
 difference from a scale lies on that group's DOFs) takes the reduced one's modes, factor and
-attachment blocks scaled (:func:`_scaled_basis`): no Lanczos run or factorisation.
+attachment blocks scaled (:func:`_scaled_basis`): no Lanczos run or factorisation. Which reduction
+a structure is taken as a change or a scale of is fixed by the model and the structure alone (a
+root reduction at the model's own parameter values, its scales, a candidate's anchor: the model
+it modifies; :class:`_Reducer`), never by the evaluations made before, so that serial work,
+threads and worker processes give the same results bit for bit.
 
 Error estimate (per channel, in the band): for modal truncation with static correction the
 truncated modes contribute ``sum_k c phi_k phi_k^T b / (w_k^2 - w^2 + 2 j zeta w_k w)``, of
@@ -131,7 +135,7 @@ class _Basis:
     damping: Any
     input_matrix: np.ndarray
     output_matrix: np.ndarray
-    lu: Any  # splu of K - sigma M
+    lu: Any  # splu of K - sigma M (a _ScaledFactor of a scaled root's; None: made again by _factor)
     sigma: float
     V: np.ndarray  # (n, r) M-orthonormal Ritz vectors, K-orthogonal
     lam: np.ndarray  # (r,) Ritz values w^2 (rad/s)^2
@@ -668,7 +672,9 @@ def _attachment(base: _Basis, dofs: np.ndarray) -> tuple:
     Made once per DOF set and base (``|J|`` solves with the base's factor and ``O(n_dof r |J|)``
     products; the ``n_dof x |J|`` block itself is not kept) and kept with the base
     (:data:`_ATTACH_KEEP` sets, least recently used dropped): a candidate fitted over several sizes,
-    an element group's change above all, pays for its attachment vectors once."""
+    an element group's change above all, pays for its attachment vectors once. A scaled root
+    (:func:`_scaled_basis`) takes the root's block, scaled: the same numbers whatever was evaluated
+    before."""
     if base.scale is not None:  # a scaled root: the root's block, scaled (_scaled_basis)
         s, rho, d_m = base.scale
         XJ, VKX, XKX, Xb, cX, VCX, XCX = _attachment(base.lu.root, dofs)
@@ -737,8 +743,9 @@ class _Reducer:
        the scaled root (:func:`_scaled_basis`, no solve), or, when the scale brought modes into the
        cut, the scaled structure's own reduction from the root's modes (:func:`_reuse_or_extend`),
        with that change;
-    3. (``anchor``: the structure of the model without its last effect, a candidate's model) a change
-       at a few DOFs of the anchor's own reduction (4.);
+    3. (``anchor``: the structure of the model without its last effect, a candidate's model; for an
+       effect that adds DOFs, the model with it at sizes rounded down to a power of two) a change at
+       a few DOFs of the anchor's own reduction (4.);
     4. its own reduction: from the root's modes when they are its eigenpairs
        (:func:`_reuse_or_extend`), else a fresh Lanczos run.
 
@@ -888,9 +895,14 @@ class _Reducer:
                     return base, change
         if anchor is not None:
             held = anchor()
-            if held is not None and held.mass.shape == mats.mass.shape:
-                base = self.own_basis(held)
-                change = _changed_dofs(base, mats)
+            if held.mass.shape != mats.mass.shape:  # an effect that adds DOFs: itself at a rung of sizes
+                held = anchor(True)
+            if held.mass.shape == mats.mass.shape:
+                try:
+                    base = self.own_basis(held)
+                except ModelError:  # an anchor that cannot be reduced: mats on its own
+                    base = None
+                change = None if base is None else _changed_dofs(base, mats)
                 if change is not None:
                     return base, change
         return self.own_basis(mats), (np.zeros(0, dtype=int), [np.zeros((0, 0))] * 3)
