@@ -427,7 +427,9 @@ def _scaled_basis(root: _Basis, a_m: float, a_k: float, point: bool, lam_cut: fl
         if not np.any(keep):
             return None
         phi = sc(root.V[:, : root.n_exact][:, keep], s)
-        return _attach(io, Ms, Ks, lu, root.sigma * rho, lam[: root.n_exact][keep], phi, complete_to)
+        # every mode up to the cut is kept, none above it
+        return _attach(io, Ms, Ks, lu, root.sigma * rho, lam[: root.n_exact][keep], phi,
+                       min(complete_to, lam_cut))
     return replace(root, mass=Ms, stiffness=Ks, lu=lu, sigma=root.sigma * rho, V=sc(root.V, s),
                    lam=lam, lam_cut=root.lam_cut * rho, resid_in=root.resid_in / a_k,
                    resid_out=root.resid_out / a_k, Vb=sc(root.Vb, s), c_v=sc(root.c_v, s),
@@ -753,7 +755,7 @@ class _Reducer:
     it: the scale factors, or the digest of the structure's matrices (:func:`_content_key`); a basis
     dropped and made again is the same bit for bit (the Lanczos start vector is fixed, the sparse
     factor the same ``splu`` call). Thread-safe; pickled with the root and its attachment blocks (no
-    factor) and the most recent basis that cost a reduction.
+    factor) and the most recently used basis when it cost a reduction.
 
     Parameters
     ----------
@@ -785,14 +787,16 @@ class _Reducer:
 
     def __reduce__(self):
         # the root travels (without its factor, which does not pickle: the same splu call makes it
-        # again, bit for bit) with its attachment blocks, and the most recent basis that cost a Ritz
-        # step or a Lanczos run (scaled roots are cheap to make again): a worker process then starts
-        # without a Lanczos run of its own (23 s at 20,000 DOFs) or a seam's attachment vectors (250
-        # solves); every copy of one reducer in a process is one object (:func:`_restored_reducer`)
+        # again, bit for bit) with its attachment blocks, and the most recently used basis when it
+        # cost a Ritz step or a Lanczos run (a scaled root is cheap to make again): a worker process
+        # then starts without a Lanczos run of its own (23 s at 20,000 DOFs) or a seam's attachment
+        # vectors (250 solves); every copy of one reducer in a process is one object
+        # (:func:`_restored_reducer`)
         with self._lock:
             root = self._root
-            last = next(((k, b) for k, b in reversed(self._memo.items())
-                         if b.scale is None and not isinstance(b.lu, _ScaledFactor)), None)
+            last = next(reversed(self._memo.items()), None)
+        if last is not None and (last[1].scale is not None or isinstance(last[1].lu, _ScaledFactor)):
+            last = None  # a scaled root: made again from the root in no time
 
         def bare(b):
             with _ATTACH_LOCK:
