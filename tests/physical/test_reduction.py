@@ -249,9 +249,7 @@ def test_closed_form_screening_keeps_the_exact_ranking(monkeypatch):
     """A 200-DOF grid in reduced coordinates with 45 point candidates (masses, springs and dashpots
     around a hidden 0.03 kg mass at a sensor node): the closed-form screening with exact leaders
     gives the fitted ranking and verdicts of the exact screening of every candidate, with costs
-    equal to 1e-3 (the reduced evaluations of a candidate depend on which parameter point's
-    reduction it is a low-rank change of), and the full dense path's winner and gain within the
-    reduction's error (0.05)."""
+    equal to 1e-3, and the full dense path's winner and gain within the reduction's error (0.05)."""
     import robustctl.correlate.diagnosis.screening as scr
 
     model = _model()
