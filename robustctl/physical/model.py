@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import copy
 import functools
+import math
 import threading
 import weakref
 from collections import OrderedDict
@@ -546,15 +547,37 @@ class PhysicalModel:
         """
         return self.build_structure(**overrides).mode_shapes(n_modes, band_hz)
 
-    def _structure(self, theta: Mapping[str, float]) -> Structure:
+    def _structure(self, theta: Mapping[str, float], n_stages: int | None = None) -> Structure:
+        stages = self.structure_stages if n_stages is None else self.structure_stages[:n_stages]
         struct = _base_structure(self.structure, theta)
-        if self.structure_stages:  # effects change the structure in place
+        if stages:  # effects change the structure in place
             struct = _fresh(struct, self.name)
         if self.excluded_tags:
             struct = struct.without(self.excluded_tags)
-        for stage in self.structure_stages:
+        for stage in stages:
             struct = stage.fn(theta, struct)
         return struct
+
+    def _anchor_matrices(self, theta: Mapping[str, float], rung: bool = False) -> Any:
+        """The matrices of the structure without the last effect (a candidate's: the model it
+        modifies), for a dynamics callable that takes an ``anchor`` (a band-limited model's); with
+        ``rung``, the structure with it, its own parameters (those the structure without it does not
+        read) each at the power of two at or below its magnitude (0 kept): one structure for a range
+        of the effect's sizes, the anchor of an effect that adds DOFs (a resonator)."""
+        n = len(self.structure_stages)
+        if not rung:
+            return self._structure(theta, n - 1).matrices()
+        values = theta._values if isinstance(theta, _RecordingTheta) else theta
+        reads = _RecordingTheta(values)
+        self._structure(reads, n - 1)
+
+        def ladder(v: float) -> float:
+            if v == 0.0 or not math.isfinite(v):
+                return v
+            return math.copysign(2.0 ** math.floor(math.log2(abs(v))), v)
+
+        rungs = {k: (v if k in reads.read else ladder(float(v))) for k, v in values.items()}
+        return self._structure(rungs).matrices()
 
     def _dynamics(self, theta: dict[str, float]) -> Any:
         cached = self._cache.lookup(theta)
@@ -562,7 +585,10 @@ class PhysicalModel:
             return cached
         recorder = _RecordingTheta(theta)
         struct = self._structure(recorder) if self.structure is not None else None
-        sys = self.dynamics(recorder, struct)
+        if struct is not None and self.structure_stages and getattr(self.dynamics, "takes_anchor", False):
+            sys = self.dynamics(recorder, struct, anchor=functools.partial(self._anchor_matrices, recorder))
+        else:
+            sys = self.dynamics(recorder, struct)
         self._cache.store(tuple(sorted(recorder.read)), theta, sys)
         return sys
 

@@ -31,7 +31,11 @@ statics and the rank-``|J|`` update of ``W^T M W`` and ``W^T K W`` costs ``O(n_d
 A structure that is a reduced one scaled (``alpha_M M``, ``alpha_K K``: an update parameter on
 the whole stiffness, or on one property group beside a group the diagnosis changes, whose
 difference from a scale lies on that group's DOFs) takes the reduced one's modes, factor and
-attachment blocks scaled (:func:`_scaled_basis`): no Lanczos run or factorisation.
+attachment blocks scaled (:func:`_scaled_basis`): no Lanczos run or factorisation. Which reduction
+a structure is taken as a change or a scale of is fixed by the model and the structure alone (a
+root reduction at the model's own parameter values, its scales, a candidate's anchor: the model
+it modifies; :class:`_Reducer`), never by the evaluations made before, so that serial work,
+threads and worker processes give the same results bit for bit.
 
 Error estimate (per channel, in the band): for modal truncation with static correction the
 truncated modes contribute ``sum_k c phi_k phi_k^T b / (w_k^2 - w^2 + 2 j zeta w_k w)``, of
@@ -56,13 +60,16 @@ sec. 11.4 (mode-acceleration / static correction).
 
 from __future__ import annotations
 
+import contextlib
 import gc
+import hashlib
 import threading
 import uuid
 import weakref
 from collections import OrderedDict
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -111,6 +118,12 @@ _ATTACH_LOCK = threading.Lock()
 COLLECT_EVERY = 64
 #: Reduced bases kept per model (parameter points: the null fit's, the polishing fits').
 _KEEP = 4
+#: A structure softer than the root by a scale ``rho = alpha_K / alpha_M < 1`` that brings more modes
+#: into the cut than :func:`_extend` takes is the reduction of the root scaled by the rung ``2 **
+#: (-j RUNG_LOG2)`` at or below ``rho`` (a fresh reduction, made once per rung) scaled up: an update
+#: parameter's coarse search over stiffness factors (0.5, 0.7, ...) costs a Lanczos run per rung, not
+#: per factor, and each scaled-up basis holds every mode below the cut.
+RUNG_LOG2 = 0.5
 
 
 @dataclass
@@ -122,7 +135,7 @@ class _Basis:
     damping: Any
     input_matrix: np.ndarray
     output_matrix: np.ndarray
-    lu: Any  # splu of K - sigma M
+    lu: Any  # splu of K - sigma M (a _ScaledFactor of a scaled root's; None: made again by _factor)
     sigma: float
     V: np.ndarray  # (n, r) M-orthonormal Ritz vectors, K-orthogonal
     lam: np.ndarray  # (r,) Ritz values w^2 (rad/s)^2
@@ -135,6 +148,7 @@ class _Basis:
     VCV: np.ndarray | None = None  # (r, r) V^T Cs V, None without dashpots
     attached: Any = None  # OrderedDict DOF set -> projected attachment block (_attachment)
     complete_to: float = 0.0  # every mode of the structure up to this w^2 ((rad/s)^2) is in V exactly
+    scale: tuple | None = None  # (s, rho, d_m) of a scaled root (_scaled_basis; lu a _ScaledFactor of it)
 
 
 def _max_changed(n: int) -> int:
@@ -157,13 +171,16 @@ def _csc(a: Any) -> sp.csc_matrix:
 
 def _m_orthonormal(X: np.ndarray, M: Any, V: np.ndarray, tol: float = 1e-10) -> np.ndarray:
     """Columns of ``X`` M-orthogonalised against ``V`` (twice: Gram-Schmidt with
-    re-orthogonalisation) and M-orthonormalised among themselves, dependent ones dropped."""
+    re-orthogonalisation) and M-orthonormalised among themselves, dependent ones dropped: those
+    below ``tol`` of the largest, and all when what is left of ``X`` is rounding (below 1e-16 of its
+    squared M-norm before: ``X`` in the span of ``V``, a basis that holds every mode)."""
+    before = float(np.max(np.einsum("ij,ij->j", X, np.asarray(M @ X)), initial=0.0))
     for _ in range(2):
         X = X - V @ (V.T @ (M @ X))
     G = X.T @ (M @ X)
     G = 0.5 * (G + G.T)
     d, U = np.linalg.eigh(G)
-    keep = d > tol * max(float(d.max(initial=0.0)), 1e-300)
+    keep = d > max(tol * float(d.max(initial=0.0)), 1e-16 * before, 1e-300)
     return X @ (U[:, keep] / np.sqrt(d[keep]))
 
 
@@ -278,106 +295,120 @@ def _scale_and_change(new: Any, old: Any, rows: set, spread_tol: float | None = 
     return alpha, sp.csc_matrix((d.data[big], (d.row[big], d.col[big])), shape=new.shape)
 
 
-def _scaled_part(base: _Basis, mats: Any) -> Any | None:
-    """``mats`` less a change at no more than :data:`LOW_RANK_MAX_DOFS` DOFs, when what is left is
-    the base's mass and stiffness times factors ``alpha_M``, ``alpha_K`` (the median entry ratios;
-    entries within 1e-9 of the largest count as equal), else None: a stiffness scale and an added
-    mass, an update parameter and a candidate in one fit. Its reduction is the base's, scaled
-    (:func:`_reuse`), and ``mats`` a low-rank change of it."""
-
-    M, K = _csc(mats.mass), _csc(mats.stiffness)
-    if M.shape != base.mass.shape:
-        return None
-    parts, rows = [], set()
-    for new, old in ((M, base.mass), (K, base.stiffness)):
-        split = _scale_and_change(new, old, rows)
-        if split is None or len(rows) > _max_changed(new.shape[0]):
-            return None
-        parts.append(new - split[1])
-    if not rows:
-        return None  # a pure scale: _reuse handles it
-    return replace(mats, mass=parts[0], stiffness=parts[1], damping=base.damping)
-
-
-class _RootFactor:
-    """The sparse LU of a reduced structure's shifted stiffness ``K - sigma M`` (``shifted``), kept
-    with the matrix so that it pickles without the factor (which does not) and is made again on the
-    other side by the same ``splu`` call as :func:`_reduce`'s: the same factor, bit for bit."""
-
-    def __init__(self, shifted: Any, lu: Any = None) -> None:
-        self.shifted, self.lu = shifted, lu
-
-    def solve(self, rhs: np.ndarray) -> np.ndarray:
-        if self.lu is None:
-            self.lu = spla.splu(self.shifted)
-        return self.lu.solve(rhs)
-
-    def __getstate__(self) -> dict:
-        return {"shifted": self.shifted, "lu": None}
-
-
 class _ScaledFactor:
-    """The factor of ``c (K - sigma M)`` from the factor ``root`` (a :class:`_RootFactor`) of ``K -
-    sigma M``: each solve is ``root``'s divided by ``c`` (no new factorisation)."""
+    """The factor of ``c (K0 - sigma M0)`` from the root reduction ``root``'s factor of ``K0 - sigma M0``
+    (:func:`_factor`): each solve is the root's divided by ``c`` (no new factorisation)."""
 
-    def __init__(self, root: _RootFactor, c: float) -> None:
+    def __init__(self, root: _Basis, c: float) -> None:
         self.root, self.c = root, float(c)
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
-        return self.root.solve(rhs) / self.c
+        return _factor(self.root).solve(rhs) / self.c
 
 
 #: Entries of a structure left over when its change is taken out, up to this fraction of its largest
-#: entry, count as the rounding of a scale (:func:`_scaled_basis`); the change itself is what
-#: exceeds 1e-9 of it, as in :func:`_scaled_part`.
+#: entry, count as the rounding of a scale (:func:`_scale_split`); the change itself is what exceeds
+#: 1e-9 of it, as in :func:`_scale_and_change`.
 SCALE_ROUNDING = 1e-12
 
 
-def _scaled_basis(base: _Basis, mats: Any, lam_cut: float) -> _Basis | None:
-    """The reduction of ``alpha_M M0``, ``alpha_K K0`` (``M0``, ``K0`` the base's matrices) read off
-    the base's, when ``mats`` is that scaled structure plus a change at no more than
-    :func:`_max_changed` DOFs (an update parameter's step of one property group beside a group
-    left to the diagnosis, ``k_panels`` beside a seam, or of the whole stiffness); None otherwise.
+def _same_io(base: _Basis, mats: Any) -> bool:
+    """Whether ``mats`` has the base's input and output matrices."""
+    return (np.array_equal(np.asarray(mats.input_matrix, dtype=float), base.input_matrix)
+            and np.array_equal(np.asarray(mats.output_matrix, dtype=float), base.output_matrix))
 
-    Scaling ``M0`` by ``alpha_M`` and ``K0`` by ``alpha_K`` scales every eigenvalue by ``rho =
-    alpha_K / alpha_M`` and every mass-normalised shape by ``1 / sqrt(alpha_M)``, and ``K - rho sigma M
-    = alpha_K (K0 - sigma M0)``: the base's exact modes (scaled), its factor (each solve divided by
-    ``alpha_K``), its attachment vectors of the inputs (a multiple of the same Krylov vectors, hence
-    the same Ritz vectors) and the projected attachment blocks of the changed DOFs it holds
-    (:func:`_attachment`: ``X_J``, ``X^T b``, ``c X`` by ``1 / sqrt(alpha_M)``, ``V^T K X``, ``X^T K X``
-    by ``rho``, the damping blocks by ``1 / alpha_M``) are the scaled structure's reduction with the
-    shift ``rho sigma``: no Ritz step, factorisation or solve. A mode the scale lifts over the cut
-    ``lam_cut`` ((rad/s)^2) stays exact when the change is a group's (over :data:`LOW_RANK_MAX_DOFS`
-    DOFs), so that the attachment blocks held stay those of the basis (a larger basis than a fresh
-    reduction's, as accurate against the full model); with a point change or none it is left out and
-    the inputs' attachment vectors are solved again with the scaled factor (a few solves: a fresh
-    reduction's basis but for its shift). The basis holds every mode up to ``rho`` times the base's
-    ``complete_to``; when that falls below the cut, Sylvester's count (:func:`_count_below`) must find
-    no mode missing there, else None (the caller reduces it another way)."""
+
+def _scale_split(root: _Basis, mats: Any,
+                 io: bool = False) -> tuple[float, float, tuple[np.ndarray, list]] | None:
+    """``(alpha_M, alpha_K, change)`` with ``mats`` = the root's mass and stiffness times ``alpha_M``,
+    ``alpha_K`` plus a change at no more than :func:`_max_changed` DOFs: ``change = (J, [dM, dK, dC])``
+    as :func:`_changed_dofs` gives it (``dM``, ``dK`` the entries of ``M - alpha_M M0``, ``K - alpha_K
+    K0`` above 1e-9 of the largest, ``dC`` the difference from the root's damping); None when the
+    inputs or outputs differ (unless ``io``), the patterns differ, an entry left out exceeds
+    :data:`SCALE_ROUNDING` of the largest, or the change touches more DOFs. A function of ``root``
+    and ``mats`` alone."""
     M, K = _csc(mats.mass), _csc(mats.stiffness)
-    if M.shape != base.mass.shape:
+    n = root.mass.shape[0]
+    if M.shape != root.mass.shape:
         return None
-    if not (np.array_equal(np.asarray(mats.input_matrix, dtype=float), base.input_matrix)
-            and np.array_equal(np.asarray(mats.output_matrix, dtype=float), base.output_matrix)):
+    if not io and not _same_io(root, mats):
         return None
-    alphas, parts, rows = [], [], set()
-    for new, old in ((M, base.mass), (K, base.stiffness)):
-        # a change spread over the structure below the change's threshold: no scaled base
+    alphas, changes, rows = [], [], set()
+    for new, old in ((M, root.mass), (K, root.stiffness)):
         split = _scale_and_change(new, old, rows, spread_tol=SCALE_ROUNDING)
-        if split is None or len(rows) > _max_changed(new.shape[0]):
+        if split is None or len(rows) > _max_changed(n):
             return None
-        alpha, change = split
-        alphas.append(alpha)
-        parts.append(new - change if change.nnz else new)
-    a_m, a_k = alphas
+        alphas.append(split[0])
+        changes.append(split[1])
+    if mats.damping is None and root.damping is None:
+        d_c = None
+    else:
+        zero = sp.csc_matrix((n, n))
+        d_c = sp.csc_matrix(_csc(mats.damping if mats.damping is not None else zero)
+                            - (root.damping if root.damping is not None else zero))
+        d_c.eliminate_zeros()
+        coo = d_c.tocoo()
+        rows.update(coo.row.tolist())
+        rows.update(coo.col.tolist())
+        if len(rows) > _max_changed(n):
+            return None
+    dofs = np.array(sorted(rows), dtype=int)
+    blocks = [np.asarray(c[dofs][:, dofs].toarray(), dtype=float) if c is not None
+              else np.zeros((dofs.size, dofs.size)) for c in (*changes, d_c)]
+    return alphas[0], alphas[1], (dofs, blocks)
+
+
+def _scaled_matrices(root: _Basis, a_m: float, a_k: float) -> tuple[Any, Any, Any]:
+    """The root's mass and stiffness times ``a_m``, ``a_k`` (csc) and a stand-in for its matrices'
+    inputs, outputs and damping (what :func:`_attach` and :func:`_reuse_or_extend` read)."""
+    Ms = root.mass if a_m == 1.0 else (root.mass * a_m).tocsc()
+    Ks = root.stiffness if a_k == 1.0 else (root.stiffness * a_k).tocsc()
+    io = SimpleNamespace(mass=Ms, stiffness=Ks, damping=root.damping, input_matrix=root.input_matrix,
+                         output_matrix=root.output_matrix)
+    return Ms, Ks, io
+
+
+def _with_io(base: _Basis, mats: Any) -> _Basis:
+    """``base``'s structure with the inputs and outputs of ``mats``: its exact modes, factor and shift
+    with the attachment (Krylov) blocks of the new inputs (:func:`_attach`: a few solves)."""
+    io = SimpleNamespace(input_matrix=mats.input_matrix, output_matrix=mats.output_matrix,
+                         damping=base.damping)
+    n = base.n_exact
+    return _attach(io, base.mass, base.stiffness, _factor(base), base.sigma, base.lam[:n], base.V[:, :n],
+                   base.complete_to)
+
+
+def _scaled_basis(root: _Basis, a_m: float, a_k: float, point: bool, lam_cut: float) -> _Basis | None:
+    """The reduction of ``a_m M0``, ``a_k K0`` (``M0``, ``K0`` the root reduction ``root``'s matrices)
+    read off the root's, or None when the scale brought modes into the cut ``lam_cut`` ((rad/s)^2)
+    that the root lacks; a function of its arguments alone (the same in every process, whatever was
+    evaluated before). ``point``: the change to go on top touches no more than
+    :data:`LOW_RANK_MAX_DOFS` DOFs.
+
+    Scaling ``M0`` by ``a_m`` and ``K0`` by ``a_k`` scales every eigenvalue by ``rho = a_k / a_m``
+    and every mass-normalised shape by ``1 / sqrt(a_m)``, and ``K - rho sigma M = a_k (K0 - sigma
+    M0)``: the root's exact modes (scaled), its factor (each solve divided by ``a_k``), its
+    attachment vectors of the inputs (a multiple of the same Krylov vectors, hence the same Ritz
+    vectors) and the projected attachment blocks of changed DOFs (:func:`_attachment`, made on the
+    root and scaled: ``X_J``, ``X^T b``, ``c X`` by ``1 / sqrt(a_m)``, ``V^T K X``, ``X^T K X`` by
+    ``rho``, the damping blocks by ``1 / a_m``) are the scaled structure's reduction with the shift
+    ``rho sigma``: no Ritz step, factorisation or solve. A mode the scale lifts over the cut stays
+    exact when the change is a group's (over :data:`LOW_RANK_MAX_DOFS` DOFs), so that the
+    attachment blocks stay the root's (a larger basis than a fresh reduction's, as accurate against
+    the full model); with a point change or none (``point``) it is left out and the inputs'
+    attachment vectors are solved again with the scaled factor (a few solves: a fresh reduction's
+    basis but for its shift). The basis holds every mode up to ``rho`` times the root's
+    ``complete_to``; when that falls below the cut, Sylvester's count (:func:`_count_below`) must
+    find no mode missing there, else None (the caller reduces the scaled structure another way)."""
     if a_m == 1.0 and a_k == 1.0:
-        return None  # the base itself (its changes: _changed_dofs)
+        return root
     rho = a_k / a_m
-    lam = base.lam * rho
-    complete_to = base.complete_to * rho
+    lam = root.lam * rho
+    complete_to = root.complete_to * rho
+    Ms, Ks, io = _scaled_matrices(root, a_m, a_k)
     if not complete_to >= lam_cut:  # the scale may have brought modes into the cut
-        below = _count_below(parts[1], parts[0], lam_cut)
-        if below is None or below != int(np.count_nonzero(lam[: base.n_exact] <= lam_cut)):
+        below = _count_below(Ks, Ms, lam_cut)
+        if below is None or below != int(np.count_nonzero(lam[: root.n_exact] <= lam_cut)):
             return None
         complete_to = lam_cut
     s = 1.0 if a_m == 1.0 else 1.0 / np.sqrt(a_m)
@@ -386,35 +417,24 @@ def _scaled_basis(base: _Basis, mats: Any, lam_cut: float) -> _Basis | None:
     def sc(x, f):
         return x if (x is None or f == 1.0) else x * f
 
-    if isinstance(base.lu, _ScaledFactor):  # a scale of a scaled base: one division
-        lu = _ScaledFactor(base.lu.root, base.lu.c * a_k)
-    else:
-        if not isinstance(base.lu, _RootFactor):  # the base's own factor, with its matrix (_factor's)
-            base.lu = _RootFactor((base.stiffness - base.sigma * base.mass).tocsc(), base.lu)
-        lu = _ScaledFactor(base.lu, a_k)
-    above = lam[: base.n_exact] > lam_cut
-    if np.any(above) and len(rows) <= LOW_RANK_MAX_DOFS:
+    lu = _ScaledFactor(root, a_k)
+    above = lam[: root.n_exact] > lam_cut
+    if np.any(above) and point:
         # modes lifted over the cut, and a change whose attachment vectors are few (a point effect,
         # or none): the modes a fresh reduction keeps, the inputs' attachment vectors solved again
         # with the scaled factor (a few solves); the result is a fresh reduction's but for its shift
         keep = ~above
         if not np.any(keep):
             return None
-        phi = sc(base.V[:, : base.n_exact][:, keep], s)
-        scaled = replace(mats, mass=parts[0], stiffness=parts[1], damping=base.damping)
-        return _attach(scaled, parts[0], parts[1], lu, base.sigma * rho, lam[: base.n_exact][keep], phi,
-                       complete_to)
-    attached = None
-    with _ATTACH_LOCK:
-        held = list(base.attached.items()) if base.attached is not None else []
-    if held:
-        attached = OrderedDict(
-            (key, (sc(XJ, s), VKX * rho, XKX * rho, sc(Xb, s), sc(cX, s), sc(VCX, d_m), sc(XCX, d_m)))
-            for key, (XJ, VKX, XKX, Xb, cX, VCX, XCX) in held)
-    return replace(base, mass=parts[0], stiffness=parts[1], lu=lu, sigma=base.sigma * rho, V=sc(base.V, s),
-                   lam=lam, lam_cut=base.lam_cut * rho, resid_in=base.resid_in / a_k,
-                   resid_out=base.resid_out / a_k, Vb=sc(base.Vb, s), c_v=sc(base.c_v, s),
-                   VCV=sc(base.VCV, d_m), attached=attached, complete_to=float(complete_to))
+        phi = sc(root.V[:, : root.n_exact][:, keep], s)
+        # every mode up to the cut is kept, none above it
+        return _attach(io, Ms, Ks, lu, root.sigma * rho, lam[: root.n_exact][keep], phi,
+                       min(complete_to, lam_cut))
+    return replace(root, mass=Ms, stiffness=Ks, lu=lu, sigma=root.sigma * rho, V=sc(root.V, s),
+                   lam=lam, lam_cut=root.lam_cut * rho, resid_in=root.resid_in / a_k,
+                   resid_out=root.resid_out / a_k, Vb=sc(root.Vb, s), c_v=sc(root.c_v, s),
+                   VCV=sc(root.VCV, d_m), attached=None, complete_to=float(complete_to),
+                   scale=(float(s), float(rho), float(d_m)))
 
 
 def _shift_factor(M: Any, K: Any) -> tuple[float, float, Any] | None:
@@ -654,7 +674,13 @@ def _attachment(base: _Basis, dofs: np.ndarray) -> tuple:
     Made once per DOF set and base (``|J|`` solves with the base's factor and ``O(n_dof r |J|)``
     products; the ``n_dof x |J|`` block itself is not kept) and kept with the base
     (:data:`_ATTACH_KEEP` sets, least recently used dropped): a candidate fitted over several sizes,
-    an element group's change above all, pays for its attachment vectors once."""
+    an element group's change above all, pays for its attachment vectors once. A scaled root
+    (:func:`_scaled_basis`) takes the root's block, scaled: the same numbers whatever was evaluated
+    before."""
+    if base.scale is not None:  # a scaled root: the root's block, scaled (_scaled_basis)
+        s, rho, d_m = base.scale
+        XJ, VKX, XKX, Xb, cX, VCX, XCX = _attachment(base.lu.root, dofs)
+        return (XJ * s, VKX * rho, XKX * rho, Xb * s, cX * s, VCX * d_m, XCX * d_m)
     key = dofs.tobytes()
     with _ATTACH_LOCK:
         cache = base.attached
@@ -679,97 +705,247 @@ def _attachment(base: _Basis, dofs: np.ndarray) -> tuple:
     return block
 
 
-class _Reducer:
-    """The reduced bases of one model (thread-safe LRU; pickled with its most recent basis only)."""
+def _content_key(mats: Any) -> bytes:
+    """A digest of a structure's matrices (mass, stiffness, damping, inputs, outputs: their values
+    and sparse layout), the key of its own reduction in :class:`_Reducer`."""
+    h = hashlib.blake2b(digest_size=20)
+    for a in (mats.mass, mats.stiffness, mats.damping):
+        if a is None:
+            h.update(b"none")
+            continue
+        a = _csc(a)
+        h.update(np.asarray(a.shape, dtype=np.int64).tobytes())
+        for part in (a.indptr, a.indices, a.data):
+            h.update(np.ascontiguousarray(part).tobytes())
+    h.update(_io_key(mats))
+    return h.digest()
 
-    def __init__(self, f_cut_hz: float) -> None:
+
+def _io_key(mats: Any) -> bytes:
+    """A digest of a structure's input and output matrices."""
+    h = hashlib.blake2b(digest_size=20)
+    for a in (mats.input_matrix, mats.output_matrix):
+        a = np.ascontiguousarray(np.asarray(a, dtype=float))
+        h.update(np.asarray(a.shape, dtype=np.int64).tobytes())
+        h.update(a.tobytes())
+    return h.digest()
+
+
+class _Reducer:
+    """The reduced bases of one model: each evaluation's basis a function of the model and the
+    structure evaluated alone (never of what was evaluated before), so that serial work, threads and
+    worker processes give the same results bit for bit.
+
+    The *root* is the reduction (:func:`_reduce`) of the model's structure at its own parameter
+    values, ``root_mats`` (made once, when first needed). A structure is then, in this order:
+
+    1. the root plus a change at a few DOFs (:func:`_changed_dofs`): the root with that change;
+    2. the root scaled (``alpha_M M0``, ``alpha_K K0``: an update parameter on the whole stiffness, or
+       on one property group beside the diagnosis's change) plus such a change (:func:`_scale_split`):
+       the scaled root (:func:`_scaled_basis`, no solve), or, when the scale brought modes into the
+       cut, the scaled structure's own reduction from the root's modes (:func:`_reuse_or_extend`),
+       with that change;
+    3. (``anchor``: the structure of the model without its last effect, a candidate's model; for an
+       effect that adds DOFs, the model with it at sizes rounded down to a power of two) a change at
+       a few DOFs of the anchor's own reduction (4.);
+    4. its own reduction: from the root's modes when they are its eigenpairs
+       (:func:`_reuse_or_extend`), else a fresh Lanczos run.
+
+    Each basis made is kept (least recently used dropped, :data:`_KEEP`) under a key that determines
+    it: the scale factors, or the digest of the structure's matrices (:func:`_content_key`); a basis
+    dropped and made again is the same bit for bit (the Lanczos start vector is fixed, the sparse
+    factor the same ``splu`` call). Thread-safe; pickled with the root and its attachment blocks (no
+    factor) and the most recently used basis when it cost a reduction.
+
+    Parameters
+    ----------
+    f_cut_hz : float
+        Exact modes are kept up to this frequency (Hz).
+    root_mats : StructuralMatrices, optional
+        The model's structure at its parameter values; None: no root (every structure is reduced
+        on its own, step 4 without the root's modes).
+    """
+
+    def __init__(self, f_cut_hz: float, root_mats: Any = None) -> None:
         self.f_cut_hz = float(f_cut_hz)
-        self._bases: OrderedDict[int, _Basis] = OrderedDict()
+        self._root_mats = root_mats
+        self._root: _Basis | None = None
+        self._memo: OrderedDict[tuple, _Basis] = OrderedDict()
+        self._refused: OrderedDict[tuple, None] = OrderedDict()  # keys whose basis is None
         self._lock = threading.Lock()
-        self._count = 0
+        self._building: dict[tuple, threading.Lock] = {}
         self._evaluations = 0
         self._token = uuid.uuid4().hex
 
-    def __reduce__(self):
-        # the most recent basis travels (without its factor, which does not pickle: a scaled
-        # basis's factor travels as its matrix, :class:`_RootFactor`) with its attachment blocks: a
-        # worker process then starts from the parameter point the caller last evaluated instead of
-        # a Lanczos run of its own (23 s at 20,000 DOFs) or a seam's attachment vectors (250 solves);
-        # and every copy of one reducer in a process is one object (:func:`_restored_reducer`),
-        # whose bases all its payloads share
+    @property
+    def _bases(self) -> OrderedDict:
+        """The bases held: the root (key ``"root"``) first, then the others, least recently used first."""
         with self._lock:
-            last = next(reversed(self._bases.values()), None)
-        basis = None
-        if last is not None:
-            with _ATTACH_LOCK:
-                attached = None if last.attached is None else OrderedDict(last.attached)
-            lu = last.lu if isinstance(last.lu, _ScaledFactor) else None
-            basis = replace(last, lu=lu, attached=attached)
-        return _restored_reducer, (self._token, self.f_cut_hz, basis)
+            out = OrderedDict() if self._root is None else OrderedDict(root=self._root)
+            out.update(self._memo)
+        return out
 
-    def basis_and_dofs(self, mats: Any) -> tuple[_Basis, tuple]:
+    def __reduce__(self):
+        # the root travels (without its factor, which does not pickle: the same splu call makes it
+        # again, bit for bit) with its attachment blocks, and the most recently used basis when it
+        # cost a Ritz step or a Lanczos run (a scaled root is cheap to make again): a worker process
+        # then starts without a Lanczos run of its own (23 s at 20,000 DOFs) or a seam's attachment
+        # vectors (250 solves); every copy of one reducer in a process is one object
+        # (:func:`_restored_reducer`)
         with self._lock:
-            entries = list(reversed(self._bases.items()))
-        for key, base in entries:
-            change = _changed_dofs(base, mats)
-            if change is not None:
-                with self._lock:
-                    if key in self._bases:
-                        self._bases.move_to_end(key)
-                return base, change
-        lam_cut = (2 * np.pi * self.f_cut_hz) ** 2
-        for _key, old in entries:
-            # a scale of a held structure with a change at a few DOFs (or none): its reduction scaled,
-            # the change exact on top of it with the attachment blocks the base holds
-            scaled = _scaled_basis(old, mats, lam_cut)
-            change = None if scaled is None else _changed_dofs(scaled, mats)
-            if change is not None:
-                self._keep(scaled)
-                return scaled, change
-        base = None
-        for _key, old in entries[:1]:
-            # a scaled structure with a point change (an update parameter and a candidate in one
-            # fit): the scaled one's reduction, the point change exact on top of it; the Ritz step
-            # of the changed structure itself on the base's modes would leave the residual of the
-            # point change (rejected for any change that matters, at the cost of two dense products)
-            scaled = _scaled_part(old, mats)
-            base = None if scaled is None else _reuse_or_extend(old, scaled, lam_cut)
-            change = None if base is None else _changed_dofs(base, mats)
-            if change is not None:
-                self._keep(base)
-                return base, change
-            base = _reuse_or_extend(old, mats, lam_cut)
+            root = self._root
+            last = next(reversed(self._memo.items()), None)
+        if last is not None and (last[1].scale is not None or isinstance(last[1].lu, _ScaledFactor)):
+            last = None  # a scaled root: made again from the root in no time
+
+        def bare(b):
+            with _ATTACH_LOCK:
+                attached = None if b.attached is None else OrderedDict(b.attached)
+            return replace(b, lu=None, attached=attached)
+
+        return _restored_reducer, (self._token, self.f_cut_hz, self._root_mats if root is None else None,
+                                   None if root is None else bare(root),
+                                   None if last is None else (last[0], bare(last[1])))
+
+    # ------------------------------------------------------------------ the bases
+    def _root_basis(self) -> _Basis | None:
+        """The root reduction (made once), or None without root matrices or when they cannot be
+        reduced."""
+        if self._root is None and self._root_mats is not None:
+            with self._lock:
+                lock = self._building.setdefault(("root",), threading.Lock())
+            with lock:
+                if self._root is None and self._root_mats is not None:
+                    with contextlib.suppress(ModelError):  # else each structure is reduced on its own
+                        self._root = _reduce(self._root_mats, self.f_cut_hz)
+                    self._root_mats = None  # the root holds the matrices (or is not to be had)
+        return self._root
+
+    def _memoized(self, key: tuple, build: Any, keep: int = _KEEP) -> _Basis | None:
+        """The basis ``build()`` kept under ``key`` (made once while it is kept; two threads asking
+        for it at once wait for one build); ``keep``: how many bases of the kind of ``key`` (its first
+        item) are kept, least recently used dropped."""
+        with self._lock:
+            if key in self._memo:
+                self._memo.move_to_end(key)
+                return self._memo[key]
+            if key in self._refused:
+                return None
+            lock = self._building.setdefault(key, threading.Lock())
+        with lock:
+            with self._lock:
+                if key in self._memo:
+                    self._memo.move_to_end(key)
+                    return self._memo[key]
+                if key in self._refused:
+                    return None
+            base = build()
+            with self._lock:
+                self._building.pop(key, None)
+                if base is None:
+                    self._refused[key] = None
+                    while len(self._refused) > 64:
+                        self._refused.popitem(last=False)
+                else:
+                    self._memo[key] = base
+                    same = [k for k in self._memo if (k[0] == "rung") == (key[0] == "rung")]
+                    for k in same[: max(0, len(same) - keep)]:
+                        del self._memo[k]
+        return base
+
+    def _scaled(self, root: _Basis, a_m: float, a_k: float, point: bool, lam_cut: float) -> _Basis | None:
+        """The reduction of the root scaled (step 2 of the class docstring)."""
+        if a_m == 1.0 and a_k == 1.0:
+            return root
+        base = self._memoized(("scaled", a_m, a_k, bool(point)),
+                              lambda: _scaled_basis(root, a_m, a_k, point, lam_cut))
         if base is None:
-            base = _reduce(mats, self.f_cut_hz)
-        self._keep(base)
-        return base, (np.zeros(0, dtype=int), [np.zeros((0, 0))] * 3)
+            def own():  # the scaled structure's own reduction, from the root's modes
+                return _reuse_or_extend(root, _scaled_matrices(root, a_m, a_k)[2], lam_cut)
+
+            base = self._memoized(("scaled own", a_m, a_k), own)
+        rho = a_k / a_m
+        if base is None and 0.0 < rho < 1.0:
+            # softer by more than an extension takes: a rung of the ladder below it, scaled up
+            j = max(1, int(np.ceil(-np.log2(rho) / RUNG_LOG2)))
+            if 2.0 ** (-j * RUNG_LOG2) > rho:  # rounding of the logarithm
+                j += 1
+            rung = 2.0 ** (-j * RUNG_LOG2)
+            below = self._memoized(("rung", j),
+                                   lambda: _reduce(_scaled_matrices(root, 1.0, rung)[2], self.f_cut_hz), 2)
+            base = self._memoized(("scaled rung", j, a_m, a_k, bool(point)),
+                                  lambda: _scaled_basis(below, a_m, a_k / rung, point, lam_cut))
+        return base
+
+    def basis_and_dofs(self, mats: Any, anchor: Any = None) -> tuple[_Basis, tuple]:
+        """The basis of ``mats`` and its change there ``(J, [dM, dK, dC])`` (class docstring);
+        ``anchor``: a callable giving the matrices of the structure ``mats`` modifies, or None."""
+        lam_cut = (2 * np.pi * self.f_cut_hz) ** 2
+        root = self._root_basis()
+        if root is not None:
+            change = _changed_dofs(root, mats)
+            if change is not None:
+                return root, change
+            split = _scale_split(root, mats, io=True)
+            if split is not None:
+                a_m, a_k, change = split
+                base = self._scaled(root, a_m, a_k, change[0].size <= LOW_RANK_MAX_DOFS, lam_cut)
+                if base is not None and not _same_io(root, mats):  # an I/O effect: the new inputs' blocks
+                    io_key = _io_key(mats)
+                    scaled = base
+                    base = self._memoized(("io", a_m, a_k, change[0].size <= LOW_RANK_MAX_DOFS, io_key),
+                                          lambda: _with_io(scaled, mats))
+                if base is not None:
+                    return base, change
+        if anchor is not None:
+            held = anchor()
+            if held.mass.shape != mats.mass.shape:  # an effect that adds DOFs: itself at a rung of sizes
+                held = anchor(True)
+            if held.mass.shape == mats.mass.shape:
+                try:
+                    base = self.own_basis(held)
+                except ModelError:  # an anchor that cannot be reduced: mats on its own
+                    base = None
+                change = None if base is None else _changed_dofs(base, mats)
+                if change is not None:
+                    return base, change
+        return self.own_basis(mats), (np.zeros(0, dtype=int), [np.zeros((0, 0))] * 3)
 
     def own_basis(self, mats: Any) -> _Basis:
         """A reduction of ``mats`` itself (its modes below the cut, not a modification of another
-        structure's), kept: from the most recent base's modes (:func:`_reuse_or_extend`) when
-        they are its eigenpairs, else by a fresh Lanczos run. The point screening of a chain's next
-        step (the model with an earlier step's effect) scores its thousands of point effects in
-        closed form on it (:func:`point_modal`)."""
-        with self._lock:
-            last = next(reversed(self._bases.values()), None)
+        structure's): the root or the root scaled when ``mats`` is one of them, else from the
+        root's modes (:func:`_reuse_or_extend`) when they are its eigenpairs, else by a Lanczos run
+        of its own; kept under the digest of ``mats``. The point screening of a chain's next step
+        (the model with an earlier step's effect) scores its thousands of point effects in closed
+        form on it (:func:`point_modal`)."""
         lam_cut = (2 * np.pi * self.f_cut_hz) ** 2
-        base = None if last is None else _reuse_or_extend(last, mats, lam_cut)
-        if base is None:
-            base = _reduce(mats, self.f_cut_hz)
-        self._keep(base)
-        return base
+        root = self._root_basis()
+        if root is not None:
+            change = _changed_dofs(root, mats)
+            if change is not None and change[0].size == 0:
+                return root
+            split = _scale_split(root, mats, io=True)
+            if split is not None and split[2][0].size == 0:
+                base = self._scaled(root, split[0], split[1], True, lam_cut)
+                if base is not None and not _same_io(root, mats):
+                    scaled = base
+                    base = self._memoized(("io", split[0], split[1], True, _io_key(mats)),
+                                          lambda: _with_io(scaled, mats))
+                if base is not None:
+                    return base
 
-    def _keep(self, base: _Basis) -> None:
+        def build():
+            base = None if root is None else _reuse_or_extend(root, mats, lam_cut)
+            return _reduce(mats, self.f_cut_hz) if base is None else base
+
+        return self._memoized(("own", _content_key(mats)), build)
+
+    def modal_data(self, mats: Any, anchor: Any = None):
+        base, change = self.basis_and_dofs(mats, anchor)
         with self._lock:
-            self._count += 1
-            self._bases[self._count] = base
-            while len(self._bases) > _KEEP:
-                self._bases.popitem(last=False)
-
-    def modal_data(self, mats: Any):
-        base, change = self.basis_and_dofs(mats)
-        self._evaluations += 1
-        if self._evaluations % COLLECT_EVERY == 0:
+            self._evaluations += 1
+            collect = self._evaluations % COLLECT_EVERY == 0
+        if collect:
             gc.collect()
         return _ritz_modal(base, mats, change)
 
@@ -780,44 +956,46 @@ _RESTORED: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
 _RESTORED_LOCK = threading.Lock()
 
 
-def _restored_reducer(token: str, f_cut_hz: float, basis: _Basis | None) -> _Reducer:
-    """The copy of the reducer ``token`` in this process (made once), given ``basis`` unless it
-    has a basis of the same structure."""
+def _restored_reducer(token: str, f_cut_hz: float, root_mats: Any, root: _Basis | None,
+                      last: tuple | None) -> _Reducer:
+    """The copy of the reducer ``token`` in this process (made once), given the root and the basis
+    ``last = (key, basis)`` unless it holds them (the same bases: a function of their keys)."""
     with _RESTORED_LOCK:
         reducer = _RESTORED.get(token)
         if reducer is None:
-            reducer = _Reducer(f_cut_hz)
+            reducer = _Reducer(f_cut_hz, root_mats)
             reducer._token = token
             _RESTORED[token] = reducer
-    if basis is not None:
-        with reducer._lock:
-            held = list(reducer._bases.values())
-        same = any(b.mass.shape == basis.mass.shape and (b.mass != basis.mass).nnz == 0
-                   and (b.stiffness != basis.stiffness).nnz == 0 for b in held)
-        if not same:
-            reducer._keep(basis)
+    with reducer._lock:
+        if root is not None and reducer._root is None:
+            reducer._root, reducer._root_mats = root, None
+        if last is not None and last[0] not in reducer._memo:
+            reducer._memo[last[0]] = last[1]
     return reducer
 
 
-def _reduced_dynamics(full: Any, f_cut_hz: float, min_dof: int):
+def _reduced_dynamics(full: Any, f_cut_hz: float, min_dof: int, root_mats: Any = None):
     """A dynamics callable like ``full`` (a :class:`~robustctl.physical.modal.ModalDynamics`)
-    that reduces structures of at least ``min_dof`` DOFs (see the module docstring)."""
-    reducer = _Reducer(f_cut_hz)
+    that reduces structures of at least ``min_dof`` DOFs (see the module docstring), about the
+    root structure ``root_mats`` (:class:`_Reducer`). It takes the keyword ``anchor`` (a callable
+    giving the matrices of the structure without the model's last effect, :class:`_Reducer`)."""
+    reducer = _Reducer(f_cut_hz, root_mats)
 
-    def dynamics(theta: Mapping[str, float], structure: Any):
+    def dynamics(theta: Mapping[str, float], structure: Any, anchor: Any = None):
         if structure is None:
             raise ModelError("modal_dynamics needs a structure; build the model with a structure callable.")
         mats = structure.matrices()
         if mats.n_dof < min_dof:
             return full(theta, structure)
         _check_mats(mats)
-        undamped = reducer.modal_data(mats)
+        undamped = reducer.modal_data(mats, anchor)
         damped = _damped(undamped, full.damping(theta), mats.modal_damping_bands, full.rigid_body_damping)
         return damped.statespace()
 
     dynamics.reducer = reducer  # type: ignore[attr-defined]
     dynamics.full = full  # type: ignore[attr-defined]
     dynamics.min_dof = min_dof  # type: ignore[attr-defined]
+    dynamics.takes_anchor = True  # type: ignore[attr-defined]
     return dynamics
 
 
@@ -855,10 +1033,16 @@ def band_limited(model: Any, f_max_hz: float, *, margin: float | None = None, mi
         return model
     if model.structure is None:
         return model
+    try:  # the root of the reductions: the structure at the model's values (_Reducer)
+        root = model.build_structure().matrices()
+    except ModelError:
+        root = None
+    if root is not None and root.n_dof < min_dof:
+        root = None
     # no per-model cache of state spaces: the reducer keeps the bases, a re-evaluation costs a
     # small eigen-solve, and diagnose holds thousands of candidate models (3 MB per state space
     # of 300 modes each)
-    return model._copy(dynamics=_reduced_dynamics(dyn, margin * f_max_hz, int(min_dof)),
+    return model._copy(dynamics=_reduced_dynamics(dyn, margin * f_max_hz, int(min_dof), root),
                        _cache=_DynamicsCache(0))
 
 

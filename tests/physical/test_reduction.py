@@ -249,9 +249,7 @@ def test_closed_form_screening_keeps_the_exact_ranking(monkeypatch):
     """A 200-DOF grid in reduced coordinates with 45 point candidates (masses, springs and dashpots
     around a hidden 0.03 kg mass at a sensor node): the closed-form screening with exact leaders
     gives the fitted ranking and verdicts of the exact screening of every candidate, with costs
-    equal to 1e-3 (the reduced evaluations of a candidate depend on which parameter point's
-    reduction it is a low-rank change of), and the full dense path's winner and gain within the
-    reduction's error (0.05)."""
+    equal to 1e-3, and the full dense path's winner and gain within the reduction's error (0.05)."""
     import robustctl.correlate.diagnosis.screening as scr
 
     model = _model()
@@ -406,8 +404,8 @@ def test_a_reduction_is_reused_for_a_stiffness_scale_and_not_for_a_softer_struct
     assert reused is not None and reused.n_exact == fresh.n_exact
     assert np.allclose(reused.lam[: reused.n_exact], fresh.lam[: fresh.n_exact], rtol=1e-10)
     g_reused = model.freqresp(F_HZ, k_scale=1.05).response
-    fresh_model = red.band_limited(_model(), F_HZ[-1], min_dof=0)
-    g_fresh = fresh_model.freqresp(F_HZ, k_scale=1.05).response
+    fresh_model = red.band_limited(_model().with_values(k_scale=1.05), F_HZ[-1], min_dof=0)  # its own root
+    g_fresh = fresh_model.freqresp(F_HZ).response
     assert np.max(np.abs(g_reused - g_fresh)) <= 1e-8 * np.max(np.abs(g_fresh))
     assert red._reuse(base, model.build_structure(k_scale=0.8).matrices(), lam_cut) is None
 
@@ -493,7 +491,7 @@ def test_a_slightly_softer_structure_extends_the_reduction_by_the_modes_that_cam
     monkeypatch.setattr(red, "_reduce", lambda *a: calls.append(a) or reduce(*a))
     got = model.freqresp(F_HZ, k_scale=0.93).response
     assert not calls
-    want = red.band_limited(_model(), F_HZ[-1], min_dof=0).freqresp(F_HZ, k_scale=0.93).response
+    want = red.band_limited(_model().with_values(k_scale=0.93), F_HZ[-1], min_dof=0).freqresp(F_HZ).response
     assert np.max(np.abs(got - want)) <= 1e-8 * np.max(np.abs(want))
     assert red._extend(base, model.build_structure(k_scale=0.7).matrices(), lam_cut) is None
 
@@ -576,8 +574,9 @@ def test_a_group_change_is_a_low_rank_change_with_its_attachment_vectors_made_on
         wk, w = np.sqrt(lam), 2 * np.pi * F_HZ[:, None]
         truth = np.einsum("fk,ok,ik->foi", -(w**2) / (wk**2 - w**2 + 2j * ZETA * wk * w), phi[outs], phi[ins])
         err = np.max(np.abs(got - truth) / np.abs(truth).max(axis=0))
-        fresh = red.band_limited(model, F_HZ[-1], min_dof=0)
-        fresh = seam.apply(fresh).freqresp(F_HZ, **{pname: c}).response
+        # a fresh reduction of the changed structure: the root of a band-limited model at its values
+        fresh = red.band_limited(seam.apply(model).with_values(**{pname: c}), F_HZ[-1], min_dof=0)
+        fresh = fresh.freqresp(F_HZ).response
         err_fresh = np.max(np.abs(fresh - truth) / np.abs(truth).max(axis=0))
         assert err < 5e-3 and err < 2.0 * err_fresh + 1e-6
         # the change moves the response far more than the error: a real test of the route
@@ -640,8 +639,9 @@ def test_a_group_factor_beside_a_group_change_reuses_the_reduction_and_its_attac
         truths[kp] = _seam_truth(M, K + (kp - 1.0) * (K - Ks) - 0.5 * Ks, F_HZ, ins, outs)
         peak = np.abs(truths[kp]).max(axis=0)
         err = np.max(np.abs(got[kp] - truths[kp]) / peak)
-        fresh = seam.apply(red.band_limited(model, F_HZ[-1], min_dof=0))
-        g_fresh = fresh.freqresp(F_HZ, k_panels=kp, **{pname: -0.5}).response
+        fresh = red.band_limited(seam.apply(model).with_values(k_panels=kp, **{pname: -0.5}), F_HZ[-1],
+                                 min_dof=0)  # a fresh reduction of the changed structure (its root)
+        g_fresh = fresh.freqresp(F_HZ).response
         err_fresh = np.max(np.abs(g_fresh - truths[kp]) / peak)
         assert err < 5e-3 and err < 2.0 * err_fresh + 1e-6
         # the step moves the response far more than the error: the scale is really applied
@@ -649,7 +649,8 @@ def test_a_group_factor_beside_a_group_change_reuses_the_reduction_and_its_attac
 
 
 def test_a_scaled_reduction_is_the_scaled_structures_own():
-    """The reduction of ``1.1 M0``, ``1.3 K0`` plus a seam change read off the base's (no solve): its
+    """The reduction of ``1.1 M0``, ``1.3 K0`` plus a seam change (the scales and the change found by
+    ``_scale_split``) read off the base's (no solve): its
     exact modes are the dense eigenpairs of the scaled pencil (to 1e-9, M-orthonormal), and the
     seam's change on it with the base's attachment blocks scaled gives the same reduced model
     (eigenvalues and the transfer function at three frequencies, to 1e-8) as attachment vectors
@@ -667,7 +668,11 @@ def test_a_scaled_reduction_is_the_scaled_structures_own():
     assert base.attached  # the seam's blocks
     mats0 = changed.build_structure().matrices()
     mats = replace(mats0, mass=1.1 * mats0.mass, stiffness=(1.3 * K - 0.6 * Ks).tocsr())
-    sb = red._scaled_basis(base, mats, lam_cut)
+    a_m, a_k, change = red._scale_split(base, mats)
+    assert a_m == pytest.approx(1.1, rel=1e-14) and a_k == pytest.approx(1.3, rel=1e-14)
+    assert change[0].size == 40
+    assert np.allclose(change[1][1], -0.6 * Ks.toarray()[np.ix_(change[0], change[0])], rtol=1e-12, atol=1e-9)
+    sb = red._scaled_basis(base, a_m, a_k, change[0].size <= red.LOW_RANK_MAX_DOFS, lam_cut)
     assert sb is not None and sb.n_exact == base.n_exact
     lam, phi = sla.eigh(1.3 * K.toarray(), 1.1 * M.toarray())
     n = sb.n_exact
@@ -675,8 +680,6 @@ def test_a_scaled_reduction_is_the_scaled_structures_own():
     Ve = sb.V[:, :n]
     assert np.allclose(Ve.T @ (1.1 * M) @ Ve, np.eye(n), atol=1e-9)
     assert np.max(np.abs(1.3 * K @ Ve - 1.1 * M @ Ve * sb.lam[:n])) < 1e-7 * np.max(np.abs(1.3 * K @ Ve))
-    change = red._changed_dofs(sb, mats)
-    assert change is not None and change[0].size == 40
 
     def frf(basis):
         md = red._ritz_modal(basis, mats, change)
@@ -685,9 +688,132 @@ def test_a_scaled_reduction_is_the_scaled_structures_own():
                                    md.input_shapes)
 
     om_scaled, h_scaled = frf(sb)
-    om_new, h_new = frf(replace(sb, attached=None))  # the seam's attachment vectors solved on sb
+    om_new, h_new = frf(replace(sb, attached=None, scale=None))  # the seam's attachment vectors solved on sb
     assert np.allclose(om_scaled, om_new, rtol=1e-8)
     assert np.max(np.abs(h_scaled - h_new)) < 1e-8 * np.max(np.abs(h_new))
     # softer by half: modes come into the cut that the base lacks
     softer = replace(mats0, stiffness=(0.5 * K).tocsr())
-    assert red._scaled_basis(base, softer, lam_cut) is None
+    a_m, a_k, change = red._scale_split(base, softer)
+    assert (a_m, a_k, change[0].size) == (1.0, 0.5, 0)
+    assert red._scaled_basis(base, a_m, a_k, True, lam_cut) is None
+
+
+def _top_half_model():
+    """The 200-DOF grid with the stiffness of its upper half scaled by ``k_top`` (an update parameter
+    that is no scale of the whole structure: 100 DOFs change, over :func:`red._max_changed`)."""
+    M, K = _grid()
+    n = M.shape[0]
+    top = sp.diags((np.arange(n) >= n // 2).astype(float))
+    K_top = (top @ K @ top).tocsr()
+    par = rc.Parameter("k_top", 1.0, "", (0.5, 2.0), meaning="stiffness scale of the upper half")
+    model = rc.structural_model(
+        M, lambda th: K + (th["k_top"] - 1.0) * K_top,
+        inputs={f"F{k}": f"dof {d + 1}" for k, d in enumerate(INS)},
+        outputs={f"y{k}": (f"dof {d + 1}", "acceleration") for k, d in enumerate(OUTS)},
+        damping=ZETA, params=[par], name="grid, upper half")
+    return model, M, K, K_top
+
+
+def test_an_evaluation_does_not_depend_on_the_evaluations_before_it(monkeypatch):
+    """A band-limited model's response at a parameter point is the same bit for bit whatever the
+    reducer evaluated before (other stiffness scales, softer ones that need a new reduction, other
+    candidates and sizes, more points than it keeps bases for) and in a copy unpickled as in a worker
+    process: a candidate on a stiffer and on a softer structure (extension, a rung of the ladder), a
+    moved sensor (new outputs) and, on a model whose update parameter is no scale, a candidate made
+    a change of its anchor's reduction (one Lanczos run for the anchor, none per size), within the
+    reduction's error of the dense numpy truth, and a resonator (a DOF added) on a reduction of its
+    own at a rung of sizes, within 1e-3 of the full path."""
+    import pickle
+    import weakref
+
+    mass = rc.effects.AddedMass("dof 58")
+    spring = rc.effects.SuspensionSpring("dof 48")
+    moved = rc.effects.SensorMoved("y1", to="dof 59", moved=1.0)
+    pm, ps = mass.param_names[0], spring.param_names[0]
+    points = [(mass, {"k_scale": 1.03, pm: 0.02}), (mass, {"k_scale": 0.93, pm: 0.02}),
+              (mass, {"k_scale": 0.6, pm: 0.01}), (None, {"k_scale": 0.7}), (moved, {"k_scale": 1.03}),
+              (None, {"k_scale": 1.03})]
+    others = [(spring, {"k_scale": 1.2, ps: 500.0}), (None, {"k_scale": 0.8}),
+              (mass, {"k_scale": 0.55, pm: 0.03}), (spring, {"k_scale": 0.96, ps: 100.0}),
+              (None, {"k_scale": 1.5}), (mass, {"k_scale": 1.03, pm: 0.05}), (moved, {"k_scale": 0.9}),
+              (None, {"k_scale": 1.1}), (spring, {"k_scale": 1.03, ps: 1e3})]
+
+    def run(base, seq):
+        return [(base if e is None else e.apply(base)).freqresp(F_HZ, **v).response for e, v in seq]
+
+    first = run(red.band_limited(_model(), F_HZ[-1], min_dof=0), points)
+    busy = red.band_limited(_model(), F_HZ[-1], min_dof=0)
+    run(busy, others)  # more scales than the reducer keeps bases for: some are dropped and made again
+    mixed = []
+    for k, p in enumerate(points[::-1]):  # the points in reverse, two other evaluations before each
+        run(busy, others[k:k + 2])
+        mixed.insert(0, run(busy, [p])[0])
+    monkeypatch.setattr(red, "_RESTORED", weakref.WeakValueDictionary())  # as in a new process
+    copy = pickle.loads(pickle.dumps(busy))
+    shipped = run(copy, points)
+    for a, b, c in zip(first, mixed, shipped):
+        assert a.tobytes() == b.tobytes() == c.tobytes()
+    M, K = _grid()
+    M = M.tolil()
+    M[57, 57] += 0.02
+    truth = _numpy_frf(M.tocsr(), 0.93 * K, F_HZ)
+    assert np.max(np.abs(first[1] - truth)) <= 2e-3 * np.max(np.abs(truth))
+
+    # an update parameter that is no scale: the candidate is a change of its anchor's own reduction
+    model, M, K, K_top = _top_half_model()
+    calls = []
+    reduce = red._reduce
+    monkeypatch.setattr(red, "_reduce", lambda *a: calls.append(a) or reduce(*a))
+    cand = mass.apply(red.band_limited(model, F_HZ[-1], min_dof=0))
+    g = {v: cand.freqresp(F_HZ, k_top=1.1, **{pm: v}).response for v in (0.01, 0.02, 0.03)}
+    assert len(calls) == 2  # the root and the anchor (k_top = 1.1 without the mass)
+    again = mass.apply(red.band_limited(model, F_HZ[-1], min_dof=0))
+    again.freqresp(F_HZ, k_top=1.2, **{pm: 0.04})
+    for v in (0.03, 0.01, 0.02):
+        assert again.freqresp(F_HZ, k_top=1.1, **{pm: v}).response.tobytes() == g[v].tobytes()
+    M = M.tolil()
+    M[57, 57] += 0.02
+    truth = _numpy_frf(M.tocsr(), K + 0.1 * K_top, F_HZ)
+    assert np.max(np.abs(g[0.02] - truth)) <= 2e-3 * np.max(np.abs(truth))
+
+    # an effect that adds a DOF (a resonator): a change of its own reduction at the sizes rounded
+    # down to a power of two (0.02 and 0.03 kg share the rung 2**-6 kg), within 1e-3 of the full path
+    res = rc.effects.AttachedResonator("dof 58", frequency=8.0)
+    rm, rf = res.param_names
+    calls.clear()
+    sizes = (0.02, 0.03, 0.05)
+    cand = res.apply(red.band_limited(_model(), F_HZ[-1], min_dof=0))
+    g = {m: cand.freqresp(F_HZ, k_scale=1.03, **{rm: m, rf: 8.2}).response for m in sizes}
+    assert len(calls) == 3  # the root, the rungs 2**-6 and 2**-5 kg
+    again = res.apply(red.band_limited(_model(), F_HZ[-1], min_dof=0))
+    for m in sizes[::-1]:
+        assert again.freqresp(F_HZ, k_scale=1.03, **{rm: m, rf: 8.2}).response.tobytes() == g[m].tobytes()
+    full = res.apply(_model()).freqresp(F_HZ, k_scale=1.03, **{rm: 0.03, rf: 8.2}).response
+    assert np.max(np.abs(g[0.03] - full)) <= 1e-3 * np.max(np.abs(full))
+
+
+def test_diagnose_in_a_process_pool_equals_the_serial_diagnosis_bit_for_bit():
+    """rc.diagnose of a band-limited model (30 point candidates around a hidden mass: masses and
+    grounded springs at 15 DOFs) gives the same ranking and costs, bit for bit, serially, in two
+    threads and in a pool of two worker processes (each process evaluates other points in another
+    order)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    import robustctl.executors as ex
+
+    model = _model()
+    data, noise = _hidden_mass_data(model)
+    cands = _point_candidates(model)[:30]
+
+    def diag(**kw):
+        d = rc.diagnose(red.band_limited(model, F_HZ[-1], min_dof=0), data, cands, noise=noise, **kw)
+        return [(r.name, r.cost, r.fraction, r.fitted, r.significant) for r in d.ranking]
+
+    serial = diag(workers=1)
+    with ThreadPoolExecutor(2) as pool:
+        threads = diag(executor=pool)
+    with ex.process_pool(2, 100, 1) as pool:
+        assert pool is not None
+        procs = diag(executor=pool)
+    assert serial == threads == procs
+    assert serial[0][0] == "added mass at dof 58"
