@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import inspect
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -528,8 +528,8 @@ SELECT_RIDGE = 1e-6
 SELECT_TAUS = (1.0, 1e-1, 1e-2, 1e-3, 1e-4, 1e-5)
 
 
-def _least_squares_fit(data: _CentreData, gamma: float, a0: np.ndarray,
-                       b0: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+def _least_squares_fit(data: _CentreData, gamma: float, a0: np.ndarray, b0: np.ndarray,
+                       y_target: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
     """Among the fits within ``gamma`` (nepers), the one of least squared linearised error
     (kept off the set's boundary by a weak barrier): a unique choice, smooth in the data.
 
@@ -543,7 +543,9 @@ def _least_squares_fit(data: _CentreData, gamma: float, a0: np.ndarray,
     constraints at ``gamma`` (:func:`_centre_rows`: points, midpoints, guard points, the cap at
     infinity) and ``mean B = 1``. Each stage is strictly convex and solved by Newton's method to
     rounding (:func:`_barrier_newton`), so the result is a smooth function of the data. Returns
-    None when a stage fails (the caller keeps the LP's fit).
+    None when a stage fails (the caller keeps the LP's fit). ``y_target``: the squared targets
+    of the squared error when they are not the band's centres ``data.y`` (a cover: its lower
+    edge, :func:`_cover_data`).
     """
     n1 = data.phi.shape[1]
     G = _centre_rows(data, gamma)
@@ -560,7 +562,8 @@ def _least_squares_fit(data: _CentreData, gamma: float, a0: np.ndarray,
         if z is None:
             return None
         ab = z[:n1], z[n1:]
-    M = np.hstack([data.phi, -data.y[:, None] * data.phi]) / data.y[:, None]
+    y = data.y if y_target is None else y_target
+    M = np.hstack([data.phi, -y[:, None] * data.phi]) / y[:, None]
     P = M.T @ M
     P += SELECT_RIDGE * float(np.trace(P)) / P.shape[0] * np.eye(P.shape[0])
     z = np.concatenate(ab)
@@ -595,6 +598,23 @@ class _CentreData:
     mid_slack: np.ndarray  # allowed excursion there beyond the level (nepers)
     guard: np.ndarray  # basis on every guard point (A, B >= 0 there)
     y_inf: float  # cap of |W(inf)|^2 relative to the largest t
+    peak: np.ndarray | None = None  # a cover's peak cap: basis where A <= y_peak B
+    y_peak: float = 0.0
+
+
+def _cover_data(prob: _Problem, cap: float) -> _CentreData:
+    """A cover's constraints at overbound ``cap`` (nepers) as a band of half-width ``cap / 2``
+    about ``y e^(cap / wt)``: ``y <= A / B <= y e^(2 cap / wt)`` at the points, no dip below
+    the log-interpolated bound beyond its slack at the midpoints (:func:`_cut_midpoints`),
+    ``A, B >= 0`` at every guard point, and the peak cap ``A <= y_peak B`` at the points,
+    every guard point and every dense point. Built from ``prob`` before its LPs add points, so
+    that it does not depend on their path."""
+    shift = np.exp(cap / prob.wt)
+    mid_shift = np.exp(cap / prob.mid_wt) if prob.mid_y.size else np.ones(0)
+    return _CentreData(
+        phi=prob.phi, y=prob.y * shift, wt=prob.wt, mid_phi=prob.mid_phi, mid_y=prob.mid_y * mid_shift,
+        mid_wt=prob.mid_wt, mid_slack=prob.mid_slack * prob.mid_wt, guard=prob.guard_all, y_inf=prob.y_inf,
+        peak=np.vstack([prob.phi, prob.guard_all, prob.dense]), y_peak=prob.y_peak)
 
 
 def _centre_rows(data: _CentreData, gamma: float) -> np.ndarray:
@@ -615,6 +635,8 @@ def _centre_rows(data: _CentreData, gamma: float) -> np.ndarray:
     rows += [np.hstack([-g, zg]), np.hstack([zg, -g])]
     inf_row = data.guard[1]  # the basis at x = inf
     rows.append(np.concatenate([inf_row, -data.y_inf * t_max * inf_row])[None])
+    if data.peak is not None:
+        rows.append(np.hstack([data.peak, -data.y_peak * data.peak]))
     G = np.vstack(rows)
     return G / np.maximum(np.abs(G).max(axis=1, keepdims=True), 1e-300)
 
@@ -1042,20 +1064,26 @@ def fit_magnitude_details(
         fixed = None if upper_bound else _CentreData(
             phi=prob.phi, y=prob.y, wt=prob.wt, mid_phi=prob.mid_phi, mid_y=prob.mid_y, mid_wt=prob.mid_wt,
             mid_slack=prob.mid_slack, guard=prob.guard_all, y_inf=prob.y_inf)
+        start = replace(prob)  # the points before the LPs add any (the LPs replace, not mutate, arrays)
         for price in L1_PRICES:
             prob.price = price
-            a, b, n, level = _minimise(prob, hi, tol, deadline, levels_only=not upper_bound)
+            a, b, n, level = _minimise(prob, hi, tol, deadline, levels_only=True)
             n_lp += n
             exact = False
-            if fixed is not None and price == 0.0:
-                ab = (_centre(fixed, level * (1.0 + centre) + 1e-6, a, b) if centre is not None
-                      else _least_squares_fit(fixed, level + SELECT_MARGIN * tol, a, b))
+            if price == 0.0:
+                if fixed is not None:
+                    ab = (_centre(fixed, level * (1.0 + centre) + 1e-6, a, b) if centre is not None
+                          else _least_squares_fit(fixed, level + SELECT_MARGIN * tol, a, b))
+                elif objective == "max":  # the tightest cover (least squares to the bound) within the level
+                    cap = level + SELECT_MARGIN * tol
+                    ab = _least_squares_fit(_cover_data(start, cap), 0.5 * cap, a, b, y_target=start.y)
+                else:
+                    ab = None
                 if ab is not None:
                     a, b = ab
                     exact = True
-            if price == 0.0:
                 prob.zscale = max(float(np.abs(a).sum() + np.abs(b).sum()), 1e-300)
-            if upper_bound:  # ties of the minimax fit broken by the mean ("max"), or a traded worst point
+            if upper_bound and not exact:  # minimax ties broken by the mean ("max"), or a traded worst point
                 g_star = _achieved(prob, a, b)
                 cap, n_it = (g_star + tol, 2) if objective == "max" else (2.0 * g_star + tol, 6)
                 a, b, n = _tighten(prob, a, b, cap, deadline, n_it)
