@@ -13,8 +13,8 @@ every output's shapes ``c`` and feedthrough row ``D``, which are eliminated (var
 Golub & Pereyra 1973, :class:`.block_refine._Projection`): ``scipy.optimize.least_squares``
 (trust region, the projected residual's exact Jacobian) moves only ``log(-Re p)``, ``Im p`` and
 the real and imaginary parts of every ``b``, with the damping ratio bounded below by
-``ZETA_MIN``. Real poles are held; the residues of those in the band (``REAL_SPAN``) are
-eliminated with ``c`` and ``D``.
+``ZETA_MIN``. Real poles are held, with their residues or (``real_residues=True``) with the
+residues of those in the band (``REAL_SPAN``) eliminated with ``c`` and ``D``.
 
 The Jacobian of that problem has ``2 K n_out n_in`` rows and ``2 n_modes (1 + n_in)`` columns
 (the full problem's, with ``c`` and ``D`` as unknowns, about ``2 n_modes (n_out + n_in)``), which
@@ -69,6 +69,7 @@ def refine_modes(
     max_nfev: int = 400,
     which: np.ndarray | None = None,
     truncation: Any = None,
+    real_residues: bool = False,
 ) -> RationalFit:
     """Refine poles and rank-``ranks`` mode shapes of ``fit`` against ``fit.data`` (see module doc).
 
@@ -83,12 +84,15 @@ def refine_modes(
         refinement stops at ``REFINE_TOL`` well before it).
     which : ndarray of int, optional
         Indices of the complex poles to refine (default: all with a non-zero rank); the other
-        poles' terms are held fixed, but for the residues of real poles in the band
-        (``REAL_SPAN``), refitted with the shapes.
+        poles' terms are held fixed.
     truncation : TruncationSettings, optional
         Impact record settings: fit the response the truncated record sees, every complex
         pole's term minus its record-end tail (eq. T1 of :mod:`.leakage`, derivative eq. T1'
         of :mod:`.tail`), to the raw data; the returned model is the untruncated one.
+    real_residues : bool
+        Also refit the residues of the real poles in the band (from its lowest frequency to
+        ``REAL_SPAN`` times its top; the poles held) with the shapes and ``D``, so that the refined
+        model is stationary in them too (default: held with their start's residues).
 
     Returns
     -------
@@ -106,7 +110,7 @@ def refine_modes(
     rw = _row_weights(fit, weights)
     w = np.abs(s)
     inside = (np.abs(fit.poles) >= w.min()) & (np.abs(fit.poles) <= REAL_SPAN * w.max())
-    real = np.flatnonzero((fit.poles.imag == 0) & inside)
+    real = np.flatnonzero((fit.poles.imag == 0) & inside & bool(real_residues))
     fixed = np.setdiff1d(np.arange(fit.poles.size), np.union1d(cplx, real))
     held = evaluate(s, fit.poles[fixed], fit.residues[fixed], np.zeros_like(fit.d))
     target = data.response - held + complex_tails(s, fit.poles[fixed], fit.residues[fixed], truncation)
@@ -242,12 +246,14 @@ def refine_modes_auto(
     deadline: Deadline | None = None,
     progress: bool = False,
     truncation: Any = None,
+    real_residues: bool = False,
 ) -> RationalFit:
-    """:func:`refine_modes` (all modes together) when its Jacobian has at most
-    ``DENSE_MAX_ENTRIES`` entries, else :func:`refine_modes_local` (block by block) followed by
-    one alternating least-squares pass over all shapes (:func:`refine_residues`; not with
-    ``truncation``, whose leaked terms that pass does not model)."""
+    """:func:`refine_modes` (all modes together; with ``real_residues`` the in-band real poles'
+    residues refitted too) when its Jacobian has at most ``DENSE_MAX_ENTRIES`` entries, else
+    :func:`refine_modes_local` (block by block) followed by one alternating least-squares pass
+    over all shapes (:func:`refine_residues`; not with ``truncation``, whose leaked terms that
+    pass does not model)."""
     if _dense_entries(fit) <= DENSE_MAX_ENTRIES:
-        return refine_modes(fit, weights, truncation=truncation)
+        return refine_modes(fit, weights, truncation=truncation, real_residues=real_residues)
     fit = refine_modes_local(fit, weights, deadline=deadline, progress=progress, truncation=truncation)
     return fit if truncation is not None else refine_residues(fit, weights, sweeps=1)

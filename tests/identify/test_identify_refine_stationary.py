@@ -1,5 +1,6 @@
-"""The joint refinement (:func:`refine_modes`) ends at a stationary point of the cost it minimises
-in every parameter the model's response depends on in the band: the poles, the rank-1 shapes, the
+"""The joint refinement (:func:`refine_modes` with ``real_residues=True``, as the white-noise H1
+route's final refinement runs it) ends at a stationary point of the cost it minimises in every
+parameter the model's response depends on in the band: the poles, the rank-1 shapes, the
 feedthrough and the residues of real poles in the band. A real filler's residue held at the start's
 value (a vector fit's, decided where that fit stopped) left the refined model off its optimum, so
 where a rational fit stopped moved the answer (the Caltech demo: 4 % of the cost, and a 1e-12
@@ -103,7 +104,11 @@ def test_the_refinement_ends_stationary_in_the_poles_and_in_the_real_poles_resid
     start = _start()
     # the start is off its optimum in the real residue (halved) and the poles (0.5 %)
     assert np.max(_gradient(start)["real residue"]) > 0.1
-    fit = refine_modes(start)
+    # by default the real poles keep their residues: the start's, off the optimum
+    held = refine_modes(start)
+    np.testing.assert_array_equal(held.residues[2], start.residues[2])
+    assert np.max(_gradient(held)["real residue"]) > 0.1
+    fit = refine_modes(start, real_residues=True)
     assert fit.poles[2] == P_REAL  # the real pole is held
     grad = _gradient(fit)
     # measured: 2e-8 - 1.5e-6 (poles: REFINE_TOL's 1e-12 in the cost is 1e-6 of a decay), 4e-10
@@ -124,7 +129,7 @@ def test_a_real_pole_above_the_band_keeps_its_residue():
     far = -2 * np.pi * 16.0 * 1e4
     fit0 = replace(start, poles=np.append(start.poles, far + 0j), ranks=np.append(start.ranks, 1),
                    residues=np.concatenate([start.residues, np.full((1, 2, 1), 3e5 + 0j)]))
-    fit = refine_modes(fit0)
+    fit = refine_modes(fit0, real_residues=True)
     np.testing.assert_array_equal(fit.residues[3], fit0.residues[3])
     assert fit.poles[3] == far
     # the near one is refitted as before (the truth's to the noise)
