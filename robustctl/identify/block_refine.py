@@ -47,10 +47,13 @@ def _basis(
     terms=None,
     term_pole: np.ndarray | None = None,
     complex_constant: bool = True,
+    real_terms: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Columns (K, n_in, 2T + n_const): per term ``t`` (pole ``term_pole[t]``, default one term per
-    pole) the Re c and Im c columns ``u = a b + ab conj(b)``, ``v = j (a b - ab conj(b))``, then
-    the constants per input (complex: two columns each; real: one); ``a``, ``ab`` are the
+    """Columns (K, n_in, 2T + n_const + R n_in): per term ``t`` (pole ``term_pole[t]``, default one
+    term per pole) the Re c and Im c columns ``u = a b + ab conj(b)``, ``v = j (a b - ab conj(b))``,
+    then the constants per input (complex: two columns each; real: one), then per column ``r`` of
+    ``real_terms`` (K, R) one column per input (``real_terms[:, r]`` on that input's rows: a held
+    real pole's ``1/(s - p)``, whose real residue is a linear unknown); ``a``, ``ab`` are the
     truncated record's terms with ``truncation`` (eq. T1); ``terms`` are
     :func:`.tail.leaked_terms` of ``poles`` when already computed."""
     a, ab, _, _ = leaked_terms(s, poles, truncation) if terms is None else terms  # (K, M)
@@ -62,6 +65,9 @@ def _basis(
     cols = np.stack([u, v], axis=-1).reshape(k, n_in, -1)
     eye = np.broadcast_to(np.eye(n_in)[None], (k, n_in, n_in))
     const = [eye + 0j, 1j * eye] if complex_constant else [eye + 0j]
+    if real_terms is not None and real_terms.shape[1]:
+        held = real_terms[:, None, None, :] * np.eye(n_in)[None, :, :, None]  # (K, n_in, n_in, R)
+        const.append(np.swapaxes(held, 2, 3).reshape(k, n_in, -1) + 0j)
     return np.concatenate([cols, *const], axis=-1)
 
 
@@ -187,15 +193,19 @@ class _Projection:
     term per pole); ``complex_constant`` chooses a complex constant per channel (a cluster's local
     constant) or a real one (the model's feedthrough ``D``); ``floor`` the damping ratio below the
     decay ``exp(theta)`` (:func:`_decay`; 0: ``-Re p = exp(theta)``, for a solver that bounds
-    ``theta`` itself)."""
+    ``theta`` itself); ``real_terms`` (K, R), optional: the partial fractions ``1/(s - p_r)`` of
+    held real poles, whose real residues (one per channel) are eliminated with the other linear
+    unknowns (columns after the constants, :func:`_basis`; ``d X / d theta`` is 0 there)."""
 
     def __init__(
-        self, s, target, rw, m, n_in, truncation, term_pole=None, complex_constant=True, floor=ZETA_MIN
+        self, s, target, rw, m, n_in, truncation, term_pole=None, complex_constant=True, floor=ZETA_MIN,
+        real_terms=None,
     ):
         self.s, self.target, self.rw, self.rw2 = s, target, rw, rw**2
         self.m, self.n_in, self.truncation = m, n_in, truncation
         self.term_pole = np.arange(m) if term_pole is None else np.asarray(term_pole)
         self.complex_constant, self.floor = complex_constant, floor
+        self.real_terms = real_terms
         self._key, self._state = None, None
 
     def state(self, theta: np.ndarray):
@@ -204,7 +214,8 @@ class _Projection:
             p, b = _unpack(theta, self.m, self.n_in, self.floor)
             terms = leaked_terms(self.s, p, self.truncation)
             x = _basis(
-                self.s, p, b, terms=terms, term_pole=self.term_pole, complex_constant=self.complex_constant
+                self.s, p, b, terms=terms, term_pole=self.term_pole, complex_constant=self.complex_constant,
+                real_terms=self.real_terms,
             )
             gram = _gram(x, self.rw2)
             coef = _solve(x, self.target, self.rw2, gram)

@@ -357,8 +357,9 @@ def _through_estimator(band: FrequencyData, fit: RationalFit, n_mode_poles: int,
     """A white-noise H1 test's modal model: poles and shapes fitted so that the model's expected H1
     matches the raw data (:func:`.leaked_refine.refine_through_estimator`), then the mode shapes
     (rank 1) refitted on the data corrected by that model (``data * M / E[H1 of M]``, on which the
-    model is scored and its modes judged); then one joint rank-1 refinement on those data and the
-    data corrected once more by its result."""
+    model is scored and its modes judged); then one joint rank-1 refinement on those data (the
+    in-band real fillers' residues refitted too: the vector fit's, held, were decided by where
+    that fit stopped) and the data corrected once more by its result."""
     fit = replace(fit, data=band)
     moved = refine_through_estimator(fit, band, st, _row_weights(fit, None))
     factor = leakage_factor(moved, band.f_hz, st)
@@ -368,7 +369,7 @@ def _through_estimator(band: FrequencyData, fit: RationalFit, n_mode_poles: int,
     fit = refine_residues(replace(moved, data=data), sweeps=2)
     if run.refine and not run.expired():  # rank-1 poles and shapes together, one step from there
         try:
-            refined = refine_modes_auto(fit, deadline=run.deadline, progress=run.progress)
+            refined = refine_modes_auto(fit, deadline=run.deadline, progress=run.progress, real_residues=True)
         except ValueError:  # two poles merged onto one peak: a singular step; keep the last model
             refined = fit
         factor = leakage_factor(refined, band.f_hz, st)

@@ -13,7 +13,8 @@ every output's shapes ``c`` and feedthrough row ``D``, which are eliminated (var
 Golub & Pereyra 1973, :class:`.block_refine._Projection`): ``scipy.optimize.least_squares``
 (trust region, the projected residual's exact Jacobian) moves only ``log(-Re p)``, ``Im p`` and
 the real and imaginary parts of every ``b``, with the damping ratio bounded below by
-``ZETA_MIN``. Real poles are kept fixed.
+``ZETA_MIN``. Real poles are held, with their residues or (``real_residues=True``) with the
+residues of those in the band (``REAL_SPAN``) eliminated with ``c`` and ``D``.
 
 The Jacobian of that problem has ``2 K n_out n_in`` rows and ``2 n_modes (1 + n_in)`` columns
 (the full problem's, with ``c`` and ``D`` as unknowns, about ``2 n_modes (n_out + n_in)``), which
@@ -52,6 +53,11 @@ DENSE_MAX_ENTRIES = 500_000
 #: below any decision taken on it, so that round-off (another BLAS kernel, a 1e-12 change of the data)
 #: moves the refined model by round-off, not by where an unconverged iteration happened to stop
 REFINE_TOL = 1e-12
+#: real poles from the band's lowest frequency to this many times its top (rad/s) have their
+#: residues refitted with the modes' shapes and ``D`` (the poles held: the data barely locate a
+#: filler); a real pole further out is nearly a constant over the band, collinear with ``D`` and
+#: with heavily damped pairs, and one below the band a trend: both are held with their residues
+REAL_SPAN = 1.0
 #: relative fall of the blocks' summed cost below which the block Gauss-Seidel sweeps stop
 SWEEP_TOL = 1e-9
 
@@ -63,6 +69,7 @@ def refine_modes(
     max_nfev: int = 400,
     which: np.ndarray | None = None,
     truncation: Any = None,
+    real_residues: bool = False,
 ) -> RationalFit:
     """Refine poles and rank-``ranks`` mode shapes of ``fit`` against ``fit.data`` (see module doc).
 
@@ -82,6 +89,10 @@ def refine_modes(
         Impact record settings: fit the response the truncated record sees, every complex
         pole's term minus its record-end tail (eq. T1 of :mod:`.leakage`, derivative eq. T1'
         of :mod:`.tail`), to the raw data; the returned model is the untruncated one.
+    real_residues : bool
+        Also refit the residues of the real poles in the band (from its lowest frequency to
+        ``REAL_SPAN`` times its top; the poles held) with the shapes and ``D``, so that the refined
+        model is stationary in them too (default: held with their start's residues).
 
     Returns
     -------
@@ -97,7 +108,10 @@ def refine_modes(
         return fit
     s = 2j * np.pi * data.f_hz
     rw = _row_weights(fit, weights)
-    fixed = np.setdiff1d(np.arange(fit.poles.size), cplx)
+    w = np.abs(s)
+    inside = (np.abs(fit.poles) >= w.min()) & (np.abs(fit.poles) <= REAL_SPAN * w.max())
+    real = np.flatnonzero((fit.poles.imag == 0) & inside & bool(real_residues))
+    fixed = np.setdiff1d(np.arange(fit.poles.size), np.union1d(cplx, real))
     held = evaluate(s, fit.poles[fixed], fit.residues[fixed], np.zeros_like(fit.d))
     target = data.response - held + complex_tails(s, fit.poles[fixed], fit.residues[fixed], truncation)
     term_pole, bs = [], []
@@ -107,9 +121,12 @@ def refine_modes(
         bs += list(b)
     n_out, n_in = fit.d.shape
     poles0 = fit.poles[cplx]
-    proj = _Projection(s, target, rw, cplx.size, n_in, truncation, np.array(term_pole), False, floor=0.0)
+    real_terms = 1.0 / (s[:, None] - fit.poles[real].real[None, :])  # (K, R)
+    proj = _Projection(s, target, rw, cplx.size, n_in, truncation, np.array(term_pole), False, floor=0.0,
+                       real_terms=real_terms)
     bs = np.array(bs)
-    start = evaluate(s, poles0, fit.residues[cplx], fit.d)
+    mine = np.concatenate([cplx, real])
+    start = evaluate(s, fit.poles[mine], fit.residues[mine], fit.d)
     start -= complex_tails(s, poles0, fit.residues[cplx], truncation)
     before = float(np.sum(np.abs(rw * (start - target)) ** 2))  # the starting model's own cost
     theta = _solve_bounded(proj, poles0, bs, max_nfev, before, REFINE_TOL)
@@ -123,7 +140,8 @@ def refine_modes(
     residues[cplx] = 0
     for term, j in enumerate(term_pole):
         residues[cplx[j]] += np.outer(c[:, term], b[term])
-    d = coef[:, 2 * n_terms :].reshape(n_out, n_in)
+    d = coef[:, 2 * n_terms : 2 * n_terms + n_in].reshape(n_out, n_in)
+    residues[real] = np.moveaxis(coef[:, 2 * n_terms + n_in :].reshape(n_out, real.size, n_in), 1, 0)
     if not (np.all(np.isfinite(residues)) and np.all(np.isfinite(d)) and np.all(np.isfinite(poles))):
         return fit
     return replace(fit, poles=poles, residues=residues, d=d)
@@ -228,12 +246,14 @@ def refine_modes_auto(
     deadline: Deadline | None = None,
     progress: bool = False,
     truncation: Any = None,
+    real_residues: bool = False,
 ) -> RationalFit:
-    """:func:`refine_modes` (all modes together) when its Jacobian has at most
-    ``DENSE_MAX_ENTRIES`` entries, else :func:`refine_modes_local` (block by block) followed by
-    one alternating least-squares pass over all shapes (:func:`refine_residues`; not with
-    ``truncation``, whose leaked terms that pass does not model)."""
+    """:func:`refine_modes` (all modes together; with ``real_residues`` the in-band real poles'
+    residues refitted too) when its Jacobian has at most ``DENSE_MAX_ENTRIES`` entries, else
+    :func:`refine_modes_local` (block by block) followed by one alternating least-squares pass
+    over all shapes (:func:`refine_residues`; not with ``truncation``, whose leaked terms that
+    pass does not model)."""
     if _dense_entries(fit) <= DENSE_MAX_ENTRIES:
-        return refine_modes(fit, weights, truncation=truncation)
+        return refine_modes(fit, weights, truncation=truncation, real_residues=real_residues)
     fit = refine_modes_local(fit, weights, deadline=deadline, progress=progress, truncation=truncation)
     return fit if truncation is not None else refine_residues(fit, weights, sweeps=1)

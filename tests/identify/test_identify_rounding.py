@@ -110,9 +110,10 @@ def test_the_caltech_demo_measurement_model_is_not_moved_by_a_1e_12_change():
     data, _ = rc.examples.caltech_truss_experiment(seed=0)
     base = _caltech_measurement_model(data)
     moved = _caltech_measurement_model(_perturbed(data, 1))
-    # measured: 2e-8 in the cost; 1.5e-11 - 9e-10 in the modes' poles, 1.6e-9 in the in-band filler
-    # (2.9 Hz, real); 3e-7 - 8e-7 and 5e-8 while the joint refinement stopped at its evaluation cap
-    # short of the optimum, which this bound misses
+    # measured: 2.1e-8 (Haswell), 2.4e-8 (Sandybridge), 3.7e-8 (Nehalem) in the cost; 1.5e-9 - 2.8e-9
+    # in the poles; 3e-7 - 8e-7 and 5e-8 while the joint refinement stopped at its evaluation cap
+    # short of the optimum, and 2e-8 / 9e-7 / 1.5e-7 while it held the in-band real filler's
+    # residue at the vector fit's value, which this bound misses
     assert abs(moved.cost.total / base.cost.total - 1) < 0.1 * MOVE
     near = [(m.pole, n.pole) for m, n in zip(base.modes + base.fillers, moved.modes + moved.fillers)
             if abs(m.pole) < 2 * np.pi * 550]
