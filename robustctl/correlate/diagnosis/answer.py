@@ -32,8 +32,14 @@ from .significance import _null_test
 CHAIN_TRY_GAIN = 0.5
 #: An answer that removes :data:`~.results.ANSWER_SHARE` of the model error but leaves more than this
 #: many times the noise variance does not end a chain: its next step looks for a second, smaller effect
-#: (a hinge's own damping once the hinge is found) and is kept only if that effect is significant.
+#: (a hinge's own damping once the hinge is found) and is kept only if that effect is the answer on the
+#: model with the first, or is significant, removes :data:`CHAIN_STEP_SHARE` of the model error the
+#: first leaves and leaves at most this many times the noise variance itself.
 CHAIN_PAST_ANSWER = 2.0
+#: Share of the model-error part of the misfit an answer leaves, ``(d_a - d_e) / (d_a - 1)``, that a
+#: significant second effect must remove to join the answer when it does not bring the model within the
+#: noise itself (an added mass found once a soft seam is, leaving a damping law's small uniform misfit).
+CHAIN_STEP_SHARE = 0.5
 #: Most effects one diagnosis chains (``chain=True``): each is proposed on the model updated with
 #: the ones before.
 MAX_CHAIN = 4

@@ -22,6 +22,7 @@ from ..optimize import levenberg_marquardt
 from ..residual import check_data, check_determined, physical_model
 from .answer import (
     CHAIN_PAST_ANSWER,
+    CHAIN_STEP_SHARE,
     CHAIN_TRY_GAIN,
     MAX_CHAIN,
     ChainStep,
@@ -171,6 +172,10 @@ def diagnose(
         effect is proposed on the model updated with it (its size re-fitted with the update
         parameters), until the misfit is within the noise, nothing more is significant, or
         ``chain`` effects (True: :data:`~.answer.MAX_CHAIN`) are found; ``diag.chain`` lists them.
+        An answer that leaves over :data:`~.answer.CHAIN_PAST_ANSWER` x the noise is chained too: a
+        next effect joins it when it is significant, removes :data:`~.answer.CHAIN_STEP_SHARE` of
+        the model error the answer leaves and leaves at most that much itself (an added mass once a
+        soft seam is found).
         False: one step.
 
     Returns
@@ -234,7 +239,7 @@ def diagnose(
             candidates = first_cands.result() if defaults else candidates
         steps = [first]
         while len(steps) < n_chain and steps[-1].lead is not None and not deadline.expired():
-            past_answer = steps[-1].verdict == "answer"
+            past_answer = any(s.verdict == "answer" for s in steps)
             used = {s.lead.name for s in steps}
             nxt_model = _chain_model(steps, res0.model)
             res_n, ign_n = _residual(nxt_model, checked, point_weights, min_channel_db, estimator)
@@ -248,13 +253,29 @@ def diagnose(
                 time.perf_counter(), res_n, ign_n, upd_n, rest, res_n.vector(), ex, n_fit, max_iter,
                 update_iter, alpha, min_gain, deadline, coarse=False,
             ))
-            if past_answer and steps[-1].best is None:
+            if past_answer and not _joins_answer(steps[-1]):
                 steps.pop()  # nothing significant beyond the answer: the chain ends with it
                 break
+            if past_answer and steps[-1].best is None:
+                break  # a second effect that leaves little: nothing more is looked for in what is left
             if steps[-1].verdict in ("answer", "within the noise") and steps[-1].lead is None:
                 break
         return _pruned(_chained(steps, time.perf_counter() - t0, n_chain), steps, res0, upd, alpha,
                        update_iter, deadline)
+
+
+def _joins_answer(step: Diagnosis) -> bool:
+    """Whether a step taken past an answer joins it: its effect is the answer of the model with the
+    earlier effects, or it is significant (the closest, verdict "incomplete"), removes
+    :data:`~.answer.CHAIN_STEP_SHARE` of the model error the answer left and leaves at most
+    :data:`~.answer.CHAIN_PAST_ANSWER` x the noise (what an answer may leave without the chain looking
+    further). A candidate that absorbs part of a misfit no candidate models (a gain error on one
+    sensor standing in for the DAC hold's droop) leaves more and is not named."""
+    if step.best is not None:
+        return True
+    comp = step.completeness
+    return (step.closest is not None and comp is not None and comp.share >= CHAIN_STEP_SHARE
+            and comp.dispersion <= CHAIN_PAST_ANSWER)
 
 
 def _chain_past(comp: Any, alpha: float) -> bool:
@@ -338,20 +359,24 @@ def _chained(steps: list[Diagnosis], time_s: float, n_chain: int) -> Diagnosis:
     The chain is the answer when its last model is within the noise or its effects together remove
     :data:`ANSWER_SHARE` of the model error. Otherwise only its leading run of significant steps is
     kept ("incomplete"); steps taken on a tentative lead (nothing significant, a candidate explaining
-    :data:`~.answer.CHAIN_TRY_GAIN` of the residual: an effect masked by another one) are dropped."""
+    :data:`~.answer.CHAIN_TRY_GAIN` of the residual: an effect masked by another one) are dropped. A
+    last step past an answer that is significant but not complete (:func:`_joins_answer`) is kept,
+    and the chain's misfit is the one left with it."""
     first, last = steps[0], steps[-1]
     links = [_link(s) for s in steps if s.lead is not None or s.best is not None]
+    # a significant effect past an answer joined it (:func:`_joins_answer`) though it is not complete
+    joined = last.closest is not None and any(s.verdict == "answer" for s in steps[:-1])
     if len(steps) == 1:
         one = first.best is not None or first.closest is not None
         return replace(first, chain=tuple(links[:1]) if one else (),
                        effects=(first.best,) if first.best is not None else (), time_s=time_s,
                        chain_limit=n_chain)
     complete = last.verdict in ("answer", "within the noise")
-    final = last.completeness if last.verdict == "answer" else None
+    final = last.completeness if last.verdict == "answer" or joined else None
     disp_end = final.dispersion if final is not None else last.dispersion
     share = model_error_share(first.dispersion, disp_end)
     if complete or share >= ANSWER_SHARE:
-        kept = links if last.best is not None else links[:len(steps) - 1]
+        kept = links if last.best is not None or joined else links[:len(steps) - 1]
         joint = last.best_fit_values  # the earlier effects re-fitted with the last one
         kept = [replace(link, effect=link.effect.with_values(
             **{n: joint[n] for n in link.effect.param_names if n in joint})) for link in kept]

@@ -998,12 +998,14 @@ def _point_errors(shared: dict, terms: tuple, values: np.ndarray) -> np.ndarray:
         h = h[:, :, shared["oi"]][:, :, :, shared["ii"]]
     g = h if shared["ratio"] is None else shared["ratio"][None] * h
     q = shared["data"][None] * np.conj(g)
+    e = np.empty(q.shape, dtype=complex)  # filled in place: no complex temporaries
     with np.errstate(all="ignore"):
-        e = shared["log_abs_data"][None] - 0.5 * np.log(g.real**2 + g.imag**2)
-        e = e + 1j * np.arctan2(q.imag, q.real)
+        e.real = shared["log_abs_data"][None] - 0.5 * np.log(g.real**2 + g.imag**2)
+        e.imag = np.arctan2(q.imag, q.real)
     if shared["bias"] is not None:
-        e = e - shared["bias"][None]
-    return (shared["weights"][None] * e).reshape(len(values), -1)
+        e -= shared["bias"][None]
+    e *= shared["weights"][None]
+    return e.reshape(len(values), -1)
 
 
 def _point_vectors(shared: dict, terms: tuple, values: np.ndarray) -> np.ndarray:
