@@ -111,3 +111,26 @@ def test_a_frame_rebuilt_with_other_masses_shares_the_geometry_by_value(truss):
     for a, b in ((mats.mass, ref.mass), (mats.stiffness, ref.stiffness)):
         np.testing.assert_array_equal(_dense(a), _dense(b))
     assert not np.array_equal(_dense(mats.mass), _dense(base.matrices().mass))
+
+
+def test_sparse_modes_do_not_depend_on_the_eigenproblems_solved_before():
+    """ARPACK's default start vector continues one random sequence through the process: the
+    same sparse eigenproblem, solved before and after another one, must give the same bits
+    (frequencies and shapes), and the frequencies of a spring chain match its closed form."""
+    import scipy.sparse as sp
+
+    from robustctl.physical.eigen import solve_modes
+
+    def chain(n: int, k: float):
+        main = np.full(n, 2.0 * k)
+        K = sp.diags([main, -k * np.ones(n - 1), -k * np.ones(n - 1)], [0, -1, 1], format="csc")
+        return sp.identity(n, format="csc"), K
+
+    M, K = chain(800, 1.0)
+    first = solve_modes(M, K, n_modes=6, sparse=True)
+    solve_modes(*chain(700, 3.0), n_modes=9, sparse=True)
+    again = solve_modes(M, K, n_modes=6, sparse=True)
+    assert np.array_equal(first[0], again[0]) and np.array_equal(first[1], again[1])
+    # fixed-fixed chain: omega_j = 2 sin(j pi / (2 (n + 1)))
+    j = np.arange(1, 7)
+    assert np.allclose(first[0], 2 * np.sin(j * np.pi / 1602), rtol=1e-9)
