@@ -821,24 +821,28 @@ class _Reducer:
                     self._root_mats = None  # the root holds the matrices (or is not to be had)
         return self._root
 
+    def _held(self, key: tuple) -> tuple[bool, _Basis | None]:
+        """``(True, basis)`` when ``key``'s basis is kept (marked most recently used), ``(True, None)``
+        when its build was refused, else ``(False, None)``; the caller holds ``self._lock``."""
+        if key in self._memo:
+            self._memo.move_to_end(key)
+            return True, self._memo[key]
+        return key in self._refused, None
+
     def _memoized(self, key: tuple, build: Any, keep: int = _KEEP) -> _Basis | None:
         """The basis ``build()`` kept under ``key`` (made once while it is kept; two threads asking
         for it at once wait for one build); ``keep``: how many bases of the kind of ``key`` (its first
         item) are kept, least recently used dropped."""
         with self._lock:
-            if key in self._memo:
-                self._memo.move_to_end(key)
-                return self._memo[key]
-            if key in self._refused:
-                return None
+            held, base = self._held(key)
+            if held:
+                return base
             lock = self._building.setdefault(key, threading.Lock())
         with lock:
             with self._lock:
-                if key in self._memo:
-                    self._memo.move_to_end(key)
-                    return self._memo[key]
-                if key in self._refused:
-                    return None
+                held, base = self._held(key)
+                if held:
+                    return base
             base = build()
             with self._lock:
                 self._building.pop(key, None)
