@@ -545,7 +545,7 @@ def _least_squares_fit(data: _CentreData, gamma: float, a0: np.ndarray, b0: np.n
     rounding (:func:`_barrier_newton`), so the result is a smooth function of the data. Returns
     None when a stage fails (the caller keeps the LP's fit). ``y_target``: the squared targets
     of the squared error when they are not the band's centres ``data.y`` (a cover: its lower
-    edge, :func:`_cover_data`).
+    edge, :func:`_centre_data`).
     """
     n1 = data.phi.shape[1]
     G = _centre_rows(data, gamma)
@@ -602,13 +602,19 @@ class _CentreData:
     y_peak: float = 0.0
 
 
-def _cover_data(prob: _Problem, cap: float) -> _CentreData:
-    """A cover's constraints at overbound ``cap`` (nepers) as a band of half-width ``cap / 2``
-    about ``y e^(cap / wt)``: ``y <= A / B <= y e^(2 cap / wt)`` at the points, no dip below
-    the log-interpolated bound beyond its slack at the midpoints (:func:`_cut_midpoints`),
-    ``A, B >= 0`` at every guard point, and the peak cap ``A <= y_peak B`` at the points,
-    every guard point and every dense point. Built from ``prob`` before its LPs add points, so
-    that it does not depend on their path."""
+def _centre_data(prob: _Problem, cap: float | None = None) -> _CentreData:
+    """The constraints of ``prob`` as its points stand (taken before its LPs add any, so that they
+    do not depend on their path): every point, midpoint and guard point and the cap at infinity.
+
+    ``cap`` None: a log-Chebyshev fit's band about ``y``. ``cap`` (nepers): a cover's at overbound
+    ``cap``, as a band of half-width ``cap / 2`` about ``y e^(cap / wt)``: ``y <= A / B <= y
+    e^(2 cap / wt)`` at the points, no dip below the log-interpolated bound beyond its slack at
+    the midpoints (:func:`_cut_midpoints`), ``A, B >= 0`` at every guard point, and the peak cap
+    ``A <= y_peak B`` at the points, every guard point and every dense point."""
+    if cap is None:
+        return _CentreData(phi=prob.phi, y=prob.y, wt=prob.wt, mid_phi=prob.mid_phi, mid_y=prob.mid_y,
+                           mid_wt=prob.mid_wt, mid_slack=prob.mid_slack, guard=prob.guard_all,
+                           y_inf=prob.y_inf)
     shift = np.exp(cap / prob.wt)
     mid_shift = np.exp(cap / prob.mid_wt) if prob.mid_y.size else np.ones(0)
     return _CentreData(
@@ -1061,10 +1067,8 @@ def fit_magnitude_details(
         hi = (2.0 * spread if upper_bound else spread) + 1e-3
         tol = tol_db / DB_PER_NEPER
         best, n_lp, worst_peak = None, 0, 0.0
-        fixed = None if upper_bound else _CentreData(
-            phi=prob.phi, y=prob.y, wt=prob.wt, mid_phi=prob.mid_phi, mid_y=prob.mid_y, mid_wt=prob.mid_wt,
-            mid_slack=prob.mid_slack, guard=prob.guard_all, y_inf=prob.y_inf)
-        start = replace(prob)  # the points before the LPs add any (the LPs replace, not mutate, arrays)
+        fixed = None if upper_bound else _centre_data(prob)
+        start = replace(prob) if upper_bound else None  # the LPs replace, not mutate, its arrays
         for price in L1_PRICES:
             prob.price = price
             a, b, n, level = _minimise(prob, hi, tol, deadline, levels_only=True)
@@ -1076,7 +1080,7 @@ def fit_magnitude_details(
                           else _least_squares_fit(fixed, level + SELECT_MARGIN * tol, a, b))
                 elif objective == "max":  # the tightest cover (least squares to the bound) within the level
                     cap = level + SELECT_MARGIN * tol
-                    ab = _least_squares_fit(_cover_data(start, cap), 0.5 * cap, a, b, y_target=start.y)
+                    ab = _least_squares_fit(_centre_data(start, cap), 0.5 * cap, a, b, y_target=start.y)
                 else:
                     ab = None
                 if ab is not None:
