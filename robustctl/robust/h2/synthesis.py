@@ -14,9 +14,11 @@
   Control Systems", sec. 6.4; the separation principle of discrete LQG with the cost
   ``E |z|^2`` of a unit white ``w``), which uses the current measurement (``Dk != 0``).
 
-Every controller is verified: the closed loop ``Fl(P, K)`` is formed with the plant's names,
-checked stable beyond round-off by :func:`robustctl.lti.is_stable`, and its H2 norm computed by
-:func:`h2norm` is the one reported.
+Every controller is verified: the closed loop ``Fl(P, K)`` is formed once, as arrays (which
+also make the result's named ``closed_loop``), checked stable beyond round-off (continuous
+time: from the real Schur form that also gives its norm; discrete: by
+:func:`robustctl.lti.is_stable`), and its H2 norm computed as :func:`h2norm` does is the one
+reported.
 """
 
 from __future__ import annotations
@@ -28,8 +30,9 @@ import control
 import numpy as np
 import scipy.linalg
 
+from ..._lapack import real_schur, solve, svdvals
 from ...errors import ModelError, SynthesisError
-from ...interconnect import PartitionedPlant, PicklesStateSpaces, lft
+from ...interconnect import PartitionedPlant, PicklesStateSpaces, _named
 from ...lti import as_statespace, freqresp_array, is_stable, roundoff_margin
 from ...plots import single_axes
 from ...table import Table, result_html
@@ -78,29 +81,11 @@ def h2norm_matrices(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, 
     return float(np.sqrt(max(val, 0.0) + dd))
 
 
-def _schur_eigenvalues(T: np.ndarray) -> np.ndarray:
-    """Eigenvalues of a real quasi-triangular Schur factor from its 1x1 and 2x2 diagonal blocks."""
-    n = T.shape[0]
-    out = np.empty(n, complex)
-    k = 0
-    while k < n:
-        if k + 1 < n and T[k + 1, k] != 0.0:
-            a, b, c, d = T[k, k], T[k, k + 1], T[k + 1, k], T[k + 1, k + 1]
-            mid, disc = 0.5 * (a + d), 0.25 * (a - d) ** 2 + b * c
-            root = np.sqrt(complex(disc))
-            out[k], out[k + 1] = mid + root, mid - root
-            k += 2
-        else:
-            out[k] = T[k, k]
-            k += 1
-    return out
-
-
 def _stable_continuous_h2(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> tuple[float | None, float]:
     """``(||(A, B, C, 0)||_2, max Re eig(A))`` with one real Schur form for both the stability
     check (beyond :func:`roundoff_margin`) and the Lyapunov solve; the norm is None when unstable."""
-    T, U = scipy.linalg.schur(A, output="real")
-    abscissa = float(np.max(_schur_eigenvalues(T).real))
+    T, U, wr, _ = real_schur(A)
+    abscissa = float(np.max(wr))
     if not abscissa < -roundoff_margin(A):
         return None, abscissa
     return float(np.sqrt(max(_continuous_h2_squared(A, B, C, (T, U)), 0.0))), abscissa
@@ -114,7 +99,7 @@ def _continuous_h2_squared(A: np.ndarray, B: np.ndarray, C: np.ndarray, schur: t
     ``solve_continuous_lyapunov`` factors ``A`` and ``A^T``); the Gramian with the fewer
     columns on the outside is used.
     """
-    T, U = scipy.linalg.schur(A, output="real") if schur is None else schur
+    T, U = real_schur(A)[:2] if schur is None else schur
     Bt, Ct = U.T @ B, C @ U
     if B.shape[1] <= C.shape[0]:
         Y, scale, info = scipy.linalg.lapack.dtrsyl(T, T, -(Bt @ Bt.T), trana="N", tranb="T")
@@ -273,16 +258,19 @@ def _hamiltonian_are(A, B, Q, R, S) -> np.ndarray | None:
     subspace. None when the stable subspace is not ``n``-dimensional or ``U11`` is singular
     (the caller then uses the QZ solver)."""
     n = A.shape[0]
-    RiSt = np.linalg.solve(R, S.T)
+    RiSB = solve(R, np.hstack([S.T, B.T]))  # [R^-1 S^T, R^-1 B^T], one factorisation
+    RiSt = RiSB[:, :n]
     As = A - B @ RiSt
-    H = np.block([[As, -B @ np.linalg.solve(R, B.T)], [-(Q - S @ RiSt), -As.T]])
-    T, Z, sdim = scipy.linalg.schur(H, output="real", sort="lhp")
+    H = np.empty((2 * n, 2 * n))
+    H[:n, :n], H[:n, n:], H[n:, :n], H[n:, n:] = As, -B @ RiSB[:, n:], -(Q - S @ RiSt), -As.T
+    T, Z, _, sdim = real_schur(H, sort_lhp=True)
     if sdim != n:
         return None
     U11, U21 = Z[:n, :n], Z[n:, :n]
-    if np.linalg.cond(U11) > 1e12:
+    sv = svdvals(U11)  # np.linalg.cond(U11) = sv[0] / sv[-1]
+    if not sv[-1] * 1e12 >= sv[0]:
         return None
-    X = np.linalg.solve(U11.T, U21.T).T
+    X = solve(U11.T, U21.T).T
     return (X + X.T) / 2
 
 
@@ -336,8 +324,8 @@ def _continuous_design(m: dict[str, np.ndarray], fast: bool = False) -> tuple:
     R1, R2 = D12.T @ D12, D21 @ D21.T
     X = _are(A, B2, C1.T @ C1, R1, C1.T @ D12, "control (X)", False, fast)
     Y = _are(A.T, C2.T, B1 @ B1.T, R2, B1 @ D21.T, "filter (Y)", False, fast)
-    F = -np.linalg.solve(R1, B2.T @ X + D12.T @ C1)  # state-feedback gain F2
-    L = -np.linalg.solve(R2, C2 @ Y + D21 @ B1.T).T  # filter gain L2
+    F = -solve(R1, B2.T @ X + D12.T @ C1)  # state-feedback gain F2
+    L = -solve(R2, C2 @ Y + D21 @ B1.T).T  # filter gain L2
     Ak = A + B2 @ F + L @ C2
     K = (Ak, -L, F, np.zeros((F.shape[0], L.shape[1])))  # the observer-based optimal controller
     fi2 = float(np.trace(B1.T @ X @ B1))
@@ -495,7 +483,8 @@ def h2syn(P: Any, nmeas: int | None = None, ncon: int | None = None) -> H2Result
         "dt": dt,
     }
     Kss = _named_controller(plant, K, dt)
-    return H2Result(K=Kss, norm=norm, closed_loop=lft(plant, Kss), X=X, Y=Y, F=F, L=L, info=info)
+    closed_loop = _named(A_cl, B_cl, C_cl, D_cl, dt, plant.w_names, plant.z_names, "closed loop Fl(P, K)")
+    return H2Result(K=Kss, norm=norm, closed_loop=closed_loop, X=X, Y=Y, F=F, L=L, info=info)
 
 
 def _named_controller(plant: PartitionedPlant, K: tuple, dt: Any):

@@ -210,10 +210,12 @@ def lower_lft_matrices(m: dict[str, np.ndarray], Ak, Bk, Ck, Dk) -> tuple[np.nda
     A, B1, B2, C1, C2 = m["A"], m["B1"], m["B2"], m["C1"], m["C2"]
     D11, D12, D21, D22 = m["D11"], m["D12"], m["D21"], m["D22"]
     n, nk = A.shape[0], Ak.shape[0]
-    E = np.eye(Dk.shape[0]) - Dk @ D22
-    if np.linalg.cond(E) > 1e12:
-        raise SynthesisError("the loop u = K y is not well posed: I - Dk D22 is singular.")
-    Fu = np.linalg.solve(E, np.hstack([Dk @ C2, Ck, Dk @ D21]))  # u = Fu [x; xk; w]
+    Fu = np.hstack([Dk @ C2, Ck, Dk @ D21])  # u = Fu [x; xk; w]
+    if np.any(Dk):  # else I - Dk D22 = I
+        E = np.eye(Dk.shape[0]) - Dk @ D22
+        if np.linalg.cond(E) > 1e12:
+            raise SynthesisError("the loop u = K y is not well posed: I - Dk D22 is singular.")
+        Fu = np.linalg.solve(E, Fu)
     Fy = np.hstack([C2, np.zeros((C2.shape[0], nk)), D21]) + D22 @ Fu  # y = Fy [x; xk; w]
     top = np.hstack([A, np.zeros((n, nk)), B1]) + B2 @ Fu
     mid = np.hstack([np.zeros((nk, n)), Ak, np.zeros((nk, B1.shape[1]))]) + Bk @ Fy
