@@ -8,7 +8,7 @@ A module imports only from its own floor (without a circle) and the floors below
 function-level imports included; ``tests/test_architecture.py`` reads every import with
 ``ast`` and fails on an edge that points up or on a circle. Lowest first:
 
-0. ``errors``, ``_version``, ``threads``, ``table``, ``executors`` -- the base
+0. ``errors``, ``_version``, ``threads``, ``table``, ``executors``, ``_lapack`` -- the base
 1. ``checks`` -- argument checks (imports only ``errors``); ``budget`` -- the time-budget
    policy and its ``Deadline`` (imports only ``errors`` and ``checks``)
 2. ``frd``, ``frd_io``, ``plots`` -- FrequencyData, its file formats, plotting primitives

@@ -316,8 +316,29 @@ def _timebase(*systems) -> Any:
     return dt
 
 
-def _named(A, B, C, D, dt, inputs: Sequence[str], outputs: Sequence[str], what: str):
-    """The one named ``control.StateSpace`` built at the end of every interconnection."""
+def named_statespace(A, B, C, D, dt, inputs: Sequence[str], outputs: Sequence[str], what: str):
+    """The one named ``control.StateSpace`` built at the end of every interconnection.
+
+    Parameters
+    ----------
+    A, B, C, D : ndarray
+        The realisation (state units as the caller's).
+    dt : float, True or 0
+        Sampling time in s (0: continuous).
+    inputs, outputs : sequence of str
+        Signal names, one per input / output, all distinct.
+    what : str
+        What is being built, for the refusal.
+
+    Returns
+    -------
+    control.StateSpace
+
+    Raises
+    ------
+    ModelError
+        Repeated input or output names.
+    """
     for names, kind in ((inputs, "input"), (outputs, "output")):
         dup = sorted({n for n in names if list(names).count(n) > 1})
         if dup:
@@ -448,7 +469,7 @@ def lft(P: Any, K: Any, nmeas: int | None = None, ncon: int | None = None):
         Kss = _match_by_name(Kss, y_names, u_names)
     dt = _timebase(Pss, Kss)
     A, B, C, D = _star_arrays(_arrays(Pss), _arrays(Kss), nmeas, ncon, "lower LFT Fl(P, K)")
-    return _named(A, B, C, D, dt, Pss.input_labels[:nw], Pss.output_labels[:nz], "lower LFT")
+    return named_statespace(A, B, C, D, dt, Pss.input_labels[:nw], Pss.output_labels[:nz], "lower LFT")
 
 
 def upper_lft(P: Any, Delta: Any, n_delta_in: int | None = None, n_delta_out: int | None = None):
@@ -484,7 +505,7 @@ def upper_lft(P: Any, Delta: Any, n_delta_in: int | None = None, n_delta_out: in
         Dss = _match_by_name(Dss, list(Pss.output_labels[:n_in]), list(Pss.input_labels[:n_out]))
     dt = _timebase(Pss, Dss)
     A, B, C, D = _star_arrays(perm, _arrays(Dss), n_in, n_out, "upper LFT Fu(P, Delta)")
-    return _named(A, B, C, D, dt, Pss.input_labels[n_out:], Pss.output_labels[n_in:], "upper LFT")
+    return named_statespace(A, B, C, D, dt, Pss.input_labels[n_out:], Pss.output_labels[n_in:], "upper LFT")
 
 
 def star(P1: Any, P2: Any, n_forward: int | None = None, n_back: int | None = None):
@@ -524,7 +545,7 @@ def star(P1: Any, P2: Any, n_forward: int | None = None, n_back: int | None = No
     m1, q1 = S1.ninputs - n_back, S1.noutputs - n_forward
     ins = list(S1.input_labels[:m1]) + list(S2.input_labels[n_forward:])
     outs = list(S1.output_labels[:q1]) + list(S2.output_labels[n_back:])
-    return _named(A, B, C, D, dt, ins, outs, "star product")
+    return named_statespace(A, B, C, D, dt, ins, outs, "star product")
 
 
 def block_diagonal(*systems: Any):
@@ -551,7 +572,7 @@ def block_diagonal(*systems: Any):
     A, B, C, D = (block_diag(*[m[k] for m in mats]) for k in range(4))
     ins = [n for s in parts for n in s.input_labels]
     outs = [n for s in parts for n in s.output_labels]
-    return _named(A, B, C, D, _timebase(*parts), ins, outs, "block diagonal")
+    return named_statespace(A, B, C, D, _timebase(*parts), ins, outs, "block diagonal")
 
 
 # ============================================================================ series, parallel, feedback
@@ -619,7 +640,7 @@ def _series_pair(s1: Any, s2: Any, by_name: bool):
         T = np.eye(s1.noutputs)
     A2, B2, C2, D2 = _arrays(s2)
     A, B, C, D = series_matrices(_arrays(s1), (A2, B2 @ T, C2, D2 @ T))
-    return _named(A, B, C, D, _timebase(s1, s2), s1.input_labels, s2.output_labels, "series")
+    return named_statespace(A, B, C, D, _timebase(s1, s2), s1.input_labels, s2.output_labels, "series")
 
 
 def series(*systems: Any, by_name: bool = True):
@@ -685,7 +706,7 @@ def _parallel_pair(s1: Any, s2: Any, by_name: bool):
     B = np.vstack([B1 @ S1, B2 @ S2])
     C = np.hstack([R1 @ C1, R2 @ C2])
     D = R1 @ D1 @ S1 + R2 @ D2 @ S2
-    return _named(A, B, C, D, _timebase(s1, s2), ins, outs, "parallel connection")
+    return named_statespace(A, B, C, D, _timebase(s1, s2), ins, outs, "parallel connection")
 
 
 def parallel(*systems: Any, by_name: bool = True):
@@ -770,4 +791,4 @@ def feedback(sys1: Any, sys2: Any = 1.0, sign: float = -1, *, by_name: bool = Tr
     Ak, Bk, Ck, Dk = _arrays(K)
     k_full = (Ak, Bk @ Sy, sign * (Su @ Ck), sign * (Su @ Dk @ Sy))
     A, B, C, D = _star_arrays(loop, k_full, p, m, "feedback loop")
-    return _named(A, B, C, D, _timebase(G, K), G.input_labels, G.output_labels, "feedback loop")
+    return named_statespace(A, B, C, D, _timebase(G, K), G.input_labels, G.output_labels, "feedback loop")

@@ -34,6 +34,8 @@ from .errors import DataError, FitError, ModelError
 from .frd import FrequencyData, as_frequencies
 from .threads import limit_blas
 
+_EPS = float(np.finfo(float).eps)
+
 __all__ = [
     "freqresp",
     "freqresp_array",
@@ -165,7 +167,7 @@ def as_statespace(
         ss = _as_statespace(sys.statespace(), name)
     else:
         ss = _as_statespace(sys, name)
-    if not all(np.all(np.isfinite(np.asarray(m, dtype=float))) for m in (ss.A, ss.B, ss.C, ss.D)):
+    if not all(np.isfinite(np.asarray(m, dtype=float)).all() for m in (ss.A, ss.B, ss.C, ss.D)):
         raise ModelError(f"{name} has NaN or inf in its state-space matrices; check the model's parameters.")
     if inputs is None and outputs is None:
         return ss
@@ -684,7 +686,8 @@ def roundoff_margin(A: Any) -> float:
     otherwise be 1e14 instead of infinite).
     """
     A = np.asarray(getattr(A, "A", A), dtype=float)
-    return 64.0 * np.finfo(float).eps * max(1.0, float(np.linalg.norm(A, 1)) if A.size else 1.0)
+    norm1 = float(np.abs(A).sum(axis=0).max()) if A.size else 1.0  # np.linalg.norm(A, 1), same operations
+    return 64.0 * _EPS * max(1.0, norm1)
 
 
 # ---------------------------------------------------------------------------- construction

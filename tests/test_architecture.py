@@ -26,7 +26,7 @@ ROOT = Path(robustctl.__file__).resolve().parent
 #: entry covers every module below it). The same table is in the module docstring of
 #: robustctl/__init__.py.
 FLOORS: tuple[tuple[str, ...], ...] = (
-    ("errors", "_version", "threads", "table", "executors"),  # the base: no robustctl imports but errors
+    ("errors", "_version", "threads", "table", "executors", "_lapack"),  # the base: no imports but errors
     ("checks", "budget"),  # argument checks: imports only errors; the time-budget policy (Deadline)
     ("frd", "frd_io", "plots"),  # FrequencyData, its files, the plotting primitives
     ("lti", "signals", "modes", "balanced"),  # systems, fast responses; named signals; Mode; reduction

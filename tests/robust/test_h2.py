@@ -3,6 +3,7 @@
 import control
 import numpy as np
 import pytest
+import scipy.linalg
 
 import robustctl as rc
 from robustctl.errors import SynthesisError
@@ -97,6 +98,31 @@ def test_h2syn_matches_slycot_sb10hd(n):
     assert rc.h2norm(res.closed_loop) == pytest.approx(res.norm, rel=1e-10)
     assert list(res.K.input_labels) == list(P.output_labels[-2:])
     assert list(res.K.output_labels) == list(P.input_labels[-2:])
+
+
+@pytest.mark.parametrize("d22", [False, True])
+def test_h2syn_closed_loop_is_the_lower_lft_with_the_plant_names(d22):
+    # Fl(P, K) by hand for a strictly proper K (Dk = 0): u = Ck xk, y = C2 x + D21 w + D22 Ck xk
+    P = random_plant(5, 2, 1, 2, 1, 0, seed=11, d11=False)
+    D = np.array(P.D)
+    if d22:
+        D[2:, 2:] = 0.7
+    P = control.ss(P.A, P.B, P.C, D, inputs=["w1", "w2", "u"], outputs=["z1", "z2", "y"])
+    res = rc.h2syn(P, 1, 1)
+    A, B1, B2 = (np.asarray(P.A), np.asarray(P.B)[:, :2], np.asarray(P.B)[:, 2:])
+    C1, C2, D12, D21, D22 = (np.asarray(P.C)[:2], np.asarray(P.C)[2:], D[:2, 2:], D[2:, :2], D[2:, 2:])
+    Ak, Bk, Ck, Dk = (np.asarray(m) for m in (res.K.A, res.K.B, res.K.C, res.K.D))
+    assert not Dk.any()
+    A_cl = np.block([[A, B2 @ Ck], [Bk @ C2, Ak + Bk @ D22 @ Ck]])
+    B_cl = np.vstack([B1, Bk @ D21])
+    C_cl = np.hstack([C1, D12 @ Ck])
+    cl = res.closed_loop
+    for got, want in ((cl.A, A_cl), (cl.B, B_cl), (cl.C, C_cl), (cl.D, np.zeros((2, 2)))):
+        np.testing.assert_allclose(np.asarray(got), want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
+    assert list(cl.input_labels) == ["w1", "w2"] and list(cl.output_labels) == ["z1", "z2"]
+    # its H2 norm from scipy's Lyapunov solver is the one reported
+    Lc = scipy.linalg.solve_continuous_lyapunov(A_cl, -B_cl @ B_cl.T)
+    assert res.norm == pytest.approx(np.sqrt(np.trace(C_cl @ Lc @ C_cl.T)), rel=1e-9)
 
 
 @pytest.mark.parametrize("dt", [0, 0.1])

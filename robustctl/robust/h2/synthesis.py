@@ -32,7 +32,7 @@ import scipy.linalg
 
 from ..._lapack import real_schur, solve, svdvals
 from ...errors import ModelError, SynthesisError
-from ...interconnect import PartitionedPlant, PicklesStateSpaces, _named
+from ...interconnect import PartitionedPlant, PicklesStateSpaces, named_statespace
 from ...lti import as_statespace, freqresp_array, is_stable, roundoff_margin
 from ...plots import single_axes
 from ...table import Table, result_html
@@ -61,7 +61,7 @@ def h2norm_matrices(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, 
     discrete = _is_discrete(dt)
     if B.shape[1] == 0 or C.shape[0] == 0:
         return 0.0
-    if not discrete and np.any(D):
+    if not discrete and D.any():
         return np.inf
     dd = float(np.sum(D * D)) if discrete else 0.0
     if A.shape[0] == 0:
@@ -85,7 +85,7 @@ def _stable_continuous_h2(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> tuple[
     """``(||(A, B, C, 0)||_2, max Re eig(A))`` with one real Schur form for both the stability
     check (beyond :func:`roundoff_margin`) and the Lyapunov solve; the norm is None when unstable."""
     T, U, wr, _ = real_schur(A)
-    abscissa = float(np.max(wr))
+    abscissa = float(wr.max())
     if not abscissa < -roundoff_margin(A):
         return None, abscissa
     return float(np.sqrt(max(_continuous_h2_squared(A, B, C, (T, U)), 0.0))), abscissa
@@ -483,7 +483,8 @@ def h2syn(P: Any, nmeas: int | None = None, ncon: int | None = None) -> H2Result
         "dt": dt,
     }
     Kss = _named_controller(plant, K, dt)
-    closed_loop = _named(A_cl, B_cl, C_cl, D_cl, dt, plant.w_names, plant.z_names, "closed loop Fl(P, K)")
+    closed_loop = named_statespace(A_cl, B_cl, C_cl, D_cl, dt, plant.w_names, plant.z_names,
+                                   "closed loop Fl(P, K)")
     return H2Result(K=Kss, norm=norm, closed_loop=closed_loop, X=X, Y=Y, F=F, L=L, info=info)
 
 

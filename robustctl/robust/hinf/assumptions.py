@@ -154,9 +154,12 @@ def _pinv(M: np.ndarray) -> np.ndarray:
     if not M.size:
         return np.zeros((M.shape[1], M.shape[0]))
     u, s, vt = svd_thin(M)
-    large = s > 1e-15 * np.max(s)
-    s = np.divide(1, s, where=large, out=s)
-    s[~large] = 0
+    large = s > 1e-15 * s[0]  # s descending: s[0] = max(s)
+    if large.all():
+        s = 1 / s
+    else:
+        s = np.divide(1, s, where=large, out=s)
+        s[~large] = 0
     return np.matmul(vt.T, s[:, None] * u.T)
 
 
