@@ -267,8 +267,8 @@ def _hamiltonian_are(A, B, Q, R, S) -> np.ndarray | None:
     if sdim != n:
         return None
     U11, U21 = Z[:n, :n], Z[n:, :n]
-    sv = svdvals(U11)  # np.linalg.cond(U11) = sv[0] / sv[-1]
-    if not sv[-1] * 1e12 >= sv[0]:
+    sv = svdvals(U11)  # np.linalg.cond(U11) = sv[0] / sv[-1] (inf when singular)
+    if not sv[-1] > 0 or sv[0] / sv[-1] > 1e12:
         return None
     X = solve(U11.T, U21.T).T
     return (X + X.T) / 2
