@@ -109,7 +109,9 @@ def _continuous_h2_squared(A: np.ndarray, B: np.ndarray, C: np.ndarray, schur: t
         outer = Bt.T
     if info < 0:  # pragma: no cover - an argument error would be a bug here
         raise ModelError(f"h2norm: LAPACK dtrsyl failed (info = {info}).")
-    return float(np.trace(outer @ (Y / scale) @ outer.T))
+    if scale != 1.0:  # dtrsyl scaled the solution down to avoid overflow
+        Y = Y / scale
+    return float((outer @ Y @ outer.T).trace())
 
 
 def h2norm(sys: Any) -> float:

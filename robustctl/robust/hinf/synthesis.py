@@ -202,7 +202,8 @@ def lower_lft_matrices(m: dict[str, np.ndarray], Ak, Bk, Ck, Dk) -> tuple[np.nda
     """``Fl(P, K)`` as ``(A, B, C, D)``, states ``[x_P; x_K]`` (ZDG sec. 10.1).
 
     The array kernel of the design loop's closed-loop check (no named systems are built per
-    retry); the result's named ``closed_loop`` comes from :func:`robustctl.interconnect.lft`.
+    retry); hinfsyn's named ``closed_loop`` comes from :func:`robustctl.interconnect.lft`,
+    h2syn's from these arrays (the ones its norm is verified on).
 
     ``u = Ck xk + Dk y``, ``y = C2 x + D21 w + D22 u``; raises SynthesisError when
     ``I - Dk D22`` is singular (the loop is not well posed).
