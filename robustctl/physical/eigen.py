@@ -218,10 +218,9 @@ def _refine_low_modes(lam: np.ndarray, phi: np.ndarray, stiffness, mass) -> tupl
        eigenvalues ``c_i + sum_j C_ij^2 / (c_i - c_j)`` (second order; Golub & Van Loan,
        *Matrix Computations*, 4th ed., sec. 8.1.2).
 
-    The coupling to the unrefined (higher) modes, ``eps * w_max^2`` against a gap of at least
-    ``(1 - LOW_SHARE) w_max^2``... of ``w_j^2 > LOW_SHARE w_max^2``, moves a low eigenvalue by
-    less than ``eps^2 w_max^2 / LOW_SHARE`` and its shape by ``eps / LOW_SHARE`` (2e-13):
-    negligible. A repeated eigenvalue's shapes stay a basis of its space chosen by the kernel;
+    The coupling to an unrefined mode ``j`` (``w_j^2 >= LOW_SHARE w_max^2``), about
+    ``eps * w_max^2`` against a gap of nearly ``w_j^2``, moves a low eigenvalue by less than
+    ``eps^2 w_max^2 / LOW_SHARE`` and its shape by ``eps / LOW_SHARE`` (2e-13): negligible. A repeated eigenvalue's shapes stay a basis of its space chosen by the kernel;
     the frequency response does not depend on which.
 
     Parameters
