@@ -220,8 +220,9 @@ def _refine_low_modes(lam: np.ndarray, phi: np.ndarray, stiffness, mass) -> tupl
 
     The coupling to an unrefined mode ``j`` (``w_j^2 >= LOW_SHARE w_max^2``), about
     ``eps * w_max^2`` against a gap of nearly ``w_j^2``, moves a low eigenvalue by less than
-    ``eps^2 w_max^2 / LOW_SHARE`` and its shape by ``eps / LOW_SHARE`` (2e-13): negligible. A repeated eigenvalue's shapes stay a basis of its space chosen by the kernel;
-    the frequency response does not depend on which.
+    ``eps^2 w_max^2 / LOW_SHARE`` and its shape by ``eps / LOW_SHARE`` (2e-13): negligible. A
+    repeated eigenvalue's shapes stay a basis of its space chosen by the kernel; the frequency
+    response does not depend on which.
 
     Parameters
     ----------
