@@ -1236,7 +1236,7 @@ class PointModal:
         self.w = w
         self.V = V  # (n_dof, r), modes in the order of omega
         self.zinv = 1.0 / (omega[None, :] ** 2 - w[:, None] ** 2 + 1j * w[:, None] * damp[None, :])
-        self._zinv_parts = (np.ascontiguousarray(self.zinv.real), np.ascontiguousarray(self.zinv.imag))
+        self._zinv_parts = None  # Z^-1's real and imaginary parts, contiguous (made when first needed)
         k = np.ones((w.size, len(kinds)), dtype=complex)
         for o, kind in enumerate(kinds):
             if kind == "velocity":
@@ -1254,7 +1254,7 @@ class PointModal:
         self._shift_inv = shift_inv  # (r,) 1 / (lam_k - sigma) in V's order
 
     def __getstate__(self) -> dict:
-        return {**self.__dict__, "_factor": None}
+        return {**self.__dict__, "_factor": None, "_zinv_parts": None}
 
     def residual_blocks(self, dofs: list[np.ndarray], block: int = 256) -> list[np.ndarray] | None:
         """``R_JJ = E_J^T K_sigma^-1 E_J - U (Lambda - sigma)^-1 U^T`` (m/N) for each DOF set of
@@ -1307,6 +1307,8 @@ class PointModal:
             u = U[0]
             p, m = self.cphi.shape[0], self.phib.shape[1]  # R: (r, p + m + 1)
             R = np.hstack([u[:, None] * self.cphi.T, u[:, None] * self.phib, (u * u)[:, None]])
+            if self._zinv_parts is None:
+                self._zinv_parts = tuple(np.ascontiguousarray(x) for x in (self.zinv.real, self.zinv.imag))
             zr, zi = self._zinv_parts
             ZR = (zr @ R) + 1j * (zi @ R)  # (n_f, p + m + 1)
             cg = ZR[:, :p, None]  # (n_f, p, 1)
