@@ -924,14 +924,16 @@ class _Reducer:
         return self._locate(mats, anchor)[:2]
 
     def _locate(self, mats: Any, anchor: Any = None) -> tuple[_Basis, tuple, bool]:
-        """:meth:`basis_and_dofs` and whether the basis came from the anchor (step 3 of the class
-        docstring: then it depends on the anchor as well as on ``mats``)."""
+        """:meth:`basis_and_dofs` and whether the basis is the root's or a scale of it (steps 1 and 2
+        of the class docstring: a function of ``mats`` alone, whatever the anchor; steps 3 and 4 are
+        not, as a structure reduced on its own without an anchor may be an anchor's change with
+        one)."""
         lam_cut = (2 * np.pi * self.f_cut_hz) ** 2
         root = self._root_basis()
         if root is not None:
             change = _changed_dofs(root, mats)
             if change is not None:
-                return root, change, False
+                return root, change, True
             split = _scale_split(root, mats, io=True)
             if split is not None:
                 a_m, a_k, change = split
@@ -942,7 +944,7 @@ class _Reducer:
                     base = self._memoized(("io", a_m, a_k, change[0].size <= LOW_RANK_MAX_DOFS, io_key),
                                           lambda: _with_io(scaled, mats))
                 if base is not None:
-                    return base, change, False
+                    return base, change, True
         if anchor is not None:
             held = anchor()
             if held.mass.shape != mats.mass.shape:  # an effect that adds DOFs: itself at a rung of sizes
@@ -954,7 +956,7 @@ class _Reducer:
                     base = None
                 change = None if base is None else _changed_dofs(base, mats)
                 if change is not None:
-                    return base, change, True
+                    return base, change, False
         return self.own_basis(mats), (np.zeros(0, dtype=int), [np.zeros((0, 0))] * 3), False
 
     def own_basis(self, mats: Any) -> _Basis:
@@ -989,7 +991,8 @@ class _Reducer:
     def modal_data(self, mats: Any, anchor: Any = None):
         """The undamped modal data of ``mats`` (:func:`_ritz_modal` on its basis and change), kept
         for the last :data:`_MODAL_KEEP` structures by the digest of their matrices and signals
-        when the basis is a function of ``mats`` alone (not an anchor's): a candidate that leaves
+        when the basis is the root's or a scale of it (a function of ``mats`` alone, whatever the
+        anchor and whatever was evaluated before): a candidate that leaves
         the structure as it is -- an I/O, setup or damping effect, scored by the hundred on a
         chain's next step, whose model carries an earlier step's change at a seam's DOFs -- takes
         it without a Ritz problem. The arrays are read-only (shared by the evaluations)."""
@@ -1004,9 +1007,9 @@ class _Reducer:
             gc.collect()
         if held is not None:
             return held
-        base, change, via_anchor = self._locate(mats, anchor)
+        base, change, rooted = self._locate(mats, anchor)
         out = _ritz_modal(base, mats, change)
-        if not via_anchor:
+        if rooted:
             for a in (out.omega, out.zeta, out.input_shapes, out.output_shapes,
                       out.modal_concentrated_damping):
                 if isinstance(a, np.ndarray):
