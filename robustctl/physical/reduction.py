@@ -118,6 +118,8 @@ _ATTACH_LOCK = threading.Lock()
 COLLECT_EVERY = 64
 #: Reduced bases kept per model (parameter points: the null fit's, the polishing fits').
 _KEEP = 4
+#: Undamped modal data kept per model (:meth:`_Reducer.modal_data`), by structure.
+_MODAL_KEEP = 4
 #: A structure softer than the root by a scale ``rho = alpha_K / alpha_M < 1`` that brings more modes
 #: into the cut than :func:`_extend` takes is the reduction of the root scaled by the rung ``2 **
 #: (-j RUNG_LOG2)`` at or below ``rho`` (a fresh reduction, made once per rung) scaled up: an update
@@ -200,6 +202,34 @@ def _count_below(K: Any, M: Any, lam: float) -> int | None:
     return int(np.count_nonzero(d < 0))
 
 
+#: A reduction asking for at least this share of a structure's modes (a softened rung of
+#: :class:`_Reducer`: 724 of 2,000 at half the stiffness) of no more than :data:`DENSE_MAX_DOF` DOFs
+#: takes them from a dense symmetric-definite eigensolver (LAPACK ``dsygvx``, the ``k`` lowest
+#: modes): a shift-invert Lanczos run for that many modes costs twice as much (5.3 s against 2.0 s
+#: at 2,000 DOFs).
+DENSE_SHARE = 0.25
+#: The largest structure whose modes :func:`_reduce` may take from a dense eigensolver (its dense
+#: ``M`` and ``K``: 2 x 8 n^2 bytes, 400 MB at 5,000 DOFs).
+DENSE_MAX_DOF = 5_000
+
+
+def _dense_modes(M: Any, K: Any, k: int, lam_cut: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """The ``k`` lowest eigenpairs ``(lam, phi)`` of ``K phi = lam M phi`` by a dense solve (twice as
+    many while the highest is not above ``lam_cut``, (rad/s)^2, as the Lanczos loop of
+    :func:`_reduce`), or None when ``M`` is not positive definite (a massless DOF: the caller's
+    Lanczos run copes)."""
+    n = M.shape[0]
+    Kd, Md = K.toarray(), M.toarray()
+    while True:
+        try:
+            lam, phi = sla.eigh(Kd, Md, subset_by_index=(0, k - 1), driver="gvx")
+        except (np.linalg.LinAlgError, ValueError):
+            return None
+        if lam[-1] > lam_cut or k >= n:
+            return lam, phi
+        k = min(2 * k, n)
+
+
 def _reduce(mats: Any, f_cut_hz: float) -> _Basis:
     """The Ritz basis of one structure: exact modes below ``f_cut_hz`` plus two attachment
     (Krylov) blocks of the inputs (module docstring)."""
@@ -221,13 +251,16 @@ def _reduce(mats: Any, f_cut_hz: float) -> _Basis:
     v0 = np.linspace(1.0, 2.0, n)
     below = _count_below(K, M, lam_cut)
     k = min(max(12, n // 50) if below is None else below + 4, n - 2)
-    while True:
+    dense = _dense_modes(M, K, k, lam_cut) if n <= DENSE_MAX_DOF and k >= DENSE_SHARE * n else None
+    while dense is None:
         lam, phi = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", OPinv=op, v0=v0)
         order = np.argsort(lam)
         lam, phi = lam[order], phi[:, order]
         if lam[-1] > lam_cut or k >= n - 2:
             break
         k = min(2 * k, n - 2)
+    if dense is not None:
+        lam, phi = dense
     lam = _clean_eigenvalues(lam, k_scale)
     keep = lam <= lam_cut
     keep[: max(1, int(np.count_nonzero(keep)))] = True
@@ -627,8 +660,11 @@ def _ritz_modal(base: _Basis, mats: Any, change: tuple[np.ndarray, list]):
         Kr[r:, :r] = Kr[:r, r:].T
         Kr[r:, r:] = XKX
         Kr += WJ.T @ dK @ WJ
-        Mr = np.eye(r + q) + WJ.T @ dM @ WJ
-        lam, psi = sla.eigh(0.5 * (Kr + Kr.T), 0.5 * (Mr + Mr.T))
+        if np.any(dM):
+            Mr = np.eye(r + q) + WJ.T @ dM @ WJ
+            lam, psi = sla.eigh(0.5 * (Kr + Kr.T), 0.5 * (Mr + Mr.T))
+        else:  # W^T M W = I: LAPACK's generalized driver (sygvd) is syevd after an identity transform
+            lam, psi = sla.eigh(0.5 * (Kr + Kr.T), driver="evd")
         Wb = np.vstack([Vb, Xb])
         cW = np.hstack([cV, cX])
         WCW = None
@@ -775,6 +811,7 @@ class _Reducer:
         self._lock = threading.Lock()
         self._building: dict[tuple, threading.Lock] = {}
         self._evaluations = 0
+        self._modal: OrderedDict[tuple, Any] = OrderedDict()  # structure digest -> modal data
         self._token = uuid.uuid4().hex
 
     @property
@@ -884,12 +921,19 @@ class _Reducer:
     def basis_and_dofs(self, mats: Any, anchor: Any = None) -> tuple[_Basis, tuple]:
         """The basis of ``mats`` and its change there ``(J, [dM, dK, dC])`` (class docstring);
         ``anchor``: a callable giving the matrices of the structure ``mats`` modifies, or None."""
+        return self._locate(mats, anchor)[:2]
+
+    def _locate(self, mats: Any, anchor: Any = None) -> tuple[_Basis, tuple, bool]:
+        """:meth:`basis_and_dofs` and whether the basis is the root's or a scale of it (steps 1 and 2
+        of the class docstring: a function of ``mats`` alone, whatever the anchor; steps 3 and 4 are
+        not, as a structure reduced on its own without an anchor may be an anchor's change with
+        one)."""
         lam_cut = (2 * np.pi * self.f_cut_hz) ** 2
         root = self._root_basis()
         if root is not None:
             change = _changed_dofs(root, mats)
             if change is not None:
-                return root, change
+                return root, change, True
             split = _scale_split(root, mats, io=True)
             if split is not None:
                 a_m, a_k, change = split
@@ -900,7 +944,7 @@ class _Reducer:
                     base = self._memoized(("io", a_m, a_k, change[0].size <= LOW_RANK_MAX_DOFS, io_key),
                                           lambda: _with_io(scaled, mats))
                 if base is not None:
-                    return base, change
+                    return base, change, True
         if anchor is not None:
             held = anchor()
             if held.mass.shape != mats.mass.shape:  # an effect that adds DOFs: itself at a rung of sizes
@@ -912,8 +956,8 @@ class _Reducer:
                     base = None
                 change = None if base is None else _changed_dofs(base, mats)
                 if change is not None:
-                    return base, change
-        return self.own_basis(mats), (np.zeros(0, dtype=int), [np.zeros((0, 0))] * 3)
+                    return base, change, False
+        return self.own_basis(mats), (np.zeros(0, dtype=int), [np.zeros((0, 0))] * 3), False
 
     def own_basis(self, mats: Any) -> _Basis:
         """A reduction of ``mats`` itself (its modes below the cut, not a modification of another
@@ -945,13 +989,36 @@ class _Reducer:
         return self._memoized(("own", _content_key(mats)), build)
 
     def modal_data(self, mats: Any, anchor: Any = None):
-        base, change = self.basis_and_dofs(mats, anchor)
+        """The undamped modal data of ``mats`` (:func:`_ritz_modal` on its basis and change), kept
+        for the last :data:`_MODAL_KEEP` structures by the digest of their matrices and signals
+        when the basis is the root's or a scale of it (a function of ``mats`` alone, whatever the
+        anchor and whatever was evaluated before): a candidate that leaves
+        the structure as it is -- an I/O, setup or damping effect, scored by the hundred on a
+        chain's next step, whose model carries an earlier step's change at a seam's DOFs -- takes
+        it without a Ritz problem. The arrays are read-only (shared by the evaluations)."""
+        key = (_content_key(mats), tuple(mats.output_kinds), tuple(mats.inputs), tuple(mats.outputs))
         with self._lock:
             self._evaluations += 1
             collect = self._evaluations % COLLECT_EVERY == 0
+            held = self._modal.get(key)
+            if held is not None:
+                self._modal.move_to_end(key)
         if collect:
             gc.collect()
-        return _ritz_modal(base, mats, change)
+        if held is not None:
+            return held
+        base, change, rooted = self._locate(mats, anchor)
+        out = _ritz_modal(base, mats, change)
+        if rooted:
+            for a in (out.omega, out.zeta, out.input_shapes, out.output_shapes,
+                      out.modal_concentrated_damping):
+                if isinstance(a, np.ndarray):
+                    a.flags.writeable = False
+            with self._lock:
+                self._modal[key] = out
+                while len(self._modal) > _MODAL_KEEP:
+                    self._modal.popitem(last=False)
+        return out
 
 
 #: The reducers unpickled in this process, by the token of the original: a model sent to a worker
@@ -1172,6 +1239,7 @@ class PointModal:
         self.w = w
         self.V = V  # (n_dof, r), modes in the order of omega
         self.zinv = 1.0 / (omega[None, :] ** 2 - w[:, None] ** 2 + 1j * w[:, None] * damp[None, :])
+        self._zinv_parts = None  # Z^-1's real and imaginary parts, contiguous (made when first needed)
         k = np.ones((w.size, len(kinds)), dtype=complex)
         for o, kind in enumerate(kinds):
             if kind == "velocity":
@@ -1189,7 +1257,7 @@ class PointModal:
         self._shift_inv = shift_inv  # (r,) 1 / (lam_k - sigma) in V's order
 
     def __getstate__(self) -> dict:
-        return {**self.__dict__, "_factor": None}
+        return {**self.__dict__, "_factor": None, "_zinv_parts": None}
 
     def residual_blocks(self, dofs: list[np.ndarray], block: int = 256) -> list[np.ndarray] | None:
         """``R_JJ = E_J^T K_sigma^-1 E_J - U (Lambda - sigma)^-1 U^T`` (m/N) for each DOF set of
@@ -1238,13 +1306,25 @@ class PointModal:
         (n_f, q, q), (n_f, q, q) with ``q = |J|``; the residual terms where the model (``c R``) and
         the change (``R_JJ``) carry them."""
         U = self.V[change.dofs]  # (q, r)
-        ZU = self.zinv[:, None, :] * U[None]  # (n_f, q, r)
-        cg = self.cphi @ ZU.transpose(0, 2, 1)  # (n_f, p, q)
+        if U.shape[0] == 1:  # one DOF u: Z^-1 times [diag(u) c^T, diag(u) V^T b, u * u], real products
+            u = U[0]
+            p, m = self.cphi.shape[0], self.phib.shape[1]  # R: (r, p + m + 1)
+            R = np.hstack([u[:, None] * self.cphi.T, u[:, None] * self.phib, (u * u)[:, None]])
+            if self._zinv_parts is None:
+                self._zinv_parts = tuple(np.ascontiguousarray(x) for x in (self.zinv.real, self.zinv.imag))
+            zr, zi = self._zinv_parts
+            ZR = (zr @ R) + 1j * (zi @ R)  # (n_f, p + m + 1)
+            cg = ZR[:, :p, None]  # (n_f, p, 1)
+            Bt = ZR[:, None, p:p + m]  # (n_f, 1, m)
+            S = ZR[:, p + m:, None]  # (n_f, 1, 1)
+        else:
+            ZU = self.zinv[:, None, :] * U[None]  # (n_f, q, r)
+            cg = self.cphi @ ZU.transpose(0, 2, 1)  # (n_f, p, q)
+            Bt = ZU @ self.phib
+            S = ZU @ U.T
         if self.resid_c is not None:
             cg = cg + self.resid_c[:, change.dofs][None]
         At = self.k_out[:, :, None] * cg
-        Bt = ZU @ self.phib
-        S = ZU @ U.T
         if change.residual is not None:
             S = S + change.residual[None]
         w = self.w[:, None, None]
@@ -1259,7 +1339,8 @@ class PointModal:
         if q == 1:
             vb = v[..., 0, 0] * B[None, :, 0, 0]  # (n_v, n_f)
             g = vb / (1.0 + vb * S[None, :, 0, 0])
-            return self.H[None] - g[:, :, None, None] * (At[None, :, :, 0, None] * Bt[None, :, None, 0, :])
+            out = g[:, :, None, None] * (At[:, :, 0, None] * Bt[:, None, 0, :])[None]
+            return np.subtract(self.H[None], out, out=out)
         vB = v * B[None]  # (n_v, n_f, q, q)
         lhs = np.eye(q)[None, None] + vB @ S[None]
         X = np.linalg.solve(lhs, vB @ Bt[None])  # (n_v, n_f, q, m)

@@ -902,6 +902,7 @@ def _prescreen(shared: dict, items: list, keep: int) -> tuple[list, dict[int, di
     AZ = (pm.zinv[:, None, :] * pm.cphi[None]).reshape(-1, pm.zinv.shape[1])  # (n_f p, r)
     BZ = (pm.zinv[:, None, :] * pm.phib.T[None]).reshape(-1, pm.zinv.shape[1])  # (n_f m, r)
     p, m = pm.cphi.shape[0], pm.phib.shape[1]
+    AZr, AZi, BZr, BZi = (np.ascontiguousarray(x) for x in (AZ.real, AZ.imag, BZ.real, BZ.imag))
     oi = slice(None) if shared["oi"] is None else shared["oi"]
     ii = slice(None) if shared["ii"] is None else shared["ii"]
     h = pm.H[:, oi][:, :, ii]
@@ -915,20 +916,28 @@ def _prescreen(shared: dict, items: list, keep: int) -> tuple[list, dict[int, di
     for start in range(0, dofs.size, PRESCREEN_BLOCK):
         _check_budget(shared["deadline"], f"the screening of {shared['n']} candidates")
         block = dofs[start:start + PRESCREEN_BLOCK]
-        U = pm.V[block].T  # (r, c)
-        At = (AZ @ U).reshape(n_f, p, -1)
+        U = pm.V[block].T  # (r, c), real: two real products each (half the work of a complex one)
+        At = (AZr @ U + 1j * (AZi @ U)).reshape(n_f, p, -1)
         if pm.resid_c is not None:  # the outputs' residual flexibility to the DOFs (R b = 0: none for B~)
             At = At + pm.resid_c[:, block][None]
         At = At * pm.k_out[:, :, None]
-        Bt = (BZ @ U).reshape(n_f, m, -1)
+        Bt = (BZr @ U + 1j * (BZi @ U)).reshape(n_f, m, -1)
         u = At[:, oi][:, :, None, :] * Bt[:, ii][:, None, :, :] * scale[..., None]  # (n_f, o, i, c)
         u = u.reshape(-1, block.size)
+        u_re, u_im = np.ascontiguousarray(u.real), np.ascontiguousarray(u.imag)
+        u2 = u_re * u_re + u_im * u_im
         for t, (dm, dk, dc) in enumerate(units):
-            ub = u * (dk - w**2 * dm + 1j * w * dc).repeat(u.shape[0] // n_f)[:, None]
-            dot = r_re @ ub.real + r_im @ ub.imag
-            norm = np.einsum("ij,ij->j", ub.real, ub.real) + np.einsum("ij,ij->j", ub.imag, ub.imag)
+            # the unit's factor f (per frequency) moved onto the residual and Q: (u f) . r =
+            # u_re . (r_re f_re + r_im f_im) + u_im . (r_im f_re - r_re f_im), |u f|^2 = |f|^2 |u|^2
+            f = (dk - w**2 * dm + 1j * w * dc).repeat(u.shape[0] // n_f)
+            fr, fi = f.real[:, None], f.imag[:, None]
+            L_re = np.hstack([r_re[:, None] * fr + r_im[:, None] * fi, Qr * fr + Qi * fi])
+            L_im = np.hstack([r_im[:, None] * fr - r_re[:, None] * fi, Qi * fr - Qr * fi])
+            both = L_re.T @ u_re + L_im.T @ u_im  # (1 + n_Q, c): the dot, then Q^T (u f)
+            dot = both[0]
+            norm = (f.real**2 + f.imag**2) @ u2
             if Qr.shape[1]:
-                proj = Qr.T @ ub.real + Qi.T @ ub.imag
+                proj = both[1:]
                 norm = norm - np.einsum("ij,ij->j", proj, proj)
             with np.errstate(all="ignore"):
                 sh = np.where((norm > 0) & np.isfinite(norm) & (rr > 0), dot**2 / (norm * rr), 0.0)
@@ -989,38 +998,54 @@ def _point_sizes(effect: Any) -> tuple[np.ndarray, float]:
     return np.array(sorted(set(sizes))), float(trial)
 
 
-def _point_errors(shared: dict, terms: tuple, values: np.ndarray) -> np.ndarray:
-    """Weighted complex log errors (n_v, n_freq * n_out * n_in) of the closed-form responses at
-    ``values`` (principal branch, the phase wrapped to (-pi, pi] as :func:`robustctl.lti.log_ratio`)."""
+def _point_errors(shared: dict, terms: tuple, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted complex log errors of the closed-form responses at ``values`` (principal branch, the
+    phase wrapped to (-pi, pi] as :func:`robustctl.lti.log_ratio`), as their real and imaginary
+    parts: two C-contiguous arrays (n_v, n_freq * n_out * n_in)."""
     pm = shared["pm"]
     h = pm.responses(terms, values)
     if shared["oi"] is not None:
         h = h[:, :, shared["oi"]][:, :, :, shared["ii"]]
     g = h if shared["ratio"] is None else shared["ratio"][None] * h
     q = shared["data"][None] * np.conj(g)
-    e = np.empty(q.shape, dtype=complex)  # filled in place: no complex temporaries
     with np.errstate(all="ignore"):
-        e.real = shared["log_abs_data"][None] - 0.5 * np.log(g.real**2 + g.imag**2)
-        e.imag = np.arctan2(q.imag, q.real)
-    if shared["bias"] is not None:
-        e -= shared["bias"][None]
-    e *= shared["weights"][None]
-    return e.reshape(len(values), -1)
+        re = np.square(g.real)
+        re += np.square(g.imag)
+        np.log(re, out=re)
+        re *= 0.5
+        np.subtract(shared["log_abs_data"][None], re, out=re)
+        im = np.arctan2(q.imag, q.real)
+        bias = shared["bias"]
+        if bias is not None:
+            re -= bias.real[None]
+            if np.iscomplexobj(bias):
+                im -= bias.imag[None]
+        re *= shared["weights"][None]
+        im *= shared["weights"][None]
+    return re.reshape(len(values), -1), im.reshape(len(values), -1)
 
 
 def _point_vectors(shared: dict, terms: tuple, values: np.ndarray) -> np.ndarray:
     """Residual vectors (n_v, n) of the closed-form responses at ``values``."""
-    c = _point_errors(shared, terms, values)
-    return np.concatenate([c.real, c.imag], axis=1)
+    return np.concatenate(_point_errors(shared, terms, values), axis=1)
 
 
-def _point_left(shared: dict, terms: tuple, values: np.ndarray) -> np.ndarray:
-    """``|P j(v)|^2 = |j|^2 - |Q^T j|^2`` at each size (``Q`` orthonormal; inf where not finite)."""
-    c = _point_errors(shared, terms, values)
-    total = np.einsum("ij,ij->i", c.real, c.real) + np.einsum("ij,ij->i", c.imag, c.imag)
+def _point_left(shared: dict, terms: tuple, values: np.ndarray, known: tuple | None = None) -> np.ndarray:
+    """``|P j(v)|^2 = |j|^2 - |Q^T j|^2`` at each size (``Q`` orthonormal; inf where not finite).
+    ``known``: ``(v, re, im)``, the log errors at one size ``v`` already made (not made again)."""
+    at = None if known is None else values == known[0]
+    if at is None or not np.any(at):
+        re, im = _point_errors(shared, terms, values)
+    else:  # each size's errors are elementwise in it: the same numbers made alone or in a batch
+        re = np.empty((values.size, known[1].size))
+        im = np.empty_like(re)
+        re[at], im[at] = known[1], known[2]
+        if not np.all(at):
+            re[~at], im[~at] = _point_errors(shared, terms, values[~at])
+    total = np.einsum("ij,ij->i", re, re) + np.einsum("ij,ij->i", im, im)
     Qr, Qi = shared["Q_parts"]
     if Qr.shape[1]:
-        proj = c.real @ Qr + c.imag @ Qi
+        proj = re @ Qr + im @ Qi
         total = total - np.einsum("ij,ij->i", proj, proj)
     return np.where(np.isfinite(total), np.maximum(total, 0.0), np.inf)
 
@@ -1037,10 +1062,12 @@ def _points_task(shared: dict, chunk: list) -> list:
         v0 = float(effect.parameters[0].neutral)
         lo, hi = effect.parameters[0].bounds
 
-        def share_of(values, terms=terms):
-            return _point_left(shared, terms, values)
+        t_re, t_im = _point_errors(shared, terms, np.array([trial]))
 
-        d = _point_vectors(shared, terms, np.array([trial]))[0] - j_u
+        def share_of(values, terms=terms, known=(trial, t_re[0], t_im[0])):
+            return _point_left(shared, terms, values, known)
+
+        d = np.concatenate([t_re[0], t_im[0]]) - j_u
         d_perp = _project(Q, d)
         dd = float(d_perp @ d_perp)
         if dd > 0 and np.isfinite(dd):  # the secant's linear estimate, as the exact screening's
