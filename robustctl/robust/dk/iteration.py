@@ -70,7 +70,7 @@ from ...lti import freqresp_array, is_stable
 from ...plots import new_figure
 from ...table import Table
 from ...threads import limit_blas
-from ..hinf.synthesis import hinfsyn
+from ..hinf.synthesis import gamma_feasible, hinfsyn
 from ..mu.bounds import mu
 from ..partitioned import as_partitioned
 from ..plant import GeneralizedPlant
@@ -963,11 +963,15 @@ def _k_step_search(hinfsyn: Callable, plant: GeneralizedPlant, candidates: Seque
                    gamma: float | None = None) -> tuple[Any, _DCandidate]:
     """The K step for each D-scale candidate; the lowest verified gamma wins (the line search).
 
-    A candidate whose K step fails is skipped; when all fail, the first failure is raised.
+    Once a candidate has a verified gamma, each further one (Riccati route, no fixed ``gamma``)
+    is first tested at that level (:func:`~robustctl.robust.hinf.synthesis.gamma_feasible`, one
+    gamma test): infeasible there, its optimum is above it and it cannot win, so its synthesis
+    is skipped. A candidate whose K step fails is skipped; when all fail, the first failure is raised.
     Past ``deadline`` no further candidate is tried once one has succeeded.
     """
 
     best, first_error = None, None
+    screen = gamma is None and opts.get("method", "riccati") == "riccati"
     for cand in candidates:
         if best is not None and deadline is not None and deadline.expired():
             break
@@ -977,6 +981,9 @@ def _k_step_search(hinfsyn: Callable, plant: GeneralizedPlant, candidates: Seque
                 hres = _mixed_k_step(hinfsyn, P_scaled, plant, cand, opts, index)
             else:
                 scaled = PartitionedPlant(P_scaled, plant.nmeas, plant.ncon)
+                if screen and best is not None and not gamma_feasible(scaled, gamma=best[0].gamma):
+                    # no controller beats the verified gamma so far here: the candidate cannot win
+                    continue
                 hres = _k_step(hinfsyn, scaled, plant, opts, index, gamma)
         except SynthesisError as exc:
             first_error = first_error or exc
