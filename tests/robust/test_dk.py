@@ -651,3 +651,31 @@ def test_automatic_d_order_is_within_two_percent_of_each_fixed_order_on_himat(hi
     fixed = dksyn((P, 2, 2, blocks), order_d=order, progress=False)
     assert auto.mu_peak <= 1.02 * fixed.mu_peak
 
+
+
+def test_the_line_search_screen_skips_only_candidates_that_cannot_win(monkeypatch):
+    """A line-search candidate infeasible at the best verified gamma so far is not synthesised
+    (robustctl.robust.hinf.synthesis.gamma_feasible): three iterations of the distillation
+    column (three candidates in the third K step) give the same gammas, peaks and
+    controller bit for bit as with every candidate synthesised, and fewer syntheses."""
+    import robustctl.robust.dk.iteration as dki
+
+    calls = []
+    real = dki.hinfsyn
+
+    def counted(*args, **kwargs):
+        calls.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(dki, "hinfsyn", counted)
+    gp = (distillation_plant(), 2, 2, BOOK_BLOCKS)
+    screened = dksyn(gp, max_iter=3, order_d=4, autoscale=False, progress=False, patience=3)
+    n_screened = len(calls)
+    monkeypatch.setattr(dki, "gamma_feasible", lambda *a, **k: True)
+    calls.clear()
+    full = dksyn(gp, max_iter=3, order_d=4, autoscale=False, progress=False, patience=3)
+    assert [h.gamma for h in screened.history] == [h.gamma for h in full.history]
+    assert [h.mu_peak for h in screened.history] == [h.mu_peak for h in full.history]
+    assert np.array_equal(np.asarray(screened.K.A), np.asarray(full.K.A))
+    assert sum(h.n_candidates for h in full.history) > len(full.history)  # the line search ran
+    assert n_screened < len(calls)

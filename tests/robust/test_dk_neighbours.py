@@ -131,3 +131,66 @@ def test_lmi_route_dk_tries_one_neighbouring_order_each_way_and_its_mu_holds(mon
     f = np.unique(np.concatenate([[0.0], np.logspace(-5, 4, 3000)]))
     dense = float(mu(freqresp_array(dk.closed_loop, f), [[1, 1], [1, 1]], f_hz=f, lower=False).peak)
     assert dense <= dk.mu_peak * (1 + 2e-3)
+
+
+def _grown(peaks, grown_at: int) -> DKResult:
+    """A run that rose at its end, iteration ``grown_at`` fitted with grown orders on the loop
+    of the best iteration before it."""
+    res = _rise(peaks)
+    before = min(range(grown_at - 1), key=lambda i: peaks[i]) + 1
+    hist = tuple(replace(h, grown_from=before) if h.index == grown_at else h for h in res.history)
+    best = min(range(len(peaks)), key=lambda i: peaks[i]) + 1
+    return replace(res, history=hist, best_iteration=best, mu_peak=min(peaks))
+
+
+def test_a_rise_after_grown_orders_that_lowered_mu_is_not_repeated_at_fixed_orders():
+    # Caltech: 0.776, rose to 0.7771, the grown orders reached 0.7512, then rose to 0.809
+    run, asked = _fixed_runs(lambda o: 0.5)
+    first = _grown([1.5538, 0.8825, 0.7903, 0.776, 0.7771, 0.7512, 0.809], grown_at=6)
+    assert _neighbour_orders(first, BLOCKS, run, Deadline(None)) is first
+    assert asked == []
+
+
+def test_a_rise_after_grown_orders_that_did_not_lower_mu_tries_the_fixed_orders():
+    # mkhicn: 0.9734, rose to 1.4494, the grown orders reached 0.9753 only
+    run, asked = _fixed_runs(lambda o: 0.90)
+    first = _grown([1.5065, 1.0489, 0.992, 0.9734, 1.4494, 0.9753], grown_at=6)
+    res = _neighbour_orders(first, BLOCKS, run, Deadline(None))
+    assert len(asked) == dki.ORDER_NEIGHBOURS_RISE_RUNS
+    assert res.mu_peak == 0.90
+
+
+@pytest.mark.slow
+def test_caltech_dk_grows_its_d_orders_within_one_run(monkeypatch):
+    """The Caltech design plant (level 0.3) with dksyn's defaults: the automatic orders reach
+    0.776 and stop falling; the D step of that loop again with every order at least one higher
+    lowers mu to about 0.751 within the same run, and no fixed-order run follows (restarting at
+    fixed orders reached 0.775 with two more designs). The returned loop is stable and its
+    peak is what an independent dense-grid analysis finds."""
+    from robustctl.examples import caltech_design_plant, caltech_truss
+
+    runs = []
+    original = dki._iterate
+
+    def counted(plant, blocks, order_d, *args, **kwargs):
+        res = original(plant, blocks, order_d, *args, **kwargs)
+        runs.append((order_d, res))
+        return res
+
+    monkeypatch.setattr(dki, "_iterate", counted)
+    gp = caltech_design_plant(caltech_truss(), level=0.3)
+    dk = dksyn(gp, progress=False)
+    assert len(runs) == 1 and runs[0][0] is None
+    grown = [h for h in dk.history if h.grown_from]
+    assert len(grown) == 1
+    g = grown[0]
+    before = dk.history[g.grown_from - 1]
+    assert g.index > g.grown_from + 1  # fitted on an earlier loop than the one before it
+    assert all(o > p for o, p in zip(g.d_orders, dk.history[g.grown_from].d_orders))
+    assert g.mu_peak < before.mu_peak * (1 - 0.02)
+    assert dk.best_iteration == g.index
+    assert dk.mu_peak <= 0.7632
+    assert np.max(np.linalg.eigvals(np.asarray(dk.closed_loop.A)).real) < 0
+    f = np.unique(np.concatenate([[0.0], np.logspace(-3, 4, 4000)]))
+    dense = float(mu(freqresp_array(dk.closed_loop, f), gp.blocks, f_hz=f, lower=False).peak)
+    assert dense <= dk.mu_peak * (1 + 2e-3)

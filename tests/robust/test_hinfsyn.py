@@ -491,3 +491,22 @@ def test_dk_step_falls_back_to_the_lmi_route_where_riccati_refuses():
     ref = rc.mu(freqresp_array(dk.closed_loop, dk.mu.f_hz), [[1, 1], [1, 1]], f_hz=dk.mu.f_hz)
     assert dk.mu_peak == pytest.approx(float(ref.peak), rel=1e-3)
     assert dk.mu_peak < 1.05
+
+
+def test_gamma_feasible_brackets_sb10ad_optimum_and_agrees_with_the_bisection():
+    """One Riccati gamma test: feasible 0.5 % above SLICOT SB10AD's optimum of the
+    near-integrator (eps = 1e-3), infeasible 0.5 % below; at hinfsyn's own grid result and its
+    largest gamma shown infeasible it answers as the bisection did."""
+    from robustctl.robust.hinf.synthesis import gamma_feasible
+
+    P = _near_integrator(1e-3)
+    status, value, _ = slycot_hinfsyn(P, 1, 1, SLYCOT_TIMEOUT_S)
+    assert status == "ok"
+    g_sb = float(value[0])
+    assert gamma_feasible(P, 1, 1, gamma=g_sb * 1.005)
+    assert not gamma_feasible(P, 1, 1, gamma=g_sb * 0.995)
+    res = rc.hinfsyn(P, 1, 1)
+    assert gamma_feasible(P, 1, 1, gamma=res.gamma_opt)
+    assert not gamma_feasible(P, 1, 1, gamma=res.info["gamma_lower"])
+    with pytest.raises(SynthesisError):
+        gamma_feasible(P, 1, 1, gamma=-1.0)

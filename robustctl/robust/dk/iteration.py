@@ -70,7 +70,7 @@ from ...lti import freqresp_array, is_stable
 from ...plots import new_figure
 from ...table import Table
 from ...threads import limit_blas
-from ..hinf.synthesis import hinfsyn
+from ..hinf.synthesis import gamma_feasible, hinfsyn
 from ..mu.bounds import mu
 from ..partitioned import as_partitioned
 from ..plant import GeneralizedPlant
@@ -121,6 +121,15 @@ ORDER_NEIGHBOURS_CREEP = 0.005
 ORDER_NEIGHBOURS_RISE = 1e-3
 #: False: only runs the iteration cap stopped are repeated with fixed orders.
 ORDER_NEIGHBOURS_ON_RISE = True
+#: With automatic D orders, a complex D-K run whose peak of mu stops falling repeats the D step
+#: on its best closed loop with every block's order at least one higher, at most this many times
+#: per run (each a further iteration within ``max_iter``), and goes on while mu falls. The fits
+#: lose against the optimal scales where they stopped (on the Caltech design plant the orders
+#: (2, 2, 2) bounded the best loop at 0.859 against its mu 0.776, and mu rose to 0.777; the
+#: grown orders (4, 3, 4) reached 0.751 in one further iteration, where restarting D-K at the
+#: neighbouring fixed orders took two further designs and reached 0.775). A run whose grown orders
+#: lowered mu is not repeated at fixed orders after a later rise (:func:`_creeping`). 0: off.
+ORDER_GROWTH_STEPS = 1
 #: Most fixed-order runs after such a rise (the best iteration's own orders first when the run
 #: changed orders on its way: on the Caltech design plant orders (4, 3, 4) fixed reached 0.748
 #: where the automatic run rose after 0.787; on mkhic none of seven orders beat the rise's 0.974).
@@ -206,6 +215,10 @@ class DKIteration:
         The route of this iteration's H-infinity synthesis: ``"riccati"``, or ``"lmi"`` when
         the K step was solved by LMIs (asked in ``hinf_options``, or the fallback where the
         Riccati route refuses, e.g. ``D12 = 0``); empty when the first controller was given.
+    grown_from : int
+        When this iteration's D-scales were fitted with grown orders (:data:`ORDER_GROWTH_STEPS`):
+        the iteration whose closed loop they were fitted on (the best before it); 0 otherwise
+        (fitted on the previous iteration's loop).
     """
 
     index: int
@@ -221,6 +234,7 @@ class DKIteration:
     n_candidates: int = 1
     note: str = ""
     k_method: str = "riccati"
+    grown_from: int = 0
 
 
 @dataclass(frozen=True)
@@ -476,8 +490,10 @@ def dksyn(
         Iteration cap (each iteration is one K step and one mu analysis).
     order_d : int, sequence of int or None
         Order of each D-scale fit (one per block but the last). None: per block the lowest
-        order in 0..8 within 5 % of the best bound (:func:`~.scales._fit_d_scales`); a run the
-        cap stops while mu still falls is repeated at neighbouring orders (:func:`_neighbour_orders`).
+        order in 0..8 within 5 % of the best bound (:func:`~.scales._fit_d_scales`); where mu stops
+        falling the best loop's D step is repeated once with higher orders (:data:`ORDER_GROWTH_STEPS`);
+        a run the cap stops while mu still falls is repeated at neighbouring orders
+        (:func:`_neighbour_orders`).
     f_hz : array_like, optional
         Analysis grid (Hz). Default: :func:`default_grid`, refined at lightly damped closed-loop poles.
     executor : concurrent.futures.Executor, optional
@@ -682,6 +698,10 @@ def _iterate(plant: GeneralizedPlant, blocks: BlockStructure, order_d: Any, run:
     candidates = [_DCandidate((), ())]
     previous: tuple[np.ndarray, np.ndarray] | None = None
     stop, stale = f"max_iter={max_iter} reached", 0
+    # automatic D orders: a run that stops falling is retried from its best loop with every
+    # block's order one higher (complex D-K; D-G-K's level search is not repeated)
+    grow_left = ORDER_GROWTH_STEPS if order_d is None and not mixed else 0
+    grown_from = 0
     bar = tqdm(total=max_iter, desc="D-K", disable=not show, leave=False)
     try:
         for index in range(1, max_iter + 1):
@@ -702,7 +722,7 @@ def _iterate(plant: GeneralizedPlant, blocks: BlockStructure, order_d: Any, run:
             m, H = mu_of(cl, blocks, base, refine=grid is None)
             entry = DKIteration(index, float(hres.gamma), float(m.peak), float(m.f_peak_hz), K.nstates,
                                 cand.orders, 0.0, m, d_step=cand.beta, n_candidates=len(candidates),
-                                k_method=hres.info.get("method", ""))
+                                k_method=hres.info.get("method", ""), grown_from=grown_from)
             improved = best is None or entry.mu_peak < best["it"].mu_peak * (1 - rtol)
             if best is not None and entry.mu_peak > best["it"].mu_peak:
                 prev = best["it"]
@@ -714,6 +734,11 @@ def _iterate(plant: GeneralizedPlant, blocks: BlockStructure, order_d: Any, run:
                     + (f" ({why})" if why else ""))})
             if best is None or entry.mu_peak < best["it"].mu_peak:
                 best = {"it": entry, "K": K, "cl": cl, "d": cand.fits}
+            if grown_from:
+                extra = (f"D-scales of orders {cand.orders} fitted on iteration {grown_from}'s loop "
+                         "(the orders grown where mu stopped falling)")
+                entry = DKIteration(**{**entry.__dict__,
+                                       "note": f"{entry.note}; {extra}" if entry.note else extra})
             if hres.info.get("stopped_by_budget"):
                 extra = "the K step's gamma bisection was stopped by the time budget"
                 entry = DKIteration(**{**entry.__dict__,
@@ -726,7 +751,14 @@ def _iterate(plant: GeneralizedPlant, blocks: BlockStructure, order_d: Any, run:
             out_of_time = deadline.expired() or deadline.remaining() < k_time
             done = stale >= run.patience or index == max_iter or out_of_time
             bound = float("nan")
-            if not done:
+            if stale >= run.patience and grow_left > 0 and index < max_iter and not out_of_time \
+                    and "step" in best:
+                grown = _grown_d_step(best["step"], blocks, run, deadline)
+                if grown is not None:
+                    # the best loop's D step again with every block's order one higher
+                    candidates, previous, stale, done = [grown], best["step"][5], 0, False
+                    grow_left, grown_from = grow_left - 1, best["it"].index
+            elif not done:
                 g_fits, level, md, zb = (), float("nan"), m, None
                 H_edges = _edge_response(cl)
                 if mixed:
@@ -738,6 +770,9 @@ def _iterate(plant: GeneralizedPlant, blocks: BlockStructure, order_d: Any, run:
                     candidates += [replace(c, g_fits=g_fits, level=level) for c in
                                    _extrapolated(md, previous, orders, D_STEPS, run.executor, deadline)]
                 previous = _log_scales(md)
+                if best["it"].index == index and grow_left > 0:
+                    best["step"] = (H, md, H_edges, zb, orders, previous)
+                grown_from = 0
             elapsed = time.perf_counter() - t0
             entry = DKIteration(**{**entry.__dict__, "time_s": elapsed, "fitted_bound": bound})
             history.append(entry)
@@ -786,7 +821,8 @@ def _iterate(plant: GeneralizedPlant, blocks: BlockStructure, order_d: Any, run:
 def _creeping(res: DKResult) -> bool:
     """The iteration cap ended a run whose last iteration still lowered the peak of mu (by more
     than :data:`ORDER_NEIGHBOURS_CREEP`), or a rise of the peak ended a run whose best iteration
-    had lowered it by more than that (the fitted D-scales lost the ground, not a converged run)."""
+    had lowered it by more than that (the fitted D-scales lost the ground, not a converged run)
+    and whose grown D orders (:data:`ORDER_GROWTH_STEPS`) did not lower it."""
     h, b = res.history, res.best_iteration
     if len(h) < 2 or res.stopped_by_budget or b < 2:
         return False
@@ -794,7 +830,23 @@ def _creeping(res: DKResult) -> bool:
     if res.stop_reason.startswith("max_iter="):
         return b == len(h) and fell
     rose = b < len(h) and h[-1].mu_peak > h[b - 1].mu_peak * (1 + ORDER_NEIGHBOURS_RISE)
-    return ORDER_NEIGHBOURS_ON_RISE and res.stop_reason.startswith("peak mu did not fall") and rose and fell
+    # the rise was answered within the run: a grown D step lowered mu below the loop it was fitted on
+    grew = any(x.grown_from and x.mu_peak < h[x.grown_from - 1].mu_peak for x in h)
+    return (ORDER_NEIGHBOURS_ON_RISE and res.stop_reason.startswith("peak mu did not fall") and rose and fell
+            and not grew)
+
+
+def _grown_d_step(step: tuple, blocks: BlockStructure, run: _Settings, deadline: Deadline) -> Any:
+    """The D step of a run's best closed loop again with every block's order at least one above
+    the orders it chose there (automatic above that floor; :data:`ORDER_GROWTH_STEPS`): the
+    candidate for the next K step, or None when no block's order can grow (the caps of
+    :func:`~robustctl.robust.dk.scales._fit_d_scales`)."""
+    H, md, H_edges, zb, orders, _ = step
+    floor = tuple(o + 1 for o in orders)
+    fits, grown, bound = _fit_d_scales(H, md, blocks, None, run.executor, floor, H_edges, deadline, zb)
+    if grown == tuple(orders):
+        return None
+    return _DCandidate(tuple(fits), grown, 0.0, bound)
 
 
 def _neighbour_orders(res: DKResult, blocks: BlockStructure, run: Callable[[tuple[int, ...]], Any],
@@ -817,8 +869,10 @@ def _neighbour_orders(res: DKResult, blocks: BlockStructure, run: Callable[[tupl
     is :data:`ORDER_NEIGHBOURS_GAIN` below the automatic one; ``stop_reason`` says which. A
     run whose peak rose (by more than :data:`ORDER_NEIGHBOURS_RISE`) right after its best
     iteration lowered it by more than :data:`ORDER_NEIGHBOURS_CREEP` is treated alike with at
-    most :data:`ORDER_NEIGHBOURS_RISE_RUNS` orders (on the Caltech design plant the automatic
-    orders rose after 0.787, fixed orders (3, 2, 3) reached 0.763); one that stopped because
+    most :data:`ORDER_NEIGHBOURS_RISE_RUNS` orders, unless the run's own grown D orders
+    (:data:`ORDER_GROWTH_STEPS`) lowered mu after a rise, which answers it at the cost of one
+    iteration (on the Caltech design plant restarts at fixed orders reached 0.775 in two more
+    designs where the grown orders reached 0.751 within the run); one that stopped because
     mu stopped falling is returned as it is. When the automatic run changed its orders on the
     way to its best iteration, that iteration's orders are the first fixed run. When the
     automatic run's K steps were solved by LMIs (the Riccati route's fallback, or
@@ -963,11 +1017,15 @@ def _k_step_search(hinfsyn: Callable, plant: GeneralizedPlant, candidates: Seque
                    gamma: float | None = None) -> tuple[Any, _DCandidate]:
     """The K step for each D-scale candidate; the lowest verified gamma wins (the line search).
 
-    A candidate whose K step fails is skipped; when all fail, the first failure is raised.
+    Once a candidate has a verified gamma, each further one (Riccati route, no fixed ``gamma``)
+    is first tested at that level (:func:`~robustctl.robust.hinf.synthesis.gamma_feasible`, one
+    gamma test): infeasible there, its optimum is above it and it cannot win, so its synthesis
+    is skipped. A candidate whose K step fails is skipped; when all fail, the first failure is raised.
     Past ``deadline`` no further candidate is tried once one has succeeded.
     """
 
     best, first_error = None, None
+    screen = gamma is None and opts.get("method", "riccati") == "riccati"
     for cand in candidates:
         if best is not None and deadline is not None and deadline.expired():
             break
@@ -977,6 +1035,9 @@ def _k_step_search(hinfsyn: Callable, plant: GeneralizedPlant, candidates: Seque
                 hres = _mixed_k_step(hinfsyn, P_scaled, plant, cand, opts, index)
             else:
                 scaled = PartitionedPlant(P_scaled, plant.nmeas, plant.ncon)
+                if screen and best is not None and not gamma_feasible(scaled, gamma=best[0].gamma):
+                    # no controller beats the verified gamma so far here: the candidate cannot win
+                    continue
                 hres = _k_step(hinfsyn, scaled, plant, opts, index, gamma)
         except SynthesisError as exc:
             first_error = first_error or exc

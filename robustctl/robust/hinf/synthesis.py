@@ -618,6 +618,46 @@ def _discrete_controller(m: dict[str, np.ndarray], K: tuple, dt: Any, info: dict
     return Kd, norm
 
 
+def gamma_feasible(P: Any, nmeas: int | None = None, ncon: int | None = None, *, gamma: float) -> bool:
+    """Is there a controller with ``||Fl(P, K)||_inf < gamma``? One gamma test of the Riccati route.
+
+    The test :func:`hinfsyn`'s bisection makes (two Riccati equations of order ``2n`` on the
+    same balanced, normalised plant; Glover & Doyle 1988), without a design: a caller that only
+    needs to know whether a plant can beat a level (dksyn's line search, which keeps the lowest
+    verified gamma of its candidates) learns it from one test instead of a bisection.
+
+    Parameters
+    ----------
+    P : control.StateSpace, PartitionedPlant or GeneralizedPlant
+        The plant ``[w; u] -> [z; y]`` (a discrete plant through the bilinear map, as hinfsyn).
+    nmeas : int, optional
+        Measurements (the last outputs of ``P``); not needed for a partitioned plant.
+    ncon : int, optional
+        Controls (the last inputs of ``P``); not needed for a partitioned plant.
+    gamma : float
+        The level (same units as ``||Fl(P, K)||_inf``), positive.
+
+    Returns
+    -------
+    bool
+        True when the Riccati test finds ``gamma`` feasible (hinfsyn would design below it).
+
+    Raises
+    ------
+    SynthesisError
+        A violated assumption of the Riccati route (as :func:`hinfsyn`), a bad ``gamma``.
+    """
+    gamma = positive_number(gamma, "gamma", SynthesisError)
+    plant = as_partitioned(P, nmeas, ncon, who="gamma_feasible", allow_discrete=True)
+    m = plant.matrices()
+    if plant.P.dt not in (0, None):
+        m = _bilinear_plant(m)
+    check_assumptions(m)
+    mb = _balance(m)
+    p = dgkf.normalise(mb["A"], mb["B1"], mb["B2"], mb["C1"], mb["C2"], mb["D11"], mb["D12"], mb["D21"])
+    return bool(dgkf.gamma_test(p, float(gamma)).feasible)
+
+
 def _result(plant: PartitionedPlant, m, K, norm: float, gamma_opt: float, info: dict) -> HinfResult:
     Ak, Bk, Ck, Dk = K
     Kss = control.ss(
