@@ -736,9 +736,10 @@ def _final_state(Ad: np.ndarray, Bd: np.ndarray, u: np.ndarray, x0: np.ndarray) 
         x = Ad @ x + Bd @ u[k]
     if u.shape[0] > r:
         AL, R = _input_map(Ad, Bd, L)
-        Z = u[r:].reshape(-1, L * u.shape[1]) @ R.T
-        for z in Z:
-            x = AL @ x + z
+        blocks = u[r:].reshape(-1, L * u.shape[1])
+        for b0 in range(0, blocks.shape[0], 4096):  # bounded memory: a million-sample past
+            for z in blocks[b0:b0 + 4096] @ R.T:
+                x = AL @ x + z
     return x
 
 
