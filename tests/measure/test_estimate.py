@@ -199,6 +199,9 @@ def test_block_simulation_is_the_recursion(n, p, m, N):
     y_ref = _simulate_loop(A, B, C, D, u, x0)
     np.testing.assert_allclose(_simulate_blocks(A, B, C, D, u, x0), y_ref, rtol=0,
                                atol=1e-13 * np.abs(y_ref).max())
+    _, y_scipy, _ = signal.dlsim((A, B, C, D, 1.0), u, x0=x0)  # an independent reference
+    np.testing.assert_allclose(_simulate_blocks(A, B, C, D, u, x0), y_scipy.reshape(N, p), rtol=0,
+                               atol=1e-12 * np.abs(y_scipy).max())
     x = x0.copy()
     for k in range(N):
         x = A @ x + B @ u[k]
