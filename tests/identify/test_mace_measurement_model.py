@@ -26,6 +26,25 @@ def test_modes_at_the_damping_bound_are_found_and_named():
     assert "resolution" in pinned_message(pinned, leakage_corrected=False)
 
 
+def _rwa(sys):
+    from robustctl.demo_mace import RWA_INPUTS, RWA_OUTPUTS
+
+    return sys.select(outputs=RWA_OUTPUTS, inputs=RWA_INPUTS)
+
+
+def _twin_bracket(modes, lo: float, hi: float, resolution: float):
+    """Two modes of one shape (MAC of their residues above 0.99) on either side of ``lo``-``hi``,
+    each within one bin of it, or None."""
+    def mac(a, b):
+        a, b = np.ravel(a), np.ravel(b)
+        return abs(np.vdot(a, b)) ** 2 / (np.vdot(a, a).real * np.vdot(b, b).real)
+
+    below = [m for m in modes if lo - resolution < m.f_hz < lo]
+    above = [m for m in modes if hi < m.f_hz < hi + resolution]
+    pairs = [(a.f_hz, b.f_hz) for a in below for b in above if mac(a.residue, b.residue) > 0.99]
+    return pairs[0] if pairs else None
+
+
 @pytest.mark.slow
 def test_mace_measurement_model_fits_the_design_channels_near_the_noise_with_physical_modes():
     from robustctl.demo import EXAMPLES
@@ -72,7 +91,17 @@ def test_mace_measurement_model_fits_the_design_channels_near_the_noise_with_phy
         gap = np.maximum(np.maximum(lo - f_modes, f_modes - hi), 0.0)
         below, above = lo - f_modes[f_modes < lo], f_modes[f_modes > hi] - hi
         bracketed = below.size and above.size and max(below.min(), above.min()) < resolution / 3
-        assert np.min(gap) < 0.25 * resolution or bracketed, (f_true, cluster, f_modes)
+        # -- or fitted by a twin: two poles of one shape within a bin on either side, which the fit
+        # spends on one peak when n_modes asks for more modes than the data hold (the demo asks 10
+        # where 8 are supported, and which outcome a draw gives turns on round-off in the paths of
+        # the spare poles, which fit noise): the modelled peak is then the truth's, to a quarter bin
+        if not (np.min(gap) < 0.25 * resolution or bracketed):
+            pair = _twin_bracket(mm.modes, lo, hi, resolution)
+            assert pair is not None, (f_true, cluster, f_modes)
+            grid = np.linspace(lo - resolution, hi + resolution, 401)
+            peak = [float(grid[np.argmax(np.sum([np.abs(r[:, i, j]) for i, j in COUPLED], axis=0))])
+                    for r in (mm.freqresp(grid).response, _rwa(truth).freqresp(grid).response)]
+            assert abs(peak[0] - peak[1]) < 0.25 * resolution, (f_true, pair, peak)
     assert all(m.zeta < 0.2 for m in mm.modes)  # heavily damped servo poles are fillers, not modes
     zeta_17 = mm.modes[int(np.argmin(np.abs(f_modes - 16.974)))].zeta
     assert 0.003 < zeta_17 < 0.015  # truth 0.58 %; 0.195 Hz resolution broadens it, never to 0
