@@ -148,18 +148,26 @@ def _half_power(f: np.ndarray, s: np.ndarray, k: int, lo: int, hi: int) -> float
 
 
 def peak_pick_modes(
-    f_hz: np.ndarray, response: np.ndarray, prominence: float = 0.5, max_modes: int = 40
+    f_hz: np.ndarray, response: np.ndarray, prominence: float = 0.5, max_modes: int = 40, channels: Any = None
 ) -> list[Mode]:
     """Modes from the peaks of the channel-normalised summed magnitude ``sum |G_ij| / rms_ij``.
 
     Peaks need a prominence of ``prominence`` nepers (0.5 ~ 4.3 dB) in ``ln S``; their
     frequency is refined by a parabola through ``ln S``, damping is the half-power
     bandwidth ``(f2 - f1) / (2 f_peak)`` (one-sided when a neighbour hides one side),
-    and the shape is the response at the peak.
+    and the shape is the response at the peak (every channel).
+
+    ``channels`` (bool, shape ``(n_out, n_in)``, optional): the channels summed in ``S`` (default
+    all). :func:`compare` passes the channels its cost keeps: a channel decoupled by symmetry
+    holds round-off of the others (1e-15 of them), which the normalisation would raise to the
+    weight of a measured channel, so that its peaks, set by rounding (another BLAS kernel, another
+    eigensolver), would be picked as modes.
     """
     f = np.asarray(f_hz, dtype=float)
     g = np.asarray(response)
     flat = g.reshape(g.shape[0], -1)
+    if channels is not None:
+        flat = flat[:, np.asarray(channels, dtype=bool).ravel()]
     rms = np.sqrt(np.mean(np.abs(flat) ** 2, axis=0))
     s = np.sum(np.abs(flat) / np.where(rms > 0, rms, 1.0), axis=1)
     ls = np.log(np.maximum(s, 1e-300))
@@ -824,18 +832,18 @@ def compare(
     f = d.f_hz
     span = (float(f[0]), float(f[-1]))
     model_modes = statespace_modes(model.statespace(), span, res._out_idx, res._in_idx, max_zeta=max_zeta)
+    keep = np.any(res.weights > 0, axis=0)
     if measurement_model is not None:
         data_modes = measurement_modes(measurement_model, span, d.outputs, d.inputs, max_zeta=max_zeta)
         source = "measurement model"
     else:
         # a half-power bandwidth read off an H1 estimate measures the window's leakage as much as
         # the structure (40-110 % off on lightly damped modes): frequencies and shapes only
-        data_modes = [replace(m, zeta=float("nan")) for m in peak_pick_modes(f, d.response)]
+        data_modes = [replace(m, zeta=float("nan")) for m in peak_pick_modes(f, d.response, channels=keep)]
         source = "peak picking"
         if getattr(res.estimator, "impact", False):  # the window's damping moves the peaks: pick both
-            model_modes = peak_pick_modes(f, g_model)
+            model_modes = peak_pick_modes(f, g_model, channels=keep)
             source = "peak picking of both, as the impact estimator sees them"
-    keep = np.any(res.weights > 0, axis=0)
     test = noise_test(error, res.noise, f, d.outputs, d.inputs, keep, n_sections, alpha)
     bands = _worst_bands(f, error * (res.weights > 0), d.outputs, d.inputs, threshold_db, n_bands)
     if test is not None:
