@@ -124,8 +124,15 @@ def test_lmi_route_dk_tries_one_neighbouring_order_each_way_and_its_mu_holds(mon
     assert len(runs) == 1 + dki.ORDER_NEIGHBOURS_LMI_RUNS
     auto = runs[0][1]
     assert runs[0][0] is None and all(h.k_method == "lmi" for h in auto.history)
-    base = auto.history[auto.best_iteration - 1].d_orders[0]
-    assert sorted(o[0] for o, _ in runs[1:]) == [max(base - 1, 0), base + 1]
+    best = auto.best_iteration
+    base = auto.history[best - 1].d_orders[0]
+    # the nearest orders, below first; preceded by the best iteration's own order when the automatic
+    # run reached it through other orders (which of the two a run does turns on the automatic
+    # order choice, which differs between OpenBLAS kernels: the second under Sandybridge's)
+    same = all(h.d_orders == auto.history[best - 1].d_orders for h in auto.history[1:best])
+    expected = ([] if same else [base]) + [max(base - 1, 0), base + 1]
+    expected = list(dict.fromkeys(expected))[: dki.ORDER_NEIGHBOURS_LMI_RUNS]
+    assert [o[0] for o, _ in runs[1:]] == expected, [h.d_orders for h in auto.history]
     assert dk.mu_peak <= auto.mu_peak
     assert np.max(np.linalg.eigvals(np.asarray(dk.closed_loop.A)).real) < 0
     f = np.unique(np.concatenate([[0.0], np.logspace(-5, 4, 3000)]))
