@@ -33,6 +33,7 @@ import scipy.signal
 
 from ..checks import UNSET, integer, match_channels, positive_number, renamed_keyword
 from ..cost import LogCost, cost_report
+from ..errors import DataError
 from ..frd import FrequencyData
 from ..lti import DB_PER_NEPER, as_statespace, pole_frequency_damping
 from ..measure.noise import NoiseModel
@@ -167,7 +168,13 @@ def peak_pick_modes(
     g = np.asarray(response)
     flat = g.reshape(g.shape[0], -1)
     if channels is not None:
-        flat = flat[:, np.asarray(channels, dtype=bool).ravel()]
+        mask = np.asarray(channels)
+        if mask.shape != g.shape[1:] or mask.dtype != bool or not mask.any():
+            raise DataError(
+                f"channels must be a boolean array of shape {g.shape[1:]} (outputs x inputs) with at "
+                f"least one True; got shape {mask.shape}, dtype {mask.dtype}. Pass None to sum every channel."
+            )
+        flat = flat[:, mask.ravel()]
     rms = np.sqrt(np.mean(np.abs(flat) ** 2, axis=0))
     s = np.sum(np.abs(flat) / np.where(rms > 0, rms, 1.0), axis=1)
     ls = np.log(np.maximum(s, 1e-300))

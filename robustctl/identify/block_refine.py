@@ -78,8 +78,8 @@ SOLVE_REFINEMENTS = 2
 
 
 def _gram(x: np.ndarray, rw2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per-output Gram matrices of the weighted real basis, column-scaled with a 1e-12 ridge:
-    ``(gs, scale)`` with ``gs[o] = S G_o S + 1e-12 I`` and ``S = diag(scale[o])``; (n_out, U, U)."""
+    """Per-output Gram matrices of the weighted real basis, column-scaled with a ridge:
+    ``(gs, scale)`` with ``gs[o] = S G_o S + GRAM_RIDGE I`` and ``S = diag(scale[o])``; (n_out, U, U)."""
     k, n_in, u = x.shape
     z = (np.conj(x)[:, :, :, None] * x[:, :, None, :]).reshape(k * n_in, u * u)
     w = np.transpose(rw2, (0, 2, 1)).reshape(k * n_in, -1)  # (K n_in, n_out)

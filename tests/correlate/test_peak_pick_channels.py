@@ -4,9 +4,11 @@ measurement are written here with numpy (two uncoupled axes, 1 % multiplicative 
 
 import control
 import numpy as np
+import pytest
 
 import robustctl as rc
 from robustctl.correlate.comparison import peak_pick_modes
+from robustctl.errors import DataError
 
 #: (Hz, damping ratio) of each axis's modes
 AXIS_MODES = (((2.0, 0.02), (5.0, 0.01)), ((3.0, 0.015), (7.0, 0.01)))
@@ -14,7 +16,7 @@ F_HZ = np.linspace(0.5, 10.0, 400)
 
 
 def _axis(modes) -> control.StateSpace:
-    """A sum of mass-normalised modes, force to acceleration-free displacement: 1/(s^2 + 2 z w s + w^2)."""
+    """A sum of modes of unit static gain each: w^2 / (s^2 + 2 z w s + w^2)."""
     out = 0
     for f, z in modes:
         w = 2 * np.pi * f
@@ -56,3 +58,10 @@ def test_round_off_channels_do_not_make_peaks_and_the_mode_table_is_the_measured
     # the round-off channels' draw no longer moves the table (the direct channels' noise is drawn
     # from the same stream, so only the measured channels' own noise moves it, within a line)
     assert np.ptp(np.array(tables), axis=0).max() < F_HZ[1] - F_HZ[0]
+
+
+@pytest.mark.parametrize("channels", [np.ones(4, bool), np.ones((2, 2)), np.zeros((2, 2), bool)])
+def test_a_channel_mask_of_the_wrong_shape_type_or_empty_is_refused(channels):
+    _, data = _data(0)
+    with pytest.raises(DataError, match="boolean array of shape"):
+        peak_pick_modes(data.f_hz, data.response, channels=channels)
